@@ -1,0 +1,441 @@
+!> Banded global assembly of the nonlinear finite element chain (Chapter IV).
+!!
+!! The chain of `nbeams` beams is cut into elements; neighbouring elements share
+!! a node, and a node carries four unknowns in the order of Eq. 83:
+!! [w, w', u, u']. The elbow (and every joint) is locked: w, w', u, u' are
+!! continuous across it, as in the dissertation. Point masses sit on the joint
+!! and tip nodes. The clamped root fixes w, w' and u of node 1 (Eq. 103); the
+!! remaining unknowns are the "free" vector q of length nfree, numbered in the
+!! same order, so an element always touches 8 consecutive free unknowns and
+!! every matrix has half-bandwidth 7.
+!!
+!! Eliminating the three clamped unknowns is the Lagrange-multiplier projection
+!! of Eq. 104-107 (see docs/theory_fe.md): with C = [I 0], the projector
+!! I - C^T (C M^-1 C^T)^-1 C M^-1 removes exactly the constrained rows, and the
+!! multipliers are the root reactions lambda = (NLT - Q) restricted to them.
+!!
+!! Matrices are returned in LAPACK general band storage with 2*kl+ku+1 rows
+!! (row kl+ku+1+i-j holds A(i,j)), ready for beamid_lapack's solve_banded.
+!! Every routine costs O(number of elements).
+module beamid_fe_assembly
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int, fmt_real
+    use beamid_model, only: chain_t
+    use beamid_fe_element, only: FE_NDOF, fe_gauss_points, fe_quadrature_order, &
+                                 fe_element_energy, fe_element_force, &
+                                 fe_element_tangent, fe_element_mass
+    implicit none
+    private
+
+    public :: fe_mesh_t, fe_load_t, fe_mesh_build
+    public :: fe_band_rows, fe_band_add, fe_band_get, fe_band_to_dense, fe_band_matvec
+    public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
+    public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
+    public :: fe_expand, fe_node_value
+    public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, FE_MOMENT_EQ78, FE_MOMENT_EXACT
+
+    !> Half-bandwidth of every assembled matrix (8 unknowns per element).
+    integer, parameter :: FE_BAND = FE_NDOF - 1
+    !> Components of a node, in the order of Eq. 83.
+    integer, parameter :: DOF_W = 1, DOF_DW = 2, DOF_U = 3, DOF_DU = 4
+    !> Tip moment virtual work: Eq. 78 as printed (M [(1+u') dw' - w' du'], the
+    !! small-strain form of delta Psi) or the exact delta Psi of Eq. 73.
+    integer, parameter :: FE_MOMENT_EQ78 = 0, FE_MOMENT_EXACT = 1
+
+    !> The discretized chain. Element arrays are indexed 1..nel, node arrays
+    !! 1..nnode (node 1 is the clamped root, node nnode the tip).
+    type :: fe_mesh_t
+        integer :: nbeams = 0
+        integer :: nel = 0         !< number of elements
+        integer :: nnode = 0       !< nel + 1
+        integer :: ndof = 0        !< 4 * nnode, all unknowns
+        integer :: nfree = 0       !< unknowns left after the clamp (ndof - 3)
+        integer :: kl = FE_BAND    !< sub-diagonals
+        integer :: ku = FE_BAND    !< super-diagonals
+        real(dp), allocatable :: h(:), ea(:), ei(:), rho(:), cubic(:)
+        integer, allocatable :: beam(:)         !< beam of each element
+        real(dp), allocatable :: s(:)           !< undeformed arc length of each node
+        real(dp), allocatable :: node_mass(:)   !< point mass at each node (kg)
+        real(dp), allocatable :: node_inertia(:) !< point rotary inertia (kg m^2)
+        integer, allocatable :: free_of(:)      !< full unknown -> free index (0: clamped)
+        integer, allocatable :: full_of(:)      !< free index -> full unknown
+        real(dp), allocatable :: xg(:), wg(:)   !< Gauss rule on [0, 1]
+    end type fe_mesh_t
+
+    !> Loads at the tip: a force of fixed direction (fx along the undeformed
+    !! axis, fy across it) and a moment (Eq. 78).
+    type :: fe_load_t
+        real(dp) :: fx = 0.0_dp
+        real(dp) :: fy = 0.0_dp
+        real(dp) :: moment = 0.0_dp
+        integer :: moment_form = FE_MOMENT_EQ78
+    end type fe_load_t
+
+contains
+
+    !> Discretize `chain` with `elements_per_beam` equal elements on each beam.
+    !! Joint and root compliances are not part of the element chain: they must
+    !! be zero (rigid), which is the dissertation's locked elbow and clamp.
+    pure subroutine fe_mesh_build(chain, elements_per_beam, mesh, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        type(fe_mesh_t), intent(out) :: mesh
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_mesh_build'
+        integer :: ib, k, el, nb, i
+        if (elements_per_beam < 1) then
+            call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
+                            fmt_int(elements_per_beam)//', expected at least 1')
+            return
+        end if
+        nb = chain%nbeams
+        if (nb < 1) then
+            call set_status(stat, ERR_INPUT, where, 'the chain has no beams')
+            return
+        end if
+        if (chain%root_flex /= 0.0_dp) then
+            call set_status(stat, ERR_INPUT, where, 'root_flex = '// &
+                            fmt_real(chain%root_flex)// &
+                            ', the finite element chain models a rigid clamp (expected 0)')
+            return
+        end if
+        do i = 1, nb - 1
+            if (chain%joint_flex(i) /= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'joint '//fmt_int(i)// &
+                                ' flex = '//fmt_real(chain%joint_flex(i))// &
+                                ', the finite element chain models locked joints (expected 0)')
+                return
+            end if
+        end do
+        mesh%nbeams = nb
+        mesh%nel = nb*elements_per_beam
+        mesh%nnode = mesh%nel + 1
+        mesh%ndof = 4*mesh%nnode
+        mesh%nfree = mesh%ndof - 3
+        allocate (mesh%h(mesh%nel), mesh%ea(mesh%nel), mesh%ei(mesh%nel), &
+                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel))
+        allocate (mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
+                  mesh%node_inertia(mesh%nnode))
+        mesh%node_mass = 0.0_dp
+        mesh%node_inertia = 0.0_dp
+        mesh%s(1) = 0.0_dp
+        el = 0
+        do ib = 1, nb
+            do k = 1, elements_per_beam
+                el = el + 1
+                mesh%beam(el) = ib
+                mesh%h(el) = chain%length(ib)/real(elements_per_beam, dp)
+                mesh%ea(el) = chain%ea(ib)
+                mesh%ei(el) = chain%ei(ib)
+                mesh%rho(el) = chain%rho(ib)
+                mesh%cubic(el) = chain%cubic(ib)
+                if (k == elements_per_beam) then
+                    ! exact end of the beam, free of rounding from the sum of h
+                    mesh%s(el + 1) = sum(chain%length(1:ib))
+                else
+                    mesh%s(el + 1) = mesh%s(el) + mesh%h(el)
+                end if
+            end do
+            ! mass point ib sits at the end of beam ib (joint ib, or the tip)
+            mesh%node_mass(el + 1) = chain%mass(ib)
+            mesh%node_inertia(el + 1) = chain%inertia(ib)
+        end do
+        allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree))
+        ! clamp of Eq. 103: w, w', u of the root node; u' (the root strain) stays free
+        mesh%free_of(1:3) = 0
+        do i = 4, mesh%ndof
+            mesh%free_of(i) = i - 3
+            mesh%full_of(i - 3) = i
+        end do
+        k = fe_quadrature_order(maxval(abs(mesh%cubic)))
+        allocate (mesh%xg(k), mesh%wg(k))
+        call fe_gauss_points(k, mesh%xg, mesh%wg)
+    end subroutine fe_mesh_build
+
+    !> Rows of the band storage (2 kl + ku + 1).
+    pure integer function fe_band_rows(mesh)
+        type(fe_mesh_t), intent(in) :: mesh
+        fe_band_rows = 2*mesh%kl + mesh%ku + 1
+    end function fe_band_rows
+
+    !> ab(i, j) += value in LAPACK general band storage.
+    pure subroutine fe_band_add(ab, kl, ku, i, j, value)
+        real(dp), intent(inout) :: ab(:, :)
+        integer, intent(in) :: kl, ku, i, j
+        real(dp), intent(in) :: value
+        ab(kl + ku + 1 + i - j, j) = ab(kl + ku + 1 + i - j, j) + value
+    end subroutine fe_band_add
+
+    !> A(i, j) from band storage (zero outside the band).
+    pure real(dp) function fe_band_get(ab, kl, ku, i, j)
+        real(dp), intent(in) :: ab(:, :)
+        integer, intent(in) :: kl, ku, i, j
+        if (i - j > kl .or. j - i > ku) then
+            fe_band_get = 0.0_dp
+        else
+            fe_band_get = ab(kl + ku + 1 + i - j, j)
+        end if
+    end function fe_band_get
+
+    !> Dense copy of a band matrix of order size(ab, 2).
+    pure subroutine fe_band_to_dense(ab, kl, ku, a)
+        real(dp), intent(in) :: ab(:, :)
+        integer, intent(in) :: kl, ku
+        real(dp), intent(out) :: a(:, :)
+        integer :: i, j
+        a = 0.0_dp
+        do j = 1, size(ab, 2)
+            do i = max(1, j - ku), min(size(ab, 2), j + kl)
+                a(i, j) = ab(kl + ku + 1 + i - j, j)
+            end do
+        end do
+    end subroutine fe_band_to_dense
+
+    !> y = A x for a band matrix.
+    pure subroutine fe_band_matvec(ab, kl, ku, x, y)
+        real(dp), intent(in) :: ab(:, :), x(:)
+        integer, intent(in) :: kl, ku
+        real(dp), intent(out) :: y(:)
+        integer :: i, j
+        y = 0.0_dp
+        do j = 1, size(ab, 2)
+            do i = max(1, j - ku), min(size(ab, 2), j + kl)
+                y(i) = y(i) + ab(kl + ku + 1 + i - j, j)*x(j)
+            end do
+        end do
+    end subroutine fe_band_matvec
+
+    !> Full unknown vector (clamped entries zero) from the free vector q.
+    pure subroutine fe_expand(mesh, q, qfull)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: qfull(:)
+        qfull = 0.0_dp
+        qfull(mesh%full_of) = q
+    end subroutine fe_expand
+
+    !> Value of component `comp` (DOF_W..DOF_DU) at node `node` from free q.
+    pure real(dp) function fe_node_value(mesh, q, node, comp)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        integer, intent(in) :: node, comp
+        integer :: k
+        k = mesh%free_of(4*(node - 1) + comp)
+        if (k == 0) then
+            fe_node_value = 0.0_dp
+        else
+            fe_node_value = q(k)
+        end if
+    end function fe_node_value
+
+    !> Element unknowns of element `el` from the full vector.
+    pure function element_vector(qfull, el) result(qe)
+        real(dp), intent(in) :: qfull(:)
+        integer, intent(in) :: el
+        real(dp) :: qe(FE_NDOF)
+        qe = qfull(4*(el - 1) + 1:4*(el - 1) + FE_NDOF)
+    end function element_vector
+
+    !> Strain energy V of the chain (Eq. 87) at the free vector q.
+    pure real(dp) function fe_energy(mesh, q) result(v)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), allocatable :: qfull(:)
+        integer :: el
+        allocate (qfull(mesh%ndof))
+        call fe_expand(mesh, q, qfull)
+        v = 0.0_dp
+        do el = 1, mesh%nel
+            v = v + fe_element_energy(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
+                                      mesh%xg, mesh%wg, element_vector(qfull, el))
+        end do
+    end function fe_energy
+
+    !> Internal force NLT(q) = dV/dq on the free unknowns (Eq. 79-83).
+    pure subroutine fe_internal_force(mesh, q, f)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:)
+        real(dp), allocatable :: qfull(:), ffull(:)
+        real(dp) :: fe(FE_NDOF)
+        integer :: el, i0
+        allocate (qfull(mesh%ndof), ffull(mesh%ndof))
+        call fe_expand(mesh, q, qfull)
+        ffull = 0.0_dp
+        do el = 1, mesh%nel
+            i0 = 4*(el - 1)
+            call fe_element_force(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
+                                  mesh%xg, mesh%wg, element_vector(qfull, el), fe)
+            ffull(i0 + 1:i0 + FE_NDOF) = ffull(i0 + 1:i0 + FE_NDOF) + fe
+        end do
+        f = ffull(mesh%full_of)
+    end subroutine fe_internal_force
+
+    !> Root reactions: the Lagrange multipliers of Eq. 104-105 for a static
+    !! state, lambda = NLT(q) on the clamped unknowns (w, w', u of node 1);
+    !! tip loads never act on the clamped unknowns directly. For a dynamic
+    !! state the caller adds the inertia force on those rows.
+    pure subroutine fe_reactions(mesh, q, reactions)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: reactions(3)
+        real(dp), allocatable :: qfull(:)
+        real(dp) :: fe(FE_NDOF)
+        allocate (qfull(mesh%ndof))
+        call fe_expand(mesh, q, qfull)
+        call fe_element_force(mesh%h(1), mesh%ea(1), mesh%ei(1), mesh%cubic(1), &
+                              mesh%xg, mesh%wg, element_vector(qfull, 1), fe)
+        reactions = fe(1:3)
+    end subroutine fe_reactions
+
+    !> Internal force f and tangent stiffness K_T = dNLT/dq (band storage,
+    !! fe_band_rows(mesh) x nfree) at the free vector q.
+    pure subroutine fe_tangent(mesh, q, f, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:), kb(:, :)
+        real(dp), allocatable :: qfull(:), ffull(:)
+        real(dp) :: fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
+        integer :: el, i0, a, b, i, j
+        allocate (qfull(mesh%ndof), ffull(mesh%ndof))
+        call fe_expand(mesh, q, qfull)
+        ffull = 0.0_dp
+        kb = 0.0_dp
+        do el = 1, mesh%nel
+            i0 = 4*(el - 1)
+            call fe_element_tangent(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
+                                    mesh%xg, mesh%wg, element_vector(qfull, el), fe, ke)
+            ffull(i0 + 1:i0 + FE_NDOF) = ffull(i0 + 1:i0 + FE_NDOF) + fe
+            do b = 1, FE_NDOF
+                j = mesh%free_of(i0 + b)
+                if (j == 0) cycle
+                do a = 1, FE_NDOF
+                    i = mesh%free_of(i0 + a)
+                    if (i == 0) cycle
+                    call fe_band_add(kb, mesh%kl, mesh%ku, i, j, ke(a, b))
+                end do
+            end do
+        end do
+        f = ffull(mesh%full_of)
+    end subroutine fe_tangent
+
+    !> Linear stiffness K = K_T(0) in band storage (Eq. 123-124).
+    pure subroutine fe_stiffness_linear(mesh, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(out) :: kb(:, :)
+        real(dp), allocatable :: q(:), f(:)
+        allocate (q(mesh%nfree), f(mesh%nfree))
+        q = 0.0_dp
+        call fe_tangent(mesh, q, f, kb)
+    end subroutine fe_stiffness_linear
+
+    !> Mass matrix in band storage: consistent element masses (Eq. 92-97) plus
+    !! the point masses on u and w of the joint and tip nodes. With `rotary`,
+    !! the rotary inertia J of the point masses enters through the matrix of
+    !! Eq. 132 on (w', u'), evaluated at q: J [(1+u')^2, -w'(1+u'); -w'(1+u'), w'^2].
+    pure subroutine fe_mass(mesh, q, rotary, mb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        logical, intent(in) :: rotary
+        real(dp), intent(out) :: mb(:, :)
+        real(dp) :: me(FE_NDOF, FE_NDOF), du, dw, jm
+        integer :: el, i0, a, b, i, j, node, iw, iu
+        mb = 0.0_dp
+        do el = 1, mesh%nel
+            i0 = 4*(el - 1)
+            call fe_element_mass(mesh%h(el), mesh%rho(el), me)
+            do b = 1, FE_NDOF
+                j = mesh%free_of(i0 + b)
+                if (j == 0) cycle
+                do a = 1, FE_NDOF
+                    i = mesh%free_of(i0 + a)
+                    if (i == 0) cycle
+                    call fe_band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
+                end do
+            end do
+        end do
+        do node = 2, mesh%nnode
+            if (mesh%node_mass(node) /= 0.0_dp) then
+                i = mesh%free_of(4*(node - 1) + DOF_W)
+                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+                i = mesh%free_of(4*(node - 1) + DOF_U)
+                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+            end if
+            if (rotary .and. mesh%node_inertia(node) /= 0.0_dp) then
+                jm = mesh%node_inertia(node)
+                iw = mesh%free_of(4*(node - 1) + DOF_DW)
+                iu = mesh%free_of(4*(node - 1) + DOF_DU)
+                du = q(iu)
+                dw = q(iw)
+                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iw, jm*(1.0_dp + du)**2)
+                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*dw*(1.0_dp + du))
+                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*dw*(1.0_dp + du))
+                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iu, jm*dw*dw)
+            end if
+        end do
+    end subroutine fe_mass
+
+    !> Generalized tip load Q(q) on the free unknowns (Eq. 78): the force
+    !! components on u and w of the tip node, the moment on w' and u'.
+    pure subroutine fe_tip_load(mesh, q, load, qv)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(out) :: qv(:)
+        real(dp) :: du, dw, r2
+        integer :: iw, iu, idw, idu
+        call tip_indices(mesh, iw, idw, iu, idu)
+        qv = 0.0_dp
+        qv(iw) = load%fy
+        qv(iu) = load%fx
+        du = q(idu)
+        dw = q(idw)
+        if (load%moment_form == FE_MOMENT_EXACT) then
+            r2 = (1.0_dp + du)**2 + dw*dw
+        else
+            r2 = 1.0_dp
+        end if
+        qv(idw) = load%moment*(1.0_dp + du)/r2
+        qv(idu) = -load%moment*dw/r2
+    end subroutine fe_tip_load
+
+    !> kb += scale * dQ/dq for the tip load (only the moment depends on q).
+    pure subroutine fe_tip_load_jacobian(mesh, q, load, scale, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: scale
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp) :: x, y, r2, m
+        integer :: iw, iu, idw, idu
+        call tip_indices(mesh, iw, idw, iu, idu)
+        m = scale*load%moment
+        if (m == 0.0_dp) return
+        x = 1.0_dp + q(idu)
+        y = q(idw)
+        if (load%moment_form == FE_MOMENT_EXACT) then
+            ! Q = M grad(Psi), Psi = atan2(y, x): dQ/dq = M Hessian(Psi)
+            r2 = x*x + y*y
+            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idw, -m*2.0_dp*x*y/r2**2)
+            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idu, m*2.0_dp*x*y/r2**2)
+            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m*(y*y - x*x)/r2**2)
+            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, m*(y*y - x*x)/r2**2)
+        else
+            ! Eq. 78: Q_w' = M (1 + u'), Q_u' = -M w' (not a gradient: unsymmetric)
+            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m)
+            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
+        end if
+    end subroutine fe_tip_load_jacobian
+
+    pure subroutine tip_indices(mesh, iw, idw, iu, idu)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(out) :: iw, idw, iu, idu
+        integer :: base
+        base = 4*(mesh%nnode - 1)
+        iw = mesh%free_of(base + DOF_W)
+        idw = mesh%free_of(base + DOF_DW)
+        iu = mesh%free_of(base + DOF_U)
+        idu = mesh%free_of(base + DOF_DU)
+    end subroutine tip_indices
+
+end module beamid_fe_assembly

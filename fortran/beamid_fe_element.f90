@@ -1,0 +1,222 @@
+!> Pure kernels of the Epstein-Murray nonlinear beam element (Chapter IV).
+!!
+!! One element of length h carries eight unknowns in the dissertation's node
+!! order (Eq. 83): [w1, w1', u1, u1', w2, w2', u2, u2'], where ' is d/ds along
+!! the undeformed axis. Both u and w use the cubic Hermite functions of Eq. 76.
+!! The strain measures are the Green axial strain (Eq. 70) and the modified
+!! curvature (Eq. 72),
+!!
+!!     e   = u' + (u'^2 + w'^2)/2,      chi = w''(1 + u') - w' u'',
+!!
+!! and the potential is (Eq. 87, with the optional cubic moment law of Eq. 16)
+!!
+!!     V = int_0^h ( EA e^2/2 + EI chi^2/2 + C chi^4/4 ) ds.
+!!
+!! The internal force is dV/dq and the tangent d^2V/dq^2, both hand-coded.
+!! With u' of degree 2, e has degree 4 and chi degree 3 in s, so every
+!! integrand of the force, the tangent and V has degree at most 8 when C = 0
+!! (12 when C /= 0): Gauss-Legendre with 5 (7) points integrates them exactly.
+module beamid_fe_element
+    use beamid_kinds, only: dp, pi
+    implicit none
+    private
+
+    public :: FE_NDOF, FE_W, FE_U
+    public :: fe_gauss_points, fe_quadrature_order, fe_hermite
+    public :: fe_element_energy, fe_element_force, fe_element_tangent
+    public :: fe_element_mass, fe_element_strain
+
+    !> Unknowns per element.
+    integer, parameter :: FE_NDOF = 8
+    !> Positions of the w and u Hermite coefficients in the element vector,
+    !! in the order of the shape functions f1..f4 (Eq. 76).
+    integer, parameter :: FE_W(4) = [1, 2, 5, 6]
+    integer, parameter :: FE_U(4) = [3, 4, 7, 8]
+
+contains
+
+    !> Number of Gauss points that integrates the element exactly:
+    !! 5 for the polynomial degree 8 of Eq. 87 with C = 0, 7 for degree 12.
+    pure integer function fe_quadrature_order(cubic)
+        real(dp), intent(in) :: cubic
+        if (cubic == 0.0_dp) then
+            fe_quadrature_order = 5
+        else
+            fe_quadrature_order = 7
+        end if
+    end function fe_quadrature_order
+
+    !> Gauss-Legendre points `x` and weights `w` on [0, 1] (n >= 1), by Newton
+    !! iteration on the Legendre polynomial from Chebyshev-like starting values.
+    pure subroutine fe_gauss_points(n, x, w)
+        integer, intent(in) :: n
+        real(dp), intent(out) :: x(n), w(n)
+        real(dp) :: z, p0, p1, p2, dp_dz, dz
+        integer :: i, j, it
+        do i = 1, n
+            z = cos(pi*(real(i, dp) - 0.25_dp)/(real(n, dp) + 0.5_dp))
+            do it = 1, 100
+                p0 = 1.0_dp
+                p1 = z
+                do j = 2, n
+                    p2 = ((2*j - 1)*z*p1 - (j - 1)*p0)/real(j, dp)
+                    p0 = p1
+                    p1 = p2
+                end do
+                dp_dz = n*(z*p1 - p0)/(z*z - 1.0_dp)
+                dz = p1/dp_dz
+                z = z - dz
+                if (abs(dz) <= 1.0e-16_dp) exit
+            end do
+            p0 = 1.0_dp
+            p1 = z
+            do j = 2, n
+                p2 = ((2*j - 1)*z*p1 - (j - 1)*p0)/real(j, dp)
+                p0 = p1
+                p1 = p2
+            end do
+            dp_dz = n*(z*p1 - p0)/(z*z - 1.0_dp)
+            ! z decreases with i, so x = (1 - z)/2 comes out ascending
+            x(i) = 0.5_dp*(1.0_dp - z)
+            w(i) = 1.0_dp/((1.0_dp - z*z)*dp_dz*dp_dz)
+        end do
+    end subroutine fe_gauss_points
+
+    !> Cubic Hermite functions of Eq. 76 at zeta = s/h, with their first and
+    !! second derivatives with respect to s.
+    pure subroutine fe_hermite(zeta, h, f, f1, f2)
+        real(dp), intent(in) :: zeta, h
+        real(dp), intent(out) :: f(4), f1(4), f2(4)
+        real(dp) :: z2, z3
+        z2 = zeta*zeta
+        z3 = z2*zeta
+        f = [1.0_dp - 3.0_dp*z2 + 2.0_dp*z3, h*(zeta - 2.0_dp*z2 + z3), &
+             3.0_dp*z2 - 2.0_dp*z3, h*(-z2 + z3)]
+        f1 = [(-6.0_dp*zeta + 6.0_dp*z2)/h, 1.0_dp - 4.0_dp*zeta + 3.0_dp*z2, &
+              (6.0_dp*zeta - 6.0_dp*z2)/h, -2.0_dp*zeta + 3.0_dp*z2]
+        f2 = [(-6.0_dp + 12.0_dp*zeta)/(h*h), (-4.0_dp + 6.0_dp*zeta)/h, &
+              (6.0_dp - 12.0_dp*zeta)/(h*h), (-2.0_dp + 6.0_dp*zeta)/h]
+    end subroutine fe_hermite
+
+    !> Axial strain e (Eq. 70), curvature chi (Eq. 72) and u', w' at zeta.
+    pure subroutine fe_element_strain(h, qe, zeta, e, chi, du, dw)
+        real(dp), intent(in) :: h, qe(FE_NDOF), zeta
+        real(dp), intent(out) :: e, chi, du, dw
+        real(dp) :: f(4), f1(4), f2(4), d2u, d2w
+        call fe_hermite(zeta, h, f, f1, f2)
+        du = dot_product(f1, qe(FE_U))
+        dw = dot_product(f1, qe(FE_W))
+        d2u = dot_product(f2, qe(FE_U))
+        d2w = dot_product(f2, qe(FE_W))
+        e = du + 0.5_dp*(du*du + dw*dw)
+        chi = d2w*(1.0_dp + du) - dw*d2u
+    end subroutine fe_element_strain
+
+    !> Strain energy of one element (Eq. 87 plus C chi^4/4).
+    pure function fe_element_energy(h, ea, ei, cubic, xg, wg, qe) result(v)
+        real(dp), intent(in) :: h, ea, ei, cubic
+        real(dp), intent(in) :: xg(:), wg(:)   !< Gauss points and weights on [0, 1]
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp) :: v
+        real(dp) :: e, chi, du, dw
+        integer :: g
+        v = 0.0_dp
+        do g = 1, size(xg)
+            call fe_element_strain(h, qe, xg(g), e, chi, du, dw)
+            v = v + wg(g)*(0.5_dp*ea*e*e + 0.5_dp*ei*chi*chi + 0.25_dp*cubic*chi**4)
+        end do
+        v = v*h
+    end function fe_element_energy
+
+    !> Strain gradients at one Gauss point: de/dq, dchi/dq and the strain values.
+    pure subroutine strain_gradients(h, qe, zeta, e, chi, de, dchi, g1, g2)
+        real(dp), intent(in) :: h, qe(FE_NDOF), zeta
+        real(dp), intent(out) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
+        real(dp) :: f(4), a, b, c, d
+        call fe_hermite(zeta, h, f, g1, g2)
+        a = dot_product(g1, qe(FE_U))
+        b = dot_product(g1, qe(FE_W))
+        c = dot_product(g2, qe(FE_U))
+        d = dot_product(g2, qe(FE_W))
+        e = a + 0.5_dp*(a*a + b*b)
+        chi = d*(1.0_dp + a) - b*c
+        de(FE_U) = (1.0_dp + a)*g1
+        de(FE_W) = b*g1
+        dchi(FE_U) = d*g1 - b*g2
+        dchi(FE_W) = (1.0_dp + a)*g2 - c*g1
+    end subroutine strain_gradients
+
+    !> Internal force dV/dq of one element (the element part of NLT, Eq. 79-83).
+    pure subroutine fe_element_force(h, ea, ei, cubic, xg, wg, qe, f)
+        real(dp), intent(in) :: h, ea, ei, cubic
+        real(dp), intent(in) :: xg(:), wg(:)
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: f(FE_NDOF)
+        real(dp) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
+        integer :: g
+        f = 0.0_dp
+        do g = 1, size(xg)
+            call strain_gradients(h, qe, xg(g), e, chi, de, dchi, g1, g2)
+            f = f + (wg(g)*h)*(ea*e*de + (ei*chi + cubic*chi**3)*dchi)
+        end do
+    end subroutine fe_element_force
+
+    !> Internal force and tangent stiffness d^2V/dq^2 of one element (Eq. 85).
+    pure subroutine fe_element_tangent(h, ea, ei, cubic, xg, wg, qe, f, k)
+        real(dp), intent(in) :: h, ea, ei, cubic
+        real(dp), intent(in) :: xg(:), wg(:)
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
+        real(dp) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
+        real(dp) :: wt, axial, moment, bend
+        integer :: g, i, j
+        f = 0.0_dp
+        k = 0.0_dp
+        do g = 1, size(xg)
+            call strain_gradients(h, qe, xg(g), e, chi, de, dchi, g1, g2)
+            wt = wg(g)*h
+            axial = ea*e
+            moment = ei*chi + cubic*chi**3
+            bend = ei + 3.0_dp*cubic*chi*chi
+            f = f + wt*(axial*de + moment*dchi)
+            do j = 1, FE_NDOF
+                do i = 1, FE_NDOF
+                    k(i, j) = k(i, j) + wt*(ea*de(i)*de(j) + bend*dchi(i)*dchi(j))
+                end do
+            end do
+            ! second derivatives of e: g1 g1^T in the uu and ww blocks (Eq. 70)
+            do j = 1, 4
+                do i = 1, 4
+                    k(FE_U(i), FE_U(j)) = k(FE_U(i), FE_U(j)) + wt*axial*g1(i)*g1(j)
+                    k(FE_W(i), FE_W(j)) = k(FE_W(i), FE_W(j)) + wt*axial*g1(i)*g1(j)
+                    ! second derivatives of chi (Eq. 72): d2chi/dU_i dW_j
+                    k(FE_U(i), FE_W(j)) = k(FE_U(i), FE_W(j)) &
+                                          + wt*moment*(g1(i)*g2(j) - g2(i)*g1(j))
+                    k(FE_W(j), FE_U(i)) = k(FE_W(j), FE_U(i)) &
+                                          + wt*moment*(g1(i)*g2(j) - g2(i)*g1(j))
+                end do
+            end do
+        end do
+    end subroutine fe_element_tangent
+
+    !> Consistent mass matrix rho h F_jk of one element (Eq. 92-97), for the
+    !! u and the w unknowns alike.
+    pure subroutine fe_element_mass(h, rho, m)
+        real(dp), intent(in) :: h, rho
+        real(dp), intent(out) :: m(FE_NDOF, FE_NDOF)
+        real(dp) :: xg(4), wg(4), f(4), f1(4), f2(4)
+        integer :: g, i, j
+        call fe_gauss_points(4, xg, wg)
+        m = 0.0_dp
+        do g = 1, 4
+            call fe_hermite(xg(g), h, f, f1, f2)
+            do j = 1, 4
+                do i = 1, 4
+                    m(FE_W(i), FE_W(j)) = m(FE_W(i), FE_W(j)) + wg(g)*rho*h*f(i)*f(j)
+                    m(FE_U(i), FE_U(j)) = m(FE_U(i), FE_U(j)) + wg(g)*rho*h*f(i)*f(j)
+                end do
+            end do
+        end do
+    end subroutine fe_element_mass
+
+end module beamid_fe_element

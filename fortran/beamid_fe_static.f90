@@ -1,0 +1,402 @@
+!> Static equilibrium of the finite element chain: Newton's method on
+!! b(q) = NLT(q) - Q(q) = 0 (Eq. 84-85) with load stepping, pseudo-arc-length
+!! path following past limit points, and the linear buckling load.
+module beamid_fe_static
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
+                             ERR_NUMERIC, fmt_int, fmt_real
+    use beamid_lapack, only: solve_banded, sym_gen_eig
+    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
+                                  fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
+                                  fe_stiffness_linear, fe_band_add, DOF_W
+    use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
+    implicit none
+    private
+
+    public :: fe_newton_opts_t, fe_solve_info_t
+    public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
+    public :: fe_geometric_stiffness
+
+    !> Controls of the Newton iteration and of the load stepping.
+    type :: fe_newton_opts_t
+        real(dp) :: tol = 1.0e-11_dp    !< converged when |dq|_inf <= tol (1 + |q|_inf)
+        integer :: max_iter = 40        !< Newton iterations per load step
+        integer :: nsteps = 4           !< initial number of equal load steps
+        integer :: max_bisect = 20      !< step halvings allowed in total
+    end type fe_newton_opts_t
+
+    !> What a static solve did.
+    type :: fe_solve_info_t
+        integer :: iterations = 0      !< Newton iterations over all steps
+        integer :: steps = 0           !< accepted load steps
+        real(dp) :: residual = 0.0_dp  !< final |NLT - Q|_inf
+    end type fe_solve_info_t
+
+contains
+
+    !> Scaled load: `load` with its force and moment times `lam`.
+    pure function scaled(load, lam) result(out)
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: lam
+        type(fe_load_t) :: out
+        out = load
+        out%fx = lam*load%fx
+        out%fy = lam*load%fy
+        out%moment = lam*load%moment
+    end function scaled
+
+    !> Sum of two loads (the moment form of `a` is kept).
+    pure function added(a, b) result(out)
+        type(fe_load_t), intent(in) :: a, b
+        type(fe_load_t) :: out
+        out = a
+        out%fx = a%fx + b%fx
+        out%fy = a%fy + b%fy
+        out%moment = a%moment + b%moment
+    end function added
+
+    !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
+    !! Jacobian db/dq in band storage (Eq. 85).
+    pure subroutine fe_residual(mesh, load, q, r, jb)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: r(:)
+        real(dp), intent(out), optional :: jb(:, :)
+        real(dp), allocatable :: qv(:), kb(:, :)
+        allocate (qv(mesh%nfree))
+        if (present(jb)) then
+            call fe_tangent(mesh, q, r, jb)
+            call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
+        else
+            allocate (kb(fe_band_rows(mesh), mesh%nfree))
+            call fe_tangent(mesh, q, r, kb)
+        end if
+        call fe_tip_load(mesh, q, load, qv)
+        r = r - qv
+    end subroutine fe_residual
+
+    !> Newton's method (Eq. 85) at a fixed load from the starting shape q.
+    subroutine fe_newton(mesh, load, q, opts, iterations, residual, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(inout) :: q(:)
+        type(fe_newton_opts_t), intent(in) :: opts
+        integer, intent(out) :: iterations
+        real(dp), intent(out) :: residual
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_newton'
+        real(dp), allocatable :: r(:), jb(:, :), dq(:, :)
+        real(dp) :: step
+        integer :: it
+        allocate (r(mesh%nfree), jb(fe_band_rows(mesh), mesh%nfree), dq(mesh%nfree, 1))
+        iterations = 0
+        step = huge(1.0_dp)
+        do it = 1, opts%max_iter
+            iterations = it
+            call fe_residual(mesh, load, q, r, jb)
+            dq(:, 1) = -r
+            call solve_banded(mesh%kl, mesh%ku, jb, dq, stat)
+            if (stat%code /= 0) return
+            q = q + dq(:, 1)
+            step = maxval(abs(dq(:, 1)))
+            if (.not. ieee_is_finite(step) .or. step > 1.0e6_dp) then
+                call set_status(stat, ERR_NUMERIC, where, 'Newton step became '// &
+                                fmt_real(step)//' at iteration '//fmt_int(it))
+                return
+            end if
+            if (step <= opts%tol*(1.0_dp + maxval(abs(q)))) then
+                call fe_residual(mesh, load, q, r)
+                residual = maxval(abs(r))
+                return
+            end if
+        end do
+        call fe_residual(mesh, load, q, r)
+        residual = maxval(abs(r))
+        call set_status(stat, ERR_NO_CONVERGENCE, where, 'no convergence in '// &
+                        fmt_int(opts%max_iter)//' iterations: last step '// &
+                        fmt_real(step)//', residual '//fmt_real(residual)// &
+                        ', tolerance '//fmt_real(opts%tol))
+    end subroutine fe_newton
+
+    !> Static equilibrium under `load`. With from_guess, Newton starts from the
+    !! shape in q at the full load (this selects among several equilibria, e.g.
+    !! above the buckling load, Figure 15). Otherwise the load is applied in
+    !! steps from the straight chain, each started from a secant prediction,
+    !! halving a step that fails to converge.
+    subroutine fe_solve_static(mesh, load, q, from_guess, opts, info, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(inout) :: q(:)
+        logical, intent(in) :: from_guess
+        type(fe_newton_opts_t), intent(in) :: opts
+        type(fe_solve_info_t), intent(out) :: info
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_solve_static'
+        real(dp), allocatable :: q_old(:), q_prev(:), q_try(:)
+        real(dp) :: lam, dlam, dlam_max, dlam_prev, resid
+        integer :: its, nbisect
+        type(status_t) :: inner
+
+        if (size(q) /= mesh%nfree) then
+            call set_status(stat, ERR_INPUT, where, 'q has '//fmt_int(size(q))// &
+                            ' entries, expected '//fmt_int(mesh%nfree))
+            return
+        end if
+        if (opts%nsteps < 1 .or. opts%max_iter < 1 .or. .not. (opts%tol > 0.0_dp)) then
+            call set_status(stat, ERR_INPUT, where, 'nsteps = '//fmt_int(opts%nsteps)// &
+                            ', max_iter = '//fmt_int(opts%max_iter)//', tol = '// &
+                            fmt_real(opts%tol)//': expected positive values')
+            return
+        end if
+        if (.not. (ieee_is_finite(load%fx) .and. ieee_is_finite(load%fy) .and. &
+                   ieee_is_finite(load%moment))) then
+            call set_status(stat, ERR_INPUT, where, 'tip load is not finite')
+            return
+        end if
+        if (from_guess) then
+            if (.not. all(ieee_is_finite(q))) then
+                call set_status(stat, ERR_INPUT, where, 'starting shape is not finite')
+                return
+            end if
+            call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat)
+            info%steps = 1
+            return
+        end if
+
+        q = 0.0_dp
+        allocate (q_old(mesh%nfree), q_prev(mesh%nfree), q_try(mesh%nfree))
+        q_prev = q
+        lam = 0.0_dp
+        dlam_max = 1.0_dp/real(opts%nsteps, dp)
+        dlam = dlam_max
+        dlam_prev = 0.0_dp
+        nbisect = 0
+        info%iterations = 0
+        info%steps = 0
+        do while (lam < 1.0_dp)
+            dlam = min(dlam, 1.0_dp - lam)
+            q_try = q
+            ! secant predictor along the last accepted step
+            if (dlam_prev > 0.0_dp) q_try = q + (q - q_prev)*(dlam/dlam_prev)
+            inner = status_t()
+            call fe_newton(mesh, scaled(load, lam + dlam), q_try, opts, its, resid, inner)
+            info%iterations = info%iterations + its
+            if (inner%code /= 0) then
+                nbisect = nbisect + 1
+                if (nbisect > opts%max_bisect) then
+                    call set_status(stat, ERR_NO_CONVERGENCE, where, 'load step '// &
+                                    fmt_real(dlam)//' from load factor '//fmt_real(lam)// &
+                                    ' failed after '//fmt_int(opts%max_bisect)// &
+                                    ' halvings; last: '//trim(inner%message))
+                    return
+                end if
+                dlam = 0.5_dp*dlam
+                cycle
+            end if
+            q_prev = q
+            q = q_try
+            lam = lam + dlam
+            if (1.0_dp - lam < 1.0e-14_dp) lam = 1.0_dp
+            dlam_prev = dlam
+            info%steps = info%steps + 1
+            info%residual = resid
+            if (its <= 4) dlam = min(2.0_dp*dlam, dlam_max)
+        end do
+    end subroutine fe_solve_static
+
+    !> Pseudo-arc-length continuation (Keller) of equilibria under the load
+    !! load0 + lam * dload, starting from the equilibrium q0 at lam0 (corrected
+    !! first by Newton at fixed lam0). Each step predicts along the unit tangent
+    !! of the path in (q, lam) space and corrects on the hyperplane normal to it,
+    !! so the path is followed through limit points where dlam/ds changes sign.
+    !! The Newton matrix is bordered and solved with two banded solves.
+    !!
+    !! Stops after max_points points (the start included) or when lam leaves
+    !! [lam_min, lam_max]; `direction` (+1/-1) orients the first step in lam.
+    subroutine fe_path(mesh, load0, dload, q0, lam0, ds, ds_max, direction, lam_min, &
+                       lam_max, opts, npts, lam_out, q_out, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load0, dload
+        real(dp), intent(in) :: q0(:)
+        real(dp), intent(in) :: lam0, ds, ds_max, lam_min, lam_max
+        integer, intent(in) :: direction
+        type(fe_newton_opts_t), intent(in) :: opts
+        integer, intent(out) :: npts
+        real(dp), intent(out) :: lam_out(:), q_out(:, :)
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_path'
+        real(dp), allocatable :: q(:), qn(:), r(:), rl(:), jb(:, :), rhs(:, :), tq(:), tq_new(:)
+        real(dp) :: lam, lamn, tl, tl_new, h, nrm, g, dl, step, resid
+        integer :: it, its, max_points, nfail
+        logical :: converged
+
+        max_points = size(lam_out)
+        npts = 0
+        if (size(q0) /= mesh%nfree .or. size(q_out, 1) /= mesh%nfree .or. &
+            size(q_out, 2) /= max_points .or. max_points < 1) then
+            call set_status(stat, ERR_INPUT, where, 'array sizes do not match nfree = '// &
+                            fmt_int(mesh%nfree))
+            return
+        end if
+        if (.not. (ds > 0.0_dp .and. ds_max >= ds)) then
+            call set_status(stat, ERR_INPUT, where, 'ds = '//fmt_real(ds)//', ds_max = '// &
+                            fmt_real(ds_max)//': expected 0 < ds <= ds_max')
+            return
+        end if
+        if (abs(direction) /= 1) then
+            call set_status(stat, ERR_INPUT, where, 'direction = '//fmt_int(direction)// &
+                            ', expected +1 or -1')
+            return
+        end if
+        if (.not. (lam_min <= lam0 .and. lam0 <= lam_max)) then
+            call set_status(stat, ERR_INPUT, where, 'lam0 = '//fmt_real(lam0)// &
+                            ' is outside [lam_min, lam_max]')
+            return
+        end if
+        allocate (q(mesh%nfree), qn(mesh%nfree), r(mesh%nfree), rl(mesh%nfree), &
+                  jb(fe_band_rows(mesh), mesh%nfree), rhs(mesh%nfree, 2), &
+                  tq(mesh%nfree), tq_new(mesh%nfree))
+        q = q0
+        lam = lam0
+        call fe_newton(mesh, added(load0, scaled(dload, lam)), q, opts, its, resid, stat)
+        if (stat%code /= 0) return
+        npts = 1
+        lam_out(1) = lam
+        q_out(:, 1) = q
+        ! initial tangent orientation: along +direction in lam
+        tq = 0.0_dp
+        tl = real(direction, dp)
+        h = ds
+        nfail = 0
+        do while (npts < max_points)
+            ! tangent: J z = Q(q; dload), t = (z, 1)/|(z, 1)|, oriented along the last one
+            call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+            call fe_tip_load(mesh, q, dload, rl)   ! -dR/dlam
+            rhs(:, 1) = rl
+            call solve_banded(mesh%kl, mesh%ku, jb, rhs(:, 1:1), stat)
+            if (stat%code /= 0) return
+            nrm = sqrt(sum(rhs(:, 1)**2) + 1.0_dp)
+            tq_new = rhs(:, 1)/nrm
+            tl_new = 1.0_dp/nrm
+            if (dot_product(tq_new, tq) + tl_new*tl < 0.0_dp) then
+                tq_new = -tq_new
+                tl_new = -tl_new
+            end if
+            tq = tq_new
+            tl = tl_new
+            qn = q
+            lamn = lam
+            ! predictor and corrector on the hyperplane t . (x - x_n) = h
+            converged = .false.
+            q = qn + h*tq
+            lam = lamn + h*tl
+            do it = 1, opts%max_iter
+                call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+                call fe_tip_load(mesh, q, dload, rl)
+                rhs(:, 1) = -r
+                rhs(:, 2) = rl
+                call solve_banded(mesh%kl, mesh%ku, jb, rhs, stat)
+                if (stat%code /= 0) return
+                g = dot_product(tq, q - qn) + tl*(lam - lamn) - h
+                dl = (-g - dot_product(tq, rhs(:, 1)))/(dot_product(tq, rhs(:, 2)) + tl)
+                rhs(:, 1) = rhs(:, 1) + dl*rhs(:, 2)
+                q = q + rhs(:, 1)
+                lam = lam + dl
+                step = max(maxval(abs(rhs(:, 1))), abs(dl))
+                if (.not. ieee_is_finite(step)) exit
+                if (step <= opts%tol*(1.0_dp + maxval(abs(q)) + abs(lam))) then
+                    converged = .true.
+                    exit
+                end if
+            end do
+            if (.not. converged) then
+                nfail = nfail + 1
+                q = qn
+                lam = lamn
+                h = 0.5_dp*h
+                if (nfail > opts%max_bisect) then
+                    call set_status(stat, ERR_NO_CONVERGENCE, where, 'corrector failed '// &
+                                    'at lam = '//fmt_real(lamn)//' after '// &
+                                    fmt_int(opts%max_bisect)//' step halvings')
+                    return
+                end if
+                cycle
+            end if
+            npts = npts + 1
+            lam_out(npts) = lam
+            q_out(:, npts) = q
+            if (lam < lam_min .or. lam > lam_max) exit
+            if (it <= 4) h = min(1.5_dp*h, ds_max)
+        end do
+    end subroutine fe_path
+
+    !> Geometric stiffness G = int f_i' f_j' ds on the u and w unknowns: the
+    !! tangent of a uniform axial force N is K0 + N G (to first order in strain).
+    pure subroutine fe_geometric_stiffness(mesh, gb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(out) :: gb(:, :)
+        real(dp) :: f(4), f1(4), f2(4), ge(FE_NDOF, FE_NDOF)
+        integer :: el, g, a, b, i, j, i0
+        gb = 0.0_dp
+        do el = 1, mesh%nel
+            ge = 0.0_dp
+            do g = 1, size(mesh%xg)
+                call fe_hermite(mesh%xg(g), mesh%h(el), f, f1, f2)
+                do b = 1, 4
+                    do a = 1, 4
+                        ge(FE_W(a), FE_W(b)) = ge(FE_W(a), FE_W(b)) &
+                                               + mesh%wg(g)*mesh%h(el)*f1(a)*f1(b)
+                        ge(FE_U(a), FE_U(b)) = ge(FE_U(a), FE_U(b)) &
+                                               + mesh%wg(g)*mesh%h(el)*f1(a)*f1(b)
+                    end do
+                end do
+            end do
+            i0 = 4*(el - 1)
+            do b = 1, FE_NDOF
+                j = mesh%free_of(i0 + b)
+                if (j == 0) cycle
+                do a = 1, FE_NDOF
+                    i = mesh%free_of(i0 + a)
+                    if (i == 0) cycle
+                    call fe_band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
+                end do
+            end do
+        end do
+    end subroutine fe_geometric_stiffness
+
+    !> Critical compressive tip load of the straight chain (linear buckling):
+    !! the least P with K0 phi = P G phi, K0 the linear stiffness and G the
+    !! geometric stiffness of a unit axial force (a tip force -P along the axis
+    !! gives N = -P along the whole chain). The pre-buckling strain (P/EA, about
+    !! 1e-6) is neglected. `mode` is the buckled shape scaled to tip w = 1.
+    subroutine fe_buckling_load(mesh, pcr, mode, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(out) :: pcr
+        real(dp), intent(out) :: mode(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: kb(:, :), gb(:, :), k(:, :), g(:, :), w(:)
+        integer :: n, itip
+        n = mesh%nfree
+        pcr = 0.0_dp
+        if (size(mode) /= n) then
+            call set_status(stat, ERR_INPUT, 'fe_buckling_load', 'mode has '// &
+                            fmt_int(size(mode))//' entries, expected '//fmt_int(n))
+            return
+        end if
+        allocate (kb(fe_band_rows(mesh), n), gb(fe_band_rows(mesh), n), k(n, n), g(n, n), &
+                  w(n))
+        call fe_stiffness_linear(mesh, kb)
+        call fe_geometric_stiffness(mesh, gb)
+        call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)
+        call fe_band_to_dense(gb, mesh%kl, mesh%ku, g)
+        call sym_gen_eig(k, g, w, stat)
+        if (stat%code /= 0) return
+        pcr = w(1)
+        mode = k(:, 1)
+        itip = mesh%free_of(4*(mesh%nnode - 1) + DOF_W)
+        if (mode(itip) /= 0.0_dp) mode = mode/mode(itip)
+    end subroutine fe_buckling_load
+
+end module beamid_fe_static
