@@ -1,0 +1,195 @@
+!> f2py-facing API for the model and the arc-length static solver.
+!!
+!! Plain arrays, c_int/c_double kinds, explicit shapes and an integer status
+!! with a 256-character message: nothing else crosses into Python. Status
+!! codes follow beamid_status (0 ok, < 0 input error, > 0 numerical failure).
+module beamid_api_static
+    use, intrinsic :: iso_c_binding, only: c_int, c_double
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT
+    use beamid_model, only: chain_t, chain_from_vector, param_count, param_name
+    use beamid_presets, only: preset_params
+    use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
+                                solve_static, static_shape, NOUT
+    implicit none
+    private
+
+    public :: api_param_count, api_param_names, api_check_params, api_nout
+    public :: api_static_solve, api_static_shape, api_preset_size, api_preset
+
+contains
+
+    !> Number of named parameters of a chain of nbeams beams.
+    subroutine api_param_count(nbeams, count)
+        integer(c_int), intent(in) :: nbeams
+        integer(c_int), intent(out) :: count
+        count = int(param_count(int(nbeams)), c_int)
+    end subroutine api_param_count
+
+    !> Number of static outputs (x_tip, y_tip, tip_angle, wire_force, x_elbow,
+    !! y_elbow, elbow_angle, root_moment).
+    subroutine api_nout(count)
+        integer(c_int), intent(out) :: count
+        count = int(NOUT, c_int)
+    end subroutine api_nout
+
+    !> Parameter names of a chain of nbeams beams, space separated, in the
+    !! order of the parameter vector.
+    subroutine api_param_names(nbeams, names, code)
+        integer(c_int), intent(in) :: nbeams
+        character(len=8192), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        character(len=:), allocatable :: joined
+        integer :: i
+        joined = ''
+        code = 0
+        if (nbeams < 1 .or. param_count(int(nbeams))*24 > len(names)) then
+            names = ''
+            code = int(ERR_INPUT, c_int)
+            return
+        end if
+        do i = 1, param_count(int(nbeams))
+            joined = joined//param_name(int(nbeams), i)//' '
+        end do
+        names = joined
+    end subroutine api_param_names
+
+    !> Number of beams of a preset ('pace', 'cantilever'); code < 0 if unknown.
+    subroutine api_preset_size(name, nbeams, code, message)
+        character(len=*), intent(in) :: name
+        integer(c_int), intent(out) :: nbeams, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        real(dp), allocatable :: params(:)
+        integer :: nb
+        call preset_params(trim(name), nb, params, stat)
+        nbeams = int(nb, c_int)
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_preset_size
+
+    !> Parameter vector of a preset.
+    subroutine api_preset(name, nparams, params, code, message)
+        character(len=*), intent(in) :: name
+        integer(c_int), intent(in) :: nparams
+        real(c_double), intent(out) :: params(nparams)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        real(dp), allocatable :: values(:)
+        integer :: nb
+        params = 0.0_c_double
+        call preset_params(trim(name), nb, values, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        if (size(values) /= nparams) then
+            code = int(ERR_INPUT, c_int)
+            message = 'api_preset: wrong parameter count'
+            return
+        end if
+        params = values
+    end subroutine api_preset
+
+    !> Validate a parameter vector; message names the first bad parameter.
+    subroutine api_check_params(nbeams, nparams, params, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams
+        real(c_double), intent(in) :: params(nparams)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_check_params
+
+    subroutine make_load(kind, load_values, load)
+        integer(c_int), intent(in) :: kind
+        real(c_double), intent(in) :: load_values(4)
+        type(static_load_t), intent(out) :: load
+        load%kind = int(kind)
+        load%fx = load_values(1)
+        load%fy = load_values(2)
+        load%moment = load_values(3)
+        load%wire_length = load_values(4)
+    end subroutine make_load
+
+    subroutine make_options(tol, opts)
+        real(c_double), intent(in) :: tol
+        type(static_options_t), intent(out) :: opts
+        if (tol > 0.0_c_double) opts%tol = tol
+    end subroutine make_options
+
+    !> Solve a static load case. load_kind 1: tip force (fx, fy) and moment;
+    !! 2: radial wire of length load_values(4). wrt: 1-based parameter indices.
+    !! info = (Newton iterations, load steps); unknowns = k(0), Q(0), N(0), T.
+    subroutine api_static_solve(nbeams, nparams, params, load_kind, load_values, nwrt, wrt, &
+                                tol, outputs, doutputs, unknowns, info, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, load_kind, nwrt
+        real(c_double), intent(in) :: params(nparams), load_values(4), tol
+        integer(c_int), intent(in) :: wrt(nwrt)
+        real(c_double), intent(out) :: outputs(8), doutputs(8, nwrt), unknowns(4)
+        integer(c_int), intent(out) :: info(2)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        type(static_load_t) :: load
+        type(static_options_t) :: opts
+        type(static_solution_t) :: sol
+
+        outputs = 0.0_c_double
+        doutputs = 0.0_c_double
+        unknowns = 0.0_c_double
+        info = 0
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code == STATUS_OK) then
+            call make_load(load_kind, load_values, load)
+            call make_options(tol, opts)
+            call solve_static(chain, load, int(wrt), opts, sol, stat)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        outputs = sol%outputs
+        doutputs = sol%doutputs
+        unknowns = sol%unknowns
+        info = int([sol%newton_iterations, sol%load_steps], c_int)
+    end subroutine api_static_solve
+
+    !> Shape at arc positions s (ascending) from converged unknowns.
+    subroutine api_static_shape(nbeams, nparams, params, load_kind, load_values, unknowns, &
+                                tol, npts, s, x, y, psi, moment, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, load_kind, npts
+        real(c_double), intent(in) :: params(nparams), load_values(4), unknowns(4), tol
+        real(c_double), intent(in) :: s(npts)
+        real(c_double), intent(out) :: x(npts), y(npts), psi(npts), moment(npts)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        type(static_load_t) :: load
+        type(static_options_t) :: opts
+        real(dp), dimension(npts) :: xd, yd, pd, md
+
+        x = 0.0_c_double
+        y = 0.0_c_double
+        psi = 0.0_c_double
+        moment = 0.0_c_double
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code == STATUS_OK) then
+            call make_load(load_kind, load_values, load)
+            call make_options(tol, opts)
+            call static_shape(chain, load, real(unknowns, dp), opts, real(s, dp), &
+                              xd, yd, pd, md, stat)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        x = xd
+        y = yd
+        psi = pd
+        moment = md
+    end subroutine api_static_shape
+end module beamid_api_static

@@ -1,0 +1,142 @@
+!> beamid-batch DECK: run a namelist deck without Python.
+!!
+!! Exit codes: 0 success, 2 bad deck or input, 3 numerical failure (no
+!! convergence), 4 file error. One line on standard error says what failed.
+!! Output files are written only after the computation succeeded, and a file
+!! that fails to write completely is deleted.
+program beamid_batch
+    use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_IO, set_status
+    use beamid_model, only: chain_t, chain_from_vector, param_name
+    use beamid_deck, only: deck_t, read_deck
+    use beamid_arclength, only: static_options_t, static_solution_t, solve_static, &
+                                static_shape, NOUT
+    implicit none
+
+    character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
+        'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
+        'elbow_angle', 'root_moment']
+    character(len=4096) :: arg
+    type(deck_t) :: deck
+    type(status_t) :: stat
+    integer :: nargs
+
+    nargs = command_argument_count()
+    if (nargs /= 1) then
+        write (error_unit, '(a)') 'usage: beamid-batch DECK   (a namelist deck, see docs/decks.md)'
+        call exit_with(2)
+    end if
+    call get_command_argument(1, arg)
+    if (trim(arg) == '-h' .or. trim(arg) == '--help') then
+        write (output_unit, '(a)') 'usage: beamid-batch DECK'
+        write (output_unit, '(a)') 'Runs a beamid namelist deck (docs/decks.md) and writes '// &
+            '<output>_summary.csv and <output>_shape.csv next to the deck.'
+        stop
+    end if
+    call read_deck(trim(arg), deck, stat)
+    if (stat%code == STATUS_OK) call run_static(deck, stat)
+    if (stat%code /= STATUS_OK) then
+        write (error_unit, '(a)') 'beamid-batch: error: '//trim(stat%message)
+        if (stat%code == ERR_IO) call exit_with(4)
+        if (stat%code < 0) call exit_with(2)
+        call exit_with(3)
+    end if
+
+contains
+
+    subroutine exit_with(code)
+        integer, intent(in) :: code
+        stop code, quiet=.true.
+    end subroutine exit_with
+
+    !> Output prefix resolved against the deck's directory.
+    function output_prefix(d) result(prefix)
+        type(deck_t), intent(in) :: d
+        character(len=:), allocatable :: prefix
+        integer :: slash
+        if (d%output(1:1) == '/') then
+            prefix = d%output
+        else
+            slash = index(d%path, '/', back=.true.)
+            prefix = d%path(:slash)//d%output
+        end if
+    end function output_prefix
+
+    subroutine run_static(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        type(chain_t) :: chain
+        type(static_options_t) :: opts
+        type(static_solution_t) :: sol
+        real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
+        character(len=:), allocatable :: prefix
+        integer :: i, j, n, unit, ios
+
+        call chain_from_vector(d%nbeams, d%params, chain, st)
+        if (st%code /= STATUS_OK) return
+        if (d%tol > 0.0_dp) opts%tol = d%tol
+        call solve_static(chain, d%load, d%wrt, opts, sol, st)
+        if (st%code /= STATUS_OK) return
+        n = d%shape_points
+        allocate (s(n), x(n), y(n), psi(n), moment(n))
+        if (n > 1) s = [(sum(chain%length)*real(i - 1, dp)/real(n - 1, dp), i = 1, n)]
+        if (n > 1) then
+            s(n) = sum(chain%length)
+            call static_shape(chain, d%load, sol%unknowns, opts, s, x, y, psi, moment, st)
+            if (st%code /= STATUS_OK) return
+        end if
+
+        prefix = output_prefix(d)
+        open (newunit=unit, file=prefix//'_summary.csv', status='replace', action='write', &
+              iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_summary.csv')
+            return
+        end if
+        write (unit, '(a)', iostat=ios) 'quantity,value'
+        do i = 1, NOUT
+            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(output_names(i)), &
+                sol%outputs(i)
+        end do
+        do j = 1, size(d%wrt)
+            do i = 1, NOUT
+                if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) &
+                    'd('//trim(output_names(i))//')/d('//param_name(d%nbeams, d%wrt(j))//')', &
+                    sol%doutputs(i, j)
+            end do
+        end do
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', &
+            sol%newton_iterations
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', sol%load_steps
+        call close_checked(unit, ios, prefix//'_summary.csv', st)
+        if (st%code /= STATUS_OK) return
+
+        if (n < 2) return
+        open (newunit=unit, file=prefix//'_shape.csv', status='replace', action='write', &
+              iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_shape.csv')
+            return
+        end if
+        write (unit, '(a)', iostat=ios) 's,x,y,psi,moment'
+        do i = 1, n
+            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) &
+                s(i), x(i), y(i), psi(i), moment(i)
+        end do
+        call close_checked(unit, ios, prefix//'_shape.csv', st)
+    end subroutine run_static
+
+    !> Close a written file; delete it when any write failed.
+    subroutine close_checked(unit, ios, name, st)
+        integer, intent(in) :: unit, ios
+        character(len=*), intent(in) :: name
+        type(status_t), intent(inout) :: st
+        if (ios /= 0) then
+            close (unit, status='delete')
+            call set_status(st, ERR_IO, 'beamid-batch', 'writing '//name//' failed')
+        else
+            close (unit)
+        end if
+    end subroutine close_checked
+end program beamid_batch

@@ -1,0 +1,1088 @@
+!> Large static deformation of a clamped beam chain in arc-length coordinates
+!! (dissertation Chapter III), with parametric sensitivities (Eq. 40-51).
+!!
+!! State along the arc (absolute tangent angle psi, Eq. 12-15):
+!!     z = (x, y, psi, k, Q, N)
+!! with curvature k = dpsi/ds, shear Q and axial force N. Equilibrium with the
+!! cubic material law M = EI k + C k^3 (Eq. 16) and Q = -dM/ds (Eq. 10):
+!!     x' = cos psi,  y' = sin psi,  psi' = k,
+!!     k' = -Q / (EI + 3 C k^2),
+!!     Q' = -a k N,   N' = k Q.
+!! The normal-force balance Q' = -a k N carries the parameter a =
+!! `axial_coupling`: a = 0 is the dissertation's shear-only form (Eq. 9,
+!! dQ/ds = 0), which produced Tables 2-5; a = 1 is the exact (Kirchhoff)
+!! elastica, for which (Q, N) are the normal and tangential components of a
+!! constant force vector. See NOTES.md and docs/theory.md.
+!!
+!! Joints transmit M, Q, N; the curvature jumps so that the moment is
+!! continuous (Eq. 20) and a compliant joint adds a kink psi+ = psi- + f M
+!! (`elbow_flex`); a compliant root starts at psi(0) = f_root M(0).
+!!
+!! Boundary value problem by shooting (Section 3.1.4): the unknowns
+!! u = (k(0), Q(0), N(0) [, wire tension T]) are found by Newton on the tip
+!! conditions, with the state-transition matrix dz/du integrated alongside
+!! (Eq. 30-35). Tip conditions: M(L) = M_tip (Eq. 23 when zero), Q(L) = P.n,
+!! N(L) = P.t for the tip force P (Eq. 27 with the sine corrected, NOTES.md);
+!! the radial wire adds |r_tip| = Lw (Eq. 22) with P = -T r_tip/|r_tip|.
+!! Sensitivities to named parameters use the implicit function theorem on the
+!! tip conditions (Eq. 44-51) and parametric transition matrices (Eq. 41, 43).
+!!
+!! Integration: Dormand-Prince 5(4) with error control on z; the variational
+!! columns are integrated with the accepted steps of z, so Newton sees the
+!! exact derivative of the discrete map.
+module beamid_arclength
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
+                             ERR_NUMERIC, ERR_SINGULAR, fmt_real, fmt_int, STATUS_OK
+    use beamid_model, only: chain_t, param_count, param_index_beam, param_index_joint_flex, &
+                            param_index_global, IB_L, IB_EI, IB_C, IG_AXIAL_COUPLING, &
+                            IG_ROOT_FLEX
+    use beamid_lapack, only: solve_dense
+    implicit none
+    private
+
+    public :: static_load_t, static_options_t, static_solution_t
+    public :: solve_static, static_shape, validate_static_load
+    public :: LOAD_TIP, LOAD_WIRE, NOUT
+    public :: OUT_X_TIP, OUT_Y_TIP, OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, &
+              OUT_Y_ELBOW, OUT_ELBOW_ANGLE, OUT_ROOT_MOMENT
+
+    integer, parameter :: LOAD_TIP = 1   !< fixed-direction tip force (fx, fy) and tip moment
+    integer, parameter :: LOAD_WIRE = 2  !< radial wire of length Lw from tip to root (Eq. 22)
+
+    integer, parameter :: NOUT = 8
+    integer, parameter :: OUT_X_TIP = 1, OUT_Y_TIP = 2, OUT_TIP_ANGLE = 3, &
+                          OUT_WIRE_FORCE = 4, OUT_X_ELBOW = 5, OUT_Y_ELBOW = 6, &
+                          OUT_ELBOW_ANGLE = 7, OUT_ROOT_MOMENT = 8
+
+    integer, parameter :: NZ = 6
+    integer, parameter :: IX = 1, IY = 2, IPSI = 3, IK = 4, IQ = 5, IN = 6
+    integer, parameter :: NSHOOT = 3  !< shooting unknowns carried by the ODE: k0, Q0, N0
+
+    !> Column kinds of the variational matrix: how a column is forced.
+    integer, parameter :: COL_FREE = 0, COL_EI = 1, COL_C = 2, COL_A = 3
+
+    !> A static load case.
+    type :: static_load_t
+        integer :: kind = LOAD_TIP
+        real(dp) :: fx = 0.0_dp          !< tip force, global x (N)
+        real(dp) :: fy = 0.0_dp          !< tip force, global y (N)
+        real(dp) :: moment = 0.0_dp      !< tip moment (N m), counter-clockwise
+        real(dp) :: wire_length = 0.0_dp !< radial wire length Lw (m)
+    end type static_load_t
+
+    !> Solver controls.
+    type :: static_options_t
+        real(dp) :: tol = 1.0e-10_dp          !< integration error tolerance (relative)
+        real(dp) :: newton_tol = 1.0e-10_dp   !< scaled residual at convergence
+        integer :: max_newton = 30            !< Newton iterations per load level
+        integer :: max_load_steps = 400       !< continuation steps before giving up
+        integer :: max_rk_steps = 200000      !< integration steps per shot
+    end type static_options_t
+
+    !> Converged solution with outputs and their sensitivities.
+    type :: static_solution_t
+        real(dp) :: outputs(NOUT) = 0.0_dp
+        !> d outputs / d params(wrt(j)), NOUT x size(wrt)
+        real(dp), allocatable :: doutputs(:, :)
+        !> shooting unknowns k(0), Q(0), N(0), T (T = 0 without a wire)
+        real(dp) :: unknowns(4) = 0.0_dp
+        integer :: newton_iterations = 0
+        integer :: load_steps = 0
+        real(dp) :: residual = 0.0_dp
+    end type static_solution_t
+
+    !> Everything the shooting needs besides the unknowns.
+    type :: problem_t
+        type(chain_t) :: chain
+        type(static_load_t) :: load
+        real(dp) :: total_length = 0.0_dp
+        real(dp) :: force_scale = 1.0_dp, moment_scale = 1.0_dp
+        real(dp) :: load_factor = 1.0_dp   !< continuation factor on the tip load
+        integer :: nu = 3                  !< number of unknowns (4 with the wire)
+    end type problem_t
+
+    !> Result of one shot.
+    type :: shot_t
+        real(dp) :: z_end(NZ) = 0.0_dp
+        real(dp), allocatable :: v_end(:, :)        !< NZ x ncol
+        real(dp), allocatable :: z_joint(:, :)      !< NZ x nbeams (end of each beam)
+        real(dp), allocatable :: v_joint(:, :, :)   !< NZ x ncol x nbeams
+        integer :: steps = 0
+    end type shot_t
+
+contains
+
+    ! ------------------------------------------------------------------ material
+
+    !> Bending stiffness dM/dk = EI + 3 C k^2 of the cubic law (Eq. 16).
+    pure real(dp) function tangent_stiffness(ei, c, k)
+        real(dp), intent(in) :: ei, c, k
+        tangent_stiffness = ei + 3.0_dp*c*k*k
+    end function tangent_stiffness
+
+    !> Curvature on the branch through k = 0 with EI k + C k^3 = M.
+    pure subroutine curvature_from_moment(ei, c, moment, k, ok)
+        real(dp), intent(in) :: ei, c, moment
+        real(dp), intent(out) :: k
+        logical, intent(out) :: ok
+        real(dp) :: f, d, kmax, mmax
+        integer :: it
+        ok = .true.
+        k = moment/ei
+        if (c == 0.0_dp) return
+        if (c < 0.0_dp) then
+            ! softening: the branch ends where EI + 3 C k^2 = 0
+            kmax = sqrt(ei/(-3.0_dp*c))
+            mmax = ei*kmax + c*kmax**3
+            if (abs(moment) >= mmax) then
+                ok = .false.
+                return
+            end if
+        end if
+        do it = 1, 100
+            f = ei*k + c*k**3 - moment
+            d = tangent_stiffness(ei, c, k)
+            if (d <= 0.0_dp) exit
+            k = k - f/d
+            if (abs(f) <= 4.0_dp*epsilon(1.0_dp)*max(abs(moment), ei*abs(k))) return
+        end do
+        f = ei*k + c*k**3 - moment
+        ok = abs(f) <= 1.0e3_dp*epsilon(1.0_dp)*max(abs(moment), ei*abs(k), tiny(1.0_dp))
+    end subroutine curvature_from_moment
+
+    ! ---------------------------------------------------------- right-hand sides
+
+    !> dz/ds of the equilibrium equations (module header).
+    pure function rhs(z, ei, c, a) result(dz)
+        real(dp), intent(in) :: z(NZ), ei, c, a
+        real(dp) :: dz(NZ)
+        dz(IX) = cos(z(IPSI))
+        dz(IY) = sin(z(IPSI))
+        dz(IPSI) = z(IK)
+        dz(IK) = -z(IQ)/tangent_stiffness(ei, c, z(IK))
+        dz(IQ) = -a*z(IK)*z(IN)
+        dz(IN) = z(IK)*z(IQ)
+    end function rhs
+
+    !> d/ds of the variational columns: (df/dz) V + df/dp (Eq. 33, 41).
+    !! `dz` = rhs(z) supplies sin and cos of psi.
+    pure function rhs_var(z, dz, v, colkind, ei, c, a) result(dv)
+        real(dp), intent(in) :: z(NZ), dz(NZ), v(:, :), ei, c, a
+        integer, intent(in) :: colkind(:)
+        real(dp) :: dv(NZ, size(v, 2))
+        real(dp) :: d, s, co, dkk, dkq
+        integer :: j
+        d = tangent_stiffness(ei, c, z(IK))
+        s = dz(IY)   ! sin(psi), already evaluated in rhs
+        co = dz(IX)  ! cos(psi)
+        dkk = 6.0_dp*c*z(IK)*z(IQ)/(d*d)
+        dkq = -1.0_dp/d
+        do j = 1, size(v, 2)
+            dv(IX, j) = -s*v(IPSI, j)
+            dv(IY, j) = co*v(IPSI, j)
+            dv(IPSI, j) = v(IK, j)
+            dv(IK, j) = dkk*v(IK, j) + dkq*v(IQ, j)
+            dv(IQ, j) = -a*(z(IN)*v(IK, j) + z(IK)*v(IN, j))
+            dv(IN, j) = z(IQ)*v(IK, j) + z(IK)*v(IQ, j)
+            select case (colkind(j))
+            case (COL_EI)
+                dv(IK, j) = dv(IK, j) + z(IQ)/(d*d)
+            case (COL_C)
+                dv(IK, j) = dv(IK, j) + 3.0_dp*z(IK)**2*z(IQ)/(d*d)
+            case (COL_A)
+                dv(IQ, j) = dv(IQ, j) - z(IK)*z(IN)
+            end select
+        end do
+    end function rhs_var
+
+    ! -------------------------------------------------------------- integration
+
+    !> Integrate one beam from s = 0 to s = length with Dormand-Prince 5(4).
+    !! Stations (local arc positions, ascending, in (0, length]) are landed on
+    !! and their states stored.
+    subroutine integrate_beam(prob, beam, z, v, colkind, stations, z_station, &
+                              opts, steps, stat)
+        type(problem_t), intent(in) :: prob
+        integer, intent(in) :: beam
+        real(dp), intent(inout) :: z(NZ)
+        real(dp), intent(inout) :: v(:, :)
+        integer, intent(in) :: colkind(:)
+        real(dp), intent(in) :: stations(:)
+        real(dp), intent(inout) :: z_station(:, :)
+        type(static_options_t), intent(in) :: opts
+        integer, intent(inout) :: steps
+        type(status_t), intent(inout) :: stat
+
+        ! Dormand-Prince 5(4) tableau
+        real(dp), parameter :: c2 = 1.0_dp/5, c3 = 3.0_dp/10, c4 = 4.0_dp/5, c5 = 8.0_dp/9
+        real(dp), parameter :: a21 = 1.0_dp/5
+        real(dp), parameter :: a31 = 3.0_dp/40, a32 = 9.0_dp/40
+        real(dp), parameter :: a41 = 44.0_dp/45, a42 = -56.0_dp/15, a43 = 32.0_dp/9
+        real(dp), parameter :: a51 = 19372.0_dp/6561, a52 = -25360.0_dp/2187, &
+                               a53 = 64448.0_dp/6561, a54 = -212.0_dp/729
+        real(dp), parameter :: a61 = 9017.0_dp/3168, a62 = -355.0_dp/33, &
+                               a63 = 46732.0_dp/5247, a64 = 49.0_dp/176, &
+                               a65 = -5103.0_dp/18656
+        real(dp), parameter :: b1 = 35.0_dp/384, b3 = 500.0_dp/1113, b4 = 125.0_dp/192, &
+                               b5 = -2187.0_dp/6784, b6 = 11.0_dp/84
+        real(dp), parameter :: e1 = 71.0_dp/57600, e3 = -71.0_dp/16695, e4 = 71.0_dp/1920, &
+                               e5 = -17253.0_dp/339200, e6 = 22.0_dp/525, e7 = -1.0_dp/40
+
+        real(dp) :: ei, c, a, length, s, h, hnew, err, sc(NZ)
+        real(dp) :: k1(NZ), k2(NZ), k3(NZ), k4(NZ), k5(NZ), k6(NZ), k7(NZ)
+        real(dp) :: z2(NZ), z3(NZ), z4(NZ), z5(NZ), z6(NZ), znew(NZ), zerr(NZ)
+        real(dp), allocatable :: w1(:, :), w2(:, :), w3(:, :), w4(:, :), w5(:, :), &
+                                 w6(:, :), vs(:, :)
+        integer :: ncol, next_station, nreject
+        logical :: last, land
+
+        ei = prob%chain%ei(beam)
+        c = prob%chain%cubic(beam)
+        a = prob%chain%axial_coupling
+        length = prob%chain%length(beam)
+        ncol = size(v, 2)
+        allocate (w1(NZ, ncol), w2(NZ, ncol), w3(NZ, ncol), w4(NZ, ncol), w5(NZ, ncol), &
+                  w6(NZ, ncol), vs(NZ, ncol))
+        ! error weights: lengths scale with the arm, forces with EI/L^2
+        sc = [prob%total_length, prob%total_length, 1.0_dp, 1.0_dp/prob%total_length, &
+              prob%force_scale, prob%force_scale]
+
+        s = 0.0_dp
+        h = length/8.0_dp
+        next_station = 1
+        nreject = 0
+        k1 = rhs(z, ei, c, a)
+        do
+            land = .false.
+            last = .false.
+            if (next_station <= size(stations)) then
+                if (s + h >= stations(next_station) - 1.0e-14_dp*length) then
+                    h = stations(next_station) - s
+                    land = .true.
+                end if
+            end if
+            if (s + h >= length - 1.0e-14_dp*length) then
+                h = length - s
+                last = .true.
+            end if
+            if (steps >= opts%max_rk_steps) then
+                call set_status(stat, ERR_NUMERIC, 'arc-length integration', &
+                                'more than '//fmt_int(opts%max_rk_steps)//' steps on beam '// &
+                                fmt_int(beam)//' at s = '//fmt_real(s)// &
+                                ' (curvature '//fmt_real(z(IK))//'): step size collapsed')
+                return
+            end if
+            z2 = z + h*a21*k1
+            k2 = rhs(z2, ei, c, a)
+            z3 = z + h*(a31*k1 + a32*k2)
+            k3 = rhs(z3, ei, c, a)
+            z4 = z + h*(a41*k1 + a42*k2 + a43*k3)
+            k4 = rhs(z4, ei, c, a)
+            z5 = z + h*(a51*k1 + a52*k2 + a53*k3 + a54*k4)
+            k5 = rhs(z5, ei, c, a)
+            z6 = z + h*(a61*k1 + a62*k2 + a63*k3 + a64*k4 + a65*k5)
+            k6 = rhs(z6, ei, c, a)
+            znew = z + h*(b1*k1 + b3*k3 + b4*k4 + b5*k5 + b6*k6)
+            k7 = rhs(znew, ei, c, a)
+            zerr = h*(e1*k1 + e3*k3 + e4*k4 + e5*k5 + e6*k6 + e7*k7)
+            err = maxval(abs(zerr)/(opts%tol*(sc + max(abs(z), abs(znew)))))
+            steps = steps + 1
+            if (.not. (err <= 1.0_dp) .or. .not. stage_ok()) then
+                ! reject (also on NaN from a softening material past its limit)
+                nreject = nreject + 1
+                if (err /= err .or. .not. stage_ok()) then
+                    h = 0.25_dp*h
+                else
+                    h = h*max(0.2_dp, 0.9_dp*err**(-0.2_dp))
+                end if
+                if (h < 1.0e-12_dp*length) then
+                    call set_status(stat, ERR_NUMERIC, 'arc-length integration', &
+                                    'step size underflow on beam '//fmt_int(beam)// &
+                                    ' at s = '//fmt_real(s)//' (curvature '// &
+                                    fmt_real(z(IK))//'; a softening C past its limit?)')
+                    return
+                end if
+                cycle
+            end if
+            ! accepted: advance the variational columns with the same stages
+            if (ncol > 0) then
+                w1 = rhs_var(z, k1, v, colkind, ei, c, a)
+                vs = v + h*a21*w1
+                w2 = rhs_var(z2, k2, vs, colkind, ei, c, a)
+                vs = v + h*(a31*w1 + a32*w2)
+                w3 = rhs_var(z3, k3, vs, colkind, ei, c, a)
+                vs = v + h*(a41*w1 + a42*w2 + a43*w3)
+                w4 = rhs_var(z4, k4, vs, colkind, ei, c, a)
+                vs = v + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
+                w5 = rhs_var(z5, k5, vs, colkind, ei, c, a)
+                vs = v + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
+                w6 = rhs_var(z6, k6, vs, colkind, ei, c, a)
+                v = v + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
+            end if
+            z = znew
+            k1 = k7
+            hnew = h*min(5.0_dp, max(0.2_dp, 0.9_dp*max(err, 1.0e-10_dp)**(-0.2_dp)))
+            if (last) then
+                s = length
+            else
+                s = s + h
+            end if
+            if (land .or. last) then
+                do while (next_station <= size(stations))
+                    if (stations(next_station) > s + 1.0e-14_dp*length) exit
+                    z_station(:, next_station) = z
+                    next_station = next_station + 1
+                end do
+            end if
+            if (last) exit
+            if (.not. land) h = hnew
+            if (land) h = max(h, hnew)
+        end do
+        do while (next_station <= size(stations))
+            z_station(:, next_station) = z
+            next_station = next_station + 1
+        end do
+
+    contains
+
+        logical function stage_ok()
+            stage_ok = all([tangent_stiffness(ei, c, z2(IK)), tangent_stiffness(ei, c, z3(IK)), &
+                            tangent_stiffness(ei, c, z4(IK)), tangent_stiffness(ei, c, z5(IK)), &
+                            tangent_stiffness(ei, c, z6(IK)), tangent_stiffness(ei, c, znew(IK))] &
+                           > 0.0_dp) .and. all(ieee_is_finite(znew))
+        end function stage_ok
+    end subroutine integrate_beam
+
+    !> Integrate the whole chain from the root for given unknowns.
+    !! Columns of the variational matrix: 1..NSHOOT are d/du (k0, Q0, N0),
+    !! the rest d/dparams(wrt(j)). Stations are global arc positions.
+    subroutine shoot(prob, u, wrt, with_u_cols, opts, shot, stat, stations, z_station)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(in) :: u(:)
+        integer, intent(in) :: wrt(:)
+        logical, intent(in) :: with_u_cols
+        type(static_options_t), intent(in) :: opts
+        type(shot_t), intent(inout) :: shot
+        type(status_t), intent(inout) :: stat
+        real(dp), intent(in), optional :: stations(:)
+        real(dp), intent(inout), optional :: z_station(:, :)
+
+        type(chain_t) :: ch
+        integer :: ncol, nu0, nb, i, j, p, nst, first, last
+        integer, allocatable :: colkind(:)
+        real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
+        real(dp), allocatable :: v(:, :), vk_old(:), local(:), zst(:, :), fend(:)
+        logical :: ok
+
+        ch = prob%chain
+        nb = ch%nbeams
+        nu0 = merge(NSHOOT, 0, with_u_cols)
+        ncol = nu0 + size(wrt)
+        allocate (v(NZ, ncol), colkind(ncol), vk_old(ncol), fend(NZ))
+        v = 0.0_dp
+        if (allocated(shot%v_end)) deallocate (shot%v_end)
+        if (allocated(shot%z_joint)) deallocate (shot%z_joint)
+        if (allocated(shot%v_joint)) deallocate (shot%v_joint)
+        allocate (shot%v_end(NZ, ncol), shot%z_joint(NZ, nb), shot%v_joint(NZ, ncol, nb))
+        shot%steps = 0
+
+        ! root: psi(0) = f_root M(0), M(0) = EI1 k0 + C1 k0^3
+        k0 = u(1)
+        m0 = ch%ei(1)*k0 + ch%cubic(1)*k0**3
+        d0 = tangent_stiffness(ch%ei(1), ch%cubic(1), k0)
+        z = [0.0_dp, 0.0_dp, ch%root_flex*m0, k0, u(2), u(3)]
+        if (with_u_cols) then
+            v(IPSI, 1) = ch%root_flex*d0
+            v(IK, 1) = 1.0_dp
+            v(IQ, 2) = 1.0_dp
+            v(IN, 3) = 1.0_dp
+        end if
+        do j = 1, size(wrt)
+            p = wrt(j)
+            if (p == param_index_global(nb, IG_ROOT_FLEX)) v(IPSI, nu0 + j) = m0
+            if (p == param_index_beam(nb, 1, IB_EI)) v(IPSI, nu0 + j) = ch%root_flex*k0
+            if (p == param_index_beam(nb, 1, IB_C)) v(IPSI, nu0 + j) = ch%root_flex*k0**3
+        end do
+
+        s0 = 0.0_dp
+        do i = 1, nb
+            colkind = COL_FREE
+            do j = 1, size(wrt)
+                p = wrt(j)
+                if (p == param_index_beam(nb, i, IB_EI)) colkind(nu0 + j) = COL_EI
+                if (p == param_index_beam(nb, i, IB_C)) colkind(nu0 + j) = COL_C
+                if (p == param_index_global(nb, IG_AXIAL_COUPLING)) colkind(nu0 + j) = COL_A
+            end do
+            ! stations on this beam (local coordinates)
+            first = 1
+            last = 0
+            if (present(stations)) then
+                nst = size(stations)
+                first = nst + 1
+                do j = 1, nst
+                    if (stations(j) > s0 .or. (i == 1 .and. stations(j) >= s0)) then
+                        first = j
+                        exit
+                    end if
+                end do
+                last = first - 1
+                do j = first, nst
+                    if (stations(j) <= s0 + ch%length(i) .or. i == nb) last = j
+                end do
+                ! stations at the root itself are recorded before integrating
+                do while (first <= last)
+                    if (stations(first) > s0) exit
+                    z_station(:, first) = z
+                    first = first + 1
+                end do
+            end if
+            allocate (local(max(0, last - first + 1)), zst(NZ, max(0, last - first + 1)))
+            if (last >= first) local = min(stations(first:last) - s0, ch%length(i))
+            call integrate_beam(prob, i, z, v, colkind, local, zst, opts, shot%steps, stat)
+            if (stat%code /= STATUS_OK) return
+            if (last >= first) z_station(:, first:last) = zst
+            deallocate (local, zst)
+            s0 = s0 + ch%length(i)
+
+            ! d/dL_i: the end point moves along the solution
+            fend = rhs(z, ch%ei(i), ch%cubic(i), ch%axial_coupling)
+            do j = 1, size(wrt)
+                if (wrt(j) == param_index_beam(nb, i, IB_L)) v(:, nu0 + j) = v(:, nu0 + j) + fend
+            end do
+            shot%z_joint(:, i) = z
+            shot%v_joint(:, :, i) = v
+            if (i == nb) exit
+
+            ! joint i: moment continuous (Eq. 20), optional kink psi+ = psi- + f M
+            kminus = z(IK)
+            mminus = ch%ei(i)*kminus + ch%cubic(i)*kminus**3
+            dminus = tangent_stiffness(ch%ei(i), ch%cubic(i), kminus)
+            call curvature_from_moment(ch%ei(i + 1), ch%cubic(i + 1), mminus, kplus, ok)
+            if (.not. ok) then
+                call set_status(stat, ERR_NUMERIC, 'arc-length joint', 'joint '// &
+                                fmt_int(i)//' moment '//fmt_real(mminus)// &
+                                ' exceeds what the softening law of beam '//fmt_int(i + 1)// &
+                                ' can carry (C'//fmt_int(i + 1)//' < 0)')
+                return
+            end if
+            dplus = tangent_stiffness(ch%ei(i + 1), ch%cubic(i + 1), kplus)
+            flex = ch%joint_flex(i)
+            vk_old = v(IK, :)
+            v(IPSI, :) = v(IPSI, :) + flex*dminus*vk_old
+            v(IK, :) = (dminus/dplus)*vk_old
+            do j = 1, size(wrt)
+                p = wrt(j)
+                if (p == param_index_joint_flex(nb, i)) v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + mminus
+                if (p == param_index_beam(nb, i, IB_EI)) then
+                    v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + flex*kminus
+                    v(IK, nu0 + j) = v(IK, nu0 + j) + kminus/dplus
+                end if
+                if (p == param_index_beam(nb, i, IB_C)) then
+                    v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + flex*kminus**3
+                    v(IK, nu0 + j) = v(IK, nu0 + j) + kminus**3/dplus
+                end if
+                if (p == param_index_beam(nb, i + 1, IB_EI)) &
+                    v(IK, nu0 + j) = v(IK, nu0 + j) - kplus/dplus
+                if (p == param_index_beam(nb, i + 1, IB_C)) &
+                    v(IK, nu0 + j) = v(IK, nu0 + j) - kplus**3/dplus
+            end do
+            z(IPSI) = z(IPSI) + flex*mminus
+            z(IK) = kplus
+        end do
+        shot%z_end = z
+        shot%v_end = v
+    end subroutine shoot
+
+    ! ------------------------------------------------------------ tip conditions
+
+    !> Tip force vector, including the wire's pull towards the root.
+    pure subroutine tip_force(prob, z, tension, px, py)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(in) :: z(NZ), tension
+        real(dp), intent(out) :: px, py
+        real(dp) :: r
+        if (prob%load%kind == LOAD_WIRE) then
+            r = hypot(z(IX), z(IY))
+            px = -tension*z(IX)/r
+            py = -tension*z(IY)/r
+        else
+            px = prob%load_factor*prob%load%fx
+            py = prob%load_factor*prob%load%fy
+        end if
+    end subroutine tip_force
+
+    !> Scaled tip residuals g (Eq. 23, 27 corrected, 22) and their derivatives
+    !! with respect to the tip state (dg_dz) and to the tension (dg_dt).
+    pure subroutine tip_residual(prob, z, tension, g, dg_dz, dg_dt)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(in) :: z(NZ), tension
+        real(dp), intent(out) :: g(:), dg_dz(:, :), dg_dt(:)
+        real(dp) :: px, py, s, c, pn, pt, r, ei, cc, dpx(NZ), dpy(NZ), dpx_t, dpy_t
+        integer :: nb
+        nb = prob%chain%nbeams
+        ei = prob%chain%ei(nb)
+        cc = prob%chain%cubic(nb)
+        call tip_force(prob, z, tension, px, py)
+        s = sin(z(IPSI))
+        c = cos(z(IPSI))
+        pn = -px*s + py*c
+        pt = px*c + py*s
+        dpx = 0.0_dp
+        dpy = 0.0_dp
+        dpx_t = 0.0_dp
+        dpy_t = 0.0_dp
+        if (prob%load%kind == LOAD_WIRE) then
+            r = hypot(z(IX), z(IY))
+            dpx(IX) = -tension*(1.0_dp/r - z(IX)**2/r**3)
+            dpx(IY) = tension*z(IX)*z(IY)/r**3
+            dpy(IX) = tension*z(IX)*z(IY)/r**3
+            dpy(IY) = -tension*(1.0_dp/r - z(IY)**2/r**3)
+            dpx_t = -z(IX)/r
+            dpy_t = -z(IY)/r
+        end if
+        g = 0.0_dp
+        dg_dz = 0.0_dp
+        dg_dt = 0.0_dp
+        ! moment at the tip equals the applied moment (zero: Eq. 23)
+        g(1) = (ei*z(IK) + cc*z(IK)**3 - prob%load_factor*prob%load%moment)/prob%moment_scale
+        dg_dz(1, IK) = tangent_stiffness(ei, cc, z(IK))/prob%moment_scale
+        ! shear equals the normal component of the tip force
+        g(2) = (z(IQ) - pn)/prob%force_scale
+        dg_dz(2, IQ) = 1.0_dp/prob%force_scale
+        dg_dz(2, IPSI) = pt/prob%force_scale
+        dg_dz(2, :) = dg_dz(2, :) - (-s*dpx + c*dpy)/prob%force_scale
+        dg_dt(2) = -(-s*dpx_t + c*dpy_t)/prob%force_scale
+        ! axial force equals the tangential component
+        g(3) = (z(IN) - pt)/prob%force_scale
+        dg_dz(3, IN) = 1.0_dp/prob%force_scale
+        dg_dz(3, IPSI) = -pn/prob%force_scale
+        dg_dz(3, :) = dg_dz(3, :) - (c*dpx + s*dpy)/prob%force_scale
+        dg_dt(3) = -(c*dpx_t + s*dpy_t)/prob%force_scale
+        if (prob%load%kind == LOAD_WIRE) then
+            ! the tip lies on the circle of the wire (Eq. 22a)
+            g(4) = (r - prob%load%wire_length)/prob%total_length
+            dg_dz(4, IX) = z(IX)/(r*prob%total_length)
+            dg_dz(4, IY) = z(IY)/(r*prob%total_length)
+        end if
+    end subroutine tip_residual
+
+    !> Residual and Newton matrix at unknowns u; the shot carries the
+    !! variational columns for params(wrt) as well.
+    subroutine evaluate(prob, u, wrt, opts, g, jac, shot, stat)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(in) :: u(:)
+        integer, intent(in) :: wrt(:)
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(out) :: g(:), jac(:, :)
+        type(shot_t), intent(inout) :: shot
+        type(status_t), intent(inout) :: stat
+        real(dp) :: dg_dz(prob%nu, NZ), dg_dt(prob%nu), tension
+        tension = 0.0_dp
+        if (prob%nu == 4) tension = u(4)
+        call shoot(prob, u, wrt, .true., opts, shot, stat)
+        if (stat%code /= STATUS_OK) return
+        call tip_residual(prob, shot%z_end, tension, g, dg_dz, dg_dt)
+        jac = 0.0_dp
+        jac(:, 1:NSHOOT) = matmul(dg_dz, shot%v_end(:, 1:NSHOOT))
+        if (prob%nu == 4) jac(:, 4) = dg_dt
+    end subroutine evaluate
+
+    !> Hand the arrays of one shot to another without copying.
+    pure subroutine move_shot(from, to)
+        type(shot_t), intent(inout) :: from, to
+        to%z_end = from%z_end
+        to%steps = from%steps
+        call move_alloc(from%v_end, to%v_end)
+        call move_alloc(from%z_joint, to%z_joint)
+        call move_alloc(from%v_joint, to%v_joint)
+    end subroutine move_shot
+
+    !> Damped Newton on the tip conditions from the guess in u.
+    !! `shot` returns the integration at the final u (with columns for wrt).
+    subroutine newton(prob, u, wrt, opts, iterations, resid, shot, stat)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(inout) :: u(:)
+        integer, intent(in) :: wrt(:)
+        type(static_options_t), intent(in) :: opts
+        integer, intent(out) :: iterations
+        real(dp), intent(out) :: resid
+        type(shot_t), intent(inout) :: shot
+        type(status_t), intent(inout) :: stat
+        type(shot_t) :: shot_try
+        real(dp) :: g(prob%nu), jac(prob%nu, prob%nu), step(prob%nu, 1), utry(prob%nu)
+        real(dp) :: gtry(prob%nu), jtry(prob%nu, prob%nu), alpha, rtry
+        type(status_t) :: trial
+        integer :: it, ls
+
+        iterations = 0
+        call evaluate(prob, u, wrt, opts, g, jac, shot, stat)
+        if (stat%code /= STATUS_OK) then
+            resid = huge(1.0_dp)
+            return
+        end if
+        resid = maxval(abs(g))
+        do it = 1, opts%max_newton
+            if (resid <= opts%newton_tol) return
+            iterations = it
+            step(:, 1) = -g
+            call solve_dense(jac, step, stat)
+            if (stat%code /= STATUS_OK) return
+            alpha = 1.0_dp
+            do ls = 1, 12
+                utry = u + alpha*step(:, 1)
+                trial%code = STATUS_OK
+                call evaluate(prob, utry, wrt, opts, gtry, jtry, shot_try, trial)
+                if (trial%code == STATUS_OK) then
+                    rtry = maxval(abs(gtry))
+                    if (rtry < (1.0_dp - 1.0e-4_dp*alpha)*resid .or. rtry <= opts%newton_tol) exit
+                end if
+                alpha = 0.5_dp*alpha
+            end do
+            if (trial%code /= STATUS_OK .or. ls > 12) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'static Newton', &
+                                'line search failed after '//fmt_int(it)// &
+                                ' iterations, scaled residual '//fmt_real(resid))
+                return
+            end if
+            u = utry
+            g = gtry
+            jac = jtry
+            resid = rtry
+            call move_shot(shot_try, shot)
+        end do
+        if (resid > opts%newton_tol) call set_status(stat, ERR_NO_CONVERGENCE, &
+                'static Newton', 'no convergence in '//fmt_int(opts%max_newton)// &
+                ' iterations, scaled residual '//fmt_real(resid)//' > '// &
+                fmt_real(opts%newton_tol))
+    end subroutine newton
+
+    ! --------------------------------------------------------------- public API
+
+    !> Check a load case against a chain; empty status when fine.
+    pure subroutine validate_static_load(chain, load, stat)
+        type(chain_t), intent(in) :: chain
+        type(static_load_t), intent(in) :: load
+        type(status_t), intent(inout) :: stat
+        real(dp) :: total
+        total = sum(chain%length)
+        select case (load%kind)
+        case (LOAD_TIP)
+            if (.not. all(ieee_is_finite([load%fx, load%fy, load%moment]))) then
+                call set_status(stat, ERR_INPUT, 'load', 'tip load (fx, fy, moment) = ('// &
+                                fmt_real(load%fx)//', '//fmt_real(load%fy)//', '// &
+                                fmt_real(load%moment)//'), expected finite numbers')
+            end if
+        case (LOAD_WIRE)
+            if (.not. ieee_is_finite(load%wire_length) .or. load%wire_length <= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, 'load', 'wire length Lw = '// &
+                                fmt_real(load%wire_length)//', expected a positive length')
+            else if (load%wire_length >= total) then
+                call set_status(stat, ERR_INPUT, 'load', 'wire length Lw = '// &
+                                fmt_real(load%wire_length)//' is not shorter than the arm ('// &
+                                fmt_real(total)//' m): the wire would be slack')
+            else if (load%wire_length < 0.05_dp*total) then
+                call set_status(stat, ERR_INPUT, 'load', 'wire length Lw = '// &
+                                fmt_real(load%wire_length)//' is too short to reach: '// &
+                                'expected at least 5 % of the arm length ('// &
+                                fmt_real(0.05_dp*total)//' m)')
+            end if
+        case default
+            call set_status(stat, ERR_INPUT, 'load', 'load kind '//fmt_int(load%kind)// &
+                            ', expected 1 (tip force/moment) or 2 (radial wire)')
+        end select
+    end subroutine validate_static_load
+
+    subroutine setup_problem(chain, load, prob)
+        type(chain_t), intent(in) :: chain
+        type(static_load_t), intent(in) :: load
+        type(problem_t), intent(out) :: prob
+        prob%chain = chain
+        prob%load = load
+        prob%total_length = sum(chain%length)
+        prob%force_scale = chain%ei(1)/prob%total_length**2
+        prob%moment_scale = chain%ei(1)/prob%total_length
+        prob%nu = merge(4, 3, load%kind == LOAD_WIRE)
+    end subroutine setup_problem
+
+    !> Solve the static problem and the sensitivities of all outputs with
+    !! respect to params(wrt(:)) (indices in the layout of beamid_model).
+    subroutine solve_static(chain, load, wrt, opts, sol, stat)
+        type(chain_t), intent(in) :: chain
+        type(static_load_t), intent(in) :: load
+        integer, intent(in) :: wrt(:)
+        type(static_options_t), intent(in) :: opts
+        type(static_solution_t), intent(out) :: sol
+        type(status_t), intent(inout) :: stat
+        type(problem_t) :: prob
+        type(shot_t) :: shot
+        real(dp), allocatable :: u(:)
+        integer :: j
+
+        call validate_static_load(chain, load, stat)
+        if (stat%code /= STATUS_OK) return
+        do j = 1, size(wrt)
+            if (wrt(j) < 1 .or. wrt(j) > param_count(chain%nbeams)) then
+                call set_status(stat, ERR_INPUT, 'solve_static', 'sensitivity index '// &
+                                fmt_int(wrt(j))//' out of range 1..'// &
+                                fmt_int(param_count(chain%nbeams)))
+                return
+            end if
+        end do
+        call setup_problem(chain, load, prob)
+        allocate (u(prob%nu))
+        if (load%kind == LOAD_WIRE) then
+            call solve_wire(prob, wrt, opts, u, shot, sol, stat)
+        else
+            call solve_tip(prob, wrt, opts, u, shot, sol, stat)
+        end if
+        if (stat%code /= STATUS_OK) return
+        ! after continuation the last shot may lack the sensitivity columns
+        if (size(shot%v_end, 2) /= NSHOOT + size(wrt)) then
+            call shoot(prob, u, wrt, .true., opts, shot, stat)
+            if (stat%code /= STATUS_OK) return
+        end if
+        call finish(prob, u, wrt, shot, sol, stat)
+    end subroutine solve_static
+
+    !> Tip force and moment: Newton from the linear guess, else continuation
+    !! in the load factor from the unloaded straight arm.
+    subroutine solve_tip(prob, wrt, opts, u, shot, sol, stat)
+        type(problem_t), intent(inout) :: prob
+        integer, intent(in) :: wrt(:)
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(inout) :: u(:)
+        type(shot_t), intent(inout) :: shot
+        type(static_solution_t), intent(inout) :: sol
+        type(status_t), intent(inout) :: stat
+        type(status_t) :: first_try
+        real(dp) :: m0
+        logical :: ok
+        integer :: its
+
+        m0 = prob%load%moment + prob%load%fy*prob%total_length
+        call curvature_from_moment(prob%chain%ei(1), prob%chain%cubic(1), m0, u(1), ok)
+        if (.not. ok) u(1) = m0/prob%chain%ei(1)
+        u(2) = prob%load%fy
+        u(3) = prob%load%fx
+        prob%load_factor = 1.0_dp
+        call newton(prob, u, wrt, opts, its, sol%residual, shot, first_try)
+        sol%newton_iterations = its
+        sol%load_steps = 1
+        if (first_try%code == STATUS_OK) return
+        u = 0.0_dp
+        call continuation(prob, opts, u, 0.0_dp, 1.0_dp, .false., shot, sol, stat)
+    end subroutine solve_tip
+
+    !> Radial wire: the shear-only form reduces to one unknown (the constant
+    !! shear), found by bracketing; then Newton on the full system, then
+    !! continuation in axial_coupling up to the requested value.
+    subroutine solve_wire(prob, wrt, opts, u, shot_out, sol, stat)
+        type(problem_t), intent(inout) :: prob
+        integer, intent(in) :: wrt(:)
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(inout) :: u(:)
+        type(shot_t), intent(inout) :: shot_out
+        type(static_solution_t), intent(inout) :: sol
+        type(status_t), intent(inout) :: stat
+        real(dp) :: target_a, qlo, qhi, rlo, rhi, q, r, tnorm, nrm
+        type(shot_t) :: shot
+        integer :: it, its
+        integer :: no_wrt(0)
+        logical :: ok
+
+        target_a = prob%chain%axial_coupling
+        prob%chain%axial_coupling = 0.0_dp
+        ! bracket the constant shear Q0 that brings the tip to |r| = Lw
+        qlo = 0.0_dp
+        rlo = prob%total_length
+        qhi = 0.25_dp*prob%force_scale
+        do it = 1, 60
+            call wire_radius(qhi, rhi, shot, ok)
+            if (.not. ok) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'no shape '// &
+                                'with tip radius Lw = '//fmt_real(prob%load%wire_length)// &
+                                ' found before the material law failed')
+                return
+            end if
+            if (rhi <= prob%load%wire_length) exit
+            qlo = qhi
+            rlo = rhi
+            qhi = 2.0_dp*qhi
+        end do
+        if (rhi > prob%load%wire_length) then
+            call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'could not bracket '// &
+                            'the shear for Lw = '//fmt_real(prob%load%wire_length))
+            return
+        end if
+        ! regula falsi (Illinois) on r(Q0) - Lw
+        q = qhi
+        do it = 1, 200
+            q = qhi - (rhi - prob%load%wire_length)*(qhi - qlo)/(rhi - rlo)
+            call wire_radius(q, r, shot, ok)
+            if (.not. ok) exit
+            if (abs(r - prob%load%wire_length) <= 1.0e-13_dp*prob%total_length) exit
+            if ((r - prob%load%wire_length)*(rhi - prob%load%wire_length) < 0.0_dp) then
+                qlo = qhi
+                rlo = rhi
+            else
+                rlo = prob%load%wire_length + 0.5_dp*(rlo - prob%load%wire_length)
+            end if
+            qhi = q
+            rhi = r
+        end do
+        ! wire tension from the tip shear: Q = P.n with P = -T r/|r|
+        nrm = (-shot%z_end(IX)*(-sin(shot%z_end(IPSI))) - shot%z_end(IY)*cos(shot%z_end(IPSI))) &
+              /hypot(shot%z_end(IX), shot%z_end(IY))
+        tnorm = q/nrm
+        call curvature_from_moment(prob%chain%ei(1), prob%chain%cubic(1), &
+                                   q*prob%total_length, u(1), ok)
+        u(2) = q
+        u(3) = 0.0_dp
+        u(4) = tnorm
+        if (target_a > 0.0_dp) then
+            call newton(prob, u, no_wrt, opts, its, sol%residual, shot_out, stat)
+        else
+            call newton(prob, u, wrt, opts, its, sol%residual, shot_out, stat)
+        end if
+        sol%newton_iterations = its
+        sol%load_steps = 1
+        if (stat%code /= STATUS_OK) return
+        if (target_a > 0.0_dp) then
+            call continuation(prob, opts, u, 0.0_dp, target_a, .true., shot_out, sol, stat)
+        end if
+
+    contains
+
+        !> Tip radius of the shear-only shape with constant shear qq; the
+        !! moment is linear, M(s) = qq (L - s), so k(0) follows from the root moment.
+        subroutine wire_radius(qq, radius, sh, good)
+            real(dp), intent(in) :: qq
+            real(dp), intent(out) :: radius
+            type(shot_t), intent(inout) :: sh
+            logical, intent(out) :: good
+            real(dp) :: uu(3), k0
+            type(status_t) :: st
+            call curvature_from_moment(prob%chain%ei(1), prob%chain%cubic(1), &
+                                       qq*prob%total_length, k0, good)
+            radius = huge(1.0_dp)
+            if (.not. good) return
+            uu = [k0, qq, 0.0_dp]
+            call shoot(prob, uu, no_wrt, .false., opts, sh, st)
+            good = st%code == STATUS_OK
+            if (good) radius = hypot(sh%z_end(IX), sh%z_end(IY))
+        end subroutine wire_radius
+    end subroutine solve_wire
+
+    !> Natural-parameter continuation from theta0 (solution in u) to theta1,
+    !! on the tip load factor or (coupling = .true.) on axial_coupling, with
+    !! step halving on failure and secant prediction.
+    subroutine continuation(prob, opts, u, theta0, theta1, coupling, shot, sol, stat)
+        type(problem_t), intent(inout) :: prob
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(inout) :: u(:)
+        type(shot_t), intent(inout) :: shot
+        real(dp), intent(in) :: theta0, theta1
+        logical, intent(in) :: coupling
+        type(static_solution_t), intent(inout) :: sol
+        type(status_t), intent(inout) :: stat
+        real(dp) :: theta, dtheta, ttry, uprev(size(u)), utry(size(u)), thprev, resid
+        type(status_t) :: trial
+        integer :: steps, its
+        integer :: no_wrt(0)
+        logical :: have_prev
+
+        theta = theta0
+        dtheta = (theta1 - theta0)/4.0_dp
+        have_prev = .false.
+        thprev = theta0
+        uprev = u
+        steps = 0
+        do while (theta /= theta1)
+            steps = steps + 1
+            if (steps > opts%max_load_steps .or. &
+                abs(dtheta) < 1.0e-7_dp*abs(theta1 - theta0)) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'static continuation', &
+                                trim(merge('axial_coupling', 'load factor   ', coupling))// &
+                                ' stalled at '//fmt_real(theta)//' of '//fmt_real(theta1)// &
+                                ' after '//fmt_int(steps)//' steps ('//trim(load_text())// &
+                                '); last scaled residual '//fmt_real(resid))
+                return
+            end if
+            ttry = theta + dtheta
+            if ((theta1 - ttry)*(theta1 - theta0) <= 0.0_dp) ttry = theta1
+            if (have_prev) then
+                utry = u + (u - uprev)*(ttry - theta)/(theta - thprev)
+            else
+                utry = u
+            end if
+            call set_theta(ttry)
+            trial%code = STATUS_OK
+            call newton(prob, utry, no_wrt, opts, its, resid, shot, trial)
+            if (trial%code == STATUS_OK) then
+                uprev = u
+                thprev = theta
+                have_prev = .true.
+                u = utry
+                theta = ttry
+                sol%newton_iterations = sol%newton_iterations + its
+                sol%residual = resid
+                if (its <= 4) dtheta = 1.5_dp*dtheta
+            else
+                dtheta = 0.5_dp*dtheta
+            end if
+        end do
+        sol%load_steps = sol%load_steps + steps
+
+    contains
+
+        subroutine set_theta(t)
+            real(dp), intent(in) :: t
+            if (coupling) then
+                prob%chain%axial_coupling = t
+            else
+                prob%load_factor = t
+            end if
+        end subroutine set_theta
+
+        function load_text() result(text)
+            character(len=:), allocatable :: text
+            if (prob%load%kind == LOAD_WIRE) then
+                text = 'radial wire Lw = '//fmt_real(prob%load%wire_length)
+            else
+                text = 'tip force ('//fmt_real(prob%load%fx)//', '//fmt_real(prob%load%fy)// &
+                       ') N, tip moment '//fmt_real(prob%load%moment)//' N m'
+            end if
+        end function load_text
+    end subroutine continuation
+
+    !> Outputs and sensitivities at the converged unknowns (Eq. 44-51).
+    subroutine finish(prob, u, wrt, shot, sol, stat)
+        type(problem_t), intent(in) :: prob
+        real(dp), intent(in) :: u(:)
+        integer, intent(in) :: wrt(:)
+        type(shot_t), intent(in) :: shot
+        type(static_solution_t), intent(inout) :: sol
+        type(status_t), intent(inout) :: stat
+        real(dp) :: g(prob%nu), dg_dz(prob%nu, NZ), dg_dt(prob%nu), tension
+        real(dp) :: jac(prob%nu, prob%nu), rhs_p(prob%nu, size(wrt))
+        real(dp) :: dz_end(NZ, size(wrt)), dz_elbow(NZ, size(wrt)), du(prob%nu, size(wrt))
+        real(dp) :: k0, d0, nan
+        integer :: nw, nb, j, p
+
+        nw = size(wrt)
+        nb = prob%chain%nbeams
+        tension = 0.0_dp
+        if (prob%nu == 4) tension = u(4)
+        call tip_residual(prob, shot%z_end, tension, g, dg_dz, dg_dt)
+        jac = 0.0_dp
+        jac(:, 1:NSHOOT) = matmul(dg_dz, shot%v_end(:, 1:NSHOOT))
+        if (prob%nu == 4) jac(:, 4) = dg_dt
+        ! implicit function theorem: J du/dp = -(dg/dz dz/dp|u + explicit dg/dp)
+        rhs_p = -matmul(dg_dz, shot%v_end(:, NSHOOT + 1:))
+        do j = 1, nw
+            p = wrt(j)
+            if (p == param_index_beam(nb, nb, IB_EI)) &
+                rhs_p(1, j) = rhs_p(1, j) - shot%z_end(IK)/prob%moment_scale
+            if (p == param_index_beam(nb, nb, IB_C)) &
+                rhs_p(1, j) = rhs_p(1, j) - shot%z_end(IK)**3/prob%moment_scale
+        end do
+        if (nw > 0) then
+            call solve_dense(jac, rhs_p, stat)
+            if (stat%code /= STATUS_OK) then
+                call set_status(stat, ERR_SINGULAR, 'static sensitivities', 'the tip '// &
+                                'conditions are singular at the solution (limit point?)')
+                return
+            end if
+        end if
+        du = rhs_p
+        dz_end = shot%v_end(:, NSHOOT + 1:) + matmul(shot%v_end(:, 1:NSHOOT), du(1:NSHOOT, :))
+        dz_elbow = shot%v_joint(:, NSHOOT + 1:, 1) + &
+                   matmul(shot%v_joint(:, 1:NSHOOT, 1), du(1:NSHOOT, :))
+
+        nan = ieee_value(1.0_dp, ieee_quiet_nan)
+        allocate (sol%doutputs(NOUT, nw))
+        sol%doutputs = 0.0_dp
+        sol%outputs(OUT_X_TIP) = shot%z_end(IX)
+        sol%outputs(OUT_Y_TIP) = shot%z_end(IY)
+        sol%outputs(OUT_TIP_ANGLE) = shot%z_end(IPSI)
+        sol%doutputs(OUT_X_TIP, :) = dz_end(IX, :)
+        sol%doutputs(OUT_Y_TIP, :) = dz_end(IY, :)
+        sol%doutputs(OUT_TIP_ANGLE, :) = dz_end(IPSI, :)
+        if (prob%nu == 4) then
+            sol%outputs(OUT_WIRE_FORCE) = tension
+            sol%doutputs(OUT_WIRE_FORCE, :) = du(4, :)
+        else
+            sol%outputs(OUT_WIRE_FORCE) = nan
+            sol%doutputs(OUT_WIRE_FORCE, :) = nan
+        end if
+        if (nb >= 2) then
+            sol%outputs(OUT_X_ELBOW) = shot%z_joint(IX, 1)
+            sol%outputs(OUT_Y_ELBOW) = shot%z_joint(IY, 1)
+            sol%outputs(OUT_ELBOW_ANGLE) = shot%z_joint(IPSI, 1)
+            sol%doutputs(OUT_X_ELBOW, :) = dz_elbow(IX, :)
+            sol%doutputs(OUT_Y_ELBOW, :) = dz_elbow(IY, :)
+            sol%doutputs(OUT_ELBOW_ANGLE, :) = dz_elbow(IPSI, :)
+        else
+            sol%outputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE) = nan
+            sol%doutputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE, :) = nan
+        end if
+        k0 = u(1)
+        d0 = tangent_stiffness(prob%chain%ei(1), prob%chain%cubic(1), k0)
+        sol%outputs(OUT_ROOT_MOMENT) = prob%chain%ei(1)*k0 + prob%chain%cubic(1)*k0**3
+        sol%doutputs(OUT_ROOT_MOMENT, :) = d0*du(1, :)
+        do j = 1, nw
+            p = wrt(j)
+            if (p == param_index_beam(nb, 1, IB_EI)) &
+                sol%doutputs(OUT_ROOT_MOMENT, j) = sol%doutputs(OUT_ROOT_MOMENT, j) + k0
+            if (p == param_index_beam(nb, 1, IB_C)) &
+                sol%doutputs(OUT_ROOT_MOMENT, j) = sol%doutputs(OUT_ROOT_MOMENT, j) + k0**3
+        end do
+        sol%unknowns = 0.0_dp
+        sol%unknowns(1:prob%nu) = u
+    end subroutine finish
+
+    !> Shape on the global arc positions s (ascending, within [0, total length])
+    !! for converged unknowns: columns x, y, psi, bending moment.
+    subroutine static_shape(chain, load, unknowns, opts, s, x, y, psi, moment, stat)
+        type(chain_t), intent(in) :: chain
+        type(static_load_t), intent(in) :: load
+        real(dp), intent(in) :: unknowns(4)
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(in) :: s(:)
+        real(dp), intent(out) :: x(:), y(:), psi(:), moment(:)
+        type(status_t), intent(inout) :: stat
+        type(problem_t) :: prob
+        type(shot_t) :: shot
+        real(dp) :: zs(NZ, size(s)), total
+        integer :: no_wrt(0), j, beam
+        real(dp) :: s0
+
+        total = sum(chain%length)
+        if (size(s) > 0) then
+            if (s(1) < 0.0_dp .or. s(size(s)) > total*(1.0_dp + 1.0e-12_dp) .or. &
+                any(s(2:) < s(:size(s) - 1))) then
+                call set_status(stat, ERR_INPUT, 'static_shape', 'arc positions must '// &
+                                'ascend within [0, '//fmt_real(total)//']')
+                return
+            end if
+        end if
+        call setup_problem(chain, load, prob)
+        call shoot(prob, unknowns(1:3), no_wrt, .false., opts, shot, stat, s, zs)
+        if (stat%code /= STATUS_OK) return
+        x = zs(IX, :)
+        y = zs(IY, :)
+        psi = zs(IPSI, :)
+        ! moment from the curvature with the law of the beam the station is on
+        s0 = 0.0_dp
+        beam = 1
+        do j = 1, size(s)
+            do while (beam < chain%nbeams .and. s(j) > s0 + chain%length(beam))
+                s0 = s0 + chain%length(beam)
+                beam = beam + 1
+            end do
+            moment(j) = chain%ei(beam)*zs(IK, j) + chain%cubic(beam)*zs(IK, j)**3
+        end do
+    end subroutine static_shape
+end module beamid_arclength

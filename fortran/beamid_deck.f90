@@ -1,0 +1,375 @@
+!> Namelist input decks for the batch executable (format: docs/decks.md).
+!!
+!! A deck holds the groups &beamid (task, output, preset, nbeams), &model
+!! (per-beam and per-mass-point arrays and the effect parameters), &load and
+!! &static. Every group and variable is checked: an unknown group, a
+!! misspelt variable, a missing value or a nonphysical one is reported with
+!! the deck's path and the offending name.
+module beamid_deck
+    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_IO, ERR_DECK, ERR_INPUT, STATUS_OK, &
+                             fmt_int, fmt_real
+    use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
+                            param_index_joint_flex, param_index_global, chain_t, &
+                            chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
+                            IM_MU, IM_C, IG_AXIAL_COUPLING, IG_ROOT_FLEX, IG_ETA, IG_R_MOTOR, &
+                            IG_TAU_MOTOR
+    use beamid_presets, only: preset_params
+    use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
+    implicit none
+    private
+
+    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS
+
+    integer, parameter :: NAME_LEN = 32
+    character(len=*), parameter :: KNOWN_GROUPS = ' beamid model load static published '
+
+    !> Everything a deck says.
+    type :: deck_t
+        character(len=:), allocatable :: path
+        character(len=:), allocatable :: task       !< 'static'
+        character(len=:), allocatable :: output     !< output prefix, relative to the deck
+        integer :: nbeams = 0
+        real(dp), allocatable :: params(:)
+        type(static_load_t) :: load
+        integer, allocatable :: wrt(:)              !< parameter indices for sensitivities
+        integer :: shape_points = 101
+        real(dp) :: tol = 0.0_dp                    !< 0: solver default
+    end type deck_t
+
+contains
+
+    !> Index of the named parameter (0 when unknown). Joint 1 may also be
+    !! called joint1 (m_joint1 = m_elbow).
+    pure integer function param_lookup(nbeams, name)
+        integer, intent(in) :: nbeams
+        character(len=*), intent(in) :: name
+        integer :: i
+        character(len=:), allocatable :: key
+        key = trim(adjustl(name))
+        if (nbeams >= 2) then
+            i = index(key, 'joint1')
+            if (i > 0 .and. len(key) == i + 5) key = key(:i - 1)//'elbow'
+            if (key == 'joint1_flex') key = 'elbow_flex'
+        end if
+        param_lookup = 0
+        do i = 1, param_count(nbeams)
+            if (param_name(nbeams, i) == key) then
+                param_lookup = i
+                return
+            end if
+        end do
+    end function param_lookup
+
+    !> Read and validate a deck.
+    subroutine read_deck(path, deck, stat)
+        character(len=*), intent(in) :: path
+        type(deck_t), intent(out) :: deck
+        type(status_t), intent(inout) :: stat
+
+        ! &beamid
+        character(len=NAME_LEN) :: task, preset
+        character(len=1024) :: output
+        integer :: nbeams
+        ! &model (allocated once nbeams is known)
+        real(dp), allocatable :: L(:), EI(:), EA(:), rho(:), C(:)
+        real(dp), allocatable :: m(:), J(:), mu(:), c_drag(:), joint_flex(:)
+        real(dp) :: axial_coupling, root_flex, eta, r_motor, tau_motor
+        ! &load
+        character(len=NAME_LEN) :: kind
+        real(dp) :: fx, fy, moment, wire_length
+        ! &static
+        character(len=NAME_LEN), allocatable :: wrt(:)
+        integer :: shape_points
+        real(dp) :: tol
+
+        namelist /beamid/ task, output, preset, nbeams
+        namelist /model/ L, EI, EA, rho, C, m, J, mu, c_drag, joint_flex, axial_coupling, &
+            root_flex, eta, r_motor, tau_motor
+        namelist /load/ kind, fx, fy, moment, wire_length
+        namelist /static/ wrt, shape_points, tol
+
+        integer :: unit, ios, i, nb_preset, nw
+        character(len=512) :: msg
+        real(dp) :: nan
+        real(dp), allocatable :: base(:)
+        logical :: exists
+
+        deck%path = path
+        nan = ieee_value(1.0_dp, ieee_quiet_nan)
+        inquire (file=path, exist=exists)
+        if (.not. exists) then
+            call set_status(stat, ERR_IO, 'deck', 'cannot open '//trim(path)// &
+                            ': no such file')
+            return
+        end if
+        open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+            call set_status(stat, ERR_IO, 'deck', 'cannot open '//trim(path)//': '//trim(msg))
+            return
+        end if
+        call check_groups(unit, path, stat)
+        if (stat%code /= STATUS_OK) then
+            close (unit)
+            return
+        end if
+
+        ! ---- &beamid
+        task = 'static'
+        output = ''
+        preset = ''
+        nbeams = 0
+        rewind (unit)
+        read (unit, nml=beamid, iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+            call group_error('beamid', ios, msg)
+            return
+        end if
+        if (trim(task) /= 'static') then
+            call deck_error('&beamid task = "'//trim(task)//'", expected "static"')
+            return
+        end if
+        if (len_trim(output) == 0) then
+            call deck_error('&beamid output is missing: give the output path prefix')
+            return
+        end if
+        if (len_trim(preset) > 0) then
+            call preset_params(trim(preset), nb_preset, base, stat)
+            if (stat%code /= STATUS_OK) then
+                stat%message = trim(path)//': &beamid '//trim(stat%message)
+                close (unit)
+                return
+            end if
+            if (nbeams == 0) nbeams = nb_preset
+            if (nbeams /= nb_preset) then
+                call deck_error('&beamid nbeams = '//fmt_int(nbeams)//' but preset "'// &
+                                trim(preset)//'" has '//fmt_int(nb_preset)//' beams')
+                return
+            end if
+        else
+            if (nbeams < 1) then
+                call deck_error('&beamid nbeams = '//fmt_int(nbeams)// &
+                                ': give nbeams >= 1 or a preset ("pace", "cantilever")')
+                return
+            end if
+            allocate (base(param_count(nbeams)))
+            base = nan
+            ! effects default to their null values; the structure must be given
+            do i = 1, nbeams
+                base(param_index_mass(nbeams, i, IM_M)) = 0.0_dp
+                base(param_index_mass(nbeams, i, IM_J)) = 0.0_dp
+                base(param_index_beam(nbeams, i, IB_C)) = 0.0_dp
+            end do
+            base(param_index_joint_flex(nbeams, 1):) = 0.0_dp
+            base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
+            base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
+            do i = 1, nbeams
+                base(param_index_mass(nbeams, i, IM_MU)) = 0.0_dp
+                base(param_index_mass(nbeams, i, IM_C)) = 0.0_dp
+            end do
+        end if
+        deck%nbeams = nbeams
+        deck%task = trim(task)
+        deck%output = trim(output)
+
+        ! ---- &model (optional with a preset)
+        allocate (L(nbeams), EI(nbeams), EA(nbeams), rho(nbeams), C(nbeams))
+        allocate (m(nbeams), J(nbeams), mu(nbeams), c_drag(nbeams), joint_flex(nbeams - 1))
+        do i = 1, nbeams
+            L(i) = base(param_index_beam(nbeams, i, IB_L))
+            EI(i) = base(param_index_beam(nbeams, i, IB_EI))
+            EA(i) = base(param_index_beam(nbeams, i, IB_EA))
+            rho(i) = base(param_index_beam(nbeams, i, IB_RHO))
+            C(i) = base(param_index_beam(nbeams, i, IB_C))
+            m(i) = base(param_index_mass(nbeams, i, IM_M))
+            J(i) = base(param_index_mass(nbeams, i, IM_J))
+            mu(i) = base(param_index_mass(nbeams, i, IM_MU))
+            c_drag(i) = base(param_index_mass(nbeams, i, IM_C))
+        end do
+        do i = 1, nbeams - 1
+            joint_flex(i) = base(param_index_joint_flex(nbeams, i))
+        end do
+        axial_coupling = base(param_index_global(nbeams, IG_AXIAL_COUPLING))
+        root_flex = base(param_index_global(nbeams, IG_ROOT_FLEX))
+        eta = base(param_index_global(nbeams, IG_ETA))
+        r_motor = base(param_index_global(nbeams, IG_R_MOTOR))
+        tau_motor = base(param_index_global(nbeams, IG_TAU_MOTOR))
+        rewind (unit)
+        read (unit, nml=model, iostat=ios, iomsg=msg)
+        if (ios > 0 .or. (ios < 0 .and. len_trim(preset) == 0)) then
+            call group_error('model', ios, msg)
+            return
+        end if
+        allocate (deck%params(param_count(nbeams)))
+        do i = 1, nbeams
+            deck%params(param_index_beam(nbeams, i, IB_L)) = L(i)
+            deck%params(param_index_beam(nbeams, i, IB_EI)) = EI(i)
+            deck%params(param_index_beam(nbeams, i, IB_EA)) = EA(i)
+            deck%params(param_index_beam(nbeams, i, IB_RHO)) = rho(i)
+            deck%params(param_index_beam(nbeams, i, IB_C)) = C(i)
+            deck%params(param_index_mass(nbeams, i, IM_M)) = m(i)
+            deck%params(param_index_mass(nbeams, i, IM_J)) = J(i)
+            deck%params(param_index_mass(nbeams, i, IM_MU)) = mu(i)
+            deck%params(param_index_mass(nbeams, i, IM_C)) = c_drag(i)
+        end do
+        do i = 1, nbeams - 1
+            deck%params(param_index_joint_flex(nbeams, i)) = joint_flex(i)
+        end do
+        deck%params(param_index_global(nbeams, IG_AXIAL_COUPLING)) = axial_coupling
+        deck%params(param_index_global(nbeams, IG_ROOT_FLEX)) = root_flex
+        deck%params(param_index_global(nbeams, IG_ETA)) = eta
+        deck%params(param_index_global(nbeams, IG_R_MOTOR)) = r_motor
+        deck%params(param_index_global(nbeams, IG_TAU_MOTOR)) = tau_motor
+        do i = 1, size(deck%params)
+            if (ieee_is_nan(deck%params(i)) .and. ieee_is_nan(base(i))) then
+                call deck_error('&model is missing '//param_name(nbeams, i)// &
+                                ' (set it in &model, or use a preset)')
+                return
+            end if
+        end do
+        block
+            type(chain_t) :: chain
+            call chain_from_vector(nbeams, deck%params, chain, stat)
+        end block
+        if (stat%code /= STATUS_OK) then
+            stat%message = trim(path)//': &'//trim(stat%message)
+            close (unit)
+            return
+        end if
+
+        ! ---- &load (required)
+        kind = ''
+        fx = 0.0_dp
+        fy = 0.0_dp
+        moment = 0.0_dp
+        wire_length = nan
+        rewind (unit)
+        read (unit, nml=load, iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+            call group_error('load', ios, msg)
+            return
+        end if
+        select case (trim(kind))
+        case ('tip')
+            deck%load%kind = LOAD_TIP
+            if (.not. ieee_is_nan(wire_length)) then
+                call deck_error('&load kind = "tip" does not take wire_length')
+                return
+            end if
+            wire_length = 0.0_dp
+        case ('wire')
+            deck%load%kind = LOAD_WIRE
+            if (ieee_is_nan(wire_length)) then
+                call deck_error('&load kind = "wire" needs wire_length (m)')
+                return
+            end if
+            if (fx /= 0.0_dp .or. fy /= 0.0_dp .or. moment /= 0.0_dp) then
+                call deck_error('&load kind = "wire" does not take fx, fy or moment')
+                return
+            end if
+        case default
+            call deck_error('&load kind = "'//trim(kind)//'", expected "tip" or "wire"')
+            return
+        end select
+        deck%load%fx = fx
+        deck%load%fy = fy
+        deck%load%moment = moment
+        deck%load%wire_length = wire_length
+
+        ! ---- &static (optional)
+        allocate (wrt(param_count(nbeams)))
+        wrt = ''
+        shape_points = 101
+        tol = 0.0_dp
+        rewind (unit)
+        read (unit, nml=static, iostat=ios, iomsg=msg)
+        if (ios > 0) then
+            call group_error('static', ios, msg)
+            return
+        end if
+        close (unit)
+        nw = count(len_trim(wrt) > 0)
+        allocate (deck%wrt(nw))
+        do i = 1, nw
+            deck%wrt(i) = param_lookup(nbeams, wrt(i))
+            if (deck%wrt(i) == 0) then
+                call set_status(stat, ERR_DECK, trim(path), '&static wrt = "'//trim(wrt(i))// &
+                                '" is not a parameter name (e.g. EI1, C2, elbow_flex)')
+                return
+            end if
+        end do
+        if (shape_points < 0 .or. shape_points == 1) then
+            call set_status(stat, ERR_DECK, trim(path), '&static shape_points = '// &
+                            fmt_int(shape_points)//', expected 0 (no shape) or at least 2')
+            return
+        end if
+        if (.not. (tol >= 0.0_dp .and. tol < 1.0e-2_dp)) then
+            call set_status(stat, ERR_DECK, trim(path), '&static tol = '//fmt_real(tol)// &
+                            ', expected 0 (default) or a tolerance below 1e-2')
+            return
+        end if
+        deck%shape_points = shape_points
+        deck%tol = tol
+
+    contains
+
+        subroutine deck_error(text)
+            character(len=*), intent(in) :: text
+            call set_status(stat, ERR_DECK, trim(path), text)
+            close (unit)
+        end subroutine deck_error
+
+        subroutine group_error(group, iostat, iomsg)
+            character(len=*), intent(in) :: group
+            integer, intent(in) :: iostat
+            character(len=*), intent(in) :: iomsg
+            if (iostat < 0) then
+                call deck_error('group &'//group//' is missing')
+            else
+                call deck_error('in &'//group//': '//trim(iomsg))
+            end if
+        end subroutine group_error
+    end subroutine read_deck
+
+    !> Reject groups whose names beamid does not know (a misspelt group would
+    !! otherwise be skipped silently by the namelist reader).
+    subroutine check_groups(unit, path, stat)
+        integer, intent(in) :: unit
+        character(len=*), intent(in) :: path
+        type(status_t), intent(inout) :: stat
+        character(len=1024) :: line
+        character(len=:), allocatable :: name
+        integer :: ios, lineno, k, e
+        lineno = 0
+        do
+            read (unit, '(a)', iostat=ios) line
+            if (ios /= 0) exit
+            lineno = lineno + 1
+            line = adjustl(line)
+            if (line(1:1) /= '&') cycle
+            e = scan(line(2:), ' /,!') 
+            if (e == 0) e = len_trim(line)
+            name = lower(line(2:e))
+            k = index(KNOWN_GROUPS, ' '//name//' ')
+            if (len(name) == 0 .or. name == 'end') cycle
+            if (k == 0) then
+                call set_status(stat, ERR_DECK, trim(path), 'line '//fmt_int(lineno)// &
+                                ': unknown group &'//name//', expected one of:'// &
+                                KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
+                return
+            end if
+        end do
+    end subroutine check_groups
+
+    pure function lower(text) result(out)
+        character(len=*), intent(in) :: text
+        character(len=len(text)) :: out
+        integer :: i, code
+        out = text
+        do i = 1, len(text)
+            code = iachar(text(i:i))
+            if (code >= iachar('A') .and. code <= iachar('Z')) out(i:i) = achar(code + 32)
+        end do
+    end function lower
+end module beamid_deck

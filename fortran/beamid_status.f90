@@ -1,0 +1,85 @@
+!> Status returned by every fallible beamid routine.
+!!
+!! Convention (after LAPACK's INFO and stdlib's state type):
+!! code == 0 success; code < 0 bad input (the message names the input, the
+!! value and what was expected); code > 0 numerical failure (no convergence,
+!! singular matrix) with iteration counts and residuals in the message.
+!! Library code never stops and never prints: it fills a status and returns.
+module beamid_status
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_nan, ieee_is_finite
+    use beamid_kinds, only: dp
+    implicit none
+    private
+
+    public :: status_t, set_status, clear_status, fmt_real, fmt_int
+
+    !> Status codes. Negative: input errors. Positive: numerical failures.
+    integer, parameter, public :: STATUS_OK = 0
+    integer, parameter, public :: ERR_INPUT = -1        !< bad value or name
+    integer, parameter, public :: ERR_IO = -2           !< file could not be read or written
+    integer, parameter, public :: ERR_DECK = -3         !< malformed namelist deck
+    integer, parameter, public :: ERR_NO_CONVERGENCE = 1 !< iteration did not converge
+    integer, parameter, public :: ERR_SINGULAR = 2       !< singular or ill-posed linear system
+    integer, parameter, public :: ERR_NUMERIC = 3        !< non-finite numbers or lost accuracy
+
+    !> Length of status messages (also the length exchanged with Python).
+    integer, parameter, public :: MSG_LEN = 256
+
+    type :: status_t
+        integer :: code = STATUS_OK
+        character(len=MSG_LEN) :: message = ''
+    contains
+        procedure :: ok => status_is_ok
+    end type status_t
+
+contains
+
+    !> True when the status holds no error.
+    pure logical function status_is_ok(self)
+        class(status_t), intent(in) :: self
+        status_is_ok = self%code == STATUS_OK
+    end function status_is_ok
+
+    !> Record an error: `where` names the routine, `message` says what went wrong.
+    pure subroutine set_status(stat, code, where, message)
+        type(status_t), intent(inout) :: stat
+        integer, intent(in) :: code
+        character(len=*), intent(in) :: where
+        character(len=*), intent(in) :: message
+        stat%code = code
+        stat%message = trim(where)//': '//trim(message)
+    end subroutine set_status
+
+    pure subroutine clear_status(stat)
+        type(status_t), intent(inout) :: stat
+        stat%code = STATUS_OK
+        stat%message = ''
+    end subroutine clear_status
+
+    !> Shortest readable form of a real for messages.
+    pure function fmt_real(x) result(text)
+        real(dp), intent(in) :: x
+        character(len=:), allocatable :: text
+        character(len=32) :: buffer
+        if (ieee_is_nan(x)) then
+            text = 'NaN'
+        else if (.not. ieee_is_finite(x)) then
+            if (x > 0) then
+                text = 'Infinity'
+            else
+                text = '-Infinity'
+            end if
+        else
+            write (buffer, '(g0.8)') x
+            text = trim(adjustl(buffer))
+        end if
+    end function fmt_real
+
+    pure function fmt_int(i) result(text)
+        integer, intent(in) :: i
+        character(len=:), allocatable :: text
+        character(len=16) :: buffer
+        write (buffer, '(i0)') i
+        text = trim(buffer)
+    end function fmt_int
+end module beamid_status

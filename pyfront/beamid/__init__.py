@@ -1,0 +1,26 @@
+"""beamid: large static and dynamic deformation of flexible beam chains, and
+the inverse problem (after McVay 1996).
+
+The numerical work is done in Fortran; this package wraps it.
+
+>>> import beamid
+>>> r = beamid.solve_static(beamid.pace(), beamid.TipForce(fy=8.0), wrt=("EI1",))
+>>> round(r.tip_y, 6)
+0.628434
+"""
+from .errors import BeamidError, ConvergenceError, InputError
+from .model import Model, cantilever, pace
+from .loads import RadialWire, TipForce, TipLoad, TipMoment
+from .static import Shape, StaticResult, solve_static
+from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
+from .decks import Deck, read_deck, run, write_deck
+from .reproduce import reproduce
+
+__all__ = [
+    "BeamidError", "ConvergenceError", "InputError",
+    "Model", "pace", "cantilever",
+    "TipForce", "TipMoment", "TipLoad", "RadialWire",
+    "solve_static", "StaticResult", "Shape",
+    "Deck", "read_deck", "write_deck", "run", "reproduce",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,76 @@
+"""The ``beamid`` command line. Every subcommand calls the public Python API."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from .errors import BeamidError, ConvergenceError, InputError
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .decks import read_deck, run
+
+    deck = read_deck(args.deck)
+    result = run(deck)
+    prefix = deck.output_prefix
+    print(f"{args.deck}: tip ({result.tip_x:.6f}, {result.tip_y:.6f}) m, angle "
+          f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
+    print(f"wrote {prefix}_summary.csv" + (f" and {prefix}_shape.csv"
+                                             if deck.shape_points >= 2 else ""))
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import format_checks, reproduce
+
+    checks = reproduce(args.tables)
+    if not checks:
+        raise InputError(f"no published values for tables {' '.join(args.tables)}")
+    print(format_checks(checks))
+    return 1 if any(c.status == "FAIL" for c in checks) else 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import demo
+
+    return demo(Path(args.out))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="beamid",
+        description="Large deformation of flexible beam chains and the inverse problem.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("run", help="run a namelist deck (as beamid-batch does)")
+    p.add_argument("deck", help="path of the deck (docs/decks.md)")
+    p.set_defaults(func=_cmd_run)
+    p = sub.add_parser("reproduce", help="compare with the dissertation's published tables")
+    p.add_argument("tables", nargs="*", help="tables to check (e.g. 2 4 12 circle); all if none")
+    p.set_defaults(func=_cmd_reproduce)
+    p = sub.add_parser("demo", help="reproduce the tables and draw the demo figures")
+    p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
+    p.set_defaults(func=_cmd_demo)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``beamid`` console command; returns the exit code
+    (0 ok, 1 a published value not reproduced, 2 input error, 3 no convergence)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except InputError as exc:
+        print(f"beamid: error: {exc}", file=sys.stderr)
+        return 2
+    except ConvergenceError as exc:
+        print(f"beamid: error: {exc}", file=sys.stderr)
+        return 3
+    except BeamidError as exc:  # pragma: no cover - future error kinds
+        print(f"beamid: error: {exc}", file=sys.stderr)
+        return 4
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,297 @@
+"""Namelist decks (format: docs/decks.md), read and written with f90nml.
+
+The same files drive the batch executable ``beamid-batch``; this module
+applies the same checks so that a deck fails the same way in both.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import f90nml
+import numpy as np
+
+from .errors import InputError
+from .loads import Load, RadialWire, TipLoad
+from .model import Model, _core
+from .static import OUTPUTS, StaticResult, solve_static
+
+GROUPS = {
+    "beamid": {"task", "output", "preset", "nbeams"},
+    "model": {"l", "ei", "ea", "rho", "c", "m", "j", "mu", "c_drag", "joint_flex",
+              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor"},
+    "load": {"kind", "fx", "fy", "moment", "wire_length"},
+    "static": {"wrt", "shape_points", "tol"},
+    "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
+}
+TASKS = ("static",)
+_PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
+_PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
+_GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
+
+
+@dataclass(frozen=True)
+class Published:
+    """Published values a deck reproduces (group &published)."""
+
+    table: str
+    row: str
+    values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
+    deviations: tuple[str, ...] = ()
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Deck:
+    """A parsed and validated deck."""
+
+    path: Path
+    task: str
+    output: str
+    model: Model
+    load: Load
+    wrt: tuple[str, ...] = ()
+    shape_points: int = 101
+    tol: float | None = None
+    published: tuple[Published, ...] = field(default_factory=tuple)
+
+    @property
+    def output_prefix(self) -> Path:
+        """Output prefix resolved against the deck's folder."""
+        out = Path(self.output)
+        return out if out.is_absolute() else self.path.parent / out
+
+
+def _point_name(nbeams: int, k: int) -> str:
+    if k == nbeams:
+        return "tip"
+    return "elbow" if k == 1 else f"joint{k}"
+
+
+def _as_list(value: Any) -> list:
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def _number(path: Path, group: str, name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{path}: in &{group}: {name} = {value!r}, expected a number")
+    return float(value)
+
+
+def read_deck(path: str | os.PathLike) -> Deck:
+    """Read and validate a deck; raise InputError naming the file and field."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"cannot open {path}: no such file")
+    parser = f90nml.Parser()
+    try:
+        nml = parser.read(str(path))
+    except Exception as exc:  # f90nml raises several types for syntax errors
+        raise InputError(f"{path}: not a valid namelist deck: {exc}") from None
+    groups: dict[str, list[dict]] = {}
+    for name, group in nml.items():
+        if name not in GROUPS:
+            raise InputError(f"{path}: unknown group &{name}, expected one of: "
+                             f"{' '.join(GROUPS)}")
+        items = group if isinstance(group, list) else [group]
+        for item in items:
+            for var in item:
+                if var not in GROUPS[name]:
+                    raise InputError(f"{path}: in &{name}: unknown variable {var!r} "
+                                     f"(known: {', '.join(sorted(GROUPS[name]))})")
+        groups.setdefault(name, []).extend(items)
+    for name, items in groups.items():
+        if len(items) > 1 and name != "published":
+            raise InputError(f"{path}: group &{name} appears {len(items)} times")
+
+    head = groups.get("beamid", [None])[0]
+    if head is None:
+        raise InputError(f"{path}: group &beamid is missing")
+    task = str(head.get("task", "static"))
+    if task not in TASKS:
+        raise InputError(f"{path}: &beamid task = {task!r}, expected one of {TASKS}")
+    output = head.get("output")
+    if not output:
+        raise InputError(f"{path}: &beamid output is missing: give the output path prefix")
+    preset = head.get("preset") or ""
+    nbeams = int(head.get("nbeams", 0) or 0)
+    if preset:
+        nb_preset, base = _core.preset(str(preset))
+        nbeams = nbeams or nb_preset
+        if nbeams != nb_preset:
+            raise InputError(f"{path}: &beamid nbeams = {nbeams} but preset {preset!r} "
+                             f"has {nb_preset} beams")
+        values = {n: float(v) for n, v in zip(_core.param_names(nbeams), base)}
+    else:
+        if nbeams < 1:
+            raise InputError(f"{path}: &beamid nbeams = {nbeams}: give nbeams >= 1 or a "
+                             "preset (\"pace\", \"cantilever\")")
+        values = {n: (0.0 if not n.startswith(("L", "EI", "EA", "rho")) else math.nan)
+                  for n in _core.param_names(nbeams)}
+        values["axial_coupling"] = 1.0
+        values["r_motor"] = 1.0
+
+    model_group = groups.get("model", [None])[0]
+    if model_group is None and not preset:
+        raise InputError(f"{path}: group &model is missing")
+    for var, value in (model_group or {}).items():
+        if var in _PER_BEAM or var in _PER_POINT or var == "joint_flex":
+            entries = _as_list(value)
+            size = nbeams - 1 if var == "joint_flex" else nbeams
+            if len(entries) > size:
+                raise InputError(f"{path}: in &model: {var} has {len(entries)} values, "
+                                 f"expected at most {size} for {nbeams} beams")
+            for k, entry in enumerate(entries, start=1):
+                if entry is None:
+                    continue
+                if var in _PER_BEAM:
+                    pname = _PER_BEAM[var].format(k)
+                elif var in _PER_POINT:
+                    pname = _PER_POINT[var].format(_point_name(nbeams, k))
+                else:
+                    pname = f"{_point_name(nbeams, k)}_flex"
+                values[pname] = _number(path, "model", f"{var}({k})", entry)
+        else:
+            values[var] = _number(path, "model", var, value)
+    for name, value in values.items():
+        if math.isnan(value):
+            raise InputError(f"{path}: &model is missing {name} (set it in &model, or use "
+                             "a preset)")
+    try:
+        model = Model(nbeams, [values[n] for n in _core.param_names(nbeams)])
+    except InputError as exc:
+        raise InputError(f"{path}: &{exc}") from None
+
+    load_group = groups.get("load", [None])[0]
+    if load_group is None:
+        raise InputError(f"{path}: group &load is missing")
+    kind = str(load_group.get("kind", ""))
+    nums = {k: _number(path, "load", k, load_group[k])
+            for k in ("fx", "fy", "moment", "wire_length") if k in load_group}
+    if kind == "tip":
+        if "wire_length" in nums:
+            raise InputError(f"{path}: &load kind = \"tip\" does not take wire_length")
+        load: Load = TipLoad(nums.get("fx", 0.0), nums.get("fy", 0.0), nums.get("moment", 0.0))
+    elif kind == "wire":
+        if "wire_length" not in nums:
+            raise InputError(f"{path}: &load kind = \"wire\" needs wire_length (m)")
+        if any(nums.get(k, 0.0) != 0.0 for k in ("fx", "fy", "moment")):
+            raise InputError(f"{path}: &load kind = \"wire\" does not take fx, fy or moment")
+        load = RadialWire(nums["wire_length"])
+    else:
+        raise InputError(f"{path}: &load kind = {kind!r}, expected \"tip\" or \"wire\"")
+
+    static = groups.get("static", [{}])[0]
+    wrt = tuple(str(w) for w in _as_list(static.get("wrt", [])) if w)
+    for w in wrt:
+        try:
+            model.index(w)
+        except InputError:
+            raise InputError(f"{path}: &static wrt = {w!r} is not a parameter name "
+                             "(e.g. EI1, C2, elbow_flex)") from None
+    shape_points = int(static.get("shape_points", 101))
+    if shape_points < 0 or shape_points == 1:
+        raise InputError(f"{path}: &static shape_points = {shape_points}, expected 0 (no "
+                         "shape) or at least 2")
+    tol = float(static.get("tol", 0.0))
+    if not (0.0 <= tol < 1e-2):
+        raise InputError(f"{path}: &static tol = {tol}, expected 0 (default) or a "
+                         "tolerance below 1e-2")
+
+    published = []
+    for item in groups.get("published", []):
+        quantities = [str(q) for q in _as_list(item.get("quantity", []))]
+        vals = _as_list(item.get("value", []))
+        digits = _as_list(item.get("digits", []))
+        if not (len(quantities) == len(vals) == len(digits)) or not quantities:
+            raise InputError(f"{path}: &published needs equally long quantity, value and "
+                             "digits lists")
+        published.append(Published(
+            table=str(item.get("table", "")), row=str(item.get("row", "")),
+            values={q: (float(v), int(dg)) for q, v, dg in zip(quantities, vals, digits)},
+            deviations=tuple(str(d) for d in _as_list(item.get("deviation", [])) if d),
+            note=str(item.get("note", "") or "")))
+    return Deck(path=path, task=task, output=str(output), model=model, load=load, wrt=wrt,
+                shape_points=shape_points, tol=tol or None, published=tuple(published))
+
+
+def write_deck(deck: Deck, path: str | os.PathLike) -> None:
+    """Write a deck that reads back to the same model, load and options."""
+    model = deck.model
+    nb = model.nbeams
+    p = model.params
+    groups: dict[str, dict[str, Any]] = {
+        "beamid": {"task": deck.task, "output": deck.output, "nbeams": nb},
+        "model": {
+            **{var: [p[fmt.format(k)] for k in range(1, nb + 1)]
+               for var, fmt in _PER_BEAM.items()},
+            **{var: [p[fmt.format(_point_name(nb, k))] for k in range(1, nb + 1)]
+               for var, fmt in _PER_POINT.items()},
+            **({"joint_flex": [p[f"{_point_name(nb, k)}_flex"] for k in range(1, nb)]}
+               if nb > 1 else {}),
+            **{g: p[g] for g in _GLOBAL},
+        },
+    }
+    if isinstance(deck.load, RadialWire):
+        groups["load"] = {"kind": "wire", "wire_length": deck.load.Lw}
+    else:
+        groups["load"] = {"kind": "tip", "fx": deck.load.fx, "fy": deck.load.fy,
+                          "moment": deck.load.moment}
+    static: dict[str, Any] = {"shape_points": deck.shape_points}
+    if deck.wrt:
+        static["wrt"] = list(deck.wrt)
+    if deck.tol:
+        static["tol"] = deck.tol
+    groups["static"] = static
+    nml = f90nml.Namelist(groups)
+    nml.float_format = ".17g"
+    _atomic_write(Path(path), str(nml) + "\n")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    """Write text to path through a temporary file, so no half file is left."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _csv_number(x: float) -> str:
+    return f"{x:.16E}"
+
+
+def run(deck: Deck | str | os.PathLike) -> StaticResult:
+    """Run a deck as ``beamid-batch`` does and write the same CSV files:
+    ``<output>_summary.csv`` (outputs and sensitivities) and ``<output>_shape.csv``.
+    """
+    if not isinstance(deck, Deck):
+        deck = read_deck(deck)
+    result = solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)
+    shape = result.shape(n=deck.shape_points) if deck.shape_points >= 2 else None
+    names = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",
+             "elbow_angle", "root_moment")
+    lines = ["quantity,value"]
+    lines += [f"{n},{_csv_number(result.outputs[o])}" for n, o in zip(names, OUTPUTS)]
+    for p in deck.wrt:
+        canonical = deck.model.names()[deck.model.index(p)]
+        lines += [f"d({n})/d({canonical}),{_csv_number(result.d[o][p])}"
+                  for n, o in zip(names, OUTPUTS)]
+    lines += [f"newton_iterations,{result.newton_iterations}",
+              f"load_steps,{result.load_steps}"]
+    prefix = deck.output_prefix
+    _atomic_write(Path(f"{prefix}_summary.csv"), "\n".join(lines) + "\n")
+    if shape is not None:
+        rows = ["s,x,y,psi,moment"] + [",".join(_csv_number(v) for v in row)
+                                       for row in np.column_stack(shape)]
+        _atomic_write(Path(f"{prefix}_shape.csv"), "\n".join(rows) + "\n")
+    return result

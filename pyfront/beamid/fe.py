@@ -1,0 +1,408 @@
+"""Nonlinear finite element chain (Chapter IV of McVay 1996).
+
+Epstein-Murray beam elements with cubic Hermite u and w (Eq. 76), the Green
+axial strain (Eq. 70) and the modified curvature (Eq. 72), assembled in band
+storage over a chain of any number of beams (locked joints, clamped root).
+
+    r = beamid.fe_static(model, beamid.TipForce(fy=8.0), elements_per_beam=16)
+    r.tip["w"], r.tip["dw"], r.tip["u"], r.tip["du"]    # Table 11/12 columns
+    r.nodes["w"]                                         # per node: s, u, du, w, dw
+    md = beamid.modes(model, elements_per_beam=4)
+    md.transverse, md.axial                              # rad/s, ascending (Tables 9-10)
+
+"8 elements" in the dissertation's tables is 4 elements per beam of the
+two-beam PACE arm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from .errors import InputError, raise_for_status
+
+__all__ = [
+    "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
+    "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
+    "fe_system", "fe_element", "free_vector", "NODE_FIELDS", "MOMENT_FORMS",
+]
+
+#: Rows of a node table, in order: undeformed arc length, u, u', w, w'.
+NODE_FIELDS = ("s", "u", "du", "w", "dw")
+#: Tip-moment virtual work: Eq. 78 as printed (what produced Table 11), or exact.
+MOMENT_FORMS = {"eq78": 0, "exact": 1}
+_NODE_DTYPE = np.dtype([(name, np.float64) for name in NODE_FIELDS])
+
+
+def _input_error(message):
+    return InputError(message)
+
+
+def _call(name, *args):
+    """Call FE API routine `name`; its trailing (code, message) become
+    beamid.InputError / beamid.ConvergenceError. _core is the only module that
+    touches the extension: this goes through ``_core.fe_call`` when the lead's
+    _core provides it, else through the same extension object _core imported."""
+    if hasattr(_core, "fe_call"):
+        return _core.fe_call(name, *args)
+    *values, code, message = getattr(_core._ext.beamid_api_fe, name)(*args)
+    raise_for_status(int(code), message)
+    return values
+
+
+def _call_plain(name, *args):
+    """Call an FE API routine without a status (element kernels)."""
+    if hasattr(_core, "fe_call_plain"):
+        return _core.fe_call_plain(name, *args)
+    return getattr(_core._ext.beamid_api_fe, name)(*args)
+
+
+def _model_args(model):
+    try:
+        nbeams = int(model.nbeams)
+        params = np.ascontiguousarray(model.vector(), dtype=np.float64)
+    except AttributeError as exc:
+        raise _input_error(f"model must be a beamid Model, got {type(model).__name__}") from exc
+    return nbeams, params
+
+
+def _mesh_size(nbeams, elements_per_beam):
+    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam, (int, np.integer)):
+        raise _input_error(f"elements_per_beam = {elements_per_beam!r}, expected an integer >= 1")
+    if elements_per_beam < 1:
+        raise _input_error(f"elements_per_beam = {elements_per_beam}, expected at least 1")
+    nnode = nbeams * int(elements_per_beam) + 1
+    return nnode, 4 * nnode - 3
+
+
+def _moment_form(form):
+    if form not in MOMENT_FORMS:
+        raise _input_error(f"moment_form = {form!r}, expected one of {sorted(MOMENT_FORMS)}")
+    return MOMENT_FORMS[form]
+
+
+def _load_components(load):
+    """(fx, fy, moment) of a tip load: TipForce, TipMoment (a TipLoad), or a list."""
+    if isinstance(load, (list, tuple)):
+        total = np.zeros(3)
+        for item in load:
+            total += _load_components(item)
+        return total
+    if all(hasattr(load, name) for name in ("fx", "fy", "moment")):
+        comps = np.array([float(load.fx), float(load.fy), float(load.moment)])
+        if not np.all(np.isfinite(comps)):
+            raise _input_error(f"tip load {comps} is not finite")
+        return comps
+    raise _input_error(
+        f"load {type(load).__name__} is not supported by the finite element chain "
+        "(expected TipForce, TipMoment, their sum, or a list of them)")
+
+
+def _node_table(start, nnode):
+    """A (5, nnode) Fortran-ordered table from a result, structured nodes or an array."""
+    if isinstance(start, (FEStatic, FEBuckling)):
+        start = start.nodes
+    arr = np.asarray(start)
+    if arr.dtype.names is not None:
+        arr = np.stack([arr[name] for name in NODE_FIELDS])
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.shape == (nnode, 5):
+        arr = arr.T
+    if arr.shape != (5, nnode):
+        raise _input_error(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
+                           "or a result of the same mesh")
+    if not np.all(np.isfinite(arr)):
+        raise _input_error("starting shape is not finite")
+    return np.asfortranarray(arr)
+
+
+def _structured(table):
+    nodes = np.empty(table.shape[1], dtype=_NODE_DTYPE)
+    for i, name in enumerate(NODE_FIELDS):
+        nodes[name] = table[i]
+    return nodes
+
+
+def free_vector(nodes):
+    """Free unknown vector q (the order of fe_system) from structured nodes."""
+    table = np.stack([nodes["w"], nodes["dw"], nodes["u"], nodes["du"]], axis=1)
+    return table.ravel()[3:].copy()
+
+
+def _tip(nodes):
+    return {name: float(nodes[name][-1]) for name in NODE_FIELDS}
+
+
+@dataclass
+class FEStatic:
+    """A static equilibrium of the finite element chain."""
+
+    nodes: np.ndarray           #: structured array, fields s, u, du, w, dw per node
+    tip: dict                   #: tip values: w, dw, u, du (Tables 11, 12) and s
+    energy: float               #: strain energy V (Eq. 87), N m
+    reactions: np.ndarray       #: root multipliers of Eq. 105 on (w, w', u)
+    residual: float             #: final |NLT - Q|_inf
+    iterations: int             #: Newton iterations
+    steps: int                  #: accepted load steps
+    elements_per_beam: int
+    load: np.ndarray            #: (fx, fy, moment)
+
+    @property
+    def q(self):
+        """Free unknown vector (node order w, w', u, u'; root w, w', u clamped)."""
+        return free_vector(self.nodes)
+
+    @property
+    def x(self):
+        """Deformed x = s + u of the nodes (Eq. 62)."""
+        return self.nodes["s"] + self.nodes["u"]
+
+    @property
+    def y(self):
+        """Deformed y = w of the nodes (Eq. 62)."""
+        return self.nodes["w"].copy()
+
+    @property
+    def angle(self):
+        """Tangent angle Psi = atan2(w', 1 + u') at the nodes."""
+        return np.arctan2(self.nodes["dw"], 1.0 + self.nodes["du"])
+
+    @property
+    def strain(self):
+        """Green axial strain e = u' + (u'^2 + w'^2)/2 at the nodes (Eq. 70)."""
+        du, dw = self.nodes["du"], self.nodes["dw"]
+        return du + 0.5 * (du * du + dw * dw)
+
+
+def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
+              moment_form="eq78"):
+    """Static equilibrium under a tip load (Newton, Eq. 84-85).
+
+    Without `start` the load is stepped up from the straight chain (``steps``
+    initial steps, halved on failure). With `start` (an FEStatic, FEBuckling
+    or node table of the same mesh) Newton runs at the full load from that
+    shape, which selects among several equilibria above the buckling load.
+    """
+    nbeams, params = _model_args(model)
+    nnode, _ = _mesh_size(nbeams, elements_per_beam)
+    comps = _load_components(load)
+    loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
+    if start is None:
+        guess = np.zeros((5, nnode), dtype=np.float64, order="F")
+        use_guess = 0
+    else:
+        guess = _node_table(start, nnode)
+        use_guess = 1
+    nodes, energy, reactions, residual, info = _call(
+        "api_fe_static", nbeams, params, int(elements_per_beam), loads, use_guess,
+        int(steps), float(tol), guess)
+    table = _structured(np.asarray(nodes))
+    return FEStatic(nodes=table, tip=_tip(table), energy=float(energy),
+                    reactions=np.array(reactions), residual=float(residual),
+                    iterations=int(info[0]), steps=int(info[1]),
+                    elements_per_beam=int(elements_per_beam), load=comps)
+
+
+@dataclass
+class FEPath:
+    """Equilibria along load0 + lam * dload from pseudo-arc-length continuation."""
+
+    lam: np.ndarray                 #: load parameter at each point
+    nodes: np.ndarray               #: (npts, nnode) structured node tables
+    load0: np.ndarray
+    dload: np.ndarray
+    elements_per_beam: int
+
+    @property
+    def tip(self):
+        """Tip values along the path: dict of arrays w, dw, u, du."""
+        return {name: self.nodes[name][:, -1].copy() for name in NODE_FIELDS}
+
+    def limit_points(self):
+        """Indices i where lam turns (lam[i] is a local extremum): limit points."""
+        d = np.diff(self.lam)
+        return [i + 1 for i in range(len(d) - 1) if d[i] * d[i + 1] < 0]
+
+    def crossings(self, value):
+        """Indices i with lam[i] and lam[i+1] on either side of `value`."""
+        s = self.lam - value
+        return [i for i in range(len(s) - 1) if s[i] == 0 or s[i] * s[i + 1] < 0]
+
+
+def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, ds=0.05,
+            ds_max=0.5, direction=1, lam_range=(-1e3, 1e3), max_points=200, tol=0.0,
+            moment_form="eq78"):
+    """Follow equilibria under ``load0 + lam * dload`` past limit points.
+
+    `start` is a shape near the equilibrium at lam0 (default: the straight
+    chain, right for lam0 = 0 and load0 = 0). `ds` is the first arc-length step
+    in the (q, lam) space, `direction` the sign of the first change of lam.
+    """
+    nbeams, params = _model_args(model)
+    nnode, _ = _mesh_size(nbeams, elements_per_beam)
+    c0 = _load_components(load0) if load0 is not None else np.zeros(3)
+    dc = _load_components(dload)
+    loads = np.array([*c0, _moment_form(moment_form)], dtype=np.float64)
+    guess = (np.zeros((5, nnode), order="F") if start is None else _node_table(start, nnode))
+    if int(max_points) < 1:
+        raise _input_error(f"max_points = {max_points}, expected at least 1")
+    npts, lam, nodes = _call(
+        "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, float(lam0),
+        float(ds), float(ds_max), int(direction), float(lam_range[0]), float(lam_range[1]),
+        float(tol), int(max_points))
+    npts = int(npts)
+    nodes = np.asarray(nodes)[:, :, :npts]
+    table = np.empty((npts, nnode), dtype=_NODE_DTYPE)
+    for i, name in enumerate(NODE_FIELDS):
+        table[name] = nodes[i].T
+    return FEPath(lam=np.array(lam[:npts]), nodes=table, load0=c0, dload=dc,
+                  elements_per_beam=int(elements_per_beam))
+
+
+@dataclass
+class FEBuckling:
+    """Linear buckling of the straight chain under a compressive tip force."""
+
+    load: float             #: critical compressive tip force P_cr, N
+    nodes: np.ndarray       #: buckled mode (structured node table), tip w = 1
+    elements_per_beam: int
+
+
+def buckling_load(model, elements_per_beam=8):
+    """Critical compressive tip load: least P with K0 phi = P G phi."""
+    nbeams, params = _model_args(model)
+    nnode, _ = _mesh_size(nbeams, elements_per_beam)
+    pcr, mode = _call("api_fe_buckling", nbeams, params, int(elements_per_beam), nnode)
+    return FEBuckling(load=float(pcr), nodes=_structured(np.asarray(mode)),
+                      elements_per_beam=int(elements_per_beam))
+
+
+@dataclass
+class ModalCost:
+    """Skelton's modal cost (Eq. 128) of a linear free vibration, per mode."""
+
+    omega: np.ndarray       #: frequencies (rad/s), ascending
+    eta: np.ndarray         #: modal coordinates Phi^T M q0
+    kinetic: np.ndarray     #: int eta'^2 dt over [0, t]
+    potential: np.ndarray   #: int omega^2 eta^2 dt over [0, t]
+    is_axial: np.ndarray
+
+    @property
+    def cost(self):
+        """Total cost per mode (Eq. 128)."""
+        return self.kinetic + self.potential
+
+    def ranking(self):
+        """1-based mode numbers, most costly first."""
+        return list(np.argsort(-self.cost, kind="stable") + 1)
+
+    def select(self, fraction=0.999):
+        """Smallest set of modes (1-based, ascending) holding `fraction` of the cost."""
+        order = np.argsort(-self.cost, kind="stable")
+        share = np.cumsum(self.cost[order]) / np.sum(self.cost)
+        count = int(np.searchsorted(share, fraction) + 1)
+        return sorted(int(i) + 1 for i in order[:count])
+
+
+@dataclass
+class FEModes:
+    """Linear natural modes at the straight chain (Eq. 124-126)."""
+
+    omega: np.ndarray        #: all frequencies, rad/s, ascending
+    phi: np.ndarray          #: mass-normalized shapes, columns over the free unknowns
+    is_axial: np.ndarray     #: True for u (axial) modes
+    dofs: np.ndarray         #: (nfree, 2): node (1-based) and component 1..4 = w, w', u, u'
+    elements_per_beam: int
+    rotary_inertia: bool
+    _model: object = field(default=None, repr=False)
+
+    @property
+    def transverse(self):
+        """Frequencies of the w modes (Table 9), rad/s ascending."""
+        return self.omega[~self.is_axial]
+
+    @property
+    def axial(self):
+        """Frequencies of the u modes (Table 10), rad/s ascending."""
+        return self.omega[self.is_axial]
+
+    def shape(self, i):
+        """Structured node table of mode i (1-based, in ascending order)."""
+        nnode = int(self.dofs[:, 0].max())
+        table = np.zeros((5, nnode))
+        rows = {1: 3, 2: 4, 3: 1, 4: 2}
+        for k, (node, comp) in enumerate(self.dofs):
+            table[rows[int(comp)], node - 1] = self.phi[k, i - 1]
+        return _structured(table)
+
+    def modal_cost(self, shape, velocity=None, t=None):
+        """Skelton's modal cost (Eq. 127-129) of the linear free vibration that
+        starts from `shape` (FEStatic or node table) with `velocity` over [0, t]
+        (default: the period of the first mode)."""
+        nbeams, params = _model_args(self._model)
+        nnode, nfree = _mesh_size(nbeams, self.elements_per_beam)
+        q0 = _node_table(shape, nnode)
+        v0 = (np.zeros((5, nnode), order="F") if velocity is None
+              else _node_table(velocity, nnode))
+        span = 2 * np.pi / self.omega[0] if t is None else float(t)
+        omega, eta, kin, pot = _call(
+            "api_fe_modal_cost", nbeams, params, int(self.elements_per_beam),
+            int(self.rotary_inertia), nfree, q0, v0, span)
+        return ModalCost(omega=np.array(omega), eta=np.array(eta), kinetic=np.array(kin),
+                         potential=np.array(pot), is_axial=self.is_axial.copy())
+
+
+def modes(model, elements_per_beam=4, *, rotary_inertia=False):
+    """Linear modes K phi = omega^2 M phi (LAPACK dsygv), split into transverse
+    (w) and axial (u) families. Rotary inertia of the end masses (Eq. 130-132)
+    is off by default, as in the dissertation's tables."""
+    nbeams, params = _model_args(model)
+    _, nfree = _mesh_size(nbeams, elements_per_beam)
+    omega, phi, axial, dofs = _call("api_fe_modes", nbeams, params, int(elements_per_beam),
+                                    int(bool(rotary_inertia)), nfree)
+    return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,
+                   dofs=np.array(dofs).T.copy(), elements_per_beam=int(elements_per_beam),
+                   rotary_inertia=bool(rotary_inertia), _model=model)
+
+
+def axial_modes_linear(model, elements_per_beam=4, *, point_masses=True):
+    """Axial frequencies of the linear-u verification model (Eq. 114). Table 7's
+    axial column is this model without point masses, from its 2nd frequency."""
+    nbeams, params = _model_args(model)
+    _mesh_size(nbeams, elements_per_beam)
+    nel = nbeams * int(elements_per_beam)
+    (omega,) = _call("api_fe_axial_linear", nbeams, params, int(elements_per_beam),
+                     int(bool(point_masses)), nel)
+    return np.array(omega)
+
+
+def fe_system(model, q, load=None, elements_per_beam=2, *, rotary_inertia=False,
+              moment_form="eq78"):
+    """Dense energy, internal force, Newton matrix d(NLT - Q)/dq, mass and tip
+    load vector at the free unknown vector q (for checks and small studies)."""
+    nbeams, params = _model_args(model)
+    _, nfree = _mesh_size(nbeams, elements_per_beam)
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    if q.shape != (nfree,):
+        raise _input_error(f"q has shape {q.shape}, expected ({nfree},)")
+    comps = np.zeros(3) if load is None else _load_components(load)
+    loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
+    energy, force, jac, mass, qload = _call(
+        "api_fe_system", nbeams, params, int(elements_per_beam), int(bool(rotary_inertia)),
+        q, loads)
+    return {"energy": float(energy), "force": np.array(force), "jacobian": np.array(jac),
+            "mass": np.array(mass), "load": np.array(qload)}
+
+
+def fe_element(h, ea, ei, q, *, cubic=0.0, rho=0.0):
+    """Energy, internal force, tangent and mass of one element with unknowns
+    [w1, w1', u1, u1', w2, w2', u2, u2'] (exact Gauss rule)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    if q.shape != (8,):
+        raise _input_error(f"element vector has shape {q.shape}, expected (8,)")
+    energy, force, tangent, mass = _call_plain(
+        "api_fe_element", float(h), float(ea), float(ei), float(cubic), float(rho), q)
+    return {"energy": float(energy), "force": np.array(force), "tangent": np.array(tangent),
+            "mass": np.array(mass)}

@@ -1,0 +1,162 @@
+"""Arc-length static solver (Chapter III) from Python.
+
+>>> import beamid
+>>> m = beamid.pace(axial_coupling=0.0, C1=5.0, C2=20.0)
+>>> r = beamid.solve_static(m, beamid.RadialWire(1.3), wrt=("EI1", "C2"))
+>>> round(r.wire_force, 1)
+109.3
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, NamedTuple
+
+import numpy as np
+
+from . import _core
+from .errors import InputError
+from .loads import Load, RadialWire, TipLoad
+from .model import Model
+
+#: Outputs of a static solve, in the order the Fortran core returns them.
+OUTPUTS = ("tip_x", "tip_y", "tip_angle", "wire_force", "elbow_x", "elbow_y",
+           "elbow_angle", "root_moment")
+#: Measurement-style aliases (x_tip = tip_x ...), accepted as keys of ``d``.
+ALIASES = {"x_tip": "tip_x", "y_tip": "tip_y", "x_elbow": "elbow_x", "y_elbow": "elbow_y"}
+
+
+class Shape(NamedTuple):
+    """Deformed shape on an arc-length grid: s, x, y, psi (rad), moment (N m)."""
+
+    s: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    psi: np.ndarray
+    moment: np.ndarray
+
+
+@dataclass(frozen=True)
+class StaticResult:
+    """Converged static solution.
+
+    ``d[output][param]`` is the sensitivity of an output to a parameter named
+    in ``wrt``; outputs are those of :data:`OUTPUTS` (and the aliases
+    ``x_tip``, ``y_tip``, ``x_elbow``, ``y_elbow``).
+    """
+
+    model: Model
+    load: Load
+    outputs: dict[str, float]
+    d: dict[str, dict[str, float]]
+    unknowns: np.ndarray = field(repr=False)
+    newton_iterations: int = 0
+    load_steps: int = 0
+    tol: float = 0.0
+
+    @property
+    def tip_x(self) -> float:
+        return self.outputs["tip_x"]
+
+    @property
+    def tip_y(self) -> float:
+        return self.outputs["tip_y"]
+
+    @property
+    def tip_angle(self) -> float:
+        """Tangent angle at the tip from +x (rad)."""
+        return self.outputs["tip_angle"]
+
+    @property
+    def wire_force(self) -> float:
+        """Wire tension (N); nan without a wire."""
+        return self.outputs["wire_force"]
+
+    @property
+    def elbow_x(self) -> float:
+        return self.outputs["elbow_x"]
+
+    @property
+    def elbow_y(self) -> float:
+        return self.outputs["elbow_y"]
+
+    @property
+    def root_moment(self) -> float:
+        return self.outputs["root_moment"]
+
+    def shape(self, n: int = 101, s: Iterable[float] | None = None) -> Shape:
+        """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
+        total = self.model.total_length
+        if s is None:
+            if int(n) < 2:
+                raise InputError(f"shape n = {n}, expected at least 2 points")
+            grid = np.linspace(0.0, total, int(n))
+        else:
+            grid = np.asarray(list(s), dtype=float)
+        kind, values = self.load.encode()
+        x, y, psi, moment = _core.static_shape(self.model.nbeams, self.model.vector(), kind,
+                                               values, self.unknowns, grid, self.tol)
+        return Shape(grid, x, y, psi, moment)
+
+
+def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
+                 tol: float | None = None) -> StaticResult:
+    """Solve the static deformation of ``model`` under ``load``.
+
+    Parameters
+    ----------
+    model:
+        The beam chain (:func:`beamid.pace`, :func:`beamid.cantilever`).
+    load:
+        :func:`beamid.TipForce`, :func:`beamid.TipMoment`, their sum, or
+        :class:`beamid.RadialWire`.
+    wrt:
+        Parameter names for the sensitivities ``result.d[output][name]``
+        (implicit function theorem, Eq. 44-51).
+    tol:
+        Integration tolerance (default 1e-10).
+
+    Raises
+    ------
+    InputError
+        Unknown parameter name, bad load (e.g. a wire not shorter than the arm).
+    ConvergenceError
+        Newton and load continuation failed (the message names the load).
+    """
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
+    if not isinstance(load, (TipLoad, RadialWire)):
+        raise InputError(f"load must be TipForce, TipMoment or RadialWire, got {load!r}")
+    if isinstance(wrt, str):
+        wrt = (wrt,)
+    wrt = tuple(wrt)
+    idx = np.array([model.index(n) + 1 for n in wrt], dtype=np.int32)
+    if tol is not None and not (0.0 < float(tol) < 1e-2):
+        raise InputError(f"tol = {tol}, expected a tolerance in (0, 1e-2)")
+    kind, values = load.encode()
+    outputs, doutputs, unknowns, info = _core.static_solve(
+        model.nbeams, model.vector(), kind, values, idx, 0.0 if tol is None else float(tol))
+    out = {name: float(v) for name, v in zip(OUTPUTS, outputs)}
+    d = {name: {p: float(doutputs[i, j]) for j, p in enumerate(wrt)}
+         for i, name in enumerate(OUTPUTS)}
+    for alias, name in ALIASES.items():
+        d[alias] = d[name]
+    return StaticResult(model=model, load=load, outputs=out, d=d, unknowns=unknowns,
+                        newton_iterations=info[0], load_steps=info[1],
+                        tol=0.0 if tol is None else float(tol))
+
+
+def measurement_value(result: StaticResult, quantity: str) -> float:
+    """Value of a measurement quantity (x_tip, y_tip, tip_angle, wire_force,
+    x_elbow, y_elbow, u_tip = x_tip - total length, w_tip = y_tip)."""
+    if quantity == "u_tip":
+        return result.tip_x - result.model.total_length
+    if quantity == "w_tip":
+        return result.tip_y
+    key = ALIASES.get(quantity, quantity)
+    if key not in result.outputs:
+        raise InputError(f"unknown quantity {quantity!r}")
+    value = result.outputs[key]
+    if math.isnan(value):
+        raise InputError(f"quantity {quantity!r} is not defined for {result.load.describe()}")
+    return value
