@@ -9,7 +9,8 @@ module beamid_fe_static
     use beamid_lapack, only: solve_banded, sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
                                   fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
-                                  fe_stiffness_linear, fe_band_add, DOF_W
+                                  fe_stiffness_linear, fe_band_add, DOF_W, DOF_DW, &
+                                  DOF_DU
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -33,7 +34,22 @@ module beamid_fe_static
         real(dp) :: residual = 0.0_dp  !< final |NLT - Q|_inf
     end type fe_solve_info_t
 
+    !> Largest change of the slopes (w', u') allowed in one Newton step.
+    real(dp), parameter :: MAX_TURN = 0.5_dp
+
 contains
+
+    !> Largest change of a slope unknown (w' or u') in the step dq.
+    pure real(dp) function max_slope_change(mesh, dq) result(turn)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: dq(:)
+        integer :: k, comp
+        turn = 0.0_dp
+        do k = 1, mesh%nfree
+            comp = mod(mesh%full_of(k) - 1, 4) + 1
+            if (comp == DOF_DW .or. comp == DOF_DU) turn = max(turn, abs(dq(k)))
+        end do
+    end function max_slope_change
 
     !> Scaled load: `load` with its force and moment times `lam`.
     pure function scaled(load, lam) result(out)
@@ -88,7 +104,7 @@ contains
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'fe_newton'
         real(dp), allocatable :: r(:), jb(:, :), dq(:, :)
-        real(dp) :: step
+        real(dp) :: step, turn
         integer :: it
         allocate (r(mesh%nfree), jb(fe_band_rows(mesh), mesh%nfree), dq(mesh%nfree, 1))
         iterations = 0
@@ -99,6 +115,11 @@ contains
             dq(:, 1) = -r
             call solve_banded(mesh%kl, mesh%ku, jb, dq, stat)
             if (stat%code /= 0) return
+            ! step-length control: no node may turn by more than MAX_TURN in one step
+            ! (keeps Newton from being thrown across the slope range by a poor start;
+            ! inactive near a solution, so the quadratic convergence is kept)
+            turn = max_slope_change(mesh, dq(:, 1))
+            if (turn > MAX_TURN) dq(:, 1) = dq(:, 1)*(MAX_TURN/turn)
             q = q + dq(:, 1)
             step = maxval(abs(dq(:, 1)))
             if (.not. ieee_is_finite(step) .or. step > 1.0e6_dp) then
