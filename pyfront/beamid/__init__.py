@@ -14,7 +14,7 @@ from .loads import RadialWire, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
-from .reproduce import reproduce
+from .tables import reproduce
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError",

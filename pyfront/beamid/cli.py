@@ -23,7 +23,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from .reproduce import format_checks, reproduce
+    from .tables import format_checks, reproduce
 
     checks = reproduce(args.tables)
     if not checks:

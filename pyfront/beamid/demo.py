@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .loads import RadialWire, TipForce
 from .model import pace
-from .reproduce import format_checks, reproduce
+from .tables import format_checks, reproduce
 from .static import solve_static
 
 

@@ -48,11 +48,12 @@ class Check:
 
 def seed_deck_dir() -> Path:
     """Folder of the bundled published-table decks."""
-    installed = resources.files("beamid") / "data" / "inputs" / "seed"
-    if installed.is_dir():
-        return Path(str(installed))
-    # running from a source checkout
-    return Path(__file__).resolve().parents[2] / "inputs" / "seed"
+    # a source checkout (also an editable install) has the decks beside the package
+    source = Path(__file__).resolve().parents[2] / "inputs" / "seed"
+    if source.is_dir():
+        return source
+    # an installed copy ships them as package data
+    return Path(str(resources.files("beamid") / "data" / "inputs" / "seed"))
 
 
 def seed_decks(tables: Iterable[str] = ()) -> list[Deck]:
