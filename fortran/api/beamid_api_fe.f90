@@ -15,7 +15,7 @@ module beamid_api_fe
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: FE_NDOF, fe_gauss_points, fe_quadrature_order, &
                                  fe_element_energy, fe_element_tangent, fe_element_mass
-    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_mesh_build, fe_band_rows, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_mesh_build, fe_band_rows, fe_tangent, &
                                   fe_band_to_dense, fe_mass, fe_energy, fe_tip_load, &
                                   fe_reactions, fe_node_value, DOF_W, DOF_DW, DOF_U, DOF_DU, &
                                   FE_MOMENT_EQ78, FE_MOMENT_EXACT
@@ -28,6 +28,7 @@ module beamid_api_fe
 
     public :: api_fe_sizes, api_fe_static, api_fe_path, api_fe_buckling, api_fe_modes
     public :: api_fe_axial_linear, api_fe_modal_cost, api_fe_system, api_fe_element
+    public :: api_fe_time_tangent
 
 contains
 
@@ -413,5 +414,41 @@ contains
         tangent = k
         mass = m
     end subroutine api_fe_element
+
+    !> Wall-clock seconds of nrep banded tangent assemblies (internal force and
+    !! K_T) at a fixed bent state, for `make bench`.
+    subroutine api_fe_time_tangent(nbeams, nparams, params, nepb, nrep, seconds, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, nrep
+        real(c_double), intent(in) :: params(nparams)
+        real(c_double), intent(out) :: seconds
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(fe_mesh_t) :: mesh
+        type(status_t) :: stat
+        real(dp), allocatable :: q(:), f(:), kb(:, :)
+        integer(kind=8) :: t0, t1, rate
+        integer :: i
+        seconds = 0.0_c_double
+        call make_mesh(nbeams, nparams, params, nepb, nbeams*nepb + 1, mesh, stat)
+        if (stat%code == STATUS_OK .and. nrep < 1) then
+            call set_status(stat, ERR_INPUT, 'api_fe_time_tangent', 'nrep = '// &
+                            fmt_int(int(nrep))//', expected at least 1')
+        end if
+        if (stat%code == STATUS_OK) then
+            allocate (q(mesh%nfree), f(mesh%nfree), kb(fe_band_rows(mesh), mesh%nfree))
+            do i = 1, mesh%nfree
+                q(i) = 1.0e-2_dp*sin(real(i, dp))
+            end do
+            call system_clock(t0, rate)
+            do i = 1, nrep
+                call fe_tangent(mesh, q, f, kb)
+                q(1) = q(1) + 1.0e-3_dp*f(1)/max(1.0_dp, abs(f(1)))   ! keep the loop honest
+            end do
+            call system_clock(t1)
+            seconds = real(t1 - t0, dp)/real(rate, dp)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_fe_time_tangent
 
 end module beamid_api_fe
