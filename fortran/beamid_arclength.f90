@@ -152,6 +152,39 @@ contains
         ok = abs(f) <= 1.0e3_dp*epsilon(1.0_dp)*max(abs(moment), ei*abs(k), tiny(1.0_dp))
     end subroutine curvature_from_moment
 
+    !> Shear and axial force across a joint kink of angle delta: the solution
+    !! of dQ/dtheta = -a N, dN/dtheta = Q over theta in [0, delta], with its
+    !! transfer matrix tq = d(Q+, N+)/d(Q-, N-) and the derivatives with
+    !! respect to delta and a. With w = sqrt(a): Q+ = c Q - a S N,
+    !! N+ = c N + S Q, c = cos(w delta), S = sin(w delta)/w.
+    pure subroutine kink_transfer(a, delta, q, n, qplus, nplus, tq, dq_ddelta, dn_ddelta, &
+                                  dq_da, dn_da)
+        real(dp), intent(in) :: a, delta, q, n
+        real(dp), intent(out) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da
+        real(dp) :: w, c, sinc, dc_da, ds_da, x
+        x = a*delta*delta
+        if (abs(x) < 1.0e-3_dp) then
+            ! series in a delta^2 (exact at a = 0: c = 1, S = delta)
+            c = 1.0_dp - x/2.0_dp + x*x/24.0_dp - x**3/720.0_dp
+            sinc = delta*(1.0_dp - x/6.0_dp + x*x/120.0_dp - x**3/5040.0_dp)
+            dc_da = -delta**2*(0.5_dp - x/12.0_dp + x*x/240.0_dp)
+            ds_da = -delta**3*(1.0_dp/6.0_dp - x/60.0_dp + x*x/1680.0_dp)
+        else
+            w = sqrt(a)
+            c = cos(w*delta)
+            sinc = sin(w*delta)/w
+            dc_da = -sinc*delta/2.0_dp
+            ds_da = (c*delta - sinc)/(2.0_dp*a)
+        end if
+        qplus = c*q - a*sinc*n
+        nplus = c*n + sinc*q
+        tq = reshape([c, sinc, -a*sinc, c], [2, 2])
+        dq_ddelta = -a*sinc*q - a*c*n
+        dn_ddelta = -a*sinc*n + c*q
+        dq_da = dc_da*q - sinc*n - a*ds_da*n
+        dn_da = dc_da*n + ds_da*q
+    end subroutine kink_transfer
+
     ! ---------------------------------------------------------- right-hand sides
 
     !> dz/ds of the equilibrium equations (module header).
@@ -373,14 +406,17 @@ contains
         integer :: ncol, nu0, nb, i, j, p, nst, first, last
         integer, allocatable :: colkind(:)
         real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
+        real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da
         real(dp), allocatable :: v(:, :), vk_old(:), local(:), zst(:, :), fend(:)
+        real(dp), allocatable :: ddelta(:), vq_old(:), vn_old(:)
         logical :: ok
 
         ch = prob%chain
         nb = ch%nbeams
         nu0 = merge(NSHOOT, 0, with_u_cols)
         ncol = nu0 + size(wrt)
-        allocate (v(NZ, ncol), colkind(ncol), vk_old(ncol), fend(NZ))
+        allocate (v(NZ, ncol), colkind(ncol), vk_old(ncol), fend(NZ), ddelta(ncol), &
+                  vq_old(ncol), vn_old(ncol))
         v = 0.0_dp
         if (allocated(shot%v_end)) deallocate (shot%v_end)
         if (allocated(shot%z_joint)) deallocate (shot%z_joint)
@@ -470,17 +506,18 @@ contains
             dplus = tangent_stiffness(ch%ei(i + 1), ch%cubic(i + 1), kplus)
             flex = ch%joint_flex(i)
             vk_old = v(IK, :)
-            v(IPSI, :) = v(IPSI, :) + flex*dminus*vk_old
+            ! kink angle delta = f M- and its variation
+            ddelta = flex*dminus*vk_old
             v(IK, :) = (dminus/dplus)*vk_old
             do j = 1, size(wrt)
                 p = wrt(j)
-                if (p == param_index_joint_flex(nb, i)) v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + mminus
+                if (p == param_index_joint_flex(nb, i)) ddelta(nu0 + j) = ddelta(nu0 + j) + mminus
                 if (p == param_index_beam(nb, i, IB_EI)) then
-                    v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + flex*kminus
+                    ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus
                     v(IK, nu0 + j) = v(IK, nu0 + j) + kminus/dplus
                 end if
                 if (p == param_index_beam(nb, i, IB_C)) then
-                    v(IPSI, nu0 + j) = v(IPSI, nu0 + j) + flex*kminus**3
+                    ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus**3
                     v(IK, nu0 + j) = v(IK, nu0 + j) + kminus**3/dplus
                 end if
                 if (p == param_index_beam(nb, i + 1, IB_EI)) &
@@ -488,6 +525,24 @@ contains
                 if (p == param_index_beam(nb, i + 1, IB_C)) &
                     v(IK, nu0 + j) = v(IK, nu0 + j) - kplus**3/dplus
             end do
+            v(IPSI, :) = v(IPSI, :) + ddelta
+            ! (Q, N) across the kink: the limit of a concentrated curvature delta,
+            ! i.e. Q' = -a k N, N' = k Q integrated over the angle delta (a = 1:
+            ! the force components rotate into the new tangent frame).
+            call kink_transfer(ch%axial_coupling, flex*mminus, z(IQ), z(IN), qplus, nplus, &
+                               tq, dq_ddelta, dn_ddelta, dq_da, dn_da)
+            vq_old = v(IQ, :)
+            vn_old = v(IN, :)
+            v(IQ, :) = tq(1, 1)*vq_old + tq(1, 2)*vn_old + dq_ddelta*ddelta
+            v(IN, :) = tq(2, 1)*vq_old + tq(2, 2)*vn_old + dn_ddelta*ddelta
+            do j = 1, size(wrt)
+                if (wrt(j) == param_index_global(nb, IG_AXIAL_COUPLING)) then
+                    v(IQ, nu0 + j) = v(IQ, nu0 + j) + dq_da
+                    v(IN, nu0 + j) = v(IN, nu0 + j) + dn_da
+                end if
+            end do
+            z(IQ) = qplus
+            z(IN) = nplus
             z(IPSI) = z(IPSI) + flex*mminus
             z(IK) = kplus
         end do
@@ -701,8 +756,12 @@ contains
         prob%chain = chain
         prob%load = load
         prob%total_length = sum(chain%length)
+        ! residuals and error weights are measured against the applied load, so
+        ! that small loads are solved to the same relative accuracy as large ones
         prob%force_scale = chain%ei(1)/prob%total_length**2
-        prob%moment_scale = chain%ei(1)/prob%total_length
+        if (load%kind == LOAD_TIP) prob%force_scale = max(hypot(load%fx, load%fy), &
+            abs(load%moment)/prob%total_length, 1.0e-12_dp*prob%force_scale)
+        prob%moment_scale = prob%force_scale*prob%total_length
         prob%nu = merge(4, 3, load%kind == LOAD_WIRE)
     end subroutine setup_problem
 
@@ -738,6 +797,13 @@ contains
             call solve_tip(prob, wrt, opts, u, shot, sol, stat)
         end if
         if (stat%code /= STATUS_OK) return
+        if (load%kind == LOAD_WIRE .and. .not. (u(4) > 0.0_dp)) then
+            call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'the only '// &
+                            'equilibrium found for Lw = '//fmt_real(load%wire_length)// &
+                            ' pushes on the tip (tension '//fmt_real(u(4))// &
+                            ' N): no taut-wire shape found')
+            return
+        end if
         ! after continuation the last shot may lack the sensitivity columns
         if (size(shot%v_end, 2) /= NSHOOT + size(wrt)) then
             call shoot(prob, u, wrt, .true., opts, shot, stat)
