@@ -198,3 +198,24 @@ def test_rotary_inertia_enters_the_slope_unknowns():
     assert_allclose(diff[tip_dw, tip_dw], model.params["J_tip"])
     assert_allclose(diff[elbow_dw, elbow_dw], model.params["J_elbow"])
     assert np.count_nonzero(diff) == 2
+
+
+try:
+    from hypothesis import given, settings, strategies as st
+except ImportError:  # pragma: no cover - hypothesis is a test extra
+    given = None
+
+if given is not None:
+    @settings(max_examples=25, deadline=None)
+    @given(st.lists(st.floats(-0.6, 0.6), min_size=8, max_size=8),
+           st.floats(0.05, 1.0), st.floats(0.0, 20.0))
+    def test_element_tangent_property(values, h, cubic):
+        """At random states, lengths and cubic coefficients the tangent is the
+        central-difference derivative of the force (relative 1e-6)."""
+        qe = np.array(values)
+        ea, ei = 1.0e4, 10.0
+        out = fe.fe_element(h, ea, ei, qe, cubic=cubic)
+        force = lambda q: fe.fe_element(h, ea, ei, q, cubic=cubic)["force"]
+        k_fd = _central_jacobian(force, qe, 1e-6)
+        scale = max(np.abs(out["tangent"]).max(), 1.0)
+        assert np.abs(out["tangent"] - k_fd).max() <= 1e-6 * scale

@@ -230,3 +230,34 @@ def test_bad_models_and_loads(pace):
         beamid.fe_static("pace", beamid.TipForce(fy=1.0), 2)
     with pytest.raises(beamid.InputError):
         beamid.fe_path(pace, None, beamid.TipForce(fy=1.0), 2, direction=0)
+
+
+def test_chain_of_three_equal_beams_is_one_long_beam():
+    """Any number of beams: three equal beams with massless joints behave as one
+    beam of the summed length (same nodes, same answer)."""
+    one = beamid.cantilever(L=0.9, EI=10.0)
+    p = one.params
+    values = {}
+    for i in (1, 2, 3):
+        values.update({f"L{i}": 0.3, f"EI{i}": 10.0, f"EA{i}": p["EA1"], f"rho{i}": p["rho1"],
+                       f"C{i}": 0.0})
+    three = _three_beam_model(values)
+    load = beamid.TipForce(fx=-1.0, fy=6.0) + beamid.TipMoment(2.0)
+    r1 = beamid.fe_static(one, load, 6)
+    r3 = beamid.fe_static(three, load, 2)
+    assert r3.nodes.size == r1.nodes.size
+    for name in fe.NODE_FIELDS:
+        assert_allclose(r3.nodes[name], r1.nodes[name], rtol=1e-9, atol=1e-12)
+    assert three.nbeams == 3
+
+
+def _three_beam_model(values):
+    from beamid import _core
+    names = _core.param_names(3)
+    vec = np.zeros(len(names))
+    for i, n in enumerate(names):
+        if n in values:
+            vec[i] = values[n]
+        elif n == "r_motor" or n == "axial_coupling":
+            vec[i] = 1.0
+    return beamid.Model(3, vec)
