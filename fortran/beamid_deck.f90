@@ -76,6 +76,9 @@ contains
         real(dp), allocatable :: L(:), EI(:), EA(:), rho(:), C(:)
         real(dp), allocatable :: m(:), J(:), mu(:), c_drag(:), joint_flex(:)
         real(dp) :: axial_coupling, root_flex, eta, r_motor, tau_motor
+        ! named scalars for the elbow (joint 1) and the tip; they override the arrays
+        real(dp) :: m_elbow, J_elbow, mu_elbow, c_elbow, elbow_flex
+        real(dp) :: m_tip, J_tip, mu_tip, c_tip
         ! &load
         character(len=NAME_LEN) :: kind
         real(dp) :: fx, fy, moment, wire_length
@@ -86,7 +89,8 @@ contains
 
         namelist /beamid/ task, output, preset, nbeams
         namelist /model/ L, EI, EA, rho, C, m, J, mu, c_drag, joint_flex, axial_coupling, &
-            root_flex, eta, r_motor, tau_motor
+            root_flex, eta, r_motor, tau_motor, m_elbow, J_elbow, mu_elbow, c_elbow, &
+            elbow_flex, m_tip, J_tip, mu_tip, c_tip
         namelist /load/ kind, fx, fy, moment, wire_length
         namelist /static/ wrt, shape_points, tol
 
@@ -195,10 +199,33 @@ contains
         eta = base(param_index_global(nbeams, IG_ETA))
         r_motor = base(param_index_global(nbeams, IG_R_MOTOR))
         tau_motor = base(param_index_global(nbeams, IG_TAU_MOTOR))
+        m_elbow = nan
+        J_elbow = nan
+        mu_elbow = nan
+        c_elbow = nan
+        elbow_flex = nan
+        m_tip = nan
+        J_tip = nan
+        mu_tip = nan
+        c_tip = nan
         rewind (unit)
         read (unit, nml=model, iostat=ios, iomsg=msg)
         if (ios > 0 .or. (ios < 0 .and. len_trim(preset) == 0)) then
             call group_error('model', ios, msg)
+            return
+        end if
+        call take(m(nbeams), m_tip)
+        call take(J(nbeams), J_tip)
+        call take(mu(nbeams), mu_tip)
+        call take(c_drag(nbeams), c_tip)
+        if (nbeams >= 2) then
+            call take(m(1), m_elbow)
+            call take(J(1), J_elbow)
+            call take(mu(1), mu_elbow)
+            call take(c_drag(1), c_elbow)
+            call take(joint_flex(1), elbow_flex)
+        else if (.not. all(ieee_is_nan([m_elbow, J_elbow, mu_elbow, c_elbow, elbow_flex]))) then
+            call deck_error('&model sets an elbow parameter but the chain has one beam')
             return
         end if
         allocate (deck%params(param_count(nbeams)))
@@ -313,6 +340,13 @@ contains
         deck%tol = tol
 
     contains
+
+        !> A named scalar, when given, overrides the array entry.
+        pure subroutine take(entry, named)
+            real(dp), intent(inout) :: entry
+            real(dp), intent(in) :: named
+            if (.not. ieee_is_nan(named)) entry = named
+        end subroutine take
 
         subroutine deck_error(text)
             character(len=*), intent(in) :: text

@@ -88,6 +88,8 @@ contains
         end if
 
         prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
         open (newunit=unit, file=prefix//'_summary.csv', status='replace', action='write', &
               iostat=ios)
         if (ios /= 0) then
@@ -126,6 +128,24 @@ contains
         end do
         call close_checked(unit, ios, prefix//'_shape.csv', st)
     end subroutine run_static
+
+    !> Create the folder that will hold files starting with `prefix`.
+    subroutine make_parent_folder(prefix, st)
+        character(len=*), intent(in) :: prefix
+        type(status_t), intent(inout) :: st
+        integer :: slash, exitstat, cmdstat
+        slash = index(prefix, '/', back=.true.)
+        if (slash <= 1) return
+        if (index(prefix, "'") > 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'output path may not contain a '// &
+                            'quote: '//prefix)
+            return
+        end if
+        call execute_command_line("mkdir -p '"//prefix(:slash - 1)//"'", exitstat=exitstat, &
+                                  cmdstat=cmdstat)
+        if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_IO, 'beamid-batch', &
+            'cannot create the output folder '//prefix(:slash - 1))
+    end subroutine make_parent_folder
 
     !> Close a written file; delete it when any write failed.
     subroutine close_checked(unit, ios, name, st)

@@ -23,7 +23,9 @@ from .static import OUTPUTS, StaticResult, solve_static
 GROUPS = {
     "beamid": {"task", "output", "preset", "nbeams"},
     "model": {"l", "ei", "ea", "rho", "c", "m", "j", "mu", "c_drag", "joint_flex",
-              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor"},
+              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor",
+              "m_elbow", "j_elbow", "mu_elbow", "c_elbow", "elbow_flex",
+              "m_tip", "j_tip", "mu_tip", "c_tip"},
     "load": {"kind", "fx", "fy", "moment", "wire_length"},
     "static": {"wrt", "shape_points", "tol"},
     "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
@@ -32,6 +34,10 @@ TASKS = ("static",)
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
+#: named scalars of &model for the elbow (joint 1) and the tip; they override the arrays
+_NAMED = {"m_elbow": "m_elbow", "j_elbow": "J_elbow", "mu_elbow": "mu_elbow",
+          "c_elbow": "c_elbow", "elbow_flex": "elbow_flex", "m_tip": "m_tip",
+          "j_tip": "J_tip", "mu_tip": "mu_tip", "c_tip": "c_tip"}
 
 
 @dataclass(frozen=True)
@@ -138,8 +144,15 @@ def read_deck(path: str | os.PathLike) -> Deck:
     model_group = groups.get("model", [None])[0]
     if model_group is None and not preset:
         raise InputError(f"{path}: group &model is missing")
+    named = {}
     for var, value in (model_group or {}).items():
-        if var in _PER_BEAM or var in _PER_POINT or var == "joint_flex":
+        if var in _NAMED:
+            if var.endswith("elbow") or var == "elbow_flex":
+                if nbeams < 2:
+                    raise InputError(f"{path}: &model sets an elbow parameter but the chain "
+                                     "has one beam")
+            named[_NAMED[var]] = _number(path, "model", var, value)
+        elif var in _PER_BEAM or var in _PER_POINT or var == "joint_flex":
             entries = _as_list(value)
             size = nbeams - 1 if var == "joint_flex" else nbeams
             if len(entries) > size:
@@ -157,6 +170,7 @@ def read_deck(path: str | os.PathLike) -> Deck:
                 values[pname] = _number(path, "model", f"{var}({k})", entry)
         else:
             values[var] = _number(path, "model", var, value)
+    values.update(named)
     for name, value in values.items():
         if math.isnan(value):
             raise InputError(f"{path}: &model is missing {name} (set it in &model, or use "

@@ -1,0 +1,195 @@
+"""Namelist decks: the batch executable and Python read the same files, give
+the same numbers, and reject the same malformed decks with a clear message."""
+from __future__ import annotations
+
+import csv
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import beamid
+from beamid.cli import main as cli_main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+GOOD = """\
+! a radial-wire deck
+&beamid
+  task = 'static'
+  output = 'out/case'
+  preset = 'pace'
+/
+&model
+  C = 5.0, 20.0
+  axial_coupling = 0.0
+  elbow_flex = 0.01
+/
+&load
+  kind = 'wire'
+  wire_length = 1.3
+/
+&static
+  wrt = 'EI1', 'C2', 'elbow_flex'
+  shape_points = 11
+/
+"""
+
+EXPLICIT = """\
+&beamid
+  task = 'static'
+  output = 'explicit'
+  nbeams = 3
+/
+&model
+  L = 0.5, 0.4, 0.3
+  EI = 10.0, 9.0, 8.0
+  EA = 1e7, 1e7, 1e7
+  rho = 0.5, 0.5, 0.5
+  m = 1.0, 1.0, 0.5
+  joint_flex = 0.01, 0.02
+/
+&load
+  kind = 'tip'
+  fx = -1.0
+  fy = 4.0
+  moment = 0.5
+/
+&static
+  wrt = 'EI3', 'joint2_flex', 'L1'
+/
+"""
+
+
+def _read_csv(path: Path) -> dict[str, float]:
+    with open(path) as handle:
+        rows = list(csv.reader(handle))
+    return {r[0]: float(r[1]) for r in rows[1:]}
+
+
+def _batch(exe: Path, deck: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([str(exe), str(deck)], capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("text", [GOOD, EXPLICIT], ids=["preset-wire", "explicit-3-beams"])
+def test_batch_and_python_agree(tmp_path, batch_exe, text):
+    deck = tmp_path / "deck.nml"
+    deck.write_text(text)
+    proc = _batch(batch_exe, deck)
+    assert proc.returncode == 0, proc.stderr
+    parsed = beamid.read_deck(deck)
+    prefix = parsed.output_prefix
+    fortran_summary = _read_csv(Path(f"{prefix}_summary.csv"))
+    fortran_shape = np.loadtxt(f"{prefix}_shape.csv", delimiter=",", skiprows=1) \
+        if parsed.shape_points >= 2 else None
+    for p in Path(prefix).parent.glob(Path(prefix).name + "_*.csv"):
+        p.unlink()
+    result = beamid.run(parsed)
+    python_summary = _read_csv(Path(f"{prefix}_summary.csv"))
+    assert fortran_summary.keys() == python_summary.keys()
+    for key, value in fortran_summary.items():
+        assert_allclose(python_summary[key], value, rtol=1e-12, atol=1e-14, err_msg=key)
+    shape = np.loadtxt(f"{prefix}_shape.csv", delimiter=",", skiprows=1)
+    assert_allclose(shape, fortran_shape, rtol=1e-12, atol=1e-14)
+    assert_allclose(shape[-1, 1:3], [result.tip_x, result.tip_y], atol=1e-12)
+
+
+def test_deck_values_reach_the_model(tmp_path):
+    deck = tmp_path / "d.nml"
+    deck.write_text(EXPLICIT)
+    d = beamid.read_deck(deck)
+    p = d.model.params
+    assert d.model.nbeams == 3
+    assert (p["L3"], p["EI2"], p["m_joint2"], p["m_tip"], p["joint2_flex"]) == \
+        (0.3, 9.0, 1.0, 0.5, 0.02)
+    assert (p["axial_coupling"], p["C1"], p["mu_tip"]) == (1.0, 0.0, 0.0)
+    assert d.load == beamid.TipForce(-1.0, 4.0) + beamid.TipMoment(0.5)
+    assert d.wrt == ("EI3", "joint2_flex", "L1")
+
+
+def test_write_deck_round_trip(tmp_path):
+    first = tmp_path / "a.nml"
+    first.write_text(GOOD)
+    deck = beamid.read_deck(first)
+    second = tmp_path / "b.nml"
+    beamid.write_deck(deck, second)
+    again = beamid.read_deck(second)
+    assert again.model == deck.model
+    assert (again.load, again.wrt, again.shape_points) == (deck.load, deck.wrt, 11)
+
+
+BAD = {
+    "misspelt variable": (GOOD.replace("  C = 5.0, 20.0", "  Cx = 5.0"), "cx"),
+    "unknown group": (GOOD.replace("&static", "&statik"), "statik"),
+    "missing load": (GOOD.split("&load")[0], "&load is missing"),
+    "missing output": (GOOD.replace("  output = 'out/case'\n", ""), "output is missing"),
+    "bad load kind": (GOOD.replace("kind = 'wire'", "kind = 'rope'"), "rope"),
+    "wire without length": (GOOD.replace("  wire_length = 1.3\n", ""), "wire_length"),
+    "negative stiffness": (GOOD.replace("  C = 5.0, 20.0", "  EI = 11.4, -2.0"),
+                           "EI2 = -2"),
+    "unknown wrt": (GOOD.replace("'elbow_flex'", "'elbowflex'"), "elbowflex"),
+    "wire too long": (GOOD.replace("1.3", "1.6"), "not shorter than the arm"),
+    "missing stiffness": (EXPLICIT.replace("  EI = 10.0, 9.0, 8.0\n", ""), "EI1"),
+    "too many values": (EXPLICIT.replace("L = 0.5, 0.4, 0.3", "L = 0.5, 0.4, 0.3, 0.2"),
+                        "L"),
+    "unknown preset": (GOOD.replace("'pace'", "'space'"), "space"),
+    "bad task": (GOOD.replace("task = 'static'", "task = 'statics'"), "statics"),
+    "one shape point": (GOOD.replace("shape_points = 11", "shape_points = 1"),
+                        "shape_points"),
+}
+
+
+@pytest.mark.parametrize("case", BAD, ids=list(BAD))
+def test_bad_decks_fail_cleanly_in_both(tmp_path, batch_exe, case):
+    text, needle = BAD[case]
+    deck = tmp_path / "bad.nml"
+    deck.write_text(text)
+    with pytest.raises(beamid.InputError) as info:
+        beamid.read_deck(deck) if case != "wire too long" else beamid.run(deck)
+    assert needle.lower() in str(info.value).lower()
+    proc = _batch(batch_exe, deck)
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("beamid-batch: error:"), proc.stderr
+    assert needle.lower() in lines[0].lower()
+    assert not list(tmp_path.rglob("*.csv")), "no output file may be left behind"
+    assert cli_main(["run", str(deck)]) == 2
+
+
+def test_missing_deck_file(tmp_path, batch_exe):
+    proc = _batch(batch_exe, tmp_path / "nope.nml")
+    assert proc.returncode == 4 and "no such file" in proc.stderr
+    with pytest.raises(beamid.InputError, match="no such file"):
+        beamid.read_deck(tmp_path / "nope.nml")
+
+
+def test_unconverged_deck_exits_3(tmp_path, batch_exe):
+    deck = tmp_path / "c.nml"
+    deck.write_text(GOOD.replace("axial_coupling = 0.0", "axial_coupling = 1.0")
+                    .replace("1.3", "0.298").replace("elbow_flex = 0.01", ""))
+    proc = _batch(batch_exe, deck)
+    assert proc.returncode == 3 and "Lw = 0.298" in proc.stderr
+    assert cli_main(["run", str(deck)]) == 3
+    assert not list(tmp_path.rglob("*.csv"))
+
+
+def test_cli_run_and_reproduce(tmp_path, capsys):
+    deck = tmp_path / "g.nml"
+    deck.write_text(GOOD)
+    assert cli_main(["run", str(deck)]) == 0
+    assert (tmp_path / "out" / "case_summary.csv").is_file()
+    assert cli_main(["reproduce", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "146.315" in out and "DEVIATION (documented)" in out
+    assert "17 reproduced, 1 documented deviations, 0 failed" in out
+
+
+def test_cli_reproduce_unknown_table():
+    assert cli_main(["reproduce", "99"]) == 2
+
+
+def test_shipped_decks_parse():
+    for deck in sorted((ROOT / "inputs").rglob("*.nml")):
+        beamid.read_deck(deck)
