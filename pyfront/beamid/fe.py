@@ -406,3 +406,85 @@ def fe_element(h, ea, ei, q, *, cubic=0.0, rho=0.0):
         "api_fe_element", float(h), float(ea), float(ei), float(cubic), float(rho), q)
     return {"energy": float(energy), "force": np.array(force), "tangent": np.array(tangent),
             "mass": np.array(mass)}
+
+
+# --- decks ----------------------------------------------------------------------------
+#: Deck tasks of the FE chain and the quantities each can report (docs/fe.md).
+FE_TASKS = ("fe_static", "fe_modes")
+#: Variables of the deck group &fe.
+FE_GROUP = ("elements_per_beam", "moment_form", "rotary_inertia", "point_masses", "steps",
+            "tol")
+
+
+def fe_quantity_names(task):
+    """Quantity names a deck of `task` may publish (i = 1, 2, ... for the modes)."""
+    if task == "fe_static":
+        return ("w_tip", "dw_tip", "u_tip", "du_tip", "du_root", "energy", "x_tip", "y_tip")
+    if task == "fe_modes":
+        return ("omega_w<i>", "omega_u<i>", "omega_w_last", "omega_u_last",
+                "omega_u_linear<i>", "omega_u_linear_last", "buckling_load")
+    raise _input_error(f"task = {task!r}, expected one of {FE_TASKS}")
+
+
+def evaluate_fe(task, model, load=None, *, elements_per_beam=4, moment_form="eq78",
+                rotary_inertia=False, point_masses=True, steps=0, tol=0.0, quantities=()):
+    """Solve an FE deck task and return {quantity: value} for `quantities`.
+
+    fe_static: w_tip, dw_tip, u_tip, du_tip (Tables 11, 12), du_root (the root
+    strain u', Table 6), energy, x_tip, y_tip. fe_modes: omega_w<i>, omega_u<i>
+    (i-th transverse / axial frequency, Tables 9, 10), omega_w_last,
+    omega_u_last, omega_u_linear<i> / omega_u_linear_last (linear-u model of
+    Eq. 114 with or without `point_masses`, Table 7) and buckling_load.
+    """
+    out = {}
+    if task == "fe_static":
+        r = fe_static(model, load, elements_per_beam, moment_form=moment_form, steps=steps,
+                      tol=tol)
+        table = {"w_tip": r.tip["w"], "dw_tip": r.tip["dw"], "u_tip": r.tip["u"],
+                 "du_tip": r.tip["du"], "du_root": float(r.nodes["du"][0]),
+                 "energy": r.energy, "x_tip": float(r.x[-1]), "y_tip": float(r.y[-1])}
+        for q in quantities:
+            if q not in table:
+                raise _input_error(f"quantity {q!r} is not an fe_static output "
+                                   f"({', '.join(table)})")
+            out[q] = float(table[q])
+        return out
+    if task != "fe_modes":
+        raise _input_error(f"task = {task!r}, expected one of {FE_TASKS}")
+    md = modes(model, elements_per_beam, rotary_inertia=rotary_inertia)
+    linear = None
+    for q in quantities:
+        family, index = _mode_quantity(q)
+        if family == "buckling_load":
+            out[q] = buckling_load(model, elements_per_beam).load
+            continue
+        if family == "u_linear":
+            if linear is None:
+                linear = axial_modes_linear(model, elements_per_beam,
+                                            point_masses=point_masses)
+            values = linear
+        else:
+            values = md.transverse if family == "w" else md.axial
+        if index is None:
+            out[q] = float(values[-1])
+        elif 1 <= index <= values.size:
+            out[q] = float(values[index - 1])
+        else:
+            raise _input_error(f"quantity {q!r}: the model has {values.size} such modes")
+    return out
+
+
+def _mode_quantity(name):
+    """('w' | 'u' | 'u_linear' | 'buckling_load', index or None for last)."""
+    if name == "buckling_load":
+        return name, None
+    for family in ("u_linear", "w", "u"):
+        prefix = f"omega_{family}"
+        if name.startswith(prefix):
+            rest = name[len(prefix):]
+            if rest == "_last":
+                return family, None
+            if rest.isdigit():
+                return family, int(rest)
+    raise _input_error(f"quantity {name!r} is not an fe_modes output (omega_w<i>, "
+                       "omega_u<i>, omega_u_linear<i>, *_last, buckling_load)")
