@@ -7,6 +7,7 @@
   tip-moment forms, cubic moment law on);
 * the consistent mass integrates mass and second moments exactly.
 """
+import functools
 import itertools
 
 import numpy as np
@@ -27,6 +28,7 @@ def _shape_polys(h):
             h * (-z**2 + z**3)]
 
 
+@functools.lru_cache(maxsize=None)
 def _f_tensor(h, orders):
     """F_{j k ...} = int_0^1 prod_i f_{j_i}^{(orders_i)} dzeta, derivatives in s."""
     polys = _shape_polys(h)
