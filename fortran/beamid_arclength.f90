@@ -74,7 +74,7 @@ module beamid_arclength
 
     !> Solver controls.
     type :: static_options_t
-        real(dp) :: tol = 1.0e-10_dp          !< integration error tolerance (relative)
+        real(dp) :: tol = 1.0e-9_dp           !< integration error tolerance (relative)
         real(dp) :: newton_tol = 1.0e-10_dp   !< scaled residual at convergence
         integer :: max_newton = 30            !< Newton iterations per load level
         integer :: max_load_steps = 400       !< continuation steps before giving up
@@ -269,7 +269,7 @@ contains
         real(dp), allocatable :: w1(:, :), w2(:, :), w3(:, :), w4(:, :), w5(:, :), &
                                  w6(:, :), vs(:, :)
         integer :: ncol, next_station, nreject
-        logical :: last, land
+        logical :: last, land, softening_lost
 
         ei = prob%chain%ei(beam)
         c = prob%chain%cubic(beam)
@@ -322,10 +322,13 @@ contains
             zerr = h*(e1*k1 + e3*k3 + e4*k4 + e5*k5 + e6*k6 + e7*k7)
             err = maxval(abs(zerr)/(opts%tol*(sc + max(abs(z), abs(znew)))))
             steps = steps + 1
-            if (.not. (err <= 1.0_dp) .or. .not. stage_ok()) then
-                ! reject (also on NaN from a softening material past its limit)
+            ! a softening law (C < 0) must stay on its branch: EI + 3 C k^2 > 0
+            softening_lost = .false.
+            if (c < 0.0_dp) softening_lost = .not. stage_ok()
+            if (.not. (err <= 1.0_dp) .or. softening_lost) then
+                ! reject (also on NaN: the comparison above is false for NaN)
                 nreject = nreject + 1
-                if (err /= err .or. .not. stage_ok()) then
+                if (.not. (err == err) .or. softening_lost) then
                     h = 0.25_dp*h
                 else
                     h = h*max(0.2_dp, 0.9_dp*err**(-0.2_dp))
@@ -384,7 +387,7 @@ contains
             stage_ok = all([tangent_stiffness(ei, c, z2(IK)), tangent_stiffness(ei, c, z3(IK)), &
                             tangent_stiffness(ei, c, z4(IK)), tangent_stiffness(ei, c, z5(IK)), &
                             tangent_stiffness(ei, c, z6(IK)), tangent_stiffness(ei, c, znew(IK))] &
-                           > 0.0_dp) .and. all(ieee_is_finite(znew))
+                           > 0.0_dp)
         end function stage_ok
     end subroutine integrate_beam
 
@@ -402,7 +405,6 @@ contains
         real(dp), intent(in), optional :: stations(:)
         real(dp), intent(inout), optional :: z_station(:, :)
 
-        type(chain_t) :: ch
         integer :: ncol, nu0, nb, i, j, p, nst, first, last
         integer, allocatable :: colkind(:)
         real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
@@ -411,7 +413,7 @@ contains
         real(dp), allocatable :: ddelta(:), vq_old(:), vn_old(:)
         logical :: ok
 
-        ch = prob%chain
+        associate (ch => prob%chain)
         nb = ch%nbeams
         nu0 = merge(NSHOOT, 0, with_u_cols)
         ncol = nu0 + size(wrt)
@@ -548,6 +550,7 @@ contains
         end do
         shot%z_end = z
         shot%v_end = v
+        end associate
     end subroutine shoot
 
     ! ------------------------------------------------------------ tip conditions
@@ -655,7 +658,11 @@ contains
     end subroutine move_shot
 
     !> Damped Newton on the tip conditions from the guess in u.
-    !! `shot` returns the integration at the final u (with columns for wrt).
+    !! Inexact Newton: while the residual r is large the shots are integrated
+    !! to a looser tolerance (about 1e-3 r^2, never tighter than needed for
+    !! quadratic convergence) and without the sensitivity columns; the shot
+    !! that declares convergence is always at opts%tol and carries the
+    !! columns for wrt, so `shot` returns the integration at the final u.
     subroutine newton(prob, u, wrt, opts, iterations, resid, shot, stat)
         type(problem_t), intent(in) :: prob
         real(dp), intent(inout) :: u(:)
@@ -666,29 +673,53 @@ contains
         type(shot_t), intent(inout) :: shot
         type(status_t), intent(inout) :: stat
         type(shot_t) :: shot_try
+        type(static_options_t) :: work
         real(dp) :: g(prob%nu), jac(prob%nu, prob%nu), step(prob%nu, 1), utry(prob%nu)
-        real(dp) :: gtry(prob%nu), jtry(prob%nu, prob%nu), alpha, rtry
+        real(dp) :: gtry(prob%nu), jtry(prob%nu, prob%nu), alpha, rtry, tol_now, tol_try
         type(status_t) :: trial
         integer :: it, ls
+        integer :: no_wrt(0)
 
         iterations = 0
-        call evaluate(prob, u, wrt, opts, g, jac, shot, stat)
+        work = opts
+        tol_now = max(opts%tol, 1.0e-6_dp)
+        work%tol = tol_now
+        if (tol_now > opts%tol) then
+            call evaluate(prob, u, no_wrt, work, g, jac, shot, stat)
+        else
+            call evaluate(prob, u, wrt, work, g, jac, shot, stat)
+        end if
         if (stat%code /= STATUS_OK) then
             resid = huge(1.0_dp)
             return
         end if
         resid = maxval(abs(g))
         do it = 1, opts%max_newton
-            if (resid <= opts%newton_tol) return
+            if (resid <= opts%newton_tol .or. (tol_now > opts%tol .and. resid < 1.0e-4_dp)) then
+                if (tol_now <= opts%tol) return
+                ! close already: redo this point at the requested accuracy
+                tol_now = opts%tol
+                work%tol = tol_now
+                call evaluate(prob, u, wrt, work, g, jac, shot, stat)
+                if (stat%code /= STATUS_OK) return
+                resid = maxval(abs(g))
+                if (resid <= opts%newton_tol) return
+            end if
             iterations = it
             step(:, 1) = -g
             call solve_dense(jac, step, stat)
             if (stat%code /= STATUS_OK) return
+            tol_try = max(opts%tol, min(1.0e-6_dp, 1.0e-3_dp*resid*resid))
+            work%tol = tol_try
             alpha = 1.0_dp
             do ls = 1, 12
                 utry = u + alpha*step(:, 1)
                 trial%code = STATUS_OK
-                call evaluate(prob, utry, wrt, opts, gtry, jtry, shot_try, trial)
+                if (tol_try > opts%tol) then
+                    call evaluate(prob, utry, no_wrt, work, gtry, jtry, shot_try, trial)
+                else
+                    call evaluate(prob, utry, wrt, work, gtry, jtry, shot_try, trial)
+                end if
                 if (trial%code == STATUS_OK) then
                     rtry = maxval(abs(gtry))
                     if (rtry < (1.0_dp - 1.0e-4_dp*alpha)*resid .or. rtry <= opts%newton_tol) exit
@@ -705,12 +736,13 @@ contains
             g = gtry
             jac = jtry
             resid = rtry
+            tol_now = tol_try
             call move_shot(shot_try, shot)
         end do
-        if (resid > opts%newton_tol) call set_status(stat, ERR_NO_CONVERGENCE, &
-                'static Newton', 'no convergence in '//fmt_int(opts%max_newton)// &
-                ' iterations, scaled residual '//fmt_real(resid)//' > '// &
-                fmt_real(opts%newton_tol))
+        if (resid > opts%newton_tol .or. tol_now > opts%tol) call set_status(stat, &
+                ERR_NO_CONVERGENCE, 'static Newton', 'no convergence in '// &
+                fmt_int(opts%max_newton)//' iterations, scaled residual '//fmt_real(resid)// &
+                ' > '//fmt_real(opts%newton_tol))
     end subroutine newton
 
     ! --------------------------------------------------------------- public API
@@ -748,6 +780,18 @@ contains
                             ', expected 1 (tip force/moment) or 2 (radial wire)')
         end select
     end subroutine validate_static_load
+
+    !> A short description of a load for messages.
+    pure function load_text(load) result(text)
+        type(static_load_t), intent(in) :: load
+        character(len=:), allocatable :: text
+        if (load%kind == LOAD_WIRE) then
+            text = 'radial wire Lw = '//fmt_real(load%wire_length)
+        else
+            text = 'tip force ('//fmt_real(load%fx)//', '//fmt_real(load%fy)// &
+                   ') N, tip moment '//fmt_real(load%moment)//' N m'
+        end if
+    end function load_text
 
     subroutine setup_problem(chain, load, prob)
         type(chain_t), intent(in) :: chain
@@ -796,7 +840,12 @@ contains
         else
             call solve_tip(prob, wrt, opts, u, shot, sol, stat)
         end if
-        if (stat%code /= STATUS_OK) return
+        if (stat%code /= STATUS_OK) then
+            ! every failure names the load it failed on
+            if (index(stat%message, 'Lw =') == 0 .and. index(stat%message, 'tip force') == 0) &
+                stat%message = trim(stat%message)//' ('//load_text(load)//')'
+            return
+        end if
         if (load%kind == LOAD_WIRE .and. .not. (u(4) > 0.0_dp)) then
             call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'the only '// &
                             'equilibrium found for Lw = '//fmt_real(load%wire_length)// &
@@ -972,7 +1021,7 @@ contains
                 call set_status(stat, ERR_NO_CONVERGENCE, 'static continuation', &
                                 trim(merge('axial_coupling', 'load factor   ', coupling))// &
                                 ' stalled at '//fmt_real(theta)//' of '//fmt_real(theta1)// &
-                                ' after '//fmt_int(steps)//' steps ('//trim(load_text())// &
+                                ' after '//fmt_int(steps)//' steps ('//load_text(prob%load)// &
                                 '); last scaled residual '//fmt_real(resid))
                 return
             end if
@@ -1012,15 +1061,6 @@ contains
             end if
         end subroutine set_theta
 
-        function load_text() result(text)
-            character(len=:), allocatable :: text
-            if (prob%load%kind == LOAD_WIRE) then
-                text = 'radial wire Lw = '//fmt_real(prob%load%wire_length)
-            else
-                text = 'tip force ('//fmt_real(prob%load%fx)//', '//fmt_real(prob%load%fy)// &
-                       ') N, tip moment '//fmt_real(prob%load%moment)//' N m'
-            end if
-        end function load_text
     end subroutine continuation
 
     !> Outputs and sensitivities at the converged unknowns (Eq. 44-51).

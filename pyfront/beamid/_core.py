@@ -49,13 +49,11 @@ def nout() -> int:
 def static_solve(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
                  wrt: np.ndarray, tol: float = 0.0):
     """Arc-length static solve; returns outputs, doutputs (8 x nwrt), unknowns, info."""
-    wrt = np.asarray(wrt, dtype=np.int32)
     outputs, doutputs, unknowns, info, code, message = _api.api_static_solve(
-        nbeams, np.asarray(params, dtype=float), load_kind,
-        np.asarray(load_values, dtype=float), wrt, float(tol))
-    raise_for_status(int(code), message)
-    return (np.array(outputs), np.array(doutputs).reshape(8, wrt.size), np.array(unknowns),
-            tuple(int(v) for v in info))
+        nbeams, params, load_kind, load_values, wrt, tol)
+    if code:
+        raise_for_status(int(code), message)
+    return outputs, doutputs.reshape(8, len(wrt)), unknowns, (int(info[0]), int(info[1]))
 
 
 def static_shape(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,

@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Iterable, NamedTuple
 
 import numpy as np
@@ -36,7 +35,6 @@ class Shape(NamedTuple):
     moment: np.ndarray
 
 
-@dataclass(frozen=True)
 class StaticResult:
     """Converged static solution.
 
@@ -45,44 +43,76 @@ class StaticResult:
     ``x_tip``, ``y_tip``, ``x_elbow``, ``y_elbow``).
     """
 
-    model: Model
-    load: Load
-    outputs: dict[str, float]
-    d: dict[str, dict[str, float]]
-    unknowns: np.ndarray = field(repr=False)
-    newton_iterations: int = 0
-    load_steps: int = 0
-    tol: float = 0.0
+    __slots__ = ("model", "load", "wrt", "_outputs", "_doutputs", "unknowns",
+                 "newton_iterations", "load_steps", "tol", "_d")
+
+    def __init__(self, model: Model, load: Load, wrt: tuple[str, ...], outputs: np.ndarray,
+                 doutputs: np.ndarray, unknowns: np.ndarray, newton_iterations: int = 0,
+                 load_steps: int = 0, tol: float = 0.0):
+        self.model = model
+        self.load = load
+        self.wrt = wrt
+        self._outputs = outputs
+        self._doutputs = doutputs
+        self.unknowns = unknowns
+        self.newton_iterations = newton_iterations
+        self.load_steps = load_steps
+        self.tol = tol
+        self._d: dict[str, dict[str, float]] | None = None
+
+    @property
+    def outputs(self) -> dict[str, float]:
+        """Every output by name (a fresh dict)."""
+        return {name: float(v) for name, v in zip(OUTPUTS, self._outputs)}
+
+    @property
+    def d(self) -> dict[str, dict[str, float]]:
+        """Sensitivities d[output][parameter] for the parameters in ``wrt``."""
+        if self._d is None:
+            d = {name: {p: float(self._doutputs[i, j]) for j, p in enumerate(self.wrt)}
+                 for i, name in enumerate(OUTPUTS)}
+            for alias, name in ALIASES.items():
+                d[alias] = d[name]
+            self._d = d
+        return self._d
+
+    def sensitivity_matrix(self) -> np.ndarray:
+        """d outputs / d wrt as an array (len(OUTPUTS) x len(wrt))."""
+        return np.array(self._doutputs)
+
+    def __repr__(self) -> str:
+        return (f"StaticResult(tip_x={self.tip_x:.6g}, tip_y={self.tip_y:.6g}, "
+                f"tip_angle={self.tip_angle:.6g}, wire_force={self.wire_force:.6g})")
 
     @property
     def tip_x(self) -> float:
-        return self.outputs["tip_x"]
+        return float(self._outputs[0])
 
     @property
     def tip_y(self) -> float:
-        return self.outputs["tip_y"]
+        return float(self._outputs[1])
 
     @property
     def tip_angle(self) -> float:
         """Tangent angle at the tip from +x (rad)."""
-        return self.outputs["tip_angle"]
+        return float(self._outputs[2])
 
     @property
     def wire_force(self) -> float:
         """Wire tension (N); nan without a wire."""
-        return self.outputs["wire_force"]
+        return float(self._outputs[3])
 
     @property
     def elbow_x(self) -> float:
-        return self.outputs["elbow_x"]
+        return float(self._outputs[4])
 
     @property
     def elbow_y(self) -> float:
-        return self.outputs["elbow_y"]
+        return float(self._outputs[5])
 
     @property
     def root_moment(self) -> float:
-        return self.outputs["root_moment"]
+        return float(self._outputs[7])
 
     def shape(self, n: int = 101, s: Iterable[float] | None = None) -> Shape:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
@@ -136,14 +166,8 @@ def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
     kind, values = load.encode()
     outputs, doutputs, unknowns, info = _core.static_solve(
         model.nbeams, model.vector(), kind, values, idx, 0.0 if tol is None else float(tol))
-    out = {name: float(v) for name, v in zip(OUTPUTS, outputs)}
-    d = {name: {p: float(doutputs[i, j]) for j, p in enumerate(wrt)}
-         for i, name in enumerate(OUTPUTS)}
-    for alias, name in ALIASES.items():
-        d[alias] = d[name]
-    return StaticResult(model=model, load=load, outputs=out, d=d, unknowns=unknowns,
-                        newton_iterations=info[0], load_steps=info[1],
-                        tol=0.0 if tol is None else float(tol))
+    return StaticResult(model, load, wrt, outputs, doutputs, unknowns, info[0], info[1],
+                        0.0 if tol is None else float(tol))
 
 
 def measurement_value(result: StaticResult, quantity: str) -> float:
@@ -154,9 +178,9 @@ def measurement_value(result: StaticResult, quantity: str) -> float:
     if quantity == "w_tip":
         return result.tip_y
     key = ALIASES.get(quantity, quantity)
-    if key not in result.outputs:
+    if key not in OUTPUTS:
         raise InputError(f"unknown quantity {quantity!r}")
-    value = result.outputs[key]
+    value = float(result._outputs[OUTPUTS.index(key)])
     if math.isnan(value):
         raise InputError(f"quantity {quantity!r} is not defined for {result.load.describe()}")
     return value
