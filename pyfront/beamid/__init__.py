@@ -15,6 +15,10 @@ from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
 from .tables import reproduce
+from .measurements import Measurements, read_measurements
+from .estimation import FitResult, fit, simulate
+from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
+                        improve, register_effect)
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError",
@@ -22,5 +26,8 @@ __all__ = [
     "TipForce", "TipMoment", "TipLoad", "RadialWire",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
+    "Measurements", "read_measurements", "fit", "FitResult", "simulate",
+    "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
+    "Comparison", "Diagnosis", "Ladder",
 ]
 __version__ = "0.1.0"

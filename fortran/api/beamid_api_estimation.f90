@@ -1,0 +1,303 @@
+!> f2py-facing API for static estimation and diagnosis (beamid_estimation,
+!! beamid_static_experiments).
+!!
+!! A problem crosses as plain arrays: experiments (load kind and the four
+!! load values fx, fy, moment, wire_length per experiment), data rows
+!! (experiment index, quantity code, value, sigma), free parameter indices,
+!! a priori index/mean/sigma (Eq. 142-145). Indices are 1-based. Status
+!! codes follow beamid_status; logical results are 0/1 integers.
+module beamid_api_estimation
+    use, intrinsic :: iso_c_binding, only: c_int, c_double
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE
+    use beamid_arclength, only: static_load_t
+    use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
+                                 candidate_t, diagnose_options_t, diagnosis_t, diagnose, &
+                                 chi2_sf
+    use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
+                                         static_bounds, static_null_values, probe_rows
+    implicit none
+    private
+
+    public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
+
+contains
+
+    subroutine make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, &
+                                tol, model, stat)
+        integer(c_int), intent(in) :: nbeams, nexp, nrow
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), tol
+        type(static_experiments_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        type(static_load_t), allocatable :: loads(:)
+        integer :: e
+        allocate (loads(nexp))
+        do e = 1, nexp
+            loads(e)%kind = int(exp_kind(e))
+            loads(e)%fx = exp_values(1, e)
+            loads(e)%fy = exp_values(2, e)
+            loads(e)%moment = exp_values(3, e)
+            loads(e)%wire_length = exp_values(4, e)
+        end do
+        call static_experiments_init(int(nbeams), loads, int(row_exp), int(row_q), &
+                                     real(tol, dp), model, stat)
+    end subroutine make_experiments
+
+    subroutine make_options(max_iter, tol_step, tol_cost, opts)
+        integer(c_int), intent(in) :: max_iter
+        real(c_double), intent(in) :: tol_step, tol_cost
+        type(fit_options_t), intent(out) :: opts
+        if (max_iter > 0) opts%max_iter = int(max_iter)
+        if (tol_step > 0.0_c_double) opts%tol_step = tol_step
+        if (tol_cost > 0.0_c_double) opts%tol_cost = tol_cost
+    end subroutine make_options
+
+    !> Lower and upper physical bounds of every parameter.
+    subroutine api_static_bounds(nbeams, nparams, lower, upper)
+        integer(c_int), intent(in) :: nbeams, nparams
+        real(c_double), intent(out) :: lower(nparams), upper(nparams)
+        real(dp), allocatable :: lo(:), up(:)
+        call static_bounds(int(nbeams), lo, up)
+        lower = 0.0_c_double
+        upper = 0.0_c_double
+        if (size(lo) /= nparams) return
+        lower = lo
+        upper = up
+    end subroutine api_static_bounds
+
+    !> Chi-square survival function (for tests and Python-side reports).
+    subroutine api_chi2_sf(x, k, p)
+        real(c_double), intent(in) :: x
+        integer(c_int), intent(in) :: k
+        real(c_double), intent(out) :: p
+        p = chi2_sf(real(x, dp), int(k))
+    end subroutine api_chi2_sf
+
+    !> Predictions of the data rows and their derivatives w.r.t. params(wrt).
+    subroutine api_static_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+                                  row_exp, row_q, nwrt, wrt, tol, pred, jac, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
+        real(c_double), intent(in) :: params(nparams), exp_values(4, nexp), tol
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
+        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(static_experiments_t) :: model
+        type(status_t) :: stat
+        real(dp) :: p(nrow), j(nrow, nwrt)
+        pred = 0.0_c_double
+        jac = 0.0_c_double
+        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        pred = p
+        jac = j
+    end subroutine api_static_predict
+
+    !> Weighted Gauss-Newton / LM fit (Eq. 39, 53-55, 142-145).
+    !! stats = chi2, chi2_prior, cond, dof, rank, iterations, converged, nlog.
+    !! The log arrays hold nlog + 1 entries (entry 1 = start).
+    subroutine api_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                       prior_mean, &
+                       prior_sigma, nexp, exp_kind, exp_values, nrow, row_exp, row_q, &
+                       row_value, row_sigma, tol, max_iter, tol_step, tol_cost, params, &
+                       sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                       log_lambda, log_step, log_params, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        !> a priori arrays carry one unused trailing entry (f2py cannot pass empty arrays)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol, tol_step, tol_cost
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
+        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
+        integer(c_int), intent(out) :: flags(nfree)
+        real(c_double), intent(out) :: stats(8)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(static_experiments_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: res
+        type(prior_t) :: prior
+        real(dp), allocatable :: lower(:), upper(:)
+        integer :: n
+
+        params = params0
+        sigmas = 0.0_c_double
+        cov = 0.0_c_double
+        corr = 0.0_c_double
+        flags = 0
+        predictions = 0.0_c_double
+        normalized = 0.0_c_double
+        stats = 0.0_c_double
+        log_cost = 0.0_c_double
+        log_lambda = 0.0_c_double
+        log_step = 0.0_c_double
+        log_params = 0.0_c_double
+        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, tol_step, tol_cost, opts)
+            prior%index = int(prior_idx(1:nprior))
+            prior%mean = real(prior_mean(1:nprior), dp)
+            prior%sigma = real(prior_sigma(1:nprior), dp)
+            call static_bounds(int(nbeams), lower, upper)
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
+                                   res, stat)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        params = res%params
+        sigmas = res%sigmas
+        cov = res%cov
+        corr = res%corr
+        flags = int(res%flags, c_int)
+        predictions = res%predictions
+        normalized = res%normalized
+        stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
+                 real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
+                 real(res%nlog, dp)]
+        n = res%nlog + 1
+        log_cost(1:n) = res%log_cost
+        log_lambda(1:n) = res%log_lambda
+        log_step(1:n) = res%log_step
+        log_params(:, 1:n) = res%log_params
+    end subroutine api_fit
+
+    !> Diagnose a fitted model: the base fit is redone from `params0` (the
+    !! estimates, so it converges at once), then every candidate block
+    !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
+    !! leading ones refitted (beamid_estimation::diagnose).
+    !! cstats(:, c) = state, score_drop, score_p, score_dof, physical,
+    !!   identifiable, refit_done, refit_ok, lr_drop, lr_p, significant,
+    !!   acceptable, rival, separation, sep_experiment, sep_quantity,
+    !!   refit_chi2, refit_chi2_prior (18 values).
+    !! pstats(:, k) for candidate parameter k = estimate, sigma, active,
+    !!   refit value, refit sigma, refit flag (6 values).
+    !! dstats = verdict, ntested, alpha_each, base chi2, base chi2_prior, base dof.
+    subroutine api_diagnose(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                            prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
+                            row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
+                            tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
+                            ambiguity_delta, collinear, cstats, pstats, refit_params, &
+                            ranking, cosine, dstats, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        !> a priori arrays carry one unused trailing entry (f2py cannot pass empty arrays)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol, tol_step, tol_cost
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand)
+        real(c_double), intent(out) :: dstats(6)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(static_experiments_t) :: model, probe
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(diagnose_options_t) :: dopts
+        type(fit_result_t) :: base
+        type(prior_t) :: prior
+        type(diagnosis_t) :: diag
+        type(candidate_t), allocatable :: cands(:)
+        real(dp), allocatable :: lower(:), upper(:), nulls(:), psig(:)
+        integer, allocatable :: pexp(:), pq(:)
+        integer :: c, k, j, nf, r
+
+        cstats = 0.0_c_double
+        pstats = 0.0_c_double
+        refit_params = 0.0_c_double
+        cosine = 0.0_c_double
+        ranking = 0
+        dstats = 0.0_c_double
+        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, tol_step, tol_cost, opts)
+            prior%index = int(prior_idx(1:nprior))
+            prior%mean = real(prior_mean(1:nprior), dp)
+            prior%sigma = real(prior_sigma(1:nprior), dp)
+            call static_bounds(int(nbeams), lower, upper)
+            call static_null_values(int(nbeams), nulls)
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
+                                   base, stat)
+        end if
+        if (stat%code == STATUS_OK) then
+            allocate (cands(ncand))
+            do c = 1, ncand
+                cands(c)%name = 'candidate'
+                cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
+            end do
+            dopts%alpha = alpha
+            dopts%nrefit = int(nrefit)
+            dopts%ambiguity_delta = ambiguity_delta
+            dopts%collinear = collinear
+            call probe_rows(model%loads, model%row_quantity, real(row_sigma, dp), pexp, pq, psig)
+            call static_experiments_init(int(nbeams), model%loads, pexp, pq, real(tol, dp), &
+                                         probe, stat)
+        end if
+        if (stat%code == STATUS_OK) then
+            call diagnose(model, real(row_value, dp), real(row_sigma, dp), base, nulls, lower, &
+                          upper, prior, cands, opts, dopts, diag, stat, probe, psig)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        nf = size(base%free)
+        do c = 1, ncand
+            associate (cr => diag%cand(c))
+                r = cr%separating_row
+                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
+                                real(cr%score%dof, dp), b2r(cr%score%physical), &
+                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
+                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
+                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
+                                real(merge(pexp(max(r, 1)), 0, r > 0), dp), &
+                                real(merge(pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
+                if (cr%refit_ok) then
+                    cstats(17, c) = cr%refit%chi2
+                    cstats(18, c) = cr%refit%chi2_prior
+                    refit_params(:, c) = cr%refit%params
+                end if
+                do j = 1, cand_start(c + 1) - cand_start(c)
+                    k = cand_start(c) + j - 1
+                    if (allocated(cr%score%estimate)) then
+                        pstats(1:3, k) = [cr%score%estimate(j), cr%score%sigma(j), &
+                                          b2r(cr%score%active(j))]
+                    end if
+                    if (cr%refit_ok) then
+                        pstats(4:6, k) = [cr%refit%params(cands(c)%params(j)), &
+                                          cr%refit%sigmas(nf + j), real(cr%refit%flags(nf + j), dp)]
+                    end if
+                end do
+            end associate
+        end do
+        ranking = int(diag%ranking, c_int)
+        cosine = diag%cosine
+        dstats = [real(diag%verdict, dp), real(diag%ntested, dp), diag%alpha_each, base%chi2, &
+                  base%chi2_prior, real(base%dof, dp)]
+    contains
+        pure real(dp) function b2r(flag)
+            logical, intent(in) :: flag
+            b2r = merge(1.0_dp, 0.0_dp, flag)
+        end function b2r
+    end subroutine api_diagnose
+end module beamid_api_estimation

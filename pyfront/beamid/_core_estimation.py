@@ -1,0 +1,126 @@
+"""The only module that calls the extension for estimation and diagnosis.
+
+A static estimation problem crosses the boundary as plain arrays (see
+``fortran/api/beamid_api_estimation.f90``): experiments as load kinds and
+``(fx, fy, moment, wire_length)`` columns, data rows as (experiment index,
+quantity code, value, sigma), 1-based parameter indices.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _ext
+from .errors import raise_for_status
+
+_api = _ext.beamid_api_estimation
+
+#: Quantity codes of the Fortran core (beamid_static_experiments).
+QUANTITY_CODES = {"x_tip": 1, "y_tip": 2, "tip_angle": 3, "wire_force": 4,
+                  "x_elbow": 5, "y_elbow": 6, "u_tip": 7, "w_tip": 8}
+QUANTITY_NAMES = {v: k for k, v in QUANTITY_CODES.items()}
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Arrays describing a static estimation problem (0-based nothing: the
+    indices here are already 1-based for Fortran)."""
+
+    nbeams: int
+    exp_kind: np.ndarray      # (nexp,) int32
+    exp_values: np.ndarray    # (4, nexp) float
+    row_exp: np.ndarray       # (nrow,) int32, 1-based
+    row_q: np.ndarray         # (nrow,) int32
+    row_value: np.ndarray     # (nrow,)
+    row_sigma: np.ndarray     # (nrow,)
+    tol: float = 0.0
+
+
+def _msg(message: bytes | str) -> str:
+    return message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+
+
+def _pad(values, dtype) -> np.ndarray:
+    """Append one unused entry: the API takes arrays of size n + 1 because
+    f2py cannot pass empty arrays."""
+    return np.append(np.asarray(values, dtype=dtype), np.zeros(1, dtype=dtype))
+
+
+def static_bounds(nbeams: int, nparams: int) -> tuple[np.ndarray, np.ndarray]:
+    """Physical lower and upper bounds of every parameter."""
+    lower, upper = _api.api_static_bounds(nbeams, nparams)
+    return np.array(lower), np.array(upper)
+
+
+def chi2_sf(x: float, k: int) -> float:
+    """Chi-square survival function (Fortran)."""
+    return float(_api.api_chi2_sf(float(x), int(k)))
+
+
+def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predictions of the data rows and d/d params(wrt) (wrt 1-based)."""
+    wrt = np.asarray(wrt, dtype=np.int32)
+    pred, jac, code, message = _api.api_static_predict(
+        prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
+        prob.row_exp, prob.row_q, wrt, float(prob.tol))
+    raise_for_status(int(code), message)
+    return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
+
+
+def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+        prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
+        tol_step: float = 0.0, tol_cost: float = 0.0) -> dict:
+    """Weighted Gauss-Newton/LM fit. Returns a dict of arrays; raises
+    ConvergenceError (with the partial result in ``exc.partial``) on failure."""
+    free = np.asarray(free, dtype=np.int32)
+    out = _api.api_fit(
+        prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
+        prob.exp_values, prob.row_exp, prob.row_q, prob.row_value, prob.row_sigma,
+        float(prob.tol), int(max_iter), float(tol_step), float(tol_cost))
+    (params, sigmas, cov, corr, flags, pred, norm, stats, log_cost, log_lambda, log_step,
+     log_params, code, message) = out
+    n = free.size
+    nlog = int(stats[7]) + 1
+    result = {
+        "params": np.array(params), "sigmas": np.array(sigmas),
+        "cov": np.array(cov).reshape(n, n), "corr": np.array(corr).reshape(n, n),
+        "flags": np.array(flags, dtype=int), "predictions": np.array(pred),
+        "normalized": np.array(norm), "chi2": float(stats[0]), "chi2_prior": float(stats[1]),
+        "cond": float(stats[2]), "dof": int(stats[3]), "rank": int(stats[4]),
+        "iterations": int(stats[5]), "converged": bool(stats[6]),
+        "log_cost": np.array(log_cost[:nlog]), "log_lambda": np.array(log_lambda[:nlog]),
+        "log_step": np.array(log_step[:nlog]),
+        "log_params": np.array(log_params).reshape(n, -1)[:, :nlog],
+    }
+    if int(code) != 0:
+        try:
+            raise_for_status(int(code), message)
+        except Exception as exc:
+            exc.partial = result  # type: ignore[attr-defined]
+            raise
+    return result
+
+
+def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+             prior_mean: np.ndarray, prior_sigma: np.ndarray,
+             blocks: list[np.ndarray], alpha: float, nrefit: int, ambiguity_delta: float,
+             collinear: float, max_iter: int = 50) -> dict:
+    """Score tests, refits and ranking of candidate blocks (1-based indices)."""
+    starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
+    flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
+            if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
+    out = _api.api_diagnose(
+        prob.nbeams, np.asarray(params0, float), np.asarray(free, np.int32),
+        _pad(prior_idx, np.int32), _pad(prior_mean, float),
+        _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
+        prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), 0.0, 0.0,
+        starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta), float(collinear))
+    cstats, pstats, refit_params, ranking, cosine, dstats, code, message = out
+    raise_for_status(int(code), message)
+    nc = len(blocks)
+    return {"cstats": np.array(cstats).reshape(18, nc), "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+            "refit_params": np.array(refit_params).reshape(-1, nc),
+            "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
+            "dstats": np.array(dstats), "starts": starts - 1}

@@ -1,0 +1,509 @@
+"""Compare, diagnose, add the missing effect: the model-improvement workflow.
+
+>>> import beamid
+>>> truth = beamid.pace(axial_coupling=0.0, elbow_flex=0.004)
+>>> exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (2.0, 4.0, 6.0, 8.0)}
+>>> data = beamid.simulate(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=1e-4)
+>>> fit = beamid.fit(beamid.pace(axial_coupling=0.0), exps, data, free=("EI1", "EI2"))
+>>> beamid.diagnose(fit).verdict.effect
+'elbow_flex'
+
+The statistics run in Fortran (``beamid_estimation``): for every candidate
+effect the fitted model has switched off, a score (Lagrange-multiplier) test
+with the free parameters projected out predicts the chi-square drop and a
+first-order estimate; the leading candidates are confirmed by refits
+(likelihood ratio). This module names the results, words the verdict, and
+drives :func:`improve`.
+
+Candidate effects live in a registry (:data:`EFFECTS`); new experiment
+families (dynamics) add theirs with :func:`register_effect`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from . import _core_estimation as _ce
+from .errors import ConvergenceError, InputError
+from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
+from .estimation import _prior_arrays
+from .loads import RadialWire, TipLoad
+from .measurements import Measurements
+from .model import Model
+
+
+# ------------------------------------------------------------------ registry
+
+@dataclass(frozen=True)
+class Effect:
+    """A physical effect a model can switch on.
+
+    ``params(model)`` names the parameters that switch it on; at their null
+    values (all 0 for the static effects) the effect is off. ``kinds`` says
+    which experiment families can see it.
+    """
+
+    name: str
+    description: str
+    params: Callable[[Model], tuple[str, ...]]
+    kinds: tuple[str, ...] = ("static",)
+
+
+EFFECTS: dict[str, Effect] = {}
+
+
+def register_effect(effect: Effect) -> None:
+    """Add (or replace) a candidate effect in the registry."""
+    EFFECTS[effect.name] = effect
+
+
+register_effect(Effect(
+    "axial_coupling",
+    "exact elastica: the axial force times curvature term that the seed's shear-only "
+    "Eq. 9 omits (axial_coupling from 0 towards 1)",
+    lambda m: ("axial_coupling",)))
+register_effect(Effect(
+    "material_cubic", "cubic moment-curvature law M = EI k + C k^3 (Eq. 16)",
+    lambda m: tuple(f"C{i + 1}" for i in range(m.nbeams))))
+register_effect(Effect(
+    "elbow_flex", "rotational compliance of the elbow joint (rad per N m)",
+    lambda m: ("elbow_flex",) if m.nbeams >= 2 else ()))
+register_effect(Effect(
+    "root_flex", "rotational compliance of the shoulder clamp (rad per N m)",
+    lambda m: ("root_flex",)))
+
+#: Candidate effects tried for static experiments, in order.
+STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
+
+_STATES = {0: "tested", 1: "already free", 2: "already switched on", 3: "not in this model"}
+
+
+def _effect(name: str | Effect) -> Effect:
+    if isinstance(name, Effect):
+        return name
+    try:
+        return EFFECTS[str(name)]
+    except KeyError:
+        raise InputError(f"unknown effect {name!r}, expected one of "
+                         f"{', '.join(EFFECTS)}") from None
+
+
+# ------------------------------------------------------------------- compare
+
+class CompareRow(NamedTuple):
+    experiment: str
+    quantity: str
+    load: float          # load level (N for forces, N m for moments, m of wire pull-in)
+    measured: float
+    model: float
+    sigma: float
+    normalized: float
+
+
+@dataclass(frozen=True)
+class StructureTest:
+    """A test for systematic structure in normalized residuals."""
+
+    name: str
+    statistic: float
+    p_value: float
+    detail: str
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Measured against model values after a fit (:func:`compare`)."""
+
+    fit: FitResult
+    rows: tuple[CompareRow, ...]
+    chi2: float
+    dof: int
+    expected: float          # E[chi2] = dof
+    expected_sigma: float    # sqrt(2 dof)
+    p_value: float           # P(chi2_dof > chi2)
+    per_experiment: dict[str, float]
+    tests: tuple[StructureTest, ...]
+    systematic: bool         # a structure test or the chi-square fails at 1 %
+
+    def __str__(self) -> str:
+        lines = [f"{'experiment':<12}{'quantity':<12}{'load':>8}{'measured':>14}"
+                 f"{'model':>14}{'sigma':>11}{'normalized':>12}"]
+        for r in self.rows:
+            lines.append(f"{r.experiment:<12}{r.quantity:<12}{r.load:>8.4g}{r.measured:>14.7g}"
+                         f"{r.model:>14.7g}{r.sigma:>11.3g}{r.normalized:>12.3f}")
+        lines.append(f"chi2 = {self.chi2:.4g}, expected {self.expected:.4g} +- "
+                     f"{self.expected_sigma:.3g} (dof {self.dof}), p = {self.p_value:.3g}")
+        for t in self.tests:
+            lines.append(f"{t.name}: statistic {t.statistic:.3g}, p = {t.p_value:.3g} "
+                         f"({t.detail})")
+        lines.append("systematic structure: the model misses something" if self.systematic
+                     else "no systematic structure: residuals look like noise")
+        return "\n".join(lines)
+
+
+def load_level(load: TipLoad | RadialWire, model: Model) -> float:
+    """A scalar that orders experiments by how hard they load the arm:
+    the force magnitude, else the moment magnitude, else for a wire the
+    pull-in (total length - Lw)."""
+    if isinstance(load, RadialWire):
+        return model.total_length - load.Lw
+    force = math.hypot(load.fx, load.fy)
+    return force if force > 0.0 else abs(load.moment)
+
+
+def _two_sided_normal_p(z: float) -> float:
+    return _ce.chi2_sf(z * z, 1)
+
+
+def compare(fit: FitResult) -> Comparison:
+    """Per experiment and quantity, measured against model values, normalized
+    residuals, chi-square against its expectation, and two tests for
+    systematic structure against load: a Wald-Wolfowitz runs test on the
+    signs of the residuals ordered by load (within each quantity) and a
+    weighted trend (slope of the normalized residuals against load)."""
+    levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
+    rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
+                            r.model, r.sigma, r.normalized) for r in fit.residuals)
+    chi2 = float(sum(r.normalized ** 2 for r in rows))
+    dof = fit.dof
+    p = _ce.chi2_sf(chi2 + fit.chi2_prior, dof) if dof > 0 else math.nan
+    per_exp: dict[str, float] = {}
+    for r in rows:
+        per_exp[r.experiment] = per_exp.get(r.experiment, 0.0) + r.normalized ** 2
+    tests = []
+    # runs test: signs ordered by load within each quantity, concatenated
+    signs: list[int] = []
+    for q in dict.fromkeys(r.quantity for r in rows):
+        ordered = sorted((r for r in rows if r.quantity == q), key=lambda r: r.load)
+        signs += [1 if r.normalized > 0 else 0 for r in ordered if r.normalized != 0.0]
+    n1, n2 = sum(signs), len(signs) - sum(signs)
+    if n1 > 0 and n2 > 0:
+        runs = 1 + sum(1 for a, b in zip(signs, signs[1:]) if a != b)
+        n = n1 + n2
+        mean = 2.0 * n1 * n2 / n + 1.0
+        var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0)) if n > 1 else 0.0
+        z = (runs - mean) / math.sqrt(var) if var > 0 else 0.0
+        # few runs (long same-sign stretches) mean structure: one-sided
+        p_runs = 0.5 * _two_sided_normal_p(z) if z < 0 else 1.0 - 0.5 * _two_sided_normal_p(z)
+        tests.append(StructureTest("runs test", z, p_runs,
+                                   f"{runs} runs of signs, {mean:.2f} expected"))
+    else:
+        tests.append(StructureTest("runs test", math.nan, math.nan,
+                                   "all residuals have one sign" if signs else "no residuals"))
+    # trend: least-squares slope of normalized residuals against load (each quantity)
+    x = np.array([r.load for r in rows])
+    y = np.array([r.normalized for r in rows])
+    if len(rows) >= 3 and np.ptp(x) > 0:
+        xc = x - x.mean()
+        slope = float(xc @ y / (xc @ xc))
+        # under pure noise y_i ~ N(0, 1): slope has variance 1 / sum(xc^2)
+        z = slope * math.sqrt(float(xc @ xc))
+        tests.append(StructureTest("trend against load", z, _two_sided_normal_p(z),
+                                   f"slope {slope:.3g} sigma per unit load"))
+    systematic = (not math.isnan(p) and p < 0.01) or any(
+        t.p_value < 0.01 for t in tests if not math.isnan(t.p_value))
+    return Comparison(fit=fit, rows=rows, chi2=chi2, dof=dof, expected=float(dof),
+                      expected_sigma=math.sqrt(2.0 * max(dof, 0)), p_value=p,
+                      per_experiment=per_exp, tests=tuple(tests), systematic=systematic)
+
+
+# ------------------------------------------------------------------ diagnose
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate effect in a :class:`Diagnosis`.
+
+    ``chi2_drop``, ``p_value``, ``estimate`` and ``sigma`` are those of the
+    refit (likelihood ratio) when one was made, else of the score test
+    (first order); both are kept in the ``score_*``/``lr_*`` fields.
+    """
+
+    effect: str
+    params: tuple[str, ...]
+    state: str
+    score_drop: float = math.nan
+    score_p: float = math.nan
+    first_order: dict[str, float] = field(default_factory=dict)
+    first_order_sigma: dict[str, float] = field(default_factory=dict)
+    physical: bool = True
+    identifiable: bool = True
+    refit: bool = False
+    lr_drop: float = math.nan
+    lr_p: float = math.nan
+    refit_estimate: dict[str, float] = field(default_factory=dict)
+    refit_sigma: dict[str, float] = field(default_factory=dict)
+    refit_flags: dict[str, str] = field(default_factory=dict)
+    refit_model: Model | None = None
+    significant: bool = False
+    acceptable: bool = False
+    rival: bool = False
+    separating: tuple[str, str, float] | None = None
+
+    @property
+    def chi2_drop(self) -> float:
+        return self.lr_drop if self.refit and not math.isnan(self.lr_drop) else self.score_drop
+
+    @property
+    def p_value(self) -> float:
+        return self.lr_p if self.refit and not math.isnan(self.lr_p) else self.score_p
+
+    @property
+    def estimate(self) -> dict[str, float]:
+        return self.refit_estimate if self.refit and self.refit_estimate else self.first_order
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        return self.refit_sigma if self.refit and self.refit_sigma else self.first_order_sigma
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Result of :func:`diagnose`: candidates ranked best first."""
+
+    fit: FitResult
+    candidates: tuple[Candidate, ...]
+    verdict: Candidate | None
+    rivals: tuple[Candidate, ...]
+    alpha: float
+    alpha_each: float
+    message: str
+
+    def __getitem__(self, effect: str) -> Candidate:
+        for c in self.candidates:
+            if c.effect == effect:
+                return c
+        raise KeyError(effect)
+
+    def __str__(self) -> str:
+        lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
+                 f"{'refit p':>10}  estimate (sigma)"]
+        for k, c in enumerate(self.candidates, start=1):
+            if c.state != "tested":
+                lines.append(f"{'-':<5}{c.effect:<16}  ({c.state})")
+                continue
+            est = ", ".join(f"{n} = {c.estimate.get(n, math.nan):.4g} "
+                            f"({c.sigma.get(n, math.nan):.2g})" for n in c.params)
+            notes = []
+            if not c.physical:
+                notes.append("nonphysical first-order estimate")
+            if not c.identifiable:
+                notes.append("not separable from the free parameters")
+            if c.refit and c.refit_flags and any(v != "ok" for v in c.refit_flags.values()):
+                notes.append("; ".join(f"{n}: {v}" for n, v in c.refit_flags.items()
+                                       if v != "ok"))
+            lines.append(f"{k:<5}{c.effect:<16}{c.score_drop:>11.4g}{c.score_p:>10.2g}"
+                         f"{(c.lr_drop if c.refit else math.nan):>11.4g}"
+                         f"{(c.lr_p if c.refit else math.nan):>10.2g}  {est}"
+                         + (f"  [{'; '.join(notes)}]" if notes else ""))
+        lines.append(self.message)
+        return "\n".join(lines)
+
+
+def _candidate_blocks(model: Model, candidates: Iterable[str | Effect]):
+    effects = [_effect(c) for c in candidates]
+    names = [e.params(model) for e in effects]
+    blocks = [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names]
+    return effects, names, blocks
+
+
+def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
+             alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
+             collinear: float = 0.98) -> Diagnosis:
+    """Which switched-off effect would explain the residuals of ``fit``?
+
+    For each candidate whose parameters are all at their null values and not
+    free: a score (Lagrange-multiplier) test from the sensitivities at the
+    null, with the free parameters projected out, gives the predicted
+    chi-square drop, a first-order estimate with sigma and a p-value;
+    effects with a sign (compliances, axial_coupling >= 0) are one-sided,
+    and a candidate whose first-order estimate is nonphysical is not offered.
+    The ``nrefit`` leading candidates are refitted (likelihood ratio). The
+    verdict is the best refit significant at ``alpha`` / (number tested)
+    whose parameters are determined; rivals explain the residuals about as
+    well (drops within ``ambiguity_delta`` or |cosine| of their first-order
+    residual changes above ``collinear``), and for each rival the
+    measurement that would separate it from the verdict is named.
+    """
+    if not isinstance(fit, FitResult):
+        raise InputError(f"diagnose needs a FitResult from beamid.fit, got {type(fit).__name__}")
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
+    if int(nrefit) < 0:
+        raise InputError(f"nrefit = {nrefit}, expected >= 0")
+    model = fit.model
+    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    if not cands:
+        raise InputError("candidates is empty: name at least one effect")
+    effects, names, blocks = _candidate_blocks(model, cands)
+    prob = build_problem(model, fit.experiments, fit.data)
+    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    raw = _ce.diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+                       int(nrefit), ambiguity_delta, collinear)
+    cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
+    exp_names = list(fit.experiments)
+    out: list[Candidate] = []
+    for c, eff in enumerate(effects):
+        s = cst[:, c]
+        ps = pst[:, starts[c]:starts[c + 1]]
+        state = _STATES[int(s[0])]
+        if state != "tested":
+            out.append(Candidate(eff.name, names[c], state))
+            continue
+        refit = bool(s[6]) and bool(s[7])
+        sep = None
+        if s[12] and s[14] > 0:
+            sep = (exp_names[int(s[14]) - 1], _ce.QUANTITY_NAMES[int(s[15])], float(s[13]))
+        null = {n: float(model[n]) for n in names[c]}
+        out.append(Candidate(
+            effect=eff.name, params=names[c], state=state, score_drop=float(s[1]),
+            score_p=float(s[2]),
+            first_order={n: null[n] + float(ps[0, j]) for j, n in enumerate(names[c])},
+            first_order_sigma={n: float(ps[1, j]) for j, n in enumerate(names[c])},
+            physical=bool(s[4]), identifiable=bool(s[5]), refit=refit,
+            lr_drop=float(s[8]) if refit else math.nan,
+            lr_p=float(s[9]) if refit else math.nan,
+            refit_estimate={n: float(ps[3, j]) for j, n in enumerate(names[c])} if refit else {},
+            refit_sigma={n: float(ps[4, j]) for j, n in enumerate(names[c])} if refit else {},
+            refit_flags={n: FLAG_TEXT.get(int(ps[5, j]), "flagged")
+                         for j, n in enumerate(names[c])} if refit else {},
+            refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
+            significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
+            separating=sep))
+    ranked = tuple(out[i] for i in raw["ranking"])
+    verdict_index = int(raw["dstats"][0])
+    verdict = out[verdict_index - 1] if verdict_index > 0 else None
+    rivals = tuple(c for c in ranked if c.rival)
+    alpha_each = float(raw["dstats"][2])
+    message = _verdict_message(fit, ranked, verdict, rivals, alpha)
+    return Diagnosis(fit=fit, candidates=ranked, verdict=verdict, rivals=rivals, alpha=alpha,
+                     alpha_each=alpha_each, message=message)
+
+
+def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
+    lines = []
+    undetermined = [n for n, f in fit.flags.items() if f != "ok"]
+    if undetermined:
+        lines.append("fitted parameters not determined by these data: " + ", ".join(
+            f"{n} ({fit.flags[n]})" for n in undetermined))
+    if verdict is None:
+        p = _ce.chi2_sf(fit.chi2 + fit.chi2_prior, fit.dof) if fit.dof > 0 else math.nan
+        tested = [c for c in ranked if c.state == "tested"]
+        if not tested:
+            lines.append("no candidate effect left to test (all are free or switched on)")
+        lines.append(f"residuals not explained by any known effect: no candidate is "
+                     f"significant at {alpha:g} (chi2/dof = {fit.chi2_per_dof:.3g}, "
+                     f"p = {p:.3g}" + ("; the fit is consistent with the noise)"
+                                       if not (p < alpha) else
+                                       "; the misfit is real but none of the candidates "
+                                       "explains it)"))
+        return "\n".join(lines)
+    est = ", ".join(f"{n} = {verdict.estimate[n]:.5g} +- {verdict.sigma[n]:.2g}"
+                    for n in verdict.params)
+    lines.append(f"missing effect: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
+                 f"p = {verdict.p_value:.2g}; {est})")
+    if rivals:
+        names = ", ".join(r.effect for r in rivals)
+        lines.append(f"ambiguous: {verdict.effect} and {names} explain the residuals about "
+                     f"as well (chi-square drops " + ", ".join(
+                         f"{c.effect} {c.chi2_drop:.3g}" for c in (verdict, *rivals)) + ")")
+        for r in rivals:
+            if r.separating:
+                e, q, k = r.separating
+                lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q} in "
+                             f"experiment {e} (their refits differ there by {k:.3g} sigma)")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------- add / improve
+
+def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50) -> FitResult:
+    """Refit with the parameters of ``effect`` free as well, starting from
+    its first-order (score-test) estimate when that is physical."""
+    eff = _effect(effect)
+    params = eff.params(fit.model)
+    if not params:
+        raise InputError(f"effect {eff.name!r} has no parameters in a "
+                         f"{fit.model.nbeams}-beam model")
+    already = [p for p in params if p in fit.free]
+    if already:
+        raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
+    start = fit.model
+    try:
+        d = diagnose(fit, [eff], nrefit=1)
+        cand = d.candidates[0]
+        if cand.refit and cand.refit_model is not None:
+            start = cand.refit_model
+    except ConvergenceError:
+        pass
+    return _fit(start, fit.experiments, fit.data, free=fit.free + params, prior=fit.prior,
+                max_iter=max_iter)
+
+
+class LadderStep(NamedTuple):
+    """One rung of :func:`improve`: the effect added (None for the start)."""
+
+    step: int
+    effect: str | None
+    chi2: float
+    dof: int
+    chi2_per_dof: float
+    estimates: dict[str, float]
+    sigmas: dict[str, float]
+    fit: FitResult
+    diagnosis: Diagnosis
+
+
+@dataclass(frozen=True)
+class Ladder:
+    """Result of :func:`improve`."""
+
+    steps: tuple[LadderStep, ...]
+
+    @property
+    def fit(self) -> FitResult:
+        """The final fit."""
+        return self.steps[-1].fit
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return tuple(s.effect for s in self.steps if s.effect)
+
+    def __str__(self) -> str:
+        lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"
+                 "  estimates (sigma)"]
+        for s in self.steps:
+            est = ", ".join(f"{n} = {v:.5g} ({s.sigmas[n]:.2g})" for n, v in s.estimates.items())
+            lines.append(f"{s.step:<6}{(s.effect or '(start)'):<18}{s.chi2:>12.5g}{s.dof:>5}"
+                         f"{s.chi2_per_dof:>11.4g}  {est}")
+        lines.append(self.steps[-1].diagnosis.message)
+        return "\n".join(lines)
+
+
+def improve(model: Model, experiments: Experiments, data: Measurements,
+            free: Sequence[str] = ("EI1", "EI2"),
+            prior: Mapping[str, tuple[float, float]] | None = None, *,
+            candidates: Sequence[str | Effect] | None = None, alpha: float = 0.01,
+            max_steps: int | None = None, max_iter: int = 50) -> Ladder:
+    """Fit, then repeat diagnose and add the verdict's effect until no
+    candidate is significant; return the ladder of fits."""
+    current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
+    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    limit = len(cands) if max_steps is None else int(max_steps)
+    steps = []
+    effect: str | None = None
+    for k in range(limit + 1):
+        diag = diagnose(current, cands, alpha=alpha)
+        steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
+                                dict(current.estimates), dict(current.sigmas), current, diag))
+        if diag.verdict is None or k == limit:
+            break
+        verdict = diag.verdict
+        start = verdict.refit_model or current.model
+        current = _fit(start, experiments, data, free=current.free + verdict.params,
+                       prior=prior, max_iter=max_iter)
+        effect = verdict.effect
+    return Ladder(tuple(steps))

@@ -1,0 +1,315 @@
+"""Parameter estimation from static measurements (Section 3.2, Eq. 36-56, 142-145).
+
+>>> import beamid
+>>> truth = beamid.pace(axial_coupling=0.0)
+>>> exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (3.0, 5.0, 6.5, 8.0)}
+>>> data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+>>> fit = beamid.fit(truth.replace(EI1=10.75, EI2=10.5), exps, data, free=("EI1", "EI2"))
+>>> round(fit.estimates["EI1"], 3), round(fit.estimates["EI2"], 3)
+(11.413, 11.275)
+
+The numerics (Gauss-Newton with a Levenberg-Marquardt safeguard, bounds, a
+priori pseudo-measurements, SVD covariance) run in Fortran
+(``beamid_estimation``); this module builds the problem and names the results.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from . import _core_estimation as _ce
+from .errors import InputError
+from .loads import RadialWire, TipLoad
+from .measurements import Measurements, QUANTITIES
+from .model import Model
+from .static import measurement_value, solve_static
+
+#: Meaning of the per-parameter flags returned by the Fortran core.
+FLAG_TEXT = {0: "ok", 1: "not determined by these data", 2: "ran away from its start",
+             3: "correlation near +-1 with another parameter", 4: "at a physical bound"}
+
+Experiments = Mapping[str, "TipLoad | RadialWire"]
+
+
+class Residual(NamedTuple):
+    """One data row after a fit."""
+
+    experiment: str
+    t: float
+    quantity: str
+    measured: float
+    model: float
+    sigma: float
+    normalized: float  # (measured - model) / sigma
+
+
+class IterationLog(NamedTuple):
+    """One accepted Gauss-Newton/LM iteration (iteration 0 is the start)."""
+
+    iteration: int
+    cost: float          # chi-square including a priori rows
+    damping: float       # Levenberg-Marquardt lambda (0: pure Gauss-Newton step)
+    relative_step: float
+    params: dict[str, float]
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Result of :func:`fit`.
+
+    ``estimates`` and ``sigmas`` are dicts by parameter name; ``cov`` and
+    ``corr`` are arrays in the order of ``free``. A parameter the data do not
+    determine has an infinite sigma and a flag in ``flags``; ``warnings``
+    says so in words.
+    """
+
+    model: Model
+    start: Model
+    experiments: dict[str, TipLoad | RadialWire]
+    data: Measurements
+    free: tuple[str, ...]
+    prior: dict[str, tuple[float, float]]
+    estimates: dict[str, float]
+    sigmas: dict[str, float]
+    cov: np.ndarray
+    corr: np.ndarray
+    chi2: float
+    chi2_prior: float
+    dof: int
+    iterations: int
+    converged: bool
+    cond: float
+    rank: int
+    flags: dict[str, str]
+    residuals: list[Residual]
+    log: list[IterationLog] = field(repr=False)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def chi2_per_dof(self) -> float:
+        """Chi-square (data and a priori rows) per degree of freedom."""
+        return (self.chi2 + self.chi2_prior) / self.dof if self.dof > 0 else math.nan
+
+    @property
+    def normalized(self) -> np.ndarray:
+        """Normalized residuals (measured - model) / sigma, in row order."""
+        return np.array([r.normalized for r in self.residuals])
+
+    def summary(self) -> str:
+        """A printable table of the estimates."""
+        lines = [f"{'parameter':<16}{'estimate':>14}{'sigma':>12}  flag"]
+        for name in self.free:
+            lines.append(f"{name:<16}{self.estimates[name]:>14.6g}{self.sigmas[name]:>12.3g}  "
+                         f"{self.flags[name]}")
+        lines.append(f"chi2 = {self.chi2:.4g} (+ a priori {self.chi2_prior:.3g}), dof = "
+                     f"{self.dof}, chi2/dof = {self.chi2_per_dof:.3g}, "
+                     f"{self.iterations} iterations, condition number {self.cond:.3g}")
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+# ----------------------------------------------------------------- building blocks
+
+def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWire]:
+    if not isinstance(experiments, Mapping) or not experiments:
+        raise InputError("experiments must be a non-empty dict {name: load}, e.g. "
+                         "{'F3': beamid.TipForce(fy=3.0)}")
+    out = {}
+    for name, load in experiments.items():
+        if not isinstance(load, (TipLoad, RadialWire)):
+            raise InputError(f"experiment {name!r}: load = {load!r}, expected TipForce, "
+                             "TipMoment or RadialWire")
+        out[str(name)] = load
+    return out
+
+
+def build_problem(model: Model, experiments: Experiments, data: Measurements,
+                  tol: float = 0.0) -> _ce.Problem:
+    """Arrays for the Fortran core; checks that every row can be predicted."""
+    exps = _check_experiments(experiments)
+    if not isinstance(data, Measurements):
+        raise InputError(f"data must be beamid.Measurements (read_measurements), got "
+                         f"{type(data).__name__}")
+    data.check_experiments(exps)
+    names = list(exps)
+    kinds = np.zeros(len(names), np.int32)
+    values = np.zeros((4, len(names)))
+    for j, name in enumerate(names):
+        kinds[j], values[:, j] = exps[name].encode()
+    for i in range(len(data)):
+        if data.t[i] != 0.0:
+            raise InputError(f"{data._where(i)}: field t = {data.t[i]:g}, expected 0 for "
+                             f"the static experiment {data.experiment[i]!r}")
+        if data.quantity[i] == "wire_force" and not isinstance(exps[data.experiment[i]],
+                                                                RadialWire):
+            raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
+                             f"experiment {data.experiment[i]!r} has no wire")
+    return _ce.Problem(
+        nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
+        row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
+        row_q=np.array([_ce.QUANTITY_CODES[q] for q in data.quantity], np.int32),
+        row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
+        tol=float(tol))
+
+
+def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    if isinstance(free, str):
+        free = (free,)
+    names = tuple(str(f) for f in free)
+    if not names:
+        raise InputError("free is empty: name the parameters to estimate, e.g. "
+                         "free=('EI1', 'EI2')")
+    canonical = tuple(model.names()[model.index(n)] for n in names)
+    for n in canonical:
+        if canonical.count(n) > 1:
+            raise InputError(f"free names parameter {n!r} twice")
+    return canonical, np.array([model.index(n) + 1 for n in canonical], np.int32)
+
+
+def _prior_arrays(model: Model, free: tuple[str, ...],
+                  prior: Mapping[str, tuple[float, float]] | None):
+    prior = dict(prior or {})
+    idx, mean, sig = [], [], []
+    out = {}
+    for name, spec in prior.items():
+        canonical = model.names()[model.index(name)]
+        if canonical not in free:
+            raise InputError(f"prior names {name!r}, which is not free (free: "
+                             f"{', '.join(free)})")
+        try:
+            m, s = (float(v) for v in spec)
+        except (TypeError, ValueError):
+            raise InputError(f"prior[{name!r}] = {spec!r}, expected (mean, sigma)") from None
+        if not (math.isfinite(m) and math.isfinite(s) and s > 0.0):
+            raise InputError(f"prior[{name!r}] = ({m:g}, {s:g}), expected a finite mean and "
+                             "sigma > 0")
+        idx.append(model.index(canonical) + 1)
+        mean.append(m)
+        sig.append(s)
+        out[canonical] = (m, s)
+    return out, np.array(idx, np.int32), np.array(mean), np.array(sig)
+
+
+def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: float,
+              rank: int) -> tuple[str, ...]:
+    out = []
+    if rank < len(free):
+        out.append(f"the free parameters are not identifiable from these data (rank {rank} "
+                   f"of {len(free)}); undetermined parameters have infinite sigma")
+    elif cond > 1e6:
+        out.append(f"ill-conditioned problem (condition number {cond:.3g})")
+    for i, name in enumerate(free):
+        if flags[i] != 0:
+            out.append(f"{name}: {FLAG_TEXT.get(int(flags[i]), 'flagged')}")
+    for i in range(len(free)):
+        for j in range(i + 1, len(free)):
+            c = corr[i, j]
+            if np.isfinite(c) and abs(c) > 0.99:
+                out.append(f"{free[i]} and {free[j]} are correlated {c:+.4f}: the data "
+                           "determine a combination of them, not each")
+    return tuple(out)
+
+
+def fit(model: Model, experiments: Experiments, data: Measurements,
+        free: Sequence[str] = ("EI1", "EI2"),
+        prior: Mapping[str, tuple[float, float]] | None = None, *,
+        max_iter: int = 50, tol: float = 0.0) -> FitResult:
+    """Estimate the ``free`` parameters of ``model`` from ``data``.
+
+    Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
+    of Eq. 53-54) with the hand-coded sensitivities (Eq. 40-51), a
+    Levenberg-Marquardt safeguard when a step does not lower the cost,
+    physical bounds (stiffnesses stay positive, compliances non-negative,
+    axial_coupling in [0, 1]) and a priori information (Eq. 142-145: each
+    ``prior[name] = (mean, sigma)`` adds a pseudo-measurement). The
+    covariance (Eq. 55) comes from the SVD of the weighted Jacobian: a
+    direction the data do not see gets an infinite sigma, not a number.
+
+    Parameters
+    ----------
+    model:
+        Starting model; parameters not in ``free`` stay at its values.
+    experiments:
+        ``{name: load}``, e.g. ``{"F3": beamid.TipForce(fy=3.0)}``.
+    data:
+        :class:`beamid.Measurements` (:func:`beamid.read_measurements`).
+    free:
+        Names of the parameters to estimate.
+    prior:
+        Optional a priori ``{name: (mean, sigma)}`` for free parameters.
+    max_iter:
+        Gauss-Newton iterations before :class:`beamid.ConvergenceError`.
+    tol:
+        Static solver tolerance (0: default).
+    """
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    prob = build_problem(model, experiments, data, tol)
+    free_names, free_idx = _free_indices(model, free)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
+    return _result(model, experiments, data, free_names, prior_map, raw)
+
+
+def _result(start: Model, experiments: Experiments, data: Measurements,
+            free: tuple[str, ...], prior: dict, raw: dict) -> FitResult:
+    fitted = Model(start.nbeams, raw["params"])
+    est = {n: float(fitted[n]) for n in free}
+    sig = {n: float(s) for n, s in zip(free, raw["sigmas"])}
+    residuals = [Residual(e, float(t), q, float(v), float(p), float(s), float(r))
+                 for e, t, q, v, s, p, r in zip(data.experiment, data.t, data.quantity,
+                                                data.value, data.sigma, raw["predictions"],
+                                                raw["normalized"])]
+    log = [IterationLog(k, float(c), float(lam), float(st),
+                        {n: float(v) for n, v in zip(free, raw["log_params"][:, k])})
+           for k, (c, lam, st) in enumerate(zip(raw["log_cost"], raw["log_lambda"],
+                                                raw["log_step"]))]
+    flags = {n: FLAG_TEXT.get(int(f), "flagged") for n, f in zip(free, raw["flags"])}
+    return FitResult(
+        model=fitted, start=start, experiments=dict(experiments), data=data, free=free,
+        prior=prior, estimates=est, sigmas=sig, cov=raw["cov"], corr=raw["corr"],
+        chi2=raw["chi2"], chi2_prior=raw["chi2_prior"], dof=raw["dof"],
+        iterations=raw["iterations"], converged=raw["converged"], cond=raw["cond"],
+        rank=raw["rank"], flags=flags, residuals=residuals, log=log,
+        warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"]))
+
+
+def predict(model: Model, experiments: Experiments, data: Measurements,
+            wrt: Sequence[str] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Model values of the data rows and their derivatives with respect to
+    ``wrt`` (rows x len(wrt)), as the fit uses them."""
+    prob = build_problem(model, experiments, data)
+    idx = np.array([model.index(n) + 1 for n in wrt], np.int32)
+    return _ce.predict(prob, model.vector(), idx)
+
+
+def simulate(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
+             sigma: float | Mapping[str, float] = 1e-3, *, seed: int | None = None,
+             noise: bool = False) -> Measurements:
+    """Synthetic measurements of ``quantities`` in every experiment.
+
+    ``quantities`` is a list used for every experiment or a mapping
+    ``{experiment: [quantities]}``. ``sigma`` is one number or a mapping by
+    quantity. With ``noise=True`` Gaussian errors of that sigma are drawn
+    from ``numpy.random.default_rng(seed)``.
+    """
+    exps = _check_experiments(experiments)
+    rows = []
+    for name, load in exps.items():
+        qs = quantities[name] if isinstance(quantities, Mapping) else quantities
+        result = solve_static(model, load)
+        for q in qs:
+            if q not in QUANTITIES:
+                raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
+            s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
+            rows.append((name, 0.0, q, measurement_value(result, q), s))
+    data = Measurements.from_rows(rows, source="<simulated>")
+    if noise:
+        rng = np.random.default_rng(seed)
+        data = data.with_values(data.value + rng.standard_normal(len(data)) * data.sigma)
+    return data

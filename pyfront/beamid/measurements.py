@@ -1,0 +1,206 @@
+"""Measurement tables: CSV files with rows ``experiment,t,quantity,value,sigma``.
+
+>>> import beamid, io, pathlib, tempfile
+>>> p = pathlib.Path(tempfile.mkdtemp()) / "d.csv"
+>>> _ = p.write_text("# tip deflection\\nexperiment,t,quantity,value,sigma\\nF3,0,y_tip,0.2763,0.001\\n")
+>>> beamid.read_measurements(p).value
+array([0.2763])
+
+``t`` is 0 for static experiments; ``sigma`` > 0 is the standard deviation of
+the row. Every row is validated; a bad one raises :class:`beamid.InputError`
+naming the file, the line and the field.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from .errors import InputError
+
+#: Measurable quantities; u_tip = x_tip - (L1 + L2), w_tip = y_tip.
+QUANTITIES = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",
+              "u_tip", "w_tip")
+HEADER = ("experiment", "t", "quantity", "value", "sigma")
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """A validated table of measurements (one entry per row, in file order).
+
+    ``lines`` holds the source line of each row (0 for rows made in Python),
+    so later checks (an experiment a deck does not define) can name it.
+    """
+
+    experiment: tuple[str, ...]
+    t: np.ndarray
+    quantity: tuple[str, ...]
+    value: np.ndarray
+    sigma: np.ndarray
+    source: str = "<python>"
+    lines: tuple[int, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        n = len(self.experiment)
+        for name in ("t", "value", "sigma"):
+            arr = np.array(getattr(self, name), dtype=float)
+            if arr.shape != (n,):
+                raise InputError(f"measurements: {name} has {arr.size} entries for {n} rows")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        if len(self.quantity) != n:
+            raise InputError(f"measurements: quantity has {len(self.quantity)} entries for "
+                             f"{n} rows")
+        if not self.lines:
+            object.__setattr__(self, "lines", (0,) * n)
+        seen: dict[tuple[str, float, str], int] = {}
+        for i in range(n):
+            where = self._where(i)
+            if self.quantity[i] not in QUANTITIES:
+                raise InputError(f"{where}: field quantity = {self.quantity[i]!r}, expected "
+                                 f"one of {', '.join(QUANTITIES)}")
+            for name in ("t", "value", "sigma"):
+                v = float(getattr(self, name)[i])
+                if not math.isfinite(v):
+                    raise InputError(f"{where}: field {name} = {v}, expected a finite number")
+            if not self.sigma[i] > 0.0:
+                raise InputError(f"{where}: field sigma = {self.sigma[i]:g}, expected "
+                                 "sigma > 0 (the standard deviation of the row)")
+            if self.t[i] < 0.0:
+                raise InputError(f"{where}: field t = {self.t[i]:g}, expected t >= 0")
+            key = (self.experiment[i], float(self.t[i]), self.quantity[i])
+            if key in seen:
+                raise InputError(f"{where}: duplicate row: experiment {key[0]!r}, t = "
+                                 f"{key[1]:g}, quantity {key[2]!r} already given "
+                                 f"({self._where(seen[key])})")
+            seen[key] = i
+
+    def _where(self, i: int) -> str:
+        line = self.lines[i] if i < len(self.lines) else 0
+        return f"{self.source}, line {line}" if line else f"{self.source}, row {i + 1}"
+
+    def __len__(self) -> int:
+        return len(self.experiment)
+
+    @classmethod
+    def from_rows(cls, rows: Iterable[Sequence], source: str = "<python>") -> "Measurements":
+        """Build from ``(experiment, t, quantity, value, sigma)`` tuples."""
+        rows = list(rows)
+        for k, row in enumerate(rows, start=1):
+            if len(row) != 5:
+                raise InputError(f"{source}, row {k}: expected 5 fields "
+                                 f"({','.join(HEADER)}), got {len(row)}")
+        return cls(experiment=tuple(str(r[0]) for r in rows),
+                   t=np.array([float(r[1]) for r in rows]),
+                   quantity=tuple(str(r[2]) for r in rows),
+                   value=np.array([float(r[3]) for r in rows]),
+                   sigma=np.array([float(r[4]) for r in rows]), source=source)
+
+    def rows(self) -> list[tuple[str, float, str, float, float]]:
+        """The rows as tuples."""
+        return [(e, float(t), q, float(v), float(s)) for e, t, q, v, s in
+                zip(self.experiment, self.t, self.quantity, self.value, self.sigma)]
+
+    def with_values(self, value: Sequence[float]) -> "Measurements":
+        """Same rows with new values (e.g. noisy copies)."""
+        return Measurements(self.experiment, self.t, self.quantity, np.asarray(value, float),
+                            self.sigma, self.source, self.lines)
+
+    def check_experiments(self, experiments: Mapping[str, object]) -> None:
+        """Raise InputError for a row whose experiment is not defined."""
+        for i, name in enumerate(self.experiment):
+            if name not in experiments:
+                known = ", ".join(experiments) or "none"
+                raise InputError(f"{self._where(i)}: field experiment = {name!r} is not "
+                                 f"defined (experiments: {known})")
+
+    def write(self, path: str | os.PathLike, comment: str = "") -> None:
+        """Write the table as CSV (readable by read_measurements and beamid-batch)."""
+        lines = [f"# {c}" for c in comment.splitlines()] + [",".join(HEADER)]
+        lines += [f"{e},{t:.17g},{q},{v:.17g},{s:.17g}" for e, t, q, v, s in self.rows()]
+        Path(path).write_text("\n".join(lines) + "\n")
+
+
+def _number(text: str, where: str, name: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{where}: field {name} = {text!r}, expected a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{where}: field {name} = {text!r}, expected a finite number")
+    return value
+
+
+def read_measurements(path: str | os.PathLike,
+                      experiments: Mapping[str, object] | None = None) -> Measurements:
+    """Read and validate a measurement CSV file.
+
+    Parameters
+    ----------
+    path:
+        CSV file: ``#`` comments and blank lines, then the header
+        ``experiment,t,quantity,value,sigma``, then one row per measurement.
+    experiments:
+        Optional mapping of the defined experiment names (e.g. a dict of
+        loads); a row naming another experiment is an error.
+
+    Raises
+    ------
+    InputError
+        Missing file or header, wrong field count, unknown quantity,
+        non-numeric or non-finite value, sigma <= 0, duplicate row, undefined
+        experiment: the message names the file, the line and the field.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"cannot open measurement file {path}: no such file")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read measurement file {path}: {exc}") from None
+    header_seen = False
+    names: list[str] = []
+    ts: list[float] = []
+    qs: list[str] = []
+    vals: list[float] = []
+    sigs: list[float] = []
+    lines: list[int] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        fields = [f.strip() for f in line.split(",")]
+        where = f"{path}, line {lineno}"
+        if not header_seen:
+            if tuple(f.lower() for f in fields) != HEADER:
+                raise InputError(f"{where}: expected the header {','.join(HEADER)}, got "
+                                 f"{line!r}")
+            header_seen = True
+            continue
+        if len(fields) != 5:
+            raise InputError(f"{where}: expected 5 fields ({','.join(HEADER)}), got "
+                             f"{len(fields)}")
+        if not fields[0]:
+            raise InputError(f"{where}: field experiment is empty")
+        names.append(fields[0])
+        ts.append(_number(fields[1], where, "t"))
+        if fields[2] not in QUANTITIES:
+            raise InputError(f"{where}: field quantity = {fields[2]!r}, expected one of "
+                             f"{', '.join(QUANTITIES)}")
+        qs.append(fields[2])
+        vals.append(_number(fields[3], where, "value"))
+        sigs.append(_number(fields[4], where, "sigma"))
+        lines.append(lineno)
+    if not header_seen:
+        raise InputError(f"{path}: no header line {','.join(HEADER)} found")
+    if not names:
+        raise InputError(f"{path}: no measurement rows after the header")
+    data = Measurements(tuple(names), np.array(ts), tuple(qs), np.array(vals),
+                        np.array(sigs), source=str(path), lines=tuple(lines))
+    if experiments is not None:
+        data.check_experiments(experiments)
+    return data
