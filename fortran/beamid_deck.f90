@@ -23,7 +23,9 @@ module beamid_deck
     public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS
 
     integer, parameter :: NAME_LEN = 32
-    character(len=*), parameter :: KNOWN_GROUPS = ' beamid model load static published '
+    character(len=*), parameter :: KNOWN_GROUPS = ' beamid model load static fe published '
+    !> Tasks the batch runs.
+    character(len=*), parameter :: KNOWN_TASKS = ' static fe_static fe_modes '
 
     !> Everything a deck says.
     type :: deck_t
@@ -36,6 +38,14 @@ module beamid_deck
         integer, allocatable :: wrt(:)              !< parameter indices for sensitivities
         integer :: shape_points = 101
         real(dp) :: tol = 0.0_dp                    !< 0: solver default
+        logical :: has_load = .false.
+        ! &fe (tasks fe_static, fe_modes; docs/fe.md)
+        integer :: fe_elements_per_beam = 4
+        integer :: fe_moment_form = 0               !< 0: Eq. 78, 1: exact
+        logical :: fe_rotary_inertia = .false.
+        logical :: fe_point_masses = .true.
+        integer :: fe_steps = 0
+        real(dp) :: fe_tol = 0.0_dp
     end type deck_t
 
 contains
@@ -82,6 +92,10 @@ contains
         ! &load
         character(len=NAME_LEN) :: kind
         real(dp) :: fx, fy, moment, wire_length
+        ! &fe
+        integer :: elements_per_beam, steps
+        character(len=NAME_LEN) :: moment_form
+        logical :: rotary_inertia, point_masses
         ! &static
         character(len=NAME_LEN), allocatable :: wrt(:)
         integer :: shape_points
@@ -93,6 +107,7 @@ contains
             elbow_flex, m_tip, J_tip, mu_tip, c_tip
         namelist /load/ kind, fx, fy, moment, wire_length
         namelist /static/ wrt, shape_points, tol
+        namelist /fe/ elements_per_beam, moment_form, rotary_inertia, point_masses, steps, tol
 
         integer :: unit, ios, i, nb_preset, nw
         character(len=512) :: msg
@@ -130,8 +145,9 @@ contains
             call group_error('beamid', ios, msg)
             return
         end if
-        if (trim(task) /= 'static') then
-            call deck_error('&beamid task = "'//trim(task)//'", expected "static"')
+        if (index(KNOWN_TASKS, ' '//trim(task)//' ') == 0 .or. len_trim(task) == 0) then
+            call deck_error('&beamid task = "'//trim(task)//'", expected one of:'// &
+                            KNOWN_TASKS(:len_trim(KNOWN_TASKS)))
             return
         end if
         if (len_trim(output) == 0) then
@@ -273,9 +289,13 @@ contains
         wire_length = nan
         rewind (unit)
         read (unit, nml=load, iostat=ios, iomsg=msg)
-        if (ios /= 0) then
+        if (ios < 0 .and. trim(task) == 'fe_modes') then
+            kind = 'tip'
+        else if (ios /= 0) then
             call group_error('load', ios, msg)
             return
+        else
+            deck%has_load = .true.
         end if
         select case (trim(kind))
         case ('tip')
@@ -303,6 +323,49 @@ contains
         deck%load%fy = fy
         deck%load%moment = moment
         deck%load%wire_length = wire_length
+
+        ! ---- &fe (optional)
+        elements_per_beam = 4
+        moment_form = 'eq78'
+        rotary_inertia = .false.
+        point_masses = .true.
+        steps = 0
+        tol = 0.0_dp
+        rewind (unit)
+        read (unit, nml=fe, iostat=ios, iomsg=msg)
+        if (ios > 0) then
+            call group_error('fe', ios, msg)
+            return
+        end if
+        if (elements_per_beam < 1) then
+            call deck_error('&fe elements_per_beam = '//fmt_int(elements_per_beam)// &
+                            ', expected at least 1')
+            return
+        end if
+        select case (trim(moment_form))
+        case ('eq78')
+            deck%fe_moment_form = 0
+        case ('exact')
+            deck%fe_moment_form = 1
+        case default
+            call deck_error('&fe moment_form = "'//trim(moment_form)// &
+                            '", expected "eq78" or "exact"')
+            return
+        end select
+        if (steps < 0 .or. .not. (tol >= 0.0_dp)) then
+            call deck_error('&fe steps and tol must not be negative (0: default)')
+            return
+        end if
+        if (deck%load%kind == LOAD_WIRE .and. task(1:3) == 'fe_') then
+            call deck_error('&load kind = "wire" is not available for task "'//trim(task)// &
+                            '" (tip loads only)')
+            return
+        end if
+        deck%fe_elements_per_beam = elements_per_beam
+        deck%fe_rotary_inertia = rotary_inertia
+        deck%fe_point_masses = point_masses
+        deck%fe_steps = steps
+        deck%fe_tol = tol
 
         ! ---- &static (optional)
         allocate (wrt(param_count(nbeams)))

@@ -193,3 +193,25 @@ def test_cli_reproduce_unknown_table():
 def test_shipped_decks_parse():
     for deck in sorted((ROOT / "inputs").rglob("*.nml")):
         beamid.read_deck(deck)
+
+
+@pytest.mark.parametrize("name", ["table12_fe_08.nml", "table09_fe_04.nml"])
+def test_fe_decks_batch_and_python_agree(tmp_path, batch_exe, name):
+    deck = tmp_path / name
+    deck.write_text((ROOT / "inputs" / "seed" / name).read_text())
+    proc = _batch(batch_exe, deck)
+    assert proc.returncode == 0, proc.stderr
+    parsed = beamid.read_deck(deck)
+    suffix = "_modes.csv" if parsed.task == "fe_modes" else "_summary.csv"
+    out = Path(f"{parsed.output_prefix}{suffix}")
+    fortran = _read_csv(out)
+    out.unlink()
+    beamid.run(parsed)
+    python = _read_csv(out)
+    assert fortran.keys() == python.keys()
+    for key, value in fortran.items():
+        assert_allclose(python[key], value, rtol=1e-10, atol=1e-13, err_msg=key)
+    if parsed.task == "fe_static":
+        assert_allclose(fortran["w_tip"], 0.627036, atol=1e-6)   # Table 12, 8 elements
+    else:
+        assert_allclose(fortran["omega_w1"], 2.42882, atol=1e-5)  # Table 9

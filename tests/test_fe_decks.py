@@ -1,9 +1,8 @@
 """The FE seed decks reproduce their &published values within one unit of
 the last published digit, except listed deviations.
 
-They live in tests/data/fe_decks until the deck reader knows the tasks
-fe_static / fe_modes and the group &fe (then they move to inputs/seed); the
-format is that of docs/decks.md plus those (see docs/fe.md)."""
+They live in inputs/seed beside the arc-length decks (tasks fe_static and
+fe_modes, group &fe: docs/fe.md); beamid reproduce and beamid-batch run them."""
 from pathlib import Path
 
 import f90nml
@@ -12,8 +11,8 @@ import pytest
 import beamid
 from beamid import fe
 
-DECK_DIR = Path(__file__).resolve().parent / "data" / "fe_decks"
-DECKS = sorted(DECK_DIR.glob("*.nml"))
+DECK_DIR = Path(__file__).resolve().parents[1] / "inputs" / "seed"
+DECKS = sorted(p for p in DECK_DIR.glob("*.nml") if "_fe" in p.stem)
 
 
 def _as_list(value):

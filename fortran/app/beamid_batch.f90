@@ -12,6 +12,8 @@ program beamid_batch
     use beamid_deck, only: deck_t, read_deck
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, &
                                 static_shape, NOUT
+    use, intrinsic :: iso_c_binding, only: c_int, c_double
+    use beamid_api_fe, only: api_fe_static, api_fe_modes
     implicit none
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
@@ -35,7 +37,16 @@ program beamid_batch
         stop
     end if
     call read_deck(trim(arg), deck, stat)
-    if (stat%code == STATUS_OK) call run_static(deck, stat)
+    if (stat%code == STATUS_OK) then
+        select case (deck%task)
+        case ('fe_static')
+            call run_fe_static(deck, stat)
+        case ('fe_modes')
+            call run_fe_modes(deck, stat)
+        case default
+            call run_static(deck, stat)
+        end select
+    end if
     if (stat%code /= STATUS_OK) then
         write (error_unit, '(a)') 'beamid-batch: error: '//trim(stat%message)
         if (stat%code == ERR_IO) call exit_with(4)
@@ -128,6 +139,115 @@ contains
         end do
         call close_checked(unit, ios, prefix//'_shape.csv', st)
     end subroutine run_static
+
+    !> Finite element statics (docs/fe.md): tip values and the node table.
+    subroutine run_fe_static(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        integer(c_int) :: nnode, info(2), code
+        real(c_double), allocatable :: nodes(:, :), guess(:, :)
+        real(c_double) :: energy, reactions(3), residual, loads(4)
+        character(len=256) :: message
+        character(len=:), allocatable :: prefix
+        integer :: unit, ios, i
+        real(dp) :: total, values(8)
+        character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
+            'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
+
+        nnode = int(d%nbeams*d%fe_elements_per_beam + 1, c_int)
+        allocate (nodes(5, nnode), guess(5, nnode))
+        guess = 0.0_c_double
+        loads = [d%load%fx, d%load%fy, d%load%moment, real(d%fe_moment_form, dp)]
+        call api_fe_static(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
+                           int(d%fe_elements_per_beam, c_int), nnode, loads, 0_c_int, &
+                           int(d%fe_steps, c_int), d%fe_tol, guess, nodes, energy, reactions, &
+                           residual, info, code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'fe_static', trim(message))
+            st%message = message
+            return
+        end if
+        total = nodes(1, nnode)
+        prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
+        open (newunit=unit, file=prefix//'_summary.csv', status='replace', action='write', &
+              iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_summary.csv')
+            return
+        end if
+        write (unit, '(a)', iostat=ios) 'quantity,value'
+        values = [nodes(4, nnode), nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), &
+                  nodes(3, 1), energy, total + nodes(2, nnode), nodes(4, nnode)]
+        do i = 1, size(names)
+            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), &
+                values(i)
+        end do
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', info(1)
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', info(2)
+        call close_checked(unit, ios, prefix//'_summary.csv', st)
+        if (st%code /= STATUS_OK) return
+        open (newunit=unit, file=prefix//'_nodes.csv', status='replace', action='write', &
+              iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_nodes.csv')
+            return
+        end if
+        write (unit, '(a)', iostat=ios) 's,u,du,w,dw'
+        do i = 1, nnode
+            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) nodes(:, i)
+        end do
+        call close_checked(unit, ios, prefix//'_nodes.csv', st)
+    end subroutine run_fe_static
+
+    !> Finite element linear modes: frequencies by family (Tables 9, 10).
+    subroutine run_fe_modes(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        integer(c_int) :: nfree, code
+        real(c_double), allocatable :: omega(:), phi(:, :)
+        integer(c_int), allocatable :: axial(:), dofs(:, :)
+        character(len=256) :: message
+        character(len=:), allocatable :: prefix
+        integer :: unit, ios, i, nw, nu
+
+        ! four unknowns per node; the clamp (Eq. 103) fixes u, w and w' at the root
+        nfree = int(4*(d%nbeams*d%fe_elements_per_beam + 1) - 3, c_int)
+        allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree))
+        call api_fe_modes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
+                          int(d%fe_elements_per_beam, c_int), merge(1_c_int, 0_c_int, &
+                          d%fe_rotary_inertia), nfree, omega, phi, axial, dofs, code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'fe_modes', trim(message))
+            st%message = message
+            return
+        end if
+        prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
+        open (newunit=unit, file=prefix//'_modes.csv', status='replace', action='write', &
+              iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_modes.csv')
+            return
+        end if
+        write (unit, '(a)', iostat=ios) 'quantity,value'
+        nw = 0
+        nu = 0
+        do i = 1, nfree
+            if (axial(i) /= 0) then
+                nu = nu + 1
+                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_u', nu, &
+                    omega(i)
+            else
+                nw = nw + 1
+                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_w', nw, &
+                    omega(i)
+            end if
+        end do
+        call close_checked(unit, ios, prefix//'_modes.csv', st)
+    end subroutine run_fe_modes
 
     !> Create the folder that will hold files starting with `prefix`.
     subroutine make_parent_folder(prefix, st)

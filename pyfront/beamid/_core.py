@@ -65,3 +65,16 @@ def static_shape(nbeams: int, params: np.ndarray, load_kind: int, load_values: n
         np.asarray(load_values, dtype=float), np.asarray(unknowns, dtype=float), float(tol), s)
     raise_for_status(int(code), message)
     return np.array(x), np.array(y), np.array(psi), np.array(moment)
+
+
+def fe_call(name: str, *args):
+    """Call ``beamid_api_fe.<name>``; raise on its trailing (code, message) and
+    return the list of the remaining outputs."""
+    *values, code, message = getattr(_ext.beamid_api_fe, name)(*args)
+    raise_for_status(int(code), message)
+    return values
+
+
+def fe_call_plain(name: str, *args):
+    """Call ``beamid_api_fe.<name>`` that returns no status."""
+    return getattr(_ext.beamid_api_fe, name)(*args)

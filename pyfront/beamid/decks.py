@@ -28,9 +28,14 @@ GROUPS = {
               "m_tip", "j_tip", "mu_tip", "c_tip"},
     "load": {"kind", "fx", "fy", "moment", "wire_length"},
     "static": {"wrt", "shape_points", "tol"},
+    "fe": {"elements_per_beam", "moment_form", "rotary_inertia", "point_masses", "steps",
+           "tol"},
     "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
 }
-TASKS = ("static",)
+TASKS = ("static", "fe_static", "fe_modes")
+#: defaults of the &fe group (docs/fe.md)
+FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
+               "point_masses": True, "steps": 0, "tol": 0.0}
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
@@ -64,6 +69,7 @@ class Deck:
     shape_points: int = 101
     tol: float | None = None
     published: tuple[Published, ...] = field(default_factory=tuple)
+    fe: dict = field(default_factory=lambda: dict(FE_DEFAULTS))
 
     @property
     def output_prefix(self) -> Path:
@@ -181,6 +187,8 @@ def read_deck(path: str | os.PathLike) -> Deck:
         raise InputError(f"{path}: &{exc}") from None
 
     load_group = groups.get("load", [None])[0]
+    if load_group is None and task == "fe_modes":
+        load_group = {"kind": "tip"}
     if load_group is None:
         raise InputError(f"{path}: group &load is missing")
     kind = str(load_group.get("kind", ""))
@@ -216,6 +224,21 @@ def read_deck(path: str | os.PathLike) -> Deck:
         raise InputError(f"{path}: &static tol = {tol}, expected 0 (default) or a "
                          "tolerance below 1e-2")
 
+    fe = dict(FE_DEFAULTS)
+    for key, value in groups.get("fe", [{}])[0].items():
+        fe[key] = value
+    if int(fe["elements_per_beam"]) < 1:
+        raise InputError(f"{path}: &fe elements_per_beam = {fe['elements_per_beam']}, "
+                         "expected at least 1")
+    if fe["moment_form"] not in ("eq78", "exact"):
+        raise InputError(f"{path}: &fe moment_form = {fe['moment_form']!r}, expected "
+                         "\"eq78\" or \"exact\"")
+    if int(fe["steps"]) < 0 or float(fe["tol"]) < 0:
+        raise InputError(f"{path}: &fe steps and tol must not be negative (0: default)")
+    if task.startswith("fe_") and isinstance(load, RadialWire):
+        raise InputError(f"{path}: &load kind = \"wire\" is not available for task "
+                         f"{task!r} (tip loads only)")
+
     published = []
     for item in groups.get("published", []):
         quantities = [str(q) for q in _as_list(item.get("quantity", []))]
@@ -230,7 +253,8 @@ def read_deck(path: str | os.PathLike) -> Deck:
             deviations=tuple(str(d) for d in _as_list(item.get("deviation", [])) if d),
             note=str(item.get("note", "") or "")))
     return Deck(path=path, task=task, output=str(output), model=model, load=load, wrt=wrt,
-                shape_points=shape_points, tol=tol or None, published=tuple(published))
+                shape_points=shape_points, tol=tol or None, published=tuple(published),
+                fe=fe)
 
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:
@@ -266,6 +290,38 @@ def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     _atomic_write(Path(path), str(nml) + "\n")
 
 
+def _run_fe(deck: Deck):
+    """fe_static: <output>_summary.csv and _nodes.csv; fe_modes: <output>_modes.csv
+    (the files beamid-batch writes)."""
+    from . import fe
+
+    opts = deck.fe
+    prefix = deck.output_prefix
+    if deck.task == "fe_static":
+        r = fe.fe_static(deck.model, deck.load, int(opts["elements_per_beam"]),
+                         moment_form=str(opts["moment_form"]), steps=int(opts["steps"]),
+                         tol=float(opts["tol"]))
+        names = ("w_tip", "dw_tip", "u_tip", "du_tip", "du_root", "energy", "x_tip", "y_tip")
+        values = fe.evaluate_fe("fe_static", deck.model, deck.load,
+                                elements_per_beam=int(opts["elements_per_beam"]),
+                                moment_form=str(opts["moment_form"]), steps=int(opts["steps"]),
+                                tol=float(opts["tol"]), quantities=names)
+        lines = ["quantity,value"] + [f"{n},{_csv_number(values[n])}" for n in names]
+        lines += [f"newton_iterations,{r.iterations}", f"load_steps,{r.steps}"]
+        _atomic_write(Path(f"{prefix}_summary.csv"), "\n".join(lines) + "\n")
+        table = np.column_stack([r.nodes[k] for k in ("s", "u", "du", "w", "dw")])
+        rows = ["s,u,du,w,dw"] + [",".join(_csv_number(v) for v in row) for row in table]
+        _atomic_write(Path(f"{prefix}_nodes.csv"), "\n".join(rows) + "\n")
+        return r
+    md = fe.modes(deck.model, int(opts["elements_per_beam"]),
+                  rotary_inertia=bool(opts["rotary_inertia"]))
+    lines = ["quantity,value"]
+    lines += [f"omega_w{i},{_csv_number(w)}" for i, w in enumerate(md.transverse, start=1)]
+    lines += [f"omega_u{i},{_csv_number(w)}" for i, w in enumerate(md.axial, start=1)]
+    _atomic_write(Path(f"{prefix}_modes.csv"), "\n".join(lines) + "\n")
+    return md
+
+
 def _atomic_write(path: Path, text: str) -> None:
     """Write text to path through a temporary file, so no half file is left."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -290,6 +346,8 @@ def run(deck: Deck | str | os.PathLike) -> StaticResult:
     """
     if not isinstance(deck, Deck):
         deck = read_deck(deck)
+    if deck.task.startswith("fe_"):
+        return _run_fe(deck)
     result = solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)
     shape = result.shape(n=deck.shape_points) if deck.shape_points >= 2 else None
     names = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",

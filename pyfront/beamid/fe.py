@@ -41,22 +41,15 @@ def _input_error(message):
 
 
 def _call(name, *args):
-    """Call FE API routine `name`; its trailing (code, message) become
-    beamid.InputError / beamid.ConvergenceError. _core is the only module that
-    touches the extension: this goes through ``_core.fe_call`` when the lead's
-    _core provides it, else through the same extension object _core imported."""
-    if hasattr(_core, "fe_call"):
-        return _core.fe_call(name, *args)
-    *values, code, message = getattr(_core._ext.beamid_api_fe, name)(*args)
-    raise_for_status(int(code), message)
-    return values
+    """Call FE API routine `name` through _core (the only module that touches
+    the extension); its trailing (code, message) become beamid.InputError /
+    beamid.ConvergenceError."""
+    return _core.fe_call(name, *args)
 
 
 def _call_plain(name, *args):
     """Call an FE API routine without a status (element kernels)."""
-    if hasattr(_core, "fe_call_plain"):
-        return _core.fe_call_plain(name, *args)
-    return getattr(_core._ext.beamid_api_fe, name)(*args)
+    return _core.fe_call_plain(name, *args)
 
 
 def _model_args(model):

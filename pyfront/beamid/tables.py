@@ -73,11 +73,20 @@ def _norm(table: str) -> str:
 
 def check_deck(deck: Deck) -> list[Check]:
     """Solve a deck and compare with its published values."""
-    result = solve_static(deck.model, deck.load, tol=deck.tol)
+    if deck.task.startswith("fe_"):
+        from .fe import evaluate_fe
+
+        wanted = [q for pub in deck.published for q in pub.values]
+        fe_values = evaluate_fe(deck.task, deck.model, deck.load, **deck.fe,
+                                quantities=wanted)
+        ours_of = fe_values.__getitem__
+    else:
+        result = solve_static(deck.model, deck.load, tol=deck.tol)
+        ours_of = lambda q: _quantity(result, q)  # noqa: E731
     checks = []
     for pub in deck.published:
         for quantity, (value, digits) in pub.values.items():
-            ours = _quantity(result, quantity)
+            ours = ours_of(quantity)
             checks.append(Check(pub.table, pub.row, quantity, value, ours, digits,
                                 quantity in pub.deviations))
     return checks
