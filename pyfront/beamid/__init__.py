@@ -17,6 +17,7 @@ from .decks import Deck, read_deck, run, write_deck
 from .tables import reproduce
 from .measurements import Measurements, read_measurements
 from .estimation import FitResult, fit, simulate
+from .dynamics import Run, simulate as simulate_dynamics  # noqa: E402 (lead: name clash)
 from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
                         improve, register_effect)
 

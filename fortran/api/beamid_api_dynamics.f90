@@ -1,0 +1,278 @@
+!> f2py-facing API of the finite element dynamics (Chapter IV-V, forward).
+!!
+!! The model is (nbeams, nparams, params) in the layout of beamid_model, the
+!! mesh elements_per_beam (nepb). State vectors have nstate = 2 nfree + nx
+!! entries: q (free unknowns, the order of beamid_fe_assembly), v = q', and
+!! the motor torque when the motor has a current-loop lag (nx = 1).
+!! Methods: 0 RK4 (fixed dt), 1 implicit Radau IIA (rtol, atol). Friction
+!! laws: 0 sign (sign(0) = 0), 1 smooth v/sqrt(v^2 + vslip^2), 2 literal
+!! Fortran SIGN(1, v) (+1 at v = 0).
+module beamid_api_dynamics
+    use, intrinsic :: iso_c_binding, only: c_int, c_double
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
+    use beamid_model, only: chain_t, chain_from_vector
+    use beamid_fe_element, only: fe_hermite
+    use beamid_fe_assembly, only: fe_load_t, fe_band_rows, fe_band_to_dense, fe_node_value, &
+                                  DOF_W, DOF_DW, DOF_U, DOF_DU
+    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, &
+                               dyn_mass, dyn_tip, dyn_energy
+    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
+    implicit none
+    private
+
+    public :: api_dyn_sizes, api_dyn_simulate, api_dyn_system, api_dyn_profile
+
+contains
+
+    subroutine make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, law
+        real(c_double), intent(in) :: params(nparams), gain, vslip
+        type(dyn_system_t), intent(out) :: sys
+        type(status_t), intent(inout) :: stat
+        type(chain_t) :: chain
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code /= STATUS_OK) return
+        call dyn_setup(chain, int(nepb), real(gain, dp), int(law), real(vslip, dp), sys, stat)
+    end subroutine make_system
+
+    !> Sizes: free unknowns, state length and number of work lines.
+    subroutine api_dyn_sizes(nbeams, nparams, params, nepb, gain, nfree, nstate, nwork, &
+                             code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb
+        real(c_double), intent(in) :: params(nparams), gain
+        integer(c_int), intent(out) :: nfree, nstate, nwork, code
+        character(len=256), intent(out) :: message
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        nfree = 0
+        nstate = 0
+        nwork = 0
+        call make_system(nbeams, nparams, params, nepb, gain, 0_c_int, 1.0_c_double, sys, stat)
+        if (stat%code == STATUS_OK) then
+            nfree = int(sys%n, c_int)
+            nstate = int(sys%nstate, c_int)
+            nwork = int(sys%nwork, c_int)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_sizes
+
+    !> Release from rest at the static equilibrium under the tip load `loads`
+    !! = (fx, fy, moment, moment_form) (or from y_init when use_init /= 0) and
+    !! integrate to the output times. Outputs per time: the state, the tip
+    !! (u, w, angle), the motor torque, the ledger (kinetic, strain, total
+    !! energy, numerical residual E - E0 - sum of work) and the work lines.
+    !! info = (steps, rejected steps, force evaluations, Jacobians, Newton its).
+    subroutine api_dyn_simulate(nbeams, nparams, params, nepb, loads, gain, method, law, &
+                                vslip, dt, rtol, atol, h0, use_init, nstate, y_init, nt, t_out, &
+                                nwork, states, tip, torque, ledger, work, info, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
+        integer(c_int), intent(in) :: nt, nwork
+        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
+        real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
+        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
+        integer(c_int), intent(out) :: info(5), code
+        character(len=256), intent(out) :: message
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        type(fe_load_t) :: load
+        type(fe_newton_opts_t) :: nopts
+        type(fe_solve_info_t) :: sinfo
+        type(integ_opts_t) :: opts
+        type(integ_stats_t) :: stats
+        type(history_t) :: hist
+        real(dp), allocatable :: y0(:), q(:)
+        real(dp) :: e0, kin, pot, u, w, ang
+        integer :: k, n
+        states = 0.0_c_double
+        tip = 0.0_c_double
+        torque = 0.0_c_double
+        ledger = 0.0_c_double
+        work = 0.0_c_double
+        info = 0
+        call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
+        if (stat%code == STATUS_OK .and. (sys%nstate /= nstate .or. sys%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nstate = '// &
+                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
+                            ', expected '//fmt_int(sys%nstate)//', '//fmt_int(sys%nwork))
+        end if
+        if (stat%code == STATUS_OK) then
+            n = sys%n
+            allocate (y0(sys%nstate), q(n))
+            y0 = 0.0_dp
+            if (use_init /= 0) then
+                y0 = y_init
+            else
+                load%fx = loads(1)
+                load%fy = loads(2)
+                load%moment = loads(3)
+                load%moment_form = nint(loads(4))
+                q = 0.0_dp
+                call fe_solve_static(sys%mesh, load, q, .false., nopts, sinfo, stat)
+                y0(1:n) = q
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            opts%method = int(method)
+            if (dt > 0.0_c_double) opts%dt = dt
+            if (rtol > 0.0_c_double) opts%rtol = rtol
+            if (atol > 0.0_c_double) then
+                opts%atol = atol
+            else
+                opts%atol = opts%rtol
+            end if
+            if (h0 > 0.0_c_double) opts%h0 = h0
+            if (dt < 0.0_c_double .or. rtol < 0.0_c_double .or. atol < 0.0_c_double) then
+                call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'dt, rtol and atol '// &
+                                'must not be negative (0: default)')
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            call integrate(sys, y0, real(t_out, dp), opts, hist, stats, stat)
+            info = int([stats%steps, stats%rejected, stats%fevals, stats%jevals, &
+                        stats%newton], c_int)
+        end if
+        if (stat%code == STATUS_OK) then
+            call dyn_energy(sys, y0(1:n), y0(n + 1:2*n), kin, pot)
+            e0 = kin + pot
+            states = hist%y
+            torque = hist%torque
+            work = hist%work
+            do k = 1, int(nt)
+                call dyn_tip(sys, hist%y(1:n, k), u, w, ang)
+                tip(:, k) = [u, w, ang]
+                ledger(1, k) = hist%kinetic(k)
+                ledger(2, k) = hist%potential(k)
+                ledger(3, k) = hist%kinetic(k) + hist%potential(k)
+                ledger(4, k) = ledger(3, k) - e0 - sum(hist%work(:, k))
+            end do
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_simulate
+
+    !> Generalized force F(q, v, x), work rates, torque, the Jacobians
+    !! K = -dF/dq, C = -dF/dv (dense) and the motor-lag couplings b = dF/dT,
+    !! p = dT'/dq, d = dT'/dv, e = dT'/dT, and M(q), for checks.
+    subroutine api_dyn_system(nbeams, nparams, params, nepb, gain, law, vslip, nfree, nx, &
+                              q, v, x, nwork, force, power, torque, kmat, cmat, mass, b, p, &
+                              d, e, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, law, nfree, nx, nwork
+        real(c_double), intent(in) :: params(nparams), gain, vslip, q(nfree), v(nfree), x(1)
+        real(c_double), intent(out) :: force(nfree), power(nwork), torque
+        real(c_double), intent(out) :: kmat(nfree, nfree), cmat(nfree, nfree)
+        real(c_double), intent(out) :: mass(nfree, nfree), b(nfree), p(nfree), d(nfree), e
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        real(dp), allocatable :: kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
+        real(dp), allocatable :: bb(:), pp(:), dd(:), xs(:)
+        real(dp) :: tq, ee
+        force = 0.0_c_double
+        power = 0.0_c_double
+        torque = 0.0_c_double
+        kmat = 0.0_c_double
+        cmat = 0.0_c_double
+        mass = 0.0_c_double
+        b = 0.0_c_double
+        p = 0.0_c_double
+        d = 0.0_c_double
+        e = 0.0_c_double
+        call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
+        if (stat%code == STATUS_OK .and. (sys%n /= nfree .or. sys%nx /= nx .or. &
+                                          sys%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_system', 'nfree, nx, nwork = '// &
+                            fmt_int(int(nfree))//', '//fmt_int(int(nx))//', '// &
+                            fmt_int(int(nwork))//', expected '//fmt_int(sys%n)//', '// &
+                            fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
+        end if
+        if (stat%code == STATUS_OK) then
+            allocate (kb(fe_band_rows(sys%mesh), sys%n), cb(fe_band_rows(sys%mesh), sys%n), &
+                      mb(fe_band_rows(sys%mesh), sys%n), a(sys%n, sys%n), f(sys%n), &
+                      pw(sys%nwork), bb(sys%n), pp(sys%n), dd(sys%n), xs(max(1, sys%nx)))
+            xs = 0.0_dp
+            if (sys%nx > 0) xs(1) = x(1)
+            call dyn_forces(sys, real(q, dp), real(v, dp), xs, f, pw, tq)
+            force = f
+            power = pw
+            torque = tq
+            call dyn_jacobian(sys, real(q, dp), real(v, dp), xs, kb, cb, bb, pp, dd, ee)
+            call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, a)
+            kmat = a
+            call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, a)
+            cmat = a
+            call dyn_mass(sys, real(q, dp), mb)
+            call fe_band_to_dense(mb, sys%mesh%kl, sys%mesh%ku, a)
+            mass = a
+            b = bb
+            p = pp
+            d = dd
+            e = ee
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_system
+
+    !> Deformed shape x = s + u(s), y = w(s) at nsub points per element
+    !! (Hermite interpolation of Eq. 76), npts = nel nsub + 1, plus the arc s.
+    subroutine api_dyn_profile(nbeams, nparams, params, nepb, nfree, q, npts, s, x, y, &
+                               code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, nfree, npts
+        real(c_double), intent(in) :: params(nparams), q(nfree)
+        real(c_double), intent(out) :: s(npts), x(npts), y(npts)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        real(dp) :: f(4), f1(4), f2(4), zeta, h, nw(4), nu(4)
+        real(dp), allocatable :: qd(:)
+        integer :: el, j, nsub, i
+        s = 0.0_c_double
+        x = 0.0_c_double
+        y = 0.0_c_double
+        call make_system(nbeams, nparams, params, nepb, 0.0_c_double, 0_c_int, 1.0_c_double, &
+                         sys, stat)
+        if (stat%code == STATUS_OK) then
+            if (sys%n /= nfree .or. npts < sys%mesh%nel + 1 .or. &
+                mod(npts - 1, sys%mesh%nel) /= 0) then
+                call set_status(stat, ERR_INPUT, 'api_dyn_profile', 'nfree = '// &
+                                fmt_int(int(nfree))//', npts = '//fmt_int(int(npts))// &
+                                ': expected nfree = '//fmt_int(sys%n)// &
+                                ' and npts = nel*nsub + 1 with nel = '//fmt_int(sys%mesh%nel))
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            allocate (qd(sys%n))
+            qd = q
+            nsub = (npts - 1)/sys%mesh%nel
+            i = 0
+            do el = 1, sys%mesh%nel
+                h = sys%mesh%h(el)
+                nw = [fe_node_value(sys%mesh, qd, el, DOF_W), &
+                      fe_node_value(sys%mesh, qd, el, DOF_DW), &
+                      fe_node_value(sys%mesh, qd, el + 1, DOF_W), &
+                      fe_node_value(sys%mesh, qd, el + 1, DOF_DW)]
+                nu = [fe_node_value(sys%mesh, qd, el, DOF_U), &
+                      fe_node_value(sys%mesh, qd, el, DOF_DU), &
+                      fe_node_value(sys%mesh, qd, el + 1, DOF_U), &
+                      fe_node_value(sys%mesh, qd, el + 1, DOF_DU)]
+                do j = 0, nsub
+                    if (j == 0 .and. el > 1) cycle
+                    zeta = real(j, dp)/real(nsub, dp)
+                    call fe_hermite(zeta, h, f, f1, f2)
+                    i = i + 1
+                    s(i) = sys%mesh%s(el) + zeta*h
+                    x(i) = s(i) + dot_product(f, nu)
+                    y(i) = dot_product(f, nw)
+                end do
+            end do
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_profile
+
+end module beamid_api_dynamics

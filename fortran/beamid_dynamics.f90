@@ -1,0 +1,592 @@
+!> Nonlinear finite element dynamics of the beam chain (Chapter IV-V):
+!! the equations of motion M(q) q'' + NLT(q) = Q(q, q') of Eq. 98 with the
+!! clamped root eliminated (Eq. 103-107), the named nonconservative effects,
+!! their hand-coded Jacobians and the energy ledger.
+!!
+!! State: the free unknowns q (the order of beamid_fe_assembly), their rates
+!! v = q', and, when the motor has a current-loop lag, the motor torque T.
+!! Generalized force (everything but the inertia) F(q, v, T):
+!!
+!!     F = -NLT(q) - g_rot(q, v) + Q_fr(v) + Q_drag(v) - D(q) v + T a_tip(q)
+!!
+!! - NLT: internal force of the Epstein-Murray elements (Eq. 79-83, 87).
+!! - Coulomb friction per Cartesian component at each mass point (Eq. 100-102),
+!!   -mu m g phi(v): phi = sign(v) with sign(0) = 0 (FRICTION_SIGN), the
+!!   literal Fortran port SIGN(1, v) = +1 at v = 0 (FRICTION_SIGN_LITERAL),
+!!   or the regularization phi = v / sqrt(v^2 + vs^2) (FRICTION_SMOOTH).
+!! - Viscous drag -c v on u and w of each mass point.
+!! - Kelvin-Voigt structural damping: bending moment += eta EI dchi/dt, whose
+!!   generalized force is D(q) v with D = eta int EI dchi/dq dchi/dq^T ds.
+!! - Rotary inertia J of the mass points (Eq. 130-132): J a a^T enters M(q)
+!!   (fe_mass), the velocity term g_rot = 2 J Psidot (u'_t, -w'_t) on (w', u').
+!!   Eq. 132 prints +2 w'_t Psidot in the u' row; Lagrange's equations give the
+!!   minus sign (docs/theory_dynamics.md), and energy conservation confirms it.
+!! - Tip reaction-wheel motor (Eq. 150-159): T = -r g Psidot_tip, acting as
+!!   T delta Psi_tip = T [(1 + u') delta w' - w' delta u'] (Eq. 151-152); with
+!!   a current-loop lag tau: tau T' = -r g Psidot - T.
+!! Psidot = (1 + u') w'_t - w' u'_t (Eq. 153), a = (1 + u', -w') on (w', u').
+!!
+!! Ledger (Eq. 118-122, 155-156): kinetic energy v^T M(q) v / 2 (Eq. 119),
+!! strain energy V (Eq. 87), and the work of each effect, integrated from its
+!! power along the trajectory. Work lines, npt = nbeams mass points:
+!! 1..npt friction at point k, npt+1..2 npt drag at point k, 2 npt + 1
+!! structural damping, 2 npt + 2 motor.
+module beamid_dynamics
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SINGULAR, fmt_int, &
+                             fmt_real
+    use beamid_model, only: chain_t
+    use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
+    use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_band_add, &
+                                  fe_internal_force, fe_tangent, fe_energy, fe_mass, &
+                                  fe_band_matvec, fe_expand, DOF_W, DOF_DW, DOF_U, DOF_DU
+    implicit none
+    private
+
+    public :: dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, dyn_rates, dyn_energy
+    public :: dyn_mass, dyn_tip, dyn_nwork, dyn_psidot, dyn_torque
+    public :: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, zband_solve
+    public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
+
+    !> Friction laws (Eq. 101-102 and the regularized form for implicit steps).
+    integer, parameter :: FRICTION_SIGN = 0, FRICTION_SMOOTH = 1, FRICTION_SIGN_LITERAL = 2
+    !> Gravity for the normal force N = m g of Eq. 101 (m/s^2).
+    real(dp), parameter :: GRAVITY = 9.81_dp
+
+    !> A factorized real band matrix (dgbtrf).
+    type :: band_lu_t
+        integer :: n = 0, kl = 0, ku = 0
+        real(dp), allocatable :: ab(:, :)
+        integer, allocatable :: ipiv(:)
+    end type band_lu_t
+
+    !> A factorized complex band matrix (zgbtrf).
+    type :: zband_lu_t
+        integer :: n = 0, kl = 0, ku = 0
+        complex(dp), allocatable :: ab(:, :)
+        integer, allocatable :: ipiv(:)
+    end type zband_lu_t
+
+    !> The discretized chain with its effects, ready for time integration.
+    type :: dyn_system_t
+        type(fe_mesh_t) :: mesh
+        integer :: n = 0            !< free unknowns (q and v each)
+        integer :: nx = 0           !< extra states: 1 with a motor lag, else 0
+        integer :: nstate = 0       !< 2 n + nx
+        integer :: npt = 0          !< mass points (joints and tip)
+        integer :: nwork = 0        !< work lines (2 npt + 2)
+        integer, allocatable :: iw(:), iu(:), idw(:), idu(:)   !< free indices per point
+        real(dp), allocatable :: fric(:)    !< mu m g per point (N)
+        real(dp), allocatable :: drag(:)    !< c per point (N s/m)
+        real(dp), allocatable :: inertia(:) !< J per point (kg m^2)
+        logical :: rotary = .false.
+        real(dp) :: eta = 0.0_dp
+        real(dp) :: motor = 0.0_dp          !< r g (N m s)
+        real(dp) :: tau = 0.0_dp            !< motor lag (s)
+        integer :: law = FRICTION_SIGN
+        real(dp) :: vslip = 1.0e-4_dp       !< regularization velocity (m/s)
+        !> constant mass matrix (band) and its factors; unused when rotary
+        real(dp), allocatable :: mb(:, :)
+        type(band_lu_t) :: mlu
+    end type dyn_system_t
+
+    interface
+        subroutine dgbtrf(m, n, kl, ku, ab, ldab, ipiv, info)
+            import :: dp
+            integer, intent(in) :: m, n, kl, ku, ldab
+            real(dp), intent(inout) :: ab(ldab, *)
+            integer, intent(out) :: ipiv(*), info
+        end subroutine dgbtrf
+        subroutine dgbtrs(trans, n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
+            import :: dp
+            character(len=1), intent(in) :: trans
+            integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
+            real(dp), intent(in) :: ab(ldab, *)
+            integer, intent(in) :: ipiv(*)
+            real(dp), intent(inout) :: b(ldb, *)
+            integer, intent(out) :: info
+        end subroutine dgbtrs
+        subroutine zgbtrf(m, n, kl, ku, ab, ldab, ipiv, info)
+            import :: dp
+            integer, intent(in) :: m, n, kl, ku, ldab
+            complex(dp), intent(inout) :: ab(ldab, *)
+            integer, intent(out) :: ipiv(*), info
+        end subroutine zgbtrf
+        subroutine zgbtrs(trans, n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
+            import :: dp
+            character(len=1), intent(in) :: trans
+            integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
+            complex(dp), intent(in) :: ab(ldab, *)
+            integer, intent(in) :: ipiv(*)
+            complex(dp), intent(inout) :: b(ldb, *)
+            integer, intent(out) :: info
+        end subroutine zgbtrs
+    end interface
+
+contains
+
+    !> Number of work lines of a chain of `nbeams` beams.
+    pure integer function dyn_nwork(nbeams)
+        integer, intent(in) :: nbeams
+        dyn_nwork = 2*nbeams + 2
+    end function dyn_nwork
+
+    !> Factor a band matrix held in `lu%ab` (LAPACK storage, 2 kl + ku + 1 rows).
+    subroutine band_factor(lu, stat)
+        type(band_lu_t), intent(inout) :: lu
+        type(status_t), intent(inout) :: stat
+        integer :: info
+        if (size(lu%ab, 1) /= 2*lu%kl + lu%ku + 1 .or. size(lu%ab, 2) /= lu%n) then
+            call set_status(stat, ERR_INPUT, 'band_factor', 'band storage shape mismatch')
+            return
+        end if
+        if (.not. allocated(lu%ipiv)) allocate (lu%ipiv(lu%n))
+        if (size(lu%ipiv) /= lu%n) then
+            deallocate (lu%ipiv)
+            allocate (lu%ipiv(lu%n))
+        end if
+        if (lu%n == 0) return
+        call dgbtrf(lu%n, lu%n, lu%kl, lu%ku, lu%ab, size(lu%ab, 1), lu%ipiv, info)
+        if (info > 0) call set_status(stat, ERR_SINGULAR, 'band_factor', &
+                                      'matrix is singular (zero pivot '//fmt_int(info)//')')
+    end subroutine band_factor
+
+    !> Solve with a factorized band matrix, b overwritten by the solution.
+    subroutine band_solve(lu, b)
+        type(band_lu_t), intent(in) :: lu
+        real(dp), intent(inout) :: b(:)
+        integer :: info
+        if (lu%n == 0) return
+        call dgbtrs('N', lu%n, lu%kl, lu%ku, 1, lu%ab, size(lu%ab, 1), lu%ipiv, b, lu%n, info)
+    end subroutine band_solve
+
+    !> Complex counterpart of band_factor.
+    subroutine zband_factor(lu, stat)
+        type(zband_lu_t), intent(inout) :: lu
+        type(status_t), intent(inout) :: stat
+        integer :: info
+        if (size(lu%ab, 1) /= 2*lu%kl + lu%ku + 1 .or. size(lu%ab, 2) /= lu%n) then
+            call set_status(stat, ERR_INPUT, 'zband_factor', 'band storage shape mismatch')
+            return
+        end if
+        if (.not. allocated(lu%ipiv)) allocate (lu%ipiv(lu%n))
+        if (lu%n == 0) return
+        call zgbtrf(lu%n, lu%n, lu%kl, lu%ku, lu%ab, size(lu%ab, 1), lu%ipiv, info)
+        if (info > 0) call set_status(stat, ERR_SINGULAR, 'zband_factor', &
+                                      'matrix is singular (zero pivot '//fmt_int(info)//')')
+    end subroutine zband_factor
+
+    !> Complex counterpart of band_solve.
+    subroutine zband_solve(lu, b)
+        type(zband_lu_t), intent(in) :: lu
+        complex(dp), intent(inout) :: b(:)
+        integer :: info
+        if (lu%n == 0) return
+        call zgbtrs('N', lu%n, lu%kl, lu%ku, 1, lu%ab, size(lu%ab, 1), lu%ipiv, b, lu%n, info)
+    end subroutine zband_solve
+
+    !> Build the dynamic system of `chain` on `elements_per_beam` elements per
+    !! beam. `gain` is the motor gain g of Eq. 150 (0: no motor), `law` the
+    !! friction law and `vslip` its regularization velocity (FRICTION_SMOOTH).
+    subroutine dyn_setup(chain, elements_per_beam, gain, law, vslip, sys, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam, law
+        real(dp), intent(in) :: gain, vslip
+        type(dyn_system_t), intent(out) :: sys
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'dyn_setup'
+        real(dp), allocatable :: q0(:)
+        integer :: k, node, base
+        if (.not. ieee_is_finite(gain) .or. gain < 0.0_dp) then
+            call set_status(stat, ERR_INPUT, where, 'motor_gain = '//fmt_real(gain)// &
+                            ', expected a finite number >= 0')
+            return
+        end if
+        if (law /= FRICTION_SIGN .and. law /= FRICTION_SMOOTH .and. &
+            law /= FRICTION_SIGN_LITERAL) then
+            call set_status(stat, ERR_INPUT, where, 'friction law = '//fmt_int(law)// &
+                            ', expected 0 (sign), 1 (smooth) or 2 (literal sign)')
+            return
+        end if
+        if (law == FRICTION_SMOOTH .and. .not. (vslip > 0.0_dp .and. ieee_is_finite(vslip))) then
+            call set_status(stat, ERR_INPUT, where, 'friction_velocity = '// &
+                            fmt_real(vslip)//', expected a positive number')
+            return
+        end if
+        call fe_mesh_build(chain, elements_per_beam, sys%mesh, stat)
+        if (stat%code /= 0) return
+        sys%n = sys%mesh%nfree
+        sys%npt = chain%nbeams
+        sys%nwork = dyn_nwork(chain%nbeams)
+        allocate (sys%iw(sys%npt), sys%iu(sys%npt), sys%idw(sys%npt), sys%idu(sys%npt), &
+                  sys%fric(sys%npt), sys%drag(sys%npt), sys%inertia(sys%npt))
+        do k = 1, sys%npt
+            node = k*elements_per_beam + 1
+            base = 4*(node - 1)
+            sys%iw(k) = sys%mesh%free_of(base + DOF_W)
+            sys%idw(k) = sys%mesh%free_of(base + DOF_DW)
+            sys%iu(k) = sys%mesh%free_of(base + DOF_U)
+            sys%idu(k) = sys%mesh%free_of(base + DOF_DU)
+            sys%fric(k) = chain%friction(k)*chain%mass(k)*GRAVITY
+            sys%drag(k) = chain%drag(k)
+            sys%inertia(k) = chain%inertia(k)
+        end do
+        sys%rotary = any(sys%inertia /= 0.0_dp)
+        sys%eta = chain%eta
+        sys%motor = chain%r_motor*gain
+        sys%tau = chain%tau_motor
+        sys%nx = 0
+        if (sys%motor /= 0.0_dp .and. sys%tau > 0.0_dp) sys%nx = 1
+        sys%nstate = 2*sys%n + sys%nx
+        sys%law = law
+        sys%vslip = vslip
+        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n))
+        q0 = 0.0_dp
+        call fe_mass(sys%mesh, q0, .false., sys%mb)
+        if (.not. sys%rotary) then
+            sys%mlu%n = sys%n
+            sys%mlu%kl = sys%mesh%kl
+            sys%mlu%ku = sys%mesh%ku
+            sys%mlu%ab = sys%mb
+            call band_factor(sys%mlu, stat)
+        end if
+    end subroutine dyn_setup
+
+    !> Psidot = (1 + u') w'_t - w' u'_t at mass point k (Eq. 153).
+    pure real(dp) function dyn_psidot(sys, q, v, k)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:)
+        integer, intent(in) :: k
+        dyn_psidot = (1.0_dp + q(sys%idu(k)))*v(sys%idw(k)) - q(sys%idw(k))*v(sys%idu(k))
+    end function dyn_psidot
+
+    !> Friction shape phi(v) of the chosen law and its derivative.
+    pure subroutine friction_phi(law, vslip, v, phi, dphi)
+        integer, intent(in) :: law
+        real(dp), intent(in) :: vslip, v
+        real(dp), intent(out) :: phi, dphi
+        real(dp) :: r
+        dphi = 0.0_dp
+        select case (law)
+        case (FRICTION_SMOOTH)
+            r = sqrt(v*v + vslip*vslip)
+            phi = v/r
+            dphi = vslip*vslip/r**3
+        case (FRICTION_SIGN_LITERAL)
+            phi = sign(1.0_dp, v)
+        case default
+            if (v > 0.0_dp) then
+                phi = 1.0_dp
+            else if (v < 0.0_dp) then
+                phi = -1.0_dp
+            else
+                phi = 0.0_dp
+            end if
+        end select
+    end subroutine friction_phi
+
+    !> Motor torque: the state T with a lag, else -r g Psidot_tip (Eq. 150, 158).
+    pure real(dp) function dyn_torque(sys, q, v, x)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        dyn_torque = 0.0_dp
+        if (sys%motor /= 0.0_dp) dyn_torque = motor_torque(sys, q, v, x)
+    end function dyn_torque
+
+    pure real(dp) function motor_torque(sys, q, v, x)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        if (sys%nx > 0) then
+            motor_torque = x(1)
+        else
+            motor_torque = -sys%motor*dyn_psidot(sys, q, v, sys%npt)
+        end if
+    end function motor_torque
+
+    !> Curvature chi, its gradient dchi/dq and the shape-function derivatives
+    !! at zeta in one element (Eq. 72).
+    pure subroutine chi_gradient(h, qe, zeta, chi, dchi, g1, g2)
+        real(dp), intent(in) :: h, qe(FE_NDOF), zeta
+        real(dp), intent(out) :: chi, dchi(FE_NDOF), g1(4), g2(4)
+        real(dp) :: f(4), a, b, c, d
+        call fe_hermite(zeta, h, f, g1, g2)
+        a = dot_product(g1, qe(FE_U))
+        b = dot_product(g1, qe(FE_W))
+        c = dot_product(g2, qe(FE_U))
+        d = dot_product(g2, qe(FE_W))
+        chi = d*(1.0_dp + a) - b*c
+        dchi(FE_U) = d*g1 - b*g2
+        dchi(FE_W) = (1.0_dp + a)*g2 - c*g1
+    end subroutine chi_gradient
+
+    !> Kelvin-Voigt damping of one element: force fd = int eta EI chidot dchi,
+    !! power -int eta EI chidot^2, and optionally kd = dfd/dq, cd = dfd/dv.
+    pure subroutine damping_element(h, c, xg, wg, qe, ve, fd, power, kd, cd)
+        real(dp), intent(in) :: h, c      !< element length, eta EI
+        real(dp), intent(in) :: xg(:), wg(:), qe(FE_NDOF), ve(FE_NDOF)
+        real(dp), intent(out) :: fd(FE_NDOF), power
+        real(dp), intent(out), optional :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF)
+        real(dp) :: chi, dchi(FE_NDOF), g1(4), g2(4), rate, wt, hv(FE_NDOF), hm
+        integer :: g, i, j
+        fd = 0.0_dp
+        power = 0.0_dp
+        if (present(kd)) kd = 0.0_dp
+        if (present(cd)) cd = 0.0_dp
+        do g = 1, size(xg)
+            call chi_gradient(h, qe, xg(g), chi, dchi, g1, g2)
+            rate = dot_product(dchi, ve)
+            wt = wg(g)*h*c
+            fd = fd + wt*rate*dchi
+            power = power - wt*rate*rate
+            if (present(cd)) then
+                do j = 1, FE_NDOF
+                    cd(:, j) = cd(:, j) + wt*dchi*dchi(j)
+                end do
+            end if
+            if (present(kd)) then
+                ! H v with H = d2chi/dq2 (only the u-w blocks, Eq. 72)
+                hv(FE_U) = g1*dot_product(g2, ve(FE_W)) - g2*dot_product(g1, ve(FE_W))
+                hv(FE_W) = g2*dot_product(g1, ve(FE_U)) - g1*dot_product(g2, ve(FE_U))
+                do j = 1, FE_NDOF
+                    kd(:, j) = kd(:, j) + wt*dchi*hv(j)
+                end do
+                do j = 1, 4
+                    do i = 1, 4
+                        hm = wt*rate*(g1(i)*g2(j) - g2(i)*g1(j))
+                        kd(FE_U(i), FE_W(j)) = kd(FE_U(i), FE_W(j)) + hm
+                        kd(FE_W(j), FE_U(i)) = kd(FE_W(j), FE_U(i)) + hm
+                    end do
+                end do
+            end if
+        end do
+    end subroutine damping_element
+
+    !> Generalized force F(q, v, T) (everything but M q''), the work rates of
+    !! the effects (`power`, nwork lines) and the motor torque.
+    pure subroutine dyn_forces(sys, q, v, x, f, power, torque)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        real(dp), intent(out) :: f(:), power(:), torque
+        real(dp), allocatable :: qf(:), vf(:), ff(:)
+        real(dp) :: phi, dphi, fd(FE_NDOF), pw, psid, jm
+        integer :: k, i, c, el, i0, npt
+        npt = sys%npt
+        call fe_internal_force(sys%mesh, q, f)
+        f = -f
+        power = 0.0_dp
+        do k = 1, npt
+            do c = 1, 2
+                if (c == 1) then
+                    i = sys%iu(k)
+                else
+                    i = sys%iw(k)
+                end if
+                if (sys%fric(k) /= 0.0_dp) then
+                    call friction_phi(sys%law, sys%vslip, v(i), phi, dphi)
+                    f(i) = f(i) - sys%fric(k)*phi
+                    power(k) = power(k) - sys%fric(k)*phi*v(i)
+                end if
+                if (sys%drag(k) /= 0.0_dp) then
+                    f(i) = f(i) - sys%drag(k)*v(i)
+                    power(npt + k) = power(npt + k) - sys%drag(k)*v(i)**2
+                end if
+            end do
+            jm = sys%inertia(k)
+            if (jm /= 0.0_dp) then
+                psid = dyn_psidot(sys, q, v, k)
+                f(sys%idw(k)) = f(sys%idw(k)) - 2.0_dp*jm*psid*v(sys%idu(k))
+                f(sys%idu(k)) = f(sys%idu(k)) + 2.0_dp*jm*psid*v(sys%idw(k))
+            end if
+        end do
+        if (sys%eta /= 0.0_dp) then
+            allocate (qf(sys%mesh%ndof), vf(sys%mesh%ndof), ff(sys%mesh%ndof))
+            call fe_expand(sys%mesh, q, qf)
+            call fe_expand(sys%mesh, v, vf)
+            ff = 0.0_dp
+            do el = 1, sys%mesh%nel
+                i0 = 4*(el - 1)
+                call damping_element(sys%mesh%h(el), sys%eta*sys%mesh%ei(el), sys%mesh%xg, &
+                                     sys%mesh%wg, qf(i0 + 1:i0 + FE_NDOF), &
+                                     vf(i0 + 1:i0 + FE_NDOF), fd, pw)
+                ff(i0 + 1:i0 + FE_NDOF) = ff(i0 + 1:i0 + FE_NDOF) + fd
+                power(2*npt + 1) = power(2*npt + 1) + pw
+            end do
+            f = f - ff(sys%mesh%full_of)
+        end if
+        torque = 0.0_dp
+        if (sys%motor /= 0.0_dp) then
+            torque = motor_torque(sys, q, v, x)
+            f(sys%idw(npt)) = f(sys%idw(npt)) + torque*(1.0_dp + q(sys%idu(npt)))
+            f(sys%idu(npt)) = f(sys%idu(npt)) - torque*q(sys%idw(npt))
+            power(2*npt + 2) = torque*dyn_psidot(sys, q, v, npt)
+        end if
+    end subroutine dyn_forces
+
+    !> Mass matrix M(q) in band storage (rotary inertia of Eq. 132 included).
+    pure subroutine dyn_mass(sys, q, mb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: mb(:, :)
+        if (sys%rotary) then
+            call fe_mass(sys%mesh, q, .true., mb)
+        else
+            mb = sys%mb
+        end if
+    end subroutine dyn_mass
+
+    !> Rates of the state y = (q, v, x): (v, M(q)^-1 F, x'), the work rates
+    !! and the motor torque. x' = (-r g Psidot_tip - T)/tau with a motor lag.
+    subroutine dyn_rates(sys, y, dy, power, torque, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: dy(:), power(:), torque
+        type(status_t), intent(inout) :: stat
+        type(band_lu_t) :: lu
+        integer :: n
+        n = sys%n
+        call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, torque)
+        dy(1:n) = y(n + 1:2*n)
+        if (sys%rotary) then
+            lu%n = n
+            lu%kl = sys%mesh%kl
+            lu%ku = sys%mesh%ku
+            allocate (lu%ab(fe_band_rows(sys%mesh), n))
+            call fe_mass(sys%mesh, y(1:n), .true., lu%ab)
+            call band_factor(lu, stat)
+            if (stat%code /= 0) return
+            call band_solve(lu, dy(n + 1:2*n))
+        else
+            call band_solve(sys%mlu, dy(n + 1:2*n))
+        end if
+        if (sys%nx > 0) then
+            dy(2*n + 1) = (-sys%motor*dyn_psidot(sys, y(1:n), y(n + 1:2*n), sys%npt) &
+                           - y(2*n + 1))/sys%tau
+        end if
+    end subroutine dyn_rates
+
+    !> Jacobians of the generalized force: kb = -dF/dq and cb = -dF/dv (band
+    !! storage), and for a motor lag the couplings b = dF/dT (dense n-vector),
+    !! p = dT'/dq, d = dT'/dv, e = dT'/dT.
+    pure subroutine dyn_jacobian(sys, q, v, x, kb, cb, b, p, d, e)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
+        real(dp), allocatable :: f(:), qf(:), vf(:)
+        real(dp) :: phi, dphi, jm, psid, wd, ud, wq, uq, t, g, fd(FE_NDOF), pw
+        real(dp) :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF), a(2), dpsi_dq(2)
+        integer :: k, c, i, el, i0, aa, bb, ia, ib, kl, ku, idx(2)
+        kl = sys%mesh%kl
+        ku = sys%mesh%ku
+        allocate (f(sys%n))
+        call fe_tangent(sys%mesh, q, f, kb)
+        cb = 0.0_dp
+        b = 0.0_dp
+        p = 0.0_dp
+        d = 0.0_dp
+        e = 0.0_dp
+        do k = 1, sys%npt
+            do c = 1, 2
+                if (c == 1) then
+                    i = sys%iu(k)
+                else
+                    i = sys%iw(k)
+                end if
+                if (sys%fric(k) /= 0.0_dp) then
+                    call friction_phi(sys%law, sys%vslip, v(i), phi, dphi)
+                    call fe_band_add(cb, kl, ku, i, i, sys%fric(k)*dphi)
+                end if
+                if (sys%drag(k) /= 0.0_dp) call fe_band_add(cb, kl, ku, i, i, sys%drag(k))
+            end do
+            jm = sys%inertia(k)
+            if (jm /= 0.0_dp) then
+                ! g_rot = 2 J Psidot (u'_t, -w'_t) on (w', u'), added to -F
+                psid = dyn_psidot(sys, q, v, k)
+                wd = v(sys%idw(k))
+                ud = v(sys%idu(k))
+                wq = q(sys%idw(k))
+                uq = q(sys%idu(k))
+                call fe_band_add(cb, kl, ku, sys%idw(k), sys%idw(k), 2*jm*(1 + uq)*ud)
+                call fe_band_add(cb, kl, ku, sys%idw(k), sys%idu(k), 2*jm*(psid - wq*ud))
+                call fe_band_add(cb, kl, ku, sys%idu(k), sys%idw(k), -2*jm*((1 + uq)*wd + psid))
+                call fe_band_add(cb, kl, ku, sys%idu(k), sys%idu(k), 2*jm*wq*wd)
+                call fe_band_add(kb, kl, ku, sys%idw(k), sys%idw(k), -2*jm*ud*ud)
+                call fe_band_add(kb, kl, ku, sys%idw(k), sys%idu(k), 2*jm*wd*ud)
+                call fe_band_add(kb, kl, ku, sys%idu(k), sys%idw(k), 2*jm*ud*wd)
+                call fe_band_add(kb, kl, ku, sys%idu(k), sys%idu(k), -2*jm*wd*wd)
+            end if
+        end do
+        if (sys%eta /= 0.0_dp) then
+            allocate (qf(sys%mesh%ndof), vf(sys%mesh%ndof))
+            call fe_expand(sys%mesh, q, qf)
+            call fe_expand(sys%mesh, v, vf)
+            do el = 1, sys%mesh%nel
+                i0 = 4*(el - 1)
+                call damping_element(sys%mesh%h(el), sys%eta*sys%mesh%ei(el), sys%mesh%xg, &
+                                     sys%mesh%wg, qf(i0 + 1:i0 + FE_NDOF), &
+                                     vf(i0 + 1:i0 + FE_NDOF), fd, pw, kd, cd)
+                do bb = 1, FE_NDOF
+                    ib = sys%mesh%free_of(i0 + bb)
+                    if (ib == 0) cycle
+                    do aa = 1, FE_NDOF
+                        ia = sys%mesh%free_of(i0 + aa)
+                        if (ia == 0) cycle
+                        call fe_band_add(kb, kl, ku, ia, ib, kd(aa, bb))
+                        call fe_band_add(cb, kl, ku, ia, ib, cd(aa, bb))
+                    end do
+                end do
+            end do
+        end if
+        if (sys%motor /= 0.0_dp) then
+            k = sys%npt
+            idx = [sys%idw(k), sys%idu(k)]
+            a = [1.0_dp + q(sys%idu(k)), -q(sys%idw(k))]
+            dpsi_dq = [-v(sys%idu(k)), v(sys%idw(k))]   ! dPsidot/d(w', u')
+            t = motor_torque(sys, q, v, x)
+            g = sys%motor
+            ! F += T a: -d(T a)/dq through a, da/d(w', u') = [[0, 1], [-1, 0]]
+            call fe_band_add(kb, kl, ku, idx(1), idx(2), -t)
+            call fe_band_add(kb, kl, ku, idx(2), idx(1), t)
+            if (sys%nx == 0) then
+                ! T = -g Psidot: dT/dq = -g dpsi_dq, dT/dv = -g a
+                do bb = 1, 2
+                    do aa = 1, 2
+                        call fe_band_add(kb, kl, ku, idx(aa), idx(bb), g*a(aa)*dpsi_dq(bb))
+                        call fe_band_add(cb, kl, ku, idx(aa), idx(bb), g*a(aa)*a(bb))
+                    end do
+                end do
+            else
+                b(idx) = a
+                p(idx) = -g*dpsi_dq/sys%tau
+                d(idx) = -g*a/sys%tau
+                e = -1.0_dp/sys%tau
+            end if
+        end if
+    end subroutine dyn_jacobian
+
+    !> Kinetic energy v^T M(q) v / 2 (Eq. 119, with Eq. 130) and strain energy (Eq. 87).
+    pure subroutine dyn_energy(sys, q, v, kinetic, potential)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:)
+        real(dp), intent(out) :: kinetic, potential
+        real(dp), allocatable :: mb(:, :), mv(:)
+        allocate (mb(fe_band_rows(sys%mesh), sys%n), mv(sys%n))
+        call dyn_mass(sys, q, mb)
+        call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, v, mv)
+        kinetic = 0.5_dp*dot_product(v, mv)
+        potential = fe_energy(sys%mesh, q)
+    end subroutine dyn_energy
+
+    !> Tip u, w and angle atan2(w', 1 + u') from the free vector q.
+    pure subroutine dyn_tip(sys, q, u, w, angle)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: u, w, angle
+        integer :: k
+        k = sys%npt
+        u = q(sys%iu(k))
+        w = q(sys%iw(k))
+        angle = atan2(q(sys%idw(k)), 1.0_dp + q(sys%idu(k)))
+    end subroutine dyn_tip
+
+end module beamid_dynamics

@@ -1,0 +1,636 @@
+!> Time integrators for the finite element dynamics of beamid_dynamics.
+!!
+!! - RK4: the classical fixed-step Runge-Kutta scheme of the dissertation
+!!   (Eq. 99, 107; dt = 1e-5 s), with the work of every effect integrated as
+!!   extra state components (Eq. 121-122, 156). Each output time is reached
+!!   exactly: the interval between outputs is cut into ceil(span/dt) equal steps.
+!! - Implicit (default): the three-stage Radau IIA collocation method (order 5,
+!!   L-stable; Hairer and Wanner, Solving ODEs II, IV.8) with simplified Newton
+!!   iterations on the hand-coded Jacobian and error-controlled step sizes.
+!!   The stage system is decoupled by the eigenvalues of the Radau matrix into
+!!   one real and one complex linear system (gamma/h - J) and (mu/h - J). For
+!!   the second-order structure J = [0 I; -M^-1 K, -M^-1 C] each reduces to one
+!!   banded system of order n (docs/theory_dynamics.md):
+!!       (lam^2 M + lam C + K) x = M s + (lam M + C) r,   y = lam x - r,
+!!   so every solve is linear in the number of elements. The factorized real
+!!   matrix (gamma/h - J) is kept in radau_t after each step; it is the
+!!   iteration matrix a staggered forward-sensitivity step (Eq. 135-140)
+!!   reuses. Work lines are integrated by the collocation quadrature on the
+!!   converged stages, so energy - work is the numerical dissipation.
+module beamid_integrators
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
+                             ERR_NUMERIC, fmt_int, fmt_real
+    use beamid_fe_assembly, only: fe_band_rows, fe_band_add, fe_band_matvec
+    use beamid_dynamics, only: dyn_system_t, dyn_forces, dyn_jacobian, dyn_rates, &
+                               dyn_energy, dyn_mass, dyn_torque, band_lu_t, zband_lu_t, &
+                               band_factor, band_solve, zband_factor, zband_solve
+    implicit none
+    private
+
+    public :: integ_opts_t, integ_stats_t, history_t, radau_t
+    public :: integrate, METHOD_RK4, METHOD_IMPLICIT
+
+    integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
+
+    !> Controls of the integrators.
+    type :: integ_opts_t
+        integer :: method = METHOD_IMPLICIT
+        real(dp) :: dt = 1.0e-5_dp       !< RK4 step (s)
+        real(dp) :: rtol = 1.0e-8_dp     !< implicit: relative tolerance
+        real(dp) :: atol = 1.0e-8_dp     !< implicit: absolute tolerance (m, rad, m/s)
+        real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
+        integer :: max_steps = 50000000
+    end type integ_opts_t
+
+    !> What an integration did.
+    type :: integ_stats_t
+        integer :: steps = 0, rejected = 0, fevals = 0, jevals = 0, newton = 0
+    end type integ_stats_t
+
+    !> Time histories at the output times (columns).
+    type :: history_t
+        real(dp), allocatable :: y(:, :)        !< state (q, v, x)
+        real(dp), allocatable :: torque(:)      !< motor torque (N m)
+        real(dp), allocatable :: kinetic(:), potential(:)
+        real(dp), allocatable :: work(:, :)     !< work lines (nwork x nt)
+    end type history_t
+
+    !> Iteration matrices of the Radau step, kept factorized for reuse.
+    type :: radau_t
+        real(dp) :: h = 0.0_dp                  !< step they belong to
+        real(dp), allocatable :: mb(:, :), kb(:, :), cb(:, :)
+        real(dp), allocatable :: b(:), p(:), d(:)
+        real(dp) :: e = 0.0_dp
+        type(band_lu_t) :: lu1                  !< gamma/h - J (real)
+        type(zband_lu_t) :: lu2                 !< mu/h - J (complex)
+    end type radau_t
+
+    ! Radau IIA (3 stages) nodes, stiffly accurate weights b = A(3, :),
+    ! and the embedded-error coefficients (Hairer-Wanner IV.8).
+    real(dp), parameter :: SQ6 = sqrt(6.0_dp)
+    real(dp), parameter :: C1 = (4.0_dp - SQ6)/10.0_dp, C2 = (4.0_dp + SQ6)/10.0_dp
+    real(dp), parameter :: DD(3) = [-(13.0_dp + 7.0_dp*SQ6)/3.0_dp, &
+                                    (-13.0_dp + 7.0_dp*SQ6)/3.0_dp, -1.0_dp/3.0_dp]
+
+contains
+
+    !> Radau IIA matrix A, its inverse D, the eigenvalues gamma (real) and mu
+    !! (complex, Im > 0) of D, and the eigenvector matrix T (D = T diag T^-1,
+    !! columns normalized to a last entry 1) with its inverse.
+    pure subroutine radau_tableau(a, dmat, gam, mu, t, ti)
+        real(dp), intent(out) :: a(3, 3), dmat(3, 3), gam
+        complex(dp), intent(out) :: mu, t(3, 3), ti(3, 3)
+        complex(dp) :: lam(3), m(3, 3), det
+        real(dp) :: adj(3, 3), da
+        integer :: k, it
+        a(1, :) = [(88.0_dp - 7.0_dp*SQ6)/360.0_dp, (296.0_dp - 169.0_dp*SQ6)/1800.0_dp, &
+                   (-2.0_dp + 3.0_dp*SQ6)/225.0_dp]
+        a(2, :) = [(296.0_dp + 169.0_dp*SQ6)/1800.0_dp, (88.0_dp + 7.0_dp*SQ6)/360.0_dp, &
+                   (-2.0_dp - 3.0_dp*SQ6)/225.0_dp]
+        a(3, :) = [(16.0_dp - SQ6)/36.0_dp, (16.0_dp + SQ6)/36.0_dp, 1.0_dp/9.0_dp]
+        adj(1, 1) = a(2, 2)*a(3, 3) - a(2, 3)*a(3, 2)
+        adj(1, 2) = a(1, 3)*a(3, 2) - a(1, 2)*a(3, 3)
+        adj(1, 3) = a(1, 2)*a(2, 3) - a(1, 3)*a(2, 2)
+        adj(2, 1) = a(2, 3)*a(3, 1) - a(2, 1)*a(3, 3)
+        adj(2, 2) = a(1, 1)*a(3, 3) - a(1, 3)*a(3, 1)
+        adj(2, 3) = a(1, 3)*a(2, 1) - a(1, 1)*a(2, 3)
+        adj(3, 1) = a(2, 1)*a(3, 2) - a(2, 2)*a(3, 1)
+        adj(3, 2) = a(1, 2)*a(3, 1) - a(1, 1)*a(3, 2)
+        adj(3, 3) = a(1, 1)*a(2, 2) - a(1, 2)*a(2, 1)
+        da = a(1, 1)*adj(1, 1) + a(1, 2)*adj(2, 1) + a(1, 3)*adj(3, 1)
+        dmat = adj/da
+        ! eigenvalues of D: Newton on det(D - lam I) from the known values
+        lam = [cmplx(3.6378342527444957_dp, 0.0_dp, dp), &
+               cmplx(2.6810828736277521_dp, 3.0504301992474106_dp, dp), &
+               cmplx(2.6810828736277521_dp, -3.0504301992474106_dp, dp)]
+        do k = 1, 3
+            do it = 1, 3
+                lam(k) = lam(k) - char_poly(dmat, lam(k))/char_dpoly(dmat, lam(k))
+            end do
+        end do
+        gam = real(lam(1), dp)
+        mu = lam(2)
+        ! eigenvectors with last component 1: first two rows of (D - lam I) v = 0
+        do k = 1, 3
+            m = cmplx(dmat, 0.0_dp, dp)
+            m(1, 1) = m(1, 1) - lam(k)
+            m(2, 2) = m(2, 2) - lam(k)
+            det = m(1, 1)*m(2, 2) - m(1, 2)*m(2, 1)
+            t(1, k) = (-m(1, 3)*m(2, 2) + m(2, 3)*m(1, 2))/det
+            t(2, k) = (-m(1, 1)*m(2, 3) + m(2, 1)*m(1, 3))/det
+            t(3, k) = (1.0_dp, 0.0_dp)
+        end do
+        t(:, 1) = cmplx(real(t(:, 1), dp), 0.0_dp, dp)
+        call cinv3(t, ti)
+    end subroutine radau_tableau
+
+    pure complex(dp) function char_poly(d, lam)
+        real(dp), intent(in) :: d(3, 3)
+        complex(dp), intent(in) :: lam
+        complex(dp) :: m(3, 3)
+        m = cmplx(d, 0.0_dp, dp)
+        m(1, 1) = m(1, 1) - lam
+        m(2, 2) = m(2, 2) - lam
+        m(3, 3) = m(3, 3) - lam
+        char_poly = m(1, 1)*(m(2, 2)*m(3, 3) - m(2, 3)*m(3, 2)) &
+                    - m(1, 2)*(m(2, 1)*m(3, 3) - m(2, 3)*m(3, 1)) &
+                    + m(1, 3)*(m(2, 1)*m(3, 2) - m(2, 2)*m(3, 1))
+    end function char_poly
+
+    pure complex(dp) function char_dpoly(d, lam)
+        real(dp), intent(in) :: d(3, 3)
+        complex(dp), intent(in) :: lam
+        complex(dp), parameter :: eps = (1.0e-7_dp, 0.0_dp)
+        char_dpoly = (char_poly(d, lam + eps) - char_poly(d, lam - eps))/(2.0_dp*eps)
+    end function char_dpoly
+
+    pure subroutine cinv3(m, mi)
+        complex(dp), intent(in) :: m(3, 3)
+        complex(dp), intent(out) :: mi(3, 3)
+        complex(dp) :: det
+        mi(1, 1) = m(2, 2)*m(3, 3) - m(2, 3)*m(3, 2)
+        mi(1, 2) = m(1, 3)*m(3, 2) - m(1, 2)*m(3, 3)
+        mi(1, 3) = m(1, 2)*m(2, 3) - m(1, 3)*m(2, 2)
+        mi(2, 1) = m(2, 3)*m(3, 1) - m(2, 1)*m(3, 3)
+        mi(2, 2) = m(1, 1)*m(3, 3) - m(1, 3)*m(3, 1)
+        mi(2, 3) = m(1, 3)*m(2, 1) - m(1, 1)*m(2, 3)
+        mi(3, 1) = m(2, 1)*m(3, 2) - m(2, 2)*m(3, 1)
+        mi(3, 2) = m(1, 2)*m(3, 1) - m(1, 1)*m(3, 2)
+        mi(3, 3) = m(1, 1)*m(2, 2) - m(1, 2)*m(2, 1)
+        det = m(1, 1)*mi(1, 1) + m(1, 2)*mi(2, 1) + m(1, 3)*mi(3, 1)
+        mi = mi/det
+    end subroutine cinv3
+
+    !> Integrate from the state y0 at t = 0 to every output time t_out
+    !! (ascending, >= 0) and record the history with its energy ledger.
+    subroutine integrate(sys, y0, t_out, opts, hist, stats, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y0(:), t_out(:)
+        type(integ_opts_t), intent(in) :: opts
+        type(history_t), intent(out) :: hist
+        type(integ_stats_t), intent(out) :: stats
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'integrate'
+        integer :: nt, k
+        nt = size(t_out)
+        if (size(y0) /= sys%nstate) then
+            call set_status(stat, ERR_INPUT, where, 'state has '//fmt_int(size(y0))// &
+                            ' entries, expected '//fmt_int(sys%nstate))
+            return
+        end if
+        if (nt < 1) then
+            call set_status(stat, ERR_INPUT, where, 'no output times')
+            return
+        end if
+        if (.not. all(ieee_is_finite(t_out)) .or. t_out(1) < 0.0_dp) then
+            call set_status(stat, ERR_INPUT, where, 't_out must be finite and >= 0')
+            return
+        end if
+        do k = 2, nt
+            if (t_out(k) < t_out(k - 1)) then
+                call set_status(stat, ERR_INPUT, where, 't_out is not ascending at index '// &
+                                fmt_int(k)//' ('//fmt_real(t_out(k))//' after '// &
+                                fmt_real(t_out(k - 1))//')')
+                return
+            end if
+        end do
+        allocate (hist%y(sys%nstate, nt), hist%torque(nt), hist%kinetic(nt), &
+                  hist%potential(nt), hist%work(sys%nwork, nt))
+        hist%y = 0.0_dp
+        hist%torque = 0.0_dp
+        hist%kinetic = 0.0_dp
+        hist%potential = 0.0_dp
+        hist%work = 0.0_dp
+        select case (opts%method)
+        case (METHOD_RK4)
+            if (.not. (opts%dt > 0.0_dp .and. ieee_is_finite(opts%dt))) then
+                call set_status(stat, ERR_INPUT, where, 'dt = '//fmt_real(opts%dt)// &
+                                ', expected a positive step')
+                return
+            end if
+            call run_rk4(sys, y0, t_out, opts, hist, stats, stat)
+        case (METHOD_IMPLICIT)
+            if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
+                then
+                call set_status(stat, ERR_INPUT, where, 'rtol = '//fmt_real(opts%rtol)// &
+                                ', atol = '//fmt_real(opts%atol)//', h0 = '// &
+                                fmt_real(opts%h0)//': expected positive values')
+                return
+            end if
+            call run_radau(sys, y0, t_out, opts, hist, stats, stat)
+        case default
+            call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
+                            ', expected 0 (rk4) or 1 (implicit)')
+        end select
+    end subroutine integrate
+
+    !> Store output column k of the history.
+    subroutine record(sys, y, work, k, hist)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y(:), work(:)
+        integer, intent(in) :: k
+        type(history_t), intent(inout) :: hist
+        integer :: n
+        n = sys%n
+        hist%y(:, k) = y
+        hist%work(:, k) = work
+        hist%torque(k) = dyn_torque(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:))
+        call dyn_energy(sys, y(1:n), y(n + 1:2*n), hist%kinetic(k), hist%potential(k))
+    end subroutine record
+
+    !> Rates of the RK4 state (y, work).
+    subroutine rk_rates(sys, s, ds, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: s(:)
+        real(dp), intent(out) :: ds(:)
+        type(status_t), intent(inout) :: stat
+        real(dp) :: torque
+        integer :: m
+        m = sys%nstate
+        call dyn_rates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat)
+    end subroutine rk_rates
+
+    !> Classical RK4 with a fixed step (Eq. 99, 107).
+    subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y0(:), t_out(:)
+        type(integ_opts_t), intent(in) :: opts
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:)
+        real(dp) :: t, h
+        integer :: m, k, nsub, i
+        m = sys%nstate
+        allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
+                  k3(m + sys%nwork), k4(m + sys%nwork))
+        s = 0.0_dp
+        s(1:m) = y0
+        t = 0.0_dp
+        do k = 1, size(t_out)
+            nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+            if (nsub > 0) then
+                h = (t_out(k) - t)/real(nsub, dp)
+                do i = 1, nsub
+                    call rk_rates(sys, s, k1, stat)
+                    call rk_rates(sys, s + 0.5_dp*h*k1, k2, stat)
+                    call rk_rates(sys, s + 0.5_dp*h*k2, k3, stat)
+                    call rk_rates(sys, s + h*k3, k4, stat)
+                    if (stat%code /= 0) return
+                    s = s + (h/6.0_dp)*(k1 + 2.0_dp*(k2 + k3) + k4)
+                    stats%steps = stats%steps + 1
+                end do
+                stats%fevals = stats%fevals + 4*nsub
+                if (.not. all(ieee_is_finite(s))) then
+                    call set_status(stat, ERR_NUMERIC, 'rk4', 'the state became non-finite'// &
+                                    ' before t = '//fmt_real(t_out(k))//' (dt = '// &
+                                    fmt_real(opts%dt)//' is beyond the stability limit?)')
+                    return
+                end if
+                t = t_out(k)
+            end if
+            call record(sys, s(1:m), s(m + 1:), k, hist)
+        end do
+    end subroutine run_rk4
+
+    !> Jacobians and mass matrix of the step start into `it`.
+    subroutine radau_jacobian(sys, y, it)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y(:)
+        type(radau_t), intent(inout) :: it
+        integer :: n, nb
+        n = sys%n
+        nb = fe_band_rows(sys%mesh)
+        if (.not. allocated(it%mb)) then
+            allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n))
+        end if
+        call dyn_mass(sys, y(1:n), it%mb)
+        call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), it%kb, it%cb, it%b, &
+                          it%p, it%d, it%e)
+    end subroutine radau_jacobian
+
+    !> Assemble and factor (lam^2 M + lam C + K - b w^T) for lam = gamma/h
+    !! (real) and mu/h (complex).
+    subroutine radau_factor(sys, it, h, gam, mu, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(radau_t), intent(inout) :: it
+        real(dp), intent(in) :: h, gam
+        complex(dp), intent(in) :: mu
+        type(status_t), intent(inout) :: stat
+        real(dp) :: l1
+        complex(dp) :: l2
+        integer :: i, j, kl, ku
+        kl = sys%mesh%kl
+        ku = sys%mesh%ku
+        l1 = gam/h
+        l2 = mu/h
+        it%h = h
+        it%lu1%n = sys%n
+        it%lu1%kl = kl
+        it%lu1%ku = ku
+        it%lu1%ab = l1*l1*it%mb + l1*it%cb + it%kb
+        it%lu2%n = sys%n
+        it%lu2%kl = kl
+        it%lu2%ku = ku
+        it%lu2%ab = l2*l2*it%mb + l2*it%cb + it%kb
+        if (sys%nx > 0) then
+            do j = 1, sys%n
+                if (it%p(j) == 0.0_dp .and. it%d(j) == 0.0_dp) cycle
+                do i = 1, sys%n
+                    if (it%b(i) == 0.0_dp) cycle
+                    it%lu1%ab(kl + ku + 1 + i - j, j) = it%lu1%ab(kl + ku + 1 + i - j, j) &
+                        - it%b(i)*(it%p(j) + l1*it%d(j))/(l1 - it%e)
+                    it%lu2%ab(kl + ku + 1 + i - j, j) = it%lu2%ab(kl + ku + 1 + i - j, j) &
+                        - it%b(i)*(it%p(j) + l2*it%d(j))/(l2 - it%e)
+                end do
+            end do
+        end if
+        call band_factor(it%lu1, stat)
+        if (stat%code /= 0) return
+        call zband_factor(it%lu2, stat)
+    end subroutine radau_factor
+
+    !> Solve (lam - J) [x; y; z] = [r; s; t] with the real factorization
+    !! (lam = gamma/h); the argument holds the right side and the solution.
+    subroutine solve_real(sys, it, lam, w)
+        type(dyn_system_t), intent(in) :: sys
+        type(radau_t), intent(in) :: it
+        real(dp), intent(in) :: lam
+        real(dp), intent(inout) :: w(:)
+        real(dp), allocatable :: rhs(:), tmp(:), tmp2(:)
+        real(dp) :: zt
+        integer :: n
+        n = sys%n
+        allocate (rhs(n), tmp(n), tmp2(n))
+        call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, w(n + 1:2*n) + lam*w(1:n), rhs)
+        call fe_band_matvec(it%cb, sys%mesh%kl, sys%mesh%ku, w(1:n), tmp)
+        rhs = rhs + tmp
+        if (sys%nx > 0) then
+            zt = w(2*n + 1) - dot_product(it%d, w(1:n))
+            rhs = rhs + it%b*zt/(lam - it%e)
+        end if
+        call band_solve(it%lu1, rhs)
+        tmp2 = w(1:n)
+        w(n + 1:2*n) = lam*rhs - tmp2
+        if (sys%nx > 0) then
+            w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, rhs))/(lam - it%e)
+        end if
+        w(1:n) = rhs
+    end subroutine solve_real
+
+    !> Complex counterpart of solve_real (lam = mu/h).
+    subroutine solve_cplx(sys, it, lam, w)
+        type(dyn_system_t), intent(in) :: sys
+        type(radau_t), intent(in) :: it
+        complex(dp), intent(in) :: lam
+        complex(dp), intent(inout) :: w(:)
+        complex(dp), allocatable :: rhs(:), x(:)
+        real(dp), allocatable :: re(:), im(:), t1(:), t2(:)
+        complex(dp) :: zt
+        integer :: n, kl, ku
+        n = sys%n
+        kl = sys%mesh%kl
+        ku = sys%mesh%ku
+        allocate (rhs(n), x(n), re(n), im(n), t1(n), t2(n))
+        x = w(n + 1:2*n) + lam*w(1:n)
+        call fe_band_matvec(it%mb, kl, ku, real(x, dp), t1)
+        call fe_band_matvec(it%mb, kl, ku, aimag(x), t2)
+        rhs = cmplx(t1, t2, dp)
+        call fe_band_matvec(it%cb, kl, ku, real(w(1:n), dp), t1)
+        call fe_band_matvec(it%cb, kl, ku, aimag(w(1:n)), t2)
+        rhs = rhs + cmplx(t1, t2, dp)
+        zt = (0.0_dp, 0.0_dp)
+        if (sys%nx > 0) then
+            zt = w(2*n + 1) - sum(it%d*w(1:n))
+            rhs = rhs + it%b*zt/(lam - it%e)
+        end if
+        call zband_solve(it%lu2, rhs)
+        w(n + 1:2*n) = lam*rhs - w(1:n)
+        if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*rhs))/(lam - it%e)
+        w(1:n) = rhs
+    end subroutine solve_cplx
+
+    pure real(dp) function rms(x, scal)
+        real(dp), intent(in) :: x(:), scal(:)
+        rms = sqrt(sum((x/scal)**2)/real(size(x), dp))
+    end function rms
+
+    !> Lagrange basis on the nodes (0, c1, c2, 1), the 0 node left out: the
+    !! collocation polynomial through the stage increments is sum_j z_j l_j(s).
+    pure function lagrange(s) result(l)
+        real(dp), intent(in) :: s
+        real(dp) :: l(3)
+        real(dp), parameter :: nodes(4) = [0.0_dp, C1, C2, 1.0_dp]
+        integer :: j, m
+        do j = 1, 3
+            l(j) = 1.0_dp
+            do m = 1, 4
+                if (m == j + 1) cycle
+                l(j) = l(j)*(s - nodes(m))/(nodes(j + 1) - nodes(m))
+            end do
+        end do
+    end function lagrange
+
+    !> Radau IIA (order 5) with simplified Newton and step-size control.
+    subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y0(:), t_out(:)
+        type(integ_opts_t), intent(in) :: opts
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'implicit'
+        integer, parameter :: NIT = 7
+        real(dp), parameter :: SAFE = 0.9_dp, FACL = 5.0_dp, FACR = 0.125_dp
+        type(radau_t) :: it
+        real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, faccon, dnorm, dold
+        real(dp) :: fac, quot, hnew, hprev, torque, fnewt, tiny_h
+        complex(dp) :: mu, tm(3, 3), ti(3, 3)
+        real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), g(:, :), f0(:), &
+                                 e0(:), ev(:), scal(:), w1(:), dz(:, :), work(:), pw(:, :), &
+                                 ytmp(:)
+        complex(dp), allocatable :: w2(:)
+        integer :: nn, kout, i, newt, nt
+        logical :: first, reject, converged, clipped, have_prev, jac_fresh
+        type(status_t) :: inner
+
+        call radau_tableau(a, dmat, gam, mu, tm, ti)
+        nn = sys%nstate
+        nt = size(t_out)
+        allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), g(nn, 3), f0(nn), e0(nn), &
+                  ev(nn), scal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
+                  pw(sys%nwork, 3), w2(nn), ytmp(nn))
+        y = y0
+        work = 0.0_dp
+        t = 0.0_dp
+        h = opts%h0
+        hprev = h
+        first = .true.
+        reject = .false.
+        have_prev = .false.
+        jac_fresh = .false.
+        faccon = 1.0_dp
+        fnewt = 0.03_dp
+        kout = 1
+        do while (kout <= nt)
+            if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
+                call record(sys, y, work, kout, hist)
+                kout = kout + 1
+                cycle
+            end if
+            if (stats%steps + stats%rejected >= opts%max_steps) then
+                call set_status(stat, ERR_NO_CONVERGENCE, where, 'step limit '// &
+                                fmt_int(opts%max_steps)//' reached at t = '//fmt_real(t))
+                return
+            end if
+            hh = h
+            clipped = .false.
+            if (t + hh >= t_out(kout) - 1.0e-13_dp*max(1.0_dp, abs(t))) then
+                hh = t_out(kout) - t
+                clipped = .true.
+            end if
+            tiny_h = 1.0e-14_dp*max(1.0_dp, abs(t))
+            if (hh < tiny_h) then
+                call set_status(stat, ERR_NO_CONVERGENCE, where, 'step size '// &
+                                fmt_real(hh)//' underflow at t = '//fmt_real(t))
+                return
+            end if
+            ! error scale: displacements as given; velocity errors are measured as
+            ! the displacement they cause over the step (err_v * h), so modes far
+            ! beyond the accuracy of interest (axial, 1e3-1e5 rad/s) are damped
+            ! by the L-stable scheme instead of being resolved.
+            scal = opts%atol + opts%rtol*abs(y)
+            scal(sys%n + 1:2*sys%n) = scal(sys%n + 1:2*sys%n)/hh
+            if (.not. jac_fresh) then
+                call radau_jacobian(sys, y, it)
+                stats%jevals = stats%jevals + 1
+                jac_fresh = .true.
+            end if
+            call radau_factor(sys, it, hh, gam, mu, stat)
+            if (stat%code /= 0) return
+            ! starting values: the last collocation polynomial, extrapolated
+            if (have_prev) then
+                do i = 1, 3
+                    if (i == 1) then
+                        z(:, i) = matmul(zprev, lagrange(1.0_dp + C1*hh/hprev))
+                    else if (i == 2) then
+                        z(:, i) = matmul(zprev, lagrange(1.0_dp + C2*hh/hprev))
+                    else
+                        z(:, i) = matmul(zprev, lagrange(1.0_dp + hh/hprev))
+                    end if
+                    z(:, i) = z(:, i) - zprev(:, 3)
+                end do
+            else
+                z = 0.0_dp
+            end if
+            ! simplified Newton iteration on the decoupled stage systems
+            converged = .false.
+            faccon = max(faccon, epsilon(1.0_dp))**0.8_dp
+            dold = 0.0_dp
+            dnorm = 0.0_dp
+            inner = status_t()
+            do newt = 1, NIT
+                do i = 1, 3
+                    call dyn_rates(sys, y + z(:, i), fz(:, i), pw(:, i), torque, inner)
+                end do
+                stats%fevals = stats%fevals + 3
+                if (inner%code /= 0) exit
+                do i = 1, 3
+                    g(:, i) = fz(:, i) - matmul(z, dmat(i, :))/hh
+                end do
+                w1 = matmul(g, real(ti(1, :), dp))
+                w2 = matmul(cmplx(g, 0.0_dp, dp), ti(2, :))
+                call solve_real(sys, it, gam/hh, w1)
+                call solve_cplx(sys, it, mu/hh, w2)
+                do i = 1, 3
+                    dz(:, i) = real(tm(i, 1), dp)*w1 + 2.0_dp*real(tm(i, 2)*w2, dp)
+                end do
+                dnorm = sqrt((rms(dz(:, 1), scal)**2 + rms(dz(:, 2), scal)**2 + &
+                              rms(dz(:, 3), scal)**2)/3.0_dp)
+                if (.not. ieee_is_finite(dnorm)) exit
+                if (newt > 1) then
+                    theta = dnorm/dold
+                    if (theta >= 0.99_dp) exit
+                    faccon = theta/(1.0_dp - theta)
+                end if
+                dold = max(dnorm, epsilon(1.0_dp))
+                z = z + dz
+                stats%newton = stats%newton + 1
+                if (faccon*dnorm <= fnewt) then
+                    converged = .true.
+                    exit
+                end if
+            end do
+            if (.not. converged) then
+                ! fresh Jacobian at the same point, half the step
+                stats%rejected = stats%rejected + 1
+                h = 0.5_dp*hh
+                reject = .true.
+                faccon = 1.0_dp
+                if (.not. ieee_is_finite(dnorm)) h = 0.25_dp*hh
+                cycle
+            end if
+            ! error estimate (Hairer-Wanner IV.8, Eq. 8.19-8.20)
+            call dyn_rates(sys, y, f0, pw(:, 1), torque, stat)
+            if (stat%code /= 0) return
+            e0 = matmul(z, DD)/hh
+            ev = f0 + e0
+            call solve_real(sys, it, gam/hh, ev)
+            err = max(rms(ev, scal), 1.0e-10_dp)
+            stats%fevals = stats%fevals + 1
+            if (err >= 1.0_dp .and. (first .or. reject)) then
+                ytmp = y + ev
+                call dyn_rates(sys, ytmp, ev, pw(:, 1), torque, stat)
+                if (stat%code /= 0) return
+                ev = ev + e0
+                call solve_real(sys, it, gam/hh, ev)
+                err = max(rms(ev, scal), 1.0e-10_dp)
+                stats%fevals = stats%fevals + 1
+            end if
+            fac = min(SAFE, SAFE*real(2*NIT + 1, dp)/real(2*NIT + newt, dp))
+            quot = max(FACR, min(FACL, err**0.25_dp/fac))
+            hnew = hh/quot
+            if (err < 1.0_dp) then
+                ! accept: work by the collocation quadrature on the stages
+                do i = 1, 3
+                    call dyn_forces(sys, y(1:sys%n) + z(1:sys%n, i), &
+                                    y(sys%n + 1:2*sys%n) + z(sys%n + 1:2*sys%n, i), &
+                                    y(2*sys%n + 1:) + z(2*sys%n + 1:, i), ytmp(1:sys%n), &
+                                    pw(:, i), torque)
+                end do
+                work = work + hh*matmul(pw, a(3, :))
+                y = y + z(:, 3)
+                t = t + hh
+                zprev = z
+                hprev = hh
+                have_prev = .true.
+                jac_fresh = .false.
+                stats%steps = stats%steps + 1
+                first = .false.
+                if (reject) hnew = min(hnew, hh)
+                reject = .false.
+                if (clipped) then
+                    h = max(hnew, h)
+                else
+                    h = hnew
+                end if
+                if (.not. all(ieee_is_finite(y))) then
+                    call set_status(stat, ERR_NUMERIC, where, 'state became non-finite at t = ' &
+                                    //fmt_real(t))
+                    return
+                end if
+            else
+                stats%rejected = stats%rejected + 1
+                reject = .true.
+                if (first) then
+                    h = 0.1_dp*hh
+                else
+                    h = hnew
+                end if
+            end if
+        end do
+    end subroutine run_radau
+
+end module beamid_integrators

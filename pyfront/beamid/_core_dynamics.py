@@ -1,0 +1,57 @@
+"""The only module that calls the dynamics part of the extension
+(``beamid._ext.beamid_api_dynamics``); status codes become
+:class:`beamid.InputError` / :class:`beamid.ConvergenceError`."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _ext
+from .errors import raise_for_status
+
+_api = _ext.beamid_api_dynamics
+
+
+def sizes(nbeams: int, params: np.ndarray, nepb: int, gain: float) -> tuple[int, int, int]:
+    """(nfree, nstate, nwork) of the dynamic system."""
+    nfree, nstate, nwork, code, message = _api.api_dyn_sizes(
+        nbeams, np.asarray(params, dtype=float), nepb, float(gain))
+    raise_for_status(int(code), message)
+    return int(nfree), int(nstate), int(nwork)
+
+
+def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,
+             method: int, law: int, vslip: float, dt: float, rtol: float, atol: float,
+             h0: float, y_init: np.ndarray | None, t_out: np.ndarray, nstate: int,
+             nwork: int):
+    """Run the integrator; returns (states, tip, torque, ledger, work, info)."""
+    use_init = 0 if y_init is None else 1
+    y = np.zeros(nstate) if y_init is None else np.asarray(y_init, dtype=float)
+    states, tip, torque, ledger, work, info, code, message = _api.api_dyn_simulate(
+        nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
+        float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+        float(atol), float(h0), use_init, y, np.ascontiguousarray(t_out, dtype=float), nwork)
+    raise_for_status(int(code), message)
+    return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
+            np.array(work), tuple(int(v) for v in info))
+
+
+def system(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int, vslip: float,
+           q: np.ndarray, v: np.ndarray, x: float, nx: int, nwork: int) -> dict:
+    """Generalized force, work rates, Jacobians K = -dF/dq, C = -dF/dv, M(q)."""
+    (force, power, torque, kmat, cmat, mass, b, p, d, e, code,
+     message) = _api.api_dyn_system(
+        nbeams, np.asarray(params, dtype=float), nepb, float(gain), int(law), float(vslip),
+        nx, np.asarray(q, dtype=float), np.asarray(v, dtype=float),
+        np.array([x], dtype=float), nwork)
+    raise_for_status(int(code), message)
+    return {"force": np.array(force), "power": np.array(power), "torque": float(torque),
+            "K": np.array(kmat), "C": np.array(cmat), "M": np.array(mass),
+            "b": np.array(b), "p": np.array(p), "d": np.array(d), "e": float(e)}
+
+
+def profile(nbeams: int, params: np.ndarray, nepb: int, q: np.ndarray, npts: int):
+    """(s, x, y) of the deformed chain at npts points (npts = nel*nsub + 1)."""
+    s, x, y, code, message = _api.api_dyn_profile(
+        nbeams, np.asarray(params, dtype=float), nepb, np.asarray(q, dtype=float), npts)
+    raise_for_status(int(code), message)
+    return np.array(s), np.array(x), np.array(y)

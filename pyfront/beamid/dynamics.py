@@ -1,0 +1,219 @@
+"""Nonlinear finite element dynamics: free and forced response (Chapter IV-V).
+
+    run = beamid.simulate(beamid.pace(J_elbow=0, J_tip=0), beamid.TipForce(fy=8.0),
+                          t_out=np.linspace(0, 2.6, 27), elements_per_beam=4)
+    run.tip_w, run.tip_u, run.tip_angle      # arrays over t_out
+    run.energy, run.work, run.ledger         # energy balance (Table 13)
+    run.motor_torque                         # Eq. 150 (0 without motor)
+    run.profiles([0.0, 0.65])                # beam shapes (Figure 22)
+
+The initial state is the static equilibrium under ``release`` (a TipForce,
+TipMoment or their sum), released at rest. Effects are model parameters,
+each off at its null value: ``mu_elbow mu_tip`` (Coulomb friction, Eq.
+100-102), ``c_elbow c_tip`` (viscous drag), ``eta`` (Kelvin-Voigt damping),
+``J_elbow J_tip`` (rotary inertia, Eq. 130-132; the preset carries the Table 1
+values, the dissertation's runs set them to 0), ``r_motor tau_motor`` with
+``motor_gain`` (tip motor, Eq. 150-159, with a current-loop lag).
+
+Integrators: ``"implicit"`` (default; Radau IIA order 5 with error control,
+tolerance ``rtol``) and ``"rk4"`` (fixed step ``dt``, 1e-5 s by default, the
+dissertation's). Friction laws: ``"sign"`` (Eq. 101, sign(0) = 0),
+``"smooth"`` (mu N v / sqrt(v^2 + vs^2), ``friction_velocity`` vs) and
+``"sign_literal"`` (the literal Fortran SIGN(1, v), +1 at rest). By default
+RK4 uses ``"sign"`` and the implicit integrator ``"smooth"``; ``run.friction``
+says which law a run used.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from . import _core_dynamics as _cd
+from .errors import InputError
+
+__all__ = ["Run", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+           "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
+
+#: Friction laws and their codes in the Fortran core.
+FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
+#: Integrators and their codes.
+INTEGRATORS = {"rk4": 0, "implicit": 1}
+#: Default relative (and absolute) tolerance of the implicit integrator.
+DEFAULT_RTOL = 1.0e-8
+#: Default RK4 step (s): the dissertation's (Section 4.1.4).
+DEFAULT_DT = 1.0e-5
+#: Default regularization velocity of the smooth friction law (m/s).
+DEFAULT_FRICTION_VELOCITY = 1.0e-4
+
+
+def _point_name(nbeams: int, k: int) -> str:
+    if k == nbeams:
+        return "tip"
+    return "elbow" if k == 1 else f"joint{k}"
+
+
+def work_names(nbeams: int) -> tuple[str, ...]:
+    """Names of the work lines of the ledger, in the Fortran order."""
+    pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
+    return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
+                 + ["damping", "motor"])
+
+
+def _model_args(model):
+    try:
+        return int(model.nbeams), np.ascontiguousarray(model.vector(), dtype=float)
+    except AttributeError as exc:
+        raise InputError(f"model must be a beamid Model, got {type(model).__name__}") from exc
+
+
+def _release_loads(release) -> np.ndarray:
+    if release is None:
+        return np.zeros(4)
+    if all(hasattr(release, a) for a in ("fx", "fy", "moment")):
+        vals = np.array([float(release.fx), float(release.fy), float(release.moment), 0.0])
+        if not np.all(np.isfinite(vals)):
+            raise InputError(f"release load {vals[:3]} is not finite")
+        return vals
+    raise InputError(f"release must be a TipForce, TipMoment or their sum, got "
+                     f"{type(release).__name__}")
+
+
+@dataclass
+class Run:
+    """A simulated time history at the output times ``t``."""
+
+    t: np.ndarray                 #: output times (s)
+    tip_u: np.ndarray             #: tip axial displacement u (m)
+    tip_w: np.ndarray             #: tip transverse displacement w (m)
+    tip_angle: np.ndarray         #: tip angle atan2(w', 1 + u') (rad)
+    energy: np.ndarray            #: total mechanical energy T + V (N m)
+    work: np.ndarray              #: total work of the nonconservative effects (N m)
+    motor_torque: np.ndarray      #: motor torque (N m), 0 without motor
+    ledger: dict                  #: kinetic, potential, each work line, numerical
+    states: np.ndarray            #: (nstate, nt): q, v (and the motor torque state)
+    integrator: str
+    friction: str                 #: friction law the run used
+    elements_per_beam: int
+    info: dict                    #: steps, rejected, fevals, jevals, newton
+    nfree: int
+    _model: object = field(repr=False, default=None)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Free unknowns (nfree, nt) in the order of beamid.fe.fe_system."""
+        return self.states[: self.nfree]
+
+    @property
+    def v(self) -> np.ndarray:
+        """Their rates (nfree, nt)."""
+        return self.states[self.nfree: 2 * self.nfree]
+
+    @property
+    def energy_change(self) -> np.ndarray:
+        """E(t) - E(0) (Table 13's Delta Energy)."""
+        return self.energy - self.energy[0]
+
+    def profiles(self, times: Sequence[float] | float, points_per_element: int = 8):
+        """Beam shapes at the given output times: a list of (x, y) arrays
+        (x = s + u, y = w). Each time must be one of ``run.t``."""
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        nbeams, params = _model_args(self._model)
+        nel = nbeams * self.elements_per_beam
+        if int(points_per_element) < 1:
+            raise InputError(f"points_per_element = {points_per_element}, expected >= 1")
+        npts = nel * int(points_per_element) + 1
+        out = []
+        for tt in times:
+            k = int(np.argmin(np.abs(self.t - tt)))
+            if abs(self.t[k] - tt) > 1e-9 * max(1.0, abs(tt)):
+                raise InputError(f"time {tt} is not an output time of this run")
+            _, x, y = _cd.profile(nbeams, params, self.elements_per_beam, self.q[:, k], npts)
+            out.append((x, y))
+        return out
+
+
+def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
+             integrator: str = "implicit", motor_gain: float = 0.0,
+             dt: float | None = None, rtol: float | None = None, *,
+             friction: str | None = None, friction_velocity: float | None = None,
+             atol: float | None = None, h0: float | None = None,
+             initial_state: np.ndarray | None = None) -> Run:
+    """Release the chain from rest at the static shape under ``release`` and
+    integrate M q'' + NLT(q) = Q(q, q') (Eq. 98-107) to the times ``t_out``.
+
+    Parameters
+    ----------
+    model: a :class:`beamid.Model` (effects are its named parameters).
+    release: the static tip load held before the release (t = 0).
+    t_out: ascending output times (s), starting at or after 0.
+    elements_per_beam: mesh ("8 elements" in the dissertation = 4 per beam).
+    integrator: ``"implicit"`` (default) or ``"rk4"``.
+    motor_gain: gain g of the tip motor, T = -r_motor g Psidot_tip (Eq. 150, 158).
+    dt: RK4 step (default 1e-5 s).
+    rtol: implicit tolerance (default 1e-8; absolute tolerance ``atol`` = rtol).
+    friction: ``"sign"``, ``"smooth"`` or ``"sign_literal"`` (default: sign for
+        RK4, smooth for implicit).
+    friction_velocity: regularization velocity of the smooth law (1e-4 m/s).
+    initial_state: a state vector (q, v[, T]) to start from instead of the release.
+    """
+    nbeams, params = _model_args(model)
+    if integrator not in INTEGRATORS:
+        raise InputError(f"integrator = {integrator!r}, expected one of {sorted(INTEGRATORS)}")
+    if friction is None:
+        friction = "sign" if integrator == "rk4" else "smooth"
+    if friction not in FRICTION_LAWS:
+        raise InputError(f"friction = {friction!r}, expected one of {sorted(FRICTION_LAWS)}")
+    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam,
+                                                               (int, np.integer)):
+        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer")
+    if t_out is None:
+        raise InputError("t_out is required (ascending output times in s)")
+    t = np.ascontiguousarray(np.atleast_1d(np.asarray(t_out, dtype=float)))
+    if t.ndim != 1 or t.size == 0:
+        raise InputError("t_out must be a non-empty 1-d sequence of times")
+    for name, value in (("dt", dt), ("rtol", rtol), ("atol", atol), ("h0", h0),
+                        ("friction_velocity", friction_velocity)):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise InputError(f"{name} = {value!r}, expected a positive number")
+    gain = float(motor_gain)
+    if not np.isfinite(gain) or gain < 0:
+        raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
+    loads = _release_loads(release)
+    nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
+    if initial_state is not None:
+        initial_state = np.asarray(initial_state, dtype=float)
+        if initial_state.shape != (nstate,):
+            raise InputError(f"initial_state has shape {initial_state.shape}, "
+                             f"expected ({nstate},)")
+    vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
+    states, tip, torque, ledger, work, info = _cd.simulate(
+        nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
+        FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
+        initial_state, t, nstate, nwork)
+    names = work_names(nbeams)
+    led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2]}
+    for i, name in enumerate(names):
+        led[name] = work[i]
+    led["numerical"] = ledger[3]
+    return Run(t=t, tip_u=tip[0], tip_w=tip[1], tip_angle=tip[2], energy=ledger[2],
+               work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
+               integrator=integrator, friction=friction,
+               elements_per_beam=int(elements_per_beam),
+               info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton"), info)),
+               nfree=nfree, _model=model)
+
+
+def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,
+                   friction: str = "smooth", friction_velocity: float = 1e-4,
+                   torque_state: float = 0.0) -> dict:
+    """Generalized force F(q, v), work rates, the hand-coded Jacobians
+    K = -dF/dq and C = -dF/dv (dense), the motor-lag couplings and M(q), for
+    checks against finite differences."""
+    nbeams, params = _model_args(model)
+    gain = float(motor_gain)
+    nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
+    nx = nstate - 2 * nfree
+    return _cd.system(nbeams, params, int(elements_per_beam), gain, FRICTION_LAWS[friction],
+                      friction_velocity, q, v, torque_state, nx, nwork)
