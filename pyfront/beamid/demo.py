@@ -27,7 +27,7 @@ def demo(out: Path) -> int:
     forms = {"seed form (axial_coupling = 0)": 0.0, "exact elastica (axial_coupling = 1)": 1.0}
     written = []
     # radial wire of Table 2 and Figure 9: several wire lengths, C1 = C2 = 0
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
     for ax, (title, a) in zip(axes, forms.items()):
         lengths = (1.45, 1.4, 1.3, 1.1, 0.9)
         results = [solve_static(pace(axial_coupling=a), RadialWire(lw)) for lw in lengths]
@@ -42,7 +42,7 @@ def demo(out: Path) -> int:
     written.append(path)
 
     # directed transverse tip force, 3 to 8 N (Figure 11, Tables 4-5)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
     for ax, (title, a) in zip(axes, forms.items()):
         forces = (3.0, 4.0, 6.0, 8.0)
         results = [solve_static(pace(axial_coupling=a), TipForce(fy=f)) for f in forces]

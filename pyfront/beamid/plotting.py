@@ -28,7 +28,7 @@ def plot_shapes(results: Sequence[StaticResult], labels: Sequence[str] | None = 
         if r.model.nbeams >= 2:
             ax.plot([r.elbow_x], [r.elbow_y], "o", color=line.get_color(), ms=4)
         ax.plot([r.tip_x], [r.tip_y], "s", color=line.get_color(), ms=4)
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.grid(True, lw=0.3)
