@@ -75,7 +75,9 @@ module beamid_arclength
     !> Solver controls.
     type :: static_options_t
         real(dp) :: tol = 1.0e-9_dp           !< integration error tolerance (relative)
-        real(dp) :: newton_tol = 1.0e-10_dp   !< scaled residual at convergence
+        !> scaled residual at convergence; 0: ten times tol (the integration
+        !! error bounds what a tighter Newton tolerance could achieve)
+        real(dp) :: newton_tol = 0.0_dp
         integer :: max_newton = 30            !< Newton iterations per load level
         integer :: max_load_steps = 400       !< continuation steps before giving up
         integer :: max_rk_steps = 200000      !< integration steps per shot
@@ -676,12 +678,15 @@ contains
         type(static_options_t) :: work
         real(dp) :: g(prob%nu), jac(prob%nu, prob%nu), step(prob%nu, 1), utry(prob%nu)
         real(dp) :: gtry(prob%nu), jtry(prob%nu, prob%nu), alpha, rtry, tol_now, tol_try
+        real(dp) :: newton_tol
         type(status_t) :: trial
         integer :: it, ls
         integer :: no_wrt(0)
 
         iterations = 0
         work = opts
+        if (.not. (work%newton_tol > 0.0_dp)) work%newton_tol = 10.0_dp*opts%tol
+        newton_tol = work%newton_tol
         tol_now = max(opts%tol, 1.0e-6_dp)
         work%tol = tol_now
         if (tol_now > opts%tol) then
@@ -695,15 +700,15 @@ contains
         end if
         resid = maxval(abs(g))
         do it = 1, opts%max_newton
-            if (resid <= opts%newton_tol .or. (tol_now > opts%tol .and. resid < 1.0e-4_dp)) then
+            if (resid <= newton_tol) then
                 if (tol_now <= opts%tol) return
-                ! close already: redo this point at the requested accuracy
+                ! converged on a loose shot: redo this point at the requested accuracy
                 tol_now = opts%tol
                 work%tol = tol_now
                 call evaluate(prob, u, wrt, work, g, jac, shot, stat)
                 if (stat%code /= STATUS_OK) return
                 resid = maxval(abs(g))
-                if (resid <= opts%newton_tol) return
+                if (resid <= newton_tol) return
             end if
             iterations = it
             step(:, 1) = -g
@@ -722,10 +727,20 @@ contains
                 end if
                 if (trial%code == STATUS_OK) then
                     rtry = maxval(abs(gtry))
-                    if (rtry < (1.0_dp - 1.0e-4_dp*alpha)*resid .or. rtry <= opts%newton_tol) exit
+                    if (rtry < (1.0_dp - 1.0e-4_dp*alpha)*resid .or. rtry <= newton_tol) exit
                 end if
                 alpha = 0.5_dp*alpha
             end do
+            if ((trial%code /= STATUS_OK .or. ls > 12) .and. tol_now > opts%tol) then
+                ! the residual of a loose shot may be below what the step can reach:
+                ! re-evaluate this point at the requested accuracy and go on
+                tol_now = opts%tol
+                work%tol = tol_now
+                call evaluate(prob, u, wrt, work, g, jac, shot, stat)
+                if (stat%code /= STATUS_OK) return
+                resid = maxval(abs(g))
+                cycle
+            end if
             if (trial%code /= STATUS_OK .or. ls > 12) then
                 call set_status(stat, ERR_NO_CONVERGENCE, 'static Newton', &
                                 'line search failed after '//fmt_int(it)// &
@@ -739,10 +754,10 @@ contains
             tol_now = tol_try
             call move_shot(shot_try, shot)
         end do
-        if (resid > opts%newton_tol .or. tol_now > opts%tol) call set_status(stat, &
+        if (resid > newton_tol .or. tol_now > opts%tol) call set_status(stat, &
                 ERR_NO_CONVERGENCE, 'static Newton', 'no convergence in '// &
                 fmt_int(opts%max_newton)//' iterations, scaled residual '//fmt_real(resid)// &
-                ' > '//fmt_real(opts%newton_tol))
+                ' > '//fmt_real(newton_tol))
     end subroutine newton
 
     ! --------------------------------------------------------------- public API
