@@ -201,20 +201,25 @@ contains
         dz(IN) = z(IK)*z(IQ)
     end function rhs
 
-    !> d/ds of the variational columns: (df/dz) V + df/dp (Eq. 33, 41).
+    !> d/ds of the variational columns: dv = (df/dz) V + df/dp (Eq. 33, 41).
     !! `dz` = rhs(z) supplies sin and cos of psi.
-    pure function rhs_var(z, dz, v, colkind, ei, c, a) result(dv)
-        real(dp), intent(in) :: z(NZ), dz(NZ), v(:, :), ei, c, a
-        integer, intent(in) :: colkind(:)
-        real(dp) :: dv(NZ, size(v, 2))
-        real(dp) :: d, s, co, dkk, dkq
+    pure subroutine rhs_var(z, dz, ncol, v, colkind, ei, c, a, dv)
+        real(dp), intent(in) :: z(NZ), dz(NZ), ei, c, a
+        integer, intent(in) :: ncol
+        real(dp), intent(in) :: v(NZ, ncol)
+        integer, intent(in) :: colkind(ncol)
+        real(dp), intent(out) :: dv(NZ, ncol)
+        real(dp) :: d, s, co, dkk, dkq, fei, fc, fa
         integer :: j
         d = tangent_stiffness(ei, c, z(IK))
         s = dz(IY)   ! sin(psi), already evaluated in rhs
         co = dz(IX)  ! cos(psi)
         dkk = 6.0_dp*c*z(IK)*z(IQ)/(d*d)
         dkq = -1.0_dp/d
-        do j = 1, size(v, 2)
+        fei = z(IQ)/(d*d)
+        fc = 3.0_dp*z(IK)**2*z(IQ)/(d*d)
+        fa = -z(IK)*z(IN)
+        do j = 1, ncol
             dv(IX, j) = -s*v(IPSI, j)
             dv(IY, j) = co*v(IPSI, j)
             dv(IPSI, j) = v(IK, j)
@@ -223,14 +228,14 @@ contains
             dv(IN, j) = z(IQ)*v(IK, j) + z(IK)*v(IQ, j)
             select case (colkind(j))
             case (COL_EI)
-                dv(IK, j) = dv(IK, j) + z(IQ)/(d*d)
+                dv(IK, j) = dv(IK, j) + fei
             case (COL_C)
-                dv(IK, j) = dv(IK, j) + 3.0_dp*z(IK)**2*z(IQ)/(d*d)
+                dv(IK, j) = dv(IK, j) + fc
             case (COL_A)
-                dv(IQ, j) = dv(IQ, j) - z(IK)*z(IN)
+                dv(IQ, j) = dv(IQ, j) + fa
             end select
         end do
-    end function rhs_var
+    end subroutine rhs_var
 
     ! -------------------------------------------------------------- integration
 
@@ -268,8 +273,7 @@ contains
         real(dp) :: ei, c, a, length, s, h, hnew, err, sc(NZ)
         real(dp) :: k1(NZ), k2(NZ), k3(NZ), k4(NZ), k5(NZ), k6(NZ), k7(NZ)
         real(dp) :: z2(NZ), z3(NZ), z4(NZ), z5(NZ), z6(NZ), znew(NZ), zerr(NZ)
-        real(dp), allocatable :: w1(:, :), w2(:, :), w3(:, :), w4(:, :), w5(:, :), &
-                                 w6(:, :), vs(:, :)
+        real(dp), dimension(NZ, size(v, 2)) :: w1, w2, w3, w4, w5, w6, vs
         integer :: ncol, next_station, nreject
         logical :: last, land, softening_lost
 
@@ -278,8 +282,6 @@ contains
         a = prob%chain%axial_coupling
         length = prob%chain%length(beam)
         ncol = size(v, 2)
-        allocate (w1(NZ, ncol), w2(NZ, ncol), w3(NZ, ncol), w4(NZ, ncol), w5(NZ, ncol), &
-                  w6(NZ, ncol), vs(NZ, ncol))
         ! error weights: lengths scale with the arm, forces with EI/L^2
         sc = [prob%total_length, prob%total_length, 1.0_dp, 1.0_dp/prob%total_length, &
               prob%force_scale, prob%force_scale]
@@ -346,17 +348,17 @@ contains
             end if
             ! accepted: advance the variational columns with the same stages
             if (ncol > 0) then
-                w1 = rhs_var(z, k1, v, colkind, ei, c, a)
-                vs = v + h*a21*w1
-                w2 = rhs_var(z2, k2, vs, colkind, ei, c, a)
+                call rhs_var(z, k1, ncol, v, colkind, ei, c, a, w1)
+                vs = v + (h*a21)*w1
+                call rhs_var(z2, k2, ncol, vs, colkind, ei, c, a, w2)
                 vs = v + h*(a31*w1 + a32*w2)
-                w3 = rhs_var(z3, k3, vs, colkind, ei, c, a)
+                call rhs_var(z3, k3, ncol, vs, colkind, ei, c, a, w3)
                 vs = v + h*(a41*w1 + a42*w2 + a43*w3)
-                w4 = rhs_var(z4, k4, vs, colkind, ei, c, a)
+                call rhs_var(z4, k4, ncol, vs, colkind, ei, c, a, w4)
                 vs = v + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
-                w5 = rhs_var(z5, k5, vs, colkind, ei, c, a)
+                call rhs_var(z5, k5, ncol, vs, colkind, ei, c, a, w5)
                 vs = v + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
-                w6 = rhs_var(z6, k6, vs, colkind, ei, c, a)
+                call rhs_var(z6, k6, ncol, vs, colkind, ei, c, a, w6)
                 v = v + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
             end if
             z = znew
