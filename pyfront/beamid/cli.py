@@ -38,6 +38,18 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return demo(Path(args.out))
 
 
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    from .fit_decks import read_fit_deck, run_fit_deck
+
+    deck = read_fit_deck(args.deck)
+    if args.command != deck.task and args.command != "fit":
+        deck = type(deck)(**{**deck.__dict__, "task": args.command})
+    text, files, _ = run_fit_deck(deck, plots=not args.no_plots)
+    print(text)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="beamid",
@@ -52,6 +64,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="reproduce the tables and draw the demo figures")
     p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
     p.set_defaults(func=_cmd_demo)
+    for name, text in (("fit", "estimate parameters from a measurement deck (task from the deck)"),
+                       ("compare", "fit, then measured against model with residual tests"),
+                       ("diagnose", "fit, then rank the candidate missing effects"),
+                       ("improve", "fit, diagnose and add effects until none is significant")):
+        p = sub.add_parser(name, help=text)
+        p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
+        p.add_argument("--no-plots", action="store_true", help="write CSV files only")
+        p.set_defaults(func=_cmd_estimate)
     return parser
 
 
