@@ -101,13 +101,8 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        open (newunit=unit, file=prefix//'_summary.csv', status='replace', action='write', &
-              iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_summary.csv')
-            return
-        end if
-        write (unit, '(a)', iostat=ios) 'quantity,value'
+        call open_output(prefix//'_summary.csv', 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
         do i = 1, NOUT
             if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(output_names(i)), &
                 sol%outputs(i)
@@ -126,13 +121,8 @@ contains
         if (st%code /= STATUS_OK) return
 
         if (n < 2) return
-        open (newunit=unit, file=prefix//'_shape.csv', status='replace', action='write', &
-              iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_shape.csv')
-            return
-        end if
-        write (unit, '(a)', iostat=ios) 's,x,y,psi,moment'
+        call open_output(prefix//'_shape.csv', 's,x,y,psi,moment', unit, ios, st)
+        if (st%code /= STATUS_OK) return
         do i = 1, n
             if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) &
                 s(i), x(i), y(i), psi(i), moment(i)
@@ -171,13 +161,8 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        open (newunit=unit, file=prefix//'_summary.csv', status='replace', action='write', &
-              iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_summary.csv')
-            return
-        end if
-        write (unit, '(a)', iostat=ios) 'quantity,value'
+        call open_output(prefix//'_summary.csv', 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
         values = [nodes(4, nnode), nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), &
                   nodes(3, 1), energy, total + nodes(2, nnode), nodes(4, nnode)]
         do i = 1, size(names)
@@ -188,13 +173,8 @@ contains
         if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', info(2)
         call close_checked(unit, ios, prefix//'_summary.csv', st)
         if (st%code /= STATUS_OK) return
-        open (newunit=unit, file=prefix//'_nodes.csv', status='replace', action='write', &
-              iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_nodes.csv')
-            return
-        end if
-        write (unit, '(a)', iostat=ios) 's,u,du,w,dw'
+        call open_output(prefix//'_nodes.csv', 's,u,du,w,dw', unit, ios, st)
+        if (st%code /= STATUS_OK) return
         do i = 1, nnode
             if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) nodes(:, i)
         end do
@@ -226,13 +206,8 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        open (newunit=unit, file=prefix//'_modes.csv', status='replace', action='write', &
-              iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//prefix//'_modes.csv')
-            return
-        end if
-        write (unit, '(a)', iostat=ios) 'quantity,value'
+        call open_output(prefix//'_modes.csv', 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
         nw = 0
         nu = 0
         do i = 1, nfree
@@ -266,6 +241,19 @@ contains
         if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_IO, 'beamid-batch', &
             'cannot create the output folder '//prefix(:slash - 1))
     end subroutine make_parent_folder
+
+    !> Open an output file for writing and write its header line.
+    subroutine open_output(name, header, unit, ios, st)
+        character(len=*), intent(in) :: name, header
+        integer, intent(out) :: unit, ios
+        type(status_t), intent(inout) :: st
+        open (newunit=unit, file=name, status='replace', action='write', iostat=ios)
+        if (ios /= 0) then
+            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//name)
+            return
+        end if
+        write (unit, '(a)', iostat=ios) header
+    end subroutine open_output
 
     !> Close a written file; delete it when any write failed.
     subroutine close_checked(unit, ios, name, st)
