@@ -46,14 +46,19 @@ class Check:
         return "DEVIATION (documented)" if self.deviation else "FAIL"
 
 
-def seed_deck_dir() -> Path:
-    """Folder of the bundled published-table decks."""
+def inputs_dir(sub: str) -> Path:
+    """A folder of the bundled inputs: ``seed`` (published tables) or ``demo``."""
     # a source checkout (also an editable install) has the decks beside the package
-    source = Path(__file__).resolve().parents[2] / "inputs" / "seed"
+    source = Path(__file__).resolve().parents[2] / "inputs" / sub
     if source.is_dir():
         return source
     # an installed copy ships them as package data
-    return Path(str(resources.files("beamid") / "data" / "inputs" / "seed"))
+    return Path(str(resources.files("beamid") / "data" / "inputs" / sub))
+
+
+def seed_deck_dir() -> Path:
+    """Folder of the bundled published-table decks."""
+    return inputs_dir("seed")
 
 
 def seed_decks(tables: Iterable[str] = ()) -> list[Deck]:
