@@ -24,7 +24,9 @@ PAGES = [p for p in DOCS if _python_blocks(p)]
 
 @pytest.mark.parametrize("path", PAGES, ids=[p.name for p in PAGES])
 def test_python_examples_run(path, tmp_path, monkeypatch):
-    # the blocks of a page build on each other, as a reader types them in order
+    # the blocks of a page build on each other, as a reader types them in order,
+    # from the top of a checkout (paths like inputs/demo/... are relative to it)
+    (tmp_path / "inputs").symlink_to(ROOT / "inputs")
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": "__doc_example__"}
     for index, code in enumerate(_python_blocks(path)):

@@ -12,13 +12,18 @@ from .errors import BeamidError, ConvergenceError, InputError
 def _cmd_run(args: argparse.Namespace) -> int:
     from .decks import read_deck, run
 
+    from .static import StaticResult
+
     deck = read_deck(args.deck)
     result = run(deck)
     prefix = deck.output_prefix
-    print(f"{args.deck}: tip ({result.tip_x:.6f}, {result.tip_y:.6f}) m, angle "
-          f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
-    print(f"wrote {prefix}_summary.csv" + (f" and {prefix}_shape.csv"
-                                             if deck.shape_points >= 2 else ""))
+    if isinstance(result, StaticResult):
+        print(f"{args.deck}: tip ({result.tip_x:.6f}, {result.tip_y:.6f}) m, angle "
+              f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
+        print(f"wrote {prefix}_summary.csv" + (f" and {prefix}_shape.csv"
+                                                 if deck.shape_points >= 2 else ""))
+    else:
+        print(f"{args.deck}: task {deck.task} done; wrote {prefix}_*.csv")
     return 0
 
 

@@ -33,6 +33,8 @@ GROUPS = {
     "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
 }
 TASKS = ("static", "fe_static", "fe_modes")
+#: tasks of estimation decks (&experiment, &fit groups), read by beamid.fit_decks
+ESTIMATION_TASKS = ("fit", "compare", "diagnose", "improve")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
@@ -94,8 +96,11 @@ def _number(path: Path, group: str, name: str, value: Any) -> float:
     return float(value)
 
 
-def read_deck(path: str | os.PathLike) -> Deck:
-    """Read and validate a deck; raise InputError naming the file and field."""
+def read_deck(path: str | os.PathLike):
+    """Read and validate a deck; raise InputError naming the file and field.
+
+    Estimation decks (tasks fit, compare, diagnose, improve) are returned as
+    :class:`beamid.fit_decks.FitDeck`; the others as :class:`Deck`."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"cannot open {path}: no such file")
@@ -104,6 +109,11 @@ def read_deck(path: str | os.PathLike) -> Deck:
         nml = parser.read(str(path))
     except Exception as exc:  # f90nml raises several types for syntax errors
         raise InputError(f"{path}: not a valid namelist deck: {exc}") from None
+    head_group = nml.get("beamid")
+    if isinstance(head_group, dict) and str(head_group.get("task", "")) in ESTIMATION_TASKS:
+        from .fit_decks import read_fit_deck
+
+        return read_fit_deck(path)
     groups: dict[str, list[dict]] = {}
     for name, group in nml.items():
         if name not in GROUPS:
@@ -340,12 +350,19 @@ def _csv_number(x: float) -> str:
     return f"{x:.16E}"
 
 
-def run(deck: Deck | str | os.PathLike) -> StaticResult:
-    """Run a deck as ``beamid-batch`` does and write the same CSV files:
-    ``<output>_summary.csv`` (outputs and sensitivities) and ``<output>_shape.csv``.
+def run(deck: Deck | str | os.PathLike):
+    """Run a deck as ``beamid-batch`` does and write the same CSV files.
+
+    Static decks write ``<output>_summary.csv`` (outputs and sensitivities) and
+    ``<output>_shape.csv``; finite element and estimation decks the files listed in
+    docs/decks.md. Returns the result object of the task.
     """
     if not isinstance(deck, Deck):
         deck = read_deck(deck)
+    if deck.task in ESTIMATION_TASKS:
+        from .fit_decks import run_fit_deck
+
+        return run_fit_deck(deck)[2]
     if deck.task.startswith("fe_"):
         return _run_fe(deck)
     result = solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)
