@@ -1,0 +1,454 @@
+!> Measurement tables for the estimation decks (docs/decks.md, "Estimation decks").
+!!
+!! A table is a CSV file: `#` comments and blank lines, the header
+!! `experiment,t,quantity,value,sigma`, then one row per measurement. Every
+!! row is validated with the rules and messages of the Python reader
+!! (`pyfront/beamid/measurements.py`), so both name the same file, line and
+!! field: wrong field count, empty experiment, non-numeric or non-finite t,
+!! value or sigma, unknown quantity, sigma <= 0, t < 0, duplicate rows, and
+!! (check_experiments) an experiment the deck does not define.
+!!
+!! Library code: no printing, no STOP; errors come back in a status_t with
+!! ERR_INPUT (bad content) or ERR_IO (file cannot be opened or read).
+module beamid_measurements
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, fmt_int
+    use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE
+    implicit none
+    private
+
+    public :: measurements_t, read_measurements, check_experiments, check_static_rows, fmt_g
+
+    character(len=*), parameter :: HEADER = 'experiment,t,quantity,value,sigma'
+
+    !> A validated table, one entry per row in file order.
+    type :: measurements_t
+        character(len=:), allocatable :: source         !< file name (for messages)
+        character(len=:), allocatable :: experiment(:)  !< experiment name of each row
+        real(dp), allocatable :: t(:)                   !< time (0 for static experiments)
+        integer, allocatable :: quantity(:)             !< quantity code (Q_* of beamid_static_experiments)
+        real(dp), allocatable :: value(:)
+        real(dp), allocatable :: sigma(:)               !< standard deviation, > 0
+        integer, allocatable :: line(:)                 !< source line of each row
+    end type measurements_t
+
+contains
+
+    !> Read and validate a measurement CSV file.
+    subroutine read_measurements(path, data, stat)
+        character(len=*), intent(in) :: path
+        type(measurements_t), intent(out) :: data
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: lines(:), line, where, field
+        integer :: unit, ios, nlines, maxlen, i, k, nrow, nf, first
+        integer, allocatable :: comma(:)
+        character(len=512) :: msg
+        logical :: exists, header_seen
+
+        data%source = path
+        inquire (file=path, exist=exists)
+        if (.not. exists) then
+            call set_status(stat, ERR_IO, 'cannot open measurement file '//path, 'no such file')
+            return
+        end if
+        open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+            call set_status(stat, ERR_IO, 'cannot read measurement file '//path, trim(msg))
+            return
+        end if
+        ! two passes: count the lines and their longest length, then keep them
+        nlines = 0
+        maxlen = 1
+        do
+            call read_line(unit, line, ios)
+            if (ios /= 0) exit
+            nlines = nlines + 1
+            maxlen = max(maxlen, len(line))
+        end do
+        allocate (character(len=maxlen) :: lines(nlines))
+        rewind (unit)
+        do i = 1, nlines
+            call read_line(unit, line, ios)
+            if (ios /= 0) exit
+            lines(i) = line
+        end do
+        close (unit)
+        if (ios > 0) then
+            call set_status(stat, ERR_IO, 'cannot read measurement file '//path, 'read error')
+            return
+        end if
+
+        ! pass 1: syntax of every line (as read_measurements in Python)
+        allocate (character(len=maxlen) :: data%experiment(nlines))
+        allocate (data%t(nlines), data%quantity(nlines), data%value(nlines), &
+                  data%sigma(nlines), data%line(nlines))
+        header_seen = .false.
+        nrow = 0
+        do i = 1, nlines
+            line = clean(lines(i))
+            if (len(line) == 0) cycle
+            where = path//', line '//fmt_int(i)
+            call split(line, comma)
+            nf = size(comma) + 1
+            if (.not. header_seen) then
+                if (nf /= 5 .or. .not. header_matches(line, comma)) then
+                    call set_status(stat, ERR_INPUT, where, 'expected the header '//HEADER// &
+                                    ', got '//quote(line))
+                    return
+                end if
+                header_seen = .true.
+                cycle
+            end if
+            if (nf /= 5) then
+                call set_status(stat, ERR_INPUT, where, 'expected 5 fields ('//HEADER// &
+                                '), got '//fmt_int(nf))
+                return
+            end if
+            nrow = nrow + 1
+            field = field_of(line, comma, 1)
+            if (len(field) == 0) then
+                call set_status(stat, ERR_INPUT, where, 'field experiment is empty')
+                return
+            end if
+            data%experiment(nrow) = field
+            data%line(nrow) = i
+            call parse_number(field_of(line, comma, 2), where, 't', data%t(nrow), stat)
+            if (stat%code /= STATUS_OK) return
+            field = field_of(line, comma, 3)
+            data%quantity(nrow) = quantity_code(field)
+            if (data%quantity(nrow) == 0 .or. len(field) == 0) then
+                call set_status(stat, ERR_INPUT, where, 'field quantity = '//quote(field)// &
+                                ', expected one of '//quantity_list())
+                return
+            end if
+            call parse_number(field_of(line, comma, 4), where, 'value', data%value(nrow), stat)
+            if (stat%code /= STATUS_OK) return
+            call parse_number(field_of(line, comma, 5), where, 'sigma', data%sigma(nrow), stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+        if (.not. header_seen) then
+            call set_status(stat, ERR_INPUT, path, 'no header line '//HEADER//' found')
+            return
+        end if
+        if (nrow == 0) then
+            call set_status(stat, ERR_INPUT, path, 'no measurement rows after the header')
+            return
+        end if
+        data%experiment = data%experiment(:nrow)
+        data%t = data%t(:nrow)
+        data%quantity = data%quantity(:nrow)
+        data%value = data%value(:nrow)
+        data%sigma = data%sigma(:nrow)
+        data%line = data%line(:nrow)
+
+        ! pass 2: values of every row (as Measurements.__post_init__)
+        do i = 1, nrow
+            where = path//', line '//fmt_int(data%line(i))
+            if (.not. data%sigma(i) > 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'field sigma = '//fmt_g(data%sigma(i))// &
+                                ', expected sigma > 0 (the standard deviation of the row)')
+                return
+            end if
+            if (data%t(i) < 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'field t = '//fmt_g(data%t(i))// &
+                                ', expected t >= 0')
+                return
+            end if
+            first = 0
+            do k = 1, i - 1
+                if (data%experiment(k) == data%experiment(i) .and. data%t(k) == data%t(i) .and. &
+                    data%quantity(k) == data%quantity(i)) then
+                    first = k
+                    exit
+                end if
+            end do
+            if (first > 0) then
+                call set_status(stat, ERR_INPUT, where, 'duplicate row: experiment '// &
+                                quote(trim(data%experiment(i)))//', t = '//fmt_g(data%t(i))// &
+                                ', quantity '//quote(quantity_label(data%quantity(i)))// &
+                                ' already given ('//path//', line '// &
+                                fmt_int(data%line(first))//')')
+                return
+            end if
+        end do
+    end subroutine read_measurements
+
+    !> Error for a row whose experiment is not among `names`.
+    pure subroutine check_experiments(data, names, stat)
+        type(measurements_t), intent(in) :: data
+        character(len=*), intent(in) :: names(:)
+        type(status_t), intent(inout) :: stat
+        integer :: i, k
+        character(len=:), allocatable :: known
+        do i = 1, size(data%experiment)
+            if (any(names == data%experiment(i))) cycle
+            known = ''
+            do k = 1, size(names)
+                if (k > 1) known = known//', '
+                known = known//trim(names(k))
+            end do
+            if (size(names) == 0) known = 'none'
+            call set_status(stat, ERR_INPUT, data%source//', line '//fmt_int(data%line(i)), &
+                            'field experiment = '//quote(trim(data%experiment(i)))// &
+                            ' is not defined (experiments: '//known//')')
+            return
+        end do
+    end subroutine check_experiments
+
+    !> Rows of static experiments: t must be 0, and wire_force needs a wire
+    !! (the checks of beamid.estimation.build_problem). `row_exp` gives each
+    !! row's experiment index into names/is_wire.
+    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat)
+        type(measurements_t), intent(in) :: data
+        character(len=*), intent(in) :: names(:)
+        logical, intent(in) :: is_wire(:)
+        integer, allocatable, intent(out) :: row_exp(:)
+        type(status_t), intent(inout) :: stat
+        integer :: i, e
+        character(len=:), allocatable :: where
+        allocate (row_exp(size(data%experiment)))
+        row_exp = 0
+        call check_experiments(data, names, stat)
+        if (stat%code /= STATUS_OK) return
+        do i = 1, size(data%experiment)
+            where = data%source//', line '//fmt_int(data%line(i))
+            do e = 1, size(names)
+                if (names(e) == data%experiment(i)) row_exp(i) = e
+            end do
+            if (data%t(i) /= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'field t = '//fmt_g(data%t(i))// &
+                                ', expected 0 for the static experiment '// &
+                                quote(trim(data%experiment(i))))
+                return
+            end if
+            if (data%quantity(i) == Q_WIRE_FORCE .and. .not. is_wire(row_exp(i))) then
+                call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', but "// &
+                                'experiment '//quote(trim(data%experiment(i)))//' has no wire')
+                return
+            end if
+        end do
+    end subroutine check_static_rows
+
+    !> Python's format(x, 'g'): six significant digits, trailing zeros dropped.
+    pure function fmt_g(x) result(text)
+        real(dp), intent(in) :: x
+        character(len=:), allocatable :: text
+        character(len=40) :: buffer
+        integer :: e, epos
+        if (ieee_is_nan(x)) then
+            text = 'nan'
+            return
+        else if (.not. ieee_is_finite(x)) then
+            text = merge('inf ', '-inf', x > 0.0_dp)
+            text = trim(text)
+            return
+        else if (x == 0.0_dp) then
+            text = merge('0 ', '-0', sign(1.0_dp, x) > 0.0_dp)
+            text = trim(text)
+            return
+        end if
+        write (buffer, '(es14.5e3)') x
+        epos = index(buffer, 'E')
+        read (buffer(epos + 1:), *) e
+        if (e >= -4 .and. e < 6) then
+            write (buffer, '(f0.'//fmt_int(5 - e)//')') x
+            text = strip_zeros(trim(adjustl(buffer)))
+            if (text(1:1) == '.') text = '0'//text
+            if (text(1:2) == '-.') text = '-0'//text(2:)
+        else
+            text = strip_zeros(trim(adjustl(buffer(:epos - 1))))
+            if (abs(e) < 10) then
+                text = text//'e'//merge('+', '-', e >= 0)//'0'//fmt_int(abs(e))
+            else
+                text = text//'e'//merge('+', '-', e >= 0)//fmt_int(abs(e))
+            end if
+        end if
+    contains
+        pure function strip_zeros(s) result(r)
+            character(len=*), intent(in) :: s
+            character(len=:), allocatable :: r
+            integer :: n
+            r = s
+            if (index(r, '.') == 0) return
+            n = len(r)
+            do while (r(n:n) == '0')
+                n = n - 1
+            end do
+            if (r(n:n) == '.') n = n - 1
+            r = r(:n)
+        end function strip_zeros
+    end function fmt_g
+
+    ! ------------------------------------------------------------------ helpers
+
+    !> One line of any length (ios < 0 at the end of the file).
+    subroutine read_line(unit, line, ios)
+        integer, intent(in) :: unit
+        character(len=:), allocatable, intent(out) :: line
+        integer, intent(out) :: ios
+        character(len=256) :: chunk
+        integer :: nread
+        line = ''
+        do
+            read (unit, '(a)', advance='no', iostat=ios, size=nread) chunk
+            line = line//chunk(:nread)
+            if (ios /= 0) exit
+        end do
+        if (is_iostat_eor(ios)) ios = 0
+    end subroutine read_line
+
+    !> Text before any `#`, tabs and carriage returns as blanks, trimmed.
+    pure function clean(raw) result(line)
+        character(len=*), intent(in) :: raw
+        character(len=:), allocatable :: line
+        integer :: i, h
+        line = raw
+        h = index(line, '#')
+        if (h > 0) line = line(:h - 1)
+        do i = 1, len(line)
+            if (line(i:i) == achar(9) .or. line(i:i) == achar(13)) line(i:i) = ' '
+        end do
+        line = trim(adjustl(line))
+    end function clean
+
+    !> Positions of the commas of a line.
+    pure subroutine split(line, comma)
+        character(len=*), intent(in) :: line
+        integer, allocatable, intent(out) :: comma(:)
+        integer :: i
+        allocate (comma(0))
+        do i = 1, len(line)
+            if (line(i:i) == ',') comma = [comma, i]
+        end do
+    end subroutine split
+
+    !> Field k (1-based) of a line split at `comma`, blanks stripped.
+    pure function field_of(line, comma, k) result(field)
+        character(len=*), intent(in) :: line
+        integer, intent(in) :: comma(:), k
+        character(len=:), allocatable :: field
+        integer :: a, b
+        a = 1
+        if (k > 1) a = comma(k - 1) + 1
+        b = len(line)
+        if (k <= size(comma)) b = comma(k) - 1
+        field = trim(adjustl(line(a:b)))
+    end function field_of
+
+    pure logical function header_matches(line, comma)
+        character(len=*), intent(in) :: line
+        integer, intent(in) :: comma(:)
+        character(len=*), parameter :: names(5) = [character(len=10) :: 'experiment', 't', &
+                                                   'quantity', 'value', 'sigma']
+        integer :: k
+        header_matches = .true.
+        do k = 1, 5
+            if (lower(field_of(line, comma, k)) /= trim(names(k))) header_matches = .false.
+        end do
+    end function header_matches
+
+    !> A decimal number as Python's float() reads it (sign, digits with an
+    !! optional point, optional exponent); inf and nan are numbers but not
+    !! finite ones.
+    subroutine parse_number(text, where, name, value, stat)
+        character(len=*), intent(in) :: text, where, name
+        real(dp), intent(out) :: value
+        type(status_t), intent(inout) :: stat
+        integer :: ios
+        character(len=:), allocatable :: body
+        value = 0.0_dp
+        body = lower(text)
+        if (len(body) > 0) then
+            if (body(1:1) == '+' .or. body(1:1) == '-') body = body(2:)
+        end if
+        if (body == 'inf' .or. body == 'infinity' .or. body == 'nan') then
+            call set_status(stat, ERR_INPUT, where, 'field '//name//' = '//quote(text)// &
+                            ', expected a finite number')
+            return
+        end if
+        if (.not. decimal_syntax(text)) then
+            call set_status(stat, ERR_INPUT, where, 'field '//name//' = '//quote(text)// &
+                            ', expected a number')
+            return
+        end if
+        read (text, *, iostat=ios) value
+        if (ios /= 0 .or. .not. ieee_is_finite(value)) then
+            call set_status(stat, ERR_INPUT, where, 'field '//name//' = '//quote(text)// &
+                            ', expected a finite number')
+        end if
+    end subroutine parse_number
+
+    !> [+-] digits [. digits] [(e|E) [+-] digits], with at least one mantissa digit.
+    pure logical function decimal_syntax(text)
+        character(len=*), intent(in) :: text
+        integer :: i, n, digits
+        decimal_syntax = .false.
+        n = len(text)
+        i = 1
+        if (n == 0) return
+        if (text(1:1) == '+' .or. text(1:1) == '-') i = 2
+        digits = 0
+        do while (i <= n)
+            if (.not. is_digit(text(i:i))) exit
+            digits = digits + 1
+            i = i + 1
+        end do
+        if (i <= n) then
+            if (text(i:i) == '.') then
+                i = i + 1
+                do while (i <= n)
+                    if (.not. is_digit(text(i:i))) exit
+                    digits = digits + 1
+                    i = i + 1
+                end do
+            end if
+        end if
+        if (digits == 0) return
+        if (i <= n) then
+            if (text(i:i) /= 'e' .and. text(i:i) /= 'E') return
+            i = i + 1
+            if (i <= n) then
+                if (text(i:i) == '+' .or. text(i:i) == '-') i = i + 1
+            end if
+            if (i > n) return
+            do while (i <= n)
+                if (.not. is_digit(text(i:i))) return
+                i = i + 1
+            end do
+        end if
+        decimal_syntax = .true.
+    end function decimal_syntax
+
+    pure logical function is_digit(c)
+        character, intent(in) :: c
+        is_digit = c >= '0' .and. c <= '9'
+    end function is_digit
+
+    !> Python's repr of a plain string: 'text'.
+    pure function quote(text) result(q)
+        character(len=*), intent(in) :: text
+        character(len=:), allocatable :: q
+        q = "'"//text//"'"
+    end function quote
+
+    pure function quantity_list() result(text)
+        character(len=:), allocatable :: text
+        integer :: k
+        text = quantity_label(1)
+        do k = 2, NQUANT
+            text = text//', '//quantity_label(k)
+        end do
+    end function quantity_list
+
+    pure function lower(text) result(out)
+        character(len=*), intent(in) :: text
+        character(len=len(text)) :: out
+        integer :: i, code
+        out = text
+        do i = 1, len(text)
+            code = iachar(text(i:i))
+            if (code >= iachar('A') .and. code <= iachar('Z')) out(i:i) = achar(code + 32)
+        end do
+    end function lower
+end module beamid_measurements
