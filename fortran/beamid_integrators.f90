@@ -38,8 +38,8 @@ module beamid_integrators
     type :: integ_opts_t
         integer :: method = METHOD_IMPLICIT
         real(dp) :: dt = 1.0e-5_dp       !< RK4 step (s)
-        real(dp) :: rtol = 1.0e-8_dp     !< implicit: relative tolerance
-        real(dp) :: atol = 1.0e-8_dp     !< implicit: absolute tolerance (m, rad, m/s)
+        real(dp) :: rtol = 1.0e-7_dp     !< implicit: relative tolerance
+        real(dp) :: atol = 1.0e-7_dp     !< implicit: absolute tolerance (m, rad, m/s)
         real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
         integer :: max_steps = 50000000
     end type integ_opts_t
@@ -446,14 +446,16 @@ contains
         real(dp), parameter :: SAFE = 0.9_dp, FACL = 5.0_dp, FACR = 0.125_dp
         type(radau_t) :: it
         real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, faccon, dnorm, dold
-        real(dp) :: fac, quot, hnew, hprev, torque, fnewt, tiny_h
+        real(dp) :: fac, quot, hnew, hprev, torque, fnewt, tiny_h, theta_last
         complex(dp) :: mu, tm(3, 3), ti(3, 3)
         real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), g(:, :), f0(:), &
                                  e0(:), ev(:), scal(:), w1(:), dz(:, :), work(:), pw(:, :), &
                                  ytmp(:)
         complex(dp), allocatable :: w2(:)
         integer :: nn, kout, i, newt, nt
-        logical :: first, reject, converged, clipped, have_prev, jac_fresh
+        logical :: first, reject, converged, clipped, have_prev, jac_fresh, refactor
+        logical :: jac_fresh_here, jac_at_y
+        real(dp), parameter :: THET = 1.0e-3_dp
         type(status_t) :: inner
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
@@ -471,6 +473,8 @@ contains
         reject = .false.
         have_prev = .false.
         jac_fresh = .false.
+        jac_at_y = .false.
+        it%h = -1.0_dp
         faccon = 1.0_dp
         fnewt = 0.03_dp
         kout = 1
@@ -503,13 +507,22 @@ contains
             ! by the L-stable scheme instead of being resolved.
             scal = opts%atol + opts%rtol*abs(y)
             scal(sys%n + 1:2*sys%n) = scal(sys%n + 1:2*sys%n)/hh
+            ! Jacobian reused while Newton converges fast (theta <= THET), and the
+            ! factorization while the step size is unchanged (Hairer's RADAU5 rule)
+            refactor = hh /= it%h
+            jac_fresh_here = .not. jac_fresh .or. jac_at_y
             if (.not. jac_fresh) then
                 call radau_jacobian(sys, y, it)
                 stats%jevals = stats%jevals + 1
                 jac_fresh = .true.
+                jac_at_y = .true.
+                jac_fresh_here = .true.
+                refactor = .true.
             end if
-            call radau_factor(sys, it, hh, gam, mu, stat)
-            if (stat%code /= 0) return
+            if (refactor) then
+                call radau_factor(sys, it, hh, gam, mu, stat)
+                if (stat%code /= 0) return
+            end if
             ! starting values: the last collocation polynomial, extrapolated
             if (have_prev) then
                 do i = 1, 3
@@ -530,6 +543,7 @@ contains
             faccon = max(faccon, epsilon(1.0_dp))**0.8_dp
             dold = 0.0_dp
             dnorm = 0.0_dp
+            theta_last = 0.0_dp
             inner = status_t()
             do newt = 1, NIT
                 do i = 1, 3
@@ -552,6 +566,7 @@ contains
                 if (.not. ieee_is_finite(dnorm)) exit
                 if (newt > 1) then
                     theta = dnorm/dold
+                    theta_last = theta
                     if (theta >= 0.99_dp) exit
                     faccon = theta/(1.0_dp - theta)
                 end if
@@ -565,6 +580,11 @@ contains
             end do
             if (.not. converged) then
                 ! fresh Jacobian at the same point, half the step
+                if (.not. jac_fresh_here) then
+                    jac_fresh = .false.
+                    it%h = -1.0_dp
+                    cycle
+                end if
                 stats%rejected = stats%rejected + 1
                 h = 0.5_dp*hh
                 reject = .true.
@@ -606,7 +626,10 @@ contains
                 zprev = z
                 hprev = hh
                 have_prev = .true.
-                jac_fresh = .false.
+                jac_fresh = theta_last <= THET
+                jac_at_y = .false.
+                ! keep the step (and the factorization) when the change is small
+                if (hnew/hh >= 1.0_dp .and. hnew/hh <= 1.2_dp .and. .not. clipped) hnew = hh
                 stats%steps = stats%steps + 1
                 first = .false.
                 if (reject) hnew = min(hnew, hh)

@@ -41,7 +41,7 @@ FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
 #: Integrators and their codes.
 INTEGRATORS = {"rk4": 0, "implicit": 1}
 #: Default relative (and absolute) tolerance of the implicit integrator.
-DEFAULT_RTOL = 1.0e-8
+DEFAULT_RTOL = 1.0e-7
 #: Default RK4 step (s): the dissertation's (Section 4.1.4).
 DEFAULT_DT = 1.0e-5
 #: Default regularization velocity of the smooth friction law (m/s).
@@ -152,7 +152,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     integrator: ``"implicit"`` (default) or ``"rk4"``.
     motor_gain: gain g of the tip motor, T = -r_motor g Psidot_tip (Eq. 150, 158).
     dt: RK4 step (default 1e-5 s).
-    rtol: implicit tolerance (default 1e-8; absolute tolerance ``atol`` = rtol).
+    rtol: implicit tolerance (default 1e-7; absolute tolerance ``atol`` = rtol).
     friction: ``"sign"``, ``"smooth"`` or ``"sign_literal"`` (default: sign for
         RK4, smooth for implicit).
     friction_velocity: regularization velocity of the smooth law (1e-4 m/s).
