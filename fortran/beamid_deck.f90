@@ -2,9 +2,12 @@
 !!
 !! A deck holds the groups &beamid (task, output, preset, nbeams), &model
 !! (per-beam and per-mass-point arrays and the effect parameters), &load and
-!! &static. Every group and variable is checked: an unknown group, a
-!! misspelt variable, a missing value or a nonphysical one is reported with
-!! the deck's path and the offending name.
+!! &static. Estimation decks (tasks fit, compare, diagnose, improve) hold
+!! &beamid, &model, one &experiment per experiment and &fit, whose data CSV
+!! is read and validated here too (beamid_measurements). Every group and
+!! variable is checked: an unknown group, a misspelt variable, a missing
+!! value or a nonphysical one is reported with the deck's path and the
+!! offending name.
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
@@ -17,15 +20,24 @@ module beamid_deck
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
+    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, NEFFECT
+    use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
     implicit none
     private
 
     public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS
 
     integer, parameter :: NAME_LEN = 32
-    character(len=*), parameter :: KNOWN_GROUPS = ' beamid model load static fe published '
+    character(len=*), parameter :: KNOWN_GROUPS = &
+        ' beamid model load static fe published experiment fit '
     !> Tasks the batch runs.
-    character(len=*), parameter :: KNOWN_TASKS = ' static fe_static fe_modes '
+    character(len=*), parameter :: KNOWN_TASKS = &
+        ' static fe_static fe_modes fit compare diagnose improve '
+    !> Estimation tasks and the groups their decks may hold.
+    character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve '
+    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit '
+    !> Groups that may appear more than once.
+    character(len=*), parameter :: REPEATABLE = ' experiment published '
 
     !> Everything a deck says.
     type :: deck_t
@@ -46,6 +58,18 @@ module beamid_deck
         logical :: fe_point_masses = .true.
         integer :: fe_steps = 0
         real(dp) :: fe_tol = 0.0_dp
+        ! &experiment and &fit (tasks fit, compare, diagnose, improve; docs/decks.md)
+        character(len=:), allocatable :: exp_names(:)   !< experiment names, deck order
+        type(static_load_t), allocatable :: experiments(:)
+        character(len=:), allocatable :: data_path      !< measurement CSV
+        type(measurements_t) :: data
+        integer, allocatable :: row_exp(:)              !< experiment index of each data row
+        integer, allocatable :: free(:)                 !< parameter indices to estimate
+        integer, allocatable :: prior_index(:)          !< a priori (Eq. 142-145)
+        real(dp), allocatable :: prior_mean(:), prior_sigma(:)
+        character(len=NAME_LEN), allocatable :: candidates(:) !< effects for diagnose/improve
+        real(dp) :: alpha = 0.01_dp
+        integer :: max_iter = 50
     end type deck_t
 
 contains
@@ -111,9 +135,10 @@ contains
 
         integer :: unit, ios, i, nb_preset, nw
         character(len=512) :: msg
+        character(len=:), allocatable :: present
         real(dp) :: nan
         real(dp), allocatable :: base(:)
-        logical :: exists
+        logical :: exists, is_fit
 
         deck%path = path
         nan = ieee_value(1.0_dp, ieee_quiet_nan)
@@ -128,7 +153,7 @@ contains
             call set_status(stat, ERR_IO, 'deck', 'cannot open '//trim(path)//': '//trim(msg))
             return
         end if
-        call check_groups(unit, path, stat)
+        call check_groups(unit, path, present, stat)
         if (stat%code /= STATUS_OK) then
             close (unit)
             return
@@ -150,6 +175,25 @@ contains
                             KNOWN_TASKS(:len_trim(KNOWN_TASKS)))
             return
         end if
+        is_fit = index(FIT_TASKS, ' '//trim(task)//' ') > 0
+        ! the groups of the task (check_groups returned those present)
+        do i = 1, len(present)
+            if (present(i:i) /= '&') cycle
+            nw = index(present(i + 1:), ' ')
+            if (is_fit .and. index(FIT_GROUPS, ' '//present(i + 1:i + nw)) == 0) then
+                call deck_error('unknown group &'//present(i + 1:i + nw - 1)// &
+                                ' in an estimation deck, expected one of:'// &
+                                FIT_GROUPS(:len_trim(FIT_GROUPS)))
+                return
+            else if (.not. is_fit .and. index(' experiment fit ', &
+                                              ' '//present(i + 1:i + nw)) > 0) then
+                call deck_error('group &'//present(i + 1:i + nw - 1)//' is only for the '// &
+                                'estimation tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
+                return
+            end if
+        end do
+        ! estimation decks start from the PACE arm unless they name another preset
+        if (is_fit .and. len_trim(preset) == 0) preset = 'pace'
         if (len_trim(output) == 0) then
             call deck_error('&beamid output is missing: give the output path prefix')
             return
@@ -277,6 +321,11 @@ contains
         end block
         if (stat%code /= STATUS_OK) then
             stat%message = trim(path)//': &'//trim(stat%message)
+            close (unit)
+            return
+        end if
+        if (is_fit) then
+            call read_fit_groups(unit, path, deck, stat)
             close (unit)
             return
         end if
@@ -429,15 +478,255 @@ contains
         end subroutine group_error
     end subroutine read_deck
 
-    !> Reject groups whose names beamid does not know (a misspelt group would
-    !! otherwise be skipped silently by the namelist reader).
-    subroutine check_groups(unit, path, stat)
+    !> The groups of an estimation deck after &beamid and &model: every
+    !! &experiment (repeatable, read in turn without rewinding) and &fit, whose
+    !! measurement CSV is read here (the order of checks of the Python reader,
+    !! beamid.fit_decks.read_fit_deck, so both report the same first error).
+    subroutine read_fit_groups(unit, path, deck, stat)
         integer, intent(in) :: unit
         character(len=*), intent(in) :: path
+        type(deck_t), intent(inout) :: deck
+        type(status_t), intent(inout) :: stat
+        integer, parameter :: MAX_CANDIDATES = 4*NEFFECT
+        ! &experiment
+        character(len=256) :: name
+        character(len=NAME_LEN) :: kind
+        real(dp) :: fx, fy, moment, wire_length
+        ! &fit
+        character(len=1024) :: data
+        character(len=NAME_LEN), allocatable :: free(:), prior_names(:), candidates(:)
+        real(dp), allocatable :: prior_means(:), prior_sigmas(:)
+        real(dp) :: alpha
+        integer :: max_iter
+        namelist /experiment/ name, kind, fx, fy, moment, wire_length
+        namelist /fit/ data, free, prior_names, prior_means, prior_sigmas, candidates, alpha, &
+            max_iter
+
+        character(len=256), allocatable :: names(:)
+        character(len=512) :: msg
+        character(len=:), allocatable :: label, free_list
+        type(static_load_t) :: load
+        type(static_load_t), allocatable :: loads(:)
+        integer :: ios, i, k, n, np, nm, ns, maxlen, slash
+        integer, allocatable :: block(:)
+        logical, allocatable :: is_wire(:)
+        real(dp) :: nan
+
+        nan = ieee_value(1.0_dp, ieee_quiet_nan)
+        ! ---- &experiment, one group per experiment
+        allocate (names(0), loads(0))
+        rewind (unit)
+        k = 0
+        do
+            name = ''
+            kind = ''
+            fx = 0.0_dp
+            fy = 0.0_dp
+            moment = 0.0_dp
+            wire_length = nan
+            read (unit, nml=experiment, iostat=ios, iomsg=msg)
+            if (ios < 0) exit
+            k = k + 1
+            if (ios > 0) then
+                call fail('in &experiment number '//fmt_int(k)//': '//trim(msg))
+                return
+            end if
+            if (len_trim(name) == 0) then
+                call fail('&experiment number '//fmt_int(k)//' has no name')
+                return
+            end if
+            label = "&experiment '"//trim(name)//"'"
+            if (any(names == name)) then
+                call fail("&experiment name = '"//trim(name)//"' defined twice")
+                return
+            end if
+            load = static_load_t()
+            select case (trim(kind))
+            case ('tip')
+                if (.not. ieee_is_nan(wire_length)) then
+                    call fail(label//": kind = 'tip' does not take wire_length")
+                    return
+                end if
+                load%kind = LOAD_TIP
+                load%fx = fx
+                load%fy = fy
+                load%moment = moment
+                load%wire_length = 0.0_dp
+            case ('wire')
+                if (ieee_is_nan(wire_length)) then
+                    call fail(label//": kind = 'wire' needs wire_length (m)")
+                    return
+                end if
+                if (fx /= 0.0_dp .or. fy /= 0.0_dp .or. moment /= 0.0_dp) then
+                    call fail(label//": kind = 'wire' does not take fx, fy or moment")
+                    return
+                end if
+                load%kind = LOAD_WIRE
+                load%wire_length = wire_length
+            case default
+                call fail(label//": kind = '"//trim(kind)//"', expected 'tip' or 'wire'")
+                return
+            end select
+            names = [names, name]
+            loads = [loads, load]
+        end do
+        if (size(names) == 0) then
+            call fail('no &experiment groups: define at least one experiment')
+            return
+        end if
+        maxlen = maxval(len_trim(names))
+        allocate (character(len=maxlen) :: deck%exp_names(size(names)))
+        do i = 1, size(names)
+            deck%exp_names(i) = names(i)
+        end do
+        deck%experiments = loads
+        is_wire = loads%kind == LOAD_WIRE
+
+        ! ---- &fit
+        n = param_count(deck%nbeams)
+        allocate (free(n), prior_names(n), prior_means(n), prior_sigmas(n))
+        allocate (candidates(MAX_CANDIDATES))
+        data = ''
+        free = ''
+        prior_names = ''
+        prior_means = nan
+        prior_sigmas = nan
+        candidates = ''
+        alpha = 0.01_dp
+        max_iter = 50
+        rewind (unit)
+        read (unit, nml=fit, iostat=ios, iomsg=msg)
+        if (ios < 0) then
+            call fail('group &fit is missing')
+            return
+        else if (ios > 0) then
+            call fail('in &fit: '//trim(msg))
+            return
+        end if
+        if (len_trim(data) == 0) then
+            call fail('&fit data is missing: give the measurement CSV file')
+            return
+        end if
+        if (data(1:1) == '/') then
+            deck%data_path = trim(data)
+        else
+            slash = index(path, '/', back=.true.)
+            deck%data_path = path(:slash)//trim(data)
+        end if
+        call read_measurements(deck%data_path, deck%data, stat)
+        if (stat%code /= STATUS_OK) return
+        call check_static_rows(deck%data, deck%exp_names, is_wire, deck%row_exp, stat)
+        if (stat%code /= STATUS_OK) return
+
+        deck%free = [integer ::]
+        free_list = ''
+        do i = 1, n
+            if (len_trim(free(i)) == 0) cycle
+            k = param_lookup(deck%nbeams, free(i))
+            if (k == 0) then
+                call fail("&fit free = '"//trim(free(i))//"' is not a parameter name")
+                return
+            end if
+            if (any(deck%free == k)) then
+                call fail("&fit free names parameter '"//param_name(deck%nbeams, k)//"' twice")
+                return
+            end if
+            deck%free = [deck%free, k]
+            if (len(free_list) > 0) free_list = free_list//', '
+            free_list = free_list//param_name(deck%nbeams, k)
+        end do
+        if (size(deck%free) == 0) then
+            call fail('&fit free is missing: name the parameters to estimate')
+            return
+        end if
+
+        np = count(len_trim(prior_names) > 0)
+        nm = count(.not. ieee_is_nan(prior_means))
+        ns = count(.not. ieee_is_nan(prior_sigmas))
+        if (np /= nm .or. np /= ns) then
+            call fail('&fit prior_names, prior_means and prior_sigmas must have equal '// &
+                      'lengths (got '//fmt_int(np)//', '//fmt_int(nm)//', '//fmt_int(ns)//')')
+            return
+        end if
+        allocate (deck%prior_index(np), deck%prior_mean(np), deck%prior_sigma(np))
+        do i = 1, np
+            k = param_lookup(deck%nbeams, prior_names(i))
+            if (k == 0) then
+                call fail("&fit prior_names = '"//trim(prior_names(i))// &
+                          "' is not a parameter name")
+                return
+            end if
+            if (.not. any(deck%free == k)) then
+                call fail("&fit prior_names = '"//trim(prior_names(i))//"' is not free "// &
+                          '(free: '//free_list//')')
+                return
+            end if
+            if (.not. (abs(prior_means(i)) <= huge(1.0_dp) .and. prior_sigmas(i) > 0.0_dp &
+                       .and. prior_sigmas(i) <= huge(1.0_dp))) then
+                call fail("&fit prior for '"//trim(prior_names(i))//"' = ("// &
+                          fmt_g(prior_means(i))//', '//fmt_g(prior_sigmas(i))// &
+                          '), expected a finite mean and sigma > 0')
+                return
+            end if
+            deck%prior_index(i) = k
+            deck%prior_mean(i) = prior_means(i)
+            deck%prior_sigma(i) = prior_sigmas(i)
+        end do
+
+        n = count(len_trim(candidates) > 0)
+        if (n == 0) then
+            deck%candidates = EFFECT_NAMES
+        else
+            deck%candidates = pack(candidates, len_trim(candidates) > 0)
+        end if
+        do i = 1, size(deck%candidates)
+            call static_effect_params(deck%nbeams, deck%candidates(i), block, stat)
+            if (stat%code /= STATUS_OK) then
+                call clear_and_fail("&fit candidates = '"//trim(deck%candidates(i))// &
+                                    "' is not a known effect, expected one of: "// &
+                                    'axial_coupling, material_cubic, elbow_flex, root_flex')
+                return
+            end if
+        end do
+        if (.not. (alpha > 0.0_dp .and. alpha < 1.0_dp)) then
+            call fail('&fit alpha = '//fmt_g(alpha)//', expected a significance level in (0, 1)')
+            return
+        end if
+        if (max_iter < 1) then
+            call fail('&fit max_iter = '//fmt_int(max_iter)//', expected at least 1')
+            return
+        end if
+        deck%alpha = alpha
+        deck%max_iter = max_iter
+
+    contains
+
+        subroutine fail(text)
+            character(len=*), intent(in) :: text
+            call set_status(stat, ERR_DECK, trim(path), text)
+        end subroutine fail
+
+        subroutine clear_and_fail(text)
+            character(len=*), intent(in) :: text
+            stat%code = STATUS_OK
+            call fail(text)
+        end subroutine clear_and_fail
+    end subroutine read_fit_groups
+
+    !> Reject groups whose names beamid does not know (a misspelt group would
+    !! otherwise be skipped silently by the namelist reader).
+    !! `present` lists the groups found, each as '&name ' once; a group
+    !! other than the REPEATABLE ones may appear only once.
+    subroutine check_groups(unit, path, present, stat)
+        integer, intent(in) :: unit
+        character(len=*), intent(in) :: path
+        character(len=:), allocatable, intent(out) :: present
         type(status_t), intent(inout) :: stat
         character(len=1024) :: line
-        character(len=:), allocatable :: name
-        integer :: ios, lineno, k, e
+        character(len=:), allocatable :: name, seen
+        integer :: ios, lineno, k, e, n, at
+        present = ''
+        seen = ' '
         lineno = 0
         do
             read (unit, '(a)', iostat=ios) line
@@ -454,6 +743,29 @@ contains
                 call set_status(stat, ERR_DECK, trim(path), 'line '//fmt_int(lineno)// &
                                 ': unknown group &'//name//', expected one of:'// &
                                 KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
+                return
+            end if
+            seen = seen//name//' '
+            if (index(present, '&'//name//' ') == 0) present = present//'&'//name//' '
+        end do
+        ! repeated groups (the namelist reader would silently take the first)
+        k = 1
+        do while (k < len(present))
+            e = index(present(k + 1:), ' ')
+            name = present(k + 1:k + e - 1)
+            k = k + e + 1
+            if (index(REPEATABLE, ' '//name//' ') > 0) cycle
+            n = 0
+            at = 1
+            do
+                e = index(seen(at:), ' '//name//' ')
+                if (e == 0) exit
+                n = n + 1
+                at = at + e
+            end do
+            if (n > 1) then
+                call set_status(stat, ERR_DECK, trim(path), 'group &'//name//' appears '// &
+                                fmt_int(n)//' times')
                 return
             end if
         end do

@@ -1,5 +1,8 @@
 !> beamid-batch DECK: run a namelist deck without Python.
 !!
+!! Tasks: static, fe_static, fe_modes, and the estimation tasks fit, compare,
+!! diagnose, improve (the same Fortran routines as the Python API, so the
+!! same numbers; docs/decks.md, "Estimation decks").
 !! Exit codes: 0 success, 2 bad deck or input, 3 numerical failure (no
 !! convergence), 4 file error. One line on standard error says what failed.
 !! Output files are written only after the computation succeeded, and a file
@@ -7,14 +10,40 @@
 program beamid_batch
     use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_IO, set_status
+    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
+    use beamid_status, only: status_t, STATUS_OK, ERR_IO, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector, param_name
     use beamid_deck, only: deck_t, read_deck
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, &
                                 static_shape, NOUT
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_api_fe, only: api_fe_static, api_fe_modes
+    use beamid_api_estimation, only: api_fit, api_diagnose
+    use beamid_static_experiments, only: static_effect_params, quantity_label
+    use beamid_measurements, only: fmt_g
     implicit none
+
+    !> One fit: the outputs of api_fit.
+    type :: fit_out_t
+        integer(c_int), allocatable :: free(:), flags(:)
+        real(c_double), allocatable :: params(:), sigmas(:), cov(:, :), pred(:), norm(:)
+        real(c_double) :: stats(8) = 0.0_c_double
+    end type fit_out_t
+
+    !> One diagnosis: the outputs of api_diagnose and the candidate blocks.
+    type :: diag_out_t
+        integer(c_int), allocatable :: start(:), cparams(:), ranking(:)
+        real(c_double), allocatable :: cstats(:, :), pstats(:, :), refit_params(:, :)
+        real(c_double) :: dstats(6) = 0.0_c_double
+    end type diag_out_t
+
+    !> Flag texts of the estimates (beamid.estimation.FLAG_TEXT).
+    character(len=*), parameter :: flag_text(0:4) = [character(len=43) :: 'ok', &
+        'not determined by these data', 'ran away from its start', &
+        'correlation near +-1 with another parameter', 'at a physical bound']
+    !> Candidate states (beamid.diagnosis._STATES).
+    character(len=*), parameter :: state_text(0:3) = [character(len=19) :: 'tested', &
+        'already free', 'already switched on', 'not in this model']
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
         'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
@@ -33,7 +62,10 @@ program beamid_batch
     if (trim(arg) == '-h' .or. trim(arg) == '--help') then
         write (output_unit, '(a)') 'usage: beamid-batch DECK'
         write (output_unit, '(a)') 'Runs a beamid namelist deck (docs/decks.md) and writes '// &
-            '<output>_summary.csv and <output>_shape.csv next to the deck.'
+            '<output>_summary.csv and <output>_shape.csv next to the deck;'
+        write (output_unit, '(a)') 'estimation decks (tasks fit, compare, diagnose, improve) '// &
+            'write <output>_estimates.csv, _covariance.csv, _residuals.csv,'
+        write (output_unit, '(a)') '_ranking.csv (diagnose, improve) and _ladder.csv (improve).'
         stop
     end if
     call read_deck(trim(arg), deck, stat)
@@ -43,6 +75,8 @@ program beamid_batch
             call run_fe_static(deck, stat)
         case ('fe_modes')
             call run_fe_modes(deck, stat)
+        case ('fit', 'compare', 'diagnose', 'improve')
+            call run_estimation(deck, stat)
         case default
             call run_static(deck, stat)
         end select
@@ -223,6 +257,322 @@ contains
         end do
         call close_checked(unit, ios, prefix//'_modes.csv', st)
     end subroutine run_fe_modes
+
+    ! ------------------------------------------------------------ estimation
+
+    !> Estimation decks: fit (and compare: the same files), diagnose, improve.
+    !! Everything is computed first; the files are written after success.
+    subroutine run_estimation(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        type(fit_out_t) :: fo
+        type(diag_out_t) :: dg
+        character(len=:), allocatable :: prefix
+        character(len=32), allocatable :: step_effect(:)
+        real(dp), allocatable :: step_chi2(:), step_cpd(:), start(:)
+        integer, allocatable :: step_dof(:)
+        character(len=32) :: effect
+        integer :: k, v, unit, ios
+
+        call estimation_fit(d, d%params, d%free, fo, st)
+        if (st%code /= STATUS_OK) return
+        if (d%task == 'diagnose') then
+            call estimation_diagnose(d, fo, dg, st)
+            if (st%code /= STATUS_OK) return
+        else if (d%task == 'improve') then
+            ! fit, then diagnose and add the verdict's effect until none is
+            ! significant (beamid.diagnosis.improve)
+            allocate (step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
+            effect = 'start'
+            do k = 0, size(d%candidates)
+                call estimation_diagnose(d, fo, dg, st)
+                if (st%code /= STATUS_OK) return
+                step_effect = [step_effect, effect]
+                step_chi2 = [step_chi2, real(fo%stats(1), dp)]
+                step_dof = [step_dof, nint(fo%stats(4))]
+                step_cpd = [step_cpd, chi2_per_dof(fo)]
+                v = nint(dg%dstats(1))
+                if (v == 0 .or. k == size(d%candidates)) exit
+                start = fo%params
+                if (dg%cstats(7, v) /= 0.0_dp .and. dg%cstats(8, v) /= 0.0_dp) &
+                    start = dg%refit_params(:, v)
+                effect = d%candidates(v)
+                call estimation_fit(d, start, [integer :: fo%free, &
+                                    dg%cparams(dg%start(v):dg%start(v + 1) - 1)], fo, st)
+                if (st%code /= STATUS_OK) return
+            end do
+        end if
+
+        prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
+        call write_fit_files(d, fo, prefix, st)
+        if (st%code /= STATUS_OK) return
+        if (d%task == 'diagnose' .or. d%task == 'improve') then
+            call write_ranking(d, fo, dg, prefix//'_ranking.csv', st)
+            if (st%code /= STATUS_OK) return
+        end if
+        if (d%task /= 'improve') return
+        call open_output(prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, ios, &
+                         st)
+        if (st%code /= STATUS_OK) return
+        do k = 1, size(step_chi2)
+            call put(unit, ios, fmt_int(k - 1)//','//trim(step_effect(k))//','// &
+                     fmt_e(step_chi2(k))//','//fmt_int(step_dof(k))//','//fmt_e(step_cpd(k)))
+        end do
+        call close_checked(unit, ios, prefix//'_ladder.csv', st)
+    end subroutine run_estimation
+
+    !> (chi2 + chi2_prior) / dof, NaN without degrees of freedom.
+    real(dp) function chi2_per_dof(fo)
+        type(fit_out_t), intent(in) :: fo
+        chi2_per_dof = ieee_value(1.0_dp, ieee_quiet_nan)
+        if (nint(fo%stats(4)) > 0) chi2_per_dof = (fo%stats(1) + fo%stats(2))/fo%stats(4)
+    end function chi2_per_dof
+
+    !> The problem arrays of the f2py API (beamid_api_estimation).
+    subroutine problem_arrays(d, exp_kind, exp_values, row_q)
+        type(deck_t), intent(in) :: d
+        integer(c_int), allocatable, intent(out) :: exp_kind(:), row_q(:)
+        real(c_double), allocatable, intent(out) :: exp_values(:, :)
+        integer :: e
+        allocate (exp_kind(size(d%experiments)), exp_values(4, size(d%experiments)))
+        do e = 1, size(d%experiments)
+            exp_kind(e) = int(d%experiments(e)%kind, c_int)
+            exp_values(:, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
+                                d%experiments(e)%moment, d%experiments(e)%wire_length]
+        end do
+        row_q = int(d%data%quantity, c_int)
+    end subroutine problem_arrays
+
+    !> Weighted GN/LM fit of the free parameters from params0 (api_fit).
+    subroutine estimation_fit(d, params0, free, fo, st)
+        type(deck_t), intent(in) :: d
+        real(dp), intent(in) :: params0(:)
+        integer, intent(in) :: free(:)
+        type(fit_out_t), intent(out) :: fo
+        type(status_t), intent(inout) :: st
+        integer(c_int), allocatable :: exp_kind(:), row_q(:)
+        real(c_double), allocatable :: exp_values(:, :), corr(:, :), log1(:), log2(:), log3(:)
+        real(c_double), allocatable :: logp(:, :)
+        integer(c_int) :: code
+        character(len=256) :: message
+        integer :: nf, nrow, np
+
+        call problem_arrays(d, exp_kind, exp_values, row_q)
+        nf = size(free)
+        nrow = size(d%row_exp)
+        np = size(d%prior_index)
+        fo%free = int(free, c_int)
+        allocate (fo%params(size(params0)), fo%sigmas(nf), fo%cov(nf, nf), corr(nf, nf), &
+                  fo%flags(nf), fo%pred(nrow), fo%norm(nrow), log1(d%max_iter + 1), &
+                  log2(d%max_iter + 1), log3(d%max_iter + 1), logp(nf, d%max_iter + 1))
+        call api_fit(int(d%nbeams, c_int), int(size(params0), c_int), params0, int(nf, c_int), &
+                     fo%free, int(np, c_int), [int(d%prior_index, c_int), 0_c_int], &
+                     [d%prior_mean, 0.0_dp], [d%prior_sigma, 0.0_dp], &
+                     int(size(exp_kind), c_int), exp_kind, exp_values, int(nrow, c_int), &
+                     int(d%row_exp, c_int), row_q, d%data%value, d%data%sigma, 0.0_c_double, &
+                     int(d%max_iter, c_int), 0.0_c_double, 0.0_c_double, fo%params, fo%sigmas, &
+                     fo%cov, corr, fo%flags, fo%pred, fo%norm, fo%stats, log1, log2, log3, &
+                     logp, code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'fit', trim(message))
+            st%message = message
+        end if
+    end subroutine estimation_fit
+
+    !> Score tests, refits and ranking of the deck's candidates around a fit
+    !! (api_diagnose with the defaults of beamid.diagnose: 3 refits,
+    !! ambiguity 4, collinearity 0.98, 50 iterations).
+    subroutine estimation_diagnose(d, fo, dg, st)
+        type(deck_t), intent(in) :: d
+        type(fit_out_t), intent(in) :: fo
+        type(diag_out_t), intent(out) :: dg
+        type(status_t), intent(inout) :: st
+        integer(c_int), allocatable :: exp_kind(:), row_q(:), block(:)
+        real(c_double), allocatable :: exp_values(:, :), cosine(:, :)
+        integer(c_int) :: code
+        character(len=256) :: message
+        integer :: c, nc, ncp, nrow, np
+
+        call problem_arrays(d, exp_kind, exp_values, row_q)
+        nc = size(d%candidates)
+        allocate (dg%start(nc + 1), dg%cparams(0))
+        dg%start(1) = 1
+        do c = 1, nc
+            call static_effect_params(d%nbeams, d%candidates(c), block, st)
+            if (st%code /= STATUS_OK) return
+            dg%cparams = [dg%cparams, block]
+            dg%start(c + 1) = dg%start(c) + size(block)
+        end do
+        ncp = size(dg%cparams)
+        nrow = size(d%row_exp)
+        np = size(d%prior_index)
+        allocate (dg%cstats(18, nc), dg%pstats(6, ncp + 1), dg%refit_params(size(fo%params), nc), &
+                  dg%ranking(nc), cosine(nc, nc))
+        call api_diagnose(int(d%nbeams, c_int), int(size(fo%params), c_int), fo%params, &
+                          int(size(fo%free), c_int), fo%free, int(np, c_int), &
+                          [int(d%prior_index, c_int), 0_c_int], [d%prior_mean, 0.0_dp], &
+                          [d%prior_sigma, 0.0_dp], int(size(exp_kind), c_int), exp_kind, &
+                          exp_values, int(nrow, c_int), int(d%row_exp, c_int), row_q, &
+                          d%data%value, d%data%sigma, 0.0_c_double, 50_c_int, 0.0_c_double, &
+                          0.0_c_double, int(nc, c_int), dg%start, int(ncp, c_int), &
+                          [dg%cparams, 0_c_int], d%alpha, 3_c_int, 4.0_c_double, 0.98_c_double, &
+                          dg%cstats, dg%pstats, dg%refit_params, dg%ranking, cosine, dg%dstats, &
+                          code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'diagnose', trim(message))
+            st%message = message
+        end if
+    end subroutine estimation_diagnose
+
+    !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
+    subroutine write_fit_files(d, fo, prefix, st)
+        type(deck_t), intent(in) :: d
+        type(fit_out_t), intent(in) :: fo
+        character(len=*), intent(in) :: prefix
+        type(status_t), intent(inout) :: st
+        character(len=:), allocatable :: line
+        integer :: unit, ios, i, j, r
+
+        call open_output(prefix//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(fo%free)
+            call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
+                     fmt_e(fo%params(fo%free(i)))//','//fmt_e(fo%sigmas(i))//','// &
+                     trim(flag_text(min(max(fo%flags(i), 0), 4))))
+        end do
+        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1))//',,')
+        call put(unit, ios, 'chi2_prior,'//fmt_e(fo%stats(2))//',,')
+        call put(unit, ios, 'dof,'//fmt_int(nint(fo%stats(4)))//',,')
+        call put(unit, ios, 'iterations,'//fmt_int(nint(fo%stats(6)))//',,')
+        call put(unit, ios, 'condition_number,'//fmt_e(fo%stats(3))//',,')
+        call close_checked(unit, ios, prefix//'_estimates.csv', st)
+        if (st%code /= STATUS_OK) return
+
+        line = 'name'
+        do i = 1, size(fo%free)
+            line = line//','//param_name(d%nbeams, fo%free(i))
+        end do
+        call open_output(prefix//'_covariance.csv', line, unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(fo%free)
+            line = param_name(d%nbeams, fo%free(i))
+            do j = 1, size(fo%free)
+                line = line//','//fmt_e(fo%cov(i, j))
+            end do
+            call put(unit, ios, line)
+        end do
+        call close_checked(unit, ios, prefix//'_covariance.csv', st)
+        if (st%code /= STATUS_OK) return
+
+        call open_output(prefix//'_residuals.csv', &
+                         'experiment,t,quantity,measured,model,sigma,normalized', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do r = 1, size(d%row_exp)
+            call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
+                     quantity_label(d%data%quantity(r))//','//fmt_e(d%data%value(r))//','// &
+                     fmt_e(fo%pred(r))//','//fmt_e(d%data%sigma(r))//','//fmt_e(fo%norm(r)))
+        end do
+        call close_checked(unit, ios, prefix//'_residuals.csv', st)
+    end subroutine write_fit_files
+
+    !> <prefix>_ranking.csv: candidates best first, one row per parameter
+    !! (columns as beamid.fit_decks.write_ranking). The drop, p-value,
+    !! estimate and sigma are the refit's when one was made, else the score
+    !! test's (first order).
+    subroutine write_ranking(d, fo, dg, name, st)
+        type(deck_t), intent(in) :: d
+        type(fit_out_t), intent(in) :: fo
+        type(diag_out_t), intent(in) :: dg
+        character(len=*), intent(in) :: name
+        type(status_t), intent(inout) :: st
+        real(dp) :: nan, score_drop, score_p, lr_drop, lr_p, drop, p, est, sig
+        logical :: tested, refit
+        integer :: unit, ios, rank, c, j, k, nj, state
+        character(len=:), allocatable :: pname, flags
+
+        nan = ieee_value(1.0_dp, ieee_quiet_nan)
+        call open_output(name, 'rank,effect,state,parameter,score_drop,score_p,refit_drop,'// &
+                         'refit_p,chi2_drop,p_value,estimate,sigma,physical,identifiable,'// &
+                         'significant,acceptable,rival', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do rank = 1, size(dg%ranking)
+            c = dg%ranking(rank)
+            associate (cs => dg%cstats(:, c))
+                state = nint(cs(1))
+                tested = state == 0
+                refit = tested .and. cs(7) /= 0.0_dp .and. cs(8) /= 0.0_dp
+                score_drop = merge(cs(2), nan, tested)
+                score_p = merge(cs(3), nan, tested)
+                lr_drop = merge(cs(9), nan, refit)
+                lr_p = merge(cs(10), nan, refit)
+                drop = score_drop
+                p = score_p
+                if (refit .and. .not. ieee_is_nan(lr_drop)) drop = lr_drop
+                if (refit .and. .not. ieee_is_nan(lr_p)) p = lr_p
+                if (tested) then
+                    flags = b2s(cs(5))//','//b2s(cs(6))//','//b2s(cs(11))//','//b2s(cs(12))// &
+                            ','//b2s(cs(13))
+                else
+                    flags = '1,1,0,0,0'
+                end if
+                nj = dg%start(c + 1) - dg%start(c)
+                do j = 1, max(nj, 1)
+                    pname = ''
+                    est = nan
+                    sig = nan
+                    if (nj > 0) then
+                        k = dg%start(c) + j - 1
+                        pname = param_name(d%nbeams, dg%cparams(k))
+                        if (refit) then
+                            est = dg%pstats(4, k)
+                            sig = dg%pstats(5, k)
+                        else if (tested) then
+                            est = fo%params(dg%cparams(k)) + dg%pstats(1, k)
+                            sig = dg%pstats(2, k)
+                        end if
+                    end if
+                    call put(unit, ios, fmt_int(rank)//','//trim(d%candidates(c))//','// &
+                             trim(state_text(state))//','//pname//','//fmt_e(score_drop)//','// &
+                             fmt_e(score_p)//','//fmt_e(lr_drop)//','//fmt_e(lr_p)//','// &
+                             fmt_e(drop)//','//fmt_e(p)//','//fmt_e(est)//','//fmt_e(sig)//','// &
+                             flags)
+                end do
+            end associate
+        end do
+        call close_checked(unit, ios, name, st)
+    end subroutine write_ranking
+
+    !> A 0/1 flag of the API as '0' or '1'.
+    pure function b2s(x) result(text)
+        real(c_double), intent(in) :: x
+        character(len=1) :: text
+        text = merge('1', '0', x /= 0.0_c_double)
+    end function b2s
+
+    !> Write one line unless an earlier write failed.
+    subroutine put(unit, ios, text)
+        integer, intent(in) :: unit
+        integer, intent(inout) :: ios
+        character(len=*), intent(in) :: text
+        if (ios == 0) write (unit, '(a)', iostat=ios) text
+    end subroutine put
+
+    !> A real as Python's format(x, '.16E') writes it (17 significant digits,
+    !! two exponent digits unless three are needed; NaN, Infinity, -Infinity).
+    function fmt_e(x) result(text)
+        real(dp), intent(in) :: x
+        character(len=:), allocatable :: text
+        character(len=32) :: buffer
+        integer :: e
+        write (buffer, '(es24.16e3)') x
+        text = trim(adjustl(buffer))
+        e = index(text, 'E')
+        if (e > 0 .and. len(text) == e + 4) then
+            if (text(e + 2:e + 2) == '0') text = text(:e + 1)//text(e + 3:)
+        end if
+    end function fmt_e
 
     !> Create the folder that will hold files starting with `prefix`.
     subroutine make_parent_folder(prefix, st)

@@ -10,6 +10,9 @@ The outputs are CSV files next to the deck: ``<output>_estimates.csv``
 (name, estimate, sigma, flag), ``<output>_covariance.csv``,
 ``<output>_residuals.csv``, ``<output>_ranking.csv`` (diagnose, improve) and
 ``<output>_ladder.csv`` (improve), plus PNG figures for compare and improve.
+``beamid-batch DECK`` reads the same decks with the same checks and writes
+the same CSV files (same names, columns and numbers; no figures), so a check
+added here belongs in ``fortran/beamid_deck.f90`` too.
 """
 from __future__ import annotations
 
@@ -22,9 +25,9 @@ from typing import Any
 import f90nml
 
 from . import _core
-from .diagnosis import Diagnosis, Ladder, compare, diagnose, improve
+from .diagnosis import EFFECTS, Diagnosis, Ladder, compare, diagnose, improve
 from .errors import InputError
-from .estimation import FitResult, fit
+from .estimation import FitResult, build_problem, fit
 from .loads import RadialWire, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
@@ -33,7 +36,9 @@ FIT_TASKS = ("fit", "compare", "diagnose", "improve")
 GROUPS = {
     "beamid": {"task", "output", "preset", "nbeams"},
     "model": {"l", "ei", "ea", "rho", "c", "m", "j", "mu", "c_drag", "joint_flex",
-              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor"},
+              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor", "m_elbow",
+              "j_elbow", "mu_elbow", "c_elbow", "elbow_flex", "m_tip", "j_tip", "mu_tip",
+              "c_tip"},
     "experiment": {"name", "kind", "fx", "fy", "moment", "wire_length"},
     "fit": {"data", "free", "prior_names", "prior_means", "prior_sigmas", "candidates",
             "alpha", "max_iter"},
@@ -115,8 +120,16 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         raise InputError(f"{path}: &beamid output is missing: give the output path prefix")
     preset = str(head.get("preset") or "pace")
     nbeams, base = _core.preset(preset)
+    if head.get("nbeams") not in (None, 0, nbeams):
+        raise InputError(f'{path}: &beamid nbeams = {head["nbeams"]} but preset "{preset}" has '
+                         f"{nbeams} beams")
     values = {n: float(v) for n, v in zip(_core.param_names(nbeams), base)}
-    for var, value in (groups.get("model", [{}])[0] or {}).items():
+    by_lower = {n.lower(): n for n in values}
+    model_items = list((groups.get("model", [{}])[0] or {}).items())
+    # arrays first: a named scalar (m_elbow, J_tip, ...) overrides the array entry
+    model_items.sort(key=lambda item: not (item[0] in _PER_BEAM or item[0] in _PER_POINT
+                                            or item[0] == "joint_flex"))
+    for var, value in model_items:
         if var in _PER_BEAM or var in _PER_POINT or var == "joint_flex":
             for k, entry in enumerate(_list(value), start=1):
                 if entry is None:
@@ -131,8 +144,11 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
                     raise InputError(f"{path}: in &model: {var}({k}) is beyond the "
                                      f"{nbeams}-beam chain")
                 values[pname] = _num(path, "model", f"{var}({k})", entry)
+        elif var in by_lower:
+            values[by_lower[var]] = _num(path, "model", var, value)
         else:
-            values[var] = _num(path, "model", var, value)
+            raise InputError(f"{path}: &model sets an elbow parameter but the chain has one "
+                             "beam")
     try:
         model = Model(nbeams, [values[n] for n in _core.param_names(nbeams)])
     except InputError as exc:
@@ -158,6 +174,9 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
             if "wire_length" not in nums:
                 raise InputError(f"{path}: &experiment {name!r}: kind = 'wire' needs "
                                  "wire_length (m)")
+            if any(nums.get(v, 0.0) != 0.0 for v in ("fx", "fy", "moment")):
+                raise InputError(f"{path}: &experiment {name!r}: kind = 'wire' does not take "
+                                 "fx, fy or moment")
             experiments[name] = RadialWire(nums["wire_length"])
         else:
             raise InputError(f"{path}: &experiment {name!r}: kind = {kind!r}, expected 'tip' "
@@ -174,26 +193,55 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
     if not data_path.is_absolute():
         data_path = path.parent / data_path
     data = read_measurements(data_path, experiments)
-    free = tuple(str(f) for f in _list(fg.get("free")) if f)
-    if not free:
-        raise InputError(f"{path}: &fit free is missing: name the parameters to estimate")
-    for f in free:
+    build_problem(model, experiments, data)  # static rows: t = 0, wire_force needs a wire
+    free_given = tuple(str(f) for f in _list(fg.get("free")) if f)
+    free: tuple[str, ...] = ()
+    for f in free_given:
         try:
-            model.index(f)
+            canonical = model.names()[model.index(f)]
         except InputError:
             raise InputError(f"{path}: &fit free = {f!r} is not a parameter name") from None
+        if canonical in free:
+            raise InputError(f"{path}: &fit free names parameter {canonical!r} twice")
+        free += (canonical,)
+    if not free:
+        raise InputError(f"{path}: &fit free is missing: name the parameters to estimate")
     pn = [str(p) for p in _list(fg.get("prior_names")) if p]
     pm = _list(fg.get("prior_means"))
     ps = _list(fg.get("prior_sigmas"))
     if not (len(pn) == len(pm) == len(ps)):
         raise InputError(f"{path}: &fit prior_names, prior_means and prior_sigmas must have "
                          f"equal lengths (got {len(pn)}, {len(pm)}, {len(ps)})")
-    prior = {n: (_num(path, "fit", f"prior_means({i + 1})", m),
-                 _num(path, "fit", f"prior_sigmas({i + 1})", s))
-             for i, (n, m, s) in enumerate(zip(pn, pm, ps))}
+    prior = {}
+    for i, (n, m, s) in enumerate(zip(pn, pm, ps)):
+        m = _num(path, "fit", f"prior_means({i + 1})", m)
+        s = _num(path, "fit", f"prior_sigmas({i + 1})", s)
+        try:
+            canonical = model.names()[model.index(n)]
+        except InputError:
+            raise InputError(f"{path}: &fit prior_names = {n!r} is not a parameter "
+                             "name") from None
+        if canonical not in free:
+            raise InputError(f"{path}: &fit prior_names = {n!r} is not free (free: "
+                             f"{', '.join(free)})")
+        if not (math.isfinite(m) and math.isfinite(s) and s > 0.0):
+            raise InputError(f"{path}: &fit prior for {n!r} = ({m:g}, {s:g}), expected a "
+                             "finite mean and sigma > 0")
+        prior[n] = (m, s)
     cands = tuple(str(c) for c in _list(fg.get("candidates")) if c) or None
+    for c in cands or ():
+        if c not in EFFECTS:
+            raise InputError(f"{path}: &fit candidates = {c!r} is not a known effect, "
+                             f"expected one of: {', '.join(EFFECTS)}")
     alpha = _num(path, "fit", "alpha", fg.get("alpha", 0.01))
-    max_iter = int(fg.get("max_iter", 50))
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"{path}: &fit alpha = {alpha:g}, expected a significance level in "
+                         "(0, 1)")
+    max_iter = fg.get("max_iter", 50)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int):
+        raise InputError(f"{path}: in &fit: max_iter = {max_iter!r}, expected an integer")
+    if max_iter < 1:
+        raise InputError(f"{path}: &fit max_iter = {max_iter}, expected at least 1")
     return FitDeck(path=path, task=task, output=str(output), model=model,
                    experiments=experiments, data=data, free=free, prior=prior,
                    candidates=cands, alpha=alpha, max_iter=max_iter)
@@ -209,8 +257,8 @@ def _e(x: float) -> str:
                                                 ("NaN" if math.isnan(x) else "-Infinity"))
 
 
-def write_fit_files(result: FitResult, prefix: Path) -> list[Path]:
-    """Estimates, covariance and residual table as CSV."""
+def _fit_lines(result: FitResult) -> list[list[str]]:
+    """Lines of the estimates, covariance and residual files."""
     est = [f"{'name'},estimate,sigma,flag"] + [
         f"{n},{_e(result.estimates[n])},{_e(result.sigmas[n])},{result.flags[n]}"
         for n in result.free]
@@ -222,23 +270,44 @@ def write_fit_files(result: FitResult, prefix: Path) -> list[Path]:
     res = ["experiment,t,quantity,measured,model,sigma,normalized"] + [
         f"{r.experiment},{r.t:g},{r.quantity},{_e(r.measured)},{_e(r.model)},{_e(r.sigma)},"
         f"{_e(r.normalized)}" for r in result.residuals]
-    paths = [Path(f"{prefix}_estimates.csv"), Path(f"{prefix}_covariance.csv"),
-             Path(f"{prefix}_residuals.csv")]
-    for p, lines in zip(paths, (est, cov, res)):
+    return [est, cov, res]
+
+
+def _fit_paths(prefix: Path) -> list[Path]:
+    return [Path(f"{prefix}_{k}.csv") for k in ("estimates", "covariance", "residuals")]
+
+
+def write_fit_files(result: FitResult, prefix: Path) -> list[Path]:
+    """Estimates, covariance and residual table as CSV."""
+    paths = _fit_paths(prefix)
+    for p, lines in zip(paths, _fit_lines(result)):
         _write(p, lines)
     return paths
 
 
-def write_ranking(diag: Diagnosis, path: Path) -> None:
-    lines = ["rank,effect,state,score_drop,score_p,refit_drop,refit_p,physical,acceptable,"
-             "rival,parameter,estimate,sigma"]
+#: Columns of <output>_ranking.csv (beamid-batch writes the same).
+RANKING_HEADER = ("rank,effect,state,parameter,score_drop,score_p,refit_drop,refit_p,"
+                  "chi2_drop,p_value,estimate,sigma,physical,identifiable,significant,"
+                  "acceptable,rival")
+
+
+def _ranking_lines(diag: Diagnosis) -> list[str]:
+    """One row per candidate parameter, best candidate first; chi2_drop,
+    p_value, estimate and sigma are the refit's when one was made, else the
+    score test's."""
+    lines = [RANKING_HEADER]
     for k, c in enumerate(diag.candidates, start=1):
         for n in c.params or ("",):
-            lines.append(f"{k},{c.effect},{c.state},{_e(c.score_drop)},{_e(c.score_p)},"
-                         f"{_e(c.lr_drop)},{_e(c.lr_p)},{int(c.physical)},{int(c.acceptable)},"
-                         f"{int(c.rival)},{n},{_e(c.estimate.get(n, math.nan))},"
-                         f"{_e(c.sigma.get(n, math.nan))}")
-    _write(path, lines)
+            lines.append(f"{k},{c.effect},{c.state},{n},{_e(c.score_drop)},{_e(c.score_p)},"
+                         f"{_e(c.lr_drop)},{_e(c.lr_p)},{_e(c.chi2_drop)},{_e(c.p_value)},"
+                         f"{_e(c.estimate.get(n, math.nan))},{_e(c.sigma.get(n, math.nan))},"
+                         f"{int(c.physical)},{int(c.identifiable)},{int(c.significant)},"
+                         f"{int(c.acceptable)},{int(c.rival)}")
+    return lines
+
+
+def write_ranking(diag: Diagnosis, path: Path) -> None:
+    _write(path, _ranking_lines(diag))
 
 
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
@@ -247,39 +316,45 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
     prefix = deck.output_prefix
-    files: list[Path] = []
+    # compute everything first: no file is written when a step fails
+    outputs: list[tuple[Path, list[str]]] = []
     if deck.task == "improve":
         ladder: Ladder = improve(deck.model, deck.experiments, deck.data, free=deck.free,
                                  prior=deck.prior, candidates=deck.candidates,
                                  alpha=deck.alpha, max_iter=deck.max_iter)
-        files += write_fit_files(ladder.fit, prefix)
-        write_ranking(ladder.steps[-1].diagnosis, Path(f"{prefix}_ranking.csv"))
-        lines = ["step,effect,chi2,dof,chi2_per_dof"] + [
+        outputs += list(zip(_fit_paths(prefix), _fit_lines(ladder.fit)))
+        outputs.append((Path(f"{prefix}_ranking.csv"),
+                        _ranking_lines(ladder.steps[-1].diagnosis)))
+        outputs.append((Path(f"{prefix}_ladder.csv"), ["step,effect,chi2,dof,chi2_per_dof"] + [
             f"{s.step},{s.effect or 'start'},{_e(s.chi2)},{s.dof},{_e(s.chi2_per_dof)}"
-            for s in ladder.steps]
-        _write(Path(f"{prefix}_ladder.csv"), lines)
-        files += [Path(f"{prefix}_ranking.csv"), Path(f"{prefix}_ladder.csv")]
+            for s in ladder.steps]))
+        for p, lines in outputs:
+            _write(p, lines)
+        files = [p for p, _ in outputs]
         text = str(ladder)
         if plots:
             files += _plots(ladder=ladder, prefix=prefix)
         return text, files, ladder
     result = fit(deck.model, deck.experiments, deck.data, free=deck.free, prior=deck.prior,
                  max_iter=deck.max_iter)
-    files += write_fit_files(result, prefix)
+    outputs += list(zip(_fit_paths(prefix), _fit_lines(result)))
     text = result.summary()
     out: Any = result
+    cmp = None
     if deck.task == "compare":
         cmp = compare(result)
         text += "\n" + str(cmp)
         out = cmp
-        if plots:
-            files += _plots(cmp=cmp, prefix=prefix)
     elif deck.task == "diagnose":
         diag = diagnose(result, deck.candidates, alpha=deck.alpha)
-        write_ranking(diag, Path(f"{prefix}_ranking.csv"))
-        files.append(Path(f"{prefix}_ranking.csv"))
+        outputs.append((Path(f"{prefix}_ranking.csv"), _ranking_lines(diag)))
         text += "\n" + str(diag)
         out = diag
+    for p, lines in outputs:
+        _write(p, lines)
+    files = [p for p, _ in outputs]
+    if cmp is not None and plots:
+        files += _plots(cmp=cmp, prefix=prefix)
     return text, files, out
 
 
