@@ -28,7 +28,7 @@ def experiments():
 def hidden(seed=11, **effect):
     truth = beamid.pace(axial_coupling=0.0).replace(**effect)
     exps = experiments()
-    data = beamid.simulate(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=SIGMA,
+    data = beamid.simulate_measurements(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=SIGMA,
                            noise=True, seed=seed)
     fit = beamid.fit(beamid.pace(axial_coupling=0.0), exps, data, free=FREE)
     return fit
@@ -79,7 +79,7 @@ def test_one_sided_compliance_with_wrong_sign_is_not_offered():
     # a stiffer first beam than assumed looks like a negative root compliance
     truth = beamid.pace(axial_coupling=0.0, EI1=12.5)
     exps = experiments()
-    data = beamid.simulate(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=SIGMA)
+    data = beamid.simulate_measurements(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=SIGMA)
     fit = beamid.fit(beamid.pace(axial_coupling=0.0), exps, data, free=("EI2",))
     diag = beamid.diagnose(fit, ["root_flex", "elbow_flex"])
     root = diag["root_flex"]
@@ -92,7 +92,7 @@ def test_ambiguous_candidates_are_named_with_a_separating_measurement():
     # cubic term explain the data about as well
     truth = beamid.pace(axial_coupling=0.0, root_flex=0.002)
     exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (3.0, 5.0, 6.5, 8.0)}
-    data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3, noise=True, seed=3)
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3, noise=True, seed=3)
     fit = beamid.fit(beamid.pace(axial_coupling=0.0), exps, data, free=("EI2",))
     diag = beamid.diagnose(fit, ["root_flex", "elbow_flex"])
     assert diag.verdict is not None
@@ -134,7 +134,7 @@ def test_trend_test_sees_a_drift_against_load():
     # residuals that grow with the load are structure even if chi2 is modest
     truth = beamid.pace(axial_coupling=0.0)
     exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in np.linspace(1.0, 8.0, 12)}
-    data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
     drift = data.with_values(data.value + 1e-3 * np.linspace(-2.0, 2.0, 12) ** 3 / 3.0)
     fit = beamid.fit(truth, exps, drift, free=("EI1",))
     cmp = beamid.compare(fit)

@@ -25,7 +25,7 @@ def directed_force():
 def test_table3_radial_wire_recovers_true_values():
     truth = beamid.pace(axial_coupling=0.0, C1=5.0, C2=20.0)
     exps = {"Lw1.4": beamid.RadialWire(1.4), "Lw1.3": beamid.RadialWire(1.3)}
-    data = beamid.simulate(truth, exps, ["x_tip", "wire_force"],
+    data = beamid.simulate_measurements(truth, exps, ["x_tip", "wire_force"],
                            sigma={"x_tip": 1e-3, "wire_force": 0.1})
     start = truth.replace(EI1=10.400, C1=4.550, EI2=10.175, C2=17.800)  # Table 3 input
     fit = beamid.fit(start, exps, data, free=("EI1", "C1", "EI2", "C2"))
@@ -43,7 +43,7 @@ def test_table3_radial_wire_recovers_true_values():
 def test_table4_directed_force_recovers_true_values_in_five_iterations():
     truth = beamid.pace(axial_coupling=0.0)
     exps = directed_force()
-    data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
     np.testing.assert_allclose(data.value[[0, -1]], [0.276332, 0.597325], atol=1.5e-6)
     fit = beamid.fit(truth.replace(EI1=10.750, EI2=10.500), exps, data, free=("EI1", "EI2"))
     assert round(fit.estimates["EI1"], 3) == 11.413
@@ -59,7 +59,7 @@ def test_table4_directed_force_recovers_true_values_in_five_iterations():
 def table5_fit(seed):
     truth = beamid.pace(axial_coupling=0.0)
     exps = directed_force()
-    exact = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+    exact = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
     sig = np.array(TABLE5_SIGMAS)
     rng = np.random.default_rng(seed)
     data = Measurements(exact.experiment, exact.t, exact.quantity,
@@ -114,7 +114,7 @@ def test_jacobian_matches_central_differences_including_u_tip_and_lengths():
 def test_prior_pulls_towards_its_mean_and_counts_as_a_row():
     truth = beamid.pace(axial_coupling=0.0)
     exps = directed_force()
-    data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
     free = ("EI1", "EI2")
     plain = beamid.fit(truth, exps, data, free=free)
     tight = beamid.fit(truth, exps, data, free=free, prior={"EI2": (10.0, 1e-4)})
@@ -131,7 +131,7 @@ def test_prior_pulls_towards_its_mean_and_counts_as_a_row():
 def test_unidentifiable_parameters_get_infinite_sigma_not_numbers():
     truth = beamid.pace(axial_coupling=0.0)
     exps = {"F8": beamid.TipForce(fy=8.0)}
-    data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
     fit = beamid.fit(truth.replace(EI1=11.0), exps, data, free=("EI1", "EI2"))
     assert fit.rank == 1
     assert math.isinf(fit.sigmas["EI1"]) and math.isinf(fit.sigmas["EI2"])
@@ -142,7 +142,7 @@ def test_unidentifiable_parameters_get_infinite_sigma_not_numbers():
 def test_compliance_without_evidence_stays_at_its_bound_and_is_flagged():
     truth = beamid.pace(axial_coupling=0.0)
     exps = directed_force()
-    data = beamid.simulate(truth.replace(EI1=11.6), exps, ["y_tip", "tip_angle"], sigma=1e-4)
+    data = beamid.simulate_measurements(truth.replace(EI1=11.6), exps, ["y_tip", "tip_angle"], sigma=1e-4)
     fit = beamid.fit(truth, exps, data, free=("EI1", "EI2", "root_flex"))
     assert fit.estimates["root_flex"] >= 0.0
     assert fit.flags["root_flex"] in ("at a physical bound", "not determined by these data")
@@ -151,7 +151,7 @@ def test_compliance_without_evidence_stays_at_its_bound_and_is_flagged():
 def test_bad_fit_inputs_are_named():
     model = beamid.pace(axial_coupling=0.0)
     exps = directed_force()
-    data = beamid.simulate(model, exps, ["y_tip"], sigma=1e-3)
+    data = beamid.simulate_measurements(model, exps, ["y_tip"], sigma=1e-3)
     with pytest.raises(InputError, match="unknown parameter name 'EI3'"):
         beamid.fit(model, exps, data, free=("EI1", "EI3"))
     with pytest.raises(InputError, match="prior names 'C1', which is not free"):

@@ -3,7 +3,7 @@
 >>> import beamid
 >>> truth = beamid.pace(axial_coupling=0.0, elbow_flex=0.004)
 >>> exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (2.0, 4.0, 6.0, 8.0)}
->>> data = beamid.simulate(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=1e-4)
+>>> data = beamid.simulate_measurements(truth, exps, ["x_tip", "y_tip", "tip_angle"], sigma=1e-4)
 >>> fit = beamid.fit(beamid.pace(axial_coupling=0.0), exps, data, free=("EI1", "EI2"))
 >>> beamid.diagnose(fit).verdict.effect
 'elbow_flex'

@@ -3,7 +3,7 @@
 >>> import beamid
 >>> truth = beamid.pace(axial_coupling=0.0)
 >>> exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (3.0, 5.0, 6.5, 8.0)}
->>> data = beamid.simulate(truth, exps, ["y_tip"], sigma=1e-3)
+>>> data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
 >>> fit = beamid.fit(truth.replace(EI1=10.75, EI2=10.5), exps, data, free=("EI1", "EI2"))
 >>> round(fit.estimates["EI1"], 3), round(fit.estimates["EI2"], 3)
 (11.413, 11.275)
@@ -288,7 +288,7 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     return _ce.predict(prob, model.vector(), idx)
 
 
-def simulate(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
+def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
              sigma: float | Mapping[str, float] = 1e-3, *, seed: int | None = None,
              noise: bool = False) -> Measurements:
     """Synthetic measurements of ``quantities`` in every experiment.
