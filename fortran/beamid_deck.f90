@@ -745,6 +745,16 @@ contains
                                 KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
                 return
             end if
+            ! the namelist reader skips the rest of a line after a group's '/'
+            k = index(line, '/')
+            if (k > 0) then
+                if (index(line(k:), '&') > 0) then
+                    call set_status(stat, ERR_DECK, trim(path), 'line '//fmt_int(lineno)// &
+                                    ': one group per line (a second group follows '// &
+                                    '&'//name//' on this line)')
+                    return
+                end if
+            end if
             seen = seen//name//' '
             if (index(present, '&'//name//' ') == 0) present = present//'&'//name//' '
         end do

@@ -271,3 +271,14 @@ def test_demo_deck_files_ship_for_both(tmp_path, batch_exe):
         shutil.copy(DEMO / name, tmp_path / name)
     assert _batch(batch_exe, tmp_path / "hidden_effect.nml").returncode == 0
     assert (tmp_path / "out" / "hidden_effect_ladder.csv").exists()
+
+
+def test_batch_wants_one_group_per_line(tmp_path, batch_exe):
+    """The Fortran namelist reader skips what follows a group's '/' on its line,
+    so beamid-batch refuses a second group there instead of losing it."""
+    deck = _deck(tmp_path, "fit", deck_text=lambda t: t.replace(
+        "fy = 4.0 /\n&experiment", "fy = 4.0 / &experiment"))
+    assert "F6" in read_fit_deck(deck).experiments  # f90nml reads both groups
+    run = _batch(batch_exe, deck)
+    assert run.returncode == 2
+    assert "line 15: one group per line (a second group follows &experiment" in run.stderr
