@@ -31,7 +31,7 @@ module beamid_estimation
     public :: residual_model_t, prior_t, fit_options_t, fit_result_t
     public :: score_result_t, candidate_t, diagnose_options_t, candidate_report_t
     public :: diagnosis_t
-    public :: fit_least_squares, score_test, diagnose, chi2_sf
+    public :: fit_least_squares, score_test, diagnose, chi2_sf, residual_structure
 
     !> Per-parameter flags of a fit (worst first).
     integer, parameter, public :: FLAG_OK = 0           !< determined
@@ -927,6 +927,98 @@ contains
     end function sort_desc
 
     ! ------------------------------------------------------------ statistics
+
+    !> Tests for systematic structure in normalized residuals (compare):
+    !! a Wald-Wolfowitz runs test on the signs of the residuals ordered by load
+    !! level within each quantity group (groups in order of first appearance,
+    !! concatenated; zero residuals skipped), one-sided: few runs (long
+    !! same-sign stretches) mean structure; and the least-squares slope of the
+    !! normalized residuals against load level, whose z under pure noise is
+    !! slope * sqrt(sum (x - mean x)^2). Undefined results are NaN.
+    !! out = [runs, expected runs, runs z, runs p, slope, trend z, trend p].
+    pure subroutine residual_structure(level, group, normalized, out)
+        real(dp), intent(in) :: level(:), normalized(:)
+        integer, intent(in) :: group(:)
+        real(dp), intent(out) :: out(7)
+        integer :: n, i, j, k, g, nsign, n1, n2, runs, t
+        integer, allocatable :: order(:), signs(:)
+        logical, allocatable :: seen(:)
+        real(dp) :: mean, var, z, xbar, sxx, sxy, nn
+
+        out = not_a_number()
+        n = size(normalized)
+        allocate (order(n), signs(n), seen(n))
+        seen = .false.
+        nsign = 0
+        do i = 1, n
+            if (seen(i)) cycle
+            g = group(i)
+            ! rows of this group in their original order, then a stable sort by level
+            k = 0
+            do j = i, n
+                if (group(j) == g) then
+                    seen(j) = .true.
+                    k = k + 1
+                    order(k) = j
+                end if
+            end do
+            do j = 2, k
+                t = order(j)
+                call insert_sorted(order, j, t)
+            end do
+            do j = 1, k
+                if (normalized(order(j)) /= 0.0_dp) then
+                    nsign = nsign + 1
+                    signs(nsign) = merge(1, 0, normalized(order(j)) > 0.0_dp)
+                end if
+            end do
+        end do
+        n1 = sum(signs(1:nsign))
+        n2 = nsign - n1
+        if (n1 > 0 .and. n2 > 0) then
+            runs = 1 + count(signs(2:nsign) /= signs(1:nsign - 1))
+            nn = real(nsign, dp)
+            mean = 2.0_dp*n1*n2/nn + 1.0_dp
+            var = 0.0_dp
+            if (nsign > 1) var = 2.0_dp*n1*n2*(2.0_dp*n1*n2 - nn)/(nn*nn*(nn - 1.0_dp))
+            z = 0.0_dp
+            if (var > 0.0_dp) z = (real(runs, dp) - mean)/sqrt(var)
+            out(1) = real(runs, dp)
+            out(2) = mean
+            out(3) = z
+            if (z < 0.0_dp) then
+                out(4) = 0.5_dp*chi2_sf(z*z, 1)
+            else
+                out(4) = 1.0_dp - 0.5_dp*chi2_sf(z*z, 1)
+            end if
+        end if
+        if (n >= 3) then
+            if (maxval(level) > minval(level)) then
+                xbar = sum(level)/real(n, dp)
+                sxx = sum((level - xbar)**2)
+                sxy = sum((level - xbar)*normalized)
+                out(5) = sxy/sxx
+                out(6) = out(5)*sqrt(sxx)
+                out(7) = chi2_sf(out(6)**2, 1)
+            end if
+        end if
+
+    contains
+
+        !> Insert order(j) = t into the level-sorted order(1:j-1) (stable).
+        pure subroutine insert_sorted(idx, j, t)
+            integer, intent(inout) :: idx(:)
+            integer, intent(in) :: j, t
+            integer :: m
+            m = j - 1
+            do while (m >= 1)
+                if (level(idx(m)) <= level(t)) exit
+                idx(m + 1) = idx(m)
+                m = m - 1
+            end do
+            idx(m + 1) = t
+        end subroutine insert_sorted
+    end subroutine residual_structure
 
     !> Chi-square survival function P(X > x) for k degrees of freedom: the
     !! regularized upper incomplete gamma function Q(k/2, x/2), by its series

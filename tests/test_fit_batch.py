@@ -16,7 +16,7 @@ from beamid.fit_decks import read_fit_deck, run_fit_deck
 
 DEMO = Path(__file__).resolve().parent.parent / "inputs" / "demo"
 FILES = {"fit": ("estimates", "covariance", "residuals"),
-         "compare": ("estimates", "covariance", "residuals"),
+         "compare": ("estimates", "covariance", "residuals", "compare"),
          "diagnose": ("estimates", "covariance", "residuals", "ranking"),
          "improve": ("estimates", "covariance", "residuals", "ranking", "ladder")}
 

@@ -11,6 +11,7 @@ module beamid_api_estimation
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE
     use beamid_arclength, only: static_load_t
+    use beamid_estimation, only: residual_structure
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  candidate_t, diagnose_options_t, diagnosis_t, diagnose, &
                                  chi2_sf
@@ -20,6 +21,7 @@ module beamid_api_estimation
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
+    public :: api_residual_structure
 
 contains
 
@@ -65,6 +67,18 @@ contains
         lower = lo
         upper = up
     end subroutine api_static_bounds
+
+    !> Residual structure tests of compare (beamid_estimation residual_structure):
+    !! out = runs, expected runs, runs z, runs p, slope, trend z, trend p.
+    subroutine api_residual_structure(n, level, group, normalized, out)
+        integer(c_int), intent(in) :: n
+        real(c_double), intent(in) :: level(n), normalized(n)
+        integer(c_int), intent(in) :: group(n)
+        real(c_double), intent(out) :: out(7)
+        real(dp) :: o(7)
+        call residual_structure(real(level, dp), int(group), real(normalized, dp), o)
+        out = o
+    end subroutine api_residual_structure
 
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)

@@ -2,7 +2,8 @@
 !!
 !! Tasks: static, fe_static, fe_modes, and the estimation tasks fit, compare,
 !! diagnose, improve (the same Fortran routines as the Python API, so the
-!! same numbers; docs/decks.md, "Estimation decks").
+!! same numbers; docs/decks.md, "Estimation decks"), and simulate (the
+!! dynamics of api_dyn_simulate, as beamid.simulate; "Dynamic decks").
 !! Exit codes: 0 success, 2 bad deck or input, 3 numerical failure (no
 !! convergence), 4 file error. One line on standard error says what failed.
 !! Output files are written only after the computation succeeded, and a file
@@ -12,13 +13,15 @@ program beamid_batch
     use beamid_kinds, only: dp
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_status, only: status_t, STATUS_OK, ERR_IO, set_status, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_name
+    use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
     use beamid_deck, only: deck_t, read_deck
-    use beamid_arclength, only: static_options_t, static_solution_t, solve_static, &
+    use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_api_fe, only: api_fe_static, api_fe_modes
     use beamid_api_estimation, only: api_fit, api_diagnose
+    use beamid_api_dynamics, only: api_dyn_sizes, api_dyn_simulate
+    use beamid_estimation, only: residual_structure, chi2_sf
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
@@ -65,7 +68,8 @@ program beamid_batch
             '<output>_summary.csv and <output>_shape.csv next to the deck;'
         write (output_unit, '(a)') 'estimation decks (tasks fit, compare, diagnose, improve) '// &
             'write <output>_estimates.csv, _covariance.csv, _residuals.csv,'
-        write (output_unit, '(a)') '_ranking.csv (diagnose, improve) and _ladder.csv (improve).'
+        write (output_unit, '(a)') '_ranking.csv (diagnose, improve) and _ladder.csv (improve);'
+        write (output_unit, '(a)') 'dynamic decks (task simulate) write <output>_history.csv.'
         stop
     end if
     call read_deck(trim(arg), deck, stat)
@@ -77,6 +81,8 @@ program beamid_batch
             call run_fe_modes(deck, stat)
         case ('fit', 'compare', 'diagnose', 'improve')
             call run_estimation(deck, stat)
+        case ('simulate')
+            call run_simulate(deck, stat)
         case default
             call run_static(deck, stat)
         end select
@@ -258,6 +264,95 @@ contains
         call close_checked(unit, ios, prefix//'_modes.csv', st)
     end subroutine run_fe_modes
 
+    ! -------------------------------------------------------------- dynamics
+
+    !> Dynamic decks: release from the static shape under &load and integrate
+    !! to the output times with api_dyn_simulate (the call of beamid.simulate);
+    !! <output>_history.csv has one row per output time (columns as
+    !! beamid.decks.HISTORY_COLUMNS).
+    subroutine run_simulate(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        integer(c_int) :: nfree, nstate, nwork, nt, info(5), code
+        real(c_double), allocatable :: states(:, :), tip(:, :), torque(:), ledger(:, :)
+        real(c_double), allocatable :: work(:, :), y_init(:)
+        real(c_double) :: loads(4)
+        character(len=256) :: message
+        character(len=:), allocatable :: prefix, header, line
+        integer :: unit, ios, k, i
+
+        call api_dyn_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
+                           int(d%sim_elements_per_beam, c_int), d%sim_motor_gain, nfree, &
+                           nstate, nwork, code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'simulate', trim(message))
+            st%message = message
+            return
+        end if
+        nt = int(size(d%sim_t_out), c_int)
+        allocate (states(nstate, nt), tip(3, nt), torque(nt), ledger(4, nt), work(nwork, nt), &
+                  y_init(nstate))
+        y_init = 0.0_c_double
+        loads = [d%load%fx, d%load%fy, d%load%moment, 0.0_dp]
+        call api_dyn_simulate(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
+                              int(d%sim_elements_per_beam, c_int), loads, d%sim_motor_gain, &
+                              int(d%sim_integrator, c_int), int(d%sim_friction, c_int), &
+                              d%sim_friction_velocity, d%sim_dt, d%sim_rtol, d%sim_atol, &
+                              0.0_c_double, 0_c_int, nstate, y_init, nt, d%sim_t_out, nwork, &
+                              states, tip, torque, ledger, work, info, code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'simulate', trim(message))
+            st%message = message
+            return
+        end if
+
+        header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
+        do i = 1, nwork
+            header = header//','//work_name(d%nbeams, i)
+        end do
+        header = header//',work,numerical,motor_torque'
+        prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
+        call open_output(prefix//'_history.csv', header, unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do k = 1, nt
+            line = fmt_e(d%sim_t_out(k))//','//fmt_e(tip(1, k))//','//fmt_e(tip(2, k))// &
+                   ','//fmt_e(tip(3, k))//','//fmt_e(ledger(3, k))//','//fmt_e(ledger(1, k))// &
+                   ','//fmt_e(ledger(2, k))
+            do i = 1, nwork
+                line = line//','//fmt_e(work(i, k))
+            end do
+            line = line//','//fmt_e(sum(work(:, k)))//','//fmt_e(ledger(4, k))//','// &
+                   fmt_e(torque(k))
+            call put(unit, ios, line)
+        end do
+        call close_checked(unit, ios, prefix//'_history.csv', st)
+    end subroutine run_simulate
+
+    !> Name of work line i of the ledger (beamid.dynamics.work_names):
+    !! friction_<point>, drag_<point> per mass point, damping, motor.
+    function work_name(nbeams, i) result(name)
+        integer, intent(in) :: nbeams, i
+        character(len=:), allocatable :: name
+        integer :: k
+        if (i > 2*nbeams) then
+            name = merge('damping', 'motor  ', i == 2*nbeams + 1)
+            name = trim(name)
+            return
+        end if
+        k = mod(i - 1, nbeams) + 1
+        name = merge('friction_', 'drag_    ', i <= nbeams)
+        name = trim(name)
+        if (k == nbeams) then
+            name = name//'tip'
+        else if (k == 1) then
+            name = name//'elbow'
+        else
+            name = name//'joint'//fmt_int(k)
+        end if
+    end function work_name
+
     ! ------------------------------------------------------------ estimation
 
     !> Estimation decks: fit (and compare: the same files), diagnose, improve.
@@ -312,6 +407,10 @@ contains
             call write_ranking(d, fo, dg, prefix//'_ranking.csv', st)
             if (st%code /= STATUS_OK) return
         end if
+        if (d%task == 'compare') then
+            call write_compare(d, fo, prefix//'_compare.csv', st)
+            return
+        end if
         if (d%task /= 'improve') return
         call open_output(prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, ios, &
                          st)
@@ -322,6 +421,60 @@ contains
         end do
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
+
+    !> compare: chi-square against its expectation, per-experiment chi-square and
+    !! the residual structure tests (beamid_estimation residual_structure) with
+    !! the load level of beamid.diagnosis.load_level: the force magnitude, else
+    !! the moment magnitude, else for a wire the pull-in (total length - Lw).
+    subroutine write_compare(d, fo, name, st)
+        type(deck_t), intent(in) :: d
+        type(fit_out_t), intent(in) :: fo
+        character(len=*), intent(in) :: name
+        type(status_t), intent(inout) :: st
+        real(dp), allocatable :: level(:), per_exp(:)
+        real(dp) :: out(7), total, p, dof
+        integer :: i, e, unit, ios
+        logical :: systematic
+        character(len=*), parameter :: test_names(7) = [character(len=13) :: 'runs', &
+            'runs_expected', 'runs_z', 'runs_p', 'trend_slope', 'trend_z', 'trend_p']
+
+        total = sum(d%params([(param_index_beam(d%nbeams, i, IB_L), i = 1, d%nbeams)]))
+        allocate (level(size(d%row_exp)), per_exp(size(d%experiments)))
+        per_exp = 0.0_dp
+        do i = 1, size(d%row_exp)
+            e = d%row_exp(i)
+            associate (x => d%experiments(e))
+                if (x%kind == LOAD_WIRE) then
+                    level(i) = total - x%wire_length
+                else if (hypot(x%fx, x%fy) > 0.0_dp) then
+                    level(i) = hypot(x%fx, x%fy)
+                else
+                    level(i) = abs(x%moment)
+                end if
+            end associate
+            per_exp(e) = per_exp(e) + fo%norm(i)**2
+        end do
+        call residual_structure(level, d%data%quantity, real(fo%norm, dp), out)
+        dof = fo%stats(4)
+        p = ieee_value(1.0_dp, ieee_quiet_nan)
+        if (nint(dof) > 0) p = chi2_sf(fo%stats(1) + fo%stats(2), nint(dof))
+        systematic = (p < 0.01_dp) .or. (out(4) < 0.01_dp) .or. (out(7) < 0.01_dp)
+        call open_output(name, 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1)))
+        call put(unit, ios, 'dof,'//fmt_int(nint(dof)))
+        call put(unit, ios, 'expected,'//fmt_e(dof))
+        call put(unit, ios, 'expected_sigma,'//fmt_e(sqrt(2.0_dp*max(dof, 0.0_dp))))
+        call put(unit, ios, 'p_value,'//fmt_e(p))
+        do i = 1, 7
+            call put(unit, ios, trim(test_names(i))//','//fmt_e(out(i)))
+        end do
+        call put(unit, ios, 'systematic,'//trim(merge('1', '0', systematic)))
+        do e = 1, size(d%experiments)
+            call put(unit, ios, 'chi2['//trim(d%exp_names(e))//'],'//fmt_e(per_exp(e)))
+        end do
+        call close_checked(unit, ios, name, st)
+    end subroutine write_compare
 
     !> (chi2 + chi2_prior) / dof, NaN without degrees of freedom.
     real(dp) function chi2_per_dof(fo)

@@ -124,3 +124,12 @@ def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np
             "refit_params": np.array(refit_params).reshape(-1, nc),
             "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
             "dstats": np.array(dstats), "starts": starts - 1}
+
+
+def residual_structure(level: np.ndarray, group: np.ndarray,
+                       normalized: np.ndarray) -> np.ndarray:
+    """Runs and trend tests of compare: [runs, expected runs, runs z, runs p,
+    slope, trend z, trend p] (NaN where undefined)."""
+    return np.array(_api.api_residual_structure(
+        np.ascontiguousarray(level, dtype=float), np.ascontiguousarray(group, dtype=np.int32),
+        np.ascontiguousarray(normalized, dtype=float)))

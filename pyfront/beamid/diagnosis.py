@@ -127,6 +127,8 @@ class Comparison:
     per_experiment: dict[str, float]
     tests: tuple[StructureTest, ...]
     systematic: bool         # a structure test or the chi-square fails at 1 %
+    #: runs, expected runs, runs z, runs p, trend slope, trend z, trend p (NaN: undefined)
+    structure: tuple[float, ...] = ()
 
     def __str__(self) -> str:
         lines = [f"{'experiment':<12}{'quantity':<12}{'load':>8}{'measured':>14}"
@@ -173,41 +175,27 @@ def compare(fit: FitResult) -> Comparison:
     per_exp: dict[str, float] = {}
     for r in rows:
         per_exp[r.experiment] = per_exp.get(r.experiment, 0.0) + r.normalized ** 2
+    # structure against load (Fortran: beamid_estimation residual_structure)
+    quantities = list(dict.fromkeys(r.quantity for r in rows))
+    st = _ce.residual_structure(np.array([r.load for r in rows]),
+                                np.array([quantities.index(r.quantity) for r in rows]),
+                                np.array([r.normalized for r in rows]))
     tests = []
-    # runs test: signs ordered by load within each quantity, concatenated
-    signs: list[int] = []
-    for q in dict.fromkeys(r.quantity for r in rows):
-        ordered = sorted((r for r in rows if r.quantity == q), key=lambda r: r.load)
-        signs += [1 if r.normalized > 0 else 0 for r in ordered if r.normalized != 0.0]
-    n1, n2 = sum(signs), len(signs) - sum(signs)
-    if n1 > 0 and n2 > 0:
-        runs = 1 + sum(1 for a, b in zip(signs, signs[1:]) if a != b)
-        n = n1 + n2
-        mean = 2.0 * n1 * n2 / n + 1.0
-        var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1.0)) if n > 1 else 0.0
-        z = (runs - mean) / math.sqrt(var) if var > 0 else 0.0
-        # few runs (long same-sign stretches) mean structure: one-sided
-        p_runs = 0.5 * _two_sided_normal_p(z) if z < 0 else 1.0 - 0.5 * _two_sided_normal_p(z)
-        tests.append(StructureTest("runs test", z, p_runs,
-                                   f"{runs} runs of signs, {mean:.2f} expected"))
+    if not math.isnan(st[0]):
+        tests.append(StructureTest("runs test", float(st[2]), float(st[3]),
+                                   f"{int(st[0])} runs of signs, {st[1]:.2f} expected"))
     else:
         tests.append(StructureTest("runs test", math.nan, math.nan,
-                                   "all residuals have one sign" if signs else "no residuals"))
-    # trend: least-squares slope of normalized residuals against load (each quantity)
-    x = np.array([r.load for r in rows])
-    y = np.array([r.normalized for r in rows])
-    if len(rows) >= 3 and np.ptp(x) > 0:
-        xc = x - x.mean()
-        slope = float(xc @ y / (xc @ xc))
-        # under pure noise y_i ~ N(0, 1): slope has variance 1 / sum(xc^2)
-        z = slope * math.sqrt(float(xc @ xc))
-        tests.append(StructureTest("trend against load", z, _two_sided_normal_p(z),
-                                   f"slope {slope:.3g} sigma per unit load"))
+                                   "all residuals have one sign" if rows else "no residuals"))
+    if not math.isnan(st[4]):
+        tests.append(StructureTest("trend against load", float(st[5]), float(st[6]),
+                                   f"slope {st[4]:.3g} sigma per unit load"))
     systematic = (not math.isnan(p) and p < 0.01) or any(
         t.p_value < 0.01 for t in tests if not math.isnan(t.p_value))
     return Comparison(fit=fit, rows=rows, chi2=chi2, dof=dof, expected=float(dof),
                       expected_sigma=math.sqrt(2.0 * max(dof, 0)), p_value=p,
-                      per_experiment=per_exp, tests=tuple(tests), systematic=systematic)
+                      per_experiment=per_exp, tests=tuple(tests), systematic=systematic,
+                      structure=tuple(float(v) for v in st))
 
 
 # ------------------------------------------------------------------ diagnose

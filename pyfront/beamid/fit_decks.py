@@ -277,6 +277,20 @@ def _fit_paths(prefix: Path) -> list[Path]:
     return [Path(f"{prefix}_{k}.csv") for k in ("estimates", "covariance", "residuals")]
 
 
+def _compare_lines(cmp, deck: FitDeck) -> list[str]:
+    """Lines of <output>_compare.csv (the file beamid-batch writes for compare)."""
+    lines = ["quantity,value", f"chi2,{_e(cmp.chi2)}", f"dof,{cmp.dof}",
+             f"expected,{_e(cmp.expected)}", f"expected_sigma,{_e(cmp.expected_sigma)}",
+             f"p_value,{_e(cmp.p_value)}"]
+    values = list(cmp.structure)
+    names = ["runs", "runs_expected", "runs_z", "runs_p", "trend_slope", "trend_z", "trend_p"]
+    lines += [f"{n},{_e(v)}" for n, v in zip(names, values)]
+    lines.append(f"systematic,{1 if cmp.systematic else 0}")
+    lines += [f"chi2[{name}],{_e(cmp.per_experiment.get(name, 0.0))}"
+              for name in deck.experiments]
+    return lines
+
+
 def write_fit_files(result: FitResult, prefix: Path) -> list[Path]:
     """Estimates, covariance and residual table as CSV."""
     paths = _fit_paths(prefix)
@@ -345,6 +359,7 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
         cmp = compare(result)
         text += "\n" + str(cmp)
         out = cmp
+        outputs.append((Path(f"{prefix}_compare.csv"), _compare_lines(cmp, deck)))
     elif deck.task == "diagnose":
         diag = diagnose(result, deck.candidates, alpha=deck.alpha)
         outputs.append((Path(f"{prefix}_ranking.csv"), _ranking_lines(diag)))
