@@ -7,7 +7,8 @@
 !! is read and validated here too (beamid_measurements). Every group and
 !! variable is checked: an unknown group, a misspelt variable, a missing
 !! value or a nonphysical one is reported with the deck's path and the
-!! offending name.
+!! offending name. Dynamic decks (task simulate) hold &beamid, &model,
+!! &load (the tip load held before the release) and &simulate.
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
@@ -29,10 +30,10 @@ module beamid_deck
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
-        ' beamid model load static fe published experiment fit '
+        ' beamid model load static fe published experiment fit simulate '
     !> Tasks the batch runs.
     character(len=*), parameter :: KNOWN_TASKS = &
-        ' static fe_static fe_modes fit compare diagnose improve '
+        ' static fe_static fe_modes fit compare diagnose improve simulate '
     !> Estimation tasks and the groups their decks may hold.
     character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve '
     character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit '
@@ -70,6 +71,17 @@ module beamid_deck
         character(len=NAME_LEN), allocatable :: candidates(:) !< effects for diagnose/improve
         real(dp) :: alpha = 0.01_dp
         integer :: max_iter = 50
+        ! &simulate (task simulate; docs/decks.md, Dynamic decks): the arguments of
+        ! beamid.simulate, defaults resolved as there
+        real(dp), allocatable :: sim_t_out(:)           !< output times (s)
+        integer :: sim_elements_per_beam = 4
+        integer :: sim_integrator = 1                   !< 0 rk4, 1 implicit
+        integer :: sim_friction = 1                     !< 0 sign, 1 smooth, 2 sign_literal
+        real(dp) :: sim_dt = 0.0_dp                     !< 0: default (1e-5 s)
+        real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-7)
+        real(dp) :: sim_atol = 0.0_dp                   !< 0: rtol
+        real(dp) :: sim_motor_gain = 0.0_dp
+        real(dp) :: sim_friction_velocity = 1.0e-4_dp   !< smooth law's vs (m/s)
     end type deck_t
 
 contains
@@ -189,6 +201,14 @@ contains
                                               ' '//present(i + 1:i + nw)) > 0) then
                 call deck_error('group &'//present(i + 1:i + nw - 1)//' is only for the '// &
                                 'estimation tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
+                return
+            else if (trim(task) /= 'simulate' .and. present(i + 1:i + nw) == 'simulate ') then
+                call deck_error('group &simulate is only for task "simulate"')
+                return
+            else if (trim(task) == 'simulate' .and. index(' fe static ', &
+                                                         ' '//present(i + 1:i + nw)) > 0) then
+                call deck_error('group &'//present(i + 1:i + nw - 1)//' is not used by '// &
+                                'task "simulate" (give elements_per_beam in &simulate)')
                 return
             end if
         end do
@@ -372,6 +392,11 @@ contains
         deck%load%fy = fy
         deck%load%moment = moment
         deck%load%wire_length = wire_length
+        if (trim(task) == 'simulate') then
+            call read_simulate_group(unit, path, deck, stat)
+            close (unit)
+            return
+        end if
 
         ! ---- &fe (optional)
         elements_per_beam = 4
@@ -477,6 +502,160 @@ contains
             end if
         end subroutine group_error
     end subroutine read_deck
+
+    !> &simulate of a dynamic deck (task simulate), after &load: the output
+    !! times (t_out, or t_end with n_out equally spaced times from 0), the mesh,
+    !! the integrator and the friction law; 0 means the default for dt, rtol,
+    !! atol and friction_velocity. The checks and messages are those of
+    !! beamid.decks (same order), so a deck fails the same way in both.
+    subroutine read_simulate_group(unit, path, deck, stat)
+        integer, intent(in) :: unit
+        character(len=*), intent(in) :: path
+        type(deck_t), intent(inout) :: deck
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: t_out(:)
+        real(dp) :: t_end, dt, rtol, atol, motor_gain, friction_velocity, nan, step
+        integer :: n_out, elements_per_beam
+        character(len=NAME_LEN) :: integrator, friction
+        namelist /simulate/ t_out, t_end, n_out, elements_per_beam, integrator, dt, rtol, &
+            atol, motor_gain, friction, friction_velocity
+        character(len=512) :: msg
+        character(len=*), parameter :: names(4) = [character(len=17) :: 'dt', 'rtol', &
+            'atol', 'friction_velocity']
+        real(dp) :: values(4)
+        integer :: ios, i, nt, fsize
+
+        if (deck%load%kind == LOAD_WIRE) then
+            call fail('&load kind = "wire" is not available for task "simulate" (tip loads '// &
+                      'only)')
+            return
+        end if
+        nan = ieee_value(1.0_dp, ieee_quiet_nan)
+        ! a list of times cannot hold more values than the deck has characters
+        inquire (unit=unit, size=fsize)
+        allocate (t_out(max(16, fsize/2 + 1)))
+        t_out = nan
+        t_end = nan
+        n_out = -1
+        elements_per_beam = 4
+        integrator = 'implicit'
+        friction = ''
+        dt = 0.0_dp
+        rtol = 0.0_dp
+        atol = 0.0_dp
+        motor_gain = 0.0_dp
+        friction_velocity = 0.0_dp
+        rewind (unit)
+        read (unit, nml=simulate, iostat=ios, iomsg=msg)
+        if (ios < 0) then
+            call fail('group &simulate is missing')
+            return
+        else if (ios > 0) then
+            call fail('in &simulate: '//trim(msg))
+            return
+        end if
+        nt = count(.not. ieee_is_nan(t_out))
+        if (any(ieee_is_nan(t_out(1:nt)))) then
+            call fail('&simulate t_out has gaps: give the output times as one list')
+            return
+        end if
+        if (nt > 0 .and. .not. ieee_is_nan(t_end)) then
+            call fail('&simulate gives both t_out and t_end: give one')
+            return
+        end if
+        if (nt == 0 .and. ieee_is_nan(t_end)) then
+            call fail('&simulate needs t_out (a list of output times) or t_end (with n_out)')
+            return
+        end if
+        if (nt > 0 .and. n_out /= -1) then
+            call fail('&simulate n_out goes with t_end, not with t_out')
+            return
+        end if
+        if (nt > 0) then
+            deck%sim_t_out = t_out(1:nt)
+        else
+            if (.not. (t_end > 0.0_dp .and. t_end <= huge(1.0_dp))) then
+                call fail('&simulate t_end = '//fmt_g(t_end)//', expected a time > 0 (s)')
+                return
+            end if
+            if (n_out == -1) n_out = 101
+            if (n_out < 2) then
+                call fail('&simulate n_out = '//fmt_int(n_out)//', expected at least 2')
+                return
+            end if
+            ! numpy.linspace(0, t_end, n_out), to the last bit
+            step = t_end/real(n_out - 1, dp)
+            deck%sim_t_out = [(real(i, dp)*step, i = 0, n_out - 1)]
+            deck%sim_t_out(n_out) = t_end
+        end if
+        do i = 1, size(deck%sim_t_out)
+            if (.not. abs(deck%sim_t_out(i)) <= huge(1.0_dp)) exit
+            if (i == 1 .and. deck%sim_t_out(i) < 0.0_dp) exit
+            if (i > 1) then
+                if (deck%sim_t_out(i) <= deck%sim_t_out(i - 1)) exit
+            end if
+        end do
+        if (i <= size(deck%sim_t_out)) then
+            call fail('&simulate t_out must be ascending times >= 0 (entry '//fmt_int(i)// &
+                      ' = '//fmt_g(deck%sim_t_out(i))//')')
+            return
+        end if
+        if (elements_per_beam < 1) then
+            call fail('&simulate elements_per_beam = '//fmt_int(elements_per_beam)// &
+                      ', expected at least 1')
+            return
+        end if
+        select case (trim(integrator))
+        case ('rk4')
+            deck%sim_integrator = 0
+        case ('implicit')
+            deck%sim_integrator = 1
+        case default
+            call fail('&simulate integrator = "'//trim(integrator)// &
+                      '", expected "implicit" or "rk4"')
+            return
+        end select
+        select case (trim(friction))
+        case ('')
+            deck%sim_friction = merge(0, 1, deck%sim_integrator == 0)
+        case ('sign')
+            deck%sim_friction = 0
+        case ('smooth')
+            deck%sim_friction = 1
+        case ('sign_literal')
+            deck%sim_friction = 2
+        case default
+            call fail('&simulate friction = "'//trim(friction)// &
+                      '", expected "sign", "smooth" or "sign_literal"')
+            return
+        end select
+        values = [dt, rtol, atol, friction_velocity]
+        do i = 1, size(values)
+            if (.not. (values(i) >= 0.0_dp .and. values(i) <= huge(1.0_dp))) then
+                call fail('&simulate '//trim(names(i))//' = '//fmt_g(values(i))// &
+                          ', expected 0 (default) or a positive number')
+                return
+            end if
+        end do
+        if (.not. (motor_gain >= 0.0_dp .and. motor_gain <= huge(1.0_dp))) then
+            call fail('&simulate motor_gain = '//fmt_g(motor_gain)// &
+                      ', expected a finite number >= 0')
+            return
+        end if
+        deck%sim_elements_per_beam = elements_per_beam
+        deck%sim_dt = dt
+        deck%sim_rtol = rtol
+        deck%sim_atol = atol
+        deck%sim_motor_gain = motor_gain
+        if (friction_velocity > 0.0_dp) deck%sim_friction_velocity = friction_velocity
+
+    contains
+
+        subroutine fail(text)
+            character(len=*), intent(in) :: text
+            call set_status(stat, ERR_DECK, trim(path), text)
+        end subroutine fail
+    end subroutine read_simulate_group
 
     !> The groups of an estimation deck after &beamid and &model: every
     !! &experiment (repeatable, read in turn without rewinding) and &fit, whose
