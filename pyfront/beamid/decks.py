@@ -1,5 +1,10 @@
 """Namelist decks (format: docs/decks.md), read and written with f90nml.
 
+Tasks: ``static`` (arc-length), ``fe_static`` and ``fe_modes`` (finite
+elements, group ``&fe``), ``simulate`` (dynamics, group ``&simulate``: the
+arguments of :func:`beamid.simulate`; writes ``<output>_history.csv``) and the
+estimation tasks (:mod:`beamid.fit_decks`).
+
 The same files drive the batch executable ``beamid-batch``; this module
 applies the same checks so that a deck fails the same way in both.
 """
@@ -31,13 +36,22 @@ GROUPS = {
     "fe": {"elements_per_beam", "moment_form", "rotary_inertia", "point_masses", "steps",
            "tol"},
     "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
+    "simulate": {"t_out", "t_end", "n_out", "elements_per_beam", "integrator", "dt", "rtol",
+                 "atol", "motor_gain", "friction", "friction_velocity"},
 }
-TASKS = ("static", "fe_static", "fe_modes")
+TASKS = ("static", "fe_static", "fe_modes", "simulate")
 #: tasks of estimation decks (&experiment, &fit groups), read by beamid.fit_decks
 ESTIMATION_TASKS = ("fit", "compare", "diagnose", "improve")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
+#: &simulate options of a dynamic deck, defaults resolved as beamid.simulate does
+#: (friction None: "sign" for rk4, "smooth" for implicit; 0 or None: the default)
+SIMULATE_DEFAULTS = {"elements_per_beam": 4, "integrator": "implicit", "friction": None,
+                     "dt": None, "rtol": None, "atol": None, "motor_gain": 0.0,
+                     "friction_velocity": None}
+#: default number of output times with t_end
+DEFAULT_N_OUT = 101
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
@@ -72,6 +86,8 @@ class Deck:
     tol: float | None = None
     published: tuple[Published, ...] = field(default_factory=tuple)
     fe: dict = field(default_factory=lambda: dict(FE_DEFAULTS))
+    #: task simulate: ``t_out`` (array) and the keyword arguments of beamid.simulate
+    simulate: dict | None = None
 
     @property
     def output_prefix(self) -> Path:
@@ -136,6 +152,12 @@ def read_deck(path: str | os.PathLike):
     task = str(head.get("task", "static"))
     if task not in TASKS:
         raise InputError(f"{path}: &beamid task = {task!r}, expected one of {TASKS}")
+    for name in groups:
+        if name == "simulate" and task != "simulate":
+            raise InputError(f'{path}: group &simulate is only for task "simulate"')
+        if name in ("fe", "static") and task == "simulate":
+            raise InputError(f'{path}: group &{name} is not used by task "simulate" (give '
+                             'elements_per_beam in &simulate)')
     output = head.get("output")
     if not output:
         raise InputError(f"{path}: &beamid output is missing: give the output path prefix")
@@ -216,6 +238,9 @@ def read_deck(path: str | os.PathLike):
         load = RadialWire(nums["wire_length"])
     else:
         raise InputError(f"{path}: &load kind = {kind!r}, expected \"tip\" or \"wire\"")
+    simulate = None
+    if task == "simulate":
+        simulate = _simulate_group(path, load, groups.get("simulate", [None])[0])
 
     static = groups.get("static", [{}])[0]
     wrt = tuple(str(w) for w in _as_list(static.get("wrt", [])) if w)
@@ -264,7 +289,81 @@ def read_deck(path: str | os.PathLike):
             note=str(item.get("note", "") or "")))
     return Deck(path=path, task=task, output=str(output), model=model, load=load, wrt=wrt,
                 shape_points=shape_points, tol=tol or None, published=tuple(published),
-                fe=fe)
+                fe=fe, simulate=simulate)
+
+
+def _simulate_group(path: Path, load: Load, group: dict | None) -> dict:
+    """Validate &simulate (the checks and messages of beamid-batch, in its
+    order) and return ``t_out`` and the keyword arguments of beamid.simulate."""
+    if isinstance(load, RadialWire):
+        raise InputError(f'{path}: &load kind = "wire" is not available for task "simulate" '
+                         "(tip loads only)")
+    if group is None:
+        raise InputError(f"{path}: group &simulate is missing")
+    given = dict(group)
+    times = _as_list(given.get("t_out", []))
+    while times and times[-1] is None:
+        times.pop()
+    if any(t is None for t in times):
+        raise InputError(f"{path}: &simulate t_out has gaps: give the output times as one list")
+    times = [_number(path, "simulate", "t_out", t) for t in times]
+    t_end = given.get("t_end")
+    if times and t_end is not None:
+        raise InputError(f"{path}: &simulate gives both t_out and t_end: give one")
+    if not times and t_end is None:
+        raise InputError(f"{path}: &simulate needs t_out (a list of output times) or t_end "
+                         "(with n_out)")
+    if times and "n_out" in given:
+        raise InputError(f"{path}: &simulate n_out goes with t_end, not with t_out")
+    if times:
+        t_out = np.array(times, dtype=float)
+    else:
+        t_end = _number(path, "simulate", "t_end", t_end)
+        if not (0.0 < t_end < math.inf):
+            raise InputError(f"{path}: &simulate t_end = {t_end:g}, expected a time > 0 (s)")
+        n_out = _integer(path, "simulate", "n_out", given.get("n_out", DEFAULT_N_OUT))
+        if n_out < 2:
+            raise InputError(f"{path}: &simulate n_out = {n_out}, expected at least 2")
+        t_out = np.linspace(0.0, t_end, n_out)
+    bad = [k for k, t in enumerate(t_out)
+           if not math.isfinite(t) or (k == 0 and t < 0) or (k > 0 and t <= t_out[k - 1])]
+    if bad:
+        raise InputError(f"{path}: &simulate t_out must be ascending times >= 0 (entry "
+                         f"{bad[0] + 1} = {t_out[bad[0]]:g})")
+    opts = dict(SIMULATE_DEFAULTS)
+    nel = _integer(path, "simulate", "elements_per_beam",
+                   given.get("elements_per_beam", opts["elements_per_beam"]))
+    if nel < 1:
+        raise InputError(f"{path}: &simulate elements_per_beam = {nel}, expected at least 1")
+    opts["elements_per_beam"] = nel
+    integrator = str(given.get("integrator", opts["integrator"]))
+    if integrator not in ("implicit", "rk4"):
+        raise InputError(f'{path}: &simulate integrator = "{integrator}", expected "implicit" '
+                         'or "rk4"')
+    opts["integrator"] = integrator
+    friction = str(given.get("friction", "") or "")
+    if friction not in ("", "sign", "smooth", "sign_literal"):
+        raise InputError(f'{path}: &simulate friction = "{friction}", expected "sign", '
+                         '"smooth" or "sign_literal"')
+    opts["friction"] = friction or ("sign" if integrator == "rk4" else "smooth")
+    for name in ("dt", "rtol", "atol", "friction_velocity"):
+        value = _number(path, "simulate", name, given.get(name, 0.0))
+        if not 0.0 <= value < math.inf:
+            raise InputError(f"{path}: &simulate {name} = {value:g}, expected 0 (default) or "
+                             "a positive number")
+        opts[name] = value or None
+    gain = _number(path, "simulate", "motor_gain", given.get("motor_gain", 0.0))
+    if not 0.0 <= gain < math.inf:
+        raise InputError(f"{path}: &simulate motor_gain = {gain:g}, expected a finite number "
+                         ">= 0")
+    opts["motor_gain"] = gain
+    return {"t_out": t_out, **opts}
+
+
+def _integer(path: Path, group: str, name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{path}: in &{group}: {name} = {value!r}, expected an integer")
+    return int(value)
 
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:
@@ -332,6 +431,40 @@ def _run_fe(deck: Deck):
     return md
 
 
+def history_columns(nbeams: int) -> tuple[str, ...]:
+    """Columns of ``<output>_history.csv`` (task simulate), as beamid-batch
+    writes them: time, tip, energies, each work line, their sum, the
+    numerical line E - E0 - work, the motor torque."""
+    from .dynamics import work_names
+
+    return ("t", "tip_u", "tip_w", "tip_angle", "energy", "kinetic", "potential",
+            *work_names(nbeams), "work", "numerical", "motor_torque")
+
+
+def history_table(run, nbeams: int) -> np.ndarray:
+    """The rows of ``<output>_history.csv`` of a :class:`beamid.Run` (nt, ncol)."""
+    from .dynamics import work_names
+
+    cols = [run.t, run.tip_u, run.tip_w, run.tip_angle, run.energy, run.ledger["kinetic"],
+            run.ledger["potential"], *[run.ledger[n] for n in work_names(nbeams)], run.work,
+            run.ledger["numerical"], run.motor_torque]
+    return np.column_stack(cols)
+
+
+def _run_simulate(deck: Deck):
+    """simulate: <output>_history.csv (the file beamid-batch writes)."""
+    from .dynamics import simulate
+
+    opts = dict(deck.simulate or {})
+    t_out = opts.pop("t_out")
+    run = simulate(deck.model, deck.load, t_out, **opts)
+    nb = deck.model.nbeams
+    rows = [",".join(history_columns(nb))]
+    rows += [",".join(_csv_number(v) for v in row) for row in history_table(run, nb)]
+    _atomic_write(Path(f"{deck.output_prefix}_history.csv"), "\n".join(rows) + "\n")
+    return run
+
+
 def _atomic_write(path: Path, text: str) -> None:
     """Write text to path through a temporary file, so no half file is left."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -354,8 +487,9 @@ def run(deck: Deck | str | os.PathLike):
     """Run a deck as ``beamid-batch`` does and write the same CSV files.
 
     Static decks write ``<output>_summary.csv`` (outputs and sensitivities) and
-    ``<output>_shape.csv``; finite element and estimation decks the files listed in
-    docs/decks.md. Returns the result object of the task.
+    ``<output>_shape.csv``; dynamic decks ``<output>_history.csv``; finite element
+    and estimation decks the files listed in docs/decks.md. Returns the result
+    object of the task (a :class:`beamid.Run` for simulate).
     """
     if not isinstance(deck, Deck):
         deck = read_deck(deck)
@@ -365,6 +499,8 @@ def run(deck: Deck | str | os.PathLike):
         return run_fit_deck(deck)[2]
     if deck.task.startswith("fe_"):
         return _run_fe(deck)
+    if deck.task == "simulate":
+        return _run_simulate(deck)
     result = solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)
     shape = result.shape(n=deck.shape_points) if deck.shape_points >= 2 else None
     names = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",
