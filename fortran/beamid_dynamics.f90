@@ -44,7 +44,7 @@ module beamid_dynamics
     implicit none
     private
 
-    public :: dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, dyn_rates, dyn_energy
+    public :: dyn_system_t, dyn_setup, dyn_forces, dyn_power, dyn_jacobian, dyn_rates, dyn_energy
     public :: dyn_mass, dyn_tip, dyn_nwork, dyn_psidot, dyn_torque
     public :: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, zband_solve
     public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
@@ -368,12 +368,34 @@ contains
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: f(:), power(:), torque
+        call fe_internal_force(sys%mesh, q, f)
+        f = -f
+        call add_effects(sys, q, v, x, f, power, torque)
+    end subroutine dyn_forces
+
+    !> Work rates of the effects alone (no internal force): what the
+    !! collocation quadrature of the ledger needs on converged stages.
+    pure subroutine dyn_power(sys, q, v, x, power)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        real(dp), intent(out) :: power(:)
+        real(dp) :: f(size(q)), torque
+        f = 0.0_dp
+        call add_effects(sys, q, v, x, f, power, torque)
+    end subroutine dyn_power
+
+    !> Add the nonconservative and velocity-dependent forces of the effects to
+    !! f; their work rates and the motor torque (Eq. 101-102, 121-122, 130-132,
+    !! 150-156).
+    pure subroutine add_effects(sys, q, v, x, f, power, torque)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        real(dp), intent(inout) :: f(:)
+        real(dp), intent(out) :: power(:), torque
         real(dp), allocatable :: qf(:), vf(:), ff(:)
         real(dp) :: phi, dphi, fd(FE_NDOF), pw, psid, jm
         integer :: k, i, c, el, i0, npt
         npt = sys%npt
-        call fe_internal_force(sys%mesh, q, f)
-        f = -f
         power = 0.0_dp
         do k = 1, npt
             do c = 1, 2
@@ -421,7 +443,7 @@ contains
             f(sys%idu(npt)) = f(sys%idu(npt)) - torque*q(sys%idw(npt))
             power(2*npt + 2) = torque*dyn_psidot(sys, q, v, npt)
         end if
-    end subroutine dyn_forces
+    end subroutine add_effects
 
     !> Mass matrix M(q) in band storage (rotary inertia of Eq. 132 included).
     pure subroutine dyn_mass(sys, q, mb)

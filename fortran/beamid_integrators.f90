@@ -23,7 +23,8 @@ module beamid_integrators
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
                              ERR_NUMERIC, fmt_int, fmt_real
     use beamid_fe_assembly, only: fe_band_rows, fe_band_add, fe_band_matvec
-    use beamid_dynamics, only: dyn_system_t, dyn_forces, dyn_jacobian, dyn_rates, &
+    use beamid_dynamics, only: dyn_system_t, dyn_forces, dyn_power, dyn_psidot, &
+                               dyn_jacobian, dyn_rates, &
                                dyn_energy, dyn_mass, dyn_torque, band_lu_t, zband_lu_t, &
                                band_factor, band_solve, zband_factor, zband_solve
     implicit none
@@ -41,12 +42,16 @@ module beamid_integrators
         real(dp) :: rtol = 1.0e-7_dp     !< implicit: relative tolerance
         real(dp) :: atol = 1.0e-7_dp     !< implicit: absolute tolerance (m, rad, m/s)
         real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
+        !> implicit: keep the Jacobian while the Newton contraction theta stays below
+        real(dp) :: theta_jac = 1.0e-3_dp
+        logical :: predictive = .true.   !< implicit: Gustafsson's step controller
         integer :: max_steps = 50000000
     end type integ_opts_t
 
     !> What an integration did.
     type :: integ_stats_t
         integer :: steps = 0, rejected = 0, fevals = 0, jevals = 0, newton = 0
+        integer :: factorizations = 0
     end type integ_stats_t
 
     !> Time histories at the output times (columns).
@@ -65,12 +70,18 @@ module beamid_integrators
         real(dp) :: e = 0.0_dp
         type(band_lu_t) :: lu1                  !< gamma/h - J (real)
         type(zband_lu_t) :: lu2                 !< mu/h - J (complex)
+        logical :: have_mass = .false.          !< mb holds the constant M
+        real(dp), allocatable :: a1(:, :)       !< gamma/h M + C (band)
+        complex(dp), allocatable :: a2(:, :)    !< mu/h M + C (band)
+        real(dp), allocatable :: rhs(:), tmp(:) !< work (n)
+        complex(dp), allocatable :: zrhs(:)
     end type radau_t
 
     ! Radau IIA (3 stages) nodes, stiffly accurate weights b = A(3, :),
     ! and the embedded-error coefficients (Hairer-Wanner IV.8).
     real(dp), parameter :: SQ6 = sqrt(6.0_dp)
     real(dp), parameter :: C1 = (4.0_dp - SQ6)/10.0_dp, C2 = (4.0_dp + SQ6)/10.0_dp
+    real(dp), parameter :: CNODE(3) = [C1, C2, 1.0_dp]
     real(dp), parameter :: DD(3) = [-(13.0_dp + 7.0_dp*SQ6)/3.0_dp, &
                                     (-13.0_dp + 7.0_dp*SQ6)/3.0_dp, -1.0_dp/3.0_dp]
 
@@ -295,7 +306,8 @@ contains
         end do
     end subroutine run_rk4
 
-    !> Jacobians and mass matrix of the step start into `it`.
+    !> Jacobians and mass matrix of the step start into `it`; allocates the
+    !! work arrays of `it` on first use.
     subroutine radau_jacobian(sys, y, it)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y(:)
@@ -304,15 +316,25 @@ contains
         n = sys%n
         nb = fe_band_rows(sys%mesh)
         if (.not. allocated(it%mb)) then
-            allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n))
+            allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n), &
+                      it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n))
+            it%lu1%n = n
+            it%lu1%kl = sys%mesh%kl
+            it%lu1%ku = sys%mesh%ku
+            it%lu2%n = n
+            it%lu2%kl = sys%mesh%kl
+            it%lu2%ku = sys%mesh%ku
+            allocate (it%lu1%ab(nb, n), it%lu2%ab(nb, n))
         end if
-        call dyn_mass(sys, y(1:n), it%mb)
+        ! a constant mass matrix is copied once (M0 = M(q) only with rotary inertia)
+        if (sys%rotary .or. .not. it%have_mass) call dyn_mass(sys, y(1:n), it%mb)
+        it%have_mass = .true.
         call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), it%kb, it%cb, it%b, &
                           it%p, it%d, it%e)
     end subroutine radau_jacobian
 
     !> Assemble and factor (lam^2 M + lam C + K - b w^T) for lam = gamma/h
-    !! (real) and mu/h (complex).
+    !! (real) and mu/h (complex), and keep lam M + C for the right sides.
     subroutine radau_factor(sys, it, h, gam, mu, stat)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
@@ -321,28 +343,25 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp) :: l1
         complex(dp) :: l2
-        integer :: i, j, kl, ku
+        integer :: i, j, kl, ku, r
         kl = sys%mesh%kl
         ku = sys%mesh%ku
         l1 = gam/h
         l2 = mu/h
         it%h = h
-        it%lu1%n = sys%n
-        it%lu1%kl = kl
-        it%lu1%ku = ku
-        it%lu1%ab = l1*l1*it%mb + l1*it%cb + it%kb
-        it%lu2%n = sys%n
-        it%lu2%kl = kl
-        it%lu2%ku = ku
-        it%lu2%ab = l2*l2*it%mb + l2*it%cb + it%kb
+        it%a1 = l1*it%mb + it%cb
+        it%a2 = l2*it%mb + it%cb
+        it%lu1%ab = l1*it%a1 + it%kb
+        it%lu2%ab = l2*it%a2 + it%kb
         if (sys%nx > 0) then
             do j = 1, sys%n
                 if (it%p(j) == 0.0_dp .and. it%d(j) == 0.0_dp) cycle
-                do i = 1, sys%n
+                do i = max(1, j - ku), min(sys%n, j + kl)
                     if (it%b(i) == 0.0_dp) cycle
-                    it%lu1%ab(kl + ku + 1 + i - j, j) = it%lu1%ab(kl + ku + 1 + i - j, j) &
+                    r = kl + ku + 1 + i - j
+                    it%lu1%ab(r, j) = it%lu1%ab(r, j) &
                         - it%b(i)*(it%p(j) + l1*it%d(j))/(l1 - it%e)
-                    it%lu2%ab(kl + ku + 1 + i - j, j) = it%lu2%ab(kl + ku + 1 + i - j, j) &
+                    it%lu2%ab(r, j) = it%lu2%ab(r, j) &
                         - it%b(i)*(it%p(j) + l2*it%d(j))/(l2 - it%e)
                 end do
             end do
@@ -352,65 +371,106 @@ contains
         call zband_factor(it%lu2, stat)
     end subroutine radau_factor
 
+    !> y = A x for a complex band matrix (LAPACK general band storage).
+    pure subroutine zband_matvec(ab, kl, ku, x, y)
+        complex(dp), intent(in) :: ab(:, :), x(:)
+        integer, intent(in) :: kl, ku
+        complex(dp), intent(out) :: y(:)
+        integer :: i, j
+        y = (0.0_dp, 0.0_dp)
+        do j = 1, size(ab, 2)
+            do i = max(1, j - ku), min(size(ab, 2), j + kl)
+                y(i) = y(i) + ab(kl + ku + 1 + i - j, j)*x(j)
+            end do
+        end do
+    end subroutine zband_matvec
+
     !> Solve (lam - J) [x; y; z] = [r; s; t] with the real factorization
-    !! (lam = gamma/h); the argument holds the right side and the solution.
+    !! (lam = gamma/h). On entry w = [r; M s; t] (the velocity row already
+    !! multiplied by the step-start mass matrix M0: the "M-form" of the
+    !! residual, which needs no M^-1); on exit w = [x; y; z].
     subroutine solve_real(sys, it, lam, w)
         type(dyn_system_t), intent(in) :: sys
-        type(radau_t), intent(in) :: it
+        type(radau_t), intent(inout) :: it
         real(dp), intent(in) :: lam
         real(dp), intent(inout) :: w(:)
-        real(dp), allocatable :: rhs(:), tmp(:), tmp2(:)
         real(dp) :: zt
         integer :: n
         n = sys%n
-        allocate (rhs(n), tmp(n), tmp2(n))
-        call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, w(n + 1:2*n) + lam*w(1:n), rhs)
-        call fe_band_matvec(it%cb, sys%mesh%kl, sys%mesh%ku, w(1:n), tmp)
-        rhs = rhs + tmp
+        call fe_band_matvec(it%a1, sys%mesh%kl, sys%mesh%ku, w(1:n), it%rhs)
+        it%rhs = it%rhs + w(n + 1:2*n)
+        zt = 0.0_dp
         if (sys%nx > 0) then
             zt = w(2*n + 1) - dot_product(it%d, w(1:n))
-            rhs = rhs + it%b*zt/(lam - it%e)
+            it%rhs = it%rhs + it%b*zt/(lam - it%e)
         end if
-        call band_solve(it%lu1, rhs)
-        tmp2 = w(1:n)
-        w(n + 1:2*n) = lam*rhs - tmp2
+        call band_solve(it%lu1, it%rhs)
+        w(n + 1:2*n) = lam*it%rhs - w(1:n)
         if (sys%nx > 0) then
-            w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, rhs))/(lam - it%e)
+            w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, it%rhs))/(lam - it%e)
         end if
-        w(1:n) = rhs
+        w(1:n) = it%rhs
     end subroutine solve_real
 
-    !> Complex counterpart of solve_real (lam = mu/h).
+    !> Complex counterpart of solve_real (lam = mu/h), same M-form input.
     subroutine solve_cplx(sys, it, lam, w)
         type(dyn_system_t), intent(in) :: sys
-        type(radau_t), intent(in) :: it
+        type(radau_t), intent(inout) :: it
         complex(dp), intent(in) :: lam
         complex(dp), intent(inout) :: w(:)
-        complex(dp), allocatable :: rhs(:), x(:)
-        real(dp), allocatable :: re(:), im(:), t1(:), t2(:)
         complex(dp) :: zt
-        integer :: n, kl, ku
+        integer :: n
         n = sys%n
-        kl = sys%mesh%kl
-        ku = sys%mesh%ku
-        allocate (rhs(n), x(n), re(n), im(n), t1(n), t2(n))
-        x = w(n + 1:2*n) + lam*w(1:n)
-        call fe_band_matvec(it%mb, kl, ku, real(x, dp), t1)
-        call fe_band_matvec(it%mb, kl, ku, aimag(x), t2)
-        rhs = cmplx(t1, t2, dp)
-        call fe_band_matvec(it%cb, kl, ku, real(w(1:n), dp), t1)
-        call fe_band_matvec(it%cb, kl, ku, aimag(w(1:n)), t2)
-        rhs = rhs + cmplx(t1, t2, dp)
+        call zband_matvec(it%a2, sys%mesh%kl, sys%mesh%ku, w(1:n), it%zrhs)
+        it%zrhs = it%zrhs + w(n + 1:2*n)
         zt = (0.0_dp, 0.0_dp)
         if (sys%nx > 0) then
             zt = w(2*n + 1) - sum(it%d*w(1:n))
-            rhs = rhs + it%b*zt/(lam - it%e)
+            it%zrhs = it%zrhs + it%b*zt/(lam - it%e)
         end if
-        call zband_solve(it%lu2, rhs)
-        w(n + 1:2*n) = lam*rhs - w(1:n)
-        if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*rhs))/(lam - it%e)
-        w(1:n) = rhs
+        call zband_solve(it%lu2, it%zrhs)
+        w(n + 1:2*n) = lam*it%zrhs - w(1:n)
+        if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*it%zrhs))/(lam - it%e)
+        w(1:n) = it%zrhs
     end subroutine solve_cplx
+
+    !> Rates of y in M-form: (v, M0 M(q)^-1 F, x'). With a constant mass
+    !! matrix M0 M^-1 F = F and no solve is needed (the cost of a rate is one
+    !! internal force); with rotary inertia M(q) is factored at y.
+    subroutine rates_m(sys, it, y, dy, power, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(radau_t), intent(inout) :: it
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: dy(:), power(:)
+        type(status_t), intent(inout) :: stat
+        real(dp) :: torque
+        integer :: n
+        n = sys%n
+        if (sys%rotary) then
+            call dyn_rates(sys, y, dy, power, torque, stat)
+            it%tmp = dy(n + 1:2*n)
+            call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, it%tmp, dy(n + 1:2*n))
+        else
+            call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, &
+                            torque)
+            dy(1:n) = y(n + 1:2*n)
+            if (sys%nx > 0) then
+                dy(2*n + 1) = (-sys%motor*dyn_psidot(sys, y(1:n), y(n + 1:2*n), sys%npt) &
+                               - y(2*n + 1))/sys%tau
+            end if
+        end if
+    end subroutine rates_m
+
+    !> Put a rate-form vector into M-form: x(n+1:2n) <- M0 x(n+1:2n).
+    subroutine to_mform(sys, it, x)
+        type(dyn_system_t), intent(in) :: sys
+        type(radau_t), intent(inout) :: it
+        real(dp), intent(inout) :: x(:)
+        integer :: n
+        n = sys%n
+        it%tmp = x(n + 1:2*n)
+        call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, it%tmp, x(n + 1:2*n))
+    end subroutine to_mform
 
     pure real(dp) function rms(x, scal)
         real(dp), intent(in) :: x(:), scal(:)
@@ -434,6 +494,13 @@ contains
     end function lagrange
 
     !> Radau IIA (order 5) with simplified Newton and step-size control.
+    !!
+    !! Cost per step (constant mass matrix): the stage residuals are formed in
+    !! M-form (no M^-1), one internal force per stage and Newton iteration; the
+    !! Jacobian is kept while Newton contracts (theta <= opts%theta_jac) and
+    !! the factorization while h changes by less than 20 %; the step size
+    !! follows Gustafsson's predictive controller (Hairer-Wanner IV.8, Eq.
+    !! 8.25), which avoids the reject/accept oscillation of the classical one.
     subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
@@ -446,29 +513,35 @@ contains
         real(dp), parameter :: SAFE = 0.9_dp, FACL = 5.0_dp, FACR = 0.125_dp
         type(radau_t) :: it
         real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, faccon, dnorm, dold
-        real(dp) :: fac, quot, hnew, hprev, torque, fnewt, tiny_h, theta_last
-        complex(dp) :: mu, tm(3, 3), ti(3, 3)
-        real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), g(:, :), f0(:), &
+        real(dp) :: fac, quot, hnew, hprev, fnewt, tiny_h, theta_last, lsc(3)
+        real(dp) :: hacc, erracc, facgus, ti1(3)
+        complex(dp) :: mu, tm(3, 3), ti(3, 3), ti2(3)
+        real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), zd(:, :), f0(:), &
                                  e0(:), ev(:), scal(:), w1(:), dz(:, :), work(:), pw(:, :), &
-                                 ytmp(:)
+                                 ytmp(:), ys(:)
         complex(dp), allocatable :: w2(:)
-        integer :: nn, kout, i, newt, nt
+        integer :: nn, n, kout, i, j, newt, nt, naccpt
         logical :: first, reject, converged, clipped, have_prev, jac_fresh, refactor
         logical :: jac_fresh_here, jac_at_y
-        real(dp), parameter :: THET = 1.0e-3_dp
         type(status_t) :: inner
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
+        ti1 = real(ti(1, :), dp)
+        ti2 = ti(2, :)
         nn = sys%nstate
+        n = sys%n
         nt = size(t_out)
-        allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), g(nn, 3), f0(nn), e0(nn), &
+        allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), zd(nn, 3), f0(nn), e0(nn), &
                   ev(nn), scal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
-                  pw(sys%nwork, 3), w2(nn), ytmp(nn))
+                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn))
         y = y0
         work = 0.0_dp
         t = 0.0_dp
         h = opts%h0
         hprev = h
+        hacc = h
+        erracc = 1.0_dp
+        naccpt = 0
         first = .true.
         reject = .false.
         have_prev = .false.
@@ -477,6 +550,7 @@ contains
         it%h = -1.0_dp
         faccon = 1.0_dp
         fnewt = 0.03_dp
+        theta = 0.0_dp
         kout = 1
         do while (kout <= nt)
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
@@ -506,9 +580,9 @@ contains
             ! beyond the accuracy of interest (axial, 1e3-1e5 rad/s) are damped
             ! by the L-stable scheme instead of being resolved.
             scal = opts%atol + opts%rtol*abs(y)
-            scal(sys%n + 1:2*sys%n) = scal(sys%n + 1:2*sys%n)/hh
-            ! Jacobian reused while Newton converges fast (theta <= THET), and the
-            ! factorization while the step size is unchanged (Hairer's RADAU5 rule)
+            scal(n + 1:2*n) = scal(n + 1:2*n)/hh
+            ! Jacobian reused while Newton converges fast (theta <= theta_jac), and
+            ! the factorization while the step size is unchanged (RADAU5's rule)
             refactor = hh /= it%h
             jac_fresh_here = .not. jac_fresh .or. jac_at_y
             if (.not. jac_fresh) then
@@ -522,18 +596,14 @@ contains
             if (refactor) then
                 call radau_factor(sys, it, hh, gam, mu, stat)
                 if (stat%code /= 0) return
+                stats%factorizations = stats%factorizations + 1
             end if
             ! starting values: the last collocation polynomial, extrapolated
             if (have_prev) then
                 do i = 1, 3
-                    if (i == 1) then
-                        z(:, i) = matmul(zprev, lagrange(1.0_dp + C1*hh/hprev))
-                    else if (i == 2) then
-                        z(:, i) = matmul(zprev, lagrange(1.0_dp + C2*hh/hprev))
-                    else
-                        z(:, i) = matmul(zprev, lagrange(1.0_dp + hh/hprev))
-                    end if
-                    z(:, i) = z(:, i) - zprev(:, 3)
+                    lsc = lagrange(1.0_dp + CNODE(i)*hh/hprev)
+                    z(:, i) = lsc(1)*zprev(:, 1) + lsc(2)*zprev(:, 2) &
+                              + lsc(3)*zprev(:, 3) - zprev(:, 3)
                 end do
             else
                 z = 0.0_dp
@@ -546,16 +616,19 @@ contains
             theta_last = 0.0_dp
             inner = status_t()
             do newt = 1, NIT
+                ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
                 do i = 1, 3
-                    call dyn_rates(sys, y + z(:, i), fz(:, i), pw(:, i), torque, inner)
+                    ys = y + z(:, i)
+                    call rates_m(sys, it, ys, fz(:, i), pw(:, i), inner)
+                    zd(:, i) = (dmat(i, 1)*z(:, 1) + dmat(i, 2)*z(:, 2) &
+                                + dmat(i, 3)*z(:, 3))/hh
+                    call to_mform(sys, it, zd(:, i))
                 end do
                 stats%fevals = stats%fevals + 3
                 if (inner%code /= 0) exit
-                do i = 1, 3
-                    g(:, i) = fz(:, i) - matmul(z, dmat(i, :))/hh
-                end do
-                w1 = matmul(g, real(ti(1, :), dp))
-                w2 = matmul(cmplx(g, 0.0_dp, dp), ti(2, :))
+                fz = fz - zd
+                w1 = ti1(1)*fz(:, 1) + ti1(2)*fz(:, 2) + ti1(3)*fz(:, 3)
+                w2 = ti2(1)*fz(:, 1) + ti2(2)*fz(:, 2) + ti2(3)*fz(:, 3)
                 call solve_real(sys, it, gam/hh, w1)
                 call solve_cplx(sys, it, mu/hh, w2)
                 do i = 1, 3
@@ -592,17 +665,18 @@ contains
                 if (.not. ieee_is_finite(dnorm)) h = 0.25_dp*hh
                 cycle
             end if
-            ! error estimate (Hairer-Wanner IV.8, Eq. 8.19-8.20)
-            call dyn_rates(sys, y, f0, pw(:, 1), torque, stat)
+            ! error estimate (Hairer-Wanner IV.8, Eq. 8.19-8.20), in M-form
+            call rates_m(sys, it, y, f0, pw(:, 1), stat)
             if (stat%code /= 0) return
-            e0 = matmul(z, DD)/hh
+            e0 = (DD(1)*z(:, 1) + DD(2)*z(:, 2) + DD(3)*z(:, 3))/hh
+            call to_mform(sys, it, e0)
             ev = f0 + e0
             call solve_real(sys, it, gam/hh, ev)
             err = max(rms(ev, scal), 1.0e-10_dp)
             stats%fevals = stats%fevals + 1
             if (err >= 1.0_dp .and. (first .or. reject)) then
                 ytmp = y + ev
-                call dyn_rates(sys, ytmp, ev, pw(:, 1), torque, stat)
+                call rates_m(sys, it, ytmp, ev, pw(:, 1), stat)
                 if (stat%code /= 0) return
                 ev = ev + e0
                 call solve_real(sys, it, gam/hh, ev)
@@ -613,20 +687,35 @@ contains
             quot = max(FACR, min(FACL, err**0.25_dp/fac))
             hnew = hh/quot
             if (err < 1.0_dp) then
+                ! predictive controller (Gustafsson): also use the last accepted
+                ! step and error, except after a clipped (output) step
+                if (opts%predictive .and. naccpt >= 1 .and. .not. clipped) then
+                    facgus = (hacc/hh)*(err*err/erracc)**0.25_dp/SAFE
+                    facgus = max(FACR, min(FACL, facgus))
+                    quot = max(quot, facgus)
+                    hnew = hh/quot
+                end if
+                if (.not. clipped) then
+                    hacc = hh
+                    erracc = max(1.0e-2_dp, err)
+                end if
+                naccpt = naccpt + 1
                 ! accept: work by the collocation quadrature on the stages
-                do i = 1, 3
-                    call dyn_forces(sys, y(1:sys%n) + z(1:sys%n, i), &
-                                    y(sys%n + 1:2*sys%n) + z(sys%n + 1:2*sys%n, i), &
-                                    y(2*sys%n + 1:) + z(2*sys%n + 1:, i), ytmp(1:sys%n), &
-                                    pw(:, i), torque)
-                end do
-                work = work + hh*matmul(pw, a(3, :))
+                if (sys%nwork > 0) then
+                    do i = 1, 3
+                        ys = y + z(:, i)
+                        call dyn_power(sys, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), pw(:, i))
+                    end do
+                    do j = 1, sys%nwork
+                        work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))
+                    end do
+                end if
                 y = y + z(:, 3)
                 t = t + hh
                 zprev = z
                 hprev = hh
                 have_prev = .true.
-                jac_fresh = theta_last <= THET
+                jac_fresh = theta_last <= opts%theta_jac
                 jac_at_y = .false.
                 ! keep the step (and the factorization) when the change is small
                 if (hnew/hh >= 1.0_dp .and. hnew/hh <= 1.2_dp .and. .not. clipped) hnew = hh
