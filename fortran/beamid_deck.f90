@@ -36,7 +36,7 @@ module beamid_deck
         ' static fe_static fe_modes fit compare diagnose improve simulate '
     !> Estimation tasks and the groups their decks may hold.
     character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve '
-    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit '
+    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published '
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
 

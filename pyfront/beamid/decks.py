@@ -96,6 +96,24 @@ class Deck:
         return out if out.is_absolute() else self.path.parent / out
 
 
+def parse_published(path: Path, items: list) -> tuple[Published, ...]:
+    """The &published groups of a deck (any task)."""
+    published = []
+    for item in items:
+        quantities = [str(q) for q in _as_list(item.get("quantity", []))]
+        vals = _as_list(item.get("value", []))
+        digits = _as_list(item.get("digits", []))
+        if not (len(quantities) == len(vals) == len(digits)) or not quantities:
+            raise InputError(f"{path}: &published needs equally long quantity, value and "
+                             "digits lists")
+        published.append(Published(
+            table=str(item.get("table", "")), row=str(item.get("row", "")),
+            values={q: (float(v), int(dg)) for q, v, dg in zip(quantities, vals, digits)},
+            deviations=tuple(str(d) for d in _as_list(item.get("deviation", [])) if d),
+            note=str(item.get("note", "") or "")))
+    return tuple(published)
+
+
 def _point_name(nbeams: int, k: int) -> str:
     if k == nbeams:
         return "tip"
@@ -274,21 +292,9 @@ def read_deck(path: str | os.PathLike):
         raise InputError(f"{path}: &load kind = \"wire\" is not available for task "
                          f"{task!r} (tip loads only)")
 
-    published = []
-    for item in groups.get("published", []):
-        quantities = [str(q) for q in _as_list(item.get("quantity", []))]
-        vals = _as_list(item.get("value", []))
-        digits = _as_list(item.get("digits", []))
-        if not (len(quantities) == len(vals) == len(digits)) or not quantities:
-            raise InputError(f"{path}: &published needs equally long quantity, value and "
-                             "digits lists")
-        published.append(Published(
-            table=str(item.get("table", "")), row=str(item.get("row", "")),
-            values={q: (float(v), int(dg)) for q, v, dg in zip(quantities, vals, digits)},
-            deviations=tuple(str(d) for d in _as_list(item.get("deviation", [])) if d),
-            note=str(item.get("note", "") or "")))
+    published = parse_published(path, groups.get("published", []))
     return Deck(path=path, task=task, output=str(output), model=model, load=load, wrt=wrt,
-                shape_points=shape_points, tol=tol or None, published=tuple(published),
+                shape_points=shape_points, tol=tol or None, published=published,
                 fe=fe, simulate=simulate)
 
 

@@ -42,6 +42,7 @@ GROUPS = {
     "experiment": {"name", "kind", "fx", "fy", "moment", "wire_length"},
     "fit": {"data", "free", "prior_names", "prior_means", "prior_sigmas", "candidates",
             "alpha", "max_iter"},
+    "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
 }
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
@@ -62,6 +63,7 @@ class FitDeck:
     candidates: tuple[str, ...] | None = None
     alpha: float = 0.01
     max_iter: int = 50
+    published: tuple = ()     #: &published groups (beamid.decks.Published)
 
     @property
     def output_prefix(self) -> Path:
@@ -242,9 +244,12 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         raise InputError(f"{path}: in &fit: max_iter = {max_iter!r}, expected an integer")
     if max_iter < 1:
         raise InputError(f"{path}: &fit max_iter = {max_iter}, expected at least 1")
+    from .decks import parse_published
+
+    published = parse_published(path, [g for g in groups.get("published", [])])
     return FitDeck(path=path, task=task, output=str(output), model=model,
                    experiments=experiments, data=data, free=free, prior=prior,
-                   candidates=cands, alpha=alpha, max_iter=max_iter)
+                   candidates=cands, alpha=alpha, max_iter=max_iter, published=published)
 
 
 def _write(path: Path, lines: list[str]) -> None:

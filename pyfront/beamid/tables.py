@@ -68,6 +68,7 @@ def seed_decks(tables: Iterable[str] = ()) -> list[Deck]:
     (``"2"``, ``"table2"``, ``"Table 2"`` and ``"circle"`` all work)."""
     wanted = {_norm(t) for t in tables}
     decks = [read_deck(p) for p in sorted(seed_deck_dir().glob("*.nml"))]
+    decks = [d for d in decks if d.published]
     if wanted:
         decks = [d for d in decks if any(_norm(p.table) in wanted for p in d.published)]
     return decks
@@ -80,7 +81,15 @@ def _norm(table: str) -> str:
 
 def check_deck(deck: Deck) -> list[Check]:
     """Solve a deck and compare with its published values."""
-    if deck.task == "simulate":
+    if deck.task == "fit":
+        from .estimation import fit
+
+        result = fit(deck.model, deck.experiments, deck.data, free=deck.free,
+                     prior=deck.prior, max_iter=deck.max_iter)
+        # published quantities of a fit deck: parameter estimates, iterations
+        values = {**result.estimates, "iterations": float(result.iterations)}
+        ours_of = values.__getitem__
+    elif deck.task == "simulate":
         # dynamic decks: SERIES@TIME or max_abs_SERIES (beamid.history)
         from .history import deck_quantities
 
