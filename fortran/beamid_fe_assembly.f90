@@ -2,12 +2,21 @@
 !!
 !! The chain of `nbeams` beams is cut into elements; neighbouring elements share
 !! a node, and a node carries four unknowns in the order of Eq. 83:
-!! [w, w', u, u']. The elbow (and every joint) is locked: w, w', u, u' are
-!! continuous across it, as in the dissertation. Point masses sit on the joint
-!! and tip nodes. The clamped root fixes w, w' and u of node 1 (Eq. 103); the
-!! remaining unknowns are the "free" vector q of length nfree, numbered in the
-!! same order, so an element always touches 8 consecutive free unknowns and
-!! every matrix has half-bandwidth 7.
+!! [w, w', u, u'] (full indices 4(node-1) + 1..4). A rigid joint is locked:
+!! w, w', u, u' are continuous across it, as in the dissertation. A compliant
+!! joint k (joint_flex(k) = f > 0) is a hinge with a rotational spring: its
+!! node keeps one position (u, w) but carries a second slope pair (w'+, u'+)
+!! for the outboard beam (full indices 4 nnode + 2(j-1) + 1..2 for hinge j),
+!! and the spring energy (psi+ - psi-)^2 / (2 f) with psi = atan2(w', 1 + u')
+!! (docs/theory_fe.md, Section 8). Point masses sit on the joint and tip
+!! nodes. The clamped root fixes w, w' and u of node 1 (Eq. 103); with
+!! root_flex > 0 it fixes w and u only and a spring psi(0)^2 / (2 root_flex)
+!! holds the root slope. The remaining unknowns are the "free" vector q of
+!! length nfree, numbered node by node ([w, w', u, u'], or at a hinge
+!! [w'-, u'-, w, u, w'+, u'+]), so an element touches 8 consecutive free
+!! unknowns and every matrix has half-bandwidth 7 (computed from the mesh:
+!! mesh%kl, mesh%ku). With all compliances zero the numbering, and every
+!! number, is that of the rigid chain.
 !!
 !! Eliminating the three clamped unknowns is the Lagrange-multiplier projection
 !! of Eq. 104-107 (see docs/theory_fe.md): with C = [I 0], the projector
@@ -23,7 +32,8 @@ module beamid_fe_assembly
     use beamid_model, only: chain_t
     use beamid_fe_element, only: FE_NDOF, fe_gauss_points, fe_quadrature_order, &
                                  fe_element_energy, fe_element_force, &
-                                 fe_element_tangent, fe_element_mass
+                                 fe_element_tangent, fe_element_mass, &
+                                 fe_hinge_energy, fe_hinge_force, fe_hinge_tangent
     implicit none
     private
 
@@ -31,13 +41,17 @@ module beamid_fe_assembly
     public :: fe_band_rows, fe_band_add, fe_band_get, fe_band_to_dense, fe_band_matvec
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
-    public :: fe_expand, fe_node_value
-    public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, FE_MOMENT_EQ78, FE_MOMENT_EXACT
+    public :: fe_expand, fe_node_value, fe_spring_energy
+    public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
+    public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
 
-    !> Half-bandwidth of every assembled matrix (8 unknowns per element).
+    !> Half-bandwidth of the rigid chain (8 unknowns per element); a mesh's
+    !! own is mesh%kl, mesh%ku.
     integer, parameter :: FE_BAND = FE_NDOF - 1
-    !> Components of a node, in the order of Eq. 83.
+    !> Components of a node, in the order of Eq. 83, and the outboard slopes
+    !! of a hinged joint (equal to DOF_DW, DOF_DU entries at other nodes).
     integer, parameter :: DOF_W = 1, DOF_DW = 2, DOF_U = 3, DOF_DU = 4
+    integer, parameter :: DOF_DW_OUT = 5, DOF_DU_OUT = 6
     !> Tip moment virtual work: Eq. 78 as printed (M [(1+u') dw' - w' du'], the
     !! small-strain form of delta Psi) or the exact delta Psi of Eq. 73.
     integer, parameter :: FE_MOMENT_EQ78 = 0, FE_MOMENT_EXACT = 1
@@ -48,10 +62,22 @@ module beamid_fe_assembly
         integer :: nbeams = 0
         integer :: nel = 0         !< number of elements
         integer :: nnode = 0       !< nel + 1
-        integer :: ndof = 0        !< 4 * nnode, all unknowns
-        integer :: nfree = 0       !< unknowns left after the clamp (ndof - 3)
-        integer :: kl = FE_BAND    !< sub-diagonals
-        integer :: ku = FE_BAND    !< super-diagonals
+        integer :: ndof = 0        !< 4 * nnode + 2 * nhinge, all unknowns
+        integer :: nfree = 0       !< unknowns left after the clamp (ndof - 3, or - 2)
+        integer :: kl = FE_BAND    !< sub-diagonals (from the numbering)
+        integer :: ku = FE_BAND    !< super-diagonals (from the numbering)
+        integer :: nhinge = 0      !< compliant joints (joint_flex > 0)
+        real(dp) :: root_flex = 0.0_dp           !< root hinge compliance (0: clamp)
+        integer, allocatable :: hinge_node(:)    !< node of each compliant joint
+        real(dp), allocatable :: hinge_flex(:)   !< its compliance f (rad per N m)
+        !> Full index of component 1..6 (DOF_W..DOF_DU_OUT) of each node,
+        !! (6, nnode); rows 5-6 repeat rows 2 and 4 except at a hinge.
+        integer, allocatable :: node_dof(:, :)
+        !> Full indices of the 8 unknowns of each element, (FE_NDOF, nel):
+        !! the outboard slopes of its first node, the inboard of its second.
+        integer, allocatable :: el_dof(:, :)
+        integer, allocatable :: free_comp(:)    !< component (1..6) of each free unknown
+        integer, allocatable :: free_node(:)    !< node of each free unknown
         real(dp), allocatable :: h(:), ea(:), ei(:), rho(:), cubic(:)
         integer, allocatable :: beam(:)         !< beam of each element
         real(dp), allocatable :: s(:)           !< undeformed arc length of each node
@@ -74,15 +100,18 @@ module beamid_fe_assembly
 contains
 
     !> Discretize `chain` with `elements_per_beam` equal elements on each beam.
-    !! Joint and root compliances are not part of the element chain: they must
-    !! be zero (rigid), which is the dissertation's locked elbow and clamp.
+    !! A joint with joint_flex > 0 becomes a hinge with a rotational spring, a
+    !! root_flex > 0 a hinge spring at the clamp; zero compliances give the
+    !! dissertation's locked elbow and clamp, with the rigid numbering.
     pure subroutine fe_mesh_build(chain, elements_per_beam, mesh, stat)
         type(chain_t), intent(in) :: chain
         integer, intent(in) :: elements_per_beam
         type(fe_mesh_t), intent(out) :: mesh
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'fe_mesh_build'
-        integer :: ib, k, el, nb, i
+        integer :: ib, k, el, nb, i, j, node, kf, r, full, span
+        integer :: order(6)
+        integer, allocatable :: idx(:)
         if (elements_per_beam < 1) then
             call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//', expected at least 1')
@@ -93,25 +122,28 @@ contains
             call set_status(stat, ERR_INPUT, where, 'the chain has no beams')
             return
         end if
-        if (chain%root_flex /= 0.0_dp) then
+        if (.not. (chain%root_flex >= 0.0_dp .and. chain%root_flex <= huge(1.0_dp))) then
             call set_status(stat, ERR_INPUT, where, 'root_flex = '// &
-                            fmt_real(chain%root_flex)// &
-                            ', the finite element chain models a rigid clamp (expected 0)')
+                            fmt_real(chain%root_flex)//', expected a finite number >= 0')
             return
         end if
         do i = 1, nb - 1
-            if (chain%joint_flex(i) /= 0.0_dp) then
+            if (.not. (chain%joint_flex(i) >= 0.0_dp .and. &
+                       chain%joint_flex(i) <= huge(1.0_dp))) then
                 call set_status(stat, ERR_INPUT, where, 'joint '//fmt_int(i)// &
                                 ' flex = '//fmt_real(chain%joint_flex(i))// &
-                                ', the finite element chain models locked joints (expected 0)')
+                                ', expected a finite number >= 0')
                 return
             end if
         end do
         mesh%nbeams = nb
         mesh%nel = nb*elements_per_beam
         mesh%nnode = mesh%nel + 1
-        mesh%ndof = 4*mesh%nnode
+        mesh%nhinge = count(chain%joint_flex(1:nb - 1) > 0.0_dp)
+        mesh%root_flex = chain%root_flex
+        mesh%ndof = 4*mesh%nnode + 2*mesh%nhinge
         mesh%nfree = mesh%ndof - 3
+        if (mesh%root_flex > 0.0_dp) mesh%nfree = mesh%ndof - 2
         allocate (mesh%h(mesh%nel), mesh%ea(mesh%nel), mesh%ei(mesh%nel), &
                   mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel))
         allocate (mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
@@ -140,13 +172,67 @@ contains
             mesh%node_mass(el + 1) = chain%mass(ib)
             mesh%node_inertia(el + 1) = chain%inertia(ib)
         end do
-        allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree))
-        ! clamp of Eq. 103: w, w', u of the root node; u' (the root strain) stays free
-        mesh%free_of(1:3) = 0
-        do i = 4, mesh%ndof
-            mesh%free_of(i) = i - 3
-            mesh%full_of(i - 3) = i
+        ! node table of full indices; hinges get their outboard slopes after 4 nnode
+        allocate (mesh%node_dof(6, mesh%nnode), mesh%hinge_node(mesh%nhinge), &
+                  mesh%hinge_flex(mesh%nhinge))
+        do node = 1, mesh%nnode
+            mesh%node_dof(1:4, node) = 4*(node - 1) + [1, 2, 3, 4]
+            mesh%node_dof(5:6, node) = mesh%node_dof([DOF_DW, DOF_DU], node)
         end do
+        j = 0
+        do i = 1, nb - 1
+            if (chain%joint_flex(i) > 0.0_dp) then
+                j = j + 1
+                node = i*elements_per_beam + 1
+                mesh%hinge_node(j) = node
+                mesh%hinge_flex(j) = chain%joint_flex(i)
+                mesh%node_dof(5:6, node) = 4*mesh%nnode + 2*(j - 1) + [1, 2]
+            end if
+        end do
+        allocate (mesh%el_dof(FE_NDOF, mesh%nel))
+        do el = 1, mesh%nel
+            mesh%el_dof(:, el) = [mesh%node_dof([DOF_W, DOF_DW_OUT, DOF_U, DOF_DU_OUT], el), &
+                                  mesh%node_dof(1:4, el + 1)]
+        end do
+        ! free numbering node by node; the clamp of Eq. 103 fixes w, w', u of the
+        ! root (w and u only with a root hinge); u' (the root strain) stays free
+        allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree), &
+                  mesh%free_comp(mesh%nfree), mesh%free_node(mesh%nfree))
+        mesh%free_of = 0
+        kf = 0
+        do node = 1, mesh%nnode
+            if (any(mesh%hinge_node == node)) then
+                order = [DOF_DW, DOF_DU, DOF_W, DOF_U, DOF_DW_OUT, DOF_DU_OUT]
+                k = 6
+            else
+                order(1:4) = [DOF_W, DOF_DW, DOF_U, DOF_DU]
+                k = 4
+            end if
+            do i = 1, k
+                r = order(i)
+                if (node == 1 .and. (r == DOF_W .or. r == DOF_U)) cycle
+                if (node == 1 .and. r == DOF_DW .and. .not. mesh%root_flex > 0.0_dp) cycle
+                full = mesh%node_dof(r, node)
+                kf = kf + 1
+                mesh%free_of(full) = kf
+                mesh%full_of(kf) = full
+                mesh%free_comp(kf) = r
+                mesh%free_node(kf) = node
+            end do
+        end do
+        ! half-bandwidth: widest coupling of an element or of a hinge spring
+        span = 0
+        do el = 1, mesh%nel
+            idx = pack(mesh%free_of(mesh%el_dof(:, el)), mesh%free_of(mesh%el_dof(:, el)) > 0)
+            span = max(span, maxval(idx) - minval(idx))
+        end do
+        do j = 1, mesh%nhinge
+            idx = mesh%free_of(mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], &
+                                             mesh%hinge_node(j)))
+            span = max(span, maxval(idx) - minval(idx))
+        end do
+        mesh%kl = span
+        mesh%ku = span
         k = fe_quadrature_order(maxval(abs(mesh%cubic)))
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
@@ -214,13 +300,15 @@ contains
         qfull(mesh%full_of) = q
     end subroutine fe_expand
 
-    !> Value of component `comp` (DOF_W..DOF_DU) at node `node` from free q.
+    !> Value of component `comp` (DOF_W..DOF_DU_OUT) at node `node` from free
+    !! q. DOF_DW_OUT, DOF_DU_OUT are the slopes of the outboard element at the
+    !! node: the second slope pair at a hinge, the node's w', u' elsewhere.
     pure real(dp) function fe_node_value(mesh, q, node, comp)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         integer, intent(in) :: node, comp
         integer :: k
-        k = mesh%free_of(4*(node - 1) + comp)
+        k = mesh%free_of(mesh%node_dof(comp, node))
         if (k == 0) then
             fe_node_value = 0.0_dp
         else
@@ -229,14 +317,102 @@ contains
     end function fe_node_value
 
     !> Element unknowns of element `el` from the full vector.
-    pure function element_vector(qfull, el) result(qe)
+    pure function element_vector(mesh, qfull, el) result(qe)
+        type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: qfull(:)
         integer, intent(in) :: el
         real(dp) :: qe(FE_NDOF)
-        qe = qfull(4*(el - 1) + 1:4*(el - 1) + FE_NDOF)
+        qe = qfull(mesh%el_dof(:, el))
     end function element_vector
 
-    !> Strain energy V of the chain (Eq. 87) at the free vector q.
+    !> Full indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]:
+    !! spring 0 is the root hinge (its inboard side is the clamp, index 0),
+    !! spring j >= 1 the hinge at mesh%hinge_node(j).
+    pure subroutine spring_dofs(mesh, j, idx, flex)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(in) :: j
+        integer, intent(out) :: idx(4)
+        real(dp), intent(out) :: flex
+        if (j == 0) then
+            idx = [0, 0, mesh%node_dof(DOF_DW, 1), mesh%node_dof(DOF_DU, 1)]
+            flex = mesh%root_flex
+        else
+            idx = mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], mesh%hinge_node(j))
+            flex = mesh%hinge_flex(j)
+        end if
+    end subroutine spring_dofs
+
+    !> Spring vector s = [w'-, u'-, w'+, u'+] of spring j (zero at the clamp).
+    pure function spring_vector(qfull, idx) result(sv)
+        real(dp), intent(in) :: qfull(:)
+        integer, intent(in) :: idx(4)
+        real(dp) :: sv(4)
+        integer :: a
+        sv = 0.0_dp
+        do a = 1, 4
+            if (idx(a) > 0) sv(a) = qfull(idx(a))
+        end do
+    end function spring_vector
+
+    !> Energy of the joint and root springs at the full vector qfull.
+    pure real(dp) function spring_energy(mesh, qfull) result(v)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: qfull(:)
+        integer :: j, idx(4)
+        real(dp) :: flex
+        v = 0.0_dp
+        do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
+            call spring_dofs(mesh, j, idx, flex)
+            v = v + fe_hinge_energy(flex, spring_vector(qfull, idx))
+        end do
+    end function spring_energy
+
+    !> Energy of the hinge springs alone (joints and root) at the free vector q:
+    !! sum of (psi+ - psi-)^2 / (2 f); zero for a rigid chain.
+    pure real(dp) function fe_spring_energy(mesh, q) result(v)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), allocatable :: qfull(:)
+        allocate (qfull(mesh%ndof))
+        call fe_expand(mesh, q, qfull)
+        v = spring_energy(mesh, qfull)
+    end function fe_spring_energy
+
+    !> ffull += spring forces and, if present, kb += spring tangents (free rows).
+    pure subroutine add_springs(mesh, qfull, ffull, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: qfull(:)
+        real(dp), intent(inout) :: ffull(:)
+        real(dp), intent(inout), optional :: kb(:, :)
+        integer :: j, a, b, i, jj, idx(4)
+        real(dp) :: flex, fs(4), ks(4, 4)
+        do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
+            call spring_dofs(mesh, j, idx, flex)
+            if (present(kb)) then
+                call fe_hinge_tangent(flex, spring_vector(qfull, idx), fs, ks)
+            else
+                call fe_hinge_force(flex, spring_vector(qfull, idx), fs)
+            end if
+            do a = 1, 4
+                if (idx(a) > 0) ffull(idx(a)) = ffull(idx(a)) + fs(a)
+            end do
+            if (.not. present(kb)) cycle
+            do b = 1, 4
+                if (idx(b) == 0) cycle
+                jj = mesh%free_of(idx(b))
+                if (jj == 0) cycle
+                do a = 1, 4
+                    if (idx(a) == 0) cycle
+                    i = mesh%free_of(idx(a))
+                    if (i == 0) cycle
+                    call fe_band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
+                end do
+            end do
+        end do
+    end subroutine add_springs
+
+    !> Strain energy V of the chain (Eq. 87) at the free vector q, with the
+    !! energy of the hinge springs.
     pure real(dp) function fe_energy(mesh, q) result(v)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
@@ -247,8 +423,9 @@ contains
         v = 0.0_dp
         do el = 1, mesh%nel
             v = v + fe_element_energy(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                      mesh%xg, mesh%wg, element_vector(qfull, el))
+                                      mesh%xg, mesh%wg, element_vector(mesh, qfull, el))
         end do
+        v = v + spring_energy(mesh, qfull)
     end function fe_energy
 
     !> Internal force NLT(q) = dV/dq on the free unknowns (Eq. 79-83).
@@ -258,23 +435,25 @@ contains
         real(dp), intent(out) :: f(:)
         real(dp), allocatable :: qfull(:), ffull(:)
         real(dp) :: fe(FE_NDOF)
-        integer :: el, i0
+        integer :: el
         allocate (qfull(mesh%ndof), ffull(mesh%ndof))
         call fe_expand(mesh, q, qfull)
         ffull = 0.0_dp
         do el = 1, mesh%nel
-            i0 = 4*(el - 1)
             call fe_element_force(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                  mesh%xg, mesh%wg, element_vector(qfull, el), fe)
-            ffull(i0 + 1:i0 + FE_NDOF) = ffull(i0 + 1:i0 + FE_NDOF) + fe
+                                  mesh%xg, mesh%wg, element_vector(mesh, qfull, el), fe)
+            ffull(mesh%el_dof(:, el)) = ffull(mesh%el_dof(:, el)) + fe
         end do
+        call add_springs(mesh, qfull, ffull)
         f = ffull(mesh%full_of)
     end subroutine fe_internal_force
 
     !> Root reactions: the Lagrange multipliers of Eq. 104-105 for a static
     !! state, lambda = NLT(q) on the clamped unknowns (w, w', u of node 1);
     !! tip loads never act on the clamped unknowns directly. For a dynamic
-    !! state the caller adds the inertia force on those rows.
+    !! state the caller adds the inertia force on those rows. With a root
+    !! hinge, reactions(2) is the first element's force on the w' row: in
+    !! equilibrium minus the root spring's, i.e. the moment it transmits.
     pure subroutine fe_reactions(mesh, q, reactions)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
@@ -284,7 +463,7 @@ contains
         allocate (qfull(mesh%ndof))
         call fe_expand(mesh, q, qfull)
         call fe_element_force(mesh%h(1), mesh%ea(1), mesh%ei(1), mesh%cubic(1), &
-                              mesh%xg, mesh%wg, element_vector(qfull, 1), fe)
+                              mesh%xg, mesh%wg, element_vector(mesh, qfull, 1), fe)
         reactions = fe(1:3)
     end subroutine fe_reactions
 
@@ -296,26 +475,27 @@ contains
         real(dp), intent(out) :: f(:), kb(:, :)
         real(dp), allocatable :: qfull(:), ffull(:)
         real(dp) :: fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
-        integer :: el, i0, a, b, i, j
+        integer :: el, a, b, i, j, idx(FE_NDOF)
         allocate (qfull(mesh%ndof), ffull(mesh%ndof))
         call fe_expand(mesh, q, qfull)
         ffull = 0.0_dp
         kb = 0.0_dp
         do el = 1, mesh%nel
-            i0 = 4*(el - 1)
+            idx = mesh%el_dof(:, el)
             call fe_element_tangent(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                    mesh%xg, mesh%wg, element_vector(qfull, el), fe, ke)
-            ffull(i0 + 1:i0 + FE_NDOF) = ffull(i0 + 1:i0 + FE_NDOF) + fe
+                                    mesh%xg, mesh%wg, qfull(idx), fe, ke)
+            ffull(idx) = ffull(idx) + fe
             do b = 1, FE_NDOF
-                j = mesh%free_of(i0 + b)
+                j = mesh%free_of(idx(b))
                 if (j == 0) cycle
                 do a = 1, FE_NDOF
-                    i = mesh%free_of(i0 + a)
+                    i = mesh%free_of(idx(a))
                     if (i == 0) cycle
                     call fe_band_add(kb, mesh%kl, mesh%ku, i, j, ke(a, b))
                 end do
             end do
         end do
+        call add_springs(mesh, qfull, ffull, kb)
         f = ffull(mesh%full_of)
     end subroutine fe_tangent
 
@@ -333,22 +513,23 @@ contains
     !! the point masses on u and w of the joint and tip nodes. With `rotary`,
     !! the rotary inertia J of the point masses enters through the matrix of
     !! Eq. 132 on (w', u'), evaluated at q: J [(1+u')^2, -w'(1+u'); -w'(1+u'), w'^2].
+    !! At a hinge the joint mass turns with the inboard beam end (w'-, u'-).
     pure subroutine fe_mass(mesh, q, rotary, mb)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         logical, intent(in) :: rotary
         real(dp), intent(out) :: mb(:, :)
         real(dp) :: me(FE_NDOF, FE_NDOF), du, dw, jm
-        integer :: el, i0, a, b, i, j, node, iw, iu
+        integer :: el, a, b, i, j, node, iw, iu, idx(FE_NDOF)
         mb = 0.0_dp
         do el = 1, mesh%nel
-            i0 = 4*(el - 1)
+            idx = mesh%el_dof(:, el)
             call fe_element_mass(mesh%h(el), mesh%rho(el), me)
             do b = 1, FE_NDOF
-                j = mesh%free_of(i0 + b)
+                j = mesh%free_of(idx(b))
                 if (j == 0) cycle
                 do a = 1, FE_NDOF
-                    i = mesh%free_of(i0 + a)
+                    i = mesh%free_of(idx(a))
                     if (i == 0) cycle
                     call fe_band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
                 end do
@@ -430,12 +611,10 @@ contains
     pure subroutine tip_indices(mesh, iw, idw, iu, idu)
         type(fe_mesh_t), intent(in) :: mesh
         integer, intent(out) :: iw, idw, iu, idu
-        integer :: base
-        base = 4*(mesh%nnode - 1)
-        iw = mesh%free_of(base + DOF_W)
-        idw = mesh%free_of(base + DOF_DW)
-        iu = mesh%free_of(base + DOF_U)
-        idu = mesh%free_of(base + DOF_DU)
+        iw = mesh%free_of(mesh%node_dof(DOF_W, mesh%nnode))
+        idw = mesh%free_of(mesh%node_dof(DOF_DW, mesh%nnode))
+        iu = mesh%free_of(mesh%node_dof(DOF_U, mesh%nnode))
+        idu = mesh%free_of(mesh%node_dof(DOF_DU, mesh%nnode))
     end subroutine tip_indices
 
 end module beamid_fe_assembly

@@ -25,6 +25,7 @@ module beamid_fe_element
     public :: fe_gauss_points, fe_quadrature_order, fe_hermite
     public :: fe_element_energy, fe_element_force, fe_element_tangent
     public :: fe_element_mass, fe_element_strain
+    public :: fe_hinge_energy, fe_hinge_force, fe_hinge_tangent
 
     !> Unknowns per element.
     integer, parameter :: FE_NDOF = 8
@@ -218,5 +219,76 @@ contains
             end do
         end do
     end subroutine fe_element_mass
+
+    !> Relative rotation dpsi = psi+ - psi- of a hinge (Section 8 of
+    !! docs/theory_fe.md) between the tangents t- = (1 + u'-, w'-) and
+    !! t+ = (1 + u'+, w'+), psi = atan2(w', 1 + u') the cross-section angle of
+    !! the shear-free element, and its gradient g with respect to the hinge
+    !! vector s = [w'-, u'-, w'+, u'+]. dpsi = atan2(t- x t+, t- . t+) lies in
+    !! (-pi, pi]: no branch cut of the single angles is crossed.
+    pure subroutine hinge_angle(s, dpsi, g)
+        real(dp), intent(in) :: s(4)
+        real(dp), intent(out) :: dpsi, g(4)
+        real(dp) :: xm, ym, xp, yp, rm, rp
+        ym = s(1)
+        xm = 1.0_dp + s(2)
+        yp = s(3)
+        xp = 1.0_dp + s(4)
+        rm = xm*xm + ym*ym
+        rp = xp*xp + yp*yp
+        dpsi = atan2(xm*yp - ym*xp, xm*xp + ym*yp)
+        g = [-xm/rm, ym/rm, xp/rp, -yp/rp]
+    end subroutine hinge_angle
+
+    !> Energy dpsi^2 / (2 flex) of a hinge spring of compliance flex > 0 (rad
+    !! per N m) on s = [w'-, u'-, w'+, u'+].
+    pure real(dp) function fe_hinge_energy(flex, s) result(v)
+        real(dp), intent(in) :: flex, s(4)
+        real(dp) :: dpsi, g(4)
+        call hinge_angle(s, dpsi, g)
+        v = 0.5_dp*dpsi*dpsi/flex
+    end function fe_hinge_energy
+
+    !> Generalized force (dpsi / flex) d(dpsi)/ds of a hinge spring: the hinge
+    !! moment M = dpsi / flex times the angle gradient (the kink dpsi = f M).
+    pure subroutine fe_hinge_force(flex, s, f)
+        real(dp), intent(in) :: flex, s(4)
+        real(dp), intent(out) :: f(4)
+        real(dp) :: dpsi, g(4)
+        call hinge_angle(s, dpsi, g)
+        f = (dpsi/flex)*g
+    end subroutine fe_hinge_force
+
+    !> Force and tangent (g g^T + dpsi H) / flex of a hinge spring, with H the
+    !! Hessian of dpsi: -Hess(psi-) and +Hess(psi+) on the diagonal blocks,
+    !! Hess(psi) = [-2xy, y^2 - x^2; y^2 - x^2, 2xy] / r^4 on (w', u').
+    pure subroutine fe_hinge_tangent(flex, s, f, k)
+        real(dp), intent(in) :: flex, s(4)
+        real(dp), intent(out) :: f(4), k(4, 4)
+        real(dp) :: dpsi, g(4), x, y, r4, m
+        integer :: i, j, side
+        call hinge_angle(s, dpsi, g)
+        m = dpsi/flex
+        f = m*g
+        do j = 1, 4
+            do i = 1, 4
+                k(i, j) = g(i)*g(j)/flex
+            end do
+        end do
+        do side = 0, 1
+            y = s(2*side + 1)
+            x = 1.0_dp + s(2*side + 2)
+            r4 = (x*x + y*y)**2
+            ! psi- enters dpsi with sign -1, psi+ with +1
+            if (side == 0) then
+                r4 = -r4
+            end if
+            i = 2*side + 1
+            k(i, i) = k(i, i) + m*(-2.0_dp*x*y)/r4
+            k(i + 1, i + 1) = k(i + 1, i + 1) + m*(2.0_dp*x*y)/r4
+            k(i, i + 1) = k(i, i + 1) + m*(y*y - x*x)/r4
+            k(i + 1, i) = k(i + 1, i) + m*(y*y - x*x)/r4
+        end do
+    end subroutine fe_hinge_tangent
 
 end module beamid_fe_element

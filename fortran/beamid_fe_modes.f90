@@ -11,7 +11,8 @@ module beamid_fe_modes
                              fmt_real
     use beamid_lapack, only: sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_band_to_dense, fe_mass, &
-                                  fe_stiffness_linear, fe_band_matvec, DOF_U, DOF_DU
+                                  fe_stiffness_linear, fe_band_matvec, DOF_U, DOF_DU, &
+                                  DOF_DU_OUT
     implicit none
     private
 
@@ -20,13 +21,13 @@ module beamid_fe_modes
 
 contains
 
-    !> True when free unknown `k` is an axial one (u or u').
+    !> True when free unknown `k` is an axial one (u, u', or a hinge's u'+).
     pure logical function fe_is_axial_unknown(mesh, k)
         type(fe_mesh_t), intent(in) :: mesh
         integer, intent(in) :: k
         integer :: comp
-        comp = mod(mesh%full_of(k) - 1, 4) + 1
-        fe_is_axial_unknown = comp == DOF_U .or. comp == DOF_DU
+        comp = mesh%free_comp(k)
+        fe_is_axial_unknown = comp == DOF_U .or. comp == DOF_DU .or. comp == DOF_DU_OUT
     end function fe_is_axial_unknown
 
     !> Natural frequencies omega (rad/s, ascending), mass-normalized mode shapes

@@ -9,8 +9,7 @@ module beamid_fe_static
     use beamid_lapack, only: solve_banded, sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
                                   fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
-                                  fe_stiffness_linear, fe_band_add, DOF_W, DOF_DW, &
-                                  DOF_DU
+                                  fe_stiffness_linear, fe_band_add, DOF_W, DOF_U
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -46,8 +45,8 @@ contains
         integer :: k, comp
         turn = 0.0_dp
         do k = 1, mesh%nfree
-            comp = mod(mesh%full_of(k) - 1, 4) + 1
-            if (comp == DOF_DW .or. comp == DOF_DU) turn = max(turn, abs(dq(k)))
+            comp = mesh%free_comp(k)
+            if (comp /= DOF_W .and. comp /= DOF_U) turn = max(turn, abs(dq(k)))
         end do
     end function max_slope_change
 
@@ -359,7 +358,7 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(out) :: gb(:, :)
         real(dp) :: f(4), f1(4), f2(4), ge(FE_NDOF, FE_NDOF)
-        integer :: el, g, a, b, i, j, i0
+        integer :: el, g, a, b, i, j, idx(FE_NDOF)
         gb = 0.0_dp
         do el = 1, mesh%nel
             ge = 0.0_dp
@@ -374,12 +373,12 @@ contains
                     end do
                 end do
             end do
-            i0 = 4*(el - 1)
+            idx = mesh%el_dof(:, el)
             do b = 1, FE_NDOF
-                j = mesh%free_of(i0 + b)
+                j = mesh%free_of(idx(b))
                 if (j == 0) cycle
                 do a = 1, FE_NDOF
-                    i = mesh%free_of(i0 + a)
+                    i = mesh%free_of(idx(a))
                     if (i == 0) cycle
                     call fe_band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
                 end do

@@ -150,5 +150,6 @@ def test_bad_input(pace, kwargs):
 
 
 def test_bad_model_values(pace):
+    # a positive elbow_flex is a hinge now (tests/test_fe_hinge.py); negative is refused
     with pytest.raises(beamid.InputError):
-        beamid.modes(pace.replace(elbow_flex=1e-3), 2)
+        beamid.modes(pace.replace(elbow_flex=-1e-3), 2)

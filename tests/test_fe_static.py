@@ -220,10 +220,11 @@ def test_bad_input(pace, kwargs, exc):
 
 
 def test_bad_models_and_loads(pace):
+    # compliances are hinges now (tests/test_fe_hinge.py); negative ones are refused
     with pytest.raises(beamid.InputError, match="elbow_flex|joint"):
-        beamid.fe_static(pace.replace(elbow_flex=0.01), beamid.TipForce(fy=1.0), 2)
+        beamid.fe_static(pace.replace(elbow_flex=-0.01), beamid.TipForce(fy=1.0), 2)
     with pytest.raises(beamid.InputError, match="root_flex"):
-        beamid.fe_static(pace.replace(root_flex=0.01), beamid.TipForce(fy=1.0), 2)
+        beamid.fe_static(pace.replace(root_flex=-0.01), beamid.TipForce(fy=1.0), 2)
     with pytest.raises(beamid.InputError, match="not supported"):
         beamid.fe_static(pace, beamid.RadialWire(1.3), 2)
     with pytest.raises(beamid.InputError):

@@ -4,7 +4,13 @@
 !! and an integer status with a 256-character message. Every routine takes
 !! the model as (nbeams, nparams, params) in the layout of beamid_model and
 !! the mesh as elements_per_beam (nepb). Node tables have 5 rows per node:
-!! s (undeformed arc length), u, u', w, w' (' = d/ds), nnode = nbeams*nepb + 1.
+!! s (undeformed arc length), u, u', w, w' (' = d/ds), nnode = nbeams*nepb + 1;
+!! u', w' are the slopes of the element inboard of the node. Outboard tables
+!! (2 rows per node: u'+, w'+) hold the slopes of the element outboard of the
+!! node: they differ from u', w' only at a compliant joint (a hinge, whose
+!! node carries a second slope pair); as inputs they may simply repeat rows
+!! 3 and 5 of the node table. nfree depends on the compliances
+!! (api_fe_mesh_sizes).
 !! Loads are (fx, fy, moment, moment_form): a tip force of fixed direction
 !! and a tip moment whose virtual work is Eq. 78 (moment_form 0) or the exact
 !! delta Psi (moment_form 1).
@@ -18,7 +24,7 @@ module beamid_api_fe
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_mesh_build, fe_band_rows, fe_tangent, &
                                   fe_band_to_dense, fe_mass, fe_energy, fe_tip_load, &
                                   fe_reactions, fe_node_value, DOF_W, DOF_DW, DOF_U, DOF_DU, &
-                                  FE_MOMENT_EQ78, FE_MOMENT_EXACT
+                                  DOF_DW_OUT, DOF_DU_OUT, FE_MOMENT_EQ78, FE_MOMENT_EXACT
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static, &
                                 fe_residual, fe_path, fe_buckling_load
     use beamid_fe_modes, only: fe_modes, fe_modal_coordinates, fe_modal_cost, &
@@ -28,17 +34,43 @@ module beamid_api_fe
 
     public :: api_fe_sizes, api_fe_static, api_fe_path, api_fe_buckling, api_fe_modes
     public :: api_fe_axial_linear, api_fe_modal_cost, api_fe_system, api_fe_element
-    public :: api_fe_time_tangent
+    public :: api_fe_time_tangent, api_fe_mesh_sizes
 
 contains
 
-    !> Number of nodes and of free unknowns (after the clamp) of the mesh.
+    !> Number of nodes and of free unknowns (after the clamp) of the mesh of a
+    !! rigid chain (locked joints and clamp); api_fe_mesh_sizes for any chain.
     subroutine api_fe_sizes(nbeams, nepb, nnode, nfree)
         integer(c_int), intent(in) :: nbeams, nepb
         integer(c_int), intent(out) :: nnode, nfree
         nnode = nbeams*nepb + 1
         nfree = 4*nnode - 3
     end subroutine api_fe_sizes
+
+    !> Number of nodes, free unknowns, compliant joints (hinges) and the
+    !! half-bandwidth of the mesh of the model `params`.
+    subroutine api_fe_mesh_sizes(nbeams, nparams, params, nepb, nnode, nfree, nhinge, band, &
+                                 code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb
+        real(c_double), intent(in) :: params(nparams)
+        integer(c_int), intent(out) :: nnode, nfree, nhinge, band, code
+        character(len=256), intent(out) :: message
+        type(fe_mesh_t) :: mesh
+        type(status_t) :: stat
+        nnode = 0
+        nfree = 0
+        nhinge = 0
+        band = 0
+        call make_mesh(nbeams, nparams, params, nepb, nbeams*nepb + 1, mesh, stat)
+        if (stat%code == STATUS_OK) then
+            nnode = int(mesh%nnode, c_int)
+            nfree = int(mesh%nfree, c_int)
+            nhinge = int(mesh%nhinge, c_int)
+            band = int(mesh%kl, c_int)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_fe_mesh_sizes
 
     !> Chain and mesh from the API arguments, checking the node count.
     subroutine make_mesh(nbeams, nparams, params, nepb, nnode, mesh, stat)
@@ -85,25 +117,42 @@ contains
     end subroutine make_options
 
     !> Free vector q from a node table (rows s, u, u', w, w'); s is ignored.
-    subroutine q_from_nodes(mesh, nodes, q)
+    !! The outboard slopes of a hinge come from `outboard` (rows u'+, w'+)
+    !! when present, else they start equal to the inboard ones.
+    subroutine q_from_nodes(mesh, nodes, q, outboard)
         type(fe_mesh_t), intent(in) :: mesh
         real(c_double), intent(in) :: nodes(:, :)
         real(dp), intent(out) :: q(:)
-        integer :: node, comp, k
-        integer, parameter :: row(4) = [4, 5, 2, 3]   ! w, w', u, u' rows
-        do node = 1, mesh%nnode
-            do comp = 1, 4
-                k = mesh%free_of(4*(node - 1) + comp)
-                if (k > 0) q(k) = nodes(row(comp), node)
-            end do
+        real(c_double), intent(in), optional :: outboard(:, :)
+        integer :: k, node
+        do k = 1, mesh%nfree
+            node = mesh%free_node(k)
+            select case (mesh%free_comp(k))
+            case (DOF_W)
+                q(k) = nodes(4, node)
+            case (DOF_DW)
+                q(k) = nodes(5, node)
+            case (DOF_U)
+                q(k) = nodes(2, node)
+            case (DOF_DU)
+                q(k) = nodes(3, node)
+            case (DOF_DW_OUT)
+                q(k) = nodes(5, node)
+                if (present(outboard)) q(k) = outboard(2, node)
+            case (DOF_DU_OUT)
+                q(k) = nodes(3, node)
+                if (present(outboard)) q(k) = outboard(1, node)
+            end select
         end do
     end subroutine q_from_nodes
 
-    !> Node table (rows s, u, u', w, w') from the free vector q.
-    subroutine nodes_from_q(mesh, q, nodes)
+    !> Node table (rows s, u, u', w, w') from the free vector q and, optionally,
+    !! the outboard slopes (rows u'+, w'+; equal to u', w' except at a hinge).
+    subroutine nodes_from_q(mesh, q, nodes, outboard)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(c_double), intent(out) :: nodes(:, :)
+        real(c_double), intent(out), optional :: outboard(:, :)
         integer :: node
         do node = 1, mesh%nnode
             nodes(1, node) = mesh%s(node)
@@ -111,20 +160,27 @@ contains
             nodes(3, node) = fe_node_value(mesh, q, node, DOF_DU)
             nodes(4, node) = fe_node_value(mesh, q, node, DOF_W)
             nodes(5, node) = fe_node_value(mesh, q, node, DOF_DW)
+            if (present(outboard)) then
+                outboard(1, node) = fe_node_value(mesh, q, node, DOF_DU_OUT)
+                outboard(2, node) = fe_node_value(mesh, q, node, DOF_DW_OUT)
+            end if
         end do
     end subroutine nodes_from_q
 
     !> Static equilibrium (Eq. 83-85). use_guess = 1 starts Newton at the full
-    !! load from the shape in `guess`; 0 steps the load up from the straight
-    !! chain in nsteps initial steps (0: default). Outputs the node table, the
-    !! strain energy, the root reactions (Lagrange multipliers of Eq. 105 on
-    !! w, w', u) and info = (Newton iterations, accepted load steps).
+    !! load from the shape in `guess` (outboard slopes `guess_out`); 0 steps
+    !! the load up from the straight chain in nsteps initial steps (0:
+    !! default). Outputs the node table, the outboard slopes, the strain
+    !! energy (springs included), the root reactions (Lagrange multipliers of
+    !! Eq. 105 on w, w', u) and info = (Newton iterations, accepted load steps).
     subroutine api_fe_static(nbeams, nparams, params, nepb, nnode, loads, use_guess, nsteps, &
-                             tol, guess, nodes, energy, reactions, residual, info, code, &
-                             message)
+                             tol, guess, guess_out, nodes, nodes_out, energy, reactions, &
+                             residual, info, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, nnode, use_guess, nsteps
         real(c_double), intent(in) :: params(nparams), loads(4), tol, guess(5, nnode)
-        real(c_double), intent(out) :: nodes(5, nnode), energy, reactions(3), residual
+        real(c_double), intent(in) :: guess_out(2, nnode)
+        real(c_double), intent(out) :: nodes(5, nnode), nodes_out(2, nnode)
+        real(c_double), intent(out) :: energy, reactions(3), residual
         integer(c_int), intent(out) :: info(2), code
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
@@ -135,6 +191,7 @@ contains
         real(dp), allocatable :: q(:)
         real(dp) :: r3(3)
         nodes = 0.0_c_double
+        nodes_out = 0.0_c_double
         energy = 0.0_c_double
         reactions = 0.0_c_double
         residual = 0.0_c_double
@@ -145,12 +202,12 @@ contains
         if (stat%code == STATUS_OK) then
             allocate (q(mesh%nfree))
             q = 0.0_dp
-            if (use_guess /= 0) call q_from_nodes(mesh, guess, q)
+            if (use_guess /= 0) call q_from_nodes(mesh, guess, q, guess_out)
             call fe_solve_static(mesh, load, q, use_guess /= 0, opts, sinfo, stat)
             info = int([sinfo%iterations, sinfo%steps], c_int)
             residual = sinfo%residual
             if (stat%code == STATUS_OK) then
-                call nodes_from_q(mesh, q, nodes)
+                call nodes_from_q(mesh, q, nodes, nodes_out)
                 energy = fe_energy(mesh, q)
                 call fe_reactions(mesh, q, r3)
                 reactions = r3
@@ -162,15 +219,18 @@ contains
 
     !> Pseudo-arc-length path of equilibria under load0 + lam * dload (dload =
     !! (dfx, dfy, dmoment), moment form from load0), from the equilibrium near
-    !! `guess` at lam0. Returns npts <= maxpts points: lam and node tables.
-    subroutine api_fe_path(nbeams, nparams, params, nepb, nnode, load0, dload, guess, lam0, &
-                           ds, ds_max, direction, lam_min, lam_max, tol, maxpts, npts, lam, &
-                           nodes, code, message)
+    !! `guess` (outboard slopes `guess_out`) at lam0. Returns npts <= maxpts
+    !! points: lam, node tables and outboard slopes.
+    subroutine api_fe_path(nbeams, nparams, params, nepb, nnode, load0, dload, guess, &
+                           guess_out, lam0, ds, ds_max, direction, lam_min, lam_max, tol, &
+                           maxpts, npts, lam, nodes, nodes_out, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, nnode, direction, maxpts
         real(c_double), intent(in) :: params(nparams), load0(4), dload(3), guess(5, nnode)
+        real(c_double), intent(in) :: guess_out(2, nnode)
         real(c_double), intent(in) :: lam0, ds, ds_max, lam_min, lam_max, tol
         integer(c_int), intent(out) :: npts, code
         real(c_double), intent(out) :: lam(maxpts), nodes(5, nnode, maxpts)
+        real(c_double), intent(out) :: nodes_out(2, nnode, maxpts)
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(fe_load_t) :: l0, dl
@@ -181,6 +241,7 @@ contains
         npts = 0
         lam = 0.0_c_double
         nodes = 0.0_c_double
+        nodes_out = 0.0_c_double
         call make_mesh(nbeams, nparams, params, nepb, nnode, mesh, stat)
         if (stat%code == STATUS_OK) call make_load(load0, l0, stat)
         if (stat%code == STATUS_OK) call make_options(0_c_int, tol, opts, stat)
@@ -194,13 +255,13 @@ contains
             dl%fy = dload(2)
             dl%moment = dload(3)
             allocate (q(mesh%nfree), qout(mesh%nfree, maxpts), lout(maxpts))
-            call q_from_nodes(mesh, guess, q)
+            call q_from_nodes(mesh, guess, q, guess_out)
             call fe_path(mesh, l0, dl, q, lam0, ds, ds_max, int(direction), lam_min, lam_max, &
                          opts, n, lout, qout, stat)
             npts = int(n, c_int)
             do i = 1, n
                 lam(i) = lout(i)
-                call nodes_from_q(mesh, qout(:, i), nodes(:, :, i))
+                call nodes_from_q(mesh, qout(:, i), nodes(:, :, i), nodes_out(:, :, i))
             end do
         end if
         code = int(stat%code, c_int)
@@ -208,11 +269,12 @@ contains
     end subroutine api_fe_path
 
     !> Linear buckling load of the straight chain under a compressive tip force
-    !! and its mode (node table, tip w = 1).
-    subroutine api_fe_buckling(nbeams, nparams, params, nepb, nnode, pcr, mode, code, message)
+    !! and its mode (node table and outboard slopes, tip w = 1).
+    subroutine api_fe_buckling(nbeams, nparams, params, nepb, nnode, pcr, mode, mode_out, code, &
+                               message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, nnode
         real(c_double), intent(in) :: params(nparams)
-        real(c_double), intent(out) :: pcr, mode(5, nnode)
+        real(c_double), intent(out) :: pcr, mode(5, nnode), mode_out(2, nnode)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
@@ -221,13 +283,14 @@ contains
         real(dp) :: p
         pcr = 0.0_c_double
         mode = 0.0_c_double
+        mode_out = 0.0_c_double
         call make_mesh(nbeams, nparams, params, nepb, nnode, mesh, stat)
         if (stat%code == STATUS_OK) then
             allocate (q(mesh%nfree))
             call fe_buckling_load(mesh, p, q, stat)
             if (stat%code == STATUS_OK) then
                 pcr = p
-                call nodes_from_q(mesh, q, mode)
+                call nodes_from_q(mesh, q, mode, mode_out)
             end if
         end if
         code = int(stat%code, c_int)
@@ -236,7 +299,8 @@ contains
 
     !> Linear modes (Eq. 124-126): omega ascending (rad/s), mass-normalized
     !! shapes phi (columns over the free unknowns), axial(i) = 1 for a u mode,
-    !! and dofs(:, k) = (node, component 1..4 = w, w', u, u') of free unknown k.
+    !! and dofs(:, k) = (node, component) of free unknown k: 1..4 = w, w', u,
+    !! u', and at a hinge 5, 6 = the outboard w'+, u'+.
     subroutine api_fe_modes(nbeams, nparams, params, nepb, rotary, nfree, omega, phi, axial, &
                             dofs, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, rotary, nfree
@@ -253,7 +317,7 @@ contains
         phi = 0.0_c_double
         axial = 0
         dofs = 0
-        call make_mesh(nbeams, nparams, params, nepb, (nfree + 3)/4, mesh, stat)
+        call make_mesh(nbeams, nparams, params, nepb, nbeams*nepb + 1, mesh, stat)
         if (stat%code == STATUS_OK .and. mesh%nfree /= nfree) then
             call set_status(stat, ERR_INPUT, 'api_fe_modes', 'nfree = '//fmt_int(int(nfree))// &
                             ', expected '//fmt_int(mesh%nfree))
@@ -266,8 +330,8 @@ contains
                 phi = ph
                 axial = merge(1_c_int, 0_c_int, ax)
                 do k = 1, nfree
-                    dofs(1, k) = int((mesh%full_of(k) - 1)/4 + 1, c_int)
-                    dofs(2, k) = int(mod(mesh%full_of(k) - 1, 4) + 1, c_int)
+                    dofs(1, k) = int(mesh%free_node(k), c_int)
+                    dofs(2, k) = int(mesh%free_comp(k), c_int)
                 end do
             end if
         end if
@@ -298,13 +362,16 @@ contains
     end subroutine api_fe_axial_linear
 
     !> Skelton's modal cost (Eq. 127-128) of the linear free vibration from the
-    !! shape `shape0` and velocity `vel0` (node tables) over [0, t]: modal
+    !! shape `shape0` and velocity `vel0` (node tables, outboard slopes in
+    !! shape0_out, vel0_out) over [0, t]: modal
     !! coordinates eta = Phi^T M q, and per mode the kinetic and potential
     !! integrals (ascending frequency order, as api_fe_modes).
     subroutine api_fe_modal_cost(nbeams, nparams, params, nepb, rotary, nnode, nfree, shape0, &
-                                 vel0, t, omega, eta, kinetic, potential, code, message)
+                                 shape0_out, vel0, vel0_out, t, omega, eta, kinetic, potential, &
+                                 code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, rotary, nnode, nfree
         real(c_double), intent(in) :: params(nparams), shape0(5, nnode), vel0(5, nnode), t
+        real(c_double), intent(in) :: shape0_out(2, nnode), vel0_out(2, nnode)
         real(c_double), intent(out) :: omega(nfree), eta(nfree), kinetic(nfree), potential(nfree)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -329,8 +396,8 @@ contains
                       ed0(nfree), kin(nfree), pot(nfree))
             call fe_modes(mesh, rotary /= 0, om, ph, ax, stat)
             if (stat%code == STATUS_OK) then
-                call q_from_nodes(mesh, shape0, q)
-                call q_from_nodes(mesh, vel0, v)
+                call q_from_nodes(mesh, shape0, q, shape0_out)
+                call q_from_nodes(mesh, vel0, v, vel0_out)
                 call fe_modal_coordinates(mesh, rotary /= 0, ph, q, e0, stat)
             end if
             if (stat%code == STATUS_OK) then
@@ -368,7 +435,7 @@ contains
         jac = 0.0_c_double
         mass = 0.0_c_double
         qload = 0.0_c_double
-        call make_mesh(nbeams, nparams, params, nepb, (nfree + 3)/4, mesh, stat)
+        call make_mesh(nbeams, nparams, params, nepb, nbeams*nepb + 1, mesh, stat)
         if (stat%code == STATUS_OK .and. mesh%nfree /= nfree) then
             call set_status(stat, ERR_INPUT, 'api_fe_system', 'nfree = '//fmt_int(int(nfree))// &
                             ', expected '//fmt_int(mesh%nfree))

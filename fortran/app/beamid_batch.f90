@@ -18,7 +18,7 @@ program beamid_batch
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use, intrinsic :: iso_c_binding, only: c_int, c_double
-    use beamid_api_fe, only: api_fe_static, api_fe_modes
+    use beamid_api_fe, only: api_fe_static, api_fe_modes, api_fe_mesh_sizes
     use beamid_api_estimation, only: api_fit, api_diagnose
     use beamid_api_dynamics, only: api_dyn_sizes, api_dyn_simulate
     use beamid_estimation, only: residual_structure, chi2_sf
@@ -175,7 +175,7 @@ contains
         type(deck_t), intent(in) :: d
         type(status_t), intent(inout) :: st
         integer(c_int) :: nnode, info(2), code
-        real(c_double), allocatable :: nodes(:, :), guess(:, :)
+        real(c_double), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(c_double) :: energy, reactions(3), residual, loads(4)
         character(len=256) :: message
         character(len=:), allocatable :: prefix
@@ -185,13 +185,14 @@ contains
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
         nnode = int(d%nbeams*d%fe_elements_per_beam + 1, c_int)
-        allocate (nodes(5, nnode), guess(5, nnode))
+        allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode))
         guess = 0.0_c_double
+        guess_out = 0.0_c_double
         loads = [d%load%fx, d%load%fy, d%load%moment, real(d%fe_moment_form, dp)]
         call api_fe_static(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
                            int(d%fe_elements_per_beam, c_int), nnode, loads, 0_c_int, &
-                           int(d%fe_steps, c_int), d%fe_tol, guess, nodes, energy, reactions, &
-                           residual, info, code, message)
+                           int(d%fe_steps, c_int), d%fe_tol, guess, guess_out, nodes, &
+                           nodes_out, energy, reactions, residual, info, code, message)
         if (code /= 0) then
             call set_status(st, int(code), 'fe_static', trim(message))
             st%message = message
@@ -225,15 +226,22 @@ contains
     subroutine run_fe_modes(d, st)
         type(deck_t), intent(in) :: d
         type(status_t), intent(inout) :: st
-        integer(c_int) :: nfree, code
+        integer(c_int) :: nfree, nnode, nhinge, band, code
         real(c_double), allocatable :: omega(:), phi(:, :)
         integer(c_int), allocatable :: axial(:), dofs(:, :)
         character(len=256) :: message
         character(len=:), allocatable :: prefix
         integer :: unit, ios, i, nw, nu
 
-        ! four unknowns per node; the clamp (Eq. 103) fixes u, w and w' at the root
-        nfree = int(4*(d%nbeams*d%fe_elements_per_beam + 1) - 3, c_int)
+        ! four unknowns per node (six at a hinge); the clamp (Eq. 103) fixes u, w, w'
+        call api_fe_mesh_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
+                               int(d%fe_elements_per_beam, c_int), nnode, nfree, nhinge, band, &
+                               code, message)
+        if (code /= 0) then
+            call set_status(st, int(code), 'fe_modes', trim(message))
+            st%message = message
+            return
+        end if
         allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree))
         call api_fe_modes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
                           int(d%fe_elements_per_beam, c_int), merge(1_c_int, 0_c_int, &

@@ -2,11 +2,14 @@
 
 Epstein-Murray beam elements with cubic Hermite u and w (Eq. 76), the Green
 axial strain (Eq. 70) and the modified curvature (Eq. 72), assembled in band
-storage over a chain of any number of beams (locked joints, clamped root).
+storage over a chain of any number of beams (locked joints, clamped root; a
+joint with ``elbow_flex``/``joint<k>_flex`` > 0 is a hinge with a rotational
+spring, ``root_flex`` > 0 a hinge spring at the clamp; docs/theory_fe.md).
 
     r = beamid.fe_static(model, beamid.TipForce(fy=8.0), elements_per_beam=16)
     r.tip["w"], r.tip["dw"], r.tip["u"], r.tip["du"]    # Table 11/12 columns
     r.nodes["w"]                                         # per node: s, u, du, w, dw
+    r.outboard["dw"], r.kink                             # slopes past a hinge, its angle
     md = beamid.modes(model, elements_per_beam=4)
     md.transverse, md.axial                              # rad/s, ascending (Tables 9-10)
 
@@ -26,14 +29,20 @@ from .errors import InputError, raise_for_status
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
-    "fe_system", "fe_element", "free_vector", "NODE_FIELDS", "MOMENT_FORMS",
+    "fe_system", "fe_element", "free_vector", "NODE_FIELDS", "OUTBOARD_FIELDS",
+    "MOMENT_FORMS",
 ]
 
-#: Rows of a node table, in order: undeformed arc length, u, u', w, w'.
+#: Rows of a node table, in order: undeformed arc length, u, u', w, w'
+#: (the slopes of the element inboard of the node).
 NODE_FIELDS = ("s", "u", "du", "w", "dw")
+#: Rows of an outboard table: u', w' of the element outboard of each node
+#: (different from the node table's only at a hinged joint).
+OUTBOARD_FIELDS = ("du", "dw")
 #: Tip-moment virtual work: Eq. 78 as printed (what produced Table 11), or exact.
 MOMENT_FORMS = {"eq78": 0, "exact": 1}
 _NODE_DTYPE = np.dtype([(name, np.float64) for name in NODE_FIELDS])
+_OUT_DTYPE = np.dtype([(name, np.float64) for name in OUTBOARD_FIELDS])
 
 
 def _input_error(message):
@@ -70,6 +79,23 @@ def _mesh_size(nbeams, elements_per_beam):
     return nnode, 4 * nnode - 3
 
 
+def _hinges(model, elements_per_beam):
+    """(0-based nodes of the hinged joints, whether the root is a hinge)."""
+    names = [n for n in model.names() if n.endswith("_flex") and n != "root_flex"]
+    epb = int(elements_per_beam)
+    nodes = tuple((k + 1) * epb for k, n in enumerate(names) if model[n] > 0.0)
+    return nodes, bool(model["root_flex"] > 0.0)
+
+
+def _mesh_sizes(model, elements_per_beam):
+    """(nnode, nfree) of the model's mesh: nfree grows by 2 per hinged joint
+    and by 1 with a root hinge (api_fe_mesh_sizes)."""
+    nbeams, params = _model_args(model)
+    _mesh_size(nbeams, elements_per_beam)
+    nnode, nfree, _, _ = _call("api_fe_mesh_sizes", nbeams, params, int(elements_per_beam))
+    return int(nnode), int(nfree)
+
+
 def _moment_form(form):
     if form not in MOMENT_FORMS:
         raise _input_error(f"moment_form = {form!r}, expected one of {sorted(MOMENT_FORMS)}")
@@ -93,8 +119,37 @@ def _load_components(load):
         "(expected TipForce, TipMoment, their sum, or a list of them)")
 
 
+def _outboard_table(start, table):
+    """(2, nnode) outboard slopes (u'+, w'+) of `start` (a result with an
+    `outboard` table, or a pair (nodes, outboard)); else rows u', w' of table."""
+    out = getattr(start, "outboard", None)
+    if isinstance(start, tuple) and len(start) == 2:
+        out = start[1]
+    if out is None:
+        return np.asfortranarray(table[[2, 4]])
+    arr = np.asarray(out)
+    if arr.dtype.names is not None:
+        arr = np.stack([arr[name] for name in OUTBOARD_FIELDS])
+    arr = np.asarray(arr, dtype=np.float64)
+    nnode = table.shape[1]
+    if arr.shape == (nnode, 2):
+        arr = arr.T
+    if arr.shape != (2, nnode) or not np.all(np.isfinite(arr)):
+        raise _input_error(f"outboard slopes have shape {arr.shape}, expected finite "
+                           f"(2, {nnode})")
+    return np.asfortranarray(arr)
+
+
+def _node_tables(start, nnode):
+    """Node table and outboard table of a starting shape."""
+    table = _node_table(start, nnode)
+    return table, _outboard_table(start, table)
+
+
 def _node_table(start, nnode):
     """A (5, nnode) Fortran-ordered table from a result, structured nodes or an array."""
+    if isinstance(start, tuple) and len(start) == 2:
+        start = start[0]
     if isinstance(start, (FEStatic, FEBuckling)):
         start = start.nodes
     arr = np.asarray(start)
@@ -118,10 +173,35 @@ def _structured(table):
     return nodes
 
 
-def free_vector(nodes):
-    """Free unknown vector q (the order of fe_system) from structured nodes."""
-    table = np.stack([nodes["w"], nodes["dw"], nodes["u"], nodes["du"]], axis=1)
-    return table.ravel()[3:].copy()
+def _structured_out(table):
+    out = np.empty(table.shape[1], dtype=_OUT_DTYPE)
+    for i, name in enumerate(OUTBOARD_FIELDS):
+        out[name] = table[i]
+    return out
+
+
+def free_vector(nodes, outboard=None, *, hinges=(), root_hinge=False):
+    """Free unknown vector q (the order of fe_system) from structured nodes.
+
+    For a chain with compliant joints pass the outboard slopes (structured,
+    fields du, dw), the 0-based nodes of the hinges and whether the root is a
+    hinge: a hinge node contributes [w'-, u'-, w, u, w'+, u'+], every other
+    node [w, w', u, u']; the clamp removes w, u (and w' without a root hinge)
+    of node 0.
+    """
+    hinges = set(int(h) for h in hinges)
+    values = []
+    for k in range(len(nodes)):
+        w, dw, u, du = (float(nodes[name][k]) for name in ("w", "dw", "u", "du"))
+        if k in hinges:
+            if outboard is None:
+                raise _input_error("free_vector: a chain with hinges needs the outboard slopes")
+            values += [dw, du, w, u, float(outboard["dw"][k]), float(outboard["du"][k])]
+        elif k == 0:
+            values += [dw, du] if root_hinge else [du]
+        else:
+            values += [w, dw, u, du]
+    return np.array(values)
 
 
 def _tip(nodes):
@@ -141,11 +221,27 @@ class FEStatic:
     steps: int                  #: accepted load steps
     elements_per_beam: int
     load: np.ndarray            #: (fx, fy, moment)
+    #: slopes du, dw of the element outboard of each node (structured); equal
+    #: to nodes["du"], nodes["dw"] except at a hinged joint
+    outboard: np.ndarray = None
+    hinges: tuple = ()          #: 0-based nodes of the hinged joints
+    root_hinge: bool = False    #: the root is a hinge spring (root_flex > 0)
 
     @property
     def q(self):
-        """Free unknown vector (node order w, w', u, u'; root w, w', u clamped)."""
-        return free_vector(self.nodes)
+        """Free unknown vector in the order of fe_system (see free_vector)."""
+        return free_vector(self.nodes, self.outboard, hinges=self.hinges,
+                           root_hinge=self.root_hinge)
+
+    @property
+    def kink(self):
+        """Relative rotation psi+ - psi- across each node (rad): the hinge
+        angle f M at a compliant joint, zero elsewhere."""
+        if self.outboard is None:
+            return np.zeros(len(self.nodes))
+        tm = (1.0 + self.nodes["du"], self.nodes["dw"])
+        tp = (1.0 + self.outboard["du"], self.outboard["dw"])
+        return np.arctan2(tm[0] * tp[1] - tm[1] * tp[0], tm[0] * tp[0] + tm[1] * tp[1])
 
     @property
     def x(self):
@@ -184,18 +280,22 @@ def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
     if start is None:
         guess = np.zeros((5, nnode), dtype=np.float64, order="F")
+        guess_out = np.zeros((2, nnode), dtype=np.float64, order="F")
         use_guess = 0
     else:
-        guess = _node_table(start, nnode)
+        guess, guess_out = _node_tables(start, nnode)
         use_guess = 1
-    nodes, energy, reactions, residual, info = _call(
+    nodes, nodes_out, energy, reactions, residual, info = _call(
         "api_fe_static", nbeams, params, int(elements_per_beam), loads, use_guess,
-        int(steps), float(tol), guess)
+        int(steps), float(tol), guess, guess_out)
     table = _structured(np.asarray(nodes))
+    hinges, root_hinge = _hinges(model, elements_per_beam)
     return FEStatic(nodes=table, tip=_tip(table), energy=float(energy),
                     reactions=np.array(reactions), residual=float(residual),
                     iterations=int(info[0]), steps=int(info[1]),
-                    elements_per_beam=int(elements_per_beam), load=comps)
+                    elements_per_beam=int(elements_per_beam), load=comps,
+                    outboard=_structured_out(np.asarray(nodes_out)), hinges=hinges,
+                    root_hinge=root_hinge)
 
 
 @dataclass
@@ -207,6 +307,7 @@ class FEPath:
     load0: np.ndarray
     dload: np.ndarray
     elements_per_beam: int
+    outboard: np.ndarray = None     #: (npts, nnode) outboard slopes du, dw
 
     @property
     def tip(self):
@@ -238,20 +339,28 @@ def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, d
     c0 = _load_components(load0) if load0 is not None else np.zeros(3)
     dc = _load_components(dload)
     loads = np.array([*c0, _moment_form(moment_form)], dtype=np.float64)
-    guess = (np.zeros((5, nnode), order="F") if start is None else _node_table(start, nnode))
+    if start is None:
+        guess = np.zeros((5, nnode), order="F")
+        guess_out = np.zeros((2, nnode), order="F")
+    else:
+        guess, guess_out = _node_tables(start, nnode)
     if int(max_points) < 1:
         raise _input_error(f"max_points = {max_points}, expected at least 1")
-    npts, lam, nodes = _call(
-        "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, float(lam0),
-        float(ds), float(ds_max), int(direction), float(lam_range[0]), float(lam_range[1]),
-        float(tol), int(max_points))
+    npts, lam, nodes, nodes_out = _call(
+        "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
+        float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
+        float(lam_range[1]), float(tol), int(max_points))
     npts = int(npts)
     nodes = np.asarray(nodes)[:, :, :npts]
+    nodes_out = np.asarray(nodes_out)[:, :, :npts]
     table = np.empty((npts, nnode), dtype=_NODE_DTYPE)
     for i, name in enumerate(NODE_FIELDS):
         table[name] = nodes[i].T
+    out = np.empty((npts, nnode), dtype=_OUT_DTYPE)
+    for i, name in enumerate(OUTBOARD_FIELDS):
+        out[name] = nodes_out[i].T
     return FEPath(lam=np.array(lam[:npts]), nodes=table, load0=c0, dload=dc,
-                  elements_per_beam=int(elements_per_beam))
+                  elements_per_beam=int(elements_per_beam), outboard=out)
 
 
 @dataclass
@@ -261,15 +370,18 @@ class FEBuckling:
     load: float             #: critical compressive tip force P_cr, N
     nodes: np.ndarray       #: buckled mode (structured node table), tip w = 1
     elements_per_beam: int
+    outboard: np.ndarray = None   #: outboard slopes du, dw of the mode
 
 
 def buckling_load(model, elements_per_beam=8):
     """Critical compressive tip load: least P with K0 phi = P G phi."""
     nbeams, params = _model_args(model)
     nnode, _ = _mesh_size(nbeams, elements_per_beam)
-    pcr, mode = _call("api_fe_buckling", nbeams, params, int(elements_per_beam), nnode)
+    pcr, mode, mode_out = _call("api_fe_buckling", nbeams, params, int(elements_per_beam),
+                                nnode)
     return FEBuckling(load=float(pcr), nodes=_structured(np.asarray(mode)),
-                      elements_per_beam=int(elements_per_beam))
+                      elements_per_beam=int(elements_per_beam),
+                      outboard=_structured_out(np.asarray(mode_out)))
 
 
 @dataclass
@@ -306,7 +418,9 @@ class FEModes:
     omega: np.ndarray        #: all frequencies, rad/s, ascending
     phi: np.ndarray          #: mass-normalized shapes, columns over the free unknowns
     is_axial: np.ndarray     #: True for u (axial) modes
-    dofs: np.ndarray         #: (nfree, 2): node (1-based) and component 1..4 = w, w', u, u'
+    #: (nfree, 2): node (1-based) and component 1..4 = w, w', u, u' (5, 6 = the
+    #: outboard w'+, u'+ of a hinged joint)
+    dofs: np.ndarray
     elements_per_beam: int
     rotary_inertia: bool
     _model: object = field(default=None, repr=False)
@@ -323,26 +437,47 @@ class FEModes:
 
     def shape(self, i):
         """Structured node table of mode i (1-based, in ascending order)."""
+        return self._tables(i)[0]
+
+    def shape_outboard(self, i):
+        """Outboard slopes (structured du, dw) of mode i: at a hinge the slopes
+        of the outboard beam, elsewhere the node's own."""
+        return self._tables(i)[1]
+
+    def _tables(self, i):
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
+        out = np.zeros((2, nnode))
         rows = {1: 3, 2: 4, 3: 1, 4: 2}
+        hinge = np.zeros(nnode, dtype=bool)
         for k, (node, comp) in enumerate(self.dofs):
-            table[rows[int(comp)], node - 1] = self.phi[k, i - 1]
-        return _structured(table)
+            value = self.phi[k, i - 1]
+            if int(comp) == 5:
+                out[1, node - 1] = value
+                hinge[node - 1] = True
+            elif int(comp) == 6:
+                out[0, node - 1] = value
+            else:
+                table[rows[int(comp)], node - 1] = value
+        out[:, ~hinge] = table[[2, 4]][:, ~hinge]
+        return _structured(table), _structured_out(out)
 
     def modal_cost(self, shape, velocity=None, t=None):
         """Skelton's modal cost (Eq. 127-129) of the linear free vibration that
         starts from `shape` (FEStatic or node table) with `velocity` over [0, t]
         (default: the period of the first mode)."""
         nbeams, params = _model_args(self._model)
-        nnode, nfree = _mesh_size(nbeams, self.elements_per_beam)
-        q0 = _node_table(shape, nnode)
-        v0 = (np.zeros((5, nnode), order="F") if velocity is None
-              else _node_table(velocity, nnode))
+        nnode, nfree = _mesh_sizes(self._model, self.elements_per_beam)
+        q0, q0_out = _node_tables(shape, nnode)
+        if velocity is None:
+            v0 = np.zeros((5, nnode), order="F")
+            v0_out = np.zeros((2, nnode), order="F")
+        else:
+            v0, v0_out = _node_tables(velocity, nnode)
         span = 2 * np.pi / self.omega[0] if t is None else float(t)
         omega, eta, kin, pot = _call(
             "api_fe_modal_cost", nbeams, params, int(self.elements_per_beam),
-            int(self.rotary_inertia), nfree, q0, v0, span)
+            int(self.rotary_inertia), nfree, q0, q0_out, v0, v0_out, span)
         return ModalCost(omega=np.array(omega), eta=np.array(eta), kinetic=np.array(kin),
                          potential=np.array(pot), is_axial=self.is_axial.copy())
 
@@ -352,7 +487,7 @@ def modes(model, elements_per_beam=4, *, rotary_inertia=False):
     (w) and axial (u) families. Rotary inertia of the end masses (Eq. 130-132)
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
-    _, nfree = _mesh_size(nbeams, elements_per_beam)
+    _, nfree = _mesh_sizes(model, elements_per_beam)
     omega, phi, axial, dofs = _call("api_fe_modes", nbeams, params, int(elements_per_beam),
                                     int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,
@@ -376,7 +511,7 @@ def fe_system(model, q, load=None, elements_per_beam=2, *, rotary_inertia=False,
     """Dense energy, internal force, Newton matrix d(NLT - Q)/dq, mass and tip
     load vector at the free unknown vector q (for checks and small studies)."""
     nbeams, params = _model_args(model)
-    _, nfree = _mesh_size(nbeams, elements_per_beam)
+    _, nfree = _mesh_sizes(model, elements_per_beam)
     q = np.ascontiguousarray(q, dtype=np.float64)
     if q.shape != (nfree,):
         raise _input_error(f"q has shape {q.shape}, expected ({nfree},)")
