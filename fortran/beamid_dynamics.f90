@@ -91,39 +91,6 @@ module beamid_dynamics
         type(band_lu_t) :: mlu
     end type dyn_system_t
 
-    interface
-        subroutine dgbtrf(m, n, kl, ku, ab, ldab, ipiv, info)
-            import :: dp
-            integer, intent(in) :: m, n, kl, ku, ldab
-            real(dp), intent(inout) :: ab(ldab, *)
-            integer, intent(out) :: ipiv(*), info
-        end subroutine dgbtrf
-        subroutine dgbtrs(trans, n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
-            import :: dp
-            character(len=1), intent(in) :: trans
-            integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
-            real(dp), intent(in) :: ab(ldab, *)
-            integer, intent(in) :: ipiv(*)
-            real(dp), intent(inout) :: b(ldb, *)
-            integer, intent(out) :: info
-        end subroutine dgbtrs
-        subroutine zgbtrf(m, n, kl, ku, ab, ldab, ipiv, info)
-            import :: dp
-            integer, intent(in) :: m, n, kl, ku, ldab
-            complex(dp), intent(inout) :: ab(ldab, *)
-            integer, intent(out) :: ipiv(*), info
-        end subroutine zgbtrf
-        subroutine zgbtrs(trans, n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
-            import :: dp
-            character(len=1), intent(in) :: trans
-            integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
-            complex(dp), intent(in) :: ab(ldab, *)
-            integer, intent(in) :: ipiv(*)
-            complex(dp), intent(inout) :: b(ldb, *)
-            integer, intent(out) :: info
-        end subroutine zgbtrs
-    end interface
-
 contains
 
     !> Number of work lines of a chain of `nbeams` beams.
@@ -147,7 +114,7 @@ contains
             allocate (lu%ipiv(lu%n))
         end if
         if (lu%n == 0) return
-        call dgbtrf(lu%n, lu%n, lu%kl, lu%ku, lu%ab, size(lu%ab, 1), lu%ipiv, info)
+        call dband_lu(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, info)
         if (info > 0) call set_status(stat, ERR_SINGULAR, 'band_factor', &
                                       'matrix is singular (zero pivot '//fmt_int(info)//')')
     end subroutine band_factor
@@ -156,9 +123,8 @@ contains
     subroutine band_solve(lu, b)
         type(band_lu_t), intent(in) :: lu
         real(dp), intent(inout) :: b(:)
-        integer :: info
         if (lu%n == 0) return
-        call dgbtrs('N', lu%n, lu%kl, lu%ku, 1, lu%ab, size(lu%ab, 1), lu%ipiv, b, lu%n, info)
+        call dband_lu_solve(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, b)
     end subroutine band_solve
 
     !> Complex counterpart of band_factor.
@@ -171,8 +137,12 @@ contains
             return
         end if
         if (.not. allocated(lu%ipiv)) allocate (lu%ipiv(lu%n))
+        if (size(lu%ipiv) /= lu%n) then
+            deallocate (lu%ipiv)
+            allocate (lu%ipiv(lu%n))
+        end if
         if (lu%n == 0) return
-        call zgbtrf(lu%n, lu%n, lu%kl, lu%ku, lu%ab, size(lu%ab, 1), lu%ipiv, info)
+        call zband_lu(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, info)
         if (info > 0) call set_status(stat, ERR_SINGULAR, 'zband_factor', &
                                       'matrix is singular (zero pivot '//fmt_int(info)//')')
     end subroutine zband_factor
@@ -181,10 +151,192 @@ contains
     subroutine zband_solve(lu, b)
         type(zband_lu_t), intent(in) :: lu
         complex(dp), intent(inout) :: b(:)
-        integer :: info
         if (lu%n == 0) return
-        call zgbtrs('N', lu%n, lu%kl, lu%ku, 1, lu%ab, size(lu%ab, 1), lu%ipiv, b, lu%n, info)
+        call zband_lu_solve(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, b)
     end subroutine zband_solve
+
+    !> LU factorization with partial pivoting of a band matrix in LAPACK
+    !! general band storage (the algorithm of dgbtf2, written out: for the
+    !! narrow bands of the chain, kl = ku = 7, the BLAS calls per column of
+    !! the reference dgbtf2 cost more than the arithmetic). info > 0: zero
+    !! pivot in column info (the factorization is completed).
+    pure subroutine dband_lu(n, kl, ku, ab, ipiv, info)
+        integer, intent(in) :: n, kl, ku
+        real(dp), intent(inout) :: ab(2*kl + ku + 1, n)
+        integer, intent(out) :: ipiv(n), info
+        real(dp) :: piv, tmp, rec, u
+        integer :: kv, j, i, jj, jp, ju, km, r
+        info = 0
+        kv = ku + kl
+        ! fill-in rows above the band start at zero
+        ab(1:kl, :) = 0.0_dp
+        ju = 1
+        do j = 1, n
+            km = min(kl, n - j)
+            ! pivot: largest |a(j+i, j)|, i = 0..km, stored at ab(kv + 1 + i, j)
+            jp = 0
+            piv = abs(ab(kv + 1, j))
+            do i = 1, km
+                if (abs(ab(kv + 1 + i, j)) > piv) then
+                    piv = abs(ab(kv + 1 + i, j))
+                    jp = i
+                end if
+            end do
+            ipiv(j) = j + jp
+            if (ab(kv + 1 + jp, j) == 0.0_dp) then
+                if (info == 0) info = j
+                cycle
+            end if
+            ju = max(ju, min(j + ku + jp, n))
+            if (jp /= 0) then
+                ! swap rows j and j + jp in columns j..ju: a(i, jj) is at
+                ! ab(kv + 1 + i - jj, jj)
+                do jj = j, ju
+                    r = kv + 1 + j - jj
+                    tmp = ab(r, jj)
+                    ab(r, jj) = ab(r + jp, jj)
+                    ab(r + jp, jj) = tmp
+                end do
+            end if
+            if (km > 0) then
+                rec = 1.0_dp/ab(kv + 1, j)
+                do i = 1, km
+                    ab(kv + 1 + i, j) = ab(kv + 1 + i, j)*rec
+                end do
+                do jj = j + 1, ju
+                    r = kv + 1 + j - jj
+                    u = ab(r, jj)
+                    if (u /= 0.0_dp) then
+                        do i = 1, km
+                            ab(r + i, jj) = ab(r + i, jj) - u*ab(kv + 1 + i, j)
+                        end do
+                    end if
+                end do
+            end if
+        end do
+    end subroutine dband_lu
+
+    !> Solve A x = b with the factors of dband_lu (as dgbtrs 'N').
+    pure subroutine dband_lu_solve(n, kl, ku, ab, ipiv, b)
+        integer, intent(in) :: n, kl, ku
+        real(dp), intent(in) :: ab(2*kl + ku + 1, n)
+        integer, intent(in) :: ipiv(n)
+        real(dp), intent(inout) :: b(n)
+        real(dp) :: tmp
+        integer :: kd, j, lm, l, i
+        kd = kl + ku + 1
+        do j = 1, n - 1
+            lm = min(kl, n - j)
+            l = ipiv(j)
+            if (l /= j) then
+                tmp = b(l)
+                b(l) = b(j)
+                b(j) = tmp
+            end if
+            if (b(j) /= 0.0_dp) then
+                do i = 1, lm
+                    b(j + i) = b(j + i) - b(j)*ab(kd + i, j)
+                end do
+            end if
+        end do
+        ! U has kl + ku super-diagonals: u(i, j) at ab(kd + i - j, j)
+        do j = n, 1, -1
+            if (b(j) /= 0.0_dp) then
+                b(j) = b(j)/ab(kd, j)
+                do i = max(1, j - kl - ku), j - 1
+                    b(i) = b(i) - b(j)*ab(kd + i - j, j)
+                end do
+            end if
+        end do
+    end subroutine dband_lu_solve
+
+    !> Complex counterpart of dband_lu (pivot by |re| + |im|, as izamax).
+    pure subroutine zband_lu(n, kl, ku, ab, ipiv, info)
+        integer, intent(in) :: n, kl, ku
+        complex(dp), intent(inout) :: ab(2*kl + ku + 1, n)
+        integer, intent(out) :: ipiv(n), info
+        real(dp) :: piv, mag
+        complex(dp) :: tmp, rec, u
+        integer :: kv, j, i, jj, jp, ju, km, r
+        info = 0
+        kv = ku + kl
+        ab(1:kl, :) = (0.0_dp, 0.0_dp)
+        ju = 1
+        do j = 1, n
+            km = min(kl, n - j)
+            jp = 0
+            piv = abs(ab(kv + 1, j)%re) + abs(ab(kv + 1, j)%im)
+            do i = 1, km
+                mag = abs(ab(kv + 1 + i, j)%re) + abs(ab(kv + 1 + i, j)%im)
+                if (mag > piv) then
+                    piv = mag
+                    jp = i
+                end if
+            end do
+            ipiv(j) = j + jp
+            if (piv == 0.0_dp) then
+                if (info == 0) info = j
+                cycle
+            end if
+            ju = max(ju, min(j + ku + jp, n))
+            if (jp /= 0) then
+                do jj = j, ju
+                    r = kv + 1 + j - jj
+                    tmp = ab(r, jj)
+                    ab(r, jj) = ab(r + jp, jj)
+                    ab(r + jp, jj) = tmp
+                end do
+            end if
+            if (km > 0) then
+                rec = 1.0_dp/ab(kv + 1, j)
+                do i = 1, km
+                    ab(kv + 1 + i, j) = ab(kv + 1 + i, j)*rec
+                end do
+                do jj = j + 1, ju
+                    r = kv + 1 + j - jj
+                    u = ab(r, jj)
+                    if (u /= (0.0_dp, 0.0_dp)) then
+                        do i = 1, km
+                            ab(r + i, jj) = ab(r + i, jj) - u*ab(kv + 1 + i, j)
+                        end do
+                    end if
+                end do
+            end if
+        end do
+    end subroutine zband_lu
+
+    !> Complex counterpart of dband_lu_solve.
+    pure subroutine zband_lu_solve(n, kl, ku, ab, ipiv, b)
+        integer, intent(in) :: n, kl, ku
+        complex(dp), intent(in) :: ab(2*kl + ku + 1, n)
+        integer, intent(in) :: ipiv(n)
+        complex(dp), intent(inout) :: b(n)
+        complex(dp) :: tmp
+        integer :: kd, j, lm, l, i
+        kd = kl + ku + 1
+        do j = 1, n - 1
+            lm = min(kl, n - j)
+            l = ipiv(j)
+            if (l /= j) then
+                tmp = b(l)
+                b(l) = b(j)
+                b(j) = tmp
+            end if
+            if (b(j) /= (0.0_dp, 0.0_dp)) then
+                do i = 1, lm
+                    b(j + i) = b(j + i) - b(j)*ab(kd + i, j)
+                end do
+            end if
+        end do
+        do j = n, 1, -1
+            if (b(j) /= (0.0_dp, 0.0_dp)) then
+                b(j) = b(j)/ab(kd, j)
+                do i = max(1, j - kl - ku), j - 1
+                    b(i) = b(i) - b(j)*ab(kd + i - j, j)
+                end do
+            end if
+        end do
+    end subroutine zband_lu_solve
 
     !> Build the dynamic system of `chain` on `elements_per_beam` elements per
     !! beam. `gain` is the motor gain g of Eq. 150 (0: no motor), `law` the

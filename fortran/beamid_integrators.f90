@@ -22,7 +22,7 @@ module beamid_integrators
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
                              ERR_NUMERIC, fmt_int, fmt_real
-    use beamid_fe_assembly, only: fe_band_rows, fe_band_add, fe_band_matvec
+    use beamid_fe_assembly, only: fe_band_rows, fe_band_add
     use beamid_dynamics, only: dyn_system_t, dyn_forces, dyn_power, dyn_psidot, &
                                dyn_jacobian, dyn_rates, &
                                dyn_energy, dyn_mass, dyn_torque, band_lu_t, zband_lu_t, &
@@ -349,10 +349,12 @@ contains
         l1 = gam/h
         l2 = mu/h
         it%h = h
-        it%a1 = l1*it%mb + it%cb
-        it%a2 = l2*it%mb + it%cb
-        it%lu1%ab = l1*it%a1 + it%kb
-        it%lu2%ab = l2*it%a2 + it%kb
+        ! rows 1..kl of band storage are the factorization's fill-in: skip them
+        r = kl + 1
+        it%a1(r:, :) = l1*it%mb(r:, :) + it%cb(r:, :)
+        it%a2(r:, :) = l2*it%mb(r:, :) + it%cb(r:, :)
+        it%lu1%ab(r:, :) = l1*it%a1(r:, :) + it%kb(r:, :)
+        it%lu2%ab(r:, :) = l2*it%a2(r:, :) + it%kb(r:, :)
         if (sys%nx > 0) then
             do j = 1, sys%n
                 if (it%p(j) == 0.0_dp .and. it%d(j) == 0.0_dp) cycle
@@ -371,19 +373,42 @@ contains
         call zband_factor(it%lu2, stat)
     end subroutine radau_factor
 
-    !> y = A x for a complex band matrix (LAPACK general band storage).
-    pure subroutine zband_matvec(ab, kl, ku, x, y)
-        complex(dp), intent(in) :: ab(:, :), x(:)
-        integer, intent(in) :: kl, ku
-        complex(dp), intent(out) :: y(:)
-        integer :: i, j
-        y = (0.0_dp, 0.0_dp)
-        do j = 1, size(ab, 2)
-            do i = max(1, j - ku), min(size(ab, 2), j + kl)
-                y(i) = y(i) + ab(kl + ku + 1 + i - j, j)*x(j)
+    !> y = A x for a real band matrix of order n (LAPACK general band storage,
+    !! explicit shape so that the inner loop is contiguous).
+    pure subroutine dband_mv(n, kl, ku, ab, x, y)
+        integer, intent(in) :: n, kl, ku
+        real(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
+        real(dp), intent(out) :: y(n)
+        integer :: i, j, k
+        y = 0.0_dp
+        k = kl + ku + 1
+        do j = 1, n
+            do i = max(1, j - ku), min(n, j + kl)
+                y(i) = y(i) + ab(k + i - j, j)*x(j)
             end do
         end do
-    end subroutine zband_matvec
+    end subroutine dband_mv
+
+    !> y = A x for a complex band matrix (as dband_mv).
+    pure subroutine zband_mv(n, kl, ku, ab, x, y)
+        integer, intent(in) :: n, kl, ku
+        complex(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
+        complex(dp), intent(out) :: y(n)
+        real(dp) :: xr, xi, ar, ai
+        integer :: i, j, k
+        y = (0.0_dp, 0.0_dp)
+        k = kl + ku + 1
+        do j = 1, n
+            xr = x(j)%re
+            xi = x(j)%im
+            do i = max(1, j - ku), min(n, j + kl)
+                ar = ab(k + i - j, j)%re
+                ai = ab(k + i - j, j)%im
+                y(i)%re = y(i)%re + (ar*xr - ai*xi)
+                y(i)%im = y(i)%im + (ar*xi + ai*xr)
+            end do
+        end do
+    end subroutine zband_mv
 
     !> Solve (lam - J) [x; y; z] = [r; s; t] with the real factorization
     !! (lam = gamma/h). On entry w = [r; M s; t] (the velocity row already
@@ -397,7 +422,7 @@ contains
         real(dp) :: zt
         integer :: n
         n = sys%n
-        call fe_band_matvec(it%a1, sys%mesh%kl, sys%mesh%ku, w(1:n), it%rhs)
+        call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%a1, w(1:n), it%rhs)
         it%rhs = it%rhs + w(n + 1:2*n)
         zt = 0.0_dp
         if (sys%nx > 0) then
@@ -421,7 +446,7 @@ contains
         complex(dp) :: zt
         integer :: n
         n = sys%n
-        call zband_matvec(it%a2, sys%mesh%kl, sys%mesh%ku, w(1:n), it%zrhs)
+        call zband_mv(n, sys%mesh%kl, sys%mesh%ku, it%a2, w(1:n), it%zrhs)
         it%zrhs = it%zrhs + w(n + 1:2*n)
         zt = (0.0_dp, 0.0_dp)
         if (sys%nx > 0) then
@@ -449,7 +474,7 @@ contains
         if (sys%rotary) then
             call dyn_rates(sys, y, dy, power, torque, stat)
             it%tmp = dy(n + 1:2*n)
-            call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, it%tmp, dy(n + 1:2*n))
+            call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%mb, it%tmp, dy(n + 1:2*n))
         else
             call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, &
                             torque)
@@ -469,7 +494,7 @@ contains
         integer :: n
         n = sys%n
         it%tmp = x(n + 1:2*n)
-        call fe_band_matvec(it%mb, sys%mesh%kl, sys%mesh%ku, it%tmp, x(n + 1:2*n))
+        call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%mb, it%tmp, x(n + 1:2*n))
     end subroutine to_mform
 
     pure real(dp) function rms(x, scal)
