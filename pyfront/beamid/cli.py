@@ -22,6 +22,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
               f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
         print(f"wrote {prefix}_summary.csv" + (f" and {prefix}_shape.csv"
                                                  if deck.shape_points >= 2 else ""))
+    elif deck.task == "simulate":
+        print(f"{args.deck}: {result.t.size} output times to {result.t[-1]:g} s "
+              f"({result.integrator}, friction {result.friction}); tip w at the end "
+              f"{result.tip_w[-1]:.7f} m, energy change {result.energy_change[-1]:.8f} N m")
+        print(f"wrote {prefix}_history.csv")
     else:
         print(f"{args.deck}: task {deck.task} done; wrote {prefix}_*.csv")
     return 0
@@ -41,6 +46,14 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import demo
 
     return demo(Path(args.out))
+
+
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from .figures import write_figures
+
+    for path in write_figures(Path(args.out), args.names):
+        print(f"wrote {path}")
+    return 0
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
@@ -69,6 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="reproduce the tables and draw the demo figures")
     p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
     p.set_defaults(func=_cmd_demo)
+    p = sub.add_parser("figures", help="draw the dynamic Figures 20-25 as PNG files")
+    p.add_argument("names", nargs="*", help="figures to draw (e.g. 20 22 figure25); all if none")
+    p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
+    p.set_defaults(func=_cmd_figures)
     for name, text in (("fit", "estimate parameters from a measurement deck (task from the deck)"),
                        ("compare", "fit, then measured against model with residual tests"),
                        ("diagnose", "fit, then rank the candidate missing effects"),

@@ -1,7 +1,8 @@
 """The demo that ``make demo`` runs: reproduce the published tables, draw the
 PACE arm under the seed's loads (shear-only seed form beside the exact
-elastica), and run the compare-diagnose-improve workflow on the bundled deck
-whose measurements hide the physics the starting model lacks."""
+elastica), run the compare-diagnose-improve workflow on the bundled deck
+whose measurements hide the physics the starting model lacks, and redraw the
+dynamic Figures 20-25 (beamid.figures)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -69,6 +70,11 @@ def demo(out: Path) -> int:
     text, files, _ = run_fit_deck(deck)
     print(text)
     written += files
+
+    # the dynamic Figures 20-25 (implicit integrator, about a second)
+    from .figures import write_figures
+
+    written += write_figures(out)
 
     for p in written:
         print(f"wrote {p}")
