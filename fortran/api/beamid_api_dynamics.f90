@@ -14,15 +14,17 @@ module beamid_api_dynamics
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
     use beamid_fe_assembly, only: fe_load_t, fe_band_rows, fe_band_to_dense, fe_node_value, &
-                                  DOF_W, DOF_DW, DOF_U, DOF_DU
+                                  DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, &
-                               dyn_mass, dyn_tip, dyn_energy
+                               dyn_mass, dyn_tip, dyn_energy, dyn_set_modes, &
+                               dyn_to_coords, dyn_to_physical
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
     implicit none
     private
 
-    public :: api_dyn_sizes, api_dyn_simulate, api_dyn_system, api_dyn_profile
+    public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
+    public :: api_dyn_profile
 
 contains
 
@@ -76,6 +78,31 @@ contains
         real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
         integer(c_int), intent(out) :: info(5), code
         character(len=256), intent(out) :: message
+        integer(c_int) :: nomodes(1)
+        nomodes = 0
+        call api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, law, &
+                                    vslip, dt, rtol, atol, h0, use_init, nstate, y_init, nt, &
+                                    t_out, nwork, 0_c_int, nomodes, states, tip, torque, &
+                                    ledger, work, info, code, message)
+    end subroutine api_dyn_simulate
+
+    !> api_dyn_simulate on the truncated modal model (Eq. 127, Section 4.1.4)
+    !! that keeps the linear modes `modes(1:nmodes)` (1-based indices into the
+    !! ascending frequencies of api_fe_modes); nmodes = 0: the full model.
+    !! The initial state is projected on the retained modes (eta = Phi^T M q);
+    !! states are returned as physical q = Phi eta, v = Phi eta'.
+    subroutine api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, &
+                                      law, vslip, dt, rtol, atol, h0, use_init, nstate, &
+                                      y_init, nt, t_out, nwork, nmodes, modes, states, tip, &
+                                      torque, ledger, work, info, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
+        integer(c_int), intent(in) :: nt, nwork, nmodes, modes(nmodes)
+        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
+        real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
+        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
+        integer(c_int), intent(out) :: info(5), code
+        character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
         type(fe_load_t) :: load
@@ -84,7 +111,7 @@ contains
         type(integ_opts_t) :: opts
         type(integ_stats_t) :: stats
         type(history_t) :: hist
-        real(dp), allocatable :: y0(:), q(:)
+        real(dp), allocatable :: y0(:), q(:), yc(:)
         real(dp) :: e0, kin, pot, u, w, ang
         integer :: k, n
         states = 0.0_c_double
@@ -98,6 +125,13 @@ contains
             call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nstate = '// &
                             fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
                             ', expected '//fmt_int(sys%nstate)//', '//fmt_int(sys%nwork))
+        end if
+        if (stat%code == STATUS_OK .and. nmodes > 0) then
+            call dyn_set_modes(sys, int(modes(1:nmodes)), stat)
+        end if
+        if (stat%code == STATUS_OK .and. nmodes < 0) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nmodes = '// &
+                            fmt_int(int(nmodes))//', expected >= 0')
         end if
         if (stat%code == STATUS_OK) then
             n = sys%n
@@ -136,6 +170,10 @@ contains
                         stats%newton], c_int)
         end if
         if (stat%code == STATUS_OK) then
+            ! the modal model starts from the projection of y0 on its modes
+            allocate (yc(sys%ncstate))
+            call dyn_to_coords(sys, y0, yc)
+            call dyn_to_physical(sys, yc, y0)
             call dyn_energy(sys, y0(1:n), y0(n + 1:2*n), kin, pot)
             e0 = kin + pot
             states = hist%y
@@ -152,7 +190,7 @@ contains
         end if
         code = int(stat%code, c_int)
         message = stat%message
-    end subroutine api_dyn_simulate
+    end subroutine api_dyn_simulate_modal
 
     !> Generalized force F(q, v, x), work rates, torque, the Jacobians
     !! K = -dF/dq, C = -dF/dv (dense) and the motor-lag couplings b = dF/dT,
@@ -252,12 +290,14 @@ contains
             i = 0
             do el = 1, sys%mesh%nel
                 h = sys%mesh%h(el)
+                ! the element's first node contributes its outboard slopes (a hinge's
+                ! second pair; the node's own slopes elsewhere)
                 nw = [fe_node_value(sys%mesh, qd, el, DOF_W), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DW), &
+                      fe_node_value(sys%mesh, qd, el, DOF_DW_OUT), &
                       fe_node_value(sys%mesh, qd, el + 1, DOF_W), &
                       fe_node_value(sys%mesh, qd, el + 1, DOF_DW)]
                 nu = [fe_node_value(sys%mesh, qd, el, DOF_U), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DU), &
+                      fe_node_value(sys%mesh, qd, el, DOF_DU_OUT), &
                       fe_node_value(sys%mesh, qd, el + 1, DOF_U), &
                       fe_node_value(sys%mesh, qd, el + 1, DOF_DU)]
                 do j = 0, nsub

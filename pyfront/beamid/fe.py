@@ -132,7 +132,7 @@ def _outboard_table(start, table):
         arr = np.stack([arr[name] for name in OUTBOARD_FIELDS])
     arr = np.asarray(arr, dtype=np.float64)
     nnode = table.shape[1]
-    if arr.shape == (nnode, 2):
+    if arr.shape == (nnode, 2) and arr.shape != (2, nnode):
         arr = arr.T
     if arr.shape != (2, nnode) or not np.all(np.isfinite(arr)):
         raise _input_error(f"outboard slopes have shape {arr.shape}, expected finite "
@@ -156,7 +156,9 @@ def _node_table(start, nnode):
     if arr.dtype.names is not None:
         arr = np.stack([arr[name] for name in NODE_FIELDS])
     arr = np.asarray(arr, dtype=np.float64)
-    if arr.shape == (nnode, 5):
+    # a (nnode, 5) array is taken node by node, unless it is already (5, nnode)
+    # (nnode = 5: two beams of two elements; structured input is stacked above)
+    if arr.shape == (nnode, 5) and arr.shape != (5, nnode):
         arr = arr.T
     if arr.shape != (5, nnode):
         raise _input_error(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
