@@ -41,6 +41,7 @@ module beamid_dynamics
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_band_add, &
                                   fe_internal_force, fe_tangent, fe_energy, fe_mass, &
                                   fe_band_matvec, fe_expand, DOF_W, DOF_DW, DOF_U, DOF_DU
+    use beamid_fe_modes, only: fe_modes
     implicit none
     private
 
@@ -48,6 +49,8 @@ module beamid_dynamics
     public :: dyn_mass, dyn_tip, dyn_nwork, dyn_psidot, dyn_torque
     public :: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, zband_solve
     public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
+    public :: dyn_set_modes, dyn_to_physical, dyn_to_coords, dyn_cforces, dyn_cpower
+    public :: dyn_cxrate, dyn_cmass, dyn_cjacobian, dyn_crates
 
     !> Friction laws (Eq. 101-102 and the regularized form for implicit steps).
     integer, parameter :: FRICTION_SIGN = 0, FRICTION_SMOOTH = 1, FRICTION_SIGN_LITERAL = 2
@@ -89,6 +92,14 @@ module beamid_dynamics
         !> constant mass matrix (band) and its factors; unused when rotary
         real(dp), allocatable :: mb(:, :)
         type(band_lu_t) :: mlu
+        !> integration coordinates: nc = n (the free unknowns) or the number of
+        !! retained modes; their state length 2 nc + nx and band half-widths
+        integer :: nc = 0, ncstate = 0, ckl = 0, cku = 0
+        logical :: modal = .false.            !< truncated modal model (Eq. 127)
+        real(dp), allocatable :: phi(:, :)    !< retained modes, n x nc (Eq. 125)
+        real(dp), allocatable :: omega_r(:)   !< their frequencies (rad/s)
+        real(dp), allocatable :: cmb(:, :)    !< Phi^T M(0) Phi (band, ckl = cku)
+        type(band_lu_t) :: cmlu               !< its factors
     end type dyn_system_t
 
 contains
@@ -391,6 +402,10 @@ contains
         sys%nx = 0
         if (sys%motor /= 0.0_dp .and. sys%tau > 0.0_dp) sys%nx = 1
         sys%nstate = 2*sys%n + sys%nx
+        sys%nc = sys%n
+        sys%ncstate = sys%nstate
+        sys%ckl = sys%mesh%kl
+        sys%cku = sys%mesh%ku
         sys%law = law
         sys%vslip = vslip
         allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n))
@@ -762,5 +777,266 @@ contains
         w = q(sys%iw(k))
         angle = atan2(q(sys%idw(k)), 1.0_dp + q(sys%idu(k)))
     end subroutine dyn_tip
+
+    ! ---------------------------------------------------------------------
+    ! Integration coordinates: the free unknowns q (full model) or the modal
+    ! coordinates eta of a truncated modal model q = Phi_r eta (Eq. 127,
+    ! Section 4.1.4). Coordinate state yc = (c, c', x) with nc entries each
+    ! for c and c'; matrices in band storage with half-bandwidths ckl, cku
+    ! (dense k x k, stored with ckl = cku = k - 1, in the modal model).
+    ! ---------------------------------------------------------------------
+
+    !> Switch `sys` to the truncated modal model on the linear modes `modes`
+    !! (indices into the ascending frequencies of fe_modes, Eq. 124-126): the
+    !! modal equations Phi^T M Phi eta'' = Phi^T F(Phi eta, Phi eta') (Eq. 127)
+    !! with the full nonlinear internal force and effects.
+    subroutine dyn_set_modes(sys, modes, stat)
+        type(dyn_system_t), intent(inout) :: sys
+        integer, intent(in) :: modes(:)
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'dyn_set_modes'
+        real(dp), allocatable :: omega(:), phi(:, :), q0(:), mb(:, :), md(:, :)
+        logical, allocatable :: axial(:)
+        integer :: n, k, i
+        n = sys%n
+        k = size(modes)
+        if (k < 1 .or. k > n) then
+            call set_status(stat, ERR_INPUT, where, 'number of modes = '//fmt_int(k)// &
+                            ', expected 1..'//fmt_int(n))
+            return
+        end if
+        do i = 1, k
+            if (modes(i) < 1 .or. modes(i) > n) then
+                call set_status(stat, ERR_INPUT, where, 'mode index '//fmt_int(modes(i))// &
+                                ' out of range 1..'//fmt_int(n))
+                return
+            end if
+            if (any(modes(1:i - 1) == modes(i))) then
+                call set_status(stat, ERR_INPUT, where, 'mode index '//fmt_int(modes(i))// &
+                                ' given twice')
+                return
+            end if
+        end do
+        allocate (omega(n), phi(n, n), axial(n), q0(n), mb(fe_band_rows(sys%mesh), n), md(n, k))
+        call fe_modes(sys%mesh, sys%rotary, omega, phi, axial, stat)
+        if (stat%code /= 0) return
+        sys%modal = .true.
+        sys%phi = phi(:, modes)
+        sys%omega_r = omega(modes)
+        sys%nc = k
+        sys%ckl = k - 1
+        sys%cku = k - 1
+        sys%ncstate = 2*k + sys%nx
+        ! M~ = Phi^T M(0) Phi (= I for the mass-normalized modes, Eq. 125)
+        q0 = 0.0_dp
+        call fe_mass(sys%mesh, q0, sys%rotary, mb)
+        do i = 1, k
+            call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, sys%phi(:, i), md(:, i))
+        end do
+        sys%cmb = dense_to_band(matmul(transpose(sys%phi), md), k - 1)
+        sys%cmlu%n = k
+        sys%cmlu%kl = k - 1
+        sys%cmlu%ku = k - 1
+        sys%cmlu%ab = sys%cmb
+        call band_factor(sys%cmlu, stat)
+    end subroutine dyn_set_modes
+
+    !> A dense k x k matrix in band storage with kl = ku = w (w >= k - 1).
+    pure function dense_to_band(a, w) result(ab)
+        real(dp), intent(in) :: a(:, :)
+        integer, intent(in) :: w
+        real(dp) :: ab(3*w + 1, size(a, 2))
+        integer :: i, j
+        ab = 0.0_dp
+        do j = 1, size(a, 2)
+            do i = 1, size(a, 1)
+                ab(2*w + 1 + i - j, j) = a(i, j)
+            end do
+        end do
+    end function dense_to_band
+
+    !> Phi^T A Phi for a band matrix A (kl, ku of the mesh), in coordinate band
+    !! storage (dense in the modal model).
+    pure subroutine project_band(sys, ab, cb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: ab(:, :)
+        real(dp), intent(out) :: cb(:, :)
+        real(dp) :: ap(sys%n, sys%nc)
+        integer :: i
+        do i = 1, sys%nc
+            call fe_band_matvec(ab, sys%mesh%kl, sys%mesh%ku, sys%phi(:, i), ap(:, i))
+        end do
+        cb = dense_to_band(matmul(transpose(sys%phi), ap), sys%ckl)
+    end subroutine project_band
+
+    !> Physical state (q, v, x) of the coordinate state yc.
+    pure subroutine dyn_to_physical(sys, yc, y)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: y(:)
+        integer :: n, k
+        if (.not. sys%modal) then
+            y = yc
+            return
+        end if
+        n = sys%n
+        k = sys%nc
+        y(1:n) = matmul(sys%phi, yc(1:k))
+        y(n + 1:2*n) = matmul(sys%phi, yc(k + 1:2*k))
+        y(2*n + 1:) = yc(2*k + 1:)
+    end subroutine dyn_to_physical
+
+    !> Coordinate state of a physical state: eta = Phi^T M(0) q (the
+    !! M-orthogonal projection on the retained modes; exact for q in their span).
+    pure subroutine dyn_to_coords(sys, y, yc)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: yc(:)
+        real(dp), allocatable :: mq(:), q0(:), mb(:, :)
+        integer :: n, k
+        if (.not. sys%modal) then
+            yc = y
+            return
+        end if
+        n = sys%n
+        k = sys%nc
+        allocate (mq(n), q0(n), mb(fe_band_rows(sys%mesh), n))
+        q0 = 0.0_dp
+        call fe_mass(sys%mesh, q0, sys%rotary, mb)
+        call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, y(1:n), mq)
+        yc(1:k) = matmul(mq, sys%phi)
+        call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, y(n + 1:2*n), mq)
+        yc(k + 1:2*k) = matmul(mq, sys%phi)
+        yc(2*k + 1:) = y(2*n + 1:)
+    end subroutine dyn_to_coords
+
+    !> Generalized force in coordinates (F, or Phi^T F(Phi eta, Phi eta') in
+    !! the modal model, Eq. 127), work rates and motor torque at the
+    !! coordinate state yc.
+    pure subroutine dyn_cforces(sys, yc, f, power, torque)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: f(:), power(:), torque
+        real(dp), allocatable :: y(:), fp(:)
+        integer :: n, k
+        k = sys%nc
+        if (.not. sys%modal) then
+            call dyn_forces(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), f, power, torque)
+            return
+        end if
+        n = sys%n
+        allocate (y(sys%nstate), fp(n))
+        call dyn_to_physical(sys, yc, y)
+        call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, power, torque)
+        f = matmul(fp, sys%phi)
+    end subroutine dyn_cforces
+
+    !> Work rates of the effects at the coordinate state yc.
+    pure subroutine dyn_cpower(sys, yc, power)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: power(:)
+        real(dp), allocatable :: y(:)
+        integer :: n, k
+        k = sys%nc
+        if (.not. sys%modal) then
+            call dyn_power(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), power)
+            return
+        end if
+        n = sys%n
+        allocate (y(sys%nstate))
+        call dyn_to_physical(sys, yc, y)
+        call dyn_power(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), power)
+    end subroutine dyn_cpower
+
+    !> Motor-lag rate x' = (-r g Psidot_tip - T) / tau at the coordinate state
+    !! (Eq. 158 with the lag); 0 without a lag.
+    pure real(dp) function dyn_cxrate(sys, yc) result(xd)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), allocatable :: y(:)
+        integer :: n
+        xd = 0.0_dp
+        if (sys%nx == 0) return
+        n = sys%n
+        allocate (y(sys%nstate))
+        call dyn_to_physical(sys, yc, y)
+        xd = (-sys%motor*dyn_psidot(sys, y(1:n), y(n + 1:2*n), sys%npt) - y(2*n + 1))/sys%tau
+    end function dyn_cxrate
+
+    !> Mass matrix in coordinates (M(q), or Phi^T M(q) Phi), band storage
+    !! with ckl, cku.
+    pure subroutine dyn_cmass(sys, yc, mb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: mb(:, :)
+        real(dp), allocatable :: q(:), mp(:, :)
+        if (.not. sys%modal) then
+            call dyn_mass(sys, yc(1:sys%n), mb)
+        else if (.not. sys%rotary) then
+            mb = sys%cmb
+        else
+            allocate (q(sys%n), mp(fe_band_rows(sys%mesh), sys%n))
+            q = matmul(sys%phi, yc(1:sys%nc))
+            call dyn_mass(sys, q, mp)
+            call project_band(sys, mp, mb)
+        end if
+    end subroutine dyn_cmass
+
+    !> Jacobians in coordinates: K~ = Phi^T K Phi, C~ = Phi^T C Phi and the
+    !! motor-lag couplings Phi^T b, Phi^T p, Phi^T d (dyn_jacobian in the full
+    !! model).
+    pure subroutine dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
+        real(dp), allocatable :: y(:), kp(:, :), cp(:, :), bp(:), pp(:), dp_(:)
+        integer :: n, k, nb
+        k = sys%nc
+        if (.not. sys%modal) then
+            call dyn_jacobian(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, d, e)
+            return
+        end if
+        n = sys%n
+        nb = fe_band_rows(sys%mesh)
+        allocate (y(sys%nstate), kp(nb, n), cp(nb, n), bp(n), pp(n), dp_(n))
+        call dyn_to_physical(sys, yc, y)
+        call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e)
+        call project_band(sys, kp, kb)
+        call project_band(sys, cp, cb)
+        b = matmul(bp, sys%phi)
+        p = matmul(pp, sys%phi)
+        d = matmul(dp_, sys%phi)
+    end subroutine dyn_cjacobian
+
+    !> Rates of the coordinate state: (c', M~^-1 F~, x').
+    subroutine dyn_crates(sys, yc, dy, power, torque, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: yc(:)
+        real(dp), intent(out) :: dy(:), power(:), torque
+        type(status_t), intent(inout) :: stat
+        type(band_lu_t) :: lu
+        integer :: k
+        if (.not. sys%modal) then
+            call dyn_rates(sys, yc, dy, power, torque, stat)
+            return
+        end if
+        k = sys%nc
+        call dyn_cforces(sys, yc, dy(k + 1:2*k), power, torque)
+        dy(1:k) = yc(k + 1:2*k)
+        if (sys%rotary) then
+            lu%n = k
+            lu%kl = sys%ckl
+            lu%ku = sys%cku
+            allocate (lu%ab(3*sys%ckl + 1, k))
+            call dyn_cmass(sys, yc, lu%ab)
+            call band_factor(lu, stat)
+            if (stat%code /= 0) return
+            call band_solve(lu, dy(k + 1:2*k))
+        else
+            call band_solve(sys%cmlu, dy(k + 1:2*k))
+        end if
+        if (sys%nx > 0) dy(2*k + 1) = dyn_cxrate(sys, yc)
+    end subroutine dyn_crates
 
 end module beamid_dynamics

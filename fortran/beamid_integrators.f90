@@ -22,10 +22,9 @@ module beamid_integrators
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
                              ERR_NUMERIC, fmt_int, fmt_real
-    use beamid_fe_assembly, only: fe_band_rows, fe_band_add
-    use beamid_dynamics, only: dyn_system_t, dyn_forces, dyn_power, dyn_psidot, &
-                               dyn_jacobian, dyn_rates, &
-                               dyn_energy, dyn_mass, dyn_torque, band_lu_t, zband_lu_t, &
+    use beamid_dynamics, only: dyn_system_t, dyn_cforces, dyn_cpower, dyn_cxrate, &
+                               dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
+                               dyn_to_coords, dyn_energy, dyn_torque, band_lu_t, zband_lu_t, &
                                band_factor, band_solve, zband_factor, zband_solve
     implicit none
     private
@@ -184,6 +183,7 @@ contains
         type(integ_stats_t), intent(out) :: stats
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'integrate'
+        real(dp), allocatable :: yc0(:)
         integer :: nt, k
         nt = size(t_out)
         if (size(y0) /= sys%nstate) then
@@ -214,6 +214,9 @@ contains
         hist%kinetic = 0.0_dp
         hist%potential = 0.0_dp
         hist%work = 0.0_dp
+        ! integration coordinates: q itself, or the modal coordinates (Eq. 127)
+        allocate (yc0(sys%ncstate))
+        call dyn_to_coords(sys, y0, yc0)
         select case (opts%method)
         case (METHOD_RK4)
             if (.not. (opts%dt > 0.0_dp .and. ieee_is_finite(opts%dt))) then
@@ -221,7 +224,7 @@ contains
                                 ', expected a positive step')
                 return
             end if
-            call run_rk4(sys, y0, t_out, opts, hist, stats, stat)
+            call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
         case (METHOD_IMPLICIT)
             if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
                 then
@@ -230,21 +233,24 @@ contains
                                 fmt_real(opts%h0)//': expected positive values')
                 return
             end if
-            call run_radau(sys, y0, t_out, opts, hist, stats, stat)
+            call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
         case default
             call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
                             ', expected 0 (rk4) or 1 (implicit)')
         end select
     end subroutine integrate
 
-    !> Store output column k of the history.
-    subroutine record(sys, y, work, k, hist)
+    !> Store output column k of the history (the physical state of the
+    !! coordinate state yc).
+    subroutine record(sys, yc, work, k, hist)
         type(dyn_system_t), intent(in) :: sys
-        real(dp), intent(in) :: y(:), work(:)
+        real(dp), intent(in) :: yc(:), work(:)
         integer, intent(in) :: k
         type(history_t), intent(inout) :: hist
+        real(dp) :: y(sys%nstate)
         integer :: n
         n = sys%n
+        call dyn_to_physical(sys, yc, y)
         hist%y(:, k) = y
         hist%work(:, k) = work
         hist%torque(k) = dyn_torque(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:))
@@ -259,8 +265,8 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp) :: torque
         integer :: m
-        m = sys%nstate
-        call dyn_rates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat)
+        m = sys%ncstate
+        call dyn_crates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat)
     end subroutine rk_rates
 
     !> Classical RK4 with a fixed step (Eq. 99, 107).
@@ -274,7 +280,7 @@ contains
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:)
         real(dp) :: t, h
         integer :: m, k, nsub, i
-        m = sys%nstate
+        m = sys%ncstate
         allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
                   k3(m + sys%nwork), k4(m + sys%nwork))
         s = 0.0_dp
@@ -313,24 +319,23 @@ contains
         real(dp), intent(in) :: y(:)
         type(radau_t), intent(inout) :: it
         integer :: n, nb
-        n = sys%n
-        nb = fe_band_rows(sys%mesh)
+        n = sys%nc
+        nb = 2*sys%ckl + sys%cku + 1
         if (.not. allocated(it%mb)) then
             allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n), &
                       it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n))
             it%lu1%n = n
-            it%lu1%kl = sys%mesh%kl
-            it%lu1%ku = sys%mesh%ku
+            it%lu1%kl = sys%ckl
+            it%lu1%ku = sys%cku
             it%lu2%n = n
-            it%lu2%kl = sys%mesh%kl
-            it%lu2%ku = sys%mesh%ku
+            it%lu2%kl = sys%ckl
+            it%lu2%ku = sys%cku
             allocate (it%lu1%ab(nb, n), it%lu2%ab(nb, n))
         end if
         ! a constant mass matrix is copied once (M0 = M(q) only with rotary inertia)
-        if (sys%rotary .or. .not. it%have_mass) call dyn_mass(sys, y(1:n), it%mb)
+        if (sys%rotary .or. .not. it%have_mass) call dyn_cmass(sys, y, it%mb)
         it%have_mass = .true.
-        call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), it%kb, it%cb, it%b, &
-                          it%p, it%d, it%e)
+        call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
     end subroutine radau_jacobian
 
     !> Assemble and factor (lam^2 M + lam C + K - b w^T) for lam = gamma/h
@@ -344,8 +349,8 @@ contains
         real(dp) :: l1
         complex(dp) :: l2
         integer :: i, j, kl, ku, r
-        kl = sys%mesh%kl
-        ku = sys%mesh%ku
+        kl = sys%ckl
+        ku = sys%cku
         l1 = gam/h
         l2 = mu/h
         it%h = h
@@ -356,9 +361,9 @@ contains
         it%lu1%ab(r:, :) = l1*it%a1(r:, :) + it%kb(r:, :)
         it%lu2%ab(r:, :) = l2*it%a2(r:, :) + it%kb(r:, :)
         if (sys%nx > 0) then
-            do j = 1, sys%n
+            do j = 1, sys%nc
                 if (it%p(j) == 0.0_dp .and. it%d(j) == 0.0_dp) cycle
-                do i = max(1, j - ku), min(sys%n, j + kl)
+                do i = max(1, j - ku), min(sys%nc, j + kl)
                     if (it%b(i) == 0.0_dp) cycle
                     r = kl + ku + 1 + i - j
                     it%lu1%ab(r, j) = it%lu1%ab(r, j) &
@@ -421,8 +426,8 @@ contains
         real(dp), intent(inout) :: w(:)
         real(dp) :: zt
         integer :: n
-        n = sys%n
-        call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%a1, w(1:n), it%rhs)
+        n = sys%nc
+        call dband_mv(n, sys%ckl, sys%cku, it%a1, w(1:n), it%rhs)
         it%rhs = it%rhs + w(n + 1:2*n)
         zt = 0.0_dp
         if (sys%nx > 0) then
@@ -445,8 +450,8 @@ contains
         complex(dp), intent(inout) :: w(:)
         complex(dp) :: zt
         integer :: n
-        n = sys%n
-        call zband_mv(n, sys%mesh%kl, sys%mesh%ku, it%a2, w(1:n), it%zrhs)
+        n = sys%nc
+        call zband_mv(n, sys%ckl, sys%cku, it%a2, w(1:n), it%zrhs)
         it%zrhs = it%zrhs + w(n + 1:2*n)
         zt = (0.0_dp, 0.0_dp)
         if (sys%nx > 0) then
@@ -470,19 +475,15 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp) :: torque
         integer :: n
-        n = sys%n
+        n = sys%nc
         if (sys%rotary) then
-            call dyn_rates(sys, y, dy, power, torque, stat)
+            call dyn_crates(sys, y, dy, power, torque, stat)
             it%tmp = dy(n + 1:2*n)
-            call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%mb, it%tmp, dy(n + 1:2*n))
+            call dband_mv(n, sys%ckl, sys%cku, it%mb, it%tmp, dy(n + 1:2*n))
         else
-            call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, &
-                            torque)
+            call dyn_cforces(sys, y, dy(n + 1:2*n), power, torque)
             dy(1:n) = y(n + 1:2*n)
-            if (sys%nx > 0) then
-                dy(2*n + 1) = (-sys%motor*dyn_psidot(sys, y(1:n), y(n + 1:2*n), sys%npt) &
-                               - y(2*n + 1))/sys%tau
-            end if
+            if (sys%nx > 0) dy(2*n + 1) = dyn_cxrate(sys, y)
         end if
     end subroutine rates_m
 
@@ -492,9 +493,9 @@ contains
         type(radau_t), intent(inout) :: it
         real(dp), intent(inout) :: x(:)
         integer :: n
-        n = sys%n
+        n = sys%nc
         it%tmp = x(n + 1:2*n)
-        call dband_mv(n, sys%mesh%kl, sys%mesh%ku, it%mb, it%tmp, x(n + 1:2*n))
+        call dband_mv(n, sys%ckl, sys%cku, it%mb, it%tmp, x(n + 1:2*n))
     end subroutine to_mform
 
     pure real(dp) function rms(x, scal)
@@ -553,8 +554,8 @@ contains
         call radau_tableau(a, dmat, gam, mu, tm, ti)
         ti1 = real(ti(1, :), dp)
         ti2 = ti(2, :)
-        nn = sys%nstate
-        n = sys%n
+        nn = sys%ncstate
+        n = sys%nc
         nt = size(t_out)
         allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), zd(nn, 3), f0(nn), e0(nn), &
                   ev(nn), scal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
@@ -729,7 +730,7 @@ contains
                 if (sys%nwork > 0) then
                     do i = 1, 3
                         ys = y + z(:, i)
-                        call dyn_power(sys, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), pw(:, i))
+                        call dyn_cpower(sys, ys, pw(:, i))
                     end do
                     do j = 1, sys%nwork
                         work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))

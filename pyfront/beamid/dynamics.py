@@ -98,6 +98,8 @@ class Run:
     elements_per_beam: int
     info: dict                    #: steps, rejected, fevals, jevals, newton
     nfree: int
+    #: retained mode numbers of a truncated modal run (1-based), None: full model
+    modes: tuple[int, ...] | None = None
     _model: object = field(repr=False, default=None)
 
     @property
@@ -134,12 +136,45 @@ class Run:
         return out
 
 
+def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None:
+    """The 1-based mode numbers that ``modes`` selects (None: full model)."""
+    if modes is None:
+        return None
+    if isinstance(modes, str):
+        if modes != "transverse":
+            raise InputError(f"modes = {modes!r}, expected an integer, 'transverse' or a "
+                             "sequence of mode numbers")
+        from .fe import modes as fe_modes
+        rotary = any(v != 0.0 for k, v in model.params.items() if k.startswith("J_"))
+        md = fe_modes(model, nepb, rotary_inertia=rotary)
+        return tuple(int(i) + 1 for i in np.flatnonzero(~md.is_axial))
+    if isinstance(modes, (bool, np.bool_)):
+        raise InputError(f"modes = {modes!r}, expected an integer or mode numbers")
+    if isinstance(modes, (int, np.integer)):
+        if not 1 <= int(modes) <= nfree:
+            raise InputError(f"modes = {modes}, expected 1..{nfree} (the model has {nfree} "
+                             "modes)")
+        return tuple(range(1, int(modes) + 1))
+    try:
+        nums = [int(m) for m in modes]
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"modes = {modes!r}, expected integers") from exc
+    if any(float(m) != int(m) for m in modes):
+        raise InputError(f"modes = {modes!r}, expected integer mode numbers")
+    bad = [m for m in nums if not 1 <= m <= nfree]
+    if not nums or bad or len(set(nums)) != len(nums):
+        raise InputError(f"modes = {list(modes)!r}: expected distinct mode numbers in "
+                         f"1..{nfree}")
+    return tuple(sorted(nums))
+
+
 def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
              integrator: str = "implicit", motor_gain: float = 0.0,
              dt: float | None = None, rtol: float | None = None, *,
              friction: str | None = None, friction_velocity: float | None = None,
              atol: float | None = None, h0: float | None = None,
-             initial_state: np.ndarray | None = None) -> Run:
+             initial_state: np.ndarray | None = None,
+             modes: int | str | Sequence[int] | None = None) -> Run:
     """Release the chain from rest at the static shape under ``release`` and
     integrate M q'' + NLT(q) = Q(q, q') (Eq. 98-107) to the times ``t_out``.
 
@@ -157,6 +192,12 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         RK4, smooth for implicit).
     friction_velocity: regularization velocity of the smooth law (1e-4 m/s).
     initial_state: a state vector (q, v[, T]) to start from instead of the release.
+    modes: truncated modal model (Section 4.1.4, Eq. 127): ``k`` keeps the k
+        lowest linear modes, ``"transverse"`` all transverse (w) modes, or a
+        sequence of mode numbers (1-based, ascending frequency, as
+        :func:`beamid.modes` and the dissertation's #1..#33). The nonlinear
+        force is projected on the retained modes; the initial state is
+        projected too (eta = Phi^T M q). None (default): the full model.
     """
     nbeams, params = _model_args(model)
     if integrator not in INTEGRATORS:
@@ -188,10 +229,11 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
             raise InputError(f"initial_state has shape {initial_state.shape}, "
                              f"expected ({nstate},)")
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
+    kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
     states, tip, torque, ledger, work, info = _cd.simulate(
         nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
         FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
-        initial_state, t, nstate, nwork)
+        initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
     names = work_names(nbeams)
     led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2]}
     for i, name in enumerate(names):
@@ -202,7 +244,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                integrator=integrator, friction=friction,
                elements_per_beam=int(elements_per_beam),
                info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton"), info)),
-               nfree=nfree, _model=model)
+               nfree=nfree, modes=kept, _model=model)
 
 
 def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,
