@@ -224,3 +224,16 @@ def test_reproduce_table8(capsys):
     out = capsys.readouterr().out
     assert "4 reproduced, 1 documented deviations, 0 failed" in out
     assert "tip_w@2.0" in out
+
+
+@pytest.mark.parametrize("name", ["table13_dyn_08", "chapter5_motor_g02"])
+def test_rk4_seed_decks_reproduce_or_document(name):
+    """The RK4 decks (dt = 1e-5 over 2.6 s, about 5 s each): every published
+    value reproduces or is a documented deviation (docs/deviations.md)."""
+    deck = beamid.read_deck(Path(__file__).resolve().parents[1] / "inputs" / "seed"
+                            / f"{name}.nml")
+    checks = check_deck(deck)
+    assert checks and all(c.status != "FAIL" for c in checks), \
+        [(c.quantity, c.published, c.ours) for c in checks if c.status == "FAIL"]
+    # the documented ones are still close: Table 13 within 1e-7 of the print
+    assert all(abs(c.difference) < 1e-7 for c in checks if c.deviation)
