@@ -43,13 +43,17 @@ def main() -> None:
                                        friction="smooth", friction_velocity=VS), repeat=1)
     print(f"(a) RK4 dt=1e-5: {ta:.3f} s, {ref.info['steps']} steps", flush=True)
 
+    # the loosest tolerance of this list that reaches 1e-6 m on the tip (the tip
+    # error is not monotone in rtol at the 10 % level, so the list is fine-grained)
     chosen = None
-    for rtol in (1e-6, 5e-7, 3e-7, 2e-7, 1e-7):
+    for rtol in (1e-6, 7e-7, 5e-7, 4e-7, 3e-7, 2e-7, 1e-7):
         tb, imp = best_of(lambda: simulate(model, RELEASE, t_out, rtol=rtol,
                                            friction_velocity=VS))
         err = max(np.max(np.abs(imp.tip_w - ref.tip_w)), np.max(np.abs(imp.tip_u - ref.tip_u)))
         print(f"    implicit rtol={rtol:.0e}: {tb:.4f} s, {imp.info['steps']} steps, "
-              f"tip error {err:.2e} m, numerical dissipation {imp.ledger['numerical'][-1]:.1e}")
+              f"{imp.info['jevals']} Jacobians, {imp.info['newton']} Newton its, "
+              f"tip error {err:.2e} m, numerical dissipation {imp.ledger['numerical'][-1]:.1e}",
+              flush=True)
         if err <= 1e-6 and chosen is None:
             chosen = (rtol, tb, err)
     rtol, tb, err = chosen
@@ -81,7 +85,11 @@ def main() -> None:
     span = T_END / 10
     t_c = t_out[t_out <= span + 1e-12]
     tc_best = None
+    # BDF only when Radau does not reach 1e-6 m (it took ~60 s for the tenth,
+    # 100x Radau's time, in the runs of the issue)
     for method in ("Radau", "BDF"):
+        if tc_best is not None:
+            break
         for tol in (1e-6, 1e-7, 1e-8):
             atol = np.concatenate([np.full(n, tol), np.full(n, 1e3 * tol)])
             t0 = time.perf_counter()
@@ -104,9 +112,13 @@ def main() -> None:
                 break
     if tc_best:
         print(f"(c) scipy {tc_best[0]} at 1e-6 m: {tc_best[1]:.2f} s per period")
-    print(f"ratio (a)/(b) = {ta / tb:.0f}   (target >= 100)")
+    ok_a = ta / tb >= 100
+    print(f"ratio (a)/(b) = {ta / tb:.0f}   (target >= 100: {'met' if ok_a else 'NOT met'})")
     if tc_best:
-        print(f"ratio (c)/(b) = {tc_best[1] / tb:.0f}   (target >= 20)")
+        ok_c = tc_best[1] / tb >= 20
+        print(f"ratio (c)/(b) = {tc_best[1] / tb:.0f}   (target >= 20: "
+              f"{'met' if ok_c else 'NOT met'})")
+    print("    (one run on a shared machine: the ratios move by +-20 % with the load)")
 
     # scaling of the implicit default with the mesh (free vibration, 0.2 s span)
     span = 0.2
