@@ -16,7 +16,8 @@ module beamid_api_dynamics
     use beamid_fe_assembly, only: fe_load_t, fe_band_rows, fe_band_to_dense, fe_node_value, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, &
+    use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
+                               zband_factor, zband_solve, dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, &
                                dyn_mass, dyn_tip, dyn_energy, dyn_set_modes, &
                                dyn_to_coords, dyn_to_physical
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
@@ -24,7 +25,7 @@ module beamid_api_dynamics
     private
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
-    public :: api_dyn_profile
+    public :: api_dyn_profile, api_dyn_band_solve
 
 contains
 
@@ -314,5 +315,61 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_profile
+
+    !> Check of the band LU kernels of the integrators: solve A x = b and
+    !! (A + i B) z = b + i c with A, B given dense (n x n, zero outside the band
+    !! kl, ku), by band_factor/band_solve and zband_factor/zband_solve.
+    subroutine api_dyn_band_solve(n, kl, ku, a, bm, b, c, x, zr, zi, code, message)
+        integer(c_int), intent(in) :: n, kl, ku
+        real(c_double), intent(in) :: a(n, n), bm(n, n), b(n), c(n)
+        real(c_double), intent(out) :: x(n), zr(n), zi(n)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(band_lu_t) :: lu
+        type(zband_lu_t) :: zlu
+        type(status_t) :: stat
+        real(dp), allocatable :: xs(:)
+        complex(dp), allocatable :: zs(:)
+        integer :: i, j
+        x = 0.0_c_double
+        zr = 0.0_c_double
+        zi = 0.0_c_double
+        if (n < 1 .or. kl < 0 .or. ku < 0 .or. kl >= n .or. ku >= n) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_band_solve', 'n, kl, ku = '// &
+                            fmt_int(int(n))//', '//fmt_int(int(kl))//', '//fmt_int(int(ku))// &
+                            ': expected n >= 1 and 0 <= kl, ku < n')
+        else
+            lu%n = int(n)
+            lu%kl = int(kl)
+            lu%ku = int(ku)
+            zlu%n = int(n)
+            zlu%kl = int(kl)
+            zlu%ku = int(ku)
+            allocate (lu%ab(2*kl + ku + 1, n), zlu%ab(2*kl + ku + 1, n), xs(n), zs(n))
+            lu%ab = 0.0_dp
+            zlu%ab = (0.0_dp, 0.0_dp)
+            do j = 1, int(n)
+                do i = max(1, j - int(ku)), min(int(n), j + int(kl))
+                    lu%ab(kl + ku + 1 + i - j, j) = a(i, j)
+                    zlu%ab(kl + ku + 1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
+                end do
+            end do
+            call band_factor(lu, stat)
+            if (stat%code == STATUS_OK) then
+                xs = b
+                call band_solve(lu, xs)
+                x = xs
+                call zband_factor(zlu, stat)
+            end if
+            if (stat%code == STATUS_OK) then
+                zs = cmplx(b, c, dp)
+                call zband_solve(zlu, zs)
+                zr = real(zs, dp)
+                zi = aimag(zs)
+            end if
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_band_solve
 
 end module beamid_api_dynamics

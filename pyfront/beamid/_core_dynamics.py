@@ -59,3 +59,15 @@ def profile(nbeams: int, params: np.ndarray, nepb: int, q: np.ndarray, npts: int
         nbeams, np.asarray(params, dtype=float), nepb, np.asarray(q, dtype=float), npts)
     raise_for_status(int(code), message)
     return np.array(s), np.array(x), np.array(y)
+
+
+def band_solve(kl: int, ku: int, a: np.ndarray, b_imag: np.ndarray, rhs: np.ndarray,
+               rhs_imag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Check of the integrators' band LU kernels: x = A^-1 rhs and
+    z = (A + i B)^-1 (rhs + i rhs_imag), A and B dense with band (kl, ku)."""
+    a = np.asfortranarray(a, dtype=float)
+    x, zr, zi, code, message = _api.api_dyn_band_solve(
+        int(kl), int(ku), a, np.asfortranarray(b_imag, dtype=float),
+        np.asarray(rhs, dtype=float), np.asarray(rhs_imag, dtype=float))
+    raise_for_status(int(code), message)
+    return np.array(x), np.array(zr) + 1j * np.array(zi)

@@ -1,0 +1,48 @@
+"""The band LU kernels of the integrators (dband_lu, zband_lu and their solves,
+the algorithm of LAPACK's dgbtf2/dgbtrs written out) against dense solves,
+including matrices that need row interchanges, and their error exits."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import beamid
+from beamid import _core_dynamics as cd
+
+
+def _band(n, kl, ku, rng, weak_diagonal):
+    a = rng.standard_normal((n, n))
+    i, j = np.indices((n, n))
+    a[(i - j > kl) | (j - i > ku)] = 0.0
+    if weak_diagonal:
+        a[i == j] *= 1e-3          # partial pivoting must swap rows
+    else:
+        a[i == j] += 2.0 * (kl + ku + 1)
+    return a
+
+
+@pytest.mark.parametrize("n,kl,ku", [(1, 0, 0), (5, 1, 2), (33, 7, 7), (40, 3, 7), (12, 11, 11)])
+@pytest.mark.parametrize("weak", [False, True])
+def test_band_lu_matches_dense(n, kl, ku, weak):
+    rng = np.random.default_rng(n * 100 + kl * 10 + ku + weak)
+    a = _band(n, kl, ku, rng, weak)
+    b = _band(n, kl, ku, rng, False) * 0.3
+    r, s = rng.standard_normal(n), rng.standard_normal(n)
+    x, z = cd.band_solve(kl, ku, a, b, r, s)
+    cond = np.linalg.cond(a)
+    assert np.linalg.norm(a @ x - r) <= 1e-13 * cond * np.linalg.norm(r) + 1e-14
+    assert_allclose(x, np.linalg.solve(a, r), rtol=1e-9 * max(1.0, cond / 1e3), atol=1e-12)
+    assert_allclose(z, np.linalg.solve(a + 1j * b, r + 1j * s), rtol=1e-9, atol=1e-10)
+
+
+def test_singular_band_is_reported():
+    a = np.diag([1.0, 2.0, 0.0, 4.0])
+    with pytest.raises(beamid.ConvergenceError, match="singular"):
+        cd.band_solve(1, 1, a, np.zeros((4, 4)), np.ones(4), np.zeros(4))
+
+
+@pytest.mark.parametrize("kl,ku", [(-1, 0), (0, 4), (4, 0)])
+def test_bad_band_widths(kl, ku):
+    with pytest.raises(beamid.InputError):
+        cd.band_solve(kl, ku, np.eye(4), np.zeros((4, 4)), np.ones(4), np.zeros(4))
