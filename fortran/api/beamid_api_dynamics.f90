@@ -17,8 +17,9 @@ module beamid_api_dynamics
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
-                               zband_factor, zband_solve, dyn_system_t, dyn_setup, dyn_forces, dyn_jacobian, &
-                               dyn_mass, dyn_tip, dyn_energy, dyn_set_modes, &
+                               zband_factor, zband_solve, dyn_system_t, dyn_setup, &
+                               dyn_forces, dyn_jacobian, dyn_mass, dyn_tip, dyn_energy, &
+                               dyn_set_modes, &
                                dyn_to_coords, dyn_to_physical
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
     implicit none
