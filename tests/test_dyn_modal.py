@@ -89,3 +89,38 @@ def test_modal_with_effects_matches_full(model):
 def test_bad_modes(model, modes):
     with pytest.raises(beamid.InputError):
         simulate(model, RELEASE, [0.0, 0.01], modes=modes)
+
+
+@pytest.mark.parametrize("tau", [0.0, 1e-3])
+def test_projected_jacobians_match_central_differences(tau):
+    """K~ = Phi^T K Phi and C~ = Phi^T C Phi (and the projected motor-lag
+    couplings) against central differences of F~(eta, eta') = Phi^T F."""
+    from beamid.dynamics import dynamic_system
+    model = beamid.pace(tau_motor=tau, mu_elbow=0.01, mu_tip=0.02, c_elbow=0.3, eta=0.01)
+    modes = [1, 2, 3, 5, 8, 9, 12]
+    k = len(modes)
+    rng = np.random.default_rng(7)
+    eta, etad = 0.03 * rng.standard_normal(k), 0.2 * rng.standard_normal(k)
+    kw = dict(motor_gain=0.2, friction="smooth", friction_velocity=0.05, torque_state=0.05,
+              modes=modes)
+    base = dynamic_system(model, eta, etad, 2, **kw)
+    assert base["K"].shape == (k, k)
+    kfd, cfd = np.empty((k, k)), np.empty((k, k))
+    for j in range(k):
+        e = np.zeros(k)
+        e[j] = 1e-6
+        kfd[:, j] = -(dynamic_system(model, eta + e, etad, 2, **kw)["force"]
+                      - dynamic_system(model, eta - e, etad, 2, **kw)["force"]) / 2e-6
+        e[j] = 1e-5
+        cfd[:, j] = -(dynamic_system(model, eta, etad + e, 2, **kw)["force"]
+                      - dynamic_system(model, eta, etad - e, 2, **kw)["force"]) / 2e-5
+    scale = np.max(np.abs(base["K"]))
+    assert_allclose(base["K"], kfd, atol=1e-6 * scale)
+    assert_allclose(base["C"], cfd, atol=1e-6 * np.max(np.abs(base["C"])))
+    # rotary inertia (Table 1's J) makes M~ = Phi^T M(q) Phi differ from I
+    assert_allclose(base["M"], base["M"].T, atol=1e-14)
+    assert np.max(np.abs(base["M"] - np.eye(k))) > 1e-6
+    if tau > 0:
+        full = dynamic_system(model, np.zeros(17), np.zeros(17), 2, motor_gain=0.2)
+        assert base["b"].shape == (k,) and np.any(base["b"] != 0.0)
+        assert base["e"] == full["e"]

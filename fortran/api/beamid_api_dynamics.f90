@@ -19,14 +19,14 @@ module beamid_api_dynamics
     use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
                                zband_factor, zband_solve, dyn_system_t, dyn_setup, &
                                dyn_forces, dyn_jacobian, dyn_mass, dyn_tip, dyn_energy, &
-                               dyn_set_modes, &
-                               dyn_to_coords, dyn_to_physical
+                               dyn_set_modes, dyn_to_coords, dyn_to_physical, &
+                               dyn_cforces, dyn_cjacobian, dyn_cmass
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
     implicit none
     private
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
-    public :: api_dyn_profile, api_dyn_band_solve
+    public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal
 
 contains
 
@@ -256,6 +256,72 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_system
+
+    !> api_dyn_system in the coordinates of a truncated modal model (Eq. 127):
+    !! F~ = Phi^T F(Phi eta, Phi eta'), K~ = -dF~/deta, C~ = -dF~/deta', the
+    !! mass Phi^T M Phi and the projected motor-lag couplings, for checks.
+    subroutine api_dyn_system_modal(nbeams, nparams, params, nepb, gain, law, vslip, nmodes, &
+                                    modes, nx, eta, etad, x, nwork, force, power, kmat, cmat, &
+                                    mass, b, p, d, e, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, law, nmodes, nx, nwork
+        integer(c_int), intent(in) :: modes(nmodes)
+        real(c_double), intent(in) :: params(nparams), gain, vslip, eta(nmodes)
+        real(c_double), intent(in) :: etad(nmodes), x(1)
+        real(c_double), intent(out) :: force(nmodes), power(nwork)
+        real(c_double), intent(out) :: kmat(nmodes, nmodes), cmat(nmodes, nmodes)
+        real(c_double), intent(out) :: mass(nmodes, nmodes), b(nmodes), p(nmodes)
+        real(c_double), intent(out) :: d(nmodes), e
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
+        real(dp), allocatable :: bb(:), pp(:), dd(:)
+        real(dp) :: tq, ee
+        integer :: k, nb
+        force = 0.0_c_double
+        power = 0.0_c_double
+        kmat = 0.0_c_double
+        cmat = 0.0_c_double
+        mass = 0.0_c_double
+        b = 0.0_c_double
+        p = 0.0_c_double
+        d = 0.0_c_double
+        e = 0.0_c_double
+        call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
+        if (stat%code == STATUS_OK .and. (sys%nx /= nx .or. sys%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_system_modal', 'nx, nwork = '// &
+                            fmt_int(int(nx))//', '//fmt_int(int(nwork))//', expected '// &
+                            fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
+        end if
+        if (stat%code == STATUS_OK) call dyn_set_modes(sys, int(modes), stat)
+        if (stat%code == STATUS_OK) then
+            k = sys%nc
+            nb = 3*sys%ckl + 1
+            allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
+                      pw(sys%nwork), bb(k), pp(k), dd(k))
+            yc(1:k) = eta
+            yc(k + 1:2*k) = etad
+            if (sys%nx > 0) yc(2*k + 1) = x(1)
+            call dyn_cforces(sys, yc, f, pw, tq)
+            force = f
+            power = pw
+            call dyn_cjacobian(sys, yc, kb, cb, bb, pp, dd, ee)
+            call fe_band_to_dense(kb, sys%ckl, sys%cku, a)
+            kmat = a
+            call fe_band_to_dense(cb, sys%ckl, sys%cku, a)
+            cmat = a
+            call dyn_cmass(sys, yc, mb)
+            call fe_band_to_dense(mb, sys%ckl, sys%cku, a)
+            mass = a
+            b = bb
+            p = pp
+            d = dd
+            e = ee
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_system_modal
 
     !> Deformed shape x = s + u(s), y = w(s) at nsub points per element
     !! (Hermite interpolation of Eq. 76), npts = nel nsub + 1, plus the arc s.

@@ -71,3 +71,18 @@ def band_solve(kl: int, ku: int, a: np.ndarray, b_imag: np.ndarray, rhs: np.ndar
         np.asarray(rhs, dtype=float), np.asarray(rhs_imag, dtype=float))
     raise_for_status(int(code), message)
     return np.array(x), np.array(zr) + 1j * np.array(zi)
+
+
+def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int,
+                 vslip: float, modes: np.ndarray, eta: np.ndarray, etad: np.ndarray,
+                 x: float, nx: int, nwork: int) -> dict:
+    """Projected force, Jacobians and mass of a truncated modal model (Eq. 127)."""
+    (force, power, kmat, cmat, mass, b, p, d, e, code,
+     message) = _api.api_dyn_system_modal(
+        nbeams, np.asarray(params, dtype=float), nepb, float(gain), int(law), float(vslip),
+        np.asarray(modes, dtype=np.int32), nx, np.asarray(eta, dtype=float),
+        np.asarray(etad, dtype=float), np.array([x], dtype=float), nwork)
+    raise_for_status(int(code), message)
+    return {"force": np.array(force), "power": np.array(power), "K": np.array(kmat),
+            "C": np.array(cmat), "M": np.array(mass), "b": np.array(b), "p": np.array(p),
+            "d": np.array(d), "e": float(e)}

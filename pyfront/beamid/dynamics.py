@@ -249,13 +249,21 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
 
 def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,
                    friction: str = "smooth", friction_velocity: float = 1e-4,
-                   torque_state: float = 0.0) -> dict:
+                   torque_state: float = 0.0,
+                   modes: int | str | Sequence[int] | None = None) -> dict:
     """Generalized force F(q, v), work rates, the hand-coded Jacobians
     K = -dF/dq and C = -dF/dv (dense), the motor-lag couplings and M(q), for
-    checks against finite differences."""
+    checks against finite differences. With ``modes`` (as in :func:`simulate`)
+    q and v are modal coordinates eta, eta' and everything is projected
+    (Eq. 127): F~ = Phi^T F(Phi eta, Phi eta'), K~ = -dF~/deta, M~ = Phi^T M Phi."""
     nbeams, params = _model_args(model)
     gain = float(motor_gain)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
     nx = nstate - 2 * nfree
+    if modes is not None:
+        kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
+        return _cd.system_modal(nbeams, params, int(elements_per_beam), gain,
+                                FRICTION_LAWS[friction], friction_velocity, np.array(kept),
+                                q, v, torque_state, nx, nwork)
     return _cd.system(nbeams, params, int(elements_per_beam), gain, FRICTION_LAWS[friction],
                       friction_velocity, q, v, torque_state, nx, nwork)
