@@ -22,6 +22,10 @@ dissertation's). Friction laws: ``"sign"`` (Eq. 101, sign(0) = 0),
 ``"sign_literal"`` (the literal Fortran SIGN(1, v), +1 at rest). By default
 RK4 uses ``"sign"`` and the implicit integrator ``"smooth"``; ``run.friction``
 says which law a run used.
+
+``modes=`` runs the truncated modal model of Section 4.1.4 (Eq. 127) instead of
+the full one: ``k`` lowest modes, ``"transverse"`` or mode numbers
+(docs/dynamics.md shows why truncation does not pay for this model).
 """
 from __future__ import annotations
 
