@@ -26,3 +26,12 @@ def batch_exe() -> Path:
         if c.is_file() and os.access(c, os.X_OK):
             return c
     pytest.fail("beamid-batch was not built (run make setup)")
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Close the figures a test opened (examples and plot helpers draw on new ones)."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
