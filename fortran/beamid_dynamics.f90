@@ -561,7 +561,7 @@ contains
         real(dp), intent(out) :: power(:), torque
         real(dp), allocatable :: qf(:), vf(:), ff(:)
         real(dp) :: phi, dphi, fd(FE_NDOF), pw, psid, jm
-        integer :: k, i, c, el, i0, npt
+        integer :: k, i, c, el, npt, edx(FE_NDOF)
         npt = sys%npt
         power = 0.0_dp
         do k = 1, npt
@@ -594,11 +594,11 @@ contains
             call fe_expand(sys%mesh, v, vf)
             ff = 0.0_dp
             do el = 1, sys%mesh%nel
-                i0 = 4*(el - 1)
+                ! the element's unknowns (outboard slopes after a hinge)
+                edx = sys%mesh%el_dof(:, el)
                 call damping_element(sys%mesh%h(el), sys%eta*sys%mesh%ei(el), sys%mesh%xg, &
-                                     sys%mesh%wg, qf(i0 + 1:i0 + FE_NDOF), &
-                                     vf(i0 + 1:i0 + FE_NDOF), fd, pw)
-                ff(i0 + 1:i0 + FE_NDOF) = ff(i0 + 1:i0 + FE_NDOF) + fd
+                                     sys%mesh%wg, qf(edx), vf(edx), fd, pw)
+                ff(edx) = ff(edx) + fd
                 power(2*npt + 1) = power(2*npt + 1) + pw
             end do
             f = f - ff(sys%mesh%full_of)
@@ -664,7 +664,7 @@ contains
         real(dp), allocatable :: f(:), qf(:), vf(:)
         real(dp) :: phi, dphi, jm, psid, wd, ud, wq, uq, t, g, fd(FE_NDOF), pw
         real(dp) :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF), a(2), dpsi_dq(2)
-        integer :: k, c, i, el, i0, aa, bb, ia, ib, kl, ku, idx(2)
+        integer :: k, c, i, el, aa, bb, ia, ib, kl, ku, idx(2), edx(FE_NDOF)
         kl = sys%mesh%kl
         ku = sys%mesh%ku
         allocate (f(sys%n))
@@ -710,15 +710,14 @@ contains
             call fe_expand(sys%mesh, q, qf)
             call fe_expand(sys%mesh, v, vf)
             do el = 1, sys%mesh%nel
-                i0 = 4*(el - 1)
+                edx = sys%mesh%el_dof(:, el)
                 call damping_element(sys%mesh%h(el), sys%eta*sys%mesh%ei(el), sys%mesh%xg, &
-                                     sys%mesh%wg, qf(i0 + 1:i0 + FE_NDOF), &
-                                     vf(i0 + 1:i0 + FE_NDOF), fd, pw, kd, cd)
+                                     sys%mesh%wg, qf(edx), vf(edx), fd, pw, kd, cd)
                 do bb = 1, FE_NDOF
-                    ib = sys%mesh%free_of(i0 + bb)
+                    ib = sys%mesh%free_of(edx(bb))
                     if (ib == 0) cycle
                     do aa = 1, FE_NDOF
-                        ia = sys%mesh%free_of(i0 + aa)
+                        ia = sys%mesh%free_of(edx(aa))
                         if (ia == 0) cycle
                         call fe_band_add(kb, kl, ku, ia, ib, kd(aa, bb))
                         call fe_band_add(cb, kl, ku, ia, ib, cd(aa, bb))
