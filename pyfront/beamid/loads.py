@@ -34,10 +34,13 @@ class TipLoad:
     def __post_init__(self) -> None:
         for name in ("fx", "fy", "moment"):
             object.__setattr__(self, name, _finite(name, getattr(self, name)))
+        encoded = np.array([self.fx, self.fy, self.moment, 0.0])
+        encoded.setflags(write=False)
+        object.__setattr__(self, "_encoded", encoded)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, [fx, fy, moment, Lw]) as the Fortran core takes it."""
-        return LOAD_TIP, np.array([self.fx, self.fy, self.moment, 0.0])
+        """(kind, [fx, fy, moment, Lw]) as the Fortran core takes it (read-only)."""
+        return LOAD_TIP, self._encoded
 
     def __add__(self, other: "TipLoad") -> "TipLoad":
         if not isinstance(other, TipLoad):
@@ -75,9 +78,13 @@ class RadialWire:
         if v <= 0.0:
             raise InputError(f"wire length Lw = {v:g}, expected a positive length")
         object.__setattr__(self, "Lw", v)
+        encoded = np.array([0.0, 0.0, 0.0, v])
+        encoded.setflags(write=False)
+        object.__setattr__(self, "_encoded", encoded)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        return LOAD_WIRE, np.array([0.0, 0.0, 0.0, self.Lw])
+        """(kind, [0, 0, 0, Lw]) as the Fortran core takes it (read-only)."""
+        return LOAD_WIRE, self._encoded
 
     def describe(self) -> str:
         return f"radial wire Lw = {self.Lw:g} m"

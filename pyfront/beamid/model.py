@@ -43,7 +43,7 @@ class Model:
         Parameter vector in the order of :meth:`names`.
     """
 
-    __slots__ = ("_nbeams", "_values", "_index")
+    __slots__ = ("_nbeams", "_values", "_index", "_wrt_cache")
 
     def __init__(self, nbeams: int, values: Iterable[float]):
         nbeams = int(nbeams)
@@ -60,6 +60,7 @@ class Model:
         self._nbeams = nbeams
         self._values = vec
         self._index = {n: i for i, n in enumerate(names)}
+        self._wrt_cache: dict[tuple[str, ...], np.ndarray] = {}
 
     # -- naming -------------------------------------------------------------
     @property
@@ -81,6 +82,16 @@ class Model:
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise InputError(f"unknown parameter name {name!r} for a {self._nbeams}-beam "
                              f"chain{hint}") from None
+
+    def indices(self, names: tuple[str, ...]) -> np.ndarray:
+        """1-based positions of named parameters as the Fortran core takes them
+        (InputError for an unknown name); remembered per tuple of names."""
+        found = self._wrt_cache.get(names)
+        if found is None:
+            found = np.array([self.index(n) + 1 for n in names], dtype=np.int32)
+            found.setflags(write=False)
+            self._wrt_cache[names] = found
+        return found
 
     # -- values -------------------------------------------------------------
     @property

@@ -160,7 +160,7 @@ def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
     if isinstance(wrt, str):
         wrt = (wrt,)
     wrt = tuple(wrt)
-    idx = np.array([model.index(n) + 1 for n in wrt], dtype=np.int32)
+    idx = model.indices(wrt)
     if tol is not None and not (0.0 < float(tol) < 1e-2):
         raise InputError(f"tol = {tol}, expected a tolerance in (0, 1e-2)")
     kind, values = load.encode()
