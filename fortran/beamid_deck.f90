@@ -13,7 +13,7 @@ module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_IO, ERR_DECK, ERR_INPUT, STATUS_OK, &
-                             fmt_int, fmt_real
+                             fmt_int, fmt_real, lower
     use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
                             param_index_joint_flex, param_index_global, chain_t, &
                             chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
@@ -959,15 +959,4 @@ contains
             end if
         end do
     end subroutine check_groups
-
-    pure function lower(text) result(out)
-        character(len=*), intent(in) :: text
-        character(len=len(text)) :: out
-        integer :: i, code
-        out = text
-        do i = 1, len(text)
-            code = iachar(text(i:i))
-            if (code >= iachar('A') .and. code <= iachar('Z')) out(i:i) = achar(code + 32)
-        end do
-    end function lower
 end module beamid_deck

@@ -13,7 +13,7 @@
 module beamid_measurements
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, fmt_int
+    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, fmt_int, lower
     use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE
     implicit none
     private
@@ -440,15 +440,4 @@ contains
             text = text//', '//quantity_label(k)
         end do
     end function quantity_list
-
-    pure function lower(text) result(out)
-        character(len=*), intent(in) :: text
-        character(len=len(text)) :: out
-        integer :: i, code
-        out = text
-        do i = 1, len(text)
-            code = iachar(text(i:i))
-            if (code >= iachar('A') .and. code <= iachar('Z')) out(i:i) = achar(code + 32)
-        end do
-    end function lower
 end module beamid_measurements

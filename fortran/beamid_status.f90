@@ -11,7 +11,7 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, set_status, clear_status, fmt_real, fmt_int
+    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
     integer, parameter, public :: STATUS_OK = 0
@@ -82,4 +82,16 @@ contains
         write (buffer, '(i0)') i
         text = trim(buffer)
     end function fmt_int
+
+    !> ASCII lower case (namelist group and variable names are case-insensitive).
+    pure function lower(text) result(out)
+        character(len=*), intent(in) :: text
+        character(len=len(text)) :: out
+        integer :: i, code
+        out = text
+        do i = 1, len(text)
+            code = iachar(text(i:i))
+            if (code >= iachar('A') .and. code <= iachar('Z')) out(i:i) = achar(code + 32)
+        end do
+    end function lower
 end module beamid_status
