@@ -18,45 +18,23 @@ def demo(out: Path) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .plotting import plot_shapes
 
     checks = reproduce()
     print(format_checks(checks))
     out.mkdir(parents=True, exist_ok=True)
 
-    forms = {"seed form (axial_coupling = 0)": 0.0, "exact elastica (axial_coupling = 1)": 1.0}
-    written = []
     # radial wire of Table 2 and Figure 9: several wire lengths, C1 = C2 = 0
-    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
-    for ax, (title, a) in zip(axes, forms.items()):
-        lengths = (1.45, 1.4, 1.3, 1.1, 0.9)
-        results = [solve_static(pace(axial_coupling=a), RadialWire(lw)) for lw in lengths]
-        labels = [f"Lw = {lw} m, T = {r.wire_force:.1f} N" for lw, r in zip(lengths, results)]
-        plot_shapes(results, labels, ax=ax)
-        ax.set_title(title, fontsize=10)
-    fig.suptitle("PACE arm, radial wire to the root (Figure 9, Table 2)")
-    fig.tight_layout()
-    path = out / "wire_shapes.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    written.append(path)
-
+    lengths = (1.45, 1.4, 1.3, 1.1, 0.9)
+    written = [_forms_figure(
+        out / "wire_shapes.png", "PACE arm, radial wire to the root (Figure 9, Table 2)",
+        [RadialWire(lw) for lw in lengths],
+        lambda r, i: f"Lw = {lengths[i]} m, T = {r.wire_force:.1f} N")]
     # directed transverse tip force, 3 to 8 N (Figure 11, Tables 4-5)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
-    for ax, (title, a) in zip(axes, forms.items()):
-        forces = (3.0, 4.0, 6.0, 8.0)
-        results = [solve_static(pace(axial_coupling=a), TipForce(fy=f)) for f in forces]
-        labels = [f"F = {f:g} N, tip y = {r.tip_y:.4f} m" for f, r in zip(forces, results)]
-        plot_shapes(results, labels, ax=ax)
-        ax.set_title(title, fontsize=10)
-    fig.suptitle("PACE arm, transverse tip force (Figure 11)")
-    fig.tight_layout()
-    path = out / "tip_force_shapes.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    written.append(path)
+    forces = (3.0, 4.0, 6.0, 8.0)
+    written.append(_forms_figure(
+        out / "tip_force_shapes.png", "PACE arm, transverse tip force (Figure 11)",
+        [TipForce(fy=f) for f in forces],
+        lambda r, i: f"F = {forces[i]:g} N, tip y = {r.tip_y:.4f} m"))
 
     # the main job: find the hidden effects in inputs/demo/hidden_effect.csv
     import dataclasses
@@ -79,3 +57,22 @@ def demo(out: Path) -> int:
     for p in written:
         print(f"wrote {p}")
     return 1 if any(c.status == "FAIL" for c in checks) else 0
+
+
+def _forms_figure(path: Path, title: str, loads, label) -> Path:
+    """Shapes under `loads`, seed form (left) beside the exact elastica (right)."""
+    import matplotlib.pyplot as plt
+
+    from .plotting import plot_shapes
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 6))
+    forms = {"seed form (axial_coupling = 0)": 0.0, "exact elastica (axial_coupling = 1)": 1.0}
+    for ax, (form, a) in zip(axes, forms.items()):
+        results = [solve_static(pace(axial_coupling=a), load) for load in loads]
+        plot_shapes(results, [label(r, i) for i, r in enumerate(results)], ax=ax)
+        ax.set_title(form, fontsize=10)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
