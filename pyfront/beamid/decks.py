@@ -121,6 +121,8 @@ def _point_name(nbeams: int, k: int) -> str:
 
 
 def _as_list(value: Any) -> list:
+    if value is None:
+        return []
     return list(value) if isinstance(value, (list, tuple)) else [value]
 
 

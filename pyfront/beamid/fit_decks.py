@@ -25,6 +25,7 @@ from typing import Any
 import f90nml
 
 from . import _core
+from .decks import _PER_BEAM, _PER_POINT, _as_list, _number, _point_name, parse_published
 from .diagnosis import EFFECTS, Diagnosis, Ladder, compare, diagnose, improve
 from .errors import InputError
 from .estimation import FitResult, build_problem, fit
@@ -44,8 +45,6 @@ GROUPS = {
             "alpha", "max_iter"},
     "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
 }
-_PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
-_PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 
 
 @dataclass(frozen=True)
@@ -69,22 +68,6 @@ class FitDeck:
     def output_prefix(self) -> Path:
         out = Path(self.output)
         return out if out.is_absolute() else self.path.parent / out
-
-
-def _list(value: Any) -> list:
-    if value is None:
-        return []
-    return list(value) if isinstance(value, (list, tuple)) else [value]
-
-
-def _num(path: Path, group: str, name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"{path}: in &{group}: {name} = {value!r}, expected a number")
-    return float(value)
-
-
-def _point(nbeams: int, k: int) -> str:
-    return "tip" if k == nbeams else ("elbow" if k == 1 else f"joint{k}")
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
@@ -133,21 +116,21 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
                                             or item[0] == "joint_flex"))
     for var, value in model_items:
         if var in _PER_BEAM or var in _PER_POINT or var == "joint_flex":
-            for k, entry in enumerate(_list(value), start=1):
+            for k, entry in enumerate(_as_list(value), start=1):
                 if entry is None:
                     continue
                 if var in _PER_BEAM:
                     pname = _PER_BEAM[var].format(k)
                 elif var in _PER_POINT:
-                    pname = _PER_POINT[var].format(_point(nbeams, k))
+                    pname = _PER_POINT[var].format(_point_name(nbeams, k))
                 else:
-                    pname = f"{_point(nbeams, k)}_flex"
+                    pname = f"{_point_name(nbeams, k)}_flex"
                 if pname not in values:
                     raise InputError(f"{path}: in &model: {var}({k}) is beyond the "
                                      f"{nbeams}-beam chain")
-                values[pname] = _num(path, "model", f"{var}({k})", entry)
+                values[pname] = _number(path, "model", f"{var}({k})", entry)
         elif var in by_lower:
-            values[by_lower[var]] = _num(path, "model", var, value)
+            values[by_lower[var]] = _number(path, "model", var, value)
         else:
             raise InputError(f"{path}: &model sets an elbow parameter but the chain has one "
                              "beam")
@@ -164,7 +147,7 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         if name in experiments:
             raise InputError(f"{path}: &experiment name = {name!r} defined twice")
         kind = str(item.get("kind", ""))
-        nums = {v: _num(path, "experiment", v, item[v])
+        nums = {v: _number(path, "experiment", v, item[v])
                 for v in ("fx", "fy", "moment", "wire_length") if v in item}
         if kind == "tip":
             if "wire_length" in nums:
@@ -196,7 +179,7 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         data_path = path.parent / data_path
     data = read_measurements(data_path, experiments)
     build_problem(model, experiments, data)  # static rows: t = 0, wire_force needs a wire
-    free_given = tuple(str(f) for f in _list(fg.get("free")) if f)
+    free_given = tuple(str(f) for f in _as_list(fg.get("free")) if f)
     free: tuple[str, ...] = ()
     for f in free_given:
         try:
@@ -208,16 +191,16 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         free += (canonical,)
     if not free:
         raise InputError(f"{path}: &fit free is missing: name the parameters to estimate")
-    pn = [str(p) for p in _list(fg.get("prior_names")) if p]
-    pm = _list(fg.get("prior_means"))
-    ps = _list(fg.get("prior_sigmas"))
+    pn = [str(p) for p in _as_list(fg.get("prior_names")) if p]
+    pm = _as_list(fg.get("prior_means"))
+    ps = _as_list(fg.get("prior_sigmas"))
     if not (len(pn) == len(pm) == len(ps)):
         raise InputError(f"{path}: &fit prior_names, prior_means and prior_sigmas must have "
                          f"equal lengths (got {len(pn)}, {len(pm)}, {len(ps)})")
     prior = {}
     for i, (n, m, s) in enumerate(zip(pn, pm, ps)):
-        m = _num(path, "fit", f"prior_means({i + 1})", m)
-        s = _num(path, "fit", f"prior_sigmas({i + 1})", s)
+        m = _number(path, "fit", f"prior_means({i + 1})", m)
+        s = _number(path, "fit", f"prior_sigmas({i + 1})", s)
         try:
             canonical = model.names()[model.index(n)]
         except InputError:
@@ -230,12 +213,12 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
             raise InputError(f"{path}: &fit prior for {n!r} = ({m:g}, {s:g}), expected a "
                              "finite mean and sigma > 0")
         prior[n] = (m, s)
-    cands = tuple(str(c) for c in _list(fg.get("candidates")) if c) or None
+    cands = tuple(str(c) for c in _as_list(fg.get("candidates")) if c) or None
     for c in cands or ():
         if c not in EFFECTS:
             raise InputError(f"{path}: &fit candidates = {c!r} is not a known effect, "
                              f"expected one of: {', '.join(EFFECTS)}")
-    alpha = _num(path, "fit", "alpha", fg.get("alpha", 0.01))
+    alpha = _number(path, "fit", "alpha", fg.get("alpha", 0.01))
     if not 0.0 < alpha < 1.0:
         raise InputError(f"{path}: &fit alpha = {alpha:g}, expected a significance level in "
                          "(0, 1)")
@@ -244,8 +227,6 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
         raise InputError(f"{path}: in &fit: max_iter = {max_iter!r}, expected an integer")
     if max_iter < 1:
         raise InputError(f"{path}: &fit max_iter = {max_iter}, expected at least 1")
-    from .decks import parse_published
-
     published = parse_published(path, [g for g in groups.get("published", [])])
     return FitDeck(path=path, task=task, output=str(output), model=model,
                    experiments=experiments, data=data, free=free, prior=prior,
