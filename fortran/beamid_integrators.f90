@@ -67,6 +67,12 @@ module beamid_integrators
         type(band_lu_t) :: lu1                  !< gamma/h - J (real)
         type(zband_lu_t) :: lu2                 !< mu/h - J (complex)
         logical :: have_mass = .false.          !< mb holds the constant M
+        !> M0 again, its nonzeros by rows (compressed sparse rows): the
+        !! consistent mass couples w with w and u with u only, so half of the
+        !! band is zero and the M-form products (several per Newton
+        !! iteration) skip it
+        integer, allocatable :: m_start(:), m_col(:)
+        real(dp), allocatable :: m_val(:)
         real(dp), allocatable :: a1(:, :)       !< gamma/h M + C (band)
         complex(dp), allocatable :: a2(:, :)    !< mu/h M + C (band)
         real(dp), allocatable :: rhs(:), tmp(:) !< work (n)
@@ -330,10 +336,78 @@ contains
             allocate (it%lu1%ab(nb, n), it%lu2%ab(nb, n))
         end if
         ! a constant mass matrix is copied once (M0 = M(q) only with rotary inertia)
-        if (sys%rotary .or. .not. it%have_mass) call dyn_cmass(sys, y, it%mb)
+        if (sys%rotary .or. .not. it%have_mass) then
+            call dyn_cmass(sys, y, it%mb)
+            call band_to_rows(n, sys%ckl, sys%cku, it%mb, it%m_start, it%m_col, it%m_val)
+        end if
         it%have_mass = .true.
         call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
     end subroutine radau_jacobian
+
+    !> The nonzeros of a band matrix (LAPACK general band storage) by rows.
+    pure subroutine band_to_rows(n, kl, ku, ab, start, col, val)
+        integer, intent(in) :: n, kl, ku
+        real(dp), intent(in) :: ab(2*kl + ku + 1, n)
+        integer, allocatable, intent(inout) :: start(:), col(:)
+        real(dp), allocatable, intent(inout) :: val(:)
+        integer :: i, j, nnz
+        nnz = count(ab(kl + 1:, :) /= 0.0_dp)
+        if (allocated(start)) deallocate (start, col, val)
+        allocate (start(n + 1), col(nnz), val(nnz))
+        nnz = 0
+        do i = 1, n
+            start(i) = nnz + 1
+            do j = max(1, i - kl), min(n, i + ku)
+                if (ab(kl + ku + 1 + i - j, j) == 0.0_dp) cycle
+                nnz = nnz + 1
+                col(nnz) = j
+                val(nnz) = ab(kl + ku + 1 + i - j, j)
+            end do
+        end do
+        start(n + 1) = nnz + 1
+    end subroutine band_to_rows
+
+    !> y = A x for a matrix stored by rows (band_to_rows).
+    pure subroutine rows_mv(start, col, val, x, y)
+        integer, intent(in) :: start(:), col(:)
+        real(dp), intent(in) :: val(:), x(:)
+        real(dp), intent(out) :: y(:)
+        integer :: i, k
+        real(dp) :: acc
+        do i = 1, size(start) - 1
+            acc = 0.0_dp
+            do k = start(i), start(i + 1) - 1
+                acc = acc + val(k)*x(col(k))
+            end do
+            y(i) = acc
+        end do
+    end subroutine rows_mv
+
+    !> a1 = l1 M + C, a2 = l2 M + C, b1 = l1 a1 + K, b2 = l2 a2 + K on the
+    !! band rows r0..nb (one pass over the three matrices).
+    pure subroutine combine_band(r0, nb, n, l1, l2, m, c, k, a1, a2, b1, b2)
+        integer, intent(in) :: r0, nb, n
+        real(dp), intent(in) :: l1
+        complex(dp), intent(in) :: l2
+        real(dp), intent(in) :: m(nb, n), c(nb, n), k(nb, n)
+        real(dp), intent(inout) :: a1(nb, n), b1(nb, n)
+        complex(dp), intent(inout) :: a2(nb, n), b2(nb, n)
+        integer :: i, j
+        real(dp) :: x1, xr, xi, l2r, l2i
+        l2r = l2%re
+        l2i = l2%im
+        do j = 1, n
+            do i = r0, nb
+                x1 = l1*m(i, j) + c(i, j)
+                a1(i, j) = x1
+                b1(i, j) = l1*x1 + k(i, j)
+                xr = l2r*m(i, j) + c(i, j)
+                xi = l2i*m(i, j)
+                a2(i, j) = cmplx(xr, xi, dp)
+                b2(i, j) = cmplx(l2r*xr - l2i*xi + k(i, j), l2r*xi + l2i*xr, dp)
+            end do
+        end do
+    end subroutine combine_band
 
     !> Assemble and factor (lam^2 M + lam C + K - b w^T) for lam = gamma/h
     !! (real) and mu/h (complex), and keep lam M + C for the right sides.
@@ -353,10 +427,8 @@ contains
         it%h = h
         ! rows 1..kl of band storage are the factorization's fill-in: skip them
         r = kl + 1
-        it%a1(r:, :) = l1*it%mb(r:, :) + it%cb(r:, :)
-        it%a2(r:, :) = l2*it%mb(r:, :) + it%cb(r:, :)
-        it%lu1%ab(r:, :) = l1*it%a1(r:, :) + it%kb(r:, :)
-        it%lu2%ab(r:, :) = l2*it%a2(r:, :) + it%kb(r:, :)
+        call combine_band(r, size(it%mb, 1), sys%nc, l1, l2, it%mb, it%cb, it%kb, &
+                          it%a1, it%a2, it%lu1%ab, it%lu2%ab)
         if (sys%nx > 0) then
             do j = 1, sys%nc
                 if (it%p(j) == 0.0_dp .and. it%d(j) == 0.0_dp) cycle
@@ -493,7 +565,7 @@ contains
         if (sys%rotary) then
             call dyn_crates(sys, y, dy, power, torque, stat)
             it%tmp = dy(n + 1:2*n)
-            call dband_mv(n, sys%ckl, sys%cku, it%mb, it%tmp, dy(n + 1:2*n))
+            call rows_mv(it%m_start, it%m_col, it%m_val, it%tmp, dy(n + 1:2*n))
         else
             call dyn_cforces(sys, y, dy(n + 1:2*n), power, torque)
             dy(1:n) = y(n + 1:2*n)
@@ -509,7 +581,7 @@ contains
         integer :: n
         n = sys%nc
         it%tmp = x(n + 1:2*n)
-        call dband_mv(n, sys%ckl, sys%cku, it%mb, it%tmp, x(n + 1:2*n))
+        call rows_mv(it%m_start, it%m_col, it%m_val, it%tmp, x(n + 1:2*n))
     end subroutine to_mform
 
     !> Mean square of x weighted by the inverse error scales iscal.
