@@ -76,6 +76,15 @@ module beamid_integrators
         real(dp), allocatable :: a1(:, :)       !< gamma/h M + C (band)
         complex(dp), allocatable :: a2(:, :)    !< mu/h M + C (band)
         real(dp), allocatable :: rhs(:), tmp(:) !< work (n)
+        !> symmetric iteration matrices (no motor lag, symmetric K and C: the
+        !! usual case) are factored as L D L^T without pivoting instead:
+        !! gamma/h-matrix in s1, mu/h-matrix in s2 (lower band, s(1 + i - j, j)
+        !! = A(i, j), L and D in place); lu1, lu2 then hold the unfactored
+        !! matrices
+        logical :: sym = .false.
+        logical :: m_sym = .false.              !< M0 is symmetric
+        real(dp), allocatable :: s1(:, :)
+        complex(dp), allocatable :: s2(:, :)
         complex(dp), allocatable :: zrhs(:)
     end type radau_t
 
@@ -339,6 +348,8 @@ contains
         if (sys%rotary .or. .not. it%have_mass) then
             call dyn_cmass(sys, y, it%mb)
             call band_to_rows(n, sys%ckl, sys%cku, it%mb, it%m_start, it%m_col, it%m_val)
+            it%m_sym = sys%ckl == sys%cku
+            if (it%m_sym) it%m_sym = band_symmetric(n, sys%ckl, it%mb)
         end if
         it%have_mass = .true.
         call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
@@ -442,10 +453,152 @@ contains
                 end do
             end do
         end if
+        ! L D L^T when both matrices are symmetric and their pivots are safe:
+        ! real pivots positive (the matrix is then positive definite), complex
+        ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
+        ! when C is semi-definite, and Schur complements keep it), which bounds
+        ! the growth without pivoting. Anything else: LU with partial pivoting.
+        it%sym = .false.
+        if (sys%nx == 0 .and. kl == ku) then
+            if (it%m_sym .and. band_symmetric(sys%nc, kl, it%kb) .and. &
+                band_symmetric(sys%nc, kl, it%cb)) then
+                if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
+                do j = 1, sys%nc
+                    do i = j, min(sys%nc, j + kl)
+                        it%s1(1 + i - j, j) = it%lu1%ab(kl + ku + 1 + i - j, j)
+                        it%s2(1 + i - j, j) = it%lu2%ab(kl + ku + 1 + i - j, j)
+                    end do
+                end do
+                call ldlt_real(sys%nc, kl, it%s1, it%sym)
+                if (it%sym) call ldlt_cplx(sys%nc, kl, it%s2, it%sym)
+            end if
+        end if
+        if (it%sym) return
         call band_factor(it%lu1, stat)
         if (stat%code /= 0) return
         call zband_factor(it%lu2, stat)
     end subroutine radau_factor
+
+    !> A band matrix (general band storage, kl = ku) is symmetric to
+    !! round-off (the tangent is symmetric up to the order of its products).
+    !! The iteration matrices are formed entry by entry from M, C and K, so
+    !! they are symmetric when these three are; L D L^T reads the lower half.
+    pure logical function band_symmetric(n, k, ab) result(sym)
+        integer, intent(in) :: n, k
+        real(dp), intent(in) :: ab(3*k + 1, n)
+        integer :: i, j
+        real(dp) :: tol
+        ! scale: the largest diagonal entry (M, K and C of a structure peak there)
+        tol = 1.0e-12_dp*maxval(abs(ab(2*k + 1, :)))
+        sym = .true.
+        do j = 1, n
+            do i = j + 1, min(n, j + k)
+                if (abs(ab(2*k + 1 + i - j, j) - ab(2*k + 1 + j - i, i)) > tol) then
+                    sym = .false.
+                    return
+                end if
+            end do
+        end do
+    end function band_symmetric
+
+    !> L D L^T of a symmetric band matrix of half-bandwidth k, lower band
+    !! s(1 + i - j, j) = A(i, j), without pivoting: D on row 1, L below.
+    !! False (s then unusable) at the first pivot that is not positive.
+    pure subroutine ldlt_real(n, k, s, ok)
+        integer, intent(in) :: n, k
+        logical, intent(out) :: ok
+        real(dp), intent(inout) :: s(k + 1, n)
+        integer :: j, c, r, m
+        real(dp) :: d, vc
+        ok = .false.
+        do j = 1, n
+            d = s(1, j)
+            if (.not. (d > 0.0_dp)) return
+            m = min(k, n - j)
+            ! trailing update A(r, c) -= v_r v_c / d over the lower triangle
+            do c = 1, m
+                vc = s(1 + c, j)/d
+                do r = c, m
+                    s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
+                end do
+            end do
+            s(2:m + 1, j) = s(2:m + 1, j)/d
+        end do
+        ok = .true.
+    end subroutine ldlt_real
+
+    !> Complex symmetric counterpart of ldlt_real; false at the first pivot
+    !! whose imaginary part is not positive.
+    pure subroutine ldlt_cplx(n, k, s, ok)
+        integer, intent(in) :: n, k
+        logical, intent(out) :: ok
+        complex(dp), intent(inout) :: s(k + 1, n)
+        integer :: j, c, r, m
+        complex(dp) :: d, vc, dinv
+        ok = .false.
+        do j = 1, n
+            d = s(1, j)
+            if (.not. (d%im > 0.0_dp)) return
+            dinv = 1.0_dp/d
+            m = min(k, n - j)
+            do c = 1, m
+                vc = s(1 + c, j)*dinv
+                do r = c, m
+                    s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
+                end do
+            end do
+            s(2:m + 1, j) = s(2:m + 1, j)*dinv
+        end do
+        ok = .true.
+    end subroutine ldlt_cplx
+
+    !> Solve L D L^T x = b (ldlt_real factors), b overwritten.
+    pure subroutine ldlt_solve_real(n, k, s, b)
+        integer, intent(in) :: n, k
+        real(dp), intent(in) :: s(k + 1, n)
+        real(dp), intent(inout) :: b(n)
+        integer :: j, m
+        do j = 1, n
+            m = min(k, n - j)
+            b(j + 1:j + m) = b(j + 1:j + m) - b(j)*s(2:m + 1, j)
+        end do
+        do j = n, 1, -1
+            m = min(k, n - j)
+            b(j) = b(j)/s(1, j) - dot_product(s(2:m + 1, j), b(j + 1:j + m))
+        end do
+    end subroutine ldlt_solve_real
+
+    !> Solve with the ldlt_cplx factors (no conjugation), b overwritten.
+    pure subroutine ldlt_solve_cplx(n, k, s, b)
+        integer, intent(in) :: n, k
+        complex(dp), intent(in) :: s(k + 1, n)
+        complex(dp), intent(inout) :: b(n)
+        integer :: i, j, m
+        real(dp) :: br, bi, sr, si
+        do j = 1, n
+            m = min(k, n - j)
+            br = b(j)%re
+            bi = b(j)%im
+            do i = 1, m
+                sr = s(1 + i, j)%re
+                si = s(1 + i, j)%im
+                b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
+                b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
+            end do
+        end do
+        do j = n, 1, -1
+            m = min(k, n - j)
+            br = 0.0_dp
+            bi = 0.0_dp
+            do i = 1, m
+                sr = s(1 + i, j)%re
+                si = s(1 + i, j)%im
+                br = br + (sr*b(j + i)%re - si*b(j + i)%im)
+                bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
+            end do
+            b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
+        end do
+    end subroutine ldlt_solve_cplx
 
     !> y = A x for a real band matrix of order n (LAPACK general band storage,
     !! explicit shape; one contiguous axpy per column).
@@ -511,7 +664,11 @@ contains
             if (.not. skip) zt = zt - dot_product(it%d, w(1:n))
             it%rhs = it%rhs + it%b*zt/(lam - it%e)
         end if
-        call band_solve(it%lu1, it%rhs)
+        if (it%sym) then
+            call ldlt_solve_real(n, sys%ckl, it%s1, it%rhs)
+        else
+            call band_solve(it%lu1, it%rhs)
+        end if
         w(n + 1:2*n) = lam*it%rhs - w(1:n)
         if (sys%nx > 0) then
             w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, it%rhs))/(lam - it%e)
@@ -544,7 +701,11 @@ contains
             if (.not. skip) zt = zt - sum(it%d*w(1:n))
             it%zrhs = it%zrhs + it%b*zt/(lam - it%e)
         end if
-        call zband_solve(it%lu2, it%zrhs)
+        if (it%sym) then
+            call ldlt_solve_cplx(n, sys%ckl, it%s2, it%zrhs)
+        else
+            call zband_solve(it%lu2, it%zrhs)
+        end if
         w(n + 1:2*n) = lam*it%zrhs - w(1:n)
         if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*it%zrhs))/(lam - it%e)
         w(1:n) = it%zrhs
