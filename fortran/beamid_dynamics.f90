@@ -657,10 +657,14 @@ contains
     !> Jacobians of the generalized force: kb = -dF/dq and cb = -dF/dv (band
     !! storage), and for a motor lag the couplings b = dF/dT (dense n-vector),
     !! p = dT'/dq, d = dT'/dv, e = dT'/dT.
-    pure subroutine dyn_jacobian(sys, q, v, x, kb, cb, b, p, d, e)
+    pure subroutine dyn_jacobian(sys, q, v, x, kb, cb, b, p, d, e, force, power, torque)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
+        !> F, work rates and torque at the same state (as dyn_forces): the
+        !! tangent assembly has the internal force anyway
+        real(dp), intent(out), optional :: force(:), power(:)
+        real(dp), intent(out), optional :: torque
         real(dp), allocatable :: f(:), qf(:), vf(:)
         real(dp) :: phi, dphi, jm, psid, wd, ud, wq, uq, t, g, fd(FE_NDOF), pw
         real(dp) :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF), a(2), dpsi_dq(2)
@@ -669,6 +673,10 @@ contains
         ku = sys%mesh%ku
         allocate (f(sys%n))
         call fe_tangent(sys%mesh, q, f, kb)
+        if (present(force)) then
+            force = -f
+            call add_effects(sys, q, v, x, force, power, torque)
+        end if
         cb = 0.0_dp
         b = 0.0_dp
         p = 0.0_dp
@@ -985,22 +993,32 @@ contains
     !> Jacobians in coordinates: K~ = Phi^T K Phi, C~ = Phi^T C Phi and the
     !! motor-lag couplings Phi^T b, Phi^T p, Phi^T d (dyn_jacobian in the full
     !! model).
-    pure subroutine dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+    pure subroutine dyn_cjacobian(sys, yc, kb, cb, b, p, d, e, force, power, torque)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
-        real(dp), allocatable :: y(:), kp(:, :), cp(:, :), bp(:), pp(:), dp_(:)
+        !> dyn_cforces at the same state, from the same assembly (optional)
+        real(dp), intent(out), optional :: force(:), power(:)
+        real(dp), intent(out), optional :: torque
+        real(dp), allocatable :: y(:), kp(:, :), cp(:, :), bp(:), pp(:), dp_(:), fp(:)
         integer :: n, k, nb
         k = sys%nc
         if (.not. sys%modal) then
-            call dyn_jacobian(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, d, e)
+            call dyn_jacobian(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, d, e, &
+                              force, power, torque)
             return
         end if
         n = sys%n
         nb = fe_band_rows(sys%mesh)
-        allocate (y(sys%nstate), kp(nb, n), cp(nb, n), bp(n), pp(n), dp_(n))
+        allocate (y(sys%nstate), kp(nb, n), cp(nb, n), bp(n), pp(n), dp_(n), fp(n))
         call dyn_to_physical(sys, yc, y)
-        call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e)
+        if (present(force)) then
+            call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e, &
+                              fp, power, torque)
+            force = matmul(fp, sys%phi)
+        else
+            call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e)
+        end if
         call project_band(sys, kp, kb)
         call project_band(sys, cp, cb)
         b = matmul(bp, sys%phi)

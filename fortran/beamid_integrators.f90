@@ -326,10 +326,14 @@ contains
 
     !> Jacobians and mass matrix of the step start into `it`; allocates the
     !! work arrays of `it` on first use.
-    subroutine radau_jacobian(sys, y, it)
+    subroutine radau_jacobian(sys, y, it, dy, power)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y(:)
         type(radau_t), intent(inout) :: it
+        !> the M-form rates at y and their work rates, from the same assembly
+        !! (constant mass matrix only: rates_m otherwise)
+        real(dp), intent(out), optional :: dy(:), power(:)
+        real(dp) :: torque
         integer :: n, nb
         n = sys%nc
         nb = 2*sys%ckl + sys%cku + 1
@@ -352,7 +356,15 @@ contains
             if (it%m_sym) it%m_sym = band_symmetric(n, sys%ckl, it%mb)
         end if
         it%have_mass = .true.
-        call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
+        if (present(dy)) then
+            n = sys%nc
+            call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e, &
+                               dy(n + 1:2*n), power, torque)
+            dy(1:n) = y(n + 1:2*n)
+            if (sys%nx > 0) dy(2*n + 1) = dyn_cxrate(sys, y)
+        else
+            call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
+        end if
     end subroutine radau_jacobian
 
     !> The nonzeros of a band matrix (LAPACK general band storage) by rows.
@@ -420,6 +432,37 @@ contains
         end do
     end subroutine combine_band
 
+    !> As combine_band for symmetric M, C, K of half-bandwidth k: a1, a2 on
+    !! the whole band, the iteration matrices l1 a1 + K and l2 a2 + K only on
+    !! the lower half, into s1, s2 (s(1 + i - j, j) = A(i, j)).
+    pure subroutine combine_sym(k, n, l1, l2, m, c, kk, a1, a2, s1, s2)
+        integer, intent(in) :: k, n
+        real(dp), intent(in) :: l1
+        complex(dp), intent(in) :: l2
+        real(dp), intent(in) :: m(3*k + 1, n), c(3*k + 1, n), kk(3*k + 1, n)
+        real(dp), intent(inout) :: a1(3*k + 1, n), s1(k + 1, n)
+        complex(dp), intent(inout) :: a2(3*k + 1, n), s2(k + 1, n)
+        integer :: i, j
+        real(dp) :: x1, xr, xi, l2r, l2i
+        l2r = l2%re
+        l2i = l2%im
+        do j = 1, n
+            do i = k + 1, 2*k
+                a1(i, j) = l1*m(i, j) + c(i, j)
+                a2(i, j) = cmplx(l2r*m(i, j) + c(i, j), l2i*m(i, j), dp)
+            end do
+            do i = 2*k + 1, 3*k + 1
+                x1 = l1*m(i, j) + c(i, j)
+                a1(i, j) = x1
+                s1(i - 2*k, j) = l1*x1 + kk(i, j)
+                xr = l2r*m(i, j) + c(i, j)
+                xi = l2i*m(i, j)
+                a2(i, j) = cmplx(xr, xi, dp)
+                s2(i - 2*k, j) = cmplx(l2r*xr - l2i*xi + kk(i, j), l2r*xi + l2i*xr, dp)
+            end do
+        end do
+    end subroutine combine_sym
+
     !> Assemble and factor (lam^2 M + lam C + K - b w^T) for lam = gamma/h
     !! (real) and mu/h (complex), and keep lam M + C for the right sides.
     subroutine radau_factor(sys, it, h, gam, mu, stat)
@@ -436,6 +479,22 @@ contains
         l1 = gam/h
         l2 = mu/h
         it%h = h
+        ! L D L^T when both matrices are symmetric and their pivots are safe:
+        ! real pivots positive (the matrix is then positive definite), complex
+        ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
+        ! when C is semi-definite, and Schur complements keep it), which bounds
+        ! the growth without pivoting. Anything else: LU with partial pivoting.
+        it%sym = sys%nx == 0 .and. kl == ku .and. it%m_sym
+        if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%kb)
+        if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%cb)
+        if (it%sym) then
+            if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
+            call combine_sym(kl, sys%nc, l1, l2, it%mb, it%cb, it%kb, it%a1, it%a2, &
+                             it%s1, it%s2)
+            call ldlt_real(sys%nc, kl, it%s1, it%sym)
+            if (it%sym) call ldlt_cplx(sys%nc, kl, it%s2, it%sym)
+            if (it%sym) return
+        end if
         ! rows 1..kl of band storage are the factorization's fill-in: skip them
         r = kl + 1
         call combine_band(r, size(it%mb, 1), sys%nc, l1, l2, it%mb, it%cb, it%kb, &
@@ -453,27 +512,6 @@ contains
                 end do
             end do
         end if
-        ! L D L^T when both matrices are symmetric and their pivots are safe:
-        ! real pivots positive (the matrix is then positive definite), complex
-        ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
-        ! when C is semi-definite, and Schur complements keep it), which bounds
-        ! the growth without pivoting. Anything else: LU with partial pivoting.
-        it%sym = .false.
-        if (sys%nx == 0 .and. kl == ku) then
-            if (it%m_sym .and. band_symmetric(sys%nc, kl, it%kb) .and. &
-                band_symmetric(sys%nc, kl, it%cb)) then
-                if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
-                do j = 1, sys%nc
-                    do i = j, min(sys%nc, j + kl)
-                        it%s1(1 + i - j, j) = it%lu1%ab(kl + ku + 1 + i - j, j)
-                        it%s2(1 + i - j, j) = it%lu2%ab(kl + ku + 1 + i - j, j)
-                    end do
-                end do
-                call ldlt_real(sys%nc, kl, it%s1, it%sym)
-                if (it%sym) call ldlt_cplx(sys%nc, kl, it%s2, it%sym)
-            end if
-        end if
-        if (it%sym) return
         call band_factor(it%lu1, stat)
         if (stat%code /= 0) return
         call zband_factor(it%lu2, stat)
@@ -509,20 +547,23 @@ contains
         logical, intent(out) :: ok
         real(dp), intent(inout) :: s(k + 1, n)
         integer :: j, c, r, m
-        real(dp) :: d, vc
+        real(dp) :: d, dinv, vc
         ok = .false.
         do j = 1, n
             d = s(1, j)
             if (.not. (d > 0.0_dp)) return
+            dinv = 1.0_dp/d
             m = min(k, n - j)
             ! trailing update A(r, c) -= v_r v_c / d over the lower triangle
             do c = 1, m
-                vc = s(1 + c, j)/d
+                vc = s(1 + c, j)*dinv
                 do r = c, m
                     s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
                 end do
             end do
-            s(2:m + 1, j) = s(2:m + 1, j)/d
+            do r = 2, m + 1
+                s(r, j) = s(r, j)*dinv
+            end do
         end do
         ok = .true.
     end subroutine ldlt_real
@@ -534,7 +575,8 @@ contains
         logical, intent(out) :: ok
         complex(dp), intent(inout) :: s(k + 1, n)
         integer :: j, c, r, m
-        complex(dp) :: d, vc, dinv
+        complex(dp) :: d, dinv
+        real(dp) :: vr, vi, sr, si
         ok = .false.
         do j = 1, n
             d = s(1, j)
@@ -542,12 +584,18 @@ contains
             dinv = 1.0_dp/d
             m = min(k, n - j)
             do c = 1, m
-                vc = s(1 + c, j)*dinv
+                vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
+                vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
                 do r = c, m
-                    s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
+                    sr = s(1 + r, j)%re
+                    si = s(1 + r, j)%im
+                    s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
+                    s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
                 end do
             end do
-            s(2:m + 1, j) = s(2:m + 1, j)*dinv
+            do r = 2, m + 1
+                s(r, j) = s(r, j)*dinv
+            end do
         end do
         ok = .true.
     end subroutine ldlt_cplx
@@ -557,14 +605,22 @@ contains
         integer, intent(in) :: n, k
         real(dp), intent(in) :: s(k + 1, n)
         real(dp), intent(inout) :: b(n)
-        integer :: j, m
+        integer :: i, j, m
+        real(dp) :: bj, acc
         do j = 1, n
             m = min(k, n - j)
-            b(j + 1:j + m) = b(j + 1:j + m) - b(j)*s(2:m + 1, j)
+            bj = b(j)
+            do i = 1, m
+                b(j + i) = b(j + i) - bj*s(1 + i, j)
+            end do
         end do
         do j = n, 1, -1
             m = min(k, n - j)
-            b(j) = b(j)/s(1, j) - dot_product(s(2:m + 1, j), b(j + 1:j + m))
+            acc = 0.0_dp
+            do i = 1, m
+                acc = acc + s(1 + i, j)*b(j + i)
+            end do
+            b(j) = b(j)/s(1, j) - acc
         end do
     end subroutine ldlt_solve_real
 
@@ -875,8 +931,13 @@ contains
                 z = 0.0_dp
             end if
             ! Jacobian at the predicted second stage, both factorizations
+            ! (the assembly gives the stage-2 rates of the first iteration too)
             ys = y + z(:, 2)
-            call radau_jacobian(sys, ys, it)
+            if (sys%rotary) then
+                call radau_jacobian(sys, ys, it)
+            else
+                call radau_jacobian(sys, ys, it, fz(:, 2), pw(:, 2))
+            end if
             stats%jevals = stats%jevals + 1
             call radau_factor(sys, it, hh, gam, mu, stat)
             if (stat%code /= 0) return
@@ -890,13 +951,15 @@ contains
             do newt = 1, NIT
                 ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
                 do i = 1, 3
-                    ys = y + z(:, i)
-                    call rates_m(sys, it, ys, fz(:, i), pw(:, i), inner)
+                    if (newt > 1 .or. i /= 2 .or. sys%rotary) then
+                        ys = y + z(:, i)
+                        call rates_m(sys, it, ys, fz(:, i), pw(:, i), inner)
+                        stats%fevals = stats%fevals + 1
+                    end if
                     zd(:, i) = (dmat(i, 1)*z(:, 1) + dmat(i, 2)*z(:, 2) &
                                 + dmat(i, 3)*z(:, 3))/hh
                     call to_mform(sys, it, zd(:, i))
                 end do
-                stats%fevals = stats%fevals + 3
                 if (inner%code /= 0) exit
                 fz = fz - zd
                 w1 = ti1(1)*fz(:, 1) + ti1(2)*fz(:, 2) + ti1(3)*fz(:, 3)
