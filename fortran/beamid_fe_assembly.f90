@@ -31,9 +31,10 @@ module beamid_fe_assembly
     use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int, fmt_real
     use beamid_model, only: chain_t
     use beamid_fe_element, only: FE_NDOF, fe_gauss_points, fe_quadrature_order, &
-                                 fe_element_energy, fe_element_force, &
-                                 fe_element_tangent, fe_element_mass, &
-                                 fe_hinge_energy, fe_hinge_force, fe_hinge_tangent
+                                 fe_gauss_table, fe_element_energy, &
+                                 fe_element_force_tabulated, fe_element_tangent_tabulated, &
+                                 fe_element_mass, fe_hinge_energy, fe_hinge_force, &
+                                 fe_hinge_tangent
     implicit none
     private
 
@@ -86,6 +87,14 @@ module beamid_fe_assembly
         integer, allocatable :: free_of(:)      !< full unknown -> free index (0: clamped)
         integer, allocatable :: full_of(:)      !< free index -> full unknown
         real(dp), allocatable :: xg(:), wg(:)   !< Gauss rule on [0, 1]
+        !> Free index of each element unknown, free_of(el_dof), (FE_NDOF, nel);
+        !! 0 for a clamped unknown.
+        integer, allocatable :: el_free(:, :)
+        !> Hermite derivatives df/ds, d2f/ds2 (Eq. 76) at the Gauss points of
+        !! the elements of each beam, (4, size(xg), nbeams), and the weights
+        !! wg h, (size(xg), nbeams), from fe_gauss_table: the elements of a beam
+        !! share their length h, so the tables are made once per mesh.
+        real(dp), allocatable :: gauss_d1(:, :, :), gauss_d2(:, :, :), gauss_wh(:, :)
     end type fe_mesh_t
 
     !> Loads at the tip: a force of fixed direction (fx along the undeformed
@@ -236,6 +245,17 @@ contains
         k = fe_quadrature_order(maxval(abs(mesh%cubic)))
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
+        ! tables for the assembly loops (fe_internal_force, fe_tangent)
+        allocate (mesh%el_free(FE_NDOF, mesh%nel))
+        do el = 1, mesh%nel
+            mesh%el_free(:, el) = mesh%free_of(mesh%el_dof(:, el))
+        end do
+        allocate (mesh%gauss_d1(4, k, nb), mesh%gauss_d2(4, k, nb), mesh%gauss_wh(k, nb))
+        do el = 1, mesh%nel, elements_per_beam
+            ib = mesh%beam(el)
+            call fe_gauss_table(mesh%h(el), mesh%xg, mesh%wg, mesh%gauss_d1(:, :, ib), &
+                                mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib))
+        end do
     end subroutine fe_mesh_build
 
     !> Rows of the band storage (2 kl + ku + 1).
@@ -316,54 +336,72 @@ contains
         end if
     end function fe_node_value
 
-    !> Element unknowns of element `el` from the full vector.
-    pure function element_vector(mesh, qfull, el) result(qe)
-        type(fe_mesh_t), intent(in) :: mesh
-        real(dp), intent(in) :: qfull(:)
-        integer, intent(in) :: el
-        real(dp) :: qe(FE_NDOF)
-        qe = qfull(mesh%el_dof(:, el))
-    end function element_vector
+    !> The free vector q with a zero in front, qpad(0:nfree) = [0, q]:
+    !! indexed with mesh%el_free or a spring's free indices it gives every
+    !! unknown an element or spring touches, 0 for a clamped one, without a
+    !! full-length copy. Forces are gathered the same way into a padded vector
+    !! whose entry 0 (the clamped rows) is dropped.
+    pure subroutine pad_free(q, qpad)
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: qpad(0:)
+        qpad(0) = 0.0_dp
+        qpad(1:) = q
+    end subroutine pad_free
 
-    !> Full indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]:
-    !! spring 0 is the root hinge (its inboard side is the clamp, index 0),
-    !! spring j >= 1 the hinge at mesh%hinge_node(j).
+    !> Element unknowns of element `el` from the padded free vector.
+    pure subroutine element_vector(mesh, qpad, el, qe)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: qpad(0:)
+        integer, intent(in) :: el
+        real(dp), intent(out) :: qe(FE_NDOF)
+        integer :: a
+        do a = 1, FE_NDOF
+            qe(a) = qpad(mesh%el_free(a, el))
+        end do
+    end subroutine element_vector
+
+    !> Internal force of element `el` (Eq. 79-83) from the mesh's Gauss tables.
+    pure subroutine element_force(mesh, el, qe, fe)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(in) :: el
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: fe(FE_NDOF)
+        integer :: ib
+        ib = mesh%beam(el)
+        call fe_element_force_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
+                                        mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
+                                        mesh%ea(el), mesh%ei(el), mesh%cubic(el), qe, fe)
+    end subroutine element_force
+
+    !> Free indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]
+    !! (0 for a clamped one): spring 0 is the root hinge (its inboard side is
+    !! the clamp), spring j >= 1 the hinge at mesh%hinge_node(j).
     pure subroutine spring_dofs(mesh, j, idx, flex)
         type(fe_mesh_t), intent(in) :: mesh
         integer, intent(in) :: j
         integer, intent(out) :: idx(4)
         real(dp), intent(out) :: flex
         if (j == 0) then
-            idx = [0, 0, mesh%node_dof(DOF_DW, 1), mesh%node_dof(DOF_DU, 1)]
+            idx = [0, 0, mesh%free_of(mesh%node_dof(DOF_DW, 1)), &
+                   mesh%free_of(mesh%node_dof(DOF_DU, 1))]
             flex = mesh%root_flex
         else
-            idx = mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], mesh%hinge_node(j))
+            idx = mesh%free_of(mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], &
+                                             mesh%hinge_node(j)))
             flex = mesh%hinge_flex(j)
         end if
     end subroutine spring_dofs
 
-    !> Spring vector s = [w'-, u'-, w'+, u'+] of spring j (zero at the clamp).
-    pure function spring_vector(qfull, idx) result(sv)
-        real(dp), intent(in) :: qfull(:)
-        integer, intent(in) :: idx(4)
-        real(dp) :: sv(4)
-        integer :: a
-        sv = 0.0_dp
-        do a = 1, 4
-            if (idx(a) > 0) sv(a) = qfull(idx(a))
-        end do
-    end function spring_vector
-
-    !> Energy of the joint and root springs at the full vector qfull.
-    pure real(dp) function spring_energy(mesh, qfull) result(v)
+    !> Energy of the joint and root springs at the padded free vector qpad.
+    pure real(dp) function spring_energy(mesh, qpad) result(v)
         type(fe_mesh_t), intent(in) :: mesh
-        real(dp), intent(in) :: qfull(:)
+        real(dp), intent(in) :: qpad(0:)
         integer :: j, idx(4)
         real(dp) :: flex
         v = 0.0_dp
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
             call spring_dofs(mesh, j, idx, flex)
-            v = v + fe_hinge_energy(flex, spring_vector(qfull, idx))
+            v = v + fe_hinge_energy(flex, qpad(idx))
         end do
     end function spring_energy
 
@@ -372,38 +410,36 @@ contains
     pure real(dp) function fe_spring_energy(mesh, q) result(v)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
-        real(dp), allocatable :: qfull(:)
-        allocate (qfull(mesh%ndof))
-        call fe_expand(mesh, q, qfull)
-        v = spring_energy(mesh, qfull)
+        real(dp) :: qpad(0:mesh%nfree)
+        call pad_free(q, qpad)
+        v = spring_energy(mesh, qpad)
     end function fe_spring_energy
 
-    !> ffull += spring forces and, if present, kb += spring tangents (free rows).
-    pure subroutine add_springs(mesh, qfull, ffull, kb)
+    !> fpad += spring forces and, if present, kb += spring tangents, on the
+    !! padded free vectors (entry 0 collects the clamped rows).
+    pure subroutine add_springs(mesh, qpad, fpad, kb)
         type(fe_mesh_t), intent(in) :: mesh
-        real(dp), intent(in) :: qfull(:)
-        real(dp), intent(inout) :: ffull(:)
+        real(dp), intent(in) :: qpad(0:)
+        real(dp), intent(inout) :: fpad(0:)
         real(dp), intent(inout), optional :: kb(:, :)
         integer :: j, a, b, i, jj, idx(4)
         real(dp) :: flex, fs(4), ks(4, 4)
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
             call spring_dofs(mesh, j, idx, flex)
             if (present(kb)) then
-                call fe_hinge_tangent(flex, spring_vector(qfull, idx), fs, ks)
+                call fe_hinge_tangent(flex, qpad(idx), fs, ks)
             else
-                call fe_hinge_force(flex, spring_vector(qfull, idx), fs)
+                call fe_hinge_force(flex, qpad(idx), fs)
             end if
             do a = 1, 4
-                if (idx(a) > 0) ffull(idx(a)) = ffull(idx(a)) + fs(a)
+                fpad(idx(a)) = fpad(idx(a)) + fs(a)
             end do
             if (.not. present(kb)) cycle
             do b = 1, 4
-                if (idx(b) == 0) cycle
-                jj = mesh%free_of(idx(b))
+                jj = idx(b)
                 if (jj == 0) cycle
                 do a = 1, 4
-                    if (idx(a) == 0) cycle
-                    i = mesh%free_of(idx(a))
+                    i = idx(a)
                     if (i == 0) cycle
                     call fe_band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
                 end do
@@ -416,16 +452,16 @@ contains
     pure real(dp) function fe_energy(mesh, q) result(v)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
-        real(dp), allocatable :: qfull(:)
+        real(dp) :: qpad(0:mesh%nfree), qe(FE_NDOF)
         integer :: el
-        allocate (qfull(mesh%ndof))
-        call fe_expand(mesh, q, qfull)
+        call pad_free(q, qpad)
         v = 0.0_dp
         do el = 1, mesh%nel
+            call element_vector(mesh, qpad, el, qe)
             v = v + fe_element_energy(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                      mesh%xg, mesh%wg, element_vector(mesh, qfull, el))
+                                      mesh%xg, mesh%wg, qe)
         end do
-        v = v + spring_energy(mesh, qfull)
+        v = v + spring_energy(mesh, qpad)
     end function fe_energy
 
     !> Internal force NLT(q) = dV/dq on the free unknowns (Eq. 79-83).
@@ -433,19 +469,20 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:)
-        real(dp), allocatable :: qfull(:), ffull(:)
-        real(dp) :: fe(FE_NDOF)
-        integer :: el
-        allocate (qfull(mesh%ndof), ffull(mesh%ndof))
-        call fe_expand(mesh, q, qfull)
-        ffull = 0.0_dp
+        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        real(dp) :: qe(FE_NDOF), fe(FE_NDOF)
+        integer :: el, a
+        call pad_free(q, qpad)
+        fpad = 0.0_dp
         do el = 1, mesh%nel
-            call fe_element_force(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                  mesh%xg, mesh%wg, element_vector(mesh, qfull, el), fe)
-            ffull(mesh%el_dof(:, el)) = ffull(mesh%el_dof(:, el)) + fe
+            call element_vector(mesh, qpad, el, qe)
+            call element_force(mesh, el, qe, fe)
+            do a = 1, FE_NDOF
+                fpad(mesh%el_free(a, el)) = fpad(mesh%el_free(a, el)) + fe(a)
+            end do
         end do
-        call add_springs(mesh, qfull, ffull)
-        f = ffull(mesh%full_of)
+        call add_springs(mesh, qpad, fpad)
+        f = fpad(1:)
     end subroutine fe_internal_force
 
     !> Root reactions: the Lagrange multipliers of Eq. 104-105 for a static
@@ -458,12 +495,10 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: reactions(3)
-        real(dp), allocatable :: qfull(:)
-        real(dp) :: fe(FE_NDOF)
-        allocate (qfull(mesh%ndof))
-        call fe_expand(mesh, q, qfull)
-        call fe_element_force(mesh%h(1), mesh%ea(1), mesh%ei(1), mesh%cubic(1), &
-                              mesh%xg, mesh%wg, element_vector(mesh, qfull, 1), fe)
+        real(dp) :: qpad(0:mesh%nfree), qe(FE_NDOF), fe(FE_NDOF)
+        call pad_free(q, qpad)
+        call element_vector(mesh, qpad, 1, qe)
+        call element_force(mesh, 1, qe, fe)
         reactions = fe(1:3)
     end subroutine fe_reactions
 
@@ -473,30 +508,34 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:), kb(:, :)
-        real(dp), allocatable :: qfull(:), ffull(:)
-        real(dp) :: fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
-        integer :: el, a, b, i, j, idx(FE_NDOF)
-        allocate (qfull(mesh%ndof), ffull(mesh%ndof))
-        call fe_expand(mesh, q, qfull)
-        ffull = 0.0_dp
+        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
+        integer :: el, ib, a, b, i, j, diag
+        call pad_free(q, qpad)
+        fpad = 0.0_dp
         kb = 0.0_dp
+        ! row of the diagonal in band storage: A(i, j) is kb(diag + i - j, j)
+        diag = mesh%kl + mesh%ku + 1
         do el = 1, mesh%nel
-            idx = mesh%el_dof(:, el)
-            call fe_element_tangent(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                    mesh%xg, mesh%wg, qfull(idx), fe, ke)
-            ffull(idx) = ffull(idx) + fe
+            ib = mesh%beam(el)
+            call element_vector(mesh, qpad, el, qe)
+            call fe_element_tangent_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
+                                              mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
+                                              mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
+                                              qe, fe, ke)
             do b = 1, FE_NDOF
-                j = mesh%free_of(idx(b))
+                j = mesh%el_free(b, el)
+                fpad(j) = fpad(j) + fe(b)
                 if (j == 0) cycle
                 do a = 1, FE_NDOF
-                    i = mesh%free_of(idx(a))
+                    i = mesh%el_free(a, el)
                     if (i == 0) cycle
-                    call fe_band_add(kb, mesh%kl, mesh%ku, i, j, ke(a, b))
+                    kb(diag + i - j, j) = kb(diag + i - j, j) + ke(a, b)
                 end do
             end do
         end do
-        call add_springs(mesh, qfull, ffull, kb)
-        f = ffull(mesh%full_of)
+        call add_springs(mesh, qpad, fpad, kb)
+        f = fpad(1:)
     end subroutine fe_tangent
 
     !> Linear stiffness K = K_T(0) in band storage (Eq. 123-124).

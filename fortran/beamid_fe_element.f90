@@ -25,6 +25,7 @@ module beamid_fe_element
     public :: fe_gauss_points, fe_quadrature_order, fe_hermite
     public :: fe_element_energy, fe_element_force, fe_element_tangent
     public :: fe_element_mass, fe_element_strain
+    public :: fe_gauss_table, fe_element_force_tabulated, fe_element_tangent_tabulated
     public :: fe_hinge_energy, fe_hinge_force, fe_hinge_tangent
 
     !> Unknowns per element.
@@ -129,23 +130,45 @@ contains
         v = v*h
     end function fe_element_energy
 
-    !> Strain gradients at one Gauss point: de/dq, dchi/dq and the strain values.
-    pure subroutine strain_gradients(h, qe, zeta, e, chi, de, dchi, g1, g2)
-        real(dp), intent(in) :: h, qe(FE_NDOF), zeta
-        real(dp), intent(out) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
-        real(dp) :: f(4), a, b, c, d
-        call fe_hermite(zeta, h, f, g1, g2)
-        a = dot_product(g1, qe(FE_U))
-        b = dot_product(g1, qe(FE_W))
-        c = dot_product(g2, qe(FE_U))
-        d = dot_product(g2, qe(FE_W))
+    !> Hermite derivatives of Eq. 76 at the Gauss points of an element of
+    !! length h: d1(:, g) = df/ds and d2(:, g) = d2f/ds2 at s = xg(g) h, and
+    !! the weights wh(g) = wg(g) h of the integral over [0, h]. They depend on
+    !! h only, so a mesh tabulates them once (fe_mesh_build) for the
+    !! fe_element_*_tabulated kernels.
+    pure subroutine fe_gauss_table(h, xg, wg, d1, d2, wh)
+        real(dp), intent(in) :: h
+        real(dp), intent(in) :: xg(:), wg(:)   !< Gauss points and weights on [0, 1]
+        real(dp), intent(out) :: d1(4, size(xg)), d2(4, size(xg)), wh(size(xg))
+        real(dp) :: f(4)
+        integer :: g
+        do g = 1, size(xg)
+            call fe_hermite(xg(g), h, f, d1(:, g), d2(:, g))
+            wh(g) = wg(g)*h
+        end do
+    end subroutine fe_gauss_table
+
+    !> Strains at one Gauss point from the tabulated Hermite derivatives g1 =
+    !! f', g2 = f'': a = u', b = w', c = u'', d = w'', e (Eq. 70), chi (Eq. 72).
+    !! The strain gradients are linear in g1, g2 (see the callers):
+    !!     de/dU = (1 + a) g1,     de/dW = b g1,
+    !!     dchi/dU = d g1 - b g2,  dchi/dW = (1 + a) g2 - c g1.
+    pure subroutine gauss_strains(g1, g2, qe, a, b, c, d, e, chi)
+        real(dp), intent(in) :: g1(4), g2(4), qe(FE_NDOF)
+        real(dp), intent(out) :: a, b, c, d, e, chi
+        integer :: n
+        a = 0.0_dp
+        b = 0.0_dp
+        c = 0.0_dp
+        d = 0.0_dp
+        do n = 1, 4
+            a = a + g1(n)*qe(FE_U(n))
+            b = b + g1(n)*qe(FE_W(n))
+            c = c + g2(n)*qe(FE_U(n))
+            d = d + g2(n)*qe(FE_W(n))
+        end do
         e = a + 0.5_dp*(a*a + b*b)
         chi = d*(1.0_dp + a) - b*c
-        de(FE_U) = (1.0_dp + a)*g1
-        de(FE_W) = b*g1
-        dchi(FE_U) = d*g1 - b*g2
-        dchi(FE_W) = (1.0_dp + a)*g2 - c*g1
-    end subroutine strain_gradients
+    end subroutine gauss_strains
 
     !> Internal force dV/dq of one element (the element part of NLT, Eq. 79-83).
     pure subroutine fe_element_force(h, ea, ei, cubic, xg, wg, qe, f)
@@ -153,14 +176,39 @@ contains
         real(dp), intent(in) :: xg(:), wg(:)
         real(dp), intent(in) :: qe(FE_NDOF)
         real(dp), intent(out) :: f(FE_NDOF)
-        real(dp) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
-        integer :: g
-        f = 0.0_dp
-        do g = 1, size(xg)
-            call strain_gradients(h, qe, xg(g), e, chi, de, dchi, g1, g2)
-            f = f + (wg(g)*h)*(ea*e*de + (ei*chi + cubic*chi**3)*dchi)
-        end do
+        real(dp) :: d1(4, size(xg)), d2(4, size(xg)), wh(size(xg))
+        call fe_gauss_table(h, xg, wg, d1, d2, wh)
+        call fe_element_force_tabulated(size(xg), d1, d2, wh, ea, ei, cubic, qe, f)
     end subroutine fe_element_force
+
+    !> fe_element_force from the Hermite derivatives d1, d2 and weights wh of
+    !! fe_gauss_table (ng Gauss points). With N = EA e and M = EI chi + C chi^3
+    !! the force is sum_g wh (N de/dq + M dchi/dq), i.e. per shape function
+    !! f_U = wh [(N (1 + a) + M d) g1 - M b g2],
+    !! f_W = wh [(N b - M c) g1 + M (1 + a) g2].
+    pure subroutine fe_element_force_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, f)
+        integer, intent(in) :: ng
+        real(dp), intent(in) :: d1(4, ng), d2(4, ng), wh(ng)
+        real(dp), intent(in) :: ea, ei, cubic
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: f(FE_NDOF)
+        real(dp) :: a, b, c, d, e, chi, axial, moment, cu1, cu2, cw1, cw2
+        integer :: g, n
+        f = 0.0_dp
+        do g = 1, ng
+            call gauss_strains(d1(:, g), d2(:, g), qe, a, b, c, d, e, chi)
+            axial = wh(g)*ea*e
+            moment = wh(g)*(ei*chi + cubic*chi**3)
+            cu1 = axial*(1.0_dp + a) + moment*d
+            cu2 = -moment*b
+            cw1 = axial*b - moment*c
+            cw2 = moment*(1.0_dp + a)
+            do n = 1, 4
+                f(FE_U(n)) = f(FE_U(n)) + cu1*d1(n, g) + cu2*d2(n, g)
+                f(FE_W(n)) = f(FE_W(n)) + cw1*d1(n, g) + cw2*d2(n, g)
+            end do
+        end do
+    end subroutine fe_element_force_tabulated
 
     !> Internal force and tangent stiffness d^2V/dq^2 of one element (Eq. 85).
     pure subroutine fe_element_tangent(h, ea, ei, cubic, xg, wg, qe, f, k)
@@ -168,37 +216,92 @@ contains
         real(dp), intent(in) :: xg(:), wg(:)
         real(dp), intent(in) :: qe(FE_NDOF)
         real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
-        real(dp) :: e, chi, de(FE_NDOF), dchi(FE_NDOF), g1(4), g2(4)
-        real(dp) :: wt, axial, moment, bend
-        integer :: g, i, j
+        real(dp) :: d1(4, size(xg)), d2(4, size(xg)), wh(size(xg))
+        call fe_gauss_table(h, xg, wg, d1, d2, wh)
+        call fe_element_tangent_tabulated(size(xg), d1, d2, wh, ea, ei, cubic, qe, f, k)
+    end subroutine fe_element_tangent
+
+    !> fe_element_tangent from the tables of fe_gauss_table. Per Gauss point
+    !! the tangent is wh [EA de de^T + (EI + 3 C chi^2) dchi dchi^T
+    !! + N d2e/dq2 + M d2chi/dq2]. The first two terms are symmetric: only the
+    !! upper triangle is accumulated and mirrored at the end. The second
+    !! derivatives are constant matrices in g1, g2: d2e/dq2 is g1 g1^T on the uu
+    !! and the ww blocks (Eq. 70), d2chi/dU_i dW_j = g1_i g2_j - g2_i g1_j
+    !! (Eq. 72); their weighted sums over the Gauss points are accumulated
+    !! as 4 x 4 blocks and added once.
+    pure subroutine fe_element_tangent_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, f, k)
+        integer, intent(in) :: ng
+        real(dp), intent(in) :: d1(4, ng), d2(4, ng), wh(ng)
+        real(dp), intent(in) :: ea, ei, cubic
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
+        real(dp) :: a, b, c, d, e, chi, axial, moment, stiff_e, stiff_chi
+        real(dp) :: cu1, cu2, cw1, cw2
+        real(dp) :: de(FE_NDOF), dchi(FE_NDOF), sde(FE_NDOF), sdchi(FE_NDOF)
+        ! sum of N g1 g1^T (uu and ww blocks) and of M (g1 g2^T - g2 g1^T) (uw block)
+        real(dp) :: k_axial(4, 4), k_moment(4, 4)
+        integer :: g, i, j, n
         f = 0.0_dp
         k = 0.0_dp
-        do g = 1, size(xg)
-            call strain_gradients(h, qe, xg(g), e, chi, de, dchi, g1, g2)
-            wt = wg(g)*h
-            axial = ea*e
-            moment = ei*chi + cubic*chi**3
-            bend = ei + 3.0_dp*cubic*chi*chi
-            f = f + wt*(axial*de + moment*dchi)
+        k_axial = 0.0_dp
+        k_moment = 0.0_dp
+        do g = 1, ng
+            call gauss_strains(d1(:, g), d2(:, g), qe, a, b, c, d, e, chi)
+            axial = wh(g)*ea*e
+            moment = wh(g)*(ei*chi + cubic*chi**3)
+            stiff_e = wh(g)*ea
+            stiff_chi = wh(g)*(ei + 3.0_dp*cubic*chi*chi)
+            cu1 = axial*(1.0_dp + a) + moment*d
+            cu2 = -moment*b
+            cw1 = axial*b - moment*c
+            cw2 = moment*(1.0_dp + a)
+            do n = 1, 4
+                f(FE_U(n)) = f(FE_U(n)) + cu1*d1(n, g) + cu2*d2(n, g)
+                f(FE_W(n)) = f(FE_W(n)) + cw1*d1(n, g) + cw2*d2(n, g)
+                de(FE_U(n)) = (1.0_dp + a)*d1(n, g)
+                de(FE_W(n)) = b*d1(n, g)
+                dchi(FE_U(n)) = d*d1(n, g) - b*d2(n, g)
+                dchi(FE_W(n)) = (1.0_dp + a)*d2(n, g) - c*d1(n, g)
+            end do
+            sde = stiff_e*de
+            sdchi = stiff_chi*dchi
             do j = 1, FE_NDOF
-                do i = 1, FE_NDOF
-                    k(i, j) = k(i, j) + wt*(ea*de(i)*de(j) + bend*dchi(i)*dchi(j))
+                do i = 1, j
+                    k(i, j) = k(i, j) + sde(i)*de(j) + sdchi(i)*dchi(j)
                 end do
             end do
-            ! second derivatives of e: g1 g1^T in the uu and ww blocks (Eq. 70)
             do j = 1, 4
-                do i = 1, 4
-                    k(FE_U(i), FE_U(j)) = k(FE_U(i), FE_U(j)) + wt*axial*g1(i)*g1(j)
-                    k(FE_W(i), FE_W(j)) = k(FE_W(i), FE_W(j)) + wt*axial*g1(i)*g1(j)
-                    ! second derivatives of chi (Eq. 72): d2chi/dU_i dW_j
-                    k(FE_U(i), FE_W(j)) = k(FE_U(i), FE_W(j)) &
-                                          + wt*moment*(g1(i)*g2(j) - g2(i)*g1(j))
-                    k(FE_W(j), FE_U(i)) = k(FE_W(j), FE_U(i)) &
-                                          + wt*moment*(g1(i)*g2(j) - g2(i)*g1(j))
+                do i = 1, j
+                    k_axial(i, j) = k_axial(i, j) + axial*d1(i, g)*d1(j, g)
+                end do
+                do i = 1, j - 1
+                    k_moment(i, j) = k_moment(i, j) &
+                                     + moment*(d1(i, g)*d2(j, g) - d2(i, g)*d1(j, g))
                 end do
             end do
         end do
-    end subroutine fe_element_tangent
+        do j = 1, FE_NDOF
+            do i = j + 1, FE_NDOF
+                k(i, j) = k(j, i)
+            end do
+        end do
+        ! k_axial is symmetric and k_moment antisymmetric: fill their lower halves
+        do j = 1, 4
+            k_moment(j, j) = 0.0_dp
+            do i = j + 1, 4
+                k_axial(i, j) = k_axial(j, i)
+                k_moment(i, j) = -k_moment(j, i)
+            end do
+        end do
+        do j = 1, 4
+            do i = 1, 4
+                k(FE_U(i), FE_U(j)) = k(FE_U(i), FE_U(j)) + k_axial(i, j)
+                k(FE_W(i), FE_W(j)) = k(FE_W(i), FE_W(j)) + k_axial(i, j)
+                k(FE_U(i), FE_W(j)) = k(FE_U(i), FE_W(j)) + k_moment(i, j)
+                k(FE_W(j), FE_U(i)) = k(FE_W(j), FE_U(i)) + k_moment(i, j)
+            end do
+        end do
+    end subroutine fe_element_tangent_tabulated
 
     !> Consistent mass matrix rho h F_jk of one element (Eq. 92-97), for the
     !! u and the w unknowns alike.
