@@ -90,6 +90,10 @@ module beamid_fe_assembly
         !> Free index of each element unknown, free_of(el_dof), (FE_NDOF, nel);
         !! 0 for a clamped unknown.
         integer, allocatable :: el_free(:, :)
+        !> First free index of each element whose 8 unknowns are all free and
+        !! numbered consecutively (every element away from the clamp and the
+        !! hinges), else 0.
+        integer, allocatable :: el_first_free(:)
         !> Hermite derivatives df/ds, d2f/ds2 (Eq. 76) at the Gauss points of
         !! the elements of each beam, (4, size(xg), nbeams), and the weights
         !! wg h, (size(xg), nbeams), from fe_gauss_table: the elements of a beam
@@ -246,9 +250,13 @@ contains
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
         ! tables for the assembly loops (fe_internal_force, fe_tangent)
-        allocate (mesh%el_free(FE_NDOF, mesh%nel))
+        allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel))
         do el = 1, mesh%nel
             mesh%el_free(:, el) = mesh%free_of(mesh%el_dof(:, el))
+            mesh%el_first_free(el) = mesh%el_free(1, el)
+            if (mesh%el_free(1, el) == 0 .or. any(mesh%el_free(:, el) /= &
+                                                  mesh%el_free(1, el) + [(i, i = 0, FE_NDOF - 1)])) &
+                mesh%el_first_free(el) = 0
         end do
         allocate (mesh%gauss_d1(4, k, nb), mesh%gauss_d2(4, k, nb), mesh%gauss_wh(k, nb))
         do el = 1, mesh%nel, elements_per_beam
@@ -510,7 +518,7 @@ contains
         real(dp), intent(out) :: f(:), kb(:, :)
         real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
-        integer :: el, ib, a, b, i, j, diag
+        integer :: el, ib, a, b, i, j, diag, first, row
         call pad_free(q, qpad)
         fpad = 0.0_dp
         kb = 0.0_dp
@@ -523,6 +531,18 @@ contains
                                               mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
                                               mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
                                               qe, fe, ke)
+            first = mesh%el_first_free(el)
+            if (first > 0) then
+                ! free unknowns first..first+7: column first+b-1 of A receives
+                ! ke(:, b) in the consecutive band rows diag+1-b .. diag+8-b
+                fpad(first:first + FE_NDOF - 1) = fpad(first:first + FE_NDOF - 1) + fe
+                do b = 1, FE_NDOF
+                    row = diag + 1 - b
+                    j = first + b - 1
+                    kb(row:row + FE_NDOF - 1, j) = kb(row:row + FE_NDOF - 1, j) + ke(:, b)
+                end do
+                cycle
+            end if
             do b = 1, FE_NDOF
                 j = mesh%el_free(b, el)
                 fpad(j) = fpad(j) + fe(b)

@@ -266,8 +266,9 @@ contains
             sde = stiff_e*de
             sdchi = stiff_chi*dchi
             do j = 1, FE_NDOF
-                do i = 1, j
+                do i = 1, j + mod(j, 2), 2
                     k(i, j) = k(i, j) + sde(i)*de(j) + sdchi(i)*dchi(j)
+                    k(i + 1, j) = k(i + 1, j) + sde(i + 1)*de(j) + sdchi(i + 1)*dchi(j)
                 end do
             end do
             do j = 1, 4
