@@ -368,19 +368,6 @@ contains
         end do
     end subroutine element_vector
 
-    !> Internal force of element `el` (Eq. 79-83) from the mesh's Gauss tables.
-    pure subroutine element_force(mesh, el, qe, fe)
-        type(fe_mesh_t), intent(in) :: mesh
-        integer, intent(in) :: el
-        real(dp), intent(in) :: qe(FE_NDOF)
-        real(dp), intent(out) :: fe(FE_NDOF)
-        integer :: ib
-        ib = mesh%beam(el)
-        call fe_element_force_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
-                                        mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
-                                        mesh%ea(el), mesh%ei(el), mesh%cubic(el), qe, fe)
-    end subroutine element_force
-
     !> Free indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]
     !! (0 for a clamped one): spring 0 is the root hinge (its inboard side is
     !! the clamp), spring j >= 1 the hinge at mesh%hinge_node(j).
@@ -479,12 +466,15 @@ contains
         real(dp), intent(out) :: f(:)
         real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF)
-        integer :: el, a
+        integer :: el, ib, a
         call pad_free(q, qpad)
         fpad = 0.0_dp
         do el = 1, mesh%nel
+            ib = mesh%beam(el)
             call element_vector(mesh, qpad, el, qe)
-            call element_force(mesh, el, qe, fe)
+            call fe_element_force_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
+                                            mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
+                                            mesh%ea(el), mesh%ei(el), mesh%cubic(el), qe, fe)
             do a = 1, FE_NDOF
                 fpad(mesh%el_free(a, el)) = fpad(mesh%el_free(a, el)) + fe(a)
             end do
@@ -506,7 +496,9 @@ contains
         real(dp) :: qpad(0:mesh%nfree), qe(FE_NDOF), fe(FE_NDOF)
         call pad_free(q, qpad)
         call element_vector(mesh, qpad, 1, qe)
-        call element_force(mesh, 1, qe, fe)
+        call fe_element_force_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, 1), &
+                                        mesh%gauss_d2(:, :, 1), mesh%gauss_wh(:, 1), &
+                                        mesh%ea(1), mesh%ei(1), mesh%cubic(1), qe, fe)
         reactions = fe(1:3)
     end subroutine fe_reactions
 
