@@ -253,14 +253,15 @@ contains
         allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel))
         do el = 1, mesh%nel
             mesh%el_free(:, el) = mesh%free_of(mesh%el_dof(:, el))
-            mesh%el_first_free(el) = mesh%el_free(1, el)
-            if (mesh%el_free(1, el) == 0 .or. any(mesh%el_free(:, el) /= &
-                                                  mesh%el_free(1, el) + [(i, i = 0, FE_NDOF - 1)])) &
-                mesh%el_first_free(el) = 0
+            kf = mesh%el_free(1, el)
+            mesh%el_first_free(el) = kf
+            do i = 2, FE_NDOF
+                if (kf == 0 .or. mesh%el_free(i, el) /= kf + i - 1) mesh%el_first_free(el) = 0
+            end do
         end do
         allocate (mesh%gauss_d1(4, k, nb), mesh%gauss_d2(4, k, nb), mesh%gauss_wh(k, nb))
-        do el = 1, mesh%nel, elements_per_beam
-            ib = mesh%beam(el)
+        do ib = 1, nb
+            el = (ib - 1)*elements_per_beam + 1   ! first element of beam ib
             call fe_gauss_table(mesh%h(el), mesh%xg, mesh%wg, mesh%gauss_d1(:, :, ib), &
                                 mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib))
         end do
