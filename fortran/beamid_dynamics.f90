@@ -171,12 +171,16 @@ contains
     !! narrow bands of the chain, kl = ku = 7, the BLAS calls per column of
     !! the reference dgbtf2 cost more than the arithmetic). info > 0: zero
     !! pivot in column info (the factorization is completed).
+    !!
+    !! Column j: pick the pivot, scale the multipliers, then one pass over the
+    !! columns j+1..ju (dband_update) that swaps the pivot row and applies the
+    !! rank-1 update, both within each column: no strided swap loop.
     pure subroutine dband_lu(n, kl, ku, ab, ipiv, info)
         integer, intent(in) :: n, kl, ku
         real(dp), intent(inout) :: ab(2*kl + ku + 1, n)
         integer, intent(out) :: ipiv(n), info
-        real(dp) :: piv, tmp, rec, u
-        integer :: kv, j, i, jj, jp, ju, km, r
+        real(dp) :: piv, mag, tmp, rec
+        integer :: kv, j, i, jp, ju, km, p
         info = 0
         kv = ku + kl
         ! fill-in rows above the band start at zero
@@ -184,48 +188,65 @@ contains
         ju = 1
         do j = 1, n
             km = min(kl, n - j)
-            ! pivot: largest |a(j+i, j)|, i = 0..km, stored at ab(kv + 1 + i, j)
-            jp = 0
-            piv = abs(ab(kv + 1, j))
-            do i = 1, km
-                if (abs(ab(kv + 1 + i, j)) > piv) then
-                    piv = abs(ab(kv + 1 + i, j))
-                    jp = i
+            ! pivot: the first largest |a(j+i, j)|, i = 0..km, at ab(kv + 1 + i, j)
+            p = kv + 1
+            piv = abs(ab(p, j))
+            do i = kv + 2, kv + 1 + km
+                mag = abs(ab(i, j))
+                if (mag > piv) then
+                    piv = mag
+                    p = i
                 end if
             end do
+            jp = p - kv - 1
             ipiv(j) = j + jp
-            if (ab(kv + 1 + jp, j) == 0.0_dp) then
+            if (ab(p, j) == 0.0_dp) then
                 if (info == 0) info = j
                 cycle
             end if
             ju = max(ju, min(j + ku + jp, n))
             if (jp /= 0) then
-                ! swap rows j and j + jp in columns j..ju: a(i, jj) is at
-                ! ab(kv + 1 + i - jj, jj)
-                do jj = j, ju
-                    r = kv + 1 + j - jj
-                    tmp = ab(r, jj)
-                    ab(r, jj) = ab(r + jp, jj)
-                    ab(r + jp, jj) = tmp
-                end do
+                tmp = ab(kv + 1, j)
+                ab(kv + 1, j) = ab(p, j)
+                ab(p, j) = tmp
             end if
-            if (km > 0) then
-                rec = 1.0_dp/ab(kv + 1, j)
-                do i = 1, km
-                    ab(kv + 1 + i, j) = ab(kv + 1 + i, j)*rec
-                end do
-                do jj = j + 1, ju
-                    r = kv + 1 + j - jj
-                    u = ab(r, jj)
-                    if (u /= 0.0_dp) then
-                        do i = 1, km
-                            ab(r + i, jj) = ab(r + i, jj) - u*ab(kv + 1 + i, j)
-                        end do
-                    end if
+            if (km == 0) cycle
+            rec = 1.0_dp/ab(kv + 1, j)
+            do i = kv + 2, kv + 1 + km
+                ab(i, j) = ab(i, j)*rec
+            end do
+            ! a(j, j+1) sits at ab(kv, j+1); column j+c of the trailing block
+            ! starts 2 kl + ku elements after column j+c-1 (kl >= 1 here)
+            if (ju > j) call dband_update(km, ju - j, jp, 2*kl + ku, &
+                                          ab(kv + 2:kv + 1 + km, j), ab(kv, j + 1))
+        end do
+    end subroutine dband_lu
+
+    !> Trailing update of one step of dband_lu. w is the band storage from
+    !! a(j, j+1) on, seen with leading dimension ldw = 2 kl + ku (one less
+    !! than the band's), so that w(o), o = (c-1) ldw + 1, is a(j, j+c) and
+    !! w(o+i) is a(j+i, j+c): each column of the block is contiguous. Per
+    !! column: swap rows j and j+jp, then a(j+i, j+c) -= a(j, j+c) l(i).
+    pure subroutine dband_update(m, nc, jp, ldw, l, w)
+        integer, intent(in) :: m, nc, jp, ldw
+        real(dp), intent(in) :: l(m)
+        real(dp), intent(inout) :: w(ldw*(nc - 1) + m + 1)
+        real(dp) :: u
+        integer :: c, i, o
+        do c = 1, nc
+            o = (c - 1)*ldw + 1
+            u = w(o + jp)
+            if (jp /= 0) then
+                w(o + jp) = w(o)
+                w(o) = u
+            end if
+            if (u /= 0.0_dp) then
+                do i = 1, m
+                    w(o + i) = w(o + i) - u*l(i)
                 end do
             end if
         end do
-    end subroutine dband_lu
+    end subroutine dband_update
 
     !> Solve A x = b with the factors of dband_lu (as dgbtrs 'N').
     pure subroutine dband_lu_solve(n, kl, ku, ab, ipiv, b)
@@ -233,29 +254,33 @@ contains
         real(dp), intent(in) :: ab(2*kl + ku + 1, n)
         integer, intent(in) :: ipiv(n)
         real(dp), intent(inout) :: b(n)
-        real(dp) :: tmp
+        real(dp) :: t
         integer :: kd, j, lm, l, i
         kd = kl + ku + 1
+        ! the pivot element held in t, so that the inner loops only read ab
+        ! and write b(j+1..) or b(..j-1)
         do j = 1, n - 1
             lm = min(kl, n - j)
             l = ipiv(j)
+            t = b(l)
             if (l /= j) then
-                tmp = b(l)
                 b(l) = b(j)
-                b(j) = tmp
+                b(j) = t
             end if
-            if (b(j) /= 0.0_dp) then
+            if (t /= 0.0_dp) then
                 do i = 1, lm
-                    b(j + i) = b(j + i) - b(j)*ab(kd + i, j)
+                    b(j + i) = b(j + i) - t*ab(kd + i, j)
                 end do
             end if
         end do
         ! U has kl + ku super-diagonals: u(i, j) at ab(kd + i - j, j)
         do j = n, 1, -1
-            if (b(j) /= 0.0_dp) then
-                b(j) = b(j)/ab(kd, j)
+            t = b(j)
+            if (t /= 0.0_dp) then
+                t = t/ab(kd, j)
+                b(j) = t
                 do i = max(1, j - kl - ku), j - 1
-                    b(i) = b(i) - b(j)*ab(kd + i - j, j)
+                    b(i) = b(i) - t*ab(kd + i - j, j)
                 end do
             end if
         end do
@@ -266,24 +291,26 @@ contains
         integer, intent(in) :: n, kl, ku
         complex(dp), intent(inout) :: ab(2*kl + ku + 1, n)
         integer, intent(out) :: ipiv(n), info
+        complex(dp) :: il(kl)   ! i times the multipliers (see zband_update)
         real(dp) :: piv, mag
-        complex(dp) :: tmp, rec, u
-        integer :: kv, j, i, jj, jp, ju, km, r
+        complex(dp) :: tmp, rec
+        integer :: kv, j, i, jp, ju, km, p
         info = 0
         kv = ku + kl
         ab(1:kl, :) = (0.0_dp, 0.0_dp)
         ju = 1
         do j = 1, n
             km = min(kl, n - j)
-            jp = 0
-            piv = abs(ab(kv + 1, j)%re) + abs(ab(kv + 1, j)%im)
-            do i = 1, km
-                mag = abs(ab(kv + 1 + i, j)%re) + abs(ab(kv + 1 + i, j)%im)
+            p = kv + 1
+            piv = abs(ab(p, j)%re) + abs(ab(p, j)%im)
+            do i = kv + 2, kv + 1 + km
+                mag = abs(ab(i, j)%re) + abs(ab(i, j)%im)
                 if (mag > piv) then
                     piv = mag
-                    jp = i
+                    p = i
                 end if
             end do
+            jp = p - kv - 1
             ipiv(j) = j + jp
             if (piv == 0.0_dp) then
                 if (info == 0) info = j
@@ -291,30 +318,49 @@ contains
             end if
             ju = max(ju, min(j + ku + jp, n))
             if (jp /= 0) then
-                do jj = j, ju
-                    r = kv + 1 + j - jj
-                    tmp = ab(r, jj)
-                    ab(r, jj) = ab(r + jp, jj)
-                    ab(r + jp, jj) = tmp
-                end do
+                tmp = ab(kv + 1, j)
+                ab(kv + 1, j) = ab(p, j)
+                ab(p, j) = tmp
             end if
-            if (km > 0) then
-                rec = 1.0_dp/ab(kv + 1, j)
-                do i = 1, km
-                    ab(kv + 1 + i, j) = ab(kv + 1 + i, j)*rec
-                end do
-                do jj = j + 1, ju
-                    r = kv + 1 + j - jj
-                    u = ab(r, jj)
-                    if (u /= (0.0_dp, 0.0_dp)) then
-                        do i = 1, km
-                            ab(r + i, jj) = ab(r + i, jj) - u*ab(kv + 1 + i, j)
-                        end do
-                    end if
+            if (km == 0) cycle
+            rec = 1.0_dp/ab(kv + 1, j)
+            do i = 1, km
+                ab(kv + 1 + i, j) = ab(kv + 1 + i, j)*rec
+                il(i) = cmplx(-ab(kv + 1 + i, j)%im, ab(kv + 1 + i, j)%re, dp)
+            end do
+            if (ju > j) call zband_update(km, ju - j, jp, 2*kl + ku, &
+                                          ab(kv + 2:kv + 1 + km, j), il, ab(kv, j + 1))
+        end do
+    end subroutine zband_lu
+
+    !> Complex counterpart of dband_update. The product u l(i) is formed as
+    !! re(u) l(i) + im(u) (i l(i)) with i l(i) = (-im l, re l) precomputed:
+    !! the same roundings as complex multiplication, but two multiplies of
+    !! (re, im) pairs and one add, with no shuffles in the loop.
+    pure subroutine zband_update(m, nc, jp, ldw, l, il, w)
+        integer, intent(in) :: m, nc, jp, ldw
+        complex(dp), intent(in) :: l(m), il(m)
+        complex(dp), intent(inout) :: w(ldw*(nc - 1) + m + 1)
+        complex(dp) :: u
+        real(dp) :: ur, ui
+        integer :: c, i, o
+        do c = 1, nc
+            o = (c - 1)*ldw + 1
+            u = w(o + jp)
+            if (jp /= 0) then
+                w(o + jp) = w(o)
+                w(o) = u
+            end if
+            if (u /= (0.0_dp, 0.0_dp)) then
+                ur = u%re
+                ui = u%im
+                do i = 1, m
+                    w(o + i) = w(o + i) - cmplx(ur*l(i)%re + ui*il(i)%re, &
+                                                ur*l(i)%im + ui*il(i)%im, dp)
                 end do
             end if
         end do
-    end subroutine zband_lu
+    end subroutine zband_update
 
     !> Complex counterpart of dband_lu_solve.
     pure subroutine zband_lu_solve(n, kl, ku, ab, ipiv, b)
@@ -322,28 +368,30 @@ contains
         complex(dp), intent(in) :: ab(2*kl + ku + 1, n)
         integer, intent(in) :: ipiv(n)
         complex(dp), intent(inout) :: b(n)
-        complex(dp) :: tmp
+        complex(dp) :: t
         integer :: kd, j, lm, l, i
         kd = kl + ku + 1
         do j = 1, n - 1
             lm = min(kl, n - j)
             l = ipiv(j)
+            t = b(l)
             if (l /= j) then
-                tmp = b(l)
                 b(l) = b(j)
-                b(j) = tmp
+                b(j) = t
             end if
-            if (b(j) /= (0.0_dp, 0.0_dp)) then
+            if (t /= (0.0_dp, 0.0_dp)) then
                 do i = 1, lm
-                    b(j + i) = b(j + i) - b(j)*ab(kd + i, j)
+                    b(j + i) = b(j + i) - t*ab(kd + i, j)
                 end do
             end if
         end do
         do j = n, 1, -1
-            if (b(j) /= (0.0_dp, 0.0_dp)) then
-                b(j) = b(j)/ab(kd, j)
+            t = b(j)
+            if (t /= (0.0_dp, 0.0_dp)) then
+                t = t/ab(kd, j)
+                b(j) = t
                 do i = max(1, j - kl - ku), j - 1
-                    b(i) = b(i) - b(j)*ab(kd + i - j, j)
+                    b(i) = b(i) - t*ab(kd + i - j, j)
                 end do
             end if
         end do
