@@ -46,3 +46,30 @@ def test_singular_band_is_reported():
 def test_bad_band_widths(kl, ku):
     with pytest.raises(beamid.InputError):
         cd.band_solve(kl, ku, np.eye(4), np.zeros((4, 4)), np.ones(4), np.zeros(4))
+
+
+@pytest.mark.parametrize("n,kl,ku", [(30, 0, 3), (30, 3, 0), (300, 7, 7), (8, 7, 7)])
+def test_band_lu_edge_widths(n, kl, ku):
+    # one-sided bands, a long chain and a dense matrix stored as a band
+    # (the modal systems); a weak diagonal, so that rows are swapped, only on
+    # two-sided bands (on a one-sided band it makes the element growth, not
+    # the kernels, decide the residual)
+    rng = np.random.default_rng(7 * n + kl)
+    a = _band(n, kl, ku, rng, kl > 0 and ku > 0)
+    b = _band(n, kl, ku, rng, False) * 0.3
+    r, s = rng.standard_normal(n), rng.standard_normal(n)
+    x, z = cd.band_solve(kl, ku, a, b, r, s)
+    cond = np.linalg.cond(a)
+    assert np.linalg.norm(a @ x - r) <= 1e-13 * cond * np.linalg.norm(r) + 1e-14
+    zc = a + 1j * b
+    assert np.linalg.norm(zc @ z - (r + 1j * s)) <= (
+        1e-13 * np.linalg.cond(zc) * np.linalg.norm(r + 1j * s) + 1e-14)
+
+
+def test_singular_complex_band_is_reported():
+    # A = [[0, 1], [1, 0]] is regular, A + iB = [[i, 1], [1, -i]] is not: the
+    # complex factorization meets a zero pivot in column 2
+    a = np.array([[0.0, 1.0], [1.0, 0.0]])
+    b = np.array([[1.0, 0.0], [0.0, -1.0]])
+    with pytest.raises(beamid.ConvergenceError, match="zero pivot 2"):
+        cd.band_solve(1, 1, a, b, np.ones(2), np.zeros(2))
