@@ -48,18 +48,19 @@ def main() -> None:
     # the loosest tolerance of this list that reaches 1e-6 m on the tip (the tip
     # error is not monotone in rtol at the 10 % level, so the list is fine-grained)
     chosen = None
-    for rtol in (1e-6, 7e-7, 5e-7, 4e-7, 3e-7, 2e-7, 1e-7):
+    for rtol in (1.5e-6, 1.2e-6, 1e-6, 8e-7, 6e-7, 5e-7, 4e-7, 3e-7, 2e-7, 1e-7):
         tb, imp = best_of(lambda: simulate(model, RELEASE, t_out, rtol=rtol,
                                            friction_velocity=VS), repeat=9)
         err = max(np.max(np.abs(imp.tip_w - ref.tip_w)), np.max(np.abs(imp.tip_u - ref.tip_u)))
-        print(f"    implicit rtol={rtol:.0e}: {tb:.4f} s, {imp.info['steps']} steps, "
+        print(f"    implicit rtol={rtol:.1e}: {tb:.4f} s, {imp.info['steps']} steps, "
               f"{imp.info['jevals']} Jacobians, {imp.info['newton']} Newton its, "
               f"tip error {err:.2e} m, numerical dissipation {imp.ledger['numerical'][-1]:.1e}",
               flush=True)
         if err <= 1e-6 and chosen is None:
             chosen = (rtol, tb, err)
+            break
     rtol, tb, err = chosen
-    print(f"(b) implicit default at 1e-6 m: rtol={rtol:.0e}, {tb:.4f} s (error {err:.2e})")
+    print(f"(b) implicit default at 1e-6 m: rtol={rtol:.1e}, {tb:.4f} s (error {err:.2e})")
 
     # (c) SciPy on the same right-hand side and Jacobian (dense, from Python)
     nepb = 4

@@ -12,10 +12,12 @@
 !!   the second-order structure J = [0 I; -M^-1 K, -M^-1 C] each reduces to one
 !!   banded system of order n (docs/theory_dynamics.md):
 !!       (lam^2 M + lam C + K) x = M s + (lam M + C) r,   y = lam x - r,
-!!   so every solve is linear in the number of elements. The factorized real
-!!   matrix (gamma/h - J) is kept in radau_t after each step; it is the
-!!   iteration matrix a staggered forward-sensitivity step (Eq. 135-140)
-!!   reuses. Work lines are integrated by the collocation quadrature on the
+!!   so every solve is linear in the number of elements. Symmetric iteration
+!!   matrices (no motor lag) are factored as L D L^T without pivoting when
+!!   the pivots allow it, others by band LU with partial pivoting
+!!   (docs/theory_dynamics.md). The factorized matrices are kept in radau_t
+!!   after each step; they are the iteration matrices a staggered
+!!   forward-sensitivity step (Eq. 135-140) reuses. Work lines are integrated by the collocation quadrature on the
 !!   converged stages, so energy - work is the numerical dissipation.
 module beamid_integrators
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
