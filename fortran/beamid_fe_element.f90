@@ -35,6 +35,22 @@ module beamid_fe_element
     integer, parameter :: FE_W(4) = [1, 2, 5, 6]
     integer, parameter :: FE_U(4) = [3, 4, 7, 8]
 
+    ! The reduced element. f1 + f3 = 1 (Eq. 76) gives f3' = -f1', f3'' = -f1''
+    ! (fe_hermite computes the two as exact negatives), so in de/dq, dchi/dq,
+    ! the force and the tangent the entries of w2 and u2 are minus those of
+    ! w1 and u1: the rigid translations leave e and chi unchanged. The kernels
+    ! work on the six reduced unknowns [w1, w1', w2', u1, u1', u2'] (shape
+    ! functions 1, 2, 4 of w, then of u) and expand once per element,
+    ! f = S f_red(R) and k = S k_red(R, R) S with the maps below.
+    integer, parameter :: RED_NDOF = 6
+    !> Shape functions kept in the reduced element, in its order.
+    integer, parameter :: RED_SHAPE(3) = [1, 2, 4]
+    !> R: reduced position of each element unknown.
+    integer, parameter :: RED_OF(FE_NDOF) = [1, 2, 4, 5, 1, 3, 4, 6]
+    !> S: sign of each element unknown relative to its reduced one.
+    real(dp), parameter :: RED_SIGN(FE_NDOF) = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp, &
+                                                -1.0_dp, 1.0_dp, -1.0_dp, 1.0_dp]
+
 contains
 
     !> Number of Gauss points that integrates the element exactly:
@@ -236,12 +252,14 @@ contains
 
     !> fe_element_tangent from the tables of fe_gauss_table. Per Gauss point
     !! the tangent is wh [EA de de^T + (EI + 3 C chi^2) dchi dchi^T
-    !! + N d2e/dq2 + M d2chi/dq2]. The first two terms are symmetric: only the
-    !! upper triangle is accumulated and mirrored at the end. The second
-    !! derivatives are constant matrices in g1, g2: d2e/dq2 is g1 g1^T on the uu
-    !! and the ww blocks (Eq. 70), d2chi/dU_i dW_j = g1_i g2_j - g2_i g1_j
-    !! (Eq. 72); their weighted sums over the Gauss points are accumulated
-    !! as 4 x 4 blocks and added once.
+    !! + N d2e/dq2 + M d2chi/dq2]. Everything is accumulated on the six reduced
+    !! unknowns (RED_* above; the tables must have d(3, :) = -d(1, :), as
+    !! fe_gauss_table gives) and expanded to 8 x 8 once. The first two terms
+    !! are symmetric: only the upper triangle is accumulated and mirrored at
+    !! the end. The second derivatives are constant matrices in g1, g2:
+    !! d2e/dq2 is g1 g1^T on the uu and the ww blocks (Eq. 70),
+    !! d2chi/dU_i dW_j = g1_i g2_j - g2_i g1_j (Eq. 72); their weighted sums
+    !! over the Gauss points are accumulated as 3 x 3 blocks and added once.
     pure subroutine fe_element_tangent_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, f, k)
         integer, intent(in) :: ng
         real(dp), intent(in) :: d1(4, ng), d2(4, ng), wh(ng)
@@ -250,16 +268,21 @@ contains
         real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
         real(dp) :: a, b, c, d, e, chi, axial, moment, stiff_e, stiff_chi
         real(dp) :: cu1, cu2, cw1, cw2
-        real(dp) :: de(FE_NDOF), dchi(FE_NDOF), sde(FE_NDOF), sdchi(FE_NDOF)
+        ! f' and f'' of the reduced shape functions at one Gauss point
+        real(dp) :: g1(3), g2(3)
+        real(dp) :: de(RED_NDOF), dchi(RED_NDOF), sde(RED_NDOF), sdchi(RED_NDOF)
+        real(dp) :: f_red(RED_NDOF), k_red(RED_NDOF, RED_NDOF)
         ! sum of N g1 g1^T (uu and ww blocks) and of M (g1 g2^T - g2 g1^T) (uw block)
-        real(dp) :: k_axial(4, 4), k_moment(4, 4)
-        integer :: g, i, j, n
-        f = 0.0_dp
-        k = 0.0_dp
+        real(dp) :: k_axial(3, 3), k_moment(3, 3)
+        integer :: g, i, j
+        f_red = 0.0_dp
+        k_red = 0.0_dp
         k_axial = 0.0_dp
         k_moment = 0.0_dp
         do g = 1, ng
             call gauss_strains(d1(:, g), d2(:, g), qe, a, b, c, d, e, chi)
+            g1 = d1(RED_SHAPE, g)
+            g2 = d2(RED_SHAPE, g)
             axial = wh(g)*ea*e
             moment = wh(g)*(ei*chi + cubic*chi**3)
             stiff_e = wh(g)*ea
@@ -268,51 +291,53 @@ contains
             cu2 = -moment*b
             cw1 = axial*b - moment*c
             cw2 = moment*(1.0_dp + a)
-            do n = 1, 4
-                f(FE_U(n)) = f(FE_U(n)) + cu1*d1(n, g) + cu2*d2(n, g)
-                f(FE_W(n)) = f(FE_W(n)) + cw1*d1(n, g) + cw2*d2(n, g)
-                de(FE_U(n)) = (1.0_dp + a)*d1(n, g)
-                de(FE_W(n)) = b*d1(n, g)
-                dchi(FE_U(n)) = d*d1(n, g) - b*d2(n, g)
-                dchi(FE_W(n)) = (1.0_dp + a)*d2(n, g) - c*d1(n, g)
-            end do
+            f_red(1:3) = f_red(1:3) + cw1*g1 + cw2*g2
+            f_red(4:6) = f_red(4:6) + cu1*g1 + cu2*g2
+            de(1:3) = b*g1
+            de(4:6) = (1.0_dp + a)*g1
+            dchi(1:3) = (1.0_dp + a)*g2 - c*g1
+            dchi(4:6) = d*g1 - b*g2
             sde = stiff_e*de
             sdchi = stiff_chi*dchi
-            do j = 1, FE_NDOF
+            do j = 1, RED_NDOF
                 do i = 1, j + mod(j, 2), 2
-                    k(i, j) = k(i, j) + sde(i)*de(j) + sdchi(i)*dchi(j)
-                    k(i + 1, j) = k(i + 1, j) + sde(i + 1)*de(j) + sdchi(i + 1)*dchi(j)
+                    k_red(i, j) = k_red(i, j) + sde(i)*de(j) + sdchi(i)*dchi(j)
+                    k_red(i + 1, j) = k_red(i + 1, j) + sde(i + 1)*de(j) + sdchi(i + 1)*dchi(j)
                 end do
             end do
-            do j = 1, 4
+            do j = 1, 3
                 do i = 1, j
-                    k_axial(i, j) = k_axial(i, j) + axial*d1(i, g)*d1(j, g)
+                    k_axial(i, j) = k_axial(i, j) + axial*g1(i)*g1(j)
                 end do
                 do i = 1, j - 1
-                    k_moment(i, j) = k_moment(i, j) &
-                                     + moment*(d1(i, g)*d2(j, g) - d2(i, g)*d1(j, g))
+                    k_moment(i, j) = k_moment(i, j) + moment*(g1(i)*g2(j) - g2(i)*g1(j))
                 end do
+            end do
+        end do
+        ! second-derivative blocks into the upper triangle: k_axial on ww and
+        ! uu; the wu block takes k_moment^T, k_moment being antisymmetric
+        do j = 1, 3
+            do i = 1, j
+                k_red(i, j) = k_red(i, j) + k_axial(i, j)
+                k_red(3 + i, 3 + j) = k_red(3 + i, 3 + j) + k_axial(i, j)
+            end do
+            do i = 1, 3
+                if (i < j) then
+                    k_red(i, 3 + j) = k_red(i, 3 + j) - k_moment(i, j)
+                else if (i > j) then
+                    k_red(i, 3 + j) = k_red(i, 3 + j) + k_moment(j, i)
+                end if
+            end do
+        end do
+        do j = 1, RED_NDOF
+            do i = j + 1, RED_NDOF
+                k_red(i, j) = k_red(j, i)
             end do
         end do
         do j = 1, FE_NDOF
-            do i = j + 1, FE_NDOF
-                k(i, j) = k(j, i)
-            end do
-        end do
-        ! k_axial is symmetric and k_moment antisymmetric: fill their lower halves
-        do j = 1, 4
-            k_moment(j, j) = 0.0_dp
-            do i = j + 1, 4
-                k_axial(i, j) = k_axial(j, i)
-                k_moment(i, j) = -k_moment(j, i)
-            end do
-        end do
-        do j = 1, 4
-            do i = 1, 4
-                k(FE_U(i), FE_U(j)) = k(FE_U(i), FE_U(j)) + k_axial(i, j)
-                k(FE_W(i), FE_W(j)) = k(FE_W(i), FE_W(j)) + k_axial(i, j)
-                k(FE_U(i), FE_W(j)) = k(FE_U(i), FE_W(j)) + k_moment(i, j)
-                k(FE_W(j), FE_U(i)) = k(FE_W(j), FE_U(i)) + k_moment(i, j)
+            f(j) = RED_SIGN(j)*f_red(RED_OF(j))
+            do i = 1, FE_NDOF
+                k(i, j) = RED_SIGN(i)*RED_SIGN(j)*k_red(RED_OF(i), RED_OF(j))
             end do
         end do
     end subroutine fe_element_tangent_tabulated
