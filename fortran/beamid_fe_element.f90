@@ -38,15 +38,18 @@ module beamid_fe_element
     ! The reduced element. f1 + f3 = 1 (Eq. 76) gives f3' = -f1', f3'' = -f1''
     ! (fe_hermite computes the two as exact negatives), so in de/dq, dchi/dq,
     ! the force and the tangent the entries of w2 and u2 are minus those of
-    ! w1 and u1: the rigid translations leave e and chi unchanged. The kernels
-    ! work on the six reduced unknowns [w1, w1', w2', u1, u1', u2'] (shape
-    ! functions 1, 2, 4 of w, then of u) and expand once per element,
-    ! f = S f_red(R) and k = S k_red(R, R) S with the maps below.
+    ! w1 and u1: the rigid translations leave e and chi unchanged. The
+    ! tabulated kernels work on the six reduced unknowns
+    ! [w1, w1', u1, u1', w2', u2'] (element unknowns 1, 2, 3, 4, 6, 8) and
+    ! expand once per element, f = S f_red(R), k = S k_red(R, R) S.
     integer, parameter :: RED_NDOF = 6
-    !> Shape functions kept in the reduced element, in its order.
+    !> Shape functions kept in the reduced element.
     integer, parameter :: RED_SHAPE(3) = [1, 2, 4]
+    !> Reduced positions of w and of u for the shape functions RED_SHAPE.
+    integer, parameter :: RED_W(3) = [1, 2, 5]
+    integer, parameter :: RED_U(3) = [3, 4, 6]
     !> R: reduced position of each element unknown.
-    integer, parameter :: RED_OF(FE_NDOF) = [1, 2, 4, 5, 1, 3, 4, 6]
+    integer, parameter :: RED_OF(FE_NDOF) = [1, 2, 3, 4, 1, 5, 3, 6]
     !> S: sign of each element unknown relative to its reduced one.
     real(dp), parameter :: RED_SIGN(FE_NDOF) = [1.0_dp, 1.0_dp, 1.0_dp, 1.0_dp, &
                                                 -1.0_dp, 1.0_dp, -1.0_dp, 1.0_dp]
@@ -164,27 +167,31 @@ contains
     end subroutine fe_gauss_table
 
     !> Strains at one Gauss point from the tabulated Hermite derivatives g1 =
-    !! f', g2 = f'': a = u', b = w', c = u'', d = w'', e (Eq. 70), chi (Eq. 72).
-    !! The strain gradients are linear in g1, g2 (see the callers):
+    !! f', g2 = f'' of the shape functions RED_SHAPE and the reduced nodal
+    !! values qw, qu (reduced_dofs): a = u', b = w', c = u'', d = w'',
+    !! e (Eq. 70), chi (Eq. 72). The strain gradients are linear in g1, g2
+    !! (see the callers):
     !!     de/dU = (1 + a) g1,     de/dW = b g1,
     !!     dchi/dU = d g1 - b g2,  dchi/dW = (1 + a) g2 - c g1.
-    pure subroutine gauss_strains(g1, g2, qe, a, b, c, d, e, chi)
-        real(dp), intent(in) :: g1(4), g2(4), qe(FE_NDOF)
+    pure subroutine gauss_strains(g1, g2, qw, qu, a, b, c, d, e, chi)
+        real(dp), intent(in) :: g1(3), g2(3), qw(3), qu(3)
         real(dp), intent(out) :: a, b, c, d, e, chi
-        integer :: n
-        a = 0.0_dp
-        b = 0.0_dp
-        c = 0.0_dp
-        d = 0.0_dp
-        do n = 1, 4
-            a = a + g1(n)*qe(FE_U(n))
-            b = b + g1(n)*qe(FE_W(n))
-            c = c + g2(n)*qe(FE_U(n))
-            d = d + g2(n)*qe(FE_W(n))
-        end do
+        a = g1(1)*qu(1) + g1(2)*qu(2) + g1(3)*qu(3)
+        b = g1(1)*qw(1) + g1(2)*qw(2) + g1(3)*qw(3)
+        c = g2(1)*qu(1) + g2(2)*qu(2) + g2(3)*qu(3)
+        d = g2(1)*qw(1) + g2(2)*qw(2) + g2(3)*qw(3)
         e = a + 0.5_dp*(a*a + b*b)
         chi = d*(1.0_dp + a) - b*c
     end subroutine gauss_strains
+
+    !> Nodal values of w and u that multiply f1', f2', f4' (and f''): with
+    !! f3 = 1 - f1, w' = f1' (w1 - w2) + f2' w1' + f4' w2' (Eq. 76), alike u.
+    pure subroutine reduced_dofs(qe, qw, qu)
+        real(dp), intent(in) :: qe(FE_NDOF)
+        real(dp), intent(out) :: qw(3), qu(3)
+        qw = [qe(FE_W(1)) - qe(FE_W(3)), qe(FE_W(2)), qe(FE_W(4))]
+        qu = [qe(FE_U(1)) - qe(FE_U(3)), qe(FE_U(2)), qe(FE_U(4))]
+    end subroutine reduced_dofs
 
     !> Internal force dV/dq of one element (the element part of NLT, Eq. 79-83).
     pure subroutine fe_element_force(h, ea, ei, cubic, xg, wg, qe, f)
@@ -201,7 +208,9 @@ contains
     !! fe_gauss_table (ng Gauss points). With N = EA e and M = EI chi + C chi^3
     !! the force is sum_g wh (N de/dq + M dchi/dq), i.e. per shape function
     !! f_U = wh [(N (1 + a) + M d) g1 - M b g2],
-    !! f_W = wh [(N b - M c) g1 + M (1 + a) g2].
+    !! f_W = wh [(N b - M c) g1 + M (1 + a) g2],
+    !! summed on the reduced unknowns (RED_* above; the tables must have
+    !! d(3, :) = -d(1, :), as fe_gauss_table gives) and expanded at the end.
     pure subroutine fe_element_force_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, f)
         integer, intent(in) :: ng
         real(dp), intent(in) :: d1(4, ng), d2(4, ng), wh(ng)
@@ -209,21 +218,19 @@ contains
         real(dp), intent(in) :: qe(FE_NDOF)
         real(dp), intent(out) :: f(FE_NDOF)
         real(dp) :: a, b, c, d, e, chi, axial, moment, cu1, cu2, cw1, cw2
-        integer :: g, n
-        f = 0.0_dp
+        real(dp) :: qw(3), qu(3), g1(3), g2(3), f_red(RED_NDOF)
+        integer :: g
+        call reduced_dofs(qe, qw, qu)
+        f_red = 0.0_dp
         do g = 1, ng
             ! the strains of gauss_strains, written out in this hottest loop
             ! (the compiler inlines a helper with a single caller only)
-            a = 0.0_dp
-            b = 0.0_dp
-            c = 0.0_dp
-            d = 0.0_dp
-            do n = 1, 4
-                a = a + d1(n, g)*qe(FE_U(n))
-                b = b + d1(n, g)*qe(FE_W(n))
-                c = c + d2(n, g)*qe(FE_U(n))
-                d = d + d2(n, g)*qe(FE_W(n))
-            end do
+            g1 = d1(RED_SHAPE, g)
+            g2 = d2(RED_SHAPE, g)
+            a = g1(1)*qu(1) + g1(2)*qu(2) + g1(3)*qu(3)
+            b = g1(1)*qw(1) + g1(2)*qw(2) + g1(3)*qw(3)
+            c = g2(1)*qu(1) + g2(2)*qu(2) + g2(3)*qu(3)
+            d = g2(1)*qw(1) + g2(2)*qw(2) + g2(3)*qw(3)
             e = a + 0.5_dp*(a*a + b*b)
             chi = d*(1.0_dp + a) - b*c
             axial = wh(g)*ea*e
@@ -232,11 +239,14 @@ contains
             cu2 = -moment*b
             cw1 = axial*b - moment*c
             cw2 = moment*(1.0_dp + a)
-            do n = 1, 4
-                f(FE_U(n)) = f(FE_U(n)) + cu1*d1(n, g) + cu2*d2(n, g)
-                f(FE_W(n)) = f(FE_W(n)) + cw1*d1(n, g) + cw2*d2(n, g)
-            end do
+            ! written out so that [w1, w1'] and [u1, u1'] go as pairs
+            f_red(1:2) = f_red(1:2) + cw1*g1(1:2) + cw2*g2(1:2)
+            f_red(3:4) = f_red(3:4) + cu1*g1(1:2) + cu2*g2(1:2)
+            f_red(5) = f_red(5) + cw1*g1(3) + cw2*g2(3)
+            f_red(6) = f_red(6) + cu1*g1(3) + cu2*g2(3)
         end do
+        ! S f_red(R), spelt out: an index vector would keep f_red in memory
+        f = [f_red(1:4), -f_red(1), f_red(5), -f_red(3), f_red(6)]
     end subroutine fe_element_force_tabulated
 
     !> Internal force and tangent stiffness d^2V/dq^2 of one element (Eq. 85).
@@ -268,21 +278,23 @@ contains
         real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
         real(dp) :: a, b, c, d, e, chi, axial, moment, stiff_e, stiff_chi
         real(dp) :: cu1, cu2, cw1, cw2
-        ! f' and f'' of the reduced shape functions at one Gauss point
+        real(dp) :: qw(3), qu(3)
+        ! f' and f'' of the shape functions RED_SHAPE at one Gauss point
         real(dp) :: g1(3), g2(3)
         real(dp) :: de(RED_NDOF), dchi(RED_NDOF), sde(RED_NDOF), sdchi(RED_NDOF)
         real(dp) :: f_red(RED_NDOF), k_red(RED_NDOF, RED_NDOF)
         ! sum of N g1 g1^T (uu and ww blocks) and of M (g1 g2^T - g2 g1^T) (uw block)
         real(dp) :: k_axial(3, 3), k_moment(3, 3)
-        integer :: g, i, j
+        integer :: g, i, j, iw, ju
+        call reduced_dofs(qe, qw, qu)
         f_red = 0.0_dp
         k_red = 0.0_dp
         k_axial = 0.0_dp
         k_moment = 0.0_dp
         do g = 1, ng
-            call gauss_strains(d1(:, g), d2(:, g), qe, a, b, c, d, e, chi)
             g1 = d1(RED_SHAPE, g)
             g2 = d2(RED_SHAPE, g)
+            call gauss_strains(g1, g2, qw, qu, a, b, c, d, e, chi)
             axial = wh(g)*ea*e
             moment = wh(g)*(ei*chi + cubic*chi**3)
             stiff_e = wh(g)*ea
@@ -291,12 +303,12 @@ contains
             cu2 = -moment*b
             cw1 = axial*b - moment*c
             cw2 = moment*(1.0_dp + a)
-            f_red(1:3) = f_red(1:3) + cw1*g1 + cw2*g2
-            f_red(4:6) = f_red(4:6) + cu1*g1 + cu2*g2
-            de(1:3) = b*g1
-            de(4:6) = (1.0_dp + a)*g1
-            dchi(1:3) = (1.0_dp + a)*g2 - c*g1
-            dchi(4:6) = d*g1 - b*g2
+            f_red(RED_W) = f_red(RED_W) + cw1*g1 + cw2*g2
+            f_red(RED_U) = f_red(RED_U) + cu1*g1 + cu2*g2
+            de(RED_W) = b*g1
+            de(RED_U) = (1.0_dp + a)*g1
+            dchi(RED_W) = (1.0_dp + a)*g2 - c*g1
+            dchi(RED_U) = d*g1 - b*g2
             sde = stiff_e*de
             sdchi = stiff_chi*dchi
             do j = 1, RED_NDOF
@@ -314,18 +326,24 @@ contains
                 end do
             end do
         end do
-        ! second-derivative blocks into the upper triangle: k_axial on ww and
-        ! uu; the wu block takes k_moment^T, k_moment being antisymmetric
+        ! second-derivative blocks into the upper triangle (RED_W and RED_U
+        ! ascend): k_axial on ww and uu; the entry of W_i and U_j takes
+        ! k_moment(j, i), k_moment being antisymmetric with a zero diagonal
         do j = 1, 3
             do i = 1, j
-                k_red(i, j) = k_red(i, j) + k_axial(i, j)
-                k_red(3 + i, 3 + j) = k_red(3 + i, 3 + j) + k_axial(i, j)
+                k_red(RED_W(i), RED_W(j)) = k_red(RED_W(i), RED_W(j)) + k_axial(i, j)
+                k_red(RED_U(i), RED_U(j)) = k_red(RED_U(i), RED_U(j)) + k_axial(i, j)
             end do
+        end do
+        do j = 1, 3
             do i = 1, 3
+                if (i == j) cycle
+                iw = min(RED_W(i), RED_U(j))
+                ju = max(RED_W(i), RED_U(j))
                 if (i < j) then
-                    k_red(i, 3 + j) = k_red(i, 3 + j) - k_moment(i, j)
-                else if (i > j) then
-                    k_red(i, 3 + j) = k_red(i, 3 + j) + k_moment(j, i)
+                    k_red(iw, ju) = k_red(iw, ju) - k_moment(i, j)
+                else
+                    k_red(iw, ju) = k_red(iw, ju) + k_moment(j, i)
                 end if
             end do
         end do
