@@ -486,9 +486,15 @@ contains
         ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
         ! when C is semi-definite, and Schur complements keep it), which bounds
         ! the growth without pivoting. Anything else: LU with partial pivoting.
+        ! Without Kelvin-Voigt damping, motor and rotary inertia, K is the
+        ! tangent of the strain energy and the hinge springs and C holds the
+        ! friction and drag of the masses on its diagonal: symmetric by
+        ! construction. Otherwise they are checked.
         it%sym = sys%nx == 0 .and. kl == ku .and. it%m_sym
-        if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%kb)
-        if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%cb)
+        if (it%sym .and. (sys%eta /= 0.0_dp .or. sys%motor /= 0.0_dp .or. sys%rotary)) then
+            it%sym = band_symmetric(sys%nc, kl, it%kb)
+            if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%cb)
+        end if
         if (it%sym) then
             if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
             call combine_sym(kl, sys%nc, l1, l2, it%mb, it%cb, it%kb, it%a1, it%a2, &
