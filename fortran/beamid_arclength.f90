@@ -105,6 +105,16 @@ module beamid_arclength
         integer :: nu = 3                  !< number of unknowns (4 with the wire)
     end type problem_t
 
+    !> Work arrays of the shots, kept from one shot to the next so that the
+    !! integration loop does not allocate; shoot sizes them for its columns.
+    type :: shot_work_t
+        real(dp), allocatable :: v(:, :)        !< NZ x ncol, running columns
+        real(dp), allocatable :: w(:, :, :)     !< NZ x ncol x 6, stage slopes of v
+        real(dp), allocatable :: vs(:, :)       !< NZ x ncol, stage argument
+        integer, allocatable :: colkind(:)
+        real(dp), allocatable :: vk_old(:), ddelta(:), vq_old(:), vn_old(:)
+    end type shot_work_t
+
     !> Result of one shot.
     type :: shot_t
         real(dp) :: z_end(NZ) = 0.0_dp
@@ -112,6 +122,7 @@ module beamid_arclength
         real(dp), allocatable :: z_joint(:, :)      !< NZ x nbeams (end of each beam)
         real(dp), allocatable :: v_joint(:, :, :)   !< NZ x ncol x nbeams
         integer :: steps = 0
+        type(shot_work_t) :: work
     end type shot_t
 
 contains
@@ -242,12 +253,14 @@ contains
     !> Integrate one beam from s = 0 to s = length with Dormand-Prince 5(4).
     !! Stations (local arc positions, ascending, in (0, length]) are landed on
     !! and their states stored.
+    !! `w` and `vs` are work space for the stages of the columns v.
     subroutine integrate_beam(prob, beam, z, v, colkind, stations, z_station, &
-                              opts, steps, stat)
+                              opts, steps, w, vs, stat)
         type(problem_t), intent(in) :: prob
         integer, intent(in) :: beam
         real(dp), intent(inout) :: z(NZ)
-        real(dp), intent(inout) :: v(:, :)
+        real(dp), intent(inout), contiguous :: v(:, :)
+        real(dp), intent(inout), contiguous :: w(:, :, :), vs(:, :)
         integer, intent(in) :: colkind(:)
         real(dp), intent(in) :: stations(:)
         real(dp), intent(inout) :: z_station(:, :)
@@ -273,7 +286,6 @@ contains
         real(dp) :: ei, c, a, length, s, h, hnew, err, sc(NZ)
         real(dp) :: k1(NZ), k2(NZ), k3(NZ), k4(NZ), k5(NZ), k6(NZ), k7(NZ)
         real(dp) :: z2(NZ), z3(NZ), z4(NZ), z5(NZ), z6(NZ), znew(NZ), zerr(NZ)
-        real(dp), dimension(NZ, size(v, 2)) :: w1, w2, w3, w4, w5, w6, vs
         integer :: ncol, next_station, nreject
         logical :: last, land, softening_lost
 
@@ -348,6 +360,8 @@ contains
             end if
             ! accepted: advance the variational columns with the same stages
             if (ncol > 0) then
+                associate (w1 => w(:, :, 1), w2 => w(:, :, 2), w3 => w(:, :, 3), &
+                           w4 => w(:, :, 4), w5 => w(:, :, 5), w6 => w(:, :, 6))
                 call rhs_var(z, k1, ncol, v, colkind, ei, c, a, w1)
                 vs = v + (h*a21)*w1
                 call rhs_var(z2, k2, ncol, vs, colkind, ei, c, a, w2)
@@ -360,6 +374,7 @@ contains
                 vs = v + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
                 call rhs_var(z6, k6, ncol, vs, colkind, ei, c, a, w6)
                 v = v + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
+                end associate
             end if
             z = znew
             k1 = k7
@@ -395,6 +410,28 @@ contains
         end function stage_ok
     end subroutine integrate_beam
 
+    !> Give the arrays of a shot the shapes for ncol columns on nb beams,
+    !! reallocating only what changed.
+    pure subroutine size_shot(shot, ncol, nb)
+        type(shot_t), intent(inout) :: shot
+        integer, intent(in) :: ncol, nb
+        if (allocated(shot%v_end)) then
+            if (size(shot%v_end, 2) /= ncol .or. size(shot%z_joint, 2) /= nb) &
+                deallocate (shot%v_end, shot%z_joint, shot%v_joint)
+        end if
+        if (.not. allocated(shot%v_end)) &
+            allocate (shot%v_end(NZ, ncol), shot%z_joint(NZ, nb), shot%v_joint(NZ, ncol, nb))
+        associate (wk => shot%work)
+        if (allocated(wk%v)) then
+            if (size(wk%v, 2) /= ncol) deallocate (wk%v, wk%w, wk%vs, wk%colkind, wk%vk_old, &
+                                                   wk%ddelta, wk%vq_old, wk%vn_old)
+        end if
+        if (.not. allocated(wk%v)) &
+            allocate (wk%v(NZ, ncol), wk%w(NZ, ncol, 6), wk%vs(NZ, ncol), wk%colkind(ncol), &
+                      wk%vk_old(ncol), wk%ddelta(ncol), wk%vq_old(ncol), wk%vn_old(ncol))
+        end associate
+    end subroutine size_shot
+
     !> Integrate the whole chain from the root for given unknowns.
     !! Columns of the variational matrix: 1..NSHOOT are d/du (k0, Q0, N0),
     !! the rest d/dparams(wrt(j)). Stations are global arc positions.
@@ -410,24 +447,20 @@ contains
         real(dp), intent(inout), optional :: z_station(:, :)
 
         integer :: ncol, nu0, nb, i, j, p, nst, first, last
-        integer, allocatable :: colkind(:)
         real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
-        real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da
-        real(dp), allocatable :: v(:, :), vk_old(:), local(:), zst(:, :), fend(:)
-        real(dp), allocatable :: ddelta(:), vq_old(:), vn_old(:)
+        real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da, fend(NZ)
+        real(dp) :: no_local(0), no_zst(NZ, 0)
+        real(dp), allocatable :: local(:), zst(:, :)
         logical :: ok
 
-        associate (ch => prob%chain)
-        nb = ch%nbeams
+        nb = prob%chain%nbeams
         nu0 = merge(NSHOOT, 0, with_u_cols)
         ncol = nu0 + size(wrt)
-        allocate (v(NZ, ncol), colkind(ncol), vk_old(ncol), fend(NZ), ddelta(ncol), &
-                  vq_old(ncol), vn_old(ncol))
+        call size_shot(shot, ncol, nb)
+        associate (ch => prob%chain, v => shot%work%v, colkind => shot%work%colkind, &
+                   vk_old => shot%work%vk_old, ddelta => shot%work%ddelta, &
+                   vq_old => shot%work%vq_old, vn_old => shot%work%vn_old)
         v = 0.0_dp
-        if (allocated(shot%v_end)) deallocate (shot%v_end)
-        if (allocated(shot%z_joint)) deallocate (shot%z_joint)
-        if (allocated(shot%v_joint)) deallocate (shot%v_joint)
-        allocate (shot%v_end(NZ, ncol), shot%z_joint(NZ, nb), shot%v_joint(NZ, ncol, nb))
         shot%steps = 0
 
         ! root: psi(0) = f_root M(0), M(0) = EI1 k0 + C1 k0^3
@@ -480,12 +513,19 @@ contains
                     first = first + 1
                 end do
             end if
-            allocate (local(max(0, last - first + 1)), zst(NZ, max(0, last - first + 1)))
-            if (last >= first) local = min(stations(first:last) - s0, ch%length(i))
-            call integrate_beam(prob, i, z, v, colkind, local, zst, opts, shot%steps, stat)
-            if (stat%code /= STATUS_OK) return
-            if (last >= first) z_station(:, first:last) = zst
-            deallocate (local, zst)
+            if (last >= first) then
+                allocate (local(last - first + 1), zst(NZ, last - first + 1))
+                local = min(stations(first:last) - s0, ch%length(i))
+                call integrate_beam(prob, i, z, v, colkind, local, zst, opts, shot%steps, &
+                                    shot%work%w, shot%work%vs, stat)
+                if (stat%code /= STATUS_OK) return
+                z_station(:, first:last) = zst
+                deallocate (local, zst)
+            else
+                call integrate_beam(prob, i, z, v, colkind, no_local, no_zst, opts, &
+                                    shot%steps, shot%work%w, shot%work%vs, stat)
+                if (stat%code /= STATUS_OK) return
+            end if
             s0 = s0 + ch%length(i)
 
             ! d/dL_i: the end point moves along the solution
@@ -651,14 +691,22 @@ contains
         if (prob%nu == 4) jac(:, 4) = dg_dt
     end subroutine evaluate
 
-    !> Hand the arrays of one shot to another without copying.
+    !> Hand the results of one shot to another without copying: the arrays are
+    !! swapped, so `from` keeps storage to be reused by the next trial shot.
     pure subroutine move_shot(from, to)
         type(shot_t), intent(inout) :: from, to
+        real(dp), allocatable :: tmp2(:, :), tmp3(:, :, :)
         to%z_end = from%z_end
         to%steps = from%steps
+        call move_alloc(to%v_end, tmp2)
         call move_alloc(from%v_end, to%v_end)
+        call move_alloc(tmp2, from%v_end)
+        call move_alloc(to%z_joint, tmp2)
         call move_alloc(from%z_joint, to%z_joint)
+        call move_alloc(tmp2, from%z_joint)
+        call move_alloc(to%v_joint, tmp3)
         call move_alloc(from%v_joint, to%v_joint)
+        call move_alloc(tmp3, from%v_joint)
     end subroutine move_shot
 
     !> Damped Newton on the tip conditions from the guess in u.
