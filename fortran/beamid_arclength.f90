@@ -60,6 +60,10 @@ module beamid_arclength
     integer, parameter :: IX = 1, IY = 2, IPSI = 3, IK = 4, IQ = 5, IN = 6
     integer, parameter :: NSHOOT = 3  !< shooting unknowns carried by the ODE: k0, Q0, N0
 
+    !> Loosest integration tolerance of the early Newton shots (a residual of
+    !! 0.3 or more); below that the shots are integrated to 1e-3 r^2.
+    real(dp), parameter :: LOOSE_TOL_MAX = 1.0e-4_dp
+
     !> Column kinds of the variational matrix: how a column is forced.
     integer, parameter :: COL_FREE = 0, COL_EI = 1, COL_C = 2, COL_A = 3
 
@@ -711,10 +715,11 @@ contains
 
     !> Damped Newton on the tip conditions from the guess in u.
     !! Inexact Newton: while the residual r is large the shots are integrated
-    !! to a looser tolerance (about 1e-3 r^2, never tighter than needed for
-    !! quadratic convergence) and without the sensitivity columns; the shot
-    !! that declares convergence is always at opts%tol and carries the
-    !! columns for wrt, so `shot` returns the integration at the final u.
+    !! to a looser tolerance (1e-3 r^2 capped at LOOSE_TOL_MAX, never tighter
+    !! than needed for quadratic convergence) and without the sensitivity
+    !! columns; the shot that declares convergence is always at opts%tol and
+    !! carries the columns for wrt, so `shot` returns the integration at the
+    !! final u.
     subroutine newton(prob, u, wrt, opts, iterations, resid, shot, stat)
         type(problem_t), intent(in) :: prob
         real(dp), intent(inout) :: u(:)
@@ -737,7 +742,7 @@ contains
         work = opts
         if (.not. (work%newton_tol > 0.0_dp)) work%newton_tol = 10.0_dp*opts%tol
         newton_tol = work%newton_tol
-        tol_now = max(opts%tol, 1.0e-6_dp)
+        tol_now = max(opts%tol, LOOSE_TOL_MAX)
         work%tol = tol_now
         if (tol_now > opts%tol) then
             call evaluate(prob, u, no_wrt, work, g, jac, shot, stat)
@@ -764,7 +769,7 @@ contains
             step(:, 1) = -g
             call solve_dense(jac, step, stat)
             if (stat%code /= STATUS_OK) return
-            tol_try = max(opts%tol, min(1.0e-6_dp, 1.0e-3_dp*resid*resid))
+            tol_try = max(opts%tol, min(LOOSE_TOL_MAX, 1.0e-3_dp*resid*resid))
             work%tol = tol_try
             alpha = 1.0_dp
             do ls = 1, 12
