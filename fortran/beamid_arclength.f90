@@ -217,10 +217,11 @@ contains
     end function rhs
 
     !> d/ds of the variational columns: dv = (df/dz) V + df/dp (Eq. 33, 41).
-    !! `dz` = rhs(z) supplies sin and cos of psi.
-    pure subroutine rhs_var(z, dz, ncol, v, colkind, ei, c, a, dv)
+    !! `dz` = rhs(z) supplies sin and cos of psi. Rows r0..NZ of dv are set;
+    !! no row depends on the x and y rows of v, so r0 = IPSI skips them.
+    pure subroutine rhs_var(z, dz, r0, ncol, v, colkind, ei, c, a, dv)
         real(dp), intent(in) :: z(NZ), dz(NZ), ei, c, a
-        integer, intent(in) :: ncol
+        integer, intent(in) :: r0, ncol
         real(dp), intent(in) :: v(NZ, ncol)
         integer, intent(in) :: colkind(ncol)
         real(dp), intent(out) :: dv(NZ, ncol)
@@ -234,9 +235,13 @@ contains
         fei = z(IQ)/(d*d)
         fc = 3.0_dp*z(IK)**2*z(IQ)/(d*d)
         fa = -z(IK)*z(IN)
+        if (r0 == IX) then
+            do j = 1, ncol
+                dv(IX, j) = -s*v(IPSI, j)
+                dv(IY, j) = co*v(IPSI, j)
+            end do
+        end if
         do j = 1, ncol
-            dv(IX, j) = -s*v(IPSI, j)
-            dv(IY, j) = co*v(IPSI, j)
             dv(IPSI, j) = v(IK, j)
             dv(IK, j) = dkk*v(IK, j) + dkq*v(IQ, j)
             dv(IQ, j) = -a*(z(IN)*v(IK, j) + z(IK)*v(IN, j))
@@ -257,12 +262,14 @@ contains
     !> Integrate one beam from s = 0 to s = length with Dormand-Prince 5(4).
     !! Stations (local arc positions, ascending, in (0, length]) are landed on
     !! and their states stored.
-    !! `w` and `vs` are work space for the stages of the columns v.
-    subroutine integrate_beam(prob, beam, z, v, colkind, stations, z_station, &
+    !! `w` and `vs` are work space for the stages of the columns v; rows
+    !! before r0 of v are left as they are.
+    subroutine integrate_beam(prob, beam, z, r0, v, colkind, stations, z_station, &
                               opts, steps, w, vs, stat)
         type(problem_t), intent(in) :: prob
         integer, intent(in) :: beam
         real(dp), intent(inout) :: z(NZ)
+        integer, intent(in) :: r0   !< first row of v integrated: IX, or IPSI to skip x, y
         real(dp), intent(inout), contiguous :: v(:, :)
         real(dp), intent(inout), contiguous :: w(:, :, :), vs(:, :)
         integer, intent(in) :: colkind(:)
@@ -364,20 +371,23 @@ contains
             end if
             ! accepted: advance the variational columns with the same stages
             if (ncol > 0) then
-                associate (w1 => w(:, :, 1), w2 => w(:, :, 2), w3 => w(:, :, 3), &
-                           w4 => w(:, :, 4), w5 => w(:, :, 5), w6 => w(:, :, 6))
-                call rhs_var(z, k1, ncol, v, colkind, ei, c, a, w1)
-                vs = v + (h*a21)*w1
-                call rhs_var(z2, k2, ncol, vs, colkind, ei, c, a, w2)
-                vs = v + h*(a31*w1 + a32*w2)
-                call rhs_var(z3, k3, ncol, vs, colkind, ei, c, a, w3)
-                vs = v + h*(a41*w1 + a42*w2 + a43*w3)
-                call rhs_var(z4, k4, ncol, vs, colkind, ei, c, a, w4)
-                vs = v + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
-                call rhs_var(z5, k5, ncol, vs, colkind, ei, c, a, w5)
-                vs = v + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
-                call rhs_var(z6, k6, ncol, vs, colkind, ei, c, a, w6)
-                v = v + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
+                ! rows r0..NZ only (the slices below); the stage slopes are
+                ! written whole by rhs_var
+                associate (w1 => w(r0:, :, 1), w2 => w(r0:, :, 2), w3 => w(r0:, :, 3), &
+                           w4 => w(r0:, :, 4), w5 => w(r0:, :, 5), w6 => w(r0:, :, 6), &
+                           vr => v(r0:, :), vsr => vs(r0:, :))
+                call rhs_var(z, k1, r0, ncol, v, colkind, ei, c, a, w(:, :, 1))
+                vsr = vr + (h*a21)*w1
+                call rhs_var(z2, k2, r0, ncol, vs, colkind, ei, c, a, w(:, :, 2))
+                vsr = vr + h*(a31*w1 + a32*w2)
+                call rhs_var(z3, k3, r0, ncol, vs, colkind, ei, c, a, w(:, :, 3))
+                vsr = vr + h*(a41*w1 + a42*w2 + a43*w3)
+                call rhs_var(z4, k4, r0, ncol, vs, colkind, ei, c, a, w(:, :, 4))
+                vsr = vr + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
+                call rhs_var(z5, k5, r0, ncol, vs, colkind, ei, c, a, w(:, :, 5))
+                vsr = vr + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
+                call rhs_var(z6, k6, r0, ncol, vs, colkind, ei, c, a, w(:, :, 6))
+                vr = vr + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
                 end associate
             end if
             z = znew
@@ -450,7 +460,7 @@ contains
         real(dp), intent(in), optional :: stations(:)
         real(dp), intent(inout), optional :: z_station(:, :)
 
-        integer :: ncol, nu0, nb, i, j, p, nst, first, last
+        integer :: ncol, nu0, nb, i, j, p, nst, first, last, r0
         real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
         real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da, fend(NZ)
         real(dp) :: no_local(0), no_zst(NZ, 0)
@@ -460,6 +470,11 @@ contains
         nb = prob%chain%nbeams
         nu0 = merge(NSHOOT, 0, with_u_cols)
         ncol = nu0 + size(wrt)
+        ! the x, y rows of the columns feed nothing but the outputs' sensitivities
+        ! and the wire's tip condition: a Newton shot of a tip load without
+        ! sensitivities leaves them at zero
+        r0 = IX
+        if (size(wrt) == 0 .and. prob%load%kind == LOAD_TIP) r0 = IPSI
         call size_shot(shot, ncol, nb)
         associate (ch => prob%chain, v => shot%work%v, colkind => shot%work%colkind, &
                    vk_old => shot%work%vk_old, ddelta => shot%work%ddelta, &
@@ -520,13 +535,13 @@ contains
             if (last >= first) then
                 allocate (local(last - first + 1), zst(NZ, last - first + 1))
                 local = min(stations(first:last) - s0, ch%length(i))
-                call integrate_beam(prob, i, z, v, colkind, local, zst, opts, shot%steps, &
+                call integrate_beam(prob, i, z, r0, v, colkind, local, zst, opts, shot%steps, &
                                     shot%work%w, shot%work%vs, stat)
                 if (stat%code /= STATUS_OK) return
                 z_station(:, first:last) = zst
                 deallocate (local, zst)
             else
-                call integrate_beam(prob, i, z, v, colkind, no_local, no_zst, opts, &
+                call integrate_beam(prob, i, z, r0, v, colkind, no_local, no_zst, opts, &
                                     shot%steps, shot%work%w, shot%work%vs, stat)
                 if (stat%code /= STATUS_OK) return
             end if
