@@ -310,7 +310,9 @@ contains
               prob%force_scale, prob%force_scale]
 
         s = 0.0_dp
-        h = length/8.0_dp
+        ! first try: an eighth of the beam at tol 1e-9, scaled like the step of a
+        ! fifth-order method, tol^(1/5), for the loose Newton shots
+        h = min(length, length/8.0_dp*(opts%tol/1.0e-9_dp)**0.2_dp)
         next_station = 1
         nreject = 0
         k1 = rhs(z, ei, c, a)
