@@ -188,9 +188,10 @@ contains
         integer, intent(in) :: nbeams, index
         real(dp), intent(in) :: value
         character(len=:), allocatable :: problem
-        character(len=:), allocatable :: name, expected
+        character(len=:), allocatable :: expected
         logical :: positive, bad
-        name = param_name(nbeams, index)
+        ! (the name is formatted only for a bad value: every solve validates
+        ! its whole parameter vector)
         ! strictly positive: lengths, stiffnesses, density; the rest >= 0,
         ! except C (either sign, Eq. 16) and axial_coupling (0..1).
         positive = index <= PER_BEAM*nbeams .and. mod(index - 1, PER_BEAM) + 1 /= IB_C
@@ -200,7 +201,7 @@ contains
         else if (positive) then
             bad = value <= 0.0_dp
             expected = 'a positive number'
-        else if (name == 'axial_coupling') then
+        else if (index == param_index_global(nbeams, IG_AXIAL_COUPLING)) then
             bad = value < 0.0_dp .or. value > 1.0_dp
             expected = 'a value in [0, 1] (0 shear-only Eq. 9, 1 exact elastica)'
         else if (index <= PER_BEAM*nbeams) then
@@ -211,7 +212,7 @@ contains
             expected = 'a non-negative number'
         end if
         if (bad) then
-            problem = name//' = '//fmt_real(value)//', expected '//expected
+            problem = param_name(nbeams, index)//' = '//fmt_real(value)//', expected '//expected
         else
             problem = ''
         end if
