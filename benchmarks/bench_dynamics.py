@@ -60,6 +60,18 @@ def main() -> None:
             chosen = (rtol, tb, err)
             break
     rtol, tb, err = chosen
+    # The load of a shared machine comes and goes within seconds: time (a) and
+    # (b) again in alternation, so that both see the same conditions, and keep
+    # the best of each (RK4 best of 4, the implicit run best of 36 spread over
+    # the same ~8 s).
+    for _ in range(2):
+        t1, _run = best_of(lambda: simulate(model, RELEASE, t_out, integrator="rk4",
+                                            friction="smooth", friction_velocity=VS), repeat=1)
+        ta = min(ta, t1)
+        t2, _run = best_of(lambda: simulate(model, RELEASE, t_out, rtol=rtol,
+                                            friction_velocity=VS), repeat=9)
+        tb = min(tb, t2)
+    print(f"(a) RK4 again, best of 4 alternating with (b): {ta:.3f} s")
     print(f"(b) implicit default at 1e-6 m: rtol={rtol:.1e}, {tb:.4f} s (error {err:.2e})")
 
     # (c) SciPy on the same right-hand side and Jacobian (dense, from Python)
