@@ -709,8 +709,8 @@ contains
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
-        !> F, work rates and torque at the same state (as dyn_forces): the
-        !! tangent assembly has the internal force anyway
+        !> F, work rates and torque at the same state (as dyn_forces; the three
+        !! together or none): the tangent assembly has the internal force anyway
         real(dp), intent(out), optional :: force(:), power(:)
         real(dp), intent(out), optional :: torque
         real(dp), allocatable :: f(:), qf(:), vf(:)

@@ -597,9 +597,8 @@ contains
         integer, allocatable :: cols(:), side(:)
         real(dp), allocatable :: pred(:), a(:, :), rr(:), ab(:, :), d(:), s(:), u(:, :)
         real(dp), allocatable :: vt(:, :), cov(:, :), sig(:), corr(:, :), delta(:)
-        real(dp) :: cond, viol, worst_viol
+        real(dp) :: viol, worst_viol
         logical, allocatable :: und(:)
-        integer :: rank
 
         m = size(y)
         mt = m + size(prior%index)

@@ -81,8 +81,7 @@ module beamid_integrators
         !> symmetric iteration matrices (no motor lag, symmetric K and C: the
         !! usual case) are factored as L D L^T without pivoting instead:
         !! gamma/h-matrix in s1, mu/h-matrix in s2 (lower band, s(1 + i - j, j)
-        !! = A(i, j), L and D in place); lu1, lu2 then hold the unfactored
-        !! matrices
+        !! = A(i, j), L and D in place); lu1, lu2 are then not used
         logical :: sym = .false.
         logical :: m_sym = .false.              !< M0 is symmetric
         real(dp), allocatable :: s1(:, :)
@@ -326,7 +325,7 @@ contains
         end do
     end subroutine run_rk4
 
-    !> Jacobians and mass matrix of the step start into `it`; allocates the
+    !> Jacobians and mass matrix at the state y into `it`; allocates the
     !! work arrays of `it` on first use.
     subroutine radau_jacobian(sys, y, it, dy, power)
         type(dyn_system_t), intent(in) :: sys
@@ -359,7 +358,6 @@ contains
         end if
         it%have_mass = .true.
         if (present(dy)) then
-            n = sys%nc
             call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e, &
                                dy(n + 1:2*n), power, torque)
             dy(1:n) = y(n + 1:2*n)
@@ -486,7 +484,7 @@ contains
         ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
         ! when C is semi-definite, and Schur complements keep it), which bounds
         ! the growth without pivoting. Anything else: LU with partial pivoting.
-        ! Without Kelvin-Voigt damping, motor and rotary inertia, K is the
+        ! Symmetry: without Kelvin-Voigt damping, motor and rotary inertia, K is the
         ! tangent of the strain energy and the hinge springs and C holds the
         ! friction and drag of the masses on its diagonal: symmetric by
         ! construction. Otherwise they are checked.
@@ -897,7 +895,6 @@ contains
         first = .true.
         reject = .false.
         have_prev = .false.
-        it%h = -1.0_dp
         kout = 1
         do while (kout <= nt)
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
