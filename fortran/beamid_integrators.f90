@@ -33,6 +33,8 @@ module beamid_integrators
 
     public :: integ_opts_t, integ_stats_t, history_t, radau_t
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
+    !> the symmetric band kernels, public for their tests
+    public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, dband_mv, zband_mv
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
 
@@ -554,21 +556,39 @@ contains
         real(dp), intent(inout) :: s(k + 1, n)
         integer :: j, c, r, m
         real(dp) :: d, dinv, vc
+        integer, parameter :: K7 = 7
         ok = .false.
-        do j = 1, n
+        j = 1
+        if (k == K7) then
+            do j = 1, n - K7
+                d = s(1, j)
+                if (.not. (d > 0.0_dp)) return
+                dinv = 1.0_dp/d
+                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
+                do c = 1, K7
+                    vc = s(1 + c, j)*d
+                    do r = c, K7
+                        s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
+                    end do
+                end do
+            end do
+            j = max(1, n - K7 + 1)
+        end if
+        do j = j, n
             d = s(1, j)
             if (.not. (d > 0.0_dp)) return
             dinv = 1.0_dp/d
+            ! the scaled column first: l_r = a_r / d; then the trailing update
+            ! A(r, c) -= l_r d l_c over the lower triangle
             m = min(k, n - j)
-            ! trailing update A(r, c) -= v_r v_c / d over the lower triangle
+            do r = 2, m + 1
+                s(r, j) = s(r, j)*dinv
+            end do
             do c = 1, m
-                vc = s(1 + c, j)*dinv
+                vc = s(1 + c, j)*d
                 do r = c, m
                     s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
                 end do
-            end do
-            do r = 2, m + 1
-                s(r, j) = s(r, j)*dinv
             end do
         end do
         ok = .true.
@@ -583,8 +603,29 @@ contains
         integer :: j, c, r, m
         complex(dp) :: d, dinv
         real(dp) :: vr, vi, sr, si
+        integer, parameter :: K7 = 7
         ok = .false.
-        do j = 1, n
+        j = 1
+        if (k == K7) then
+            do j = 1, n - K7
+                d = s(1, j)
+                if (.not. (d%im > 0.0_dp)) return
+                dinv = 1.0_dp/d
+                do c = 1, K7
+                    vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
+                    vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
+                    do r = c, K7
+                        sr = s(1 + r, j)%re
+                        si = s(1 + r, j)%im
+                        s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
+                        s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
+                    end do
+                end do
+                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
+            end do
+            j = max(1, n - K7 + 1)
+        end if
+        do j = j, n
             d = s(1, j)
             if (.not. (d%im > 0.0_dp)) return
             dinv = 1.0_dp/d
@@ -611,16 +652,30 @@ contains
         integer, intent(in) :: n, k
         real(dp), intent(in) :: s(k + 1, n)
         real(dp), intent(inout) :: b(n)
-        integer :: i, j, m
+        integer, parameter :: K7 = 7
+        integer :: i, j, m, j0
         real(dp) :: bj, acc
-        do j = 1, n
+        ! forward: L y = b (columns j <= n - k have the full k entries; with
+        ! k = 7, the rigid chain's, the trip count is a constant)
+        j0 = 1
+        if (k == K7) then
+            do j = 1, n - K7
+                bj = b(j)
+                b(j + 1:j + K7) = b(j + 1:j + K7) - bj*s(2:K7 + 1, j)
+            end do
+            j0 = max(1, n - K7 + 1)
+        end if
+        do j = j0, n
             m = min(k, n - j)
             bj = b(j)
             do i = 1, m
                 b(j + i) = b(j + i) - bj*s(1 + i, j)
             end do
         end do
-        do j = n, 1, -1
+        ! backward: D L^T x = y (the last k rows by the general loop)
+        j0 = 0
+        if (k == K7) j0 = max(0, n - K7)
+        do j = n, j0 + 1, -1
             m = min(k, n - j)
             acc = 0.0_dp
             do i = 1, m
@@ -628,6 +683,11 @@ contains
             end do
             b(j) = b(j)/s(1, j) - acc
         end do
+        if (k == K7) then
+            do j = n - K7, 1, -1
+                b(j) = b(j)/s(1, j) - sum(s(2:K7 + 1, j)*b(j + 1:j + K7))
+            end do
+        end if
     end subroutine ldlt_solve_real
 
     !> Solve with the ldlt_cplx factors (no conjugation), b overwritten.
@@ -635,9 +695,24 @@ contains
         integer, intent(in) :: n, k
         complex(dp), intent(in) :: s(k + 1, n)
         complex(dp), intent(inout) :: b(n)
-        integer :: i, j, m
+        integer, parameter :: K7 = 7
+        integer :: i, j, m, j0
         real(dp) :: br, bi, sr, si
-        do j = 1, n
+        j0 = 1
+        if (k == K7) then
+            do j = 1, n - K7
+                br = b(j)%re
+                bi = b(j)%im
+                do i = 1, K7
+                    sr = s(1 + i, j)%re
+                    si = s(1 + i, j)%im
+                    b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
+                    b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
+                end do
+            end do
+            j0 = max(1, n - K7 + 1)
+        end if
+        do j = j0, n
             m = min(k, n - j)
             br = b(j)%re
             bi = b(j)%im
@@ -648,7 +723,9 @@ contains
                 b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
             end do
         end do
-        do j = n, 1, -1
+        j0 = 0
+        if (k == K7) j0 = max(0, n - K7)
+        do j = n, j0 + 1, -1
             m = min(k, n - j)
             br = 0.0_dp
             bi = 0.0_dp
@@ -660,6 +737,19 @@ contains
             end do
             b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
         end do
+        if (k == K7) then
+            do j = n - K7, 1, -1
+                br = 0.0_dp
+                bi = 0.0_dp
+                do i = 1, K7
+                    sr = s(1 + i, j)%re
+                    si = s(1 + i, j)%im
+                    br = br + (sr*b(j + i)%re - si*b(j + i)%im)
+                    bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
+                end do
+                b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
+            end do
+        end if
     end subroutine ldlt_solve_cplx
 
     !> y = A x for a real band matrix of order n (LAPACK general band storage,
@@ -670,8 +760,25 @@ contains
         real(dp), intent(out) :: y(n)
         integer :: j, i1, i2, k
         real(dp) :: xj
+        integer, parameter :: K7 = 7
         y = 0.0_dp
         k = kl + ku + 1
+        if (kl == K7 .and. ku == K7 .and. n > 2*K7) then
+            ! the rigid chain's half-bandwidth: constant-length interior columns
+            do j = 1, K7
+                xj = x(j)
+                y(1:j + K7) = y(1:j + K7) + xj*ab(k + 1 - j:k + K7, j)
+            end do
+            do j = K7 + 1, n - K7
+                xj = x(j)
+                y(j - K7:j + K7) = y(j - K7:j + K7) + xj*ab(k - K7:k + K7, j)
+            end do
+            do j = n - K7 + 1, n
+                xj = x(j)
+                y(j - K7:n) = y(j - K7:n) + xj*ab(k - K7:k + n - j, j)
+            end do
+            return
+        end if
         do j = 1, n
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
@@ -687,8 +794,25 @@ contains
         complex(dp), intent(out) :: y(n)
         integer :: j, i1, i2, k
         complex(dp) :: xj
+        integer, parameter :: K7 = 7
         y = (0.0_dp, 0.0_dp)
         k = kl + ku + 1
+        if (kl == K7 .and. ku == K7 .and. n > 2*K7) then
+            ! the rigid chain's half-bandwidth: constant-length interior columns
+            do j = 1, K7
+                xj = x(j)
+                y(1:j + K7) = y(1:j + K7) + xj*ab(k + 1 - j:k + K7, j)
+            end do
+            do j = K7 + 1, n - K7
+                xj = x(j)
+                y(j - K7:j + K7) = y(j - K7:j + K7) + xj*ab(k - K7:k + K7, j)
+            end do
+            do j = n - K7 + 1, n
+                xj = x(j)
+                y(j - K7:n) = y(j - K7:n) + xj*ab(k - K7:k + n - j, j)
+            end do
+            return
+        end if
         do j = 1, n
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)

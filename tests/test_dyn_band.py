@@ -73,3 +73,40 @@ def test_singular_complex_band_is_reported():
     b = np.array([[1.0, 0.0], [0.0, -1.0]])
     with pytest.raises(beamid.ConvergenceError, match="zero pivot 2"):
         cd.band_solve(1, 1, a, b, np.ones(2), np.zeros(2))
+
+
+def _sym_band(n, k, rng, shift):
+    a = rng.standard_normal((n, n))
+    a = a + a.T
+    i, j = np.indices((n, n))
+    a[np.abs(i - j) > k] = 0.0
+    a[i == j] += shift
+    return a
+
+
+@pytest.mark.parametrize("k", [7, 3, 0])
+@pytest.mark.parametrize("n", [1, 5, 8, 9, 14, 15, 33, 100])
+def test_symmetric_band_kernels_match_dense(n, k):
+    # The Radau iteration matrices lam^2 M + lam C + K are factored as L D L^T
+    # without pivoting (real: positive definite; complex: positive definite
+    # imaginary part). Half-bandwidth 7, the rigid chain's, has constant
+    # trip-count paths: n below, at and above 7 and 2 x 7 cover their edges.
+    if k >= n:
+        k = n - 1
+    rng = np.random.default_rng(1000 * n + k)
+    a = _sym_band(n, k, rng, 4.0 * (2 * k + 1) + 12.0)   # diagonally dominant: SPD
+    b = _sym_band(n, k, rng, 4.0 * (2 * k + 1) + 12.0) * 0.5   # SPD imaginary part
+    r, s = rng.standard_normal(n), rng.standard_normal(n)
+    x, z, ax, az = cd.ldlt_solve(k, a, b, r, s)
+    assert_allclose(x, np.linalg.solve(a, r), rtol=1e-12, atol=1e-14)
+    assert_allclose(z, np.linalg.solve(a + 1j * b, r + 1j * s), rtol=1e-12, atol=1e-14)
+    assert_allclose(ax, a @ r, rtol=1e-13, atol=1e-13)
+    assert_allclose(az, (a + 1j * b) @ (r + 1j * s), rtol=1e-13, atol=1e-13)
+
+
+def test_symmetric_band_kernels_refuse_bad_pivots():
+    a = np.diag([1.0, -2.0, 3.0])
+    with pytest.raises(beamid.InputError, match="pivot"):
+        cd.ldlt_solve(1, a, np.eye(3), np.ones(3), np.zeros(3))
+    with pytest.raises(beamid.InputError, match="n, k"):
+        cd.ldlt_solve(3, np.eye(3), np.eye(3), np.ones(3), np.zeros(3))

@@ -99,16 +99,19 @@ def test_elbow_flex_hinge_conserves_energy(model):
         simulate(model.replace(elbow_flex=-0.01), RELEASE, [0.0, 0.01])
 
 
-def test_symmetric_and_pivoted_factorizations_agree():
+@pytest.mark.parametrize("elements", [1, 2, 4])
+def test_symmetric_and_pivoted_factorizations_agree(elements):
     # Without a motor lag the Radau iteration matrices are symmetric and are
     # factored as L D L^T without pivoting; a lag (here on a vanishing motor
     # gain, so the physics is the same) sends them through band LU with
-    # partial pivoting. Both must give the same motion.
+    # partial pivoting. Both must give the same motion. The meshes cover the
+    # constant-bandwidth fast paths of the symmetric kernels (half-bandwidth 7;
+    # 9, 17 and 33 unknowns: shorter than, just over and well over 2 x 7).
     m = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
     t = np.linspace(0.0, 0.3, 4)
-    sym = simulate(m, RELEASE, t, rtol=1e-8, friction_velocity=1e-2)
-    lu = simulate(m.replace(tau_motor=1e-3), RELEASE, t, rtol=1e-8, friction_velocity=1e-2,
-                  motor_gain=1e-12)
+    kw = dict(rtol=1e-8, friction_velocity=1e-2, elements_per_beam=elements)
+    sym = simulate(m, RELEASE, t, **kw)
+    lu = simulate(m.replace(tau_motor=1e-3), RELEASE, t, motor_gain=1e-12, **kw)
     assert np.max(np.abs(lu.motor_torque)) < 1e-10
     assert_allclose(sym.tip_w, lu.tip_w, atol=1e-9)
     assert_allclose(sym.tip_u, lu.tip_u, atol=1e-9)

@@ -21,12 +21,14 @@ module beamid_api_dynamics
                                dyn_forces, dyn_jacobian, dyn_mass, dyn_tip, dyn_energy, &
                                dyn_set_modes, dyn_to_coords, dyn_to_physical, &
                                dyn_cforces, dyn_cjacobian, dyn_cmass
-    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate
+    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
+                                  ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+                                  dband_mv, zband_mv
     implicit none
     private
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
-    public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal
+    public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal, api_dyn_ldlt_solve
 
 contains
 
@@ -438,5 +440,76 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_band_solve
+
+    !> Check of the integrators' symmetric band kernels (half-bandwidth k):
+    !! x = A^-1 b by L D L^T, z = (A + i B)^-1 (b + i c) by the complex
+    !! L D L^T, and the band products ax = A b, az = (A + i B)(b + i c).
+    !! A and B dense and symmetric; only their band is read.
+    subroutine api_dyn_ldlt_solve(n, k, a, bm, b, c, x, zr, zi, ax, azr, azi, code, message)
+        integer(c_int), intent(in) :: n, k
+        real(c_double), intent(in) :: a(n, n), bm(n, n), b(n), c(n)
+        real(c_double), intent(out) :: x(n), zr(n), zi(n), ax(n), azr(n), azi(n)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        real(dp), allocatable :: s1(:, :), g1(:, :), xs(:)
+        complex(dp), allocatable :: s2(:, :), g2(:, :), zs(:)
+        integer :: i, j, kk, nn
+        logical :: ok
+        x = 0.0_c_double
+        zr = 0.0_c_double
+        zi = 0.0_c_double
+        ax = 0.0_c_double
+        azr = 0.0_c_double
+        azi = 0.0_c_double
+        if (n < 1 .or. k < 0 .or. k >= n) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_ldlt_solve', 'n, k = '// &
+                            fmt_int(int(n))//', '//fmt_int(int(k))// &
+                            ': expected n >= 1 and 0 <= k < n')
+        else
+            nn = int(n)
+            kk = int(k)
+            allocate (s1(kk + 1, nn), s2(kk + 1, nn), g1(3*kk + 1, nn), g2(3*kk + 1, nn), &
+                      xs(nn), zs(nn))
+            s1 = 0.0_dp
+            s2 = (0.0_dp, 0.0_dp)
+            g1 = 0.0_dp
+            g2 = (0.0_dp, 0.0_dp)
+            do j = 1, nn
+                do i = max(1, j - kk), min(nn, j + kk)
+                    g1(2*kk + 1 + i - j, j) = a(i, j)
+                    g2(2*kk + 1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
+                    if (i >= j) then
+                        s1(1 + i - j, j) = a(i, j)
+                        s2(1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
+                    end if
+                end do
+            end do
+            call dband_mv(nn, kk, kk, g1, real(b, dp), xs)
+            ax = xs
+            call zband_mv(nn, kk, kk, g2, cmplx(b, c, dp), zs)
+            azr = real(zs, dp)
+            azi = aimag(zs)
+            call ldlt_real(nn, kk, s1, ok)
+            if (ok) then
+                xs = b
+                call ldlt_solve_real(nn, kk, s1, xs)
+                x = xs
+                call ldlt_cplx(nn, kk, s2, ok)
+            end if
+            if (ok) then
+                zs = cmplx(b, c, dp)
+                call ldlt_solve_cplx(nn, kk, s2, zs)
+                zr = real(zs, dp)
+                zi = aimag(zs)
+            else
+                call set_status(stat, ERR_INPUT, 'api_dyn_ldlt_solve', &
+                                'a pivot is not positive (real part of A, imaginary part of '// &
+                                'A + i B): expected A and B positive definite')
+            end if
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_ldlt_solve
 
 end module beamid_api_dynamics
