@@ -1060,6 +1060,14 @@ contains
             else
                 z = 0.0_dp
             end if
+            ! velocities consistent with the predicted displacements, so that the
+            ! linear rows q' = v hold from the start: (D z_q)_i / h = v_n + z_v,i
+            ! (the predicted displacements are as good as the velocities, and the
+            ! solves then never need the product (lam M + C) r)
+            do i = 1, 3
+                z(n + 1:2*n, i) = (dmat(i, 1)*z(1:n, 1) + dmat(i, 2)*z(1:n, 2) &
+                                   + dmat(i, 3)*z(1:n, 3))/hh - y(n + 1:2*n)
+            end do
             ! Jacobian at the predicted second stage, both factorizations
             ! (the assembly gives the stage-2 rates of the first iteration too)
             ys = y + z(:, 2)
@@ -1095,10 +1103,11 @@ contains
                 fz = fz - zd
                 w1 = ti1(1)*fz(:, 1) + ti1(2)*fz(:, 2) + ti1(3)*fz(:, 3)
                 w2 = ti2(1)*fz(:, 1) + ti2(2)*fz(:, 2) + ti2(3)*fz(:, 3)
-                ! the rows q' = v of the stage system are linear: after the first
-                ! correction their residual r is zero, and the solves skip it
-                call solve_real(sys, it, gam/hh, w1, r_zero=newt > 1)
-                call solve_cplx(sys, it, mu/hh, w2, r_zero=newt > 1)
+                ! the rows q' = v of the stage system are linear and hold from the
+                ! predictor on (and after every correction): their residual r is
+                ! zero, and the solves skip the product (lam M + C) r
+                call solve_real(sys, it, gam/hh, w1, r_zero=.true.)
+                call solve_cplx(sys, it, mu/hh, w2, r_zero=.true.)
                 do i = 1, 3
                     dz(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
                 end do
