@@ -554,11 +554,11 @@ contains
         integer, intent(in) :: n, k
         logical, intent(out) :: ok
         real(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m
+        integer :: j, c, r, m, j0
         real(dp) :: d, dinv, vc
         integer, parameter :: K7 = 7
         ok = .false.
-        j = 1
+        j0 = 1
         if (k == K7) then
             do j = 1, n - K7
                 d = s(1, j)
@@ -572,9 +572,9 @@ contains
                     end do
                 end do
             end do
-            j = max(1, n - K7 + 1)
+            j0 = max(1, n - K7 + 1)
         end if
-        do j = j, n
+        do j = j0, n
             d = s(1, j)
             if (.not. (d > 0.0_dp)) return
             dinv = 1.0_dp/d
@@ -600,12 +600,12 @@ contains
         integer, intent(in) :: n, k
         logical, intent(out) :: ok
         complex(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m
+        integer :: j, c, r, m, j0
         complex(dp) :: d, dinv
         real(dp) :: vr, vi, sr, si
         integer, parameter :: K7 = 7
         ok = .false.
-        j = 1
+        j0 = 1
         if (k == K7) then
             do j = 1, n - K7
                 d = s(1, j)
@@ -623,9 +623,9 @@ contains
                 end do
                 s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
             end do
-            j = max(1, n - K7 + 1)
+            j0 = max(1, n - K7 + 1)
         end if
-        do j = j, n
+        do j = j0, n
             d = s(1, j)
             if (.not. (d%im > 0.0_dp)) return
             dinv = 1.0_dp/d
