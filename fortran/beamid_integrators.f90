@@ -760,25 +760,8 @@ contains
         real(dp), intent(out) :: y(n)
         integer :: j, i1, i2, k
         real(dp) :: xj
-        integer, parameter :: K7 = 7
         y = 0.0_dp
         k = kl + ku + 1
-        if (kl == K7 .and. ku == K7 .and. n > 2*K7) then
-            ! the rigid chain's half-bandwidth: constant-length interior columns
-            do j = 1, K7
-                xj = x(j)
-                y(1:j + K7) = y(1:j + K7) + xj*ab(k + 1 - j:k + K7, j)
-            end do
-            do j = K7 + 1, n - K7
-                xj = x(j)
-                y(j - K7:j + K7) = y(j - K7:j + K7) + xj*ab(k - K7:k + K7, j)
-            end do
-            do j = n - K7 + 1, n
-                xj = x(j)
-                y(j - K7:n) = y(j - K7:n) + xj*ab(k - K7:k + n - j, j)
-            end do
-            return
-        end if
         do j = 1, n
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
@@ -794,25 +777,8 @@ contains
         complex(dp), intent(out) :: y(n)
         integer :: j, i1, i2, k
         complex(dp) :: xj
-        integer, parameter :: K7 = 7
         y = (0.0_dp, 0.0_dp)
         k = kl + ku + 1
-        if (kl == K7 .and. ku == K7 .and. n > 2*K7) then
-            ! the rigid chain's half-bandwidth: constant-length interior columns
-            do j = 1, K7
-                xj = x(j)
-                y(1:j + K7) = y(1:j + K7) + xj*ab(k + 1 - j:k + K7, j)
-            end do
-            do j = K7 + 1, n - K7
-                xj = x(j)
-                y(j - K7:j + K7) = y(j - K7:j + K7) + xj*ab(k - K7:k + K7, j)
-            end do
-            do j = n - K7 + 1, n
-                xj = x(j)
-                y(j - K7:n) = y(j - K7:n) + xj*ab(k - K7:k + n - j, j)
-            end do
-            return
-        end if
         do j = 1, n
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
