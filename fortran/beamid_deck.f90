@@ -43,6 +43,9 @@ module beamid_deck
     !> Everything a deck says.
     type :: deck_t
         character(len=:), allocatable :: path
+        !> Every problem found, one per line (empty when the deck is valid);
+        !! the status holds the first one.
+        character(len=:), allocatable :: errors
         character(len=:), allocatable :: task       !< 'static'
         character(len=:), allocatable :: output     !< output prefix, relative to the deck
         integer :: nbeams = 0

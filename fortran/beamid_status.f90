@@ -11,7 +11,7 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower
+    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower, exit_code
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
     integer, parameter, public :: STATUS_OK = 0
@@ -21,6 +21,18 @@ module beamid_status
     integer, parameter, public :: ERR_NO_CONVERGENCE = 1 !< iteration did not converge
     integer, parameter, public :: ERR_SINGULAR = 2       !< singular or ill-posed linear system
     integer, parameter, public :: ERR_NUMERIC = 3        !< non-finite numbers or lost accuracy
+    integer, parameter, public :: ERR_OUTPUT = -4        !< an output file cannot be written
+    integer, parameter, public :: ERR_SIZE = -5          !< a size beyond the bound (memory)
+    integer, parameter, public :: ERR_INTERNAL = 100     !< a bug: an impossible state
+
+    !> Exit codes of beamid-batch and of the `beamid` command (docs/decks.md):
+    !! one per kind of error, the same from both fronts.
+    integer, parameter, public :: EXIT_OK = 0            !< success
+    integer, parameter, public :: EXIT_NOT_REPRODUCED = 1 !< a published value not reproduced
+    integer, parameter, public :: EXIT_BAD_INPUT = 2     !< bad deck, CSV, value or input file
+    integer, parameter, public :: EXIT_NUMERIC = 3       !< numerical failure (no convergence)
+    integer, parameter, public :: EXIT_OUTPUT = 4        !< an output file cannot be written
+    integer, parameter, public :: EXIT_INTERNAL = 5      !< internal error
 
     !> Length of status messages (also the length exchanged with Python).
     integer, parameter, public :: MSG_LEN = 256
@@ -49,6 +61,24 @@ contains
         stat%code = code
         stat%message = trim(where)//': '//trim(message)
     end subroutine set_status
+
+    !> The exit code of a status code (the one table of exit codes): 0 ok,
+    !! 2 bad input (including a missing or unreadable input file and a size
+    !! beyond the bound), 3 numerical failure, 4 output not written, 5 internal.
+    pure integer function exit_code(code)
+        integer, intent(in) :: code
+        if (code == STATUS_OK) then
+            exit_code = EXIT_OK
+        else if (code == ERR_OUTPUT) then
+            exit_code = EXIT_OUTPUT
+        else if (code < 0) then
+            exit_code = EXIT_BAD_INPUT
+        else if (code < ERR_INTERNAL) then
+            exit_code = EXIT_NUMERIC
+        else
+            exit_code = EXIT_INTERNAL
+        end if
+    end function exit_code
 
     pure subroutine clear_status(stat)
         type(status_t), intent(inout) :: stat

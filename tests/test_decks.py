@@ -160,7 +160,7 @@ def test_bad_decks_fail_cleanly_in_both(tmp_path, batch_exe, case):
 
 def test_missing_deck_file(tmp_path, batch_exe):
     proc = _batch(batch_exe, tmp_path / "nope.nml")
-    assert proc.returncode == 4 and "no such file" in proc.stderr
+    assert proc.returncode == 2 and "no such file" in proc.stderr
     with pytest.raises(beamid.InputError, match="no such file"):
         beamid.read_deck(tmp_path / "nope.nml")
 
