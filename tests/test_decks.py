@@ -152,7 +152,8 @@ def test_bad_decks_fail_cleanly_in_both(tmp_path, batch_exe, case):
     proc = _batch(batch_exe, deck)
     assert proc.returncode == 2, (proc.returncode, proc.stderr)
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("beamid-batch: error:"), proc.stderr
+    # every problem is reported, one per line
+    assert lines and all(l.startswith("beamid-batch: error:") for l in lines), proc.stderr
     assert needle.lower() in lines[0].lower()
     assert not list(tmp_path.rglob("*.csv")), "no output file may be left behind"
     assert cli_main(["run", str(deck)]) == 2
