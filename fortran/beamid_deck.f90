@@ -784,6 +784,7 @@ contains
         integer :: ne, k, i, ig, np, nm, ns, maxlen, slash, kk, nerr
         type(status_t) :: st
         type(static_load_t) :: load
+        type(nml_group_t) :: gx
 
         ! ---- &experiment, one group per experiment
         nerr = count_lines_alloc(errors)
@@ -791,26 +792,26 @@ contains
         allocate (names(0), loads(0))
         do k = 1, ne
             ig = nml_find(f, 'experiment', k)
-            associate (g => f%groups(ig))
-                call nml_check_keys(f, g, ' name kind fx fy moment wire_length ', errors)
-                name = ''
-                call nml_str(f, g, 'name', name, given, errors)
-                name = trim(adjustl(name))
-                where = f%path//', line '//fmt_int(g%line)//': '
-                if (len(name) == 0) then
-                    call add_error(errors, where//'&experiment number '//fmt_int(k)// &
-                                   ' has no name')
-                    name = '#'//fmt_int(k)
-                end if
-                label = where//"&experiment '"//name//"'"
-                do i = 1, size(names)
-                    if (names(i)%s == name) call add_error(errors, where// &
-                        "&experiment name = '"//name//"' defined twice")
-                end do
-                call read_load_values(f, g, label, load, errors)
-                names = [names, nml_text_t(name)]
-                loads = [loads, load]
-            end associate
+            gx = f%groups(ig)
+            call nml_check_keys(f, gx, ' name kind fx fy moment wire_length ', errors)
+            name = ''
+            call nml_str(f, gx, 'name', name, given, errors)
+            name = trim(adjustl(name))
+            where = f%path//', line '//fmt_int(gx%line)//': '
+            if (len(name) == 0) then
+                call add_error(errors, where//'&experiment number '//fmt_int(k)// &
+                               ' has no name')
+                name = '#'//fmt_int(k)
+            end if
+            gx%label = "&experiment '"//name//"'"
+            label = where//gx%label
+            do i = 1, size(names)
+                if (names(i)%s == name) call add_error(errors, where// &
+                    "&experiment name = '"//name//"' defined twice")
+            end do
+            call read_load_values(f, gx, label, load, errors)
+            names = [names, nml_text_t(name)]
+            loads = [loads, load]
         end do
         if (ne == 0) call add_error(errors, f%path//': no &experiment groups: define at '// &
                                     'least one experiment')
@@ -933,6 +934,7 @@ contains
         if (st%code == STATUS_OK .and. ne > 0 .and. count_lines_alloc(errors) == nerr) &
             call check_static_rows(deck%data, &
             deck%exp_names, is_wire, deck%row_exp, st)
-        if (st%code /= STATUS_OK) call add_error(errors, trim(st%message))
+        if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
+            fmt_int(f%groups(ig)%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_groups
 end module beamid_deck

@@ -39,6 +39,9 @@ module beamid_namelist
     !> One `&name ... /` group.
     type :: nml_group_t
         character(len=:), allocatable :: name       !< lower case
+        !> How messages name the group when not '&name' (e.g. an experiment
+        !! by its name: "&experiment 'F2'").
+        character(len=:), allocatable :: label
         integer :: line = 0
         type(nml_item_t), allocatable :: items(:)
     end type nml_group_t
@@ -146,7 +149,7 @@ contains
                     j = j + 1
                 end do
                 call add_error(errors, file%path//', line '//fmt_int(line)// &
-                               ': text outside a group: '//trim(text(i:min(j - 1, i + 40))))
+                               ': text outside a group: '//printable(text(i:min(j - 1, i + 40))))
                 i = j
             end select
         end do
@@ -196,6 +199,13 @@ contains
                     j = j + 1
                 end do
                 token = text(i:j - 1)
+                if (len(token) == 0) then
+                    ! '=' right where a name should be
+                    call add_error(errors, path//', line '//fmt_int(line)//': &'// &
+                                   g%name//": '=' without a variable name")
+                    i = j + 1
+                    cycle
+                end if
                 if (next_is_equals(text, j)) then
                     ! a new item: key or key(index)
                     if (have_item) call push_item()
@@ -311,6 +321,18 @@ contains
         end do
     end subroutine read_quoted
 
+    !> Text with control characters shown as '?' (for messages).
+    pure function printable(text) result(out)
+        character(len=*), intent(in) :: text
+        character(len=len(text)) :: out
+        integer :: k
+        out = text
+        do k = 1, len(text)
+            if (iachar(text(k:k)) < 32 .or. iachar(text(k:k)) > 126) out(k:k) = '?'
+        end do
+        out = trim(out)
+    end function printable
+
     pure subroutine skip_comment(text, i)
         character(len=*), intent(in) :: text
         integer, intent(inout) :: i
@@ -385,7 +407,11 @@ contains
         type(nml_group_t), intent(in) :: g
         type(nml_item_t), intent(in) :: it
         character(len=:), allocatable :: text
-        text = file%path//', line '//fmt_int(it%line)//': &'//g%name//' '//it%key
+        if (allocated(g%label)) then
+            text = file%path//', line '//fmt_int(it%line)//': '//g%label//' '//it%key
+        else
+            text = file%path//', line '//fmt_int(it%line)//': &'//g%name//' '//it%key
+        end if
     end function nml_where
 
     !> Unknown and repeated keys of a group; `known` is ' key1 key2 ... '.

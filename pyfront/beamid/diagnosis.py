@@ -166,6 +166,8 @@ def compare(fit: FitResult) -> Comparison:
     systematic structure against load: a Wald-Wolfowitz runs test on the
     signs of the residuals ordered by load (within each quantity) and a
     weighted trend (slope of the normalized residuals against load)."""
+    if not isinstance(fit, FitResult):
+        raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)

@@ -213,6 +213,21 @@ def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: 
     return tuple(out)
 
 
+def _check_fit_args(data, tol, max_iter) -> None:
+    """Argument checks of fit (InputError naming the argument)."""
+    if not isinstance(data, Measurements):
+        raise InputError(f"data = {type(data).__name__}, expected beamid.Measurements "
+                         "(beamid.read_measurements)")
+    try:
+        ok = float(tol) >= 0.0 and np.isfinite(float(tol))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"tol = {tol!r}, expected 0 (default) or a positive tolerance")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise InputError(f"max_iter = {max_iter!r}, expected an integer >= 1")
+
+
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: Mapping[str, tuple[float, float]] | None = None, *,
@@ -245,6 +260,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     tol:
         Static solver tolerance (0: default).
     """
+    _check_fit_args(data, tol, max_iter)
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if int(max_iter) < 1:
@@ -288,6 +304,34 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     return _ce.predict(prob, model.vector(), idx)
 
 
+def _check_quantities(exps, quantities, sigma) -> None:
+    """Argument checks of simulate_measurements (InputError naming the argument)."""
+    if isinstance(quantities, str) or not isinstance(quantities, (Mapping, Sequence)):
+        raise InputError(f"quantities = {quantities!r}, expected a list of quantity names "
+                         "or {experiment: [names]}")
+    lists = quantities.values() if isinstance(quantities, Mapping) else [quantities]
+    if isinstance(quantities, Mapping):
+        missing = [n for n in exps if n not in quantities]
+        if missing:
+            raise InputError(f"quantities has no entry for experiment {missing[0]!r} "
+                             f"(experiments: {', '.join(exps)})")
+    for qs in lists:
+        for q in ([qs] if isinstance(qs, str) else qs):
+            if q not in QUANTITIES:
+                raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
+                                 f"{', '.join(QUANTITIES)}")
+            if isinstance(sigma, Mapping) and q not in sigma:
+                raise InputError(f"sigma has no entry for quantity {q!r}")
+    values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]
+    for v in values:
+        try:
+            ok = float(v) > 0.0 and np.isfinite(float(v))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(f"sigma = {v!r}, expected a finite standard deviation > 0")
+
+
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
              sigma: float | Mapping[str, float] = 1e-3, *, seed: int | None = None,
              noise: bool = False) -> Measurements:
@@ -299,6 +343,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     from ``numpy.random.default_rng(seed)``.
     """
     exps = _check_experiments(experiments)
+    _check_quantities(exps, quantities, sigma)
     rows = []
     for name, load in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities

@@ -76,7 +76,18 @@ def _mesh_size(nbeams, elements_per_beam):
     if elements_per_beam < 1:
         raise _input_error(f"elements_per_beam = {elements_per_beam}, expected at least 1")
     nnode = nbeams * int(elements_per_beam) + 1
+    # the bound of the deck reader (beamid_deck check_mesh_size): about 40
+    # numbers per unknown in the banded solvers
+    need = 8 * 40 * 4 * nnode
+    if need > _MAX_BYTES:
+        raise _input_error(f"elements_per_beam = {elements_per_beam}: the mesh would need "
+                           f"about {need / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     return nnode, 4 * nnode - 3
+
+
+#: memory bound of a mesh (bytes), as the deck reader's
+_MAX_BYTES = 4 * 2**30
 
 
 def _hinges(model, elements_per_beam):
@@ -447,6 +458,10 @@ class FEModes:
         return self._tables(i)[1]
 
     def _tables(self, i):
+        n = len(self.omega)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= n:
+            raise _input_error(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
+                               "ascending frequency)")
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
         out = np.zeros((2, nnode))
@@ -490,6 +505,11 @@ def modes(model, elements_per_beam=4, *, rotary_inertia=False):
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
+    if 8 * 3 * nfree**2 > _MAX_BYTES:
+        raise _input_error(f"elements_per_beam = {elements_per_beam}: the modes (dense "
+                           f"eigenproblem of {nfree} unknowns) would need about "
+                           f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     omega, phi, axial, dofs = _call("api_fe_modes", nbeams, params, int(elements_per_beam),
                                     int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,
