@@ -16,7 +16,7 @@ module beamid_fe_static
 
     public :: fe_newton_opts_t, fe_solve_info_t
     public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
-    public :: fe_geometric_stiffness
+    public :: fe_geometric_stiffness, fe_negative_eigenvalues
 
     !> Controls of the Newton iteration and of the load stepping.
     type :: fe_newton_opts_t
@@ -31,6 +31,10 @@ module beamid_fe_static
         integer :: iterations = 0      !< Newton iterations over all steps
         integer :: steps = 0           !< accepted load steps
         real(dp) :: residual = 0.0_dp  !< final |NLT - Q|_inf
+        !> Negative eigenvalues of the tangent at the equilibrium (its
+        !! symmetric part; fe_negative_eigenvalues): 0 stable, >= 1 unstable
+        !! (a compressive load past the buckling load on the straight branch).
+        integer :: negative = 0
     end type fe_solve_info_t
 
     !> Largest change of the slopes (w', u') allowed in one Newton step.
@@ -182,6 +186,7 @@ contains
             end if
             call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat)
             info%steps = 1
+            if (stat%code == 0) info%negative = fe_negative_eigenvalues(mesh, load, q)
             return
         end if
 
@@ -224,7 +229,55 @@ contains
             info%residual = resid
             if (its <= 4) dlam = min(2.0_dp*dlam, dlam_max)
         end do
+        info%negative = fe_negative_eigenvalues(mesh, load, q)
     end subroutine fe_solve_static
+
+    !> Number of negative eigenvalues of the tangent d(NLT - Q)/dq at q (its
+    !! symmetric part, exact for the conservative fixed-direction tip force):
+    !! Sylvester's law of inertia on the band L D L^T factorization without
+    !! pivoting, O(n b^2). A zero pivot (exactly at a critical point) counts
+    !! as neither sign.
+    pure integer function fe_negative_eigenvalues(mesh, load, q) result(negative)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), allocatable :: r(:), jb(:, :), w(:, :), d(:)
+        integer :: n, b, i, j, k, row
+        real(dp) :: sum_
+        n = mesh%nfree
+        b = max(mesh%kl, mesh%ku)
+        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n), d(n))
+        call fe_residual(mesh, load, q, r, jb)
+        ! lower band of the symmetric part: w(i - j, j) = (A(i, j) + A(j, i))/2
+        row = mesh%kl + mesh%ku + 1
+        w = 0.0_dp
+        do j = 1, n
+            do i = j, min(n, j + b)
+                if (i - j <= mesh%kl) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + i - j, j)
+                if (i - j <= mesh%ku) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + j - i, i)
+            end do
+        end do
+        ! L D L^T in place: w(i - k, k) holds L(i, k)
+        do j = 1, n
+            sum_ = w(0, j)
+            do k = max(1, j - b), j - 1
+                sum_ = sum_ - w(j - k, k)**2*d(k)
+            end do
+            d(j) = sum_
+            do i = j + 1, min(n, j + b)
+                sum_ = w(i - j, j)
+                do k = max(1, i - b), j - 1
+                    sum_ = sum_ - w(i - k, k)*w(j - k, k)*d(k)
+                end do
+                if (d(j) /= 0.0_dp) then
+                    w(i - j, j) = sum_/d(j)
+                else
+                    w(i - j, j) = 0.0_dp
+                end if
+            end do
+        end do
+        negative = count(d < 0.0_dp)
+    end function fe_negative_eigenvalues
 
     !> Pseudo-arc-length continuation (Keller) of equilibria under the load
     !! load0 + lam * dload, starting from the equilibrium q0 at lam0 (corrected

@@ -182,7 +182,7 @@ contains
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        integer(c_int) :: nnode, info(2), code
+        integer(c_int) :: nnode, info(3), code
         real(c_double), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(c_double) :: energy, reactions(3), residual, loads(4)
         character(len=256) :: message

@@ -466,3 +466,27 @@ def test_bad_api_value_raises_input_error(static_result, call, words):
         call(static_result)
     for word in words:
         assert word.lower() in str(info.value).lower(), (word, str(info.value))
+
+
+# ------------------------------------------------------------ beyond buckling
+
+@pytest.mark.parametrize("factor,negative", [(0.5, 0), (0.95, 0), (1.05, 1), (2.0, 1),
+                                             (4.5, 1), (10.0, 2)])
+def test_compression_beyond_buckling_is_flagged_unstable(factor, negative):
+    """The straight cantilever under a compressive tip force stays an
+    equilibrium past the buckling load Pcr, but an unstable one: the
+    tangent's negative eigenvalue count is the number of critical loads
+    passed (the clamped-free column's second is 9 Pcr)."""
+    m = beamid.cantilever()
+    pcr = beamid.buckling_load(m, 4).load
+    r = beamid.fe_static(m, beamid.TipForce(fx=-factor * pcr), 4)
+    assert r.tip["w"] == 0.0
+    assert r.negative_eigenvalues == negative
+    assert r.stable == (negative == 0)
+
+
+def test_buckled_branch_is_stable():
+    m = beamid.cantilever()
+    pcr = beamid.buckling_load(m, 4).load
+    r = beamid.fe_static(m, beamid.TipForce(fx=-2 * pcr, fy=0.01 * pcr), 4)
+    assert r.tip["w"] > 0.1 and r.stable

@@ -239,6 +239,15 @@ class FEStatic:
     outboard: np.ndarray = None
     hinges: tuple = ()          #: 0-based nodes of the hinged joints
     root_hinge: bool = False    #: the root is a hinge spring (root_flex > 0)
+    #: negative eigenvalues of the tangent at this equilibrium (Sylvester's
+    #: inertia of its L D L^T): 0 stable, >= 1 unstable
+    negative_eigenvalues: int = 0
+
+    @property
+    def stable(self) -> bool:
+        """False when the tangent has a negative eigenvalue: e.g. the straight
+        chain under a compressive tip force beyond the buckling load."""
+        return self.negative_eigenvalues == 0
 
     @property
     def q(self):
@@ -308,7 +317,7 @@ def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
                     iterations=int(info[0]), steps=int(info[1]),
                     elements_per_beam=int(elements_per_beam), load=comps,
                     outboard=_structured_out(np.asarray(nodes_out)), hinges=hinges,
-                    root_hinge=root_hinge)
+                    root_hinge=root_hinge, negative_eigenvalues=int(info[2]))
 
 
 @dataclass
