@@ -12,7 +12,8 @@
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, ERR_DECK, STATUS_OK, fmt_int, fmt_real, lower
+    use beamid_status, only: status_t, set_status, ERR_DECK, STATUS_OK, fmt_int, fmt_real, lower, &
+                             fmt_bytes, MAX_BYTES
     use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
                             param_index_joint_flex, param_index_global, chain_t, &
                             chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
@@ -43,7 +44,6 @@ module beamid_deck
     !! output times, and the memory a mesh or a table may need (bytes).
     integer, parameter :: MAX_BEAMS = 1000
     integer, parameter :: MAX_TIMES = 10000000
-    real(dp), parameter :: MAX_BYTES = 4.0_dp*1024.0_dp**3
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
 
@@ -571,18 +571,10 @@ contains
         bytes = 8.0_dp*(40.0_dp*nfree + 2.0_dp*nfree*real(nt, dp))
         if (dense) bytes = bytes + 8.0_dp*3.0_dp*nfree**2
         if (bytes > MAX_BYTES) call add_error(errors, where//'elements_per_beam = '// &
-            fmt_int(epb)//': the computation would need about '//gib(bytes)// &
-            ' of memory (limit '//gib(MAX_BYTES)//')')
+            fmt_int(epb)//': the computation would need about '//fmt_bytes(bytes)// &
+            ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
     end subroutine check_mesh_size
 
-    !> Bytes as 'x.x GiB' for messages.
-    function gib(bytes) result(text)
-        real(dp), intent(in) :: bytes
-        character(len=:), allocatable :: text
-        character(len=32) :: buffer
-        write (buffer, '(es10.2)') bytes/1024.0_dp**3
-        text = trim(adjustl(buffer))//' GiB'
-    end function gib
 
     !> &static (optional; task static).
     subroutine read_static_group(f, deck, errors)
@@ -617,8 +609,8 @@ contains
                                ', expected 0 (no shape) or at least 2')
             else if (5.0_dp*8.0_dp*real(n, dp) > MAX_BYTES) then
                 call add_error(errors, where//'shape_points = '//fmt_int(n)// &
-                               ': the shape would need about '//gib(40.0_dp*real(n, dp))// &
-                               ' of memory (limit '//gib(MAX_BYTES)//')')
+                               ': the shape would need about '//fmt_bytes(40.0_dp*real(n, dp))// &
+                               ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
             end if
             if (.not. (tol >= 0.0_dp .and. tol < 1.0e-2_dp)) call add_error(errors, where// &
                 'tol = '//fmt_real(tol)//', expected 0 (default) or a tolerance below 1e-2')
@@ -706,7 +698,7 @@ contains
                 else if (n_out > MAX_TIMES) then
                     call add_error(errors, where//'n_out = '//fmt_int(n_out)// &
                                    ': the history would need about '// &
-                                   gib(8.0_dp*16.0_dp*real(n_out, dp))//' or more of memory '// &
+                                   fmt_bytes(8.0_dp*16.0_dp*real(n_out, dp))//' or more of memory '// &
                                    '(at most '//fmt_int(MAX_TIMES)//' output times)')
                 else
                     ! numpy.linspace(0, t_end, n_out), to the last bit

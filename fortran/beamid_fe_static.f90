@@ -5,7 +5,8 @@ module beamid_fe_static
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
-                             ERR_NUMERIC, fmt_int, fmt_real
+                             ERR_NUMERIC, fmt_int, fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, &
+                             set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
                                   fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
@@ -450,7 +451,7 @@ contains
         real(dp), intent(out) :: mode(:)
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: kb(:, :), gb(:, :), k(:, :), g(:, :), w(:)
-        integer :: n, itip
+        integer :: n, itip, ierr
         n = mesh%nfree
         pcr = 0.0_dp
         if (size(mode) /= n) then
@@ -458,8 +459,20 @@ contains
                             fmt_int(size(mode))//' entries, expected '//fmt_int(n))
             return
         end if
+        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
+            call set_status(stat, ERR_SIZE, 'fe_buckling_load', 'the dense eigenproblem of '// &
+                            fmt_int(n)//' unknowns would need about '// &
+                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
+                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
+            return
+        end if
         allocate (kb(fe_band_rows(mesh), n), gb(fe_band_rows(mesh), n), k(n, n), g(n, n), &
-                  w(n))
+                  w(n), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'fe_buckling_load', 'the buckling matrices', &
+                                 8.0_dp*2.0_dp*real(n, dp)**2)
+            return
+        end if
         call fe_stiffness_linear(mesh, kb)
         call fe_geometric_stiffness(mesh, gb)
         call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)

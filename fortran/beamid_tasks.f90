@@ -15,7 +15,8 @@ module beamid_tasks
     use, intrinsic :: iso_c_binding, only: c_int, c_double, c_char, c_null_char
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, set_status, fmt_int
+    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, set_status, fmt_int, &
+                             set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
     use beamid_deck, only: deck_t
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
@@ -129,7 +130,7 @@ contains
         type(static_solution_t) :: sol
         real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
         character(len=:), allocatable :: prefix
-        integer :: i, j, n, unit, ios
+        integer :: i, j, n, unit, ios, ierr
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
@@ -137,7 +138,11 @@ contains
         call solve_static(chain, d%load, d%wrt, opts, sol, st)
         if (st%code /= STATUS_OK) return
         n = d%shape_points
-        allocate (s(n), x(n), y(n), psi(n), moment(n))
+        allocate (s(n), x(n), y(n), psi(n), moment(n), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(st, 'static', 'the shape table', 40.0_dp*real(n, dp))
+            return
+        end if
         if (n > 1) s = [(sum(chain%length)*real(i - 1, dp)/real(n - 1, dp), i = 1, n)]
         if (n > 1) then
             s(n) = sum(chain%length)
@@ -187,13 +192,18 @@ contains
         real(c_double) :: energy, reactions(3), residual, loads(4)
         character(len=256) :: message
         character(len=:), allocatable :: prefix
-        integer :: unit, ios, i
+        integer :: unit, ios, i, ierr
         real(dp) :: total, values(8)
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
         nnode = int(d%nbeams*d%fe_elements_per_beam + 1, c_int)
-        allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode))
+        allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode), &
+                  stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(st, 'fe_static', 'the node tables', 112.0_dp*real(nnode, dp))
+            return
+        end if
         guess = 0.0_c_double
         guess_out = 0.0_c_double
         loads = [d%load%fx, d%load%fy, d%load%moment, real(d%fe_moment_form, dp)]
@@ -240,7 +250,7 @@ contains
         integer(c_int), allocatable :: axial(:), dofs(:, :)
         character(len=256) :: message
         character(len=:), allocatable :: prefix
-        integer :: unit, ios, i, nw, nu
+        integer :: unit, ios, i, nw, nu, ierr
 
         ! four unknowns per node (six at a hinge); the clamp (Eq. 103) fixes u, w, w'
         call api_fe_mesh_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
@@ -251,7 +261,11 @@ contains
             st%message = message
             return
         end if
-        allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree))
+        allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(st, 'fe_modes', 'the mode shapes', 8.0_dp*real(nfree, dp)**2)
+            return
+        end if
         call api_fe_modes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
                           int(d%fe_elements_per_beam, c_int), merge(1_c_int, 0_c_int, &
                           d%fe_rotary_inertia), nfree, omega, phi, axial, dofs, code, message)
@@ -297,7 +311,7 @@ contains
         real(c_double) :: loads(4)
         character(len=256) :: message
         character(len=:), allocatable :: prefix, header, line
-        integer :: unit, ios, k, i
+        integer :: unit, ios, k, i, ierr
 
         call api_dyn_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
                            int(d%sim_elements_per_beam, c_int), d%sim_motor_gain, nfree, &
@@ -309,7 +323,12 @@ contains
         end if
         nt = int(size(d%sim_t_out), c_int)
         allocate (states(nstate, nt), tip(3, nt), torque(nt), ledger(4, nt), work(nwork, nt), &
-                  y_init(nstate))
+                  y_init(nstate), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(st, 'simulate', 'the history', &
+                                 8.0_dp*real(nstate + nwork + 8, dp)*real(nt, dp))
+            return
+        end if
         y_init = 0.0_c_double
         loads = [d%load%fx, d%load%fy, d%load%moment, 0.0_dp]
         call api_dyn_simulate(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &

@@ -366,8 +366,14 @@ def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, d
         guess_out = np.zeros((2, nnode), order="F")
     else:
         guess, guess_out = _node_tables(start, nnode)
-    if int(max_points) < 1:
-        raise _input_error(f"max_points = {max_points}, expected at least 1")
+    if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
+            or max_points < 1:
+        raise _input_error(f"max_points = {max_points!r}, expected an integer >= 1")
+    need = 8 * 7 * nnode * int(max_points)
+    if need > _MAX_BYTES:
+        raise _input_error(f"max_points = {max_points}: the path would need about "
+                           f"{need / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     npts, lam, nodes, nodes_out = _call(
         "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
         float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
