@@ -30,6 +30,7 @@ module beamid_namelist
     !> One `key = values` item of a group.
     type :: nml_item_t
         character(len=:), allocatable :: key        !< lower case, without subscript
+        character(len=:), allocatable :: name       !< as written (for messages)
         integer :: first = 1                        !< first index (`key(i) = ...`)
         integer :: line = 0
         type(nml_text_t), allocatable :: values(:)  !< raw tokens (strings unquoted)
@@ -215,6 +216,7 @@ contains
                     k = index(token, '(')
                     if (k > 0) then
                         item%key = lower(token(:k - 1))
+                        item%name = token(:k - 1)
                         read (token(k + 1:max(k, len(token) - 1)), *, iostat=ios) item%first
                         if (ios /= 0 .or. token(len(token):) /= ')' .or. item%first < 1) then
                             call add_error(errors, path//', line '//fmt_int(line)//': &'// &
@@ -224,6 +226,7 @@ contains
                         end if
                     else
                         item%key = lower(token)
+                        item%name = token
                     end if
                     have_item = .true.
                     do while (text(j:j) /= '=')
@@ -408,9 +411,9 @@ contains
         type(nml_item_t), intent(in) :: it
         character(len=:), allocatable :: text
         if (allocated(g%label)) then
-            text = file%path//', line '//fmt_int(it%line)//': '//g%label//' '//it%key
+            text = file%path//', line '//fmt_int(it%line)//': '//g%label//' '//it%name
         else
-            text = file%path//', line '//fmt_int(it%line)//': &'//g%name//' '//it%key
+            text = file%path//', line '//fmt_int(it%line)//': &'//g%name//' '//it%name
         end if
     end function nml_where
 
@@ -425,7 +428,7 @@ contains
             associate (it => g%items(k))
                 if (index(known, ' '//it%key//' ') == 0) then
                     call add_error(errors, file%path//', line '//fmt_int(it%line)//': &'// &
-                                   g%name//" has no variable '"//it%key//"'; valid: "// &
+                                   g%name//" has no variable '"//it%name//"'; valid: "// &
                                    trim(adjustl(known)))
                     cycle
                 end if
