@@ -25,7 +25,7 @@ module beamid_deck
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
     use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
-                               nml_strs, nml_logical, nml_given, add_error
+                               nml_strs, nml_logical, nml_given, add_error, nml_ints
     implicit none
     private
 
@@ -53,6 +53,10 @@ module beamid_deck
         !> Every problem found, one per line (empty when the deck is valid);
         !! the status holds the first one.
         character(len=:), allocatable :: errors
+        !> The &published groups, one line per item (tab separated): 'P table
+        !! row note' opens a group, then 'Q quantity value digits' per value and
+        !! 'D name' per documented deviation (read by beamid reproduce).
+        character(len=:), allocatable :: published
         character(len=:), allocatable :: task       !< 'static'
         character(len=:), allocatable :: output     !< output prefix, relative to the deck
         integer :: nbeams = 0
@@ -187,12 +191,10 @@ contains
                                ' times (once only)')
             end if
         end do
+        deck%published = ''
         do k = 1, size(f%groups)
-            select case (f%groups(k)%name)
-            case ('published')
-                call nml_check_keys(f, f%groups(k), &
-                                    ' table row quantity value digits deviation note ', errors)
-            end select
+            if (f%groups(k)%name == 'published') call read_published(f, f%groups(k), &
+                                                                     deck%published, errors)
         end do
 
         ! ---- &beamid
@@ -267,6 +269,67 @@ contains
         call read_fe_group(f, deck, errors)
         call read_static_group(f, deck, errors)
     end subroutine read_all
+
+    !> One &published group: table, row, note, and equally long quantity,
+    !! value and digits lists; deviation names quantities whose difference is
+    !! documented. Appended to `text` in the format of deck_t%published.
+    subroutine read_published(f, g, text, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=:), allocatable, intent(inout) :: text, errors
+        character(len=:), allocatable :: table, row, note, where
+        type(nml_text_t), allocatable :: quantity(:), deviation(:)
+        real(dp), allocatable :: value(:)
+        integer, allocatable :: digits(:)
+        character(len=32) :: buffer
+        character, parameter :: TAB = achar(9)
+        integer :: nv, i, j, nerr
+        logical :: given
+        nerr = count_lines_alloc(errors)
+        where = f%path//', line '//fmt_int(g%line)//': &published '
+        call nml_check_keys(f, g, ' table row quantity value digits deviation note ', errors)
+        table = ''
+        row = ''
+        note = ''
+        call nml_str(f, g, 'table', table, given, errors)
+        call nml_str(f, g, 'row', row, given, errors)
+        call nml_str(f, g, 'note', note, given, errors)
+        call nml_strs(f, g, 'quantity', quantity, given, errors)
+        call nml_strs(f, g, 'deviation', deviation, given, errors)
+        call nml_ints(f, g, 'digits', digits, errors)
+        nv = 0
+        do j = 1, size(g%items)
+            if (g%items(j)%key == 'value') nv = size(g%items(j)%values)
+        end do
+        allocate (value(nv))
+        call nml_reals(f, g, 'value', value, nv, errors)
+        if (size(quantity) == 0 .or. size(quantity) /= size(value) .or. &
+            size(quantity) /= size(digits)) then
+            call add_error(errors, where//'needs equally long quantity, value and digits '// &
+                           'lists (got '//fmt_int(size(quantity))//', '//fmt_int(size(value))// &
+                           ', '//fmt_int(size(digits))//')')
+        end if
+        if (count_lines_alloc(errors) > nerr) return
+        text = text//'P'//TAB//untab(table)//TAB//untab(row)//TAB//untab(note)//new_line('a')
+        do i = 1, size(quantity)
+            write (buffer, '(es25.17e3)') value(i)
+            text = text//'Q'//TAB//untab(quantity(i)%s)//TAB//trim(adjustl(buffer))//TAB// &
+                   fmt_int(digits(i))//new_line('a')
+        end do
+        do i = 1, size(deviation)
+            text = text//'D'//TAB//untab(deviation(i)%s)//new_line('a')
+        end do
+    contains
+        pure function untab(s) result(out)
+            character(len=*), intent(in) :: s
+            character(len=len(s)) :: out
+            integer :: k
+            out = s
+            do k = 1, len(s)
+                if (s(k:k) == TAB .or. s(k:k) == new_line('a')) out(k:k) = ' '
+            end do
+        end function untab
+    end subroutine read_published
 
     !> The groups a task takes.
     subroutine check_task_groups(f, task, is_fit, errors)

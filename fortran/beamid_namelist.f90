@@ -21,7 +21,7 @@ module beamid_namelist
 
     public :: nml_file_t, nml_group_t, nml_item_t, nml_text_t, nml_read_file, nml_count, &
               nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, nml_strs, &
-              nml_logical, nml_given, add_error, nml_where
+              nml_logical, nml_given, add_error, nml_where, nml_ints
 
     type :: nml_text_t
         character(len=:), allocatable :: s
@@ -641,6 +641,32 @@ contains
             i = v
         end associate
     end subroutine nml_int
+
+    !> A list of integers (all values given, from index 1).
+    subroutine nml_ints(file, g, key, list, errors)
+        type(nml_file_t), intent(in) :: file
+        type(nml_group_t), intent(in) :: g
+        character(len=*), intent(in) :: key
+        integer, allocatable, intent(out) :: list(:)
+        character(len=:), allocatable, intent(inout) :: errors
+        integer :: k, j, v
+        logical :: ok, too_big
+        allocate (list(0))
+        k = item_index(g, key)
+        if (k == 0) return
+        associate (it => g%items(k))
+            do j = 1, size(it%values)
+                call parse_int(it%values(j)%s, it%quoted(j), v, ok, too_big)
+                if (.not. ok) then
+                    call add_error(errors, nml_where(file, g, it)//'('//fmt_int(j)//') = '// &
+                                   quoted_text(it%values(j)%s, it%quoted(j))// &
+                                   ': expected an integer')
+                    cycle
+                end if
+                list = [list, v]
+            end do
+        end associate
+    end subroutine nml_ints
 
     !> One quoted string.
     subroutine nml_str(file, g, key, s, given, errors)

@@ -250,6 +250,14 @@ HAND = {
     "cut_in_string": ("&beamid task = 'static\n", ["&beamid", "not closed"]),
     "bad_subscript": ("&beamid task = 'static', output = 'o', preset = 'pace' /\n"
                       "&model L(0) = 1.0 /\n&load kind = 'tip', fy = 1.0 /\n", ["index >= 1"]),
+    "published_lengths": (STATIC + "&published table = '2', quantity = 'x_tip', 'y_tip', "
+                          "value = 1.0, digits = 3 /\n", ["&published", "equally long"]),
+    "published_digits": (STATIC + "&published table = '2', quantity = 'x_tip', value = 1.0, "
+                         "digits = 2.5 /\n", ["digits(1) = 2.5", "integer"]),
+    "published_value": (STATIC + "&published table = '2', quantity = 'x_tip', value = 'one', "
+                        "digits = 3 /\n", ["value(1) = 'one'"]),
+    "published_unknown": (STATIC + "&published table = '2', quantity = 'x_tip', value = 1.0, "
+                          "digits = 3, page = 7 /\n", ["&published has no variable 'page'"]),
     "many_problems": ("&beamid task = 'static', output = 'o', preset = 'pace' /\n"
                       "&model m_tip = NaN, EI = 1, 2, 3 /\n&load kind = 'tip', fy = 'x' /\n"
                       "&static shape_points = 2.5 /\n",

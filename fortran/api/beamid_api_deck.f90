@@ -51,7 +51,8 @@ contains
     !! sim_friction, max_iter, load_kind. reals: load fx, fy, moment,
     !! wire_length, tol, fe_tol, sim_dt, sim_rtol, sim_atol, sim_motor_gain,
     !! sim_friction_velocity, alpha. text: task, output, data path, then the
-    !! experiment names and the candidates, one per line.
+    !! experiment names and the candidates, one per line, then the &published
+    !! lines (deck_t%published).
     subroutine api_deck_sizes(path, sizes, reals, text, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(out) :: sizes(21)
@@ -87,6 +88,7 @@ contains
         do i = 1, ncand(d)
             t = t//trim(d%candidates(i))//new_line('a')
         end do
+        t = t//d%published
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
             message = trim(path)//': the names of the deck are too long (over '// &

@@ -133,7 +133,24 @@ def read_deck(path: str) -> dict:
                   for i, m, s in zip(prior_index, prior_mean, prior_sigma)],
         "candidates": lines[3 + nexp:3 + nexp + ncand], "alpha": float(reals[11]),
         "max_iter": max_iter, "ndata": ndata,
+        "published": _published_groups(lines[3 + nexp + ncand:]),
     }
+
+
+def _published_groups(lines: list[str]) -> list[dict]:
+    """The &published groups from the reader's lines ('P table row note',
+    'Q quantity value digits', 'D deviation'; tab separated)."""
+    groups: list[dict] = []
+    for line in lines:
+        kind, *fields = line.split("\t")
+        if kind == "P":
+            groups.append({"table": fields[0], "row": fields[1], "note": fields[2],
+                           "values": {}, "deviations": []})
+        elif kind == "Q":
+            groups[-1]["values"][fields[0]] = (float(fields[1]), int(fields[2]))
+        elif kind == "D":
+            groups[-1]["deviations"].append(fields[0])
+    return groups
 
 
 def run_deck(path: str, task: str = "") -> list[str]:

@@ -1,4 +1,4 @@
-"""Namelist decks (format: docs/decks.md), read and written with f90nml.
+"""Namelist decks (format: docs/decks.md).
 
 Tasks: ``static`` (arc-length), ``fe_static`` and ``fe_modes`` (finite
 elements, group ``&fe``), ``simulate`` (dynamics, group ``&simulate``: the
@@ -6,13 +6,12 @@ arguments of :func:`beamid.simulate`; writes ``<output>_history.csv``) and the
 estimation tasks (:mod:`beamid.fit_decks`).
 
 Decks are read, validated and run by the Fortran of the batch executable
-``beamid-batch`` (``beamid_deck``, ``beamid_tasks``), so a deck fails the same
-way in both and both write the same files; f90nml only writes decks (and
-reads the ``&published`` groups for ``beamid reproduce``).
+``beamid-batch`` (``beamid_deck``, ``beamid_tasks``, through
+``beamid._core``), so a deck fails the same way in both and both write the
+same files; f90nml only writes decks (:func:`write_deck`).
 """
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -20,47 +19,21 @@ from pathlib import Path
 from typing import Any
 
 import f90nml
-import numpy as np
 
 from .errors import InputError
 from .loads import Load, RadialWire, TipLoad
 from .model import Model, _core
-from .static import OUTPUTS, StaticResult, solve_static
+from .static import solve_static
 
-GROUPS = {
-    "beamid": {"task", "output", "preset", "nbeams"},
-    "model": {"l", "ei", "ea", "rho", "c", "m", "j", "mu", "c_drag", "joint_flex",
-              "axial_coupling", "root_flex", "eta", "r_motor", "tau_motor",
-              "m_elbow", "j_elbow", "mu_elbow", "c_elbow", "elbow_flex",
-              "m_tip", "j_tip", "mu_tip", "c_tip"},
-    "load": {"kind", "fx", "fy", "moment", "wire_length"},
-    "static": {"wrt", "shape_points", "tol"},
-    "fe": {"elements_per_beam", "moment_form", "rotary_inertia", "point_masses", "steps",
-           "tol"},
-    "published": {"table", "row", "quantity", "value", "digits", "deviation", "note"},
-    "simulate": {"t_out", "t_end", "n_out", "elements_per_beam", "integrator", "dt", "rtol",
-                 "atol", "motor_gain", "friction", "friction_velocity"},
-}
 TASKS = ("static", "fe_static", "fe_modes", "simulate")
 #: tasks of estimation decks (&experiment, &fit groups), read by beamid.fit_decks
 ESTIMATION_TASKS = ("fit", "compare", "diagnose", "improve")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
-#: &simulate options of a dynamic deck, defaults resolved as beamid.simulate does
-#: (friction None: "sign" for rk4, "smooth" for implicit; 0 or None: the default)
-SIMULATE_DEFAULTS = {"elements_per_beam": 4, "integrator": "implicit", "friction": None,
-                     "dt": None, "rtol": None, "atol": None, "motor_gain": 0.0,
-                     "friction_velocity": None}
-#: default number of output times with t_end
-DEFAULT_N_OUT = 101
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
-#: named scalars of &model for the elbow (joint 1) and the tip; they override the arrays
-_NAMED = {"m_elbow": "m_elbow", "j_elbow": "J_elbow", "mu_elbow": "mu_elbow",
-          "c_elbow": "c_elbow", "elbow_flex": "elbow_flex", "m_tip": "m_tip",
-          "j_tip": "J_tip", "mu_tip": "mu_tip", "c_tip": "c_tip"}
 
 
 @dataclass(frozen=True)
@@ -98,22 +71,11 @@ class Deck:
         return out if out.is_absolute() else self.path.parent / out
 
 
-def parse_published(path: Path, items: list) -> tuple[Published, ...]:
-    """The &published groups of a deck (any task)."""
-    published = []
-    for item in items:
-        quantities = [str(q) for q in _as_list(item.get("quantity", []))]
-        vals = _as_list(item.get("value", []))
-        digits = _as_list(item.get("digits", []))
-        if not (len(quantities) == len(vals) == len(digits)) or not quantities:
-            raise InputError(f"{path}: &published needs equally long quantity, value and "
-                             "digits lists")
-        published.append(Published(
-            table=str(item.get("table", "")), row=str(item.get("row", "")),
-            values={q: (float(v), int(dg)) for q, v, dg in zip(quantities, vals, digits)},
-            deviations=tuple(str(d) for d in _as_list(item.get("deviation", [])) if d),
-            note=str(item.get("note", "") or "")))
-    return tuple(published)
+def _published(values: dict) -> tuple[Published, ...]:
+    """The &published groups as read by the Fortran reader."""
+    return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
+                           deviations=tuple(g["deviations"]), note=g["note"])
+                 for g in values["published"])
 
 
 def _point_name(nbeams: int, k: int) -> str:
@@ -122,28 +84,12 @@ def _point_name(nbeams: int, k: int) -> str:
     return "elbow" if k == 1 else f"joint{k}"
 
 
-def _as_list(value: Any) -> list:
-    if value is None:
-        return []
-    return list(value) if isinstance(value, (list, tuple)) else [value]
-
-
 def _load(kind: int, values: list[float]) -> Load:
     from .loads import LOAD_WIRE
 
     if kind == LOAD_WIRE:
         return RadialWire(values[3])
     return TipLoad(values[0], values[1], values[2])
-
-
-def _published(path: Path) -> tuple[Published, ...]:
-    """The &published groups (after the Fortran reader validated the deck)."""
-    try:
-        nml = f90nml.Parser().read(str(path))
-        items = nml.get("published", [])
-    except Exception:  # the Fortran reader already accepted the file
-        return ()
-    return parse_published(path, items if isinstance(items, list) else [items])
 
 
 def _check_path(path: Any, what: str = "path") -> Path:
@@ -174,7 +120,7 @@ def read_deck(path: str | os.PathLike):
     return Deck(path=path, task=values["task"], output=values["output"], model=model,
                 load=load, wrt=tuple(names[i] for i in values["wrt"]),
                 shape_points=values["shape_points"], tol=values["tol"] or None,
-                published=_published(path), fe=values["fe"], simulate=simulate)
+                published=_published(values), fe=values["fe"], simulate=simulate)
 
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:

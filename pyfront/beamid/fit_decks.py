@@ -64,7 +64,7 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
-                   max_iter=values["max_iter"], published=_published(path))
+                   max_iter=values["max_iter"], published=_published(values))
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
