@@ -405,6 +405,7 @@ contains
         type(chain_t) :: chain
         type(status_t) :: st
 
+        allocate (params(size(base)))
         params = base
         nerr = count_lines_alloc(errors)
         im = nml_find(f, 'model')

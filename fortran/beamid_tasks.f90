@@ -420,7 +420,7 @@ contains
             do k = 0, size(d%candidates)
                 call estimation_diagnose(d, fo, dg, st)
                 if (st%code /= STATUS_OK) return
-                step_effect = [step_effect, effect]
+                step_effect = [character(len=32) :: step_effect, effect]
                 step_chi2 = [step_chi2, real(fo%stats(1), dp)]
                 step_dof = [step_dof, nint(fo%stats(4))]
                 step_cpd = [step_cpd, chi2_per_dof(fo)]
