@@ -301,7 +301,7 @@ def test_bad_deck_same_verdict_from_both_fronts(tmp_path, batch_exe, kind, text,
     assert lines == message.splitlines()
     with pytest.raises(InputError) as again:
         beamid.run(deck)
-    assert str(again.value) == message
+    assert str(again.value) == message and again.value.exit_code == 2
     assert not [p for p in tmp_path.rglob("*") if p.suffix in (".csv", ".tmp")
                 and p.name != "hidden_effect.csv"]
 
@@ -379,8 +379,9 @@ def test_unwritable_output_leaves_nothing(tmp_path, batch_exe, output, blocker):
     proc = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True)
     assert proc.returncode == 4, proc.stderr
     assert str(tmp_path / blocker.split("/")[0]) in proc.stderr
-    with pytest.raises(InputError, match="cannot"):
+    with pytest.raises(InputError, match="cannot") as info:
         beamid.run(deck)
+    assert info.value.exit_code == 4  # what `beamid run` exits with
     left = [p for p in tmp_path.rglob("*") if p.is_file() and p.suffix in (".csv", ".tmp")]
     assert left == []
 

@@ -173,7 +173,9 @@ def _atomic_write(path: Path, text: str) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        error = InputError(f"cannot write {path}: {exc.strerror or exc}")
+        error.exit_code = 4
+        raise error from None
     try:
         with os.fdopen(fd, "w") as handle:
             handle.write(text)
@@ -182,7 +184,9 @@ def _atomic_write(path: Path, text: str) -> None:
     except OSError as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        error = InputError(f"cannot write {path}: {exc.strerror or exc}")
+        error.exit_code = 4
+        raise error from None
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

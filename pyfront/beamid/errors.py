@@ -7,7 +7,13 @@ from __future__ import annotations
 
 
 class BeamidError(Exception):
-    """Base class of every beamid error."""
+    """Base class of every beamid error.
+
+    ``exit_code`` is the exit code of the command line for this error (the
+    table of docs/decks.md: 2 bad input, 3 numerical failure, 4 an output
+    file cannot be written), the same as beamid-batch's."""
+
+    exit_code: int = 2
 
 
 class InputError(BeamidError, ValueError):
@@ -16,6 +22,12 @@ class InputError(BeamidError, ValueError):
 
 class ConvergenceError(BeamidError, RuntimeError):
     """A numerical method did not converge (the message says which and how far)."""
+
+    exit_code = 3
+
+
+#: status code of an output file that cannot be written (beamid_status ERR_OUTPUT)
+ERR_OUTPUT = -4
 
 
 def raise_for_status(code: int, message: str | bytes) -> None:
@@ -26,5 +38,8 @@ def raise_for_status(code: int, message: str | bytes) -> None:
         message = message.decode("utf-8", "replace")
     text = message.strip() or f"beamid status {code}"
     if code < 0:
-        raise InputError(text)
+        error = InputError(text)
+        if code == ERR_OUTPUT:
+            error.exit_code = 4
+        raise error
     raise ConvergenceError(text)
