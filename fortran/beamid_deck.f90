@@ -505,10 +505,11 @@ contains
 
     !> A tip load or a wire from a group (&load, &experiment): kind, fx, fy,
     !! moment, wire_length; `label` names the group in messages.
-    subroutine read_load_values(f, g, label, load, errors)
+    subroutine read_load_values(f, g, label, arm, load, errors)
         type(nml_file_t), intent(in) :: f
         type(nml_group_t), intent(in) :: g
         character(len=*), intent(in) :: label
+        real(dp), intent(in) :: arm      !< total length of the chain (m)
         type(static_load_t), intent(out) :: load
         character(len=:), allocatable, intent(inout) :: errors
         character(len=:), allocatable :: kind
@@ -538,6 +539,10 @@ contains
             else if (.not. values(4) > 0.0_dp) then
                 call add_error(errors, label//': wire_length = '//fmt_g(values(4))// &
                                ', expected a length > 0 (m)')
+            else if (values(4) >= arm .and. arm > 0.0_dp) then
+                call add_error(errors, label//': wire_length = '//fmt_g(values(4))// &
+                               ', expected a length shorter than the arm ('//fmt_g(arm)// &
+                               ' m; a longer wire is slack)')
             end if
             if (any(values(1:3) /= 0.0_dp)) call add_error(errors, label// &
                 ": kind = 'wire' does not take fx, fy or moment")
@@ -546,6 +551,18 @@ contains
             call add_error(errors, label//": kind = '"//trim(kind)//"', expected 'tip' or 'wire'")
         end select
     end subroutine read_load_values
+
+    !> Total length of the deck's chain (0 when the model has errors).
+    pure real(dp) function arm_length(deck)
+        type(deck_t), intent(in) :: deck
+        integer :: i
+        arm_length = 0.0_dp
+        if (.not. allocated(deck%params)) return
+        do i = 1, deck%nbeams
+            arm_length = arm_length + deck%params(param_index_beam(deck%nbeams, i, IB_L))
+        end do
+        if (ieee_is_nan(arm_length) .or. arm_length < 0.0_dp) arm_length = 0.0_dp
+    end function arm_length
 
     !> &load (required except for fe_modes).
     subroutine read_load(f, deck, errors)
@@ -564,7 +581,7 @@ contains
         associate (g => f%groups(k))
             call nml_check_keys(f, g, ' kind fx fy moment wire_length ', errors)
             call read_load_values(f, g, f%path//', line '//fmt_int(g%line)//': &load', &
-                                  deck%load, errors)
+                                  arm_length(deck), deck%load, errors)
         end associate
         if (deck%load%kind == LOAD_WIRE .and. deck%task /= 'static') call add_error(errors, &
             f%path//': &load kind = "wire" is not available for task "'//deck%task// &
@@ -865,7 +882,7 @@ contains
                 if (names(i)%s == name) call add_error(errors, where// &
                     "&experiment name = '"//name//"' defined twice")
             end do
-            call read_load_values(f, gx, label, load, errors)
+            call read_load_values(f, gx, label, arm_length(deck), load, errors)
             names = [names, nml_text_t(name)]
             loads = [loads, load]
         end do

@@ -104,6 +104,7 @@ contains
         case default
             call run_static(deck, fl, stat)
         end select
+        if (stat%code /= STATUS_OK .and. allocated(deck%exp_names)) call name_experiment(deck, stat)
         call finish_files(fl, stat)
         if (stat%code == STATUS_OK) written = fl%names
     end subroutine run_task
@@ -459,6 +460,21 @@ contains
         end do
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
+
+    !> A solver message '... (experiment k)' names the experiment and the deck
+    !! instead: "... (experiment 'W13' of DECK)".
+    subroutine name_experiment(d, st)
+        type(deck_t), intent(in) :: d
+        type(status_t), intent(inout) :: st
+        integer :: at, close_, k, ios
+        at = index(st%message, '(experiment ')
+        if (at == 0) return
+        close_ = index(st%message(at:), ')') + at - 1
+        read (st%message(at + 12:close_ - 1), *, iostat=ios) k
+        if (ios /= 0 .or. k < 1 .or. k > size(d%exp_names)) return
+        st%message = st%message(:at - 1)//"(experiment '"//trim(d%exp_names(k))//"' of "// &
+                     d%path//')'//st%message(close_ + 1:)
+    end subroutine name_experiment
 
     !> compare: chi-square against its expectation, per-experiment chi-square and
     !! the residual structure tests (beamid_estimation residual_structure) with
