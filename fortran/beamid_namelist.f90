@@ -162,13 +162,14 @@ contains
         integer, intent(inout) :: i, line
         type(nml_group_t), intent(inout) :: g
         character(len=:), allocatable, intent(inout) :: errors
-        integer :: n, j, k, rep, ios
+        integer :: n, j, k, rep, ios, nval
         type(nml_item_t) :: item
         character(len=:), allocatable :: token
         logical :: quoted, have_item, closed
         n = len(text)
         have_item = .false.
         closed = .false.
+        nval = 0
         do while (i <= n)
             select case (text(i:i))
             case (new_line('a'))
@@ -279,21 +280,35 @@ contains
 
     contains
 
+        !> Append a value (capacity doubled when full: long lists stay O(n)).
         subroutine add_value(value, is_quoted)
             character(len=*), intent(in) :: value
             logical, intent(in) :: is_quoted
+            type(nml_text_t), allocatable :: grown(:)
+            logical, allocatable :: grown_q(:)
             if (.not. have_item) then
                 call add_error(errors, path//', line '//fmt_int(line)//': &'//g%name// &
                                ' value '//value//' without a variable name (expected key = value)')
                 return
             end if
-            item%values = [item%values, nml_text_t(value)]
-            item%quoted = [item%quoted, is_quoted]
+            if (nval == size(item%values)) then
+                allocate (grown(max(8, 2*nval)), grown_q(max(8, 2*nval)))
+                grown(:nval) = item%values(:nval)
+                grown_q(:nval) = item%quoted(:nval)
+                call move_alloc(grown, item%values)
+                call move_alloc(grown_q, item%quoted)
+            end if
+            nval = nval + 1
+            item%values(nval)%s = value
+            item%quoted(nval) = is_quoted
         end subroutine add_value
 
         subroutine push_item()
+            item%values = item%values(:nval)
+            item%quoted = item%quoted(:nval)
             g%items = [g%items, item]
             have_item = .false.
+            nval = 0
         end subroutine push_item
     end subroutine scan_group
 
@@ -303,15 +318,20 @@ contains
         integer, intent(inout) :: i, line
         character(len=:), allocatable, intent(out) :: token
         character :: q
+        integer :: start
         q = text(i:i)
         token = ''
         i = i + 1
+        start = i
         do while (i <= len(text))
             if (text(i:i) == q) then
+                token = token//text(start:i - 1)
                 if (i < len(text)) then
                     if (text(i + 1:i + 1) == q) then
+                        ! a doubled quote stands for one
                         token = token//q
                         i = i + 2
+                        start = i
                         cycle
                     end if
                 end if
@@ -319,9 +339,9 @@ contains
                 return
             end if
             if (text(i:i) == new_line('a')) line = line + 1
-            token = token//text(i:i)
             i = i + 1
         end do
+        token = token//text(start:)
     end subroutine read_quoted
 
     !> Text with control characters shown as '?' (for messages).

@@ -521,6 +521,19 @@ def test_buckled_branch_is_stable():
     assert r.tip["w"] > 0.1 and r.stable
 
 
+# ------------------------------------------------------------ long lists
+
+def test_long_value_list_is_read_in_linear_time(tmp_path):
+    """A million output times: the reader grows its value lists
+    geometrically, so the deck is read (and its bad dt reported) quickly; the
+    times themselves are checked against the bound of 10^7."""
+    times = ", ".join(f"{k * 1e-3:g}" for k in range(1_000_000))
+    deck = tmp_path / "long.nml"
+    deck.write_text(SIM.replace("t_end = 0.01\n  n_out = 3", f"t_out = {times}\n  dt = -1.0"))
+    with pytest.raises(InputError, match="dt = -1, expected 0"):
+        beamid.read_deck(deck)
+
+
 # ------------------------------------------------------------ random damage
 
 def test_randomly_damaged_decks_never_crash(tmp_path):
