@@ -566,3 +566,17 @@ def test_randomly_damaged_decks_never_crash(tmp_path):
             assert str(deck) in str(err)
             outcomes["error"] += 1
     assert outcomes["error"] > 200 and outcomes["deck"] > 20, outcomes
+
+
+def test_non_ascii_paths(tmp_path, batch_exe):
+    """Paths reach Fortran as bytes, so a folder named in any language works
+    from both fronts and appears intact in the messages."""
+    folder = tmp_path / "dossier é"
+    folder.mkdir()
+    deck = folder / "déck.nml"
+    deck.write_text(STATIC)
+    assert beamid.run(deck).wire_force > 0
+    assert subprocess.run([str(batch_exe), "-q", str(deck)]).returncode == 0
+    deck.write_text(STATIC.replace("1.3", "'long'"))
+    with pytest.raises(InputError, match="dossier é/déck.nml, line 13: &load wire_length"):
+        beamid.read_deck(deck)

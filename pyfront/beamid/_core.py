@@ -6,6 +6,7 @@ Fortran status codes into :class:`beamid.InputError` or
 """
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 
 import numpy as np
@@ -88,8 +89,13 @@ _deck_api = _ext.beamid_api_deck
 
 def _text(value) -> str:
     if isinstance(value, bytes):
-        value = value.decode("utf-8", "replace")
+        value = value.decode("utf-8", "surrogateescape")
     return str(value).rstrip("\x00 ")
+
+
+def _path(path) -> bytes:
+    """A file path for Fortran: its bytes (f2py refuses non-ASCII str)."""
+    return os.fsencode(str(path))
 
 
 def _raise(code: int, message) -> None:
@@ -100,13 +106,13 @@ def _raise(code: int, message) -> None:
 def read_deck(path: str) -> dict:
     """Read and validate a deck with the Fortran reader (beamid_deck); every
     problem found is in the InputError's message, one per line."""
-    sizes, reals, text, code, message = _deck_api.api_deck_sizes(str(path))
+    sizes, reals, text, code, message = _deck_api.api_deck_sizes(_path(path))
     _raise(code, message)
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
     (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean, prior_sigma,
-     code, message) = _deck_api.api_deck_arrays(str(path), nparams, nwrt, nt, nexp, nfree,
+     code, message) = _deck_api.api_deck_arrays(_path(path), nparams, nwrt, nt, nexp, nfree,
                                                  nprior)
     _raise(code, message)
     lines = _text(text).split("\n")
@@ -156,7 +162,7 @@ def _published_groups(lines: list[str]) -> list[dict]:
 def run_deck(path: str, task: str = "") -> list[str]:
     """Run a deck's task (or `task`, an estimation task for an estimation
     deck) as beamid-batch does (beamid_tasks); the files written."""
-    written, code, message = _deck_api.api_run_deck(str(path), task)
+    written, code, message = _deck_api.api_run_deck(_path(path), task)
     _raise(code, message)
     return [line for line in _text(written).split("\n") if line]
 
@@ -170,10 +176,10 @@ def quantity_labels() -> tuple[str, ...]:
 def read_measurements(path: str):
     """Rows of a measurement CSV, validated by beamid_measurements: experiment
     names, t, quantity names, value, sigma, source lines."""
-    nrow, code, message = _deck_api.api_measurements_size(str(path))
+    nrow, code, message = _deck_api.api_measurements_size(_path(path))
     _raise(code, message)
     t, value, sigma, line, quantity, exp_index, names, code, message = \
-        _deck_api.api_measurements_read(str(path), int(nrow))
+        _deck_api.api_measurements_read(_path(path), int(nrow))
     _raise(code, message)
     exps = _text(names).split("\n")
     labels = quantity_labels()
