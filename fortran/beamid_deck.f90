@@ -529,12 +529,14 @@ contains
         select case (trim(kind))
         case ('tip')
             load%kind = LOAD_TIP
-            if (has_wire) call add_error(errors, label//": kind = 'tip' does not take "// &
-                                         'wire_length')
+            if (nml_given(g, 'wire_length')) call add_error(errors, label// &
+                ": kind = 'tip' does not take wire_length")
         case ('wire')
             load%kind = LOAD_WIRE
             load%wire_length = values(4)
-            if (.not. has_wire) then
+            if (.not. has_wire .and. nml_given(g, 'wire_length')) then
+                continue    ! its value is already reported
+            else if (.not. has_wire) then
                 call add_error(errors, label//": kind = 'wire' needs wire_length (m)")
             else if (.not. values(4) > 0.0_dp) then
                 call add_error(errors, label//': wire_length = '//fmt_g(values(4))// &

@@ -578,5 +578,6 @@ def test_non_ascii_paths(tmp_path, batch_exe):
     assert beamid.run(deck).wire_force > 0
     assert subprocess.run([str(batch_exe), "-q", str(deck)]).returncode == 0
     deck.write_text(STATIC.replace("1.3", "'long'"))
-    with pytest.raises(InputError, match="dossier é/déck.nml, line 13: &load wire_length"):
+    with pytest.raises(InputError, match="dossier é/déck.nml, line 12: &load wire_length = .long.: expected") as info:
         beamid.read_deck(deck)
+    assert len(str(info.value).splitlines()) == 1  # no follow-up "needs wire_length"
