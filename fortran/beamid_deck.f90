@@ -53,6 +53,8 @@ module beamid_deck
         !> Every problem found, one per line (empty when the deck is valid);
         !! the status holds the first one.
         character(len=:), allocatable :: errors
+        !> The model was read without errors (checks that need it run then).
+        logical :: model_ok = .false.
         !> The &published groups, one line per item (tab separated): 'P table
         !! row note' opens a group, then 'Q quantity value digits' per value and
         !! 'D name' per documented deviation (read by beamid reproduce).
@@ -174,7 +176,7 @@ contains
         character(len=:), allocatable, intent(inout) :: errors
         character(len=:), allocatable :: task, output, preset, name
         integer :: k, nbeams, nb_preset, ib
-        logical :: given, is_fit, ok_head
+        logical :: given, is_fit, ok_head, out_ok
         real(dp), allocatable :: base(:)
         type(status_t) :: st
 
@@ -210,7 +212,7 @@ contains
             preset = ''
             nbeams = 0
             call nml_str(f, g, 'task', task, given, errors)
-            call nml_str(f, g, 'output', output, given, errors)
+            call nml_str(f, g, 'output', output, out_ok, errors)
             call nml_str(f, g, 'preset', preset, given, errors)
             call nml_int(f, g, 'nbeams', nbeams, given, errors)
             task = lower(trim(adjustl(task)))
@@ -219,7 +221,9 @@ contains
                                task//"', expected one of:"//KNOWN_TASKS(:len_trim(KNOWN_TASKS)))
                 return
             end if
-            if (len_trim(output) == 0) call add_error(errors, f%path//', line '// &
+            if (len_trim(output) == 0 .and. (out_ok .or. .not. nml_given(g, 'output'))) &
+                call add_error(errors, &
+                f%path//', line '// &
                 fmt_int(g%line)//': &beamid output is missing: give the output path prefix')
             if (len(output) > 4000) call add_error(errors, f%path//': &beamid output is '// &
                 fmt_int(len(output))//' characters long, expected at most 4000')
@@ -303,6 +307,7 @@ contains
         end do
         allocate (value(nv))
         call nml_reals(f, g, 'value', value, nv, errors)
+        if (count_lines_alloc(errors) > nerr) return
         if (size(quantity) == 0 .or. size(quantity) /= size(value) .or. &
             size(quantity) /= size(digits)) then
             call add_error(errors, where//'needs equally long quantity, value and digits '// &
@@ -495,6 +500,7 @@ contains
         if (count_lines_alloc(errors) > nerr) return
         call chain_from_vector(nbeams, params, chain, st)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//': &'//trim(st%message))
+        deck%model_ok = st%code == STATUS_OK
     end subroutine read_model
 
     pure integer function count_lines_alloc(errors)
@@ -559,7 +565,7 @@ contains
         type(deck_t), intent(in) :: deck
         integer :: i
         arm_length = 0.0_dp
-        if (.not. allocated(deck%params)) return
+        if (.not. deck%model_ok) return
         do i = 1, deck%nbeams
             arm_length = arm_length + deck%params(param_index_beam(deck%nbeams, i, IB_L))
         end do

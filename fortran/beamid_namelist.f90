@@ -165,10 +165,11 @@ contains
         integer :: n, j, k, rep, ios, nval
         type(nml_item_t) :: item
         character(len=:), allocatable :: token
-        logical :: quoted, have_item, closed
+        logical :: quoted, have_item, closed, orphan
         n = len(text)
         have_item = .false.
         closed = .false.
+        orphan = .false.
         nval = 0
         do while (i <= n)
             select case (text(i:i))
@@ -202,15 +203,19 @@ contains
                 end do
                 token = text(i:j - 1)
                 if (len(token) == 0) then
-                    ! '=' right where a name should be
+                    ! '=' right where a name should be: its values are not
+                    ! reported again
                     call add_error(errors, path//', line '//fmt_int(line)//': &'// &
                                    g%name//": '=' without a variable name")
+                    if (have_item) call push_item()
+                    orphan = .true.
                     i = j + 1
                     cycle
                 end if
                 if (next_is_equals(text, j)) then
                     ! a new item: key or key(index)
                     if (have_item) call push_item()
+                    orphan = .false.
                     item = nml_item_t()
                     item%line = line
                     allocate (item%values(0), item%quoted(0))
@@ -287,6 +292,8 @@ contains
             type(nml_text_t), allocatable :: grown(:)
             logical, allocatable :: grown_q(:)
             if (.not. have_item) then
+                if (orphan) return
+                orphan = .true.
                 call add_error(errors, path//', line '//fmt_int(line)//': &'//g%name// &
                                ' value '//value//' without a variable name (expected key = value)')
                 return
@@ -388,8 +395,16 @@ contains
     pure subroutine add_error(errors, text)
         character(len=:), allocatable, intent(inout) :: errors
         character(len=*), intent(in) :: text
+        character(len=len(text)) :: line
+        integer :: k
+        ! one problem, one line: control characters of a value (a newline in
+        ! a string cut short) become spaces
+        line = text
+        do k = 1, len(line)
+            if (iachar(line(k:k)) < 32) line(k:k) = ' '
+        end do
         if (.not. allocated(errors)) errors = ''
-        errors = errors//text//new_line('a')
+        errors = errors//line//new_line('a')
     end subroutine add_error
 
     !> Number of groups of that name.
