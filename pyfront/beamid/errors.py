@@ -26,6 +26,10 @@ class ConvergenceError(BeamidError, RuntimeError):
     exit_code = 3
 
 
+#: status code of an output file that cannot be written (beamid_status ERR_OUTPUT)
+ERR_OUTPUT = -4
+
+
 def raise_for_status(code: int, message: str | bytes) -> None:
     """Raise the exception that matches a Fortran status code (0: no error)."""
     if code == 0:
@@ -33,8 +37,15 @@ def raise_for_status(code: int, message: str | bytes) -> None:
     if isinstance(message, bytes):
         message = message.decode("utf-8", "replace")
     text = message.strip() or f"beamid status {code}"
-    error = InputError(text) if code < 0 else ConvergenceError(text)
-    from . import _core  # the exit code table of beamid_status (exit_code)
+    if code < 0:
+        error = InputError(text)
+        if code == ERR_OUTPUT:
+            error.exit_code = 4
+        raise error
+    raise ConvergenceError(text)
 
-    error.exit_code = _core.exit_code(code)
-    raise error
+
+class OutputError(BeamidError, OSError):
+    """An output file or folder cannot be written (exit code 4 of both programs)."""
+
+    exit_code = 4
