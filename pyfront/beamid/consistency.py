@@ -244,12 +244,13 @@ class Consistency:
                          "the parameters exactly)")
         fails = self.failures
         if fails:
-            kinds: dict[str, int] = {}
-            for _, s, m in fails:
-                kinds[f"{s}: {m}"] = kinds.get(f"{s}: {m}", 0) + 1
-            lines.append("not in the statistics / flagged:")
-            lines += [f"  {cnt} x {text}" for text, cnt in
-                      sorted(kinds.items(), key=lambda kv: -kv[1])[:10]]
+            groups: dict[str, list[tuple[int, str]]] = {}
+            for k, s, m in fails:
+                groups.setdefault(s, []).append((k, m))
+            lines.append("not in the statistics (failed) or flagged:")
+            for s, items in groups.items():
+                k, m = items[0]
+                lines.append(f"  {len(items)} x {s} (first: replicate {k}: {m})")
         return "\n".join(lines)
 
     def to_csv(self, path: str | os.PathLike) -> Path:
