@@ -176,3 +176,30 @@ def test_bad_arguments(table5_fit, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(ImportError, match=r"pip install beamid\[dask\]"):
         beamid.consistency(table5_fit, replicates=4, client="tcp://127.0.0.1:8786")
+
+
+def test_cli_consistency_writes_table_csv_and_png(tmp_path, capsys, monkeypatch):
+    from beamid.cli import main
+
+    deck = ROOT / "inputs" / "seed" / "table05_fit.nml"
+    code = main(["consistency", str(deck), "--replicates", "30", "--seed", "7",
+                 "--workers", "1", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "30 replicates (seed 7, serial); 30 converged" in out
+    csv = tmp_path / "table05_fit_consistency.csv"
+    assert len([ln for ln in csv.read_text().splitlines() if not ln.startswith("#")]) == 31
+    assert (tmp_path / "table05_fit_consistency.png").is_file()
+    # the command is the API: same numbers as beamid.consistency on the deck's fit
+    from beamid.fit_decks import read_fit_deck
+
+    d = read_fit_deck(deck)
+    fit = beamid.fit(d.model, d.experiments, d.data, free=d.free)
+    api = beamid.consistency(fit, replicates=30, seed=7, workers=1)
+    assert f"{api.spread_ratio['EI2']:.3f}" in out
+    # Dask missing: exit 2 with the install hint
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    code = main(["consistency", str(deck), "--replicates", "4", "--scheduler",
+                 "tcp://127.0.0.1:1", "--out", str(tmp_path / "x")])
+    assert code == 2 and "pip install beamid[dask]" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists() or not list((tmp_path / "x").iterdir())

@@ -184,3 +184,23 @@ def test_plot_writes_a_png(advice, tmp_path):
     path = tmp_path / "advice.png"
     advice.plot(path, top=8)
     assert path.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_design_prints_ranks_and_draws(tmp_path, capsys):
+    from beamid.cli import main
+
+    deck = str(ROOT / "inputs" / "seed" / "table05_fit.nml")
+    code = main(["design", deck, "--moment", "3", "--wire", "1.4", "--quantities",
+                 "tip_angle", "wire_force", "--sigma", "tip_angle=2e-3", "wire_force=0.1",
+                 "--target", "EI2", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "predicted sigma of EI2: now 0.75" in out
+    rows = (tmp_path / "table05_fit_design.csv").read_text().splitlines()
+    assert rows[1] == "rank,experiment,quantity,sigma,predicted"
+    assert rows[2].startswith("1,") and len(rows) == 2 + 3   # M3/tip_angle, Lw1.4 x 2
+    assert (tmp_path / "table05_fit_design.png").read_bytes()[:4] == b"\x89PNG"
+    # a quantity the deck never measured needs a sigma: exit 2 naming it
+    code = main(["design", deck, "--moment", "3", "--quantities", "tip_angle",
+                 "--out", str(tmp_path)])
+    assert code == 2 and "--sigma tip_angle=VALUE" in capsys.readouterr().err

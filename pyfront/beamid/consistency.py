@@ -336,7 +336,7 @@ def _atomic_write(path: Path, text: str) -> None:
     except OSError as exc:
         if tmp.exists():
             tmp.unlink()
-        raise InputError(f"cannot write {path}: {exc}") from None
+        raise BeamidError(f"cannot write {path}: {exc}") from None
 
 
 def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec:
@@ -519,3 +519,28 @@ def _summarize(fit: FitResult, spec: _Spec, records: list[dict], runner: str) ->
         z_mean={n: float(stats[7, j]) for j, n in enumerate(free)},
         z_std={n: float(stats[8, j]) for j, n in enumerate(free)},
         runner=runner, normalized={n: z[:, j].copy() for j, n in enumerate(free)})
+
+
+def run_consistency_deck(deck: str | os.PathLike, replicates: int = 200, seed: int = 7,
+                         scheduler: str | None = None, out: str | os.PathLike | None = None,
+                         workers: int | None = None, plots: bool = True
+                         ) -> tuple[str, list[Path], Consistency]:
+    """``beamid consistency DECK``: fit an estimation deck, run the Monte
+    Carlo check and write ``<prefix>_consistency.csv`` (every replicate) and
+    ``_consistency.png`` (normalized errors against N(0, 1)). The prefix is
+    the deck's ``output`` or ``OUT/<deck name>``. Returns (table, files, result)."""
+    from .fit_decks import read_fit_deck
+
+    d = read_fit_deck(deck)
+    base = _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
+                max_iter=d.max_iter)
+    mc = consistency(base, replicates=replicates, seed=seed, client=scheduler,
+                     workers=workers, options={"max_iter": d.max_iter})
+    prefix = (Path(out) / Path(deck).stem) if out is not None else d.output_prefix
+    prefix.parent.mkdir(parents=True, exist_ok=True)
+    files = [mc.to_csv(Path(f"{prefix}_consistency.csv"))]
+    if plots:
+        path = Path(f"{prefix}_consistency.png")
+        mc.plot(path)
+        files.append(path)
+    return f"{base.summary()}\n\n{mc.table()}", files, mc

@@ -123,11 +123,28 @@ class Advice:
             fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(entries) + 1.4))
         else:
             fig = ax.figure
-        ax.barh(range(len(entries)), [v for _, v in entries], color="tab:blue", alpha=0.7)
+        ys = np.arange(len(entries))
+        vals = np.array([v for _, v in entries])
+        if math.isfinite(self.current):
+            ax.hlines(ys, vals, self.current, color="tab:blue", alpha=0.4, lw=2.0)
+        ax.plot(vals, ys, "o", color="tab:blue")
+        for y, v in zip(ys, vals):
+            ax.annotate(f"{v:.3g}", (v, y), textcoords="offset points", xytext=(-4, 5),
+                        ha="right", fontsize=7)
         ax.set_yticks(range(len(entries)))
         ax.set_yticklabels([f"{e} / {q}" for (e, q), _ in entries], fontsize=8)
-        ax.axvline(self.current, color="tab:red", ls="--", lw=1.0, label="now")
+        if math.isfinite(self.current):
+            ax.axvline(self.current, color="tab:red", ls="--", lw=1.0,
+                       label=f"now {self.current:.3g}")
         ax.set_xscale("log")
+        from matplotlib.ticker import NullFormatter
+
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        lo = float(np.nanmin(vals)) if vals.size else 1.0
+        hi = max(float(np.nanmax(vals)) if vals.size else 1.0,
+                 self.current if math.isfinite(self.current) else 0.0)
+        if math.isfinite(lo) and math.isfinite(hi) and lo > 0:
+            ax.set_xlim(lo / 1.6, hi * 1.3)
         ax.set_xlabel(self.criterion)
         ax.set_title("which measurement next (best at the top)", fontsize=9)
         ax.legend(fontsize=7)
@@ -289,3 +306,93 @@ def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], f
         info = info + np.outer(gvec, gvec) / float(s) ** 2
     cov, sig, _, _ = _dc.information_covariance(info)
     return cov, sig
+
+
+#: Quantities the command ranks by default (u_tip, w_tip are aliases).
+DEFAULT_QUANTITIES = ("x_tip", "y_tip", "tip_angle", "x_elbow", "y_elbow", "wire_force")
+
+
+def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements
+                ) -> dict[str, float]:
+    """Sigmas of the command line: ``1e-3`` (every quantity) or
+    ``QUANTITY=SIGMA`` items; a quantity without one takes the median sigma of
+    the deck's rows of that quantity, else it is an InputError."""
+    out: dict[str, float] = {}
+    default = None
+    for item in items or ():
+        if "=" in item:
+            q, _, v = item.partition("=")
+            out[q.strip()] = _sigma_of({q.strip(): v.strip()}, q.strip())
+        else:
+            default = _sigma_of(item, "all quantities")
+    for q in quantities:
+        if q in out:
+            continue
+        if default is not None:
+            out[q] = default
+            continue
+        own = [s for s, qq in zip(data.sigma, data.quantity) if qq == q]
+        if not own:
+            raise InputError(f"no sigma for quantity {q!r}: the deck's data have no {q} rows; "
+                             f"give --sigma {q}=VALUE (or one --sigma for all)")
+        out[q] = float(np.median(own))
+    return out
+
+
+def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
+                    moments: Sequence[float] = (), wires: Sequence[float] = (),
+                    quantities: Sequence[str] | None = None,
+                    sigma: Sequence[str] | None = None, target: str | None = None,
+                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True
+                    ) -> tuple[str, list[Path], Advice]:
+    """``beamid design DECK``: fit an estimation deck and rank candidate
+    measurements: transverse tip forces ``F<f>`` (fy = f), tip moments
+    ``M<m>`` and radial wires ``Lw<length>`` (the deck's own experiments when
+    none is given), each measuring ``quantities``. Writes
+    ``<prefix>_design.csv`` (rank, experiment, quantity, sigma, predicted)
+    and ``_design.png``. Returns (text, files, advice)."""
+    from .estimation import fit as _fit
+    from .fit_decks import read_fit_deck
+    from .loads import RadialWire, TipForce, TipMoment
+
+    d = read_fit_deck(deck)
+    base = _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
+                max_iter=d.max_iter)
+    cands: dict[str, Any] = {}
+    for f in forces:
+        cands[f"F{float(f):g}"] = TipForce(fy=float(f))
+    for m in moments:
+        cands[f"M{float(m):g}"] = TipMoment(float(m))
+    for w in wires:
+        cands[f"Lw{float(w):g}"] = RadialWire(float(w))
+    for name in list(cands):
+        if name in base.experiments and base.experiments[name] != cands[name]:
+            cands[f"{name}_new"] = cands.pop(name)
+    if not cands:
+        cands = dict(base.experiments)
+    qs = tuple(quantities) if quantities else DEFAULT_QUANTITIES
+    sig = parse_sigma(sigma, qs, d.data)
+    adv = design(base, cands, qs, sigma=sig, target=target)
+    prefix = (Path(out) / Path(deck).stem) if out is not None else d.output_prefix
+    prefix.parent.mkdir(parents=True, exist_ok=True)
+    lines = ["rank,experiment,quantity,sigma,predicted"]
+    lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
+              for i, ((e, q), v) in enumerate(adv.ranking)]
+    csv = Path(f"{prefix}_design.csv")
+    tmp = csv.with_name(csv.name + ".tmp")
+    try:
+        tmp.write_text(f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
+                       + "\n".join(lines) + "\n")
+        os.replace(tmp, csv)
+    except OSError as exc:
+        if tmp.exists():
+            tmp.unlink()
+        from .errors import BeamidError
+
+        raise BeamidError(f"cannot write {csv}: {exc}") from None
+    files = [csv]
+    if plots:
+        png = Path(f"{prefix}_design.png")
+        adv.plot(png, top=min(top, 15))
+        files.append(png)
+    return f"{base.summary()}\n\n{adv.table(top)}", files, adv
