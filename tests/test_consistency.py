@@ -105,6 +105,10 @@ def test_same_seed_same_replicates_serial_processes_and_dask(table5_fit):
     local = beamid.consistency(table5_fit, replicates=n, seed=7, workers=2)
     assert serial.runner == "serial" and local.runner == "2 local processes"
     _same(serial, local)
+    # the default times a few replicates and keeps a run this cheap in-process
+    default = beamid.consistency(table5_fit, replicates=n, seed=7)
+    assert default.runner == "serial"
+    _same(serial, default)
     other = beamid.consistency(table5_fit, replicates=n, seed=8, workers=1)
     assert not np.array_equal(other.estimates["EI2"], serial.estimates["EI2"])
     # a longer run starts with the same replicates

@@ -38,6 +38,7 @@ import math
 import multiprocessing
 import os
 import sys
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,6 +70,11 @@ NOMINAL = {1: 0.6826894921370859, 2: 0.9544997361036416, 3: 0.9973002039367398}
 
 #: Replicate states.
 OK, FLAGGED, NOT_CONVERGED, ERROR = "ok", "flagged", "not converged", "error"
+
+#: workers=None: replicates timed in this process before choosing a runner,
+#: and the estimated remaining time (s) below which the run stays in this
+#: process (starting the worker processes would cost more than it saves).
+PROBE, SERIAL_BELOW = 4, 3.0
 
 DASK_HINT = ("Dask is needed for client= / --scheduler: install it with "
              "`pip install beamid[dask]` (dask and distributed)")
@@ -421,15 +427,26 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
             if owned:
                 client.close()
     nworkers = min(_local_workers(workers), replicates)
+    probe: list[dict] = []
+    if workers is None and nworkers > 1:
+        # all cores only when the run pays for starting the processes (each
+        # imports beamid, ~0.5 s): time a few replicates here first
+        t0 = time.perf_counter()
+        probe = [_run_one(spec, k) for k in range(min(PROBE, replicates))]
+        per = (time.perf_counter() - t0) / len(probe)
+        if per * (replicates - len(probe)) < SERIAL_BELOW:
+            nworkers = 1
+    first = len(probe)
     if nworkers <= 1:
-        it = (_run_one(spec, k) for k in range(replicates))
-        return list(progress(it, total=replicates, desc=desc, enabled=show)), "serial"
-    chunks = _chunks(replicates, 8 * nworkers)
+        it = (_run_one(spec, k) for k in range(first, replicates))
+        rest = list(progress(it, total=replicates - first, desc=desc, enabled=show))
+        return probe + rest, "serial"
+    chunks = [[first + k for k in ks] for ks in _chunks(replicates - first, 8 * nworkers)]
     with ProcessPoolExecutor(max_workers=nworkers, mp_context=_mp_context()) as pool:
         futures = [pool.submit(_run_chunk, spec, ks) for ks in chunks]
         records = list(progress(_flatten(f.result() for f in as_completed(futures)),
-                                total=replicates, desc=desc, enabled=show))
-    return records, f"{nworkers} local processes"
+                                total=replicates - first, desc=desc, enabled=show))
+    return probe + records, f"{nworkers} local processes"
 
 
 def _flatten(lists: Iterable[list[dict]]) -> Iterator[dict]:
@@ -456,8 +473,11 @@ def consistency(fit: FitResult, replicates: int = 200, seed: int = 7, client: An
         ``None`` (local), a ``dask.distributed.Client`` or a scheduler
         address string (needs ``pip install beamid[dask]``).
     workers:
-        Local processes (default: the cores this process may use; 1 runs
-        in this process). Ignored with ``client``.
+        Local processes; 1 runs in this process. Default: the cores this
+        process may use, when the run is long enough to pay for starting
+        them (a few replicates are timed here first; under about 3 s of
+        estimated work the run stays in this process). Ignored with
+        ``client``.
     options:
         Extra keyword arguments for every refit (``beamid.fit``), e.g.
         ``{"max_iter": 100}``.
