@@ -207,3 +207,13 @@ def test_cli_consistency_writes_table_csv_and_png(tmp_path, capsys, monkeypatch)
                  "tcp://127.0.0.1:1", "--out", str(tmp_path / "x")])
     assert code == 2 and "pip install beamid[dask]" in capsys.readouterr().err
     assert not (tmp_path / "x").exists() or not list((tmp_path / "x").iterdir())
+
+
+def test_module_doctests():
+    import doctest
+
+    import beamid.consistency
+    import beamid.design
+
+    for module in (beamid.consistency, beamid.design):
+        assert doctest.testmod(module, optionflags=doctest.ELLIPSIS).failed == 0

@@ -39,7 +39,9 @@ import multiprocessing
 import os
 import sys
 import time
+import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping, Sequence
@@ -431,10 +433,13 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
     if workers is None and nworkers > 1:
         # all cores only when the run pays for starting the processes (each
         # imports beamid, ~0.5 s): time a few replicates here first
-        t0 = time.perf_counter()
-        probe = [_run_one(spec, k) for k in range(min(PROBE, replicates))]
-        per = (time.perf_counter() - t0) / len(probe)
-        if per * (replicates - len(probe)) < SERIAL_BELOW:
+        # (the median: the first call pays one-off start-up costs)
+        times = []
+        for k in range(min(PROBE, replicates)):
+            t0 = time.perf_counter()
+            probe.append(_run_one(spec, k))
+            times.append(time.perf_counter() - t0)
+        if float(np.median(times)) * (replicates - len(probe)) < SERIAL_BELOW:
             nworkers = 1
     first = len(probe)
     if nworkers <= 1:
@@ -442,10 +447,21 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
         rest = list(progress(it, total=replicates - first, desc=desc, enabled=show))
         return probe + rest, "serial"
     chunks = [[first + k for k in ks] for ks in _chunks(replicates - first, 8 * nworkers)]
-    with ProcessPoolExecutor(max_workers=nworkers, mp_context=_mp_context()) as pool:
-        futures = [pool.submit(_run_chunk, spec, ks) for ks in chunks]
-        records = list(progress(_flatten(f.result() for f in as_completed(futures)),
-                                total=replicates - first, desc=desc, enabled=show))
+    try:
+        with ProcessPoolExecutor(max_workers=nworkers, mp_context=_mp_context()) as pool:
+            futures = [pool.submit(_run_chunk, spec, ks) for ks in chunks]
+            records = list(progress(_flatten(f.result() for f in as_completed(futures)),
+                                    total=replicates - first, desc=desc, enabled=show))
+    except BrokenProcessPool:
+        # typically a script without the `if __name__ == "__main__":` guard
+        # (the workers re-import the main module): say so and run here
+        warnings.warn("beamid.consistency: the local worker processes failed to start; "
+                      "running in this process instead. In a script, call it under "
+                      "`if __name__ == \"__main__\":` (Python's multiprocessing rule) or pass "
+                      "workers=1", RuntimeWarning, stacklevel=3)
+        it = (_run_one(spec, k) for k in range(first, replicates))
+        rest = list(progress(it, total=replicates - first, desc=desc, enabled=show))
+        return probe + rest, "serial (local processes failed to start)"
     return probe + records, f"{nworkers} local processes"
 
 
