@@ -217,3 +217,14 @@ def test_module_doctests():
     for name in ("beamid.consistency", "beamid.design"):
         module = importlib.import_module(name)
         assert doctest.testmod(module, optionflags=doctest.ELLIPSIS).failed == 0
+
+
+def test_cli_unwritable_output_exits_4(tmp_path, capsys):
+    from beamid.cli import main
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    deck = ROOT / "inputs" / "seed" / "table05_fit.nml"
+    code = main(["consistency", str(deck), "--replicates", "4", "--workers", "1",
+                 "--out", str(blocker / "sub")])
+    assert code == 4 and "cannot write" in capsys.readouterr().err

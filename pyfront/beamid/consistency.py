@@ -324,19 +324,22 @@ class Consistency:
             ax_.legend(fontsize=7)
         fig.tight_layout()
         if path is not None:
-            path = Path(path)
-            tmp = path.with_name(path.name + ".tmp.png")
-            try:
-                fig.savefig(tmp, dpi=110)
-                os.replace(tmp, path)
-            finally:
-                if tmp.exists():
-                    tmp.unlink()
-                plt.close(fig)
+            _save_figure(fig, Path(path))
         return fig
 
 
+class OutputFileError(BeamidError, OSError):
+    """An output file or folder cannot be written (the ``beamid`` command's
+    exit code 4)."""
+
+
+def _output_error(path: Path, exc: OSError) -> OutputFileError:
+    return OutputFileError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
+                           str(path))
+
+
 def _atomic_write(path: Path, text: str) -> None:
+    """Write through a temporary file and rename: never a half-written file."""
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(text)
@@ -344,7 +347,32 @@ def _atomic_write(path: Path, text: str) -> None:
     except OSError as exc:
         if tmp.exists():
             tmp.unlink()
-        raise BeamidError(f"cannot write {path}: {exc}") from None
+        raise _output_error(path, exc) from None
+
+
+def _save_figure(fig, path: Path) -> None:
+    """Save a matplotlib figure through a temporary file, then close it."""
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(path.name + ".tmp.png")
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise _output_error(path, exc) from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+        plt.close(fig)
+
+
+def _output_prefix(deck_path, out, default: Path) -> Path:
+    prefix = (Path(out) / Path(deck_path).stem) if out is not None else Path(default)
+    try:
+        prefix.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _output_error(prefix.parent, exc) from None
+    return prefix
 
 
 def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec:
@@ -572,8 +600,7 @@ def run_consistency_deck(deck: str | os.PathLike, replicates: int = 200, seed: i
                 max_iter=d.max_iter)
     mc = consistency(base, replicates=replicates, seed=seed, client=scheduler,
                      workers=workers, options={"max_iter": d.max_iter})
-    prefix = (Path(out) / Path(deck).stem) if out is not None else d.output_prefix
-    prefix.parent.mkdir(parents=True, exist_ok=True)
+    prefix = _output_prefix(deck, out, d.output_prefix)
     files = [mc.to_csv(Path(f"{prefix}_consistency.csv"))]
     if plots:
         path = Path(f"{prefix}_consistency.png")

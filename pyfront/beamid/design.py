@@ -150,15 +150,9 @@ class Advice:
         ax.legend(fontsize=7)
         fig.tight_layout()
         if path is not None:
-            path = Path(path)
-            tmp = path.with_name(path.name + ".tmp.png")
-            try:
-                fig.savefig(tmp, dpi=110)
-                os.replace(tmp, path)
-            finally:
-                if tmp.exists():
-                    tmp.unlink()
-                plt.close(fig)
+            from .consistency import _save_figure
+
+            _save_figure(fig, Path(path))
         return ax
 
 
@@ -373,23 +367,15 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     qs = tuple(quantities) if quantities else DEFAULT_QUANTITIES
     sig = parse_sigma(sigma, qs, d.data)
     adv = design(base, cands, qs, sigma=sig, target=target)
-    prefix = (Path(out) / Path(deck).stem) if out is not None else d.output_prefix
-    prefix.parent.mkdir(parents=True, exist_ok=True)
+    from .consistency import _atomic_write, _output_prefix
+
+    prefix = _output_prefix(deck, out, d.output_prefix)
     lines = ["rank,experiment,quantity,sigma,predicted"]
     lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
               for i, ((e, q), v) in enumerate(adv.ranking)]
     csv = Path(f"{prefix}_design.csv")
-    tmp = csv.with_name(csv.name + ".tmp")
-    try:
-        tmp.write_text(f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
-                       + "\n".join(lines) + "\n")
-        os.replace(tmp, csv)
-    except OSError as exc:
-        if tmp.exists():
-            tmp.unlink()
-        from .errors import BeamidError
-
-        raise BeamidError(f"cannot write {csv}: {exc}") from None
+    _atomic_write(csv, f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
+                  + "\n".join(lines) + "\n")
     files = [csv]
     if plots:
         png = Path(f"{prefix}_design.png")
