@@ -60,6 +60,19 @@ def main() -> None:
             assert np.array_equal(mc.estimates[n], serial.estimates[n]), name
     print(f"sigma/spread: EI1 {serial.spread_ratio['EI1']:.3f}, "
           f"EI2 {serial.spread_ratio['EI2']:.3f}; failed {serial.failed}")
+    # for scale: a heavier refit (Table 3, four parameters from two radial-wire
+    # experiments, ~5 ms a replicate), where starting processes can pay
+    d3 = read_fit_deck(ROOT / "inputs" / "seed" / "table03_fit.nml")
+    fit3 = beamid.fit(d3.model, d3.experiments, d3.data, free=d3.free)
+    n3 = 400
+    times = {}
+    for w in (1, cores):
+        t0 = time.perf_counter()
+        beamid.consistency(fit3, replicates=n3, seed=7, workers=w, progress_bar=False)
+        times[w] = time.perf_counter() - t0
+    print(f"Table 3 design, {n3} replicates: {n3 / times[1]:.0f}/s in this process, "
+          f"{n3 / times[cores]:.0f}/s on {cores} local processes "
+          f"({times[1] / times[cores]:.2f}x)")
 
 
 if __name__ == "__main__":
