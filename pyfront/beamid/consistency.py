@@ -52,20 +52,23 @@ from .errors import BeamidError, InputError
 from .estimation import FitResult, fit as _fit
 from ._design_core import chi2_sf_many, mc_summary
 
-try:  # the shared progress helper (beamid/progress.py) when present
-    from .progress import progress
-except ImportError:  # pragma: no cover - fallback until the helper lands on this branch
-    def progress(iterable, total=None, desc="", enabled=None):
-        """tqdm on a terminal (stderr a tty), the iterable unchanged otherwise."""
+def progress(iterable, total=None, desc="", enabled=None):
+    """The shared progress helper (beamid.progress: tqdm on a terminal),
+    imported when a run starts; a local stand-in where it is missing."""
+    try:
+        from .progress import progress as shared
+    except ImportError:  # pragma: no cover - the helper is not on this branch
         if enabled is None:
             enabled = sys.stderr.isatty()
-        if enabled:
-            try:
-                from tqdm import tqdm
-            except ImportError:
-                return iterable
-            return tqdm(iterable, total=total, desc=desc)
-        return iterable
+        if not enabled:
+            return iterable
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            return iterable
+        return tqdm(iterable, total=total, desc=desc)
+    return shared(iterable, total=total, desc=desc, enabled=enabled)
+
 
 #: Nominal coverage of +-k sigma for a normal estimate.
 NOMINAL = {1: 0.6826894921370859, 2: 0.9544997361036416, 3: 0.9973002039367398}
