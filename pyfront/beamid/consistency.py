@@ -420,8 +420,14 @@ def _local_workers(workers: int | None) -> int:
 
 
 def _mp_context():
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    """forkserver where available (spawn elsewhere). The fork server imports
+    beamid once, so every worker forked from it starts with beamid loaded, and
+    it stays up for later runs in the same session."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["beamid.consistency"])
+        return ctx
+    return multiprocessing.get_context("spawn")
 
 
 def _dask_client(client: Any):
