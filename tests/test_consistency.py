@@ -228,3 +228,17 @@ def test_cli_unwritable_output_exits_4(tmp_path, capsys):
     code = main(["consistency", str(deck), "--replicates", "4", "--workers", "1",
                  "--out", str(blocker / "sub")])
     assert code == 4 and "cannot write" in capsys.readouterr().err
+
+
+def test_table5_ei2_errors_are_skewed_not_mis_sized(table5_fit):
+    # EI2 enters y_tip through 1/EI2: the sigma is right in size, the misses
+    # one-sided (docs/consistency.md); EI1 is symmetric
+    mc = beamid.consistency(table5_fit, replicates=400, seed=7, workers=1)
+    assert abs(mc.spread_ratio["EI2"] - 1.0) < 0.1
+    below, above = mc.tails("EI2")
+    assert below > 2 * above
+    b1, a1 = mc.tails("EI1")
+    assert abs(b1 - a1) < 0.02
+    compliance = 1.0 / mc.estimates["EI2"]
+    skew = lambda x: np.mean((x - x.mean()) ** 3) / x.std() ** 3   # noqa: E731
+    assert skew(mc.estimates["EI2"]) > 0.25 and abs(skew(compliance)) < 0.12

@@ -218,6 +218,17 @@ class Consistency:
         return [(k, s, m) for k, (s, m) in enumerate(zip(self.status, self.messages))
                 if s != OK]
 
+    def tails(self, name: str, k: float = 2.0) -> tuple[float, float]:
+        """Fractions of the used replicates with normalized error below -k and
+        above +k (each 0.0228 for k = 2 when the errors are normal): a
+        one-sided excess means the sigma is right in size but the errors are
+        skewed (a parameter that enters the model nonlinearly)."""
+        z = self.normalized[name]
+        z = z[np.isfinite(z)]
+        if not z.size:
+            return (math.nan, math.nan)
+        return float(np.mean(z < -k)), float(np.mean(z > k))
+
     def coverage_error(self, name: str, k: int) -> float:
         """Monte Carlo standard error of ``coverage[name][k]`` at the nominal value."""
         n = int(np.isfinite(self.normalized[name]).sum())
@@ -242,6 +253,9 @@ class Consistency:
                          f"{self.z_mean[nm]:>8.3f}{self.z_std[nm]:>7.3f}"
                          f"{c[1]:>7.3f}{c[2]:>7.3f}{c[3]:>7.3f}")
         lines.append(f"{'nominal':<89}{NOMINAL[1]:>7.3f}{NOMINAL[2]:>7.3f}{NOMINAL[3]:>7.3f}")
+        if self.used.any():
+            lines.append("beyond 2 sigma below / above (nominal 0.023 each): " + ", ".join(
+                f"{nm} {self.tails(nm)[0]:.3f} / {self.tails(nm)[1]:.3f}" for nm in self.free))
         used = self.used
         if used.any() and self.dof > 0:
             tot = (self.chi2 + self.chi2_prior)[used]
