@@ -204,3 +204,22 @@ def test_cli_design_prints_ranks_and_draws(tmp_path, capsys):
     code = main(["design", deck, "--moment", "3", "--quantities", "tip_angle",
                  "--out", str(tmp_path)])
     assert code == 2 and "--sigma tip_angle=VALUE" in capsys.readouterr().err
+
+
+def test_predicted_covariance_of_two_added_rows(table5_fit, advice):
+    from beamid.design import predicted_covariance
+
+    rows = [(advice.sensitivity[k], advice.sigma[k]) for k in
+            (("M3", "tip_angle"), ("Lw1.4", "wire_force"))]
+    cov, sig = predicted_covariance(table5_fit, rows)
+    info = information(table5_fit) + sum(np.outer(g, g) / s ** 2 for g, s in rows)
+    np.testing.assert_allclose(cov, np.linalg.inv(info), rtol=1e-9)
+    extra = beamid.simulate_measurements(table5_fit.model, {"M3": CANDIDATES["M3"]},
+                                         ["tip_angle"], sigma=SIGMA["tip_angle"])
+    extra = extra.merge(beamid.simulate_measurements(
+        table5_fit.model, {"Lw1.4": CANDIDATES["Lw1.4"]}, ["wire_force"],
+        sigma=SIGMA["wire_force"]))
+    res = beamid.fit(table5_fit.start, {**table5_fit.experiments, "M3": CANDIDATES["M3"],
+                                        "Lw1.4": CANDIDATES["Lw1.4"]},
+                     table5_fit.data.merge(extra), free=table5_fit.free)
+    np.testing.assert_allclose([res.sigmas[n] for n in res.free], sig, rtol=1e-5)

@@ -5,12 +5,13 @@ module beamid_api_design
     use beamid_kinds, only: dp
     use beamid_status, only: status_t
     use beamid_estimation, only: chi2_sf
-    use beamid_design, only: information_covariance, rank_candidates, mc_summary
+    use beamid_design, only: information_covariance, rank_candidates, mc_summary, &
+                             information_add_row
     implicit none
     private
 
     public :: api_information_covariance, api_rank_candidates, api_mc_summary
-    public :: api_chi2_sf_many
+    public :: api_chi2_sf_many, api_information_update
 
 contains
 
@@ -54,6 +55,21 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_rank_candidates
+
+    !> Information after measurement rows: info + sum_c rows(:, c) rows(:, c)^T
+    !! / sigma(c)^2 (beamid_design::information_add_row).
+    subroutine api_information_update(n, info, nc, rows, sigma, updated)
+        integer(c_int), intent(in) :: n, nc
+        real(c_double), intent(in) :: info(n, n), rows(n, nc), sigma(nc)
+        real(c_double), intent(out) :: updated(n, n)
+        real(dp) :: work(n, n)
+        integer :: c
+        work = info
+        do c = 1, nc
+            call information_add_row(work, real(rows(:, c), dp), real(sigma(c), dp))
+        end do
+        updated = work
+    end subroutine api_information_update
 
     !> Monte Carlo summary (beamid_design::mc_summary); est and sig are
     !! nrep x npar, use is 0/1 per replicate. stats(:, j) = coverage 1, 2, 3

@@ -19,6 +19,13 @@ def information_covariance(info: np.ndarray) -> tuple[np.ndarray, np.ndarray, fl
     return np.array(cov), np.array(sig), float(dcrit), int(rank)
 
 
+def information_update(info: np.ndarray, rows: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """info + sum of g g^T / sigma^2 over the columns g of rows (n_free x m)."""
+    rows = np.asfortranarray(rows, dtype=float)
+    return np.array(_api.api_information_update(np.asfortranarray(info, dtype=float), rows,
+                                                np.asarray(sigma, float)))
+
+
 def rank_candidates(info: np.ndarray, rows: np.ndarray, sigma: np.ndarray,
                     target: int) -> tuple[float, np.ndarray, np.ndarray]:
     """(criterion now, criterion after each candidate, order best first, 0-based).

@@ -295,9 +295,13 @@ def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], f
     """(cov, sigmas) predicted after adding measurement rows ``(g, sigma)``
     (sensitivity over ``fit.free`` and sigma) to the fit's information."""
     info = information(fit)
-    for gvec, s in rows:
-        gvec = np.asarray(gvec, float)
-        info = info + np.outer(gvec, gvec) / float(s) ** 2
+    rows = list(rows)
+    if rows:
+        g = np.array([np.asarray(r[0], float) for r in rows]).T.reshape(len(fit.free), len(rows))
+        sig = np.array([float(r[1]) for r in rows])
+        if not np.all(np.isfinite(sig) & (sig > 0)):
+            raise InputError(f"predicted_covariance: sigmas {sig.tolist()}, expected > 0")
+        info = _dc.information_update(info, g, sig)
     cov, sig, _, _ = _dc.information_covariance(info)
     return cov, sig
 
