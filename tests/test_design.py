@@ -223,3 +223,14 @@ def test_predicted_covariance_of_two_added_rows(table5_fit, advice):
                                         "Lw1.4": CANDIDATES["Lw1.4"]},
                      table5_fit.data.merge(extra), free=table5_fit.free)
     np.testing.assert_allclose([res.sigmas[n] for n in res.free], sig, rtol=1e-5)
+
+
+def test_information_covariance_rank_deficient():
+    # a parameter with a component in an unseen direction gets sigma = inf,
+    # the others keep theirs (as the fit's SVD covariance does)
+    cov, sig, dcrit, rank = dc.information_covariance(np.diag([4.0, 0.0]))
+    assert rank == 1 and sig[0] == 0.5 and math.isinf(sig[1]) and math.isinf(dcrit)
+    a = np.array([[1.0, 1.0, 0.0], [2.0, 2.0, 0.0], [0.0, 0.0, 3.0]])
+    _, sig, _, rank = dc.information_covariance(a.T @ a)
+    assert rank == 2 and math.isinf(sig[0]) and math.isinf(sig[1])
+    assert sig[2] == pytest.approx(1.0 / math.sqrt(9.0 + 0.0), rel=1e-12)
