@@ -186,7 +186,7 @@ def _sigma_of(sigma: float | Mapping[str, float], q: str) -> float:
     return s
 
 
-def _rows(fit: FitResult, experiments: dict, quantities, sigma):
+def _rows(experiments: dict, quantities, sigma):
     rows = []
     for name in experiments:
         qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
@@ -274,7 +274,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
             raise InputError(f"target = {target!r} is not a free parameter of the fit "
                              f"(free: {', '.join(fit.free)}); None ranks by the D-criterion")
         tindex = fit.free.index(target) + 1
-    rows = _rows(fit, {str(k): v for k, v in candidates.items()}, quantities, sigma)
+    rows = _rows({str(k): v for k, v in candidates.items()}, quantities, sigma)
     evaluated, skipped = _sensitivities(fit, exps, rows)
     if not evaluated:
         raise InputError("no candidate measurement can be predicted: "
