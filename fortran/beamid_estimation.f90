@@ -51,6 +51,11 @@ module beamid_estimation
     integer, parameter, public :: STOP_MAX_ITER = 3  !< still moving at the iteration limit
     integer, parameter, public :: STOP_EVALUATED = 4 !< evaluated at given values (fit_at)
 
+    !> A damped crawl: CRAWL_STEPS damped steps lowering the chi-square by
+    !! less than CRAWL_DROP together count as a stall (fit_least_squares).
+    integer, parameter :: CRAWL_STEPS = 10
+    real(dp), parameter :: CRAWL_DROP = 0.01_dp
+
     !> Starts of a refit with an effect switched on (refit_effect).
     integer, parameter, public :: START_NONE = 0        !< no start converged
     integer, parameter, public :: START_SCORE = 1       !< first-order (score) estimate
@@ -435,9 +440,10 @@ contains
     !!   is held where it was found and the others are fitted on (STOP_RUNAWAY;
     !!   the held one gets an infinite sigma and FLAG_UNDETERMINED);
     !! * three damped steps in a row that change neither the parameters nor the
-    !!   cost, or no damped step that can be evaluated and lowers the cost while
-    !!   some trial steps could not be solved, is a stall (STOP_STALLED): the
-    !!   note names the parameters at a bound, running away or collinear;
+    !!   cost, ten damped steps that lower the chi-square by less than 0.01
+    !!   together (a crawl along a curved valley), or a smallest damped trial
+    !!   step the model cannot solve, is a stall (STOP_STALLED): the note
+    !!   names the parameters at a bound, running away or collinear;
     !! * still moving at max_iter: ERR_NO_CONVERGENCE (STOP_MAX_ITER), `res`
     !!   holding the last iterate and its log;
     !! * a model that cannot be evaluated at params0, or at none of the damped
@@ -451,7 +457,7 @@ contains
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
-        integer :: m, n, mt, r, it, trial, i, nstuck
+        integer :: m, n, mt, r, it, trial, i, nstuck, nbound
         real(dp), allocatable :: p(:), pt(:), pred(:), predt(:), a(:, :), at(:, :), rr(:), rt(:)
         real(dp), allocatable :: aa(:, :), g(:)
         real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
@@ -504,6 +510,23 @@ contains
             end do
             call scaled_svd(aa, d, s, u, vt, stat)
             if (stat%code /= STATUS_OK) return
+            ! ... and one on a bound that the Gauss-Newton step would push out
+            ! of the box (a clipped step would crawl along the bound)
+            do trial = 1, n
+                dx = lm_step(d, s, u, vt, rr, 0.0_dp, opts%rcond)
+                nbound = 0
+                do i = 1, n
+                    if (all(aa(:, i) == 0.0_dp)) cycle
+                    if ((p(free(i)) <= lower(free(i)) .and. dx(i) < 0.0_dp) .or. &
+                        (p(free(i)) >= upper(free(i)) .and. dx(i) > 0.0_dp)) then
+                        aa(:, i) = 0.0_dp
+                        nbound = nbound + 1
+                    end if
+                end do
+                if (nbound == 0) exit
+                call scaled_svd(aa, d, s, u, vt, stat)
+                if (stat%code /= STATUS_OK) return
+            end do
             lam_floor = 1.0e-6_dp*s(1)**2
             ! first-order optimality: the undamped step would lower the cost by
             ! |U^T r|^2; when that is negligible the iterate is the minimum
@@ -576,6 +599,13 @@ contains
                 nstuck = 0
             end if
             cost = cost_t
+            ! ... and so is a damped crawl: ten damped steps that lower the
+            ! chi-square by less than 0.01 together (a curved valley along
+            ! collinear columns; no statistical meaning is left to gain)
+            if (it > CRAWL_STEPS) then
+                if (all(res%log_lambda(it - CRAWL_STEPS + 1:it) > 0.0_dp) .and. &
+                    res%log_cost(it - CRAWL_STEPS) - cost_t < CRAWL_DROP) nstuck = 3
+            end if
             if (nstuck >= 3) then
                 stalled = .true.
                 exit
@@ -863,7 +893,10 @@ contains
         res%sigma = sig
         do j = 1, nb
             if (side(j) /= 0 .and. real(side(j), dp)*delta(j) < 0.0_dp) res%physical = .false.
-            if (ieee_is_finite(sig(j))) then
+            ! beyond the far bound (axial_coupling > 1) is not: the linear
+            ! estimate overshoots when the base fit is far off, and the
+            ! refit starts clipped to the bound
+            if (ieee_is_finite(sig(j)) .and. side(j) == 0) then
                 if (params(block(j)) + delta(j) > upper(block(j)) + 3.0_dp*sig(j) .or. &
                     params(block(j)) + delta(j) < lower(block(j)) - 3.0_dp*sig(j)) &
                     res%physical = .false.

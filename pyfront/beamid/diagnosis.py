@@ -410,12 +410,12 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
     rivals = tuple(c for c in ranked if c.rival)
     alpha_each = float(raw["dstats"][2])
-    message = _verdict_message(fit, ranked, verdict, rivals, alpha)
+    message = _verdict_message(fit, ranked, verdict, rivals, alpha, alpha_each)
     return Diagnosis(fit=fit, candidates=ranked, verdict=verdict, rivals=rivals, alpha=alpha,
                      alpha_each=alpha_each, message=message)
 
 
-def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
+def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
     lines = []
     undetermined = [n for n, f in fit.flags.items() if f != "ok"]
     if undetermined:
@@ -428,13 +428,24 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
             lines.append("no candidate effect left to test (all are free or switched on)")
         failed = [c for c in ranked if c.refit_failed]
         if failed:
-            # never "not explained" while a candidate could not be refitted
+            # never "not explained by any known effect" while a candidate
+            # could not be refitted: name it and say why
             for c in failed:
-                lines.append(f"undecided: the refit of {c.effect} failed (score drop "
-                             f"{c.score_drop:.4g}, p = {c.score_p:.2g}): {c.refit_note}")
-            lines.append(f"no verdict: {', '.join(c.effect for c in failed)} could not be "
-                         f"confirmed or ruled out by a refit (chi2/dof = "
-                         f"{fit.chi2_per_dof:.3g}, p = {p:.3g})")
+                lines.append(f"the refit of {c.effect} failed (score drop {c.score_drop:.4g}, "
+                             f"p = {c.score_p:.2g}): {c.refit_note}")
+            strong = [c for c in failed if c.score_p < alpha_each]
+            consistent = ("the fit is consistent with the noise" if not (p < alpha) else
+                          "the misfit is real")
+            if strong:
+                lines.append(f"no verdict: {', '.join(c.effect for c in strong)} "
+                             f"{'is' if len(strong) == 1 else 'are'} significant by the "
+                             f"first-order test but could not be confirmed by a refit "
+                             f"(chi2/dof = {fit.chi2_per_dof:.3g}, p = {p:.3g}; {consistent})")
+            else:
+                lines.append(f"no verdict: no refit is significant at {alpha:g}, and the "
+                             f"first-order tests of {', '.join(c.effect for c in failed)}, "
+                             f"whose refit failed, are not significant either (chi2/dof = "
+                             f"{fit.chi2_per_dof:.3g}, p = {p:.3g}; {consistent})")
             return "\n".join(lines)
         lines.append(f"residuals not explained by any known effect: no candidate is "
                      f"significant at {alpha:g} (chi2/dof = {fit.chi2_per_dof:.3g}, "
@@ -447,6 +458,10 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
                     for n in verdict.params)
     lines.append(f"missing effect: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
                  f"p = {verdict.p_value:.2g}; {est})")
+    for c in ranked:
+        if c.refit_failed and c.score_p < alpha_each:
+            lines.append(f"  (the refit of {c.effect} failed, score drop {c.score_drop:.4g}: "
+                         f"{c.refit_note})")
     if rivals:
         names = ", ".join(r.effect for r in rivals)
         lines.append(f"ambiguous: {verdict.effect} and {names} explain the residuals about "
