@@ -732,7 +732,9 @@ contains
                              fmt_real(res%corr(i, j))//')')
             end do
         end do
-        if (len(text) == 0) text = 'no parameter at a bound, running away or collinear'
+        if (len(text) == 0) text = 'no parameter at a bound, running away or collinear: '// &
+            'no damped step along the sensitivities lowers the cost (the model is not '// &
+            'smooth to working precision there)'
     contains
         subroutine add(item)
             character(len=*), intent(in) :: item
