@@ -62,6 +62,18 @@ module beamid_estimation
     integer, parameter, public :: START_NOMINAL = 2     !< the nominal model, effect at null
     integer, parameter, public :: START_CONTINUATION = 3 !< strength stepped from the null
 
+    !> The words for the codes above, exported to Python (api_code_names):
+    !! flags, how a fit ended, refit starts, candidate states.
+    character(len=*), parameter, public :: FLAG_NAMES(0:4) = [character(len=43) :: 'ok', &
+        'not determined by these data', 'ran away from its start', &
+        'correlation near +-1 with another parameter', 'at a physical bound']
+    character(len=*), parameter, public :: STOP_NAMES(0:4) = [character(len=15) :: &
+        'converged', 'stalled', 'runaway', 'iteration limit', 'evaluated']
+    character(len=*), parameter, public :: START_NAMES(0:3) = [character(len=20) :: &
+        '', 'first-order estimate', 'nominal model', 'continuation']
+    character(len=*), parameter, public :: CAND_NAMES(0:3) = [character(len=19) :: &
+        'tested', 'already free', 'already switched on', 'not in this model']
+
     !> Candidate states in a diagnosis.
     integer, parameter, public :: CAND_TESTED = 0   !< score test done
     integer, parameter, public :: CAND_FREE = 1     !< a parameter of it is already free

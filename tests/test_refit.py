@@ -252,3 +252,16 @@ def test_sweep_names_the_hidden_effect_and_ends_within_the_noise(k):
     final = ladder.fit
     for name, value in hidden.items():
         assert abs(final.estimates[name] - value) < 4.0 * final.sigmas[name], (name, str(ladder))
+
+
+def test_code_tables_come_from_fortran():
+    from beamid import _core_estimation as ce
+    from beamid.estimation import FLAG_TEXT
+    assert FLAG_TEXT == ce.code_names(1) and FLAG_TEXT[1] == "not determined by these data"
+    assert ce.STOP_NAMES == {0: "converged", 1: "stalled", 2: "runaway", 3: "iteration limit",
+                             4: "evaluated"}
+    assert ce.START_NAMES == {0: None, 1: "first-order estimate", 2: "nominal model",
+                              3: "continuation"}
+    assert ce.CANDIDATE_STATES[2] == "already switched on"
+    with pytest.raises(beamid.InputError, match="no code table 9"):
+        ce.code_names(9)

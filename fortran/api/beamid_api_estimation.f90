@@ -15,7 +15,7 @@ module beamid_api_estimation
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  candidate_t, diagnose_options_t, diagnosis_t, diagnose, &
                                  chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
-                                 refit_info_t
+                                 refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
 
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          static_bounds, static_null_values, probe_rows
@@ -23,7 +23,7 @@ module beamid_api_estimation
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
-    public :: api_residual_structure, api_fit_effect, api_diagnose_nominal
+    public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -84,6 +84,40 @@ contains
         call residual_structure(real(level, dp), int(group), real(normalized, dp), o)
         out = o
     end subroutine api_residual_structure
+
+    !> The words of a code table of beamid_estimation, one per code from 0
+    !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
+    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*).
+    !! code = -1 for an unknown table.
+    subroutine api_code_names(table, names, code)
+        integer(c_int), intent(in) :: table
+        character(len=1024), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        code = 0
+        select case (table)
+        case (1)
+            names = joined(FLAG_NAMES)
+        case (2)
+            names = joined(STOP_NAMES)
+        case (3)
+            names = joined(START_NAMES)
+        case (4)
+            names = joined(CAND_NAMES)
+        case default
+            names = ''
+            code = -1
+        end select
+    contains
+        pure function joined(words) result(text)
+            character(len=*), intent(in) :: words(:)
+            character(len=:), allocatable :: text
+            integer :: i
+            text = trim(words(1))
+            do i = 2, size(words)
+                text = text//';'//trim(words(i))
+            end do
+        end function joined
+    end subroutine api_code_names
 
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)

@@ -68,9 +68,20 @@ def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndar
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
-#: How a fit ended (beamid_estimation STOP_*), and which refit start was kept (START_*).
-STOP_NAMES = {0: "converged", 1: "stalled", 2: "runaway", 3: "iteration limit", 4: "evaluated"}
-START_NAMES = {0: None, 1: "first-order estimate", 2: "nominal model", 3: "continuation"}
+def code_names(table: int) -> dict[int, str]:
+    """A code table of beamid_estimation by code: 1 parameter flags, 2 how a
+    fit ended, 3 refit starts, 4 candidate states (defined once, in Fortran)."""
+    names, code = _api.api_code_names(int(table))
+    raise_for_status(int(code), f"no code table {table}")
+    return dict(enumerate(_msg(names).strip().split(";")))
+
+
+#: Parameter flags (FLAG_*), how a fit ended (STOP_*), the refit start kept
+#: (START_*; 0: none) and candidate states (CAND_*), from the Fortran tables.
+FLAG_NAMES = code_names(1)
+STOP_NAMES = code_names(2)
+START_NAMES = {k: (v or None) for k, v in code_names(3).items()}
+CANDIDATE_STATES = code_names(4)
 
 
 def _fit_dict(out, n: int) -> dict:

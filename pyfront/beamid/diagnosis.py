@@ -79,7 +79,7 @@ register_effect(Effect(
 #: Candidate effects tried for static experiments, in order.
 STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
 
-_STATES = {0: "tested", 1: "already free", 2: "already switched on", 3: "not in this model"}
+_STATES = dict(_ce.CANDIDATE_STATES)
 
 
 def _effect(name: str | Effect) -> Effect:

@@ -28,9 +28,8 @@ from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .static import measurement_value, solve_static
 
-#: Meaning of the per-parameter flags returned by the Fortran core.
-FLAG_TEXT = {0: "ok", 1: "not determined by these data", 2: "ran away from its start",
-             3: "correlation near +-1 with another parameter", 4: "at a physical bound"}
+#: Meaning of the per-parameter flags returned by the Fortran core (its table).
+FLAG_TEXT = dict(_ce.FLAG_NAMES)
 
 Experiments = Mapping[str, "TipLoad | RadialWire"]
 
