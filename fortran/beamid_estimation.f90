@@ -448,7 +448,8 @@ contains
     !! `res%note`; every ending but one comes back with STATUS_OK and the
     !! parameters flagged:
     !! * a parameter that runs away (beyond runaway_factor times its start, or
-    !!   for a parameter bounded below by 0, below its start over that factor)
+    !!   for a parameter bounded below by 0, below its start over that factor
+    !!   squared)
     !!   is held where it was found and the others are fitted on (STOP_RUNAWAY;
     !!   the held one gets an infinite sigma and FLAG_UNDETERMINED);
     !! * three damped steps in a row that change neither the parameters nor the
@@ -701,14 +702,17 @@ contains
 
     !> Has x run away from its start x0: beyond runaway_factor times |x0|, or
     !! for a parameter bounded below by 0 (a stiffness: the solver never
-    !! reaches 0) below x0 / runaway_factor?
+    !! reaches 0) below x0 / runaway_factor**2? (Shrinking is judged more
+    !! leniently: from an absurd start, 3000 -> 7, a stiffness may legitimately
+    !! fall by a factor of 100 on its way back.)
     pure logical function ran_away(x, x0, lo, opts)
         real(dp), intent(in) :: x, x0, lo
         type(fit_options_t), intent(in) :: opts
         ran_away = .false.
         if (x0 == 0.0_dp) return
         if (abs(x) > opts%runaway_factor*abs(x0)) ran_away = .true.
-        if (lo == 0.0_dp .and. x0 > 0.0_dp .and. x < x0/opts%runaway_factor) ran_away = .true.
+        if (lo == 0.0_dp .and. x0 > 0.0_dp .and. x < x0/opts%runaway_factor**2) &
+            ran_away = .true.
     end function ran_away
 
     !> The flagged parameters of a fit in words ("parameter k" by index):
@@ -1006,7 +1010,7 @@ contains
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
     subroutine refit_effect(model, y, sigma, base, block, score, nominal, null_values, lower, &
-                            upper, prior, opts, res, info, stat, ncont)
+                            upper, prior, opts, res, info, stat, ncont, use)
         class(residual_model_t), intent(inout) :: model
         real(dp), intent(in) :: y(:), sigma(:), nominal(:), null_values(:), lower(:), upper(:)
         type(fit_result_t), intent(in) :: base
@@ -1017,12 +1021,14 @@ contains
         type(fit_result_t), intent(out) :: res
         type(refit_info_t), intent(out) :: info
         type(status_t), intent(inout) :: stat
-        integer, intent(in), optional :: ncont
+        integer, intent(in), optional :: ncont  !< continuation steps (default 4)
+        logical, intent(in), optional :: use(3) !< which starts to try (default all)
         integer :: nf, nb, k, j, half, nsteps, kk
+        logical :: try(3)
         integer, allocatable :: all_free(:)
         real(dp), allocatable :: target(:), start(:), shift(:), p(:)
         real(dp) :: best_cost, noise, t
-        type(fit_result_t) :: trial, fallback, held
+        type(fit_result_t) :: trial, fallback, fixed
         type(status_t) :: st
         logical :: have_best, have_fallback, same
         character(len=*), parameter :: label(3) = [character(len=27) :: &
@@ -1032,6 +1038,8 @@ contains
         nb = size(block)
         nsteps = 4
         if (present(ncont)) nsteps = max(ncont, 1)
+        try = .true.
+        if (present(use)) try = use
         all_free = [base%free, block]
         info%note = ''
         info%start = START_NONE
@@ -1059,27 +1067,29 @@ contains
 
         ! 1. the first-order start, halved while the model cannot be solved there
         t = 1.0_dp
-        do half = 0, 4
-            start = base%params
-            start(base%free) = base%params(base%free) + t*shift
-            start(block) = null_values(block) + t*(target - null_values(block))
-            call into_box(start)
-            call clear_status(st)
-            call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
-                                   opts, trial, st)
-            if (allocated(trial%params) .or. st%code <= 0) exit
-            t = 0.5_dp*t
-        end do
-        call consider(START_SCORE, trial, st, shortened=t < 1.0_dp)
-        if (stat%code /= STATUS_OK) return
+        if (try(1)) then
+            do half = 0, 4
+                start = base%params
+                start(base%free) = base%params(base%free) + t*shift
+                start(block) = null_values(block) + t*(target - null_values(block))
+                call into_box(start)
+                call clear_status(st)
+                call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
+                                       opts, trial, st)
+                if (allocated(trial%params) .or. st%code <= 0 .or. half == 4) exit
+                t = 0.5_dp*t
+            end do
+            call consider(START_SCORE, trial, st, shortened=t < 1.0_dp)
+            if (stat%code /= STATUS_OK) return
+        end if
 
         ! 2. the nominal model with the effect at its null value
-        if (.not. done()) then
+        if (try(2) .and. .not. done()) then
             start = base%params
             start(base%free) = nominal(base%free)
             start(block) = null_values(block)
             call into_box(start)
-            same = all(start == base%params) .and. all(shift == 0.0_dp) .and. &
+            same = try(1) .and. all(start == base%params) .and. all(shift == 0.0_dp) .and. &
                    all(target == null_values(block))
             if (.not. same) then
                 call clear_status(st)
@@ -1091,7 +1101,7 @@ contains
         end if
 
         ! 3. continuation in the effect's strength from its null value
-        if (.not. done() .and. any(target /= null_values(block))) then
+        if (try(3) .and. .not. done() .and. any(target /= null_values(block))) then
             p = base%params
             kk = 0
             do k = 1, nsteps
@@ -1101,10 +1111,10 @@ contains
                 call into_box(start)
                 call clear_status(st)
                 call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
-                                       opts, held, st)
+                                       opts, fixed, st)
                 if (st%code /= STATUS_OK) exit
-                if (held%stop /= STOP_CONVERGED .and. held%stop /= STOP_RUNAWAY) exit
-                p = held%params
+                if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) exit
+                p = fixed%params
                 kk = k
             end do
             if (kk > 0) then

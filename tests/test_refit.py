@@ -265,3 +265,35 @@ def test_code_tables_come_from_fortran():
     assert ce.CANDIDATE_STATES[2] == "already switched on"
     with pytest.raises(beamid.InputError, match="no code table 9"):
         ce.code_names(9)
+
+
+@pytest.mark.parametrize("k", [2, 5, 8, 11], ids=lambda k: SWEEP[k][0])
+def test_each_refit_start_alone_reaches_the_same_minimum(k):
+    # the strongest strength of each effect: the first-order start, the
+    # nominal model and the continuation each converge, to the same refit
+    effect, hidden = SWEEP[k]
+    base = beamid.pace(axial_coupling=0.0 if effect == "axial_coupling" else 1.0)
+    exps = sweep_experiments()
+    data = make_data(base.replace(**hidden), exps, ("x_tip", "y_tip", "tip_angle"),
+                     SWEEP_SIGMA, seed=100 + k)
+    fit = beamid.fit(base, exps, data, free=("EI1", "EI2"))
+    fits = [beamid.add_effect(fit, effect, starts=[s])
+            for s in ("first-order estimate", "nominal model", "continuation")]
+    assert [f.refit_start for f in fits] == ["first-order estimate", "nominal model",
+                                             "continuation"]
+    for f in fits:
+        assert f.stop == "converged"
+        assert f.chi2 == pytest.approx(fits[0].chi2, rel=1e-8)
+        for name in f.free:
+            assert abs(f.estimates[name] - fits[0].estimates[name]) < 1e-3 * f.sigmas[name]
+
+
+def test_no_converging_start_raises_with_the_reason_of_each(wire_case):
+    truth, data, fit = wire_case
+    with pytest.raises(beamid.ConvergenceError,
+                       match=r"add_effect\('material_cubic'\): refit: no start converged: "
+                             r"from the first-order start \(shortened to .*\): EI2 ran away"):
+        beamid.add_effect(fit, "material_cubic", starts=["first-order estimate"])
+    with pytest.raises(beamid.InputError, match="starts names 'guess', expected some of "
+                                                "first-order estimate, nominal model"):
+        beamid.add_effect(fit, "material_cubic", starts=["guess"])

@@ -255,18 +255,22 @@ contains
     !! null values, are score-tested and freed, and the refit starts from the
     !! first-order estimate, from `nominal` (the user's starting values) with
     !! the effect at null, and by continuation in the effect's strength
-    !! (refit_effect), keeping the best that converges. The outputs are those
+    !! (refit_effect; start_mask limits the starts), keeping the best that
+    !! converges. The outputs are those
     !! of the fit of [free_idx, block]; info(2) = the start kept (START_*),
     !! note = what every start gave. No start converging is ERR_NO_CONVERGENCE
     !! with the notes (and the best attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                               nominal, nprior, prior_idx, prior_mean, prior_sigma, nexp, &
                               exp_kind, exp_values, nrow, row_exp, row_q, row_value, row_sigma, &
-                              tol, max_iter, params, sigmas, cov, corr, flags, predictions, &
-                              normalized, stats, log_cost, log_lambda, log_step, log_params, &
-                              info, code, message, note)
+                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              predictions, normalized, stats, log_cost, log_lambda, log_step, &
+                              log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
         integer(c_int), intent(in) :: max_iter
+        !> which refit starts to try, bits 1, 2, 4 = START_SCORE, START_NOMINAL,
+        !! START_CONTINUATION (0: all)
+        integer(c_int), intent(in) :: start_mask
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock + 1)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
@@ -294,6 +298,7 @@ contains
         type(prior_t) :: prior
         real(dp), allocatable :: lower(:), upper(:), nulls(:), y(:), sig(:)
         integer, allocatable :: blk(:)
+        integer :: k
 
         params = params0
         sigmas = 0.0_c_double
@@ -335,7 +340,8 @@ contains
                     base%free, lower, upper, prior, blk, opts, score, stat)
                 if (stat%code == STATUS_OK) then
                     call refit_effect(model, y, sig, base, blk, score, real(nominal, dp), nulls, &
-                                      lower, upper, prior, opts, res, rinfo, stat)
+                                      lower, upper, prior, opts, res, rinfo, stat, &
+                                      use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
                     info(2) = int(rinfo%start, c_int)
                     note = rinfo%note
                 end if

@@ -105,11 +105,13 @@ def _fit_dict(out, n: int) -> dict:
 
 def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
-        block: np.ndarray | None = None, nominal: np.ndarray | None = None) -> dict:
+        block: np.ndarray | None = None, nominal: np.ndarray | None = None,
+        start_mask: int = 0) -> dict:
     """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
     at ``params0`` with the parameters ``block`` freed as well, from the
     first-order estimate, from ``nominal`` and by continuation (1-based
-    indices). Returns a dict of arrays; a fit that stalls or whose
+    indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
+    continuation starts, 0 all). Returns a dict of arrays; a fit that stalls or whose
     parameter runs away comes back with ``stop`` and ``note`` saying so.
     Raises ConvergenceError (with the partial result in ``exc.partial``)
     when still moving at ``max_iter`` or when no refit start converged."""
@@ -121,12 +123,13 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
         prob.nbeams, params0, free, _pad(block, np.int32), nominal, _pad(prior_idx, np.int32),
         _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
         prob.exp_values, prob.row_exp, prob.row_q, prob.row_value, prob.row_sigma,
-        float(prob.tol), int(max_iter))
+        float(prob.tol), int(max_iter), int(start_mask))
     result = _fit_dict(out, free.size + block.size)
     code, message = result["code"], result["message"]
     if code != 0:
         if code == 1 and result["note"] and block.size:
-            message = f"{message.split(':')[0]}: {result['note']}"
+            # the Fortran message holds 256 characters; the notes all of it
+            message = f"refit: no start converged: {result['note']}"
         try:
             raise_for_status(code, message)
         except Exception as exc:

@@ -489,7 +489,8 @@ def _nominal(fit: FitResult, nominal: Model | None) -> Model:
 
 
 def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
-               nominal: Model | None = None) -> FitResult:
+               nominal: Model | None = None,
+               starts: Sequence[str] | None = None) -> FitResult:
     """Refit with the parameters of ``effect`` free as well.
 
     The refit starts where it can converge (Fortran ``refit_effect``): from
@@ -500,7 +501,8 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     value; the best that converges is kept (``result.refit_start`` says
     which, ``result.note`` what every start gave). A refit that runs away or
     stalls comes back flagged; :class:`beamid.ConvergenceError` only when no
-    start converges at all (the message says why for each).
+    start converges at all (the message says why for each). ``starts``
+    limits the starts tried (names as in ``refit_start``; default all).
     """
     eff = _effect(effect)
     params = eff.params(fit.model)
@@ -512,6 +514,14 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
     if int(max_iter) < 1:
         raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
+    mask = 0
+    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+        if name not in names:
+            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
+        mask |= 1 << names.index(name)
+    if starts is not None and mask == 0:
+        raise InputError(f"starts is empty: name some of {', '.join(names)}")
     model = fit.model
     nominal = _nominal(fit, nominal)
     prob = build_problem(model, fit.experiments, fit.data)
@@ -520,7 +530,7 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     try:
         raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter),
-                      block=block, nominal=nominal.vector())
+                      block=block, nominal=nominal.vector(), start_mask=mask)
     except ConvergenceError as exc:
         raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
     start = model.with_params(dict(zip(fit.free + params, raw["log_params"][:, 0])))
