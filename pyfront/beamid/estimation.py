@@ -63,7 +63,9 @@ class FitResult:
     ``estimates`` and ``sigmas`` are dicts by parameter name; ``cov`` and
     ``corr`` are arrays in the order of ``free``. A parameter the data do not
     determine has an infinite sigma and a flag in ``flags``; ``warnings``
-    says so in words.
+    says so in words. A fit that stalled or whose parameter ran away has
+    ``converged`` False, ``stop`` "stalled" or "runaway" and ``note`` saying
+    which parameters are at a bound, running away or collinear.
     """
 
     model: Model
@@ -274,9 +276,18 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     prior:
         Optional a priori ``{name: (mean, sigma)}`` for free parameters.
     max_iter:
-        Gauss-Newton iterations before :class:`beamid.ConvergenceError`.
+        Gauss-Newton iterations; a fit still moving after them raises
+        :class:`beamid.ConvergenceError` (``exc.partial`` holds the last
+        iterate).
     tol:
         Static solver tolerance (0: default).
+
+    A parameter that runs away (beyond 100 times its start, or a stiffness
+    below a ten-thousandth of it) is held where it was found and the others
+    are fitted; a fit whose damped steps stop lowering the cost stalls.
+    Both come back flagged (``result.stop``, ``result.note``,
+    ``result.flags``), not raised. ConvergenceError is for a model the
+    solver cannot solve at the values asked, and for the iteration limit.
     """
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
