@@ -449,14 +449,15 @@ contains
     !! parameters flagged:
     !! * a parameter that runs away (beyond runaway_factor times its start, or
     !!   for a parameter bounded below by 0, below its start over that factor
-    !!   squared)
-    !!   is held where it was found and the others are fitted on (STOP_RUNAWAY;
-    !!   the held one gets an infinite sigma and FLAG_UNDETERMINED);
+    !!   squared) is held where it was found and the others are fitted on
+    !!   (STOP_RUNAWAY; the held one gets an infinite sigma and
+    !!   FLAG_UNDETERMINED);
     !! * three damped steps in a row that change neither the parameters nor the
-    !!   cost, ten damped steps that lower the chi-square by less than 0.01
-    !!   together (a crawl along a curved valley), or a smallest damped trial
-    !!   step the model cannot solve, is a stall (STOP_STALLED): the note
-    !!   names the parameters at a bound, running away or collinear;
+    !!   cost while the damping had to be raised again, ten damped steps that
+    !!   lower the chi-square by less than 0.01 together (a crawl along a
+    !!   curved valley), or a smallest damped trial step the model cannot
+    !!   solve, is a stall (STOP_STALLED): the note names the parameters at a
+    !!   bound, running away or collinear;
     !! * still moving at max_iter: ERR_NO_CONVERGENCE (STOP_MAX_ITER), `res`
     !!   holding the last iterate and its log;
     !! * a model that cannot be evaluated at params0, or at none of the damped
@@ -474,7 +475,7 @@ contains
         real(dp), allocatable :: p(:), pt(:), pred(:), predt(:), a(:, :), at(:, :), rr(:), rt(:)
         real(dp), allocatable :: aa(:, :), g(:)
         real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
-        real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor
+        real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor, lambda_in
         logical :: accepted, evaluated, failed_trial, stalled
         type(status_t) :: trial_stat, fail_stat
         logical, allocatable :: undetermined(:), held(:)
@@ -553,6 +554,7 @@ contains
             accepted = .false.
             evaluated = .false.
             failed_trial = .false.
+            lambda_in = lambda
             do trial = 1, opts%max_trials
                 dx = lm_step(d, s, u, vt, rr, lambda, opts%rcond)
                 pt = p
@@ -605,8 +607,10 @@ contains
                 res%converged = .true.
                 exit
             end if
-            ! a damped step that moves nothing: three in a row is a stall
-            if (relstep < opts%tol_step .or. dcost <= opts%tol_cost*cost_t) then
+            ! a damped step that moves nothing though the damping had to be
+            ! raised again (not on its way down): three in a row is a stall
+            if (lambda > lambda_in .and. &
+                (relstep < opts%tol_step .or. dcost <= opts%tol_cost*cost_t)) then
                 nstuck = nstuck + 1
             else
                 nstuck = 0
@@ -666,7 +670,9 @@ contains
         if (stat%code /= STATUS_OK) return   ! the model failed at every trial step
         if (any(held)) then
             res%stop = STOP_RUNAWAY
-            if (res%converged) then
+            if (all(held)) then
+                res%note = 'no parameter left to fit'
+            else if (res%converged) then
                 res%note = 'the others fitted'
             else if (stalled) then
                 res%note = 'the others stalled'
@@ -1003,9 +1009,9 @@ contains
     !! The best is the lowest chi-square among the starts that converge
     !! (STOP_CONVERGED; a later start must beat the best so far by more than
     !! 1e-6 of it, so the same minimum reached twice keeps the earlier start,
-    !! whatever the nominal model). Starts after one whose chi-square is consistent with
-    !! the noise (below dof + 3 sqrt(2 dof)) are skipped: no other minimum can
-    !! be significantly better. `info%note` says what each start gave. When
+    !! whatever the nominal model). Starts after one whose chi-square is
+    !! consistent with the noise (below dof + 3 sqrt(2 dof)) are skipped: no
+    !! other minimum can be significantly better. `info%note` says what each start gave. When
     !! none converges, `res` is the lowest-cost attempt (flagged) and the
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
@@ -1031,6 +1037,7 @@ contains
         type(fit_result_t) :: trial, fallback, fixed
         type(status_t) :: st
         logical :: have_best, have_fallback, same
+        character(len=:), allocatable :: why
         character(len=*), parameter :: label(3) = [character(len=27) :: &
             'from the first-order start', 'from the nominal model', 'by continuation']
 
@@ -1104,6 +1111,7 @@ contains
         if (try(3) .and. .not. done() .and. any(target /= null_values(block))) then
             p = base%params
             kk = 0
+            why = ''
             do k = 1, nsteps
                 start = p
                 start(block) = null_values(block) + real(k, dp)/real(nsteps, dp)* &
@@ -1112,8 +1120,14 @@ contains
                 call clear_status(st)
                 call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
                                        opts, fixed, st)
-                if (st%code /= STATUS_OK) exit
-                if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) exit
+                if (st%code /= STATUS_OK) then
+                    why = trim(st%message)
+                    exit
+                end if
+                if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) then
+                    why = fixed%note
+                    exit
+                end if
                 p = fixed%params
                 kk = k
             end do
@@ -1125,7 +1139,7 @@ contains
                 if (stat%code /= STATUS_OK) return
             else
                 call add_note(trim(label(3))//': the first step could not be fitted ('// &
-                              trim(st%message)//')')
+                              why//')')
             end if
         end if
 
@@ -1164,7 +1178,8 @@ contains
                 call add_note(what//': converged, chi-square '//fmt_real(tr%chi2))
                 ! a later start must do better than the same minimum reached
                 ! again (ties go to the earlier start)
-                if (.not. have_best .or. cost < best_cost - 1.0e-6_dp*best_cost - 1.0e-9_dp) then
+                if (.not. have_best .or. &
+                    cost < best_cost - 1.0e-6_dp*best_cost - 1.0e-9_dp) then
                     res = tr
                     best_cost = cost
                     have_best = .true.

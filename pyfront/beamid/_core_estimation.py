@@ -162,7 +162,8 @@ def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np
     nc = len(blocks)
     lines = _msg(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
-    return {"cstats": np.array(cstats).reshape(18, nc), "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+    return {"cstats": np.array(cstats).reshape(18, nc),
+            "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
             "refit_params": np.array(refit_params).reshape(-1, nc),
             "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
             "dstats": np.array(dstats), "starts": starts - 1,
