@@ -22,6 +22,8 @@ from .dynamics import Run, simulate
 simulate_dynamics = simulate
 from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
                         improve, register_effect)
+from .consistency import Consistency, consistency
+from .design import Advice, design
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError",
@@ -34,5 +36,6 @@ __all__ = [
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",
+    "consistency", "Consistency", "design", "Advice",
 ]
 __version__ = "0.1.0"

@@ -110,6 +110,29 @@ class Measurements:
         return Measurements(self.experiment, self.t, self.quantity, np.asarray(value, float),
                             self.sigma, self.source, self.lines)
 
+    def merge(self, other: "Measurements") -> "Measurements":
+        """This table followed by the rows of ``other`` (e.g. simulated rows of
+        a planned experiment). A row of ``other`` with the same (experiment,
+        t, quantity) as a row here is an InputError naming both."""
+        if not isinstance(other, Measurements):
+            raise InputError(f"merge: expected beamid.Measurements, got {type(other).__name__}")
+        here = {(e, float(t), q): i for i, (e, t, q) in
+                enumerate(zip(self.experiment, self.t, self.quantity))}
+        for j, key in enumerate(zip(other.experiment, other.t, other.quantity)):
+            i = here.get((key[0], float(key[1]), key[2]))
+            if i is not None:
+                raise InputError(f"merge: duplicate row: experiment {key[0]!r}, t = "
+                                 f"{key[1]:g}, quantity {key[2]!r} is in both "
+                                 f"{self._where(i)} and {other._where(j)}")
+        source = self.source if self.source == other.source else \
+            f"{self.source} + {other.source}"
+        return Measurements(self.experiment + other.experiment,
+                            np.concatenate([self.t, other.t]),
+                            self.quantity + other.quantity,
+                            np.concatenate([self.value, other.value]),
+                            np.concatenate([self.sigma, other.sigma]), source,
+                            tuple(self.lines) + tuple(other.lines))
+
     def check_experiments(self, experiments: Mapping[str, object]) -> None:
         """Raise InputError for a row whose experiment is not defined."""
         for i, name in enumerate(self.experiment):
