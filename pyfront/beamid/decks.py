@@ -20,31 +20,24 @@ from typing import Any
 
 import f90nml
 
+from ._deck_common import Published, check_path as _check_path, load as _load
+from ._deck_common import published as _published, run_files
 from .errors import InputError
-from .loads import Load, RadialWire, TipLoad
+from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, _result
+from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
 
+__all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
+           "history_columns", "FitDeck"]
+
 TASKS = ("static", "fe_static", "fe_modes", "simulate")
-#: tasks of estimation decks (&experiment, &fit groups), read by beamid.fit_decks
-ESTIMATION_TASKS = ("fit", "compare", "diagnose", "improve")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
-
-
-@dataclass(frozen=True)
-class Published:
-    """Published values a deck reproduces (group &published)."""
-
-    table: str
-    row: str
-    values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
-    deviations: tuple[str, ...] = ()
-    note: str = ""
 
 
 @dataclass(frozen=True)
@@ -71,32 +64,10 @@ class Deck:
         return out if out.is_absolute() else self.path.parent / out
 
 
-def _published(values: dict) -> tuple[Published, ...]:
-    """The &published groups as read by the Fortran reader."""
-    return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
-                           deviations=tuple(g["deviations"]), note=g["note"])
-                 for g in values["published"])
-
-
 def _point_name(nbeams: int, k: int) -> str:
     if k == nbeams:
         return "tip"
     return "elbow" if k == 1 else f"joint{k}"
-
-
-def _load(kind: int, values: list[float]) -> Load:
-    from .loads import LOAD_WIRE
-
-    if kind == LOAD_WIRE:
-        return RadialWire(values[3])
-    return TipLoad(values[0], values[1], values[2])
-
-
-def _check_path(path: Any, what: str = "path") -> Path:
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
-                         "(str or os.PathLike)")
-    return Path(path)
 
 
 def read_deck(path: str | os.PathLike):
@@ -108,8 +79,6 @@ def read_deck(path: str | os.PathLike):
     path = _check_path(path)
     values = _core.read_deck(str(path))
     if values["task"] in ESTIMATION_TASKS:
-        from .fit_decks import _fit_deck
-
         return _fit_deck(path, values)
     model = Model(values["nbeams"], values["params"])
     names = model.names()
@@ -199,16 +168,6 @@ def _umask() -> int:
     return mask
 
 
-def run_files(deck: "Deck | str | os.PathLike") -> list[Path]:
-    """Run a deck's task with the runners of ``beamid-batch`` (the same
-    Fortran, so the same bytes) and return the files written (all or none).
-    A deck object runs its file with its ``task`` (so a FitDeck whose task was
-    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``)."""
-    if hasattr(deck, "path"):
-        return [Path(p) for p in _core.run_deck(str(deck.path), deck.task)]
-    return [Path(p) for p in _core.run_deck(str(_check_path(deck, "deck")))]
-
-
 def run(deck: Deck | str | os.PathLike):
     """Run a deck as ``beamid-batch`` does and write the same CSV files.
 
@@ -219,12 +178,10 @@ def run(deck: Deck | str | os.PathLike):
     the result object of the task (a :class:`beamid.Run` for simulate, a
     :class:`StaticResult` for static, ...), computed through the Python API.
     """
-    if not isinstance(deck, Deck) and not hasattr(deck, "experiments"):
+    if not isinstance(deck, (Deck, FitDeck)):
         deck = read_deck(_check_path(deck, "deck"))
     run_files(deck)
-    if deck.task in ESTIMATION_TASKS:
-        from .fit_decks import _result
-
+    if isinstance(deck, FitDeck):
         return _result(deck)
     if deck.task == "fe_static":
         from . import fe

@@ -21,13 +21,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import _core
+from ._deck_common import check_path, load, published as published_groups, run_files
 from .diagnosis import Ladder, compare, diagnose, improve
+from .errors import InputError
 from .estimation import fit
 from .loads import RadialWire, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve")
+#: the same, under the name decks.py uses
+ESTIMATION_TASKS = FIT_TASKS
 @dataclass(frozen=True)
 class FitDeck:
     """A parsed estimation deck."""
@@ -53,31 +58,26 @@ class FitDeck:
 
 def _fit_deck(path: Path, values: dict) -> FitDeck:
     """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
-    from .decks import _load, _published
-
     model = Model(values["nbeams"], values["params"])
     names = model.names()
-    experiments = {n: _load(kind, vals) for n, kind, vals in values["experiments"]}
+    experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
     data = read_measurements(values["data_path"], experiments)
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
                    experiments=experiments, data=data,
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
-                   max_iter=values["max_iter"], published=_published(values))
+                   max_iter=values["max_iter"], published=published_groups(values))
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
-    """Read and validate an estimation deck (:func:`beamid.read_deck`)."""
-    from .decks import read_deck
-
-    deck = read_deck(path)
-    if not isinstance(deck, FitDeck):
-        from .errors import InputError
-
-        raise InputError(f"{path}: task {deck.task!r} is not an estimation task "
+    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`)."""
+    path = check_path(path)
+    values = _core.read_deck(str(path))
+    if values["task"] not in FIT_TASKS:
+        raise InputError(f"{path}: task {values['task']!r} is not an estimation task "
                          f"{FIT_TASKS}")
-    return deck
+    return _fit_deck(path, values)
 
 
 def _result(deck: FitDeck) -> Any:
@@ -102,8 +102,6 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
 
     The CSV files are written by the Fortran task runners (as beamid-batch,
     all or none); the report and the figures come from the Python result."""
-    from .decks import run_files
-
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
     files = run_files(deck)
