@@ -1,14 +1,19 @@
-!> Namelist input decks for the batch executable (format: docs/decks.md).
+!> Namelist input decks (format: docs/decks.md), the one reader of both
+!! fronts: beamid-batch and Python (beamid_api_deck) call read_deck.
 !!
 !! A deck holds the groups &beamid (task, output, preset, nbeams), &model
-!! (per-beam and per-mass-point arrays and the effect parameters), &load and
-!! &static. Estimation decks (tasks fit, compare, diagnose, improve) hold
+!! (per-beam and per-mass-point arrays and the effect parameters), &load,
+!! &static and &fe; estimation decks (tasks fit, compare, diagnose, improve)
 !! &beamid, &model, one &experiment per experiment and &fit, whose data CSV
-!! is read and validated here too (beamid_measurements). Every group and
-!! variable is checked: an unknown group, a misspelt variable, a missing
-!! value or a nonphysical one is reported with the deck's path and the
-!! offending name. Dynamic decks (task simulate) hold &beamid, &model,
-!! &load (the tip load held before the release) and &simulate.
+!! is read and validated here too (beamid_measurements); dynamic decks (task
+!! simulate) &beamid, &model, &load (the tip load held before the release)
+!! and &simulate; any deck &published. The file is split into groups and
+!! items by beamid_namelist, then every group is checked and every problem
+!! collected (deck_t%errors, one per line, naming the file, line, group,
+!! variable, value and what was expected): a value of the wrong type, NaN or
+!! Infinity, too many values, a group cut short, unknown or repeated names,
+!! values out of range, nonphysical parameters, and sizes beyond the memory
+!! bound (MAX_BYTES) before anything is allocated. Nothing defaults silently.
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
