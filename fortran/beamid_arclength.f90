@@ -933,12 +933,16 @@ contains
                 stat%message = trim(stat%message)//' ('//load_text(load)//')'
             return
         end if
-        if (load%kind == LOAD_WIRE .and. .not. (u(4) > 0.0_dp)) then
-            call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'the only '// &
-                            'equilibrium found for Lw = '//fmt_real(load%wire_length)// &
-                            ' pushes on the tip (tension '//fmt_real(u(4))// &
-                            ' N): no taut-wire shape found')
-            return
+        ! (nested: Fortran need not short-circuit .and., and u has no 4th entry
+        ! for a tip load)
+        if (load%kind == LOAD_WIRE) then
+            if (.not. (u(4) > 0.0_dp)) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'the only '// &
+                                'equilibrium found for Lw = '//fmt_real(load%wire_length)// &
+                                ' pushes on the tip (tension '//fmt_real(u(4))// &
+                                ' N): no taut-wire shape found')
+                return
+            end if
         end if
         ! after continuation the last shot may lack the sensitivity columns
         if (size(shot%v_end, 2) /= NSHOOT + size(wrt)) then
