@@ -49,10 +49,15 @@ def demo(out: Path) -> int:
     print(text)
     written += files
 
-    # the dynamic Figures 20-25 (implicit integrator, about a second)
-    from .figures import write_figures
+    # the dynamic Figures 20-25 (implicit integrator, about a second): the three
+    # runs one by one, so that a terminal shows the progress
+    from .figures import GAINS, figure_runs, write_figures
+    from .progress import progress
 
-    written += write_figures(out)
+    runs = {}
+    for gain in progress(GAINS, desc="figures 20-25"):
+        runs.update(figure_runs([gain]))
+    written += write_figures(out, runs=runs)
 
     for p in written:
         print(f"wrote {p}")
