@@ -286,3 +286,32 @@ def test_number_checker():
     assert not check("12.66 N\n", "12.66 m\n", flags)
     assert not check("1 2\n", "1 2 3\n", flags)
     assert check("[2.42882 11.0030]\n", "[  2.4288207   11.00298838]\n", flags)
+
+
+# ------------------------------------------------------------- deck examples
+
+DECK_BLOCKS = [b for p in DOCS for b in blocks(p)
+               if not b.lang and b.text.lstrip().startswith("&beamid")]
+
+
+def _deck_param(block: Block):
+    marks = []
+    if "'W13'" in block.text:
+        # docs/decks.md's estimation template names a wire experiment the bundled
+        # CSV does not have (issue 16); the "input" helper owns that page
+        marks.append(pytest.mark.xfail(reason="decks.md template vs hidden_effect.csv",
+                                       strict=False))
+    return pytest.param(block, id=block.name, marks=marks)
+
+
+@pytest.mark.parametrize("block", [_deck_param(b) for b in DECK_BLOCKS])
+def test_deck_examples_run(block, tmp_path, batch_exe):
+    # complete decks shown in the docs run in both programs, next to the demo data
+    for f in (ROOT / "inputs" / "demo").iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    deck = tmp_path / "example.nml"
+    deck.write_text(block.text)
+    beamid.run(str(deck))
+    done = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
