@@ -210,3 +210,17 @@ def test_no_convergence_exits_3(monkeypatch, capsys):
     monkeypatch.setattr(beamid.tables, "reproduce", stuck)
     assert main(["reproduce", "2"]) == 3
     assert capsys.readouterr().err == "beamid: error: Newton did not converge (residual 1e-3)\n"
+
+
+def test_simulate_history_is_the_batch_programs(tmp_path, batch_exe, capsys):
+    # one file format: `beamid simulate DECK` writes the bytes beamid-batch writes
+    deck = tmp_path / "d.nml"
+    deck.write_text("&beamid task = 'simulate', output = 'batch', preset = 'pace' /\n"
+                    "&model J_elbow = 0.0, J_tip = 0.0, mu_tip = 0.02 /\n"
+                    "&load kind = 'tip', fy = 8.0 /\n"
+                    "&simulate t_end = 0.2, n_out = 3, elements_per_beam = 2 /\n")
+    done = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert main(["simulate", str(deck), "--output", str(tmp_path / "cli"), "--no-plots"]) == 0
+    assert (tmp_path / "cli_history.csv").read_bytes() == \
+        (tmp_path / "batch_history.csv").read_bytes()

@@ -214,14 +214,16 @@ def _umask() -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .decks import history_columns, history_table
+    from .decks import history_columns
     from .dynamics import simulate
+    from .history import series
 
     source, model, load, t_out, opts, prefix = simulate_command(args)
     run = simulate(model, load, t_out, **opts)
-    nb = model.nbeams
-    header = ",".join(history_columns(nb))
-    table = history_table(run, nb)
+    # the columns of the history file beamid-batch writes for a dynamic deck
+    columns = history_columns(model.nbeams)
+    header = ",".join(columns)
+    table = np.column_stack([run.t if c == "t" else series(run, c) for c in columns])
 
     def write_csv(tmp: str) -> None:
         np.savetxt(tmp, table, delimiter=",", fmt="%.16E", header=header, comments="")
