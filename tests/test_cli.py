@@ -224,3 +224,14 @@ def test_simulate_history_is_the_batch_programs(tmp_path, batch_exe, capsys):
     assert main(["simulate", str(deck), "--output", str(tmp_path / "cli"), "--no-plots"]) == 0
     assert (tmp_path / "cli_history.csv").read_bytes() == \
         (tmp_path / "batch_history.csv").read_bytes()
+
+
+def test_closed_pipe_stops_quietly(monkeypatch, capsys):
+    import beamid.tables
+
+    def reader_gone(*args, **kwargs):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(beamid.tables, "reproduce", reader_gone)
+    assert main(["reproduce"]) == 141
+    assert capsys.readouterr().err == ""

@@ -381,6 +381,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConvergenceError as exc:
         print(f"beamid: error: {exc}", file=sys.stderr)
         return EXIT_NUMERICAL
+    except BrokenPipeError:
+        # the reader of a pipe stopped early (`beamid reproduce | head`): stop quietly,
+        # with the exit status of a process killed by SIGPIPE, as other Unix tools
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 128 + 13
     except OutputError as exc:
         print(f"beamid: error: {exc}", file=sys.stderr)
         return EXIT_OUTPUT

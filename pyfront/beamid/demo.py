@@ -60,7 +60,7 @@ def demo(out: Path) -> int:
     written += write_figures(out, runs=runs)
 
     for p in written:
-        print(f"wrote {p}")
+        print(f"wrote {_shown(Path(p))}")
     return 1 if any(c.status == "FAIL" for c in checks) else 0
 
 
@@ -81,3 +81,11 @@ def _forms_figure(path: Path, title: str, loads, label) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _shown(path: Path) -> Path:
+    """``path`` relative to the current folder when it lies below it."""
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return path
