@@ -8,7 +8,7 @@ The numerical work is done in Fortran; this package wraps it.
 >>> round(r.tip_y, 6)
 0.628434
 """
-from .errors import BeamidError, ConvergenceError, InputError
+from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
 from .loads import RadialWire, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
@@ -24,7 +24,7 @@ from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compa
                         improve, register_effect)
 
 __all__ = [
-    "BeamidError", "ConvergenceError", "InputError",
+    "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
     "TipForce", "TipMoment", "TipLoad", "RadialWire",
     "solve_static", "StaticResult", "Shape",

@@ -17,7 +17,7 @@ import traceback
 from pathlib import Path
 from typing import Sequence
 
-from .errors import BeamidError, ConvergenceError, InputError
+from .errors import ConvergenceError, InputError, OutputError
 
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)
 EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
@@ -28,10 +28,6 @@ ESTIMATION_COMMANDS = ("fit", "compare", "diagnose", "improve")
 #: vibration (Chapter IV, Table 8): 8 N release, 8 elements, one period
 SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 4,
                      "output": "out/simulate"}
-
-
-class OutputError(BeamidError, OSError):
-    """An output file cannot be written (exit code 4)."""
 
 
 def _version() -> str:

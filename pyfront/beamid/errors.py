@@ -18,6 +18,10 @@ class ConvergenceError(BeamidError, RuntimeError):
     """A numerical method did not converge (the message says which and how far)."""
 
 
+class OutputError(BeamidError, OSError):
+    """An output file or folder cannot be written (exit code 4 of both programs)."""
+
+
 def raise_for_status(code: int, message: str | bytes) -> None:
     """Raise the exception that matches a Fortran status code (0: no error)."""
     if code == 0:
