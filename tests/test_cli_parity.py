@@ -50,9 +50,9 @@ def test_ok_and_the_files_written(new_batch, tmp_path):
     batch, cli = _both(new_batch, tmp_path, "d.nml")
     assert batch.returncode == cli.returncode == 0, batch.stderr + cli.stderr
 
-    def names(out):
+    def names(out):       # "wrote PATH" (beamid) or "PATH" (beamid-batch) lines
         return sorted(Path(line.split()[-1]).name for line in out.splitlines()
-                      if line.startswith("wrote"))
+                      if line.startswith("wrote") or line.endswith(".csv"))
 
     assert names(batch.stdout) == names(cli.stdout) == ["d_shape.csv", "d_summary.csv"]
     assert _run([new_batch, "--quiet", "d.nml"], tmp_path).stdout == ""
