@@ -933,8 +933,8 @@ contains
                 stat%message = trim(stat%message)//' ('//load_text(load)//')'
             return
         end if
-        ! (nested: Fortran need not short-circuit .and., and u has no 4th entry
-        ! for a tip load)
+        ! (nested: Fortran's .and. does not short-circuit, and u has no 4th
+        ! entry for a tip load)
         if (load%kind == LOAD_WIRE) then
             if (.not. (u(4) > 0.0_dp)) then
                 call set_status(stat, ERR_NO_CONVERGENCE, 'radial wire', 'the only '// &
