@@ -235,3 +235,26 @@ def test_closed_pipe_stops_quietly(monkeypatch, capsys):
     monkeypatch.setattr(beamid.tables, "reproduce", reader_gone)
     assert main(["reproduce"]) == 141
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("make_error, code", [
+    (lambda: beamid.InputError("bad"), 2),
+    (lambda: beamid.ConvergenceError("stuck"), 3),
+    (lambda: beamid.OutputError("cannot write x"), 4),
+    # an InputError carrying the Fortran table's exit code 4 (ERR_OUTPUT)
+    (lambda: _with_code(beamid.InputError("output: cannot create x"), 4), 4),
+])
+def test_exit_code_is_the_errors(monkeypatch, capsys, make_error, code):
+    import beamid.tables
+
+    def fail(*args, **kwargs):
+        raise make_error()
+
+    monkeypatch.setattr(beamid.tables, "reproduce", fail)
+    assert main(["reproduce"]) == code
+    assert capsys.readouterr().err.startswith("beamid: error: ")
+
+
+def _with_code(error, code):
+    error.exit_code = code
+    return error

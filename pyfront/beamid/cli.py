@@ -17,7 +17,7 @@ import traceback
 from pathlib import Path
 from typing import Sequence
 
-from .errors import ConvergenceError, InputError, OutputError
+from .errors import BeamidError, InputError, OutputError
 
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)
 EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
@@ -371,12 +371,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except InputError as exc:
-        print(f"beamid: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except ConvergenceError as exc:
-        print(f"beamid: error: {exc}", file=sys.stderr)
-        return EXIT_NUMERICAL
     except BrokenPipeError:
         # the reader of a pipe stopped early (`beamid reproduce | head`): stop quietly,
         # with the exit status of a process killed by SIGPIPE, as other Unix tools
@@ -385,9 +379,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         except (OSError, ValueError):
             pass
         return 128 + 13
-    except OutputError as exc:
+    except BeamidError as exc:
+        # the error's own exit code (beamid_status's table: 2 bad input, 3 numerical
+        # failure, 4 an output that cannot be written); a BeamidError that is an
+        # OSError is an unwritable output
         print(f"beamid: error: {exc}", file=sys.stderr)
-        return EXIT_OUTPUT
+        code = getattr(exc, "exit_code", EXIT_INPUT)
+        return EXIT_OUTPUT if isinstance(exc, OSError) else int(code)
     except OSError as exc:   # an output path that is a directory, a full disk, ...
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"beamid: error: cannot write {where}{exc.strerror or exc}", file=sys.stderr)

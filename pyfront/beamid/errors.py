@@ -7,7 +7,13 @@ from __future__ import annotations
 
 
 class BeamidError(Exception):
-    """Base class of every beamid error."""
+    """Base class of every beamid error.
+
+    ``exit_code`` is the exit code of the command line for this error (the
+    table of docs/decks.md: 2 bad input, 3 numerical failure, 4 an output
+    file cannot be written), the same as beamid-batch's."""
+
+    exit_code: int = 2
 
 
 class InputError(BeamidError, ValueError):
@@ -17,9 +23,11 @@ class InputError(BeamidError, ValueError):
 class ConvergenceError(BeamidError, RuntimeError):
     """A numerical method did not converge (the message says which and how far)."""
 
+    exit_code = 3
 
-class OutputError(BeamidError, OSError):
-    """An output file or folder cannot be written (exit code 4 of both programs)."""
+
+#: status code of an output file that cannot be written (beamid_status ERR_OUTPUT)
+ERR_OUTPUT = -4
 
 
 def raise_for_status(code: int, message: str | bytes) -> None:
@@ -30,23 +38,14 @@ def raise_for_status(code: int, message: str | bytes) -> None:
         message = message.decode("utf-8", "replace")
     text = message.strip() or f"beamid status {code}"
     if code < 0:
-        if _is_output_status(code):
-            raise OutputError(text)
-        raise InputError(text)
+        error = InputError(text)
+        if code == ERR_OUTPUT:
+            error.exit_code = 4
+        raise error
     raise ConvergenceError(text)
 
 
-#: exit code of an unwritable output (beamid_status; docs/development.md)
-_EXIT_OUTPUT = 4
+class OutputError(BeamidError, OSError):
+    """An output file or folder cannot be written (exit code 4 of both programs)."""
 
-
-def _is_output_status(code: int) -> bool:
-    """Whether a status code means "an output cannot be written", asked of the
-    Fortran table of exit codes (beamid_status exit_code, exported as
-    ``beamid._core.exit_code`` when the core has it), so the code is not
-    repeated here."""
-    try:
-        from ._core import exit_code
-    except ImportError:       # a core without the exit-code table
-        return False
-    return exit_code(int(code)) == _EXIT_OUTPUT
+    exit_code = 4
