@@ -258,3 +258,15 @@ def test_exit_code_is_the_errors(monkeypatch, capsys, make_error, code):
 def _with_code(error, code):
     error.exit_code = code
     return error
+
+
+def test_run_fe_deck_lists_its_files(tmp_path, capsys):
+    deck = tmp_path / "fe.nml"
+    deck.write_text((inputs_dir("seed") / "table12_fe_08.nml").read_text()
+                    .replace("out/table12_fe_08", "res/fe"))
+    assert main(["run", str(deck)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == f"{deck}: task fe_static done"
+    written = [Path(line.split(" ", 1)[1]) for line in out[1:]]
+    assert written and all(p.is_file() and p.name.startswith("fe_") for p in written)
+    assert sorted(written) == sorted((tmp_path / "res").iterdir())

@@ -13,6 +13,7 @@ import math
 import os
 import sys
 import tempfile
+import time
 import traceback
 from pathlib import Path
 from typing import Sequence
@@ -51,6 +52,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     deck = read_deck(args.deck)
     if isinstance(deck, FitDeck):         # estimation decks: the deck's own task
         return _estimation(deck, plots=not args.no_plots)
+    started = time.time()
     result = run(deck)
     prefix = deck.output_prefix
     if isinstance(result, StaticResult):
@@ -64,7 +66,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         files = [f"{prefix}_history.csv"]
     else:
         print(f"{args.deck}: task {deck.task} done")
-        files = sorted(str(p) for p in prefix.parent.glob(prefix.name + "_*.csv"))
+        # the files of this run (not older ones of the same prefix)
+        files = sorted(str(p) for p in prefix.parent.glob(prefix.name + "_*.csv")
+                       if p.stat().st_mtime >= started - 1.0)
     _print_files(files)
     return EXIT_OK
 
