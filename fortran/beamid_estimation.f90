@@ -318,7 +318,9 @@ contains
         if (stat%code /= STATUS_OK) return
         rank = count(s > opts%rcond*s(1))
         if (s(1) <= 0.0_dp) rank = 0
-        if (r == n .and. s(n) > 0.0_dp) cond = s(1)/s(n)
+        if (r == n) then   ! nested: s has no n-th entry when r < n
+            if (s(n) > 0.0_dp) cond = s(1)/s(n)
+        end if
         do k = 1, rank
             do j = 1, n
                 cov(:, j) = cov(:, j) + vt(k, :)*vt(k, j)/s(k)**2

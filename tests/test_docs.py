@@ -1,39 +1,317 @@
-"""The examples in README.md and docs/*.md run, and the doctests hold."""
+"""The examples in README.md and docs/*.md run, and the values they show hold.
+
+- ```python blocks run in order, one namespace per page (as a reader types them);
+- ```pycon blocks (``>>>`` prompts and the output shown) run as doctests in the
+  same namespace, numbers compared at the digits shown;
+- shell blocks (```sh, ```console, ```shell, ```bash, and bare ``` blocks whose
+  first line is a command) run in a temporary copy of the inputs with .venv/bin on
+  the PATH: each command must exit 0, the lines shown after it must appear in its
+  output in order (``...`` stands for anything), and a ``# writes PATH`` comment
+  must name files it wrote. ``make`` lines are checked with ``make -n`` (make test
+  is what runs this suite; CI runs make demo).
+
+Bare blocks that are not commands (namelist decks, tables of output) are data.
+"""
 from __future__ import annotations
 
 import doctest
+import os
 import re
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
 import beamid
 import beamid.model
+import beamid.progress
 import beamid.static
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
+SHELL_LANGS = {"sh", "console", "shell", "bash"}
+#: first words that make a bare ``` block a shell block
+COMMANDS = {"beamid", "beamid-batch", "make", "python", "python3", "source", "cd", "ls",
+            "cat", "head", "tail", "pip"}
+#: placeholders of syntax lines (docs/decks.md) and what the test runs instead
+PLACEHOLDERS = {"DECK": "inputs/seed/table02_c05.nml"}
 
-def _python_blocks(path: Path) -> list[str]:
-    return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
+FENCE = re.compile(r"^```([A-Za-z0-9_+-]*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
 
 
-PAGES = [p for p in DOCS if _python_blocks(p)]
+@dataclass
+class Block:
+    page: Path
+    lang: str
+    text: str
+    line: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.page.name}:{self.line}"
 
 
-@pytest.mark.parametrize("path", PAGES, ids=[p.name for p in PAGES])
+def blocks(path: Path) -> list[Block]:
+    text = path.read_text()
+    return [Block(path, m.group(1).lower(), m.group(2), text.count("\n", 0, m.start()) + 1)
+            for m in FENCE.finditer(text)]
+
+
+def _first_word(line: str) -> str:
+    """The command of a line, or "" for output (programs' messages start with
+    "beamid simulate:", "beamid: error:" ...)."""
+    line = line.strip()
+    if line.startswith("$ "):
+        line = line[2:]
+    words = line.split()
+    if not words or any(w.endswith(":") for w in words[:2]):
+        return ""
+    return words[0]
+
+
+def is_shell(block: Block) -> bool:
+    if block.lang in SHELL_LANGS:
+        return True
+    if block.lang:
+        return False
+    first = next((ln for ln in block.text.splitlines() if ln.strip()), "")
+    return first.startswith("$ ") or _first_word(first) in COMMANDS
+
+
+# ----------------------------------------------------------------- python
+
+
+@dataclass
+class Page:
+    path: Path
+    namespace: dict = field(default_factory=lambda: {"__name__": "__doc_example__"})
+
+
+class NumberChecker(doctest.OutputChecker):
+    """doctest output check that compares numbers at the digits shown (as
+    pytest's NUMBER option): 0.5881 matches 0.588130...; ``...`` matches anything."""
+
+    _num = re.compile(r"-?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+    def check_output(self, want, got, optionflags):
+        if super().check_output(want, got, optionflags):
+            return True
+        wants = self._num.findall(want)
+        gots = self._num.findall(got)
+        if len(wants) != len(gots):
+            return False
+        for w, g in zip(wants, gots):
+            if not _same_number(w, g):
+                return False
+        # the text between the numbers must agree too (spacing aside: numpy pads)
+        return super().check_output(re.sub(r"\s+", "", self._num.sub("0", want)),
+                                    re.sub(r"\s+", "", self._num.sub("0", got)), optionflags)
+
+
+def _same_number(want: str, got: str) -> bool:
+    w, g = float(want), float(got)
+    mantissa = want.lower().split("e")[0]
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    exponent = int(want.lower().split("e")[1]) if "e" in want.lower() else 0
+    return abs(w - g) <= 0.5 * 10.0 ** (exponent - decimals) * (1 + 1e-9)
+
+
+def run_python(block: Block, page: Page) -> None:
+    if block.lang == "python":
+        exec(compile(block.text, block.name, "exec"), page.namespace)
+        return
+    parser = doctest.DocTestParser()
+    test = parser.get_doctest(block.text, page.namespace, block.name, str(block.page),
+                              block.line)
+    runner = doctest.DocTestRunner(checker=NumberChecker(),
+                                   optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    out: list[str] = []
+    runner.run(test, out=out.append, clear_globs=False)
+    assert runner.failures == 0, "".join(out)
+    page.namespace.update(test.globs)
+
+
+PY_PAGES = [p for p in DOCS if any(b.lang in ("python", "pycon") for b in blocks(p))]
+
+
+@pytest.mark.parametrize("path", PY_PAGES, ids=[p.name for p in PY_PAGES])
 def test_python_examples_run(path, tmp_path, monkeypatch):
     # the blocks of a page build on each other, as a reader types them in order,
-    # from the top of a checkout (paths like inputs/demo/... are relative to it)
+    # from the top of a checkout (paths like inputs/demo/... are relative to it);
+    # what they write lands in tmp_path
     (tmp_path / "inputs").symlink_to(ROOT / "inputs")
     monkeypatch.chdir(tmp_path)
-    namespace = {"__name__": "__doc_example__"}
-    for index, code in enumerate(_python_blocks(path)):
-        exec(compile(code, f"{path.name}[{index}]", "exec"), namespace)
+    page = Page(path)
+    for block in blocks(path):
+        if block.lang in ("python", "pycon"):
+            run_python(block, page)
 
 
-@pytest.mark.parametrize("module", [beamid, beamid.model, beamid.static])
+@pytest.mark.parametrize("module", [beamid, beamid.model, beamid.static, beamid.progress])
 def test_doctests(module):
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
     assert result.failed == 0
+
+
+# ------------------------------------------------------------------ shell
+
+
+@dataclass
+class Command:
+    line: str          # as shown
+    run: str           # what runs (placeholders replaced)
+    comment: str
+    expected: list[str]
+
+
+def commands(block: Block) -> list[Command]:
+    cmds: list[Command] = []
+    for raw in block.text.splitlines():
+        if not raw.strip():
+            continue
+        prompt = raw.startswith("$ ")
+        is_cmd = prompt if block.lang == "console" else (
+            prompt or _first_word(raw) in COMMANDS)
+        if is_cmd:
+            line = raw[2:] if prompt else raw
+            code, _, comment = line.partition(" #")
+            run = " ".join(PLACEHOLDERS.get(w, w) for w in shlex.split(code))
+            cmds.append(Command(line, run, comment.strip(), []))
+        elif cmds:
+            cmds[-1].expected.append(raw)
+        else:
+            raise AssertionError(f"{block.name}: output {raw!r} before any command")
+    return cmds
+
+
+def _pattern(expected: str) -> re.Pattern:
+    parts = [re.escape(p) for p in expected.strip().split("...")]
+    body = ".*".join(re.sub(r"(\\ )+", r"\\s+", p) for p in parts)
+    return re.compile(body)
+
+
+def assert_output(cmd: Command, output: str) -> None:
+    lines = output.splitlines()
+    k = 0
+    for want in cmd.expected:
+        if want.strip() in ("...", ""):
+            continue
+        pat = _pattern(want)
+        while k < len(lines) and not pat.search(lines[k]):
+            k += 1
+        assert k < len(lines), f"{cmd.line!r}: no line {want!r} (in order) in\n{output}"
+        k += 1
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    path = [str(Path(sys.executable).parent)]
+    if env.get("BEAMID_BATCH"):               # the checking build (make test-check)
+        path.insert(0, str(Path(env["BEAMID_BATCH"]).parent))
+    env["PATH"] = os.pathsep.join(path + [env.get("PATH", "")])
+    env.setdefault("MPLBACKEND", "Agg")
+    return env
+
+
+def run_command(cmd: Command, cwd: Path) -> None:
+    words = shlex.split(cmd.run)
+    if words[0] == "make":
+        done = subprocess.run(["make", "-n", "-C", str(ROOT), *words[1:]], capture_output=True,
+                              text=True)
+        assert done.returncode == 0, f"{cmd.line}: {done.stderr}"
+        return
+    done = subprocess.run(cmd.run, shell=True, cwd=cwd, env=_env(), capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, f"{cmd.line!r} exited {done.returncode}:\n{done.stderr}"
+    assert_output(cmd, done.stdout)
+    m = re.match(r"writes (\S+)", cmd.comment)
+    if m:
+        target = m.group(1)
+        assert list(cwd.glob(target)), f"{cmd.line!r} did not write {target}"
+
+
+SHELL_BLOCKS = [b for p in DOCS for b in blocks(p) if is_shell(b)]
+
+
+@pytest.mark.parametrize("block", SHELL_BLOCKS, ids=[b.name for b in SHELL_BLOCKS])
+def test_shell_examples_run(block, tmp_path):
+    # a temporary copy of the inputs: outputs land there, not in the checkout
+    shutil.copytree(ROOT / "inputs", tmp_path / "inputs")
+    cmds = commands(block)
+    assert cmds, f"{block.name}: a shell block without commands"
+    for cmd in cmds:
+        run_command(cmd, tmp_path)
+
+
+# --------------------------------------------------------- the harness itself
+
+
+def test_block_classification():
+    deck = Block(Path("x.md"), "", "&beamid\n  task = 'static'\n/\n", 1)
+    table = Block(Path("x.md"), "", "rank effect  score\n1 axial 3\n", 1)
+    shell = Block(Path("x.md"), "", "beamid reproduce 2\ntable row\n", 1)
+    assert [c.expected for c in commands(Block(Path("x.md"), "", "beamid simulate\n"
+                                                "beamid simulate: 27 output times\n", 1))] \
+        == [["beamid simulate: 27 output times"]]
+    console = Block(Path("x.md"), "console", "$ beamid --version\nbeamid 0.1.0\n", 1)
+    assert not is_shell(deck) and not is_shell(table)
+    assert is_shell(shell) and is_shell(console)
+    (c,) = commands(console)
+    assert c.run == "beamid --version" and c.expected == ["beamid 0.1.0"]
+    (c,) = commands(Block(Path("x.md"), "", "beamid-batch DECK   # Fortran only\n", 1))
+    assert c.run == f"beamid-batch {PLACEHOLDERS['DECK']}" and c.comment == "Fortran only"
+
+
+def test_output_matching():
+    cmd = Command("x", "x", "", ["step  effect   chi2", "1  axial  296.18 ...", "...",
+                                 "residuals ... 0.01 ..."])
+    assert_output(cmd, "head\nstep effect chi2\n1 axial 296.18 12 more\nresiduals at 0.01 z\n")
+    with pytest.raises(AssertionError, match="no line"):
+        assert_output(cmd, "step effect chi2\n1 axial 296.19 12\nresiduals at 0.01 z\n")
+    with pytest.raises(AssertionError, match="in order"):
+        assert_output(cmd, "1 axial 296.18 12\nstep effect chi2\nresiduals at 0.01 z\n")
+
+
+def test_number_checker():
+    check = NumberChecker().check_output
+    flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
+    assert check("0.5881 1.1594 66.00\n", "0.58813 1.15943 66.0041\n", flags)
+    assert not check("0.5881\n", "0.5883\n", flags)
+    assert check("1.5e-2\n", "0.0151\n", flags)
+    assert not check("12.66 N\n", "12.66 m\n", flags)
+    assert not check("1 2\n", "1 2 3\n", flags)
+    assert check("[2.42882 11.0030]\n", "[  2.4288207   11.00298838]\n", flags)
+
+
+# ------------------------------------------------------------- deck examples
+
+DECK_BLOCKS = [b for p in DOCS for b in blocks(p)
+               if not b.lang and b.text.lstrip().startswith("&beamid")]
+
+
+def _deck_param(block: Block):
+    marks = []
+    if "'W13'" in block.text:
+        # docs/decks.md's estimation template names a wire experiment the bundled
+        # CSV does not have (issue 16); the "input" helper owns that page
+        marks.append(pytest.mark.xfail(reason="decks.md template vs hidden_effect.csv",
+                                       strict=False))
+    return pytest.param(block, id=block.name, marks=marks)
+
+
+@pytest.mark.parametrize("block", [_deck_param(b) for b in DECK_BLOCKS])
+def test_deck_examples_run(block, tmp_path, batch_exe):
+    # complete decks shown in the docs run in both programs, next to the demo data
+    for f in (ROOT / "inputs" / "demo").iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    deck = tmp_path / "example.nml"
+    deck.write_text(block.text)
+    beamid.run(str(deck))
+    done = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr

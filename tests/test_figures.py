@@ -115,3 +115,110 @@ def test_cli_figures(tmp_path, capsys):
     assert (tmp_path / "figure22.png").read_bytes()[:8] == PNG
     assert "wrote" in capsys.readouterr().out
     assert cli_main(["figures", "--out", str(tmp_path), "26"]) == 2
+
+
+# ---------------------------------------------------------------- compare figure
+
+def _unit(label: str) -> str:
+    """The unit in the last parentheses of an axis label."""
+    assert label.endswith(")"), label
+    return label[label.rindex("(") + 1:-1]
+
+
+@pytest.fixture(scope="module")
+def comparison():
+    import beamid
+    from beamid.fit_decks import read_fit_deck
+    from beamid.tables import inputs_dir
+
+    deck = read_fit_deck(inputs_dir("demo") / "hidden_effect.nml")
+    result = beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free)
+    return beamid.compare(result)
+
+
+def _legend_texts(ax):
+    return [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def _drawn(ax):
+    """Labels of everything drawn on ax that should be in the legend: lines
+    and error-bar containers, excluding matplotlib's private children."""
+    labels = [line.get_label() for line in ax.get_lines()
+              if not line.get_label().startswith("_")]
+    labels += [c.get_label() for c in ax.containers if not c.get_label().startswith("_")]
+    return labels
+
+
+def test_compare_figure_one_panel_per_quantity_and_unit(comparison):
+    from beamid.plot_fit import plot_compare, quantity_unit
+
+    fig = plot_compare(comparison)
+    quantities = ["x_tip", "y_tip", "tip_angle"]
+    assert [quantity_unit(q) for q in quantities] == ["m", "m", "rad"]
+    axes = fig.axes
+    assert len(axes) == 2 * len(quantities) + 1         # value and residual per quantity
+    for j, q in enumerate(quantities):
+        top, mid = axes[2 * j], axes[2 * j + 1]
+        assert top.get_title() == q
+        assert _unit(top.get_ylabel()) == _unit(mid.get_ylabel()) == quantity_unit(q)
+    # no two units on one axis: each panel's y label names exactly one unit
+    assert _unit(axes[-1].get_ylabel()) == "-"
+    # the 15 measurements of the demo deck: 5 experiments along x
+    assert [t.get_text() for t in axes[0].get_xticklabels()] == ["F2", "F4", "F6", "F8", "M3"]
+    plt.close(fig)
+
+
+def test_compare_figure_error_bars_are_visible(comparison):
+    from beamid.plot_fit import plot_compare
+
+    fig = plot_compare(comparison)
+    for mid in fig.axes[1:-1:2]:
+        bars, = [c for c in mid.containers]
+        # the bars (+-sigma) span a visible share of the residual panel's y range
+        lo, hi = mid.get_ylim()
+        segments = bars.lines[2][0].get_segments()
+        heights = [abs(s[1][1] - s[0][1]) for s in segments]
+        assert min(heights) / (hi - lo) > 0.005
+        assert min(heights) >= 2 * 1e-4 * (1 - 1e-9)       # 2 sigma, the smallest sigma
+    plt.close(fig)
+
+
+def test_compare_figure_every_line_has_a_legend_entry(comparison):
+    from beamid.plot_fit import plot_compare
+
+    fig = plot_compare(comparison)
+    for ax in fig.axes:
+        texts = _legend_texts(ax)
+        assert sorted(texts) == sorted(_drawn(ax)), ax.get_ylabel()
+    bottom = _legend_texts(fig.axes[-1])
+    assert {"+-1 sigma", "+-3 sigma", "model (0)"} <= set(bottom)     # the dashed band too
+    assert {"x_tip", "y_tip", "tip_angle"} <= set(bottom)
+    plt.close(fig)
+
+
+def test_measured_vs_model_refuses_mixed_units(comparison):
+    from beamid.plot_fit import plot_measured_vs_model, plot_normalized_residuals
+
+    with pytest.raises(InputError, match="different units"):
+        plot_measured_vs_model(comparison)
+    ax = plot_measured_vs_model(comparison, "tip_angle")
+    assert _unit(ax.get_ylabel()) == "rad"
+    assert sorted(_legend_texts(ax)) == sorted(_drawn(ax))
+    ax2 = plot_normalized_residuals(comparison)
+    assert sorted(_legend_texts(ax2)) == sorted(_drawn(ax2))
+    plt.close("all")
+
+
+def test_history_figure_panels(runs):
+    from beamid.plotting import plot_history
+
+    free = plot_history(runs[0.0])
+    assert [_unit(ax.get_ylabel()) for ax in free.axes] == ["m", "m", "N m"]
+    motor = plot_history(runs[0.2])
+    assert [ax.get_ylabel() for ax in motor.axes] == [
+        "tip w (m)", "tip u (m)", "energy (N m)", "motor torque (N m)"]
+    for ax in motor.axes:
+        assert sorted(_legend_texts(ax)) == sorted(_drawn(ax))
+    (t, w), = _lines(motor.axes[0])
+    assert_allclose(w, runs[0.2].tip_w)
+    plt.close("all")

@@ -8,7 +8,7 @@ The numerical work is done in Fortran; this package wraps it.
 >>> round(r.tip_y, 6)
 0.628434
 """
-from .errors import BeamidError, ConvergenceError, InputError
+from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
 from .loads import RadialWire, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
@@ -26,7 +26,7 @@ from .consistency import Consistency, consistency
 from .design import Advice, design
 
 __all__ = [
-    "BeamidError", "ConvergenceError", "InputError",
+    "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
     "TipForce", "TipMoment", "TipLoad", "RadialWire",
     "solve_static", "StaticResult", "Shape",

@@ -1,45 +1,264 @@
-"""The ``beamid`` command line. Every subcommand calls the public Python API."""
+"""The ``beamid`` command line. Every subcommand calls the public Python API.
+
+Exit codes, the same as ``beamid-batch``'s (docs/decks.md): 0 ok, 1 a published
+value not reproduced (``reproduce``, ``demo``), 2 bad input (a bad deck, CSV or
+value, a missing or unreadable input file, an unknown name), 3 a numerical
+failure (no convergence), 4 an output file cannot be written, 5 an internal error.
+"""
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
+import os
 import sys
+import tempfile
+import time
+import traceback
 from pathlib import Path
 from typing import Sequence
 
-from .errors import BeamidError, ConvergenceError, InputError
+from .errors import BeamidError, InputError, OutputError
 
+#: exit codes (the table of docs/decks.md, shared with beamid-batch)
+EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
+
+ESTIMATION_COMMANDS = ("fit", "compare", "diagnose", "improve")
+
+#: defaults of ``beamid simulate`` without a deck: the dissertation's free
+#: vibration (Chapter IV, Table 8): 8 N release, 8 elements, one period
+SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 4,
+                     "output": "out/simulate"}
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def _print_files(files) -> None:
+    for f in files:
+        print(f"wrote {f}")
+
+
+# --------------------------------------------------------------------- run
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .decks import read_deck, run
-
+    from .fit_decks import FitDeck
     from .static import StaticResult
 
     deck = read_deck(args.deck)
+    if isinstance(deck, FitDeck):         # estimation decks: the deck's own task
+        return _estimation(deck, plots=not args.no_plots)
+    started = time.time()
     result = run(deck)
     prefix = deck.output_prefix
     if isinstance(result, StaticResult):
         print(f"{args.deck}: tip ({result.tip_x:.6f}, {result.tip_y:.6f}) m, angle "
               f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
-        print(f"wrote {prefix}_summary.csv" + (f" and {prefix}_shape.csv"
-                                                 if deck.shape_points >= 2 else ""))
+        files = [f"{prefix}_summary.csv"]
+        if deck.shape_points >= 2:
+            files.append(f"{prefix}_shape.csv")
     elif deck.task == "simulate":
-        print(f"{args.deck}: {result.t.size} output times to {result.t[-1]:g} s "
-              f"({result.integrator}, friction {result.friction}); tip w at the end "
-              f"{result.tip_w[-1]:.7f} m, energy change {result.energy_change[-1]:.8f} N m")
-        print(f"wrote {prefix}_history.csv")
+        print(_run_line(str(args.deck), result))
+        files = [f"{prefix}_history.csv"]
     else:
-        print(f"{args.deck}: task {deck.task} done; wrote {prefix}_*.csv")
-    return 0
+        print(f"{args.deck}: task {deck.task} done")
+        # the files of this run (not older ones of the same prefix)
+        files = sorted(str(p) for p in prefix.parent.glob(prefix.name + "_*.csv")
+                       if p.stat().st_mtime >= started - 1.0)
+    _print_files(files)
+    return EXIT_OK
 
+
+def _run_line(source: str, run) -> str:
+    return (f"{source}: {run.t.size} output times to {run.t[-1]:g} s ({run.integrator}, "
+            f"friction {run.friction}); tip w at the end {run.tip_w[-1]:.7f} m, energy "
+            f"change {run.energy_change[-1]:.8f} N m")
+
+
+# ------------------------------------------------------------- estimation
+
+def _estimation(deck, plots: bool) -> int:
+    from .fit_decks import run_fit_deck
+
+    text, files, _ = run_fit_deck(deck, plots=plots)
+    print(text)
+    _print_files(files)
+    return EXIT_OK
+
+
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    from .fit_decks import read_fit_deck
+
+    deck = read_fit_deck(args.deck)
+    # the subcommand overrides the deck's task (docs/decks.md): `beamid fit` fits only
+    deck = dataclasses.replace(deck, task=args.command)
+    return _estimation(deck, plots=not args.no_plots)
+
+
+# --------------------------------------------------------------- simulate
+
+def _times(text: str) -> list[float]:
+    try:
+        return [float(t) for t in text.replace(",", " ").split()]
+    except ValueError:
+        raise InputError(f"--t-out {text!r}: expected times in s separated by commas") from None
+
+
+def _parameter(text: str) -> tuple[str, float]:
+    name, eq, value = text.partition("=")
+    if not eq:
+        raise InputError(f"--set {text!r}: expected NAME=VALUE (e.g. mu_tip=0.02)")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise InputError(f"--set {text!r}: {value!r} is not a number") from None
+
+
+def simulate_command(args: argparse.Namespace):
+    """Set up and run ``beamid simulate`` (a deck and/or flags); returns
+    ``(source, model, load, t_out, options, output_prefix)``."""
+    import numpy as np
+
+    from .loads import TipForce, TipLoad, TipMoment
+    from .model import pace
+
+    if args.deck is not None:
+        from .decks import read_deck
+
+        deck = read_deck(args.deck)
+        if getattr(deck, "task", None) != "simulate" or not getattr(deck, "simulate", None):
+            raise InputError(f"{args.deck}: task {deck.task!r} is not a dynamic deck (task "
+                             f"'simulate'); run it with `beamid run {args.deck}`")
+        model, load = deck.model, deck.load
+        opts = dict(deck.simulate)
+        t_out = np.asarray(opts.pop("t_out"), dtype=float)
+        prefix = deck.output_prefix
+        source = str(args.deck)
+    else:
+        # the dissertation's runs leave out the rotary inertias (docs/dynamics.md)
+        model = pace(J_elbow=0.0, J_tip=0.0)
+        load = TipForce(fy=SIMULATE_DEFAULTS["fy"])
+        opts = {"elements_per_beam": SIMULATE_DEFAULTS["elements_per_beam"]}
+        t_out = np.linspace(0.0, SIMULATE_DEFAULTS["t_end"], SIMULATE_DEFAULTS["n_out"])
+        prefix = Path(SIMULATE_DEFAULTS["output"])
+        source = "beamid simulate"
+    if args.set:
+        model = model.replace(**dict(_parameter(p) for p in args.set))
+    if (args.fx, args.fy, args.moment) != (None, None, None):
+        base = load if isinstance(load, TipLoad) else TipLoad()
+        load = TipForce(fx=base.fx if args.fx is None else args.fx,
+                        fy=base.fy if args.fy is None else args.fy) + \
+            TipMoment(base.moment if args.moment is None else args.moment)
+    if args.t_out is not None and (args.t_end is not None or args.n_out is not None):
+        raise InputError("--t-out gives the output times: give it without --t-end and --n-out")
+    if args.t_out is not None:
+        t_out = np.asarray(_times(args.t_out), dtype=float)
+    elif args.t_end is not None or args.n_out is not None:
+        t_end = float(t_out[-1]) if args.t_end is None else args.t_end
+        n_out = t_out.size if args.n_out is None else args.n_out
+        if not (0.0 < t_end < math.inf):
+            raise InputError(f"--t-end {t_end:g}: expected a time > 0 (s)")
+        if n_out < 2:
+            raise InputError(f"--n-out {n_out}: expected at least 2")
+        t_out = np.linspace(0.0, t_end, n_out)
+    for name in ("elements_per_beam", "motor_gain", "integrator", "friction", "rtol", "dt"):
+        value = getattr(args, name)
+        if value is not None:
+            opts[name] = value
+    if args.integrator is not None and args.friction is None and args.deck is not None:
+        opts.pop("friction", None)     # the new integrator's default law
+    if args.output is not None:
+        prefix = Path(args.output)
+    return source, model, load, t_out, opts, prefix
+
+
+def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
+    """Write every output through a temporary file in its folder and rename
+    them only when all are written: all files or none (exit code 4)."""
+    temps: list[tuple[str, Path]] = []
+    try:
+        for path, write in outputs:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                       suffix=path.suffix)
+            os.close(fd)
+            temps.append((tmp, path))
+            write(tmp)
+            os.chmod(tmp, 0o666 & ~_umask())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    except OSError as exc:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        raise OutputError(f"cannot write {exc.filename or path}: {exc.strerror or exc}") \
+            from None
+    except BaseException:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        raise
+    return [path for _, path in temps]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .decks import history_columns
+    from .dynamics import simulate
+    from .history import series
+
+    source, model, load, t_out, opts, prefix = simulate_command(args)
+    run = simulate(model, load, t_out, **opts)
+    # the columns of the history file beamid-batch writes for a dynamic deck
+    columns = history_columns(model.nbeams)
+    header = ",".join(columns)
+    table = np.column_stack([run.t if c == "t" else series(run, c) for c in columns])
+
+    def write_csv(tmp: str) -> None:
+        np.savetxt(tmp, table, delimiter=",", fmt="%.16E", header=header, comments="")
+
+    outputs = [(Path(f"{prefix}_history.csv"), write_csv)]
+    if not args.no_plots:
+        def write_png(tmp: str) -> None:
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+
+            from .plotting import plot_history
+
+            fig = plot_history(run)
+            try:
+                fig.savefig(tmp, dpi=110, format="png")
+            finally:
+                plt.close(fig)
+
+        outputs.append((Path(f"{prefix}_history.png"), write_png))
+    files = _write_all(outputs)
+    print(_run_line(source, run))
+    _print_files(files)
+    return EXIT_OK
+
+
+# ------------------------------------------------- reproduce, demo, figures
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from .tables import format_checks, reproduce
 
     checks = reproduce(args.tables)
-    if not checks:
-        raise InputError(f"no published values for tables {' '.join(args.tables)}")
     print(format_checks(checks))
-    return 1 if any(c.status == "FAIL" for c in checks) else 0
+    return EXIT_NOT_REPRODUCED if any(c.status == "FAIL" for c in checks) else EXIT_OK
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -51,21 +270,19 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_figures(args: argparse.Namespace) -> int:
     from .figures import write_figures
 
-    for path in write_figures(Path(args.out), args.names):
-        print(f"wrote {path}")
-    return 0
+    _print_files(write_figures(Path(args.out), args.names))
+    return EXIT_OK
 
 
-def _cmd_estimate(args: argparse.Namespace) -> int:
-    from .fit_decks import read_fit_deck, run_fit_deck
+# ------------------------------------------------------------------ parser
 
-    deck = read_fit_deck(args.deck)
-    if args.command != deck.task and args.command != "fit":
-        deck = type(deck)(**{**deck.__dict__, "task": args.command})
-    text, files, _ = run_fit_deck(deck, plots=not args.no_plots)
-    print(text)
-    print("wrote " + ", ".join(str(f) for f in files))
-    return 0
+def _table_list() -> str:
+    try:
+        from .tables import table_names
+
+        return " ".join(table_names())
+    except Exception:  # noqa: BLE001 - help must print even with a broken install
+        return "2 3 4 ..."
 
 
 def _cmd_consistency(args: argparse.Namespace) -> int:
@@ -131,28 +348,83 @@ def _add_mc_parsers(sub) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .figures import FIGURES
+
     parser = argparse.ArgumentParser(
         prog="beamid",
-        description="Large deformation of flexible beam chains and the inverse problem.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("run", help="run a namelist deck (as beamid-batch does)")
-    p.add_argument("deck", help="path of the deck (docs/decks.md)")
+        description="Large deformation of flexible beam chains and the inverse problem "
+                    "(after McVay 1996).",
+        epilog="exit codes: 0 ok, 1 a published value not reproduced, 2 bad input, "
+               "3 no convergence, 4 an output file cannot be written, 5 internal error")
+    parser.add_argument("--version", action="version", version=f"beamid {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("run", help="run a namelist deck of any task, as beamid-batch does",
+                       description="Run a deck (docs/decks.md) with the deck's task: static, "
+                                   "fe_static, fe_modes, simulate, fit, compare, diagnose or "
+                                   "improve; writes the files beamid-batch writes.")
+    p.add_argument("deck", help="path of the deck")
+    p.add_argument("--no-plots", action="store_true",
+                   help="estimation decks: write the CSV files only")
     p.set_defaults(func=_cmd_run)
-    p = sub.add_parser("reproduce", help="compare with the dissertation's published tables")
-    p.add_argument("tables", nargs="*", help="tables to check (e.g. 2 4 12 circle); all if none")
+
+    p = sub.add_parser("simulate", help="release the arm and integrate (dynamics); "
+                                        "writes the history CSV and its figure",
+                       description="Release the chain from its static shape under a tip "
+                                   "load and follow it (docs/dynamics.md). Without a deck: "
+                                   "the PACE arm without rotary inertia, released from "
+                                   "fy = 8 N, 4 elements per beam, 27 outputs over 2.6 s, "
+                                   "output prefix out/simulate. Flags override the deck.")
+    p.add_argument("deck", nargs="?", help="a dynamic deck (task 'simulate'), optional")
+    p.add_argument("--fx", type=float, help="release load: tip force x (N)")
+    p.add_argument("--fy", type=float, help="release load: tip force y (N) (default 8)")
+    p.add_argument("--moment", type=float, help="release load: tip moment (N m)")
+    p.add_argument("--elements-per-beam", "-e", dest="elements_per_beam", type=int,
+                   help="elements per beam (default 4: the dissertation's 8-element arm)")
+    p.add_argument("--motor-gain", "-g", dest="motor_gain", type=float,
+                   help="tip motor gain g, T = -r_motor g dPsi_tip/dt (Eq. 150) (default 0)")
+    p.add_argument("--t-end", type=float, help="last output time (s) (default 2.6)")
+    p.add_argument("--n-out", type=int, help="number of equally spaced output times "
+                                             "from 0 to --t-end (default 27)")
+    p.add_argument("--t-out", help="output times instead, e.g. 0,0.1,0.5 (s)")
+    p.add_argument("--integrator", choices=("implicit", "rk4"),
+                   help="implicit (Radau IIA, default) or rk4 (fixed step --dt)")
+    p.add_argument("--friction", choices=("sign", "smooth", "sign_literal"),
+                   help="friction law (default: smooth for implicit, sign for rk4)")
+    p.add_argument("--rtol", type=float, help="implicit tolerance (default 1e-7)")
+    p.add_argument("--dt", type=float, help="RK4 step in s (default 1e-5)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="a model parameter, e.g. --set mu_tip=0.02 (repeatable; names: "
+                        "docs/static.md)")
+    p.add_argument("--output", "-o", help="output prefix (default: the deck's, or "
+                                          "out/simulate): writes PREFIX_history.csv/.png")
+    p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("reproduce", help="compare with the dissertation's published tables",
+                       description="Run the bundled decks of the published tables and "
+                                   "compare; exit 1 when a value is not reproduced.")
+    p.add_argument("tables", nargs="*",
+                   help=f"tables to check, all if none; one of: {_table_list()}")
     p.set_defaults(func=_cmd_reproduce)
+
     p = sub.add_parser("demo", help="reproduce the tables and draw the demo figures")
     p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
     p.set_defaults(func=_cmd_demo)
+
+    names = " ".join(n.replace("figure", "") for n in FIGURES)
     p = sub.add_parser("figures", help="draw the dynamic Figures 20-25 as PNG files")
-    p.add_argument("names", nargs="*", help="figures to draw (e.g. 20 22 figure25); all if none")
+    p.add_argument("names", nargs="*", help=f"figures to draw, all if none; one of: {names}")
     p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
     p.set_defaults(func=_cmd_figures)
-    for name, text in (("fit", "estimate parameters from a measurement deck (task from the deck)"),
+
+    for name, text in (("fit", "estimate parameters from a measurement deck (fit only)"),
                        ("compare", "fit, then measured against model with residual tests"),
                        ("diagnose", "fit, then rank the candidate missing effects"),
                        ("improve", "fit, diagnose and add effects until none is significant")):
-        p = sub.add_parser(name, help=text)
+        p = sub.add_parser(name, help=text,
+                           description=f"{text[0].upper()}{text[1:]}. The subcommand "
+                                       "overrides the deck's task (docs/decks.md).")
         p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
         p.add_argument("--no-plots", action="store_true", help="write CSV files only")
         p.set_defaults(func=_cmd_estimate)
@@ -162,19 +434,37 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``beamid`` console command; returns the exit code
-    (0 ok, 1 a published value not reproduced, 2 input error, 3 no convergence)."""
+    (module docstring). Argument errors exit 2 through argparse."""
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except InputError as exc:
+    except BrokenPipeError:
+        # the reader of a pipe stopped early (`beamid reproduce | head`): stop quietly,
+        # with the exit status of a process killed by SIGPIPE, as other Unix tools
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 128 + 13
+    except BeamidError as exc:
+        # the error's own exit code (beamid_status's table: 2 bad input, 3 numerical
+        # failure, 4 an output that cannot be written); a BeamidError that is an
+        # OSError is an unwritable output
         print(f"beamid: error: {exc}", file=sys.stderr)
-        return 2
-    except ConvergenceError as exc:
-        print(f"beamid: error: {exc}", file=sys.stderr)
-        return 3
-    except BeamidError as exc:  # pragma: no cover - future error kinds
-        print(f"beamid: error: {exc}", file=sys.stderr)
-        return 4
+        code = getattr(exc, "exit_code", EXIT_INPUT)
+        return EXIT_OUTPUT if isinstance(exc, OSError) else int(code)
+    except OSError as exc:   # an output path that is a directory, a full disk, ...
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"beamid: error: cannot write {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_OUTPUT
+    except KeyboardInterrupt:
+        print("beamid: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - a bug: say so, with the traceback
+        traceback.print_exc()
+        print(f"beamid: internal error ({type(exc).__name__}: {exc}); please report it",
+              file=sys.stderr)
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

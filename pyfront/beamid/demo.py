@@ -49,13 +49,18 @@ def demo(out: Path) -> int:
     print(text)
     written += files
 
-    # the dynamic Figures 20-25 (implicit integrator, about a second)
-    from .figures import write_figures
+    # the dynamic Figures 20-25 (implicit integrator, about a second): the three
+    # runs one by one, so that a terminal shows the progress
+    from .figures import GAINS, figure_runs, write_figures
+    from .progress import progress
 
-    written += write_figures(out)
+    runs = {}
+    for gain in progress(GAINS, desc="figures 20-25"):
+        runs.update(figure_runs([gain]))
+    written += write_figures(out, runs=runs)
 
     for p in written:
-        print(f"wrote {p}")
+        print(f"wrote {_shown(Path(p))}")
     return 1 if any(c.status == "FAIL" for c in checks) else 0
 
 
@@ -76,3 +81,11 @@ def _forms_figure(path: Path, title: str, loads, label) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _shown(path: Path) -> Path:
+    """``path`` relative to the current folder when it lies below it."""
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return path

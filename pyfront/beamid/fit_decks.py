@@ -125,7 +125,7 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .plot_fit import plot_ladder, plot_measured_vs_model, plot_normalized_residuals
+    from .plot_fit import plot_compare, plot_ladder
 
     written = []
     if ladder is not None:
@@ -140,10 +140,7 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
     else:
         cmp_pairs = [("", cmp)]
     for tag, c in cmp_pairs:
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        plot_measured_vs_model(c, ax=axes[0])
-        plot_normalized_residuals(c, ax=axes[1])
-        fig.tight_layout()
+        fig = plot_compare(c)     # one panel per quantity and unit (plot_fit.py)
         p = Path(f"{prefix}_compare{'_' + tag if tag else ''}.png")
         fig.savefig(p, dpi=110)
         plt.close(fig)

@@ -35,3 +35,39 @@ def plot_shapes(results: Sequence[StaticResult], labels: Sequence[str] | None = 
     if labels is not None:
         ax.legend(fontsize=8)
     return ax
+
+
+def plot_history(run, fig=None):
+    """The time history of a dynamic run (:class:`beamid.Run`) on its own
+    figure, one panel per quantity and unit: tip w (m), tip u (m), the energy
+    ledger (N m: E - E0, the work of the effects and the integrator's own
+    error ``numerical``) and, when the motor acts, its torque (N m, its own
+    panel). Returns the figure (``fig`` when given, else a new one)."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    torque = np.asarray(run.motor_torque, dtype=float)
+    panels = 4 if np.any(torque != 0.0) else 3
+    if fig is None:
+        fig = plt.figure(figsize=(8, 2.4 * panels))
+    axes = fig.subplots(panels, 1, sharex=True)
+    t = np.asarray(run.t, dtype=float)
+    axes[0].plot(t, run.tip_w, label="tip w")
+    axes[0].set_ylabel("tip w (m)")
+    axes[1].plot(t, run.tip_u, color="C1", label="tip u")
+    axes[1].set_ylabel("tip u (m)")
+    axes[2].plot(t, run.energy_change, color="C2", label="E - E0")
+    axes[2].plot(t, run.work, "--", color="C3", label="work of the effects")
+    axes[2].plot(t, run.ledger["numerical"], ":", color="C7", label="numerical (E - E0 - work)")
+    axes[2].set_ylabel("energy (N m)")
+    if panels == 4:
+        axes[3].plot(t, torque, color="C4", label="motor torque")
+        axes[3].set_ylabel("motor torque (N m)")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("time (s)")
+    axes[0].set_title(f"{run.integrator} integrator, {run.elements_per_beam} elements per "
+                      f"beam, friction {run.friction}", fontsize=10)
+    fig.tight_layout()
+    return fig

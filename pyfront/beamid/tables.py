@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Iterable
 
 from .decks import Deck, read_deck
+from .errors import InputError
+from .progress import progress
 from .static import measurement_value, solve_static
 
 
@@ -63,15 +65,38 @@ def seed_deck_dir() -> Path:
     return inputs_dir("seed")
 
 
+def _all_seed_decks() -> list[Deck]:
+    decks = [read_deck(p) for p in sorted(seed_deck_dir().glob("*.nml"))]
+    return [d for d in decks if d.published]
+
+
+def _table_key(name: str) -> tuple[int, str]:
+    return (0, f"{int(name):04d}") if name.isdigit() else (1, name)
+
+
+def table_names() -> list[str]:
+    """The names of the published tables the bundled decks check, in order
+    (``2``, ``3``, ... then ``V`` and ``circle``): what ``beamid reproduce`` takes."""
+    names = {p.table for d in _all_seed_decks() for p in d.published}
+    return sorted(names, key=_table_key)
+
+
 def seed_decks(tables: Iterable[str] = ()) -> list[Deck]:
     """The bundled decks, optionally only those of the named tables
-    (``"2"``, ``"table2"``, ``"Table 2"`` and ``"circle"`` all work)."""
+    (``"2"``, ``"table2"``, ``"Table 2"`` and ``"circle"`` all work); an
+    unknown table name is an :class:`InputError` listing the valid names."""
+    tables = [str(t) for t in tables]
+    decks = _all_seed_decks()
+    if not tables:
+        return decks
+    known = {_norm(p.table) for d in decks for p in d.published}
+    unknown = [t for t in tables if _norm(t) not in known]
+    if unknown:
+        names = sorted({p.table for d in decks for p in d.published}, key=_table_key)
+        raise InputError(f"unknown table {', '.join(repr(t) for t in unknown)}, expected "
+                         f"one of: {' '.join(names)}")
     wanted = {_norm(t) for t in tables}
-    decks = [read_deck(p) for p in sorted(seed_deck_dir().glob("*.nml"))]
-    decks = [d for d in decks if d.published]
-    if wanted:
-        decks = [d for d in decks if any(_norm(p.table) in wanted for p in d.published)]
-    return decks
+    return [d for d in decks if any(_norm(p.table) in wanted for p in d.published)]
 
 
 def _norm(table: str) -> str:
@@ -123,10 +148,14 @@ def _quantity(result, quantity: str) -> float:
     return measurement_value(result, quantity)
 
 
-def reproduce(tables: Iterable[str] = ()) -> list[Check]:
-    """All checks of the bundled decks (optionally of some tables only)."""
+def reproduce(tables: Iterable[str] = (), progress_bar: bool | None = None) -> list[Check]:
+    """All checks of the bundled decks (optionally of some tables only; an
+    unknown table name raises :class:`InputError` listing the valid ones).
+    ``progress_bar``: a bar over the decks on standard error (None: only
+    when it is a terminal, :func:`beamid.progress.progress`)."""
     checks: list[Check] = []
-    for deck in seed_decks(tables):
+    decks = seed_decks(tables)
+    for deck in progress(decks, total=len(decks), desc="reproduce", enabled=progress_bar):
         checks.extend(check_deck(deck))
     return checks
 
