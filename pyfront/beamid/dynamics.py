@@ -37,7 +37,8 @@ import numpy as np
 from . import _core_dynamics as _cd
 from .errors import InputError
 
-__all__ = ["Run", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+__all__ = ["Run", "FrictionEvent", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+           "DEFAULT_FRICTION",
            "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
 
 #: Friction laws and their codes in the Fortran core.
@@ -48,6 +49,8 @@ INTEGRATORS = {"rk4": 0, "implicit": 1}
 DEFAULT_RTOL = 1.0e-7
 #: Default RK4 step (s): the dissertation's (Section 4.1.4).
 DEFAULT_DT = 1.0e-5
+#: Default friction law of both integrators: Eq. 101's sign, switched as events.
+DEFAULT_FRICTION = "sign"
 #: Default regularization velocity of the smooth friction law (m/s).
 DEFAULT_FRICTION_VELOCITY = 1.0e-4
 
@@ -84,6 +87,43 @@ def _release_loads(release) -> np.ndarray:
                      f"{type(release).__name__}")
 
 
+#: Kinds of friction events (the codes of the Fortran core).
+EVENT_KINDS = {0: "start", 1: "zero_velocity", 2: "unstick"}
+
+
+@dataclass(frozen=True)
+class FrictionEvent:
+    """A friction switch of the sign law (Eq. 101-102 as events).
+
+    ``kind``: ``"start"`` (the decision at t = 0 for components at rest),
+    ``"zero_velocity"`` (a sliding component's velocity reached zero: it
+    reverses or sticks), ``"unstick"`` (a sticking component's constraint
+    force reached mu N). ``before``/``after``: +1 or -1 sliding (friction
+    -mu N sign), 0 sticking. ``force_before``/``force_after``: the friction
+    force on the component (N; a sticking one's constraint force)."""
+
+    t: float
+    point: str          #: "elbow", "tip" (or "joint<k>")
+    component: str      #: "u" or "w"
+    kind: str
+    before: int
+    after: int
+    force_before: float
+    force_after: float
+
+
+def _events(nbeams: int, evs: np.ndarray) -> tuple[FrictionEvent, ...]:
+    out = []
+    for col in np.asarray(evs).T:
+        j = int(round(col[1]))
+        out.append(FrictionEvent(t=float(col[0]), point=_point_name(nbeams, (j + 1) // 2),
+                                 component="u" if j % 2 == 1 else "w",
+                                 kind=EVENT_KINDS[int(round(col[2]))],
+                                 before=int(round(col[3])), after=int(round(col[4])),
+                                 force_before=float(col[5]), force_after=float(col[6])))
+    return tuple(out)
+
+
 @dataclass
 class Run:
     """A simulated time history at the output times ``t``."""
@@ -104,6 +144,8 @@ class Run:
     nfree: int
     #: retained mode numbers of a truncated modal run (1-based), None: full model
     modes: tuple[int, ...] | None = None
+    #: friction switches of the sign law (events), in time order
+    events: tuple["FrictionEvent", ...] = ()
     _model: object = field(repr=False, default=None)
 
     @property
@@ -207,7 +249,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     if integrator not in INTEGRATORS:
         raise InputError(f"integrator = {integrator!r}, expected one of {sorted(INTEGRATORS)}")
     if friction is None:
-        friction = "sign" if integrator == "rk4" else "smooth"
+        friction = DEFAULT_FRICTION
     if friction not in FRICTION_LAWS:
         raise InputError(f"friction = {friction!r}, expected one of {sorted(FRICTION_LAWS)}")
     if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam,
@@ -234,7 +276,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                              f"expected ({nstate},)")
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-    states, tip, torque, ledger, work, info = _cd.simulate(
+    states, tip, torque, ledger, work, info, evs = _cd.simulate(
         nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
         FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
         initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
@@ -247,8 +289,9 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
                integrator=integrator, friction=friction,
                elements_per_beam=int(elements_per_beam),
-               info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton"), info)),
-               nfree=nfree, modes=kept, _model=model)
+               info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton", "events",
+                              "event_steps"), info)),
+               nfree=nfree, modes=kept, events=_events(nbeams, evs), _model=model)
 
 
 def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,
