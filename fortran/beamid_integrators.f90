@@ -63,8 +63,8 @@ module beamid_integrators
     type :: integ_opts_t
         integer :: method = METHOD_IMPLICIT
         real(dp) :: dt = 1.0e-5_dp       !< RK4 step (s)
-        real(dp) :: rtol = 1.0e-7_dp     !< implicit: relative tolerance
-        real(dp) :: atol = 1.0e-7_dp     !< implicit: absolute tolerance (m, rad, m/s)
+        real(dp) :: rtol = 1.0e-9_dp     !< implicit: relative tolerance
+        real(dp) :: atol = 1.0e-9_dp     !< implicit: absolute tolerance (m, rad)
         real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
         integer :: max_steps = 50000000
     end type integ_opts_t

@@ -46,7 +46,7 @@ ESTIMATION_TASKS = ("fit", "compare", "diagnose", "improve")
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
 #: &simulate options of a dynamic deck, defaults resolved as beamid.simulate does
-#: (friction None: "sign" for rk4, "smooth" for implicit; 0 or None: the default)
+#: (friction None: "sign" for both integrators, as beamid.simulate; 0 or None: the default)
 SIMULATE_DEFAULTS = {"elements_per_beam": 4, "integrator": "implicit", "friction": None,
                      "dt": None, "rtol": None, "atol": None, "motor_gain": 0.0,
                      "friction_velocity": None}
@@ -353,7 +353,7 @@ def _simulate_group(path: Path, load: Load, group: dict | None) -> dict:
     if friction not in ("", "sign", "smooth", "sign_literal"):
         raise InputError(f'{path}: &simulate friction = "{friction}", expected "sign", '
                          '"smooth" or "sign_literal"')
-    opts["friction"] = friction or ("sign" if integrator == "rk4" else "smooth")
+    opts["friction"] = friction or "sign"
     for name in ("dt", "rtol", "atol", "friction_velocity"):
         value = _number(path, "simulate", name, given.get(name, 0.0))
         if not 0.0 <= value < math.inf:

@@ -46,7 +46,7 @@ FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
 #: Integrators and their codes.
 INTEGRATORS = {"rk4": 0, "implicit": 1}
 #: Default relative (and absolute) tolerance of the implicit integrator.
-DEFAULT_RTOL = 1.0e-7
+DEFAULT_RTOL = 1.0e-9
 #: Default RK4 step (s): the dissertation's (Section 4.1.4).
 DEFAULT_DT = 1.0e-5
 #: Default friction law of both integrators: Eq. 101's sign, switched as events.
