@@ -255,8 +255,25 @@ contains
                 return
             end if
         end do
+        if (opts%method == METHOD_RK4 .and. opts%dt > 0.0_dp .and. ieee_is_finite(opts%dt)) then
+            ! a fixed step that would take longer than anyone waits is bad input
+            if (t_out(nt)/opts%dt > real(opts%max_steps, dp)) then
+                call set_status(stat, ERR_INPUT, where, 'dt = '//fmt_real(opts%dt)// &
+                                ' s needs '//fmt_real(t_out(nt)/opts%dt)// &
+                                ' RK4 steps to reach t = '//fmt_real(t_out(nt))// &
+                                ' s, more than the bound of '//fmt_int(opts%max_steps)// &
+                                ' steps: use a larger dt or the implicit integrator')
+                return
+            end if
+        end if
         allocate (hist%y(sys%nstate, nt), hist%torque(nt), hist%kinetic(nt), &
-                  hist%potential(nt), hist%work(sys%nwork, nt))
+                  hist%potential(nt), hist%work(sys%nwork, nt), stat=k)
+        if (k /= 0) then
+            call set_status(stat, ERR_INPUT, where, fmt_int(nt)//' output times need '// &
+                            fmt_real(8.0_dp*real(nt, dp)*real(sys%nstate + sys%nwork + 3, dp))// &
+                            ' bytes for the history, which cannot be allocated')
+            return
+        end if
         hist%y = 0.0_dp
         hist%torque = 0.0_dp
         hist%kinetic = 0.0_dp
@@ -518,7 +535,7 @@ contains
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
         real(dp) :: t, h, hs, theta, sr, cap, d3(3)
-        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj
+        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall
         logical :: evon, found
         m = sys%ncstate
         n = sys%nc
@@ -544,6 +561,7 @@ contains
         call rk_rates(es, s, k1, stat, hold)
         stats%fevals = stats%fevals + 1
         if (stat%code /= 0) return
+        nstall = 0
         do k = 1, size(t_out)
             nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
             i = 0
@@ -554,6 +572,12 @@ contains
                 stats%fevals = stats%fevals + 4
                 stats%steps = stats%steps + 1
                 if (stat%code /= 0) return
+                if (.not. ieee_is_finite(sum(sn(1:m)))) then
+                    call set_status(stat, ERR_NUMERIC, 'rk4', 'the state became non-finite'// &
+                                    ' at t = '//fmt_real(t + h)//' (dt = '// &
+                                    fmt_real(opts%dt)//' is beyond the stability limit?)')
+                    return
+                end if
                 jev = 0
                 theta = 2.0_dp
                 if (evon) then
@@ -592,6 +616,18 @@ contains
                 end if
                 ! redo the step to the event, switch there
                 hs = theta*h
+                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) then
+                    nstall = nstall + 1
+                else
+                    nstall = 0
+                end if
+                if (nstall > 4*es%npt + 4) then
+                    call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
+                                    'component '//fmt_int(jev)//' does not settle at t = '// &
+                                    fmt_real(t)//' (kind '//fmt_int(kind)//', mode '// &
+                                    fmt_int(es%fmode(jev))//')')
+                    return
+                end if
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
                     s = sn
