@@ -1476,7 +1476,7 @@ contains
         type(dyn_system_t) :: es
         real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
         real(dp) :: sev, hpend, hcut, torq
-        integer :: jev, kev, pend, pkind, nfc, jforce
+        integer :: jev, kev, pend, pkind, nfc, jforce, nstall
         logical :: evon, rot_slow, at_end
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
@@ -1508,6 +1508,7 @@ contains
         end if
         pend = 0
         pkind = 0
+        nstall = 0
         hpend = 0.0_dp
         hcut = 0.0_dp
         work = 0.0_dp
@@ -1719,6 +1720,14 @@ contains
                         stats%event_steps = stats%event_steps + 1
                         if (sev*hh <= tiny_h) then
                             ! pushed the wrong way from the start: switch now
+                            nstall = nstall + 1
+                            if (nstall > 4*es%npt + 4) then
+                                call set_status(stat, ERR_NO_CONVERGENCE, where, &
+                                                'friction switching of component '// &
+                                                fmt_int(jev)//' does not settle at t = '// &
+                                                fmt_real(t))
+                                return
+                            end if
                             if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
                             jforce = 0
                             if (kev == EVENT_UNSTICK) jforce = jev
@@ -1775,6 +1784,7 @@ contains
                     return
                 end if
                 hold0 = hst(:, 3)
+                nstall = 0
                 if (jev /= 0) then
                     ! the switch: a velocity that reached zero is zero; the
                     ! right-hand side changes, so the step-start rates are new
