@@ -468,7 +468,12 @@ contains
         sys%cku = sys%mesh%ku
         sys%law = law
         sys%vslip = vslip
-        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n))
+        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n), stat=k)
+        if (k /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the mass matrix of '// &
+                            fmt_int(sys%n)//' unknowns')
+            return
+        end if
         q0 = 0.0_dp
         call fe_mass(sys%mesh, q0, .false., sys%mb)
         allocate (sys%fmode(2*sys%npt))
@@ -481,7 +486,12 @@ contains
             sys%mlu%ab = sys%mb
             call band_factor(sys%mlu, stat)
             if (stat%code /= 0) return
-            allocate (sys%minvf(sys%n, 2*sys%npt))
+            allocate (sys%minvf(sys%n, 2*sys%npt), stat=k)
+            if (k /= 0) then
+                call set_status(stat, ERR_INPUT, where, 'cannot allocate M^-1 of the '// &
+                                'friction components ('//fmt_int(sys%n)//' unknowns)')
+                return
+            end if
             sys%minvf = 0.0_dp
             do k = 1, 2*sys%npt
                 sys%minvf(dyn_fric_dof(sys, k), k) = 1.0_dp
@@ -1108,7 +1118,13 @@ contains
                 return
             end if
         end do
-        allocate (omega(n), phi(n, n), axial(n), q0(n), mb(fe_band_rows(sys%mesh), n), md(n, k))
+        allocate (omega(n), phi(n, n), axial(n), q0(n), mb(fe_band_rows(sys%mesh), n), md(n, k), &
+                  stat=i)
+        if (i /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the '//fmt_int(n)//' x '// &
+                            fmt_int(n)//' modes ('//fmt_real(8.0_dp*real(n, dp)**2)//' bytes)')
+            return
+        end if
         call fe_modes(sys%mesh, sys%rotary, omega, phi, axial, stat)
         if (stat%code /= 0) return
         sys%modal = .true.

@@ -1489,7 +1489,13 @@ contains
         nt = size(t_out)
         allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), zd(nn, 3), f0(nn), f3(nn), e0(nn), &
                   ev(nn), iscal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
-                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn))
+                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn), stat=i)
+        if (i /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the work arrays of '// &
+                            fmt_int(nn)//' states ('//fmt_real(8.0_dp*30.0_dp*real(nn, dp))// &
+                            ' bytes)')
+            return
+        end if
         y = y0
         es = sys
         evon = events_on(es)

@@ -4,9 +4,10 @@
 !! mesh elements_per_beam (nepb). State vectors have nstate = 2 nfree + nx
 !! entries: q (free unknowns, the order of beamid_fe_assembly), v = q', and
 !! the motor torque when the motor has a current-loop lag (nx = 1).
-!! Methods: 0 RK4 (fixed dt), 1 implicit Radau IIA (rtol, atol). Friction
-!! laws: 0 sign (sign(0) = 0), 1 smooth v/sqrt(v^2 + vslip^2), 2 literal
-!! Fortran SIGN(1, v) (+1 at v = 0).
+!! Methods: 0 RK4 (fixed dt), 1 implicit Radau IIA (rtol, atol; default
+!! 1e-9). Friction laws: 0 sign (Eq. 101; in both integrators its switches
+!! are events, with sticking; elsewhere sign(0) = 0), 1 smooth
+!! v/sqrt(v^2 + vslip^2), 2 literal Fortran SIGN(1, v) (+1 at v = 0, no events).
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
