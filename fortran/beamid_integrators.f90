@@ -460,7 +460,7 @@ contains
         real(dp), intent(out) :: sroot
         logical, intent(out) :: found
         integer, parameter :: NS = 16
-        real(dp) :: g0, g, ga, gb, sa, sb, sm, gm
+        real(dp) :: g0, ga, gb, sa, sb, sm, gm
         integer :: k, it
         found = .false.
         sroot = 1.0_dp
@@ -494,7 +494,6 @@ contains
             sa = sb
             ga = gb
         end do
-        g = ga
     contains
         pure real(dp) function gfun(x)
             real(dp), intent(in) :: x
@@ -625,7 +624,8 @@ contains
                     call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
                                     'component '//fmt_int(jev)//' does not settle at t = '// &
                                     fmt_real(t)//' (kind '//fmt_int(kind)//', mode '// &
-                                    fmt_int(es%fmode(jev))//')')
+                                    fmt_int(es%fmode(jev))//'): is dt = '// &
+                                    fmt_real(opts%dt)//' beyond the stability limit?')
                     return
                 end if
                 if (hs > 0.0_dp) then
