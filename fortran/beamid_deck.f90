@@ -97,7 +97,7 @@ module beamid_deck
         real(dp), allocatable :: sim_t_out(:)           !< output times (s)
         integer :: sim_elements_per_beam = 4
         integer :: sim_integrator = 1                   !< 0 rk4, 1 implicit
-        integer :: sim_friction = 1                     !< 0 sign, 1 smooth, 2 sign_literal
+        integer :: sim_friction = 0                     !< 0 sign, 1 smooth, 2 sign_literal
         real(dp) :: sim_dt = 0.0_dp                     !< 0: default (1e-5 s)
         real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-7)
         real(dp) :: sim_atol = 0.0_dp                   !< 0: rtol
@@ -827,7 +827,7 @@ contains
             end select
             select case (trim(friction))
             case ('')
-                deck%sim_friction = merge(0, 1, deck%sim_integrator == 0)
+                deck%sim_friction = 0   ! the sign law (events) for both integrators
             case ('sign')
                 deck%sim_friction = 0
             case ('smooth')
