@@ -51,7 +51,10 @@ $(STAMP): $(VPY) $(BUILD_INPUTS)
 demo: setup
 	$(VENV)/bin/beamid demo --out out
 
+# The Fortran kernel tests (tests/fortran, `meson test`) in the build dir of the
+# editable install, then pytest.
 test: setup
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/meson test -C build/$(PYTAG) -q --print-errorlogs
 	$(VPY) -m pytest -q tests
 
 bench: setup
@@ -71,8 +74,10 @@ check-build: setup
 	ln -s "$(CURDIR)"/pyfront/beamid/*.py $(CHECK_SITE)/beamid/
 	ln -s "$(CURDIR)"/$(CHECK_DIR)/_ext.*.so $(CHECK_SITE)/beamid/
 
-# The tests that go through Fortran, against the checking build.
+# The Fortran kernel tests and the tests that go through Fortran, against the
+# checking build (floating-point traps armed in the Fortran test programs too).
 test-check: check-build
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/meson test -C $(CHECK_DIR) -q --print-errorlogs
 	PATH="$(CURDIR)/$(CHECK_DIR):$$PATH" BEAMID_BATCH="$(CURDIR)/$(CHECK_DIR)/beamid-batch" \
 	  PYTHONPATH="$(CURDIR)/$(CHECK_SITE):$$($(VPY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" \
 	  $(VPY) -S -m pytest -q -p no:cacheprovider tests
