@@ -11,8 +11,8 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower, exit_code, &
-              fmt_bytes, fmt_count, set_alloc_error
+    public :: status_t, status_out, set_status, clear_status, fmt_real, fmt_int, lower, &
+              exit_code, fmt_bytes, fmt_count, set_alloc_error
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
     integer, parameter, public :: STATUS_OK = 0
@@ -52,6 +52,15 @@ module beamid_status
 contains
 
     !> True when the status holds no error.
+    !> The (code, message) pair of a status, as the f2py binding returns it.
+    pure subroutine status_out(stat, code, message)
+        type(status_t), intent(in) :: stat
+        integer, intent(out) :: code
+        character(len=*), intent(out) :: message
+        code = stat%code
+        message = stat%message
+    end subroutine status_out
+
     pure logical function status_is_ok(self)
         class(status_t), intent(in) :: self
         status_is_ok = self%code == STATUS_OK

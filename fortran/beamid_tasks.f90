@@ -21,10 +21,13 @@ module beamid_tasks
     use beamid_deck, only: deck_t
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
-    ! The finite element, dynamics and estimation drivers are the f2py entries
-    ! (beamid.fe_static, beamid.simulate and beamid.fit call the same), until
-    ! issue 11.2 moves their logic into library modules.
-    use beamid_api_fe, only: api_fe_static, api_fe_modes, api_fe_mesh_sizes
+    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
+    use beamid_fe_static, only: fe_newton_opts_t
+    use beamid_fe_nodes, only: fe_mesh_from_params, fe_load_from_values, fe_newton_options, &
+                               fe_static_nodes, fe_modes_table
+    ! The dynamics and estimation drivers are the f2py entries (beamid.simulate
+    ! and beamid.fit call the same), until issue 11.2 moves their logic into
+    ! library modules.
     use beamid_api_estimation, only: api_fit, api_diagnose
     use beamid_api_dynamics, only: api_dyn_sizes, api_dyn_simulate
     use beamid_estimation, only: residual_structure, chi2_sf
@@ -188,35 +191,38 @@ contains
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        integer(c_int) :: nnode, info(3), code
-        real(c_double), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
-        real(c_double) :: energy, reactions(3), residual, loads(4)
-        character(len=256) :: message
+        type(fe_mesh_t) :: mesh
+        type(fe_load_t) :: load
+        type(fe_newton_opts_t) :: opts
+        integer :: nnode, info(3)
+        real(dp), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
+        real(dp) :: energy, reactions(3), residual
         character(len=:), allocatable :: prefix
         integer :: unit, ios, i, ierr
         real(dp) :: total, values(8)
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
-        nnode = int(d%nbeams*d%fe_elements_per_beam + 1, c_int)
+        nnode = d%nbeams*d%fe_elements_per_beam + 1
         allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode), &
                   stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(st, 'fe_static', 'the node tables', 112.0_dp*real(nnode, dp))
             return
         end if
-        guess = 0.0_c_double
-        guess_out = 0.0_c_double
-        loads = [d%load%fx, d%load%fy, d%load%moment, real(d%fe_moment_form, dp)]
-        call api_fe_static(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                           int(d%fe_elements_per_beam, c_int), nnode, loads, 0_c_int, &
-                           int(d%fe_steps, c_int), d%fe_tol, guess, guess_out, nodes, &
-                           nodes_out, energy, reactions, residual, info, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_static', trim(message))
-            st%message = message
-            return
+        guess = 0.0_dp
+        guess_out = 0.0_dp
+        call fe_mesh_from_params(d%nbeams, d%params, d%fe_elements_per_beam, mesh, st)
+        if (st%code == STATUS_OK) then
+            call fe_load_from_values([d%load%fx, d%load%fy, d%load%moment, &
+                                      real(d%fe_moment_form, dp)], load, st)
         end if
+        if (st%code == STATUS_OK) call fe_newton_options(d%fe_steps, d%fe_tol, opts, st)
+        if (st%code == STATUS_OK) then
+            call fe_static_nodes(mesh, load, .false., opts, guess, guess_out, nodes, nodes_out, &
+                                 energy, reactions, residual, info, st)
+        end if
+        if (st%code /= STATUS_OK) return
         total = nodes(1, nnode)
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
@@ -246,35 +252,24 @@ contains
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        integer(c_int) :: nfree, nnode, nhinge, band, code
-        real(c_double), allocatable :: omega(:), phi(:, :)
-        integer(c_int), allocatable :: axial(:), dofs(:, :)
-        character(len=256) :: message
+        type(fe_mesh_t) :: mesh
+        integer :: nfree
+        real(dp), allocatable :: omega(:), phi(:, :)
+        integer, allocatable :: axial(:), dofs(:, :)
         character(len=:), allocatable :: prefix
         integer :: unit, ios, i, nw, nu, ierr
 
         ! four unknowns per node (six at a hinge); the clamp (Eq. 103) fixes u, w, w'
-        call api_fe_mesh_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                               int(d%fe_elements_per_beam, c_int), nnode, nfree, nhinge, band, &
-                               code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_modes', trim(message))
-            st%message = message
-            return
-        end if
+        call fe_mesh_from_params(d%nbeams, d%params, d%fe_elements_per_beam, mesh, st)
+        if (st%code /= STATUS_OK) return
+        nfree = mesh%nfree
         allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree), stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(st, 'fe_modes', 'the mode shapes', 8.0_dp*real(nfree, dp)**2)
             return
         end if
-        call api_fe_modes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                          int(d%fe_elements_per_beam, c_int), merge(1_c_int, 0_c_int, &
-                          d%fe_rotary_inertia), nfree, omega, phi, axial, dofs, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_modes', trim(message))
-            st%message = message
-            return
-        end if
+        call fe_modes_table(mesh, d%fe_rotary_inertia, omega, phi, axial, dofs, st)
+        if (st%code /= STATUS_OK) return
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return

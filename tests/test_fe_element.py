@@ -1,94 +1,16 @@
-"""Element and assembly checks of the nonlinear finite element chain (Chapter IV).
-
-* the Gauss-point element against the dissertation's F-tensor form (Eq. 77):
-  internal forces as contractions of nodal values with exact integrals of
-  products of shape-function derivatives, built here with numpy polynomials;
-* hand-coded tangents against central differences (element and chain, both
-  tip-moment forms, cubic moment law on);
-* the consistent mass integrates mass and second moments exactly.
+"""Assembly checks of the nonlinear finite element chain (Chapter IV) through
+the public fe_system: the Newton matrix against central differences (both
+tip-moment forms, cubic moment law on) and a Taylor test, the chain mass.
+The element kernels themselves (the F-tensor form of Eq. 77, element force
+and tangent against central differences, the exact mass, the reduced
+element) are tested in Fortran: tests/fortran/test_fe_element.f90.
 """
-import functools
-import itertools
-
 import numpy as np
 import pytest
-from numpy.polynomial import Polynomial as P
 from numpy.testing import assert_allclose
 
 import beamid
 from beamid import fe
-
-
-# --- the F-tensor form (Eq. 77) -------------------------------------------------
-
-def _shape_polys(h):
-    """Hermite functions of Eq. 76 as polynomials in zeta = s/h."""
-    z = P([0.0, 1.0])
-    return [1 - 3 * z**2 + 2 * z**3, h * (z - 2 * z**2 + z**3), 3 * z**2 - 2 * z**3,
-            h * (-z**2 + z**3)]
-
-
-@functools.lru_cache(maxsize=None)
-def _f_tensor(h, orders):
-    """F_{j k ...} = int_0^1 prod_i f_{j_i}^{(orders_i)} dzeta, derivatives in s."""
-    polys = _shape_polys(h)
-    derivs = {o: [p.deriv(o) / h**o if o else p for p in polys] for o in set(orders)}
-    out = np.empty((4,) * len(orders))
-    for idx in itertools.product(range(4), repeat=len(orders)):
-        prod = P([1.0])
-        for o, j in zip(orders, idx):
-            prod = prod * derivs[o][j]
-        integral = prod.integ()
-        out[idx] = integral(1.0) - integral(0.0)
-    return out
-
-
-def _tensor_force(h, ea, ei, qe):
-    """Internal force of one element from F tensors (the structure of Eq. 77:
-    N*_j, N**_jk, M*_j, M**_jk are contractions of U, W with F', F'')."""
-    W, U = qe[[0, 1, 4, 5]], qe[[2, 3, 6, 7]]
-    F = {}
-
-    def T(*orders):
-        if orders not in F:
-            F[orders] = _f_tensor(h, orders)
-        return F[orders]
-
-    def c(orders, *vectors):
-        """Contract the last len(vectors) indices of F[orders]... with vectors;
-        the first index is the test function."""
-        t = T(*orders)
-        for v in reversed(vectors):
-            t = t @ v
-        return t
-
-    # a = U.f', b = W.f', c = U.f'', d = W.f''; test index first in every tensor.
-    # axial (EA e de/dq):   e (1+a) f_k'  and  e b f_k'
-    fu = ea * (c((1, 1), U) + 1.5 * c((1, 1, 1), U, U) + 0.5 * c((1, 1, 1), W, W)
-               + 0.5 * c((1, 1, 1, 1), U, U, U) + 0.5 * c((1, 1, 1, 1), U, W, W))
-    fw = ea * (c((1, 1, 1), U, W) + 0.5 * c((1, 1, 1, 1), U, U, W)
-               + 0.5 * c((1, 1, 1, 1), W, W, W))
-    # bending (EI chi dchi/dq), chi = d + d a - b c:
-    #   dchi/dU_k = d f_k' - b f_k'';  dchi/dW_k = (1+a) f_k'' - c f_k'
-    fu += ei * (c((1, 2, 2), W, W) + c((1, 2, 1, 2), W, U, W) - c((1, 1, 2, 2), W, U, W)
-                - c((2, 2, 1), W, W) - c((2, 2, 1, 1), W, U, W) + c((2, 1, 2, 1), W, U, W))
-    fw += ei * (c((2, 2), W) + 2.0 * c((2, 2, 1), W, U) - c((1, 2, 2), W, U)
-                + c((2, 2, 1, 1), W, U, U) - c((1, 2, 1, 2), W, U, U)
-                - c((2, 1, 2), W, U) - c((2, 1, 2, 1), W, U, U) + c((1, 1, 2, 2), W, U, U))
-    out = np.empty(8)
-    out[[0, 1, 4, 5]] = h * fw
-    out[[2, 3, 6, 7]] = h * fu
-    return out
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_element_force_matches_f_tensor_form(seed):
-    rng = np.random.default_rng(seed)
-    h, ea, ei = 0.388, 1.37e7, 11.4
-    qe = 0.3 * rng.standard_normal(8)
-    got = fe.fe_element(h, ea, ei, qe)["force"]
-    want = _tensor_force(h, ea, ei, qe)
-    assert_allclose(got, want, rtol=1e-11, atol=1e-9 * np.abs(want).max())
 
 
 # --- derivatives against central differences --------------------------------------
@@ -104,21 +26,6 @@ def _central_jacobian(func, x, step):
         cols.append((8 * (func(x + e) - func(x - e)) - (func(x + 2 * e) - func(x - 2 * e)))
                     / (12 * step))
     return np.array(cols).T
-
-
-@pytest.mark.parametrize("cubic", [0.0, 7.5])
-def test_element_tangent_and_force_central_differences(cubic):
-    rng = np.random.default_rng(3)
-    h, ea, ei = 0.25, 2.0e5, 11.3
-    qe = 0.4 * rng.standard_normal(8)
-    out = fe.fe_element(h, ea, ei, qe, cubic=cubic)
-    energy = lambda q: np.array([fe.fe_element(h, ea, ei, q, cubic=cubic)["energy"]])
-    force = lambda q: fe.fe_element(h, ea, ei, q, cubic=cubic)["force"]
-    assert_allclose(out["force"], _central_jacobian(energy, qe, 1e-6)[0],
-                    rtol=1e-7, atol=1e-7 * np.abs(out["force"]).max())
-    k_fd = _central_jacobian(force, qe, 1e-6)
-    assert_allclose(out["tangent"], k_fd, atol=1e-7 * np.abs(out["tangent"]).max())
-    assert_allclose(out["tangent"], out["tangent"].T, atol=1e-9 * np.abs(out["tangent"]).max())
 
 
 @pytest.mark.parametrize("form", ["eq78", "exact"])
@@ -162,17 +69,6 @@ def test_taylor_remainder_is_second_order():
 
 # --- mass -----------------------------------------------------------------------------
 
-def test_element_mass_integrates_exactly():
-    h, rho = 0.37, 0.53
-    m = fe.fe_element(h, 1.0, 1.0, np.zeros(8), rho=rho)["mass"]
-    one = np.array([1, 0, 0, 0, 1, 0, 0, 0.0])         # w = 1
-    ramp = np.array([0, 1, 0, 0, h, 1, 0, 0.0])        # w = s
-    assert_allclose(one @ m @ one, rho * h, rtol=1e-14)
-    assert_allclose(ramp @ m @ ramp, rho * h**3 / 3, rtol=1e-14)
-    assert_allclose(one @ m @ ramp, rho * h**2 / 2, rtol=1e-14)
-    assert_allclose(m, m.T)
-
-
 def test_chain_mass_has_total_mass_and_second_moment():
     """u = s (u' = 1) is admissible under the clamp (u(0) = 0, u'(0) free):
     q^T M q = sum rho_i int s^2 ds + m_elbow L1^2 + m_tip (L1 + L2)^2."""
@@ -204,24 +100,3 @@ def test_rotary_inertia_enters_the_slope_unknowns():
     assert_allclose(diff[tip_dw, tip_dw], model.params["J_tip"])
     assert_allclose(diff[elbow_dw, elbow_dw], model.params["J_elbow"])
     assert np.count_nonzero(diff) == 2
-
-
-try:
-    from hypothesis import given, settings, strategies as st
-except ImportError:  # pragma: no cover - hypothesis is a test extra
-    given = None
-
-if given is not None:
-    @settings(max_examples=25, deadline=None)
-    @given(st.lists(st.floats(-0.6, 0.6), min_size=8, max_size=8),
-           st.floats(0.05, 1.0), st.floats(0.0, 20.0))
-    def test_element_tangent_property(values, h, cubic):
-        """At random states, lengths and cubic coefficients the tangent is the
-        central-difference derivative of the force (relative 1e-6)."""
-        qe = np.array(values)
-        ea, ei = 1.0e4, 10.0
-        out = fe.fe_element(h, ea, ei, qe, cubic=cubic)
-        force = lambda q: fe.fe_element(h, ea, ei, q, cubic=cubic)["force"]
-        k_fd = _central_jacobian(force, qe, 1e-6)
-        scale = max(np.abs(out["tangent"]).max(), 1.0)
-        assert np.abs(out["tangent"] - k_fd).max() <= 1e-6 * scale
