@@ -44,6 +44,7 @@ module beamid_arclength
 
     public :: static_load_t, static_options_t, static_solution_t
     public :: solve_static, static_shape, validate_static_load
+    public :: static_load_from_values, static_options_from_tol
     public :: LOAD_TIP, LOAD_WIRE, NOUT
     public :: OUT_X_TIP, OUT_Y_TIP, OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, &
               OUT_Y_ELBOW, OUT_ELBOW_ANGLE, OUT_ROOT_MOMENT
@@ -833,6 +834,26 @@ contains
     end subroutine newton
 
     ! --------------------------------------------------------------- public API
+
+    !> Load case from plain values (the f2py binding's): kind LOAD_TIP or
+    !! LOAD_WIRE and values (fx, fy, moment, wire_length).
+    pure function static_load_from_values(kind, values) result(load)
+        integer, intent(in) :: kind
+        real(dp), intent(in) :: values(4)
+        type(static_load_t) :: load
+        load%kind = kind
+        load%fx = values(1)
+        load%fy = values(2)
+        load%moment = values(3)
+        load%wire_length = values(4)
+    end function static_load_from_values
+
+    !> Default options with the integration tolerance tol (tol <= 0: default).
+    pure function static_options_from_tol(tol) result(opts)
+        real(dp), intent(in) :: tol
+        type(static_options_t) :: opts
+        if (tol > 0.0_dp) opts%tol = tol
+    end function static_options_from_tol
 
     !> Check a load case against a chain; empty status when fine.
     pure subroutine validate_static_load(chain, load, stat)

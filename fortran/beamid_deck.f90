@@ -17,8 +17,8 @@
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, ERR_DECK, STATUS_OK, fmt_int, fmt_real, lower, &
-                             fmt_bytes, MAX_BYTES
+    use beamid_status, only: status_t, set_status, ERR_DECK, ERR_INPUT, STATUS_OK, fmt_int, &
+                             fmt_real, lower, fmt_bytes, MAX_BYTES
     use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
                             param_index_joint_flex, param_index_global, chain_t, &
                             chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
@@ -34,7 +34,7 @@ module beamid_deck
     implicit none
     private
 
-    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS
+    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
@@ -1023,4 +1023,23 @@ contains
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(f%groups(ig)%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_groups
+
+    !> Run a deck with another task (`beamid fit|compare|diagnose|improve
+    !! DECK`): a blank `task` keeps the deck's; an estimation task replaces
+    !! the task of an estimation deck only.
+    subroutine deck_set_task(d, task, stat)
+        type(deck_t), intent(inout) :: d
+        character(len=*), intent(in) :: task
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: estimation = ' fit compare diagnose improve '
+        if (len_trim(task) == 0 .or. trim(task) == d%task) return
+        if (index(estimation, ' '//trim(task)//' ') > 0 .and. &
+            index(estimation, ' '//d%task//' ') > 0) then
+            d%task = trim(task)
+        else
+            stat%code = ERR_INPUT
+            stat%message = trim(d%path)//": task '"//trim(task)//"' cannot run a deck of task '"// &
+                           d%task//"' (fit, compare, diagnose and improve run estimation decks)"
+        end if
+    end subroutine deck_set_task
 end module beamid_deck

@@ -9,7 +9,7 @@ module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, exit_code
-    use beamid_deck, only: deck_t, read_deck
+    use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_static_experiments, only: quantity_label, NQUANT
@@ -191,17 +191,7 @@ contains
         character(len=:), allocatable :: files
         written = ''
         call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK .and. len_trim(task) > 0 .and. trim(task) /= d%task) then
-            if (index(' fit compare diagnose improve ', ' '//trim(task)//' ') > 0 .and. &
-                index(' fit compare diagnose improve ', ' '//d%task//' ') > 0) then
-                d%task = trim(task)
-            else
-                code = int(ERR_INPUT, c_int)
-                message = trim(path)//": task '"//trim(task)//"' cannot run a deck of task '"// &
-                          d%task//"' (fit, compare, diagnose and improve run estimation decks)"
-                return
-            end if
-        end if
+        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         if (stat%code == STATUS_OK) then
             call run_task(d, files, stat)
             if (stat%code == STATUS_OK) written = files

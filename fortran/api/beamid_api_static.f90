@@ -1,16 +1,18 @@
-!> f2py-facing API for the model and the arc-length static solver.
+!> f2py binding of the model and the arc-length static solver: argument
+!! conversion and one library call each.
 !!
-!! Plain arrays, c_int/c_double kinds, explicit shapes and an integer status
-!! with a 256-character message: nothing else crosses into Python. Status
-!! codes follow beamid_status (0 ok, < 0 input error, > 0 numerical failure).
+!! Plain arrays, c_int/c_double kinds and an integer status with a
+!! 256-character message: nothing else crosses into Python. Status codes
+!! follow beamid_status (0 ok, < 0 input error, > 0 numerical failure);
+!! array sizes that follow from the arguments are hidden from Python.
 module beamid_api_static
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, status_out, fmt_int
     use beamid_model, only: chain_t, chain_from_vector, param_count, param_name
     use beamid_presets, only: preset_params
-    use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
-                                solve_static, static_shape, NOUT
+    use beamid_arclength, only: static_solution_t, solve_static, static_shape, NOUT, &
+                                static_load_from_values, static_options_from_tol
     implicit none
     private
 
@@ -35,23 +37,26 @@ contains
 
     !> Parameter names of a chain of nbeams beams, space separated, in the
     !! order of the parameter vector.
-    subroutine api_param_names(nbeams, names, code)
+    subroutine api_param_names(nbeams, names, code, message)
         integer(c_int), intent(in) :: nbeams
         character(len=8192), intent(out) :: names
         integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
         character(len=:), allocatable :: joined
+        type(status_t) :: stat
         integer :: i
         joined = ''
-        code = 0
+        names = ''
         if (nbeams < 1 .or. param_count(int(nbeams))*24 > len(names)) then
-            names = ''
-            code = int(ERR_INPUT, c_int)
-            return
+            call set_status(stat, ERR_INPUT, 'api_param_names', 'cannot name the parameters of '// &
+                            fmt_int(int(nbeams))//' beams')
+        else
+            do i = 1, param_count(int(nbeams))
+                joined = joined//param_name(int(nbeams), i)//' '
+            end do
+            names = joined
         end if
-        do i = 1, param_count(int(nbeams))
-            joined = joined//param_name(int(nbeams), i)//' '
-        end do
-        names = joined
+        call status_out(stat, code, message)
     end subroutine api_param_names
 
     !> Number of beams of a preset ('pace', 'cantilever'); code < 0 if unknown.
@@ -61,14 +66,11 @@ contains
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         real(dp), allocatable :: params(:)
-        integer :: nb
-        call preset_params(trim(name), nb, params, stat)
-        nbeams = int(nb, c_int)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call preset_params(trim(name), nbeams, params, stat)
+        call status_out(stat, code, message)
     end subroutine api_preset_size
 
-    !> Parameter vector of a preset.
+    !> Parameter vector of a preset (nparams from api_param_count).
     subroutine api_preset(name, nparams, params, code, message)
         character(len=*), intent(in) :: name
         integer(c_int), intent(in) :: nparams
@@ -80,52 +82,32 @@ contains
         integer :: nb
         params = 0.0_c_double
         call preset_params(trim(name), nb, values, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
-        if (stat%code /= STATUS_OK) return
-        if (size(values) /= nparams) then
-            code = int(ERR_INPUT, c_int)
-            message = 'api_preset: wrong parameter count'
-            return
+        if (stat%code == STATUS_OK .and. size(values) /= nparams) then
+            call set_status(stat, ERR_INPUT, 'api_preset', 'wrong parameter count')
         end if
-        params = values
+        if (stat%code == STATUS_OK) params = values
+        call status_out(stat, code, message)
     end subroutine api_preset
 
     !> Validate a parameter vector; message names the first bad parameter.
     subroutine api_check_params(nbeams, nparams, params, code, message)
+        !f2py intent(hide) nparams
         integer(c_int), intent(in) :: nbeams, nparams
         real(c_double), intent(in) :: params(nparams)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
         type(status_t) :: stat
-        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call chain_from_vector(int(nbeams), params, chain, stat)
+        call status_out(stat, code, message)
     end subroutine api_check_params
-
-    subroutine make_load(kind, load_values, load)
-        integer(c_int), intent(in) :: kind
-        real(c_double), intent(in) :: load_values(4)
-        type(static_load_t), intent(out) :: load
-        load%kind = int(kind)
-        load%fx = load_values(1)
-        load%fy = load_values(2)
-        load%moment = load_values(3)
-        load%wire_length = load_values(4)
-    end subroutine make_load
-
-    subroutine make_options(tol, opts)
-        real(c_double), intent(in) :: tol
-        type(static_options_t), intent(out) :: opts
-        if (tol > 0.0_c_double) opts%tol = tol
-    end subroutine make_options
 
     !> Solve a static load case. load_kind 1: tip force (fx, fy) and moment;
     !! 2: radial wire of length load_values(4). wrt: 1-based parameter indices.
     !! info = (Newton iterations, load steps); unknowns = k(0), Q(0), N(0), T.
     subroutine api_static_solve(nbeams, nparams, params, load_kind, load_values, nwrt, wrt, &
                                 tol, outputs, doutputs, unknowns, info, code, message)
+        !f2py intent(hide) nparams, nwrt
         integer(c_int), intent(in) :: nbeams, nparams, load_kind, nwrt
         real(c_double), intent(in) :: params(nparams), load_values(4), tol
         integer(c_int), intent(in) :: wrt(nwrt)
@@ -135,32 +117,29 @@ contains
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
         type(status_t) :: stat
-        type(static_load_t) :: load
-        type(static_options_t) :: opts
         type(static_solution_t) :: sol
-
         outputs = 0.0_c_double
         doutputs = 0.0_c_double
         unknowns = 0.0_c_double
         info = 0
-        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        call chain_from_vector(int(nbeams), params, chain, stat)
         if (stat%code == STATUS_OK) then
-            call make_load(load_kind, load_values, load)
-            call make_options(tol, opts)
-            call solve_static(chain, load, int(wrt), opts, sol, stat)
+            call solve_static(chain, static_load_from_values(load_kind, load_values), wrt, &
+                              static_options_from_tol(tol), sol, stat)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
-        if (stat%code /= STATUS_OK) return
-        outputs = sol%outputs
-        doutputs = sol%doutputs
-        unknowns = sol%unknowns
-        info = int([sol%newton_iterations, sol%load_steps], c_int)
+        if (stat%code == STATUS_OK) then
+            outputs = sol%outputs
+            doutputs = sol%doutputs
+            unknowns = sol%unknowns
+            info = [sol%newton_iterations, sol%load_steps]
+        end if
+        call status_out(stat, code, message)
     end subroutine api_static_solve
 
     !> Shape at arc positions s (ascending) from converged unknowns.
     subroutine api_static_shape(nbeams, nparams, params, load_kind, load_values, unknowns, &
                                 tol, npts, s, x, y, psi, moment, code, message)
+        !f2py intent(hide) nparams, npts
         integer(c_int), intent(in) :: nbeams, nparams, load_kind, npts
         real(c_double), intent(in) :: params(nparams), load_values(4), unknowns(4), tol
         real(c_double), intent(in) :: s(npts)
@@ -169,27 +148,15 @@ contains
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
         type(status_t) :: stat
-        type(static_load_t) :: load
-        type(static_options_t) :: opts
-        real(dp), dimension(npts) :: xd, yd, pd, md
-
         x = 0.0_c_double
         y = 0.0_c_double
         psi = 0.0_c_double
         moment = 0.0_c_double
-        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        call chain_from_vector(int(nbeams), params, chain, stat)
         if (stat%code == STATUS_OK) then
-            call make_load(load_kind, load_values, load)
-            call make_options(tol, opts)
-            call static_shape(chain, load, real(unknowns, dp), opts, real(s, dp), &
-                              xd, yd, pd, md, stat)
+            call static_shape(chain, static_load_from_values(load_kind, load_values), unknowns, &
+                              static_options_from_tol(tol), s, x, y, psi, moment, stat)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
-        if (stat%code /= STATUS_OK) return
-        x = xd
-        y = yd
-        psi = pd
-        moment = md
+        call status_out(stat, code, message)
     end subroutine api_static_shape
 end module beamid_api_static

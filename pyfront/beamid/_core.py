@@ -1,89 +1,26 @@
-"""The only module that calls the compiled extension ``beamid._ext``.
+"""The only module that calls the compiled extension ``beamid._ext`` for the
+model, the static solvers and the decks (``_core_estimation``,
+``_core_dynamics`` and ``_design_core`` hold the other layers).
 
-Functions here take and return numpy arrays and plain numbers and turn the
-Fortran status codes into :class:`beamid.InputError` or
-:class:`beamid.ConvergenceError`.
+One calling convention: :func:`_call` calls an entry point whose last two
+results are the status (code, message), turns a bad status into
+:class:`beamid.InputError` or :class:`beamid.ConvergenceError` and returns
+the other results. Sizes that follow from the arguments are hidden in the
+binding (``!f2py intent(hide)``), so the functions here pass arrays only.
 """
 from __future__ import annotations
 
 import os
 from functools import lru_cache
+from typing import Any, Callable
 
 import numpy as np
 
 from . import _ext
 from .errors import raise_for_status
 
-_api = _ext.beamid_api_static
-
-
-@lru_cache(maxsize=None)
-def param_names(nbeams: int) -> tuple[str, ...]:
-    """Names of the parameter vector of a chain of ``nbeams`` beams, in order."""
-    names, code = _api.api_param_names(nbeams)
-    raise_for_status(int(code), f"cannot name the parameters of {nbeams} beams")
-    if isinstance(names, bytes):
-        names = names.decode()
-    return tuple(str(names).split())
-
-
-def preset(name: str) -> tuple[int, np.ndarray]:
-    """Number of beams and parameter vector of a built-in model."""
-    nbeams, code, message = _api.api_preset_size(name)
-    raise_for_status(int(code), message)
-    nparams = len(param_names(int(nbeams)))
-    values, code, message = _api.api_preset(name, nparams)
-    raise_for_status(int(code), message)
-    return int(nbeams), np.array(values, dtype=float)
-
-
-def check_params(nbeams: int, params: np.ndarray) -> None:
-    """Raise InputError naming the first bad parameter, if any."""
-    code, message = _api.api_check_params(nbeams, np.asarray(params, dtype=float))
-    raise_for_status(int(code), message)
-
-
-def nout() -> int:
-    return int(_api.api_nout())
-
-
-def static_solve(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
-                 wrt: np.ndarray, tol: float = 0.0):
-    """Arc-length static solve; returns outputs, doutputs (8 x nwrt), unknowns, info."""
-    outputs, doutputs, unknowns, info, code, message = _api.api_static_solve(
-        nbeams, params, load_kind, load_values, wrt, tol)
-    if code:
-        raise_for_status(int(code), message)
-    return outputs, doutputs.reshape(8, len(wrt)), unknowns, (int(info[0]), int(info[1]))
-
-
-def static_shape(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
-                 unknowns: np.ndarray, s: np.ndarray, tol: float = 0.0):
-    """Shape (x, y, psi, moment) at arc positions s from converged unknowns."""
-    s = np.ascontiguousarray(s, dtype=float)
-    x, y, psi, moment, code, message = _api.api_static_shape(
-        nbeams, np.asarray(params, dtype=float), load_kind,
-        np.asarray(load_values, dtype=float), np.asarray(unknowns, dtype=float), float(tol), s)
-    raise_for_status(int(code), message)
-    return np.array(x), np.array(y), np.array(psi), np.array(moment)
-
-
-def fe_call(name: str, *args):
-    """Call ``beamid_api_fe.<name>``; raise on its trailing (code, message) and
-    return the list of the remaining outputs."""
-    *values, code, message = getattr(_ext.beamid_api_fe, name)(*args)
-    raise_for_status(int(code), message)
-    return values
-
-
-def fe_call_plain(name: str, *args):
-    """Call ``beamid_api_fe.<name>`` that returns no status."""
-    return getattr(_ext.beamid_api_fe, name)(*args)
-
-
-# ---------------------------------------------------------------- decks, data, tasks
-# beamid_api_deck: the deck and measurement readers and the task runners of
-# beamid-batch, so both fronts read, validate and write alike.
+_static = _ext.beamid_api_static
+_fe = _ext.beamid_api_fe
 _deck_api = _ext.beamid_api_deck
 
 
@@ -93,28 +30,133 @@ def _text(value) -> str:
     return str(value).rstrip("\x00 ")
 
 
+def _call(entry: Callable[..., Any], *args: Any) -> Any:
+    """Call ``entry``; raise on its trailing (code, message) and return the
+    other results: one alone, several as a tuple."""
+    *values, code, message = entry(*args)
+    if code:
+        raise_for_status(int(code), _text(message))
+    return values[0] if len(values) == 1 else tuple(values)
+
+
+def _floats(values) -> np.ndarray:
+    return np.asarray(values, dtype=np.float64)
+
+
+# ---------------------------------------------------------------- model, static solver
+
+@lru_cache(maxsize=None)
+def param_names(nbeams: int) -> tuple[str, ...]:
+    """Names of the parameter vector of a chain of ``nbeams`` beams, in order."""
+    return tuple(_text(_call(_static.api_param_names, nbeams)).split())
+
+
+def preset(name: str) -> tuple[int, np.ndarray]:
+    """Number of beams and parameter vector of a built-in model."""
+    nbeams = int(_call(_static.api_preset_size, name))
+    values = _call(_static.api_preset, name, len(param_names(nbeams)))
+    return nbeams, np.array(values, dtype=float)
+
+
+def check_params(nbeams: int, params: np.ndarray) -> None:
+    """Raise InputError naming the first bad parameter, if any."""
+    _call(_static.api_check_params, nbeams, _floats(params))
+
+
+def nout() -> int:
+    return int(_static.api_nout())
+
+
+def static_solve(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
+                 wrt: np.ndarray, tol: float = 0.0):
+    """Arc-length static solve; returns outputs, doutputs (8 x nwrt), unknowns, info."""
+    outputs, doutputs, unknowns, info = _call(_static.api_static_solve, nbeams, params,
+                                              load_kind, load_values, wrt, tol)
+    return outputs, doutputs.reshape(8, len(wrt)), unknowns, (int(info[0]), int(info[1]))
+
+
+def static_shape(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
+                 unknowns: np.ndarray, s: np.ndarray, tol: float = 0.0):
+    """Shape (x, y, psi, moment) at arc positions s from converged unknowns."""
+    x, y, psi, moment = _call(_static.api_static_shape, nbeams, _floats(params), load_kind,
+                              _floats(load_values), _floats(unknowns), float(tol),
+                              np.ascontiguousarray(s, dtype=float))
+    return np.array(x), np.array(y), np.array(psi), np.array(moment)
+
+
+# ---------------------------------------------------------------- finite element chain
+# beamid_api_fe binds beamid_fe_nodes: node tables (5, nnode), outboard slopes
+# (2, nnode), loads (fx, fy, moment, moment_form).
+
+def fe_mesh_sizes(nbeams: int, params: np.ndarray, nepb: int) -> tuple[int, int, int, int]:
+    """(nnode, nfree, nhinge, half-bandwidth) of the mesh."""
+    sizes = _call(_fe.api_fe_mesh_sizes, nbeams, params, nepb)
+    return tuple(int(v) for v in sizes)
+
+
+def fe_static(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, use_guess: int,
+              steps: int, tol: float, guess: np.ndarray, guess_out: np.ndarray):
+    """(nodes, nodes_out, energy, reactions, residual, info) of a static equilibrium."""
+    return _call(_fe.api_fe_static, nbeams, params, nepb, loads, use_guess, steps, tol, guess,
+                 guess_out)
+
+
+def fe_path(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, dload: np.ndarray,
+            guess: np.ndarray, guess_out: np.ndarray, lam0: float, ds: float, ds_max: float,
+            direction: int, lam_min: float, lam_max: float, tol: float, max_points: int):
+    """(npts, lam, nodes, nodes_out) along a path of equilibria."""
+    return _call(_fe.api_fe_path, nbeams, params, nepb, loads, dload, guess, guess_out, lam0, ds,
+                 ds_max, direction, lam_min, lam_max, tol, max_points)
+
+
+def fe_buckling(nbeams: int, params: np.ndarray, nepb: int):
+    """(pcr, mode, mode_out): linear buckling of the straight chain."""
+    return _call(_fe.api_fe_buckling, nbeams, params, nepb)
+
+
+def fe_modes(nbeams: int, params: np.ndarray, nepb: int, rotary: int, nfree: int):
+    """(omega, phi, axial, dofs) of the linear modes."""
+    return _call(_fe.api_fe_modes, nbeams, params, nepb, rotary, nfree)
+
+
+def fe_axial_linear(nbeams: int, params: np.ndarray, nepb: int, point_masses: int) -> np.ndarray:
+    """Axial frequencies of the linear-u model of Eq. 114."""
+    return _call(_fe.api_fe_axial_linear, nbeams, params, nepb, point_masses)
+
+
+def fe_modal_cost(nbeams: int, params: np.ndarray, nepb: int, rotary: int, nfree: int,
+                  shape0: np.ndarray, shape0_out: np.ndarray, vel0: np.ndarray,
+                  vel0_out: np.ndarray, t: float):
+    """(omega, eta, kinetic, potential) of Skelton's modal cost."""
+    return _call(_fe.api_fe_modal_cost, nbeams, params, nepb, rotary, nfree, shape0, shape0_out,
+                 vel0, vel0_out, t)
+
+
+def fe_system(nbeams: int, params: np.ndarray, nepb: int, rotary: int, q: np.ndarray,
+              loads: np.ndarray):
+    """(energy, force, jacobian, mass, load vector) at the free vector q."""
+    return _call(_fe.api_fe_system, nbeams, params, nepb, rotary, q, loads)
+
+
+# ---------------------------------------------------------------- decks, data, tasks
+# beamid_api_deck: the deck and measurement readers and the task runners of
+# beamid-batch, so both fronts read, validate and write alike.
+
 def _path(path) -> bytes:
     """A file path for Fortran: its bytes (f2py refuses non-ASCII str)."""
     return os.fsencode(str(path))
 
 
-def _raise(code: int, message) -> None:
-    if code:
-        raise_for_status(int(code), _text(message))
-
-
 def read_deck(path: str) -> dict:
     """Read and validate a deck with the Fortran reader (beamid_deck); every
     problem found is in the InputError's message, one per line."""
-    sizes, reals, text, code, message = _deck_api.api_deck_sizes(_path(path))
-    _raise(code, message)
+    sizes, reals, text = _call(_deck_api.api_deck_sizes, _path(path))
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
-    (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean, prior_sigma,
-     code, message) = _deck_api.api_deck_arrays(_path(path), nparams, nwrt, nt, nexp, nfree,
-                                                 nprior)
-    _raise(code, message)
+    (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean,
+     prior_sigma) = _call(_deck_api.api_deck_arrays, _path(path), nparams, nwrt, nt, nexp, nfree,
+                          nprior)
     lines = _text(text).split("\n")
     names = lines[3:3 + nexp]
     return {
@@ -162,8 +204,7 @@ def _published_groups(lines: list[str]) -> list[dict]:
 def run_deck(path: str, task: str = "") -> list[str]:
     """Run a deck's task (or `task`, an estimation task for an estimation
     deck) as beamid-batch does (beamid_tasks); the files written."""
-    written, code, message = _deck_api.api_run_deck(_path(path), task)
-    _raise(code, message)
+    written = _call(_deck_api.api_run_deck, _path(path), task)
     return [line for line in _text(written).split("\n") if line]
 
 
@@ -176,11 +217,9 @@ def quantity_labels() -> tuple[str, ...]:
 def read_measurements(path: str):
     """Rows of a measurement CSV, validated by beamid_measurements: experiment
     names, t, quantity names, value, sigma, source lines."""
-    nrow, code, message = _deck_api.api_measurements_size(_path(path))
-    _raise(code, message)
-    t, value, sigma, line, quantity, exp_index, names, code, message = \
-        _deck_api.api_measurements_read(_path(path), int(nrow))
-    _raise(code, message)
+    nrow = _call(_deck_api.api_measurements_size, _path(path))
+    t, value, sigma, line, quantity, exp_index, names = _call(
+        _deck_api.api_measurements_read, _path(path), int(nrow))
     exps = _text(names).split("\n")
     labels = quantity_labels()
     return (tuple(exps[int(k) - 1] for k in exp_index), np.array(t, dtype=float),

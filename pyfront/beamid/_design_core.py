@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _ext
-from .errors import raise_for_status
+from ._core import _call
 
 _api = _ext.beamid_api_design
 
@@ -14,8 +14,7 @@ _api = _ext.beamid_api_design
 def information_covariance(info: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int]:
     """(cov, sigmas, D-criterion det(cov)^(1/(2n)), rank) of an information matrix."""
     info = np.asfortranarray(info, dtype=float)
-    cov, sig, dcrit, rank, code, message = _api.api_information_covariance(info)
-    raise_for_status(int(code), message)
+    cov, sig, dcrit, rank = _call(_api.api_information_covariance, info)
     return np.array(cov), np.array(sig), float(dcrit), int(rank)
 
 
@@ -32,9 +31,8 @@ def rank_candidates(info: np.ndarray, rows: np.ndarray, sigma: np.ndarray,
     rows is n_free x n_candidates; target is 1-based (0: D-criterion)."""
     info = np.asfortranarray(info, dtype=float)
     rows = np.asfortranarray(rows, dtype=float)
-    base, crit, order, code, message = _api.api_rank_candidates(
-        info, rows, np.asarray(sigma, float), int(target))
-    raise_for_status(int(code), message)
+    base, crit, order = _call(_api.api_rank_candidates, info, rows, np.asarray(sigma, float),
+                              int(target))
     return float(base), np.array(crit), np.array(order, dtype=int) - 1
 
 

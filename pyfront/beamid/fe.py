@@ -29,7 +29,7 @@ from .errors import InputError, raise_for_status
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
-    "fe_system", "fe_element", "free_vector", "NODE_FIELDS", "OUTBOARD_FIELDS",
+    "fe_system", "free_vector", "NODE_FIELDS", "OUTBOARD_FIELDS",
     "MOMENT_FORMS",
 ]
 
@@ -47,18 +47,6 @@ _OUT_DTYPE = np.dtype([(name, np.float64) for name in OUTBOARD_FIELDS])
 
 def _input_error(message):
     return InputError(message)
-
-
-def _call(name, *args):
-    """Call FE API routine `name` through _core (the only module that touches
-    the extension); its trailing (code, message) become beamid.InputError /
-    beamid.ConvergenceError."""
-    return _core.fe_call(name, *args)
-
-
-def _call_plain(name, *args):
-    """Call an FE API routine without a status (element kernels)."""
-    return _core.fe_call_plain(name, *args)
 
 
 def _model_args(model):
@@ -103,7 +91,7 @@ def _mesh_sizes(model, elements_per_beam):
     and by 1 with a root hinge (api_fe_mesh_sizes)."""
     nbeams, params = _model_args(model)
     _mesh_size(nbeams, elements_per_beam)
-    nnode, nfree, _, _ = _call("api_fe_mesh_sizes", nbeams, params, int(elements_per_beam))
+    nnode, nfree, _, _ = _core.fe_mesh_sizes(nbeams, params, int(elements_per_beam))
     return int(nnode), int(nfree)
 
 
@@ -307,9 +295,9 @@ def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
     else:
         guess, guess_out = _node_tables(start, nnode)
         use_guess = 1
-    nodes, nodes_out, energy, reactions, residual, info = _call(
-        "api_fe_static", nbeams, params, int(elements_per_beam), loads, use_guess,
-        int(steps), float(tol), guess, guess_out)
+    nodes, nodes_out, energy, reactions, residual, info = _core.fe_static(
+        nbeams, params, int(elements_per_beam), loads, use_guess, int(steps), float(tol), guess,
+        guess_out)
     table = _structured(np.asarray(nodes))
     hinges, root_hinge = _hinges(model, elements_per_beam)
     return FEStatic(nodes=table, tip=_tip(table), energy=float(energy),
@@ -374,8 +362,8 @@ def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, d
         raise _input_error(f"max_points = {max_points}: the path would need about "
                            f"{need / 2**30:.3g} GiB of memory (limit "
                            f"{_MAX_BYTES / 2**30:.0f} GiB)")
-    npts, lam, nodes, nodes_out = _call(
-        "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
+    npts, lam, nodes, nodes_out = _core.fe_path(
+        nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
         float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
         float(lam_range[1]), float(tol), int(max_points))
     npts = int(npts)
@@ -404,9 +392,8 @@ class FEBuckling:
 def buckling_load(model, elements_per_beam=8):
     """Critical compressive tip load: least P with K0 phi = P G phi."""
     nbeams, params = _model_args(model)
-    nnode, _ = _mesh_size(nbeams, elements_per_beam)
-    pcr, mode, mode_out = _call("api_fe_buckling", nbeams, params, int(elements_per_beam),
-                                nnode)
+    _mesh_size(nbeams, elements_per_beam)
+    pcr, mode, mode_out = _core.fe_buckling(nbeams, params, int(elements_per_beam))
     return FEBuckling(load=float(pcr), nodes=_structured(np.asarray(mode)),
                       elements_per_beam=int(elements_per_beam),
                       outboard=_structured_out(np.asarray(mode_out)))
@@ -507,8 +494,8 @@ class FEModes:
         else:
             v0, v0_out = _node_tables(velocity, nnode)
         span = 2 * np.pi / self.omega[0] if t is None else float(t)
-        omega, eta, kin, pot = _call(
-            "api_fe_modal_cost", nbeams, params, int(self.elements_per_beam),
+        omega, eta, kin, pot = _core.fe_modal_cost(
+            nbeams, params, int(self.elements_per_beam),
             int(self.rotary_inertia), nfree, q0, q0_out, v0, v0_out, span)
         return ModalCost(omega=np.array(omega), eta=np.array(eta), kinetic=np.array(kin),
                          potential=np.array(pot), is_axial=self.is_axial.copy())
@@ -525,8 +512,8 @@ def modes(model, elements_per_beam=4, *, rotary_inertia=False):
                            f"eigenproblem of {nfree} unknowns) would need about "
                            f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
                            f"{_MAX_BYTES / 2**30:.0f} GiB)")
-    omega, phi, axial, dofs = _call("api_fe_modes", nbeams, params, int(elements_per_beam),
-                                    int(bool(rotary_inertia)), nfree)
+    omega, phi, axial, dofs = _core.fe_modes(nbeams, params, int(elements_per_beam),
+                                             int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,
                    dofs=np.array(dofs).T.copy(), elements_per_beam=int(elements_per_beam),
                    rotary_inertia=bool(rotary_inertia), _model=model)
@@ -537,9 +524,8 @@ def axial_modes_linear(model, elements_per_beam=4, *, point_masses=True):
     axial column is this model without point masses, from its 2nd frequency."""
     nbeams, params = _model_args(model)
     _mesh_size(nbeams, elements_per_beam)
-    nel = nbeams * int(elements_per_beam)
-    (omega,) = _call("api_fe_axial_linear", nbeams, params, int(elements_per_beam),
-                     int(bool(point_masses)), nel)
+    omega = _core.fe_axial_linear(nbeams, params, int(elements_per_beam),
+                                  int(bool(point_masses)))
     return np.array(omega)
 
 
@@ -554,23 +540,10 @@ def fe_system(model, q, load=None, elements_per_beam=2, *, rotary_inertia=False,
         raise _input_error(f"q has shape {q.shape}, expected ({nfree},)")
     comps = np.zeros(3) if load is None else _load_components(load)
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
-    energy, force, jac, mass, qload = _call(
-        "api_fe_system", nbeams, params, int(elements_per_beam), int(bool(rotary_inertia)),
-        q, loads)
+    energy, force, jac, mass, qload = _core.fe_system(
+        nbeams, params, int(elements_per_beam), int(bool(rotary_inertia)), q, loads)
     return {"energy": float(energy), "force": np.array(force), "jacobian": np.array(jac),
             "mass": np.array(mass), "load": np.array(qload)}
-
-
-def fe_element(h, ea, ei, q, *, cubic=0.0, rho=0.0):
-    """Energy, internal force, tangent and mass of one element with unknowns
-    [w1, w1', u1, u1', w2, w2', u2, u2'] (exact Gauss rule)."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    if q.shape != (8,):
-        raise _input_error(f"element vector has shape {q.shape}, expected (8,)")
-    energy, force, tangent, mass = _call_plain(
-        "api_fe_element", float(h), float(ea), float(ei), float(cubic), float(rho), q)
-    return {"energy": float(energy), "force": np.array(force), "tangent": np.array(tangent),
-            "mass": np.array(mass)}
 
 
 # --- decks ----------------------------------------------------------------------------
