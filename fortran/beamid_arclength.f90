@@ -12,7 +12,7 @@
 !! `axial_coupling`: a = 0 is the dissertation's shear-only form (Eq. 9,
 !! dQ/ds = 0), which produced Tables 2-5; a = 1 is the exact (Kirchhoff)
 !! elastica, for which (Q, N) are the normal and tangential components of a
-!! constant force vector. See NOTES.md and docs/theory.md.
+!! constant force vector. See docs/theory.md.
 !!
 !! Joints transmit M, Q, N; the curvature jumps so that the moment is
 !! continuous (Eq. 20) and a compliant joint adds a kink psi+ = psi- + f M
@@ -22,7 +22,7 @@
 !! u = (k(0), Q(0), N(0) [, wire tension T]) are found by Newton on the tip
 !! conditions, with the state-transition matrix dz/du integrated alongside
 !! (Eq. 30-35). Tip conditions: M(L) = M_tip (Eq. 23 when zero), Q(L) = P.n,
-!! N(L) = P.t for the tip force P (Eq. 27 with the sine corrected, NOTES.md);
+!! N(L) = P.t for the tip force P (Eq. 27 with cos for sin, docs/theory.md);
 !! the radial wire adds |r_tip| = Lw (Eq. 22) with P = -T r_tip/|r_tip|.
 !! Sensitivities to named parameters use the implicit function theorem on the
 !! tip conditions (Eq. 44-51) and parametric transition matrices (Eq. 41, 43).

@@ -12,7 +12,8 @@ from beamid.estimation import predict
 from beamid.measurements import Measurements
 
 #: Table 4/5 loads: four forces from 3 N to 8 N along +y, equally spaced
-#: (NOTES.md: y_tip 0.276331 at 3 N and 0.597325 at 8 N bracket the range).
+#: (docs/deviations.md: the quoted range of the true tip y, 0.276332 to 0.597325,
+#: is exactly the 3 N and 8 N ends).
 TABLE4_LOADS = (3.0, 3.0 + 5.0 / 3.0, 3.0 + 10.0 / 3.0, 8.0)
 #: Table 5 measurement sigmas "from .0008 to .0011", growing with the load.
 TABLE5_SIGMAS = (0.0008, 0.0009, 0.0010, 0.0011)

@@ -111,7 +111,8 @@ def test_convergence_to_the_exact_elastica(pace):
 
 def test_tip_moment_circle_up_to_extensibility(pace):
     """The inextensible circle (curvature M/EI) against the converged FE: the
-    difference is the bending-induced axial strain (NOTES.md)."""
+    difference is the bending-induced axial strain (docs/deviations.md, Table 11
+    against the arc-length solver)."""
     p = pace.params
     k1, k2 = 18.0 / p["EI1"], 18.0 / p["EI2"]
     phi1 = k1 * p["L1"]

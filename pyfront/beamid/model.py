@@ -144,7 +144,7 @@ class Model:
 
 
 def pace(**overrides: float) -> Model:
-    """The PACE two-beam arm with the Table 1 values (NOTES.md), effects off.
+    """The PACE two-beam arm with the Table 1 values, effects off.
 
     ``axial_coupling`` defaults to 1 (exact elastica); pass ``axial_coupling=0``
     for the dissertation's shear-only form that produced Tables 2-5.
