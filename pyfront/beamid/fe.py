@@ -20,11 +20,12 @@ two-beam PACE arm.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Sequence
 
 import numpy as np
 
 from . import _core
-from .errors import InputError, raise_for_status
+from .errors import InputError
 
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
@@ -45,30 +46,26 @@ _NODE_DTYPE = np.dtype([(name, np.float64) for name in NODE_FIELDS])
 _OUT_DTYPE = np.dtype([(name, np.float64) for name in OUTBOARD_FIELDS])
 
 
-def _input_error(message):
-    return InputError(message)
-
-
-def _model_args(model):
+def _model_args(model: Any) -> tuple[int, np.ndarray]:
     try:
         nbeams = int(model.nbeams)
         params = np.ascontiguousarray(model.vector(), dtype=np.float64)
     except AttributeError as exc:
-        raise _input_error(f"model must be a beamid Model, got {type(model).__name__}") from exc
+        raise InputError(f"model must be a beamid Model, got {type(model).__name__}") from exc
     return nbeams, params
 
 
-def _mesh_size(nbeams, elements_per_beam):
+def _mesh_size(nbeams: int, elements_per_beam: int) -> tuple[int, int]:
     if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam, (int, np.integer)):
-        raise _input_error(f"elements_per_beam = {elements_per_beam!r}, expected an integer >= 1")
+        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer >= 1")
     if elements_per_beam < 1:
-        raise _input_error(f"elements_per_beam = {elements_per_beam}, expected at least 1")
+        raise InputError(f"elements_per_beam = {elements_per_beam}, expected at least 1")
     nnode = nbeams * int(elements_per_beam) + 1
     # the bound of the deck reader (beamid_deck check_mesh_size): about 40
     # numbers per unknown in the banded solvers
     need = 8 * 40 * 4 * nnode
     if need > _MAX_BYTES:
-        raise _input_error(f"elements_per_beam = {elements_per_beam}: the mesh would need "
+        raise InputError(f"elements_per_beam = {elements_per_beam}: the mesh would need "
                            f"about {need / 2**30:.3g} GiB of memory (limit "
                            f"{_MAX_BYTES / 2**30:.0f} GiB)")
     return nnode, 4 * nnode - 3
@@ -78,7 +75,7 @@ def _mesh_size(nbeams, elements_per_beam):
 _MAX_BYTES = 4 * 2**30
 
 
-def _hinges(model, elements_per_beam):
+def _hinges(model: Any, elements_per_beam: int) -> tuple[tuple[int, ...], bool]:
     """(0-based nodes of the hinged joints, whether the root is a hinge)."""
     names = [n for n in model.names() if n.endswith("_flex") and n != "root_flex"]
     epb = int(elements_per_beam)
@@ -86,7 +83,7 @@ def _hinges(model, elements_per_beam):
     return nodes, bool(model["root_flex"] > 0.0)
 
 
-def _mesh_sizes(model, elements_per_beam):
+def _mesh_sizes(model: Any, elements_per_beam: int) -> tuple[int, int]:
     """(nnode, nfree) of the model's mesh: nfree grows by 2 per hinged joint
     and by 1 with a root hinge (api_fe_mesh_sizes)."""
     nbeams, params = _model_args(model)
@@ -95,13 +92,13 @@ def _mesh_sizes(model, elements_per_beam):
     return int(nnode), int(nfree)
 
 
-def _moment_form(form):
+def _moment_form(form: str) -> int:
     if form not in MOMENT_FORMS:
-        raise _input_error(f"moment_form = {form!r}, expected one of {sorted(MOMENT_FORMS)}")
+        raise InputError(f"moment_form = {form!r}, expected one of {sorted(MOMENT_FORMS)}")
     return MOMENT_FORMS[form]
 
 
-def _load_components(load):
+def _load_components(load: Any) -> np.ndarray:
     """(fx, fy, moment) of a tip load: TipForce, TipMoment (a TipLoad), or a list."""
     if isinstance(load, (list, tuple)):
         total = np.zeros(3)
@@ -111,14 +108,14 @@ def _load_components(load):
     if all(hasattr(load, name) for name in ("fx", "fy", "moment")):
         comps = np.array([float(load.fx), float(load.fy), float(load.moment)])
         if not np.all(np.isfinite(comps)):
-            raise _input_error(f"tip load {comps} is not finite")
+            raise InputError(f"tip load {comps} is not finite")
         return comps
-    raise _input_error(
+    raise InputError(
         f"load {type(load).__name__} is not supported by the finite element chain "
         "(expected TipForce, TipMoment, their sum, or a list of them)")
 
 
-def _outboard_table(start, table):
+def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
     """(2, nnode) outboard slopes (u'+, w'+) of `start` (a result with an
     `outboard` table, or a pair (nodes, outboard)); else rows u', w' of table."""
     out = getattr(start, "outboard", None)
@@ -134,18 +131,18 @@ def _outboard_table(start, table):
     if arr.shape == (nnode, 2) and arr.shape != (2, nnode):
         arr = arr.T
     if arr.shape != (2, nnode) or not np.all(np.isfinite(arr)):
-        raise _input_error(f"outboard slopes have shape {arr.shape}, expected finite "
+        raise InputError(f"outboard slopes have shape {arr.shape}, expected finite "
                            f"(2, {nnode})")
     return np.asfortranarray(arr)
 
 
-def _node_tables(start, nnode):
+def _node_tables(start: Any, nnode: int) -> tuple[np.ndarray, np.ndarray]:
     """Node table and outboard table of a starting shape."""
     table = _node_table(start, nnode)
     return table, _outboard_table(start, table)
 
 
-def _node_table(start, nnode):
+def _node_table(start: Any, nnode: int) -> np.ndarray:
     """A (5, nnode) Fortran-ordered table from a result, structured nodes or an array."""
     if isinstance(start, tuple) and len(start) == 2:
         start = start[0]
@@ -160,28 +157,29 @@ def _node_table(start, nnode):
     if arr.shape == (nnode, 5) and arr.shape != (5, nnode):
         arr = arr.T
     if arr.shape != (5, nnode):
-        raise _input_error(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
+        raise InputError(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
                            "or a result of the same mesh")
     if not np.all(np.isfinite(arr)):
-        raise _input_error("starting shape is not finite")
+        raise InputError("starting shape is not finite")
     return np.asfortranarray(arr)
 
 
-def _structured(table):
+def _structured(table: np.ndarray) -> np.ndarray:
     nodes = np.empty(table.shape[1], dtype=_NODE_DTYPE)
     for i, name in enumerate(NODE_FIELDS):
         nodes[name] = table[i]
     return nodes
 
 
-def _structured_out(table):
+def _structured_out(table: np.ndarray) -> np.ndarray:
     out = np.empty(table.shape[1], dtype=_OUT_DTYPE)
     for i, name in enumerate(OUTBOARD_FIELDS):
         out[name] = table[i]
     return out
 
 
-def free_vector(nodes, outboard=None, *, hinges=(), root_hinge=False):
+def free_vector(nodes: np.ndarray, outboard: np.ndarray | None = None, *,
+                hinges: Sequence[int] = (), root_hinge: bool = False) -> np.ndarray:
     """Free unknown vector q (the order of fe_system) from structured nodes.
 
     For a chain with compliant joints pass the outboard slopes (structured,
@@ -196,7 +194,7 @@ def free_vector(nodes, outboard=None, *, hinges=(), root_hinge=False):
         w, dw, u, du = (float(nodes[name][k]) for name in ("w", "dw", "u", "du"))
         if k in hinges:
             if outboard is None:
-                raise _input_error("free_vector: a chain with hinges needs the outboard slopes")
+                raise InputError("free_vector: a chain with hinges needs the outboard slopes")
             values += [dw, du, w, u, float(outboard["dw"][k]), float(outboard["du"][k])]
         elif k == 0:
             values += [dw, du] if root_hinge else [du]
@@ -205,7 +203,7 @@ def free_vector(nodes, outboard=None, *, hinges=(), root_hinge=False):
     return np.array(values)
 
 
-def _tip(nodes):
+def _tip(nodes: np.ndarray) -> dict[str, float]:
     return {name: float(nodes[name][-1]) for name in NODE_FIELDS}
 
 
@@ -214,7 +212,7 @@ class FEStatic:
     """A static equilibrium of the finite element chain."""
 
     nodes: np.ndarray           #: structured array, fields s, u, du, w, dw per node
-    tip: dict                   #: tip values: w, dw, u, du (Tables 11, 12) and s
+    tip: dict[str, float]       #: tip values: w, dw, u, du (Tables 11, 12) and s
     energy: float               #: strain energy V (Eq. 87), N m
     reactions: np.ndarray       #: root multipliers of Eq. 105 on (w, w', u)
     residual: float             #: final |NLT - Q|_inf
@@ -224,8 +222,8 @@ class FEStatic:
     load: np.ndarray            #: (fx, fy, moment)
     #: slopes du, dw of the element outboard of each node (structured); equal
     #: to nodes["du"], nodes["dw"] except at a hinged joint
-    outboard: np.ndarray = None
-    hinges: tuple = ()          #: 0-based nodes of the hinged joints
+    outboard: np.ndarray | None = None
+    hinges: tuple[int, ...] = ()          #: 0-based nodes of the hinged joints
     root_hinge: bool = False    #: the root is a hinge spring (root_flex > 0)
     #: negative eigenvalues of the tangent at this equilibrium (Sylvester's
     #: inertia of its L D L^T): 0 stable, >= 1 unstable
@@ -238,13 +236,13 @@ class FEStatic:
         return self.negative_eigenvalues == 0
 
     @property
-    def q(self):
+    def q(self) -> np.ndarray:
         """Free unknown vector in the order of fe_system (see free_vector)."""
         return free_vector(self.nodes, self.outboard, hinges=self.hinges,
                            root_hinge=self.root_hinge)
 
     @property
-    def kink(self):
+    def kink(self) -> np.ndarray:
         """Relative rotation psi+ - psi- across each node (rad): the hinge
         angle f M at a compliant joint, zero elsewhere."""
         if self.outboard is None:
@@ -254,29 +252,29 @@ class FEStatic:
         return np.arctan2(tm[0] * tp[1] - tm[1] * tp[0], tm[0] * tp[0] + tm[1] * tp[1])
 
     @property
-    def x(self):
+    def x(self) -> np.ndarray:
         """Deformed x = s + u of the nodes (Eq. 62)."""
         return self.nodes["s"] + self.nodes["u"]
 
     @property
-    def y(self):
+    def y(self) -> np.ndarray:
         """Deformed y = w of the nodes (Eq. 62)."""
         return self.nodes["w"].copy()
 
     @property
-    def angle(self):
+    def angle(self) -> np.ndarray:
         """Tangent angle Psi = atan2(w', 1 + u') at the nodes."""
         return np.arctan2(self.nodes["dw"], 1.0 + self.nodes["du"])
 
     @property
-    def strain(self):
+    def strain(self) -> np.ndarray:
         """Green axial strain e = u' + (u'^2 + w'^2)/2 at the nodes (Eq. 70)."""
         du, dw = self.nodes["du"], self.nodes["dw"]
         return du + 0.5 * (du * du + dw * dw)
 
 
-def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
-              moment_form="eq78"):
+def fe_static(model: Any, load: Any, elements_per_beam: int = 8, *, start: Any = None,
+              steps: int = 0, tol: float = 0.0, moment_form: str = "eq78") -> FEStatic:
     """Static equilibrium under a tip load (Newton, Eq. 84-85).
 
     Without `start` the load is stepped up from the straight chain (``steps``
@@ -317,27 +315,28 @@ class FEPath:
     load0: np.ndarray
     dload: np.ndarray
     elements_per_beam: int
-    outboard: np.ndarray = None     #: (npts, nnode) outboard slopes du, dw
+    outboard: np.ndarray | None = None  #: (npts, nnode) outboard slopes du, dw
 
     @property
-    def tip(self):
+    def tip(self) -> dict[str, np.ndarray]:
         """Tip values along the path: dict of arrays w, dw, u, du."""
         return {name: self.nodes[name][:, -1].copy() for name in NODE_FIELDS}
 
-    def limit_points(self):
+    def limit_points(self) -> list[int]:
         """Indices i where lam turns (lam[i] is a local extremum): limit points."""
         d = np.diff(self.lam)
         return [i + 1 for i in range(len(d) - 1) if d[i] * d[i + 1] < 0]
 
-    def crossings(self, value):
+    def crossings(self, value: float) -> list[int]:
         """Indices i with lam[i] and lam[i+1] on either side of `value`."""
         s = self.lam - value
         return [i for i in range(len(s) - 1) if s[i] == 0 or s[i] * s[i + 1] < 0]
 
 
-def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, ds=0.05,
-            ds_max=0.5, direction=1, lam_range=(-1e3, 1e3), max_points=200, tol=0.0,
-            moment_form="eq78"):
+def fe_path(model: Any, load0: Any, dload: Any, elements_per_beam: int = 8, *, start: Any = None,
+            lam0: float = 0.0, ds: float = 0.05, ds_max: float = 0.5, direction: int = 1,
+            lam_range: tuple[float, float] = (-1e3, 1e3), max_points: int = 200,
+            tol: float = 0.0, moment_form: str = "eq78") -> FEPath:
     """Follow equilibria under ``load0 + lam * dload`` past limit points.
 
     `start` is a shape near the equilibrium at lam0 (default: the straight
@@ -356,10 +355,10 @@ def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, d
         guess, guess_out = _node_tables(start, nnode)
     if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
             or max_points < 1:
-        raise _input_error(f"max_points = {max_points!r}, expected an integer >= 1")
+        raise InputError(f"max_points = {max_points!r}, expected an integer >= 1")
     need = 8 * 7 * nnode * int(max_points)
     if need > _MAX_BYTES:
-        raise _input_error(f"max_points = {max_points}: the path would need about "
+        raise InputError(f"max_points = {max_points}: the path would need about "
                            f"{need / 2**30:.3g} GiB of memory (limit "
                            f"{_MAX_BYTES / 2**30:.0f} GiB)")
     npts, lam, nodes, nodes_out = _core.fe_path(
@@ -386,10 +385,10 @@ class FEBuckling:
     load: float             #: critical compressive tip force P_cr, N
     nodes: np.ndarray       #: buckled mode (structured node table), tip w = 1
     elements_per_beam: int
-    outboard: np.ndarray = None   #: outboard slopes du, dw of the mode
+    outboard: np.ndarray | None = None   #: outboard slopes du, dw of the mode
 
 
-def buckling_load(model, elements_per_beam=8):
+def buckling_load(model: Any, elements_per_beam: int = 8) -> FEBuckling:
     """Critical compressive tip load: least P with K0 phi = P G phi."""
     nbeams, params = _model_args(model)
     _mesh_size(nbeams, elements_per_beam)
@@ -410,15 +409,15 @@ class ModalCost:
     is_axial: np.ndarray
 
     @property
-    def cost(self):
+    def cost(self) -> np.ndarray:
         """Total cost per mode (Eq. 128)."""
         return self.kinetic + self.potential
 
-    def ranking(self):
+    def ranking(self) -> list[int]:
         """1-based mode numbers, most costly first."""
         return list(np.argsort(-self.cost, kind="stable") + 1)
 
-    def select(self, fraction=0.999):
+    def select(self, fraction: float = 0.999) -> list[int]:
         """Smallest set of modes (1-based, ascending) holding `fraction` of the cost."""
         order = np.argsort(-self.cost, kind="stable")
         share = np.cumsum(self.cost[order]) / np.sum(self.cost)
@@ -438,31 +437,31 @@ class FEModes:
     dofs: np.ndarray
     elements_per_beam: int
     rotary_inertia: bool
-    _model: object = field(default=None, repr=False)
+    _model: Any = field(default=None, repr=False)
 
     @property
-    def transverse(self):
+    def transverse(self) -> np.ndarray:
         """Frequencies of the w modes (Table 9), rad/s ascending."""
         return self.omega[~self.is_axial]
 
     @property
-    def axial(self):
+    def axial(self) -> np.ndarray:
         """Frequencies of the u modes (Table 10), rad/s ascending."""
         return self.omega[self.is_axial]
 
-    def shape(self, i):
+    def shape(self, i: int) -> np.ndarray:
         """Structured node table of mode i (1-based, in ascending order)."""
         return self._tables(i)[0]
 
-    def shape_outboard(self, i):
+    def shape_outboard(self, i: int) -> np.ndarray:
         """Outboard slopes (structured du, dw) of mode i: at a hinge the slopes
         of the outboard beam, elsewhere the node's own."""
         return self._tables(i)[1]
 
-    def _tables(self, i):
+    def _tables(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.omega)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= n:
-            raise _input_error(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
+            raise InputError(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
                                "ascending frequency)")
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
@@ -481,7 +480,7 @@ class FEModes:
         out[:, ~hinge] = table[[2, 4]][:, ~hinge]
         return _structured(table), _structured_out(out)
 
-    def modal_cost(self, shape, velocity=None, t=None):
+    def modal_cost(self, shape: Any, velocity: Any = None, t: float | None = None) -> ModalCost:
         """Skelton's modal cost (Eq. 127-129) of the linear free vibration that
         starts from `shape` (FEStatic or node table) with `velocity` over [0, t]
         (default: the period of the first mode)."""
@@ -501,14 +500,14 @@ class FEModes:
                          potential=np.array(pot), is_axial=self.is_axial.copy())
 
 
-def modes(model, elements_per_beam=4, *, rotary_inertia=False):
+def modes(model: Any, elements_per_beam: int = 4, *, rotary_inertia: bool = False) -> FEModes:
     """Linear modes K phi = omega^2 M phi (LAPACK dsygv), split into transverse
     (w) and axial (u) families. Rotary inertia of the end masses (Eq. 130-132)
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
     if 8 * 3 * nfree**2 > _MAX_BYTES:
-        raise _input_error(f"elements_per_beam = {elements_per_beam}: the modes (dense "
+        raise InputError(f"elements_per_beam = {elements_per_beam}: the modes (dense "
                            f"eigenproblem of {nfree} unknowns) would need about "
                            f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
                            f"{_MAX_BYTES / 2**30:.0f} GiB)")
@@ -519,7 +518,8 @@ def modes(model, elements_per_beam=4, *, rotary_inertia=False):
                    rotary_inertia=bool(rotary_inertia), _model=model)
 
 
-def axial_modes_linear(model, elements_per_beam=4, *, point_masses=True):
+def axial_modes_linear(model: Any, elements_per_beam: int = 4, *,
+                       point_masses: bool = True) -> np.ndarray:
     """Axial frequencies of the linear-u verification model (Eq. 114). Table 7's
     axial column is this model without point masses, from its 2nd frequency."""
     nbeams, params = _model_args(model)
@@ -529,15 +529,15 @@ def axial_modes_linear(model, elements_per_beam=4, *, point_masses=True):
     return np.array(omega)
 
 
-def fe_system(model, q, load=None, elements_per_beam=2, *, rotary_inertia=False,
-              moment_form="eq78"):
+def fe_system(model: Any, q: np.ndarray, load: Any = None, elements_per_beam: int = 2, *,
+              rotary_inertia: bool = False, moment_form: str = "eq78") -> dict[str, Any]:
     """Dense energy, internal force, Newton matrix d(NLT - Q)/dq, mass and tip
     load vector at the free unknown vector q (for checks and small studies)."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
     q = np.ascontiguousarray(q, dtype=np.float64)
     if q.shape != (nfree,):
-        raise _input_error(f"q has shape {q.shape}, expected ({nfree},)")
+        raise InputError(f"q has shape {q.shape}, expected ({nfree},)")
     comps = np.zeros(3) if load is None else _load_components(load)
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
     energy, force, jac, mass, qload = _core.fe_system(
@@ -554,18 +554,20 @@ FE_GROUP = ("elements_per_beam", "moment_form", "rotary_inertia", "point_masses"
             "tol")
 
 
-def fe_quantity_names(task):
+def fe_quantity_names(task: str) -> tuple[str, ...]:
     """Quantity names a deck of `task` may publish (i = 1, 2, ... for the modes)."""
     if task == "fe_static":
         return ("w_tip", "dw_tip", "u_tip", "du_tip", "du_root", "energy", "x_tip", "y_tip")
     if task == "fe_modes":
         return ("omega_w<i>", "omega_u<i>", "omega_w_last", "omega_u_last",
                 "omega_u_linear<i>", "omega_u_linear_last", "buckling_load")
-    raise _input_error(f"task = {task!r}, expected one of {FE_TASKS}")
+    raise InputError(f"task = {task!r}, expected one of {FE_TASKS}")
 
 
-def evaluate_fe(task, model, load=None, *, elements_per_beam=4, moment_form="eq78",
-                rotary_inertia=False, point_masses=True, steps=0, tol=0.0, quantities=()):
+def evaluate_fe(task: str, model: Any, load: Any = None, *, elements_per_beam: int = 4,
+                moment_form: str = "eq78", rotary_inertia: bool = False,
+                point_masses: bool = True, steps: int = 0, tol: float = 0.0,
+                quantities: Sequence[str] = ()) -> dict[str, float]:
     """Solve an FE deck task and return {quantity: value} for `quantities`.
 
     fe_static: w_tip, dw_tip, u_tip, du_tip (Tables 11, 12), du_root (the root
@@ -583,12 +585,12 @@ def evaluate_fe(task, model, load=None, *, elements_per_beam=4, moment_form="eq7
                  "energy": r.energy, "x_tip": float(r.x[-1]), "y_tip": float(r.y[-1])}
         for q in quantities:
             if q not in table:
-                raise _input_error(f"quantity {q!r} is not an fe_static output "
+                raise InputError(f"quantity {q!r} is not an fe_static output "
                                    f"({', '.join(table)})")
             out[q] = float(table[q])
         return out
     if task != "fe_modes":
-        raise _input_error(f"task = {task!r}, expected one of {FE_TASKS}")
+        raise InputError(f"task = {task!r}, expected one of {FE_TASKS}")
     md = modes(model, elements_per_beam, rotary_inertia=rotary_inertia)
     linear = None
     for q in quantities:
@@ -608,11 +610,11 @@ def evaluate_fe(task, model, load=None, *, elements_per_beam=4, moment_form="eq7
         elif 1 <= index <= values.size:
             out[q] = float(values[index - 1])
         else:
-            raise _input_error(f"quantity {q!r}: the model has {values.size} such modes")
+            raise InputError(f"quantity {q!r}: the model has {values.size} such modes")
     return out
 
 
-def _mode_quantity(name):
+def _mode_quantity(name: str) -> tuple[str, int | None]:
     """('w' | 'u' | 'u_linear' | 'buckling_load', index or None for last)."""
     if name == "buckling_load":
         return name, None
@@ -624,5 +626,5 @@ def _mode_quantity(name):
                 return family, None
             if rest.isdigit():
                 return family, int(rest)
-    raise _input_error(f"quantity {name!r} is not an fe_modes output (omega_w<i>, "
+    raise InputError(f"quantity {name!r} is not an fe_modes output (omega_w<i>, "
                        "omega_u<i>, omega_u_linear<i>, *_last, buckling_load)")
