@@ -462,13 +462,8 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp), intent(in), optional :: stations(:)
         real(dp), intent(inout), optional :: z_station(:, :)
-
-        integer :: ncol, nu0, nb, i, j, p, nst, first, last, r0
-        real(dp) :: z(NZ), k0, m0, d0, kminus, kplus, mminus, dminus, dplus, flex, s0
-        real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da, fend(NZ)
-        real(dp) :: no_local(0), no_zst(NZ, 0)
-        real(dp), allocatable :: local(:), zst(:, :)
-        logical :: ok
+        integer :: ncol, nu0, nb, i, r0
+        real(dp) :: z(NZ), s0
 
         nb = prob%chain%nbeams
         nu0 = merge(NSHOOT, 0, with_u_cols)
@@ -479,13 +474,39 @@ contains
         r0 = IX
         if (size(wrt) == 0 .and. prob%load%kind == LOAD_TIP) r0 = IPSI
         call size_shot(shot, ncol, nb)
-        associate (ch => prob%chain, v => shot%work%v, colkind => shot%work%colkind, &
-                   vk_old => shot%work%vk_old, ddelta => shot%work%ddelta, &
-                   vq_old => shot%work%vq_old, vn_old => shot%work%vn_old)
-        v = 0.0_dp
+        shot%work%v = 0.0_dp
         shot%steps = 0
+        call root_state(prob%chain, u, wrt, nu0, with_u_cols, z, shot%work%v)
+        s0 = 0.0_dp
+        do i = 1, nb
+            call column_kinds(nb, i, wrt, nu0, shot%work%colkind)
+            call integrate_beam_stations(prob, i, s0, r0, opts, z, shot, stat, stations, &
+                                         z_station)
+            if (stat%code /= STATUS_OK) return
+            s0 = s0 + prob%chain%length(i)
+            call add_length_columns(prob%chain, i, wrt, nu0, z, shot%work%v)
+            shot%z_joint(:, i) = z
+            shot%v_joint(:, :, i) = shot%work%v
+            if (i == nb) exit
+            call cross_joint(prob%chain, i, wrt, nu0, z, shot%work, stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+        shot%z_end = z
+        shot%v_end = shot%work%v
+    end subroutine shoot
 
-        ! root: psi(0) = f_root M(0), M(0) = EI1 k0 + C1 k0^3
+    !> Root state z(0) and columns v(0): psi(0) = f_root M(0),
+    !! M(0) = EI1 k0 + C1 k0^3, (k, Q, N)(0) = u.
+    pure subroutine root_state(ch, u, wrt, nu0, with_u_cols, z, v)
+        type(chain_t), intent(in) :: ch
+        real(dp), intent(in) :: u(:)
+        integer, intent(in) :: wrt(:), nu0
+        logical, intent(in) :: with_u_cols
+        real(dp), intent(out) :: z(NZ)
+        real(dp), intent(inout) :: v(:, :)
+        real(dp) :: k0, m0, d0
+        integer :: j, p, nb
+        nb = ch%nbeams
         k0 = u(1)
         m0 = ch%ei(1)*k0 + ch%cubic(1)*k0**3
         d0 = tangent_stiffness(ch%ei(1), ch%cubic(1), k0)
@@ -502,122 +523,158 @@ contains
             if (p == param_index_beam(nb, 1, IB_EI)) v(IPSI, nu0 + j) = ch%root_flex*k0
             if (p == param_index_beam(nb, 1, IB_C)) v(IPSI, nu0 + j) = ch%root_flex*k0**3
         end do
+    end subroutine root_state
 
-        s0 = 0.0_dp
-        do i = 1, nb
-            colkind = COL_FREE
-            do j = 1, size(wrt)
-                p = wrt(j)
-                if (p == param_index_beam(nb, i, IB_EI)) colkind(nu0 + j) = COL_EI
-                if (p == param_index_beam(nb, i, IB_C)) colkind(nu0 + j) = COL_C
-                if (p == param_index_global(nb, IG_AXIAL_COUPLING)) colkind(nu0 + j) = COL_A
-            end do
-            ! stations on this beam (local coordinates)
-            first = 1
-            last = 0
-            if (present(stations)) then
-                nst = size(stations)
-                first = nst + 1
-                do j = 1, nst
-                    if (stations(j) > s0 .or. (i == 1 .and. stations(j) >= s0)) then
-                        first = j
-                        exit
-                    end if
-                end do
-                last = first - 1
-                do j = first, nst
-                    if (stations(j) <= s0 + ch%length(i) .or. i == nb) last = j
-                end do
-                ! stations at the root itself are recorded before integrating
-                do while (first <= last)
-                    if (stations(first) > s0) exit
-                    z_station(:, first) = z
-                    first = first + 1
-                end do
-            end if
-            if (last >= first) then
-                allocate (local(last - first + 1), zst(NZ, last - first + 1))
-                local = min(stations(first:last) - s0, ch%length(i))
-                call integrate_beam(prob, i, z, r0, v, colkind, local, zst, opts, shot%steps, &
-                                    shot%work%w, shot%work%vs, stat)
-                if (stat%code /= STATUS_OK) return
-                z_station(:, first:last) = zst
-                deallocate (local, zst)
-            else
-                call integrate_beam(prob, i, z, r0, v, colkind, no_local, no_zst, opts, &
-                                    shot%steps, shot%work%w, shot%work%vs, stat)
-                if (stat%code /= STATUS_OK) return
-            end if
-            s0 = s0 + ch%length(i)
-
-            ! d/dL_i: the end point moves along the solution
-            fend = rhs(z, ch%ei(i), ch%cubic(i), ch%axial_coupling)
-            do j = 1, size(wrt)
-                if (wrt(j) == param_index_beam(nb, i, IB_L)) v(:, nu0 + j) = v(:, nu0 + j) + fend
-            end do
-            shot%z_joint(:, i) = z
-            shot%v_joint(:, :, i) = v
-            if (i == nb) exit
-
-            ! joint i: moment continuous (Eq. 20), optional kink psi+ = psi- + f M
-            kminus = z(IK)
-            mminus = ch%ei(i)*kminus + ch%cubic(i)*kminus**3
-            dminus = tangent_stiffness(ch%ei(i), ch%cubic(i), kminus)
-            call curvature_from_moment(ch%ei(i + 1), ch%cubic(i + 1), mminus, kplus, ok)
-            if (.not. ok) then
-                call set_status(stat, ERR_NUMERIC, 'arc-length joint', 'joint '// &
-                                fmt_int(i)//' moment '//fmt_real(mminus)// &
-                                ' exceeds what the softening law of beam '//fmt_int(i + 1)// &
-                                ' can carry (C'//fmt_int(i + 1)//' < 0)')
-                return
-            end if
-            dplus = tangent_stiffness(ch%ei(i + 1), ch%cubic(i + 1), kplus)
-            flex = ch%joint_flex(i)
-            vk_old = v(IK, :)
-            ! kink angle delta = f M- and its variation
-            ddelta = flex*dminus*vk_old
-            v(IK, :) = (dminus/dplus)*vk_old
-            do j = 1, size(wrt)
-                p = wrt(j)
-                if (p == param_index_joint_flex(nb, i)) ddelta(nu0 + j) = ddelta(nu0 + j) + mminus
-                if (p == param_index_beam(nb, i, IB_EI)) then
-                    ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus
-                    v(IK, nu0 + j) = v(IK, nu0 + j) + kminus/dplus
-                end if
-                if (p == param_index_beam(nb, i, IB_C)) then
-                    ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus**3
-                    v(IK, nu0 + j) = v(IK, nu0 + j) + kminus**3/dplus
-                end if
-                if (p == param_index_beam(nb, i + 1, IB_EI)) &
-                    v(IK, nu0 + j) = v(IK, nu0 + j) - kplus/dplus
-                if (p == param_index_beam(nb, i + 1, IB_C)) &
-                    v(IK, nu0 + j) = v(IK, nu0 + j) - kplus**3/dplus
-            end do
-            v(IPSI, :) = v(IPSI, :) + ddelta
-            ! (Q, N) across the kink: the limit of a concentrated curvature delta,
-            ! i.e. Q' = -a k N, N' = k Q integrated over the angle delta (a = 1:
-            ! the force components rotate into the new tangent frame).
-            call kink_transfer(ch%axial_coupling, flex*mminus, z(IQ), z(IN), qplus, nplus, &
-                               tq, dq_ddelta, dn_ddelta, dq_da, dn_da)
-            vq_old = v(IQ, :)
-            vn_old = v(IN, :)
-            v(IQ, :) = tq(1, 1)*vq_old + tq(1, 2)*vn_old + dq_ddelta*ddelta
-            v(IN, :) = tq(2, 1)*vq_old + tq(2, 2)*vn_old + dn_ddelta*ddelta
-            do j = 1, size(wrt)
-                if (wrt(j) == param_index_global(nb, IG_AXIAL_COUPLING)) then
-                    v(IQ, nu0 + j) = v(IQ, nu0 + j) + dq_da
-                    v(IN, nu0 + j) = v(IN, nu0 + j) + dn_da
-                end if
-            end do
-            z(IQ) = qplus
-            z(IN) = nplus
-            z(IPSI) = z(IPSI) + flex*mminus
-            z(IK) = kplus
+    !> How each column is forced on beam i (COL_*).
+    pure subroutine column_kinds(nb, i, wrt, nu0, colkind)
+        integer, intent(in) :: nb, i, wrt(:), nu0
+        integer, intent(out) :: colkind(:)
+        integer :: j, p
+        colkind = COL_FREE
+        do j = 1, size(wrt)
+            p = wrt(j)
+            if (p == param_index_beam(nb, i, IB_EI)) colkind(nu0 + j) = COL_EI
+            if (p == param_index_beam(nb, i, IB_C)) colkind(nu0 + j) = COL_C
+            if (p == param_index_global(nb, IG_AXIAL_COUPLING)) colkind(nu0 + j) = COL_A
         end do
-        shot%z_end = z
-        shot%v_end = v
+    end subroutine column_kinds
+
+    !> Integrate beam i (starting at arc position s0) and record the state at
+    !! the stations that fall on it.
+    subroutine integrate_beam_stations(prob, i, s0, r0, opts, z, shot, stat, stations, &
+                                       z_station)
+        type(problem_t), intent(in) :: prob
+        integer, intent(in) :: i, r0
+        real(dp), intent(in) :: s0
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(inout) :: z(NZ)
+        type(shot_t), intent(inout) :: shot
+        type(status_t), intent(inout) :: stat
+        real(dp), intent(in), optional :: stations(:)
+        real(dp), intent(inout), optional :: z_station(:, :)
+        real(dp) :: no_local(0), no_zst(NZ, 0)
+        real(dp), allocatable :: local(:), zst(:, :)
+        integer :: j, nst, first, last
+        associate (ch => prob%chain, wk => shot%work)
+        first = 1
+        last = 0
+        if (present(stations)) then
+            nst = size(stations)
+            first = nst + 1
+            do j = 1, nst
+                if (stations(j) > s0 .or. (i == 1 .and. stations(j) >= s0)) then
+                    first = j
+                    exit
+                end if
+            end do
+            last = first - 1
+            do j = first, nst
+                if (stations(j) <= s0 + ch%length(i) .or. i == ch%nbeams) last = j
+            end do
+            ! stations at the root itself are recorded before integrating
+            do while (first <= last)
+                if (stations(first) > s0) exit
+                z_station(:, first) = z
+                first = first + 1
+            end do
+        end if
+        if (last >= first) then
+            allocate (local(last - first + 1), zst(NZ, last - first + 1))
+            local = min(stations(first:last) - s0, ch%length(i))
+            call integrate_beam(prob, i, z, r0, wk%v, wk%colkind, local, zst, opts, shot%steps, &
+                                wk%w, wk%vs, stat)
+            if (stat%code == STATUS_OK) z_station(:, first:last) = zst
+        else
+            call integrate_beam(prob, i, z, r0, wk%v, wk%colkind, no_local, no_zst, opts, &
+                                shot%steps, wk%w, wk%vs, stat)
+        end if
         end associate
-    end subroutine shoot
+    end subroutine integrate_beam_stations
+
+    !> d/dL_i: the end point of beam i moves along the solution.
+    pure subroutine add_length_columns(ch, i, wrt, nu0, z, v)
+        type(chain_t), intent(in) :: ch
+        integer, intent(in) :: i, wrt(:), nu0
+        real(dp), intent(in) :: z(NZ)
+        real(dp), intent(inout) :: v(:, :)
+        real(dp) :: fend(NZ)
+        integer :: j
+        fend = rhs(z, ch%ei(i), ch%cubic(i), ch%axial_coupling)
+        do j = 1, size(wrt)
+            if (wrt(j) == param_index_beam(ch%nbeams, i, IB_L)) v(:, nu0 + j) = v(:, nu0 + j) + fend
+        end do
+    end subroutine add_length_columns
+
+    !> Across joint i: moment continuous (Eq. 20), optional kink psi+ = psi- + f M,
+    !! for the state z and the columns wk%v.
+    pure subroutine cross_joint(ch, i, wrt, nu0, z, wk, stat)
+        type(chain_t), intent(in) :: ch
+        integer, intent(in) :: i, wrt(:), nu0
+        real(dp), intent(inout) :: z(NZ)
+        type(shot_work_t), intent(inout) :: wk
+        type(status_t), intent(inout) :: stat
+        real(dp) :: kminus, kplus, mminus, dminus, dplus, flex
+        real(dp) :: qplus, nplus, tq(2, 2), dq_ddelta, dn_ddelta, dq_da, dn_da
+        integer :: j, p, nb
+        logical :: ok
+        nb = ch%nbeams
+        associate (v => wk%v, vk_old => wk%vk_old, ddelta => wk%ddelta, vq_old => wk%vq_old, &
+                   vn_old => wk%vn_old)
+        kminus = z(IK)
+        mminus = ch%ei(i)*kminus + ch%cubic(i)*kminus**3
+        dminus = tangent_stiffness(ch%ei(i), ch%cubic(i), kminus)
+        call curvature_from_moment(ch%ei(i + 1), ch%cubic(i + 1), mminus, kplus, ok)
+        if (.not. ok) then
+            call set_status(stat, ERR_NUMERIC, 'arc-length joint', 'joint '// &
+                            fmt_int(i)//' moment '//fmt_real(mminus)// &
+                            ' exceeds what the softening law of beam '//fmt_int(i + 1)// &
+                            ' can carry (C'//fmt_int(i + 1)//' < 0)')
+            return
+        end if
+        dplus = tangent_stiffness(ch%ei(i + 1), ch%cubic(i + 1), kplus)
+        flex = ch%joint_flex(i)
+        vk_old = v(IK, :)
+        ! kink angle delta = f M- and its variation
+        ddelta = flex*dminus*vk_old
+        v(IK, :) = (dminus/dplus)*vk_old
+        do j = 1, size(wrt)
+            p = wrt(j)
+            if (p == param_index_joint_flex(nb, i)) ddelta(nu0 + j) = ddelta(nu0 + j) + mminus
+            if (p == param_index_beam(nb, i, IB_EI)) then
+                ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus
+                v(IK, nu0 + j) = v(IK, nu0 + j) + kminus/dplus
+            end if
+            if (p == param_index_beam(nb, i, IB_C)) then
+                ddelta(nu0 + j) = ddelta(nu0 + j) + flex*kminus**3
+                v(IK, nu0 + j) = v(IK, nu0 + j) + kminus**3/dplus
+            end if
+            if (p == param_index_beam(nb, i + 1, IB_EI)) &
+                v(IK, nu0 + j) = v(IK, nu0 + j) - kplus/dplus
+            if (p == param_index_beam(nb, i + 1, IB_C)) &
+                v(IK, nu0 + j) = v(IK, nu0 + j) - kplus**3/dplus
+        end do
+        v(IPSI, :) = v(IPSI, :) + ddelta
+        ! (Q, N) across the kink: the limit of a concentrated curvature delta,
+        ! i.e. Q' = -a k N, N' = k Q integrated over the angle delta (a = 1:
+        ! the force components rotate into the new tangent frame).
+        call kink_transfer(ch%axial_coupling, flex*mminus, z(IQ), z(IN), qplus, nplus, &
+                           tq, dq_ddelta, dn_ddelta, dq_da, dn_da)
+        vq_old = v(IQ, :)
+        vn_old = v(IN, :)
+        v(IQ, :) = tq(1, 1)*vq_old + tq(1, 2)*vn_old + dq_ddelta*ddelta
+        v(IN, :) = tq(2, 1)*vq_old + tq(2, 2)*vn_old + dn_ddelta*ddelta
+        do j = 1, size(wrt)
+            if (wrt(j) == param_index_global(nb, IG_AXIAL_COUPLING)) then
+                v(IQ, nu0 + j) = v(IQ, nu0 + j) + dq_da
+                v(IN, nu0 + j) = v(IN, nu0 + j) + dn_da
+            end if
+        end do
+        z(IQ) = qplus
+        z(IN) = nplus
+        z(IPSI) = z(IPSI) + flex*mminus
+        z(IK) = kplus
+        end associate
+    end subroutine cross_joint
 
     ! ------------------------------------------------------------ tip conditions
 
