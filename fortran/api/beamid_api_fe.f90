@@ -6,7 +6,8 @@
 !! 256-character message. The model is (nbeams, params) in the layout of
 !! beamid_model, the mesh elements_per_beam (nepb); sizes that follow from
 !! the arguments are hidden from Python (`!f2py intent(hide)`), nfree (which
-!! depends on the compliances) comes from api_fe_mesh_sizes.
+!! depends on the compliances) comes from api_fe_mesh_sizes. Outputs of a
+!! failed call are zeros: f2py allocates them zeroed.
 module beamid_api_fe
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_status, only: status_t, STATUS_OK, status_out
@@ -61,12 +62,6 @@ contains
         type(fe_load_t) :: load
         type(fe_newton_opts_t) :: opts
         type(status_t) :: stat
-        nodes = 0.0_c_double
-        nodes_out = 0.0_c_double
-        energy = 0.0_c_double
-        reactions = 0.0_c_double
-        residual = 0.0_c_double
-        info = 0
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
         if (stat%code == STATUS_OK) call fe_load_from_values(loads, load, stat)
         if (stat%code == STATUS_OK) call fe_newton_options(nsteps, tol, opts, stat)
@@ -95,10 +90,6 @@ contains
         type(fe_load_t) :: l0
         type(fe_newton_opts_t) :: opts
         type(status_t) :: stat
-        npts = 0
-        lam = 0.0_c_double
-        nodes = 0.0_c_double
-        nodes_out = 0.0_c_double
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
         if (stat%code == STATUS_OK) call fe_load_from_values(load0, l0, stat)
         if (stat%code == STATUS_OK) call fe_newton_options(0, tol, opts, stat)
@@ -121,9 +112,6 @@ contains
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(status_t) :: stat
-        pcr = 0.0_c_double
-        mode = 0.0_c_double
-        mode_out = 0.0_c_double
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
         if (stat%code == STATUS_OK) call fe_buckling_nodes(mesh, pcr, mode, mode_out, stat)
         call status_out(stat, code, message)
@@ -141,10 +129,6 @@ contains
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(status_t) :: stat
-        omega = 0.0_c_double
-        phi = 0.0_c_double
-        axial = 0
-        dofs = 0
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat)
         if (stat%code == STATUS_OK) then
             call fe_modes_table(mesh, rotary /= 0, omega, phi, axial, dofs, stat)
@@ -164,7 +148,6 @@ contains
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(status_t) :: stat
-        omega = 0.0_c_double
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nel + 1)
         if (stat%code == STATUS_OK) call fe_axial_modes_linear(mesh, point_masses /= 0, omega, stat)
         call status_out(stat, code, message)
@@ -183,10 +166,6 @@ contains
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(status_t) :: stat
-        omega = 0.0_c_double
-        eta = 0.0_c_double
-        kinetic = 0.0_c_double
-        potential = 0.0_c_double
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
         if (stat%code == STATUS_OK) then
             call fe_modal_cost_nodes(mesh, rotary /= 0, shape0, shape0_out, vel0, vel0_out, t, &
@@ -208,11 +187,6 @@ contains
         type(fe_mesh_t) :: mesh
         type(fe_load_t) :: load
         type(status_t) :: stat
-        energy = 0.0_c_double
-        force = 0.0_c_double
-        jac = 0.0_c_double
-        mass = 0.0_c_double
-        qload = 0.0_c_double
         call fe_mesh_from_params(nbeams, params, nepb, mesh, stat)
         if (stat%code == STATUS_OK) call fe_load_from_values(loads, load, stat)
         if (stat%code == STATUS_OK) then

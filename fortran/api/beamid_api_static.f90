@@ -5,6 +5,7 @@
 !! 256-character message: nothing else crosses into Python. Status codes
 !! follow beamid_status (0 ok, < 0 input error, > 0 numerical failure);
 !! array sizes that follow from the arguments are hidden from Python.
+!! Outputs of a failed call are zeros: f2py allocates them zeroed.
 module beamid_api_static
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -118,10 +119,6 @@ contains
         type(chain_t) :: chain
         type(status_t) :: stat
         type(static_solution_t) :: sol
-        outputs = 0.0_c_double
-        doutputs = 0.0_c_double
-        unknowns = 0.0_c_double
-        info = 0
         call chain_from_vector(int(nbeams), params, chain, stat)
         if (stat%code == STATUS_OK) then
             call solve_static(chain, static_load_from_values(load_kind, load_values), wrt, &
@@ -148,10 +145,6 @@ contains
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
         type(status_t) :: stat
-        x = 0.0_c_double
-        y = 0.0_c_double
-        psi = 0.0_c_double
-        moment = 0.0_c_double
         call chain_from_vector(int(nbeams), params, chain, stat)
         if (stat%code == STATUS_OK) then
             call static_shape(chain, static_load_from_values(load_kind, load_values), unknowns, &
