@@ -26,7 +26,7 @@ module beamid_fe_nodes
     implicit none
     private
 
-    public :: fe_mesh_from_params, fe_load_from_values, fe_newton_options
+    public :: fe_mesh_from_params, fe_load_from_values, fe_newton_options, fe_setup
     public :: fe_q_from_nodes, fe_nodes_from_q
     public :: fe_static_nodes, fe_path_nodes, fe_buckling_nodes, fe_modes_table
     public :: fe_modal_cost_nodes, fe_system_dense
@@ -81,6 +81,22 @@ contains
                             fmt_int(nsteps)//' and tol must not be negative (0: default)')
         end if
     end subroutine fe_newton_options
+
+    !> Mesh, tip load (fx, fy, moment, moment_form) and Newton options (nsteps,
+    !! tol; 0: defaults) of a static problem, checking the caller's nnode.
+    subroutine fe_setup(nbeams, params, elements_per_beam, values, nsteps, tol, mesh, load, &
+                        opts, stat, nnode)
+        integer, intent(in) :: nbeams, elements_per_beam, nsteps
+        real(dp), intent(in) :: params(:), values(4), tol
+        type(fe_mesh_t), intent(out) :: mesh
+        type(fe_load_t), intent(out) :: load
+        type(fe_newton_opts_t), intent(out) :: opts
+        type(status_t), intent(inout) :: stat
+        integer, intent(in), optional :: nnode
+        call fe_mesh_from_params(nbeams, params, elements_per_beam, mesh, stat, nnode)
+        if (stat%code == STATUS_OK) call fe_load_from_values(values, load, stat)
+        if (stat%code == STATUS_OK) call fe_newton_options(nsteps, tol, opts, stat)
+    end subroutine fe_setup
 
     !> Free vector q from a node table (rows s, u, u', w, w'); s is ignored.
     !! The outboard slopes of a hinge come from `outboard` (rows u'+, w'+)

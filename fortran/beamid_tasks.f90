@@ -23,8 +23,7 @@ module beamid_tasks
                                 static_shape, NOUT
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t
-    use beamid_fe_nodes, only: fe_mesh_from_params, fe_load_from_values, fe_newton_options, &
-                               fe_static_nodes, fe_modes_table
+    use beamid_fe_nodes, only: fe_mesh_from_params, fe_setup, fe_static_nodes, fe_modes_table
     ! The dynamics and estimation drivers are the f2py entries (beamid.simulate
     ! and beamid.fit call the same), until issue 11.2 moves their logic into
     ! library modules.
@@ -212,12 +211,9 @@ contains
         end if
         guess = 0.0_dp
         guess_out = 0.0_dp
-        call fe_mesh_from_params(d%nbeams, d%params, d%fe_elements_per_beam, mesh, st)
-        if (st%code == STATUS_OK) then
-            call fe_load_from_values([d%load%fx, d%load%fy, d%load%moment, &
-                                      real(d%fe_moment_form, dp)], load, st)
-        end if
-        if (st%code == STATUS_OK) call fe_newton_options(d%fe_steps, d%fe_tol, opts, st)
+        call fe_setup(d%nbeams, d%params, d%fe_elements_per_beam, [d%load%fx, d%load%fy, &
+                      d%load%moment, real(d%fe_moment_form, dp)], d%fe_steps, d%fe_tol, mesh, &
+                      load, opts, st)
         if (st%code == STATUS_OK) then
             call fe_static_nodes(mesh, load, .false., opts, guess, guess_out, nodes, nodes_out, &
                                  energy, reactions, residual, info, st)

@@ -14,7 +14,7 @@ module beamid_api_fe
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t
     use beamid_fe_modes, only: fe_axial_modes_linear
-    use beamid_fe_nodes, only: fe_mesh_from_params, fe_load_from_values, fe_newton_options, &
+    use beamid_fe_nodes, only: fe_mesh_from_params, fe_load_from_values, fe_setup, &
                                fe_static_nodes, fe_path_nodes, fe_buckling_nodes, &
                                fe_modes_table, fe_modal_cost_nodes, fe_system_dense
     implicit none
@@ -62,9 +62,7 @@ contains
         type(fe_load_t) :: load
         type(fe_newton_opts_t) :: opts
         type(status_t) :: stat
-        call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
-        if (stat%code == STATUS_OK) call fe_load_from_values(loads, load, stat)
-        if (stat%code == STATUS_OK) call fe_newton_options(nsteps, tol, opts, stat)
+        call fe_setup(nbeams, params, nepb, loads, nsteps, tol, mesh, load, opts, stat, nnode)
         if (stat%code == STATUS_OK) then
             call fe_static_nodes(mesh, load, use_guess /= 0, opts, guess, guess_out, nodes, &
                                  nodes_out, energy, reactions, residual, info, stat)
@@ -90,9 +88,7 @@ contains
         type(fe_load_t) :: l0
         type(fe_newton_opts_t) :: opts
         type(status_t) :: stat
-        call fe_mesh_from_params(nbeams, params, nepb, mesh, stat, nnode)
-        if (stat%code == STATUS_OK) call fe_load_from_values(load0, l0, stat)
-        if (stat%code == STATUS_OK) call fe_newton_options(0, tol, opts, stat)
+        call fe_setup(nbeams, params, nepb, load0, 0, tol, mesh, l0, opts, stat, nnode)
         if (stat%code == STATUS_OK) then
             call fe_path_nodes(mesh, l0, dload, guess, guess_out, lam0, ds, ds_max, direction, &
                                lam_min, lam_max, opts, npts, lam, nodes, nodes_out, stat)
