@@ -68,6 +68,20 @@ module beamid_arclength
     !> Column kinds of the variational matrix: how a column is forced.
     integer, parameter :: COL_FREE = 0, COL_EI = 1, COL_C = 2, COL_A = 3
 
+    ! Dormand-Prince 5(4) tableau
+    real(dp), parameter :: a21 = 1.0_dp/5
+    real(dp), parameter :: a31 = 3.0_dp/40, a32 = 9.0_dp/40
+    real(dp), parameter :: a41 = 44.0_dp/45, a42 = -56.0_dp/15, a43 = 32.0_dp/9
+    real(dp), parameter :: a51 = 19372.0_dp/6561, a52 = -25360.0_dp/2187, &
+                           a53 = 64448.0_dp/6561, a54 = -212.0_dp/729
+    real(dp), parameter :: a61 = 9017.0_dp/3168, a62 = -355.0_dp/33, &
+                           a63 = 46732.0_dp/5247, a64 = 49.0_dp/176, &
+                           a65 = -5103.0_dp/18656
+    real(dp), parameter :: b1 = 35.0_dp/384, b3 = 500.0_dp/1113, b4 = 125.0_dp/192, &
+                           b5 = -2187.0_dp/6784, b6 = 11.0_dp/84
+    real(dp), parameter :: e1 = 71.0_dp/57600, e3 = -71.0_dp/16695, e4 = 71.0_dp/1920, &
+                           e5 = -17253.0_dp/339200, e6 = 22.0_dp/525, e7 = -1.0_dp/40
+
     !> A static load case.
     type :: static_load_t
         integer :: kind = LOAD_TIP
@@ -260,6 +274,56 @@ contains
 
     ! -------------------------------------------------------------- integration
 
+    !> One Dormand-Prince 5(4) step of length h from z (slope k1): the stage
+    !! states z2..z6, the fifth-order result znew, the stage slopes k2..k7
+    !! (k7 at znew, the next step's k1) and the error estimate zerr.
+    pure subroutine dp_stages(z, k1, h, ei, c, a, z2, z3, z4, z5, z6, znew, k2, k3, k4, k5, &
+                              k6, k7, zerr)
+        real(dp), intent(in) :: z(NZ), k1(NZ), h, ei, c, a
+        real(dp), intent(out), dimension(NZ) :: z2, z3, z4, z5, z6, znew, k2, k3, k4, k5, k6, &
+                                                 k7, zerr
+        z2 = z + h*a21*k1
+        k2 = rhs(z2, ei, c, a)
+        z3 = z + h*(a31*k1 + a32*k2)
+        k3 = rhs(z3, ei, c, a)
+        z4 = z + h*(a41*k1 + a42*k2 + a43*k3)
+        k4 = rhs(z4, ei, c, a)
+        z5 = z + h*(a51*k1 + a52*k2 + a53*k3 + a54*k4)
+        k5 = rhs(z5, ei, c, a)
+        z6 = z + h*(a61*k1 + a62*k2 + a63*k3 + a64*k4 + a65*k5)
+        k6 = rhs(z6, ei, c, a)
+        znew = z + h*(b1*k1 + b3*k3 + b4*k4 + b5*k5 + b6*k6)
+        k7 = rhs(znew, ei, c, a)
+        zerr = h*(e1*k1 + e3*k3 + e4*k4 + e5*k5 + e6*k6 + e7*k7)
+    end subroutine dp_stages
+
+    !> Advance the variational columns v (rows r0..NZ) over an accepted step
+    !! with the stages of dp_stages; w holds the stage slopes (written whole
+    !! by rhs_var), vs the stage arguments.
+    pure subroutine advance_columns(z, z2, z3, z4, z5, z6, k1, k2, k3, k4, k5, k6, h, r0, ncol, &
+                                    colkind, ei, c, a, v, w, vs)
+        real(dp), intent(in), dimension(NZ) :: z, z2, z3, z4, z5, z6, k1, k2, k3, k4, k5, k6
+        real(dp), intent(in) :: h, ei, c, a
+        integer, intent(in) :: r0, ncol, colkind(:)
+        real(dp), intent(inout), contiguous :: v(:, :), w(:, :, :), vs(:, :)
+        associate (w1 => w(r0:, :, 1), w2 => w(r0:, :, 2), w3 => w(r0:, :, 3), &
+                   w4 => w(r0:, :, 4), w5 => w(r0:, :, 5), w6 => w(r0:, :, 6), &
+                   vr => v(r0:, :), vsr => vs(r0:, :))
+        call rhs_var(z, k1, r0, ncol, v, colkind, ei, c, a, w(:, :, 1))
+        vsr = vr + (h*a21)*w1
+        call rhs_var(z2, k2, r0, ncol, vs, colkind, ei, c, a, w(:, :, 2))
+        vsr = vr + h*(a31*w1 + a32*w2)
+        call rhs_var(z3, k3, r0, ncol, vs, colkind, ei, c, a, w(:, :, 3))
+        vsr = vr + h*(a41*w1 + a42*w2 + a43*w3)
+        call rhs_var(z4, k4, r0, ncol, vs, colkind, ei, c, a, w(:, :, 4))
+        vsr = vr + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
+        call rhs_var(z5, k5, r0, ncol, vs, colkind, ei, c, a, w(:, :, 5))
+        vsr = vr + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
+        call rhs_var(z6, k6, r0, ncol, vs, colkind, ei, c, a, w(:, :, 6))
+        vr = vr + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
+        end associate
+    end subroutine advance_columns
+
     !> Integrate one beam from s = 0 to s = length with Dormand-Prince 5(4).
     !! Stations (local arc positions, ascending, in (0, length]) are landed on
     !! and their states stored.
@@ -279,21 +343,6 @@ contains
         type(static_options_t), intent(in) :: opts
         integer, intent(inout) :: steps
         type(status_t), intent(inout) :: stat
-
-        ! Dormand-Prince 5(4) tableau
-        real(dp), parameter :: c2 = 1.0_dp/5, c3 = 3.0_dp/10, c4 = 4.0_dp/5, c5 = 8.0_dp/9
-        real(dp), parameter :: a21 = 1.0_dp/5
-        real(dp), parameter :: a31 = 3.0_dp/40, a32 = 9.0_dp/40
-        real(dp), parameter :: a41 = 44.0_dp/45, a42 = -56.0_dp/15, a43 = 32.0_dp/9
-        real(dp), parameter :: a51 = 19372.0_dp/6561, a52 = -25360.0_dp/2187, &
-                               a53 = 64448.0_dp/6561, a54 = -212.0_dp/729
-        real(dp), parameter :: a61 = 9017.0_dp/3168, a62 = -355.0_dp/33, &
-                               a63 = 46732.0_dp/5247, a64 = 49.0_dp/176, &
-                               a65 = -5103.0_dp/18656
-        real(dp), parameter :: b1 = 35.0_dp/384, b3 = 500.0_dp/1113, b4 = 125.0_dp/192, &
-                               b5 = -2187.0_dp/6784, b6 = 11.0_dp/84
-        real(dp), parameter :: e1 = 71.0_dp/57600, e3 = -71.0_dp/16695, e4 = 71.0_dp/1920, &
-                               e5 = -17253.0_dp/339200, e6 = 22.0_dp/525, e7 = -1.0_dp/40
 
         real(dp) :: ei, c, a, length, s, h, hnew, err, sc(NZ)
         real(dp) :: k1(NZ), k2(NZ), k3(NZ), k4(NZ), k5(NZ), k6(NZ), k7(NZ)
@@ -337,19 +386,8 @@ contains
                                 ' (curvature '//fmt_real(z(IK))//'): step size collapsed')
                 return
             end if
-            z2 = z + h*a21*k1
-            k2 = rhs(z2, ei, c, a)
-            z3 = z + h*(a31*k1 + a32*k2)
-            k3 = rhs(z3, ei, c, a)
-            z4 = z + h*(a41*k1 + a42*k2 + a43*k3)
-            k4 = rhs(z4, ei, c, a)
-            z5 = z + h*(a51*k1 + a52*k2 + a53*k3 + a54*k4)
-            k5 = rhs(z5, ei, c, a)
-            z6 = z + h*(a61*k1 + a62*k2 + a63*k3 + a64*k4 + a65*k5)
-            k6 = rhs(z6, ei, c, a)
-            znew = z + h*(b1*k1 + b3*k3 + b4*k4 + b5*k5 + b6*k6)
-            k7 = rhs(znew, ei, c, a)
-            zerr = h*(e1*k1 + e3*k3 + e4*k4 + e5*k5 + e6*k6 + e7*k7)
+            call dp_stages(z, k1, h, ei, c, a, z2, z3, z4, z5, z6, znew, k2, k3, k4, k5, k6, k7, &
+                           zerr)
             err = maxval(abs(zerr)/(opts%tol*(sc + max(abs(z), abs(znew)))))
             steps = steps + 1
             ! a softening law (C < 0) must stay on its branch: EI + 3 C k^2 > 0
@@ -373,26 +411,8 @@ contains
                 cycle
             end if
             ! accepted: advance the variational columns with the same stages
-            if (ncol > 0) then
-                ! rows r0..NZ only (the slices below); the stage slopes are
-                ! written whole by rhs_var
-                associate (w1 => w(r0:, :, 1), w2 => w(r0:, :, 2), w3 => w(r0:, :, 3), &
-                           w4 => w(r0:, :, 4), w5 => w(r0:, :, 5), w6 => w(r0:, :, 6), &
-                           vr => v(r0:, :), vsr => vs(r0:, :))
-                call rhs_var(z, k1, r0, ncol, v, colkind, ei, c, a, w(:, :, 1))
-                vsr = vr + (h*a21)*w1
-                call rhs_var(z2, k2, r0, ncol, vs, colkind, ei, c, a, w(:, :, 2))
-                vsr = vr + h*(a31*w1 + a32*w2)
-                call rhs_var(z3, k3, r0, ncol, vs, colkind, ei, c, a, w(:, :, 3))
-                vsr = vr + h*(a41*w1 + a42*w2 + a43*w3)
-                call rhs_var(z4, k4, r0, ncol, vs, colkind, ei, c, a, w(:, :, 4))
-                vsr = vr + h*(a51*w1 + a52*w2 + a53*w3 + a54*w4)
-                call rhs_var(z5, k5, r0, ncol, vs, colkind, ei, c, a, w(:, :, 5))
-                vsr = vr + h*(a61*w1 + a62*w2 + a63*w3 + a64*w4 + a65*w5)
-                call rhs_var(z6, k6, r0, ncol, vs, colkind, ei, c, a, w(:, :, 6))
-                vr = vr + h*(b1*w1 + b3*w3 + b4*w4 + b5*w5 + b6*w6)
-                end associate
-            end if
+            if (ncol > 0) call advance_columns(z, z2, z3, z4, z5, z6, k1, k2, k3, k4, k5, k6, &
+                                               h, r0, ncol, colkind, ei, c, a, v, w, vs)
             z = znew
             k1 = k7
             hnew = h*min(5.0_dp, max(0.2_dp, 0.9_dp*max(err, 1.0e-10_dp)**(-0.2_dp)))
