@@ -1,19 +1,24 @@
-!> Namelist input decks for the batch executable (format: docs/decks.md).
+!> Namelist input decks (format: docs/decks.md), the one reader of both
+!! fronts: beamid-batch and Python (beamid_api_deck) call read_deck.
 !!
 !! A deck holds the groups &beamid (task, output, preset, nbeams), &model
-!! (per-beam and per-mass-point arrays and the effect parameters), &load and
-!! &static. Estimation decks (tasks fit, compare, diagnose, improve) hold
+!! (per-beam and per-mass-point arrays and the effect parameters), &load,
+!! &static and &fe; estimation decks (tasks fit, compare, diagnose, improve)
 !! &beamid, &model, one &experiment per experiment and &fit, whose data CSV
-!! is read and validated here too (beamid_measurements). Every group and
-!! variable is checked: an unknown group, a misspelt variable, a missing
-!! value or a nonphysical one is reported with the deck's path and the
-!! offending name. Dynamic decks (task simulate) hold &beamid, &model,
-!! &load (the tip load held before the release) and &simulate.
+!! is read and validated here too (beamid_measurements); dynamic decks (task
+!! simulate) &beamid, &model, &load (the tip load held before the release)
+!! and &simulate; any deck &published. The file is split into groups and
+!! items by beamid_namelist, then every group is checked and every problem
+!! collected (deck_t%errors, one per line, naming the file, line, group,
+!! variable, value and what was expected): a value of the wrong type, NaN or
+!! Infinity, too many values, a group cut short, unknown or repeated names,
+!! values out of range, nonphysical parameters, and sizes beyond the memory
+!! bound (MAX_BYTES) before anything is allocated. Nothing defaults silently.
 module beamid_deck
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, ERR_IO, ERR_DECK, ERR_INPUT, STATUS_OK, &
-                             fmt_int, fmt_real, lower
+    use beamid_status, only: status_t, set_status, ERR_DECK, STATUS_OK, fmt_int, fmt_real, lower, &
+                             fmt_bytes, MAX_BYTES
     use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
                             param_index_joint_flex, param_index_global, chain_t, &
                             chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
@@ -23,6 +28,9 @@ module beamid_deck
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, NEFFECT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
+    use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
+                               nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
+                               nml_strs, nml_logical, nml_given, add_error, nml_ints
     implicit none
     private
 
@@ -37,12 +45,25 @@ module beamid_deck
     !> Estimation tasks and the groups their decks may hold.
     character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve '
     character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published '
+    !> Size bounds, checked before anything is allocated: beams of a chain,
+    !! output times, and the memory a mesh or a table may need (bytes).
+    integer, parameter :: MAX_BEAMS = 1000
+    integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
 
     !> Everything a deck says.
     type :: deck_t
         character(len=:), allocatable :: path
+        !> Every problem found, one per line (empty when the deck is valid);
+        !! the status holds the first one.
+        character(len=:), allocatable :: errors
+        !> The model was read without errors (checks that need it run then).
+        logical :: model_ok = .false.
+        !> The &published groups, one line per item (tab separated): 'P table
+        !! row note' opens a group, then 'Q quantity value digits' per value and
+        !! 'D name' per documented deviation (read by beamid reproduce).
+        character(len=:), allocatable :: published
         character(len=:), allocatable :: task       !< 'static'
         character(len=:), allocatable :: output     !< output prefix, relative to the deck
         integer :: nbeams = 0
@@ -76,9 +97,9 @@ module beamid_deck
         real(dp), allocatable :: sim_t_out(:)           !< output times (s)
         integer :: sim_elements_per_beam = 4
         integer :: sim_integrator = 1                   !< 0 rk4, 1 implicit
-        integer :: sim_friction = 1                     !< 0 sign, 1 smooth, 2 sign_literal
+        integer :: sim_friction = 0                     !< 0 sign, 1 smooth, 2 sign_literal
         real(dp) :: sim_dt = 0.0_dp                     !< 0: default (1e-5 s)
-        real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-7)
+        real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-9, in m)
         real(dp) :: sim_atol = 0.0_dp                   !< 0: rtol
         real(dp) :: sim_motor_gain = 0.0_dp
         real(dp) :: sim_friction_velocity = 1.0e-4_dp   !< smooth law's vs (m/s)
@@ -108,855 +129,898 @@ contains
         end do
     end function param_lookup
 
-    !> Read and validate a deck.
+    !> Read and validate a deck: every problem is collected (deck%errors, one
+    !! per line, each naming the file, the line, the group, the variable, the
+    !! value and what was expected); the status holds the first one and the
+    !! count. A file that cannot be read is ERR_IO, a bad deck ERR_DECK.
     subroutine read_deck(path, deck, stat)
         character(len=*), intent(in) :: path
         type(deck_t), intent(out) :: deck
         type(status_t), intent(inout) :: stat
-
-        ! &beamid
-        character(len=NAME_LEN) :: task, preset
-        character(len=1024) :: output
-        integer :: nbeams
-        ! &model (allocated once nbeams is known)
-        real(dp), allocatable :: L(:), EI(:), EA(:), rho(:), C(:)
-        real(dp), allocatable :: m(:), J(:), mu(:), c_drag(:), joint_flex(:)
-        real(dp) :: axial_coupling, root_flex, eta, r_motor, tau_motor
-        ! named scalars for the elbow (joint 1) and the tip; they override the arrays
-        real(dp) :: m_elbow, J_elbow, mu_elbow, c_elbow, elbow_flex
-        real(dp) :: m_tip, J_tip, mu_tip, c_tip
-        ! &load
-        character(len=NAME_LEN) :: kind
-        real(dp) :: fx, fy, moment, wire_length
-        ! &fe
-        integer :: elements_per_beam, steps
-        character(len=NAME_LEN) :: moment_form
-        logical :: rotary_inertia, point_masses
-        ! &static
-        character(len=NAME_LEN), allocatable :: wrt(:)
-        integer :: shape_points
-        real(dp) :: tol
-
-        namelist /beamid/ task, output, preset, nbeams
-        namelist /model/ L, EI, EA, rho, C, m, J, mu, c_drag, joint_flex, axial_coupling, &
-            root_flex, eta, r_motor, tau_motor, m_elbow, J_elbow, mu_elbow, c_elbow, &
-            elbow_flex, m_tip, J_tip, mu_tip, c_tip
-        namelist /load/ kind, fx, fy, moment, wire_length
-        namelist /static/ wrt, shape_points, tol
-        namelist /fe/ elements_per_beam, moment_form, rotary_inertia, point_masses, steps, tol
-
-        integer :: unit, ios, i, nb_preset, nw
-        character(len=512) :: msg
-        character(len=:), allocatable :: present
-        real(dp) :: nan
-        real(dp), allocatable :: base(:)
-        logical :: exists, is_fit
+        type(nml_file_t) :: f
+        character(len=:), allocatable :: errors
 
         deck%path = path
-        nan = ieee_value(1.0_dp, ieee_quiet_nan)
-        inquire (file=path, exist=exists)
-        if (.not. exists) then
-            call set_status(stat, ERR_IO, 'deck', 'cannot open '//trim(path)// &
-                            ': no such file')
-            return
+        deck%errors = ''
+        errors = ''
+        call nml_read_file(path, f, errors, stat)
+        if (stat%code /= STATUS_OK) return
+        call read_all(f, deck, errors)
+        if (len(errors) > 0) then
+            deck%errors = errors(:len(errors) - 1)
+            call set_status(stat, ERR_DECK, 'deck', first_line(errors))
+            stat%message = first_line(errors)
+            if (count_lines(errors) > 1) stat%message = trim(stat%message)//' (and '// &
+                fmt_int(count_lines(errors) - 1)//' more problems)'
         end if
-        open (newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-        if (ios /= 0) then
-            call set_status(stat, ERR_IO, 'deck', 'cannot open '//trim(path)//': '//trim(msg))
-            return
-        end if
-        call check_groups(unit, path, present, stat)
-        if (stat%code /= STATUS_OK) then
-            close (unit)
-            return
-        end if
-
-        ! ---- &beamid
-        task = 'static'
-        output = ''
-        preset = ''
-        nbeams = 0
-        rewind (unit)
-        read (unit, nml=beamid, iostat=ios, iomsg=msg)
-        if (ios /= 0) then
-            call group_error('beamid', ios, msg)
-            return
-        end if
-        if (index(KNOWN_TASKS, ' '//trim(task)//' ') == 0 .or. len_trim(task) == 0) then
-            call deck_error('&beamid task = "'//trim(task)//'", expected one of:'// &
-                            KNOWN_TASKS(:len_trim(KNOWN_TASKS)))
-            return
-        end if
-        is_fit = index(FIT_TASKS, ' '//trim(task)//' ') > 0
-        ! the groups of the task (check_groups returned those present)
-        do i = 1, len(present)
-            if (present(i:i) /= '&') cycle
-            nw = index(present(i + 1:), ' ')
-            if (is_fit .and. index(FIT_GROUPS, ' '//present(i + 1:i + nw)) == 0) then
-                call deck_error('unknown group &'//present(i + 1:i + nw - 1)// &
-                                ' in an estimation deck, expected one of:'// &
-                                FIT_GROUPS(:len_trim(FIT_GROUPS)))
-                return
-            else if (.not. is_fit .and. index(' experiment fit ', &
-                                              ' '//present(i + 1:i + nw)) > 0) then
-                call deck_error('group &'//present(i + 1:i + nw - 1)//' is only for the '// &
-                                'estimation tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
-                return
-            else if (trim(task) /= 'simulate' .and. present(i + 1:i + nw) == 'simulate ') then
-                call deck_error('group &simulate is only for task "simulate"')
-                return
-            else if (trim(task) == 'simulate' .and. index(' fe static ', &
-                                                         ' '//present(i + 1:i + nw)) > 0) then
-                call deck_error('group &'//present(i + 1:i + nw - 1)//' is not used by '// &
-                                'task "simulate" (give elements_per_beam in &simulate)')
-                return
-            end if
-        end do
-        ! estimation decks start from the PACE arm unless they name another preset
-        if (is_fit .and. len_trim(preset) == 0) preset = 'pace'
-        if (len_trim(output) == 0) then
-            call deck_error('&beamid output is missing: give the output path prefix')
-            return
-        end if
-        if (len_trim(preset) > 0) then
-            call preset_params(trim(preset), nb_preset, base, stat)
-            if (stat%code /= STATUS_OK) then
-                stat%message = trim(path)//': &beamid '//trim(stat%message)
-                close (unit)
-                return
-            end if
-            if (nbeams == 0) nbeams = nb_preset
-            if (nbeams /= nb_preset) then
-                call deck_error('&beamid nbeams = '//fmt_int(nbeams)//' but preset "'// &
-                                trim(preset)//'" has '//fmt_int(nb_preset)//' beams')
-                return
-            end if
-        else
-            if (nbeams < 1) then
-                call deck_error('&beamid nbeams = '//fmt_int(nbeams)// &
-                                ': give nbeams >= 1 or a preset ("pace", "cantilever")')
-                return
-            end if
-            allocate (base(param_count(nbeams)))
-            base = nan
-            ! effects default to their null values; the structure must be given
-            do i = 1, nbeams
-                base(param_index_mass(nbeams, i, IM_M)) = 0.0_dp
-                base(param_index_mass(nbeams, i, IM_J)) = 0.0_dp
-                base(param_index_beam(nbeams, i, IB_C)) = 0.0_dp
-            end do
-            base(param_index_joint_flex(nbeams, 1):) = 0.0_dp
-            base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
-            base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
-            do i = 1, nbeams
-                base(param_index_mass(nbeams, i, IM_MU)) = 0.0_dp
-                base(param_index_mass(nbeams, i, IM_C)) = 0.0_dp
-            end do
-        end if
-        deck%nbeams = nbeams
-        deck%task = trim(task)
-        deck%output = trim(output)
-
-        ! ---- &model (optional with a preset)
-        allocate (L(nbeams), EI(nbeams), EA(nbeams), rho(nbeams), C(nbeams))
-        allocate (m(nbeams), J(nbeams), mu(nbeams), c_drag(nbeams), joint_flex(nbeams - 1))
-        do i = 1, nbeams
-            L(i) = base(param_index_beam(nbeams, i, IB_L))
-            EI(i) = base(param_index_beam(nbeams, i, IB_EI))
-            EA(i) = base(param_index_beam(nbeams, i, IB_EA))
-            rho(i) = base(param_index_beam(nbeams, i, IB_RHO))
-            C(i) = base(param_index_beam(nbeams, i, IB_C))
-            m(i) = base(param_index_mass(nbeams, i, IM_M))
-            J(i) = base(param_index_mass(nbeams, i, IM_J))
-            mu(i) = base(param_index_mass(nbeams, i, IM_MU))
-            c_drag(i) = base(param_index_mass(nbeams, i, IM_C))
-        end do
-        do i = 1, nbeams - 1
-            joint_flex(i) = base(param_index_joint_flex(nbeams, i))
-        end do
-        axial_coupling = base(param_index_global(nbeams, IG_AXIAL_COUPLING))
-        root_flex = base(param_index_global(nbeams, IG_ROOT_FLEX))
-        eta = base(param_index_global(nbeams, IG_ETA))
-        r_motor = base(param_index_global(nbeams, IG_R_MOTOR))
-        tau_motor = base(param_index_global(nbeams, IG_TAU_MOTOR))
-        m_elbow = nan
-        J_elbow = nan
-        mu_elbow = nan
-        c_elbow = nan
-        elbow_flex = nan
-        m_tip = nan
-        J_tip = nan
-        mu_tip = nan
-        c_tip = nan
-        rewind (unit)
-        read (unit, nml=model, iostat=ios, iomsg=msg)
-        if (ios > 0 .or. (ios < 0 .and. len_trim(preset) == 0)) then
-            call group_error('model', ios, msg)
-            return
-        end if
-        call take(m(nbeams), m_tip)
-        call take(J(nbeams), J_tip)
-        call take(mu(nbeams), mu_tip)
-        call take(c_drag(nbeams), c_tip)
-        if (nbeams >= 2) then
-            call take(m(1), m_elbow)
-            call take(J(1), J_elbow)
-            call take(mu(1), mu_elbow)
-            call take(c_drag(1), c_elbow)
-            call take(joint_flex(1), elbow_flex)
-        else if (.not. all(ieee_is_nan([m_elbow, J_elbow, mu_elbow, c_elbow, elbow_flex]))) then
-            call deck_error('&model sets an elbow parameter but the chain has one beam')
-            return
-        end if
-        allocate (deck%params(param_count(nbeams)))
-        do i = 1, nbeams
-            deck%params(param_index_beam(nbeams, i, IB_L)) = L(i)
-            deck%params(param_index_beam(nbeams, i, IB_EI)) = EI(i)
-            deck%params(param_index_beam(nbeams, i, IB_EA)) = EA(i)
-            deck%params(param_index_beam(nbeams, i, IB_RHO)) = rho(i)
-            deck%params(param_index_beam(nbeams, i, IB_C)) = C(i)
-            deck%params(param_index_mass(nbeams, i, IM_M)) = m(i)
-            deck%params(param_index_mass(nbeams, i, IM_J)) = J(i)
-            deck%params(param_index_mass(nbeams, i, IM_MU)) = mu(i)
-            deck%params(param_index_mass(nbeams, i, IM_C)) = c_drag(i)
-        end do
-        do i = 1, nbeams - 1
-            deck%params(param_index_joint_flex(nbeams, i)) = joint_flex(i)
-        end do
-        deck%params(param_index_global(nbeams, IG_AXIAL_COUPLING)) = axial_coupling
-        deck%params(param_index_global(nbeams, IG_ROOT_FLEX)) = root_flex
-        deck%params(param_index_global(nbeams, IG_ETA)) = eta
-        deck%params(param_index_global(nbeams, IG_R_MOTOR)) = r_motor
-        deck%params(param_index_global(nbeams, IG_TAU_MOTOR)) = tau_motor
-        do i = 1, size(deck%params)
-            if (ieee_is_nan(deck%params(i)) .and. ieee_is_nan(base(i))) then
-                call deck_error('&model is missing '//param_name(nbeams, i)// &
-                                ' (set it in &model, or use a preset)')
-                return
-            end if
-        end do
-        block
-            type(chain_t) :: chain
-            call chain_from_vector(nbeams, deck%params, chain, stat)
-        end block
-        if (stat%code /= STATUS_OK) then
-            stat%message = trim(path)//': &'//trim(stat%message)
-            close (unit)
-            return
-        end if
-        if (is_fit) then
-            call read_fit_groups(unit, path, deck, stat)
-            close (unit)
-            return
-        end if
-
-        ! ---- &load (required)
-        kind = ''
-        fx = 0.0_dp
-        fy = 0.0_dp
-        moment = 0.0_dp
-        wire_length = nan
-        rewind (unit)
-        read (unit, nml=load, iostat=ios, iomsg=msg)
-        if (ios < 0 .and. trim(task) == 'fe_modes') then
-            kind = 'tip'
-        else if (ios /= 0) then
-            call group_error('load', ios, msg)
-            return
-        else
-            deck%has_load = .true.
-        end if
-        select case (trim(kind))
-        case ('tip')
-            deck%load%kind = LOAD_TIP
-            if (.not. ieee_is_nan(wire_length)) then
-                call deck_error('&load kind = "tip" does not take wire_length')
-                return
-            end if
-            wire_length = 0.0_dp
-        case ('wire')
-            deck%load%kind = LOAD_WIRE
-            if (ieee_is_nan(wire_length)) then
-                call deck_error('&load kind = "wire" needs wire_length (m)')
-                return
-            end if
-            if (fx /= 0.0_dp .or. fy /= 0.0_dp .or. moment /= 0.0_dp) then
-                call deck_error('&load kind = "wire" does not take fx, fy or moment')
-                return
-            end if
-        case default
-            call deck_error('&load kind = "'//trim(kind)//'", expected "tip" or "wire"')
-            return
-        end select
-        deck%load%fx = fx
-        deck%load%fy = fy
-        deck%load%moment = moment
-        deck%load%wire_length = wire_length
-        if (trim(task) == 'simulate') then
-            call read_simulate_group(unit, path, deck, stat)
-            close (unit)
-            return
-        end if
-
-        ! ---- &fe (optional)
-        elements_per_beam = 4
-        moment_form = 'eq78'
-        rotary_inertia = .false.
-        point_masses = .true.
-        steps = 0
-        tol = 0.0_dp
-        rewind (unit)
-        read (unit, nml=fe, iostat=ios, iomsg=msg)
-        if (ios > 0) then
-            call group_error('fe', ios, msg)
-            return
-        end if
-        if (elements_per_beam < 1) then
-            call deck_error('&fe elements_per_beam = '//fmt_int(elements_per_beam)// &
-                            ', expected at least 1')
-            return
-        end if
-        select case (trim(moment_form))
-        case ('eq78')
-            deck%fe_moment_form = 0
-        case ('exact')
-            deck%fe_moment_form = 1
-        case default
-            call deck_error('&fe moment_form = "'//trim(moment_form)// &
-                            '", expected "eq78" or "exact"')
-            return
-        end select
-        if (steps < 0 .or. .not. (tol >= 0.0_dp)) then
-            call deck_error('&fe steps and tol must not be negative (0: default)')
-            return
-        end if
-        if (deck%load%kind == LOAD_WIRE .and. task(1:3) == 'fe_') then
-            call deck_error('&load kind = "wire" is not available for task "'//trim(task)// &
-                            '" (tip loads only)')
-            return
-        end if
-        deck%fe_elements_per_beam = elements_per_beam
-        deck%fe_rotary_inertia = rotary_inertia
-        deck%fe_point_masses = point_masses
-        deck%fe_steps = steps
-        deck%fe_tol = tol
-
-        ! ---- &static (optional)
-        allocate (wrt(param_count(nbeams)))
-        wrt = ''
-        shape_points = 101
-        tol = 0.0_dp
-        rewind (unit)
-        read (unit, nml=static, iostat=ios, iomsg=msg)
-        if (ios > 0) then
-            call group_error('static', ios, msg)
-            return
-        end if
-        close (unit)
-        nw = count(len_trim(wrt) > 0)
-        allocate (deck%wrt(nw))
-        do i = 1, nw
-            deck%wrt(i) = param_lookup(nbeams, wrt(i))
-            if (deck%wrt(i) == 0) then
-                call set_status(stat, ERR_DECK, trim(path), '&static wrt = "'//trim(wrt(i))// &
-                                '" is not a parameter name (e.g. EI1, C2, elbow_flex)')
-                return
-            end if
-        end do
-        if (shape_points < 0 .or. shape_points == 1) then
-            call set_status(stat, ERR_DECK, trim(path), '&static shape_points = '// &
-                            fmt_int(shape_points)//', expected 0 (no shape) or at least 2')
-            return
-        end if
-        if (.not. (tol >= 0.0_dp .and. tol < 1.0e-2_dp)) then
-            call set_status(stat, ERR_DECK, trim(path), '&static tol = '//fmt_real(tol)// &
-                            ', expected 0 (default) or a tolerance below 1e-2')
-            return
-        end if
-        deck%shape_points = shape_points
-        deck%tol = tol
-
-    contains
-
-        !> A named scalar, when given, overrides the array entry.
-        pure subroutine take(entry, named)
-            real(dp), intent(inout) :: entry
-            real(dp), intent(in) :: named
-            if (.not. ieee_is_nan(named)) entry = named
-        end subroutine take
-
-        subroutine deck_error(text)
-            character(len=*), intent(in) :: text
-            call set_status(stat, ERR_DECK, trim(path), text)
-            close (unit)
-        end subroutine deck_error
-
-        subroutine group_error(group, iostat, iomsg)
-            character(len=*), intent(in) :: group
-            integer, intent(in) :: iostat
-            character(len=*), intent(in) :: iomsg
-            if (iostat < 0) then
-                call deck_error('group &'//group//' is missing')
-            else
-                call deck_error('in &'//group//': '//trim(iomsg))
-            end if
-        end subroutine group_error
     end subroutine read_deck
 
-    !> &simulate of a dynamic deck (task simulate), after &load: the output
-    !! times (t_out, or t_end with n_out equally spaced times from 0), the mesh,
-    !! the integrator and the friction law; 0 means the default for dt, rtol,
-    !! atol and friction_velocity. The checks and messages are those of
-    !! beamid.decks (same order), so a deck fails the same way in both.
-    subroutine read_simulate_group(unit, path, deck, stat)
-        integer, intent(in) :: unit
-        character(len=*), intent(in) :: path
+    pure function first_line(text) result(line)
+        character(len=*), intent(in) :: text
+        character(len=:), allocatable :: line
+        integer :: k
+        k = index(text, new_line('a'))
+        if (k == 0) k = len(text) + 1
+        line = text(:k - 1)
+    end function first_line
+
+    pure integer function count_lines(text)
+        character(len=*), intent(in) :: text
+        integer :: k
+        count_lines = 0
+        do k = 1, len(text)
+            if (text(k:k) == new_line('a')) count_lines = count_lines + 1
+        end do
+    end function count_lines
+
+    !> The groups of the deck in turn; stops early only when a later group
+    !! cannot be read without an earlier value (the number of beams).
+    subroutine read_all(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
         type(deck_t), intent(inout) :: deck
-        type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: t_out(:)
-        real(dp) :: t_end, dt, rtol, atol, motor_gain, friction_velocity, nan, step
-        integer :: n_out, elements_per_beam
-        character(len=NAME_LEN) :: integrator, friction
-        namelist /simulate/ t_out, t_end, n_out, elements_per_beam, integrator, dt, rtol, &
-            atol, motor_gain, friction, friction_velocity
-        character(len=512) :: msg
-        character(len=*), parameter :: names(4) = [character(len=17) :: 'dt', 'rtol', &
-            'atol', 'friction_velocity']
-        real(dp) :: values(4)
-        integer :: ios, i, nt, fsize
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: task, output, preset, name
+        integer :: k, nbeams, nb_preset, ib
+        logical :: given, is_fit, ok_head, out_ok
+        real(dp), allocatable :: base(:)
+        type(status_t) :: st
 
-        if (deck%load%kind == LOAD_WIRE) then
-            call fail('&load kind = "wire" is not available for task "simulate" (tip loads '// &
-                      'only)')
-            return
-        end if
-        nan = ieee_value(1.0_dp, ieee_quiet_nan)
-        ! a list of times cannot hold more values than the deck has characters
-        inquire (unit=unit, size=fsize)
-        allocate (t_out(max(16, fsize/2 + 1)))
-        t_out = nan
-        t_end = nan
-        n_out = -1
-        elements_per_beam = 4
-        integrator = 'implicit'
-        friction = ''
-        dt = 0.0_dp
-        rtol = 0.0_dp
-        atol = 0.0_dp
-        motor_gain = 0.0_dp
-        friction_velocity = 0.0_dp
-        rewind (unit)
-        read (unit, nml=simulate, iostat=ios, iomsg=msg)
-        if (ios < 0) then
-            call fail('group &simulate is missing')
-            return
-        else if (ios > 0) then
-            call fail('in &simulate: '//trim(msg))
-            return
-        end if
-        nt = count(.not. ieee_is_nan(t_out))
-        if (any(ieee_is_nan(t_out(1:nt)))) then
-            call fail('&simulate t_out has gaps: give the output times as one list')
-            return
-        end if
-        if (nt > 0 .and. .not. ieee_is_nan(t_end)) then
-            call fail('&simulate gives both t_out and t_end: give one')
-            return
-        end if
-        if (nt == 0 .and. ieee_is_nan(t_end)) then
-            call fail('&simulate needs t_out (a list of output times) or t_end (with n_out)')
-            return
-        end if
-        if (nt > 0 .and. n_out /= -1) then
-            call fail('&simulate n_out goes with t_end, not with t_out')
-            return
-        end if
-        if (nt > 0) then
-            deck%sim_t_out = t_out(1:nt)
-        else
-            if (.not. (t_end > 0.0_dp .and. t_end <= huge(1.0_dp))) then
-                call fail('&simulate t_end = '//fmt_g(t_end)//', expected a time > 0 (s)')
-                return
-            end if
-            if (n_out == -1) n_out = 101
-            if (n_out < 2) then
-                call fail('&simulate n_out = '//fmt_int(n_out)//', expected at least 2')
-                return
-            end if
-            ! numpy.linspace(0, t_end, n_out), to the last bit
-            step = t_end/real(n_out - 1, dp)
-            deck%sim_t_out = [(real(i, dp)*step, i = 0, n_out - 1)]
-            deck%sim_t_out(n_out) = t_end
-        end if
-        do i = 1, size(deck%sim_t_out)
-            if (.not. abs(deck%sim_t_out(i)) <= huge(1.0_dp)) exit
-            if (i == 1 .and. deck%sim_t_out(i) < 0.0_dp) exit
-            if (i > 1) then
-                if (deck%sim_t_out(i) <= deck%sim_t_out(i - 1)) exit
+        ! ---- group names
+        do k = 1, size(f%groups)
+            name = f%groups(k)%name
+            if (index(KNOWN_GROUPS, ' '//name//' ') == 0) then
+                call add_error(errors, f%path//', line '//fmt_int(f%groups(k)%line)// &
+                               ': unknown group &'//name//', expected one of:'// &
+                               KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
+            else if (index(REPEATABLE, ' '//name//' ') == 0 .and. nml_find(f, name) /= k) then
+                call add_error(errors, f%path//', line '//fmt_int(f%groups(k)%line)// &
+                               ': group &'//name//' appears '//fmt_int(nml_count(f, name))// &
+                               ' times (once only)')
             end if
         end do
-        if (i <= size(deck%sim_t_out)) then
-            call fail('&simulate t_out must be ascending times >= 0 (entry '//fmt_int(i)// &
-                      ' = '//fmt_g(deck%sim_t_out(i))//')')
+        deck%published = ''
+        do k = 1, size(f%groups)
+            if (f%groups(k)%name == 'published') call read_published(f, f%groups(k), &
+                                                                     deck%published, errors)
+        end do
+
+        ! ---- &beamid
+        ib = nml_find(f, 'beamid')
+        if (ib == 0) then
+            call add_error(errors, f%path//': group &beamid is missing (task, output, preset)')
             return
         end if
-        if (elements_per_beam < 1) then
-            call fail('&simulate elements_per_beam = '//fmt_int(elements_per_beam)// &
-                      ', expected at least 1')
-            return
-        end if
-        select case (trim(integrator))
-        case ('rk4')
-            deck%sim_integrator = 0
-        case ('implicit')
-            deck%sim_integrator = 1
-        case default
-            call fail('&simulate integrator = "'//trim(integrator)// &
-                      '", expected "implicit" or "rk4"')
-            return
-        end select
-        select case (trim(friction))
-        case ('')
-            deck%sim_friction = merge(0, 1, deck%sim_integrator == 0)
-        case ('sign')
-            deck%sim_friction = 0
-        case ('smooth')
-            deck%sim_friction = 1
-        case ('sign_literal')
-            deck%sim_friction = 2
-        case default
-            call fail('&simulate friction = "'//trim(friction)// &
-                      '", expected "sign", "smooth" or "sign_literal"')
-            return
-        end select
-        values = [dt, rtol, atol, friction_velocity]
-        do i = 1, size(values)
-            if (.not. (values(i) >= 0.0_dp .and. values(i) <= huge(1.0_dp))) then
-                call fail('&simulate '//trim(names(i))//' = '//fmt_g(values(i))// &
-                          ', expected 0 (default) or a positive number')
+        associate (g => f%groups(ib))
+            call nml_check_keys(f, g, ' task output preset nbeams ', errors)
+            task = 'static'
+            output = ''
+            preset = ''
+            nbeams = 0
+            call nml_str(f, g, 'task', task, given, errors)
+            call nml_str(f, g, 'output', output, out_ok, errors)
+            call nml_str(f, g, 'preset', preset, given, errors)
+            call nml_int(f, g, 'nbeams', nbeams, given, errors)
+            task = lower(trim(adjustl(task)))
+            if (index(KNOWN_TASKS, ' '//task//' ') == 0 .or. len(task) == 0) then
+                call add_error(errors, f%path//', line '//fmt_int(g%line)//": &beamid task = '"// &
+                               task//"', expected one of:"//KNOWN_TASKS(:len_trim(KNOWN_TASKS)))
                 return
             end if
-        end do
-        if (.not. (motor_gain >= 0.0_dp .and. motor_gain <= huge(1.0_dp))) then
-            call fail('&simulate motor_gain = '//fmt_g(motor_gain)// &
-                      ', expected a finite number >= 0')
+            if (len_trim(output) == 0 .and. (out_ok .or. .not. nml_given(g, 'output'))) &
+                call add_error(errors, &
+                f%path//', line '// &
+                fmt_int(g%line)//': &beamid output is missing: give the output path prefix')
+            if (len(output) > 4000) call add_error(errors, f%path//': &beamid output is '// &
+                fmt_int(len(output))//' characters long, expected at most 4000')
+            is_fit = index(FIT_TASKS, ' '//task//' ') > 0
+            call check_task_groups(f, task, is_fit, errors)
+            ! estimation decks start from the PACE arm unless they name another preset
+            if (is_fit .and. len_trim(preset) == 0) preset = 'pace'
+            ok_head = .true.
+            if (len_trim(preset) > 0) then
+                call preset_params(trim(preset), nb_preset, base, st)
+                if (st%code /= STATUS_OK) then
+                    call add_error(errors, f%path//', line '//fmt_int(g%line)// &
+                                   ": &beamid preset = '"//trim(preset)// &
+                                   "', expected 'pace' or 'cantilever'")
+                    return
+                end if
+                if (nbeams == 0) nbeams = nb_preset
+                if (nbeams /= nb_preset) then
+                    call add_error(errors, f%path//', line '//fmt_int(g%line)// &
+                                   ': &beamid nbeams = '//fmt_int(nbeams)//" but preset '"// &
+                                   trim(preset)//"' has "//fmt_int(nb_preset)//' beams')
+                    return
+                end if
+            else if (nbeams < 1 .or. nbeams > MAX_BEAMS) then
+                call add_error(errors, f%path//', line '//fmt_int(g%line)// &
+                               ': &beamid nbeams = '//fmt_int(nbeams)//', expected 1 to '// &
+                               fmt_int(MAX_BEAMS)//" (or a preset, 'pace' or 'cantilever')")
+                return
+            else
+                base = structure_base(nbeams)
+            end if
+        end associate
+        deck%nbeams = nbeams
+        deck%task = task
+        deck%output = trim(output)
+
+        call read_model(f, nbeams, base, len_trim(preset) > 0, deck, errors)
+        if (is_fit) then
+            call read_fit_groups(f, deck, errors)
             return
         end if
-        deck%sim_elements_per_beam = elements_per_beam
-        deck%sim_dt = dt
-        deck%sim_rtol = rtol
-        deck%sim_atol = atol
-        deck%sim_motor_gain = motor_gain
-        if (friction_velocity > 0.0_dp) deck%sim_friction_velocity = friction_velocity
+        call read_load(f, deck, errors)
+        if (task == 'simulate') then
+            call read_simulate_group(f, deck, errors)
+            return
+        end if
+        call read_fe_group(f, deck, errors)
+        call read_static_group(f, deck, errors)
+    end subroutine read_all
 
+    !> One &published group: table, row, note, and equally long quantity,
+    !! value and digits lists; deviation names quantities whose difference is
+    !! documented. Appended to `text` in the format of deck_t%published.
+    subroutine read_published(f, g, text, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=:), allocatable, intent(inout) :: text, errors
+        character(len=:), allocatable :: table, row, note, where
+        type(nml_text_t), allocatable :: quantity(:), deviation(:)
+        real(dp), allocatable :: value(:)
+        integer, allocatable :: digits(:)
+        character(len=32) :: buffer
+        character, parameter :: TAB = achar(9)
+        integer :: nv, i, j, nerr
+        logical :: given
+        nerr = count_lines_alloc(errors)
+        where = f%path//', line '//fmt_int(g%line)//': &published '
+        call nml_check_keys(f, g, ' table row quantity value digits deviation note ', errors)
+        table = ''
+        row = ''
+        note = ''
+        call nml_str(f, g, 'table', table, given, errors)
+        call nml_str(f, g, 'row', row, given, errors)
+        call nml_str(f, g, 'note', note, given, errors)
+        call nml_strs(f, g, 'quantity', quantity, given, errors)
+        call nml_strs(f, g, 'deviation', deviation, given, errors)
+        call nml_ints(f, g, 'digits', digits, errors)
+        nv = 0
+        do j = 1, size(g%items)
+            if (g%items(j)%key == 'value') nv = size(g%items(j)%values)
+        end do
+        allocate (value(nv))
+        call nml_reals(f, g, 'value', value, nv, errors)
+        if (count_lines_alloc(errors) > nerr) return
+        if (size(quantity) == 0 .or. size(quantity) /= size(value) .or. &
+            size(quantity) /= size(digits)) then
+            call add_error(errors, where//'needs equally long quantity, value and digits '// &
+                           'lists (got '//fmt_int(size(quantity))//', '//fmt_int(size(value))// &
+                           ', '//fmt_int(size(digits))//')')
+        end if
+        if (count_lines_alloc(errors) > nerr) return
+        text = text//'P'//TAB//untab(table)//TAB//untab(row)//TAB//untab(note)//new_line('a')
+        do i = 1, size(quantity)
+            write (buffer, '(es25.17e3)') value(i)
+            text = text//'Q'//TAB//untab(quantity(i)%s)//TAB//trim(adjustl(buffer))//TAB// &
+                   fmt_int(digits(i))//new_line('a')
+        end do
+        do i = 1, size(deviation)
+            text = text//'D'//TAB//untab(deviation(i)%s)//new_line('a')
+        end do
     contains
+        pure function untab(s) result(out)
+            character(len=*), intent(in) :: s
+            character(len=len(s)) :: out
+            integer :: k
+            out = s
+            do k = 1, len(s)
+                if (s(k:k) == TAB .or. s(k:k) == new_line('a')) out(k:k) = ' '
+            end do
+        end function untab
+    end subroutine read_published
 
-        subroutine fail(text)
-            character(len=*), intent(in) :: text
-            call set_status(stat, ERR_DECK, trim(path), text)
-        end subroutine fail
+    !> The groups a task takes.
+    subroutine check_task_groups(f, task, is_fit, errors)
+        type(nml_file_t), intent(in) :: f
+        character(len=*), intent(in) :: task
+        logical, intent(in) :: is_fit
+        character(len=:), allocatable, intent(inout) :: errors
+        integer :: k
+        character(len=:), allocatable :: name, where
+        do k = 1, size(f%groups)
+            name = f%groups(k)%name
+            if (index(KNOWN_GROUPS, ' '//name//' ') == 0) cycle
+            if (nml_find(f, name) /= k) cycle
+            where = f%path//', line '//fmt_int(f%groups(k)%line)//': '
+            if (is_fit .and. index(FIT_GROUPS, ' '//name//' ') == 0) then
+                call add_error(errors, where//'group &'//name//' does not belong in an '// &
+                               'estimation deck, expected one of:'//FIT_GROUPS(:len_trim(FIT_GROUPS)))
+            else if (.not. is_fit .and. index(' experiment fit ', ' '//name//' ') > 0) then
+                call add_error(errors, where//'group &'//name//' is only for the estimation '// &
+                               'tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
+            else if (task /= 'simulate' .and. name == 'simulate') then
+                call add_error(errors, where//'group &simulate is only for task "simulate"')
+            else if (task == 'simulate' .and. index(' fe static ', ' '//name//' ') > 0) then
+                call add_error(errors, where//'group &'//name//' is not used by task '// &
+                               '"simulate" (give elements_per_beam in &simulate)')
+            end if
+        end do
+    end subroutine check_task_groups
+
+    !> Without a preset: effects off, the structure (NaN) must be given.
+    pure function structure_base(nbeams) result(base)
+        integer, intent(in) :: nbeams
+        real(dp), allocatable :: base(:)
+        integer :: i
+        allocate (base(param_count(nbeams)))
+        base = 0.0_dp
+        do i = 1, nbeams
+            base(param_index_beam(nbeams, i, IB_L)) = ieee_value(1.0_dp, ieee_quiet_nan)
+            base(param_index_beam(nbeams, i, IB_EI)) = ieee_value(1.0_dp, ieee_quiet_nan)
+            base(param_index_beam(nbeams, i, IB_EA)) = ieee_value(1.0_dp, ieee_quiet_nan)
+            base(param_index_beam(nbeams, i, IB_RHO)) = ieee_value(1.0_dp, ieee_quiet_nan)
+        end do
+        base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
+        base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
+    end function structure_base
+
+    !> &model: arrays per beam / mass point / joint, scalars, named elbow and
+    !! tip values (which override the arrays); a structure value missing
+    !! without a preset is an error, and so is a nonphysical value.
+    subroutine read_model(f, nbeams, base, has_preset, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        integer, intent(in) :: nbeams
+        real(dp), intent(in) :: base(:)
+        logical, intent(in) :: has_preset
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=*), parameter :: beam_keys(5) = [character(len=3) :: 'l', 'ei', 'ea', &
+            'rho', 'c']
+        integer, parameter :: beam_which(5) = [IB_L, IB_EI, IB_EA, IB_RHO, IB_C]
+        character(len=*), parameter :: mass_keys(4) = [character(len=6) :: 'm', 'j', 'mu', &
+            'c_drag']
+        integer, parameter :: mass_which(4) = [IM_M, IM_J, IM_MU, IM_C]
+        character(len=*), parameter :: global_keys(5) = [character(len=14) :: &
+            'axial_coupling', 'root_flex', 'eta', 'r_motor', 'tau_motor']
+        integer, parameter :: global_which(5) = [IG_AXIAL_COUPLING, IG_ROOT_FLEX, IG_ETA, &
+            IG_R_MOTOR, IG_TAU_MOTOR]
+        character(len=*), parameter :: named_keys(9) = [character(len=10) :: 'm_elbow', &
+            'j_elbow', 'mu_elbow', 'c_elbow', 'elbow_flex', 'm_tip', 'j_tip', 'mu_tip', 'c_tip']
+        real(dp), allocatable :: values(:), params(:)
+        integer :: k, i, n, im, idx, nerr
+        logical :: given
+        real(dp) :: x
+        type(chain_t) :: chain
+        type(status_t) :: st
+
+        allocate (params(size(base)))
+        params = base
+        nerr = count_lines_alloc(errors)
+        im = nml_find(f, 'model')
+        if (im == 0 .and. .not. has_preset) then
+            call add_error(errors, f%path//': group &model is missing (without a preset '// &
+                           'give L, EI, EA and rho of every beam)')
+        end if
+        if (im > 0) then
+            associate (g => f%groups(im))
+                call nml_check_keys(f, g, ' l ei ea rho c m j mu c_drag joint_flex '// &
+                                    'axial_coupling root_flex eta r_motor tau_motor m_elbow '// &
+                                    'j_elbow mu_elbow c_elbow elbow_flex m_tip j_tip mu_tip '// &
+                                    'c_tip ', errors)
+                allocate (values(nbeams))
+                do k = 1, size(beam_keys)
+                    do i = 1, nbeams
+                        values(i) = params(param_index_beam(nbeams, i, beam_which(k)))
+                    end do
+                    call nml_reals(f, g, trim(beam_keys(k)), values, n, errors, 'one per beam')
+                    do i = 1, nbeams
+                        params(param_index_beam(nbeams, i, beam_which(k))) = values(i)
+                    end do
+                end do
+                do k = 1, size(mass_keys)
+                    do i = 1, nbeams
+                        values(i) = params(param_index_mass(nbeams, i, mass_which(k)))
+                    end do
+                    call nml_reals(f, g, trim(mass_keys(k)), values, n, errors, &
+                                   'one per mass point: the joints, then the tip')
+                    do i = 1, nbeams
+                        params(param_index_mass(nbeams, i, mass_which(k))) = values(i)
+                    end do
+                end do
+                deallocate (values)
+                allocate (values(nbeams - 1))
+                do i = 1, nbeams - 1
+                    values(i) = params(param_index_joint_flex(nbeams, i))
+                end do
+                call nml_reals(f, g, 'joint_flex', values, n, errors, 'one per joint')
+                do i = 1, nbeams - 1
+                    params(param_index_joint_flex(nbeams, i)) = values(i)
+                end do
+                do k = 1, size(global_keys)
+                    idx = param_index_global(nbeams, global_which(k))
+                    call nml_real(f, g, trim(global_keys(k)), params(idx), given, errors)
+                end do
+                do k = 1, size(named_keys)
+                    x = 0.0_dp
+                    call nml_real(f, g, trim(named_keys(k)), x, given, errors)
+                    if (.not. given) cycle
+                    if (k <= 5 .and. nbeams < 2) then
+                        call add_error(errors, f%path//': &model '//trim(named_keys(k))// &
+                                       ' is given but the chain has one beam (no elbow)')
+                        cycle
+                    end if
+                    select case (k)
+                    case (1)
+                        idx = param_index_mass(nbeams, 1, IM_M)
+                    case (2)
+                        idx = param_index_mass(nbeams, 1, IM_J)
+                    case (3)
+                        idx = param_index_mass(nbeams, 1, IM_MU)
+                    case (4)
+                        idx = param_index_mass(nbeams, 1, IM_C)
+                    case (5)
+                        idx = param_index_joint_flex(nbeams, 1)
+                    case (6)
+                        idx = param_index_mass(nbeams, nbeams, IM_M)
+                    case (7)
+                        idx = param_index_mass(nbeams, nbeams, IM_J)
+                    case (8)
+                        idx = param_index_mass(nbeams, nbeams, IM_MU)
+                    case default
+                        idx = param_index_mass(nbeams, nbeams, IM_C)
+                    end select
+                    params(idx) = x
+                end do
+            end associate
+        end if
+        deck%params = params
+        ! a value already reported is not reported again as missing
+        if (count_lines_alloc(errors) > nerr) return
+        do i = 1, size(params)
+            if (ieee_is_nan(params(i))) call add_error(errors, f%path//': &model is missing '// &
+                param_name(nbeams, i)//' (set it in &model, or use a preset)')
+        end do
+        if (count_lines_alloc(errors) > nerr) return
+        call chain_from_vector(nbeams, params, chain, st)
+        if (st%code /= STATUS_OK) call add_error(errors, f%path//': &'//trim(st%message))
+        deck%model_ok = st%code == STATUS_OK
+    end subroutine read_model
+
+    pure integer function count_lines_alloc(errors)
+        character(len=:), allocatable, intent(in) :: errors
+        count_lines_alloc = 0
+        if (allocated(errors)) count_lines_alloc = count_lines(errors)
+    end function count_lines_alloc
+
+    !> A tip load or a wire from a group (&load, &experiment): kind, fx, fy,
+    !! moment, wire_length; `label` names the group in messages.
+    subroutine read_load_values(f, g, label, arm, load, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=*), intent(in) :: label
+        real(dp), intent(in) :: arm      !< total length of the chain (m)
+        type(static_load_t), intent(out) :: load
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: kind
+        logical :: given, has_wire, has_force(3)
+        real(dp) :: values(4)
+        values = 0.0_dp
+        kind = ''
+        call nml_str(f, g, 'kind', kind, given, errors)
+        call nml_real(f, g, 'fx', values(1), has_force(1), errors)
+        call nml_real(f, g, 'fy', values(2), has_force(2), errors)
+        call nml_real(f, g, 'moment', values(3), has_force(3), errors)
+        call nml_real(f, g, 'wire_length', values(4), has_wire, errors)
+        load%fx = values(1)
+        load%fy = values(2)
+        load%moment = values(3)
+        load%wire_length = 0.0_dp
+        select case (trim(kind))
+        case ('tip')
+            load%kind = LOAD_TIP
+            if (nml_given(g, 'wire_length')) call add_error(errors, label// &
+                ": kind = 'tip' does not take wire_length")
+        case ('wire')
+            load%kind = LOAD_WIRE
+            load%wire_length = values(4)
+            if (.not. has_wire .and. nml_given(g, 'wire_length')) then
+                continue    ! its value is already reported
+            else if (.not. has_wire) then
+                call add_error(errors, label//": kind = 'wire' needs wire_length (m)")
+            else if (.not. values(4) > 0.0_dp) then
+                call add_error(errors, label//': wire_length = '//fmt_g(values(4))// &
+                               ', expected a length > 0 (m)')
+            else if (values(4) >= arm .and. arm > 0.0_dp) then
+                call add_error(errors, label//': wire_length = '//fmt_g(values(4))// &
+                               ', expected a length shorter than the arm ('//fmt_g(arm)// &
+                               ' m; a longer wire is slack)')
+            end if
+            if (any(values(1:3) /= 0.0_dp)) call add_error(errors, label// &
+                ": kind = 'wire' does not take fx, fy or moment")
+        case default
+            load%kind = LOAD_TIP
+            call add_error(errors, label//": kind = '"//trim(kind)//"', expected 'tip' or 'wire'")
+        end select
+    end subroutine read_load_values
+
+    !> Total length of the deck's chain (0 when the model has errors).
+    pure real(dp) function arm_length(deck)
+        type(deck_t), intent(in) :: deck
+        integer :: i
+        arm_length = 0.0_dp
+        if (.not. deck%model_ok) return
+        do i = 1, deck%nbeams
+            arm_length = arm_length + deck%params(param_index_beam(deck%nbeams, i, IB_L))
+        end do
+        if (ieee_is_nan(arm_length) .or. arm_length < 0.0_dp) arm_length = 0.0_dp
+    end function arm_length
+
+    !> &load (required except for fe_modes).
+    subroutine read_load(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        integer :: k
+        k = nml_find(f, 'load')
+        if (k == 0) then
+            deck%load%kind = LOAD_TIP
+            if (deck%task /= 'fe_modes') call add_error(errors, f%path//': group &load is '// &
+                "missing (kind = 'tip' with fx, fy, moment, or kind = 'wire' with wire_length)")
+            return
+        end if
+        deck%has_load = .true.
+        associate (g => f%groups(k))
+            call nml_check_keys(f, g, ' kind fx fy moment wire_length ', errors)
+            call read_load_values(f, g, f%path//', line '//fmt_int(g%line)//': &load', &
+                                  arm_length(deck), deck%load, errors)
+        end associate
+        if (deck%load%kind == LOAD_WIRE .and. deck%task /= 'static') call add_error(errors, &
+            f%path//': &load kind = "wire" is not available for task "'//deck%task// &
+            '" (tip loads only)')
+    end subroutine read_load
+
+    !> &fe (optional; tasks fe_static and fe_modes, docs/fe.md).
+    subroutine read_fe_group(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: moment_form, where
+        integer :: k, epb, steps
+        real(dp) :: tol
+        logical :: given
+        k = nml_find(f, 'fe')
+        if (k == 0) return
+        associate (g => f%groups(k))
+            where = f%path//', line '//fmt_int(g%line)//': &fe '
+            call nml_check_keys(f, g, ' elements_per_beam moment_form rotary_inertia '// &
+                                'point_masses steps tol ', errors)
+            epb = deck%fe_elements_per_beam
+            steps = 0
+            tol = 0.0_dp
+            moment_form = 'eq78'
+            call nml_int(f, g, 'elements_per_beam', epb, given, errors)
+            call nml_str(f, g, 'moment_form', moment_form, given, errors)
+            call nml_logical(f, g, 'rotary_inertia', deck%fe_rotary_inertia, given, errors)
+            call nml_logical(f, g, 'point_masses', deck%fe_point_masses, given, errors)
+            call nml_int(f, g, 'steps', steps, given, errors)
+            call nml_real(f, g, 'tol', tol, given, errors)
+            if (epb < 1) then
+                call add_error(errors, where//'elements_per_beam = '//fmt_int(epb)// &
+                               ', expected at least 1')
+            else
+                call check_mesh_size(where, deck%nbeams, epb, deck%task == 'fe_modes', 1, &
+                                     errors)
+            end if
+            select case (trim(moment_form))
+            case ('eq78')
+                deck%fe_moment_form = 0
+            case ('exact')
+                deck%fe_moment_form = 1
+            case default
+                call add_error(errors, where//"moment_form = '"//trim(moment_form)// &
+                               "', expected 'eq78' or 'exact'")
+            end select
+            if (steps < 0) call add_error(errors, where//'steps = '//fmt_int(steps)// &
+                                          ', expected 0 (default) or a positive count')
+            if (tol < 0.0_dp) call add_error(errors, where//'tol = '//fmt_g(tol)// &
+                                             ', expected 0 (default) or a positive tolerance')
+            deck%fe_elements_per_beam = epb
+            deck%fe_steps = steps
+            deck%fe_tol = tol
+        end associate
+    end subroutine read_fe_group
+
+    !> Memory bound of a mesh: nbeams*epb elements, 4 unknowns per node; the
+    !! banded solvers keep about 40 numbers per unknown, the modes (dense
+    !! eigenproblem) 3 n^2, a history `nt` states of 2 n.
+    subroutine check_mesh_size(where, nbeams, epb, dense, nt, errors)
+        character(len=*), intent(in) :: where
+        integer, intent(in) :: nbeams, epb, nt
+        logical, intent(in) :: dense
+        character(len=:), allocatable, intent(inout) :: errors
+        real(dp) :: nfree, bytes
+        nfree = 4.0_dp*(real(nbeams, dp)*real(epb, dp) + 1.0_dp)
+        bytes = 8.0_dp*(40.0_dp*nfree + 2.0_dp*nfree*real(nt, dp))
+        if (dense) bytes = bytes + 8.0_dp*3.0_dp*nfree**2
+        if (bytes > MAX_BYTES) call add_error(errors, where//'elements_per_beam = '// &
+            fmt_int(epb)//': the computation would need about '//fmt_bytes(bytes)// &
+            ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
+    end subroutine check_mesh_size
+
+
+    !> &static (optional; task static).
+    subroutine read_static_group(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        type(nml_text_t), allocatable :: wrt(:)
+        character(len=:), allocatable :: where
+        integer :: k, i, n
+        real(dp) :: tol
+        logical :: given
+        allocate (deck%wrt(0))
+        k = nml_find(f, 'static')
+        if (k == 0) return
+        associate (g => f%groups(k))
+            where = f%path//', line '//fmt_int(g%line)//': &static '
+            call nml_check_keys(f, g, ' wrt shape_points tol ', errors)
+            call nml_strs(f, g, 'wrt', wrt, given, errors)
+            n = deck%shape_points
+            tol = 0.0_dp
+            call nml_int(f, g, 'shape_points', n, given, errors)
+            call nml_real(f, g, 'tol', tol, given, errors)
+            deallocate (deck%wrt)
+            allocate (deck%wrt(size(wrt)))
+            do i = 1, size(wrt)
+                deck%wrt(i) = param_lookup(deck%nbeams, wrt(i)%s)
+                if (deck%wrt(i) == 0) call add_error(errors, where//"wrt = '"//wrt(i)%s// &
+                    "' is not a parameter name (e.g. EI1, C2, elbow_flex)")
+            end do
+            if (n < 0 .or. n == 1) then
+                call add_error(errors, where//'shape_points = '//fmt_int(n)// &
+                               ', expected 0 (no shape) or at least 2')
+            else if (5.0_dp*8.0_dp*real(n, dp) > MAX_BYTES) then
+                call add_error(errors, where//'shape_points = '//fmt_int(n)// &
+                               ': the shape would need about '//fmt_bytes(40.0_dp*real(n, dp))// &
+                               ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
+            end if
+            if (.not. (tol >= 0.0_dp .and. tol < 1.0e-2_dp)) call add_error(errors, where// &
+                'tol = '//fmt_real(tol)//', expected 0 (default) or a tolerance below 1e-2')
+            deck%shape_points = n
+            deck%tol = tol
+        end associate
+    end subroutine read_static_group
+
+    !> &simulate of a dynamic deck (task simulate): the output times (t_out,
+    !! or t_end with n_out equally spaced times from 0), the mesh, the
+    !! integrator and the friction law; 0 means the default for dt, rtol,
+    !! atol and friction_velocity.
+    subroutine read_simulate_group(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        real(dp), allocatable :: t_out(:)
+        real(dp) :: t_end, step, values(5)
+        integer :: n_out, epb, k, i, nt, j
+        character(len=:), allocatable :: integrator, friction, where
+        logical :: has_end, has_n, given, has_t_out, end_ok, n_ok
+        character(len=*), parameter :: names(5) = [character(len=17) :: 'dt', 'rtol', &
+            'atol', 'friction_velocity', 'motor_gain']
+
+        allocate (deck%sim_t_out(0))
+        k = nml_find(f, 'simulate')
+        if (k == 0) then
+            call add_error(errors, f%path//': group &simulate is missing (t_out, or t_end '// &
+                           'and n_out)')
+            return
+        end if
+        associate (g => f%groups(k))
+            where = f%path//', line '//fmt_int(g%line)//': &simulate '
+            call nml_check_keys(f, g, ' t_out t_end n_out elements_per_beam integrator dt '// &
+                                'rtol atol motor_gain friction friction_velocity ', errors)
+            ! a list of times holds at most one value per item token
+            nt = 0
+            do j = 1, size(g%items)
+                if (g%items(j)%key == 't_out') nt = g%items(j)%first - 1 + size(g%items(j)%values)
+            end do
+            allocate (t_out(nt))
+            t_out = ieee_value(1.0_dp, ieee_quiet_nan)
+            call nml_reals(f, g, 't_out', t_out, nt, errors)
+            t_end = 0.0_dp
+            n_out = 101
+            epb = 4
+            integrator = 'implicit'
+            friction = ''
+            values = 0.0_dp
+            call nml_real(f, g, 't_end', t_end, end_ok, errors)
+            call nml_int(f, g, 'n_out', n_out, n_ok, errors)
+            call nml_int(f, g, 'elements_per_beam', epb, given, errors)
+            call nml_str(f, g, 'integrator', integrator, given, errors)
+            call nml_str(f, g, 'friction', friction, given, errors)
+            do i = 1, size(names)
+                call nml_real(f, g, trim(names(i)), values(i), given, errors)
+            end do
+            has_t_out = nml_given(g, 't_out')
+            has_end = nml_given(g, 't_end')
+            has_n = nml_given(g, 'n_out')
+            if (has_t_out .and. has_end) then
+                call add_error(errors, where//'gives both t_out and t_end: give one')
+            else if (.not. has_t_out .and. .not. has_end) then
+                call add_error(errors, where//'needs t_out (a list of output times) or '// &
+                               't_end (with n_out)')
+            else if (has_t_out .and. has_n) then
+                call add_error(errors, where//'n_out goes with t_end, not with t_out')
+            else if (has_t_out) then
+                if (nt > MAX_TIMES) then
+                    call add_error(errors, where//'t_out has '//fmt_int(nt)// &
+                                   ' times, expected at most '//fmt_int(MAX_TIMES))
+                else if (any(ieee_is_nan(t_out(1:nt)))) then
+                    call add_error(errors, where//'t_out has gaps: give the output times '// &
+                                   'as one list')
+                else
+                    deck%sim_t_out = t_out(1:nt)
+                end if
+            else if (end_ok .and. (n_ok .or. .not. has_n)) then
+                if (.not. (t_end > 0.0_dp)) then
+                    call add_error(errors, where//'t_end = '//fmt_g(t_end)// &
+                                   ', expected a time > 0 (s)')
+                else if (n_out < 2) then
+                    call add_error(errors, where//'n_out = '//fmt_int(n_out)// &
+                                   ', expected at least 2')
+                else if (n_out > MAX_TIMES) then
+                    call add_error(errors, where//'n_out = '//fmt_int(n_out)// &
+                                   ': the history would need about '// &
+                                   fmt_bytes(8.0_dp*16.0_dp*real(n_out, dp))//' or more of memory '// &
+                                   '(at most '//fmt_int(MAX_TIMES)//' output times)')
+                else
+                    ! numpy.linspace(0, t_end, n_out), to the last bit
+                    step = t_end/real(n_out - 1, dp)
+                    deck%sim_t_out = [(real(i, dp)*step, i = 0, n_out - 1)]
+                    deck%sim_t_out(n_out) = t_end
+                end if
+            end if
+            do i = 1, size(deck%sim_t_out)
+                if (i == 1 .and. deck%sim_t_out(i) < 0.0_dp) exit
+                if (i > 1) then
+                    if (deck%sim_t_out(i) <= deck%sim_t_out(i - 1)) exit
+                end if
+            end do
+            if (i <= size(deck%sim_t_out)) call add_error(errors, where//'t_out must be '// &
+                'ascending times >= 0 (entry '//fmt_int(i)//' = '//fmt_g(deck%sim_t_out(i))//')')
+            if (epb < 1) then
+                call add_error(errors, where//'elements_per_beam = '//fmt_int(epb)// &
+                               ', expected at least 1')
+            else
+                call check_mesh_size(where, deck%nbeams, epb, .false., &
+                                     max(1, size(deck%sim_t_out)), errors)
+            end if
+            select case (trim(integrator))
+            case ('rk4')
+                deck%sim_integrator = 0
+            case ('implicit')
+                deck%sim_integrator = 1
+            case default
+                call add_error(errors, where//'integrator = "'//trim(integrator)// &
+                               '", expected "implicit" or "rk4"')
+            end select
+            select case (trim(friction))
+            case ('')
+                deck%sim_friction = 0   ! the sign law (events) for both integrators
+            case ('sign')
+                deck%sim_friction = 0
+            case ('smooth')
+                deck%sim_friction = 1
+            case ('sign_literal')
+                deck%sim_friction = 2
+            case default
+                call add_error(errors, where//'friction = "'//trim(friction)// &
+                               '", expected "sign", "smooth" or "sign_literal"')
+            end select
+            do i = 1, size(names) - 1
+                if (values(i) < 0.0_dp) call add_error(errors, where//trim(names(i))//' = '// &
+                    fmt_g(values(i))//', expected 0 (default) or a positive number')
+            end do
+            if (values(5) < 0.0_dp) call add_error(errors, where//'motor_gain = '// &
+                fmt_g(values(5))//', expected a finite number >= 0')
+            deck%sim_elements_per_beam = epb
+            deck%sim_dt = values(1)
+            deck%sim_rtol = values(2)
+            deck%sim_atol = values(3)
+            if (values(4) > 0.0_dp) deck%sim_friction_velocity = values(4)
+            deck%sim_motor_gain = values(5)
+        end associate
     end subroutine read_simulate_group
 
     !> The groups of an estimation deck after &beamid and &model: every
-    !! &experiment (repeatable, read in turn without rewinding) and &fit, whose
-    !! measurement CSV is read here (the order of checks of the Python reader,
-    !! beamid.fit_decks.read_fit_deck, so both report the same first error).
-    subroutine read_fit_groups(unit, path, deck, stat)
-        integer, intent(in) :: unit
-        character(len=*), intent(in) :: path
+    !! &experiment (repeatable) and &fit, whose measurement CSV is read here.
+    subroutine read_fit_groups(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
         type(deck_t), intent(inout) :: deck
-        type(status_t), intent(inout) :: stat
-        integer, parameter :: MAX_CANDIDATES = 4*NEFFECT
-        ! &experiment
-        character(len=256) :: name
-        character(len=NAME_LEN) :: kind
-        real(dp) :: fx, fy, moment, wire_length
-        ! &fit
-        character(len=1024) :: data
-        character(len=NAME_LEN), allocatable :: free(:), prior_names(:), candidates(:)
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: name, label, where, data, free_list
+        type(nml_text_t), allocatable :: free(:), prior_names(:), candidates(:)
         real(dp), allocatable :: prior_means(:), prior_sigmas(:)
-        real(dp) :: alpha
-        integer :: max_iter
-        namelist /experiment/ name, kind, fx, fy, moment, wire_length
-        namelist /fit/ data, free, prior_names, prior_means, prior_sigmas, candidates, alpha, &
-            max_iter
-
-        character(len=256), allocatable :: names(:)
-        character(len=512) :: msg
-        character(len=:), allocatable :: label, free_list
-        type(static_load_t) :: load
         type(static_load_t), allocatable :: loads(:)
-        integer :: ios, i, k, n, np, nm, ns, maxlen, slash
+        type(nml_text_t), allocatable :: names(:)
         integer, allocatable :: block(:)
         logical, allocatable :: is_wire(:)
-        real(dp) :: nan
+        logical :: given, data_ok
+        integer :: ne, k, i, ig, np, nm, ns, maxlen, slash, kk, nerr
+        type(status_t) :: st
+        type(static_load_t) :: load
+        type(nml_group_t) :: gx
 
-        nan = ieee_value(1.0_dp, ieee_quiet_nan)
         ! ---- &experiment, one group per experiment
+        nerr = count_lines_alloc(errors)
+        ne = nml_count(f, 'experiment')
         allocate (names(0), loads(0))
-        rewind (unit)
-        k = 0
-        do
+        do k = 1, ne
+            ig = nml_find(f, 'experiment', k)
+            gx = f%groups(ig)
+            call nml_check_keys(f, gx, ' name kind fx fy moment wire_length ', errors)
             name = ''
-            kind = ''
-            fx = 0.0_dp
-            fy = 0.0_dp
-            moment = 0.0_dp
-            wire_length = nan
-            read (unit, nml=experiment, iostat=ios, iomsg=msg)
-            if (ios < 0) exit
-            k = k + 1
-            if (ios > 0) then
-                call fail('in &experiment number '//fmt_int(k)//': '//trim(msg))
-                return
+            call nml_str(f, gx, 'name', name, given, errors)
+            name = trim(adjustl(name))
+            where = f%path//', line '//fmt_int(gx%line)//': '
+            if (len(name) == 0) then
+                call add_error(errors, where//'&experiment number '//fmt_int(k)// &
+                               ' has no name')
+                name = '#'//fmt_int(k)
             end if
-            if (len_trim(name) == 0) then
-                call fail('&experiment number '//fmt_int(k)//' has no name')
-                return
-            end if
-            label = "&experiment '"//trim(name)//"'"
-            if (any(names == name)) then
-                call fail("&experiment name = '"//trim(name)//"' defined twice")
-                return
-            end if
-            load = static_load_t()
-            select case (trim(kind))
-            case ('tip')
-                if (.not. ieee_is_nan(wire_length)) then
-                    call fail(label//": kind = 'tip' does not take wire_length")
-                    return
-                end if
-                load%kind = LOAD_TIP
-                load%fx = fx
-                load%fy = fy
-                load%moment = moment
-                load%wire_length = 0.0_dp
-            case ('wire')
-                if (ieee_is_nan(wire_length)) then
-                    call fail(label//": kind = 'wire' needs wire_length (m)")
-                    return
-                end if
-                if (fx /= 0.0_dp .or. fy /= 0.0_dp .or. moment /= 0.0_dp) then
-                    call fail(label//": kind = 'wire' does not take fx, fy or moment")
-                    return
-                end if
-                load%kind = LOAD_WIRE
-                load%wire_length = wire_length
-            case default
-                call fail(label//": kind = '"//trim(kind)//"', expected 'tip' or 'wire'")
-                return
-            end select
-            names = [names, name]
+            gx%label = "&experiment '"//name//"'"
+            label = where//gx%label
+            do i = 1, size(names)
+                if (names(i)%s == name) call add_error(errors, where// &
+                    "&experiment name = '"//name//"' defined twice")
+            end do
+            call read_load_values(f, gx, label, arm_length(deck), load, errors)
+            names = [names, nml_text_t(name)]
             loads = [loads, load]
         end do
-        if (size(names) == 0) then
-            call fail('no &experiment groups: define at least one experiment')
-            return
-        end if
-        maxlen = maxval(len_trim(names))
+        if (ne == 0) call add_error(errors, f%path//': no &experiment groups: define at '// &
+                                    'least one experiment')
+        maxlen = 1
+        do i = 1, size(names)
+            maxlen = max(maxlen, len(names(i)%s))
+        end do
         allocate (character(len=maxlen) :: deck%exp_names(size(names)))
         do i = 1, size(names)
-            deck%exp_names(i) = names(i)
+            deck%exp_names(i) = names(i)%s
         end do
         deck%experiments = loads
         is_wire = loads%kind == LOAD_WIRE
 
         ! ---- &fit
-        n = param_count(deck%nbeams)
-        allocate (free(n), prior_names(n), prior_means(n), prior_sigmas(n))
-        allocate (candidates(MAX_CANDIDATES))
-        data = ''
-        free = ''
-        prior_names = ''
-        prior_means = nan
-        prior_sigmas = nan
-        candidates = ''
-        alpha = 0.01_dp
-        max_iter = 50
-        rewind (unit)
-        read (unit, nml=fit, iostat=ios, iomsg=msg)
-        if (ios < 0) then
-            call fail('group &fit is missing')
-            return
-        else if (ios > 0) then
-            call fail('in &fit: '//trim(msg))
+        allocate (deck%free(0), deck%prior_index(0), deck%prior_mean(0), deck%prior_sigma(0))
+        deck%candidates = EFFECT_NAMES
+        ig = nml_find(f, 'fit')
+        if (ig == 0) then
+            call add_error(errors, f%path//': group &fit is missing (data, free)')
             return
         end if
-        if (len_trim(data) == 0) then
-            call fail('&fit data is missing: give the measurement CSV file')
-            return
-        end if
+        associate (g => f%groups(ig))
+            where = f%path//', line '//fmt_int(g%line)//': &fit '
+            call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
+                                'candidates alpha max_iter ', errors)
+            data = ''
+            call nml_str(f, g, 'data', data, given, errors)
+            call nml_strs(f, g, 'free', free, given, errors)
+            call nml_strs(f, g, 'prior_names', prior_names, given, errors)
+            call nml_strs(f, g, 'candidates', candidates, given, errors)
+            np = size(prior_names)
+            nm = 0
+            ns = 0
+            do i = 1, size(g%items)
+                if (g%items(i)%key == 'prior_means') nm = size(g%items(i)%values)
+                if (g%items(i)%key == 'prior_sigmas') ns = size(g%items(i)%values)
+            end do
+            allocate (prior_means(nm), prior_sigmas(ns))
+            call nml_reals(f, g, 'prior_means', prior_means, nm, errors)
+            call nml_reals(f, g, 'prior_sigmas', prior_sigmas, ns, errors)
+            call nml_real(f, g, 'alpha', deck%alpha, given, errors)
+            call nml_int(f, g, 'max_iter', deck%max_iter, given, errors)
+
+            deck%free = [integer ::]
+            free_list = ''
+            do i = 1, size(free)
+                kk = param_lookup(deck%nbeams, free(i)%s)
+                if (kk == 0) then
+                    call add_error(errors, where//"free = '"//free(i)%s// &
+                                   "' is not a parameter name")
+                    cycle
+                end if
+                if (any(deck%free == kk)) then
+                    call add_error(errors, where//"free names parameter '"// &
+                                   param_name(deck%nbeams, kk)//"' twice")
+                    cycle
+                end if
+                deck%free = [deck%free, kk]
+                if (len(free_list) > 0) free_list = free_list//', '
+                free_list = free_list//param_name(deck%nbeams, kk)
+            end do
+            if (size(free) == 0) call add_error(errors, where//'free is missing: name the '// &
+                                                'parameters to estimate')
+            if (np /= size(prior_means) .or. np /= size(prior_sigmas)) then
+                call add_error(errors, where//'prior_names, prior_means and prior_sigmas '// &
+                               'must have equal lengths (got '//fmt_int(np)//', '// &
+                               fmt_int(size(prior_means))//', '//fmt_int(size(prior_sigmas))//')')
+            else
+                deallocate (deck%prior_index, deck%prior_mean, deck%prior_sigma)
+                allocate (deck%prior_index(np), deck%prior_mean(np), deck%prior_sigma(np))
+                do i = 1, np
+                    kk = param_lookup(deck%nbeams, prior_names(i)%s)
+                    deck%prior_index(i) = kk
+                    deck%prior_mean(i) = prior_means(i)
+                    deck%prior_sigma(i) = prior_sigmas(i)
+                    if (kk == 0) then
+                        call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
+                                       "' is not a parameter name")
+                    else if (.not. any(deck%free == kk)) then
+                        call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
+                                       "' is not free (free: "//free_list//')')
+                    end if
+                    if (.not. prior_sigmas(i) > 0.0_dp) call add_error(errors, where// &
+                        "prior for '"//prior_names(i)%s//"' = ("//fmt_g(prior_means(i))// &
+                        ', '//fmt_g(prior_sigmas(i))//'), expected a finite mean and sigma > 0')
+                end do
+            end if
+            if (size(candidates) > 0) then
+                deallocate (deck%candidates)
+                allocate (deck%candidates(size(candidates)))
+                do i = 1, size(candidates)
+                    deck%candidates(i) = candidates(i)%s
+                    call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
+                    if (st%code /= STATUS_OK) then
+                        call add_error(errors, where//"candidates = '"//candidates(i)%s// &
+                                       "' is not a known effect, expected one of: "// &
+                                       'axial_coupling, material_cubic, elbow_flex, root_flex')
+                        st%code = STATUS_OK
+                    end if
+                end do
+            end if
+            if (.not. (deck%alpha > 0.0_dp .and. deck%alpha < 1.0_dp)) call add_error(errors, &
+                where//'alpha = '//fmt_g(deck%alpha)//', expected a significance level in (0, 1)')
+            if (deck%max_iter < 1) call add_error(errors, where//'max_iter = '// &
+                                                  fmt_int(deck%max_iter)//', expected at least 1')
+            ! the data: read only when the experiments are valid
+            data_ok = len_trim(data) > 0
+            if (.not. data_ok) call add_error(errors, where//'data is missing: give the '// &
+                                              'measurement CSV file')
+        end associate
+        if (.not. data_ok) return
         if (data(1:1) == '/') then
             deck%data_path = trim(data)
         else
-            slash = index(path, '/', back=.true.)
-            deck%data_path = path(:slash)//trim(data)
+            slash = index(f%path, '/', back=.true.)
+            deck%data_path = f%path(:slash)//trim(data)
         end if
-        call read_measurements(deck%data_path, deck%data, stat)
-        if (stat%code /= STATUS_OK) return
-        call check_static_rows(deck%data, deck%exp_names, is_wire, deck%row_exp, stat)
-        if (stat%code /= STATUS_OK) return
-
-        deck%free = [integer ::]
-        free_list = ''
-        do i = 1, n
-            if (len_trim(free(i)) == 0) cycle
-            k = param_lookup(deck%nbeams, free(i))
-            if (k == 0) then
-                call fail("&fit free = '"//trim(free(i))//"' is not a parameter name")
-                return
-            end if
-            if (any(deck%free == k)) then
-                call fail("&fit free names parameter '"//param_name(deck%nbeams, k)//"' twice")
-                return
-            end if
-            deck%free = [deck%free, k]
-            if (len(free_list) > 0) free_list = free_list//', '
-            free_list = free_list//param_name(deck%nbeams, k)
-        end do
-        if (size(deck%free) == 0) then
-            call fail('&fit free is missing: name the parameters to estimate')
-            return
-        end if
-
-        np = count(len_trim(prior_names) > 0)
-        nm = count(.not. ieee_is_nan(prior_means))
-        ns = count(.not. ieee_is_nan(prior_sigmas))
-        if (np /= nm .or. np /= ns) then
-            call fail('&fit prior_names, prior_means and prior_sigmas must have equal '// &
-                      'lengths (got '//fmt_int(np)//', '//fmt_int(nm)//', '//fmt_int(ns)//')')
-            return
-        end if
-        allocate (deck%prior_index(np), deck%prior_mean(np), deck%prior_sigma(np))
-        do i = 1, np
-            k = param_lookup(deck%nbeams, prior_names(i))
-            if (k == 0) then
-                call fail("&fit prior_names = '"//trim(prior_names(i))// &
-                          "' is not a parameter name")
-                return
-            end if
-            if (.not. any(deck%free == k)) then
-                call fail("&fit prior_names = '"//trim(prior_names(i))//"' is not free "// &
-                          '(free: '//free_list//')')
-                return
-            end if
-            if (.not. (abs(prior_means(i)) <= huge(1.0_dp) .and. prior_sigmas(i) > 0.0_dp &
-                       .and. prior_sigmas(i) <= huge(1.0_dp))) then
-                call fail("&fit prior for '"//trim(prior_names(i))//"' = ("// &
-                          fmt_g(prior_means(i))//', '//fmt_g(prior_sigmas(i))// &
-                          '), expected a finite mean and sigma > 0')
-                return
-            end if
-            deck%prior_index(i) = k
-            deck%prior_mean(i) = prior_means(i)
-            deck%prior_sigma(i) = prior_sigmas(i)
-        end do
-
-        n = count(len_trim(candidates) > 0)
-        if (n == 0) then
-            deck%candidates = EFFECT_NAMES
-        else
-            deck%candidates = pack(candidates, len_trim(candidates) > 0)
-        end if
-        do i = 1, size(deck%candidates)
-            call static_effect_params(deck%nbeams, deck%candidates(i), block, stat)
-            if (stat%code /= STATUS_OK) then
-                call clear_and_fail("&fit candidates = '"//trim(deck%candidates(i))// &
-                                    "' is not a known effect, expected one of: "// &
-                                    'axial_coupling, material_cubic, elbow_flex, root_flex')
-                return
-            end if
-        end do
-        if (.not. (alpha > 0.0_dp .and. alpha < 1.0_dp)) then
-            call fail('&fit alpha = '//fmt_g(alpha)//', expected a significance level in (0, 1)')
-            return
-        end if
-        if (max_iter < 1) then
-            call fail('&fit max_iter = '//fmt_int(max_iter)//', expected at least 1')
-            return
-        end if
-        deck%alpha = alpha
-        deck%max_iter = max_iter
-
-    contains
-
-        subroutine fail(text)
-            character(len=*), intent(in) :: text
-            call set_status(stat, ERR_DECK, trim(path), text)
-        end subroutine fail
-
-        subroutine clear_and_fail(text)
-            character(len=*), intent(in) :: text
-            stat%code = STATUS_OK
-            call fail(text)
-        end subroutine clear_and_fail
+        call read_measurements(deck%data_path, deck%data, st)
+        if (st%code == STATUS_OK .and. ne > 0 .and. count_lines_alloc(errors) == nerr) &
+            call check_static_rows(deck%data, &
+            deck%exp_names, is_wire, deck%row_exp, st)
+        if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
+            fmt_int(f%groups(ig)%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_groups
-
-    !> Reject groups whose names beamid does not know (a misspelt group would
-    !! otherwise be skipped silently by the namelist reader).
-    !! `present` lists the groups found, each as '&name ' once; a group
-    !! other than the REPEATABLE ones may appear only once.
-    subroutine check_groups(unit, path, present, stat)
-        integer, intent(in) :: unit
-        character(len=*), intent(in) :: path
-        character(len=:), allocatable, intent(out) :: present
-        type(status_t), intent(inout) :: stat
-        character(len=1024) :: line
-        character(len=:), allocatable :: name, seen
-        integer :: ios, lineno, k, e, n, at
-        present = ''
-        seen = ' '
-        lineno = 0
-        do
-            read (unit, '(a)', iostat=ios) line
-            if (ios /= 0) exit
-            lineno = lineno + 1
-            line = adjustl(line)
-            if (line(1:1) /= '&') cycle
-            e = scan(line(2:), ' /,!') 
-            if (e == 0) e = len_trim(line)
-            name = lower(line(2:e))
-            k = index(KNOWN_GROUPS, ' '//name//' ')
-            if (len(name) == 0 .or. name == 'end') cycle
-            if (k == 0) then
-                call set_status(stat, ERR_DECK, trim(path), 'line '//fmt_int(lineno)// &
-                                ': unknown group &'//name//', expected one of:'// &
-                                KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
-                return
-            end if
-            ! the namelist reader skips the rest of a line after a group's '/'
-            k = index(line, '/')
-            if (k > 0) then
-                if (index(line(k:), '&') > 0) then
-                    call set_status(stat, ERR_DECK, trim(path), 'line '//fmt_int(lineno)// &
-                                    ': one group per line (a second group follows '// &
-                                    '&'//name//' on this line)')
-                    return
-                end if
-            end if
-            seen = seen//name//' '
-            if (index(present, '&'//name//' ') == 0) present = present//'&'//name//' '
-        end do
-        ! repeated groups (the namelist reader would silently take the first)
-        k = 1
-        do while (k < len(present))
-            e = index(present(k + 1:), ' ')
-            name = present(k + 1:k + e - 1)
-            k = k + e + 1
-            if (index(REPEATABLE, ' '//name//' ') > 0) cycle
-            n = 0
-            at = 1
-            do
-                e = index(seen(at:), ' '//name//' ')
-                if (e == 0) exit
-                n = n + 1
-                at = at + e
-            end do
-            if (n > 1) then
-                call set_status(stat, ERR_DECK, trim(path), 'group &'//name//' appears '// &
-                                fmt_int(n)//' times')
-                return
-            end if
-        end do
-    end subroutine check_groups
 end module beamid_deck

@@ -51,6 +51,7 @@ module beamid_dynamics
     public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
     public :: dyn_set_modes, dyn_to_physical, dyn_to_coords, dyn_cforces, dyn_cpower
     public :: dyn_cxrate, dyn_cmass, dyn_cjacobian, dyn_crates
+    public :: dyn_hold, dyn_switch, dyn_rot_mv, dyn_fric_dof
 
     !> Friction laws (Eq. 101-102 and the regularized form for implicit steps).
     integer, parameter :: FRICTION_SIGN = 0, FRICTION_SMOOTH = 1, FRICTION_SIGN_LITERAL = 2
@@ -89,6 +90,17 @@ module beamid_dynamics
         real(dp) :: tau = 0.0_dp            !< motor lag (s)
         integer :: law = FRICTION_SIGN
         real(dp) :: vslip = 1.0e-4_dp       !< regularization velocity (m/s)
+        !> Friction switching as events (the sign law, Eq. 101-102, in the
+        !! integrators): component j = 2 (k - 1) + c of mass point k (c = 1: u,
+        !! c = 2: w) slides with the discrete sign fmode(j) = +-1 (friction
+        !! -mu N fmode(j), smooth between events), or sticks (fmode(j) = 0:
+        !! its velocity held at 0 by a constraint force, dyn_hold). Off
+        !! (events = .false.), the sign law takes sign(v) at every evaluation.
+        logical :: events = .false.
+        integer, allocatable :: fmode(:)
+        !> M^-1 e_i for the free index i of each friction component (constant
+        !! mass matrix only; columns of zero friction unused)
+        real(dp), allocatable :: minvf(:, :)
         !> constant mass matrix (band) and its factors; unused when rotary
         real(dp), allocatable :: mb(:, :)
         type(band_lu_t) :: mlu
@@ -456,17 +468,220 @@ contains
         sys%cku = sys%mesh%ku
         sys%law = law
         sys%vslip = vslip
-        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n))
+        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n), stat=k)
+        if (k /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the mass matrix of '// &
+                            fmt_int(sys%n)//' unknowns')
+            return
+        end if
         q0 = 0.0_dp
         call fe_mass(sys%mesh, q0, .false., sys%mb)
+        allocate (sys%fmode(2*sys%npt))
+        sys%fmode = 0
+        sys%events = .false.
         if (.not. sys%rotary) then
             sys%mlu%n = sys%n
             sys%mlu%kl = sys%mesh%kl
             sys%mlu%ku = sys%mesh%ku
             sys%mlu%ab = sys%mb
             call band_factor(sys%mlu, stat)
+            if (stat%code /= 0) return
+            allocate (sys%minvf(sys%n, 2*sys%npt), stat=k)
+            if (k /= 0) then
+                call set_status(stat, ERR_INPUT, where, 'cannot allocate M^-1 of the '// &
+                                'friction components ('//fmt_int(sys%n)//' unknowns)')
+                return
+            end if
+            sys%minvf = 0.0_dp
+            do k = 1, 2*sys%npt
+                sys%minvf(dyn_fric_dof(sys, k), k) = 1.0_dp
+                call band_solve(sys%mlu, sys%minvf(:, k))
+            end do
         end if
     end subroutine dyn_setup
+
+    !> Free index of friction component j = 2 (k - 1) + c (point k, c = 1: u,
+    !! c = 2: w).
+    pure integer function dyn_fric_dof(sys, j) result(i)
+        type(dyn_system_t), intent(in) :: sys
+        integer, intent(in) :: j
+        integer :: k
+        k = (j + 1)/2
+        if (mod(j, 2) == 1) then
+            i = sys%iu(k)
+        else
+            i = sys%iw(k)
+        end if
+    end function dyn_fric_dof
+
+    !> y = y + R(q) x, R(q) = sum_k J_k a_k a_k^T the rotary inertia part of
+    !! M(q) (Eq. 130-132) on the slopes (w', u') of each mass point, a_k =
+    !! (1 + u', -w'): M(q) = M_c + R(q) with the constant M_c of sys%mb.
+    pure subroutine dyn_rot_mv(sys, q, x, y)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), x(:)
+        real(dp), intent(inout) :: y(:)
+        real(dp) :: a1, a2, s
+        integer :: k
+        do k = 1, sys%npt
+            if (sys%inertia(k) == 0.0_dp) cycle
+            a1 = 1.0_dp + q(sys%idu(k))
+            a2 = -q(sys%idw(k))
+            s = sys%inertia(k)*(a1*x(sys%idw(k)) + a2*x(sys%idu(k)))
+            y(sys%idw(k)) = y(sys%idw(k)) + s*a1
+            y(sys%idu(k)) = y(sys%idu(k)) + s*a2
+        end do
+    end subroutine dyn_rot_mv
+
+    !> Constrain the accelerations a = M^-1 F (in place) of the sticking
+    !! friction components (fmode = 0, events on) to zero: a <- a + M^-1 E l
+    !! with (E^T M^-1 E) l = -E^T a. hold(j) = l_j is the constraint force
+    !! (the friction that holds component j at rest; 0 for the others).
+    !! `lu` holds the factors of M (the constant sys%mlu or M(q)).
+    subroutine constrain_rates(sys, lu, a, hold, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(band_lu_t), intent(in) :: lu
+        real(dp), intent(inout) :: a(:)
+        real(dp), intent(out) :: hold(:)
+        type(status_t), intent(inout) :: stat
+        integer :: st(2*sys%npt), ns, j, i
+        real(dp), allocatable :: cols(:, :)
+        real(dp) :: g(2*sys%npt, 2*sys%npt), l(2*sys%npt)
+        hold = 0.0_dp
+        if (.not. sys%events) return
+        ns = 0
+        do j = 1, 2*sys%npt
+            if (sys%fric((j + 1)/2) /= 0.0_dp .and. sys%fmode(j) == 0) then
+                ns = ns + 1
+                st(ns) = j
+            end if
+        end do
+        if (ns == 0) return
+        allocate (cols(sys%n, ns))
+        do j = 1, ns
+            if (sys%rotary) then
+                cols(:, j) = 0.0_dp
+                cols(dyn_fric_dof(sys, st(j)), j) = 1.0_dp
+                call band_solve(lu, cols(:, j))
+            else
+                cols(:, j) = sys%minvf(:, st(j))
+            end if
+        end do
+        do j = 1, ns
+            do i = 1, ns
+                g(i, j) = cols(dyn_fric_dof(sys, st(i)), j)
+            end do
+            l(j) = -a(dyn_fric_dof(sys, st(j)))
+        end do
+        call small_solve(ns, g(1:ns, 1:ns), l(1:ns), stat)
+        if (stat%code /= 0) return
+        do j = 1, ns
+            a = a + l(j)*cols(:, j)
+            hold(st(j)) = l(j)
+        end do
+        ! exactly at rest
+        do j = 1, ns
+            a(dyn_fric_dof(sys, st(j))) = 0.0_dp
+        end do
+    end subroutine constrain_rates
+
+    !> Solve the small dense system g x = b (Gaussian elimination with
+    !! partial pivoting), b overwritten by x.
+    subroutine small_solve(m, g, b, stat)
+        integer, intent(in) :: m
+        real(dp), intent(inout) :: g(m, m), b(m)
+        type(status_t), intent(inout) :: stat
+        integer :: i, j, p
+        real(dp) :: t, row(m)
+        do j = 1, m
+            p = j - 1 + maxloc(abs(g(j:m, j)), 1)
+            if (g(p, j) == 0.0_dp) then
+                call set_status(stat, ERR_SINGULAR, 'constrain_rates', &
+                                'singular constraint matrix of the sticking components')
+                return
+            end if
+            if (p /= j) then
+                row = g(j, :)
+                g(j, :) = g(p, :)
+                g(p, :) = row
+                t = b(j)
+                b(j) = b(p)
+                b(p) = t
+            end if
+            do i = j + 1, m
+                t = g(i, j)/g(j, j)
+                g(i, j:m) = g(i, j:m) - t*g(j, j:m)
+                b(i) = b(i) - t*b(j)
+            end do
+        end do
+        do j = m, 1, -1
+            b(j) = (b(j) - dot_product(g(j, j + 1:m), b(j + 1:m)))/g(j, j)
+        end do
+    end subroutine small_solve
+
+    !> Constraint forces `hold` of the sticking friction components at the
+    !! state y (full model; dyn_rates with the current modes).
+    subroutine dyn_hold(sys, y, hold, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: hold(:)
+        type(status_t), intent(inout) :: stat
+        real(dp) :: dy(size(y)), power(sys%nwork), torque
+        call dyn_rates(sys, y, dy, power, torque, stat, hold)
+    end subroutine dyn_hold
+
+    !> Friction switching at a state where friction components are at rest
+    !! (Eq. 101-102 as events): every tracked component with zero velocity
+    !! is first held (fmode = 0); then, as long as some held component needs
+    !! a constraint force above its mu N, the one with the largest excess is
+    !! released to slide the way the other forces push it (fmode =
+    !! -sign(hold)), and the forces are recomputed. `force_release` (0: none)
+    !! is a component that leaves the stick now (its |hold| reached mu N).
+    !! On return `hold` are the constraint forces of the components that stay.
+    subroutine dyn_switch(sys, y, force_release, hold, stat)
+        type(dyn_system_t), intent(inout) :: sys
+        real(dp), intent(in) :: y(:)
+        integer, intent(in) :: force_release
+        real(dp), intent(out) :: hold(:)
+        type(status_t), intent(inout) :: stat
+        integer :: j, jmax, pass
+        real(dp) :: excess, emax, hsave(2*sys%npt)
+        hold = 0.0_dp
+        if (.not. sys%events) return
+        do j = 1, 2*sys%npt
+            if (sys%fric((j + 1)/2) == 0.0_dp) cycle
+            if (y(sys%n + dyn_fric_dof(sys, j)) == 0.0_dp) sys%fmode(j) = 0
+        end do
+        if (force_release > 0) then
+            call dyn_hold(sys, y, hsave, stat)
+            if (stat%code /= 0) return
+            if (hsave(force_release) >= 0.0_dp) then
+                sys%fmode(force_release) = -1
+            else
+                sys%fmode(force_release) = 1
+            end if
+        end if
+        do pass = 1, 2*sys%npt + 1
+            call dyn_hold(sys, y, hold, stat)
+            if (stat%code /= 0) return
+            jmax = 0
+            emax = 0.0_dp
+            do j = 1, 2*sys%npt
+                if (sys%fric((j + 1)/2) == 0.0_dp .or. sys%fmode(j) /= 0) cycle
+                excess = abs(hold(j)) - sys%fric((j + 1)/2)
+                if (excess > emax) then
+                    emax = excess
+                    jmax = j
+                end if
+            end do
+            if (jmax == 0) exit
+            if (hold(jmax) > 0.0_dp) then
+                sys%fmode(jmax) = -1
+            else
+                sys%fmode(jmax) = 1
+            end if
+        end do
+    end subroutine dyn_switch
 
     !> Psidot = (1 + u') w'_t - w' u'_t at mass point k (Eq. 153).
     pure real(dp) function dyn_psidot(sys, q, v, k)
@@ -620,7 +835,11 @@ contains
                     i = sys%iw(k)
                 end if
                 if (sys%fric(k) /= 0.0_dp) then
-                    call friction_phi(sys%law, sys%vslip, v(i), phi, dphi)
+                    if (sys%events) then
+                        phi = real(sys%fmode(2*(k - 1) + c), dp)
+                    else
+                        call friction_phi(sys%law, sys%vslip, v(i), phi, dphi)
+                    end if
                     f(i) = f(i) - sys%fric(k)*phi
                     power(k) = power(k) - sys%fric(k)*phi*v(i)
                 end if
@@ -665,37 +884,64 @@ contains
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: mb(:, :)
-        if (sys%rotary) then
-            call fe_mass(sys%mesh, q, .true., mb)
-        else
-            mb = sys%mb
-        end if
+        integer :: k, r0
+        real(dp) :: a1, a2, jm
+        mb = sys%mb
+        if (.not. sys%rotary) return
+        ! M(q) = M_c + sum_k J_k a_k a_k^T on (w', u') of each mass point (as
+        ! fe_mass with rotary inertia): only four entries per mass change
+        r0 = sys%mesh%kl + sys%mesh%ku + 1
+        do k = 1, sys%npt
+            jm = sys%inertia(k)
+            if (jm == 0.0_dp) cycle
+            a1 = 1.0_dp + q(sys%idu(k))
+            a2 = -q(sys%idw(k))
+            mb(r0, sys%idw(k)) = mb(r0, sys%idw(k)) + jm*a1*a1
+            mb(r0, sys%idu(k)) = mb(r0, sys%idu(k)) + jm*a2*a2
+            mb(r0 + sys%idw(k) - sys%idu(k), sys%idu(k)) = &
+                mb(r0 + sys%idw(k) - sys%idu(k), sys%idu(k)) + jm*a1*a2
+            mb(r0 + sys%idu(k) - sys%idw(k), sys%idw(k)) = &
+                mb(r0 + sys%idu(k) - sys%idw(k), sys%idw(k)) + jm*a1*a2
+        end do
     end subroutine dyn_mass
 
     !> Rates of the state y = (q, v, x): (v, M(q)^-1 F, x'), the work rates
     !! and the motor torque. x' = (-r g Psidot_tip - T)/tau with a motor lag.
-    subroutine dyn_rates(sys, y, dy, power, torque, stat)
+    !! With friction events on, sticking components (fmode = 0) get zero
+    !! acceleration by their constraint forces, returned in `hold`.
+    subroutine dyn_rates(sys, y, dy, power, torque, stat, hold)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y(:)
         real(dp), intent(out) :: dy(:), power(:), torque
         type(status_t), intent(inout) :: stat
+        real(dp), intent(out), optional :: hold(:)
         type(band_lu_t) :: lu
-        integer :: n
+        real(dp) :: hl(2*sys%npt)
+        integer :: n, ios
         n = sys%n
         call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, torque)
         dy(1:n) = y(n + 1:2*n)
+        hl = 0.0_dp
         if (sys%rotary) then
             lu%n = n
             lu%kl = sys%mesh%kl
             lu%ku = sys%mesh%ku
-            allocate (lu%ab(fe_band_rows(sys%mesh), n))
-            call fe_mass(sys%mesh, y(1:n), .true., lu%ab)
+            allocate (lu%ab(fe_band_rows(sys%mesh), n), stat=ios)
+            if (ios /= 0) then
+                call set_status(stat, ERR_INPUT, 'dyn_rates', 'cannot allocate the mass '// &
+                                'matrix of '//fmt_int(n)//' unknowns')
+                return
+            end if
+            call dyn_mass(sys, y(1:n), lu%ab)
             call band_factor(lu, stat)
             if (stat%code /= 0) return
             call band_solve(lu, dy(n + 1:2*n))
+            if (sys%events) call constrain_rates(sys, lu, dy(n + 1:2*n), hl, stat)
         else
             call band_solve(sys%mlu, dy(n + 1:2*n))
+            if (sys%events) call constrain_rates(sys, sys%mlu, dy(n + 1:2*n), hl, stat)
         end if
+        if (present(hold)) hold = hl
         if (sys%nx > 0) then
             dy(2*n + 1) = (-sys%motor*dyn_psidot(sys, y(1:n), y(n + 1:2*n), sys%npt) &
                            - y(2*n + 1))/sys%tau
@@ -872,7 +1118,13 @@ contains
                 return
             end if
         end do
-        allocate (omega(n), phi(n, n), axial(n), q0(n), mb(fe_band_rows(sys%mesh), n), md(n, k))
+        allocate (omega(n), phi(n, n), axial(n), q0(n), mb(fe_band_rows(sys%mesh), n), md(n, k), &
+                  stat=i)
+        if (i /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the '//fmt_int(n)//' x '// &
+                            fmt_int(n)//' modes ('//fmt_real(8.0_dp*real(n, dp)**2)//' bytes)')
+            return
+        end if
         call fe_modes(sys%mesh, sys%rotary, omega, phi, axial, stat)
         if (stat%code /= 0) return
         sys%modal = .true.
@@ -1075,17 +1327,20 @@ contains
     end subroutine dyn_cjacobian
 
     !> Rates of the coordinate state: (c', M~^-1 F~, x').
-    subroutine dyn_crates(sys, yc, dy, power, torque, stat)
+    subroutine dyn_crates(sys, yc, dy, power, torque, stat, hold)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: dy(:), power(:), torque
         type(status_t), intent(inout) :: stat
+        !> constraint forces of sticking friction components (full model)
+        real(dp), intent(out), optional :: hold(:)
         type(band_lu_t) :: lu
         integer :: k
         if (.not. sys%modal) then
-            call dyn_rates(sys, yc, dy, power, torque, stat)
+            call dyn_rates(sys, yc, dy, power, torque, stat, hold)
             return
         end if
+        if (present(hold)) hold = 0.0_dp
         k = sys%nc
         call dyn_cforces(sys, yc, dy(k + 1:2*k), power, torque)
         dy(1:k) = yc(k + 1:2*k)

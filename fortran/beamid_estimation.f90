@@ -30,8 +30,9 @@ module beamid_estimation
 
     public :: residual_model_t, prior_t, fit_options_t, fit_result_t
     public :: score_result_t, candidate_t, diagnose_options_t, candidate_report_t
-    public :: diagnosis_t
-    public :: fit_least_squares, score_test, diagnose, chi2_sf, residual_structure
+    public :: diagnosis_t, refit_info_t
+    public :: fit_least_squares, fit_at, score_test, diagnose, chi2_sf, residual_structure
+    public :: refit_effect
 
     !> Per-parameter flags of a fit (worst first).
     integer, parameter, public :: FLAG_OK = 0           !< determined
@@ -40,6 +41,38 @@ module beamid_estimation
     integer, parameter, public :: FLAG_CORRELATED = 3   !< |correlation| above corr_limit
     integer, parameter, public :: FLAG_AT_BOUND = 4     !< estimate sits on a bound
     !! priority when several apply: undetermined, runaway, at bound, correlated
+
+    !> How a fit ended (fit_result_t%stop).
+    integer, parameter, public :: STOP_CONVERGED = 0 !< a minimum to the tolerances
+    integer, parameter, public :: STOP_STALLED = 1   !< no step lowers the cost any more,
+    !! though the iterate is not a minimum (a bound, a solver limit, collinear columns)
+    integer, parameter, public :: STOP_RUNAWAY = 2   !< a parameter ran away: held where
+    !! it was found and the others fitted
+    integer, parameter, public :: STOP_MAX_ITER = 3  !< still moving at the iteration limit
+    integer, parameter, public :: STOP_EVALUATED = 4 !< evaluated at given values (fit_at)
+
+    !> A damped crawl: CRAWL_STEPS damped steps lowering the chi-square by
+    !! less than CRAWL_DROP together count as a stall (fit_least_squares).
+    integer, parameter :: CRAWL_STEPS = 10
+    real(dp), parameter :: CRAWL_DROP = 0.01_dp
+
+    !> Starts of a refit with an effect switched on (refit_effect).
+    integer, parameter, public :: START_NONE = 0        !< no start converged
+    integer, parameter, public :: START_SCORE = 1       !< first-order (score) estimate
+    integer, parameter, public :: START_NOMINAL = 2     !< the nominal model, effect at null
+    integer, parameter, public :: START_CONTINUATION = 3 !< strength stepped from the null
+
+    !> The words for the codes above, exported to Python (api_code_names):
+    !! flags, how a fit ended, refit starts, candidate states.
+    character(len=*), parameter, public :: FLAG_NAMES(0:4) = [character(len=43) :: 'ok', &
+        'not determined by these data', 'ran away from its start', &
+        'correlation near +-1 with another parameter', 'at a physical bound']
+    character(len=*), parameter, public :: STOP_NAMES(0:4) = [character(len=15) :: &
+        'converged', 'stalled', 'runaway', 'iteration limit', 'evaluated']
+    character(len=*), parameter, public :: START_NAMES(0:3) = [character(len=20) :: &
+        '', 'first-order estimate', 'nominal model', 'continuation']
+    character(len=*), parameter, public :: CAND_NAMES(0:3) = [character(len=19) :: &
+        'tested', 'already free', 'already switched on', 'not in this model']
 
     !> Candidate states in a diagnosis.
     integer, parameter, public :: CAND_TESTED = 0   !< score test done
@@ -102,6 +135,8 @@ module beamid_estimation
         integer :: rank = 0
         integer :: iterations = 0
         logical :: converged = .false.
+        integer :: stop = STOP_CONVERGED        !< STOP_*: how the iteration ended
+        character(len=:), allocatable :: note   !< what happened, when not converged
         integer :: nlog = 0                     !< log entries (0 = start)
         real(dp), allocatable :: log_cost(:), log_lambda(:), log_step(:)
         real(dp), allocatable :: log_params(:, :) !< (nfree, 0:nlog)
@@ -114,6 +149,8 @@ module beamid_estimation
         real(dp), allocatable :: sigma(:)      !< its sigma
         logical, allocatable :: active(:)      !< kept by the sign constraints
         real(dp), allocatable :: direction(:)  !< unit change of the weighted residuals
+        real(dp), allocatable :: free_step(:)  !< first-order change of the free
+        !! parameters that goes with the block's constrained estimate
         real(dp) :: drop = 0.0_dp              !< predicted chi-square drop (constrained)
         real(dp) :: p_value = 1.0_dp
         integer :: dof = 0
@@ -133,12 +170,20 @@ module beamid_estimation
         real(dp) :: collinear = 0.98_dp    !< ... or |cosine| of directions above this
     end type diagnose_options_t
 
+    !> How a refit with an effect switched on went (refit_effect).
+    type :: refit_info_t
+        integer :: start = START_NONE       !< START_* of the refit kept
+        integer :: tried = 0                !< starts tried
+        character(len=:), allocatable :: note !< per start: what happened
+    end type refit_info_t
+
     type :: candidate_report_t
         integer :: state = CAND_TESTED
         type(score_result_t) :: score
         logical :: refit_done = .false.
         logical :: refit_ok = .false.
         type(fit_result_t) :: refit
+        type(refit_info_t) :: info          !< which start won, or why all failed
         real(dp) :: lr_drop = 0.0_dp      !< actual chi-square drop of the refit
         real(dp) :: lr_p = 1.0_dp
         logical :: significant = .false.
@@ -399,8 +444,26 @@ contains
     !! that would leave the box is clipped to it). A step that does not reduce
     !! the cost is retried with Levenberg-Marquardt damping. Converged when
     !! the relative step or the relative cost change of an undamped step falls
-    !! below the tolerances. On ERR_NO_CONVERGENCE `res` still holds the last
-    !! iterate and its log.
+    !! below the tolerances.
+    !!
+    !! How the iteration ended is `res%stop` (STOP_*), said in words in
+    !! `res%note`; every ending but one comes back with STATUS_OK and the
+    !! parameters flagged:
+    !! * a parameter that runs away (beyond runaway_factor times its start, or
+    !!   for a parameter bounded below by 0, below its start over that factor
+    !!   squared) is held where it was found and the others are fitted on
+    !!   (STOP_RUNAWAY; the held one gets an infinite sigma and
+    !!   FLAG_UNDETERMINED);
+    !! * three damped steps in a row that change neither the parameters nor the
+    !!   cost while the damping had to be raised again, ten damped steps that
+    !!   lower the chi-square by less than 0.01 together (a crawl along a
+    !!   curved valley), or a smallest damped trial step the model cannot
+    !!   solve, is a stall (STOP_STALLED): the note names the parameters at a
+    !!   bound, running away or collinear;
+    !! * still moving at max_iter: ERR_NO_CONVERGENCE (STOP_MAX_ITER), `res`
+    !!   holding the last iterate and its log;
+    !! * a model that cannot be evaluated at params0, or at none of the damped
+    !!   trial steps: the model's own status (genuine numerical failure).
     subroutine fit_least_squares(model, y, sigma, params0, free, lower, upper, prior, opts, &
                                  res, stat)
         class(residual_model_t), intent(inout) :: model
@@ -410,14 +473,14 @@ contains
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
-        integer :: m, n, mt, r, it, trial, i
+        integer :: m, n, mt, r, it, trial, i, nstuck, nbound
         real(dp), allocatable :: p(:), pt(:), pred(:), predt(:), a(:, :), at(:, :), rr(:), rt(:)
         real(dp), allocatable :: aa(:, :), g(:)
         real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
-        real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor
-        logical :: accepted, evaluated
-        type(status_t) :: trial_stat
-        logical, allocatable :: undetermined(:)
+        real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor, lambda_in
+        logical :: accepted, evaluated, failed_trial, stalled
+        type(status_t) :: trial_stat, fail_stat
+        logical, allocatable :: undetermined(:), held(:)
 
         call check_problem(y, sigma, params0, free, lower, upper, prior, stat)
         if (stat%code /= STATUS_OK) return
@@ -426,7 +489,7 @@ contains
         mt = m + size(prior%index)
         r = min(mt, n)
         allocate (pred(m), predt(m), a(mt, n), at(mt, n), rr(mt), rt(mt))
-        allocate (d(n), s(r), u(mt, r), vt(r, n), dx(n))
+        allocate (d(n), s(r), u(mt, r), vt(r, n), dx(n), held(n))
         allocate (res%log_cost(0:opts%max_iter), res%log_lambda(0:opts%max_iter), &
                   res%log_step(0:opts%max_iter), res%log_params(n, 0:opts%max_iter))
         res%free = free
@@ -444,19 +507,42 @@ contains
         res%log_params(:, 0) = p(free)
         lambda = 0.0_dp
         res%converged = .false.
+        res%stop = STOP_MAX_ITER
         relstep = 0.0_dp
         dcost = 0.0_dp
+        held = .false.
+        nstuck = 0
+        stalled = .false.
+        failed_trial = .false.
         do it = 1, opts%max_iter
             ! projected Gauss-Newton: a parameter on a bound whose descent
-            ! direction (a^T r) points out of the box is held for this step
+            ! direction (a^T r) points out of the box is held for this step,
+            ! a parameter that ran away for good
             aa = a
             g = matmul(rr, a)
             do i = 1, n
-                if ((p(free(i)) <= lower(free(i)) .and. g(i) < 0.0_dp) .or. &
+                if (held(i) .or. (p(free(i)) <= lower(free(i)) .and. g(i) < 0.0_dp) .or. &
                     (p(free(i)) >= upper(free(i)) .and. g(i) > 0.0_dp)) aa(:, i) = 0.0_dp
             end do
             call scaled_svd(aa, d, s, u, vt, stat)
             if (stat%code /= STATUS_OK) return
+            ! ... and one on a bound that the Gauss-Newton step would push out
+            ! of the box (a clipped step would crawl along the bound)
+            do trial = 1, n
+                dx = lm_step(d, s, u, vt, rr, 0.0_dp, opts%rcond)
+                nbound = 0
+                do i = 1, n
+                    if (all(aa(:, i) == 0.0_dp)) cycle
+                    if ((p(free(i)) <= lower(free(i)) .and. dx(i) < 0.0_dp) .or. &
+                        (p(free(i)) >= upper(free(i)) .and. dx(i) > 0.0_dp)) then
+                        aa(:, i) = 0.0_dp
+                        nbound = nbound + 1
+                    end if
+                end do
+                if (nbound == 0) exit
+                call scaled_svd(aa, d, s, u, vt, stat)
+                if (stat%code /= STATUS_OK) return
+            end do
             lam_floor = 1.0e-6_dp*s(1)**2
             ! first-order optimality: the undamped step would lower the cost by
             ! |U^T r|^2; when that is negligible the iterate is the minimum
@@ -469,6 +555,8 @@ contains
             end if
             accepted = .false.
             evaluated = .false.
+            failed_trial = .false.
+            lambda_in = lambda
             do trial = 1, opts%max_trials
                 dx = lm_step(d, s, u, vt, rr, lambda, opts%rcond)
                 pt = p
@@ -478,20 +566,30 @@ contains
                 call weighted_system(model, y, sigma, pt, free, prior, predt, at, rt, trial_stat)
                 if (trial_stat%code == STATUS_OK) then
                     evaluated = .true.
+                    failed_trial = .false.
                     cost_t = sum(rt**2)
                     if (cost_t <= cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
                         accepted = .true.
                         exit
                     end if
+                else
+                    failed_trial = .true.
+                    fail_stat = trial_stat
                 end if
                 lambda = max(10.0_dp*lambda, 1.0e-3_dp*s(1)**2)
             end do
             res%iterations = it
             if (.not. accepted) then
-                ! no damped step lowers the cost: a minimum to working precision,
-                ! unless the model could not be evaluated near the iterate
-                res%converged = evaluated
-                if (.not. evaluated) stat = trial_stat
+                ! no damped step lowers the cost: a minimum to working precision
+                ! when the smallest trial step could be evaluated; a stall when
+                ! it could not; a genuine failure when no trial could
+                if (.not. evaluated) then
+                    stat = fail_stat
+                else if (failed_trial) then
+                    stalled = .true.
+                else
+                    res%converged = .true.
+                end if
                 exit
             end if
             relstep = maxval(abs(dx)/max(abs(p(free)), abs(pt(free)), tiny(1.0_dp)))
@@ -511,9 +609,38 @@ contains
                 res%converged = .true.
                 exit
             end if
+            ! a damped step that moves nothing though the damping had to be
+            ! raised again (not on its way down): three in a row is a stall
+            if (lambda > lambda_in .and. &
+                (relstep < opts%tol_step .or. dcost <= opts%tol_cost*cost_t)) then
+                nstuck = nstuck + 1
+            else
+                nstuck = 0
+            end if
             cost = cost_t
+            ! ... and so is a damped crawl: ten damped steps that lower the
+            ! chi-square by less than 0.01 together (a curved valley along
+            ! collinear columns; no statistical meaning is left to gain)
+            if (it > CRAWL_STEPS) then
+                if (all(res%log_lambda(it - CRAWL_STEPS + 1:it) > 0.0_dp) .and. &
+                    res%log_cost(it - CRAWL_STEPS) - cost_t < CRAWL_DROP) nstuck = 3
+            end if
+            if (nstuck >= 3) then
+                stalled = .true.
+                exit
+            end if
             lambda = lambda/10.0_dp
             if (lambda < lam_floor) lambda = 0.0_dp
+            ! a parameter that ran away is held there; the others go on
+            do i = 1, n
+                if (held(i)) cycle
+                if (ran_away(p(free(i)), params0(free(i)), lower(free(i)), opts)) then
+                    held(i) = .true.
+                    lambda = 0.0_dp
+                    nstuck = 0
+                end if
+            end do
+            if (all(held)) exit
         end do
         res%log_cost = res%log_cost(0:res%nlog)
         res%log_lambda = res%log_lambda(0:res%nlog)
@@ -528,17 +655,161 @@ contains
         res%chi2_prior = sum(rr(m + 1:)**2)
         res%dof = mt - n
         allocate (res%cov(n, n), res%corr(n, n), res%sigmas(n), res%flags(n), undetermined(n))
-        call covariance(a, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
-                        undetermined, stat)
-        if (stat%code /= STATUS_OK) return
+        ! a held parameter's column is left out: the others' covariance is
+        ! conditional on it, and it gets an infinite sigma
+        aa = a
+        do i = 1, n
+            if (held(i)) aa(:, i) = 0.0_dp
+        end do
+        call clear_status(trial_stat)
+        call covariance(aa, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
+                        undetermined, trial_stat)
+        if (trial_stat%code /= STATUS_OK) then
+            if (stat%code == STATUS_OK) stat = trial_stat
+            return
+        end if
         call set_flags(res, params0, lower, upper, undetermined, opts)
-        if (.not. res%converged) then
+        if (stat%code /= STATUS_OK) return   ! the model failed at every trial step
+        if (any(held)) then
+            res%stop = STOP_RUNAWAY
+            if (all(held)) then
+                res%note = 'no parameter left to fit'
+            else if (res%converged) then
+                res%note = 'the others fitted'
+            else if (stalled) then
+                res%note = 'the others stalled'
+            else
+                res%note = 'the others still moving at the iteration limit'
+            end if
+            res%note = flag_list(res, params0, lower, upper, opts, held)// &
+                       '; held where found after '//fmt_int(res%iterations)// &
+                       ' iterations, '//res%note
+            res%converged = .false.
+        else if (stalled) then
+            res%converged = .false.
+            res%stop = STOP_STALLED
+            res%note = 'Gauss-Newton stalled after '//fmt_int(res%iterations)// &
+                       ' iterations (last relative step '//fmt_real(relstep)// &
+                       ', cost change '//fmt_real(dcost)//', damping '//fmt_real(lambda)//'): '
+            if (failed_trial) then
+                res%note = res%note//'the model could not be solved at the smallest trial '// &
+                           'step ('//trim(fail_stat%message)//'); '
+            end if
+            res%note = res%note//flag_list(res, params0, lower, upper, opts, held)
+        else if (res%converged) then
+            res%stop = STOP_CONVERGED
+        else
+            res%stop = STOP_MAX_ITER
             call set_status(stat, ERR_NO_CONVERGENCE, 'fit', 'Gauss-Newton did not converge '// &
                             'in '//fmt_int(res%iterations)//' iterations (last relative step '// &
                             fmt_real(relstep)//', cost change '//fmt_real(dcost)// &
                             ', chi-square '//fmt_real(res%chi2)//')')
+            res%note = trim(stat%message)
         end if
     end subroutine fit_least_squares
+
+    !> Has x run away from its start x0: beyond runaway_factor times |x0|, or
+    !! for a parameter bounded below by 0 (a stiffness: the solver never
+    !! reaches 0) below x0 / runaway_factor**2? (Shrinking is judged more
+    !! leniently: from an absurd start, 3000 -> 7, a stiffness may legitimately
+    !! fall by a factor of 100 on its way back.)
+    pure logical function ran_away(x, x0, lo, opts)
+        real(dp), intent(in) :: x, x0, lo
+        type(fit_options_t), intent(in) :: opts
+        ran_away = .false.
+        if (x0 == 0.0_dp) return
+        if (abs(x) > opts%runaway_factor*abs(x0)) ran_away = .true.
+        if (lo == 0.0_dp .and. x0 > 0.0_dp .and. x < x0/opts%runaway_factor**2) &
+            ran_away = .true.
+    end function ran_away
+
+    !> The flagged parameters of a fit in words ("parameter k" by index):
+    !! running away, at a bound, collinear, not determined.
+    function flag_list(res, params0, lower, upper, opts, held) result(text)
+        type(fit_result_t), intent(in) :: res
+        real(dp), intent(in) :: params0(:), lower(:), upper(:)
+        type(fit_options_t), intent(in) :: opts
+        logical, intent(in) :: held(:)
+        character(len=:), allocatable :: text
+        integer :: i, j, k, n
+        real(dp) :: x
+        n = size(res%free)
+        text = ''
+        do i = 1, n
+            k = res%free(i)
+            x = res%estimates(i)
+            if (held(i) .or. ran_away(x, params0(k), lower(k), opts)) then
+                call add('parameter '//fmt_int(k)//' ran away ('//fmt_real(params0(k))// &
+                         ' -> '//fmt_real(x)//')')
+            else if (x <= lower(k) .or. x >= upper(k)) then
+                call add('parameter '//fmt_int(k)//' at its bound '//fmt_real(x))
+            else if (res%flags(i) == FLAG_UNDETERMINED) then
+                call add('parameter '//fmt_int(k)//' not determined')
+            end if
+        end do
+        do i = 1, n
+            do j = i + 1, n
+                if (ieee_is_nan(res%corr(i, j))) cycle
+                if (abs(res%corr(i, j)) > opts%corr_limit) &
+                    call add('parameters '//fmt_int(res%free(i))//' and '// &
+                             fmt_int(res%free(j))//' collinear (correlation '// &
+                             fmt_real(res%corr(i, j))//')')
+            end do
+        end do
+        if (len(text) == 0) text = 'no parameter at a bound, running away or collinear: '// &
+            'no damped step along the sensitivities lowers the cost (the model is not '// &
+            'smooth to working precision there)'
+    contains
+        subroutine add(item)
+            character(len=*), intent(in) :: item
+            if (len(text) > 0) text = text//', '
+            text = text//item
+        end subroutine add
+    end function flag_list
+
+    !> The fit result at given parameter values (estimates found earlier),
+    !! without iterating: residuals, chi-square, covariance and flags
+    !! (res%stop = STOP_EVALUATED, res%converged = .true.).
+    subroutine fit_at(model, y, sigma, params, free, lower, upper, prior, opts, res, stat)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), params(:), lower(:), upper(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(fit_result_t), intent(out) :: res
+        type(status_t), intent(inout) :: stat
+        integer :: m, n, mt
+        real(dp), allocatable :: pred(:), a(:, :), rr(:)
+        logical, allocatable :: undetermined(:)
+        call check_problem(y, sigma, params, free, lower, upper, prior, stat)
+        if (stat%code /= STATUS_OK) return
+        m = size(y)
+        n = size(free)
+        mt = m + size(prior%index)
+        allocate (pred(m), a(mt, n), rr(mt))
+        call weighted_system(model, y, sigma, params, free, prior, pred, a, rr, stat)
+        if (stat%code /= STATUS_OK) return
+        res%free = free
+        res%params = params
+        res%estimates = params(free)
+        res%predictions = pred
+        res%normalized = rr(1:m)
+        res%chi2 = sum(rr(1:m)**2)
+        res%chi2_prior = sum(rr(m + 1:)**2)
+        res%dof = mt - n
+        res%converged = .true.
+        res%stop = STOP_EVALUATED
+        res%nlog = 0
+        res%log_cost = [sum(rr**2)]
+        res%log_lambda = [0.0_dp]
+        res%log_step = [0.0_dp]
+        res%log_params = reshape(params(free), [n, 1])
+        allocate (res%cov(n, n), res%corr(n, n), res%sigmas(n), res%flags(n), undetermined(n))
+        call covariance(a, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
+                        undetermined, stat)
+        if (stat%code /= STATUS_OK) return
+        call set_flags(res, params, lower, upper, undetermined, opts)
+    end subroutine fit_at
 
     subroutine set_flags(res, params0, lower, upper, undetermined, opts)
         type(fit_result_t), intent(inout) :: res
@@ -559,8 +830,7 @@ contains
                 end if
             end do
             if (x <= lower(k) .or. x >= upper(k)) res%flags(i) = FLAG_AT_BOUND
-            if (x0 /= 0.0_dp .and. abs(x) > opts%runaway_factor*abs(x0)) &
-                res%flags(i) = FLAG_RUNAWAY
+            if (ran_away(x, x0, lower(k), opts)) res%flags(i) = FLAG_RUNAWAY
             if (undetermined(i)) then
                 res%flags(i) = FLAG_UNDETERMINED
             else if (x /= 0.0_dp .and. res%sigmas(i) > abs(x) .and. &
@@ -607,7 +877,9 @@ contains
         nf = size(free)
         nb = size(block)
         res%params = block
-        allocate (res%estimate(nb), res%sigma(nb), res%active(nb), res%direction(mt))
+        allocate (res%estimate(nb), res%sigma(nb), res%active(nb), res%direction(mt), &
+                  res%free_step(nf))
+        res%free_step = 0.0_dp
         res%estimate = 0.0_dp
         res%sigma = infinity()
         res%active = .true.
@@ -629,7 +901,6 @@ contains
                     ab(:, j) = ab(:, j) - u(:, k)*dot_product(u(:, k), ab(:, j))
                 end do
             end do
-            deallocate (d, s, u, vt)
         end if
         do j = 1, nb
             if (norm2(ab(:, j)) <= 1.0e-8_dp*norm2(a(:, nf + j))) res%identifiable = .false.
@@ -648,7 +919,10 @@ contains
         res%sigma = sig
         do j = 1, nb
             if (side(j) /= 0 .and. real(side(j), dp)*delta(j) < 0.0_dp) res%physical = .false.
-            if (ieee_is_finite(sig(j))) then
+            ! beyond the far bound (axial_coupling > 1) is not: the linear
+            ! estimate overshoots when the base fit is far off, and the
+            ! refit starts clipped to the bound
+            if (ieee_is_finite(sig(j)) .and. side(j) == 0) then
                 if (params(block(j)) + delta(j) > upper(block(j)) + 3.0_dp*sig(j) .or. &
                     params(block(j)) + delta(j) < lower(block(j)) - 3.0_dp*sig(j)) &
                     res%physical = .false.
@@ -679,6 +953,9 @@ contains
             return
         end if
         res%direction = matmul(ab, merge(delta, 0.0_dp, res%active))
+        ! the free parameters' least-squares change with the block moved by delta
+        if (nf > 0) res%free_step = lm_step(d, s, u, vt, &
+            rr - matmul(a(:, nf + 1:), merge(delta, 0.0_dp, res%active)), 0.0_dp, opts%rcond)
         res%drop = sum(res%direction**2)
         if (norm2(res%direction) > 0.0_dp) res%direction = res%direction/norm2(res%direction)
         res%p_value = chi2_sf(res%drop, res%dof)
@@ -718,22 +995,259 @@ contains
         end subroutine solve_block
     end subroutine score_test
 
+    ! ------------------------------------------------------------------ refits
+
+    !> Refit `base` with the parameters `block` (an effect, at its null values
+    !! in base) free as well, from starts that can converge when the base fit
+    !! is far from the truth, keeping the best that converges:
+    !! 1. START_SCORE: the first-order (score) estimate of the block with the
+    !!    free parameters moved along with it (score%free_step), shortened by
+    !!    halves while the model cannot be solved there;
+    !! 2. START_NOMINAL: the nominal model (the free parameters at `nominal`,
+    !!    the values the user started from), the block at its null values;
+    !! 3. START_CONTINUATION: the block's strength stepped from its null value
+    !!    to the first-order estimate in `ncont` steps, the free parameters
+    !!    fitted at each, then everything freed.
+    !! The best is the lowest chi-square among the starts that converge
+    !! (STOP_CONVERGED; a later start must beat the best so far by more than
+    !! 1e-6 of it, so the same minimum reached twice keeps the earlier start,
+    !! whatever the nominal model). Starts after one whose chi-square is
+    !! consistent with the noise (below dof + 3 sqrt(2 dof)) are skipped: no
+    !! other minimum can be significantly better. `info%note` says what each start gave. When
+    !! none converges, `res` is the lowest-cost attempt (flagged) and the
+    !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
+    !! evaluated at base%params is an error as usual.
+    subroutine refit_effect(model, y, sigma, base, block, score, nominal, null_values, lower, &
+                            upper, prior, opts, res, info, stat, ncont, use)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), nominal(:), null_values(:), lower(:), upper(:)
+        type(fit_result_t), intent(in) :: base
+        integer, intent(in) :: block(:)
+        type(score_result_t), intent(in) :: score
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(fit_result_t), intent(out) :: res
+        type(refit_info_t), intent(out) :: info
+        type(status_t), intent(inout) :: stat
+        integer, intent(in), optional :: ncont  !< continuation steps (default 4)
+        logical, intent(in), optional :: use(3) !< which starts to try (default all)
+        integer :: nf, nb, k, j, half, nsteps, kk
+        logical :: try(3)
+        integer, allocatable :: all_free(:)
+        real(dp), allocatable :: target(:), start(:), shift(:), p(:)
+        real(dp) :: best_cost, noise, t
+        type(fit_result_t) :: trial, fallback, fixed
+        type(status_t) :: st
+        logical :: have_best, have_fallback, same
+        character(len=:), allocatable :: why
+        character(len=*), parameter :: label(3) = [character(len=27) :: &
+            'from the first-order start', 'from the nominal model', 'by continuation']
+
+        nf = size(base%free)
+        nb = size(block)
+        nsteps = 4
+        if (present(ncont)) nsteps = max(ncont, 1)
+        try = .true.
+        if (present(use)) try = use
+        all_free = [base%free, block]
+        info%note = ''
+        info%start = START_NONE
+        info%tried = 0
+        have_best = .false.
+        have_fallback = .false.
+        best_cost = huge(1.0_dp)
+        noise = huge(1.0_dp)
+        if (base%dof - nb > 0) noise = real(base%dof - nb, dp) + &
+                                       3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
+        ! the first-order target of the block and the free parameters' shift
+        target = null_values(block)
+        allocate (shift(nf))
+        shift = 0.0_dp
+        if (allocated(score%estimate)) then
+            if (size(score%estimate) == nb) then
+                do j = 1, nb
+                    if (score%active(j)) target(j) = null_values(block(j)) + score%estimate(j)
+                end do
+            end if
+            if (allocated(score%free_step)) then
+                if (size(score%free_step) == nf) shift = score%free_step
+            end if
+        end if
+
+        ! 1. the first-order start, halved while the model cannot be solved there
+        t = 1.0_dp
+        if (try(1)) then
+            do half = 0, 4
+                start = base%params
+                start(base%free) = base%params(base%free) + t*shift
+                start(block) = null_values(block) + t*(target - null_values(block))
+                call into_box(start)
+                call clear_status(st)
+                call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
+                                       opts, trial, st)
+                if (allocated(trial%params) .or. st%code <= 0 .or. half == 4) exit
+                t = 0.5_dp*t
+            end do
+            call consider(START_SCORE, trial, st, shortened=t < 1.0_dp)
+            if (stat%code /= STATUS_OK) return
+        end if
+
+        ! 2. the nominal model with the effect at its null value
+        if (try(2) .and. .not. done()) then
+            start = base%params
+            start(base%free) = nominal(base%free)
+            start(block) = null_values(block)
+            call into_box(start)
+            same = try(1) .and. all(start == base%params) .and. all(shift == 0.0_dp) .and. &
+                   all(target == null_values(block))
+            if (.not. same) then
+                call clear_status(st)
+                call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
+                                       opts, trial, st)
+                call consider(START_NOMINAL, trial, st)
+                if (stat%code /= STATUS_OK) return
+            end if
+        end if
+
+        ! 3. continuation in the effect's strength from its null value
+        if (try(3) .and. .not. done() .and. any(target /= null_values(block))) then
+            p = base%params
+            kk = 0
+            why = ''
+            do k = 1, nsteps
+                start = p
+                start(block) = null_values(block) + real(k, dp)/real(nsteps, dp)* &
+                               (target - null_values(block))
+                call into_box(start)
+                call clear_status(st)
+                call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
+                                       opts, fixed, st)
+                if (st%code /= STATUS_OK) then
+                    why = trim(st%message)
+                    exit
+                end if
+                if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) then
+                    why = fixed%note
+                    exit
+                end if
+                p = fixed%params
+                kk = k
+            end do
+            if (kk > 0) then
+                call clear_status(st)
+                call fit_least_squares(model, y, sigma, p, all_free, lower, upper, prior, &
+                                       opts, trial, st)
+                call consider(START_CONTINUATION, trial, st)
+                if (stat%code /= STATUS_OK) return
+            else
+                call add_note(trim(label(3))//': the first step could not be fitted ('// &
+                              why//')')
+            end if
+        end if
+
+        if (.not. have_best) then
+            if (have_fallback) res = fallback
+            call set_status(stat, ERR_NO_CONVERGENCE, 'refit', 'no start converged: '// &
+                            info%note)
+        end if
+
+    contains
+
+        !> Keep `trial` if it converged and beats the best so far.
+        subroutine consider(which, tr, st1, shortened)
+            integer, intent(in) :: which
+            type(fit_result_t), intent(in) :: tr
+            type(status_t), intent(in) :: st1
+            logical, intent(in), optional :: shortened
+            character(len=:), allocatable :: what
+            real(dp) :: cost
+            info%tried = info%tried + 1
+            what = trim(label(which))
+            if (present(shortened)) then
+                if (shortened) what = what//' (shortened to '//fmt_real(t)//')'
+            end if
+            if (st1%code < 0) then
+                ! bad input is bad input, whatever the start
+                stat = st1
+                return
+            end if
+            if (.not. allocated(tr%params)) then
+                call add_note(what//': '//trim(st1%message))
+                return
+            end if
+            cost = tr%chi2 + tr%chi2_prior
+            if (st1%code == STATUS_OK .and. tr%stop == STOP_CONVERGED) then
+                call add_note(what//': converged, chi-square '//fmt_real(tr%chi2))
+                ! a later start must do better than the same minimum reached
+                ! again (ties go to the earlier start)
+                if (.not. have_best .or. &
+                    cost < best_cost - 1.0e-6_dp*best_cost - 1.0e-9_dp) then
+                    res = tr
+                    best_cost = cost
+                    have_best = .true.
+                    info%start = which
+                end if
+            else
+                if (allocated(tr%note)) then
+                    call add_note(what//': '//tr%note)
+                else
+                    call add_note(what//': '//trim(st1%message))
+                end if
+                if (.not. have_best .and. .not. have_fallback) then
+                    fallback = tr
+                    have_fallback = .true.
+                else if (.not. have_best) then
+                    if (cost < fallback%chi2 + fallback%chi2_prior) fallback = tr
+                end if
+            end if
+        end subroutine consider
+
+        logical function done()
+            done = have_best .and. best_cost <= noise
+        end function done
+
+        subroutine add_note(text)
+            character(len=*), intent(in) :: text
+            if (len(info%note) > 0) info%note = info%note//'; '
+            info%note = info%note//text
+        end subroutine add_note
+
+        !> Clip into the bounds; a parameter bounded below by 0 (a
+        !! stiffness, never 0 in the solver) keeps half its base value.
+        subroutine into_box(q)
+            real(dp), intent(inout) :: q(:)
+            integer :: i, ip
+            do i = 1, size(all_free)
+                ip = all_free(i)
+                q(ip) = min(max(q(ip), lower(ip)), upper(ip))
+                if (lower(ip) == 0.0_dp .and. q(ip) <= 0.0_dp .and. base%params(ip) > 0.0_dp) &
+                    q(ip) = 0.5_dp*base%params(ip)
+            end do
+        end subroutine into_box
+
+    end subroutine refit_effect
+
     ! -------------------------------------------------------------- diagnosis
 
     !> Diagnose a fitted model (`base`, from fit_least_squares): score-test
     !! every candidate block whose parameters are all at their null values and
     !! not free, refit the `nrefit` leading physical candidates with their
-    !! parameters freed (likelihood-ratio confirmation), rank, and pick the
+    !! parameters freed (likelihood-ratio confirmation; refit_effect: from the
+    !! first-order estimate, the nominal model and by continuation in the
+    !! effect's strength, the best that converges; a candidate none of whose
+    !! starts converges keeps refit_ok = .false. and the reasons in
+    !! cand%info%note), rank, and pick the
     !! verdict: the best candidate whose refit is significant at alpha /
     !! (number tested) (Bonferroni), physical and determined. Candidates that
     !! explain the residuals about as well as the verdict (chi-square drops
     !! within ambiguity_delta, or nearly collinear directions) are marked as
     !! rivals (Akaike-style gains drop - 2 k within ambiguity_delta, or within
-    !! twice that when the first-order directions are collinear); when `probe` is present, the probe row whose predictions
+    !! twice that when the first-order directions are collinear); when `probe`
+    !! is present, the probe row whose predictions
     !! differ most between the verdict's and a rival's refits (in units of
     !! probe_sigma) is reported as the measurement that would separate them.
     subroutine diagnose(model, y, sigma, base, null_values, lower, upper, prior, cands, &
-                        fopts, dopts, diag, stat, probe, probe_sigma)
+                        fopts, dopts, diag, stat, probe, probe_sigma, nominal)
         class(residual_model_t), intent(inout) :: model
         real(dp), intent(in) :: y(:), sigma(:), null_values(:), lower(:), upper(:)
         type(fit_result_t), intent(in) :: base
@@ -745,9 +1259,11 @@ contains
         type(status_t), intent(inout) :: stat
         class(residual_model_t), intent(inout), optional :: probe
         real(dp), intent(in), optional :: probe_sigma(:)
-        integer :: nc, c, k, j, nrefit, best, q
+        real(dp), intent(in), optional :: nominal(:) !< starting values of the user's
+        !! model, a start of the refits (default: base%params)
+        integer :: nc, c, k, nrefit, best, q
         integer, allocatable :: order(:), tier(:)
-        real(dp), allocatable :: key(:), start(:), pa(:), pb(:), jdummy(:, :)
+        real(dp), allocatable :: key(:), pa(:), pb(:), jdummy(:, :)
         type(status_t) :: st
         real(dp) :: sep
         integer :: row
@@ -808,21 +1324,19 @@ contains
             if (diag%cand(c)%score%drop <= 0.0_dp) cycle
             nrefit = nrefit + 1
             associate (cr => diag%cand(c))
-                start = base%params
-                do j = 1, size(cands(c)%params)
-                    k = cands(c)%params(j)
-                    if (cr%score%active(j)) start(k) = start(k) + cr%score%estimate(j)
-                    start(k) = min(max(start(k), lower(k)), upper(k))
-                end do
                 call clear_status(st)
-                call fit_least_squares(model, y, sigma, start, [base%free, cands(c)%params], &
-                                       lower, upper, prior, fopts, cr%refit, st)
-                if (st%code /= STATUS_OK .and. st%code /= ERR_NO_CONVERGENCE) then
-                    ! the first-order start may be too far: start from the null
-                    call clear_status(st)
-                    call fit_least_squares(model, y, sigma, base%params, &
-                                           [base%free, cands(c)%params], lower, upper, prior, &
-                                           fopts, cr%refit, st)
+                if (present(nominal)) then
+                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
+                                      null_values, lower, upper, prior, fopts, cr%refit, &
+                                      cr%info, st)
+                else
+                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
+                                      base%params, null_values, lower, upper, prior, fopts, &
+                                      cr%refit, cr%info, st)
+                end if
+                if (st%code < 0) then
+                    stat = st
+                    return
                 end if
                 cr%refit_done = .true.
                 cr%refit_ok = st%code == STATUS_OK

@@ -28,7 +28,8 @@
 !! Every routine costs O(number of elements).
 module beamid_fe_assembly
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int, fmt_real
+    use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SIZE, MAX_BYTES, fmt_int, &
+                             fmt_real, fmt_bytes, fmt_count, set_alloc_error
     use beamid_model, only: chain_t
     use beamid_fe_element, only: FE_NDOF, fe_gauss_points, fe_quadrature_order, &
                                  fe_gauss_table, fe_element_energy, &
@@ -123,8 +124,9 @@ contains
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'fe_mesh_build'
         integer :: ib, k, el, nb, i, j, node, kf, r, full, span
-        integer :: order(6)
+        integer :: order(6), ierr
         integer, allocatable :: idx(:)
+        real(dp) :: bytes
         if (elements_per_beam < 1) then
             call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//', expected at least 1')
@@ -149,6 +151,17 @@ contains
                 return
             end if
         end do
+        ! sizes in 64 bits before anything is allocated: the banded solvers
+        ! keep about 40 numbers per unknown, 4 unknowns per node
+        bytes = 8.0_dp*40.0_dp*4.0_dp*(real(nb, dp)*real(elements_per_beam, dp) + 1.0_dp)
+        if (bytes > MAX_BYTES) then
+            call set_status(stat, ERR_SIZE, where, 'elements_per_beam = '// &
+                            fmt_int(elements_per_beam)//': a mesh of '// &
+                            fmt_count(real(nb, dp)*real(elements_per_beam, dp))// &
+                            ' elements would need about '//fmt_bytes(bytes)// &
+                            ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
+            return
+        end if
         mesh%nbeams = nb
         mesh%nel = nb*elements_per_beam
         mesh%nnode = mesh%nel + 1
@@ -158,9 +171,17 @@ contains
         mesh%nfree = mesh%ndof - 3
         if (mesh%root_flex > 0.0_dp) mesh%nfree = mesh%ndof - 2
         allocate (mesh%h(mesh%nel), mesh%ea(mesh%nel), mesh%ei(mesh%nel), &
-                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel))
+                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the element tables', bytes)
+            return
+        end if
         allocate (mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
-                  mesh%node_inertia(mesh%nnode))
+                  mesh%node_inertia(mesh%nnode), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the node tables', bytes)
+            return
+        end if
         mesh%node_mass = 0.0_dp
         mesh%node_inertia = 0.0_dp
         mesh%s(1) = 0.0_dp
@@ -187,7 +208,11 @@ contains
         end do
         ! node table of full indices; hinges get their outboard slopes after 4 nnode
         allocate (mesh%node_dof(6, mesh%nnode), mesh%hinge_node(mesh%nhinge), &
-                  mesh%hinge_flex(mesh%nhinge))
+                  mesh%hinge_flex(mesh%nhinge), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the node numbering', bytes)
+            return
+        end if
         do node = 1, mesh%nnode
             mesh%node_dof(1:4, node) = 4*(node - 1) + [1, 2, 3, 4]
             mesh%node_dof(5:6, node) = mesh%node_dof([DOF_DW, DOF_DU], node)
@@ -202,7 +227,11 @@ contains
                 mesh%node_dof(5:6, node) = 4*mesh%nnode + 2*(j - 1) + [1, 2]
             end if
         end do
-        allocate (mesh%el_dof(FE_NDOF, mesh%nel))
+        allocate (mesh%el_dof(FE_NDOF, mesh%nel), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the element numbering', bytes)
+            return
+        end if
         do el = 1, mesh%nel
             mesh%el_dof(:, el) = [mesh%node_dof([DOF_W, DOF_DW_OUT, DOF_U, DOF_DU_OUT], el), &
                                   mesh%node_dof(1:4, el + 1)]
@@ -210,7 +239,11 @@ contains
         ! free numbering node by node; the clamp of Eq. 103 fixes w, w', u of the
         ! root (w and u only with a root hinge); u' (the root strain) stays free
         allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree), &
-                  mesh%free_comp(mesh%nfree), mesh%free_node(mesh%nfree))
+                  mesh%free_comp(mesh%nfree), mesh%free_node(mesh%nfree), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the free numbering', bytes)
+            return
+        end if
         mesh%free_of = 0
         kf = 0
         do node = 1, mesh%nnode
@@ -250,7 +283,11 @@ contains
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
         ! tables for the assembly loops (fe_internal_force, fe_tangent)
-        allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel))
+        allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, where, 'the assembly tables', bytes)
+            return
+        end if
         do el = 1, mesh%nel
             mesh%el_free(:, el) = mesh%free_of(mesh%el_dof(:, el))
             kf = mesh%el_free(1, el)

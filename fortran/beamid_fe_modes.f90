@@ -8,7 +8,7 @@
 module beamid_fe_modes
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NUMERIC, fmt_int, &
-                             fmt_real
+                             fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, set_alloc_error
     use beamid_lapack, only: sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_band_to_dense, fe_mass, &
                                   fe_stiffness_linear, fe_band_matvec, DOF_U, DOF_DU, &
@@ -42,15 +42,26 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: kb(:, :), mb(:, :), m(:, :), w(:), q0(:), mphi(:)
         real(dp) :: mu
-        integer :: n, i, k
+        integer :: n, i, k, ierr
         n = mesh%nfree
         if (size(omega) /= n .or. any(shape(phi) /= [n, n]) .or. size(axial) /= n) then
             call set_status(stat, ERR_INPUT, 'fe_modes', 'output sizes do not match '// &
                             'nfree = '//fmt_int(n))
             return
         end if
+        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
+            call set_status(stat, ERR_SIZE, 'fe_modes', 'the dense eigenproblem of '// &
+                            fmt_int(n)//' unknowns would need about '// &
+                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
+                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
+            return
+        end if
         allocate (kb(fe_band_rows(mesh), n), mb(fe_band_rows(mesh), n), m(n, n), w(n), &
-                  q0(n), mphi(n))
+                  q0(n), mphi(n), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'fe_modes', 'the mode matrices', 8.0_dp*3.0_dp*real(n, dp)**2)
+            return
+        end if
         q0 = 0.0_dp
         call fe_stiffness_linear(mesh, kb)
         call fe_mass(mesh, q0, rotary, mb)
@@ -133,15 +144,27 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: k(:, :), m(:, :), w(:)
         real(dp) :: ke, me
-        integer :: n, el, i, j
+        integer :: n, el, i, j, ierr
         n = mesh%nel
         if (size(omega) /= n) then
             call set_status(stat, ERR_INPUT, 'fe_axial_modes_linear', 'omega has '// &
                             fmt_int(size(omega))//' entries, expected '//fmt_int(n))
             return
         end if
+        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
+            call set_status(stat, ERR_SIZE, 'fe_axial_modes_linear', 'the dense eigenproblem of '// &
+                            fmt_int(n)//' unknowns would need about '// &
+                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
+                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
+            return
+        end if
         ! unknown i is u at node i + 1
-        allocate (k(n, n), m(n, n), w(n))
+        allocate (k(n, n), m(n, n), w(n), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'fe_axial_modes_linear', 'the mode matrices', &
+                                 8.0_dp*2.0_dp*real(n, dp)**2)
+            return
+        end if
         k = 0.0_dp
         m = 0.0_dp
         do el = 1, n

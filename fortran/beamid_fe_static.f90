@@ -5,7 +5,8 @@ module beamid_fe_static
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
-                             ERR_NUMERIC, fmt_int, fmt_real
+                             ERR_NUMERIC, fmt_int, fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, &
+                             set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
                                   fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
@@ -16,7 +17,7 @@ module beamid_fe_static
 
     public :: fe_newton_opts_t, fe_solve_info_t
     public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
-    public :: fe_geometric_stiffness
+    public :: fe_geometric_stiffness, fe_negative_eigenvalues
 
     !> Controls of the Newton iteration and of the load stepping.
     type :: fe_newton_opts_t
@@ -31,6 +32,10 @@ module beamid_fe_static
         integer :: iterations = 0      !< Newton iterations over all steps
         integer :: steps = 0           !< accepted load steps
         real(dp) :: residual = 0.0_dp  !< final |NLT - Q|_inf
+        !> Negative eigenvalues of the tangent at the equilibrium (its
+        !! symmetric part; fe_negative_eigenvalues): 0 stable, >= 1 unstable
+        !! (a compressive load past the buckling load on the straight branch).
+        integer :: negative = 0
     end type fe_solve_info_t
 
     !> Largest change of the slopes (w', u') allowed in one Newton step.
@@ -182,6 +187,7 @@ contains
             end if
             call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat)
             info%steps = 1
+            if (stat%code == 0) info%negative = fe_negative_eigenvalues(mesh, load, q)
             return
         end if
 
@@ -224,7 +230,55 @@ contains
             info%residual = resid
             if (its <= 4) dlam = min(2.0_dp*dlam, dlam_max)
         end do
+        info%negative = fe_negative_eigenvalues(mesh, load, q)
     end subroutine fe_solve_static
+
+    !> Number of negative eigenvalues of the tangent d(NLT - Q)/dq at q (its
+    !! symmetric part, exact for the conservative fixed-direction tip force):
+    !! Sylvester's law of inertia on the band L D L^T factorization without
+    !! pivoting, O(n b^2). A zero pivot (exactly at a critical point) counts
+    !! as neither sign.
+    pure integer function fe_negative_eigenvalues(mesh, load, q) result(negative)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), allocatable :: r(:), jb(:, :), w(:, :), d(:)
+        integer :: n, b, i, j, k, row
+        real(dp) :: sum_
+        n = mesh%nfree
+        b = max(mesh%kl, mesh%ku)
+        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n), d(n))
+        call fe_residual(mesh, load, q, r, jb)
+        ! lower band of the symmetric part: w(i - j, j) = (A(i, j) + A(j, i))/2
+        row = mesh%kl + mesh%ku + 1
+        w = 0.0_dp
+        do j = 1, n
+            do i = j, min(n, j + b)
+                if (i - j <= mesh%kl) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + i - j, j)
+                if (i - j <= mesh%ku) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + j - i, i)
+            end do
+        end do
+        ! L D L^T in place: w(i - k, k) holds L(i, k)
+        do j = 1, n
+            sum_ = w(0, j)
+            do k = max(1, j - b), j - 1
+                sum_ = sum_ - w(j - k, k)**2*d(k)
+            end do
+            d(j) = sum_
+            do i = j + 1, min(n, j + b)
+                sum_ = w(i - j, j)
+                do k = max(1, i - b), j - 1
+                    sum_ = sum_ - w(i - k, k)*w(j - k, k)*d(k)
+                end do
+                if (d(j) /= 0.0_dp) then
+                    w(i - j, j) = sum_/d(j)
+                else
+                    w(i - j, j) = 0.0_dp
+                end if
+            end do
+        end do
+        negative = count(d < 0.0_dp)
+    end function fe_negative_eigenvalues
 
     !> Pseudo-arc-length continuation (Keller) of equilibria under the load
     !! load0 + lam * dload, starting from the equilibrium q0 at lam0 (corrected
@@ -397,7 +451,7 @@ contains
         real(dp), intent(out) :: mode(:)
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: kb(:, :), gb(:, :), k(:, :), g(:, :), w(:)
-        integer :: n, itip
+        integer :: n, itip, ierr
         n = mesh%nfree
         pcr = 0.0_dp
         if (size(mode) /= n) then
@@ -405,8 +459,20 @@ contains
                             fmt_int(size(mode))//' entries, expected '//fmt_int(n))
             return
         end if
+        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
+            call set_status(stat, ERR_SIZE, 'fe_buckling_load', 'the dense eigenproblem of '// &
+                            fmt_int(n)//' unknowns would need about '// &
+                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
+                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
+            return
+        end if
         allocate (kb(fe_band_rows(mesh), n), gb(fe_band_rows(mesh), n), k(n, n), g(n, n), &
-                  w(n))
+                  w(n), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'fe_buckling_load', 'the buckling matrices', &
+                                 8.0_dp*2.0_dp*real(n, dp)**2)
+            return
+        end if
         call fe_stiffness_linear(mesh, kb)
         call fe_geometric_stiffness(mesh, gb)
         call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)

@@ -27,23 +27,49 @@ module beamid_integrators
     use beamid_dynamics, only: dyn_system_t, dyn_cforces, dyn_cpower, dyn_cxrate, &
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, band_lu_t, zband_lu_t, &
-                               band_factor, band_solve, zband_factor, zband_solve
+                               band_factor, band_solve, zband_factor, zband_solve, &
+                               dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
+                               FRICTION_SIGN
     implicit none
     private
 
-    public :: integ_opts_t, integ_stats_t, history_t, radau_t
+    public :: integ_opts_t, integ_stats_t, history_t, radau_t, event_t
+    public :: EVENT_START, EVENT_ZERO_VELOCITY, EVENT_UNSTICK
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
     !> the symmetric band kernels, public for their tests
     public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, dband_mv, zband_mv
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
+    !> Kinds of friction events: the decision at the start (components at
+    !! rest at t = 0), a sliding component's velocity reaching zero (it
+    !! reverses or sticks), a sticking component's constraint force reaching
+    !! mu N (it starts to slide).
+    integer, parameter :: EVENT_START = 0, EVENT_ZERO_VELOCITY = 1, EVENT_UNSTICK = 2
+
+    !> A friction switch (Eq. 101-102 as events). The record is what a
+    !! sensitivity jump condition needs (docs/theory_dynamics.md): the time,
+    !! the component (j = 2 (k - 1) + c: point k, c = 1 u, c = 2 w), its
+    !! discrete mode before and after (+-1 sliding, 0 sticking) and the
+    !! friction force on it just before and just after (N; a sticking
+    !! component's is its constraint force). The rates jump by
+    !! M^-1 e_i (force_after - force_before) on that component.
+    type :: event_t
+        real(dp) :: t = 0.0_dp
+        integer :: comp = 0, kind = 0, before = 0, after = 0
+        real(dp) :: force_before = 0.0_dp, force_after = 0.0_dp
+        !> f+ - f-: the jump of the state rates (q', v', x') across the switch,
+        !! with every component's mode and constraint before and after (the
+        !! term of S+ = S- + (f- - f+) dt*/dp; the whole switch when several
+        !! components change at once; zero for EVENT_START)
+        real(dp), allocatable :: rate_jump(:)
+    end type event_t
 
     !> Controls of the integrators.
     type :: integ_opts_t
         integer :: method = METHOD_IMPLICIT
         real(dp) :: dt = 1.0e-5_dp       !< RK4 step (s)
-        real(dp) :: rtol = 1.0e-7_dp     !< implicit: relative tolerance
-        real(dp) :: atol = 1.0e-7_dp     !< implicit: absolute tolerance (m, rad, m/s)
+        real(dp) :: rtol = 1.0e-9_dp     !< implicit: relative tolerance
+        real(dp) :: atol = 1.0e-9_dp     !< implicit: absolute tolerance (m, rad)
         real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
         integer :: max_steps = 50000000
     end type integ_opts_t
@@ -52,6 +78,8 @@ module beamid_integrators
     type :: integ_stats_t
         integer :: steps = 0, rejected = 0, fevals = 0, jevals = 0, newton = 0
         integer :: factorizations = 0
+        integer :: events = 0       !< friction switches (event_t records)
+        integer :: event_steps = 0  !< steps cut short or redone to land on one
     end type integ_stats_t
 
     !> Time histories at the output times (columns).
@@ -60,6 +88,8 @@ module beamid_integrators
         real(dp), allocatable :: torque(:)      !< motor torque (N m)
         real(dp), allocatable :: kinetic(:), potential(:)
         real(dp), allocatable :: work(:, :)     !< work lines (nwork x nt)
+        type(event_t), allocatable :: events(:) !< friction switches, in time order
+        integer :: nevents = 0
     end type history_t
 
     !> Iteration matrices of the Radau step, kept factorized for reuse.
@@ -89,6 +119,14 @@ module beamid_integrators
         real(dp), allocatable :: s1(:, :)
         complex(dp), allocatable :: s2(:, :)
         complex(dp), allocatable :: zrhs(:)
+        !> sticking friction components: their free indices, held at rest
+        !! (rows and columns of the iteration matrices pinned to the identity)
+        integer :: nst = 0
+        integer, allocatable :: stuck(:), stuckc(:)   !< free index, component j
+        !> rotary inertia without modal coordinates: M(q) = M_c + R(q), the
+        !! iteration matrices use M0 = M(q) at the Jacobian's state qjac
+        logical :: rot = .false.
+        real(dp), allocatable :: qjac(:)
     end type radau_t
 
     ! Radau IIA (3 stages) nodes, stiffly accurate weights b = A(3, :),
@@ -222,8 +260,25 @@ contains
                 return
             end if
         end do
+        if (opts%method == METHOD_RK4 .and. opts%dt > 0.0_dp .and. ieee_is_finite(opts%dt)) then
+            ! a fixed step that would take longer than anyone waits is bad input
+            if (t_out(nt)/opts%dt > real(opts%max_steps, dp)) then
+                call set_status(stat, ERR_INPUT, where, 'dt = '//fmt_real(opts%dt)// &
+                                ' s needs '//fmt_real(t_out(nt)/opts%dt)// &
+                                ' RK4 steps to reach t = '//fmt_real(t_out(nt))// &
+                                ' s, more than the bound of '//fmt_int(opts%max_steps)// &
+                                ' steps: use a larger dt or the implicit integrator')
+                return
+            end if
+        end if
         allocate (hist%y(sys%nstate, nt), hist%torque(nt), hist%kinetic(nt), &
-                  hist%potential(nt), hist%work(sys%nwork, nt))
+                  hist%potential(nt), hist%work(sys%nwork, nt), stat=k)
+        if (k /= 0) then
+            call set_status(stat, ERR_INPUT, where, fmt_int(nt)//' output times need '// &
+                            fmt_real(8.0_dp*real(nt, dp)*real(sys%nstate + sys%nwork + 3, dp))// &
+                            ' bytes for the history, which cannot be allocated')
+            return
+        end if
         hist%y = 0.0_dp
         hist%torque = 0.0_dp
         hist%kinetic = 0.0_dp
@@ -272,19 +327,219 @@ contains
         call dyn_energy(sys, y(1:n), y(n + 1:2*n), hist%kinetic(k), hist%potential(k))
     end subroutine record
 
-    !> Rates of the RK4 state (y, work).
-    subroutine rk_rates(sys, s, ds, stat)
+    !> Rates of the RK4 state (y, work); `hold`: constraint forces of the
+    !! sticking friction components.
+    subroutine rk_rates(sys, s, ds, stat, hold)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: s(:)
         real(dp), intent(out) :: ds(:)
         type(status_t), intent(inout) :: stat
+        real(dp), intent(out), optional :: hold(:)
         real(dp) :: torque
         integer :: m
         m = sys%ncstate
-        call dyn_crates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat)
+        call dyn_crates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat, hold)
     end subroutine rk_rates
 
-    !> Classical RK4 with a fixed step (Eq. 99, 107).
+    !> One classical RK4 step of size h from s, whose rates are k1.
+    subroutine rk_step(sys, s, k1, h, k2, k3, k4, snew, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: s(:), k1(:), h
+        real(dp), intent(inout) :: k2(:), k3(:), k4(:), snew(:)
+        type(status_t), intent(inout) :: stat
+        snew = s + 0.5_dp*h*k1
+        call rk_rates(sys, snew, k2, stat)
+        snew = s + 0.5_dp*h*k2
+        call rk_rates(sys, snew, k3, stat)
+        snew = s + h*k3
+        call rk_rates(sys, snew, k4, stat)
+        snew = s + (h/6.0_dp)*(k1 + 2.0_dp*(k2 + k3) + k4)
+    end subroutine rk_step
+
+    !> Is the event law on for this system (the sign law of Eq. 101-102 in
+    !! the full model with some friction)?
+    pure logical function events_on(sys)
+        type(dyn_system_t), intent(in) :: sys
+        events_on = sys%law == FRICTION_SIGN .and. .not. sys%modal .and. &
+                    any(sys%fric /= 0.0_dp)
+    end function events_on
+
+    !> Append an event record, growing the list geometrically.
+    subroutine add_event(hist, ev)
+        type(history_t), intent(inout) :: hist
+        type(event_t), intent(in) :: ev
+        type(event_t), allocatable :: tmp(:)
+        if (.not. allocated(hist%events)) allocate (hist%events(16))
+        if (hist%nevents == size(hist%events)) then
+            allocate (tmp(2*size(hist%events)))
+            tmp(1:hist%nevents) = hist%events(1:hist%nevents)
+            call move_alloc(tmp, hist%events)
+        end if
+        hist%nevents = hist%nevents + 1
+        hist%events(hist%nevents) = ev
+    end subroutine add_event
+
+    !> Friction switch at the state y, time t (the component velocities that
+    !! reached zero already set to 0): dyn_switch decides who sticks and who
+    !! slides, each changed component is recorded. `jforce` (0: none) leaves
+    !! the stick (EVENT_UNSTICK); `hold` in: the constraint forces before,
+    !! out: after.
+    subroutine apply_switch(es, y, t, kind, jforce, hold, hist, stats, stat)
+        type(dyn_system_t), intent(inout) :: es
+        real(dp), intent(in) :: y(:), t
+        integer, intent(in) :: kind, jforce
+        real(dp), intent(inout) :: hold(:)
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        integer :: before(size(es%fmode)), j
+        real(dp) :: fb(size(es%fmode)), cap, fminus(size(y)), fplus(size(y))
+        real(dp) :: pw(es%nwork), torque, hdummy(size(es%fmode))
+        type(event_t) :: ev
+        before = es%fmode
+        fminus = 0.0_dp
+        fplus = 0.0_dp
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fminus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
+        do j = 1, size(es%fmode)
+            cap = es%fric((j + 1)/2)
+            if (before(j) == 0) then
+                fb(j) = hold(j)
+            else
+                fb(j) = -cap*before(j)
+            end if
+        end do
+        call dyn_switch(es, y, jforce, hold, stat)
+        if (stat%code /= 0) return
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fplus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
+        do j = 1, size(es%fmode)
+            if (es%fric((j + 1)/2) == 0.0_dp) cycle
+            if (es%fmode(j) == before(j) .and. kind /= EVENT_START) cycle
+            if (es%fmode(j) == before(j) .and. es%fmode(j) /= 0) cycle
+            ev%t = t
+            ev%comp = j
+            ev%kind = kind
+            if (kind /= EVENT_START .and. j == jforce) ev%kind = EVENT_UNSTICK
+            ev%before = before(j)
+            ev%after = es%fmode(j)
+            ev%force_before = fb(j)
+            if (es%fmode(j) == 0) then
+                ev%force_after = hold(j)
+            else
+                ev%force_after = -es%fric((j + 1)/2)*es%fmode(j)
+            end if
+            if (kind == EVENT_START) ev%force_before = 0.0_dp
+            ev%rate_jump = fplus - fminus
+            call add_event(hist, ev)
+            stats%events = stats%events + 1
+        end do
+    end subroutine apply_switch
+
+    !> The friction modes at the start: components moving slide with the
+    !! sign of their velocity; components at rest stick unless the other
+    !! forces exceed mu N (then they slide the way they are pushed). This is
+    !! sign(0) of Eq. 101 decided by the forces, not by a convention.
+    subroutine start_modes(es, y, hold, hist, stats, stat)
+        type(dyn_system_t), intent(inout) :: es
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: hold(:)
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        integer :: j
+        real(dp) :: v
+        do j = 1, size(es%fmode)
+            v = y(es%n + dyn_fric_dof(es, j))
+            es%fmode(j) = 0
+            if (v > 0.0_dp) es%fmode(j) = 1
+            if (v < 0.0_dp) es%fmode(j) = -1
+        end do
+        hold = 0.0_dp
+        call apply_switch(es, y, 0.0_dp, EVENT_START, 0, hold, hist, stats, stat)
+    end subroutine start_modes
+
+    !> First root in (0, 1] of g(s) along a step, g > 0 before it: for a
+    !! sliding component (kind EVENT_ZERO_VELOCITY) g = mode p(s), p the
+    !! velocity; for a sticking one (EVENT_UNSTICK) g = cap - |p(s)|, p its
+    !! constraint force. p(s) = p0 + sum_k dp(k) l_k(s) on the Radau nodes, or
+    !! (herm) the cubic Hermite interpolant with end values p0, p1 and
+    !! scaled end slopes d0, d1 (RK4). sroot = 0: g is already <= 0 just
+    !! after the start (a component pushed the wrong way).
+    pure subroutine first_root(kind, mode, cap, p0, dp3, herm, sroot, found)
+        integer, intent(in) :: kind, mode
+        real(dp), intent(in) :: cap, p0, dp3(3)
+        logical, intent(in) :: herm
+        real(dp), intent(out) :: sroot
+        logical, intent(out) :: found
+        integer, parameter :: NS = 16
+        real(dp) :: g0, ga, gb, sa, sb, sm, gm
+        integer :: k, it
+        found = .false.
+        sroot = 1.0_dp
+        g0 = gfun(0.0_dp)
+        sa = 0.0_dp
+        ga = g0
+        do k = 1, NS
+            sb = real(k, dp)/real(NS, dp)
+            gb = gfun(sb)
+            if (ga <= 0.0_dp .and. k == 1 .and. gb < 0.0_dp) then
+                ! at or below zero from the start
+                found = .true.
+                sroot = 0.0_dp
+                return
+            end if
+            if (ga > 0.0_dp .and. gb <= 0.0_dp) then
+                do it = 1, 60
+                    sm = 0.5_dp*(sa + sb)
+                    gm = gfun(sm)
+                    if (gm > 0.0_dp) then
+                        sa = sm
+                    else
+                        sb = sm
+                    end if
+                    if (sb - sa < 1.0e-15_dp) exit
+                end do
+                found = .true.
+                sroot = sb
+                return
+            end if
+            sa = sb
+            ga = gb
+        end do
+    contains
+        pure real(dp) function gfun(x)
+            real(dp), intent(in) :: x
+            real(dp) :: p, l(3), x2, x3
+            if (herm) then
+                ! dp3 = (p1, h p0', h p1')
+                x2 = x*x
+                x3 = x2*x
+                p = (2*x3 - 3*x2 + 1)*p0 + (x3 - 2*x2 + x)*dp3(2) + (-2*x3 + 3*x2)*dp3(1) &
+                    + (x3 - x2)*dp3(3)
+            else
+                l = lagrange(x)
+                p = p0 + dp3(1)*l(1) + dp3(2)*l(2) + dp3(3)*l(3)
+            end if
+            if (kind == EVENT_ZERO_VELOCITY) then
+                gfun = real(mode, dp)*p
+            else
+                gfun = cap - abs(p)
+            end if
+        end function gfun
+    end subroutine first_root
+
+    !> Classical RK4 with a fixed step (Eq. 99, 107). With the sign law,
+    !! friction switches are events: a component velocity that changes sign
+    !! within a step (cubic Hermite interpolant from the step's end values
+    !! and rates), or a sticking component whose constraint force reaches
+    !! mu N (linear in the step), ends the step there: it is redone to the
+    !! event, the switch applied, and the output interval continues in
+    !! equal steps no longer than dt.
     subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
@@ -292,38 +547,137 @@ contains
         type(history_t), intent(inout) :: hist
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:)
-        real(dp) :: t, h
-        integer :: m, k, nsub, i
+        type(dyn_system_t) :: es
+        real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
+        real(dp), allocatable :: hold(:), holdn(:)
+        real(dp) :: t, h, hs, theta, sr, cap, d3(3)
+        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall
+        logical :: evon, found
         m = sys%ncstate
+        n = sys%nc
         allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
-                  k3(m + sys%nwork), k4(m + sys%nwork))
+                  k3(m + sys%nwork), k4(m + sys%nwork), sn(m + sys%nwork), &
+                  k1n(m + sys%nwork), hold(2*sys%npt), holdn(2*sys%npt), stat=ios)
+        if (ios /= 0) then
+            call set_status(stat, ERR_INPUT, 'rk4', 'cannot allocate the RK4 work arrays ('// &
+                            fmt_int(7*(m + sys%nwork))//' reals)')
+            return
+        end if
+        es = sys
+        evon = events_on(es)
+        es%events = evon
         s = 0.0_dp
         s(1:m) = y0
         t = 0.0_dp
+        hold = 0.0_dp
+        if (evon) then
+            call start_modes(es, s(1:m), hold, hist, stats, stat)
+            if (stat%code /= 0) return
+        end if
+        call rk_rates(es, s, k1, stat, hold)
+        stats%fevals = stats%fevals + 1
+        if (stat%code /= 0) return
+        nstall = 0
         do k = 1, size(t_out)
             nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
-            if (nsub > 0) then
-                h = (t_out(k) - t)/real(nsub, dp)
-                do i = 1, nsub
-                    call rk_rates(sys, s, k1, stat)
-                    call rk_rates(sys, s + 0.5_dp*h*k1, k2, stat)
-                    call rk_rates(sys, s + 0.5_dp*h*k2, k3, stat)
-                    call rk_rates(sys, s + h*k3, k4, stat)
-                    if (stat%code /= 0) return
-                    s = s + (h/6.0_dp)*(k1 + 2.0_dp*(k2 + k3) + k4)
-                    stats%steps = stats%steps + 1
-                end do
-                stats%fevals = stats%fevals + 4*nsub
-                if (.not. all(ieee_is_finite(s))) then
+            i = 0
+            do while (i < nsub)
+                h = (t_out(k) - t)/real(nsub - i, dp)
+                call rk_step(es, s, k1, h, k2, k3, k4, sn, stat)
+                call rk_rates(es, sn, k1n, stat, holdn)
+                stats%fevals = stats%fevals + 4
+                stats%steps = stats%steps + 1
+                if (stat%code /= 0) return
+                if (.not. ieee_is_finite(sum(sn(1:m)))) then
                     call set_status(stat, ERR_NUMERIC, 'rk4', 'the state became non-finite'// &
-                                    ' before t = '//fmt_real(t_out(k))//' (dt = '// &
+                                    ' at t = '//fmt_real(t + h)//' (dt = '// &
                                     fmt_real(opts%dt)//' is beyond the stability limit?)')
                     return
                 end if
-                t = t_out(k)
+                jev = 0
+                theta = 2.0_dp
+                if (evon) then
+                    do j = 1, 2*es%npt
+                        cap = es%fric((j + 1)/2)
+                        if (cap == 0.0_dp) cycle
+                        if (es%fmode(j) /= 0) then
+                            kindj = EVENT_ZERO_VELOCITY
+                            if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
+                            d3 = [sn(n + dyn_fric_dof(es, j)), h*k1(n + dyn_fric_dof(es, j)), &
+                                  h*k1n(n + dyn_fric_dof(es, j))]
+                            call first_root(kindj, es%fmode(j), cap, &
+                                            s(n + dyn_fric_dof(es, j)), d3, .true., sr, found)
+                            if (.not. found) sr = 1.0_dp
+                        else
+                            kindj = EVENT_UNSTICK
+                            if (abs(holdn(j)) <= cap) cycle
+                            ! |hold| - cap changes sign: linear in the step
+                            sr = (cap - abs(hold(j)))/(abs(holdn(j)) - abs(hold(j)))
+                            sr = max(0.0_dp, min(1.0_dp, sr))
+                        end if
+                        if (sr < theta) then
+                            theta = sr
+                            jev = j
+                            kind = kindj
+                        end if
+                    end do
+                end if
+                if (jev == 0) then
+                    s = sn
+                    k1 = k1n
+                    hold = holdn
+                    t = t + h
+                    i = i + 1
+                    cycle
+                end if
+                ! redo the step to the event, switch there
+                hs = theta*h
+                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) then
+                    nstall = nstall + 1
+                else
+                    nstall = 0
+                end if
+                if (nstall > 4*es%npt + 4) then
+                    call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
+                                    'component '//fmt_int(jev)//' does not settle at t = '// &
+                                    fmt_real(t)//' (kind '//fmt_int(kind)//', mode '// &
+                                    fmt_int(es%fmode(jev))//'): is dt = '// &
+                                    fmt_real(opts%dt)//' beyond the stability limit?')
+                    return
+                end if
+                if (hs > 0.0_dp) then
+                    call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
+                    s = sn
+                    stats%fevals = stats%fevals + 3
+                    stats%event_steps = stats%event_steps + 1
+                    t = t + hs
+                    if (kind == EVENT_UNSTICK) then
+                        call rk_rates(es, s, k1n, stat, hold)
+                        stats%fevals = stats%fevals + 1
+                    end if
+                end if
+                if (kind == EVENT_ZERO_VELOCITY) then
+                    s(n + dyn_fric_dof(es, jev)) = 0.0_dp
+                    call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
+                else
+                    call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
+                end if
+                if (stat%code /= 0) return
+                call rk_rates(es, s, k1, stat, hold)
+                stats%fevals = stats%fevals + 1
+                if (stat%code /= 0) return
+                if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
+                nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+                i = 0
+            end do
+            if (.not. all(ieee_is_finite(s))) then
+                call set_status(stat, ERR_NUMERIC, 'rk4', 'the state became non-finite'// &
+                                ' before t = '//fmt_real(t_out(k))//' (dt = '// &
+                                fmt_real(opts%dt)//' is beyond the stability limit?)')
+                return
             end if
-            call record(sys, s(1:m), s(m + 1:), k, hist)
+            t = t_out(k)
+            call record(es, s(1:m), s(m + 1:), k, hist)
         end do
     end subroutine run_rk4
 
@@ -352,7 +706,19 @@ contains
             allocate (it%lu1%ab(nb, n), it%lu2%ab(nb, n))
         end if
         ! a constant mass matrix is copied once (M0 = M(q) only with rotary inertia)
-        if (sys%rotary .or. .not. it%have_mass) then
+        it%rot = sys%rotary .and. .not. sys%modal
+        if (it%rot) then
+            ! M(q) = M_c + R(q): the rows of M_c once; M0 = M(qjac) for the
+            ! iteration matrices is M_c plus the 2 x 2 slope blocks J a a^T
+            ! of the masses (symmetric: the L D L^T path stays open)
+            if (.not. it%have_mass) then
+                call band_to_rows(n, sys%ckl, sys%cku, sys%mb, it%m_start, it%m_col, it%m_val)
+                it%m_sym = sys%ckl == sys%cku
+                if (it%m_sym) it%m_sym = band_symmetric(n, sys%ckl, sys%mb)
+            end if
+            it%qjac = y(1:n)
+            call dyn_mass(sys, it%qjac, it%mb)
+        else if (sys%rotary .or. .not. it%have_mass) then
             call dyn_cmass(sys, y, it%mb)
             call band_to_rows(n, sys%ckl, sys%cku, it%mb, it%m_start, it%m_col, it%m_val)
             it%m_sym = sys%ckl == sys%cku
@@ -494,11 +860,20 @@ contains
         if (it%sym .and. (sys%eta /= 0.0_dp .or. sys%motor /= 0.0_dp .or. sys%rotary)) then
             it%sym = band_symmetric(sys%nc, kl, it%kb)
             if (it%sym) it%sym = band_symmetric(sys%nc, kl, it%cb)
+            ! the gyroscopic terms of the rotary inertia (Eq. 132), the motor's
+            ! torque on the tip slopes and Kelvin-Voigt's dD/dq v are not
+            ! symmetric but small against l^2 M + l C + K: the simplified
+            ! Newton iteration takes the symmetric parts (its residuals are
+            ! exact, so the converged stages are the same) and keeps L D L^T
+            if (.not. it%sym) it%sym = nearly_symmetric(sys%nc, kl, l1, it%mb, it%cb, it%kb)
         end if
         if (it%sym) then
             if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
             call combine_sym(kl, sys%nc, l1, l2, it%mb, it%cb, it%kb, it%a1, it%a2, &
                              it%s1, it%s2)
+            do i = 1, it%nst
+                call pin_sym(sys%nc, kl, it%s1, it%s2, it%stuck(i))
+            end do
             call ldlt_real(sys%nc, kl, it%s1, it%sym)
             if (it%sym) call ldlt_cplx(sys%nc, kl, it%s2, it%sym)
             if (it%sym) return
@@ -520,10 +895,84 @@ contains
                 end do
             end do
         end if
+        do i = 1, it%nst
+            call pin_band(sys%nc, kl, ku, it%lu1%ab, it%lu2%ab, it%stuck(i))
+        end do
         call band_factor(it%lu1, stat)
         if (stat%code /= 0) return
         call zband_factor(it%lu2, stat)
     end subroutine radau_factor
+
+    !> Symmetrize K and C (in place) when their skew parts are small against
+    !! the real iteration matrix l^2 M + l C + K: every skew entry below 1e-3
+    !! of the smallest diagonal entry. False (nothing changed) otherwise.
+    function nearly_symmetric(n, k, l, m, c, kk) result(ok)
+        integer, intent(in) :: n, k
+        real(dp), intent(in) :: l, m(3*k + 1, n)
+        real(dp), intent(inout) :: c(3*k + 1, n), kk(3*k + 1, n)
+        logical :: ok
+        real(dp) :: dmin, skew, a, b
+        integer :: i, j
+        ok = .false.
+        dmin = huge(1.0_dp)
+        do j = 1, n
+            dmin = min(dmin, l*l*m(2*k + 1, j) + l*c(2*k + 1, j) + kk(2*k + 1, j))
+        end do
+        if (.not. (dmin > 0.0_dp)) return
+        skew = 0.0_dp
+        do j = 1, n
+            do i = j + 1, min(n, j + k)
+                skew = max(skew, abs(l*(c(2*k + 1 + i - j, j) - c(2*k + 1 + j - i, i)) &
+                                     + kk(2*k + 1 + i - j, j) - kk(2*k + 1 + j - i, i)))
+            end do
+        end do
+        if (skew > 1.0e-3_dp*dmin) return
+        do j = 1, n
+            do i = j + 1, min(n, j + k)
+                a = 0.5_dp*(c(2*k + 1 + i - j, j) + c(2*k + 1 + j - i, i))
+                b = 0.5_dp*(kk(2*k + 1 + i - j, j) + kk(2*k + 1 + j - i, i))
+                c(2*k + 1 + i - j, j) = a
+                c(2*k + 1 + j - i, i) = a
+                kk(2*k + 1 + i - j, j) = b
+                kk(2*k + 1 + j - i, i) = b
+            end do
+        end do
+        ok = .true.
+    end function nearly_symmetric
+
+    !> Pin unknown i (a sticking friction component) in the symmetric
+    !! iteration matrices: row and column i zero, diagonal 1 (complex: 1 + i,
+    !! whose positive imaginary part the L D L^T test asks for).
+    pure subroutine pin_sym(n, k, s1, s2, i)
+        integer, intent(in) :: n, k, i
+        real(dp), intent(inout) :: s1(k + 1, n)
+        complex(dp), intent(inout) :: s2(k + 1, n)
+        integer :: j
+        s1(:, i) = 0.0_dp
+        s2(:, i) = (0.0_dp, 0.0_dp)
+        do j = max(1, i - k), i - 1
+            s1(1 + i - j, j) = 0.0_dp
+            s2(1 + i - j, j) = (0.0_dp, 0.0_dp)
+        end do
+        s1(1, i) = 1.0_dp
+        s2(1, i) = (1.0_dp, 1.0_dp)
+    end subroutine pin_sym
+
+    !> pin_sym for the general band storage of the LU path.
+    pure subroutine pin_band(n, kl, ku, a1, a2, i)
+        integer, intent(in) :: n, kl, ku, i
+        real(dp), intent(inout) :: a1(2*kl + ku + 1, n)
+        complex(dp), intent(inout) :: a2(2*kl + ku + 1, n)
+        integer :: c
+        a1(kl + 1:, i) = 0.0_dp
+        a2(kl + 1:, i) = (0.0_dp, 0.0_dp)
+        do c = max(1, i - kl), min(n, i + ku)
+            a1(kl + ku + 1 + i - c, c) = 0.0_dp
+            a2(kl + ku + 1 + i - c, c) = (0.0_dp, 0.0_dp)
+        end do
+        a1(kl + ku + 1, i) = 1.0_dp
+        a2(kl + ku + 1, i) = (1.0_dp, 1.0_dp)
+    end subroutine pin_band
 
     !> A band matrix (general band storage, kl = ku) is symmetric to
     !! round-off (the tangent is symmetric up to the order of its products).
@@ -816,6 +1265,7 @@ contains
             if (.not. skip) zt = zt - dot_product(it%d, w(1:n))
             it%rhs = it%rhs + it%b*zt/(lam - it%e)
         end if
+        if (it%nst > 0) it%rhs(it%stuck(1:it%nst)) = 0.0_dp
         if (it%sym) then
             call ldlt_solve_real(n, sys%ckl, it%s1, it%rhs)
         else
@@ -853,6 +1303,7 @@ contains
             if (.not. skip) zt = zt - sum(it%d*w(1:n))
             it%zrhs = it%zrhs + it%b*zt/(lam - it%e)
         end if
+        if (it%nst > 0) it%zrhs(it%stuck(1:it%nst)) = (0.0_dp, 0.0_dp)
         if (it%sym) then
             call ldlt_solve_cplx(n, sys%ckl, it%s2, it%zrhs)
         else
@@ -865,7 +1316,10 @@ contains
 
     !> Rates of y in M-form: (v, M0 M(q)^-1 F, x'). With a constant mass
     !! matrix M0 M^-1 F = F and no solve is needed (the cost of a rate is one
-    !! internal force); with rotary inertia M(q) is factored at y.
+    !! internal force); so with rotary inertia in the full model, whose
+    !! residuals are written F - M(q) a (to_mform at the stage's q): rates_m
+    !! then returns F. In modal coordinates with rotary inertia M(q) is
+    !! factored at y.
     subroutine rates_m(sys, it, y, dy, power, stat)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
@@ -875,7 +1329,7 @@ contains
         real(dp) :: torque
         integer :: n
         n = sys%nc
-        if (sys%rotary) then
+        if (sys%rotary .and. .not. it%rot) then
             call dyn_crates(sys, y, dy, power, torque, stat)
             it%tmp = dy(n + 1:2*n)
             call rows_mv(it%m_start, it%m_col, it%m_val, it%tmp, dy(n + 1:2*n))
@@ -886,15 +1340,25 @@ contains
         end if
     end subroutine rates_m
 
-    !> Put a rate-form vector into M-form: x(n+1:2n) <- M0 x(n+1:2n).
-    subroutine to_mform(sys, it, x)
+    !> Put a rate-form vector into M-form: x(n+1:2n) <- M0 x(n+1:2n), or
+    !! M(q) x(n+1:2n) = M_c x + R(q) x with rotary inertia (q: the stage's
+    !! displacements; default the Jacobian's, i.e. M0).
+    subroutine to_mform(sys, it, x, q)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
         real(dp), intent(inout) :: x(:)
+        real(dp), intent(in), optional :: q(:)
         integer :: n
         n = sys%nc
         it%tmp = x(n + 1:2*n)
         call rows_mv(it%m_start, it%m_col, it%m_val, it%tmp, x(n + 1:2*n))
+        if (it%rot) then
+            if (present(q)) then
+                call dyn_rot_mv(sys, q, it%tmp, x(n + 1:2*n))
+            else
+                call dyn_rot_mv(sys, it%qjac, it%tmp, x(n + 1:2*n))
+            end if
+        end if
     end subroutine to_mform
 
     !> Mean square of x weighted by the inverse error scales iscal.
@@ -923,6 +1387,67 @@ contains
             end do
         end do
     end function lagrange
+
+    !> The sticking friction components of es into it (free indices and
+    !! component numbers).
+    subroutine set_stuck(es, it)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(inout) :: it
+        integer :: j
+        it%nst = 0
+        do j = 1, size(es%fmode)
+            if (es%fric((j + 1)/2) == 0.0_dp .or. es%fmode(j) /= 0) cycle
+            it%nst = it%nst + 1
+            it%stuck(it%nst) = dyn_fric_dof(es, j)
+            it%stuckc(it%nst) = j
+        end do
+    end subroutine set_stuck
+
+    !> The earliest friction event along an accepted Radau step: the
+    !! collocation polynomial of each sliding component's velocity (stage
+    !! increments z), and of each sticking component's constraint force
+    !! (hold0 at the start, hst at the stages). jev = 0: none; else the
+    !! component, its kind and the root sev in [0, 1] (fraction of the step).
+    subroutine radau_events(es, y, z, hold0, hst, jev, kev, sev)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: y(:), z(:, :), hold0(:), hst(:, :)
+        integer, intent(out) :: jev, kev
+        real(dp), intent(out) :: sev
+        integer :: j, i, n, md
+        real(dp) :: cap, sr, p3(3)
+        logical :: found
+        n = es%nc
+        jev = 0
+        kev = 0
+        sev = 2.0_dp
+        do j = 1, size(es%fmode)
+            cap = es%fric((j + 1)/2)
+            if (cap == 0.0_dp) cycle
+            md = es%fmode(j)
+            if (md /= 0) then
+                i = n + dyn_fric_dof(es, j)
+                p3 = z(i, :)
+                if (all(real(md, dp)*(y(i) + p3) > 0.0_dp) .and. real(md, dp)*y(i) > 0.0_dp) cycle
+                call first_root(EVENT_ZERO_VELOCITY, md, cap, y(i), p3, .false., sr, found)
+                if (.not. found) cycle
+                if (sr < sev) then
+                    sev = sr
+                    jev = j
+                    kev = EVENT_ZERO_VELOCITY
+                end if
+            else
+                if (all(abs(hst(j, :)) <= cap)) cycle
+                p3 = hst(j, :) - hold0(j)
+                call first_root(EVENT_UNSTICK, 0, cap, hold0(j), p3, .false., sr, found)
+                if (.not. found) cycle
+                if (sr < sev) then
+                    sev = sr
+                    jev = j
+                    kev = EVENT_UNSTICK
+                end if
+            end if
+        end do
+    end subroutine radau_events
 
     !> Radau IIA (order 5) with simplified Newton and step-size control.
     !!
@@ -953,7 +1478,7 @@ contains
         character(len=*), parameter :: where = 'implicit'
         integer, parameter :: NIT = 7
         real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
-        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp
+        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp, REUSE_THETA = 1.0e-3_dp
         type(radau_t) :: it
         real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, dnorm, dold
         real(dp) :: quot, hnew, hprev, tiny_h, lsc(3), ti1(3), tr(3)
@@ -965,6 +1490,11 @@ contains
         integer :: nn, n, kout, i, j, newt, nt
         logical :: first, reject, converged, clipped, have_prev, have_f0
         type(status_t) :: inner
+        type(dyn_system_t) :: es
+        real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
+        real(dp) :: sev, hpend, hcut, torq
+        integer :: jev, kev, pend, pkind, nfc, jforce, nstall
+        logical :: evon, rot_slow, at_end, reused, may_reuse
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
         ti1 = real(ti(1, :), dp)
@@ -976,8 +1506,36 @@ contains
         nt = size(t_out)
         allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), zd(nn, 3), f0(nn), f3(nn), e0(nn), &
                   ev(nn), iscal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
-                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn))
+                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn), stat=i)
+        if (i /= 0) then
+            call set_status(stat, ERR_INPUT, where, 'cannot allocate the work arrays of '// &
+                            fmt_int(nn)//' states ('//fmt_real(8.0_dp*30.0_dp*real(nn, dp))// &
+                            ' bytes)')
+            return
+        end if
         y = y0
+        es = sys
+        evon = events_on(es)
+        es%events = evon
+        rot_slow = es%rotary .and. es%modal
+        nfc = 2*es%npt
+        allocate (hold0(nfc), hst(nfc, 3), acc3(n), rv(n), it%stuck(nfc), it%stuckc(nfc))
+        hold0 = 0.0_dp
+        hst = 0.0_dp
+        acc3 = 0.0_dp
+        it%nst = 0
+        if (evon) then
+            call start_modes(es, y, hold0, hist, stats, stat)
+            if (stat%code /= 0) return
+            call set_stuck(es, it)
+        end if
+        pend = 0
+        pkind = 0
+        nstall = 0
+        may_reuse = .false.
+        reused = .false.
+        hpend = 0.0_dp
+        hcut = 0.0_dp
         work = 0.0_dp
         t = 0.0_dp
         h = opts%h0
@@ -989,7 +1547,7 @@ contains
         kout = 1
         do while (kout <= nt)
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
-                call record(sys, y, work, kout, hist)
+                call record(es, y, work, kout, hist)
                 kout = kout + 1
                 cycle
             end if
@@ -1034,18 +1592,26 @@ contains
                 z(n + 1:2*n, i) = (dmat(i, 1)*z(1:n, 1) + dmat(i, 2)*z(1:n, 2) &
                                    + dmat(i, 3)*z(1:n, 3))/hh - y(n + 1:2*n)
             end do
+            ! sticking friction components stay where they are
+            do j = 1, it%nst
+                z(it%stuck(j), :) = 0.0_dp
+                z(n + it%stuck(j), :) = 0.0_dp
+            end do
             ! Jacobian at the predicted second stage, both factorizations
             ! (the assembly gives the stage-2 rates of the first iteration too)
             ys = y + z(:, 2)
-            if (sys%rotary) then
-                call radau_jacobian(sys, ys, it)
-            else
-                call radau_jacobian(sys, ys, it, fz(:, 2), pw(:, 2))
+            reused = may_reuse .and. hh == it%h
+            if (.not. reused) then
+                if (rot_slow) then
+                    call radau_jacobian(es, ys, it)
+                else
+                    call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
+                end if
+                stats%jevals = stats%jevals + 1
+                call radau_factor(es, it, hh, gam, mu, stat)
+                if (stat%code /= 0) return
+                stats%factorizations = stats%factorizations + 1
             end if
-            stats%jevals = stats%jevals + 1
-            call radau_factor(sys, it, hh, gam, mu, stat)
-            if (stat%code /= 0) return
-            stats%factorizations = stats%factorizations + 1
             ! simplified Newton iteration on the decoupled stage systems
             converged = .false.
             dold = 0.0_dp
@@ -1055,25 +1621,37 @@ contains
             do newt = 1, NIT
                 ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
                 do i = 1, 3
-                    if (newt > 1 .or. i /= 2 .or. sys%rotary) then
+                    if (newt > 1 .or. i /= 2 .or. rot_slow .or. reused) then
                         ys = y + z(:, i)
-                        call rates_m(sys, it, ys, fz(:, i), pw(:, i), inner)
+                        call rates_m(es, it, ys, fz(:, i), pw(:, i), inner)
                         stats%fevals = stats%fevals + 1
                     end if
                     zd(:, i) = (dmat(i, 1)*z(:, 1) + dmat(i, 2)*z(:, 2) &
                                 + dmat(i, 3)*z(:, 3))/hh
-                    call to_mform(sys, it, zd(:, i))
+                    if (it%rot) then
+                        call to_mform(es, it, zd(:, i), y(1:n) + z(1:n, i))
+                    else
+                        call to_mform(es, it, zd(:, i))
+                    end if
                 end do
                 if (inner%code /= 0) exit
                 f3 = fz(:, 3)
                 fz = fz - zd
+                ! sticking components: the residual of their velocity row is
+                ! minus the constraint force that holds them (M a - F); the
+                ! rows are pinned
+                do j = 1, it%nst
+                    hst(it%stuckc(j), :) = -fz(n + it%stuck(j), :)
+                    fz(it%stuck(j), :) = 0.0_dp
+                    fz(n + it%stuck(j), :) = 0.0_dp
+                end do
                 w1 = ti1(1)*fz(:, 1) + ti1(2)*fz(:, 2) + ti1(3)*fz(:, 3)
                 w2 = ti2(1)*fz(:, 1) + ti2(2)*fz(:, 2) + ti2(3)*fz(:, 3)
                 ! the rows q' = v of the stage system are linear and hold from the
                 ! predictor on (and after every correction): their residual r is
                 ! zero, and the solves skip the product (lam M + C) r
-                call solve_real(sys, it, gam/hh, w1, r_zero=.true.)
-                call solve_cplx(sys, it, mu/hh, w2, r_zero=.true.)
+                call solve_real(es, it, gam/hh, w1, r_zero=.true.)
+                call solve_cplx(es, it, mu/hh, w2, r_zero=.true.)
                 do i = 1, 3
                     dz(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
                 end do
@@ -1096,6 +1674,8 @@ contains
                 dold = max(dnorm, epsilon(1.0_dp))
             end do
             if (.not. converged) then
+                may_reuse = .false.
+                pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.
                 if (ieee_is_finite(dnorm) .and. theta > 0.0_dp .and. theta < 0.99_dp) then
@@ -1111,40 +1691,110 @@ contains
             ! correction, below NEWTON_TOL of the tolerance): the estimate moves
             ! by at most that much through (gamma/h - J)^-1 J, and a force is saved.
             if (.not. have_f0) then
-                call rates_m(sys, it, y, f0, pw(:, 1), stat)
-                if (stat%code /= 0) return
+                if (it%rot) then
+                    ! the acceleration a at y (M(q) factored once), f0 = M(q) a
+                    call dyn_crates(es, y, f0, pw(:, 1), torq, stat)
+                    if (stat%code /= 0) return
+                    acc3 = f0(n + 1:2*n)
+                    call to_mform(es, it, f0, y(1:n))
+                else
+                    call rates_m(es, it, y, f0, pw(:, 1), stat)
+                    if (stat%code /= 0) return
+                end if
                 stats%fevals = stats%fevals + 1
                 have_f0 = .true.
             end if
             e0 = (DD(1)*z(:, 1) + DD(2)*z(:, 2) + DD(3)*z(:, 3))/hh
-            call to_mform(sys, it, e0)
+            call to_mform(es, it, e0)
             ev = f0 + e0
-            call solve_real(sys, it, gam/hh, ev)
+            if (it%rot) then
+                ! f0 holds M(q_n) a_n; the M-form wants M0 a_n
+                rv = 0.0_dp
+                call dyn_rot_mv(es, it%qjac, acc3, rv)
+                call dyn_rot_mv(es, y(1:n), -acc3, rv)
+                ev(n + 1:2*n) = ev(n + 1:2*n) + rv
+            end if
+            do j = 1, it%nst
+                ev(it%stuck(j)) = 0.0_dp
+                ev(n + it%stuck(j)) = 0.0_dp
+            end do
+            call solve_real(es, it, gam/hh, ev)
             err = max(sqrt(wrms(ev, iscal)), 1.0e-10_dp)
             if (err >= 1.0_dp .and. (first .or. reject)) then
                 ytmp = y + ev
-                call rates_m(sys, it, ytmp, ev, pw(:, 1), stat)
+                call rates_m(es, it, ytmp, ev, pw(:, 1), stat)
                 if (stat%code /= 0) return
                 ev = ev + e0
-                call solve_real(sys, it, gam/hh, ev)
+                do j = 1, it%nst
+                    ev(it%stuck(j)) = 0.0_dp
+                    ev(n + it%stuck(j)) = 0.0_dp
+                end do
+                call solve_real(es, it, gam/hh, ev)
                 err = max(sqrt(wrms(ev, iscal)), 1.0e-10_dp)
                 stats%fevals = stats%fevals + 1
             end if
             quot = max(FACR, min(FACL, err**0.25_dp/SAFE))
             hnew = hh/quot
             if (err < 1.0_dp) then
+                ! friction events: the first root of a sliding component's
+                ! velocity or of a sticking one's excess force along the
+                ! collocation polynomial. Inside the step: redo the step to
+                ! end there (targeted); at the end: switch after accepting.
+                jev = 0
+                if (evon) call radau_events(es, y, z, hold0, hst, jev, kev, sev)
+                if (jev /= 0) then
+                    at_end = (1.0_dp - sev)*hh <= 1.0e-12_dp*max(1.0_dp, abs(t)) .or. &
+                             (pend == jev .and. hh == hpend .and. sev >= 0.5_dp)
+                    if (.not. at_end) then
+                        stats%event_steps = stats%event_steps + 1
+                        if (sev*hh <= tiny_h) then
+                            ! pushed the wrong way from the start: switch now
+                            nstall = nstall + 1
+                            if (nstall > 4*es%npt + 4) then
+                                call set_status(stat, ERR_NO_CONVERGENCE, where, &
+                                                'friction switching of component '// &
+                                                fmt_int(jev)//' does not settle at t = '// &
+                                                fmt_real(t))
+                                return
+                            end if
+                            if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
+                            jforce = 0
+                            if (kev == EVENT_UNSTICK) jforce = jev
+                            call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
+                            if (stat%code /= 0) return
+                            call set_stuck(es, it)
+                            have_f0 = .false.
+                            may_reuse = .false.
+                            pend = 0
+                            cycle
+                        end if
+                        if (pend == 0) hcut = h
+                        may_reuse = .false.
+                        h = sev*hh
+                        pend = jev
+                        pkind = kev
+                        hpend = h
+                        cycle
+                    end if
+                else if (pend /= 0 .and. hh == hpend) then
+                    ! the targeted step ended just short of the root
+                    jev = pend
+                    kev = pkind
+                end if
                 ! accept: work by the collocation quadrature on the stages
-                if (sys%nwork > 0) then
+                if (es%nwork > 0) then
                     do i = 1, 3
                         ys = y + z(:, i)
-                        call dyn_cpower(sys, ys, pw(:, i))
+                        call dyn_cpower(es, ys, pw(:, i))
                     end do
-                    do j = 1, sys%nwork
+                    do j = 1, es%nwork
                         work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))
                     end do
                 end if
                 y = y + z(:, 3)
                 f0 = f3
+                if (it%rot) acc3 = (dmat(3, 1)*z(n + 1:2*n, 1) + dmat(3, 2)*z(n + 1:2*n, 2) &
+                                    + dmat(3, 3)*z(n + 1:2*n, 3))/hh
                 t = t + hh
                 zprev = z
                 hprev = hh
@@ -1159,12 +1809,36 @@ contains
                 else
                     h = hnew
                 end if
+                ! small steps with a fast-contracting Newton iteration: keep the
+                ! Jacobian and the factors for the next step, and the step size
+                ! when the controller would change it by less than 20 % upwards
+                ! (RADAU5's THET and QUOT1, QUOT2)
+                may_reuse = theta < REUSE_THETA .and. .not. clipped
+                if (may_reuse .and. hnew >= hh .and. hnew <= 1.2_dp*hh) h = hh
                 if (.not. all(ieee_is_finite(y))) then
                     call set_status(stat, ERR_NUMERIC, where, 'state became non-finite at t = ' &
                                     //fmt_real(t))
                     return
                 end if
+                hold0 = hst(:, 3)
+                nstall = 0
+                if (jev /= 0) then
+                    ! the switch: a velocity that reached zero is zero; the
+                    ! right-hand side changes, so the step-start rates are new
+                    if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
+                    jforce = 0
+                    if (kev == EVENT_UNSTICK) jforce = jev
+                    call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
+                    if (stat%code /= 0) return
+                    call set_stuck(es, it)
+                    have_f0 = .false.
+                    may_reuse = .false.
+                    if (pend /= 0) h = max(h, hcut)
+                    pend = 0
+                end if
             else
+                may_reuse = .false.
+                pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.
                 if (first) then

@@ -13,7 +13,8 @@
 module beamid_measurements
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, fmt_int, lower
+    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, ERR_SIZE, &
+                             MAX_BYTES, fmt_int, fmt_bytes, set_alloc_error, lower
     use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE
     implicit none
     private
@@ -41,7 +42,7 @@ contains
         type(measurements_t), intent(out) :: data
         type(status_t), intent(inout) :: stat
         character(len=:), allocatable :: lines(:), line, where, field
-        integer :: unit, ios, nlines, maxlen, i, k, nrow, nf, first
+        integer :: unit, ios, nlines, maxlen, i, k, nrow, nf, first, ierr
         integer, allocatable :: comma(:)
         character(len=512) :: msg
         logical :: exists, header_seen
@@ -66,7 +67,20 @@ contains
             nlines = nlines + 1
             maxlen = max(maxlen, len(line))
         end do
-        allocate (character(len=maxlen) :: lines(nlines))
+        if (real(nlines, dp)*real(maxlen, dp) > MAX_BYTES) then
+            close (unit)
+            call set_status(stat, ERR_SIZE, 'cannot read measurement file '//path, &
+                            fmt_int(nlines)//' lines of up to '//fmt_int(maxlen)// &
+                            ' characters need more than '//fmt_bytes(MAX_BYTES)//' of memory')
+            return
+        end if
+        allocate (character(len=maxlen) :: lines(nlines), stat=ierr)
+        if (ierr /= 0) then
+            close (unit)
+            call set_alloc_error(stat, 'read_measurements', 'the lines of '//path, &
+                                 real(nlines, dp)*real(maxlen, dp))
+            return
+        end if
         rewind (unit)
         do i = 1, nlines
             call read_line(unit, line, ios)
@@ -82,7 +96,12 @@ contains
         ! pass 1: syntax of every line (as read_measurements in Python)
         allocate (character(len=maxlen) :: data%experiment(nlines))
         allocate (data%t(nlines), data%quantity(nlines), data%value(nlines), &
-                  data%sigma(nlines), data%line(nlines))
+                  data%sigma(nlines), data%line(nlines), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'read_measurements', 'the rows of '//path, &
+                                 40.0_dp*real(nlines, dp))
+            return
+        end if
         header_seen = .false.
         nrow = 0
         do i = 1, nlines

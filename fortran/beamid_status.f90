@@ -11,7 +11,8 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower
+    public :: status_t, set_status, clear_status, fmt_real, fmt_int, lower, exit_code, &
+              fmt_bytes, fmt_count, set_alloc_error
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
     integer, parameter, public :: STATUS_OK = 0
@@ -21,6 +22,22 @@ module beamid_status
     integer, parameter, public :: ERR_NO_CONVERGENCE = 1 !< iteration did not converge
     integer, parameter, public :: ERR_SINGULAR = 2       !< singular or ill-posed linear system
     integer, parameter, public :: ERR_NUMERIC = 3        !< non-finite numbers or lost accuracy
+    integer, parameter, public :: ERR_OUTPUT = -4        !< an output file cannot be written
+    integer, parameter, public :: ERR_SIZE = -5          !< a size beyond the bound (memory)
+    integer, parameter, public :: ERR_INTERNAL = 100     !< a bug: an impossible state
+
+    !> Exit codes of beamid-batch and of the `beamid` command (docs/decks.md):
+    !! one per kind of error, the same from both fronts.
+    integer, parameter, public :: EXIT_OK = 0            !< success
+    integer, parameter, public :: EXIT_NOT_REPRODUCED = 1 !< a published value not reproduced
+    integer, parameter, public :: EXIT_BAD_INPUT = 2     !< bad deck, CSV, value or input file
+    integer, parameter, public :: EXIT_NUMERIC = 3       !< numerical failure (no convergence)
+    integer, parameter, public :: EXIT_OUTPUT = 4        !< an output file cannot be written
+    integer, parameter, public :: EXIT_INTERNAL = 5      !< internal error
+
+    !> Memory bound of one computation a user asks for (bytes): sizes are
+    !! checked against it before anything is allocated (fmt_bytes for messages).
+    real(dp), parameter, public :: MAX_BYTES = 4.0_dp*1024.0_dp**3
 
     !> Length of status messages (also the length exchanged with Python).
     integer, parameter, public :: MSG_LEN = 256
@@ -49,6 +66,70 @@ contains
         stat%code = code
         stat%message = trim(where)//': '//trim(message)
     end subroutine set_status
+
+    !> The exit code of a status code (the one table of exit codes): 0 ok,
+    !! 2 bad input (including a missing or unreadable input file and a size
+    !! beyond the bound), 3 numerical failure, 4 output not written, 5 internal.
+    pure integer function exit_code(code)
+        integer, intent(in) :: code
+        if (code == STATUS_OK) then
+            exit_code = EXIT_OK
+        else if (code == ERR_OUTPUT) then
+            exit_code = EXIT_OUTPUT
+        else if (code < 0) then
+            exit_code = EXIT_BAD_INPUT
+        else if (code < ERR_INTERNAL) then
+            exit_code = EXIT_NUMERIC
+        else
+            exit_code = EXIT_INTERNAL
+        end if
+    end function exit_code
+
+    !> Bytes as '1.2 GiB' for messages.
+    pure function fmt_bytes(bytes) result(text)
+        real(dp), intent(in) :: bytes
+        character(len=:), allocatable :: text
+        character(len=32) :: buffer
+        real(dp) :: x
+        character(len=4) :: unit
+        x = bytes/1024.0_dp**3
+        unit = ' GiB'
+        if (bytes < 1024.0_dp**3) then
+            x = bytes/1024.0_dp**2
+            unit = ' MiB'
+        end if
+        if (x < 1.0e5_dp) then
+            write (buffer, '(f0.1)') x
+        else
+            write (buffer, '(es10.2)') x
+        end if
+        buffer = adjustl(buffer)
+        if (buffer(1:1) == '.') buffer = '0'//buffer
+        text = trim(buffer)//unit
+    end function fmt_bytes
+
+    !> A count held in a real (a 64-bit product of sizes) as digits.
+    pure function fmt_count(x) result(text)
+        real(dp), intent(in) :: x
+        character(len=:), allocatable :: text
+        character(len=32) :: buffer
+        if (abs(x) < 9.0e18_dp) then
+            write (buffer, '(i0)') nint(x, kind=selected_int_kind(18))
+        else
+            write (buffer, '(es10.3)') x
+        end if
+        text = trim(adjustl(buffer))
+    end function fmt_count
+
+    !> An allocation that failed (stat= of allocate): ERR_SIZE naming what
+    !! was being allocated and the memory it needed.
+    pure subroutine set_alloc_error(stat, where, what, bytes)
+        type(status_t), intent(inout) :: stat
+        character(len=*), intent(in) :: where, what
+        real(dp), intent(in) :: bytes
+        call set_status(stat, ERR_SIZE, where, 'cannot allocate '//what//' (about '// &
+                        fmt_bytes(bytes)//'): not enough memory')
+    end subroutine set_alloc_error
 
     pure subroutine clear_status(stat)
         type(status_t), intent(inout) :: stat

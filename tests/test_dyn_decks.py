@@ -101,7 +101,7 @@ def test_cli_run_prints_the_history(tmp_path, capsys):
     deck = _deck(tmp_path, SHORT_RUNS["implicit_friction"])
     assert cli_main(["run", str(deck)]) == 0
     out = capsys.readouterr().out
-    assert "5 output times to 0.2 s (implicit, friction smooth)" in out
+    assert "5 output times to 0.2 s (implicit, friction sign)" in out
     assert (tmp_path / "out" / "sim_history.csv").is_file()
 
 

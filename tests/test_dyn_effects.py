@@ -96,14 +96,15 @@ def test_motor_gain_02_peak_torque_and_balance():
     change equals the work of the motor and friction."""
     model = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
     t = np.linspace(0.0, 0.8, 41)
-    run = simulate(model, RELEASE, t, motor_gain=0.2, rtol=1e-8, friction_velocity=1e-2)
+    run = simulate(model, RELEASE, t, motor_gain=0.2, rtol=1e-8, friction="smooth",
+                   friction_velocity=1e-2)
     peak = np.max(np.abs(run.motor_torque))
     assert peak == pytest.approx(0.347, abs=0.003)      # at t = 0.71 s
     assert run.ledger["motor"][-1] < 0
     assert np.max(np.abs(run.ledger["numerical"])) < 1e-5
     # with a 1 ms current-loop lag the response barely changes
     lag = simulate(model.replace(tau_motor=1e-3), RELEASE, t, motor_gain=0.2, rtol=1e-8,
-                   friction_velocity=1e-2)
+                   friction="smooth", friction_velocity=1e-2)
     assert np.max(np.abs(lag.tip_w - run.tip_w)) < 1e-3
     assert np.max(np.abs(lag.ledger["numerical"])) < 1e-5
 

@@ -56,7 +56,7 @@ def test_smooth_friction_same_law_agreement(model):
     t = np.linspace(0.0, 0.5, 6)
     ref = simulate(m, RELEASE, t, integrator="rk4", friction="smooth",
                    friction_velocity=1e-2)
-    imp = simulate(m, RELEASE, t, rtol=1e-7, friction_velocity=1e-2)
+    imp = simulate(m, RELEASE, t, rtol=1e-7, friction="smooth", friction_velocity=1e-2)
     assert imp.friction == "smooth"
     assert_allclose(imp.tip_w, ref.tip_w, atol=1e-6)
     assert_allclose(imp.work, ref.work, atol=1e-6)
@@ -109,7 +109,7 @@ def test_symmetric_and_pivoted_factorizations_agree(elements):
     # 9, 17 and 33 unknowns: shorter than, just over and well over 2 x 7).
     m = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
     t = np.linspace(0.0, 0.3, 4)
-    kw = dict(rtol=1e-8, friction_velocity=1e-2, elements_per_beam=elements)
+    kw = dict(rtol=1e-8, friction="smooth", friction_velocity=1e-2, elements_per_beam=elements)
     sym = simulate(m, RELEASE, t, **kw)
     lu = simulate(m.replace(tau_motor=1e-3), RELEASE, t, motor_gain=1e-12, **kw)
     assert np.max(np.abs(lu.motor_torque)) < 1e-10

@@ -4,9 +4,10 @@
 !! mesh elements_per_beam (nepb). State vectors have nstate = 2 nfree + nx
 !! entries: q (free unknowns, the order of beamid_fe_assembly), v = q', and
 !! the motor torque when the motor has a current-loop lag (nx = 1).
-!! Methods: 0 RK4 (fixed dt), 1 implicit Radau IIA (rtol, atol). Friction
-!! laws: 0 sign (sign(0) = 0), 1 smooth v/sqrt(v^2 + vslip^2), 2 literal
-!! Fortran SIGN(1, v) (+1 at v = 0).
+!! Methods: 0 RK4 (fixed dt), 1 implicit Radau IIA (rtol, atol; default
+!! 1e-9). Friction laws: 0 sign (Eq. 101; in both integrators its switches
+!! are events, with sticking; elsewhere sign(0) = 0), 1 smooth
+!! v/sqrt(v^2 + vslip^2), 2 literal Fortran SIGN(1, v) (+1 at v = 0, no events).
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -82,12 +83,14 @@ contains
         real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
         integer(c_int), intent(out) :: info(5), code
         character(len=256), intent(out) :: message
-        integer(c_int) :: nomodes(1)
+        integer(c_int) :: nomodes(1), info7(7)
+        real(c_double) :: events(7, 1)
         nomodes = 0
         call api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, law, &
                                     vslip, dt, rtol, atol, h0, use_init, nstate, y_init, nt, &
-                                    t_out, nwork, 0_c_int, nomodes, states, tip, torque, &
-                                    ledger, work, info, code, message)
+                                    t_out, nwork, 0_c_int, nomodes, 1_c_int, states, tip, &
+                                    torque, ledger, work, info7, events, code, message)
+        info = info7(1:5)
     end subroutine api_dyn_simulate
 
     !> api_dyn_simulate on the truncated modal model (Eq. 127, Section 4.1.4)
@@ -95,17 +98,22 @@ contains
     !! ascending frequencies of api_fe_modes); nmodes = 0: the full model.
     !! The initial state is projected on the retained modes (eta = Phi^T M q);
     !! states are returned as physical q = Phi eta, v = Phi eta'.
+    !! info = (steps, rejected, force evaluations, Jacobians, Newton iterations,
+    !! friction events, steps cut or redone to land on one). events(:, k) for
+    !! k <= min(info(6), maxev): time, component j = 2 (point - 1) + c (c = 1
+    !! u, 2 w), kind (0 start, 1 velocity zero, 2 unstick), mode before and
+    !! after (+-1 sliding, 0 sticking), friction force before and after (N).
     subroutine api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, &
                                       law, vslip, dt, rtol, atol, h0, use_init, nstate, &
-                                      y_init, nt, t_out, nwork, nmodes, modes, states, tip, &
-                                      torque, ledger, work, info, code, message)
+                                      y_init, nt, t_out, nwork, nmodes, modes, maxev, states, &
+                                      tip, torque, ledger, work, info, events, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
-        integer(c_int), intent(in) :: nt, nwork, nmodes, modes(nmodes)
+        integer(c_int), intent(in) :: nt, nwork, nmodes, modes(nmodes), maxev
         real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
         real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
         real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
-        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
-        integer(c_int), intent(out) :: info(5), code
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
+        integer(c_int), intent(out) :: info(7), code
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
@@ -123,6 +131,7 @@ contains
         torque = 0.0_c_double
         ledger = 0.0_c_double
         work = 0.0_c_double
+        events = 0.0_c_double
         info = 0
         call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         if (stat%code == STATUS_OK .and. (sys%nstate /= nstate .or. sys%nwork /= nwork)) then
@@ -171,7 +180,13 @@ contains
         if (stat%code == STATUS_OK) then
             call integrate(sys, y0, real(t_out, dp), opts, hist, stats, stat)
             info = int([stats%steps, stats%rejected, stats%fevals, stats%jevals, &
-                        stats%newton], c_int)
+                        stats%newton, hist%nevents, stats%event_steps], c_int)
+            do k = 1, min(int(maxev), hist%nevents)
+                events(:, k) = [hist%events(k)%t, real(hist%events(k)%comp, dp), &
+                                real(hist%events(k)%kind, dp), real(hist%events(k)%before, dp), &
+                                real(hist%events(k)%after, dp), hist%events(k)%force_before, &
+                                hist%events(k)%force_after]
+            end do
         end if
         if (stat%code == STATUS_OK) then
             ! the modal model starts from the projection of y0 on its modes

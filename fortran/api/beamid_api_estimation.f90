@@ -9,19 +9,24 @@
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE
+    use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
     use beamid_arclength, only: static_load_t
     use beamid_estimation, only: residual_structure
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  candidate_t, diagnose_options_t, diagnosis_t, diagnose, &
-                                 chi2_sf
+                                 chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
+                                 refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
+
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          static_bounds, static_null_values, probe_rows
     implicit none
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
-    public :: api_residual_structure
+    public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
+
+    ! notes strings (refit notes of every candidate) are character(len=8192):
+    ! f2py needs the length as a literal
 
 contains
 
@@ -79,6 +84,40 @@ contains
         call residual_structure(real(level, dp), int(group), real(normalized, dp), o)
         out = o
     end subroutine api_residual_structure
+
+    !> The words of a code table of beamid_estimation, one per code from 0
+    !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
+    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*).
+    !! code = -1 for an unknown table.
+    subroutine api_code_names(table, names, code)
+        integer(c_int), intent(in) :: table
+        character(len=1024), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        code = 0
+        select case (table)
+        case (1)
+            names = joined(FLAG_NAMES)
+        case (2)
+            names = joined(STOP_NAMES)
+        case (3)
+            names = joined(START_NAMES)
+        case (4)
+            names = joined(CAND_NAMES)
+        case default
+            names = ''
+            code = -1
+        end select
+    contains
+        pure function joined(words) result(text)
+            character(len=*), intent(in) :: words(:)
+            character(len=:), allocatable :: text
+            integer :: i
+            text = trim(words(1))
+            do i = 2, size(words)
+                text = text//';'//trim(words(i))
+            end do
+        end function joined
+    end subroutine api_code_names
 
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)
@@ -143,7 +182,6 @@ contains
         type(fit_result_t) :: res
         type(prior_t) :: prior
         real(dp), allocatable :: lower(:), upper(:)
-        integer :: n
 
         params = params0
         sigmas = 0.0_c_double
@@ -171,7 +209,22 @@ contains
         end if
         code = int(stat%code, c_int)
         message = stat%message
+        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
+        if (.not. allocated(res%params)) return
         if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+    end subroutine api_fit
+
+    !> The outputs of api_fit from a fit result (stats and log layout there).
+    subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                        log_cost, log_lambda, log_step, log_params)
+        type(fit_result_t), intent(in) :: res
+        real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
+        integer(c_int), intent(out) :: flags(:)
+        real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
+        real(c_double), intent(out) :: log_cost(:), log_lambda(:), log_step(:), log_params(:, :)
+        integer :: n
         params = res%params
         sigmas = res%sigmas
         cov = res%cov
@@ -182,17 +235,136 @@ contains
         stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
                  real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
                  real(res%nlog, dp)]
-        n = res%nlog + 1
-        log_cost(1:n) = res%log_cost
-        log_lambda(1:n) = res%log_lambda
-        log_step(1:n) = res%log_step
-        log_params(:, 1:n) = res%log_params
-    end subroutine api_fit
+        log_cost = 0.0_c_double
+        log_lambda = 0.0_c_double
+        log_step = 0.0_c_double
+        log_params = 0.0_c_double
+        n = min(res%nlog + 1, size(log_cost))
+        log_cost(1:n) = res%log_cost(1:n)
+        log_lambda(1:n) = res%log_lambda(1:n)
+        log_step(1:n) = res%log_step(1:n)
+        log_params(:, 1:n) = res%log_params(:, 1:n)
+    end subroutine copy_fit
 
-    !> Diagnose a fitted model: the base fit is redone from `params0` (the
-    !! estimates, so it converges at once), then every candidate block
+    !> Fit, or add an effect to a fit (beamid.fit, beamid.add_effect).
+    !! nblock = 0: as api_fit from params0, plus how it ended: info(1) = stop
+    !! (beamid_estimation STOP_*), info(2) = 0; note = what happened when it
+    !! did not converge (flagged parameters), else ''.
+    !! nblock > 0: params0 holds the estimates of a fit of free_idx (evaluated
+    !! there, not refitted); the effect's parameters block(1:nblock), at their
+    !! null values, are score-tested and freed, and the refit starts from the
+    !! first-order estimate, from `nominal` (the user's starting values) with
+    !! the effect at null, and by continuation in the effect's strength
+    !! (refit_effect; start_mask limits the starts), keeping the best that
+    !! converges. The outputs are those
+    !! of the fit of [free_idx, block]; info(2) = the start kept (START_*),
+    !! note = what every start gave. No start converging is ERR_NO_CONVERGENCE
+    !! with the notes (and the best attempt in the outputs).
+    subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
+                              nominal, nprior, prior_idx, prior_mean, prior_sigma, nexp, &
+                              exp_kind, exp_values, nrow, row_exp, row_q, row_value, row_sigma, &
+                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              predictions, normalized, stats, log_cost, log_lambda, log_step, &
+                              log_params, info, code, message, note)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
+        integer(c_int), intent(in) :: max_iter
+        !> which refit starts to try, bits 1, 2, 4 = START_SCORE, START_NOMINAL,
+        !! START_CONTINUATION (0: all)
+        integer(c_int), intent(in) :: start_mask
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        integer(c_int), intent(in) :: free_idx(nfree), block(nblock + 1)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
+        real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
+        real(c_double), intent(out) :: corr(nfree + nblock, nfree + nblock)
+        real(c_double), intent(out) :: predictions(nrow), normalized(nrow), stats(8)
+        integer(c_int), intent(out) :: flags(nfree + nblock), info(2)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1)
+        real(c_double), intent(out) :: log_params(nfree + nblock, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        type(static_experiments_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: base, res
+        type(score_result_t) :: score
+        type(refit_info_t) :: rinfo
+        type(prior_t) :: prior
+        real(dp), allocatable :: lower(:), upper(:), nulls(:), y(:), sig(:)
+        integer, allocatable :: blk(:)
+        integer :: k
+
+        params = params0
+        sigmas = 0.0_c_double
+        cov = 0.0_c_double
+        corr = 0.0_c_double
+        flags = 0
+        predictions = 0.0_c_double
+        normalized = 0.0_c_double
+        stats = 0.0_c_double
+        log_cost = 0.0_c_double
+        log_lambda = 0.0_c_double
+        log_step = 0.0_c_double
+        log_params = 0.0_c_double
+        info = 0
+        note = ''
+        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+            prior%index = int(prior_idx(1:nprior))
+            prior%mean = real(prior_mean(1:nprior), dp)
+            prior%sigma = real(prior_sigma(1:nprior), dp)
+            call static_bounds(int(nbeams), lower, upper)
+            call static_null_values(int(nbeams), nulls)
+            y = real(row_value, dp)
+            sig = real(row_sigma, dp)
+            blk = int(block(1:nblock))
+            if (nblock == 0) then
+                call fit_least_squares(model, y, sig, real(params0, dp), int(free_idx), lower, &
+                                       upper, prior, opts, res, stat)
+            else
+                if (any(blk < 1 .or. blk > nparams)) then
+                    call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
+                                    'outside 1..nparams')
+                end if
+                if (stat%code == STATUS_OK) call fit_at(model, y, sig, real(params0, dp), &
+                    int(free_idx), lower, upper, prior, opts, base, stat)
+                if (stat%code == STATUS_OK) call score_test(model, y, sig, base%params, &
+                    base%free, lower, upper, prior, blk, opts, score, stat)
+                if (stat%code == STATUS_OK) then
+                    call refit_effect(model, y, sig, base, blk, score, real(nominal, dp), nulls, &
+                                      lower, upper, prior, opts, res, rinfo, stat, &
+                                      use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
+                    info(2) = int(rinfo%start, c_int)
+                    note = rinfo%note
+                end if
+            end if
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (.not. allocated(res%params)) return
+        info(1) = int(res%stop, c_int)
+        if (nblock == 0 .and. allocated(res%note)) note = res%note
+        if (stat%code == STATUS_OK .and. allocated(res%note) .and. nblock == 0) message = res%note
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+    end subroutine api_fit_effect
+
+    !> Diagnose a fitted model: the base fit is evaluated at `params0` (the
+    !! estimates; not refitted, so a fit with a parameter held after running
+    !! away stays as it was), then every candidate block
     !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
-    !! leading ones refitted (beamid_estimation::diagnose).
+    !! leading ones refitted (beamid_estimation::diagnose, the refits from
+    !! the first-order estimate, from params0 with the effect at null and by
+    !! continuation; api_diagnose_nominal also starts from the user's values).
     !! cstats(:, c) = state, score_drop, score_p, score_dof, physical,
     !!   identifiable, refit_done, refit_ok, lr_drop, lr_p, significant,
     !!   acceptable, rival, separation, sep_experiment, sep_quantity,
@@ -223,6 +395,76 @@ contains
         real(c_double), intent(out) :: dstats(6)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int) :: refit_start(ncand)
+        character(len=8192) :: notes
+        call diagnose_core(nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
+                           prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
+                           row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
+                           tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
+                           ambiguity_delta, collinear, cstats, pstats, refit_params, ranking, &
+                           cosine, dstats, refit_start, notes, code, message)
+    end subroutine api_diagnose
+
+    !> api_diagnose with the user's starting values `nominal` as a start of
+    !! the refits, and for every candidate the start its refit kept
+    !! (refit_start, START_* of beamid_estimation, 0 when none converged or
+    !! no refit was made) and what the refit starts gave: `notes` holds one
+    !! line per candidate (newline-separated, empty without a refit).
+    subroutine api_diagnose_nominal(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+                                    prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
+                                    exp_values, nrow, row_exp, row_q, row_value, row_sigma, tol, &
+                                    max_iter, ncand, cand_start, ncandp, cand_params, alpha, &
+                                    nrefit, ambiguity_delta, collinear, cstats, pstats, &
+                                    refit_params, ranking, cosine, dstats, refit_start, notes, &
+                                    code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        call diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+                           prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
+                           row_exp, row_q, row_value, row_sigma, tol, max_iter, 0.0_c_double, &
+                           0.0_c_double, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
+                           ambiguity_delta, collinear, cstats, pstats, refit_params, ranking, &
+                           cosine, dstats, refit_start, notes, code, message)
+    end subroutine api_diagnose_nominal
+
+    subroutine diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+                             prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &
+                             nrow, row_exp, row_q, row_value, row_sigma, tol, max_iter, &
+                             tol_step, tol_cost, ncand, cand_start, ncandp, cand_params, alpha, &
+                             nrefit, ambiguity_delta, collinear, cstats, pstats, refit_params, &
+                             ranking, cosine, dstats, refit_start, notes, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol, tol_step, tol_cost
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
         type(static_experiments_t) :: model, probe
         type(status_t) :: stat
         type(fit_options_t) :: opts
@@ -233,6 +475,7 @@ contains
         type(candidate_t), allocatable :: cands(:)
         real(dp), allocatable :: lower(:), upper(:), nulls(:), psig(:)
         integer, allocatable :: pexp(:), pq(:)
+        character(len=:), allocatable :: text
         integer :: c, k, j, nf, r
 
         cstats = 0.0_c_double
@@ -240,7 +483,9 @@ contains
         refit_params = 0.0_c_double
         cosine = 0.0_c_double
         ranking = 0
+        refit_start = 0
         dstats = 0.0_c_double
+        notes = ''
         call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
                               model, stat)
         if (stat%code == STATUS_OK) then
@@ -250,9 +495,8 @@ contains
             prior%sigma = real(prior_sigma(1:nprior), dp)
             call static_bounds(int(nbeams), lower, upper)
             call static_null_values(int(nbeams), nulls)
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
-                                   base, stat)
+            call fit_at(model, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
+                        int(free_idx), lower, upper, prior, opts, base, stat)
         end if
         if (stat%code == STATUS_OK) then
             allocate (cands(ncand))
@@ -270,12 +514,14 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call diagnose(model, real(row_value, dp), real(row_sigma, dp), base, nulls, lower, &
-                          upper, prior, cands, opts, dopts, diag, stat, probe, psig)
+                          upper, prior, cands, opts, dopts, diag, stat, probe, psig, &
+                          real(nominal, dp))
         end if
         code = int(stat%code, c_int)
         message = stat%message
         if (stat%code /= STATUS_OK) return
         nf = size(base%free)
+        text = ''
         do c = 1, ncand
             associate (cr => diag%cand(c))
                 r = cr%separating_row
@@ -291,6 +537,9 @@ contains
                     cstats(18, c) = cr%refit%chi2_prior
                     refit_params(:, c) = cr%refit%params
                 end if
+                refit_start(c) = int(cr%info%start, c_int)
+                if (c > 1) text = text//new_line('a')
+                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
                 do j = 1, cand_start(c + 1) - cand_start(c)
                     k = cand_start(c) + j - 1
                     if (allocated(cr%score%estimate)) then
@@ -304,6 +553,7 @@ contains
                 end do
             end associate
         end do
+        notes = text
         ranking = int(diag%ranking, c_int)
         cosine = diag%cosine
         dstats = [real(diag%verdict, dp), real(diag%ntested, dp), diag%alpha_each, base%chi2, &
@@ -313,5 +563,5 @@ contains
             logical, intent(in) :: flag
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
-    end subroutine api_diagnose
+    end subroutine diagnose_core
 end module beamid_api_estimation

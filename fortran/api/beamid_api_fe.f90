@@ -172,7 +172,8 @@ contains
     !! the load up from the straight chain in nsteps initial steps (0:
     !! default). Outputs the node table, the outboard slopes, the strain
     !! energy (springs included), the root reactions (Lagrange multipliers of
-    !! Eq. 105 on w, w', u) and info = (Newton iterations, accepted load steps).
+    !! Eq. 105 on w, w', u) and info = (Newton iterations, accepted load steps,
+    !! negative eigenvalues of the tangent: 0 stable, >= 1 unstable).
     subroutine api_fe_static(nbeams, nparams, params, nepb, nnode, loads, use_guess, nsteps, &
                              tol, guess, guess_out, nodes, nodes_out, energy, reactions, &
                              residual, info, code, message)
@@ -181,7 +182,7 @@ contains
         real(c_double), intent(in) :: guess_out(2, nnode)
         real(c_double), intent(out) :: nodes(5, nnode), nodes_out(2, nnode)
         real(c_double), intent(out) :: energy, reactions(3), residual
-        integer(c_int), intent(out) :: info(2), code
+        integer(c_int), intent(out) :: info(3), code
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
         type(fe_load_t) :: load
@@ -204,7 +205,7 @@ contains
             q = 0.0_dp
             if (use_guess /= 0) call q_from_nodes(mesh, guess, q, guess_out)
             call fe_solve_static(mesh, load, q, use_guess /= 0, opts, sinfo, stat)
-            info = int([sinfo%iterations, sinfo%steps], c_int)
+            info = int([sinfo%iterations, sinfo%steps, sinfo%negative], c_int)
             residual = sinfo%residual
             if (stat%code == STATUS_OK) then
                 call nodes_from_q(mesh, q, nodes, nodes_out)

@@ -1,781 +1,95 @@
-!> beamid-batch DECK: run a namelist deck without Python.
+!> beamid-batch DECK: run a namelist deck without Python (docs/decks.md).
 !!
-!! Tasks: static, fe_static, fe_modes, and the estimation tasks fit, compare,
-!! diagnose, improve (the same Fortran routines as the Python API, so the
-!! same numbers; docs/decks.md, "Estimation decks"), and simulate (the
-!! dynamics of api_dyn_simulate, as beamid.simulate; "Dynamic decks").
-!! Exit codes: 0 success, 2 bad deck or input, 3 numerical failure (no
-!! convergence), 4 file error. One line on standard error says what failed.
-!! Output files are written only after the computation succeeded, and a file
-!! that fails to write completely is deleted.
+!! Reads and validates the deck (beamid_deck), runs its task (beamid_tasks:
+!! static, fe_static, fe_modes, fit, compare, diagnose, improve, simulate) and
+!! prints the files it wrote (unless --quiet). Exit codes (beamid_status
+!! exit_code): 0 success, 2 bad input, 3 numerical failure, 4 an output file
+!! cannot be written, 5 internal error; every problem found goes to standard
+!! error, one per line, naming the deck, the group and the variable.
 program beamid_batch
     use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
-    use beamid_kinds, only: dp
-    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
-    use beamid_status, only: status_t, STATUS_OK, ERR_IO, set_status, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
+    use beamid_status, only: status_t, STATUS_OK, exit_code, EXIT_BAD_INPUT
     use beamid_deck, only: deck_t, read_deck
-    use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
-                                static_shape, NOUT
-    use, intrinsic :: iso_c_binding, only: c_int, c_double
-    use beamid_api_fe, only: api_fe_static, api_fe_modes, api_fe_mesh_sizes
-    use beamid_api_estimation, only: api_fit, api_diagnose
-    use beamid_api_dynamics, only: api_dyn_sizes, api_dyn_simulate
-    use beamid_estimation, only: residual_structure, chi2_sf
-    use beamid_static_experiments, only: static_effect_params, quantity_label
-    use beamid_measurements, only: fmt_g
+    use beamid_tasks, only: run_task
     implicit none
 
-    !> One fit: the outputs of api_fit.
-    type :: fit_out_t
-        integer(c_int), allocatable :: free(:), flags(:)
-        real(c_double), allocatable :: params(:), sigmas(:), cov(:, :), pred(:), norm(:)
-        real(c_double) :: stats(8) = 0.0_c_double
-    end type fit_out_t
-
-    !> One diagnosis: the outputs of api_diagnose and the candidate blocks.
-    type :: diag_out_t
-        integer(c_int), allocatable :: start(:), cparams(:), ranking(:)
-        real(c_double), allocatable :: cstats(:, :), pstats(:, :), refit_params(:, :)
-        real(c_double) :: dstats(6) = 0.0_c_double
-    end type diag_out_t
-
-    !> Flag texts of the estimates (beamid.estimation.FLAG_TEXT).
-    character(len=*), parameter :: flag_text(0:4) = [character(len=43) :: 'ok', &
-        'not determined by these data', 'ran away from its start', &
-        'correlation near +-1 with another parameter', 'at a physical bound']
-    !> Candidate states (beamid.diagnosis._STATES).
-    character(len=*), parameter :: state_text(0:3) = [character(len=19) :: 'tested', &
-        'already free', 'already switched on', 'not in this model']
-
-    character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
-        'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
-        'elbow_angle', 'root_moment']
-    character(len=4096) :: arg
+    character(len=*), parameter :: VERSION = '0.1.0'
+    character(len=:), allocatable :: arg, path, written
     type(deck_t) :: deck
     type(status_t) :: stat
-    integer :: nargs
+    logical :: quiet
+    integer :: i, n
 
-    nargs = command_argument_count()
-    if (nargs /= 1) then
-        write (error_unit, '(a)') 'usage: beamid-batch DECK   (a namelist deck, see docs/decks.md)'
-        call exit_with(2)
-    end if
-    call get_command_argument(1, arg)
-    if (trim(arg) == '-h' .or. trim(arg) == '--help') then
-        write (output_unit, '(a)') 'usage: beamid-batch DECK'
-        write (output_unit, '(a)') 'Runs a beamid namelist deck (docs/decks.md) and writes '// &
-            '<output>_summary.csv and <output>_shape.csv next to the deck;'
-        write (output_unit, '(a)') 'estimation decks (tasks fit, compare, diagnose, improve) '// &
-            'write <output>_estimates.csv, _covariance.csv, _residuals.csv,'
-        write (output_unit, '(a)') '_ranking.csv (diagnose, improve) and _ladder.csv (improve);'
-        write (output_unit, '(a)') 'dynamic decks (task simulate) write <output>_history.csv.'
-        stop
-    end if
-    call read_deck(trim(arg), deck, stat)
-    if (stat%code == STATUS_OK) then
-        select case (deck%task)
-        case ('fe_static')
-            call run_fe_static(deck, stat)
-        case ('fe_modes')
-            call run_fe_modes(deck, stat)
-        case ('fit', 'compare', 'diagnose', 'improve')
-            call run_estimation(deck, stat)
-        case ('simulate')
-            call run_simulate(deck, stat)
+    quiet = .false.
+    path = ''
+    do i = 1, command_argument_count()
+        call get_command_argument(i, length=n)
+        allocate (character(len=n) :: arg)
+        call get_command_argument(i, arg)
+        select case (arg)
+        case ('-h', '--help')
+            call usage(output_unit)
+            stop
+        case ('--version')
+            write (output_unit, '(a)') 'beamid-batch '//VERSION
+            stop
+        case ('-q', '--quiet')
+            quiet = .true.
         case default
-            call run_static(deck, stat)
+            if (len(path) > 0 .or. (len(arg) > 1 .and. arg(1:1) == '-')) then
+                call usage(error_unit)
+                stop EXIT_BAD_INPUT, quiet=.true.
+            end if
+            path = arg
         end select
+        deallocate (arg)
+    end do
+    if (len(path) == 0) then
+        call usage(error_unit)
+        stop EXIT_BAD_INPUT, quiet=.true.
     end if
+
+    call read_deck(path, deck, stat)
+    if (stat%code == STATUS_OK) call run_task(deck, written, stat)
     if (stat%code /= STATUS_OK) then
-        write (error_unit, '(a)') 'beamid-batch: error: '//trim(stat%message)
-        if (stat%code == ERR_IO) call exit_with(4)
-        if (stat%code < 0) call exit_with(2)
-        call exit_with(3)
+        if (allocated(deck%errors)) then
+            if (len(deck%errors) > 0) then
+                call report(deck%errors)
+                stop exit_code(stat%code), quiet=.true.
+            end if
+        end if
+        call report(trim(stat%message))
+        stop exit_code(stat%code), quiet=.true.
     end if
+    if (.not. quiet .and. len(written) > 0) write (output_unit, '(a)', advance='no') written
 
 contains
 
-    subroutine exit_with(code)
-        integer, intent(in) :: code
-        stop code, quiet=.true.
-    end subroutine exit_with
-
-    !> Output prefix resolved against the deck's directory.
-    function output_prefix(d) result(prefix)
-        type(deck_t), intent(in) :: d
-        character(len=:), allocatable :: prefix
-        integer :: slash
-        if (d%output(1:1) == '/') then
-            prefix = d%output
-        else
-            slash = index(d%path, '/', back=.true.)
-            prefix = d%path(:slash)//d%output
-        end if
-    end function output_prefix
-
-    subroutine run_static(d, st)
-        type(deck_t), intent(in) :: d
-        type(status_t), intent(inout) :: st
-        type(chain_t) :: chain
-        type(static_options_t) :: opts
-        type(static_solution_t) :: sol
-        real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
-        character(len=:), allocatable :: prefix
-        integer :: i, j, n, unit, ios
-
-        call chain_from_vector(d%nbeams, d%params, chain, st)
-        if (st%code /= STATUS_OK) return
-        if (d%tol > 0.0_dp) opts%tol = d%tol
-        call solve_static(chain, d%load, d%wrt, opts, sol, st)
-        if (st%code /= STATUS_OK) return
-        n = d%shape_points
-        allocate (s(n), x(n), y(n), psi(n), moment(n))
-        if (n > 1) s = [(sum(chain%length)*real(i - 1, dp)/real(n - 1, dp), i = 1, n)]
-        if (n > 1) then
-            s(n) = sum(chain%length)
-            call static_shape(chain, d%load, sol%unknowns, opts, s, x, y, psi, moment, st)
-            if (st%code /= STATUS_OK) return
-        end if
-
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(prefix//'_summary.csv', 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, NOUT
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(output_names(i)), &
-                sol%outputs(i)
-        end do
-        do j = 1, size(d%wrt)
-            do i = 1, NOUT
-                if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) &
-                    'd('//trim(output_names(i))//')/d('//param_name(d%nbeams, d%wrt(j))//')', &
-                    sol%doutputs(i, j)
-            end do
-        end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', &
-            sol%newton_iterations
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', sol%load_steps
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-
-        if (n < 2) return
-        call open_output(prefix//'_shape.csv', 's,x,y,psi,moment', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, n
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) &
-                s(i), x(i), y(i), psi(i), moment(i)
-        end do
-        call close_checked(unit, ios, prefix//'_shape.csv', st)
-    end subroutine run_static
-
-    !> Finite element statics (docs/fe.md): tip values and the node table.
-    subroutine run_fe_static(d, st)
-        type(deck_t), intent(in) :: d
-        type(status_t), intent(inout) :: st
-        integer(c_int) :: nnode, info(2), code
-        real(c_double), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
-        real(c_double) :: energy, reactions(3), residual, loads(4)
-        character(len=256) :: message
-        character(len=:), allocatable :: prefix
-        integer :: unit, ios, i
-        real(dp) :: total, values(8)
-        character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
-            'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
-
-        nnode = int(d%nbeams*d%fe_elements_per_beam + 1, c_int)
-        allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode))
-        guess = 0.0_c_double
-        guess_out = 0.0_c_double
-        loads = [d%load%fx, d%load%fy, d%load%moment, real(d%fe_moment_form, dp)]
-        call api_fe_static(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                           int(d%fe_elements_per_beam, c_int), nnode, loads, 0_c_int, &
-                           int(d%fe_steps, c_int), d%fe_tol, guess, guess_out, nodes, &
-                           nodes_out, energy, reactions, residual, info, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_static', trim(message))
-            st%message = message
-            return
-        end if
-        total = nodes(1, nnode)
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(prefix//'_summary.csv', 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        values = [nodes(4, nnode), nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), &
-                  nodes(3, 1), energy, total + nodes(2, nnode), nodes(4, nnode)]
-        do i = 1, size(names)
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), &
-                values(i)
-        end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', info(1)
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', info(2)
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-        call open_output(prefix//'_nodes.csv', 's,u,du,w,dw', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, nnode
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) nodes(:, i)
-        end do
-        call close_checked(unit, ios, prefix//'_nodes.csv', st)
-    end subroutine run_fe_static
-
-    !> Finite element linear modes: frequencies by family (Tables 9, 10).
-    subroutine run_fe_modes(d, st)
-        type(deck_t), intent(in) :: d
-        type(status_t), intent(inout) :: st
-        integer(c_int) :: nfree, nnode, nhinge, band, code
-        real(c_double), allocatable :: omega(:), phi(:, :)
-        integer(c_int), allocatable :: axial(:), dofs(:, :)
-        character(len=256) :: message
-        character(len=:), allocatable :: prefix
-        integer :: unit, ios, i, nw, nu
-
-        ! four unknowns per node (six at a hinge); the clamp (Eq. 103) fixes u, w, w'
-        call api_fe_mesh_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                               int(d%fe_elements_per_beam, c_int), nnode, nfree, nhinge, band, &
-                               code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_modes', trim(message))
-            st%message = message
-            return
-        end if
-        allocate (omega(nfree), phi(nfree, nfree), axial(nfree), dofs(2, nfree))
-        call api_fe_modes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                          int(d%fe_elements_per_beam, c_int), merge(1_c_int, 0_c_int, &
-                          d%fe_rotary_inertia), nfree, omega, phi, axial, dofs, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fe_modes', trim(message))
-            st%message = message
-            return
-        end if
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(prefix//'_modes.csv', 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        nw = 0
-        nu = 0
-        do i = 1, nfree
-            if (axial(i) /= 0) then
-                nu = nu + 1
-                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_u', nu, &
-                    omega(i)
-            else
-                nw = nw + 1
-                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_w', nw, &
-                    omega(i)
-            end if
-        end do
-        call close_checked(unit, ios, prefix//'_modes.csv', st)
-    end subroutine run_fe_modes
-
-    ! -------------------------------------------------------------- dynamics
-
-    !> Dynamic decks: release from the static shape under &load and integrate
-    !! to the output times with api_dyn_simulate (the call of beamid.simulate);
-    !! <output>_history.csv has one row per output time (columns as
-    !! beamid.decks.HISTORY_COLUMNS).
-    subroutine run_simulate(d, st)
-        type(deck_t), intent(in) :: d
-        type(status_t), intent(inout) :: st
-        integer(c_int) :: nfree, nstate, nwork, nt, info(5), code
-        real(c_double), allocatable :: states(:, :), tip(:, :), torque(:), ledger(:, :)
-        real(c_double), allocatable :: work(:, :), y_init(:)
-        real(c_double) :: loads(4)
-        character(len=256) :: message
-        character(len=:), allocatable :: prefix, header, line
-        integer :: unit, ios, k, i
-
-        call api_dyn_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                           int(d%sim_elements_per_beam, c_int), d%sim_motor_gain, nfree, &
-                           nstate, nwork, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'simulate', trim(message))
-            st%message = message
-            return
-        end if
-        nt = int(size(d%sim_t_out), c_int)
-        allocate (states(nstate, nt), tip(3, nt), torque(nt), ledger(4, nt), work(nwork, nt), &
-                  y_init(nstate))
-        y_init = 0.0_c_double
-        loads = [d%load%fx, d%load%fy, d%load%moment, 0.0_dp]
-        call api_dyn_simulate(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                              int(d%sim_elements_per_beam, c_int), loads, d%sim_motor_gain, &
-                              int(d%sim_integrator, c_int), int(d%sim_friction, c_int), &
-                              d%sim_friction_velocity, d%sim_dt, d%sim_rtol, d%sim_atol, &
-                              0.0_c_double, 0_c_int, nstate, y_init, nt, d%sim_t_out, nwork, &
-                              states, tip, torque, ledger, work, info, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'simulate', trim(message))
-            st%message = message
-            return
-        end if
-
-        header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
-        do i = 1, nwork
-            header = header//','//work_name(d%nbeams, i)
-        end do
-        header = header//',work,numerical,motor_torque'
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(prefix//'_history.csv', header, unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do k = 1, nt
-            line = fmt_e(d%sim_t_out(k))//','//fmt_e(tip(1, k))//','//fmt_e(tip(2, k))// &
-                   ','//fmt_e(tip(3, k))//','//fmt_e(ledger(3, k))//','//fmt_e(ledger(1, k))// &
-                   ','//fmt_e(ledger(2, k))
-            do i = 1, nwork
-                line = line//','//fmt_e(work(i, k))
-            end do
-            line = line//','//fmt_e(sum(work(:, k)))//','//fmt_e(ledger(4, k))//','// &
-                   fmt_e(torque(k))
-            call put(unit, ios, line)
-        end do
-        call close_checked(unit, ios, prefix//'_history.csv', st)
-    end subroutine run_simulate
-
-    !> Name of work line i of the ledger (beamid.dynamics.work_names):
-    !! friction_<point>, drag_<point> per mass point, damping, motor.
-    function work_name(nbeams, i) result(name)
-        integer, intent(in) :: nbeams, i
-        character(len=:), allocatable :: name
-        integer :: k
-        if (i > 2*nbeams) then
-            name = merge('damping', 'motor  ', i == 2*nbeams + 1)
-            name = trim(name)
-            return
-        end if
-        k = mod(i - 1, nbeams) + 1
-        name = merge('friction_', 'drag_    ', i <= nbeams)
-        name = trim(name)
-        if (k == nbeams) then
-            name = name//'tip'
-        else if (k == 1) then
-            name = name//'elbow'
-        else
-            name = name//'joint'//fmt_int(k)
-        end if
-    end function work_name
-
-    ! ------------------------------------------------------------ estimation
-
-    !> Estimation decks: fit (and compare: the same files), diagnose, improve.
-    !! Everything is computed first; the files are written after success.
-    subroutine run_estimation(d, st)
-        type(deck_t), intent(in) :: d
-        type(status_t), intent(inout) :: st
-        type(fit_out_t) :: fo
-        type(diag_out_t) :: dg
-        character(len=:), allocatable :: prefix
-        character(len=32), allocatable :: step_effect(:)
-        real(dp), allocatable :: step_chi2(:), step_cpd(:), start(:)
-        integer, allocatable :: step_dof(:)
-        character(len=32) :: effect
-        integer :: k, v, unit, ios
-
-        call estimation_fit(d, d%params, d%free, fo, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'diagnose') then
-            call estimation_diagnose(d, fo, dg, st)
-            if (st%code /= STATUS_OK) return
-        else if (d%task == 'improve') then
-            ! fit, then diagnose and add the verdict's effect until none is
-            ! significant (beamid.diagnosis.improve)
-            allocate (step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
-            effect = 'start'
-            do k = 0, size(d%candidates)
-                call estimation_diagnose(d, fo, dg, st)
-                if (st%code /= STATUS_OK) return
-                step_effect = [step_effect, effect]
-                step_chi2 = [step_chi2, real(fo%stats(1), dp)]
-                step_dof = [step_dof, nint(fo%stats(4))]
-                step_cpd = [step_cpd, chi2_per_dof(fo)]
-                v = nint(dg%dstats(1))
-                if (v == 0 .or. k == size(d%candidates)) exit
-                start = fo%params
-                if (dg%cstats(7, v) /= 0.0_dp .and. dg%cstats(8, v) /= 0.0_dp) &
-                    start = dg%refit_params(:, v)
-                effect = d%candidates(v)
-                call estimation_fit(d, start, [integer :: fo%free, &
-                                    dg%cparams(dg%start(v):dg%start(v + 1) - 1)], fo, st)
-                if (st%code /= STATUS_OK) return
-            end do
-        end if
-
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
-        if (st%code /= STATUS_OK) return
-        call write_fit_files(d, fo, prefix, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'diagnose' .or. d%task == 'improve') then
-            call write_ranking(d, fo, dg, prefix//'_ranking.csv', st)
-            if (st%code /= STATUS_OK) return
-        end if
-        if (d%task == 'compare') then
-            call write_compare(d, fo, prefix//'_compare.csv', st)
-            return
-        end if
-        if (d%task /= 'improve') return
-        call open_output(prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, ios, &
-                         st)
-        if (st%code /= STATUS_OK) return
-        do k = 1, size(step_chi2)
-            call put(unit, ios, fmt_int(k - 1)//','//trim(step_effect(k))//','// &
-                     fmt_e(step_chi2(k))//','//fmt_int(step_dof(k))//','//fmt_e(step_cpd(k)))
-        end do
-        call close_checked(unit, ios, prefix//'_ladder.csv', st)
-    end subroutine run_estimation
-
-    !> compare: chi-square against its expectation, per-experiment chi-square and
-    !! the residual structure tests (beamid_estimation residual_structure) with
-    !! the load level of beamid.diagnosis.load_level: the force magnitude, else
-    !! the moment magnitude, else for a wire the pull-in (total length - Lw).
-    subroutine write_compare(d, fo, name, st)
-        type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
-        character(len=*), intent(in) :: name
-        type(status_t), intent(inout) :: st
-        real(dp), allocatable :: level(:), per_exp(:)
-        real(dp) :: out(7), total, p, dof
-        integer :: i, e, unit, ios
-        logical :: systematic
-        character(len=*), parameter :: test_names(7) = [character(len=13) :: 'runs', &
-            'runs_expected', 'runs_z', 'runs_p', 'trend_slope', 'trend_z', 'trend_p']
-
-        total = sum(d%params([(param_index_beam(d%nbeams, i, IB_L), i = 1, d%nbeams)]))
-        allocate (level(size(d%row_exp)), per_exp(size(d%experiments)))
-        per_exp = 0.0_dp
-        do i = 1, size(d%row_exp)
-            e = d%row_exp(i)
-            associate (x => d%experiments(e))
-                if (x%kind == LOAD_WIRE) then
-                    level(i) = total - x%wire_length
-                else if (hypot(x%fx, x%fy) > 0.0_dp) then
-                    level(i) = hypot(x%fx, x%fy)
-                else
-                    level(i) = abs(x%moment)
-                end if
-            end associate
-            per_exp(e) = per_exp(e) + fo%norm(i)**2
-        end do
-        call residual_structure(level, d%data%quantity, real(fo%norm, dp), out)
-        dof = fo%stats(4)
-        p = ieee_value(1.0_dp, ieee_quiet_nan)
-        if (nint(dof) > 0) p = chi2_sf(fo%stats(1) + fo%stats(2), nint(dof))
-        systematic = (p < 0.01_dp) .or. (out(4) < 0.01_dp) .or. (out(7) < 0.01_dp)
-        call open_output(name, 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1)))
-        call put(unit, ios, 'dof,'//fmt_int(nint(dof)))
-        call put(unit, ios, 'expected,'//fmt_e(dof))
-        call put(unit, ios, 'expected_sigma,'//fmt_e(sqrt(2.0_dp*max(dof, 0.0_dp))))
-        call put(unit, ios, 'p_value,'//fmt_e(p))
-        do i = 1, 7
-            call put(unit, ios, trim(test_names(i))//','//fmt_e(out(i)))
-        end do
-        call put(unit, ios, 'systematic,'//trim(merge('1', '0', systematic)))
-        do e = 1, size(d%experiments)
-            call put(unit, ios, 'chi2['//trim(d%exp_names(e))//'],'//fmt_e(per_exp(e)))
-        end do
-        call close_checked(unit, ios, name, st)
-    end subroutine write_compare
-
-    !> (chi2 + chi2_prior) / dof, NaN without degrees of freedom.
-    real(dp) function chi2_per_dof(fo)
-        type(fit_out_t), intent(in) :: fo
-        chi2_per_dof = ieee_value(1.0_dp, ieee_quiet_nan)
-        if (nint(fo%stats(4)) > 0) chi2_per_dof = (fo%stats(1) + fo%stats(2))/fo%stats(4)
-    end function chi2_per_dof
-
-    !> The problem arrays of the f2py API (beamid_api_estimation).
-    subroutine problem_arrays(d, exp_kind, exp_values, row_q)
-        type(deck_t), intent(in) :: d
-        integer(c_int), allocatable, intent(out) :: exp_kind(:), row_q(:)
-        real(c_double), allocatable, intent(out) :: exp_values(:, :)
-        integer :: e
-        allocate (exp_kind(size(d%experiments)), exp_values(4, size(d%experiments)))
-        do e = 1, size(d%experiments)
-            exp_kind(e) = int(d%experiments(e)%kind, c_int)
-            exp_values(:, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                                d%experiments(e)%moment, d%experiments(e)%wire_length]
-        end do
-        row_q = int(d%data%quantity, c_int)
-    end subroutine problem_arrays
-
-    !> Weighted GN/LM fit of the free parameters from params0 (api_fit).
-    subroutine estimation_fit(d, params0, free, fo, st)
-        type(deck_t), intent(in) :: d
-        real(dp), intent(in) :: params0(:)
-        integer, intent(in) :: free(:)
-        type(fit_out_t), intent(out) :: fo
-        type(status_t), intent(inout) :: st
-        integer(c_int), allocatable :: exp_kind(:), row_q(:)
-        real(c_double), allocatable :: exp_values(:, :), corr(:, :), log1(:), log2(:), log3(:)
-        real(c_double), allocatable :: logp(:, :)
-        integer(c_int) :: code
-        character(len=256) :: message
-        integer :: nf, nrow, np
-
-        call problem_arrays(d, exp_kind, exp_values, row_q)
-        nf = size(free)
-        nrow = size(d%row_exp)
-        np = size(d%prior_index)
-        fo%free = int(free, c_int)
-        allocate (fo%params(size(params0)), fo%sigmas(nf), fo%cov(nf, nf), corr(nf, nf), &
-                  fo%flags(nf), fo%pred(nrow), fo%norm(nrow), log1(d%max_iter + 1), &
-                  log2(d%max_iter + 1), log3(d%max_iter + 1), logp(nf, d%max_iter + 1))
-        call api_fit(int(d%nbeams, c_int), int(size(params0), c_int), params0, int(nf, c_int), &
-                     fo%free, int(np, c_int), [int(d%prior_index, c_int), 0_c_int], &
-                     [d%prior_mean, 0.0_dp], [d%prior_sigma, 0.0_dp], &
-                     int(size(exp_kind), c_int), exp_kind, exp_values, int(nrow, c_int), &
-                     int(d%row_exp, c_int), row_q, d%data%value, d%data%sigma, 0.0_c_double, &
-                     int(d%max_iter, c_int), 0.0_c_double, 0.0_c_double, fo%params, fo%sigmas, &
-                     fo%cov, corr, fo%flags, fo%pred, fo%norm, fo%stats, log1, log2, log3, &
-                     logp, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fit', trim(message))
-            st%message = message
-        end if
-    end subroutine estimation_fit
-
-    !> Score tests, refits and ranking of the deck's candidates around a fit
-    !! (api_diagnose with the defaults of beamid.diagnose: 3 refits,
-    !! ambiguity 4, collinearity 0.98, 50 iterations).
-    subroutine estimation_diagnose(d, fo, dg, st)
-        type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
-        type(diag_out_t), intent(out) :: dg
-        type(status_t), intent(inout) :: st
-        integer(c_int), allocatable :: exp_kind(:), row_q(:), block(:)
-        real(c_double), allocatable :: exp_values(:, :), cosine(:, :)
-        integer(c_int) :: code
-        character(len=256) :: message
-        integer :: c, nc, ncp, nrow, np
-
-        call problem_arrays(d, exp_kind, exp_values, row_q)
-        nc = size(d%candidates)
-        allocate (dg%start(nc + 1), dg%cparams(0))
-        dg%start(1) = 1
-        do c = 1, nc
-            call static_effect_params(d%nbeams, d%candidates(c), block, st)
-            if (st%code /= STATUS_OK) return
-            dg%cparams = [dg%cparams, block]
-            dg%start(c + 1) = dg%start(c) + size(block)
-        end do
-        ncp = size(dg%cparams)
-        nrow = size(d%row_exp)
-        np = size(d%prior_index)
-        allocate (dg%cstats(18, nc), dg%pstats(6, ncp + 1), dg%refit_params(size(fo%params), nc), &
-                  dg%ranking(nc), cosine(nc, nc))
-        call api_diagnose(int(d%nbeams, c_int), int(size(fo%params), c_int), fo%params, &
-                          int(size(fo%free), c_int), fo%free, int(np, c_int), &
-                          [int(d%prior_index, c_int), 0_c_int], [d%prior_mean, 0.0_dp], &
-                          [d%prior_sigma, 0.0_dp], int(size(exp_kind), c_int), exp_kind, &
-                          exp_values, int(nrow, c_int), int(d%row_exp, c_int), row_q, &
-                          d%data%value, d%data%sigma, 0.0_c_double, 50_c_int, 0.0_c_double, &
-                          0.0_c_double, int(nc, c_int), dg%start, int(ncp, c_int), &
-                          [dg%cparams, 0_c_int], d%alpha, 3_c_int, 4.0_c_double, 0.98_c_double, &
-                          dg%cstats, dg%pstats, dg%refit_params, dg%ranking, cosine, dg%dstats, &
-                          code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'diagnose', trim(message))
-            st%message = message
-        end if
-    end subroutine estimation_diagnose
-
-    !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
-    subroutine write_fit_files(d, fo, prefix, st)
-        type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
-        character(len=*), intent(in) :: prefix
-        type(status_t), intent(inout) :: st
-        character(len=:), allocatable :: line
-        integer :: unit, ios, i, j, r
-
-        call open_output(prefix//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, size(fo%free)
-            call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
-                     fmt_e(fo%params(fo%free(i)))//','//fmt_e(fo%sigmas(i))//','// &
-                     trim(flag_text(min(max(fo%flags(i), 0), 4))))
-        end do
-        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1))//',,')
-        call put(unit, ios, 'chi2_prior,'//fmt_e(fo%stats(2))//',,')
-        call put(unit, ios, 'dof,'//fmt_int(nint(fo%stats(4)))//',,')
-        call put(unit, ios, 'iterations,'//fmt_int(nint(fo%stats(6)))//',,')
-        call put(unit, ios, 'condition_number,'//fmt_e(fo%stats(3))//',,')
-        call close_checked(unit, ios, prefix//'_estimates.csv', st)
-        if (st%code /= STATUS_OK) return
-
-        line = 'name'
-        do i = 1, size(fo%free)
-            line = line//','//param_name(d%nbeams, fo%free(i))
-        end do
-        call open_output(prefix//'_covariance.csv', line, unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, size(fo%free)
-            line = param_name(d%nbeams, fo%free(i))
-            do j = 1, size(fo%free)
-                line = line//','//fmt_e(fo%cov(i, j))
-            end do
-            call put(unit, ios, line)
-        end do
-        call close_checked(unit, ios, prefix//'_covariance.csv', st)
-        if (st%code /= STATUS_OK) return
-
-        call open_output(prefix//'_residuals.csv', &
-                         'experiment,t,quantity,measured,model,sigma,normalized', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do r = 1, size(d%row_exp)
-            call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
-                     quantity_label(d%data%quantity(r))//','//fmt_e(d%data%value(r))//','// &
-                     fmt_e(fo%pred(r))//','//fmt_e(d%data%sigma(r))//','//fmt_e(fo%norm(r)))
-        end do
-        call close_checked(unit, ios, prefix//'_residuals.csv', st)
-    end subroutine write_fit_files
-
-    !> <prefix>_ranking.csv: candidates best first, one row per parameter
-    !! (columns as beamid.fit_decks.write_ranking). The drop, p-value,
-    !! estimate and sigma are the refit's when one was made, else the score
-    !! test's (first order).
-    subroutine write_ranking(d, fo, dg, name, st)
-        type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
-        type(diag_out_t), intent(in) :: dg
-        character(len=*), intent(in) :: name
-        type(status_t), intent(inout) :: st
-        real(dp) :: nan, score_drop, score_p, lr_drop, lr_p, drop, p, est, sig
-        logical :: tested, refit
-        integer :: unit, ios, rank, c, j, k, nj, state
-        character(len=:), allocatable :: pname, flags
-
-        nan = ieee_value(1.0_dp, ieee_quiet_nan)
-        call open_output(name, 'rank,effect,state,parameter,score_drop,score_p,refit_drop,'// &
-                         'refit_p,chi2_drop,p_value,estimate,sigma,physical,identifiable,'// &
-                         'significant,acceptable,rival', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do rank = 1, size(dg%ranking)
-            c = dg%ranking(rank)
-            associate (cs => dg%cstats(:, c))
-                state = nint(cs(1))
-                tested = state == 0
-                refit = tested .and. cs(7) /= 0.0_dp .and. cs(8) /= 0.0_dp
-                score_drop = merge(cs(2), nan, tested)
-                score_p = merge(cs(3), nan, tested)
-                lr_drop = merge(cs(9), nan, refit)
-                lr_p = merge(cs(10), nan, refit)
-                drop = score_drop
-                p = score_p
-                if (refit .and. .not. ieee_is_nan(lr_drop)) drop = lr_drop
-                if (refit .and. .not. ieee_is_nan(lr_p)) p = lr_p
-                if (tested) then
-                    flags = b2s(cs(5))//','//b2s(cs(6))//','//b2s(cs(11))//','//b2s(cs(12))// &
-                            ','//b2s(cs(13))
-                else
-                    flags = '1,1,0,0,0'
-                end if
-                nj = dg%start(c + 1) - dg%start(c)
-                do j = 1, max(nj, 1)
-                    pname = ''
-                    est = nan
-                    sig = nan
-                    if (nj > 0) then
-                        k = dg%start(c) + j - 1
-                        pname = param_name(d%nbeams, dg%cparams(k))
-                        if (refit) then
-                            est = dg%pstats(4, k)
-                            sig = dg%pstats(5, k)
-                        else if (tested) then
-                            est = fo%params(dg%cparams(k)) + dg%pstats(1, k)
-                            sig = dg%pstats(2, k)
-                        end if
-                    end if
-                    call put(unit, ios, fmt_int(rank)//','//trim(d%candidates(c))//','// &
-                             trim(state_text(state))//','//pname//','//fmt_e(score_drop)//','// &
-                             fmt_e(score_p)//','//fmt_e(lr_drop)//','//fmt_e(lr_p)//','// &
-                             fmt_e(drop)//','//fmt_e(p)//','//fmt_e(est)//','//fmt_e(sig)//','// &
-                             flags)
-                end do
-            end associate
-        end do
-        call close_checked(unit, ios, name, st)
-    end subroutine write_ranking
-
-    !> A 0/1 flag of the API as '0' or '1'.
-    pure function b2s(x) result(text)
-        real(c_double), intent(in) :: x
-        character(len=1) :: text
-        text = merge('1', '0', x /= 0.0_c_double)
-    end function b2s
-
-    !> Write one line unless an earlier write failed.
-    subroutine put(unit, ios, text)
-        integer, intent(in) :: unit
-        integer, intent(inout) :: ios
+    !> One line 'beamid-batch: error: ...' per line of text.
+    subroutine report(text)
         character(len=*), intent(in) :: text
-        if (ios == 0) write (unit, '(a)', iostat=ios) text
-    end subroutine put
+        integer :: start, nl
+        start = 1
+        do while (start <= len(text))
+            nl = index(text(start:), new_line('a'))
+            if (nl == 0) nl = len(text) - start + 2
+            write (error_unit, '(a)') 'beamid-batch: error: '//text(start:start + nl - 2)
+            start = start + nl
+        end do
+    end subroutine report
 
-    !> A real as Python's format(x, '.16E') writes it (17 significant digits,
-    !! two exponent digits unless three are needed; NaN, Infinity, -Infinity).
-    function fmt_e(x) result(text)
-        real(dp), intent(in) :: x
-        character(len=:), allocatable :: text
-        character(len=32) :: buffer
-        integer :: e
-        write (buffer, '(es24.16e3)') x
-        text = trim(adjustl(buffer))
-        e = index(text, 'E')
-        if (e > 0 .and. len(text) == e + 4) then
-            if (text(e + 2:e + 2) == '0') text = text(:e + 1)//text(e + 3:)
-        end if
-    end function fmt_e
-
-    !> Create the folder that will hold files starting with `prefix`.
-    subroutine make_parent_folder(prefix, st)
-        character(len=*), intent(in) :: prefix
-        type(status_t), intent(inout) :: st
-        integer :: slash, exitstat, cmdstat
-        slash = index(prefix, '/', back=.true.)
-        if (slash <= 1) return
-        if (index(prefix, "'") > 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'output path may not contain a '// &
-                            'quote: '//prefix)
-            return
-        end if
-        call execute_command_line("mkdir -p '"//prefix(:slash - 1)//"'", exitstat=exitstat, &
-                                  cmdstat=cmdstat)
-        if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_IO, 'beamid-batch', &
-            'cannot create the output folder '//prefix(:slash - 1))
-    end subroutine make_parent_folder
-
-    !> Open an output file for writing and write its header line.
-    subroutine open_output(name, header, unit, ios, st)
-        character(len=*), intent(in) :: name, header
-        integer, intent(out) :: unit, ios
-        type(status_t), intent(inout) :: st
-        open (newunit=unit, file=name, status='replace', action='write', iostat=ios)
-        if (ios /= 0) then
-            call set_status(st, ERR_IO, 'beamid-batch', 'cannot write '//name)
-            return
-        end if
-        write (unit, '(a)', iostat=ios) header
-    end subroutine open_output
-
-    !> Close a written file; delete it when any write failed.
-    subroutine close_checked(unit, ios, name, st)
-        integer, intent(in) :: unit, ios
-        character(len=*), intent(in) :: name
-        type(status_t), intent(inout) :: st
-        if (ios /= 0) then
-            close (unit, status='delete')
-            call set_status(st, ERR_IO, 'beamid-batch', 'writing '//name//' failed')
-        else
-            close (unit)
-        end if
-    end subroutine close_checked
+    subroutine usage(unit)
+        integer, intent(in) :: unit
+        write (unit, '(a)') 'usage: beamid-batch [--quiet] [--version] DECK'
+        write (unit, '(a)') 'Runs a beamid namelist deck (docs/decks.md): static decks write '// &
+            '<output>_summary.csv and <output>_shape.csv next to the deck;'
+        write (unit, '(a)') 'fe decks _summary.csv and _nodes.csv or _modes.csv; estimation '// &
+            'decks (fit, compare, diagnose, improve) _estimates.csv,'
+        write (unit, '(a)') '_covariance.csv, _residuals.csv, _ranking.csv (diagnose, improve), '// &
+            '_compare.csv (compare) and _ladder.csv (improve);'
+        write (unit, '(a)') 'dynamic decks (task simulate) _history.csv. Prints the files '// &
+            'written (--quiet: nothing).'
+        write (unit, '(a)') 'Exit codes: 0 ok, 2 bad input, 3 numerical failure, 4 output '// &
+            'not written, 5 internal error.'
+    end subroutine usage
 end program beamid_batch

@@ -22,21 +22,30 @@ def sizes(nbeams: int, params: np.ndarray, nepb: int, gain: float) -> tuple[int,
 def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,
              method: int, law: int, vslip: float, dt: float, rtol: float, atol: float,
              h0: float, y_init: np.ndarray | None, t_out: np.ndarray, nstate: int,
-             nwork: int, modes: np.ndarray | None = None):
-    """Run the integrator; returns (states, tip, torque, ledger, work, info).
-    ``modes``: 1-based numbers of the retained linear modes (truncated modal
-    model, Eq. 127), None for the full model."""
+             nwork: int, modes: np.ndarray | None = None, maxev: int = 4096):
+    """Run the integrator; returns (states, tip, torque, ledger, work, info,
+    events). ``modes``: 1-based numbers of the retained linear modes (truncated
+    modal model, Eq. 127), None for the full model. ``events``: (7, nev) array
+    of the friction switches (time, component, kind, mode before, after,
+    force before, after); run again with room for all of them when there were
+    more than ``maxev``."""
     use_init = 0 if y_init is None else 1
     y = np.zeros(nstate) if y_init is None else np.asarray(y_init, dtype=float)
     mode_arr = np.zeros(0, dtype=np.int32) if modes is None else np.asarray(modes, np.int32)
-    states, tip, torque, ledger, work, info, code, message = _api.api_dyn_simulate_modal(
-        nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
-        float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
-        float(atol), float(h0), use_init, y, np.ascontiguousarray(t_out, dtype=float), nwork,
-        mode_arr)
-    raise_for_status(int(code), message)
+    while True:
+        (states, tip, torque, ledger, work, info, events, code,
+         message) = _api.api_dyn_simulate_modal(
+            nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
+            float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+            float(atol), float(h0), use_init, y, np.ascontiguousarray(t_out, dtype=float),
+            nwork, mode_arr, int(maxev))
+        raise_for_status(int(code), message)
+        if int(info[5]) <= maxev:
+            break
+        maxev = int(info[5])
+    nev = int(info[5])
     return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
-            np.array(work), tuple(int(v) for v in info))
+            np.array(work), tuple(int(v) for v in info), np.array(events[:, :nev]))
 
 
 def system(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int, vslip: float,

@@ -68,22 +68,27 @@ def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndar
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
-def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-        prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
-        tol_step: float = 0.0, tol_cost: float = 0.0) -> dict:
-    """Weighted Gauss-Newton/LM fit. Returns a dict of arrays; raises
-    ConvergenceError (with the partial result in ``exc.partial``) on failure."""
-    free = np.asarray(free, dtype=np.int32)
-    out = _api.api_fit(
-        prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
-        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
-        prob.exp_values, prob.row_exp, prob.row_q, prob.row_value, prob.row_sigma,
-        float(prob.tol), int(max_iter), float(tol_step), float(tol_cost))
+def code_names(table: int) -> dict[int, str]:
+    """A code table of beamid_estimation by code: 1 parameter flags, 2 how a
+    fit ended, 3 refit starts, 4 candidate states (defined once, in Fortran)."""
+    names, code = _api.api_code_names(int(table))
+    raise_for_status(int(code), f"no code table {table}")
+    return dict(enumerate(_msg(names).strip().split(";")))
+
+
+#: Parameter flags (FLAG_*), how a fit ended (STOP_*), the refit start kept
+#: (START_*; 0: none) and candidate states (CAND_*), from the Fortran tables.
+FLAG_NAMES = code_names(1)
+STOP_NAMES = code_names(2)
+START_NAMES = {k: (v or None) for k, v in code_names(3).items()}
+CANDIDATE_STATES = code_names(4)
+
+
+def _fit_dict(out, n: int) -> dict:
     (params, sigmas, cov, corr, flags, pred, norm, stats, log_cost, log_lambda, log_step,
-     log_params, code, message) = out
-    n = free.size
+     log_params, info, code, message, note) = out
     nlog = int(stats[7]) + 1
-    result = {
+    return {
         "params": np.array(params), "sigmas": np.array(sigmas),
         "cov": np.array(cov).reshape(n, n), "corr": np.array(corr).reshape(n, n),
         "flags": np.array(flags, dtype=int), "predictions": np.array(pred),
@@ -93,10 +98,40 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
         "log_cost": np.array(log_cost[:nlog]), "log_lambda": np.array(log_lambda[:nlog]),
         "log_step": np.array(log_step[:nlog]),
         "log_params": np.array(log_params).reshape(n, -1)[:, :nlog],
+        "stop": STOP_NAMES.get(int(info[0]), "stalled"), "start": START_NAMES.get(int(info[1])),
+        "note": _msg(note).strip(), "code": int(code), "message": _msg(message).strip(),
     }
-    if int(code) != 0:
+
+
+def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+        prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
+        block: np.ndarray | None = None, nominal: np.ndarray | None = None,
+        start_mask: int = 0) -> dict:
+    """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
+    at ``params0`` with the parameters ``block`` freed as well, from the
+    first-order estimate, from ``nominal`` and by continuation (1-based
+    indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
+    continuation starts, 0 all). Returns a dict of arrays; a fit that stalls or whose
+    parameter runs away comes back with ``stop`` and ``note`` saying so.
+    Raises ConvergenceError (with the partial result in ``exc.partial``)
+    when still moving at ``max_iter`` or when no refit start converged."""
+    free = np.asarray(free, dtype=np.int32)
+    block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
+    params0 = np.asarray(params0, float)
+    nominal = params0 if nominal is None else np.asarray(nominal, float)
+    out = _api.api_fit_effect(
+        prob.nbeams, params0, free, _pad(block, np.int32), nominal, _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
+        prob.exp_values, prob.row_exp, prob.row_q, prob.row_value, prob.row_sigma,
+        float(prob.tol), int(max_iter), int(start_mask))
+    result = _fit_dict(out, free.size + block.size)
+    code, message = result["code"], result["message"]
+    if code != 0:
+        if code == 1 and result["note"] and block.size:
+            # the Fortran message holds 256 characters; the notes all of it
+            message = f"refit: no start converged: {result['note']}"
         try:
-            raise_for_status(int(code), message)
+            raise_for_status(code, message)
         except Exception as exc:
             exc.partial = result  # type: ignore[attr-defined]
             raise
@@ -106,24 +141,34 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
 def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
              prior_mean: np.ndarray, prior_sigma: np.ndarray,
              blocks: list[np.ndarray], alpha: float, nrefit: int, ambiguity_delta: float,
-             collinear: float, max_iter: int = 50) -> dict:
-    """Score tests, refits and ranking of candidate blocks (1-based indices)."""
+             collinear: float, max_iter: int = 50, nominal: np.ndarray | None = None) -> dict:
+    """Score tests, refits and ranking of candidate blocks (1-based indices);
+    the refits also start from ``nominal`` (default ``params0``)."""
     starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
     flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
-    out = _api.api_diagnose(
-        prob.nbeams, np.asarray(params0, float), np.asarray(free, np.int32),
+    params0 = np.asarray(params0, float)
+    nominal = params0 if nominal is None else np.asarray(nominal, float)
+    out = _api.api_diagnose_nominal(
+        prob.nbeams, params0, nominal, np.asarray(free, np.int32),
         _pad(prior_idx, np.int32), _pad(prior_mean, float),
         _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-        prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), 0.0, 0.0,
-        starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta), float(collinear))
-    cstats, pstats, refit_params, ranking, cosine, dstats, code, message = out
+        prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
+        starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
+        float(collinear))
+    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes, code,
+     message) = out
     raise_for_status(int(code), message)
     nc = len(blocks)
-    return {"cstats": np.array(cstats).reshape(18, nc), "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+    lines = _msg(notes).rstrip().split("\n")
+    lines += [""] * (nc - len(lines))
+    return {"cstats": np.array(cstats).reshape(18, nc),
+            "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
             "refit_params": np.array(refit_params).reshape(-1, nc),
             "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
-            "dstats": np.array(dstats), "starts": starts - 1}
+            "dstats": np.array(dstats), "starts": starts - 1,
+            "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
+            "notes": [line.strip() for line in lines[:nc]]}
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,

@@ -285,6 +285,68 @@ def _table_list() -> str:
         return "2 3 4 ..."
 
 
+def _cmd_consistency(args: argparse.Namespace) -> int:
+    # issue 17 (mc helper): implementation in beamid.consistency
+    from .consistency import run_consistency_deck
+
+    try:
+        text, files, _ = run_consistency_deck(args.deck, replicates=args.replicates,
+                                              seed=args.seed, scheduler=args.scheduler,
+                                              out=args.out, workers=args.workers,
+                                              plots=not args.no_plots)
+    except ImportError as exc:  # Dask missing: a bad request, not a crash
+        raise InputError(str(exc)) from None
+    print(text)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    # issue 17 (mc helper): implementation in beamid.design
+    from .design import run_design_deck
+
+    text, files, _ = run_design_deck(args.deck, forces=args.force, moments=args.moment,
+                                     wires=args.wire, quantities=args.quantities,
+                                     sigma=args.sigma, target=args.target, out=args.out,
+                                     top=args.top, plots=not args.no_plots)
+    print(text)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
+def _add_mc_parsers(sub) -> None:
+    # issue 17 (mc helper): beamid consistency / beamid design
+    p = sub.add_parser("consistency", help="Monte Carlo check of a fit's sigmas (docs/consistency.md)")
+    p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
+    p.add_argument("--replicates", type=int, default=200, help="noisy data sets (default 200)")
+    p.add_argument("--seed", type=int, default=7, help="seed of the replicates (default 7)")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address (tcp://host:8786); local cores if not given")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local processes (default: all cores; 1 = in this process)")
+    p.add_argument("--out", default=None, help="folder for the CSV and PNG (default: the deck's output)")
+    p.add_argument("--no-plots", action="store_true", help="write the CSV only")
+    p.set_defaults(func=_cmd_consistency)
+    p = sub.add_parser("design", help="rank candidate measurements by the sigma they would leave")
+    p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
+    p.add_argument("--force", type=float, nargs="*", default=[], metavar="FY",
+                   help="candidate transverse tip forces (N)")
+    p.add_argument("--moment", type=float, nargs="*", default=[], metavar="M",
+                   help="candidate tip moments (N m)")
+    p.add_argument("--wire", type=float, nargs="*", default=[], metavar="LW",
+                   help="candidate radial wire lengths (m)")
+    p.add_argument("--quantities", nargs="*", default=None,
+                   help="measured quantities (default: x_tip y_tip tip_angle x_elbow y_elbow wire_force)")
+    p.add_argument("--sigma", nargs="*", default=None, metavar="[Q=]SIGMA",
+                   help="one sigma for all, or QUANTITY=SIGMA items (default: the deck's own)")
+    p.add_argument("--target", default=None,
+                   help="parameter whose sigma to minimize (default: D-criterion over all free)")
+    p.add_argument("--top", type=int, default=20, help="rows to print (default 20)")
+    p.add_argument("--out", default=None, help="folder for the CSV and PNG (default: the deck's output)")
+    p.add_argument("--no-plots", action="store_true", help="write the CSV only")
+    p.set_defaults(func=_cmd_design)
+
+
 def _parameter_list() -> str:
     try:
         from .model import pace
@@ -375,6 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
         p.add_argument("--no-plots", action="store_true", help="write CSV files only")
         p.set_defaults(func=_cmd_estimate)
+    _add_mc_parsers(sub)
     return parser
 
 

@@ -20,6 +20,7 @@ families (dynamics) add theirs with :func:`register_effect`.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Mapping, NamedTuple, Sequence
@@ -29,7 +30,7 @@ import numpy as np
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
-from .estimation import _prior_arrays
+from .estimation import _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad
 from .measurements import Measurements
 from .model import Model
@@ -78,7 +79,7 @@ register_effect(Effect(
 #: Candidate effects tried for static experiments, in order.
 STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
 
-_STATES = {0: "tested", 1: "already free", 2: "already switched on", 3: "not in this model"}
+_STATES = dict(_ce.CANDIDATE_STATES)
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -166,6 +167,8 @@ def compare(fit: FitResult) -> Comparison:
     systematic structure against load: a Wald-Wolfowitz runs test on the
     signs of the residuals ordered by load (within each quantity) and a
     weighted trend (slope of the normalized residuals against load)."""
+    if not isinstance(fit, FitResult):
+        raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)
@@ -229,6 +232,18 @@ class Candidate:
     acceptable: bool = False
     rival: bool = False
     separating: tuple[str, str, float] | None = None
+    #: a refit was tried (``refit`` says whether one of its starts converged)
+    refit_tried: bool = False
+    #: the start the refit kept: "first-order estimate", "nominal model" or
+    #: "continuation" (None: no refit, or none converged)
+    refit_start: str | None = None
+    #: what each refit start gave (why the refit failed, when it did)
+    refit_note: str = ""
+
+    @property
+    def refit_failed(self) -> bool:
+        """A refit was tried and none of its starts converged."""
+        return self.refit_tried and not self.refit
 
     @property
     def chi2_drop(self) -> float:
@@ -249,7 +264,12 @@ class Candidate:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """Result of :func:`diagnose`: candidates ranked best first."""
+    """Result of :func:`diagnose`: candidates ranked best first.
+
+    Indexable by rank (``diagnosis[0]`` is the best candidate, slices give
+    tuples) and by effect name (``diagnosis["material_cubic"]``); iterating
+    gives the candidates in rank order; ``len`` is their number.
+    """
 
     fit: FitResult
     candidates: tuple[Candidate, ...]
@@ -259,11 +279,26 @@ class Diagnosis:
     alpha_each: float
     message: str
 
-    def __getitem__(self, effect: str) -> Candidate:
-        for c in self.candidates:
-            if c.effect == effect:
-                return c
-        raise KeyError(effect)
+    def __getitem__(self, key: int | slice | str) -> Candidate:
+        if isinstance(key, str):
+            for c in self.candidates:
+                if c.effect == key:
+                    return c
+            raise KeyError(f"{key!r} is not a candidate of this diagnosis (candidates: "
+                           f"{', '.join(c.effect for c in self.candidates)})")
+        if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
+            return self.candidates[key]  # type: ignore[return-value]
+        raise TypeError(f"a Diagnosis is indexed by rank (int) or effect name (str), "
+                        f"not {type(key).__name__}")
+
+    def __iter__(self):
+        return iter(self.candidates)
+
+    def __len__(self) -> int:
+        return len(self.candidates)
+
+    def __contains__(self, effect: object) -> bool:
+        return any(c.effect == effect for c in self.candidates)
 
     def __str__(self) -> str:
         lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
@@ -279,6 +314,8 @@ class Diagnosis:
                 notes.append("nonphysical first-order estimate")
             if not c.identifiable:
                 notes.append("not separable from the free parameters")
+            if c.refit_failed:
+                notes.append("refit failed: no start converged")
             if c.refit and c.refit_flags and any(v != "ok" for v in c.refit_flags.values()):
                 notes.append("; ".join(f"{n}: {v}" for n, v in c.refit_flags.items()
                                        if v != "ok"))
@@ -299,7 +336,7 @@ def _candidate_blocks(model: Model, candidates: Iterable[str | Effect]):
 
 def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
              alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
-             collinear: float = 0.98) -> Diagnosis:
+             collinear: float = 0.98, nominal: Model | None = None) -> Diagnosis:
     """Which switched-off effect would explain the residuals of ``fit``?
 
     For each candidate whose parameters are all at their null values and not
@@ -314,6 +351,13 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     well (drops within ``ambiguity_delta`` or |cosine| of their first-order
     residual changes above ``collinear``), and for each rival the
     measurement that would separate it from the verdict is named.
+
+    Each refit starts from the first-order estimate (the free parameters
+    moved along with it), from the nominal model (``nominal``, default the
+    model the user started from, ``fit.nominal``) with the effect off, and
+    by continuation in the effect's strength from its null value, and keeps
+    the best that converges; a candidate none of whose starts converges is
+    named in the message with the reason.
     """
     if not isinstance(fit, FitResult):
         raise InputError(f"diagnose needs a FitResult from beamid.fit, got {type(fit).__name__}")
@@ -329,8 +373,9 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    nominal = _nominal(fit, nominal)
     raw = _ce.diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
-                       int(nrefit), ambiguity_delta, collinear)
+                       int(nrefit), ambiguity_delta, collinear, nominal=nominal.vector())
     cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
     exp_names = list(fit.experiments)
     out: list[Candidate] = []
@@ -360,18 +405,19 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
                          for j, n in enumerate(names[c])} if refit else {},
             refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
             significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
-            separating=sep))
+            separating=sep, refit_tried=bool(s[6]), refit_start=raw["refit_start"][c],
+            refit_note=_named(model, raw["notes"][c])))
     ranked = tuple(out[i] for i in raw["ranking"])
     verdict_index = int(raw["dstats"][0])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
     rivals = tuple(c for c in ranked if c.rival)
     alpha_each = float(raw["dstats"][2])
-    message = _verdict_message(fit, ranked, verdict, rivals, alpha)
+    message = _verdict_message(fit, ranked, verdict, rivals, alpha, alpha_each)
     return Diagnosis(fit=fit, candidates=ranked, verdict=verdict, rivals=rivals, alpha=alpha,
                      alpha_each=alpha_each, message=message)
 
 
-def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
+def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
     lines = []
     undetermined = [n for n, f in fit.flags.items() if f != "ok"]
     if undetermined:
@@ -382,6 +428,27 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
         tested = [c for c in ranked if c.state == "tested"]
         if not tested:
             lines.append("no candidate effect left to test (all are free or switched on)")
+        failed = [c for c in ranked if c.refit_failed]
+        if failed:
+            # never "not explained by any known effect" while a candidate
+            # could not be refitted: name it and say why
+            for c in failed:
+                lines.append(f"the refit of {c.effect} failed (score drop {c.score_drop:.4g}, "
+                             f"p = {c.score_p:.2g}): {c.refit_note}")
+            strong = [c for c in failed if c.score_p < alpha_each]
+            consistent = ("the fit is consistent with the noise" if not (p < alpha) else
+                          "the misfit is real")
+            if strong:
+                lines.append(f"no verdict: {', '.join(c.effect for c in strong)} "
+                             f"{'is' if len(strong) == 1 else 'are'} significant by the "
+                             f"first-order test but could not be confirmed by a refit "
+                             f"(chi2/dof = {fit.chi2_per_dof:.3g}, p = {p:.3g}; {consistent})")
+            else:
+                lines.append(f"no verdict: no refit is significant at {alpha:g}, and the "
+                             f"first-order tests of {', '.join(c.effect for c in failed)}, "
+                             f"whose refit failed, are not significant either (chi2/dof = "
+                             f"{fit.chi2_per_dof:.3g}, p = {p:.3g}; {consistent})")
+            return "\n".join(lines)
         lines.append(f"residuals not explained by any known effect: no candidate is "
                      f"significant at {alpha:g} (chi2/dof = {fit.chi2_per_dof:.3g}, "
                      f"p = {p:.3g}" + ("; the fit is consistent with the noise)"
@@ -393,6 +460,10 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
                     for n in verdict.params)
     lines.append(f"missing effect: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
                  f"p = {verdict.p_value:.2g}; {est})")
+    for c in ranked:
+        if c.refit_failed and c.score_p < alpha_each:
+            lines.append(f"  (the refit of {c.effect} failed, score drop {c.score_drop:.4g}: "
+                         f"{c.refit_note})")
     if rivals:
         names = ", ".join(r.effect for r in rivals)
         lines.append(f"ambiguous: {verdict.effect} and {names} explain the residuals about "
@@ -408,9 +479,33 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha) -> str:
 
 # ------------------------------------------------------------- add / improve
 
-def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50) -> FitResult:
-    """Refit with the parameters of ``effect`` free as well, starting from
-    its first-order (score-test) estimate when that is physical."""
+def _nominal(fit: FitResult, nominal: Model | None) -> Model:
+    """The model the refits also start from: ``nominal``, else the one the
+    user started from (``fit.nominal``), with every parameter that is not
+    free in ``fit`` at its fitted value."""
+    base = nominal if nominal is not None else (fit.nominal or fit.start)
+    if not isinstance(base, Model) or base.nbeams != fit.model.nbeams:
+        raise InputError(f"nominal must be a beamid.Model with {fit.model.nbeams} beams, got "
+                         f"{base!r}")
+    return fit.model.with_params({n: base[n] for n in fit.free})
+
+
+def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
+               nominal: Model | None = None,
+               starts: Sequence[str] | None = None) -> FitResult:
+    """Refit with the parameters of ``effect`` free as well.
+
+    The refit starts where it can converge (Fortran ``refit_effect``): from
+    the first-order (score-test) estimate of the effect with the free
+    parameters moved along with it, from the nominal model (``nominal``,
+    default ``fit.nominal``, the model the user started from) with the
+    effect off, and by continuation in the effect's strength from its null
+    value; the best that converges is kept (``result.refit_start`` says
+    which, ``result.note`` what every start gave). A refit that runs away or
+    stalls comes back flagged; :class:`beamid.ConvergenceError` only when no
+    start converges at all (the message says why for each). ``starts``
+    limits the starts tried (names as in ``refit_start``; default all).
+    """
     eff = _effect(effect)
     params = eff.params(fit.model)
     if not params:
@@ -419,16 +514,31 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50) -> F
     already = [p for p in params if p in fit.free]
     if already:
         raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
-    start = fit.model
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
+    mask = 0
+    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+        if name not in names:
+            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
+        mask |= 1 << names.index(name)
+    if starts is not None and mask == 0:
+        raise InputError(f"starts is empty: name some of {', '.join(names)}")
+    model = fit.model
+    nominal = _nominal(fit, nominal)
+    prob = build_problem(model, fit.experiments, fit.data)
+    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    block = np.array([model.index(n) + 1 for n in params], np.int32)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     try:
-        d = diagnose(fit, [eff], nrefit=1)
-        cand = d.candidates[0]
-        if cand.refit and cand.refit_model is not None:
-            start = cand.refit_model
-    except ConvergenceError:
-        pass
-    return _fit(start, fit.experiments, fit.data, free=fit.free + params, prior=fit.prior,
-                max_iter=max_iter)
+        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter),
+                      block=block, nominal=nominal.vector(), start_mask=mask)
+    except ConvergenceError as exc:
+        raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
+    start = model.with_params(dict(zip(fit.free + params, raw["log_params"][:, 0])))
+    return _result(start, fit.experiments, fit.data, fit.free + params, prior_map, raw,
+                   nominal=nominal.with_params({n: float(raw["params"][model.index(n)])
+                                                for n in params}))
 
 
 class LadderStep(NamedTuple):
@@ -479,12 +589,13 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     """Fit, then repeat diagnose and add the verdict's effect until no
     candidate is significant; return the ladder of fits."""
     current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
+    nominal = model
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
     limit = len(cands) if max_steps is None else int(max_steps)
     steps = []
     effect: str | None = None
     for k in range(limit + 1):
-        diag = diagnose(current, cands, alpha=alpha)
+        diag = diagnose(current, cands, alpha=alpha, nominal=nominal)
         steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
                                 dict(current.estimates), dict(current.sigmas), current, diag))
         if diag.verdict is None or k == limit:
@@ -493,5 +604,8 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
         start = verdict.refit_model or current.model
         current = _fit(start, experiments, data, free=current.free + verdict.params,
                        prior=prior, max_iter=max_iter)
+        current = dataclasses.replace(current, nominal=nominal.with_params(
+            {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
+        nominal = current.nominal
         effect = verdict.effect
     return Ladder(tuple(steps))

@@ -16,12 +16,15 @@ values, the dissertation's runs set them to 0), ``r_motor tau_motor`` with
 ``motor_gain`` (tip motor, Eq. 150-159, with a current-loop lag).
 
 Integrators: ``"implicit"`` (default; Radau IIA order 5 with error control,
-tolerance ``rtol``) and ``"rk4"`` (fixed step ``dt``, 1e-5 s by default, the
-dissertation's). Friction laws: ``"sign"`` (Eq. 101, sign(0) = 0),
-``"smooth"`` (mu N v / sqrt(v^2 + vs^2), ``friction_velocity`` vs) and
-``"sign_literal"`` (the literal Fortran SIGN(1, v), +1 at rest). By default
-RK4 uses ``"sign"`` and the implicit integrator ``"smooth"``; ``run.friction``
-says which law a run used.
+tolerance ``rtol`` = ``atol`` = 1e-9 by default, in metres for the
+displacements: 1e-6 m on the tip of the dissertation's runs) and ``"rk4"``
+(fixed step ``dt``, 1e-5 s by default, the dissertation's). Friction laws:
+``"sign"`` (default of both: Eq. 101 with its switches as events, located on
+the step's interpolant, and sticking while the other forces stay below mu N;
+``run.events`` lists them), ``"smooth"`` (mu N v / sqrt(v^2 + vs^2),
+``friction_velocity`` vs) and ``"sign_literal"`` (the literal Fortran
+SIGN(1, v), +1 at rest, no events); ``run.friction`` says which law a run
+used.
 
 ``modes=`` runs the truncated modal model of Section 4.1.4 (Eq. 127) instead of
 the full one: ``k`` lowest modes, ``"transverse"`` or mode numbers
@@ -37,7 +40,8 @@ import numpy as np
 from . import _core_dynamics as _cd
 from .errors import InputError
 
-__all__ = ["Run", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+__all__ = ["Run", "FrictionEvent", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+           "DEFAULT_FRICTION",
            "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
 
 #: Friction laws and their codes in the Fortran core.
@@ -45,9 +49,11 @@ FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
 #: Integrators and their codes.
 INTEGRATORS = {"rk4": 0, "implicit": 1}
 #: Default relative (and absolute) tolerance of the implicit integrator.
-DEFAULT_RTOL = 1.0e-7
+DEFAULT_RTOL = 1.0e-9
 #: Default RK4 step (s): the dissertation's (Section 4.1.4).
 DEFAULT_DT = 1.0e-5
+#: Default friction law of both integrators: Eq. 101's sign, switched as events.
+DEFAULT_FRICTION = "sign"
 #: Default regularization velocity of the smooth friction law (m/s).
 DEFAULT_FRICTION_VELOCITY = 1.0e-4
 
@@ -84,6 +90,43 @@ def _release_loads(release) -> np.ndarray:
                      f"{type(release).__name__}")
 
 
+#: Kinds of friction events (the codes of the Fortran core).
+EVENT_KINDS = {0: "start", 1: "zero_velocity", 2: "unstick"}
+
+
+@dataclass(frozen=True)
+class FrictionEvent:
+    """A friction switch of the sign law (Eq. 101-102 as events).
+
+    ``kind``: ``"start"`` (the decision at t = 0 for components at rest),
+    ``"zero_velocity"`` (a sliding component's velocity reached zero: it
+    reverses or sticks), ``"unstick"`` (a sticking component's constraint
+    force reached mu N). ``before``/``after``: +1 or -1 sliding (friction
+    -mu N sign), 0 sticking. ``force_before``/``force_after``: the friction
+    force on the component (N; a sticking one's constraint force)."""
+
+    t: float
+    point: str          #: "elbow", "tip" (or "joint<k>")
+    component: str      #: "u" or "w"
+    kind: str
+    before: int
+    after: int
+    force_before: float
+    force_after: float
+
+
+def _events(nbeams: int, evs: np.ndarray) -> tuple[FrictionEvent, ...]:
+    out = []
+    for col in np.asarray(evs).T:
+        j = int(round(col[1]))
+        out.append(FrictionEvent(t=float(col[0]), point=_point_name(nbeams, (j + 1) // 2),
+                                 component="u" if j % 2 == 1 else "w",
+                                 kind=EVENT_KINDS[int(round(col[2]))],
+                                 before=int(round(col[3])), after=int(round(col[4])),
+                                 force_before=float(col[5]), force_after=float(col[6])))
+    return tuple(out)
+
+
 @dataclass
 class Run:
     """A simulated time history at the output times ``t``."""
@@ -104,6 +147,8 @@ class Run:
     nfree: int
     #: retained mode numbers of a truncated modal run (1-based), None: full model
     modes: tuple[int, ...] | None = None
+    #: friction switches of the sign law (events), in time order
+    events: tuple["FrictionEvent", ...] = ()
     _model: object = field(repr=False, default=None)
 
     @property
@@ -191,9 +236,12 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     integrator: ``"implicit"`` (default) or ``"rk4"``.
     motor_gain: gain g of the tip motor, T = -r_motor g Psidot_tip (Eq. 150, 158).
     dt: RK4 step (default 1e-5 s).
-    rtol: implicit tolerance (default 1e-7; absolute tolerance ``atol`` = rtol).
-    friction: ``"sign"``, ``"smooth"`` or ``"sign_literal"`` (default: sign for
-        RK4, smooth for implicit).
+    rtol: implicit tolerance per step (default 1e-9; absolute tolerance ``atol``
+        = rtol, in m for displacements and rad for slopes; velocity errors count
+        as the displacement they cause over the step). The default gives 1e-6 m
+        on the tip of the dissertation's runs with the sign law.
+    friction: ``"sign"`` (default: Eq. 101 with events and sticking),
+        ``"smooth"`` or ``"sign_literal"``.
     friction_velocity: regularization velocity of the smooth law (1e-4 m/s).
     initial_state: a state vector (q, v[, T]) to start from instead of the release.
     modes: truncated modal model (Section 4.1.4, Eq. 127): ``k`` keeps the k
@@ -207,7 +255,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     if integrator not in INTEGRATORS:
         raise InputError(f"integrator = {integrator!r}, expected one of {sorted(INTEGRATORS)}")
     if friction is None:
-        friction = "sign" if integrator == "rk4" else "smooth"
+        friction = DEFAULT_FRICTION
     if friction not in FRICTION_LAWS:
         raise InputError(f"friction = {friction!r}, expected one of {sorted(FRICTION_LAWS)}")
     if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam,
@@ -227,6 +275,10 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
     loads = _release_loads(release)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
+    need = 8 * (nstate + nwork + 8) * t.size  # the history arrays (input validation, issue 16)
+    if need > 4 * 2**30:
+        raise InputError(f"t_out has {t.size} times: the history would need about "
+                         f"{need / 2**30:.1f} GiB of memory (limit 4 GiB)")
     if initial_state is not None:
         initial_state = np.asarray(initial_state, dtype=float)
         if initial_state.shape != (nstate,):
@@ -234,7 +286,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                              f"expected ({nstate},)")
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-    states, tip, torque, ledger, work, info = _cd.simulate(
+    states, tip, torque, ledger, work, info, evs = _cd.simulate(
         nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
         FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
         initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
@@ -247,8 +299,9 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
                integrator=integrator, friction=friction,
                elements_per_beam=int(elements_per_beam),
-               info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton"), info)),
-               nfree=nfree, modes=kept, _model=model)
+               info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton", "events",
+                              "event_steps"), info)),
+               nfree=nfree, modes=kept, events=_events(nbeams, evs), _model=model)
 
 
 def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,

@@ -15,6 +15,7 @@ priori pseudo-measurements, SVD covariance) run in Fortran
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping, NamedTuple, Sequence
 
@@ -27,9 +28,8 @@ from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .static import measurement_value, solve_static
 
-#: Meaning of the per-parameter flags returned by the Fortran core.
-FLAG_TEXT = {0: "ok", 1: "not determined by these data", 2: "ran away from its start",
-             3: "correlation near +-1 with another parameter", 4: "at a physical bound"}
+#: Meaning of the per-parameter flags returned by the Fortran core (its table).
+FLAG_TEXT = dict(_ce.FLAG_NAMES)
 
 Experiments = Mapping[str, "TipLoad | RadialWire"]
 
@@ -63,7 +63,9 @@ class FitResult:
     ``estimates`` and ``sigmas`` are dicts by parameter name; ``cov`` and
     ``corr`` are arrays in the order of ``free``. A parameter the data do not
     determine has an infinite sigma and a flag in ``flags``; ``warnings``
-    says so in words.
+    says so in words. A fit that stalled or whose parameter ran away has
+    ``converged`` False, ``stop`` "stalled" or "runaway" and ``note`` saying
+    which parameters are at a bound, running away or collinear.
     """
 
     model: Model
@@ -87,6 +89,18 @@ class FitResult:
     residuals: list[Residual]
     log: list[IterationLog] = field(repr=False)
     warnings: tuple[str, ...] = ()
+    #: how the iteration ended: "converged", "stalled" (no step lowers the cost
+    #: though the iterate is no minimum) or "runaway" (a parameter ran away,
+    #: held where found, the others fitted); see ``note`` and ``flags``
+    stop: str = "converged"
+    #: what happened when the fit did not converge (or how a refit started)
+    note: str = ""
+    #: the model the user started from (refits of :func:`beamid.add_effect`
+    #: and :func:`beamid.improve` also start from it); None: ``start``
+    nominal: Model | None = field(default=None, repr=False)
+    #: for a refit with an effect added: the start it kept ("first-order
+    #: estimate", "nominal model" or "continuation")
+    refit_start: str | None = None
 
     @property
     def chi2_per_dof(self) -> float:
@@ -193,10 +207,31 @@ def _prior_arrays(model: Model, free: tuple[str, ...],
     return out, np.array(idx, np.int32), np.array(mean), np.array(sig)
 
 
+def _named(model: Model, text: str) -> str:
+    """Fortran notes name parameters by 1-based index ("parameter 7",
+    "parameters 2 and 5"): put the names in."""
+    names = model.names()
+
+    def name(k: str) -> str:
+        i = int(k) - 1
+        return names[i] if 0 <= i < len(names) else f"parameter {k}"
+
+    def one(match: re.Match) -> str:
+        if match.group(2):
+            return f"{name(match.group(1))} and {name(match.group(2))}"
+        return name(match.group(1))
+
+    return re.sub(r"\bparameters? (\d+)(?: and (\d+))?", one, text)
+
+
 def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: float,
-              rank: int) -> tuple[str, ...]:
+              rank: int, stop: str = "converged", note: str = "") -> tuple[str, ...]:
     out = []
-    if rank < len(free):
+    if stop in ("runaway", "stalled"):
+        out.append(f"not converged ({stop}): {note}")
+    if stop == "runaway":
+        pass    # the held parameter's column is left out of rank and condition
+    elif rank < len(free):
         out.append(f"the free parameters are not identifiable from these data (rank {rank} "
                    f"of {len(free)}); undetermined parameters have infinite sigma")
     elif cond > 1e6:
@@ -211,6 +246,21 @@ def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: 
                 out.append(f"{free[i]} and {free[j]} are correlated {c:+.4f}: the data "
                            "determine a combination of them, not each")
     return tuple(out)
+
+
+def _check_fit_args(data, tol, max_iter) -> None:
+    """Argument checks of fit (InputError naming the argument)."""
+    if not isinstance(data, Measurements):
+        raise InputError(f"data = {type(data).__name__}, expected beamid.Measurements "
+                         "(beamid.read_measurements)")
+    try:
+        ok = float(tol) >= 0.0 and np.isfinite(float(tol))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"tol = {tol!r}, expected 0 (default) or a positive tolerance")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise InputError(f"max_iter = {max_iter!r}, expected an integer >= 1")
 
 
 def fit(model: Model, experiments: Experiments, data: Measurements,
@@ -241,10 +291,20 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     prior:
         Optional a priori ``{name: (mean, sigma)}`` for free parameters.
     max_iter:
-        Gauss-Newton iterations before :class:`beamid.ConvergenceError`.
+        Gauss-Newton iterations; a fit still moving after them raises
+        :class:`beamid.ConvergenceError` (``exc.partial`` holds the last
+        iterate).
     tol:
         Static solver tolerance (0: default).
+
+    A parameter that runs away (beyond 100 times its start, or a stiffness
+    below a ten-thousandth of it) is held where it was found and the others
+    are fitted; a fit whose damped steps stop lowering the cost stalls.
+    Both come back flagged (``result.stop``, ``result.note``,
+    ``result.flags``), not raised. ConvergenceError is for a model the
+    solver cannot solve at the values asked, and for the iteration limit.
     """
+    _check_fit_args(data, tol, max_iter)
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if int(max_iter) < 1:
@@ -257,8 +317,14 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
-            free: tuple[str, ...], prior: dict, raw: dict) -> FitResult:
+            free: tuple[str, ...], prior: dict, raw: dict,
+            nominal: Model | None = None) -> FitResult:
     fitted = Model(start.nbeams, raw["params"])
+    note = _named(start, raw.get("note", "")) if raw.get("stop", "converged") not in (
+        "converged", "evaluated") or raw.get("start") else ""
+    stop = raw.get("stop", "converged")
+    if stop == "evaluated":
+        stop = "converged"
     est = {n: float(fitted[n]) for n in free}
     sig = {n: float(s) for n, s in zip(free, raw["sigmas"])}
     residuals = [Residual(e, float(t), q, float(v), float(p), float(s), float(r))
@@ -276,7 +342,10 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
         chi2=raw["chi2"], chi2_prior=raw["chi2_prior"], dof=raw["dof"],
         iterations=raw["iterations"], converged=raw["converged"], cond=raw["cond"],
         rank=raw["rank"], flags=flags, residuals=residuals, log=log,
-        warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"]))
+        warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"],
+                           stop, note if stop != "converged" else ""),
+        stop=stop, note=note, nominal=nominal if nominal is not None else start,
+        refit_start=raw.get("start"))
 
 
 def predict(model: Model, experiments: Experiments, data: Measurements,
@@ -286,6 +355,34 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     prob = build_problem(model, experiments, data)
     idx = np.array([model.index(n) + 1 for n in wrt], np.int32)
     return _ce.predict(prob, model.vector(), idx)
+
+
+def _check_quantities(exps, quantities, sigma) -> None:
+    """Argument checks of simulate_measurements (InputError naming the argument)."""
+    if isinstance(quantities, str) or not isinstance(quantities, (Mapping, Sequence)):
+        raise InputError(f"quantities = {quantities!r}, expected a list of quantity names "
+                         "or {experiment: [names]}")
+    lists = quantities.values() if isinstance(quantities, Mapping) else [quantities]
+    if isinstance(quantities, Mapping):
+        missing = [n for n in exps if n not in quantities]
+        if missing:
+            raise InputError(f"quantities has no entry for experiment {missing[0]!r} "
+                             f"(experiments: {', '.join(exps)})")
+    for qs in lists:
+        for q in ([qs] if isinstance(qs, str) else qs):
+            if q not in QUANTITIES:
+                raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
+                                 f"{', '.join(QUANTITIES)}")
+            if isinstance(sigma, Mapping) and q not in sigma:
+                raise InputError(f"sigma has no entry for quantity {q!r}")
+    values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]
+    for v in values:
+        try:
+            ok = float(v) > 0.0 and np.isfinite(float(v))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(f"sigma = {v!r}, expected a finite standard deviation > 0")
 
 
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
@@ -299,6 +396,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     from ``numpy.random.default_rng(seed)``.
     """
     exps = _check_experiments(experiments)
+    _check_quantities(exps, quantities, sigma)
     rows = []
     for name, load in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities

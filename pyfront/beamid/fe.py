@@ -76,7 +76,18 @@ def _mesh_size(nbeams, elements_per_beam):
     if elements_per_beam < 1:
         raise _input_error(f"elements_per_beam = {elements_per_beam}, expected at least 1")
     nnode = nbeams * int(elements_per_beam) + 1
+    # the bound of the deck reader (beamid_deck check_mesh_size): about 40
+    # numbers per unknown in the banded solvers
+    need = 8 * 40 * 4 * nnode
+    if need > _MAX_BYTES:
+        raise _input_error(f"elements_per_beam = {elements_per_beam}: the mesh would need "
+                           f"about {need / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     return nnode, 4 * nnode - 3
+
+
+#: memory bound of a mesh (bytes), as the deck reader's
+_MAX_BYTES = 4 * 2**30
 
 
 def _hinges(model, elements_per_beam):
@@ -228,6 +239,15 @@ class FEStatic:
     outboard: np.ndarray = None
     hinges: tuple = ()          #: 0-based nodes of the hinged joints
     root_hinge: bool = False    #: the root is a hinge spring (root_flex > 0)
+    #: negative eigenvalues of the tangent at this equilibrium (Sylvester's
+    #: inertia of its L D L^T): 0 stable, >= 1 unstable
+    negative_eigenvalues: int = 0
+
+    @property
+    def stable(self) -> bool:
+        """False when the tangent has a negative eigenvalue: e.g. the straight
+        chain under a compressive tip force beyond the buckling load."""
+        return self.negative_eigenvalues == 0
 
     @property
     def q(self):
@@ -297,7 +317,7 @@ def fe_static(model, load, elements_per_beam=8, *, start=None, steps=0, tol=0.0,
                     iterations=int(info[0]), steps=int(info[1]),
                     elements_per_beam=int(elements_per_beam), load=comps,
                     outboard=_structured_out(np.asarray(nodes_out)), hinges=hinges,
-                    root_hinge=root_hinge)
+                    root_hinge=root_hinge, negative_eigenvalues=int(info[2]))
 
 
 @dataclass
@@ -346,8 +366,14 @@ def fe_path(model, load0, dload, elements_per_beam=8, *, start=None, lam0=0.0, d
         guess_out = np.zeros((2, nnode), order="F")
     else:
         guess, guess_out = _node_tables(start, nnode)
-    if int(max_points) < 1:
-        raise _input_error(f"max_points = {max_points}, expected at least 1")
+    if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
+            or max_points < 1:
+        raise _input_error(f"max_points = {max_points!r}, expected an integer >= 1")
+    need = 8 * 7 * nnode * int(max_points)
+    if need > _MAX_BYTES:
+        raise _input_error(f"max_points = {max_points}: the path would need about "
+                           f"{need / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     npts, lam, nodes, nodes_out = _call(
         "api_fe_path", nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
         float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
@@ -447,6 +473,10 @@ class FEModes:
         return self._tables(i)[1]
 
     def _tables(self, i):
+        n = len(self.omega)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= n:
+            raise _input_error(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
+                               "ascending frequency)")
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
         out = np.zeros((2, nnode))
@@ -490,6 +520,11 @@ def modes(model, elements_per_beam=4, *, rotary_inertia=False):
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
+    if 8 * 3 * nfree**2 > _MAX_BYTES:
+        raise _input_error(f"elements_per_beam = {elements_per_beam}: the modes (dense "
+                           f"eigenproblem of {nfree} unknowns) would need about "
+                           f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
+                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
     omega, phi, axial, dofs = _call("api_fe_modes", nbeams, params, int(elements_per_beam),
                                     int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,

@@ -110,6 +110,29 @@ class Measurements:
         return Measurements(self.experiment, self.t, self.quantity, np.asarray(value, float),
                             self.sigma, self.source, self.lines)
 
+    def merge(self, other: "Measurements") -> "Measurements":
+        """This table followed by the rows of ``other`` (e.g. simulated rows of
+        a planned experiment). A row of ``other`` with the same (experiment,
+        t, quantity) as a row here is an InputError naming both."""
+        if not isinstance(other, Measurements):
+            raise InputError(f"merge: expected beamid.Measurements, got {type(other).__name__}")
+        here = {(e, float(t), q): i for i, (e, t, q) in
+                enumerate(zip(self.experiment, self.t, self.quantity))}
+        for j, key in enumerate(zip(other.experiment, other.t, other.quantity)):
+            i = here.get((key[0], float(key[1]), key[2]))
+            if i is not None:
+                raise InputError(f"merge: duplicate row: experiment {key[0]!r}, t = "
+                                 f"{key[1]:g}, quantity {key[2]!r} is in both "
+                                 f"{self._where(i)} and {other._where(j)}")
+        source = self.source if self.source == other.source else \
+            f"{self.source} + {other.source}"
+        return Measurements(self.experiment + other.experiment,
+                            np.concatenate([self.t, other.t]),
+                            self.quantity + other.quantity,
+                            np.concatenate([self.value, other.value]),
+                            np.concatenate([self.sigma, other.sigma]), source,
+                            tuple(self.lines) + tuple(other.lines))
+
     def check_experiments(self, experiments: Mapping[str, object]) -> None:
         """Raise InputError for a row whose experiment is not defined."""
         for i, name in enumerate(self.experiment):
@@ -125,19 +148,11 @@ class Measurements:
         Path(path).write_text("\n".join(lines) + "\n")
 
 
-def _number(text: str, where: str, name: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise InputError(f"{where}: field {name} = {text!r}, expected a number") from None
-    if not math.isfinite(value):
-        raise InputError(f"{where}: field {name} = {text!r}, expected a finite number")
-    return value
-
-
 def read_measurements(path: str | os.PathLike,
                       experiments: Mapping[str, object] | None = None) -> Measurements:
-    """Read and validate a measurement CSV file.
+    """Read and validate a measurement CSV file (with the Fortran reader of
+    beamid-batch, ``beamid_measurements``, so both fronts accept and refuse
+    the same files with the same message).
 
     Parameters
     ----------
@@ -153,54 +168,19 @@ def read_measurements(path: str | os.PathLike,
     InputError
         Missing file or header, wrong field count, unknown quantity,
         non-numeric or non-finite value, sigma <= 0, duplicate row, undefined
-        experiment: the message names the file, the line and the field.
+        experiment: the message names the file, the line and the field; a
+        path that is not a str or os.PathLike names the argument.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"read_measurements: path = {path!r}, expected a file path "
+                         "(str or os.PathLike)")
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"cannot open measurement file {path}: no such file")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read measurement file {path}: {exc}") from None
-    header_seen = False
-    names: list[str] = []
-    ts: list[float] = []
-    qs: list[str] = []
-    vals: list[float] = []
-    sigs: list[float] = []
-    lines: list[int] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        fields = [f.strip() for f in line.split(",")]
-        where = f"{path}, line {lineno}"
-        if not header_seen:
-            if tuple(f.lower() for f in fields) != HEADER:
-                raise InputError(f"{where}: expected the header {','.join(HEADER)}, got "
-                                 f"{line!r}")
-            header_seen = True
-            continue
-        if len(fields) != 5:
-            raise InputError(f"{where}: expected 5 fields ({','.join(HEADER)}), got "
-                             f"{len(fields)}")
-        if not fields[0]:
-            raise InputError(f"{where}: field experiment is empty")
-        names.append(fields[0])
-        ts.append(_number(fields[1], where, "t"))
-        if fields[2] not in QUANTITIES:
-            raise InputError(f"{where}: field quantity = {fields[2]!r}, expected one of "
-                             f"{', '.join(QUANTITIES)}")
-        qs.append(fields[2])
-        vals.append(_number(fields[3], where, "value"))
-        sigs.append(_number(fields[4], where, "sigma"))
-        lines.append(lineno)
-    if not header_seen:
-        raise InputError(f"{path}: no header line {','.join(HEADER)} found")
-    if not names:
-        raise InputError(f"{path}: no measurement rows after the header")
-    data = Measurements(tuple(names), np.array(ts), tuple(qs), np.array(vals),
-                        np.array(sigs), source=str(path), lines=tuple(lines))
+    if path.is_dir():
+        raise InputError(f"cannot read measurement file {path}: it is a directory")
+    from . import _core
+
+    names, t, quantity, value, sigma, lines = _core.read_measurements(str(path))
+    data = Measurements(names, t, quantity, value, sigma, source=str(path), lines=lines)
     if experiments is not None:
         data.check_experiments(experiments)
     return data

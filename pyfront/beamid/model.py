@@ -32,6 +32,9 @@ def _canonical(nbeams: int, name: str) -> str:
     return name
 
 
+#: most beams of a chain (the bound of the deck reader, beamid_deck)
+MAX_BEAMS = 1000
+
 class Model:
     """A validated beam chain. Use :func:`pace` or :func:`cantilever` to make one.
 
@@ -46,9 +49,10 @@ class Model:
     __slots__ = ("_nbeams", "_values", "_index", "_wrt_cache")
 
     def __init__(self, nbeams: int, values: Iterable[float]):
+        if isinstance(nbeams, bool) or not isinstance(nbeams, (int, np.integer)) \
+                or not 1 <= nbeams <= MAX_BEAMS:
+            raise InputError(f"nbeams = {nbeams!r}, expected an integer from 1 to {MAX_BEAMS}")
         nbeams = int(nbeams)
-        if nbeams < 1:
-            raise InputError(f"nbeams = {nbeams}, expected at least 1")
         vec = np.array(list(values) if not isinstance(values, np.ndarray) else values,
                        dtype=float)
         names = _core.param_names(nbeams)

@@ -118,15 +118,31 @@ class StaticResult:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
         total = self.model.total_length
         if s is None:
-            if int(n) < 2:
-                raise InputError(f"shape n = {n}, expected at least 2 points")
+            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+                raise InputError(f"shape n = {n!r}, expected an integer, at least 2 (points)")
+            if 5 * 8 * int(n) > _MAX_BYTES:
+                raise InputError(f"shape n = {n}: the shape would need about "
+                                 f"{5 * 8 * int(n) / 2**30:.2g} GiB of memory (limit "
+                                 f"{_MAX_BYTES / 2**30:.0f} GiB)")
             grid = np.linspace(0.0, total, int(n))
         else:
-            grid = np.asarray(list(s), dtype=float)
+            try:
+                grid = np.asarray(list(np.atleast_1d(s)), dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(f"shape s = {s!r}, expected arc positions (numbers)") from None
+            bad = ~np.isfinite(grid) | (grid < 0.0) | (grid > total * (1 + 1e-12))
+            if grid.ndim != 1 or bad.any():
+                first = grid[bad][0] if bad.any() else grid
+                raise InputError(f"shape s = {first}, expected finite arc positions in "
+                                 f"[0, {total:g}] (the total length, m)")
         kind, values = self.load.encode()
         x, y, psi, moment = _core.static_shape(self.model.nbeams, self.model.vector(), kind,
                                                values, self.unknowns, grid, self.tol)
         return Shape(grid, x, y, psi, moment)
+
+
+#: memory bound of a result table a user asks for (bytes)
+_MAX_BYTES = 4 * 2**30
 
 
 def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),

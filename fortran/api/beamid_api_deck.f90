@@ -1,0 +1,302 @@
+!> f2py-facing API of the deck and measurement readers and of the task
+!! runners: Python reads decks and measurement CSVs and runs decks through
+!! the same Fortran as beamid-batch (docs/decks.md).
+!!
+!! A deck is read twice: api_deck_sizes validates it and returns the array
+!! sizes and the scalars, api_deck_arrays fills the arrays (no state is kept
+!! between the calls). Messages: every problem, one per line.
+module beamid_api_deck
+    use, intrinsic :: iso_c_binding, only: c_int, c_double
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, exit_code
+    use beamid_deck, only: deck_t, read_deck
+    use beamid_tasks, only: run_task
+    use beamid_measurements, only: measurements_t, read_measurements
+    use beamid_static_experiments, only: quantity_label, NQUANT
+    implicit none
+    private
+
+    public :: api_deck_sizes, api_deck_arrays, api_run_deck, api_measurements_size, &
+              api_measurements_read, api_exit_code, api_quantity_labels
+
+    !> Length of the messages and texts exchanged here.
+    integer, parameter :: TEXT_LEN = 65536
+
+contains
+
+    !> Exit code of a status code (beamid_status exit_code).
+    subroutine api_exit_code(code, ecode)
+        integer(c_int), intent(in) :: code
+        integer(c_int), intent(out) :: ecode
+        ecode = int(exit_code(int(code)), c_int)
+    end subroutine api_exit_code
+
+    !> All problems of a read, one per line, into message.
+    subroutine put_errors(deck, stat, code, message)
+        type(deck_t), intent(in) :: deck
+        type(status_t), intent(in) :: stat
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (allocated(deck%errors)) then
+            if (len(deck%errors) > 0) message = deck%errors
+        end if
+    end subroutine put_errors
+
+    !> Read and validate a deck. sizes: nbeams, nparams, nwrt, nt (output
+    !! times), nexp, nfree, nprior, ncand, ndata (measurement rows), has_load,
+    !! shape_points, fe_elements_per_beam, fe_moment_form, fe_rotary_inertia,
+    !! fe_point_masses, fe_steps, sim_elements_per_beam, sim_integrator,
+    !! sim_friction, max_iter, load_kind. reals: load fx, fy, moment,
+    !! wire_length, tol, fe_tol, sim_dt, sim_rtol, sim_atol, sim_motor_gain,
+    !! sim_friction_velocity, alpha. text: task, output, data path, then the
+    !! experiment names and the candidates, one per line, then the &published
+    !! lines (deck_t%published).
+    subroutine api_deck_sizes(path, sizes, reals, text, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(out) :: sizes(21)
+        real(c_double), intent(out) :: reals(12)
+        character(len=65536), intent(out) :: text
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: t
+        integer :: i
+        sizes = 0
+        reals = 0.0_c_double
+        text = ''
+        call read_deck(trim(path), d, stat)
+        call put_errors(d, stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
+                     nexp(d), nsize_i(d%free), nsize_i(d%prior_index), ncand(d), &
+                     ndata(d), merge(1, 0, d%has_load), d%shape_points, &
+                     d%fe_elements_per_beam, d%fe_moment_form, merge(1, 0, d%fe_rotary_inertia), &
+                     merge(1, 0, d%fe_point_masses), d%fe_steps, d%sim_elements_per_beam, &
+                     d%sim_integrator, d%sim_friction, d%max_iter, d%load%kind], c_int)
+        reals = [d%load%fx, d%load%fy, d%load%moment, d%load%wire_length, d%tol, d%fe_tol, &
+                 d%sim_dt, d%sim_rtol, d%sim_atol, d%sim_motor_gain, d%sim_friction_velocity, &
+                 d%alpha]
+        t = d%task//new_line('a')//d%output//new_line('a')
+        if (allocated(d%data_path)) t = t//d%data_path
+        t = t//new_line('a')
+        do i = 1, nexp(d)
+            t = t//trim(d%exp_names(i))//new_line('a')
+        end do
+        do i = 1, ncand(d)
+            t = t//trim(d%candidates(i))//new_line('a')
+        end do
+        t = t//d%published
+        if (len(t) > TEXT_LEN) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the names of the deck are too long (over '// &
+                      'TEXT_LEN characters)'
+            return
+        end if
+        text = t
+    contains
+        pure integer function nsize_i(a)
+            integer, allocatable, intent(in) :: a(:)
+            nsize_i = 0
+            if (allocated(a)) nsize_i = size(a)
+        end function nsize_i
+        pure integer function nsize_r(a)
+            real(dp), allocatable, intent(in) :: a(:)
+            nsize_r = 0
+            if (allocated(a)) nsize_r = size(a)
+        end function nsize_r
+    end subroutine api_deck_sizes
+
+    pure integer function nexp(d)
+        type(deck_t), intent(in) :: d
+        nexp = 0
+        if (allocated(d%experiments)) nexp = size(d%experiments)
+    end function nexp
+
+    pure integer function ncand(d)
+        type(deck_t), intent(in) :: d
+        ncand = 0
+        if (allocated(d%candidates)) ncand = size(d%candidates)
+    end function ncand
+
+    pure integer function ndata(d)
+        type(deck_t), intent(in) :: d
+        ndata = 0
+        if (allocated(d%data%value)) ndata = size(d%data%value)
+    end function ndata
+
+    !> The arrays of a deck (sizes from api_deck_sizes): parameters, wrt and
+    !! free parameter indices (1-based), output times, experiments (kind,
+    !! fx, fy, moment, wire_length), priors.
+    subroutine api_deck_arrays(path, nparams, nwrt, nt, nexp_, nfree, nprior, params, wrt, &
+                               t_out, exp_kind, exp_values, free_idx, prior_index, prior_mean, &
+                               prior_sigma, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
+        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(4, nexp_)
+        real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
+        integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
+        integer(c_int), intent(out) :: prior_index(nprior)
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        integer :: e
+        params = 0.0_c_double
+        t_out = 0.0_c_double
+        exp_values = 0.0_c_double
+        prior_mean = 0.0_c_double
+        prior_sigma = 0.0_c_double
+        wrt = 0
+        exp_kind = 0
+        free_idx = 0
+        prior_index = 0
+        call read_deck(trim(path), d, stat)
+        call put_errors(d, stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        if (size(d%params) /= nparams .or. nexp(d) /= nexp_) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the deck changed between two reads'
+            return
+        end if
+        params = d%params
+        if (nwrt > 0) wrt = int(d%wrt(:nwrt), c_int)
+        if (nt > 0) t_out = d%sim_t_out(:nt)
+        do e = 1, nexp_
+            exp_kind(e) = int(d%experiments(e)%kind, c_int)
+            exp_values(:, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
+                                d%experiments(e)%moment, d%experiments(e)%wire_length]
+        end do
+        if (nfree > 0) free_idx = int(d%free(:nfree), c_int)
+        if (nprior > 0) then
+            prior_index = int(d%prior_index(:nprior), c_int)
+            prior_mean = d%prior_mean(:nprior)
+            prior_sigma = d%prior_sigma(:nprior)
+        end if
+    end subroutine api_deck_arrays
+
+    !> Read a deck and run its task as beamid-batch does (beamid_tasks): the
+    !! files written, one per line, in `written`. A non-blank `task` replaces
+    !! the deck's (`beamid fit|compare|diagnose|improve DECK`): an estimation
+    !! task for an estimation deck only.
+    subroutine api_run_deck(path, task, written, code, message)
+        character(len=*), intent(in) :: path, task
+        character(len=65536), intent(out) :: written
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: files
+        written = ''
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK .and. len_trim(task) > 0 .and. trim(task) /= d%task) then
+            if (index(' fit compare diagnose improve ', ' '//trim(task)//' ') > 0 .and. &
+                index(' fit compare diagnose improve ', ' '//d%task//' ') > 0) then
+                d%task = trim(task)
+            else
+                code = int(ERR_INPUT, c_int)
+                message = trim(path)//": task '"//trim(task)//"' cannot run a deck of task '"// &
+                          d%task//"' (fit, compare, diagnose and improve run estimation decks)"
+                return
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            call run_task(d, files, stat)
+            if (stat%code == STATUS_OK) written = files
+        end if
+        call put_errors(d, stat, code, message)
+    end subroutine api_run_deck
+
+    !> Rows of a measurement CSV (after validation) and the longest name.
+    subroutine api_measurements_size(path, nrow, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(out) :: nrow, code
+        character(len=65536), intent(out) :: message
+        type(measurements_t) :: data
+        type(status_t) :: stat
+        nrow = 0
+        call read_measurements(trim(path), data, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code == STATUS_OK) nrow = int(size(data%value), c_int)
+    end subroutine api_measurements_size
+
+    !> The rows of a measurement CSV: t, value, sigma, source line, quantity
+    !! code (api_quantity_labels), and the index of each row's experiment into
+    !! `names` (the distinct experiment names, one per line, first use order).
+    subroutine api_measurements_read(path, nrow, t, value, sigma, line, quantity, exp_index, &
+                                     names, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nrow
+        real(c_double), intent(out) :: t(nrow), value(nrow), sigma(nrow)
+        integer(c_int), intent(out) :: line(nrow), quantity(nrow), exp_index(nrow)
+        character(len=65536), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(measurements_t) :: data
+        type(status_t) :: stat
+        character(len=:), allocatable :: joined
+        character(len=:), allocatable :: seen(:)
+        integer :: i, j, k, n
+        t = 0.0_c_double
+        value = 0.0_c_double
+        sigma = 0.0_c_double
+        line = 0
+        quantity = 0
+        exp_index = 0
+        names = ''
+        call read_measurements(trim(path), data, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        if (size(data%value) /= nrow) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the file changed between two reads'
+            return
+        end if
+        t = data%t
+        value = data%value
+        sigma = data%sigma
+        line = int(data%line, c_int)
+        quantity = int(data%quantity, c_int)
+        allocate (character(len=len(data%experiment)) :: seen(nrow))
+        n = 0
+        joined = ''
+        do i = 1, nrow
+            k = 0
+            do j = 1, n
+                if (seen(j) == data%experiment(i)) then
+                    k = j
+                    exit
+                end if
+            end do
+            if (k == 0) then
+                n = n + 1
+                seen(n) = data%experiment(i)
+                k = n
+                joined = joined//trim(data%experiment(i))//new_line('a')
+            end if
+            exp_index(i) = int(k, c_int)
+        end do
+        if (len(joined) > TEXT_LEN) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the experiment names take over 65536 characters'
+            return
+        end if
+        names = joined
+    end subroutine api_measurements_read
+
+    !> Names of the quantity codes 1..n, one per line.
+    subroutine api_quantity_labels(text)
+        character(len=4096), intent(out) :: text
+        character(len=:), allocatable :: joined
+        integer :: q
+        joined = ''
+        do q = 1, NQUANT
+            joined = joined//quantity_label(q)//new_line('a')
+        end do
+        text = joined
+    end subroutine api_quantity_labels
+end module beamid_api_deck

@@ -1,0 +1,388 @@
+"""Experiment advisor: which measurement would determine a parameter best?
+
+For each candidate measurement (an experiment and a quantity with its
+sigma) the advisor predicts the sigma a parameter would have after that
+measurement is added to a fit's data: the Fisher information of the fit
+(J^T W J of its weighted rows, Eq. 53-55, plus the a priori rows of
+Eq. 142-145) plus the candidate's sensitivity row g over the free
+parameters at the estimates, g g^T / sigma^2, inverted. With
+``target=None`` the criterion is the D-criterion det(cov)^(1/(2n)) over all
+free parameters (the geometric-mean sigma of the joint confidence
+ellipsoid). The information algebra runs in Fortran (``beamid_design``);
+the sensitivities are those the fit itself uses.
+
+>>> import beamid
+>>> truth = beamid.pace(axial_coupling=0.0)
+>>> exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (3.0, 5.0, 6.5, 8.0)}
+>>> data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
+>>> fit = beamid.fit(truth, exps, data)
+>>> adv = beamid.design(fit, {"M2": beamid.TipMoment(2.0)}, ["tip_angle", "y_tip"],
+...                     sigma={"tip_angle": 1e-3, "y_tip": 1e-3}, target="EI2")
+>>> adv.ranking[0][0]
+('M2', 'tip_angle')
+
+The prediction is first order (linearized at the estimates); check a
+choice by simulation: ``data.merge(beamid.simulate_measurements(...))`` and
+``beamid.fit`` on the merged set (tests/test_design.py does).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from . import _design_core as _dc
+from .errors import InputError
+from .estimation import FitResult, predict
+from .measurements import QUANTITIES, Measurements
+
+
+class RankedMeasurement(NamedTuple):
+    """One entry of a ranking: ``((experiment, quantity), predicted)``."""
+
+    key: tuple[str, str]
+    predicted: float
+
+
+class Ranking(list):
+    """Candidate measurements best first. ``ranking[0]`` is the best entry;
+    ``ranking["F12", "y_elbow"]`` (or ``ranking[("F12", "y_elbow")]``) the
+    entry of that measurement; ``ranking.rank(key)`` its 0-based rank."""
+
+    def __getitem__(self, item):  # type: ignore[override]
+        if isinstance(item, tuple) and len(item) == 2 and all(isinstance(s, str) for s in item):
+            for entry in self:
+                if entry.key == item:
+                    return entry
+            raise KeyError(f"no candidate measurement {item!r}; candidates: "
+                           + ", ".join(f"{e}/{q}" for (e, q), _ in self))
+        return super().__getitem__(item)
+
+    def rank(self, key: tuple[str, str]) -> int:
+        """0-based rank of a candidate measurement."""
+        for i, entry in enumerate(self):
+            if entry.key == tuple(key):
+                return i
+        raise KeyError(f"no candidate measurement {key!r}")
+
+    def keys(self) -> list[tuple[str, str]]:
+        return [e.key for e in self]
+
+
+@dataclass(frozen=True)
+class Advice:
+    """Result of :func:`design`."""
+
+    target: str | None           #: parameter name, or None for the D-criterion
+    free: tuple[str, ...]
+    current: float               #: the criterion with the fit's data only
+    ranking: Ranking             #: ((experiment, quantity), predicted) best first
+    sigma: dict[tuple[str, str], float]        #: sigma of every candidate row
+    sensitivity: dict[tuple[str, str], np.ndarray]  #: d value / d free at the estimates
+    loads: dict[str, Any]        #: the candidate experiments
+    skipped: tuple[tuple[str, str, str], ...] = ()  #: (experiment, quantity, reason)
+
+    @property
+    def criterion(self) -> str:
+        return (f"predicted sigma of {self.target}" if self.target else
+                "D-criterion det(cov)^(1/(2n))")
+
+    def gain(self, key: tuple[str, str]) -> float:
+        """current / predicted for a candidate (how many times smaller)."""
+        return self.current / self.ranking[key].predicted
+
+    def table(self, top: int | None = None) -> str:
+        """The ranking as text (best first)."""
+        head = f"{'rank':<6}{'experiment':<14}{'quantity':<12}{'sigma':>10}{'predicted':>13}{'gain':>8}"
+        lines = [f"{self.criterion}: now {self.current:.4g} "
+                 f"(free: {', '.join(self.free)})", head, "-" * len(head)]
+        for i, ((e, q), v) in enumerate(self.ranking[:top] if top else self.ranking):
+            gain = self.current / v if v > 0 else math.inf
+            lines.append(f"{i + 1:<6}{e:<14}{q:<12}{self.sigma[(e, q)]:>10.3g}{v:>13.4g}"
+                         f"{gain:>8.2f}")
+        if self.skipped:
+            lines.append("skipped (not defined for that experiment): "
+                         + ", ".join(f"{e}/{q}" for e, q, _ in self.skipped))
+        return "\n".join(lines)
+
+    def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
+        """Horizontal bars of the predicted criterion of the best ``top``
+        candidates, with the current value; writes a PNG when ``path`` is given."""
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+
+        entries = list(self.ranking[:top])[::-1]
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(entries) + 1.4))
+        else:
+            fig = ax.figure
+        ys = np.arange(len(entries))
+        vals = np.array([v for _, v in entries])
+        if math.isfinite(self.current):
+            ax.hlines(ys, vals, self.current, color="tab:blue", alpha=0.4, lw=2.0)
+        ax.plot(vals, ys, "o", color="tab:blue")
+        for y, v in zip(ys, vals):
+            ax.annotate(f"{v:.3g}", (v, y), textcoords="offset points", xytext=(-4, 5),
+                        ha="right", fontsize=7)
+        ax.set_yticks(range(len(entries)))
+        ax.set_yticklabels([f"{e} / {q}" for (e, q), _ in entries], fontsize=8)
+        if math.isfinite(self.current):
+            ax.axvline(self.current, color="tab:red", ls="--", lw=1.0,
+                       label=f"now {self.current:.3g}")
+        ax.set_xscale("log")
+        from matplotlib.ticker import NullFormatter
+
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        lo = float(np.nanmin(vals)) if vals.size else 1.0
+        hi = max(float(np.nanmax(vals)) if vals.size else 1.0,
+                 self.current if math.isfinite(self.current) else 0.0)
+        if math.isfinite(lo) and math.isfinite(hi) and lo > 0:
+            ax.set_xlim(lo / 1.6, hi * 1.3)
+        ax.set_xlabel(self.criterion)
+        ax.set_title("which measurement next (best at the top)", fontsize=9)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        if path is not None:
+            from .consistency import _save_figure
+
+            _save_figure(fig, Path(path))
+        return ax
+
+
+def information(fit: FitResult) -> np.ndarray:
+    """Fisher information of a fit over its free parameters: J^T W J of its
+    data rows at the estimates plus 1/sigma^2 of every a priori row. Equals
+    inv(fit.cov) when every parameter is determined."""
+    _, jac = predict(fit.model, fit.experiments, fit.data, fit.free)
+    a = jac / fit.data.sigma[:, None]
+    info = a.T @ a
+    for name, (_, s) in fit.prior.items():
+        j = fit.free.index(name)
+        info[j, j] += 1.0 / s ** 2
+    return info
+
+
+def _sigma_of(sigma: float | Mapping[str, float], q: str) -> float:
+    if isinstance(sigma, Mapping):
+        if q not in sigma:
+            raise InputError(f"sigma has no entry for quantity {q!r} (given: "
+                             f"{', '.join(sigma) or 'none'})")
+        value = sigma[q]
+    else:
+        value = sigma
+    try:
+        s = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"sigma[{q!r}] = {value!r}, expected a number > 0") from None
+    if not (math.isfinite(s) and s > 0.0):
+        raise InputError(f"sigma[{q!r}] = {value!r}, expected a finite number > 0")
+    return s
+
+
+def _rows(experiments: dict, quantities, sigma):
+    rows = []
+    for name in experiments:
+        qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
+        if isinstance(qs, str):
+            qs = (qs,)
+        for q in qs:
+            if q not in QUANTITIES:
+                raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
+            rows.append((name, q, _sigma_of(sigma, q)))
+    if not rows:
+        raise InputError("no candidate measurements: give candidates and quantities")
+    return rows
+
+
+def _sensitivities(fit: FitResult, exps: dict, rows):
+    """Sensitivity of every candidate row (rows a load cannot produce, e.g. a
+    wire force without a wire, are skipped with the reason)."""
+    out, skipped = [], []
+    by_exp: dict[str, list] = {}
+    for e, q, s in rows:
+        by_exp.setdefault(e, []).append((q, s))
+    for e, items in by_exp.items():
+        table = Measurements.from_rows([(e, 0.0, q, 0.0, s) for q, s in items],
+                                       source="<candidates>")
+        try:
+            _, jac = predict(fit.model, {e: exps[e]}, table, fit.free)
+            out += [(e, q, s, jac[i]) for i, (q, s) in enumerate(items)]
+            continue
+        except InputError:
+            pass
+        for q, s in items:  # find the rows that cannot be predicted
+            one = Measurements.from_rows([(e, 0.0, q, 0.0, s)], source="<candidates>")
+            try:
+                _, jac = predict(fit.model, {e: exps[e]}, one, fit.free)
+            except InputError as exc:
+                skipped.append((e, q, str(exc).splitlines()[0]))
+                continue
+            out.append((e, q, s, jac[0]))
+    return out, skipped
+
+
+def design(fit: FitResult, candidates: Mapping[str, Any],
+           quantities: Sequence[str] | Mapping[str, Sequence[str]] = ("y_tip",),
+           sigma: float | Mapping[str, float] = 1e-3, target: str | None = "EI2") -> Advice:
+    """Rank candidate measurements by the sigma of ``target`` they would leave.
+
+    Parameters
+    ----------
+    fit:
+        A :class:`beamid.FitResult`; its estimates are where the
+        sensitivities are taken, its data and prior give the information now.
+    candidates:
+        ``{name: experiment}`` (static loads: ``TipForce``, ``TipMoment``,
+        ``RadialWire``). A name of one of the fit's own experiments adds
+        quantities to that experiment (the load must be the same).
+    quantities:
+        Quantities measured in every candidate, or ``{name: [quantities]}``.
+    sigma:
+        One sigma, or ``{quantity: sigma}``.
+    target:
+        A free parameter, or ``None`` for the D-criterion over all free
+        parameters.
+
+    Returns an :class:`Advice`; ``advice.ranking`` lists
+    ``((experiment, quantity), predicted)`` best first and is indexable by
+    rank and by ``(experiment, quantity)``.
+    """
+    if not isinstance(fit, FitResult):
+        raise InputError(f"fit must be a beamid.FitResult (beamid.fit), got "
+                         f"{type(fit).__name__}")
+    if not isinstance(candidates, Mapping) or not candidates:
+        raise InputError("candidates must be a non-empty dict {name: experiment}, e.g. "
+                         "{'M2': beamid.TipMoment(2.0)}")
+    exps = dict(fit.experiments)
+    for name, load in candidates.items():
+        name = str(name)
+        if name in exps and exps[name] != load:
+            raise InputError(f"candidate {name!r} = {load!r} differs from the fit's "
+                             f"experiment of that name ({exps[name]!r}); rename it")
+        exps[name] = load
+    if target is None:
+        tindex = 0
+    else:
+        if target not in fit.free:
+            raise InputError(f"target = {target!r} is not a free parameter of the fit "
+                             f"(free: {', '.join(fit.free)}); None ranks by the D-criterion")
+        tindex = fit.free.index(target) + 1
+    rows = _rows({str(k): v for k, v in candidates.items()}, quantities, sigma)
+    evaluated, skipped = _sensitivities(fit, exps, rows)
+    if not evaluated:
+        raise InputError("no candidate measurement can be predicted: "
+                         + "; ".join(f"{e}/{q}: {why}" for e, q, why in skipped))
+    g = np.array([r[3] for r in evaluated], float).T.reshape(len(fit.free), len(evaluated))
+    sig = np.array([r[2] for r in evaluated], float)
+    base, crit, order = _dc.rank_candidates(information(fit), g, sig, tindex)
+    ranking = Ranking(RankedMeasurement((evaluated[i][0], evaluated[i][1]), float(crit[i]))
+                      for i in order)
+    return Advice(target=target, free=tuple(fit.free), current=base, ranking=ranking,
+                  sigma={(e, q): s for e, q, s, _ in evaluated},
+                  sensitivity={(e, q): np.array(j) for e, q, _, j in evaluated},
+                  loads={str(k): v for k, v in candidates.items()}, skipped=tuple(skipped))
+
+
+def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], float]] = ()
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """(cov, sigmas) predicted after adding measurement rows ``(g, sigma)``
+    (sensitivity over ``fit.free`` and sigma) to the fit's information."""
+    info = information(fit)
+    rows = list(rows)
+    if rows:
+        g = np.array([np.asarray(r[0], float) for r in rows]).T.reshape(len(fit.free), len(rows))
+        sig = np.array([float(r[1]) for r in rows])
+        if not np.all(np.isfinite(sig) & (sig > 0)):
+            raise InputError(f"predicted_covariance: sigmas {sig.tolist()}, expected > 0")
+        info = _dc.information_update(info, g, sig)
+    cov, sig, _, _ = _dc.information_covariance(info)
+    return cov, sig
+
+
+#: Quantities the command ranks by default (u_tip, w_tip are aliases).
+DEFAULT_QUANTITIES = ("x_tip", "y_tip", "tip_angle", "x_elbow", "y_elbow", "wire_force")
+
+
+def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements
+                ) -> dict[str, float]:
+    """Sigmas of the command line: ``1e-3`` (every quantity) or
+    ``QUANTITY=SIGMA`` items; a quantity without one takes the median sigma of
+    the deck's rows of that quantity, else it is an InputError."""
+    out: dict[str, float] = {}
+    default = None
+    for item in items or ():
+        if "=" in item:
+            q, _, v = item.partition("=")
+            out[q.strip()] = _sigma_of({q.strip(): v.strip()}, q.strip())
+        else:
+            default = _sigma_of(item, "all quantities")
+    for q in quantities:
+        if q in out:
+            continue
+        if default is not None:
+            out[q] = default
+            continue
+        own = [s for s, qq in zip(data.sigma, data.quantity) if qq == q]
+        if not own:
+            raise InputError(f"no sigma for quantity {q!r}: the deck's data have no {q} rows; "
+                             f"give --sigma {q}=VALUE (or one --sigma for all)")
+        out[q] = float(np.median(own))
+    return out
+
+
+def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
+                    moments: Sequence[float] = (), wires: Sequence[float] = (),
+                    quantities: Sequence[str] | None = None,
+                    sigma: Sequence[str] | None = None, target: str | None = None,
+                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True
+                    ) -> tuple[str, list[Path], Advice]:
+    """``beamid design DECK``: fit an estimation deck and rank candidate
+    measurements: transverse tip forces ``F<f>`` (fy = f), tip moments
+    ``M<m>`` and radial wires ``Lw<length>`` (the deck's own experiments when
+    none is given), each measuring ``quantities``. Writes
+    ``<prefix>_design.csv`` (rank, experiment, quantity, sigma, predicted)
+    and ``_design.png``. Returns (text, files, advice)."""
+    from .estimation import fit as _fit
+    from .fit_decks import read_fit_deck
+    from .loads import RadialWire, TipForce, TipMoment
+
+    d = read_fit_deck(deck)
+    base = _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
+                max_iter=d.max_iter)
+    cands: dict[str, Any] = {}
+    for f in forces:
+        cands[f"F{float(f):g}"] = TipForce(fy=float(f))
+    for m in moments:
+        cands[f"M{float(m):g}"] = TipMoment(float(m))
+    for w in wires:
+        cands[f"Lw{float(w):g}"] = RadialWire(float(w))
+    for name in list(cands):
+        if name in base.experiments and base.experiments[name] != cands[name]:
+            cands[f"{name}_new"] = cands.pop(name)
+    if not cands:
+        cands = dict(base.experiments)
+    qs = tuple(quantities) if quantities else DEFAULT_QUANTITIES
+    sig = parse_sigma(sigma, qs, d.data)
+    adv = design(base, cands, qs, sigma=sig, target=target)
+    from .consistency import _atomic_write, _output_prefix
+
+    prefix = _output_prefix(deck, out, d.output_prefix)
+    lines = ["rank,experiment,quantity,sigma,predicted"]
+    lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
+              for i, ((e, q), v) in enumerate(adv.ranking)]
+    csv = Path(f"{prefix}_design.csv")
+    _atomic_write(csv, f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
+                  + "\n".join(lines) + "\n")
+    files = [csv]
+    if plots:
+        png = Path(f"{prefix}_design.png")
+        adv.plot(png, top=min(top, 15))
+        files.append(png)
+    return f"{base.summary()}\n\n{adv.table(top)}", files, adv

@@ -1,0 +1,236 @@
+"""Experiment advisor (issue 17): predicted sigmas against refits with
+simulated data, the information algebra against numpy, Measurements.merge,
+ranking access."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import beamid
+from beamid import InputError
+from beamid import _design_core as dc
+from beamid.design import information
+
+ROOT = Path(__file__).resolve().parents[1]
+SIGMA = {"y_tip": 1e-3, "x_tip": 1e-3, "tip_angle": 2e-3, "y_elbow": 1e-3,
+         "x_elbow": 1e-3, "wire_force": 0.1}
+CANDIDATES = {"F2": beamid.TipForce(fy=2.0), "F12": beamid.TipForce(fy=12.0),
+              "M1": beamid.TipMoment(1.0), "M3": beamid.TipMoment(3.0),
+              "Lw1.4": beamid.RadialWire(1.4)}
+
+
+@pytest.fixture(scope="module")
+def table5_fit():
+    from beamid.fit_decks import read_fit_deck
+
+    deck = read_fit_deck(ROOT / "inputs" / "seed" / "table05_fit.nml")
+    return beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free)
+
+
+@pytest.fixture(scope="module")
+def advice(table5_fit):
+    return beamid.design(table5_fit, CANDIDATES, list(SIGMA), sigma=SIGMA, target="EI2")
+
+
+def test_information_is_the_inverse_covariance(table5_fit, advice):
+    info = information(table5_fit)
+    np.testing.assert_allclose(info, np.linalg.inv(table5_fit.cov), rtol=1e-8)
+    cov, sig, dcrit, rank = dc.information_covariance(info)
+    assert rank == 2
+    np.testing.assert_allclose(cov, table5_fit.cov, rtol=1e-8)
+    np.testing.assert_allclose(dcrit, np.linalg.det(table5_fit.cov) ** 0.25, rtol=1e-8)
+    assert advice.current == pytest.approx(table5_fit.sigmas["EI2"], rel=1e-8)
+
+
+def test_rank_candidates_against_numpy():
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((6, 3))
+    info = a.T @ a
+    rows = rng.standard_normal((3, 5))
+    sig = np.array([0.5, 1.0, 2.0, 0.1, 1.0])
+    for target in (0, 1, 3):
+        base, crit, order = dc.rank_candidates(info, rows, sig, target)
+        want = []
+        for c in range(5):
+            cov = np.linalg.inv(info + np.outer(rows[:, c], rows[:, c]) / sig[c] ** 2)
+            want.append(np.linalg.det(cov) ** (1 / 6) if target == 0
+                        else math.sqrt(cov[target - 1, target - 1]))
+        np.testing.assert_allclose(crit, want, rtol=1e-10)
+        assert list(order) == list(np.argsort(want, kind="stable"))
+        cov0 = np.linalg.inv(info)
+        np.testing.assert_allclose(base, np.linalg.det(cov0) ** (1 / 6) if target == 0
+                                   else math.sqrt(cov0[target - 1, target - 1]), rtol=1e-10)
+    with pytest.raises(InputError, match="sigma"):
+        dc.rank_candidates(info, rows, -sig, 1)
+    with pytest.raises(InputError, match="symmetric"):
+        dc.information_covariance(np.array([[1.0, 2.0], [0.0, 1.0]]))
+
+
+def test_candidate_rows_are_the_static_sensitivities(table5_fit, advice):
+    # the advisor's row is d(quantity)/d(free) of solve_static(..., wrt=free)
+    r = beamid.solve_static(table5_fit.model, CANDIDATES["M3"], wrt=table5_fit.free)
+    np.testing.assert_allclose(advice.sensitivity[("M3", "tip_angle")],
+                               [r.d["tip_angle"][n] for n in table5_fit.free], rtol=1e-10)
+    r = beamid.solve_static(table5_fit.model, CANDIDATES["Lw1.4"], wrt=table5_fit.free)
+    np.testing.assert_allclose(advice.sensitivity[("Lw1.4", "wire_force")],
+                               [r.d["wire_force"][n] for n in table5_fit.free], rtol=1e-10)
+
+
+def _refit_with(fit, key, sigma, noise_seed=None):
+    e, q = key
+    extra = beamid.simulate_measurements(fit.model, {e: CANDIDATES[e]}, [q], sigma=sigma,
+                                         noise=noise_seed is not None, seed=noise_seed)
+    merged = fit.data.merge(extra)
+    exps = {**fit.experiments, e: CANDIDATES[e]}
+    return beamid.fit(fit.start, exps, merged, free=fit.free)
+
+
+def test_predicted_sigma_equals_the_refit_sigma(table5_fit, advice):
+    keys = [advice.ranking[0].key, advice.ranking[1].key, advice.ranking[len(advice.ranking) // 2].key,
+            advice.ranking[-1].key]
+    refit = []
+    for key in keys:
+        # data exactly at the model: the estimates stay, so the refit's sigma
+        # (Eq. 55 at its estimates) is the prediction to solver accuracy
+        res = _refit_with(table5_fit, key, SIGMA[key[1]])
+        assert res.converged
+        np.testing.assert_allclose(res.sigmas["EI2"], advice.ranking[key].predicted, rtol=1e-5)
+        refit.append(res.sigmas["EI2"])
+        # with noise the refit moves, and so does its sigma: still close
+        noisy = _refit_with(table5_fit, key, SIGMA[key[1]], noise_seed=4)
+        assert noisy.sigmas["EI2"] == pytest.approx(advice.ranking[key].predicted, rel=0.25)
+    assert refit == sorted(refit)        # the ranking is the refits' order
+    assert refit[0] < 0.2 * table5_fit.sigmas["EI2"]
+
+
+def test_d_criterion_against_a_refit(table5_fit):
+    adv = beamid.design(table5_fit, CANDIDATES, ["y_elbow", "tip_angle"], sigma=SIGMA,
+                        target=None)
+    assert adv.target is None and "D-criterion" in adv.table()
+    key = adv.ranking[0].key
+    res = _refit_with(table5_fit, key, SIGMA[key[1]])
+    np.testing.assert_allclose(np.linalg.det(res.cov) ** 0.25, adv.ranking[0].predicted,
+                               rtol=1e-5)
+
+
+def test_undetermined_target_becomes_determined():
+    truth = beamid.pace(axial_coupling=0.0)
+    exps = {"F8": beamid.TipForce(fy=8.0)}
+    data = beamid.simulate_measurements(truth, exps, ["y_tip"], sigma=1e-3)
+    fit = beamid.fit(truth, exps, data, free=("EI1", "EI2"))
+    assert math.isinf(fit.sigmas["EI2"])
+    adv = beamid.design(fit, {"M2": beamid.TipMoment(2.0), "F8": exps["F8"]},
+                        ["tip_angle"], sigma=1e-3, target="EI2")
+    assert math.isinf(adv.current)
+    assert all(math.isfinite(v) for _, v in adv.ranking)
+    key = adv.ranking[0].key
+    extra = beamid.simulate_measurements(truth, {key[0]: adv.loads[key[0]]}, [key[1]],
+                                         sigma=1e-3)
+    res = beamid.fit(truth, {**exps, **adv.loads}, data.merge(extra), free=fit.free)
+    np.testing.assert_allclose(res.sigmas["EI2"], adv.ranking[0].predicted, rtol=1e-5)
+
+
+def test_ranking_is_indexable_by_rank_and_key(advice):
+    best = advice.ranking[0]
+    assert best == advice.ranking[best.key] == advice.ranking[best.key[0], best.key[1]]
+    key, value = best                    # an entry unpacks as (key, predicted)
+    assert advice.ranking.rank(key) == 0 and value == best.predicted
+    values = [v for _, v in advice.ranking]
+    assert values == sorted(values)
+    assert advice.ranking[-1].predicted >= advice.ranking[1].predicted
+    with pytest.raises(KeyError, match="no candidate"):
+        advice.ranking["F2", "no_such"]
+    # wire force only where there is a wire: skipped, named, not ranked
+    assert ("F2", "wire_force", ) not in advice.ranking.keys()
+    assert any(e == "F2" and q == "wire_force" for e, q, _ in advice.skipped)
+    assert ("Lw1.4", "wire_force") in advice.ranking.keys()
+    assert advice.gain(key) > 1.0
+
+
+def test_merge_and_its_duplicate_error(table5_fit):
+    data = table5_fit.data
+    extra = beamid.simulate_measurements(table5_fit.model, {"M1": CANDIDATES["M1"]},
+                                         ["tip_angle", "y_tip"], sigma=1e-3)
+    merged = data.merge(extra)
+    assert len(merged) == len(data) + 2
+    assert merged.experiment[-2:] == ("M1", "M1") and merged.quantity[-1] == "y_tip"
+    np.testing.assert_array_equal(merged.value[:len(data)], data.value)
+    dup = beamid.simulate_measurements(table5_fit.model,
+                                       {"F8.00": table5_fit.experiments["F8.00"]}, ["y_tip"])
+    with pytest.raises(InputError, match=r"duplicate row: experiment 'F8.00'.*quantity "
+                                         r"'y_tip' is in both .*table05_data.csv, line"):
+        data.merge(dup)
+    with pytest.raises(InputError, match="Measurements"):
+        data.merge([("F3", 0, "y_tip", 0.1, 1e-3)])
+
+
+def test_bad_arguments(table5_fit):
+    with pytest.raises(InputError, match="target"):
+        beamid.design(table5_fit, CANDIDATES, ["y_tip"], target="EI9")
+    with pytest.raises(InputError, match="sigma has no entry"):
+        beamid.design(table5_fit, CANDIDATES, ["y_tip"], sigma={"x_tip": 1e-3})
+    with pytest.raises(InputError, match="differs from the fit's experiment"):
+        beamid.design(table5_fit, {"F3.00": beamid.TipForce(fy=5.0)}, ["y_elbow"])
+    with pytest.raises(InputError, match="quantity"):
+        beamid.design(table5_fit, CANDIDATES, ["z_tip"])
+    with pytest.raises(InputError, match="candidates"):
+        beamid.design(table5_fit, {}, ["y_tip"])
+
+
+def test_plot_writes_a_png(advice, tmp_path):
+    path = tmp_path / "advice.png"
+    advice.plot(path, top=8)
+    assert path.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_design_prints_ranks_and_draws(tmp_path, capsys):
+    from beamid.cli import main
+
+    deck = str(ROOT / "inputs" / "seed" / "table05_fit.nml")
+    code = main(["design", deck, "--moment", "3", "--wire", "1.4", "--quantities",
+                 "tip_angle", "wire_force", "--sigma", "tip_angle=2e-3", "wire_force=0.1",
+                 "--target", "EI2", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "predicted sigma of EI2: now 0.75" in out
+    rows = (tmp_path / "table05_fit_design.csv").read_text().splitlines()
+    assert rows[1] == "rank,experiment,quantity,sigma,predicted"
+    assert rows[2].startswith("1,") and len(rows) == 2 + 3   # M3/tip_angle, Lw1.4 x 2
+    assert (tmp_path / "table05_fit_design.png").read_bytes()[:4] == b"\x89PNG"
+    # a quantity the deck never measured needs a sigma: exit 2 naming it
+    code = main(["design", deck, "--moment", "3", "--quantities", "tip_angle",
+                 "--out", str(tmp_path)])
+    assert code == 2 and "--sigma tip_angle=VALUE" in capsys.readouterr().err
+
+
+def test_predicted_covariance_of_two_added_rows(table5_fit, advice):
+    from beamid.design import predicted_covariance
+
+    rows = [(advice.sensitivity[k], advice.sigma[k]) for k in
+            (("M3", "tip_angle"), ("Lw1.4", "wire_force"))]
+    cov, sig = predicted_covariance(table5_fit, rows)
+    info = information(table5_fit) + sum(np.outer(g, g) / s ** 2 for g, s in rows)
+    np.testing.assert_allclose(cov, np.linalg.inv(info), rtol=1e-9)
+    extra = beamid.simulate_measurements(table5_fit.model, {"M3": CANDIDATES["M3"]},
+                                         ["tip_angle"], sigma=SIGMA["tip_angle"])
+    extra = extra.merge(beamid.simulate_measurements(
+        table5_fit.model, {"Lw1.4": CANDIDATES["Lw1.4"]}, ["wire_force"],
+        sigma=SIGMA["wire_force"]))
+    res = beamid.fit(table5_fit.start, {**table5_fit.experiments, "M3": CANDIDATES["M3"],
+                                        "Lw1.4": CANDIDATES["Lw1.4"]},
+                     table5_fit.data.merge(extra), free=table5_fit.free)
+    np.testing.assert_allclose([res.sigmas[n] for n in res.free], sig, rtol=1e-5)
+
+
+def test_information_covariance_rank_deficient():
+    # a parameter with a component in an unseen direction gets sigma = inf,
+    # the others keep theirs (as the fit's SVD covariance does)
+    cov, sig, dcrit, rank = dc.information_covariance(np.diag([4.0, 0.0]))
+    assert rank == 1 and sig[0] == 0.5 and math.isinf(sig[1]) and math.isinf(dcrit)
+    a = np.array([[1.0, 1.0, 0.0], [2.0, 2.0, 0.0], [0.0, 0.0, 3.0]])
+    _, sig, _, rank = dc.information_covariance(a.T @ a)
+    assert rank == 2 and math.isinf(sig[0]) and math.isinf(sig[1])
+    assert sig[2] == pytest.approx(1.0 / math.sqrt(9.0 + 0.0), rel=1e-12)
