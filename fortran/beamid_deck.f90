@@ -99,7 +99,7 @@ module beamid_deck
         integer :: sim_integrator = 1                   !< 0 rk4, 1 implicit
         integer :: sim_friction = 0                     !< 0 sign, 1 smooth, 2 sign_literal
         real(dp) :: sim_dt = 0.0_dp                     !< 0: default (1e-5 s)
-        real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-7)
+        real(dp) :: sim_rtol = 0.0_dp                   !< 0: default (1e-9, in m)
         real(dp) :: sim_atol = 0.0_dp                   !< 0: rtol
         real(dp) :: sim_motor_gain = 0.0_dp
         real(dp) :: sim_friction_velocity = 1.0e-4_dp   !< smooth law's vs (m/s)

@@ -49,6 +49,7 @@ def test_help_texts_list_the_valid_names():
     assert "circle" in reproduce_help and " V" in reproduce_help
     assert "20 21 22 23 24 25" in sub["figures"].format_help()
     assert "{implicit,rk4}" in sub["simulate"].format_help()
+    assert "mu_elbow" in sub["simulate"].format_help()
     assert "fe_modes" in sub["run"].format_help()
     assert "exit codes" in parser.format_help()
 

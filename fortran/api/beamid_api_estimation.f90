@@ -224,7 +224,7 @@ contains
         integer(c_int), intent(out) :: flags(:)
         real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
         real(c_double), intent(out) :: log_cost(:), log_lambda(:), log_step(:), log_params(:, :)
-        integer :: n
+        integer :: n, lo
         params = res%params
         sigmas = res%sigmas
         cov = res%cov
@@ -240,10 +240,14 @@ contains
         log_step = 0.0_c_double
         log_params = 0.0_c_double
         n = min(res%nlog + 1, size(log_cost))
-        log_cost(1:n) = res%log_cost(1:n)
-        log_lambda(1:n) = res%log_lambda(1:n)
-        log_step(1:n) = res%log_step(1:n)
-        log_params(:, 1:n) = res%log_params(:, 1:n)
+        ! the log runs 0:nlog; its shrink in fit_least_squares reallocates (to 1-based
+        ! bounds) only when the fit stopped before max_iter, so index from lbound
+        lo = lbound(res%log_cost, 1)
+        log_cost(1:n) = res%log_cost(lo:lo + n - 1)
+        log_lambda(1:n) = res%log_lambda(lo:lo + n - 1)
+        log_step(1:n) = res%log_step(lo:lo + n - 1)
+        lo = lbound(res%log_params, 2)
+        log_params(:, 1:n) = res%log_params(:, lo:lo + n - 1)
     end subroutine copy_fit
 
     !> Fit, or add an effect to a fit (beamid.fit, beamid.add_effect).

@@ -347,6 +347,15 @@ def _add_mc_parsers(sub) -> None:
     p.set_defaults(func=_cmd_design)
 
 
+def _parameter_list() -> str:
+    try:
+        from .model import pace
+
+        return " ".join(pace().names())
+    except Exception:  # noqa: BLE001 - help must print even with a broken install
+        return "see docs/static.md"
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .figures import FIGURES
 
@@ -390,12 +399,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--integrator", choices=("implicit", "rk4"),
                    help="implicit (Radau IIA, default) or rk4 (fixed step --dt)")
     p.add_argument("--friction", choices=("sign", "smooth", "sign_literal"),
-                   help="friction law (default: smooth for implicit, sign for rk4)")
-    p.add_argument("--rtol", type=float, help="implicit tolerance (default 1e-7)")
-    p.add_argument("--dt", type=float, help="RK4 step in s (default 1e-5)")
+                   help="friction law (default: beamid.simulate's, docs/dynamics.md)")
+    p.add_argument("--rtol", type=float, help="implicit tolerance (default: beamid.simulate's)")
+    p.add_argument("--dt", type=float, help="RK4 step in s (default 1e-5, the dissertation's)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE",
-                   help="a model parameter, e.g. --set mu_tip=0.02 (repeatable; names: "
-                        "docs/static.md)")
+                   help="a model parameter, e.g. --set mu_tip=0.02 (repeatable); one of: "
+                        f"{_parameter_list()}")
     p.add_argument("--output", "-o", help="output prefix (default: the deck's, or "
                                           "out/simulate): writes PREFIX_history.csv/.png")
     p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
