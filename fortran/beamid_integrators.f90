@@ -57,6 +57,11 @@ module beamid_integrators
         real(dp) :: t = 0.0_dp
         integer :: comp = 0, kind = 0, before = 0, after = 0
         real(dp) :: force_before = 0.0_dp, force_after = 0.0_dp
+        !> f+ - f-: the jump of the state rates (q', v', x') across the switch,
+        !! with every component's mode and constraint before and after (the
+        !! term of S+ = S- + (f- - f+) dt*/dp; the whole switch when several
+        !! components change at once; zero for EVENT_START)
+        real(dp), allocatable :: rate_jump(:)
     end type event_t
 
     !> Controls of the integrators.
@@ -388,9 +393,16 @@ contains
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
         integer :: before(size(es%fmode)), j
-        real(dp) :: fb(size(es%fmode)), cap
+        real(dp) :: fb(size(es%fmode)), cap, fminus(size(y)), fplus(size(y))
+        real(dp) :: pw(es%nwork), torque, hdummy(size(es%fmode))
         type(event_t) :: ev
         before = es%fmode
+        fminus = 0.0_dp
+        fplus = 0.0_dp
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fminus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
         do j = 1, size(es%fmode)
             cap = es%fric((j + 1)/2)
             if (before(j) == 0) then
@@ -401,6 +413,10 @@ contains
         end do
         call dyn_switch(es, y, jforce, hold, stat)
         if (stat%code /= 0) return
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fplus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
         do j = 1, size(es%fmode)
             if (es%fric((j + 1)/2) == 0.0_dp) cycle
             if (es%fmode(j) == before(j) .and. kind /= EVENT_START) cycle
@@ -418,6 +434,7 @@ contains
                 ev%force_after = -es%fric((j + 1)/2)*es%fmode(j)
             end if
             if (kind == EVENT_START) ev%force_before = 0.0_dp
+            ev%rate_jump = fplus - fminus
             call add_event(hist, ev)
             stats%events = stats%events + 1
         end do
@@ -1461,7 +1478,7 @@ contains
         character(len=*), parameter :: where = 'implicit'
         integer, parameter :: NIT = 7
         real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
-        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp
+        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp, REUSE_THETA = 1.0e-3_dp
         type(radau_t) :: it
         real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, dnorm, dold
         real(dp) :: quot, hnew, hprev, tiny_h, lsc(3), ti1(3), tr(3)
@@ -1477,7 +1494,7 @@ contains
         real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
         real(dp) :: sev, hpend, hcut, torq
         integer :: jev, kev, pend, pkind, nfc, jforce, nstall
-        logical :: evon, rot_slow, at_end
+        logical :: evon, rot_slow, at_end, reused, may_reuse
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
         ti1 = real(ti(1, :), dp)
@@ -1515,6 +1532,8 @@ contains
         pend = 0
         pkind = 0
         nstall = 0
+        may_reuse = .false.
+        reused = .false.
         hpend = 0.0_dp
         hcut = 0.0_dp
         work = 0.0_dp
@@ -1581,15 +1600,18 @@ contains
             ! Jacobian at the predicted second stage, both factorizations
             ! (the assembly gives the stage-2 rates of the first iteration too)
             ys = y + z(:, 2)
-            if (rot_slow) then
-                call radau_jacobian(es, ys, it)
-            else
-                call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
+            reused = may_reuse .and. hh == it%h
+            if (.not. reused) then
+                if (rot_slow) then
+                    call radau_jacobian(es, ys, it)
+                else
+                    call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
+                end if
+                stats%jevals = stats%jevals + 1
+                call radau_factor(es, it, hh, gam, mu, stat)
+                if (stat%code /= 0) return
+                stats%factorizations = stats%factorizations + 1
             end if
-            stats%jevals = stats%jevals + 1
-            call radau_factor(es, it, hh, gam, mu, stat)
-            if (stat%code /= 0) return
-            stats%factorizations = stats%factorizations + 1
             ! simplified Newton iteration on the decoupled stage systems
             converged = .false.
             dold = 0.0_dp
@@ -1599,7 +1621,7 @@ contains
             do newt = 1, NIT
                 ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
                 do i = 1, 3
-                    if (newt > 1 .or. i /= 2 .or. rot_slow) then
+                    if (newt > 1 .or. i /= 2 .or. rot_slow .or. reused) then
                         ys = y + z(:, i)
                         call rates_m(es, it, ys, fz(:, i), pw(:, i), inner)
                         stats%fevals = stats%fevals + 1
@@ -1652,6 +1674,7 @@ contains
                 dold = max(dnorm, epsilon(1.0_dp))
             end do
             if (.not. converged) then
+                may_reuse = .false.
                 pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.
@@ -1741,10 +1764,12 @@ contains
                             if (stat%code /= 0) return
                             call set_stuck(es, it)
                             have_f0 = .false.
+                            may_reuse = .false.
                             pend = 0
                             cycle
                         end if
                         if (pend == 0) hcut = h
+                        may_reuse = .false.
                         h = sev*hh
                         pend = jev
                         pkind = kev
@@ -1784,6 +1809,12 @@ contains
                 else
                     h = hnew
                 end if
+                ! small steps with a fast-contracting Newton iteration: keep the
+                ! Jacobian and the factors for the next step, and the step size
+                ! when the controller would change it by less than 20 % upwards
+                ! (RADAU5's THET and QUOT1, QUOT2)
+                may_reuse = theta < REUSE_THETA .and. .not. clipped
+                if (may_reuse .and. hnew >= hh .and. hnew <= 1.2_dp*hh) h = hh
                 if (.not. all(ieee_is_finite(y))) then
                     call set_status(stat, ERR_NUMERIC, where, 'state became non-finite at t = ' &
                                     //fmt_real(t))
@@ -1801,10 +1832,12 @@ contains
                     if (stat%code /= 0) return
                     call set_stuck(es, it)
                     have_f0 = .false.
+                    may_reuse = .false.
                     if (pend /= 0) h = max(h, hcut)
                     pend = 0
                 end if
             else
+                may_reuse = .false.
                 pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.

@@ -18,6 +18,7 @@ from .tables import reproduce
 from .measurements import Measurements, read_measurements
 from .estimation import FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
+from .dynamics import FrictionEvent
 # the dynamics name also under an explicit alias
 simulate_dynamics = simulate
 from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
@@ -32,7 +33,7 @@ __all__ = [
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
-    "simulate", "simulate_dynamics", "Run",
+    "simulate", "simulate_dynamics", "Run", "FrictionEvent",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",
