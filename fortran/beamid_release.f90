@@ -21,7 +21,8 @@ module beamid_release
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_to_coords, &
                                dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, &
-                               FRICTION_SIGN
+                               FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
+                               dyn_static_sens, dyn_output_sens
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT
     implicit none
@@ -127,6 +128,7 @@ contains
         type(fe_newton_opts_t) :: nopts
         type(fe_solve_info_t) :: sinfo
         type(integ_opts_t) :: opts
+        type(dyn_param_t), allocatable :: pars(:)
         real(dp), allocatable :: y0(:), q(:), yc(:), s0(:, :)
         real(dp) :: e0, u, w, ang
         integer :: k, n, nt, nw, j
@@ -161,11 +163,12 @@ contains
         out%nfree = n
         out%nstate = sys%nstate
         out%nwork = sys%nwork
-        allocate (y0(sys%nstate), q(n), s0(sys%nstate, nw))
-        if (nw > 0) then
-            call set_status(stat, ERR_INPUT, where, 'sensitivities not implemented yet')
-            return
-        end if
+        allocate (y0(sys%nstate), q(n), s0(sys%nstate, nw), pars(nw))
+        do j = 1, nw
+            call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), &
+                                 wrt(j), pars(j), stat)
+            if (stat%code /= STATUS_OK) return
+        end do
         y0 = 0.0_dp
         s0 = 0.0_dp
         if (allocated(spec%y_init)) then
@@ -183,6 +186,10 @@ contains
             y0(1:n) = q
             ! the released shape's sensitivity (implicit function theorem on the
             ! static equilibrium, the Newton tangent); zero velocity sensitivity
+            if (nw > 0) call dyn_static_sens(sys, spec%load, q, pars, s0(1:n, :), stat)
+            if (stat%code /= STATUS_OK) return
+            ! the released shape's sensitivity (implicit function theorem on the
+            ! static equilibrium, the Newton tangent); zero velocity sensitivity
         end if
         opts%method = spec%integrator
         if (spec%dt > 0.0_dp) opts%dt = spec%dt
@@ -198,7 +205,13 @@ contains
                             'negative (0: default)')
             return
         end if
-        call integrate(sys, y0, t_out, opts, out%hist, out%stats, stat)
+        if (nw > 0) then
+            call integrate(sys, y0, t_out, opts, out%hist, out%stats, stat, pars, s0, &
+                           out%dstates)
+        else
+            allocate (out%dstates(sys%nstate, nt, 0))
+            call integrate(sys, y0, t_out, opts, out%hist, out%stats, stat)
+        end if
         if (stat%code /= STATUS_OK) return
         ! the modal model starts from the projection of y0 on its modes
         allocate (yc(sys%ncstate))
@@ -225,6 +238,17 @@ contains
                 out%y(QTY_Y_ELBOW, k) = y(sys%iw(1))
                 out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
                 out%y(QTY_ENERGY, k) = out%ledger(3, k)
+                do j = 1, nw
+                    call dyn_output_sens(sys, pars(j), y, out%dstates(:, k, j), &
+                                         out%dy(QTY_U_TIP:QTY_W_TIP, k, j), &
+                                         out%dy(QTY_TIP_ANGLE, k, j), &
+                                         out%dy(QTY_MOTOR_TORQUE, k, j), &
+                                         out%dy(QTY_ENERGY, k, j))
+                    out%dy(QTY_X_TIP, k, j) = out%dy(QTY_U_TIP, k, j)
+                    out%dy(QTY_Y_TIP, k, j) = out%dy(QTY_W_TIP, k, j)
+                    out%dy(QTY_X_ELBOW, k, j) = out%dstates(sys%iu(1), k, j)
+                    out%dy(QTY_Y_ELBOW, k, j) = out%dstates(sys%iw(1), k, j)
+                end do
             end associate
         end do
     end subroutine release_response

@@ -16,7 +16,8 @@ module beamid_api_dynamics
     use beamid_fe_element, only: fe_hermite
     use beamid_fe_assembly, only: fe_band_rows, fe_band_to_dense, fe_node_value, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
-    use beamid_release, only: release_spec_t, release_out_t, release_response
+    use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
+                              NLOAD, release_quantity_name, release_wrt_name
     use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
                                zband_factor, zband_solve, dyn_system_t, dyn_setup, &
                                dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
@@ -28,6 +29,7 @@ module beamid_api_dynamics
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
     public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal, api_dyn_ldlt_solve
+    public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
 
 contains
 
@@ -507,5 +509,90 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_ldlt_solve
+
+    !> The quantity table of a release (beamid_release QTY_*): the name of
+    !! quantity k and the number of quantities nq (k outside 1..nq: '').
+    subroutine api_dyn_quantity_name(k, name, nq)
+        integer(c_int), intent(in) :: k
+        character(len=32), intent(out) :: name
+        integer(c_int), intent(out) :: nq
+        name = release_quantity_name(int(k))
+        nq = int(NQTY, c_int)
+    end subroutine api_dyn_quantity_name
+
+    !> Name of sensitivity index `index` of a chain of nbeams beams (a
+    !! parameter's, or load_fx, load_fy, load_moment after them) and the
+    !! number of load components ncomp.
+    subroutine api_dyn_wrt_name(nbeams, index, name, ncomp)
+        integer(c_int), intent(in) :: nbeams, index
+        character(len=32), intent(out) :: name
+        integer(c_int), intent(out) :: ncomp
+        name = release_wrt_name(int(nbeams), int(index))
+        ncomp = int(NLOAD, c_int)
+    end subroutine api_dyn_wrt_name
+
+    !> A release (api_dyn_simulate's arguments, full model) with the exported
+    !! quantities y(nq, nt) (beamid_release QTY_*) and their sensitivities
+    !! dy(nq, nt, nwrt) with respect to the parameters wrt (1-based indices
+    !! into params, then nparams + 1..3: the load's fx, fy, moment), and the
+    !! state sensitivities ds(nstate, nt, nwrt).
+    subroutine api_dyn_release(nbeams, nparams, params, nepb, loads, gain, method, law, &
+                               vslip, dt, rtol, atol, h0, nstate, nt, t_out, nwork, nwrt, wrt, &
+                               nq, maxev, states, tip, torque, ledger, work, info, events, y, &
+                               dy, ds, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, nstate, nt, nwork
+        integer(c_int), intent(in) :: nwrt, wrt(nwrt), nq, maxev
+        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
+        real(c_double), intent(in) :: atol, h0, t_out(nt)
+        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
+        real(c_double), intent(out) :: y(nq, nt), dy(nq, nt, nwrt), ds(nstate, nt, nwrt)
+        integer(c_int), intent(out) :: info(7), code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        states = 0.0_c_double
+        tip = 0.0_c_double
+        torque = 0.0_c_double
+        ledger = 0.0_c_double
+        work = 0.0_c_double
+        events = 0.0_c_double
+        y = 0.0_c_double
+        dy = 0.0_c_double
+        ds = 0.0_c_double
+        info = 0
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code == STATUS_OK .and. nq /= NQTY) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nq = '//fmt_int(int(nq))// &
+                            ', expected '//fmt_int(NQTY))
+        end if
+        if (stat%code == STATUS_OK) then
+            call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
+        end if
+        if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nstate = '// &
+                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
+                            ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
+        end if
+        if (stat%code == STATUS_OK) then
+            info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
+                        out%stats%jevals, out%stats%newton, out%hist%nevents, &
+                        out%stats%event_steps], c_int)
+            call copy_events(out, events)
+            states = out%hist%y
+            torque = out%hist%torque
+            work = out%hist%work
+            tip = out%tip
+            ledger = out%ledger
+            y = out%y
+            dy = out%dy
+            ds = out%dstates
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_release
 
 end module beamid_api_dynamics
