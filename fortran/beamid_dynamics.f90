@@ -1806,7 +1806,7 @@ contains
         denergy = dot_product(t, s(n + 1:2*n))
         t = 0.0_dp
         call dyn_dmass_dq_mv(sys, y(1:n), s(1:n), y(n + 1:2*n), t)
-        call dyn_dmass_mv(sys, par, y(1:n), 0.5_dp*y(n + 1:2*n), t)
+        call dyn_dmass_mv(sys, par, y(1:n), y(n + 1:2*n), t)
         denergy = denergy + 0.5_dp*dot_product(t, y(n + 1:2*n))
         call fe_internal_force(sys%mesh, y(1:n), f)
         denergy = denergy + dot_product(f, s(1:n)) + dyn_denergy(sys, par, y(1:n))

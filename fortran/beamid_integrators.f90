@@ -82,6 +82,7 @@ module beamid_integrators
         integer :: factorizations = 0
         integer :: events = 0       !< friction switches (event_t records)
         integer :: event_steps = 0  !< steps cut short or redone to land on one
+        integer :: sens_passes = 0  !< implicit sensitivity iteration passes (all parameters)
     end type integ_stats_t
 
     !> Time histories at the output times (columns).
@@ -1876,7 +1877,7 @@ contains
                 end if
                 if (sens) then
                     call radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, &
-                                         tc, opts%rtol, sm, stat)
+                                         tc, opts%rtol, sm, stats%sens_passes, stat)
                     if (stat%code /= 0) return
                 end if
                 y = y + z(:, 3)
@@ -2114,20 +2115,21 @@ contains
     !! products with the exact stage Jacobians, until the correction is below
     !! 1 % of the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate).
     subroutine radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
-                               rtol, sm, stat)
+                               rtol, sm, passes, stat)
         type(dyn_system_t), intent(in) :: es
         type(radau_t), intent(inout) :: it
         type(dyn_param_t), intent(in) :: pars(:)
         real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), gam, ti1(3), tr(3), rtol
         complex(dp), intent(in) :: mu, ti2(3), tc(3)
         real(dp), intent(inout) :: sm(:, :)
+        integer, intent(inout) :: passes          !< iteration passes, summed
         type(status_t), intent(inout) :: stat
         integer, parameter :: MAXIT = 40
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
         real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), del(:)
         complex(dp), allocatable :: w2(:)
-        real(dp) :: e(3), xp, ref, err
+        real(dp) :: e(3), xp, ref, err, errold
         integer :: n, m, nw, nb, i, j, k, iter, kl, ku
         n = es%n
         m = es%ncstate
@@ -2156,6 +2158,7 @@ contains
         do j = 1, nw
             if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
             dz = 0.0_dp
+            errold = huge(1.0_dp)
             do iter = 1, MAXIT
                 do i = 1, 3
                     ys(1:n) = y(1:n) + z(1:n, i)
@@ -2197,14 +2200,22 @@ contains
                     del = tr(i)*w1 + real(tc(i)*w2, dp)
                     dz(:, i) = dz(:, i) + del
                 end do
-                ref = max(ref, maxval(abs(dz(1:n, :))), tiny(1.0_dp))
+                ref = max(ref, maxval(abs(dz(1:n, :))), 1.0e-280_dp)
                 sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
                 sc(n + 1:2*n) = sc(n + 1:2*n)*hh
+                ! the motor torque row on its own scale
+                if (es%nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                   maxval(abs(dz(m, :))), 1.0e-280_dp)))
                 do i = 1, 3
                     del = tr(i)*w1 + real(tc(i)*w2, dp)
                     err = max(err, wrms(del, sc))
                 end do
+                passes = passes + 1
                 if (sqrt(err) <= 1.0e-2_dp) exit
+                ! below the tolerance and no longer contracting: the round-off
+                ! floor of the residuals (tolerances near 1e-12)
+                if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold) exit
+                errold = err
             end do
             if (iter > MAXIT) then
                 call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
