@@ -1545,7 +1545,8 @@ contains
         type(dyn_param_t), intent(in), optional :: pars(:)
         real(dp), intent(inout), optional :: sm(:, :)
         real(dp), intent(inout), optional :: dstates(:, :, :)
-        real(dp), allocatable :: fm(:), dtp(:)
+        real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
+        real(dp) :: hsp
         logical :: sens
         character(len=*), parameter :: where = 'implicit'
         integer, parameter :: NIT = 7
@@ -1590,7 +1591,8 @@ contains
         evon = events_on(es)
         es%events = evon
         sens = present(pars)
-        if (sens) allocate (fm(nn), dtp(size(pars)))
+        hsp = 0.0_dp
+        if (sens) allocate (fm(nn), dtp(size(pars)), dzp(nn, 3, size(pars)))
         rot_slow = es%rotary .and. es%modal
         nfc = 2*es%npt
         allocate (hold0(nfc), hst(nfc, 3), acc3(n), rv(n), it%stuck(nfc), it%stuckc(nfc))
@@ -1846,6 +1848,7 @@ contains
                             if (sens) then
                                 call sens_event_post(es, y, fm, dtp, sm, stat)
                                 if (stat%code /= 0) return
+                                hsp = 0.0_dp
                             end if
                             have_f0 = .false.
                             may_reuse = .false.
@@ -1877,7 +1880,8 @@ contains
                 end if
                 if (sens) then
                     call radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, &
-                                         tc, opts%rtol, sm, stats%sens_passes, stat)
+                                         tc, opts%rtol, theta, sm, dzp, hsp, &
+                                         stats%sens_passes, stat)
                     if (stat%code /= 0) return
                 end if
                 y = y + z(:, 3)
@@ -1927,6 +1931,7 @@ contains
                     if (sens) then
                         call sens_event_post(es, y, fm, dtp, sm, stat)
                         if (stat%code /= 0) return
+                        hsp = 0.0_dp
                     end if
                     have_f0 = .false.
                     may_reuse = .false.
@@ -2115,13 +2120,18 @@ contains
     !! products with the exact stage Jacobians, until the correction is below
     !! 1 % of the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate).
     subroutine radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
-                               rtol, sm, passes, stat)
+                               rtol, thn, sm, dzp, hp, passes, stat)
         type(dyn_system_t), intent(in) :: es
         type(radau_t), intent(inout) :: it
         type(dyn_param_t), intent(in) :: pars(:)
         real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), gam, ti1(3), tr(3), rtol
+        !> the contraction of the step's Newton iteration (same matrices)
+        real(dp), intent(in) :: thn
         complex(dp), intent(in) :: mu, ti2(3), tc(3)
         real(dp), intent(inout) :: sm(:, :)
+        !> the previous step's stage sensitivities and step (hp = 0: none, as
+        !! after a switch): the predictor, as the Newton iteration's
+        real(dp), intent(inout) :: dzp(:, :, :), hp
         integer, intent(inout) :: passes          !< iteration passes, summed
         type(status_t), intent(inout) :: stat
         integer, parameter :: MAXIT = 40
@@ -2129,7 +2139,7 @@ contains
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
         real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), del(:)
         complex(dp), allocatable :: w2(:)
-        real(dp) :: e(3), xp, ref, err, errold
+        real(dp) :: e(3), xp, ref, err, errold, lsc(3), th
         integer :: n, m, nw, nb, i, j, k, iter, kl, ku
         n = es%n
         m = es%ncstate
@@ -2157,7 +2167,24 @@ contains
         end do
         do j = 1, nw
             if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
-            dz = 0.0_dp
+            if (hp > 0.0_dp) then
+                do i = 1, 3
+                    lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
+                    dz(:, i) = lsc(1)*dzp(:, 1, j) + lsc(2)*dzp(:, 2, j) &
+                               + (lsc(3) - 1.0_dp)*dzp(:, 3, j)
+                end do
+            else
+                dz = 0.0_dp
+            end if
+            ! the linear rows q' = v hold from the start (and after every
+            ! correction): the solves skip the products with their residual
+            do k = 1, it%nst
+                dz(it%stuck(k), :) = 0.0_dp
+            end do
+            do i = 1, 3
+                dz(n + 1:2*n, i) = (dmat(i, 1)*dz(1:n, 1) + dmat(i, 2)*dz(1:n, 2) &
+                                    + dmat(i, 3)*dz(1:n, 3))/hh - sm(n + 1:2*n, j)
+            end do
             errold = huge(1.0_dp)
             do iter = 1, MAXIT
                 do i = 1, 3
@@ -2169,7 +2196,7 @@ contains
                     else
                         call to_mform(es, it, zd)
                     end if
-                    r(1:n, i) = w(n + 1:2*n) - zd(1:n)
+                    r(1:n, i) = 0.0_dp
                     call dband_mv(n, kl, ku, kb(:, :, i), w(1:n), t)
                     r(n + 1:2*n, i) = cst(n + 1:2*n, i, j) - t - zd(n + 1:2*n)
                     call dband_mv(n, kl, ku, cb(:, :, i), w(n + 1:2*n), t)
@@ -2190,8 +2217,8 @@ contains
                 end do
                 w1 = ti1(1)*r(:, 1) + ti1(2)*r(:, 2) + ti1(3)*r(:, 3)
                 w2 = ti2(1)*r(:, 1) + ti2(2)*r(:, 2) + ti2(3)*r(:, 3)
-                call solve_real(es, it, gam/hh, w1)
-                call solve_cplx(es, it, mu/hh, w2)
+                call solve_real(es, it, gam/hh, w1, r_zero=.true.)
+                call solve_cplx(es, it, mu/hh, w2, r_zero=.true.)
                 ! error scale: the tolerance relative to this sensitivity's size
                 ! (velocity rows as the displacement they cause over the step)
                 ref = maxval(abs(sm(1:n, j)))
@@ -2211,7 +2238,15 @@ contains
                     err = max(err, wrms(del, sc))
                 end do
                 passes = passes + 1
-                if (sqrt(err) <= 1.0e-2_dp) exit
+                ! converged when the remaining error th/(1 - th) |correction|
+                ! is below 1 % of the tolerance, as the Newton iteration's test;
+                ! th: the observed contraction, at the first pass the Newton one
+                if (iter == 1) then
+                    th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                else
+                    th = min(sqrt(err/max(errold, tiny(1.0_dp))), 0.9_dp)
+                end if
+                if (th/(1.0_dp - th)*sqrt(err) <= 1.0e-2_dp) exit
                 ! below the tolerance and no longer contracting: the round-off
                 ! floor of the residuals (tolerances near 1e-12)
                 if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold) exit
@@ -2224,7 +2259,9 @@ contains
                 return
             end if
             sm(:, j) = sm(:, j) + dz(:, 3)
+            dzp(:, :, j) = dz
         end do
+        hp = hh
     end subroutine radau_sens_step
 
 end module beamid_integrators
