@@ -2137,7 +2137,7 @@ contains
         integer, parameter :: MAXIT = 40
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
-        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), del(:)
+        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), dels(:, :)
         complex(dp), allocatable :: w2(:)
         real(dp) :: e(3), xp, ref, err, errold, lsc(3), th
         integer :: n, m, nw, nb, i, j, k, iter, kl, ku
@@ -2149,7 +2149,7 @@ contains
         nb = 2*kl + ku + 1
         allocate (kb(nb, n, 3), cb(nb, n, 3), b(n, 3), p(n, 3), d(n, 3), acc(n, 3), &
                   cst(m, 3, nw), dz(m, 3), r(m, 3), w(m), zd(m), t(n), fp(n), ys(m), &
-                  w1(m), w2(m), sc(m), del(m))
+                  w1(m), w2(m), sc(m), dels(m, 3))
         do i = 1, 3
             ys = y + z(:, i)
             call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
@@ -2188,22 +2188,24 @@ contains
             errold = huge(1.0_dp)
             do iter = 1, MAXIT
                 do i = 1, 3
-                    ys(1:n) = y(1:n) + z(1:n, i)
                     w = sm(:, j) + dz(:, i)
-                    zd = (dmat(i, 1)*dz(:, 1) + dmat(i, 2)*dz(:, 2) + dmat(i, 3)*dz(:, 3))/hh
+                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
+                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1) + dmat(i, 2)*dz(n + 1:m, 2) &
+                                   + dmat(i, 3)*dz(n + 1:m, 3))/hh
                     if (it%rot) then
+                        ys(1:n) = y(1:n) + z(1:n, i)
                         call to_mform(es, it, zd, ys(1:n))
                     else
                         call to_mform(es, it, zd)
                     end if
                     r(1:n, i) = 0.0_dp
-                    call dband_mv(n, kl, ku, kb(:, :, i), w(1:n), t)
+                    call kc_mv(n, kl, ku, kb(:, :, i), cb(:, :, i), w(1:n), w(n + 1:2*n), t)
                     r(n + 1:2*n, i) = cst(n + 1:2*n, i, j) - t - zd(n + 1:2*n)
-                    call dband_mv(n, kl, ku, cb(:, :, i), w(n + 1:2*n), t)
-                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
-                    t = 0.0_dp
-                    call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
-                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    if (es%rotary) then
+                        t = 0.0_dp
+                        call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
+                        r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    end if
                     if (es%nx > 0) then
                         r(n + 1:2*n, i) = r(n + 1:2*n, i) + b(:, i)*w(2*n + 1)
                         r(2*n + 1, i) = dot_product(p(:, i), w(1:n)) &
@@ -2224,8 +2226,8 @@ contains
                 ref = maxval(abs(sm(1:n, j)))
                 err = 0.0_dp
                 do i = 1, 3
-                    del = tr(i)*w1 + real(tc(i)*w2, dp)
-                    dz(:, i) = dz(:, i) + del
+                    dels(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
+                    dz(:, i) = dz(:, i) + dels(:, i)
                 end do
                 ref = max(ref, maxval(abs(dz(1:n, :))), 1.0e-280_dp)
                 sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
@@ -2234,8 +2236,7 @@ contains
                 if (es%nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
                                                    maxval(abs(dz(m, :))), 1.0e-280_dp)))
                 do i = 1, 3
-                    del = tr(i)*w1 + real(tc(i)*w2, dp)
-                    err = max(err, wrms(del, sc))
+                    err = max(err, wrms(dels(:, i), sc))
                 end do
                 passes = passes + 1
                 ! converged when the remaining error th/(1 - th) |correction|
@@ -2263,5 +2264,23 @@ contains
         end do
         hp = hh
     end subroutine radau_sens_step
+
+    !> y = K x + C v for two band matrices of the same shape (one pass).
+    pure subroutine kc_mv(n, kl, ku, kb, cb, x, v, y)
+        integer, intent(in) :: n, kl, ku
+        real(dp), intent(in) :: kb(2*kl + ku + 1, n), cb(2*kl + ku + 1, n), x(n), v(n)
+        real(dp), intent(out) :: y(n)
+        integer :: j, i1, i2, k
+        real(dp) :: xj, vj
+        y = 0.0_dp
+        k = kl + ku + 1
+        do j = 1, n
+            i1 = max(1, j - ku)
+            i2 = min(n, j + kl)
+            xj = x(j)
+            vj = v(j)
+            y(i1:i2) = y(i1:i2) + xj*kb(k + i1 - j:k + i2 - j, j) + vj*cb(k + i1 - j:k + i2 - j, j)
+        end do
+    end subroutine kc_mv
 
 end module beamid_integrators
