@@ -4,10 +4,14 @@
 !! L D L^T of symmetric band matrices without pivoting (real, and complex
 !! symmetric: no conjugation), band products and multi-right-hand-side
 !! solves, real and complex behind generic interfaces (band_factor,
-!! band_solve, ldlt_factor, ldlt_solve, band_mv). The complex kernels keep
-!! their hand-written re/im loops (the complex step's speed rests on them);
-!! the real and complex pairs sit side by side here, so a change to one is
-!! made to the other in the same place.
+!! band_solve, ldlt_factor, ldlt_solve, band_mv). The routines that are the
+!! same for both kinds (factor and solve drivers, the band LU solve, the band
+!! product) are written once, in beamid_band_generic.inc, and instantiated
+!! for real(dp) and complex(dp) by the preprocessor. The LU factorization's
+!! trailing update and the L D L^T kernels keep separate real and complex
+!! bodies: the complex ones are written on (re, im) pairs and test a
+!! different pivot (the imaginary part), and the complex step's speed rests
+!! on them; the pairs sit side by side here.
 module beamid_band
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SINGULAR, fmt_int
@@ -56,61 +60,38 @@ module beamid_band
 
 contains
 
-    !> Factor a band matrix held in `lu%ab` (LAPACK storage, 2 kl + ku + 1 rows).
-    subroutine dband_factor(lu, stat)
-        type(band_lu_t), intent(inout) :: lu
-        type(status_t), intent(inout) :: stat
-        integer :: info
-        if (size(lu%ab, 1) /= 2*lu%kl + lu%ku + 1 .or. size(lu%ab, 2) /= lu%n) then
-            call set_status(stat, ERR_INPUT, 'band_factor', 'band storage shape mismatch')
-            return
-        end if
-        if (.not. allocated(lu%ipiv)) allocate (lu%ipiv(lu%n))
-        if (size(lu%ipiv) /= lu%n) then
-            deallocate (lu%ipiv)
-            allocate (lu%ipiv(lu%n))
-        end if
-        if (lu%n == 0) return
-        call dband_lu(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, info)
-        if (info > 0) call set_status(stat, ERR_SINGULAR, 'band_factor', &
-                                      'matrix is singular (zero pivot '//fmt_int(info)//')')
-    end subroutine dband_factor
+    ! The kind-generic band routines, written once in beamid_band_generic.inc
+    ! and instantiated for real and complex by the preprocessor.
+#define BAND_T real(dp)
+#define LU_T band_lu_t
+#define FACTOR_ dband_factor
+#define SOLVE_ dband_solve
+#define LU_ dband_lu
+#define LU_SOLVE_ dband_lu_solve
+#define MV_ dband_mv
+#define WHERE_ 'band_factor'
+#include "beamid_band_generic.inc"
+#undef BAND_T
+#undef LU_T
+#undef FACTOR_
+#undef SOLVE_
+#undef LU_
+#undef LU_SOLVE_
+#undef MV_
+#undef WHERE_
+#define BAND_T complex(dp)
+#define LU_T zband_lu_t
+#define FACTOR_ zband_factor
+#define SOLVE_ zband_solve
+#define LU_ zband_lu
+#define LU_SOLVE_ zband_lu_solve
+#define MV_ zband_mv
+#define WHERE_ 'zband_factor'
+#include "beamid_band_generic.inc"
 
-    !> Solve with a factorized band matrix, b overwritten by the solution.
-    subroutine dband_solve(lu, b)
-        type(band_lu_t), intent(in) :: lu
-        real(dp), intent(inout) :: b(:)
-        if (lu%n == 0) return
-        call dband_lu_solve(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, b)
-    end subroutine dband_solve
 
-    !> Complex counterpart of band_factor.
-    subroutine zband_factor(lu, stat)
-        type(zband_lu_t), intent(inout) :: lu
-        type(status_t), intent(inout) :: stat
-        integer :: info
-        if (size(lu%ab, 1) /= 2*lu%kl + lu%ku + 1 .or. size(lu%ab, 2) /= lu%n) then
-            call set_status(stat, ERR_INPUT, 'zband_factor', 'band storage shape mismatch')
-            return
-        end if
-        if (.not. allocated(lu%ipiv)) allocate (lu%ipiv(lu%n))
-        if (size(lu%ipiv) /= lu%n) then
-            deallocate (lu%ipiv)
-            allocate (lu%ipiv(lu%n))
-        end if
-        if (lu%n == 0) return
-        call zband_lu(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, info)
-        if (info > 0) call set_status(stat, ERR_SINGULAR, 'zband_factor', &
-                                      'matrix is singular (zero pivot '//fmt_int(info)//')')
-    end subroutine zband_factor
 
-    !> Complex counterpart of band_solve.
-    subroutine zband_solve(lu, b)
-        type(zband_lu_t), intent(in) :: lu
-        complex(dp), intent(inout) :: b(:)
-        if (lu%n == 0) return
-        call zband_lu_solve(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, b)
-    end subroutine zband_solve
+
 
     !> LU factorization with partial pivoting of a band matrix in LAPACK
     !! general band storage (the algorithm of dgbtf2, written out: for the
@@ -194,43 +175,6 @@ contains
         end do
     end subroutine dband_update
 
-    !> Solve A x = b with the factors of dband_lu (as dgbtrs 'N').
-    pure subroutine dband_lu_solve(n, kl, ku, ab, ipiv, b)
-        integer, intent(in) :: n, kl, ku
-        real(dp), intent(in) :: ab(2*kl + ku + 1, n)
-        integer, intent(in) :: ipiv(n)
-        real(dp), intent(inout) :: b(n)
-        real(dp) :: t
-        integer :: kd, j, lm, l, i
-        kd = kl + ku + 1
-        ! the pivot element held in t, so that the inner loops only read ab
-        ! and write b(j+1..) or b(..j-1)
-        do j = 1, n - 1
-            lm = min(kl, n - j)
-            l = ipiv(j)
-            t = b(l)
-            if (l /= j) then
-                b(l) = b(j)
-                b(j) = t
-            end if
-            if (t /= 0.0_dp) then
-                do i = 1, lm
-                    b(j + i) = b(j + i) - t*ab(kd + i, j)
-                end do
-            end if
-        end do
-        ! U has kl + ku super-diagonals: u(i, j) at ab(kd + i - j, j)
-        do j = n, 1, -1
-            t = b(j)
-            if (t /= 0.0_dp) then
-                t = t/ab(kd, j)
-                b(j) = t
-                do i = max(1, j - kl - ku), j - 1
-                    b(i) = b(i) - t*ab(kd + i - j, j)
-                end do
-            end if
-        end do
-    end subroutine dband_lu_solve
 
     !> Complex counterpart of dband_lu (pivot by |re| + |im|, as izamax).
     pure subroutine zband_lu(n, kl, ku, ab, ipiv, info)
@@ -308,40 +252,6 @@ contains
         end do
     end subroutine zband_update
 
-    !> Complex counterpart of dband_lu_solve.
-    pure subroutine zband_lu_solve(n, kl, ku, ab, ipiv, b)
-        integer, intent(in) :: n, kl, ku
-        complex(dp), intent(in) :: ab(2*kl + ku + 1, n)
-        integer, intent(in) :: ipiv(n)
-        complex(dp), intent(inout) :: b(n)
-        complex(dp) :: t
-        integer :: kd, j, lm, l, i
-        kd = kl + ku + 1
-        do j = 1, n - 1
-            lm = min(kl, n - j)
-            l = ipiv(j)
-            t = b(l)
-            if (l /= j) then
-                b(l) = b(j)
-                b(j) = t
-            end if
-            if (t /= (0.0_dp, 0.0_dp)) then
-                do i = 1, lm
-                    b(j + i) = b(j + i) - t*ab(kd + i, j)
-                end do
-            end if
-        end do
-        do j = n, 1, -1
-            t = b(j)
-            if (t /= (0.0_dp, 0.0_dp)) then
-                t = t/ab(kd, j)
-                b(j) = t
-                do i = max(1, j - kl - ku), j - 1
-                    b(i) = b(i) - t*ab(kd + i - j, j)
-                end do
-            end if
-        end do
-    end subroutine zband_lu_solve
 
     !> L D L^T of a symmetric band matrix of half-bandwidth k, lower band
     !! s(1 + i - j, j) = A(i, j), without pivoting: D on row 1, L below.
@@ -548,40 +458,7 @@ contains
         end if
     end subroutine ldlt_solve_cplx
 
-    !> y = A x for a real band matrix of order n (LAPACK general band storage,
-    !! explicit shape; one contiguous axpy per column).
-    pure subroutine dband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        real(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        real(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        real(dp) :: xj
-        y = 0.0_dp
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine dband_mv
 
-    !> y = A x for a complex band matrix (as dband_mv).
-    pure subroutine zband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        complex(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        complex(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        complex(dp) :: xj
-        y = (0.0_dp, 0.0_dp)
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine zband_mv
 
     !> y = K x + C v for two band matrices of the same shape (one pass).
     pure subroutine kc_mv(n, kl, ku, kb, cb, x, v, y)
