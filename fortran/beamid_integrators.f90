@@ -1729,7 +1729,7 @@ contains
         real(dp), intent(out) :: ds(:, :), dl(:, :)
         type(status_t), intent(inout) :: stat
         logical, intent(in) :: with_p
-        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:), t(:), fp(:)
+        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:, :), t(:), fp(:)
         type(band_lu_t) :: lu
         real(dp) :: e, xp
         integer :: n, nb, j, kl, ku
@@ -1737,7 +1737,7 @@ contains
         kl = es%mesh%kl
         ku = es%mesh%ku
         nb = 2*kl + ku + 1
-        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n), t(n), fp(n))
+        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n, size(s, 2)), t(n), fp(n))
         call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
         if (es%rotary) then
             lu%n = n
@@ -1749,33 +1749,39 @@ contains
             if (stat%code /= 0) return
         end if
         dl = 0.0_dp
+        ! the right-hand sides of all parameters, then one multi-column solve
         do j = 1, size(s, 2)
-            call dband_mv(n, kl, ku, kb, s(1:n, j), t)
-            r = -t
-            call dband_mv(n, kl, ku, cb, s(n + 1:2*n, j), t)
-            r = r - t
-            if (es%nx > 0) r = r + b*s(2*n + 1, j)
+            call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), t)
+            r(:, j) = -t
+            if (es%nx > 0) r(:, j) = r(:, j) + b*s(2*n + 1, j)
             t = 0.0_dp
             call dyn_dmass_dq_mv(es, y(1:n), s(1:n, j), f(n + 1:2*n), t)
-            r = r - t
+            r(:, j) = r(:, j) - t
             xp = 0.0_dp
             if (with_p) then
                 call dyn_dforce(es, pars(j), y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, xp)
                 t = 0.0_dp
                 call dyn_dmass_mv(es, pars(j), y(1:n), f(n + 1:2*n), t)
-                r = r + fp - t
-            end if
-            if (es%rotary) then
-                call band_solve(lu, r)
-                if (es%events) call dyn_constrain(es, lu, r, dl(:, j), stat)
-            else
-                call band_solve(es%mlu, r)
-                if (es%events) call dyn_constrain(es, es%mlu, r, dl(:, j), stat)
+                r(:, j) = r(:, j) + fp - t
             end if
             ds(1:n, j) = s(n + 1:2*n, j)
-            ds(n + 1:2*n, j) = r
             if (es%nx > 0) ds(2*n + 1, j) = dot_product(p, s(1:n, j)) &
                                             + dot_product(d, s(n + 1:2*n, j)) + e*s(2*n + 1, j) + xp
+        end do
+        if (es%rotary) then
+            call band_solve(lu, r)
+        else
+            call band_solve(es%mlu, r)
+        end if
+        do j = 1, size(s, 2)
+            if (es%events) then
+                if (es%rotary) then
+                    call dyn_constrain(es, lu, r(:, j), dl(:, j), stat)
+                else
+                    call dyn_constrain(es, es%mlu, r(:, j), dl(:, j), stat)
+                end if
+            end if
+            ds(n + 1:2*n, j) = r(:, j)
         end do
     end subroutine sens_rates
 
