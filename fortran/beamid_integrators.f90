@@ -26,18 +26,20 @@ module beamid_integrators
                              ERR_NUMERIC, fmt_int, fmt_real
     use beamid_dynamics, only: dyn_system_t, dyn_cforces, dyn_cpower, dyn_cxrate, &
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
-                               dyn_to_coords, dyn_energy, dyn_torque, band_lu_t, zband_lu_t, &
-                               band_factor, band_solve, zband_factor, zband_solve, &
+                               dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN
+                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_dforce, &
+                               dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
+                               DP_NONE
+    use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
+                           zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+                           dband_mv, zband_mv, kc_mv
     implicit none
     private
 
     public :: integ_opts_t, integ_stats_t, history_t, radau_t, event_t
     public :: EVENT_START, EVENT_ZERO_VELOCITY, EVENT_UNSTICK
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
-    !> the symmetric band kernels, public for their tests
-    public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, dband_mv, zband_mv
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
     !> Kinds of friction events: the decision at the start (components at
@@ -80,6 +82,7 @@ module beamid_integrators
         integer :: factorizations = 0
         integer :: events = 0       !< friction switches (event_t records)
         integer :: event_steps = 0  !< steps cut short or redone to land on one
+        integer :: sens_passes = 0  !< implicit sensitivity iteration passes (all parameters)
     end type integ_stats_t
 
     !> Time histories at the output times (columns).
@@ -228,13 +231,21 @@ contains
 
     !> Integrate from the state y0 at t = 0 to every output time t_out
     !! (ascending, >= 0) and record the history with its energy ledger.
-    subroutine integrate(sys, y0, t_out, opts, hist, stats, stat)
+    !! With `pars`, also the forward sensitivities dy/dp of the state with
+    !! respect to each parameter, from s0 = dy0/dp, into dstates(:, k, j)
+    !! (full model only).
+    subroutine integrate(sys, y0, t_out, opts, hist, stats, stat, pars, s0, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(out) :: hist
         type(integ_stats_t), intent(out) :: stats
         type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(in), optional :: s0(:, :)
+        real(dp), allocatable, intent(out), optional :: dstates(:, :, :)
+        real(dp), allocatable :: sm(:, :)
+        logical :: sens
         character(len=*), parameter :: where = 'integrate'
         real(dp), allocatable :: yc0(:)
         integer :: nt, k
@@ -284,6 +295,28 @@ contains
         hist%kinetic = 0.0_dp
         hist%potential = 0.0_dp
         hist%work = 0.0_dp
+        sens = present(pars)
+        if (sens) then
+            if (sys%modal) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivities are not available '// &
+                                'in the truncated modal model')
+                return
+            end if
+            if (.not. present(s0) .or. .not. present(dstates)) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivities need s0 and dstates')
+                return
+            end if
+            if (size(s0, 1) /= sys%nstate .or. size(s0, 2) /= size(pars)) then
+                call set_status(stat, ERR_INPUT, where, 's0 has shape '// &
+                                fmt_int(size(s0, 1))//' x '//fmt_int(size(s0, 2))// &
+                                ', expected '//fmt_int(sys%nstate)//' x '// &
+                                fmt_int(size(pars)))
+                return
+            end if
+            allocate (dstates(sys%nstate, nt, size(pars)), sm(sys%nstate, size(pars)))
+            dstates = 0.0_dp
+            sm = s0
+        end if
         ! integration coordinates: q itself, or the modal coordinates (Eq. 127)
         allocate (yc0(sys%ncstate))
         call dyn_to_coords(sys, y0, yc0)
@@ -294,7 +327,11 @@ contains
                                 ', expected a positive step')
                 return
             end if
-            call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
+            if (sens) then
+                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
+            else
+                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
+            end if
         case (METHOD_IMPLICIT)
             if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
                 then
@@ -303,7 +340,11 @@ contains
                                 fmt_real(opts%h0)//': expected positive values')
                 return
             end if
-            call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
+            if (sens) then
+                call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
+            else
+                call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
+            end if
         case default
             call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
                             ', expected 0 (rk4) or 1 (implicit)')
@@ -540,13 +581,19 @@ contains
     !! mu N (linear in the step), ends the step there: it is redone to the
     !! event, the switch applied, and the output interval continues in
     !! equal steps no longer than dt.
-    subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat)
+    subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(inout) :: hist
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
+        !> forward sensitivities: the parameters, S (in: at t = 0), S at t_out
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        real(dp), intent(inout), optional :: dstates(:, :, :)
+        real(dp), allocatable :: fm(:), dtp(:)
+        logical :: sens
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
@@ -566,6 +613,8 @@ contains
         es = sys
         evon = events_on(es)
         es%events = evon
+        sens = present(pars)
+        if (sens) allocate (fm(m), dtp(size(pars)))
         s = 0.0_dp
         s(1:m) = y0
         t = 0.0_dp
@@ -623,6 +672,10 @@ contains
                     end do
                 end if
                 if (jev == 0) then
+                    if (sens) then
+                        call rk_sens_step(es, pars, s, k1, h, sm, stat)
+                        if (stat%code /= 0) return
+                    end if
                     s = sn
                     k1 = k1n
                     hold = holdn
@@ -647,6 +700,10 @@ contains
                 end if
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
+                    if (sens) then
+                        call rk_sens_step(es, pars, s, k1, hs, sm, stat)
+                        if (stat%code /= 0) return
+                    end if
                     s = sn
                     stats%fevals = stats%fevals + 3
                     stats%event_steps = stats%event_steps + 1
@@ -656,13 +713,21 @@ contains
                         stats%fevals = stats%fevals + 1
                     end if
                 end if
+                if (kind == EVENT_ZERO_VELOCITY) s(n + dyn_fric_dof(es, jev)) = 0.0_dp
+                if (sens) then
+                    call sens_event_pre(es, pars, s(1:m), kind, jev, hold(jev), sm, fm, dtp, stat)
+                    if (stat%code /= 0) return
+                end if
                 if (kind == EVENT_ZERO_VELOCITY) then
-                    s(n + dyn_fric_dof(es, jev)) = 0.0_dp
                     call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
                 else
                     call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
                 end if
                 if (stat%code /= 0) return
+                if (sens) then
+                    call sens_event_post(es, s(1:m), fm, dtp, sm, stat)
+                    if (stat%code /= 0) return
+                end if
                 call rk_rates(es, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
@@ -678,6 +743,7 @@ contains
             end if
             t = t_out(k)
             call record(es, s(1:m), s(m + 1:), k, hist)
+            if (sens) dstates(:, k, :) = sm
         end do
     end subroutine run_rk4
 
@@ -996,246 +1062,6 @@ contains
         end do
     end function band_symmetric
 
-    !> L D L^T of a symmetric band matrix of half-bandwidth k, lower band
-    !! s(1 + i - j, j) = A(i, j), without pivoting: D on row 1, L below.
-    !! False (s then unusable) at the first pivot that is not positive.
-    pure subroutine ldlt_real(n, k, s, ok)
-        integer, intent(in) :: n, k
-        logical, intent(out) :: ok
-        real(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m, j0
-        real(dp) :: d, dinv, vc
-        integer, parameter :: K7 = 7
-        ok = .false.
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                d = s(1, j)
-                if (.not. (d > 0.0_dp)) return
-                dinv = 1.0_dp/d
-                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
-                do c = 1, K7
-                    vc = s(1 + c, j)*d
-                    do r = c, K7
-                        s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
-                    end do
-                end do
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            d = s(1, j)
-            if (.not. (d > 0.0_dp)) return
-            dinv = 1.0_dp/d
-            ! the scaled column first: l_r = a_r / d; then the trailing update
-            ! A(r, c) -= l_r d l_c over the lower triangle
-            m = min(k, n - j)
-            do r = 2, m + 1
-                s(r, j) = s(r, j)*dinv
-            end do
-            do c = 1, m
-                vc = s(1 + c, j)*d
-                do r = c, m
-                    s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
-                end do
-            end do
-        end do
-        ok = .true.
-    end subroutine ldlt_real
-
-    !> Complex symmetric counterpart of ldlt_real; false at the first pivot
-    !! whose imaginary part is not positive.
-    pure subroutine ldlt_cplx(n, k, s, ok)
-        integer, intent(in) :: n, k
-        logical, intent(out) :: ok
-        complex(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m, j0
-        complex(dp) :: d, dinv
-        real(dp) :: vr, vi, sr, si
-        integer, parameter :: K7 = 7
-        ok = .false.
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                d = s(1, j)
-                if (.not. (d%im > 0.0_dp)) return
-                dinv = 1.0_dp/d
-                do c = 1, K7
-                    vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
-                    vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
-                    do r = c, K7
-                        sr = s(1 + r, j)%re
-                        si = s(1 + r, j)%im
-                        s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
-                        s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
-                    end do
-                end do
-                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            d = s(1, j)
-            if (.not. (d%im > 0.0_dp)) return
-            dinv = 1.0_dp/d
-            m = min(k, n - j)
-            do c = 1, m
-                vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
-                vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
-                do r = c, m
-                    sr = s(1 + r, j)%re
-                    si = s(1 + r, j)%im
-                    s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
-                    s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
-                end do
-            end do
-            do r = 2, m + 1
-                s(r, j) = s(r, j)*dinv
-            end do
-        end do
-        ok = .true.
-    end subroutine ldlt_cplx
-
-    !> Solve L D L^T x = b (ldlt_real factors), b overwritten.
-    pure subroutine ldlt_solve_real(n, k, s, b)
-        integer, intent(in) :: n, k
-        real(dp), intent(in) :: s(k + 1, n)
-        real(dp), intent(inout) :: b(n)
-        integer, parameter :: K7 = 7
-        integer :: i, j, m, j0
-        real(dp) :: bj, acc
-        ! forward: L y = b (columns j <= n - k have the full k entries; with
-        ! k = 7, the rigid chain's, the trip count is a constant)
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                bj = b(j)
-                b(j + 1:j + K7) = b(j + 1:j + K7) - bj*s(2:K7 + 1, j)
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            m = min(k, n - j)
-            bj = b(j)
-            do i = 1, m
-                b(j + i) = b(j + i) - bj*s(1 + i, j)
-            end do
-        end do
-        ! backward: D L^T x = y (the last k rows by the general loop)
-        j0 = 0
-        if (k == K7) j0 = max(0, n - K7)
-        do j = n, j0 + 1, -1
-            m = min(k, n - j)
-            acc = 0.0_dp
-            do i = 1, m
-                acc = acc + s(1 + i, j)*b(j + i)
-            end do
-            b(j) = b(j)/s(1, j) - acc
-        end do
-        if (k == K7) then
-            do j = n - K7, 1, -1
-                b(j) = b(j)/s(1, j) - sum(s(2:K7 + 1, j)*b(j + 1:j + K7))
-            end do
-        end if
-    end subroutine ldlt_solve_real
-
-    !> Solve with the ldlt_cplx factors (no conjugation), b overwritten.
-    pure subroutine ldlt_solve_cplx(n, k, s, b)
-        integer, intent(in) :: n, k
-        complex(dp), intent(in) :: s(k + 1, n)
-        complex(dp), intent(inout) :: b(n)
-        integer, parameter :: K7 = 7
-        integer :: i, j, m, j0
-        real(dp) :: br, bi, sr, si
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                br = b(j)%re
-                bi = b(j)%im
-                do i = 1, K7
-                    sr = s(1 + i, j)%re
-                    si = s(1 + i, j)%im
-                    b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
-                    b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
-                end do
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            m = min(k, n - j)
-            br = b(j)%re
-            bi = b(j)%im
-            do i = 1, m
-                sr = s(1 + i, j)%re
-                si = s(1 + i, j)%im
-                b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
-                b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
-            end do
-        end do
-        j0 = 0
-        if (k == K7) j0 = max(0, n - K7)
-        do j = n, j0 + 1, -1
-            m = min(k, n - j)
-            br = 0.0_dp
-            bi = 0.0_dp
-            do i = 1, m
-                sr = s(1 + i, j)%re
-                si = s(1 + i, j)%im
-                br = br + (sr*b(j + i)%re - si*b(j + i)%im)
-                bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
-            end do
-            b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
-        end do
-        if (k == K7) then
-            do j = n - K7, 1, -1
-                br = 0.0_dp
-                bi = 0.0_dp
-                do i = 1, K7
-                    sr = s(1 + i, j)%re
-                    si = s(1 + i, j)%im
-                    br = br + (sr*b(j + i)%re - si*b(j + i)%im)
-                    bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
-                end do
-                b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
-            end do
-        end if
-    end subroutine ldlt_solve_cplx
-
-    !> y = A x for a real band matrix of order n (LAPACK general band storage,
-    !! explicit shape; one contiguous axpy per column).
-    pure subroutine dband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        real(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        real(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        real(dp) :: xj
-        y = 0.0_dp
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine dband_mv
-
-    !> y = A x for a complex band matrix (as dband_mv).
-    pure subroutine zband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        complex(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        complex(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        complex(dp) :: xj
-        y = (0.0_dp, 0.0_dp)
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine zband_mv
-
     !> Solve (lam - J) [x; y; z] = [r; s; t] with the real factorization
     !! (lam = gamma/h). On entry w = [r; M s; t] (the velocity row already
     !! multiplied by the step-start mass matrix M0: the "M-form" of the
@@ -1468,13 +1294,20 @@ contains
     !!   through (four times the steps).
     !! The step size follows the standard controller on the order-4 estimate
     !! (Hairer-Wanner IV.8, Eq. 8.19-8.21).
-    subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat)
+    subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(inout) :: hist
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
+        !> forward sensitivities (as in run_rk4)
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        real(dp), intent(inout), optional :: dstates(:, :, :)
+        real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
+        real(dp) :: hsp
+        logical :: sens
         character(len=*), parameter :: where = 'implicit'
         integer, parameter :: NIT = 7
         real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
@@ -1517,6 +1350,9 @@ contains
         es = sys
         evon = events_on(es)
         es%events = evon
+        sens = present(pars)
+        hsp = 0.0_dp
+        if (sens) allocate (fm(nn), dtp(size(pars)), dzp(nn, 3, size(pars)))
         rot_slow = es%rotary .and. es%modal
         nfc = 2*es%npt
         allocate (hold0(nfc), hst(nfc, 3), acc3(n), rv(n), it%stuck(nfc), it%stuckc(nfc))
@@ -1548,6 +1384,7 @@ contains
         do while (kout <= nt)
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
                 call record(es, y, work, kout, hist)
+                if (sens) dstates(:, kout, :) = sm
                 kout = kout + 1
                 cycle
             end if
@@ -1760,9 +1597,19 @@ contains
                             if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
                             jforce = 0
                             if (kev == EVENT_UNSTICK) jforce = jev
+                            if (sens) then
+                                call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, &
+                                                    dtp, stat)
+                                if (stat%code /= 0) return
+                            end if
                             call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
                             if (stat%code /= 0) return
                             call set_stuck(es, it)
+                            if (sens) then
+                                call sens_event_post(es, y, fm, dtp, sm, stat)
+                                if (stat%code /= 0) return
+                                hsp = 0.0_dp
+                            end if
                             have_f0 = .false.
                             may_reuse = .false.
                             pend = 0
@@ -1790,6 +1637,12 @@ contains
                     do j = 1, es%nwork
                         work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))
                     end do
+                end if
+                if (sens) then
+                    call radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, &
+                                         tc, opts%rtol, theta, sm, dzp, hsp, &
+                                         stats%sens_passes, stat)
+                    if (stat%code /= 0) return
                 end if
                 y = y + z(:, 3)
                 f0 = f3
@@ -1828,9 +1681,18 @@ contains
                     if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
                     jforce = 0
                     if (kev == EVENT_UNSTICK) jforce = jev
+                    if (sens) then
+                        call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, dtp, stat)
+                        if (stat%code /= 0) return
+                    end if
                     call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
                     if (stat%code /= 0) return
                     call set_stuck(es, it)
+                    if (sens) then
+                        call sens_event_post(es, y, fm, dtp, sm, stat)
+                        if (stat%code /= 0) return
+                        hsp = 0.0_dp
+                    end if
                     have_f0 = .false.
                     may_reuse = .false.
                     if (pend /= 0) h = max(h, hcut)
@@ -1849,5 +1711,324 @@ contains
             end if
         end do
     end subroutine run_radau
+
+    ! ---------------------------------------------------------------------
+    ! Forward sensitivities S = dy/dp (Eq. 135-140; docs/theory_dynamics.md)
+    ! ---------------------------------------------------------------------
+
+    !> Rates of the sensitivities in rate form at the state y with rates f
+    !! (the constrained ones): dS = (S_v, M^-1 (dF S + F_p - M_p a - (dM/dq
+    !! S_q) a) constrained to the sticking components, p.S_q + d.S_v + e S_x
+    !! + x'_p), the variational equations of Eq. 135. dl: the changes of the
+    !! sticking components' constraint forces. with_p = .false.: the
+    !! directional derivative along s alone (no parameter terms).
+    subroutine sens_rates(es, pars, y, f, s, ds, dl, stat, with_p)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), f(:), s(:, :)
+        real(dp), intent(out) :: ds(:, :), dl(:, :)
+        type(status_t), intent(inout) :: stat
+        logical, intent(in) :: with_p
+        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:, :), t(:), fp(:)
+        type(band_lu_t) :: lu
+        real(dp) :: e, xp
+        integer :: n, nb, j, kl, ku
+        n = es%n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n, size(s, 2)), t(n), fp(n))
+        call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
+        if (es%rotary) then
+            lu%n = n
+            lu%kl = kl
+            lu%ku = ku
+            allocate (lu%ab(nb, n))
+            call dyn_mass(es, y(1:n), lu%ab)
+            call band_factor(lu, stat)
+            if (stat%code /= 0) return
+        end if
+        dl = 0.0_dp
+        ! the right-hand sides of all parameters, then one multi-column solve
+        do j = 1, size(s, 2)
+            call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), t)
+            r(:, j) = -t
+            if (es%nx > 0) r(:, j) = r(:, j) + b*s(2*n + 1, j)
+            t = 0.0_dp
+            call dyn_dmass_dq_mv(es, y(1:n), s(1:n, j), f(n + 1:2*n), t)
+            r(:, j) = r(:, j) - t
+            xp = 0.0_dp
+            if (with_p) then
+                call dyn_dforce(es, pars(j), y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, xp)
+                t = 0.0_dp
+                call dyn_dmass_mv(es, pars(j), y(1:n), f(n + 1:2*n), t)
+                r(:, j) = r(:, j) + fp - t
+            end if
+            ds(1:n, j) = s(n + 1:2*n, j)
+            if (es%nx > 0) ds(2*n + 1, j) = dot_product(p, s(1:n, j)) &
+                                            + dot_product(d, s(n + 1:2*n, j)) + e*s(2*n + 1, j) + xp
+        end do
+        if (es%rotary) then
+            call band_solve(lu, r)
+        else
+            call band_solve(es%mlu, r)
+        end if
+        do j = 1, size(s, 2)
+            if (es%events) then
+                if (es%rotary) then
+                    call dyn_constrain(es, lu, r(:, j), dl(:, j), stat)
+                else
+                    call dyn_constrain(es, es%mlu, r(:, j), dl(:, j), stat)
+                end if
+            end if
+            ds(n + 1:2*n, j) = r(:, j)
+        end do
+    end subroutine sens_rates
+
+    !> The RK4 step of the sensitivities (the variational equations on the
+    !! same step, the derivative of the discrete map): from S at the state s
+    !! with rates k1 over h.
+    subroutine rk_sens_step(es, pars, s, k1, h, sm, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: s(:), k1(:), h
+        real(dp), intent(inout) :: sm(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: y(:), f(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
+        real(dp), allocatable :: dl(:, :), pw(:)
+        real(dp) :: torque
+        integer :: m, nw
+        m = es%ncstate
+        nw = size(sm, 2)
+        allocate (y(m), f(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
+                  dl(2*es%npt, nw), pw(es%nwork))
+        call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*k1(1:m)
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + 0.5_dp*h*d1
+        call sens_rates(es, pars, y, f, st, d2, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*f
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + 0.5_dp*h*d2
+        call sens_rates(es, pars, y, f, st, d3, dl, stat, .true.)
+        y = s(1:m) + h*f
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + h*d3
+        call sens_rates(es, pars, y, f, st, d4, dl, stat, .true.)
+        sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
+    end subroutine rk_sens_step
+
+    !> Before a friction switch at the state y (modes still the old ones):
+    !! the rates f- and dt*/dp = -(g_y S- + g_p)/(g_y f-) of the switching
+    !! function g: the velocity of component jev (EVENT_ZERO_VELOCITY) or
+    !! mu N - |constraint force| (EVENT_UNSTICK, holdj its constraint force).
+    subroutine sens_event_pre(es, pars, y, kind, jev, holdj, sm, fm, dtp, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), holdj, sm(:, :)
+        integer, intent(in) :: kind, jev
+        real(dp), intent(out) :: fm(:), dtp(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: ds(:, :), dl(:, :), d1(:, :), dl1(:, :), pw(:)
+        real(dp) :: torque, den, sg
+        integer :: i, j, nw
+        nw = size(sm, 2)
+        allocate (ds(size(y), nw), dl(2*es%npt, nw), d1(size(y), 1), dl1(2*es%npt, 1), &
+                  pw(es%nwork))
+        call dyn_crates(es, y, fm, pw, torque, stat)
+        if (stat%code /= 0) return
+        i = es%n + dyn_fric_dof(es, jev)
+        dtp = 0.0_dp
+        if (kind == EVENT_ZERO_VELOCITY) then
+            den = fm(i)
+            if (den /= 0.0_dp) dtp = -sm(i, :)/den
+        else
+            sg = sign(1.0_dp, holdj)
+            call sens_rates(es, pars, y, fm, sm, ds, dl, stat, .true.)
+            call sens_rates(es, pars, y, fm, reshape(fm, [size(fm), 1]), d1, dl1, stat, .false.)
+            den = -sg*dl1(jev, 1)
+            if (den /= 0.0_dp) then
+                do j = 1, nw
+                    dtp(j) = -(dyn_param_dcap(pars(j), (jev + 1)/2) - sg*dl(jev, j))/den
+                end do
+            end if
+        end if
+    end subroutine sens_event_pre
+
+    !> After the switch: S+ = S- + (f- - f+) dt*/dp, and zero velocity
+    !! sensitivity for the sticking components.
+    subroutine sens_event_post(es, y, fm, dtp, sm, stat)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: y(:), fm(:), dtp(:)
+        real(dp), intent(inout) :: sm(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: fp(:), pw(:)
+        real(dp) :: torque
+        integer :: j
+        allocate (fp(size(y)), pw(es%nwork))
+        call dyn_crates(es, y, fp, pw, torque, stat)
+        if (stat%code /= 0) return
+        do j = 1, size(sm, 2)
+            sm(:, j) = sm(:, j) + (fm - fp)*dtp(j)
+        end do
+        do j = 1, size(es%fmode)
+            if (es%fric((j + 1)/2) /= 0.0_dp .and. es%fmode(j) == 0) &
+                sm(es%n + dyn_fric_dof(es, j), :) = 0.0_dp
+        end do
+    end subroutine sens_event_post
+
+    !> The staggered direct sensitivity step of Radau IIA: differentiate the
+    !! converged stage equations (D Z)_i / h = f(y + Z_i, p) (M-form, as the
+    !! Newton residuals) and solve the linear stage sensitivity system
+    !!   (D dZ)_i / h = J(Y_i) (S + dZ_i) + f_p(Y_i)
+    !! by iteration with the step's factored simplified-Newton matrices
+    !! (the real and complex blocks), each pass one solve of each plus band
+    !! products with the exact stage Jacobians, until the correction is below
+    !! 1 % of the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate).
+    subroutine radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
+                               rtol, thn, sm, dzp, hp, passes, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(inout) :: it
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), gam, ti1(3), tr(3), rtol
+        !> the contraction of the step's Newton iteration (same matrices)
+        real(dp), intent(in) :: thn
+        complex(dp), intent(in) :: mu, ti2(3), tc(3)
+        real(dp), intent(inout) :: sm(:, :)
+        !> the previous step's stage sensitivities and step (hp = 0: none, as
+        !! after a switch): the predictor, as the Newton iteration's
+        real(dp), intent(inout) :: dzp(:, :, :), hp
+        integer, intent(inout) :: passes          !< iteration passes, summed
+        type(status_t), intent(inout) :: stat
+        integer, parameter :: MAXIT = 40
+        real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
+        real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
+        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), dels(:, :)
+        complex(dp), allocatable :: w2(:)
+        real(dp) :: e(3), xp, ref, err, errold, lsc(3), th
+        integer :: n, m, nw, nb, i, j, k, iter, kl, ku
+        n = es%n
+        m = es%ncstate
+        nw = size(sm, 2)
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        allocate (kb(nb, n, 3), cb(nb, n, 3), b(n, 3), p(n, 3), d(n, 3), acc(n, 3), &
+                  cst(m, 3, nw), dz(m, 3), r(m, 3), w(m), zd(m), t(n), fp(n), ys(m), &
+                  w1(m), w2(m), sc(m), dels(m, 3))
+        do i = 1, 3
+            ys = y + z(:, i)
+            call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                              cb(:, :, i), b(:, i), p(:, i), d(:, i), e(i))
+            acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
+                         + dmat(i, 3)*z(n + 1:2*n, 3))/hh
+            do j = 1, nw
+                call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
+                t = 0.0_dp
+                call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t)
+                cst(:, i, j) = 0.0_dp
+                cst(n + 1:2*n, i, j) = fp - t
+                if (es%nx > 0) cst(2*n + 1, i, j) = xp
+            end do
+        end do
+        do j = 1, nw
+            if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
+            if (hp > 0.0_dp) then
+                do i = 1, 3
+                    lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
+                    dz(:, i) = lsc(1)*dzp(:, 1, j) + lsc(2)*dzp(:, 2, j) &
+                               + (lsc(3) - 1.0_dp)*dzp(:, 3, j)
+                end do
+            else
+                dz = 0.0_dp
+            end if
+            ! the linear rows q' = v hold from the start (and after every
+            ! correction): the solves skip the products with their residual
+            do k = 1, it%nst
+                dz(it%stuck(k), :) = 0.0_dp
+            end do
+            do i = 1, 3
+                dz(n + 1:2*n, i) = (dmat(i, 1)*dz(1:n, 1) + dmat(i, 2)*dz(1:n, 2) &
+                                    + dmat(i, 3)*dz(1:n, 3))/hh - sm(n + 1:2*n, j)
+            end do
+            errold = huge(1.0_dp)
+            do iter = 1, MAXIT
+                do i = 1, 3
+                    w = sm(:, j) + dz(:, i)
+                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
+                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1) + dmat(i, 2)*dz(n + 1:m, 2) &
+                                   + dmat(i, 3)*dz(n + 1:m, 3))/hh
+                    if (it%rot) then
+                        ys(1:n) = y(1:n) + z(1:n, i)
+                        call to_mform(es, it, zd, ys(1:n))
+                    else
+                        call to_mform(es, it, zd)
+                    end if
+                    r(1:n, i) = 0.0_dp
+                    call kc_mv(n, kl, ku, kb(:, :, i), cb(:, :, i), w(1:n), w(n + 1:2*n), t)
+                    r(n + 1:2*n, i) = cst(n + 1:2*n, i, j) - t - zd(n + 1:2*n)
+                    if (es%rotary) then
+                        t = 0.0_dp
+                        call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
+                        r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    end if
+                    if (es%nx > 0) then
+                        r(n + 1:2*n, i) = r(n + 1:2*n, i) + b(:, i)*w(2*n + 1)
+                        r(2*n + 1, i) = dot_product(p(:, i), w(1:n)) &
+                                        + dot_product(d(:, i), w(n + 1:2*n)) &
+                                        + e(i)*w(2*n + 1) + cst(2*n + 1, i, j) - zd(2*n + 1)
+                    end if
+                    do k = 1, it%nst
+                        r(it%stuck(k), i) = 0.0_dp
+                        r(n + it%stuck(k), i) = 0.0_dp
+                    end do
+                end do
+                w1 = ti1(1)*r(:, 1) + ti1(2)*r(:, 2) + ti1(3)*r(:, 3)
+                w2 = ti2(1)*r(:, 1) + ti2(2)*r(:, 2) + ti2(3)*r(:, 3)
+                call solve_real(es, it, gam/hh, w1, r_zero=.true.)
+                call solve_cplx(es, it, mu/hh, w2, r_zero=.true.)
+                ! error scale: the tolerance relative to this sensitivity's size
+                ! (velocity rows as the displacement they cause over the step)
+                ref = maxval(abs(sm(1:n, j)))
+                err = 0.0_dp
+                do i = 1, 3
+                    dels(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
+                    dz(:, i) = dz(:, i) + dels(:, i)
+                end do
+                ref = max(ref, maxval(abs(dz(1:n, :))), 1.0e-280_dp)
+                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
+                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
+                ! the motor torque row on its own scale
+                if (es%nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                   maxval(abs(dz(m, :))), 1.0e-280_dp)))
+                do i = 1, 3
+                    err = max(err, wrms(dels(:, i), sc))
+                end do
+                passes = passes + 1
+                ! converged when the remaining error th/(1 - th) |correction|
+                ! is below 1 % of the tolerance, as the Newton iteration's test;
+                ! th: the observed contraction, at the first pass the Newton one
+                if (iter == 1) then
+                    th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                else
+                    th = min(sqrt(err/max(errold, tiny(1.0_dp))), 0.9_dp)
+                end if
+                if (th/(1.0_dp - th)*sqrt(err) <= 1.0e-2_dp) exit
+                ! below the tolerance and no longer contracting: the round-off
+                ! floor of the residuals (tolerances near 1e-12)
+                if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold) exit
+                errold = err
+            end do
+            if (iter > MAXIT) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
+                                'the stage sensitivity iteration did not converge in '// &
+                                fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
+                return
+            end if
+            sm(:, j) = sm(:, j) + dz(:, 3)
+            dzp(:, :, j) = dz
+        end do
+        hp = hh
+    end subroutine radau_sens_step
 
 end module beamid_integrators

@@ -11,10 +11,9 @@
 program test_band
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK
-    use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
-                               zband_solve
-    use beamid_integrators, only: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                                  dband_mv, zband_mv
+    use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
+                           zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+                           dband_mv, zband_mv
     use beamid_testing, only: checks_t, check_close, check_below, check_true, check_finish, &
                               seed_random
     implicit none
