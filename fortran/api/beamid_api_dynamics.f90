@@ -18,9 +18,6 @@ module beamid_api_dynamics
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
-    use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
-                           zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, &
-                           ldlt_solve_cplx, dband_mv, zband_mv
     use beamid_dynamics, only: dyn_system_t, dyn_setup, &
                                dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
                                dyn_cforces, dyn_cjacobian, dyn_cmass
@@ -28,7 +25,7 @@ module beamid_api_dynamics
     private
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
-    public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal, api_dyn_ldlt_solve
+    public :: api_dyn_profile, api_dyn_system_modal
     public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
 
 contains
@@ -382,133 +379,6 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_profile
-
-    !> Check of the band LU kernels of the integrators: solve A x = b and
-    !! (A + i B) z = b + i c with A, B given dense (n x n, zero outside the band
-    !! kl, ku), by band_factor/band_solve and zband_factor/zband_solve.
-    subroutine api_dyn_band_solve(n, kl, ku, a, bm, b, c, x, zr, zi, code, message)
-        integer(c_int), intent(in) :: n, kl, ku
-        real(c_double), intent(in) :: a(n, n), bm(n, n), b(n), c(n)
-        real(c_double), intent(out) :: x(n), zr(n), zi(n)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(band_lu_t) :: lu
-        type(zband_lu_t) :: zlu
-        type(status_t) :: stat
-        real(dp), allocatable :: xs(:)
-        complex(dp), allocatable :: zs(:)
-        integer :: i, j
-        x = 0.0_c_double
-        zr = 0.0_c_double
-        zi = 0.0_c_double
-        if (n < 1 .or. kl < 0 .or. ku < 0 .or. kl >= n .or. ku >= n) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_band_solve', 'n, kl, ku = '// &
-                            fmt_int(int(n))//', '//fmt_int(int(kl))//', '//fmt_int(int(ku))// &
-                            ': expected n >= 1 and 0 <= kl, ku < n')
-        else
-            lu%n = int(n)
-            lu%kl = int(kl)
-            lu%ku = int(ku)
-            zlu%n = int(n)
-            zlu%kl = int(kl)
-            zlu%ku = int(ku)
-            allocate (lu%ab(2*kl + ku + 1, n), zlu%ab(2*kl + ku + 1, n), xs(n), zs(n))
-            lu%ab = 0.0_dp
-            zlu%ab = (0.0_dp, 0.0_dp)
-            do j = 1, int(n)
-                do i = max(1, j - int(ku)), min(int(n), j + int(kl))
-                    lu%ab(kl + ku + 1 + i - j, j) = a(i, j)
-                    zlu%ab(kl + ku + 1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
-                end do
-            end do
-            call band_factor(lu, stat)
-            if (stat%code == STATUS_OK) then
-                xs = b
-                call band_solve(lu, xs)
-                x = xs
-                call zband_factor(zlu, stat)
-            end if
-            if (stat%code == STATUS_OK) then
-                zs = cmplx(b, c, dp)
-                call zband_solve(zlu, zs)
-                zr = real(zs, dp)
-                zi = aimag(zs)
-            end if
-        end if
-        code = int(stat%code, c_int)
-        message = stat%message
-    end subroutine api_dyn_band_solve
-
-    !> Check of the integrators' symmetric band kernels (half-bandwidth k):
-    !! x = A^-1 b by L D L^T, z = (A + i B)^-1 (b + i c) by the complex
-    !! L D L^T, and the band products ax = A b, az = (A + i B)(b + i c).
-    !! A and B dense and symmetric; only their band is read.
-    subroutine api_dyn_ldlt_solve(n, k, a, bm, b, c, x, zr, zi, ax, azr, azi, code, message)
-        integer(c_int), intent(in) :: n, k
-        real(c_double), intent(in) :: a(n, n), bm(n, n), b(n), c(n)
-        real(c_double), intent(out) :: x(n), zr(n), zi(n), ax(n), azr(n), azi(n)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(status_t) :: stat
-        real(dp), allocatable :: s1(:, :), g1(:, :), xs(:)
-        complex(dp), allocatable :: s2(:, :), g2(:, :), zs(:)
-        integer :: i, j, kk, nn
-        logical :: ok
-        x = 0.0_c_double
-        zr = 0.0_c_double
-        zi = 0.0_c_double
-        ax = 0.0_c_double
-        azr = 0.0_c_double
-        azi = 0.0_c_double
-        if (n < 1 .or. k < 0 .or. k >= n) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_ldlt_solve', 'n, k = '// &
-                            fmt_int(int(n))//', '//fmt_int(int(k))// &
-                            ': expected n >= 1 and 0 <= k < n')
-        else
-            nn = int(n)
-            kk = int(k)
-            allocate (s1(kk + 1, nn), s2(kk + 1, nn), g1(3*kk + 1, nn), g2(3*kk + 1, nn), &
-                      xs(nn), zs(nn))
-            s1 = 0.0_dp
-            s2 = (0.0_dp, 0.0_dp)
-            g1 = 0.0_dp
-            g2 = (0.0_dp, 0.0_dp)
-            do j = 1, nn
-                do i = max(1, j - kk), min(nn, j + kk)
-                    g1(2*kk + 1 + i - j, j) = a(i, j)
-                    g2(2*kk + 1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
-                    if (i >= j) then
-                        s1(1 + i - j, j) = a(i, j)
-                        s2(1 + i - j, j) = cmplx(a(i, j), bm(i, j), dp)
-                    end if
-                end do
-            end do
-            call dband_mv(nn, kk, kk, g1, real(b, dp), xs)
-            ax = xs
-            call zband_mv(nn, kk, kk, g2, cmplx(b, c, dp), zs)
-            azr = real(zs, dp)
-            azi = aimag(zs)
-            call ldlt_real(nn, kk, s1, ok)
-            if (ok) then
-                xs = b
-                call ldlt_solve_real(nn, kk, s1, xs)
-                x = xs
-                call ldlt_cplx(nn, kk, s2, ok)
-            end if
-            if (ok) then
-                zs = cmplx(b, c, dp)
-                call ldlt_solve_cplx(nn, kk, s2, zs)
-                zr = real(zs, dp)
-                zi = aimag(zs)
-            else
-                call set_status(stat, ERR_INPUT, 'api_dyn_ldlt_solve', &
-                                'a pivot is not positive (real part of A, imaginary part of '// &
-                                'A + i B): expected A and B positive definite')
-            end if
-        end if
-        code = int(stat%code, c_int)
-        message = stat%message
-    end subroutine api_dyn_ldlt_solve
 
     !> The quantity table of a release (beamid_release QTY_*): the name of
     !! quantity k and the number of quantities nq (k outside 1..nq: '').

@@ -70,32 +70,6 @@ def profile(nbeams: int, params: np.ndarray, nepb: int, q: np.ndarray, npts: int
     return np.array(s), np.array(x), np.array(y)
 
 
-def band_solve(kl: int, ku: int, a: np.ndarray, b_imag: np.ndarray, rhs: np.ndarray,
-               rhs_imag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Check of the integrators' band LU kernels: x = A^-1 rhs and
-    z = (A + i B)^-1 (rhs + i rhs_imag), A and B dense with band (kl, ku)."""
-    a = np.asfortranarray(a, dtype=float)
-    x, zr, zi, code, message = _api.api_dyn_band_solve(
-        int(kl), int(ku), a, np.asfortranarray(b_imag, dtype=float),
-        np.asarray(rhs, dtype=float), np.asarray(rhs_imag, dtype=float))
-    raise_for_status(int(code), message)
-    return np.array(x), np.array(zr) + 1j * np.array(zi)
-
-
-def ldlt_solve(k: int, a: np.ndarray, b_imag: np.ndarray, rhs: np.ndarray,
-               rhs_imag: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Check of the integrators' symmetric band kernels (half-bandwidth k):
-    x = A^-1 rhs and z = (A + i B)^-1 (rhs + i rhs_imag) by L D L^T without
-    pivoting, and the band products A rhs and (A + i B)(rhs + i rhs_imag).
-    A and B dense, symmetric, positive definite; only their band is read."""
-    x, zr, zi, ax, azr, azi, code, message = _api.api_dyn_ldlt_solve(
-        int(k), np.asfortranarray(a, dtype=float), np.asfortranarray(b_imag, dtype=float),
-        np.asarray(rhs, dtype=float), np.asarray(rhs_imag, dtype=float))
-    raise_for_status(int(code), message)
-    return (np.array(x), np.array(zr) + 1j * np.array(zi), np.array(ax),
-            np.array(azr) + 1j * np.array(azi))
-
-
 def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int,
                  vslip: float, modes: np.ndarray, eta: np.ndarray, etad: np.ndarray,
                  x: float, nx: int, nwork: int) -> dict:
