@@ -33,7 +33,7 @@
 !! structural damping, 2 npt + 2 motor.
 module beamid_dynamics
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-    use beamid_kinds, only: dp
+    use beamid_kinds, only: dp, GRAVITY => g_standard
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SINGULAR, fmt_int, &
                              fmt_real
     use beamid_model, only: chain_t, param_name, PER_BEAM, PER_MASS, IB_EI, IB_EA, IB_RHO, &
@@ -81,8 +81,7 @@ module beamid_dynamics
 
     !> Friction laws (Eq. 101-102 and the regularized form for implicit steps).
     integer, parameter :: FRICTION_SIGN = 0, FRICTION_SMOOTH = 1, FRICTION_SIGN_LITERAL = 2
-    !> Gravity for the normal force N = m g of Eq. 101 (m/s^2).
-    real(dp), parameter :: GRAVITY = 9.81_dp
+    ! GRAVITY (exported) is beamid_kinds g_standard, N = m g of Eq. 101 (m/s^2).
 
 
     !> The discretized chain with its effects, ready for time integration.
