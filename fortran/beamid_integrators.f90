@@ -74,6 +74,9 @@ module beamid_integrators
         real(dp) :: atol = 1.0e-9_dp     !< implicit: absolute tolerance (m, rad)
         real(dp) :: h0 = 1.0e-4_dp       !< implicit: first step (s)
         integer :: max_steps = 50000000
+        !> where the caller watches the run: progress(1) is set to each output
+        !! time once it is reached (unassociated: nobody watches)
+        real(dp), pointer :: progress(:) => null()
     end type integ_opts_t
 
     !> What an integration did.
@@ -744,6 +747,7 @@ contains
             t = t_out(k)
             call record(es, s(1:m), s(m + 1:), k, hist)
             if (sens) dstates(:, k, :) = sm
+            if (associated(opts%progress)) opts%progress(1) = t
         end do
     end subroutine run_rk4
 
@@ -1385,6 +1389,7 @@ contains
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
                 call record(es, y, work, kout, hist)
                 if (sens) dstates(:, kout, :) = sm
+                if (associated(opts%progress)) opts%progress(1) = t_out(kout)
                 kout = kout + 1
                 cycle
             end if

@@ -65,6 +65,8 @@ module beamid_release
         !> start from this state instead of the static shape (its sensitivity
         !! is then zero)
         real(dp), allocatable :: y_init(:)
+        !> progress(1) follows the output times reached (integ_opts_t%progress)
+        real(dp), pointer :: progress(:) => null()
     end type release_spec_t
 
     !> The response at the output times.
@@ -200,6 +202,7 @@ contains
             opts%atol = opts%rtol
         end if
         if (spec%h0 > 0.0_dp) opts%h0 = spec%h0
+        opts%progress => spec%progress
         if (spec%dt < 0.0_dp .or. spec%rtol < 0.0_dp .or. spec%atol < 0.0_dp) then
             call set_status(stat, ERR_INPUT, where, 'dt, rtol and atol must not be '// &
                             'negative (0: default)')

@@ -24,7 +24,7 @@ module beamid_api_dynamics
     implicit none
     private
 
-    public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
+    public :: api_dyn_sizes, api_dyn_simulate_modal, api_dyn_system
     public :: api_dyn_profile, api_dyn_system_modal
     public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
 
@@ -63,34 +63,9 @@ contains
         message = stat%message
     end subroutine api_dyn_sizes
 
-    !> Release from rest at the static equilibrium under the tip load `loads`
-    !! = (fx, fy, moment, moment_form) (or from y_init when use_init /= 0) and
-    !! integrate to the output times. Outputs per time: the state, the tip
-    !! (u, w, angle), the motor torque, the ledger (kinetic, strain, total
-    !! energy, numerical residual E - E0 - sum of work) and the work lines.
-    !! info = (steps, rejected steps, force evaluations, Jacobians, Newton its).
-    subroutine api_dyn_simulate(nbeams, nparams, params, nepb, loads, gain, method, law, &
-                                vslip, dt, rtol, atol, h0, use_init, nstate, y_init, nt, t_out, &
-                                nwork, states, tip, torque, ledger, work, info, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
-        integer(c_int), intent(in) :: nt, nwork
-        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
-        real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
-        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
-        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt)
-        integer(c_int), intent(out) :: info(5), code
-        character(len=256), intent(out) :: message
-        integer(c_int) :: nomodes(1), info7(7)
-        real(c_double) :: events(7, 1)
-        nomodes = 0
-        call api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, law, &
-                                    vslip, dt, rtol, atol, h0, use_init, nstate, y_init, nt, &
-                                    t_out, nwork, 0_c_int, nomodes, 1_c_int, states, tip, &
-                                    torque, ledger, work, info7, events, code, message)
-        info = info7(1:5)
-    end subroutine api_dyn_simulate
-
-    !> api_dyn_simulate on the truncated modal model (Eq. 127, Section 4.1.4)
+    !> A release: the static shape under loads (fx, fy, moment, moment form)
+    !! held, released at t = 0 and integrated to t_out (beamid_release), on the full
+    !! model or the truncated modal model (Eq. 127, Section 4.1.4)
     !! that keeps the linear modes `modes(1:nmodes)` (1-based indices into the
     !! ascending frequencies of api_fe_modes); nmodes = 0: the full model.
     !! The initial state is projected on the retained modes (eta = Phi^T M q);
@@ -100,16 +75,21 @@ contains
     !! k <= min(info(6), maxev): time, component j = 2 (point - 1) + c (c = 1
     !! u, 2 w), kind (0 start, 1 velocity zero, 2 unstick), mode before and
     !! after (+-1 sliding, 0 sticking), friction force before and after (N).
+    !! progress(1) is set to each output time as it is reached, while the call
+    !! runs without Python's lock (threadsafe), so a caller can watch it.
     subroutine api_dyn_simulate_modal(nbeams, nparams, params, nepb, loads, gain, method, &
                                       law, vslip, dt, rtol, atol, h0, use_init, nstate, &
                                       y_init, nt, t_out, nwork, nmodes, modes, maxev, states, &
-                                      tip, torque, ledger, work, info, events, code, message)
+                                      tip, torque, ledger, work, info, events, progress, code, &
+                                      message)
+        !f2py threadsafe
         integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
         integer(c_int), intent(in) :: nt, nwork, nmodes, modes(nmodes), maxev
         real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
         real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
         real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
         real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
+        real(c_double), intent(inout), target :: progress(1)
         integer(c_int), intent(out) :: info(7), code
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
@@ -126,17 +106,18 @@ contains
         info = 0
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nmodes < 0) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nmodes = '// &
+            call set_status(stat, ERR_INPUT, 'api_dyn_simulate_modal', 'nmodes = '// &
                             fmt_int(int(nmodes))//', expected >= 0')
         end if
         if (stat%code == STATUS_OK) then
             call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
             spec%modes = int(modes(1:max(0, nmodes)))
             if (use_init /= 0) spec%y_init = real(y_init, dp)
+            spec%progress => progress
             call release_response(chain, spec, real(t_out, dp), nowrt, out, stat)
         end if
         if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nstate = '// &
+            call set_status(stat, ERR_INPUT, 'api_dyn_simulate_modal', 'nstate = '// &
                             fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
                             ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
         end if
@@ -401,7 +382,7 @@ contains
         ncomp = int(NLOAD, c_int)
     end subroutine api_dyn_wrt_name
 
-    !> A release (api_dyn_simulate's arguments, full model) with the exported
+    !> A release (api_dyn_simulate_modal's arguments, full model) with the exported
     !! quantities y(nq, nt) (beamid_release QTY_*) and their sensitivities
     !! dy(nq, nt, nwrt) with respect to the parameters wrt (1-based indices
     !! into params, then nparams + 1..3: the load's fx, fy, moment), and the
@@ -409,7 +390,8 @@ contains
     subroutine api_dyn_release(nbeams, nparams, params, nepb, loads, gain, method, law, &
                                vslip, dt, rtol, atol, h0, nstate, nt, t_out, nwork, nwrt, wrt, &
                                nq, maxev, states, tip, torque, ledger, work, info, events, y, &
-                               dy, ds, code, message)
+                               dy, ds, progress, code, message)
+        !f2py threadsafe
         integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, nstate, nt, nwork
         integer(c_int), intent(in) :: nwrt, wrt(nwrt), nq, maxev
         real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
@@ -417,6 +399,7 @@ contains
         real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
         real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
         real(c_double), intent(out) :: y(nq, nt), dy(nq, nt, nwrt), ds(nstate, nt, nwrt)
+        real(c_double), intent(inout), target :: progress(1)
         integer(c_int), intent(out) :: info(7), code
         character(len=256), intent(out) :: message
         type(chain_t) :: chain
@@ -440,6 +423,7 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            spec%progress => progress
             call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
         end if
         if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then

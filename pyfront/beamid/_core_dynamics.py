@@ -7,6 +7,7 @@ import numpy as np
 
 from . import _ext
 from .errors import raise_for_status
+from .progress import watch
 
 _api = _ext.beamid_api_dynamics
 
@@ -32,13 +33,14 @@ def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain
     use_init = 0 if y_init is None else 1
     y = np.zeros(nstate) if y_init is None else np.asarray(y_init, dtype=float)
     mode_arr = np.zeros(0, dtype=np.int32) if modes is None else np.asarray(modes, np.int32)
+    t_out = np.ascontiguousarray(t_out, dtype=float)
     while True:
-        (states, tip, torque, ledger, work, info, events, code,
-         message) = _api.api_dyn_simulate_modal(
-            nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
-            float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
-            float(atol), float(h0), use_init, y, np.ascontiguousarray(t_out, dtype=float),
-            nwork, mode_arr, int(maxev))
+        with watch(t_out[-1] if t_out.size else 0.0, desc="simulate") as slot:
+            (states, tip, torque, ledger, work, info, events, code,
+             message) = _api.api_dyn_simulate_modal(
+                nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
+                float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+                float(atol), float(h0), use_init, y, t_out, nwork, mode_arr, int(maxev), slot)
         raise_for_status(int(code), message)
         if int(info[5]) <= maxev:
             break
@@ -108,13 +110,14 @@ def release(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain:
     fx, fy, moment); y (nq, nt), dy (nq, nt, nwrt), ds (nstate, nt, nwrt)."""
     nq = len(quantity_names())
     w = np.ascontiguousarray(wrt, dtype=np.int32)
+    t_out = np.ascontiguousarray(t_out, dtype=float)
     while True:
-        (states, tip, torque, ledger, work, info, events, y, dy, ds, code,
-         message) = _api.api_dyn_release(
-            nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
-            float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
-            float(atol), float(h0), nstate, np.ascontiguousarray(t_out, dtype=float), nwork,
-            w, nq, int(maxev))
+        with watch(t_out[-1] if t_out.size else 0.0, desc="simulate") as slot:
+            (states, tip, torque, ledger, work, info, events, y, dy, ds, code,
+             message) = _api.api_dyn_release(
+                nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
+                float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+                float(atol), float(h0), nstate, t_out, nwork, w, nq, int(maxev), slot)
         raise_for_status(int(code), message)
         if int(info[5]) <= maxev:
             break

@@ -11,11 +11,15 @@ captured output never contain bar redraws.
 from __future__ import annotations
 
 import sys
+import threading
+from contextlib import contextmanager
 from typing import Iterable, Iterator, TypeVar
+
+import numpy as np
 
 T = TypeVar("T")
 
-__all__ = ["progress", "bar_enabled"]
+__all__ = ["progress", "bar_enabled", "watch"]
 
 
 def bar_enabled(enabled: bool | None = None) -> bool:
@@ -53,3 +57,49 @@ def progress(iterable: Iterable[T], total: int | None = None, desc: str = "",
         return iterable
     return tqdm(iterable, total=total, desc=desc or None, file=sys.stderr,
                 leave=False, dynamic_ncols=True)
+
+
+@contextmanager
+def watch(total: float, desc: str = "", unit: str = "s",
+          enabled: bool | None = None, delay: float = 1.0) -> Iterator[np.ndarray]:
+    """A one-entry array for a long Fortran call to write its progress into.
+
+    The Fortran core writes how far it got (for a time integration: the last
+    output time reached) into ``slot[0]`` while it runs without Python's lock
+    (the binding is ``threadsafe``); on a terminal a thread redraws a tqdm bar
+    from it every 0.1 s, from ``delay`` seconds on, so short calls show
+    nothing. Elsewhere the slot is filled and nobody looks.
+
+    >>> with watch(2.6, enabled=False) as slot:
+    ...     slot[0] = 1.3
+    >>> float(slot[0])
+    1.3
+    """
+    slot = np.zeros(1)
+    if not bar_enabled(enabled) or not total > 0.0:
+        yield slot
+        return
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        yield slot
+        return
+    done = threading.Event()
+
+    def redraw() -> None:
+        with tqdm(total=float(total), desc=desc or None, unit=unit, file=sys.stderr,
+                  leave=False, dynamic_ncols=True, delay=delay,
+                  bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} " + unit
+                  + " [{elapsed}<{remaining}]") as bar:
+            while not done.wait(0.1):
+                bar.update(float(slot[0]) - bar.n)
+            bar.update(float(slot[0]) - bar.n)   # where the call ended
+            bar.refresh()
+
+    thread = threading.Thread(target=redraw, daemon=True)
+    thread.start()
+    try:
+        yield slot
+    finally:
+        done.set()
+        thread.join()
