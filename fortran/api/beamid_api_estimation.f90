@@ -19,11 +19,14 @@ module beamid_api_estimation
 
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          static_bounds, static_null_values, probe_rows
+    use beamid_estimation, only: prior_from_covariance, STOP_NAMES
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, NEXPVAL
     implicit none
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
+    public :: api_problem_predict, api_problem_fit
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -564,4 +567,116 @@ contains
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
     end subroutine diagnose_core
+
+    !> Predictions of the data rows of any mix of experiment families
+    !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
+    !! in the EV_* layout, 11 rows) and their derivatives w.r.t.
+    !! params(wrt(1:nwrt)) (wrt carries one unused trailing entry: nwrt may be 0).
+    subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+                                   row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
+                                   message)
+        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
+        real(c_double), intent(in) :: params(nparams), exp_values(11, nexp), row_t(nrow), tol
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt + 1)
+        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        real(dp) :: p(nrow), j(nrow, nwrt)
+        pred = 0.0_c_double
+        jac = 0.0_c_double
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt(1:nwrt)), p, &
+                                                        j, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        pred = p
+        jac(:, 1:nwrt) = j
+    end subroutine api_problem_predict
+
+    !> api_fit_effect (nblock = 0) on any mix of experiment families, with
+    !! a priori information either independent (use_cov = 0: mean, sigma) or
+    !! a full covariance prior_cov of the prior parameters (use_cov = 1: a
+    !! previous fit carried forward, Eq. 146-148, 164-166).
+    subroutine api_problem_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                               prior_mean, prior_sigma, use_cov, prior_cov, nexp, exp_kind, &
+                               exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
+                               tol, max_iter, params, sigmas, cov, corr, flags, predictions, &
+                               normalized, stats, log_cost, log_lambda, log_step, log_params, &
+                               info, code, message, note)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        integer(c_int), intent(in) :: use_cov
+        real(c_double), intent(in) :: params0(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(11, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
+        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: stats(8)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: res
+        type(prior_t) :: prior
+        real(dp), allocatable :: lower(:), upper(:)
+        integer :: n
+
+        params = params0
+        sigmas = 0.0_c_double
+        cov = 0.0_c_double
+        corr = 0.0_c_double
+        flags = 0
+        predictions = 0.0_c_double
+        normalized = 0.0_c_double
+        stats = 0.0_c_double
+        log_cost = 0.0_c_double
+        log_lambda = 0.0_c_double
+        log_step = 0.0_c_double
+        log_params = 0.0_c_double
+        info = 0
+        note = ''
+        n = int(nprior)
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+            if (use_cov /= 0) then
+                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
+                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
+            else
+                prior%index = int(prior_idx(1:n))
+                prior%mean = real(prior_mean(1:n), dp)
+                prior%sigma = real(prior_sigma(1:n), dp)
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            call static_bounds(int(nbeams), lower, upper)
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
+                                   res, stat)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (.not. allocated(res%params)) return
+        info(1) = int(res%stop, c_int)
+        if (allocated(res%note)) note = res%note
+        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+    end subroutine api_problem_fit
 end module beamid_api_estimation

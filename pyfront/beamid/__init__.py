@@ -10,7 +10,7 @@ The numerical work is done in Fortran; this package wraps it.
 """
 from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
-from .loads import RadialWire, TipForce, TipLoad, TipMoment
+from .loads import RadialWire, Release, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
@@ -28,7 +28,7 @@ from .design import Advice, design
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
-    "TipForce", "TipMoment", "TipLoad", "RadialWire",
+    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",

@@ -18,7 +18,7 @@ _api = _ext.beamid_api_estimation
 
 #: Quantity codes of the Fortran core (beamid_static_experiments).
 QUANTITY_CODES = {"x_tip": 1, "y_tip": 2, "tip_angle": 3, "wire_force": 4,
-                  "x_elbow": 5, "y_elbow": 6, "u_tip": 7, "w_tip": 8}
+                  "x_elbow": 5, "y_elbow": 6, "u_tip": 7, "w_tip": 8, "motor_torque": 9}
 QUANTITY_NAMES = {v: k for k, v in QUANTITY_CODES.items()}
 
 
@@ -35,6 +35,64 @@ class Problem:
     row_value: np.ndarray     # (nrow,)
     row_sigma: np.ndarray     # (nrow,)
     tol: float = 0.0
+    #: times of the rows (None: all static, t = 0)
+    row_t: np.ndarray | None = None
+
+
+#: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
+NEXPVAL = 11
+
+
+def _mixed_values(prob: Problem) -> np.ndarray:
+    values = np.zeros((NEXPVAL, prob.exp_kind.size))
+    values[:prob.exp_values.shape[0], :] = prob.exp_values
+    return np.asfortranarray(values)
+
+
+def _row_t(prob: Problem) -> np.ndarray:
+    return (np.zeros(prob.row_exp.size) if prob.row_t is None
+            else np.ascontiguousarray(prob.row_t, dtype=float))
+
+
+def problem_predict(prob: Problem, params: np.ndarray,
+                    wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predictions and d/d params(wrt) of any mix of static and release
+    experiments (beamid_inverse; wrt 1-based)."""
+    wrt = np.asarray(wrt, dtype=np.int32)
+    pred, jac, code, message = _api.api_problem_predict(
+        prob.nbeams, np.asarray(params, float), prob.exp_kind, _mixed_values(prob),
+        prob.row_exp, _row_t(prob), prob.row_q, _pad(wrt, np.int32),
+        float(prob.tol))
+    raise_for_status(int(code), message)
+    jac = np.array(jac).reshape(prob.row_exp.size, wrt.size + 1)
+    return np.array(pred), jac[:, :wrt.size]
+
+
+def problem_fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+                prior_mean: np.ndarray, prior_sigma: np.ndarray,
+                prior_cov: np.ndarray | None = None, max_iter: int = 50) -> dict:
+    """Weighted Gauss-Newton/LM fit of any mix of experiment families; with
+    ``prior_cov`` the a priori information is a full covariance (a previous
+    fit carried forward, Eq. 146-148). Same dict and errors as :func:`fit`."""
+    free = np.asarray(free, dtype=np.int32)
+    n = len(prior_idx)
+    cov = np.zeros((n + 1, n + 1))
+    if prior_cov is not None:
+        cov[:n, :n] = prior_cov
+    out = _api.api_problem_fit(
+        prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), int(prior_cov is not None),
+        np.asfortranarray(cov), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+        _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+        int(max_iter))
+    result = _fit_dict(out, free.size)
+    if result["code"] != 0:
+        try:
+            raise_for_status(result["code"], result["message"])
+        except Exception as exc:
+            exc.partial = result  # type: ignore[attr-defined]
+            raise
+    return result
 
 
 def _msg(message: bytes | str) -> str:
