@@ -16,7 +16,7 @@ from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
 from .tables import reproduce
 from .measurements import Measurements, read_measurements
-from .estimation import FitResult, fit, simulate_measurements
+from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
 # the dynamics name also under an explicit alias
 simulate_dynamics = simulate
@@ -31,7 +31,7 @@ __all__ = [
     "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
-    "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
+    "Measurements", "read_measurements", "fit", "identify", "Identification", "FitResult", "simulate_measurements",
     "simulate", "simulate_dynamics", "Run",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",

@@ -495,3 +495,92 @@ def _simulate_mixed(model: Model, exps: dict, quantities, sigma, t, seed, noise)
         rng = np.random.default_rng(seed)
         values = values + rng.standard_normal(len(data)) * data.sigma
     return data.with_values(values)
+
+
+class StageSigma(NamedTuple):
+    """What one stage of :func:`identify` taught about one parameter."""
+
+    stage: str
+    parameter: str
+    estimate: float
+    sigma_before: float   # a priori (math.inf: not estimated before)
+    sigma_after: float
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Result of :func:`identify`: the fit of every stage, in order, and per
+    stage and parameter the sigma before and after (``table``)."""
+
+    stages: dict[str, FitResult]
+    table: list[StageSigma]
+
+    @property
+    def final(self) -> FitResult:
+        return list(self.stages.values())[-1]
+
+    def summary(self) -> str:
+        lines = [f"{'stage':<10}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
+                 f"{'sigma after':>13}"]
+        for r in self.table:
+            lines.append(f"{r.stage:<10}{r.parameter:<12}{r.estimate:>12.5g}"
+                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
+        return "\n".join(lines)
+
+    def plot(self, ax=None):
+        """Bar chart of sigma / estimate per stage and parameter (log scale)."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6.4, 3.6))
+        names = list(dict.fromkeys(r.parameter for r in self.table))
+        stages = list(self.stages)
+        width = 0.8 / max(len(stages), 1)
+        for k, stage in enumerate(stages):
+            vals = [next((abs(r.sigma_after / r.estimate) for r in self.table
+                          if r.stage == stage and r.parameter == n and r.estimate != 0),
+                         np.nan) for n in names]
+            ax.bar(np.arange(len(names)) + k * width, vals, width, label=stage)
+        ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names)
+        ax.set_yscale("log")
+        ax.set_ylabel("sigma / estimate after the stage")
+        ax.legend()
+        return ax
+
+
+def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
+             max_iter: int = 50) -> Identification:
+    """The sequential identification of Chapter VI: static -> free -> forced.
+
+    ``stages`` is ``{name: (experiments, data, free)}`` (or a list of such
+    triples, named stage1, stage2, ...). Each stage fits its ``free``
+    parameters from its data starting where the previous stage ended, with
+    the previous stage's estimates and full covariance as a priori
+    information (Eq. 146-148, 164-166; the carried parameters are updated
+    too). The first stage may be given as ``(experiments, data, free,
+    prior)`` with a dict prior.
+    """
+    items = list(stages.items()) if isinstance(stages, Mapping) else [
+        (f"stage{k + 1}", s) for k, s in enumerate(stages)]
+    if not items:
+        raise InputError("stages is empty: give {name: (experiments, data, free)}")
+    fits: dict[str, FitResult] = {}
+    table: list[StageSigma] = []
+    current, previous = model, None
+    known: dict[str, float] = {}
+    for name, spec in items:
+        if not isinstance(spec, tuple) or len(spec) not in (3, 4):
+            raise InputError(f"stage {name!r}: expected (experiments, data, free[, prior])")
+        exps, data, free = spec[:3]
+        prior = spec[3] if len(spec) == 4 else None
+        if previous is not None:
+            prior = previous
+        fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=max_iter)
+        for p in fit_k.free:
+            before = known.get(p, math.inf)
+            if isinstance(prior, Mapping) and p in fit_k.prior:
+                before = fit_k.prior[p][1]
+            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p]))
+            known[p] = fit_k.sigmas[p]
+        fits[name] = fit_k
+        current, previous = fit_k.model, fit_k
+    return Identification(fits, table)
