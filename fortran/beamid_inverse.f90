@@ -16,15 +16,18 @@ module beamid_inverse
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_estimation, only: residual_model_t
+    use beamid_estimation, only: residual_model_t, prior_t, fit_options_t, fit_result_t, &
+                                 candidate_t, diagnose_options_t, diagnosis_t, &
+                                 fit_least_squares, fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         quantity_label
+                                         quantity_label, static_bounds, static_null_values, &
+                                         probe_rows
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
     implicit none
     private
 
-    public :: inverse_problem_t, inverse_problem_init
+    public :: inverse_problem_t, inverse_problem_init, inverse_fit, inverse_diagnose
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
@@ -40,6 +43,11 @@ module beamid_inverse
         type(static_experiments_t) :: st
         type(dynamic_experiments_t) :: dy
         integer, allocatable :: st_rows(:), dy_rows(:) !< data rows of each family
+        integer, allocatable :: st_exp(:)  !< experiment number of each static experiment
+        real(dp) :: tol = 0.0_dp           !< static solver tolerance (0: default)
+        !> physical bounds and null (switched-off) values of every parameter:
+        !! they belong to the model, whatever the experiments
+        real(dp), allocatable :: lower(:), upper(:), nulls(:)
     contains
         procedure :: evaluate => inverse_evaluate
     end type inverse_problem_t
@@ -137,6 +145,10 @@ contains
         self%dy_rows = pack([(i, i=1, size(row_exp))], dmap(row_exp) > 0)
         self%has_static = ns > 0
         self%has_dynamic = nd > 0
+        self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
+        self%tol = tol
+        call static_bounds(nbeams, self%lower, self%upper)
+        call static_null_values(nbeams, self%nulls)
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
                                      row_quantity(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then
@@ -188,4 +200,61 @@ contains
             jacobian(self%dy_rows, :) = j
         end if
     end subroutine inverse_evaluate
+
+    !> Weighted Gauss-Newton / LM fit of params(free) from params0 (Eq. 39,
+    !! 53-55, 142-148) within the model's physical bounds.
+    subroutine inverse_fit(self, y, sigma, params0, free, prior, opts, res, stat)
+        type(inverse_problem_t), intent(inout) :: self
+        real(dp), intent(in) :: y(:), sigma(:), params0(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(fit_result_t), intent(out) :: res
+        type(status_t), intent(inout) :: stat
+        call fit_least_squares(self, y, sigma, params0, free, self%lower, self%upper, prior, &
+                               opts, res, stat)
+    end subroutine inverse_fit
+
+    !> The diagnosis of a fitted model (the orchestration both fronts call):
+    !! the base fit evaluated at params0 (the estimates, not refitted), score
+    !! tests of every candidate, refits of the leading ones from the
+    !! first-order estimate, from params0 with the effect at null, from
+    !! `nominal` (the user's starting model) and by continuation, and the
+    !! probe rows that separate rivals: every static experiment and every
+    !! quantity it can measure (probe_rows). pexp, pq: experiment number and
+    !! quantity of each probe row (diag%cand(c)%separating_row indexes them).
+    subroutine inverse_diagnose(self, y, sigma, params0, nominal, free, prior, cands, fopts, &
+                                dopts, base, diag, pexp, pq, stat)
+        type(inverse_problem_t), intent(inout) :: self
+        real(dp), intent(in) :: y(:), sigma(:), params0(:), nominal(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(candidate_t), intent(in) :: cands(:)
+        type(fit_options_t), intent(in) :: fopts
+        type(diagnose_options_t), intent(in) :: dopts
+        type(fit_result_t), intent(out) :: base
+        type(diagnosis_t), intent(out) :: diag
+        integer, allocatable, intent(out) :: pexp(:), pq(:)
+        type(status_t), intent(inout) :: stat
+        type(static_experiments_t) :: probe
+        real(dp), allocatable :: psig(:)
+        integer, allocatable :: plocal(:)
+        allocate (pexp(0), pq(0))
+        call fit_at(self, y, sigma, params0, free, self%lower, self%upper, prior, fopts, base, &
+                    stat)
+        if (stat%code /= STATUS_OK) return
+        if (self%has_static) then
+            call probe_rows(self%st%loads, self%st%row_quantity, sigma(self%st_rows), plocal, &
+                            pq, psig)
+            call static_experiments_init(self%st%nbeams, self%st%loads, plocal, pq, self%tol, &
+                                         probe, stat)
+            if (stat%code /= STATUS_OK) return
+            pexp = self%st_exp(plocal)
+            call diagnose(self, y, sigma, base, self%nulls, self%lower, self%upper, prior, &
+                          cands, fopts, dopts, diag, stat, probe, psig, nominal)
+        else
+            call diagnose(self, y, sigma, base, self%nulls, self%lower, self%upper, prior, &
+                          cands, fopts, dopts, diag, stat, nominal=nominal)
+        end if
+    end subroutine inverse_diagnose
 end module beamid_inverse

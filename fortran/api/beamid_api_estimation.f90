@@ -20,13 +20,14 @@ module beamid_api_estimation
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          static_bounds, static_null_values, probe_rows
     use beamid_estimation, only: prior_from_covariance, STOP_NAMES
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, NEXPVAL
+    use beamid_deck, only: deck_t, read_deck
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_diagnose, NEXPVAL
     implicit none
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
-    public :: api_problem_predict, api_problem_fit
+    public :: api_problem_predict, api_problem_fit, api_deck_experiments
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -53,6 +54,24 @@ contains
         call static_experiments_init(int(nbeams), loads, int(row_exp), int(row_q), &
                                      real(tol, dp), model, stat)
     end subroutine make_experiments
+
+    !> The inverse problem (beamid_inverse) of static experiments given as
+    !! (kind, fx, fy, moment, wire_length) columns: rows at t = 0.
+    subroutine static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        integer(c_int), intent(in) :: nbeams, nexp, nrow
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), tol
+        type(inverse_problem_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: values(:, :), t(:)
+        allocate (values(NEXPVAL, nexp), t(nrow))
+        values = 0.0_dp
+        values(1:4, :) = exp_values
+        t = 0.0_dp
+        call inverse_problem_init(int(nbeams), int(exp_kind), values, int(row_exp), t, &
+                                  int(row_q), real(tol, dp), model, stat)
+    end subroutine static_problem
 
     subroutine make_options(max_iter, tol_step, tol_cost, opts)
         integer(c_int), intent(in) :: max_iter
@@ -468,7 +487,7 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        type(static_experiments_t) :: model, probe
+        type(inverse_problem_t) :: model
         type(status_t) :: stat
         type(fit_options_t) :: opts
         type(diagnose_options_t) :: dopts
@@ -476,7 +495,6 @@ contains
         type(prior_t) :: prior
         type(diagnosis_t) :: diag
         type(candidate_t), allocatable :: cands(:)
-        real(dp), allocatable :: lower(:), upper(:), nulls(:), psig(:)
         integer, allocatable :: pexp(:), pq(:)
         character(len=:), allocatable :: text
         integer :: c, k, j, nf, r
@@ -489,19 +507,13 @@ contains
         refit_start = 0
         dstats = 0.0_c_double
         notes = ''
-        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
+        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                            model, stat)
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, tol_step, tol_cost, opts)
             prior%index = int(prior_idx(1:nprior))
             prior%mean = real(prior_mean(1:nprior), dp)
             prior%sigma = real(prior_sigma(1:nprior), dp)
-            call static_bounds(int(nbeams), lower, upper)
-            call static_null_values(int(nbeams), nulls)
-            call fit_at(model, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
-                        int(free_idx), lower, upper, prior, opts, base, stat)
-        end if
-        if (stat%code == STATUS_OK) then
             allocate (cands(ncand))
             do c = 1, ncand
                 cands(c)%name = 'candidate'
@@ -511,14 +523,9 @@ contains
             dopts%nrefit = int(nrefit)
             dopts%ambiguity_delta = ambiguity_delta
             dopts%collinear = collinear
-            call probe_rows(model%loads, model%row_quantity, real(row_sigma, dp), pexp, pq, psig)
-            call static_experiments_init(int(nbeams), model%loads, pexp, pq, real(tol, dp), &
-                                         probe, stat)
-        end if
-        if (stat%code == STATUS_OK) then
-            call diagnose(model, real(row_value, dp), real(row_sigma, dp), base, nulls, lower, &
-                          upper, prior, cands, opts, dopts, diag, stat, probe, psig, &
-                          real(nominal, dp))
+            call inverse_diagnose(model, real(row_value, dp), real(row_sigma, dp), &
+                                  real(params0, dp), real(nominal, dp), int(free_idx), prior, &
+                                  cands, opts, dopts, base, diag, pexp, pq, stat)
         end if
         code = int(stat%code, c_int)
         message = stat%message
@@ -567,6 +574,39 @@ contains
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
     end subroutine diagnose_core
+
+    !> The experiments of an estimation deck in beamid_inverse's layout
+    !! (kind 1 tip, 2 wire, 3 release; exp_values(:, e) EV_*), nexp of them
+    !! (sizes first: call with nexp = 0 to get the count in `count`).
+    subroutine api_deck_experiments(path, nexp, exp_kind, exp_values, count, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nexp
+        integer(c_int), intent(out) :: exp_kind(nexp + 1), count, code
+        real(c_double), intent(out) :: exp_values(11, nexp + 1)
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        integer :: e
+        exp_kind = 0
+        exp_values = 0.0_c_double
+        count = 0
+        call read_deck(path, d, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
+        count = int(size(d%experiments), c_int)
+        do e = 1, min(int(nexp), size(d%experiments))
+            exp_kind(e) = int(d%experiments(e)%kind, c_int)
+            exp_values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
+                                  d%experiments(e)%moment, d%experiments(e)%wire_length]
+            if (allocated(d%exp_kind)) then
+                if (d%exp_kind(e) > 0) then
+                    exp_kind(e) = int(d%exp_kind(e), c_int)
+                    exp_values(:, e) = d%exp_values(:, e)
+                end if
+            end if
+        end do
+    end subroutine api_deck_experiments
 
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)

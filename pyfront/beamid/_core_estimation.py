@@ -54,6 +54,18 @@ def _row_t(prob: Problem) -> np.ndarray:
             else np.ascontiguousarray(prob.row_t, dtype=float))
 
 
+def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
+    """(kind, 11 values) of every experiment of an estimation deck, in deck
+    order (kind 3: a release, beamid_inverse's EV_* layout)."""
+    raw = str(path).encode()
+    _, _, count, code, message = _api.api_deck_experiments(raw, 0)
+    raise_for_status(int(code), message)
+    kinds, values, count, code, message = _api.api_deck_experiments(raw, int(count))
+    raise_for_status(int(code), message)
+    values = np.array(values).reshape(11, -1)
+    return [(int(kinds[e]), values[:, e].copy()) for e in range(int(count))]
+
+
 def problem_predict(prob: Problem, params: np.ndarray,
                     wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Predictions and d/d params(wrt) of any mix of static and release

@@ -26,7 +26,8 @@ from ._deck_common import check_path, load, published as published_groups, run_f
 from .diagnosis import Ladder, compare, diagnose, improve
 from .errors import InputError
 from .estimation import fit
-from .loads import RadialWire, TipLoad
+from . import _core_estimation as _ce
+from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 
@@ -41,7 +42,7 @@ class FitDeck:
     task: str
     output: str
     model: Model
-    experiments: dict[str, TipLoad | RadialWire]
+    experiments: dict[str, TipLoad | RadialWire | Release]
     data: Measurements
     free: tuple[str, ...]
     prior: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -61,6 +62,13 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
+    if values["task"] in FIT_TASKS:
+        # release experiments (issue 13) carry more values than the reader's
+        # (kind, [fx, fy, moment, wire_length]) columns
+        for (n, _, _), (kind, vals) in zip(values["experiments"],
+                                           _ce.deck_experiments(str(path))):
+            if kind == LOAD_RELEASE:
+                experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
                    experiments=experiments, data=data,

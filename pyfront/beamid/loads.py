@@ -157,6 +157,16 @@ class Release:
         """(kind, 11 values in beamid_inverse's EV_* layout) for the Fortran core."""
         return LOAD_RELEASE, self._encoded
 
+    @classmethod
+    def decode(cls, values) -> "Release":
+        """The Release of 11 values in beamid_inverse's EV_* layout (a deck's)."""
+        v = [float(x) for x in values]
+        integrators = {c: n for n, c in _INTEGRATORS.items()}
+        laws = {c: n for n, c in _FRICTION_LAWS.items()}
+        return cls(TipLoad(v[0], v[1], v[2]), elements_per_beam=int(round(v[4])),
+                   motor_gain=v[5], integrator=integrators[int(round(v[6]))],
+                   rtol=v[8] or None, dt=v[9] or None, friction=laws[int(round(v[7]))])
+
     @property
     def has_motor(self) -> bool:
         return self.motor_gain > 0.0
