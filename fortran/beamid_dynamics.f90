@@ -36,11 +36,18 @@ module beamid_dynamics
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SINGULAR, fmt_int, &
                              fmt_real
-    use beamid_model, only: chain_t
-    use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
+    use beamid_model, only: chain_t, param_name, PER_BEAM, PER_MASS, IB_EI, IB_EA, IB_RHO, &
+                            IB_C, IM_M, IM_J, IM_MU, IM_C, IG_ROOT_FLEX, IG_ETA, IG_R_MOTOR, &
+                            IG_TAU_MOTOR
+    use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite, fe_element_mass, &
+                                 fe_element_force_tabulated, fe_element_energy, &
+                                 fe_hinge_force, fe_hinge_energy
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_band_add, &
                                   fe_internal_force, fe_tangent, fe_energy, fe_mass, &
-                                  fe_band_matvec, fe_expand, DOF_W, DOF_DW, DOF_U, DOF_DU
+                                  fe_band_matvec, fe_expand, DOF_W, DOF_DW, DOF_U, DOF_DU, &
+                                  DOF_DW_OUT, DOF_DU_OUT, fe_load_t, fe_tip_load
+    use beamid_fe_static, only: fe_residual
+    use beamid_lapack, only: solve_banded
     use beamid_fe_modes, only: fe_modes
     implicit none
     private
@@ -52,6 +59,25 @@ module beamid_dynamics
     public :: dyn_set_modes, dyn_to_physical, dyn_to_coords, dyn_cforces, dyn_cpower
     public :: dyn_cxrate, dyn_cmass, dyn_cjacobian, dyn_crates
     public :: dyn_hold, dyn_switch, dyn_rot_mv, dyn_fric_dof
+    public :: dyn_param_t, dyn_param_setup, dyn_dforce, dyn_dmass_mv, dyn_dmass_dq_mv
+    public :: dyn_static_sens, dyn_output_sens, dyn_constrain, dyn_denergy, dyn_dnlt
+    public :: DP_NONE, DP_LOAD, dyn_param_dcap
+
+    !> Kinds of parameter derivatives (dyn_param_t): what a parameter acts on.
+    integer, parameter :: DP_NONE = 0, DP_EI = 1, DP_EA = 2, DP_CUBIC = 3, DP_RHO = 4, &
+                          DP_MASS = 5, DP_J = 6, DP_MU = 7, DP_DRAG = 8, DP_ETA = 9, &
+                          DP_R = 10, DP_TAU = 11, DP_FLEX = 12, DP_LOAD = 13
+
+    !> One parameter of a sensitivity: its kind (DP_*), the beam, mass point,
+    !! joint or load component it belongs to, the constant dM/dp (density,
+    !! point mass), d(mu m g)/dp (friction cap) and the spring (0: root).
+    type :: dyn_param_t
+        integer :: kind = DP_NONE
+        integer :: k = 0
+        integer :: spring = -1
+        real(dp) :: dcap = 0.0_dp
+        real(dp), allocatable :: dmb(:, :)
+    end type dyn_param_t
 
     !> Friction laws (Eq. 101-102 and the regularized form for implicit steps).
     integer, parameter :: FRICTION_SIGN = 0, FRICTION_SMOOTH = 1, FRICTION_SIGN_LITERAL = 2
@@ -87,6 +113,7 @@ module beamid_dynamics
         logical :: rotary = .false.
         real(dp) :: eta = 0.0_dp
         real(dp) :: motor = 0.0_dp          !< r g (N m s)
+        real(dp) :: gain = 0.0_dp           !< motor gain g (Eq. 150)
         real(dp) :: tau = 0.0_dp            !< motor lag (s)
         integer :: law = FRICTION_SIGN
         real(dp) :: vslip = 1.0e-4_dp       !< regularization velocity (m/s)
@@ -458,6 +485,7 @@ contains
         sys%rotary = any(sys%inertia /= 0.0_dp)
         sys%eta = chain%eta
         sys%motor = chain%r_motor*gain
+        sys%gain = gain
         sys%tau = chain%tau_motor
         sys%nx = 0
         if (sys%motor /= 0.0_dp .and. sys%tau > 0.0_dp) sys%nx = 1
@@ -1358,5 +1386,449 @@ contains
         end if
         if (sys%nx > 0) dy(2*k + 1) = dyn_cxrate(sys, yc)
     end subroutine dyn_crates
+
+    ! ---------------------------------------------------------------------
+    ! Parameter derivatives for the forward sensitivities (Eq. 135-140):
+    ! the partial derivatives at a fixed state of the generalized force F,
+    ! the motor-lag rate x', the mass matrix M and the strain energy, with
+    ! respect to one model parameter or one component of the release load.
+    ! Every term of F, M and V is linear in the parameter group it carries
+    ! (EI, EA, C, rho, m, J, mu m, c, eta EI, r g, 1/flex, 1/tau), so each
+    ! derivative is that term evaluated with the parameter set to one (or,
+    ! for the compliances and the lag, the term times -1/p): exact, hand-coded.
+    ! ---------------------------------------------------------------------
+
+    !> Set up the derivative with respect to parameter `index` of the chain's
+    !! flat parameter vector (beamid_model layout), or, when `iload` (= index
+    !! - param_count) is 1..3, to the release load's fx, fy, moment. A
+    !! parameter the dynamics do not depend on (axial_coupling, a motor
+    !! parameter without motor) gets DP_NONE: a zero column.
+    subroutine dyn_param_setup(sys, chain, iload, index, par, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: iload, index
+        type(dyn_param_t), intent(out) :: par
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'dyn_param_setup'
+        integer :: nb, i, k, which, el, a, b, ia, ib, node
+        real(dp) :: me(FE_NDOF, FE_NDOF)
+        nb = chain%nbeams
+        par%kind = DP_NONE
+        if (iload >= 1) then
+            par%kind = DP_LOAD
+            par%k = iload
+            return
+        end if
+        i = index
+        if (i <= PER_BEAM*nb) then
+            k = (i - 1)/PER_BEAM + 1
+            which = i - PER_BEAM*(k - 1)
+            par%k = k
+            select case (which)
+            case (IB_EI)
+                par%kind = DP_EI
+            case (IB_EA)
+                par%kind = DP_EA
+            case (IB_C)
+                par%kind = DP_CUBIC
+            case (IB_RHO)
+                par%kind = DP_RHO
+                allocate (par%dmb(fe_band_rows(sys%mesh), sys%n))
+                par%dmb = 0.0_dp
+                do el = 1, sys%mesh%nel
+                    if (sys%mesh%beam(el) /= k) cycle
+                    call fe_element_mass(sys%mesh%h(el), 1.0_dp, me)
+                    do b = 1, FE_NDOF
+                        ib = sys%mesh%el_free(b, el)
+                        if (ib == 0) cycle
+                        do a = 1, FE_NDOF
+                            ia = sys%mesh%el_free(a, el)
+                            if (ia == 0) cycle
+                            call fe_band_add(par%dmb, sys%mesh%kl, sys%mesh%ku, ia, ib, me(a, b))
+                        end do
+                    end do
+                end do
+            case default
+                call set_status(stat, ERR_INPUT, where, 'sensitivity with respect to '// &
+                                param_name(nb, index)//' (the mesh depends on it) is not '// &
+                                'available')
+            end select
+        else if (i <= (PER_BEAM + PER_MASS)*nb) then
+            i = i - PER_BEAM*nb
+            k = (i - 1)/PER_MASS + 1
+            which = i - PER_MASS*(k - 1)
+            par%k = k
+            select case (which)
+            case (IM_M)
+                par%kind = DP_MASS
+                allocate (par%dmb(fe_band_rows(sys%mesh), sys%n))
+                par%dmb = 0.0_dp
+                call fe_band_add(par%dmb, sys%mesh%kl, sys%mesh%ku, sys%iw(k), sys%iw(k), 1.0_dp)
+                call fe_band_add(par%dmb, sys%mesh%kl, sys%mesh%ku, sys%iu(k), sys%iu(k), 1.0_dp)
+                par%dcap = chain%friction(k)*GRAVITY
+            case (IM_J)
+                par%kind = DP_J
+            case (IM_MU)
+                par%kind = DP_MU
+                par%dcap = chain%mass(k)*GRAVITY
+            case (IM_C)
+                par%kind = DP_DRAG
+            end select
+        else if (i <= (PER_BEAM + PER_MASS)*nb + nb - 1) then
+            k = i - (PER_BEAM + PER_MASS)*nb
+            par%kind = DP_FLEX
+            par%k = k
+            node = k*(sys%mesh%nel/nb) + 1
+            par%spring = -1
+            do a = 1, sys%mesh%nhinge
+                if (sys%mesh%hinge_node(a) == node) par%spring = a
+            end do
+            if (par%spring < 0) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivity with respect to '// &
+                                param_name(nb, index)//' at 0 (a locked joint) is not '// &
+                                'available: give it a positive compliance')
+            end if
+        else
+            k = i - (PER_BEAM + PER_MASS)*nb - (nb - 1)
+            select case (k)
+            case (IG_ROOT_FLEX)
+                par%kind = DP_FLEX
+                par%spring = 0
+                if (.not. (sys%mesh%root_flex > 0.0_dp)) then
+                    call set_status(stat, ERR_INPUT, where, 'sensitivity with respect to '// &
+                                    'root_flex at 0 (a clamped root) is not available: '// &
+                                    'give it a positive compliance')
+                end if
+            case (IG_ETA)
+                par%kind = DP_ETA
+            case (IG_R_MOTOR)
+                if (sys%gain /= 0.0_dp) par%kind = DP_R
+            case (IG_TAU_MOTOR)
+                if (sys%nx > 0) par%kind = DP_TAU
+            end select
+        end if
+    end subroutine dyn_param_setup
+
+    !> Free indices and compliance of hinge spring j (0: the root).
+    pure subroutine spring_free(mesh, j, idx, flex)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(in) :: j
+        integer, intent(out) :: idx(4)
+        real(dp), intent(out) :: flex
+        if (j == 0) then
+            idx = [0, 0, mesh%free_of(mesh%node_dof(DOF_DW, 1)), &
+                   mesh%free_of(mesh%node_dof(DOF_DU, 1))]
+            flex = mesh%root_flex
+        else
+            idx = mesh%free_of(mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], &
+                                             mesh%hinge_node(j)))
+            flex = mesh%hinge_flex(j)
+        end if
+    end subroutine spring_free
+
+    !> Element unknowns of element el from the free vector q.
+    pure function elem_q(mesh, q, el) result(qe)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        integer, intent(in) :: el
+        real(dp) :: qe(FE_NDOF)
+        integer :: a
+        do a = 1, FE_NDOF
+            if (mesh%el_free(a, el) == 0) then
+                qe(a) = 0.0_dp
+            else
+                qe(a) = q(mesh%el_free(a, el))
+            end if
+        end do
+    end function elem_q
+
+    !> dNLT/dp at q (internal force, Eq. 79-83, with the hinge springs): the
+    !! stiffness parameters only (zero for the others).
+    pure subroutine dyn_dnlt(sys, par, q, g)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: g(:)
+        real(dp) :: fe(FE_NDOF), ea, ei, cu, flex, fs(4)
+        integer :: el, a, idx(4)
+        g = 0.0_dp
+        select case (par%kind)
+        case (DP_EI, DP_EA, DP_CUBIC)
+            ea = merge(1.0_dp, 0.0_dp, par%kind == DP_EA)
+            ei = merge(1.0_dp, 0.0_dp, par%kind == DP_EI)
+            cu = merge(1.0_dp, 0.0_dp, par%kind == DP_CUBIC)
+            do el = 1, sys%mesh%nel
+                if (sys%mesh%beam(el) /= par%k) cycle
+                call fe_element_force_tabulated(size(sys%mesh%xg), &
+                                                sys%mesh%gauss_d1(:, :, par%k), &
+                                                sys%mesh%gauss_d2(:, :, par%k), &
+                                                sys%mesh%gauss_wh(:, par%k), ea, ei, cu, &
+                                                elem_q(sys%mesh, q, el), fe)
+                do a = 1, FE_NDOF
+                    if (sys%mesh%el_free(a, el) /= 0) &
+                        g(sys%mesh%el_free(a, el)) = g(sys%mesh%el_free(a, el)) + fe(a)
+                end do
+            end do
+        case (DP_FLEX)
+            ! the spring force (dpsi / f) grad(dpsi): d/df = -force / f
+            call spring_free(sys%mesh, par%spring, idx, flex)
+            call fe_hinge_force(flex, spring_vals(q, idx), fs)
+            do a = 1, 4
+                if (idx(a) /= 0) g(idx(a)) = g(idx(a)) - fs(a)/flex
+            end do
+        end select
+    end subroutine dyn_dnlt
+
+    pure function spring_vals(q, idx) result(s)
+        real(dp), intent(in) :: q(:)
+        integer, intent(in) :: idx(4)
+        real(dp) :: s(4)
+        integer :: a
+        do a = 1, 4
+            s(a) = 0.0_dp
+            if (idx(a) /= 0) s(a) = q(idx(a))
+        end do
+    end function spring_vals
+
+    !> dV/dp at q (strain energy, Eq. 87, with the springs).
+    pure real(dp) function dyn_denergy(sys, par, q) result(dv)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: q(:)
+        real(dp) :: ea, ei, cu, flex
+        integer :: el, idx(4)
+        dv = 0.0_dp
+        select case (par%kind)
+        case (DP_EI, DP_EA, DP_CUBIC)
+            ea = merge(1.0_dp, 0.0_dp, par%kind == DP_EA)
+            ei = merge(1.0_dp, 0.0_dp, par%kind == DP_EI)
+            cu = merge(1.0_dp, 0.0_dp, par%kind == DP_CUBIC)
+            do el = 1, sys%mesh%nel
+                if (sys%mesh%beam(el) /= par%k) cycle
+                dv = dv + fe_element_energy(sys%mesh%h(el), ea, ei, cu, sys%mesh%xg, &
+                                            sys%mesh%wg, elem_q(sys%mesh, q, el))
+            end do
+        case (DP_FLEX)
+            call spring_free(sys%mesh, par%spring, idx, flex)
+            dv = -fe_hinge_energy(flex, spring_vals(q, idx))/flex
+        end select
+    end function dyn_denergy
+
+    !> Partial derivatives at the state (q, v, x) of the generalized force,
+    !! fp = dF/dp, and of the motor-lag rate, xp = dx'/dp (Eq. 138, 140 and
+    !! their counterparts for every effect). The mass matrix term is separate
+    !! (dyn_dmass_mv).
+    pure subroutine dyn_dforce(sys, par, q, v, x, fp, xp)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: q(:), v(:), x(:)
+        real(dp), intent(out) :: fp(:), xp
+        real(dp) :: phi, dphi, psid, fd(FE_NDOF), pw, c, xd
+        integer :: k, cc, i, el, a, npt
+        fp = 0.0_dp
+        xp = 0.0_dp
+        npt = sys%npt
+        k = par%k
+        select case (par%kind)
+        case (DP_EI, DP_EA, DP_CUBIC, DP_FLEX)
+            call dyn_dnlt(sys, par, q, fp)
+            fp = -fp
+            if (par%kind == DP_EI .and. sys%eta /= 0.0_dp) then
+                do el = 1, sys%mesh%nel
+                    if (sys%mesh%beam(el) /= k) cycle
+                    call damping_element(sys%mesh%h(el), sys%eta, sys%mesh%xg, sys%mesh%wg, &
+                                         elem_q(sys%mesh, q, el), elem_q(sys%mesh, v, el), &
+                                         fd, pw)
+                    do a = 1, FE_NDOF
+                        i = sys%mesh%el_free(a, el)
+                        if (i /= 0) fp(i) = fp(i) - fd(a)
+                    end do
+                end do
+            end if
+        case (DP_ETA)
+            do el = 1, sys%mesh%nel
+                call damping_element(sys%mesh%h(el), sys%mesh%ei(el), sys%mesh%xg, &
+                                     sys%mesh%wg, elem_q(sys%mesh, q, el), &
+                                     elem_q(sys%mesh, v, el), fd, pw)
+                do a = 1, FE_NDOF
+                    i = sys%mesh%el_free(a, el)
+                    if (i /= 0) fp(i) = fp(i) - fd(a)
+                end do
+            end do
+        case (DP_MU, DP_MASS)
+            ! friction -mu m g phi: d/dmu = -m g phi, d/dm = -mu g phi
+            if (par%dcap /= 0.0_dp) then
+                do cc = 1, 2
+                    i = merge(sys%iu(k), sys%iw(k), cc == 1)
+                    if (sys%events) then
+                        phi = real(sys%fmode(2*(k - 1) + cc), dp)
+                    else
+                        call friction_phi(sys%law, sys%vslip, v(i), phi, dphi)
+                    end if
+                    fp(i) = fp(i) - par%dcap*phi
+                end do
+            end if
+        case (DP_DRAG)
+            fp(sys%iu(k)) = -v(sys%iu(k))
+            fp(sys%iw(k)) = -v(sys%iw(k))
+        case (DP_J)
+            psid = dyn_psidot(sys, q, v, k)
+            fp(sys%idw(k)) = -2.0_dp*psid*v(sys%idu(k))
+            fp(sys%idu(k)) = 2.0_dp*psid*v(sys%idw(k))
+        case (DP_R)
+            ! T = -r g Psidot (no lag): dT/dr = -g Psidot acting through a_tip;
+            ! with the lag x' = (-r g Psidot - T)/tau: dx'/dr = -g Psidot/tau
+            psid = dyn_psidot(sys, q, v, npt)
+            if (sys%nx == 0) then
+                c = -sys%gain*psid
+                fp(sys%idw(npt)) = c*(1.0_dp + q(sys%idu(npt)))
+                fp(sys%idu(npt)) = -c*q(sys%idw(npt))
+            else
+                xp = -sys%gain*psid/sys%tau
+            end if
+        case (DP_TAU)
+            xd = (-sys%motor*dyn_psidot(sys, q, v, npt) - x(1))/sys%tau
+            xp = -xd/sys%tau
+        end select
+    end subroutine dyn_dforce
+
+    !> y += (dM/dp) a at q (density, point mass, rotary inertia).
+    pure subroutine dyn_dmass_mv(sys, par, q, a, y)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: q(:), a(:)
+        real(dp), intent(inout) :: y(:)
+        real(dp) :: t(size(a)), a1, a2, s
+        integer :: k
+        select case (par%kind)
+        case (DP_RHO, DP_MASS)
+            call fe_band_matvec(par%dmb, sys%mesh%kl, sys%mesh%ku, a, t)
+            y = y + t
+        case (DP_J)
+            k = par%k
+            a1 = 1.0_dp + q(sys%idu(k))
+            a2 = -q(sys%idw(k))
+            s = a1*a(sys%idw(k)) + a2*a(sys%idu(k))
+            y(sys%idw(k)) = y(sys%idw(k)) + s*a1
+            y(sys%idu(k)) = y(sys%idu(k)) + s*a2
+        end select
+    end subroutine dyn_dmass_mv
+
+    !> y += (dM/dq s) a: the rotary inertia part R(q) = sum J a_k a_k^T
+    !! (Eq. 130-132), a_k = (1 + u', -w') on (w', u'), da_k = (s_u', -s_w').
+    pure subroutine dyn_dmass_dq_mv(sys, q, s, a, y)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), s(:), a(:)
+        real(dp), intent(inout) :: y(:)
+        real(dp) :: a1, a2, d1, d2, aa, da
+        integer :: k
+        if (.not. sys%rotary) return
+        do k = 1, sys%npt
+            if (sys%inertia(k) == 0.0_dp) cycle
+            a1 = 1.0_dp + q(sys%idu(k))
+            a2 = -q(sys%idw(k))
+            d1 = s(sys%idu(k))
+            d2 = -s(sys%idw(k))
+            aa = a1*a(sys%idw(k)) + a2*a(sys%idu(k))
+            da = d1*a(sys%idw(k)) + d2*a(sys%idu(k))
+            y(sys%idw(k)) = y(sys%idw(k)) + sys%inertia(k)*(d1*aa + a1*da)
+            y(sys%idu(k)) = y(sys%idu(k)) + sys%inertia(k)*(d2*aa + a2*da)
+        end do
+    end subroutine dyn_dmass_dq_mv
+
+    !> Sensitivity of the static equilibrium q0 under `load` (implicit function
+    !! theorem on b(q, p) = NLT - Q = 0, Eq. 84-85): K_T dq0/dp = -db/dp with
+    !! the Newton tangent K_T = db/dq, all parameters at once (one band LU,
+    !! several right-hand sides). s(:, j): dq0/dp_j.
+    subroutine dyn_static_sens(sys, load, q, pars, s, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(out) :: s(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: jb(:, :), r(:), g(:)
+        type(fe_load_t) :: unit
+        integer :: j
+        if (size(pars) == 0) return
+        allocate (jb(fe_band_rows(sys%mesh), sys%n), r(sys%n), g(sys%n))
+        call fe_residual(sys%mesh, load, q, r, jb)
+        do j = 1, size(pars)
+            if (pars(j)%kind == DP_LOAD) then
+                ! Q is linear in each load component: dQ/dp = Q of the unit load
+                unit = fe_load_t()
+                unit%moment_form = load%moment_form
+                if (pars(j)%k == 1) unit%fx = 1.0_dp
+                if (pars(j)%k == 2) unit%fy = 1.0_dp
+                if (pars(j)%k == 3) unit%moment = 1.0_dp
+                call fe_tip_load(sys%mesh, q, unit, g)
+                s(:, j) = g
+            else
+                call dyn_dnlt(sys, pars(j), q, g)
+                s(:, j) = -g
+            end if
+        end do
+        call solve_banded(sys%mesh%kl, sys%mesh%ku, jb, s, stat)
+    end subroutine dyn_static_sens
+
+    !> Sensitivities of the outputs at the state y from the state sensitivity
+    !! s: tip (u, w), tip angle, motor torque and total energy T + V.
+    pure subroutine dyn_output_sens(sys, par, y, s, duw, dangle, dtorque, denergy)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: y(:), s(:)
+        real(dp), intent(out) :: duw(2), dangle, dtorque, denergy
+        real(dp), allocatable :: mb(:, :), t(:), f(:)
+        real(dp) :: a1, a2, dpsi
+        integer :: n, k
+        n = sys%n
+        k = sys%npt
+        duw = [s(sys%iu(k)), s(sys%iw(k))]
+        a1 = 1.0_dp + y(sys%idu(k))
+        a2 = y(sys%idw(k))
+        dangle = (a1*s(sys%idw(k)) - a2*s(sys%idu(k)))/(a1*a1 + a2*a2)
+        dtorque = 0.0_dp
+        if (sys%motor /= 0.0_dp) then
+            if (sys%nx > 0) then
+                dtorque = s(2*n + 1)
+            else
+                dpsi = s(sys%idu(k))*y(n + sys%idw(k)) + a1*s(n + sys%idw(k)) &
+                       - s(sys%idw(k))*y(n + sys%idu(k)) - a2*s(n + sys%idu(k))
+                dtorque = -sys%motor*dpsi
+                if (par%kind == DP_R) dtorque = dtorque - sys%gain*dyn_psidot(sys, y(1:n), &
+                                                                              y(n + 1:2*n), k)
+            end if
+        end if
+        ! E = v^T M(q) v / 2 + V(q)
+        allocate (mb(fe_band_rows(sys%mesh), n), t(n), f(n))
+        call dyn_mass(sys, y(1:n), mb)
+        call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, y(n + 1:2*n), t)
+        denergy = dot_product(t, s(n + 1:2*n))
+        t = 0.0_dp
+        call dyn_dmass_dq_mv(sys, y(1:n), s(1:n), y(n + 1:2*n), t)
+        call dyn_dmass_mv(sys, par, y(1:n), y(n + 1:2*n), t)
+        denergy = denergy + 0.5_dp*dot_product(t, y(n + 1:2*n))
+        call fe_internal_force(sys%mesh, y(1:n), f)
+        denergy = denergy + dot_product(f, s(1:n)) + dyn_denergy(sys, par, y(1:n))
+    end subroutine dyn_output_sens
+
+    !> Constrain a rate-form acceleration (change) to the sticking friction
+    !! components (constrain_rates; linear in a): the constraint forces in hold.
+    subroutine dyn_constrain(sys, lu, a, hold, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(band_lu_t), intent(in) :: lu
+        real(dp), intent(inout) :: a(:)
+        real(dp), intent(out) :: hold(:)
+        type(status_t), intent(inout) :: stat
+        call constrain_rates(sys, lu, a, hold, stat)
+    end subroutine dyn_constrain
+
+    !> d(mu m g)/dp of the friction cap at mass point `point` (UNSTICK events).
+    pure real(dp) function dyn_param_dcap(par, point) result(dcap)
+        type(dyn_param_t), intent(in) :: par
+        integer, intent(in) :: point
+        dcap = 0.0_dp
+        if ((par%kind == DP_MU .or. par%kind == DP_MASS) .and. par%k == point) dcap = par%dcap
+    end function dyn_param_dcap
 
 end module beamid_dynamics

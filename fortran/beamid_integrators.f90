@@ -29,7 +29,9 @@ module beamid_integrators
                                dyn_to_coords, dyn_energy, dyn_torque, band_lu_t, zband_lu_t, &
                                band_factor, band_solve, zband_factor, zband_solve, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN
+                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_dforce, &
+                               dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
+                               DP_NONE
     implicit none
     private
 
@@ -57,6 +59,11 @@ module beamid_integrators
         real(dp) :: t = 0.0_dp
         integer :: comp = 0, kind = 0, before = 0, after = 0
         real(dp) :: force_before = 0.0_dp, force_after = 0.0_dp
+        !> f+ - f-: the jump of the state rates (q', v', x') across the switch,
+        !! with every component's mode and constraint before and after (the
+        !! term of S+ = S- + (f- - f+) dt*/dp; the whole switch when several
+        !! components change at once; zero for EVENT_START)
+        real(dp), allocatable :: rate_jump(:)
     end type event_t
 
     !> Controls of the integrators.
@@ -75,6 +82,7 @@ module beamid_integrators
         integer :: factorizations = 0
         integer :: events = 0       !< friction switches (event_t records)
         integer :: event_steps = 0  !< steps cut short or redone to land on one
+        integer :: sens_passes = 0  !< implicit sensitivity iteration passes (all parameters)
     end type integ_stats_t
 
     !> Time histories at the output times (columns).
@@ -223,13 +231,21 @@ contains
 
     !> Integrate from the state y0 at t = 0 to every output time t_out
     !! (ascending, >= 0) and record the history with its energy ledger.
-    subroutine integrate(sys, y0, t_out, opts, hist, stats, stat)
+    !! With `pars`, also the forward sensitivities dy/dp of the state with
+    !! respect to each parameter, from s0 = dy0/dp, into dstates(:, k, j)
+    !! (full model only).
+    subroutine integrate(sys, y0, t_out, opts, hist, stats, stat, pars, s0, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(out) :: hist
         type(integ_stats_t), intent(out) :: stats
         type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(in), optional :: s0(:, :)
+        real(dp), allocatable, intent(out), optional :: dstates(:, :, :)
+        real(dp), allocatable :: sm(:, :)
+        logical :: sens
         character(len=*), parameter :: where = 'integrate'
         real(dp), allocatable :: yc0(:)
         integer :: nt, k
@@ -279,6 +295,28 @@ contains
         hist%kinetic = 0.0_dp
         hist%potential = 0.0_dp
         hist%work = 0.0_dp
+        sens = present(pars)
+        if (sens) then
+            if (sys%modal) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivities are not available '// &
+                                'in the truncated modal model')
+                return
+            end if
+            if (.not. present(s0) .or. .not. present(dstates)) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivities need s0 and dstates')
+                return
+            end if
+            if (size(s0, 1) /= sys%nstate .or. size(s0, 2) /= size(pars)) then
+                call set_status(stat, ERR_INPUT, where, 's0 has shape '// &
+                                fmt_int(size(s0, 1))//' x '//fmt_int(size(s0, 2))// &
+                                ', expected '//fmt_int(sys%nstate)//' x '// &
+                                fmt_int(size(pars)))
+                return
+            end if
+            allocate (dstates(sys%nstate, nt, size(pars)), sm(sys%nstate, size(pars)))
+            dstates = 0.0_dp
+            sm = s0
+        end if
         ! integration coordinates: q itself, or the modal coordinates (Eq. 127)
         allocate (yc0(sys%ncstate))
         call dyn_to_coords(sys, y0, yc0)
@@ -289,7 +327,11 @@ contains
                                 ', expected a positive step')
                 return
             end if
-            call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
+            if (sens) then
+                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
+            else
+                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
+            end if
         case (METHOD_IMPLICIT)
             if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
                 then
@@ -298,7 +340,11 @@ contains
                                 fmt_real(opts%h0)//': expected positive values')
                 return
             end if
-            call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
+            if (sens) then
+                call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
+            else
+                call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
+            end if
         case default
             call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
                             ', expected 0 (rk4) or 1 (implicit)')
@@ -388,9 +434,16 @@ contains
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
         integer :: before(size(es%fmode)), j
-        real(dp) :: fb(size(es%fmode)), cap
+        real(dp) :: fb(size(es%fmode)), cap, fminus(size(y)), fplus(size(y))
+        real(dp) :: pw(es%nwork), torque, hdummy(size(es%fmode))
         type(event_t) :: ev
         before = es%fmode
+        fminus = 0.0_dp
+        fplus = 0.0_dp
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fminus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
         do j = 1, size(es%fmode)
             cap = es%fric((j + 1)/2)
             if (before(j) == 0) then
@@ -401,6 +454,10 @@ contains
         end do
         call dyn_switch(es, y, jforce, hold, stat)
         if (stat%code /= 0) return
+        if (kind /= EVENT_START) then
+            call dyn_crates(es, y, fplus, pw, torque, stat, hdummy)
+            if (stat%code /= 0) return
+        end if
         do j = 1, size(es%fmode)
             if (es%fric((j + 1)/2) == 0.0_dp) cycle
             if (es%fmode(j) == before(j) .and. kind /= EVENT_START) cycle
@@ -418,6 +475,7 @@ contains
                 ev%force_after = -es%fric((j + 1)/2)*es%fmode(j)
             end if
             if (kind == EVENT_START) ev%force_before = 0.0_dp
+            ev%rate_jump = fplus - fminus
             call add_event(hist, ev)
             stats%events = stats%events + 1
         end do
@@ -523,13 +581,19 @@ contains
     !! mu N (linear in the step), ends the step there: it is redone to the
     !! event, the switch applied, and the output interval continues in
     !! equal steps no longer than dt.
-    subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat)
+    subroutine run_rk4(sys, y0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(inout) :: hist
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
+        !> forward sensitivities: the parameters, S (in: at t = 0), S at t_out
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        real(dp), intent(inout), optional :: dstates(:, :, :)
+        real(dp), allocatable :: fm(:), dtp(:)
+        logical :: sens
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
@@ -549,6 +613,8 @@ contains
         es = sys
         evon = events_on(es)
         es%events = evon
+        sens = present(pars)
+        if (sens) allocate (fm(m), dtp(size(pars)))
         s = 0.0_dp
         s(1:m) = y0
         t = 0.0_dp
@@ -606,6 +672,10 @@ contains
                     end do
                 end if
                 if (jev == 0) then
+                    if (sens) then
+                        call rk_sens_step(es, pars, s, k1, h, sm, stat)
+                        if (stat%code /= 0) return
+                    end if
                     s = sn
                     k1 = k1n
                     hold = holdn
@@ -630,6 +700,10 @@ contains
                 end if
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
+                    if (sens) then
+                        call rk_sens_step(es, pars, s, k1, hs, sm, stat)
+                        if (stat%code /= 0) return
+                    end if
                     s = sn
                     stats%fevals = stats%fevals + 3
                     stats%event_steps = stats%event_steps + 1
@@ -639,13 +713,21 @@ contains
                         stats%fevals = stats%fevals + 1
                     end if
                 end if
+                if (kind == EVENT_ZERO_VELOCITY) s(n + dyn_fric_dof(es, jev)) = 0.0_dp
+                if (sens) then
+                    call sens_event_pre(es, pars, s(1:m), kind, jev, hold(jev), sm, fm, dtp, stat)
+                    if (stat%code /= 0) return
+                end if
                 if (kind == EVENT_ZERO_VELOCITY) then
-                    s(n + dyn_fric_dof(es, jev)) = 0.0_dp
                     call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
                 else
                     call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
                 end if
                 if (stat%code /= 0) return
+                if (sens) then
+                    call sens_event_post(es, s(1:m), fm, dtp, sm, stat)
+                    if (stat%code /= 0) return
+                end if
                 call rk_rates(es, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
@@ -661,6 +743,7 @@ contains
             end if
             t = t_out(k)
             call record(es, s(1:m), s(m + 1:), k, hist)
+            if (sens) dstates(:, k, :) = sm
         end do
     end subroutine run_rk4
 
@@ -1451,17 +1534,24 @@ contains
     !!   through (four times the steps).
     !! The step size follows the standard controller on the order-4 estimate
     !! (Hairer-Wanner IV.8, Eq. 8.19-8.21).
-    subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat)
+    subroutine run_radau(sys, y0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:), t_out(:)
         type(integ_opts_t), intent(in) :: opts
         type(history_t), intent(inout) :: hist
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
+        !> forward sensitivities (as in run_rk4)
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        real(dp), intent(inout), optional :: dstates(:, :, :)
+        real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
+        real(dp) :: hsp
+        logical :: sens
         character(len=*), parameter :: where = 'implicit'
         integer, parameter :: NIT = 7
         real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
-        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp
+        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp, REUSE_THETA = 1.0e-3_dp
         type(radau_t) :: it
         real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, dnorm, dold
         real(dp) :: quot, hnew, hprev, tiny_h, lsc(3), ti1(3), tr(3)
@@ -1477,7 +1567,7 @@ contains
         real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
         real(dp) :: sev, hpend, hcut, torq
         integer :: jev, kev, pend, pkind, nfc, jforce, nstall
-        logical :: evon, rot_slow, at_end
+        logical :: evon, rot_slow, at_end, reused, may_reuse
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
         ti1 = real(ti(1, :), dp)
@@ -1500,6 +1590,9 @@ contains
         es = sys
         evon = events_on(es)
         es%events = evon
+        sens = present(pars)
+        hsp = 0.0_dp
+        if (sens) allocate (fm(nn), dtp(size(pars)), dzp(nn, 3, size(pars)))
         rot_slow = es%rotary .and. es%modal
         nfc = 2*es%npt
         allocate (hold0(nfc), hst(nfc, 3), acc3(n), rv(n), it%stuck(nfc), it%stuckc(nfc))
@@ -1515,6 +1608,8 @@ contains
         pend = 0
         pkind = 0
         nstall = 0
+        may_reuse = .false.
+        reused = .false.
         hpend = 0.0_dp
         hcut = 0.0_dp
         work = 0.0_dp
@@ -1529,6 +1624,7 @@ contains
         do while (kout <= nt)
             if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
                 call record(es, y, work, kout, hist)
+                if (sens) dstates(:, kout, :) = sm
                 kout = kout + 1
                 cycle
             end if
@@ -1581,15 +1677,18 @@ contains
             ! Jacobian at the predicted second stage, both factorizations
             ! (the assembly gives the stage-2 rates of the first iteration too)
             ys = y + z(:, 2)
-            if (rot_slow) then
-                call radau_jacobian(es, ys, it)
-            else
-                call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
+            reused = may_reuse .and. hh == it%h
+            if (.not. reused) then
+                if (rot_slow) then
+                    call radau_jacobian(es, ys, it)
+                else
+                    call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
+                end if
+                stats%jevals = stats%jevals + 1
+                call radau_factor(es, it, hh, gam, mu, stat)
+                if (stat%code /= 0) return
+                stats%factorizations = stats%factorizations + 1
             end if
-            stats%jevals = stats%jevals + 1
-            call radau_factor(es, it, hh, gam, mu, stat)
-            if (stat%code /= 0) return
-            stats%factorizations = stats%factorizations + 1
             ! simplified Newton iteration on the decoupled stage systems
             converged = .false.
             dold = 0.0_dp
@@ -1599,7 +1698,7 @@ contains
             do newt = 1, NIT
                 ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
                 do i = 1, 3
-                    if (newt > 1 .or. i /= 2 .or. rot_slow) then
+                    if (newt > 1 .or. i /= 2 .or. rot_slow .or. reused) then
                         ys = y + z(:, i)
                         call rates_m(es, it, ys, fz(:, i), pw(:, i), inner)
                         stats%fevals = stats%fevals + 1
@@ -1652,6 +1751,7 @@ contains
                 dold = max(dnorm, epsilon(1.0_dp))
             end do
             if (.not. converged) then
+                may_reuse = .false.
                 pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.
@@ -1737,14 +1837,26 @@ contains
                             if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
                             jforce = 0
                             if (kev == EVENT_UNSTICK) jforce = jev
+                            if (sens) then
+                                call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, &
+                                                    dtp, stat)
+                                if (stat%code /= 0) return
+                            end if
                             call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
                             if (stat%code /= 0) return
                             call set_stuck(es, it)
+                            if (sens) then
+                                call sens_event_post(es, y, fm, dtp, sm, stat)
+                                if (stat%code /= 0) return
+                                hsp = 0.0_dp
+                            end if
                             have_f0 = .false.
+                            may_reuse = .false.
                             pend = 0
                             cycle
                         end if
                         if (pend == 0) hcut = h
+                        may_reuse = .false.
                         h = sev*hh
                         pend = jev
                         pkind = kev
@@ -1766,6 +1878,12 @@ contains
                         work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))
                     end do
                 end if
+                if (sens) then
+                    call radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, &
+                                         tc, opts%rtol, theta, sm, dzp, hsp, &
+                                         stats%sens_passes, stat)
+                    if (stat%code /= 0) return
+                end if
                 y = y + z(:, 3)
                 f0 = f3
                 if (it%rot) acc3 = (dmat(3, 1)*z(n + 1:2*n, 1) + dmat(3, 2)*z(n + 1:2*n, 2) &
@@ -1784,6 +1902,12 @@ contains
                 else
                     h = hnew
                 end if
+                ! small steps with a fast-contracting Newton iteration: keep the
+                ! Jacobian and the factors for the next step, and the step size
+                ! when the controller would change it by less than 20 % upwards
+                ! (RADAU5's THET and QUOT1, QUOT2)
+                may_reuse = theta < REUSE_THETA .and. .not. clipped
+                if (may_reuse .and. hnew >= hh .and. hnew <= 1.2_dp*hh) h = hh
                 if (.not. all(ieee_is_finite(y))) then
                     call set_status(stat, ERR_NUMERIC, where, 'state became non-finite at t = ' &
                                     //fmt_real(t))
@@ -1797,14 +1921,25 @@ contains
                     if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
                     jforce = 0
                     if (kev == EVENT_UNSTICK) jforce = jev
+                    if (sens) then
+                        call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, dtp, stat)
+                        if (stat%code /= 0) return
+                    end if
                     call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
                     if (stat%code /= 0) return
                     call set_stuck(es, it)
+                    if (sens) then
+                        call sens_event_post(es, y, fm, dtp, sm, stat)
+                        if (stat%code /= 0) return
+                        hsp = 0.0_dp
+                    end if
                     have_f0 = .false.
+                    may_reuse = .false.
                     if (pend /= 0) h = max(h, hcut)
                     pend = 0
                 end if
             else
+                may_reuse = .false.
                 pend = 0
                 stats%rejected = stats%rejected + 1
                 reject = .true.
@@ -1816,5 +1951,317 @@ contains
             end if
         end do
     end subroutine run_radau
+
+    ! ---------------------------------------------------------------------
+    ! Forward sensitivities S = dy/dp (Eq. 135-140; docs/theory_dynamics.md)
+    ! ---------------------------------------------------------------------
+
+    !> Rates of the sensitivities in rate form at the state y with rates f
+    !! (the constrained ones): dS = (S_v, M^-1 (dF S + F_p - M_p a - (dM/dq
+    !! S_q) a) constrained to the sticking components, p.S_q + d.S_v + e S_x
+    !! + x'_p), the variational equations of Eq. 135. dl: the changes of the
+    !! sticking components' constraint forces. with_p = .false.: the
+    !! directional derivative along s alone (no parameter terms).
+    subroutine sens_rates(es, pars, y, f, s, ds, dl, stat, with_p)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), f(:), s(:, :)
+        real(dp), intent(out) :: ds(:, :), dl(:, :)
+        type(status_t), intent(inout) :: stat
+        logical, intent(in) :: with_p
+        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:), t(:), fp(:)
+        type(band_lu_t) :: lu
+        real(dp) :: e, xp
+        integer :: n, nb, j, kl, ku
+        n = es%n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n), t(n), fp(n))
+        call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
+        if (es%rotary) then
+            lu%n = n
+            lu%kl = kl
+            lu%ku = ku
+            allocate (lu%ab(nb, n))
+            call dyn_mass(es, y(1:n), lu%ab)
+            call band_factor(lu, stat)
+            if (stat%code /= 0) return
+        end if
+        dl = 0.0_dp
+        do j = 1, size(s, 2)
+            call dband_mv(n, kl, ku, kb, s(1:n, j), t)
+            r = -t
+            call dband_mv(n, kl, ku, cb, s(n + 1:2*n, j), t)
+            r = r - t
+            if (es%nx > 0) r = r + b*s(2*n + 1, j)
+            t = 0.0_dp
+            call dyn_dmass_dq_mv(es, y(1:n), s(1:n, j), f(n + 1:2*n), t)
+            r = r - t
+            xp = 0.0_dp
+            if (with_p) then
+                call dyn_dforce(es, pars(j), y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, xp)
+                t = 0.0_dp
+                call dyn_dmass_mv(es, pars(j), y(1:n), f(n + 1:2*n), t)
+                r = r + fp - t
+            end if
+            if (es%rotary) then
+                call band_solve(lu, r)
+                if (es%events) call dyn_constrain(es, lu, r, dl(:, j), stat)
+            else
+                call band_solve(es%mlu, r)
+                if (es%events) call dyn_constrain(es, es%mlu, r, dl(:, j), stat)
+            end if
+            ds(1:n, j) = s(n + 1:2*n, j)
+            ds(n + 1:2*n, j) = r
+            if (es%nx > 0) ds(2*n + 1, j) = dot_product(p, s(1:n, j)) &
+                                            + dot_product(d, s(n + 1:2*n, j)) + e*s(2*n + 1, j) + xp
+        end do
+    end subroutine sens_rates
+
+    !> The RK4 step of the sensitivities (the variational equations on the
+    !! same step, the derivative of the discrete map): from S at the state s
+    !! with rates k1 over h.
+    subroutine rk_sens_step(es, pars, s, k1, h, sm, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: s(:), k1(:), h
+        real(dp), intent(inout) :: sm(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: y(:), f(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
+        real(dp), allocatable :: dl(:, :), pw(:)
+        real(dp) :: torque
+        integer :: m, nw
+        m = es%ncstate
+        nw = size(sm, 2)
+        allocate (y(m), f(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
+                  dl(2*es%npt, nw), pw(es%nwork))
+        call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*k1(1:m)
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + 0.5_dp*h*d1
+        call sens_rates(es, pars, y, f, st, d2, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*f
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + 0.5_dp*h*d2
+        call sens_rates(es, pars, y, f, st, d3, dl, stat, .true.)
+        y = s(1:m) + h*f
+        call dyn_crates(es, y, f, pw, torque, stat)
+        st = sm + h*d3
+        call sens_rates(es, pars, y, f, st, d4, dl, stat, .true.)
+        sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
+    end subroutine rk_sens_step
+
+    !> Before a friction switch at the state y (modes still the old ones):
+    !! the rates f- and dt*/dp = -(g_y S- + g_p)/(g_y f-) of the switching
+    !! function g: the velocity of component jev (EVENT_ZERO_VELOCITY) or
+    !! mu N - |constraint force| (EVENT_UNSTICK, holdj its constraint force).
+    subroutine sens_event_pre(es, pars, y, kind, jev, holdj, sm, fm, dtp, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), holdj, sm(:, :)
+        integer, intent(in) :: kind, jev
+        real(dp), intent(out) :: fm(:), dtp(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: ds(:, :), dl(:, :), d1(:, :), dl1(:, :), pw(:)
+        real(dp) :: torque, den, sg
+        integer :: i, j, nw
+        nw = size(sm, 2)
+        allocate (ds(size(y), nw), dl(2*es%npt, nw), d1(size(y), 1), dl1(2*es%npt, 1), &
+                  pw(es%nwork))
+        call dyn_crates(es, y, fm, pw, torque, stat)
+        if (stat%code /= 0) return
+        i = es%n + dyn_fric_dof(es, jev)
+        dtp = 0.0_dp
+        if (kind == EVENT_ZERO_VELOCITY) then
+            den = fm(i)
+            if (den /= 0.0_dp) dtp = -sm(i, :)/den
+        else
+            sg = sign(1.0_dp, holdj)
+            call sens_rates(es, pars, y, fm, sm, ds, dl, stat, .true.)
+            call sens_rates(es, pars, y, fm, reshape(fm, [size(fm), 1]), d1, dl1, stat, .false.)
+            den = -sg*dl1(jev, 1)
+            if (den /= 0.0_dp) then
+                do j = 1, nw
+                    dtp(j) = -(dyn_param_dcap(pars(j), (jev + 1)/2) - sg*dl(jev, j))/den
+                end do
+            end if
+        end if
+    end subroutine sens_event_pre
+
+    !> After the switch: S+ = S- + (f- - f+) dt*/dp, and zero velocity
+    !! sensitivity for the sticking components.
+    subroutine sens_event_post(es, y, fm, dtp, sm, stat)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: y(:), fm(:), dtp(:)
+        real(dp), intent(inout) :: sm(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: fp(:), pw(:)
+        real(dp) :: torque
+        integer :: j
+        allocate (fp(size(y)), pw(es%nwork))
+        call dyn_crates(es, y, fp, pw, torque, stat)
+        if (stat%code /= 0) return
+        do j = 1, size(sm, 2)
+            sm(:, j) = sm(:, j) + (fm - fp)*dtp(j)
+        end do
+        do j = 1, size(es%fmode)
+            if (es%fric((j + 1)/2) /= 0.0_dp .and. es%fmode(j) == 0) &
+                sm(es%n + dyn_fric_dof(es, j), :) = 0.0_dp
+        end do
+    end subroutine sens_event_post
+
+    !> The staggered direct sensitivity step of Radau IIA: differentiate the
+    !! converged stage equations (D Z)_i / h = f(y + Z_i, p) (M-form, as the
+    !! Newton residuals) and solve the linear stage sensitivity system
+    !!   (D dZ)_i / h = J(Y_i) (S + dZ_i) + f_p(Y_i)
+    !! by iteration with the step's factored simplified-Newton matrices
+    !! (the real and complex blocks), each pass one solve of each plus band
+    !! products with the exact stage Jacobians, until the correction is below
+    !! 1 % of the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate).
+    subroutine radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
+                               rtol, thn, sm, dzp, hp, passes, stat)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(inout) :: it
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), gam, ti1(3), tr(3), rtol
+        !> the contraction of the step's Newton iteration (same matrices)
+        real(dp), intent(in) :: thn
+        complex(dp), intent(in) :: mu, ti2(3), tc(3)
+        real(dp), intent(inout) :: sm(:, :)
+        !> the previous step's stage sensitivities and step (hp = 0: none, as
+        !! after a switch): the predictor, as the Newton iteration's
+        real(dp), intent(inout) :: dzp(:, :, :), hp
+        integer, intent(inout) :: passes          !< iteration passes, summed
+        type(status_t), intent(inout) :: stat
+        integer, parameter :: MAXIT = 40
+        real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
+        real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
+        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), del(:)
+        complex(dp), allocatable :: w2(:)
+        real(dp) :: e(3), xp, ref, err, errold, lsc(3), th
+        integer :: n, m, nw, nb, i, j, k, iter, kl, ku
+        n = es%n
+        m = es%ncstate
+        nw = size(sm, 2)
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        allocate (kb(nb, n, 3), cb(nb, n, 3), b(n, 3), p(n, 3), d(n, 3), acc(n, 3), &
+                  cst(m, 3, nw), dz(m, 3), r(m, 3), w(m), zd(m), t(n), fp(n), ys(m), &
+                  w1(m), w2(m), sc(m), del(m))
+        do i = 1, 3
+            ys = y + z(:, i)
+            call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                              cb(:, :, i), b(:, i), p(:, i), d(:, i), e(i))
+            acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
+                         + dmat(i, 3)*z(n + 1:2*n, 3))/hh
+            do j = 1, nw
+                call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
+                t = 0.0_dp
+                call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t)
+                cst(:, i, j) = 0.0_dp
+                cst(n + 1:2*n, i, j) = fp - t
+                if (es%nx > 0) cst(2*n + 1, i, j) = xp
+            end do
+        end do
+        do j = 1, nw
+            if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
+            if (hp > 0.0_dp) then
+                do i = 1, 3
+                    lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
+                    dz(:, i) = lsc(1)*dzp(:, 1, j) + lsc(2)*dzp(:, 2, j) &
+                               + (lsc(3) - 1.0_dp)*dzp(:, 3, j)
+                end do
+            else
+                dz = 0.0_dp
+            end if
+            ! the linear rows q' = v hold from the start (and after every
+            ! correction): the solves skip the products with their residual
+            do k = 1, it%nst
+                dz(it%stuck(k), :) = 0.0_dp
+            end do
+            do i = 1, 3
+                dz(n + 1:2*n, i) = (dmat(i, 1)*dz(1:n, 1) + dmat(i, 2)*dz(1:n, 2) &
+                                    + dmat(i, 3)*dz(1:n, 3))/hh - sm(n + 1:2*n, j)
+            end do
+            errold = huge(1.0_dp)
+            do iter = 1, MAXIT
+                do i = 1, 3
+                    ys(1:n) = y(1:n) + z(1:n, i)
+                    w = sm(:, j) + dz(:, i)
+                    zd = (dmat(i, 1)*dz(:, 1) + dmat(i, 2)*dz(:, 2) + dmat(i, 3)*dz(:, 3))/hh
+                    if (it%rot) then
+                        call to_mform(es, it, zd, ys(1:n))
+                    else
+                        call to_mform(es, it, zd)
+                    end if
+                    r(1:n, i) = 0.0_dp
+                    call dband_mv(n, kl, ku, kb(:, :, i), w(1:n), t)
+                    r(n + 1:2*n, i) = cst(n + 1:2*n, i, j) - t - zd(n + 1:2*n)
+                    call dband_mv(n, kl, ku, cb(:, :, i), w(n + 1:2*n), t)
+                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    t = 0.0_dp
+                    call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
+                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    if (es%nx > 0) then
+                        r(n + 1:2*n, i) = r(n + 1:2*n, i) + b(:, i)*w(2*n + 1)
+                        r(2*n + 1, i) = dot_product(p(:, i), w(1:n)) &
+                                        + dot_product(d(:, i), w(n + 1:2*n)) &
+                                        + e(i)*w(2*n + 1) + cst(2*n + 1, i, j) - zd(2*n + 1)
+                    end if
+                    do k = 1, it%nst
+                        r(it%stuck(k), i) = 0.0_dp
+                        r(n + it%stuck(k), i) = 0.0_dp
+                    end do
+                end do
+                w1 = ti1(1)*r(:, 1) + ti1(2)*r(:, 2) + ti1(3)*r(:, 3)
+                w2 = ti2(1)*r(:, 1) + ti2(2)*r(:, 2) + ti2(3)*r(:, 3)
+                call solve_real(es, it, gam/hh, w1, r_zero=.true.)
+                call solve_cplx(es, it, mu/hh, w2, r_zero=.true.)
+                ! error scale: the tolerance relative to this sensitivity's size
+                ! (velocity rows as the displacement they cause over the step)
+                ref = maxval(abs(sm(1:n, j)))
+                err = 0.0_dp
+                do i = 1, 3
+                    del = tr(i)*w1 + real(tc(i)*w2, dp)
+                    dz(:, i) = dz(:, i) + del
+                end do
+                ref = max(ref, maxval(abs(dz(1:n, :))), 1.0e-280_dp)
+                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
+                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
+                ! the motor torque row on its own scale
+                if (es%nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                   maxval(abs(dz(m, :))), 1.0e-280_dp)))
+                do i = 1, 3
+                    del = tr(i)*w1 + real(tc(i)*w2, dp)
+                    err = max(err, wrms(del, sc))
+                end do
+                passes = passes + 1
+                ! converged when the remaining error th/(1 - th) |correction|
+                ! is below 1 % of the tolerance, as the Newton iteration's test;
+                ! th: the observed contraction, at the first pass the Newton one
+                if (iter == 1) then
+                    th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                else
+                    th = min(sqrt(err/max(errold, tiny(1.0_dp))), 0.9_dp)
+                end if
+                if (th/(1.0_dp - th)*sqrt(err) <= 1.0e-2_dp) exit
+                ! below the tolerance and no longer contracting: the round-off
+                ! floor of the residuals (tolerances near 1e-12)
+                if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold) exit
+                errold = err
+            end do
+            if (iter > MAXIT) then
+                call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
+                                'the stage sensitivity iteration did not converge in '// &
+                                fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
+                return
+            end if
+            sm(:, j) = sm(:, j) + dz(:, 3)
+            dzp(:, :, j) = dz
+        end do
+        hp = hh
+    end subroutine radau_sens_step
 
 end module beamid_integrators

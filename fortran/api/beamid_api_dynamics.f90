@@ -14,22 +14,22 @@ module beamid_api_dynamics
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
-    use beamid_fe_assembly, only: fe_load_t, fe_band_rows, fe_band_to_dense, fe_node_value, &
+    use beamid_fe_assembly, only: fe_band_rows, fe_band_to_dense, fe_node_value, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
-    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
+                              NLOAD, release_quantity_name, release_wrt_name
     use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
                                zband_factor, zband_solve, dyn_system_t, dyn_setup, &
-                               dyn_forces, dyn_jacobian, dyn_mass, dyn_tip, dyn_energy, &
-                               dyn_set_modes, dyn_to_coords, dyn_to_physical, &
+                               dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
                                dyn_cforces, dyn_cjacobian, dyn_cmass
-    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
-                                  ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+    use beamid_integrators, only: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
                                   dband_mv, zband_mv
     implicit none
     private
 
     public :: api_dyn_sizes, api_dyn_simulate, api_dyn_simulate_modal, api_dyn_system
     public :: api_dyn_profile, api_dyn_band_solve, api_dyn_system_modal, api_dyn_ldlt_solve
+    public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
 
 contains
 
@@ -115,17 +115,11 @@ contains
         real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
         integer(c_int), intent(out) :: info(7), code
         character(len=256), intent(out) :: message
-        type(dyn_system_t) :: sys
+        type(chain_t) :: chain
         type(status_t) :: stat
-        type(fe_load_t) :: load
-        type(fe_newton_opts_t) :: nopts
-        type(fe_solve_info_t) :: sinfo
-        type(integ_opts_t) :: opts
-        type(integ_stats_t) :: stats
-        type(history_t) :: hist
-        real(dp), allocatable :: y0(:), q(:), yc(:)
-        real(dp) :: e0, kin, pot, u, w, ang
-        integer :: k, n
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        integer :: k, nowrt(0)
         states = 0.0_c_double
         tip = 0.0_c_double
         torque = 0.0_c_double
@@ -133,83 +127,72 @@ contains
         work = 0.0_c_double
         events = 0.0_c_double
         info = 0
-        call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
-        if (stat%code == STATUS_OK .and. (sys%nstate /= nstate .or. sys%nwork /= nwork)) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nstate = '// &
-                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
-                            ', expected '//fmt_int(sys%nstate)//', '//fmt_int(sys%nwork))
-        end if
-        if (stat%code == STATUS_OK .and. nmodes > 0) then
-            call dyn_set_modes(sys, int(modes(1:nmodes)), stat)
-        end if
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nmodes < 0) then
             call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nmodes = '// &
                             fmt_int(int(nmodes))//', expected >= 0')
         end if
         if (stat%code == STATUS_OK) then
-            n = sys%n
-            allocate (y0(sys%nstate), q(n))
-            y0 = 0.0_dp
-            if (use_init /= 0) then
-                y0 = y_init
-            else
-                load%fx = loads(1)
-                load%fy = loads(2)
-                load%moment = loads(3)
-                load%moment_form = nint(loads(4))
-                q = 0.0_dp
-                call fe_solve_static(sys%mesh, load, q, .false., nopts, sinfo, stat)
-                y0(1:n) = q
-            end if
+            call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            spec%modes = int(modes(1:max(0, nmodes)))
+            if (use_init /= 0) spec%y_init = real(y_init, dp)
+            call release_response(chain, spec, real(t_out, dp), nowrt, out, stat)
+        end if
+        if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'nstate = '// &
+                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
+                            ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
         end if
         if (stat%code == STATUS_OK) then
-            opts%method = int(method)
-            if (dt > 0.0_c_double) opts%dt = dt
-            if (rtol > 0.0_c_double) opts%rtol = rtol
-            if (atol > 0.0_c_double) then
-                opts%atol = atol
-            else
-                opts%atol = opts%rtol
-            end if
-            if (h0 > 0.0_c_double) opts%h0 = h0
-            if (dt < 0.0_c_double .or. rtol < 0.0_c_double .or. atol < 0.0_c_double) then
-                call set_status(stat, ERR_INPUT, 'api_dyn_simulate', 'dt, rtol and atol '// &
-                                'must not be negative (0: default)')
-            end if
-        end if
-        if (stat%code == STATUS_OK) then
-            call integrate(sys, y0, real(t_out, dp), opts, hist, stats, stat)
-            info = int([stats%steps, stats%rejected, stats%fevals, stats%jevals, &
-                        stats%newton, hist%nevents, stats%event_steps], c_int)
-            do k = 1, min(int(maxev), hist%nevents)
-                events(:, k) = [hist%events(k)%t, real(hist%events(k)%comp, dp), &
-                                real(hist%events(k)%kind, dp), real(hist%events(k)%before, dp), &
-                                real(hist%events(k)%after, dp), hist%events(k)%force_before, &
-                                hist%events(k)%force_after]
-            end do
-        end if
-        if (stat%code == STATUS_OK) then
-            ! the modal model starts from the projection of y0 on its modes
-            allocate (yc(sys%ncstate))
-            call dyn_to_coords(sys, y0, yc)
-            call dyn_to_physical(sys, yc, y0)
-            call dyn_energy(sys, y0(1:n), y0(n + 1:2*n), kin, pot)
-            e0 = kin + pot
-            states = hist%y
-            torque = hist%torque
-            work = hist%work
-            do k = 1, int(nt)
-                call dyn_tip(sys, hist%y(1:n, k), u, w, ang)
-                tip(:, k) = [u, w, ang]
-                ledger(1, k) = hist%kinetic(k)
-                ledger(2, k) = hist%potential(k)
-                ledger(3, k) = hist%kinetic(k) + hist%potential(k)
-                ledger(4, k) = ledger(3, k) - e0 - sum(hist%work(:, k))
-            end do
+            info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
+                        out%stats%jevals, out%stats%newton, out%hist%nevents, &
+                        out%stats%event_steps], c_int)
+            call copy_events(out, events)
+            states = out%hist%y
+            torque = out%hist%torque
+            work = out%hist%work
+            tip = out%tip
+            ledger = out%ledger
         end if
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_simulate_modal
+
+    !> The release spec of the binding's scalar arguments.
+    subroutine release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+        integer(c_int), intent(in) :: nepb, method, law
+        real(c_double), intent(in) :: loads(4), gain, vslip, dt, rtol, atol, h0
+        type(release_spec_t), intent(out) :: spec
+        spec%elements_per_beam = int(nepb)
+        spec%load%fx = loads(1)
+        spec%load%fy = loads(2)
+        spec%load%moment = loads(3)
+        spec%load%moment_form = nint(loads(4))
+        spec%motor_gain = gain
+        spec%integrator = int(method)
+        spec%friction = int(law)
+        spec%friction_velocity = vslip
+        spec%dt = dt
+        spec%rtol = rtol
+        spec%atol = atol
+        spec%h0 = h0
+    end subroutine release_spec
+
+    !> Event records as columns (time, component, kind, mode before, after,
+    !! force before, after), as many as fit.
+    subroutine copy_events(out, events)
+        type(release_out_t), intent(in) :: out
+        real(c_double), intent(out) :: events(:, :)
+        integer :: k
+        events = 0.0_c_double
+        do k = 1, min(size(events, 2), out%hist%nevents)
+            associate (ev => out%hist%events(k))
+                events(:, k) = [ev%t, real(ev%comp, dp), real(ev%kind, dp), &
+                                real(ev%before, dp), real(ev%after, dp), ev%force_before, &
+                                ev%force_after]
+            end associate
+        end do
+    end subroutine copy_events
 
     !> Generalized force F(q, v, x), work rates, torque, the Jacobians
     !! K = -dF/dq, C = -dF/dv (dense) and the motor-lag couplings b = dF/dT,
@@ -526,5 +509,90 @@ contains
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_ldlt_solve
+
+    !> The quantity table of a release (beamid_release QTY_*): the name of
+    !! quantity k and the number of quantities nq (k outside 1..nq: '').
+    subroutine api_dyn_quantity_name(k, name, nq)
+        integer(c_int), intent(in) :: k
+        character(len=32), intent(out) :: name
+        integer(c_int), intent(out) :: nq
+        name = release_quantity_name(int(k))
+        nq = int(NQTY, c_int)
+    end subroutine api_dyn_quantity_name
+
+    !> Name of sensitivity index `index` of a chain of nbeams beams (a
+    !! parameter's, or load_fx, load_fy, load_moment after them) and the
+    !! number of load components ncomp.
+    subroutine api_dyn_wrt_name(nbeams, index, name, ncomp)
+        integer(c_int), intent(in) :: nbeams, index
+        character(len=32), intent(out) :: name
+        integer(c_int), intent(out) :: ncomp
+        name = release_wrt_name(int(nbeams), int(index))
+        ncomp = int(NLOAD, c_int)
+    end subroutine api_dyn_wrt_name
+
+    !> A release (api_dyn_simulate's arguments, full model) with the exported
+    !! quantities y(nq, nt) (beamid_release QTY_*) and their sensitivities
+    !! dy(nq, nt, nwrt) with respect to the parameters wrt (1-based indices
+    !! into params, then nparams + 1..3: the load's fx, fy, moment), and the
+    !! state sensitivities ds(nstate, nt, nwrt).
+    subroutine api_dyn_release(nbeams, nparams, params, nepb, loads, gain, method, law, &
+                               vslip, dt, rtol, atol, h0, nstate, nt, t_out, nwork, nwrt, wrt, &
+                               nq, maxev, states, tip, torque, ledger, work, info, events, y, &
+                               dy, ds, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, nstate, nt, nwork
+        integer(c_int), intent(in) :: nwrt, wrt(nwrt), nq, maxev
+        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
+        real(c_double), intent(in) :: atol, h0, t_out(nt)
+        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
+        real(c_double), intent(out) :: y(nq, nt), dy(nq, nt, nwrt), ds(nstate, nt, nwrt)
+        integer(c_int), intent(out) :: info(7), code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        states = 0.0_c_double
+        tip = 0.0_c_double
+        torque = 0.0_c_double
+        ledger = 0.0_c_double
+        work = 0.0_c_double
+        events = 0.0_c_double
+        y = 0.0_c_double
+        dy = 0.0_c_double
+        ds = 0.0_c_double
+        info = 0
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code == STATUS_OK .and. nq /= NQTY) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nq = '//fmt_int(int(nq))// &
+                            ', expected '//fmt_int(NQTY))
+        end if
+        if (stat%code == STATUS_OK) then
+            call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
+        end if
+        if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nstate = '// &
+                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
+                            ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
+        end if
+        if (stat%code == STATUS_OK) then
+            info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
+                        out%stats%jevals, out%stats%newton, out%hist%nevents, &
+                        out%stats%event_steps], c_int)
+            call copy_events(out, events)
+            states = out%hist%y
+            torque = out%hist%torque
+            work = out%hist%work
+            tip = out%tip
+            ledger = out%ledger
+            y = out%y
+            dy = out%dy
+            ds = out%dstates
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+    end subroutine api_dyn_release
 
 end module beamid_api_dynamics

@@ -18,6 +18,8 @@ from .tables import reproduce
 from .measurements import Measurements, read_measurements
 from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
+from .dynamics import FrictionEvent
+from .dynamics import SENSITIVITY_QUANTITIES
 # the dynamics name also under an explicit alias
 simulate_dynamics = simulate
 from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
@@ -31,8 +33,9 @@ __all__ = [
     "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
-    "Measurements", "read_measurements", "fit", "identify", "Identification", "FitResult", "simulate_measurements",
-    "simulate", "simulate_dynamics", "Run",
+    "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
+    "identify", "Identification",
+    "simulate", "simulate_dynamics", "Run", "FrictionEvent", "SENSITIVITY_QUANTITIES",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",

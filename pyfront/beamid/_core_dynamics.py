@@ -109,3 +109,43 @@ def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: i
     return {"force": np.array(force), "power": np.array(power), "K": np.array(kmat),
             "C": np.array(cmat), "M": np.array(mass), "b": np.array(b), "p": np.array(p),
             "d": np.array(d), "e": float(e)}
+
+
+def quantity_names() -> tuple[str, ...]:
+    """Names of the exported quantities of a release (Fortran beamid_release QTY_*)."""
+    _, nq = _api.api_dyn_quantity_name(1)
+    return tuple(_api.api_dyn_quantity_name(k)[0].decode().strip() for k in range(1, nq + 1))
+
+
+def wrt_names(nbeams: int, nparams: int) -> tuple[str, ...]:
+    """Names of the sensitivity indices 1..nparams + nload: the parameters,
+    then load_fx, load_fy, load_moment (Fortran release_wrt_name)."""
+    _, nload = _api.api_dyn_wrt_name(nbeams, 1)
+    return tuple(_api.api_dyn_wrt_name(nbeams, k)[0].decode().strip()
+                 for k in range(1, nparams + nload + 1))
+
+
+def release(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,
+            method: int, law: int, vslip: float, dt: float, rtol: float, atol: float,
+            h0: float, t_out: np.ndarray, nstate: int, nwork: int, wrt: np.ndarray,
+            maxev: int = 4096):
+    """A release with sensitivities: (states, tip, torque, ledger, work, info,
+    events, y, dy, ds); ``wrt`` 1-based indices (parameters, then the load's
+    fx, fy, moment); y (nq, nt), dy (nq, nt, nwrt), ds (nstate, nt, nwrt)."""
+    nq = len(quantity_names())
+    w = np.ascontiguousarray(wrt, dtype=np.int32)
+    while True:
+        (states, tip, torque, ledger, work, info, events, y, dy, ds, code,
+         message) = _api.api_dyn_release(
+            nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
+            float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+            float(atol), float(h0), nstate, np.ascontiguousarray(t_out, dtype=float), nwork,
+            w, nq, int(maxev))
+        raise_for_status(int(code), message)
+        if int(info[5]) <= maxev:
+            break
+        maxev = int(info[5])
+    nev = int(info[5])
+    return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
+            np.array(work), tuple(int(v) for v in info), np.array(events[:, :nev]),
+            np.array(y), np.array(dy), np.array(ds))

@@ -40,7 +40,7 @@ import numpy as np
 from . import _core_dynamics as _cd
 from .errors import InputError
 
-__all__ = ["Run", "FrictionEvent", "simulate", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
+__all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
            "DEFAULT_FRICTION",
            "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
 
@@ -149,6 +149,12 @@ class Run:
     modes: tuple[int, ...] | None = None
     #: friction switches of the sign law (events), in time order
     events: tuple["FrictionEvent", ...] = ()
+    #: forward sensitivities (``wrt=``): ``d[quantity][parameter]`` arrays over
+    #: ``t`` (quantities as :data:`SENSITIVITY_QUANTITIES`, parameters by name,
+    #: the release load's components as ``load_fx``, ``load_fy``, ``load_moment``)
+    d: dict = field(default_factory=dict)
+    #: state sensitivities: ``dstates[parameter]`` is (nstate, nt)
+    dstates: dict = field(default_factory=dict)
     _model: object = field(repr=False, default=None)
 
     @property
@@ -223,7 +229,8 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
              friction: str | None = None, friction_velocity: float | None = None,
              atol: float | None = None, h0: float | None = None,
              initial_state: np.ndarray | None = None,
-             modes: int | str | Sequence[int] | None = None) -> Run:
+             modes: int | str | Sequence[int] | None = None,
+             wrt: Sequence[str] | str | None = None) -> Run:
     """Release the chain from rest at the static shape under ``release`` and
     integrate M q'' + NLT(q) = Q(q, q') (Eq. 98-107) to the times ``t_out``.
 
@@ -250,6 +257,11 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         :func:`beamid.modes` and the dissertation's #1..#33). The nonlinear
         force is projected on the retained modes; the initial state is
         projected too (eta = Phi^T M q). None (default): the full model.
+    wrt: parameter names (and ``"load_fx"``, ``"load_fy"``, ``"load_moment"``
+        for the release load) to differentiate with respect to: the forward
+        sensitivities (Eq. 135-140; docs/dynamics.md) come back in ``run.d``,
+        e.g. ``run.d["tip_w"]["rho1"]``. Full model only; the released shape's
+        sensitivity comes from the static equilibrium.
     """
     nbeams, params = _model_args(model)
     if integrator not in INTEGRATORS:
@@ -286,10 +298,30 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                              f"expected ({nstate},)")
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-    states, tip, torque, ledger, work, info, evs = _cd.simulate(
-        nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
-        FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
-        initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
+    wrt_list = _wrt_indices(nbeams, params.size, wrt)
+    d: dict = {}
+    dstates: dict = {}
+    if wrt_list:
+        if kept is not None:
+            raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
+        if initial_state is not None:
+            raise InputError("wrt= (sensitivities) starts from the release: drop "
+                             "initial_state=")
+        (states, tip, torque, ledger, work, info, evs, yq, dy, ds) = _cd.release(
+            nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
+            FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
+            t, nstate, nwork, np.array([i for _, i in wrt_list]))
+        qnames = _cd.quantity_names()
+        for iq, qn in enumerate(qnames):
+            d[qn] = {name: dy[iq, :, j] for j, (name, _) in enumerate(wrt_list)}
+        for alias, qn in _QUANTITY_ALIASES.items():
+            d[alias] = d[qn]
+        dstates = {name: ds[:, :, j] for j, (name, _) in enumerate(wrt_list)}
+    else:
+        states, tip, torque, ledger, work, info, evs = _cd.simulate(
+            nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
+            FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
+            initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
     names = work_names(nbeams)
     led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2]}
     for i, name in enumerate(names):
@@ -301,7 +333,36 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
                elements_per_beam=int(elements_per_beam),
                info=dict(zip(("steps", "rejected", "fevals", "jevals", "newton", "events",
                               "event_steps"), info)),
-               nfree=nfree, modes=kept, events=_events(nbeams, evs), _model=model)
+               nfree=nfree, modes=kept, events=_events(nbeams, evs), d=d, dstates=dstates,
+               _model=model)
+
+
+#: Quantities of ``Run.d`` (the Fortran table beamid_release QTY_*) ...
+SENSITIVITY_QUANTITIES = ("u_tip", "w_tip", "x_tip", "y_tip", "tip_angle", "x_elbow", "y_elbow",
+                          "motor_torque", "energy")
+#: ... and the names of Run's own arrays for the same quantities.
+_QUANTITY_ALIASES = {"tip_u": "u_tip", "tip_w": "w_tip"}
+
+
+def _wrt_indices(nbeams: int, nparams: int, wrt) -> list[tuple[str, int]]:
+    """(name, 1-based Fortran index) of each requested sensitivity."""
+    if wrt is None:
+        return []
+    if isinstance(wrt, str):
+        wrt = (wrt,)
+    names = _cd.wrt_names(nbeams, nparams)
+    index = {n: i + 1 for i, n in enumerate(names)}
+    for comp in ("fx", "fy", "moment"):
+        index[comp] = index[f"load_{comp}"]
+    out = []
+    for name in wrt:
+        if not isinstance(name, str) or name not in index:
+            raise InputError(f"wrt: unknown parameter {name!r}; expected one of "
+                             f"{', '.join(names)}")
+        if any(n == name for n, _ in out):
+            raise InputError(f"wrt: {name!r} given twice")
+        out.append((name, index[name]))
+    return out
 
 
 def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float = 0.0,

@@ -1,0 +1,256 @@
+!> Release experiments (Chapter IV.2, V.2): the finite element chain held in
+!! static equilibrium under a tip load, released at rest at t = 0 (with the
+!! tip motor when motor_gain > 0), integrated to the output times, with the
+!! energy ledger (Eq. 118-122, 155-156) and, on request, the forward
+!! sensitivities of the outputs with respect to model parameters and the
+!! release load's components (Eq. 135-140, 161-162; docs/theory_dynamics.md).
+!!
+!! This is the one library routine behind beamid.simulate (through the f2py
+!! binding beamid_api_dynamics), the batch program's &simulate decks and the
+!! dynamic experiments of the estimation.
+!!
+!! Parameters are addressed by their index in the model's flat parameter
+!! vector (beamid_model: param_index_*, param_name); the release load's
+!! components follow it: index param_count(nbeams) + LOAD_FX, LOAD_FY,
+!! LOAD_MOMENT (release_load_index).
+module beamid_release
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
+    use beamid_model, only: chain_t, param_count, param_name
+    use beamid_fe_assembly, only: fe_load_t
+    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_to_coords, &
+                               dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, &
+                               FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
+                               dyn_static_sens, dyn_output_sens
+    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
+                                  METHOD_IMPLICIT
+    implicit none
+    private
+
+    public :: release_spec_t, release_out_t, release_response, release_load_index
+    public :: release_quantity_name, release_wrt_name
+    public :: NQTY, QTY_U_TIP, QTY_W_TIP, QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, &
+              QTY_Y_ELBOW, QTY_MOTOR_TORQUE, QTY_ENERGY
+    public :: NLOAD, LOAD_FX, LOAD_FY, LOAD_MOMENT
+
+    !> Exported quantities of a release (rows of release_out_t%y). The elbow
+    !! is mass point 1 (joint 1; the tip of a single beam). x = s + u, y = w.
+    integer, parameter :: QTY_U_TIP = 1, QTY_W_TIP = 2, QTY_X_TIP = 3, QTY_Y_TIP = 4, &
+                          QTY_TIP_ANGLE = 5, QTY_X_ELBOW = 6, QTY_Y_ELBOW = 7, &
+                          QTY_MOTOR_TORQUE = 8, QTY_ENERGY = 9, NQTY = 9
+    character(len=12), parameter :: QTY_NAMES(NQTY) = [character(len=12) :: &
+        'u_tip', 'w_tip', 'x_tip', 'y_tip', 'tip_angle', 'x_elbow', 'y_elbow', &
+        'motor_torque', 'energy']
+    !> Components of the release load, after the model parameters in wrt.
+    integer, parameter :: LOAD_FX = 1, LOAD_FY = 2, LOAD_MOMENT = 3, NLOAD = 3
+    character(len=6), parameter :: LOAD_NAMES(NLOAD) = [character(len=6) :: &
+        'fx', 'fy', 'moment']
+
+    !> What a release experiment is: mesh, load, motor and integration.
+    type :: release_spec_t
+        integer :: elements_per_beam = 4
+        type(fe_load_t) :: load               !< the static load held before t = 0
+        real(dp) :: motor_gain = 0.0_dp       !< g of Eq. 150 (0: no motor)
+        integer :: integrator = METHOD_IMPLICIT
+        real(dp) :: rtol = 0.0_dp             !< 0: the integrator's default (1e-9)
+        real(dp) :: atol = 0.0_dp             !< 0: rtol
+        real(dp) :: dt = 0.0_dp               !< RK4 step, 0: 1e-5 s
+        real(dp) :: h0 = 0.0_dp               !< implicit first step, 0: default
+        integer :: friction = FRICTION_SIGN
+        real(dp) :: friction_velocity = 1.0e-4_dp
+        !> truncated modal model: retained mode numbers (unallocated or empty:
+        !! the full model; no sensitivities in the modal model)
+        integer, allocatable :: modes(:)
+        !> start from this state instead of the static shape (its sensitivity
+        !! is then zero)
+        real(dp), allocatable :: y_init(:)
+    end type release_spec_t
+
+    !> The response at the output times.
+    type :: release_out_t
+        real(dp), allocatable :: y(:, :)          !< (NQTY, nt), rows QTY_*
+        real(dp), allocatable :: dy(:, :, :)      !< (NQTY, nt, size(wrt))
+        real(dp), allocatable :: ledger(:, :)     !< (4, nt): kinetic, strain, total, numerical
+        real(dp), allocatable :: tip(:, :)        !< (3, nt): u, w, angle
+        !> state sensitivities dy/dp (nstate, nt, size(wrt))
+        real(dp), allocatable :: dstates(:, :, :)
+        type(history_t) :: hist                   !< states, torque, energies, work, events
+        type(integ_stats_t) :: stats
+        integer :: nfree = 0, nstate = 0, nwork = 0
+    end type release_out_t
+
+contains
+
+    !> Index in wrt of release load component `comp` (LOAD_*).
+    pure integer function release_load_index(nbeams, comp)
+        integer, intent(in) :: nbeams, comp
+        release_load_index = param_count(nbeams) + comp
+    end function release_load_index
+
+    !> Name of exported quantity k (QTY_*), '' outside the table.
+    pure function release_quantity_name(k) result(name)
+        integer, intent(in) :: k
+        character(len=:), allocatable :: name
+        if (k < 1 .or. k > NQTY) then
+            name = ''
+        else
+            name = trim(QTY_NAMES(k))
+        end if
+    end function release_quantity_name
+
+    !> Name of a wrt index: the parameter's, or load_fx, load_fy, load_moment.
+    pure function release_wrt_name(nbeams, index) result(name)
+        integer, intent(in) :: nbeams, index
+        character(len=:), allocatable :: name
+        integer :: k
+        k = index - param_count(nbeams)
+        if (k >= 1 .and. k <= NLOAD) then
+            name = 'load_'//trim(LOAD_NAMES(k))
+        else
+            name = param_name(nbeams, index)
+        end if
+    end function release_wrt_name
+
+    !> Release the chain at the static equilibrium under spec%load, integrate
+    !! to t_out (ascending, >= 0; t = 0 gives the static shape) and return the
+    !! exported quantities and their sensitivities with respect to the
+    !! parameters wrt (indices into the parameter vector, then the load's).
+    subroutine release_response(chain, spec, t_out, wrt, out, stat)
+        type(chain_t), intent(in) :: chain
+        type(release_spec_t), intent(in) :: spec
+        real(dp), intent(in) :: t_out(:)
+        integer, intent(in) :: wrt(:)
+        type(release_out_t), intent(out) :: out
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'release_response'
+        type(dyn_system_t) :: sys
+        type(fe_newton_opts_t) :: nopts
+        type(fe_solve_info_t) :: sinfo
+        type(integ_opts_t) :: opts
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: y0(:), q(:), yc(:), s0(:, :)
+        real(dp) :: e0, u, w, ang
+        integer :: k, n, nt, nw, j
+        logical :: modal
+
+        nt = size(t_out)
+        nw = size(wrt)
+        call dyn_setup(chain, spec%elements_per_beam, spec%motor_gain, spec%friction, &
+                       spec%friction_velocity, sys, stat)
+        if (stat%code /= STATUS_OK) return
+        modal = .false.
+        if (allocated(spec%modes)) modal = size(spec%modes) > 0
+        if (modal) then
+            if (nw > 0) then
+                call set_status(stat, ERR_INPUT, where, 'sensitivities are not available '// &
+                                'in the truncated modal model (modes): use the full model')
+                return
+            end if
+            call dyn_set_modes(sys, spec%modes, stat)
+            if (stat%code /= STATUS_OK) return
+        end if
+        do j = 1, nw
+            if (wrt(j) < 1 .or. wrt(j) > param_count(chain%nbeams) + NLOAD) then
+                call set_status(stat, ERR_INPUT, where, 'wrt('//fmt_int(j)//') = '// &
+                                fmt_int(wrt(j))//', expected 1..'// &
+                                fmt_int(param_count(chain%nbeams) + NLOAD)// &
+                                ' (a parameter index, then fx, fy, moment of the load)')
+                return
+            end if
+        end do
+        n = sys%n
+        out%nfree = n
+        out%nstate = sys%nstate
+        out%nwork = sys%nwork
+        allocate (y0(sys%nstate), q(n), s0(sys%nstate, nw), pars(nw))
+        do j = 1, nw
+            call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), &
+                                 wrt(j), pars(j), stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+        y0 = 0.0_dp
+        s0 = 0.0_dp
+        if (allocated(spec%y_init)) then
+            if (size(spec%y_init) /= sys%nstate) then
+                call set_status(stat, ERR_INPUT, where, 'initial state has '// &
+                                fmt_int(size(spec%y_init))//' entries, expected '// &
+                                fmt_int(sys%nstate))
+                return
+            end if
+            y0 = spec%y_init
+        else
+            q = 0.0_dp
+            call fe_solve_static(sys%mesh, spec%load, q, .false., nopts, sinfo, stat)
+            if (stat%code /= STATUS_OK) return
+            y0(1:n) = q
+            ! the released shape's sensitivity (implicit function theorem on the
+            ! static equilibrium, the Newton tangent); zero velocity sensitivity
+            if (nw > 0) call dyn_static_sens(sys, spec%load, q, pars, s0(1:n, :), stat)
+            if (stat%code /= STATUS_OK) return
+            ! the released shape's sensitivity (implicit function theorem on the
+            ! static equilibrium, the Newton tangent); zero velocity sensitivity
+        end if
+        opts%method = spec%integrator
+        if (spec%dt > 0.0_dp) opts%dt = spec%dt
+        if (spec%rtol > 0.0_dp) opts%rtol = spec%rtol
+        if (spec%atol > 0.0_dp) then
+            opts%atol = spec%atol
+        else
+            opts%atol = opts%rtol
+        end if
+        if (spec%h0 > 0.0_dp) opts%h0 = spec%h0
+        if (spec%dt < 0.0_dp .or. spec%rtol < 0.0_dp .or. spec%atol < 0.0_dp) then
+            call set_status(stat, ERR_INPUT, where, 'dt, rtol and atol must not be '// &
+                            'negative (0: default)')
+            return
+        end if
+        if (nw > 0) then
+            call integrate(sys, y0, t_out, opts, out%hist, out%stats, stat, pars, s0, &
+                           out%dstates)
+        else
+            allocate (out%dstates(sys%nstate, nt, 0))
+            call integrate(sys, y0, t_out, opts, out%hist, out%stats, stat)
+        end if
+        if (stat%code /= STATUS_OK) return
+        ! the modal model starts from the projection of y0 on its modes
+        allocate (yc(sys%ncstate))
+        call dyn_to_coords(sys, y0, yc)
+        call dyn_to_physical(sys, yc, y0)
+        call dyn_energy(sys, y0(1:n), y0(n + 1:2*n), u, w)
+        e0 = u + w
+        allocate (out%y(NQTY, nt), out%dy(NQTY, nt, nw), out%ledger(4, nt), out%tip(3, nt))
+        out%dy = 0.0_dp
+        do k = 1, nt
+            associate (y => out%hist%y(:, k))
+                call dyn_tip(sys, y(1:n), u, w, ang)
+                out%tip(:, k) = [u, w, ang]
+                out%ledger(1, k) = out%hist%kinetic(k)
+                out%ledger(2, k) = out%hist%potential(k)
+                out%ledger(3, k) = out%hist%kinetic(k) + out%hist%potential(k)
+                out%ledger(4, k) = out%ledger(3, k) - e0 - sum(out%hist%work(:, k))
+                out%y(QTY_U_TIP, k) = u
+                out%y(QTY_W_TIP, k) = w
+                out%y(QTY_X_TIP, k) = sum(chain%length) + u
+                out%y(QTY_Y_TIP, k) = w
+                out%y(QTY_TIP_ANGLE, k) = ang
+                out%y(QTY_X_ELBOW, k) = chain%length(1) + y(sys%iu(1))
+                out%y(QTY_Y_ELBOW, k) = y(sys%iw(1))
+                out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
+                out%y(QTY_ENERGY, k) = out%ledger(3, k)
+                do j = 1, nw
+                    call dyn_output_sens(sys, pars(j), y, out%dstates(:, k, j), &
+                                         out%dy(QTY_U_TIP:QTY_W_TIP, k, j), &
+                                         out%dy(QTY_TIP_ANGLE, k, j), &
+                                         out%dy(QTY_MOTOR_TORQUE, k, j), &
+                                         out%dy(QTY_ENERGY, k, j))
+                    out%dy(QTY_X_TIP, k, j) = out%dy(QTY_U_TIP, k, j)
+                    out%dy(QTY_Y_TIP, k, j) = out%dy(QTY_W_TIP, k, j)
+                    out%dy(QTY_X_ELBOW, k, j) = out%dstates(sys%iu(1), k, j)
+                    out%dy(QTY_Y_ELBOW, k, j) = out%dstates(sys%iw(1), k, j)
+                end do
+            end associate
+        end do
+    end subroutine release_response
+
+end module beamid_release
