@@ -31,7 +31,7 @@ from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
 from .estimation import _named, _prior_arrays, _result
-from .loads import RadialWire, TipLoad
+from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
 
@@ -150,7 +150,9 @@ class Comparison:
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
     the force magnitude, else the moment magnitude, else for a wire the
-    pull-in (total length - Lw)."""
+    pull-in (total length - Lw); for a release, its load's (as beamid-batch)."""
+    if isinstance(load, Release):
+        load = load.load
     if isinstance(load, RadialWire):
         return model.total_length - load.Lw
     force = math.hypot(load.fx, load.fy)
