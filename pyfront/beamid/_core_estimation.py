@@ -219,13 +219,22 @@ def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    out = _api.api_diagnose_nominal(
-        prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-        _pad(prior_idx, np.int32), _pad(prior_mean, float),
-        _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-        prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
-        starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
-        float(collinear))
+    if prob.row_t is not None:   # release experiments (beamid_inverse)
+        out = _api.api_problem_diagnose(
+            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
+            _pad(prior_idx, np.int32), _pad(prior_mean, float),
+            _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+            _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+            int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
+            float(ambiguity_delta), float(collinear))
+    else:
+        out = _api.api_diagnose_nominal(
+            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
+            _pad(prior_idx, np.int32), _pad(prior_mean, float),
+            _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
+            prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
+            starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
+            float(collinear))
     (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes, code,
      message) = out
     raise_for_status(int(code), message)
