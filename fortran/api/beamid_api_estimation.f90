@@ -32,6 +32,21 @@ module beamid_api_estimation
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
 
+    !> The names of the columns of the result arrays (exported by
+    !! api_code_names, tables 5-8, so that no front decodes them by position):
+    !! stats of a fit, cstats (per candidate), pstats (per candidate
+    !! parameter) and dstats (the diagnosis) of api_diagnose.
+    character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
+        'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
+    character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
+        'score_drop', 'score_p', 'score_dof', 'physical', 'identifiable', 'refit_done', &
+        'refit_ok', 'lr_drop', 'lr_p', 'significant', 'acceptable', 'rival', 'separation', &
+        'sep_experiment', 'sep_quantity', 'refit_chi2', 'refit_chi2_prior']
+    character(len=*), parameter :: PSTAT_NAMES(6) = [character(len=12) :: 'estimate', &
+        'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
+    character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
+        'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
+
 contains
 
     subroutine make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, &
@@ -109,8 +124,9 @@ contains
 
     !> The words of a code table of beamid_estimation, one per code from 0
     !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
-    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*).
-    !! code = -1 for an unknown table.
+    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*),
+    !! and the column names of the result arrays: 5 a fit's stats, 6 cstats,
+    !! 7 pstats, 8 dstats (from position 1). code = -1 for an unknown table.
     subroutine api_code_names(table, names, code)
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
@@ -125,6 +141,14 @@ contains
             names = joined(START_NAMES)
         case (4)
             names = joined(CAND_NAMES)
+        case (5)
+            names = joined(FIT_STAT_NAMES)
+        case (6)
+            names = joined(CSTAT_NAMES)
+        case (7)
+            names = joined(PSTAT_NAMES)
+        case (8)
+            names = joined(DSTAT_NAMES)
         case default
             names = ''
             code = -1
