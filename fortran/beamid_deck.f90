@@ -27,6 +27,8 @@ module beamid_deck
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, NEFFECT
+    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
+                              EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
     use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
@@ -83,6 +85,11 @@ module beamid_deck
         ! &experiment and &fit (tasks fit, compare, diagnose, improve; docs/decks.md)
         character(len=:), allocatable :: exp_names(:)   !< experiment names, deck order
         type(static_load_t), allocatable :: experiments(:)
+        !> release experiments (kind = 'release', issue 13): exp_kind(e) = 3
+        !! and exp_values(:, e) in beamid_inverse's EV_* layout; 0 for the
+        !! static experiments (their load is experiments(e))
+        integer, allocatable :: exp_kind(:)
+        real(dp), allocatable :: exp_values(:, :)
         character(len=:), allocatable :: data_path      !< measurement CSV
         type(measurements_t) :: data
         integer, allocatable :: row_exp(:)              !< experiment index of each data row
@@ -565,6 +572,91 @@ contains
         end select
     end subroutine read_load_values
 
+    !> An &experiment: a static load (read_load_values), or kind = 'release'
+    !! (issue 13): the tip load fx, fy, moment held before the release and
+    !! the options of beamid.Release (elements_per_beam 4, motor_gain 0,
+    !! integrator 'implicit' or 'rk4', rtol, dt, friction 'sign', 'smooth' or
+    !! 'sign_literal'), in ev (beamid_inverse's EV_* layout; ev(EV_NEPB) = 0
+    !! for a static experiment).
+    subroutine read_experiment(f, g, label, arm, load, ev, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=*), intent(in) :: label
+        real(dp), intent(in) :: arm
+        type(static_load_t), intent(out) :: load
+        real(dp), intent(out) :: ev(NEXPVAL)
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: kind, text
+        character(len=*), parameter :: dyn_keys(6) = [character(len=17) :: &
+            'elements_per_beam', 'motor_gain', 'integrator', 'rtol', 'dt', 'friction']
+        logical :: given
+        integer :: nepb, i
+        real(dp) :: x
+        ev = 0.0_dp
+        kind = ''
+        call nml_str(f, g, 'kind', kind, given, errors)
+        if (trim(kind) /= 'release') then
+            do i = 1, size(dyn_keys)
+                if (nml_given(g, trim(dyn_keys(i)))) call add_error(errors, label// &
+                    ": kind = '"//trim(kind)//"' does not take "//trim(dyn_keys(i))// &
+                    " (only kind = 'release' does)")
+            end do
+            call read_load_values(f, g, label, arm, load, errors)
+            return
+        end if
+        load%kind = LOAD_TIP
+        call nml_real(f, g, 'fx', load%fx, given, errors)
+        call nml_real(f, g, 'fy', load%fy, given, errors)
+        call nml_real(f, g, 'moment', load%moment, given, errors)
+        if (nml_given(g, 'wire_length')) call add_error(errors, label// &
+            ": kind = 'release' does not take wire_length (the release is from a tip load)")
+        ev(EV_FX:EV_MOMENT) = [load%fx, load%fy, load%moment]
+        nepb = 4
+        call nml_int(f, g, 'elements_per_beam', nepb, given, errors)
+        if (nepb < 1) call add_error(errors, label//': elements_per_beam = '//fmt_int(nepb)// &
+                                     ', expected at least 1')
+        ev(EV_NEPB) = real(max(nepb, 1), dp)
+        x = 0.0_dp
+        call nml_real(f, g, 'motor_gain', x, given, errors)
+        if (x < 0.0_dp) call add_error(errors, label//': motor_gain = '//fmt_g(x)// &
+                                       ', expected >= 0')
+        ev(EV_GAIN) = max(x, 0.0_dp)
+        text = 'implicit'
+        call nml_str(f, g, 'integrator', text, given, errors)
+        select case (trim(text))
+        case ('implicit')
+            ev(EV_METHOD) = 1.0_dp
+        case ('rk4')
+            ev(EV_METHOD) = 0.0_dp
+        case default
+            call add_error(errors, label//": integrator = '"//trim(text)// &
+                           "', expected 'implicit' or 'rk4'")
+        end select
+        text = 'sign'
+        call nml_str(f, g, 'friction', text, given, errors)
+        select case (trim(text))
+        case ('sign')
+            ev(EV_LAW) = 0.0_dp
+        case ('smooth')
+            ev(EV_LAW) = 1.0_dp
+        case ('sign_literal')
+            ev(EV_LAW) = 2.0_dp
+        case default
+            call add_error(errors, label//": friction = '"//trim(text)// &
+                           "', expected 'sign', 'smooth' or 'sign_literal'")
+        end select
+        x = 0.0_dp
+        call nml_real(f, g, 'rtol', x, given, errors)
+        if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': rtol = '// &
+                                                         fmt_g(x)//', expected > 0')
+        ev(EV_RTOL) = max(x, 0.0_dp)
+        x = 0.0_dp
+        call nml_real(f, g, 'dt', x, given, errors)
+        if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': dt = '// &
+                                                         fmt_g(x)//', expected > 0 (s)')
+        ev(EV_DT) = max(x, 0.0_dp)
+    end subroutine read_experiment
+
     !> Total length of the deck's chain (0 when the model has errors).
     pure real(dp) function arm_length(deck)
         type(deck_t), intent(in) :: deck
@@ -865,7 +957,10 @@ contains
         type(static_load_t), allocatable :: loads(:)
         type(nml_text_t), allocatable :: names(:)
         integer, allocatable :: block(:)
-        logical, allocatable :: is_wire(:)
+        logical, allocatable :: is_wire(:), has_motor(:)
+        integer, allocatable :: kinds(:)
+        real(dp), allocatable :: evalues(:, :)
+        real(dp) :: ev(NEXPVAL)
         logical :: given, data_ok
         integer :: ne, k, i, ig, np, nm, ns, maxlen, slash, kk, nerr
         type(status_t) :: st
@@ -875,11 +970,13 @@ contains
         ! ---- &experiment, one group per experiment
         nerr = count_lines_alloc(errors)
         ne = nml_count(f, 'experiment')
-        allocate (names(0), loads(0))
+        allocate (names(0), loads(0), kinds(0), evalues(NEXPVAL, 0))
         do k = 1, ne
             ig = nml_find(f, 'experiment', k)
             gx = f%groups(ig)
-            call nml_check_keys(f, gx, ' name kind fx fy moment wire_length ', errors)
+            call nml_check_keys(f, gx, ' name kind fx fy moment wire_length '// &
+                                'elements_per_beam motor_gain integrator rtol dt friction ', &
+                                errors)
             name = ''
             call nml_str(f, gx, 'name', name, given, errors)
             name = trim(adjustl(name))
@@ -895,9 +992,11 @@ contains
                 if (names(i)%s == name) call add_error(errors, where// &
                     "&experiment name = '"//name//"' defined twice")
             end do
-            call read_load_values(f, gx, label, arm_length(deck), load, errors)
+            call read_experiment(f, gx, label, arm_length(deck), load, ev, errors)
             names = [names, nml_text_t(name)]
             loads = [loads, load]
+            kinds = [kinds, merge(EXP_RELEASE, 0, ev(EV_NEPB) > 0.0_dp)]
+            evalues = reshape([evalues, ev], [NEXPVAL, size(kinds)])
         end do
         if (ne == 0) call add_error(errors, f%path//': no &experiment groups: define at '// &
                                     'least one experiment')
@@ -910,7 +1009,10 @@ contains
             deck%exp_names(i) = names(i)%s
         end do
         deck%experiments = loads
-        is_wire = loads%kind == LOAD_WIRE
+        deck%exp_kind = kinds
+        deck%exp_values = evalues
+        is_wire = loads%kind == LOAD_WIRE .and. kinds == 0
+        has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
 
         ! ---- &fit
         allocate (deck%free(0), deck%prior_index(0), deck%prior_mean(0), deck%prior_sigma(0))
@@ -1019,7 +1121,7 @@ contains
         call read_measurements(deck%data_path, deck%data, st)
         if (st%code == STATUS_OK .and. ne > 0 .and. count_lines_alloc(errors) == nerr) &
             call check_static_rows(deck%data, &
-            deck%exp_names, is_wire, deck%row_exp, st)
+            deck%exp_names, is_wire, deck%row_exp, st, kinds == EXP_RELEASE, has_motor)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(f%groups(ig)%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_groups

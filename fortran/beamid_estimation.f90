@@ -32,7 +32,7 @@ module beamid_estimation
     public :: score_result_t, candidate_t, diagnose_options_t, candidate_report_t
     public :: diagnosis_t, refit_info_t
     public :: fit_least_squares, fit_at, score_test, diagnose, chi2_sf, residual_structure
-    public :: refit_effect
+    public :: refit_effect, prior_from_covariance
 
     !> Per-parameter flags of a fit (worst first).
     integer, parameter, public :: FLAG_OK = 0           !< determined
@@ -101,10 +101,14 @@ module beamid_estimation
     end interface
 
     !> A priori information (Eq. 142-145): parameter index, mean, sigma.
-    !! Each entry adds the pseudo-measurement (mean - p) / sigma.
+    !! Each entry adds the pseudo-measurement (mean - p) / sigma. With a full
+    !! covariance E (a previous fit's, carried forward: Eq. 146-148, 164-166)
+    !! `whiten` holds L^-1 for E = L L^T, and the pseudo-measurements are
+    !! L^-1 (mean - p), whose weight is E^-1 (prior_from_covariance).
     type :: prior_t
         integer, allocatable :: index(:)
         real(dp), allocatable :: mean(:), sigma(:)
+        real(dp), allocatable :: whiten(:, :)
     end type prior_t
 
     type :: fit_options_t
@@ -239,6 +243,15 @@ contains
         end do
         r(1:m) = (y - pred)/sigma
         a(m + 1:, :) = 0.0_dp
+        if (allocated(prior%whiten)) then
+            r(m + 1:) = matmul(prior%whiten, prior%mean - params(prior%index))
+            do i = 1, size(prior%index)
+                do j = 1, size(cols)
+                    if (cols(j) == prior%index(i)) a(m + 1:, j) = prior%whiten(:, i)
+                end do
+            end do
+            return
+        end if
         do i = 1, size(prior%index)
             r(m + i) = (prior%mean(i) - params(prior%index(i)))/prior%sigma(i)
             do j = 1, size(cols)
@@ -246,6 +259,58 @@ contains
             end do
         end do
     end subroutine weighted_system
+
+    !> A priori information with a full covariance `cov` of the parameters
+    !! `index` about `mean` (a previous fit carried forward, Eq. 146-148 and
+    !! 164-166): whiten = L^-1 for the Cholesky factor cov = L L^T, sigma the
+    !! square roots of the diagonal. A covariance that is not symmetric
+    !! positive definite (an undetermined direction) is bad input.
+    pure subroutine prior_from_covariance(index, mean, cov, prior, stat)
+        integer, intent(in) :: index(:)
+        real(dp), intent(in) :: mean(:), cov(:, :)
+        type(prior_t), intent(out) :: prior
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: l(:, :), w(:, :)
+        integer :: n, i, j, k
+        n = size(index)
+        if (size(mean) /= n .or. size(cov, 1) /= n .or. size(cov, 2) /= n) then
+            call set_status(stat, ERR_INPUT, 'a priori covariance', 'sizes differ: '// &
+                            fmt_int(n)//' parameters')
+            return
+        end if
+        if (.not. all(ieee_is_finite(cov))) then
+            call set_status(stat, ERR_INPUT, 'a priori covariance', 'not finite (a '// &
+                            'parameter the previous data did not determine)')
+            return
+        end if
+        allocate (l(n, n), w(n, n))
+        l = 0.0_dp
+        do j = 1, n
+            l(j, j) = cov(j, j) - sum(l(j, 1:j - 1)**2)
+            if (.not. l(j, j) > 0.0_dp) then
+                call set_status(stat, ERR_INPUT, 'a priori covariance', 'not positive '// &
+                                'definite at parameter '//fmt_int(index(j)))
+                return
+            end if
+            l(j, j) = sqrt(l(j, j))
+            do i = j + 1, n
+                l(i, j) = (0.5_dp*(cov(i, j) + cov(j, i)) - &
+                           sum(l(i, 1:j - 1)*l(j, 1:j - 1)))/l(j, j)
+            end do
+        end do
+        ! w = L^-1 (lower triangular, forward substitution per column)
+        w = 0.0_dp
+        do k = 1, n
+            w(k, k) = 1.0_dp/l(k, k)
+            do i = k + 1, n
+                w(i, k) = -sum(l(i, k:i - 1)*w(k:i - 1, k))/l(i, i)
+            end do
+        end do
+        prior%index = index
+        prior%mean = mean
+        prior%sigma = [(sqrt(cov(i, i)), i=1, n)]
+        prior%whiten = w
+    end subroutine prior_from_covariance
 
     !> Thin SVD of a with columns scaled to unit norm: a = u s vt d.
     subroutine scaled_svd(a, d, s, u, vt, stat)

@@ -15,7 +15,8 @@ module beamid_measurements
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, ERR_SIZE, &
                              MAX_BYTES, fmt_int, fmt_bytes, set_alloc_error, lower
-    use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE
+    use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE, &
+                                         Q_MOTOR_TORQUE
     implicit none
     private
 
@@ -218,13 +219,17 @@ contains
     !> Rows of static experiments: t must be 0, and wire_force needs a wire
     !! (the checks of beamid.estimation.build_problem). `row_exp` gives each
     !! row's experiment index into names/is_wire.
-    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat)
+    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor)
         type(measurements_t), intent(in) :: data
         character(len=*), intent(in) :: names(:)
         logical, intent(in) :: is_wire(:)
         integer, allocatable, intent(out) :: row_exp(:)
         type(status_t), intent(inout) :: stat
+        !> release experiments (issue 13): any t >= 0, no wire_force, and
+        !! motor_torque only with a motor (has_motor)
+        logical, intent(in), optional :: is_release(:), has_motor(:)
         integer :: i, e
+        logical :: release
         character(len=:), allocatable :: where
         allocate (row_exp(size(data%experiment)))
         row_exp = 0
@@ -235,6 +240,31 @@ contains
             do e = 1, size(names)
                 if (names(e) == data%experiment(i)) row_exp(i) = e
             end do
+            release = .false.
+            if (present(is_release)) release = is_release(row_exp(i))
+            if (data%quantity(i) == Q_MOTOR_TORQUE) then
+                if (.not. release) then
+                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
+                                    ', but experiment '//quote(trim(data%experiment(i)))// &
+                                    ' is static (no motor)')
+                    return
+                end if
+                if (.not. has_motor(row_exp(i))) then
+                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
+                                    ', but experiment '//quote(trim(data%experiment(i)))// &
+                                    ' has no motor (motor_gain = 0)')
+                    return
+                end if
+            end if
+            if (release) then
+                if (data%quantity(i) == Q_WIRE_FORCE) then
+                    call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', "// &
+                                    'but experiment '//quote(trim(data%experiment(i)))// &
+                                    ' is a release (no wire)')
+                    return
+                end if
+                cycle
+            end if
             if (data%t(i) /= 0.0_dp) then
                 call set_status(stat, ERR_INPUT, where, 'field t = '//fmt_g(data%t(i))// &
                                 ', expected 0 for the static experiment '// &

@@ -31,12 +31,17 @@ module beamid_static_experiments
     !> Quantity codes.
     integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
                                   Q_WIRE_FORCE = 4, Q_X_ELBOW = 5, Q_Y_ELBOW = 6, Q_U_TIP = 7, &
-                                  Q_W_TIP = 8
-    integer, parameter :: NQUANT = 8
-    character(len=*), parameter :: QUANTITY_NAMES(NQUANT) = [character(len=10) :: &
-        'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', 'u_tip', 'w_tip']
-    !> Solver output feeding each quantity.
-    integer, parameter :: QUANTITY_OUTPUT(NQUANT) = [1, 2, 3, 4, 5, 6, 1, 2]
+                                  Q_W_TIP = 8, Q_MOTOR_TORQUE = 9
+    !> The one quantity registry of every experiment family: static
+    !! experiments measure codes 1-8 (wire_force with a wire only), release
+    !! experiments (beamid_dynamic_experiments) all but wire_force, and
+    !! motor_torque only with a motor.
+    integer, parameter :: NQUANT = 9
+    character(len=*), parameter :: QUANTITY_NAMES(NQUANT) = [character(len=12) :: &
+        'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', 'u_tip', 'w_tip', &
+        'motor_torque']
+    !> Solver output feeding each static quantity (motor_torque: none).
+    integer, parameter :: QUANTITY_OUTPUT(NQUANT) = [1, 2, 3, 4, 5, 6, 1, 2, 0]
 
     !> Static candidate effects, in registry order.
     integer, parameter :: NEFFECT = 4
@@ -109,6 +114,12 @@ contains
                 call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
                                 ': wire_force measured in experiment '//fmt_int(row_exp(i))// &
                                 ', which has no wire')
+                return
+            end if
+            if (row_quantity(i) == Q_MOTOR_TORQUE) then
+                call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
+                                ': motor_torque measured in the static experiment '// &
+                                fmt_int(row_exp(i))//', which has no motor')
                 return
             end if
         end do

@@ -24,12 +24,15 @@ module beamid_tasks
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t
     use beamid_fe_nodes, only: fe_mesh_from_params, fe_setup, fe_static_nodes, fe_modes_table
-    ! The dynamics and estimation drivers are the f2py entries (beamid.simulate
-    ! and beamid.fit call the same), until issue 11.2 moves their logic into
-    ! library modules.
-    use beamid_api_estimation, only: api_fit, api_diagnose
+    ! Every driver is a library call, as the f2py layer makes it: finite
+    ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
+    ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
-    use beamid_estimation, only: residual_structure, chi2_sf
+    use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
+                                 prior_t, candidate_t, diagnose_options_t, diagnosis_t, &
+                                 FLAG_NAMES, CAND_NAMES
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
+                              inverse_diagnose, NEXPVAL
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
@@ -42,27 +45,12 @@ module beamid_tasks
         character(len=:), allocatable :: names
     end type files_t
 
-    !> One fit: the outputs of api_fit.
-    type :: fit_out_t
-        integer(c_int), allocatable :: free(:), flags(:)
-        real(c_double), allocatable :: params(:), sigmas(:), cov(:, :), pred(:), norm(:)
-        real(c_double) :: stats(8) = 0.0_c_double
-    end type fit_out_t
-
-    !> One diagnosis: the outputs of api_diagnose and the candidate blocks.
+    !> One diagnosis: the library's report, the probe rows and the
+    !! candidate blocks (parameters cparams(start(c):start(c+1)-1)).
     type :: diag_out_t
-        integer(c_int), allocatable :: start(:), cparams(:), ranking(:)
-        real(c_double), allocatable :: cstats(:, :), pstats(:, :), refit_params(:, :)
-        real(c_double) :: dstats(6) = 0.0_c_double
+        type(diagnosis_t) :: diag
+        integer, allocatable :: start(:), cparams(:), pexp(:), pq(:)
     end type diag_out_t
-
-    !> Flag texts of the estimates (beamid.estimation.FLAG_TEXT).
-    character(len=*), parameter :: flag_text(0:4) = [character(len=43) :: 'ok', &
-        'not determined by these data', 'ran away from its start', &
-        'correlation near +-1 with another parameter', 'at a physical bound']
-    !> Candidate states (beamid.diagnosis._STATES).
-    character(len=*), parameter :: state_text(0:3) = [character(len=19) :: 'tested', &
-        'already free', 'already switched on', 'not in this model']
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
         'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
@@ -380,7 +368,7 @@ contains
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        type(fit_out_t) :: fo
+        type(fit_result_t) :: fo
         type(diag_out_t) :: dg
         character(len=:), allocatable :: prefix
         character(len=32), allocatable :: step_effect(:)
@@ -403,14 +391,14 @@ contains
                 call estimation_diagnose(d, fo, dg, st)
                 if (st%code /= STATUS_OK) return
                 step_effect = [character(len=32) :: step_effect, effect]
-                step_chi2 = [step_chi2, real(fo%stats(1), dp)]
-                step_dof = [step_dof, nint(fo%stats(4))]
+                step_chi2 = [step_chi2, fo%chi2]
+                step_dof = [step_dof, fo%dof]
                 step_cpd = [step_cpd, chi2_per_dof(fo)]
-                v = nint(dg%dstats(1))
+                v = dg%diag%verdict
                 if (v == 0 .or. k == size(d%candidates)) exit
                 start = fo%params
-                if (dg%cstats(7, v) /= 0.0_dp .and. dg%cstats(8, v) /= 0.0_dp) &
-                    start = dg%refit_params(:, v)
+                if (dg%diag%cand(v)%refit_done .and. dg%diag%cand(v)%refit_ok) &
+                    start = dg%diag%cand(v)%refit%params
                 effect = d%candidates(v)
                 call estimation_fit(d, start, [integer :: fo%free, &
                                     dg%cparams(dg%start(v):dg%start(v + 1) - 1)], fo, st)
@@ -463,7 +451,7 @@ contains
     !! the moment magnitude, else for a wire the pull-in (total length - Lw).
     subroutine write_compare(d, fo, name, fl, st)
         type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
+        type(fit_result_t), intent(in) :: fo
         character(len=*), intent(in) :: name
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
@@ -488,16 +476,16 @@ contains
                     level(i) = abs(x%moment)
                 end if
             end associate
-            per_exp(e) = per_exp(e) + fo%norm(i)**2
+            per_exp(e) = per_exp(e) + fo%normalized(i)**2
         end do
-        call residual_structure(level, d%data%quantity, real(fo%norm, dp), out)
-        dof = fo%stats(4)
+        call residual_structure(level, d%data%quantity, fo%normalized, out)
+        dof = real(fo%dof, dp)
         p = ieee_value(1.0_dp, ieee_quiet_nan)
-        if (nint(dof) > 0) p = chi2_sf(fo%stats(1) + fo%stats(2), nint(dof))
+        if (fo%dof > 0) p = chi2_sf(fo%chi2 + fo%chi2_prior, fo%dof)
         systematic = (p < 0.01_dp) .or. (out(4) < 0.01_dp) .or. (out(7) < 0.01_dp)
         call open_output(fl, name, 'quantity,value', unit, ios, st)
         if (st%code /= STATUS_OK) return
-        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1)))
+        call put(unit, ios, 'chi2,'//fmt_e(fo%chi2))
         call put(unit, ios, 'dof,'//fmt_int(nint(dof)))
         call put(unit, ios, 'expected,'//fmt_e(dof))
         call put(unit, ios, 'expected_sigma,'//fmt_e(sqrt(2.0_dp*max(dof, 0.0_dp))))
@@ -514,111 +502,111 @@ contains
 
     !> (chi2 + chi2_prior) / dof, NaN without degrees of freedom.
     real(dp) function chi2_per_dof(fo)
-        type(fit_out_t), intent(in) :: fo
+        type(fit_result_t), intent(in) :: fo
         chi2_per_dof = ieee_value(1.0_dp, ieee_quiet_nan)
-        if (nint(fo%stats(4)) > 0) chi2_per_dof = (fo%stats(1) + fo%stats(2))/fo%stats(4)
+        if (fo%dof > 0) chi2_per_dof = (fo%chi2 + fo%chi2_prior)/real(fo%dof, dp)
     end function chi2_per_dof
 
-    !> The problem arrays of the f2py API (beamid_api_estimation).
-    subroutine problem_arrays(d, exp_kind, exp_values, row_q)
+    !> The deck's inverse problem (beamid_inverse): its experiments and rows.
+    subroutine deck_problem(d, problem, st)
         type(deck_t), intent(in) :: d
-        integer(c_int), allocatable, intent(out) :: exp_kind(:), row_q(:)
-        real(c_double), allocatable, intent(out) :: exp_values(:, :)
+        type(inverse_problem_t), intent(out) :: problem
+        type(status_t), intent(inout) :: st
+        real(dp), allocatable :: values(:, :)
+        integer, allocatable :: kinds(:)
         integer :: e
-        allocate (exp_kind(size(d%experiments)), exp_values(4, size(d%experiments)))
+        allocate (values(NEXPVAL, size(d%experiments)), kinds(size(d%experiments)))
+        values = 0.0_dp
         do e = 1, size(d%experiments)
-            exp_kind(e) = int(d%experiments(e)%kind, c_int)
-            exp_values(:, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                                d%experiments(e)%moment, d%experiments(e)%wire_length]
+            kinds(e) = d%experiments(e)%kind
+            values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
+                              d%experiments(e)%moment, d%experiments(e)%wire_length]
         end do
-        row_q = int(d%data%quantity, c_int)
-    end subroutine problem_arrays
+        if (allocated(d%exp_kind)) then
+            where (d%exp_kind > 0) kinds = d%exp_kind
+            do e = 1, size(d%experiments)
+                if (d%exp_kind(e) > 0) values(:, e) = d%exp_values(:, e)
+            end do
+        end if
+        call inverse_problem_init(d%nbeams, kinds, values, d%row_exp, d%data%t, &
+                                  d%data%quantity, 0.0_dp, problem, st)
+    end subroutine deck_problem
 
-    !> Weighted GN/LM fit of the free parameters from params0 (api_fit).
+    !> The deck's a priori information (Eq. 142-145).
+    pure function deck_prior(d) result(prior)
+        type(deck_t), intent(in) :: d
+        type(prior_t) :: prior
+        prior%index = d%prior_index
+        prior%mean = d%prior_mean
+        prior%sigma = d%prior_sigma
+    end function deck_prior
+
+    !> Weighted GN/LM fit of the free parameters from params0 (inverse_fit,
+    !! as beamid.fit).
     subroutine estimation_fit(d, params0, free, fo, st)
         type(deck_t), intent(in) :: d
         real(dp), intent(in) :: params0(:)
         integer, intent(in) :: free(:)
-        type(fit_out_t), intent(out) :: fo
+        type(fit_result_t), intent(out) :: fo
         type(status_t), intent(inout) :: st
-        integer(c_int), allocatable :: exp_kind(:), row_q(:)
-        real(c_double), allocatable :: exp_values(:, :), corr(:, :), log1(:), log2(:), log3(:)
-        real(c_double), allocatable :: logp(:, :)
-        integer(c_int) :: code
-        character(len=256) :: message
-        integer :: nf, nrow, np
+        type(inverse_problem_t) :: problem
+        type(fit_options_t) :: opts
+        type(status_t) :: stat
 
-        call problem_arrays(d, exp_kind, exp_values, row_q)
-        nf = size(free)
-        nrow = size(d%row_exp)
-        np = size(d%prior_index)
-        fo%free = int(free, c_int)
-        allocate (fo%params(size(params0)), fo%sigmas(nf), fo%cov(nf, nf), corr(nf, nf), &
-                  fo%flags(nf), fo%pred(nrow), fo%norm(nrow), log1(d%max_iter + 1), &
-                  log2(d%max_iter + 1), log3(d%max_iter + 1), logp(nf, d%max_iter + 1))
-        call api_fit(int(d%nbeams, c_int), int(size(params0), c_int), params0, int(nf, c_int), &
-                     fo%free, int(np, c_int), [int(d%prior_index, c_int), 0_c_int], &
-                     [d%prior_mean, 0.0_dp], [d%prior_sigma, 0.0_dp], &
-                     int(size(exp_kind), c_int), exp_kind, exp_values, int(nrow, c_int), &
-                     int(d%row_exp, c_int), row_q, d%data%value, d%data%sigma, 0.0_c_double, &
-                     int(d%max_iter, c_int), 0.0_c_double, 0.0_c_double, fo%params, fo%sigmas, &
-                     fo%cov, corr, fo%flags, fo%pred, fo%norm, fo%stats, log1, log2, log3, &
-                     logp, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'fit', trim(message))
-            st%message = message
+        call deck_problem(d, problem, stat)
+        if (stat%code == STATUS_OK) then
+            opts%max_iter = d%max_iter
+            call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, deck_prior(d), &
+                             opts, fo, stat)
         end if
+        if (stat%code /= STATUS_OK) st = stat
     end subroutine estimation_fit
 
     !> Score tests, refits and ranking of the deck's candidates around a fit
-    !! (api_diagnose with the defaults of beamid.diagnose: 3 refits,
-    !! ambiguity 4, collinearity 0.98, 50 iterations).
+    !! (inverse_diagnose with the defaults of beamid.diagnose: 3 refits,
+    !! ambiguity 4, collinearity 0.98, 50 iterations; the refits also start
+    !! from the deck's model, as beamid.diagnose starts them from the user's).
     subroutine estimation_diagnose(d, fo, dg, st)
         type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
+        type(fit_result_t), intent(in) :: fo
         type(diag_out_t), intent(out) :: dg
         type(status_t), intent(inout) :: st
-        integer(c_int), allocatable :: exp_kind(:), row_q(:), block(:)
-        real(c_double), allocatable :: exp_values(:, :), cosine(:, :)
-        integer(c_int) :: code
-        character(len=256) :: message
-        integer :: c, nc, ncp, nrow, np
+        type(inverse_problem_t) :: problem
+        type(fit_options_t) :: opts
+        type(diagnose_options_t) :: dopts
+        type(fit_result_t) :: base
+        type(candidate_t), allocatable :: cands(:)
+        type(status_t) :: stat
+        integer :: c, nc
 
-        call problem_arrays(d, exp_kind, exp_values, row_q)
         nc = size(d%candidates)
-        allocate (dg%start(nc + 1), dg%cparams(0))
+        allocate (dg%start(nc + 1), dg%cparams(0), cands(nc))
         dg%start(1) = 1
         do c = 1, nc
-            call static_effect_params(d%nbeams, d%candidates(c), block, st)
+            call static_effect_params(d%nbeams, d%candidates(c), cands(c)%params, st)
             if (st%code /= STATUS_OK) return
-            dg%cparams = [dg%cparams, block]
-            dg%start(c + 1) = dg%start(c) + size(block)
+            cands(c)%name = trim(d%candidates(c))
+            dg%cparams = [dg%cparams, cands(c)%params]
+            dg%start(c + 1) = dg%start(c) + size(cands(c)%params)
         end do
-        ncp = size(dg%cparams)
-        nrow = size(d%row_exp)
-        np = size(d%prior_index)
-        allocate (dg%cstats(18, nc), dg%pstats(6, ncp + 1), dg%refit_params(size(fo%params), nc), &
-                  dg%ranking(nc), cosine(nc, nc))
-        call api_diagnose(int(d%nbeams, c_int), int(size(fo%params), c_int), fo%params, &
-                          int(size(fo%free), c_int), fo%free, int(np, c_int), &
-                          [int(d%prior_index, c_int), 0_c_int], [d%prior_mean, 0.0_dp], &
-                          [d%prior_sigma, 0.0_dp], int(size(exp_kind), c_int), exp_kind, &
-                          exp_values, int(nrow, c_int), int(d%row_exp, c_int), row_q, &
-                          d%data%value, d%data%sigma, 0.0_c_double, 50_c_int, 0.0_c_double, &
-                          0.0_c_double, int(nc, c_int), dg%start, int(ncp, c_int), &
-                          [dg%cparams, 0_c_int], d%alpha, 3_c_int, 4.0_c_double, 0.98_c_double, &
-                          dg%cstats, dg%pstats, dg%refit_params, dg%ranking, cosine, dg%dstats, &
-                          code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'diagnose', trim(message))
-            st%message = message
+        call deck_problem(d, problem, stat)
+        if (stat%code == STATUS_OK) then
+            opts%max_iter = 50
+            dopts%alpha = d%alpha
+            dopts%nrefit = 3
+            dopts%ambiguity_delta = 4.0_dp
+            dopts%collinear = 0.98_dp
+            call inverse_diagnose(problem, d%data%value, d%data%sigma, fo%params, d%params, &
+                                  fo%free, deck_prior(d), cands, opts, dopts, base, dg%diag, &
+                                  dg%pexp, dg%pq, stat)
         end if
+        if (stat%code /= STATUS_OK) st = stat
     end subroutine estimation_diagnose
 
     !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine write_fit_files(d, fo, prefix, fl, st)
         type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
+        type(fit_result_t), intent(in) :: fo
         character(len=*), intent(in) :: prefix
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
@@ -630,13 +618,13 @@ contains
         do i = 1, size(fo%free)
             call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
                      fmt_e(fo%params(fo%free(i)))//','//fmt_e(fo%sigmas(i))//','// &
-                     trim(flag_text(min(max(fo%flags(i), 0), 4))))
+                     trim(FLAG_NAMES(min(max(fo%flags(i), 0), 4))))
         end do
-        call put(unit, ios, 'chi2,'//fmt_e(fo%stats(1))//',,')
-        call put(unit, ios, 'chi2_prior,'//fmt_e(fo%stats(2))//',,')
-        call put(unit, ios, 'dof,'//fmt_int(nint(fo%stats(4)))//',,')
-        call put(unit, ios, 'iterations,'//fmt_int(nint(fo%stats(6)))//',,')
-        call put(unit, ios, 'condition_number,'//fmt_e(fo%stats(3))//',,')
+        call put(unit, ios, 'chi2,'//fmt_e(fo%chi2)//',,')
+        call put(unit, ios, 'chi2_prior,'//fmt_e(fo%chi2_prior)//',,')
+        call put(unit, ios, 'dof,'//fmt_int(fo%dof)//',,')
+        call put(unit, ios, 'iterations,'//fmt_int(fo%iterations)//',,')
+        call put(unit, ios, 'condition_number,'//fmt_e(fo%cond)//',,')
         call close_checked(unit, ios, prefix//'_estimates.csv', st)
         if (st%code /= STATUS_OK) return
 
@@ -662,7 +650,8 @@ contains
         do r = 1, size(d%row_exp)
             call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
                      quantity_label(d%data%quantity(r))//','//fmt_e(d%data%value(r))//','// &
-                     fmt_e(fo%pred(r))//','//fmt_e(d%data%sigma(r))//','//fmt_e(fo%norm(r)))
+                     fmt_e(fo%predictions(r))//','//fmt_e(d%data%sigma(r))//','// &
+                     fmt_e(fo%normalized(r)))
         end do
         call close_checked(unit, ios, prefix//'_residuals.csv', st)
     end subroutine write_fit_files
@@ -673,7 +662,7 @@ contains
     !! test's (first order).
     subroutine write_ranking(d, fo, dg, name, fl, st)
         type(deck_t), intent(in) :: d
-        type(fit_out_t), intent(in) :: fo
+        type(fit_result_t), intent(in) :: fo
         type(diag_out_t), intent(in) :: dg
         character(len=*), intent(in) :: name
         type(files_t), intent(inout) :: fl
@@ -688,23 +677,23 @@ contains
                          'refit_p,chi2_drop,p_value,estimate,sigma,physical,identifiable,'// &
                          'significant,acceptable,rival', unit, ios, st)
         if (st%code /= STATUS_OK) return
-        do rank = 1, size(dg%ranking)
-            c = dg%ranking(rank)
-            associate (cs => dg%cstats(:, c))
-                state = nint(cs(1))
+        do rank = 1, size(dg%diag%ranking)
+            c = dg%diag%ranking(rank)
+            associate (cr => dg%diag%cand(c))
+                state = cr%state
                 tested = state == 0
-                refit = tested .and. cs(7) /= 0.0_dp .and. cs(8) /= 0.0_dp
-                score_drop = merge(cs(2), nan, tested)
-                score_p = merge(cs(3), nan, tested)
-                lr_drop = merge(cs(9), nan, refit)
-                lr_p = merge(cs(10), nan, refit)
+                refit = tested .and. cr%refit_done .and. cr%refit_ok
+                score_drop = merge(cr%score%drop, nan, tested)
+                score_p = merge(cr%score%p_value, nan, tested)
+                lr_drop = merge(cr%lr_drop, nan, refit)
+                lr_p = merge(cr%lr_p, nan, refit)
                 drop = score_drop
                 p = score_p
                 if (refit .and. .not. ieee_is_nan(lr_drop)) drop = lr_drop
                 if (refit .and. .not. ieee_is_nan(lr_p)) p = lr_p
                 if (tested) then
-                    flags = b2s(cs(5))//','//b2s(cs(6))//','//b2s(cs(11))//','//b2s(cs(12))// &
-                            ','//b2s(cs(13))
+                    flags = b2s(cr%score%physical)//','//b2s(cr%score%identifiable)//','// &
+                            b2s(cr%significant)//','//b2s(cr%acceptable)//','//b2s(cr%rival)
                 else
                     flags = '1,1,0,0,0'
                 end if
@@ -717,15 +706,18 @@ contains
                         k = dg%start(c) + j - 1
                         pname = param_name(d%nbeams, dg%cparams(k))
                         if (refit) then
-                            est = dg%pstats(4, k)
-                            sig = dg%pstats(5, k)
+                            est = cr%refit%params(dg%cparams(k))
+                            sig = cr%refit%sigmas(size(fo%free) + j)
+                        else if (tested .and. allocated(cr%score%estimate)) then
+                            est = fo%params(dg%cparams(k)) + cr%score%estimate(j)
+                            sig = cr%score%sigma(j)
                         else if (tested) then
-                            est = fo%params(dg%cparams(k)) + dg%pstats(1, k)
-                            sig = dg%pstats(2, k)
+                            est = fo%params(dg%cparams(k))
+                            sig = 0.0_dp
                         end if
                     end if
                     call put(unit, ios, fmt_int(rank)//','//trim(d%candidates(c))//','// &
-                             trim(state_text(state))//','//pname//','//fmt_e(score_drop)//','// &
+                             trim(CAND_NAMES(state))//','//pname//','//fmt_e(score_drop)//','// &
                              fmt_e(score_p)//','//fmt_e(lr_drop)//','//fmt_e(lr_p)//','// &
                              fmt_e(drop)//','//fmt_e(p)//','//fmt_e(est)//','//fmt_e(sig)//','// &
                              flags)
@@ -735,11 +727,11 @@ contains
         call close_checked(unit, ios, name, st)
     end subroutine write_ranking
 
-    !> A 0/1 flag of the API as '0' or '1'.
+    !> A logical as '0' or '1'.
     pure function b2s(x) result(text)
-        real(c_double), intent(in) :: x
+        logical, intent(in) :: x
         character(len=1) :: text
-        text = merge('1', '0', x /= 0.0_c_double)
+        text = merge('1', '0', x)
     end function b2s
 
     !> Write one line unless an earlier write failed.

@@ -19,14 +19,33 @@ module beamid_api_estimation
 
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          static_bounds, static_null_values, probe_rows
+    use beamid_estimation, only: prior_from_covariance, STOP_NAMES
+    use beamid_deck, only: deck_t, read_deck
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_diagnose, NEXPVAL
     implicit none
     private
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
+    public :: api_problem_predict, api_problem_fit, api_deck_experiments, api_problem_diagnose
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
+
+    !> The names of the columns of the result arrays (exported by
+    !! api_code_names, tables 5-8, so that no front decodes them by position):
+    !! stats of a fit, cstats (per candidate), pstats (per candidate
+    !! parameter) and dstats (the diagnosis) of api_diagnose.
+    character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
+        'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
+    character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
+        'score_drop', 'score_p', 'score_dof', 'physical', 'identifiable', 'refit_done', &
+        'refit_ok', 'lr_drop', 'lr_p', 'significant', 'acceptable', 'rival', 'separation', &
+        'sep_experiment', 'sep_quantity', 'refit_chi2', 'refit_chi2_prior']
+    character(len=*), parameter :: PSTAT_NAMES(6) = [character(len=12) :: 'estimate', &
+        'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
+    character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
+        'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
 
 contains
 
@@ -50,6 +69,24 @@ contains
         call static_experiments_init(int(nbeams), loads, int(row_exp), int(row_q), &
                                      real(tol, dp), model, stat)
     end subroutine make_experiments
+
+    !> The inverse problem (beamid_inverse) of static experiments given as
+    !! (kind, fx, fy, moment, wire_length) columns: rows at t = 0.
+    subroutine static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                              model, stat)
+        integer(c_int), intent(in) :: nbeams, nexp, nrow
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(4, nexp), tol
+        type(inverse_problem_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: values(:, :), t(:)
+        allocate (values(NEXPVAL, nexp), t(nrow))
+        values = 0.0_dp
+        values(1:4, :) = exp_values
+        t = 0.0_dp
+        call inverse_problem_init(int(nbeams), int(exp_kind), values, int(row_exp), t, &
+                                  int(row_q), real(tol, dp), model, stat)
+    end subroutine static_problem
 
     subroutine make_options(max_iter, tol_step, tol_cost, opts)
         integer(c_int), intent(in) :: max_iter
@@ -87,8 +124,9 @@ contains
 
     !> The words of a code table of beamid_estimation, one per code from 0
     !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
-    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*).
-    !! code = -1 for an unknown table.
+    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*),
+    !! and the column names of the result arrays: 5 a fit's stats, 6 cstats,
+    !! 7 pstats, 8 dstats (from position 1). code = -1 for an unknown table.
     subroutine api_code_names(table, names, code)
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
@@ -103,6 +141,14 @@ contains
             names = joined(START_NAMES)
         case (4)
             names = joined(CAND_NAMES)
+        case (5)
+            names = joined(FIT_STAT_NAMES)
+        case (6)
+            names = joined(CSTAT_NAMES)
+        case (7)
+            names = joined(PSTAT_NAMES)
+        case (8)
+            names = joined(DSTAT_NAMES)
         case default
             names = ''
             code = -1
@@ -401,7 +447,11 @@ contains
         character(len=256), intent(out) :: message
         integer(c_int) :: refit_start(ncand)
         character(len=8192) :: notes
-        call diagnose_core(nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                            model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
                            prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
                            row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
                            tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
@@ -438,7 +488,11 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        call diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                            model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
                            prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
                            row_exp, row_q, row_value, row_sigma, tol, max_iter, 0.0_c_double, &
                            0.0_c_double, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
@@ -446,7 +500,47 @@ contains
                            cosine, dstats, refit_start, notes, code, message)
     end subroutine api_diagnose_nominal
 
-    subroutine diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+    !> api_diagnose_nominal on any mix of experiment families (kinds 1-3,
+    !! exp_values(:, e) in the EV_* layout, rows with times row_t).
+    subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
+                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, &
+                                    exp_kind, exp_values, nrow, row_exp, row_t, row_q, &
+                                    row_value, row_sigma, tol, max_iter, ncand, cand_start, &
+                                    ncandp, cand_params, alpha, nrefit, ambiguity_delta, &
+                                    collinear, cstats, pstats, refit_params, ranking, cosine, &
+                                    dstats, refit_start, notes, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, &
+                           nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
+                           exp_values, nrow, row_exp, row_q, row_value, row_sigma, tol, &
+                           max_iter, 0.0_c_double, 0.0_c_double, ncand, cand_start, ncandp, &
+                           cand_params, alpha, nrefit, ambiguity_delta, collinear, cstats, &
+                           pstats, refit_params, ranking, cosine, dstats, refit_start, notes, &
+                           code, message)
+    end subroutine api_problem_diagnose
+
+    subroutine diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
                              prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &
                              nrow, row_exp, row_q, row_value, row_sigma, tol, max_iter, &
                              tol_step, tol_cost, ncand, cand_start, ncandp, cand_params, alpha, &
@@ -457,7 +551,7 @@ contains
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
         integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: exp_values(:, :), row_value(nrow), row_sigma(nrow)
         real(c_double), intent(in) :: tol, tol_step, tol_cost
         integer(c_int), intent(in) :: ncand, ncandp, nrefit
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
@@ -469,15 +563,15 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        type(static_experiments_t) :: model, probe
-        type(status_t) :: stat
+        !> the problem (built by the caller; stat: how that went)
+        type(inverse_problem_t), intent(inout) :: model
+        type(status_t), intent(inout) :: stat
         type(fit_options_t) :: opts
         type(diagnose_options_t) :: dopts
         type(fit_result_t) :: base
         type(prior_t) :: prior
         type(diagnosis_t) :: diag
         type(candidate_t), allocatable :: cands(:)
-        real(dp), allocatable :: lower(:), upper(:), nulls(:), psig(:)
         integer, allocatable :: pexp(:), pq(:)
         character(len=:), allocatable :: text
         integer :: c, k, j, nf, r
@@ -490,19 +584,11 @@ contains
         refit_start = 0
         dstats = 0.0_c_double
         notes = ''
-        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, tol_step, tol_cost, opts)
             prior%index = int(prior_idx(1:nprior))
             prior%mean = real(prior_mean(1:nprior), dp)
             prior%sigma = real(prior_sigma(1:nprior), dp)
-            call static_bounds(int(nbeams), lower, upper)
-            call static_null_values(int(nbeams), nulls)
-            call fit_at(model, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
-                        int(free_idx), lower, upper, prior, opts, base, stat)
-        end if
-        if (stat%code == STATUS_OK) then
             allocate (cands(ncand))
             do c = 1, ncand
                 cands(c)%name = 'candidate'
@@ -512,14 +598,9 @@ contains
             dopts%nrefit = int(nrefit)
             dopts%ambiguity_delta = ambiguity_delta
             dopts%collinear = collinear
-            call probe_rows(model%loads, model%row_quantity, real(row_sigma, dp), pexp, pq, psig)
-            call static_experiments_init(int(nbeams), model%loads, pexp, pq, real(tol, dp), &
-                                         probe, stat)
-        end if
-        if (stat%code == STATUS_OK) then
-            call diagnose(model, real(row_value, dp), real(row_sigma, dp), base, nulls, lower, &
-                          upper, prior, cands, opts, dopts, diag, stat, probe, psig, &
-                          real(nominal, dp))
+            call inverse_diagnose(model, real(row_value, dp), real(row_sigma, dp), &
+                                  real(params0, dp), real(nominal, dp), int(free_idx), prior, &
+                                  cands, opts, dopts, base, diag, pexp, pq, stat)
         end if
         code = int(stat%code, c_int)
         message = stat%message
@@ -568,4 +649,149 @@ contains
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
     end subroutine diagnose_core
+
+    !> The experiments of an estimation deck in beamid_inverse's layout
+    !! (kind 1 tip, 2 wire, 3 release; exp_values(:, e) EV_*), nexp of them
+    !! (sizes first: call with nexp = 0 to get the count in `count`).
+    subroutine api_deck_experiments(path, nexp, exp_kind, exp_values, count, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nexp
+        integer(c_int), intent(out) :: exp_kind(nexp + 1), count, code
+        real(c_double), intent(out) :: exp_values(12, nexp + 1)
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        integer :: e
+        exp_kind = 0
+        exp_values = 0.0_c_double
+        count = 0
+        call read_deck(path, d, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
+        count = int(size(d%experiments), c_int)
+        do e = 1, min(int(nexp), size(d%experiments))
+            exp_kind(e) = int(d%experiments(e)%kind, c_int)
+            exp_values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
+                                  d%experiments(e)%moment, d%experiments(e)%wire_length]
+            if (allocated(d%exp_kind)) then
+                if (d%exp_kind(e) > 0) then
+                    exp_kind(e) = int(d%exp_kind(e), c_int)
+                    exp_values(:, e) = d%exp_values(:, e)
+                end if
+            end if
+        end do
+    end subroutine api_deck_experiments
+
+    !> Predictions of the data rows of any mix of experiment families
+    !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
+    !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
+    !! params(wrt(1:nwrt)) (wrt carries one unused trailing entry: nwrt may be 0).
+    subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+                                   row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
+                                   message)
+        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
+        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt + 1)
+        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        real(dp) :: p(nrow), j(nrow, nwrt)
+        pred = 0.0_c_double
+        jac = 0.0_c_double
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt(1:nwrt)), p, &
+                                                        j, stat)
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (stat%code /= STATUS_OK) return
+        pred = p
+        jac(:, 1:nwrt) = j
+    end subroutine api_problem_predict
+
+    !> api_fit_effect (nblock = 0) on any mix of experiment families, with
+    !! a priori information either independent (use_cov = 0: mean, sigma) or
+    !! a full covariance prior_cov of the prior parameters (use_cov = 1: a
+    !! previous fit carried forward, Eq. 146-148, 164-166).
+    subroutine api_problem_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                               prior_mean, prior_sigma, use_cov, prior_cov, nexp, exp_kind, &
+                               exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
+                               tol, max_iter, params, sigmas, cov, corr, flags, predictions, &
+                               normalized, stats, log_cost, log_lambda, log_step, log_params, &
+                               info, code, message, note)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        integer(c_int), intent(in) :: use_cov
+        real(c_double), intent(in) :: params0(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
+        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: stats(8)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: res
+        type(prior_t) :: prior
+        real(dp), allocatable :: lower(:), upper(:)
+        integer :: n
+
+        params = params0
+        sigmas = 0.0_c_double
+        cov = 0.0_c_double
+        corr = 0.0_c_double
+        flags = 0
+        predictions = 0.0_c_double
+        normalized = 0.0_c_double
+        stats = 0.0_c_double
+        log_cost = 0.0_c_double
+        log_lambda = 0.0_c_double
+        log_step = 0.0_c_double
+        log_params = 0.0_c_double
+        info = 0
+        note = ''
+        n = int(nprior)
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+            if (use_cov /= 0) then
+                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
+                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
+            else
+                prior%index = int(prior_idx(1:n))
+                prior%mean = real(prior_mean(1:n), dp)
+                prior%sigma = real(prior_sigma(1:n), dp)
+            end if
+        end if
+        if (stat%code == STATUS_OK) then
+            call static_bounds(int(nbeams), lower, upper)
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
+                                   res, stat)
+        end if
+        code = int(stat%code, c_int)
+        message = stat%message
+        if (.not. allocated(res%params)) return
+        info(1) = int(res%stop, c_int)
+        if (allocated(res%note)) note = res%note
+        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+    end subroutine api_problem_fit
 end module beamid_api_estimation

@@ -10,13 +10,13 @@ The numerical work is done in Fortran; this package wraps it.
 """
 from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
-from .loads import RadialWire, TipForce, TipLoad, TipMoment
+from .loads import RadialWire, Release, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
 from .tables import reproduce
 from .measurements import Measurements, read_measurements
-from .estimation import FitResult, fit, simulate_measurements
+from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
 from .dynamics import FrictionEvent
 from .dynamics import SENSITIVITY_QUANTITIES
@@ -30,10 +30,11 @@ from .design import Advice, design
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
-    "TipForce", "TipMoment", "TipLoad", "RadialWire",
+    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
+    "identify", "Identification",
     "simulate", "simulate_dynamics", "Run", "FrictionEvent", "SENSITIVITY_QUANTITIES",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import _core_estimation as _ce
 from .errors import InputError
-from .loads import RadialWire, TipLoad
+from .loads import RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .static import measurement_value, solve_static
@@ -31,7 +31,7 @@ from .static import measurement_value, solve_static
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
 FLAG_TEXT = dict(_ce.FLAG_NAMES)
 
-Experiments = Mapping[str, "TipLoad | RadialWire"]
+Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
 
 
 class Residual(NamedTuple):
@@ -133,9 +133,9 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
                          "{'F3': beamid.TipForce(fy=3.0)}")
     out = {}
     for name, load in experiments.items():
-        if not isinstance(load, (TipLoad, RadialWire)):
+        if not isinstance(load, (TipLoad, RadialWire, Release)):
             raise InputError(f"experiment {name!r}: load = {load!r}, expected TipForce, "
-                             "TipMoment or RadialWire")
+                             "TipMoment, RadialWire or Release")
         out[str(name)] = load
     return out
 
@@ -149,11 +149,27 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
                          f"{type(data).__name__}")
     data.check_experiments(exps)
     names = list(exps)
+    dynamic = any(isinstance(x, Release) for x in exps.values())
     kinds = np.zeros(len(names), np.int32)
-    values = np.zeros((4, len(names)))
+    values = np.zeros((_ce.NEXPVAL if dynamic else 4, len(names)))
     for j, name in enumerate(names):
-        kinds[j], values[:, j] = exps[name].encode()
+        kind, v = exps[name].encode()
+        kinds[j] = kind
+        values[:v.size, j] = v
     for i in range(len(data)):
+        x = exps[data.experiment[i]]
+        if isinstance(x, Release):
+            if data.quantity[i] == "wire_force":
+                raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
+                                 f"experiment {data.experiment[i]!r} is a release (no wire)")
+            if data.quantity[i] == "motor_torque" and not x.has_motor:
+                raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
+                                 f"experiment {data.experiment[i]!r} has no motor "
+                                 "(motor_gain = 0)")
+            continue
+        if data.quantity[i] == "motor_torque":
+            raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
+                             f"experiment {data.experiment[i]!r} is static (no motor)")
         if data.t[i] != 0.0:
             raise InputError(f"{data._where(i)}: field t = {data.t[i]:g}, expected 0 for "
                              f"the static experiment {data.experiment[i]!r}")
@@ -166,7 +182,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
         row_q=np.array([_ce.QUANTITY_CODES[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
-        tol=float(tol))
+        tol=float(tol), row_t=np.array(data.t, float) if dynamic else None)
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -265,7 +281,7 @@ def _check_fit_args(data, tol, max_iter) -> None:
 
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
-        prior: Mapping[str, tuple[float, float]] | None = None, *,
+        prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
         max_iter: int = 50, tol: float = 0.0) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
@@ -289,7 +305,10 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     free:
         Names of the parameters to estimate.
     prior:
-        Optional a priori ``{name: (mean, sigma)}`` for free parameters.
+        Optional a priori ``{name: (mean, sigma)}`` for free parameters, or a
+        previous :class:`FitResult`: its estimates and full covariance become
+        the a priori information (Eq. 146-148, 164-166) and its free
+        parameters are freed here too.
     max_iter:
         Gauss-Newton iterations; a fit still moving after them raises
         :class:`beamid.ConvergenceError` (``exc.partial`` holds the last
@@ -310,10 +329,42 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if int(max_iter) < 1:
         raise InputError(f"max_iter = {max_iter}, expected at least 1")
     prob = build_problem(model, experiments, data, tol)
+    if isinstance(prior, FitResult):
+        free_names, free_idx = _free_indices(model, _with_carried(free, prior))
+        prior_map, pidx, pmean, pcov = _carried_prior(model, prior)
+        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean,
+                              np.sqrt(np.diag(pcov)), prior_cov=pcov, max_iter=int(max_iter))
+        return _result(model, experiments, data, free_names, prior_map, raw)
     free_names, free_idx = _free_indices(model, free)
     prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
+    if prob.row_t is not None:
+        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean, psig,
+                              max_iter=int(max_iter))
+    else:
+        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
+
+
+def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
+    """The free parameters of a fit carrying ``prior`` forward: the ones
+    asked for, then the previous fit's (Eq. 147: both are updated)."""
+    names = (free,) if isinstance(free, str) else tuple(free)
+    return names + tuple(n for n in prior.free if n not in names)
+
+
+def _carried_prior(model: Model, prior: "FitResult"):
+    """A previous fit as a priori information: its estimates and full
+    covariance (Eq. 146-148, 164-166)."""
+    cov = np.asarray(prior.cov, float)
+    if not np.all(np.isfinite(cov)):
+        bad = [n for n in prior.free if not math.isfinite(prior.sigmas[n])]
+        raise InputError(f"prior: the previous fit did not determine {', '.join(bad) or 'all'}"
+                         " (infinite sigma): its covariance cannot be carried forward")
+    names = tuple(model.names()[model.index(n)] for n in prior.free)
+    idx = np.array([model.index(n) + 1 for n in names], np.int32)
+    mean = np.array([prior.estimates[n] for n in prior.free])
+    pmap = {n: (float(m), float(np.sqrt(cov[i, i]))) for i, (n, m) in enumerate(zip(names, mean))}
+    return pmap, idx, mean, cov
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
@@ -354,6 +405,8 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     ``wrt`` (rows x len(wrt)), as the fit uses them."""
     prob = build_problem(model, experiments, data)
     idx = np.array([model.index(n) + 1 for n in wrt], np.int32)
+    if prob.row_t is not None:
+        return _ce.problem_predict(prob, model.vector(), idx)
     return _ce.predict(prob, model.vector(), idx)
 
 
@@ -387,16 +440,21 @@ def _check_quantities(exps, quantities, sigma) -> None:
 
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
              sigma: float | Mapping[str, float] = 1e-3, *, seed: int | None = None,
-             noise: bool = False) -> Measurements:
+             noise: bool = False,
+             t: Sequence[float] | Mapping[str, Sequence[float]] | None = None) -> Measurements:
     """Synthetic measurements of ``quantities`` in every experiment.
 
     ``quantities`` is a list used for every experiment or a mapping
     ``{experiment: [quantities]}``. ``sigma`` is one number or a mapping by
     quantity. With ``noise=True`` Gaussian errors of that sigma are drawn
-    from ``numpy.random.default_rng(seed)``.
+    from ``numpy.random.default_rng(seed)``. ``t``: the measurement times of
+    the :class:`beamid.Release` experiments (one sequence for all, or
+    ``{experiment: times}``); static experiments are measured at t = 0.
     """
     exps = _check_experiments(experiments)
     _check_quantities(exps, quantities, sigma)
+    if any(isinstance(x, Release) for x in exps.values()):
+        return _simulate_mixed(model, exps, quantities, sigma, t, seed, noise)
     rows = []
     for name, load in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities
@@ -411,3 +469,125 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
         rng = np.random.default_rng(seed)
         data = data.with_values(data.value + rng.standard_normal(len(data)) * data.sigma)
     return data
+
+
+def _simulate_mixed(model: Model, exps: dict, quantities, sigma, t, seed, noise) -> Measurements:
+    """simulate_measurements with release experiments (their rows at ``t``)."""
+    rows = []
+    for name, x in exps.items():
+        qs = quantities[name] if isinstance(quantities, Mapping) else quantities
+        qs = [qs] if isinstance(qs, str) else list(qs)
+        if isinstance(x, Release):
+            times = t.get(name) if isinstance(t, Mapping) else t
+            if times is None:
+                raise InputError(f"t: no measurement times for the release experiment {name!r}")
+            times = [float(v) for v in np.atleast_1d(np.asarray(times, float))]
+        else:
+            times = [0.0]
+        for tk in times:
+            for q in qs:
+                s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
+                rows.append((name, tk, q, 0.0, s))
+    data = Measurements.from_rows(rows, source="<simulated>")
+    prob = build_problem(model, exps, data)
+    values, _ = _ce.problem_predict(prob, model.vector(), np.zeros(0, np.int32))
+    if noise:
+        rng = np.random.default_rng(seed)
+        values = values + rng.standard_normal(len(data)) * data.sigma
+    return data.with_values(values)
+
+
+class StageSigma(NamedTuple):
+    """What one stage of :func:`identify` taught about one parameter."""
+
+    stage: str
+    parameter: str
+    estimate: float
+    sigma_before: float   # a priori (math.inf: not estimated before)
+    sigma_after: float
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Result of :func:`identify`: the fit of every stage, in order, and per
+    stage and parameter the sigma before and after (``table``)."""
+
+    stages: dict[str, FitResult]
+    table: list[StageSigma]
+
+    @property
+    def final(self) -> FitResult:
+        return list(self.stages.values())[-1]
+
+    def summary(self) -> str:
+        w = max([10] + [len(r.stage) + 2 for r in self.table])
+        lines = [f"{'stage':<{w}}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
+                 f"{'sigma after':>13}"]
+        for r in self.table:
+            lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.4g}"
+                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
+        return "\n".join(lines)
+
+    def plot(self, ax=None):
+        """Bar chart of sigma / estimate per stage and parameter (log scale)."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6.4, 3.6))
+        names = list(dict.fromkeys(r.parameter for r in self.table))
+        stages = list(self.stages)
+        width = 0.8 / max(len(stages), 1)
+        for k, stage in enumerate(stages):
+            vals = [next((abs(r.sigma_after / r.estimate) for r in self.table
+                          if r.stage == stage and r.parameter == n and r.estimate != 0),
+                         np.nan) for n in names]
+            ax.bar(np.arange(len(names)) + k * width, vals, width, label=stage)
+        ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names)
+        ax.set_yscale("log")
+        ax.set_ylabel("sigma / estimate after the stage")
+        ax.legend()
+        return ax
+
+
+def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
+             max_iter: int = 50, starts: Mapping[str, Model] | None = None) -> Identification:
+    """The sequential identification of Chapter VI: static -> free -> forced.
+
+    ``stages`` is ``{name: (experiments, data, free)}`` (or a list of such
+    triples, named stage1, stage2, ...). Each stage fits its ``free``
+    parameters from its data starting where the previous stage ended, with
+    the previous stage's estimates and full covariance as a priori
+    information (Eq. 146-148, 164-166; the carried parameters are updated
+    too). The first stage may be given as ``(experiments, data, free,
+    prior)`` with a dict prior; a later stage's a priori information is the
+    carried fit (a dict prior given there is not used). ``starts`` (optional,
+    by stage name): the model a stage starts from (a stage deck's own), its
+    carried parameters replaced by the previous stage's estimates.
+    """
+    items = list(stages.items()) if isinstance(stages, Mapping) else [
+        (f"stage{k + 1}", s) for k, s in enumerate(stages)]
+    if not items:
+        raise InputError("stages is empty: give {name: (experiments, data, free)}")
+    fits: dict[str, FitResult] = {}
+    table: list[StageSigma] = []
+    current, previous = model, None
+    known: dict[str, float] = {}
+    for name, spec in items:
+        if not isinstance(spec, tuple) or len(spec) not in (3, 4):
+            raise InputError(f"stage {name!r}: expected (experiments, data, free[, prior])")
+        exps, data, free = spec[:3]
+        prior = spec[3] if len(spec) == 4 else None
+        if previous is not None:
+            prior = previous
+        if starts and name in starts:
+            carried = {n: current[n] for n in (previous.free if previous else ())}
+            current = starts[name].replace(**carried) if carried else starts[name]
+        fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=max_iter)
+        for p in fit_k.free:
+            before = known.get(p, math.inf)
+            if isinstance(prior, Mapping) and p in fit_k.prior:
+                before = fit_k.prior[p][1]
+            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p]))
+            known[p] = fit_k.sigmas[p]
+        fits[name] = fit_k
+        current, previous = fit_k.model, fit_k
+    return Identification(fits, table)

@@ -91,3 +91,86 @@ class RadialWire:
 
 
 Load = TipLoad | RadialWire
+
+
+LOAD_RELEASE = 3
+#: codes of the integrators and friction laws (as beamid.simulate takes them)
+_INTEGRATORS = {"rk4": 0, "implicit": 1}
+_FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
+
+
+@dataclass(frozen=True)
+class Release:
+    """A dynamic experiment (Chapter IV.2, V.2): the finite element model held
+    in static equilibrium under the tip ``load`` (same mesh), released at rest
+    at t = 0 and integrated as :func:`beamid.simulate` does, with the tip
+    motor of Eq. 159 when ``motor_gain`` > 0 (torque -r_motor g Psidot_tip).
+
+    Its data rows have t >= 0 (t = 0: the static shape before the release)
+    and the quantities ``u_tip w_tip x_tip y_tip tip_angle x_elbow y_elbow``,
+    and ``motor_torque`` with a motor. ``integrator`` ("implicit" or "rk4"),
+    ``rtol``, ``dt`` and ``friction`` ("sign", "smooth", "sign_literal") as
+    in :func:`beamid.simulate` (None: its defaults).
+    """
+
+    load: TipLoad
+    elements_per_beam: int = 4
+    motor_gain: float = 0.0
+    integrator: str = "implicit"
+    rtol: float | None = None
+    dt: float | None = None
+    friction: str | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.load, TipLoad):
+            raise InputError(f"Release: load = {self.load!r}, expected a TipForce / TipMoment "
+                             "(the static load held before the release)")
+        nepb = self.elements_per_beam
+        if isinstance(nepb, bool) or not isinstance(nepb, (int, np.integer)) or nepb < 1:
+            raise InputError(f"Release: elements_per_beam = {nepb!r}, expected an integer >= 1")
+        gain = _finite("motor_gain", self.motor_gain)
+        if gain < 0.0:
+            raise InputError(f"Release: motor_gain = {gain:g}, expected >= 0")
+        object.__setattr__(self, "motor_gain", gain)
+        if self.integrator not in _INTEGRATORS:
+            raise InputError(f"Release: integrator = {self.integrator!r}, expected one of "
+                             f"{sorted(_INTEGRATORS)}")
+        friction = "sign" if self.friction is None else self.friction
+        if friction not in _FRICTION_LAWS:
+            raise InputError(f"Release: friction = {self.friction!r}, expected one of "
+                             f"{sorted(_FRICTION_LAWS)}")
+        for name in ("rtol", "dt"):
+            v = getattr(self, name)
+            if v is not None:
+                v = _finite(name, v)
+                if v <= 0.0:
+                    raise InputError(f"Release: {name} = {v:g}, expected a positive number")
+                object.__setattr__(self, name, v)
+        encoded = np.array([self.load.fx, self.load.fy, self.load.moment, 0.0,
+                            float(nepb), gain, float(_INTEGRATORS[self.integrator]),
+                            float(_FRICTION_LAWS[friction]), self.rtol or 0.0, self.dt or 0.0,
+                            0.0, 0.0])
+        encoded.setflags(write=False)
+        object.__setattr__(self, "_encoded", encoded)
+
+    def encode(self) -> tuple[int, np.ndarray]:
+        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
+        return LOAD_RELEASE, self._encoded
+
+    @classmethod
+    def decode(cls, values) -> "Release":
+        """The Release of the values in beamid_inverse's EV_* layout (a deck's)."""
+        v = [float(x) for x in values]
+        integrators = {c: n for n, c in _INTEGRATORS.items()}
+        laws = {c: n for n, c in _FRICTION_LAWS.items()}
+        return cls(TipLoad(v[0], v[1], v[2]), elements_per_beam=int(round(v[4])),
+                   motor_gain=v[5], integrator=integrators[int(round(v[6]))],
+                   rtol=v[8] or None, dt=v[9] or None, friction=laws[int(round(v[7]))])
+
+    @property
+    def has_motor(self) -> bool:
+        return self.motor_gain > 0.0
+
+    def describe(self) -> str:
+        text = f"release from {self.load.describe()}, {self.elements_per_beam} elements per beam"
+        return text + (f", motor gain {self.motor_gain:g}" if self.has_motor else "")

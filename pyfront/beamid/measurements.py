@@ -24,7 +24,7 @@ from .errors import InputError
 
 #: Measurable quantities; u_tip = x_tip - (L1 + L2), w_tip = y_tip.
 QUANTITIES = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",
-              "u_tip", "w_tip")
+              "u_tip", "w_tip", "motor_torque")
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
 
 

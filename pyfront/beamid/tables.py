@@ -111,8 +111,12 @@ def check_deck(deck: Deck) -> list[Check]:
 
         result = fit(deck.model, deck.experiments, deck.data, free=deck.free,
                      prior=deck.prior, max_iter=deck.max_iter)
-        # published quantities of a fit deck: parameter estimates, iterations
+        # published quantities of a fit deck: parameter estimates, iterations,
+        # and NAME@iterationK: an estimate after K iterations (Tables 14, 22)
         values = {**result.estimates, "iterations": float(result.iterations)}
+        for entry in result.log:
+            for name, v in entry.params.items():
+                values[f"{name}@iteration{entry.iteration}"] = v
         ours_of = values.__getitem__
     elif deck.task == "simulate":
         # dynamic decks: SERIES@TIME or max_abs_SERIES (beamid.history)

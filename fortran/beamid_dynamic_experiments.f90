@@ -1,0 +1,337 @@
+!> Dynamic experiments for the estimation machinery (Chapter IV.2, V.2).
+!!
+!! A release experiment holds the finite element model in static equilibrium
+!! under a fixed-direction tip load (same mesh), releases it at rest at t = 0
+!! and integrates M q'' + NLT(q) = Q(q, q') (Eq. 107), with the tip motor of
+!! Eq. 159 when its gain is positive. A data row is (experiment, t, quantity,
+!! value, sigma); t = 0 measures the static shape before the release.
+!!
+!! Quantities use the one registry of beamid_static_experiments (u_tip w_tip
+!! x_tip y_tip tip_angle x_elbow y_elbow, plus motor_torque, which only a
+!! release with a motor produces; wire_force is static only).
+!!
+!! The sensitivity columns (Eq. 135-140, 161-162) are the hand-coded forward
+!! sensitivities of beamid_release (release_response: the released shape by
+!! the implicit function theorem, the staggered direct method in Radau, the
+!! variational equations in RK4, jump conditions at friction switches). A
+!! release with `fd` set gets them by central differences of whole runs
+!! instead (steps 1e-4 of the parameter's scale): the baseline of the
+!! benchmark (benchmarks/bench_dynfit.py), not for fits.
+module beamid_dynamic_experiments
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
+    use beamid_model, only: chain_t, chain_from_vector
+    use beamid_fe_assembly, only: fe_load_t
+    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN
+    use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
+                                  METHOD_IMPLICIT, METHOD_RK4
+    use beamid_estimation, only: residual_model_t
+    use beamid_release, only: release_spec_t, release_out_t, &
+                              sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
+                              QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
+                              QTY_MOTOR_TORQUE
+    use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
+                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
+                                         Q_MOTOR_TORQUE, NQUANT
+    implicit none
+    private
+
+    public :: release_exp_t, dynamic_experiments_t, dynamic_experiments_init
+    public :: release_response, check_dynamic_row
+
+    !> One release experiment: load, mesh, motor and integrator controls
+    !! (0 for rtol, dt: the integrator's defaults).
+    type :: release_exp_t
+        real(dp) :: fx = 0.0_dp, fy = 0.0_dp, moment = 0.0_dp
+        integer :: nepb = 4
+        real(dp) :: gain = 0.0_dp
+        integer :: method = METHOD_IMPLICIT
+        integer :: law = FRICTION_SIGN
+        real(dp) :: rtol = 0.0_dp, dt = 0.0_dp
+        real(dp) :: vslip = 1.0e-4_dp
+        logical :: fd = .false.   !< central-difference columns (benchmark baseline)
+    end type release_exp_t
+
+    !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
+    !! quantity code of the estimation registry (0: wire_force, none).
+    integer, parameter :: QTY_OF(NQUANT) = [QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, 0, &
+                                            QTY_X_ELBOW, QTY_Y_ELBOW, QTY_U_TIP, QTY_W_TIP, &
+                                            QTY_MOTOR_TORQUE]
+
+    !> Release experiments and the data rows they predict.
+    type, extends(residual_model_t) :: dynamic_experiments_t
+        integer :: nbeams = 0
+        type(release_exp_t), allocatable :: exps(:)
+        integer, allocatable :: row_exp(:), row_quantity(:)
+        real(dp), allocatable :: row_t(:)
+    contains
+        procedure :: evaluate => dynamic_evaluate
+    end type dynamic_experiments_t
+
+contains
+
+    !> Why a row (t, quantity) cannot belong to release experiment `x`
+    !! ('' when it can): t negative or not finite, wire_force, motor_torque
+    !! without a motor.
+    pure function check_dynamic_row(x, t, q) result(why)
+        type(release_exp_t), intent(in) :: x
+        real(dp), intent(in) :: t
+        integer, intent(in) :: q
+        character(len=:), allocatable :: why
+        why = ''
+        if (.not. ieee_is_finite(t)) then
+            why = 'field t is not finite'
+        else if (t < 0.0_dp) then
+            why = 'field t = '//fmt_real(t)//', expected t >= 0 (0: the static shape '// &
+                  'before the release)'
+        else if (q < 1 .or. q > NQUANT) then
+            why = 'quantity code '//fmt_int(q)//', expected 1..'//fmt_int(NQUANT)
+        else if (q == Q_WIRE_FORCE) then
+            why = "field quantity = 'wire_force', but a release experiment has no wire"
+        else if (q == Q_MOTOR_TORQUE .and. .not. x%gain > 0.0_dp) then
+            why = "field quantity = 'motor_torque', but the experiment has no motor "// &
+                  '(motor_gain = 0)'
+        end if
+    end function check_dynamic_row
+
+    !> Set up and validate the experiments and rows.
+    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_quantity, self, stat)
+        integer, intent(in) :: nbeams
+        type(release_exp_t), intent(in) :: exps(:)
+        integer, intent(in) :: row_exp(:), row_quantity(:)
+        real(dp), intent(in) :: row_t(:)
+        type(dynamic_experiments_t), intent(out) :: self
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'dynamic experiments'
+        character(len=:), allocatable :: why
+        integer :: i
+        if (size(row_exp) /= size(row_quantity) .or. size(row_exp) /= size(row_t)) then
+            call set_status(stat, ERR_INPUT, where, 'row experiment, t and quantity lists '// &
+                            'differ in length')
+            return
+        end if
+        do i = 1, size(exps)
+            if (exps(i)%nepb < 1) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
+                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
+                                ', expected >= 1')
+                return
+            end if
+            if (.not. (exps(i)%gain >= 0.0_dp .and. ieee_is_finite(exps(i)%gain))) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
+                                ': motor_gain = '//fmt_real(exps(i)%gain)//', expected >= 0')
+                return
+            end if
+        end do
+        do i = 1, size(row_exp)
+            if (row_exp(i) < 1 .or. row_exp(i) > size(exps)) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' names '// &
+                                'experiment '//fmt_int(row_exp(i))//', expected 1..'// &
+                                fmt_int(size(exps)))
+                return
+            end if
+            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_quantity(i))
+            if (len(why) > 0) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
+                return
+            end if
+        end do
+        self%nbeams = nbeams
+        self%exps = exps
+        self%row_exp = row_exp
+        self%row_t = row_t
+        self%row_quantity = row_quantity
+    end subroutine dynamic_experiments_init
+
+    !> The response of one release at the ascending times t_out: y(q, k) for
+    !! every quantity code q (the registry of beamid_static_experiments;
+    !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)), from
+    !! the forward sensitivities of beamid_release (or central differences
+    !! when x%fd).
+    subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat)
+        integer, intent(in) :: nbeams
+        real(dp), intent(in) :: params(:)
+        type(release_exp_t), intent(in) :: x
+        real(dp), intent(in) :: t_out(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: y(:, :), dy(:, :, :)
+        type(status_t), intent(inout) :: stat
+        type(chain_t) :: chain
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        integer :: q
+        if (x%fd) then
+            call release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
+            return
+        end if
+        y = 0.0_dp
+        dy = 0.0_dp
+        call chain_from_vector(nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        spec%elements_per_beam = x%nepb
+        spec%load%fx = x%fx
+        spec%load%fy = x%fy
+        spec%load%moment = x%moment
+        spec%motor_gain = x%gain
+        spec%integrator = x%method
+        spec%rtol = x%rtol
+        spec%dt = x%dt
+        spec%friction = x%law
+        spec%friction_velocity = x%vslip
+        call sens_response(chain, spec, t_out, wrt, out, stat)
+        if (stat%code /= STATUS_OK) return
+        do q = 1, NQUANT
+            if (QTY_OF(q) == 0) cycle
+            y(q, :) = out%y(QTY_OF(q), :)
+            dy(q, :, :) = out%dy(QTY_OF(q), :, :)
+        end do
+    end subroutine release_response
+
+    !> release_response by central differences of whole runs.
+    subroutine release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
+        integer, intent(in) :: nbeams
+        real(dp), intent(in) :: params(:)
+        type(release_exp_t), intent(in) :: x
+        real(dp), intent(in) :: t_out(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: y(:, :), dy(:, :, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
+        real(dp) :: h
+        integer :: j
+        dy = 0.0_dp
+        call release_run(nbeams, params, x, t_out, y, stat)
+        if (stat%code /= STATUS_OK) return
+        allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
+        do j = 1, size(wrt)
+            p = params
+            h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
+            p(wrt(j)) = params(wrt(j)) + h
+            call release_run(nbeams, p, x, t_out, yp, stat)
+            if (stat%code /= STATUS_OK) return
+            p(wrt(j)) = params(wrt(j)) - h
+            call release_run(nbeams, p, x, t_out, ym, stat)
+            if (stat%code /= STATUS_OK) return
+            dy(:, :, j) = (yp - ym)/(2.0_dp*h)
+        end do
+    end subroutine release_response_fd
+
+    !> One run: static equilibrium, release, integration, quantities.
+    subroutine release_run(nbeams, params, x, t_out, y, stat)
+        integer, intent(in) :: nbeams
+        real(dp), intent(in) :: params(:)
+        type(release_exp_t), intent(in) :: x
+        real(dp), intent(in) :: t_out(:)
+        real(dp), intent(out) :: y(:, :)
+        type(status_t), intent(inout) :: stat
+        type(chain_t) :: chain
+        type(dyn_system_t) :: sys
+        type(fe_load_t) :: load
+        type(fe_newton_opts_t) :: nopts
+        type(fe_solve_info_t) :: sinfo
+        type(integ_opts_t) :: opts
+        type(integ_stats_t) :: stats
+        type(history_t) :: hist
+        real(dp), allocatable :: y0(:), q(:)
+        real(dp) :: u, w, ang, ltot
+        integer :: k, n
+        y = 0.0_dp
+        call chain_from_vector(nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+        if (stat%code /= STATUS_OK) return
+        n = sys%n
+        allocate (y0(sys%nstate), q(n))
+        y0 = 0.0_dp
+        q = 0.0_dp
+        load%fx = x%fx
+        load%fy = x%fy
+        load%moment = x%moment
+        call fe_solve_static(sys%mesh, load, q, .false., nopts, sinfo, stat)
+        if (stat%code /= STATUS_OK) return
+        y0(1:n) = q
+        opts%method = x%method
+        if (x%dt > 0.0_dp) opts%dt = x%dt
+        if (x%rtol > 0.0_dp) opts%rtol = x%rtol
+        opts%atol = opts%rtol
+        call integrate(sys, y0, t_out, opts, hist, stats, stat)
+        if (stat%code /= STATUS_OK) return
+        ltot = sum(chain%length)
+        do k = 1, size(t_out)
+            call dyn_tip(sys, hist%y(1:n, k), u, w, ang)
+            y(Q_U_TIP, k) = u
+            y(Q_W_TIP, k) = w
+            y(Q_X_TIP, k) = ltot + u
+            y(Q_Y_TIP, k) = w
+            y(Q_TIP_ANGLE, k) = ang
+            if (sys%npt >= 2) then
+                y(Q_X_ELBOW, k) = chain%length(1) + hist%y(sys%iu(1), k)
+                y(Q_Y_ELBOW, k) = hist%y(sys%iw(1), k)
+            end if
+            y(Q_MOTOR_TORQUE, k) = hist%torque(k)
+        end do
+    end subroutine release_run
+
+    !> Predictions and sensitivities of the rows: one response per experiment
+    !! that has rows, at the distinct times of its rows.
+    subroutine dynamic_evaluate(self, params, wrt, predictions, jacobian, stat)
+        class(dynamic_experiments_t), intent(inout) :: self
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: predictions(:)
+        real(dp), intent(out) :: jacobian(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: times(:), y(:, :), dy(:, :, :)
+        integer :: e, i, k
+        predictions = 0.0_dp
+        jacobian = 0.0_dp
+        do e = 1, size(self%exps)
+            if (.not. any(self%row_exp == e)) cycle
+            times = distinct_sorted(pack(self%row_t, self%row_exp == e))
+            allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)))
+            call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, stat)
+            if (stat%code /= STATUS_OK) then
+                stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
+                return
+            end if
+            do i = 1, size(self%row_exp)
+                if (self%row_exp(i) /= e) cycle
+                k = findloc(times, self%row_t(i), 1)
+                predictions(i) = y(self%row_quantity(i), k)
+                jacobian(i, :) = dy(self%row_quantity(i), k, :)
+            end do
+            deallocate (y, dy)
+        end do
+    end subroutine dynamic_evaluate
+
+    !> The distinct values of x in ascending order.
+    pure function distinct_sorted(x) result(out)
+        real(dp), intent(in) :: x(:)
+        real(dp), allocatable :: out(:)
+        real(dp) :: v(size(x)), t
+        integer :: i, j, n
+        v = x
+        do i = 2, size(v)
+            t = v(i)
+            j = i - 1
+            do while (j >= 1)
+                if (v(j) <= t) exit
+                v(j + 1) = v(j)
+                j = j - 1
+            end do
+            v(j + 1) = t
+        end do
+        allocate (out(size(v)))
+        n = 0
+        do i = 1, size(v)
+            if (n > 0) then
+                if (v(i) == out(n)) cycle
+            end if
+            n = n + 1
+            out(n) = v(i)
+        end do
+        out = out(:n)
+    end function distinct_sorted
+end module beamid_dynamic_experiments
