@@ -522,13 +522,13 @@ contains
     !! * three damped steps in a row that change neither the parameters nor the
     !!   cost while the damping had to be raised again, ten damped steps that
     !!   lower the chi-square by less than 0.01 together (a crawl along a
-    !!   curved valley), or a smallest damped trial step the model cannot
-    !!   solve, is a stall (STOP_STALLED): the note names the parameters at a
-    !!   bound, running away or collinear;
+    !!   curved valley), or damped trial steps the model cannot solve down to
+    !!   the smallest, is a stall (STOP_STALLED): the note names the parameters
+    !!   at a bound, running away or collinear, and the solver's message;
     !! * still moving at max_iter: ERR_NO_CONVERGENCE (STOP_MAX_ITER), `res`
     !!   holding the last iterate and its log;
-    !! * a model that cannot be evaluated at params0, or at none of the damped
-    !!   trial steps: the model's own status (genuine numerical failure).
+    !! * a model that cannot be evaluated at params0 (the values asked): the
+    !!   model's own status (genuine numerical failure).
     subroutine fit_least_squares(model, y, sigma, params0, free, lower, upper, prior, opts, &
                                  res, stat)
         class(residual_model_t), intent(inout) :: model
@@ -647,10 +647,10 @@ contains
             if (.not. accepted) then
                 ! no damped step lowers the cost: a minimum to working precision
                 ! when the smallest trial step could be evaluated; a stall when
-                ! it could not; a genuine failure when no trial could
-                if (.not. evaluated) then
-                    stat = fail_stat
-                else if (failed_trial) then
+                ! it could not (the model could not be solved at the fit's own
+                ! trial parameters, however short the step: the fit comes back at
+                ! its last good point, flagged, with the solver's message)
+                if (failed_trial .or. .not. evaluated) then
                     stalled = .true.
                 else
                     res%converged = .true.
