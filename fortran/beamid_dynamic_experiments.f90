@@ -10,11 +10,13 @@
 !! x_tip y_tip tip_angle x_elbow y_elbow, plus motor_torque, which only a
 !! release with a motor produces; wire_force is static only).
 !!
-!! The sensitivity columns (Eq. 135-140, 161-162) are the derivatives of the
-!! response at the output times. Until the forward sensitivities of the
-!! integrators are available as a library routine, `release_response` gets
-!! them by central differences of whole runs (each run at the experiment's
-!! tolerance, steps relative 1e-4 of the parameter's scale).
+!! The sensitivity columns (Eq. 135-140, 161-162) are the hand-coded forward
+!! sensitivities of beamid_release (release_response: the released shape by
+!! the implicit function theorem, the staggered direct method in Radau, the
+!! variational equations in RK4, jump conditions at friction switches). A
+!! release with `fd` set gets them by central differences of whole runs
+!! instead (steps 1e-4 of the parameter's scale): the baseline of the
+!! benchmark (benchmarks/bench_dynfit.py), not for fits.
 module beamid_dynamic_experiments
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
@@ -26,6 +28,10 @@ module beamid_dynamic_experiments
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT, METHOD_RK4
     use beamid_estimation, only: residual_model_t
+    use beamid_release, only: release_spec_t, release_out_t, &
+                              sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
+                              QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
+                              QTY_MOTOR_TORQUE
     use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
                                          Q_MOTOR_TORQUE, NQUANT
@@ -45,7 +51,14 @@ module beamid_dynamic_experiments
         integer :: law = FRICTION_SIGN
         real(dp) :: rtol = 0.0_dp, dt = 0.0_dp
         real(dp) :: vslip = 1.0e-4_dp
+        logical :: fd = .false.   !< central-difference columns (benchmark baseline)
     end type release_exp_t
+
+    !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
+    !! quantity code of the estimation registry (0: wire_force, none).
+    integer, parameter :: QTY_OF(NQUANT) = [QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, 0, &
+                                            QTY_X_ELBOW, QTY_Y_ELBOW, QTY_U_TIP, QTY_W_TIP, &
+                                            QTY_MOTOR_TORQUE]
 
     !> Release experiments and the data rows they predict.
     type, extends(residual_model_t) :: dynamic_experiments_t
@@ -134,8 +147,50 @@ contains
 
     !> The response of one release at the ascending times t_out: y(q, k) for
     !! every quantity code q (the registry of beamid_static_experiments;
-    !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)).
+    !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)), from
+    !! the forward sensitivities of beamid_release (or central differences
+    !! when x%fd).
     subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat)
+        integer, intent(in) :: nbeams
+        real(dp), intent(in) :: params(:)
+        type(release_exp_t), intent(in) :: x
+        real(dp), intent(in) :: t_out(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: y(:, :), dy(:, :, :)
+        type(status_t), intent(inout) :: stat
+        type(chain_t) :: chain
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        integer :: q
+        if (x%fd) then
+            call release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
+            return
+        end if
+        y = 0.0_dp
+        dy = 0.0_dp
+        call chain_from_vector(nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        spec%elements_per_beam = x%nepb
+        spec%load%fx = x%fx
+        spec%load%fy = x%fy
+        spec%load%moment = x%moment
+        spec%motor_gain = x%gain
+        spec%integrator = x%method
+        spec%rtol = x%rtol
+        spec%dt = x%dt
+        spec%friction = x%law
+        spec%friction_velocity = x%vslip
+        call sens_response(chain, spec, t_out, wrt, out, stat)
+        if (stat%code /= STATUS_OK) return
+        do q = 1, NQUANT
+            if (QTY_OF(q) == 0) cycle
+            y(q, :) = out%y(QTY_OF(q), :)
+            dy(q, :, :) = out%dy(QTY_OF(q), :, :)
+        end do
+    end subroutine release_response
+
+    !> release_response by central differences of whole runs.
+    subroutine release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
@@ -161,7 +216,7 @@ contains
             if (stat%code /= STATUS_OK) return
             dy(:, :, j) = (yp - ym)/(2.0_dp*h)
         end do
-    end subroutine release_response
+    end subroutine release_response_fd
 
     !> One run: static equilibrium, release, integration, quantities.
     subroutine release_run(nbeams, params, x, t_out, y, stat)

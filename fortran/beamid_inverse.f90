@@ -34,8 +34,9 @@ module beamid_inverse
     !> Rows of an experiment's value column.
     integer, parameter, public :: EV_FX = 1, EV_FY = 2, EV_MOMENT = 3, EV_WIRE_LENGTH = 4, &
                                   EV_NEPB = 5, EV_GAIN = 6, EV_METHOD = 7, EV_LAW = 8, &
-                                  EV_RTOL = 9, EV_DT = 10, EV_VSLIP = 11
-    integer, parameter, public :: NEXPVAL = 11
+                                  EV_RTOL = 9, EV_DT = 10, EV_VSLIP = 11, EV_FD = 12
+    !! (EV_FD = 1: central-difference sensitivities, the benchmark baseline)
+    integer, parameter, public :: NEXPVAL = 12
 
     type, extends(residual_model_t) :: inverse_problem_t
         integer :: nrow = 0
@@ -107,7 +108,8 @@ contains
                                             rtol=exp_values(EV_RTOL, e), &
                                             dt=exp_values(EV_DT, e), &
                                             vslip=merge(exp_values(EV_VSLIP, e), 1.0e-4_dp, &
-                                                        exp_values(EV_VSLIP, e) > 0.0_dp))]
+                                                        exp_values(EV_VSLIP, e) > 0.0_dp), &
+                                            fd=exp_values(EV_FD, e) /= 0.0_dp)]
             case default
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected 1 (tip load), '// &

@@ -582,7 +582,7 @@ contains
         character(len=*), intent(in) :: path
         integer(c_int), intent(in) :: nexp
         integer(c_int), intent(out) :: exp_kind(nexp + 1), count, code
-        real(c_double), intent(out) :: exp_values(11, nexp + 1)
+        real(c_double), intent(out) :: exp_values(12, nexp + 1)
         character(len=256), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
@@ -610,13 +610,13 @@ contains
 
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
-    !! in the EV_* layout, 11 rows) and their derivatives w.r.t.
+    !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
     !! params(wrt(1:nwrt)) (wrt carries one unused trailing entry: nwrt may be 0).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
                                    row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
                                    message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(11, nexp), row_t(nrow), tol
+        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt + 1)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt + 1)
         integer(c_int), intent(out) :: code
@@ -655,7 +655,7 @@ contains
         real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
         integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(11, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
         real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)

@@ -40,7 +40,7 @@ class Problem:
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
-NEXPVAL = 11
+NEXPVAL = 12
 
 
 def _mixed_values(prob: Problem) -> np.ndarray:
@@ -55,14 +55,14 @@ def _row_t(prob: Problem) -> np.ndarray:
 
 
 def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
-    """(kind, 11 values) of every experiment of an estimation deck, in deck
+    """(kind, NEXPVAL values) of every experiment of an estimation deck, in deck
     order (kind 3: a release, beamid_inverse's EV_* layout)."""
     raw = str(path).encode()
     _, _, count, code, message = _api.api_deck_experiments(raw, 0)
     raise_for_status(int(code), message)
     kinds, values, count, code, message = _api.api_deck_experiments(raw, int(count))
     raise_for_status(int(code), message)
-    values = np.array(values).reshape(11, -1)
+    values = np.array(values).reshape(NEXPVAL, -1)
     return [(int(kinds[e]), values[:, e].copy()) for e in range(int(count))]
 
 

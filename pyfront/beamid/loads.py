@@ -149,17 +149,17 @@ class Release:
         encoded = np.array([self.load.fx, self.load.fy, self.load.moment, 0.0,
                             float(nepb), gain, float(_INTEGRATORS[self.integrator]),
                             float(_FRICTION_LAWS[friction]), self.rtol or 0.0, self.dt or 0.0,
-                            0.0])
+                            0.0, 0.0])
         encoded.setflags(write=False)
         object.__setattr__(self, "_encoded", encoded)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, 11 values in beamid_inverse's EV_* layout) for the Fortran core."""
+        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
         return LOAD_RELEASE, self._encoded
 
     @classmethod
     def decode(cls, values) -> "Release":
-        """The Release of 11 values in beamid_inverse's EV_* layout (a deck's)."""
+        """The Release of the values in beamid_inverse's EV_* layout (a deck's)."""
         v = [float(x) for x in values]
         integrators = {c: n for n, c in _INTEGRATORS.items()}
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
