@@ -215,7 +215,8 @@ contains
         type(inverse_problem_t) :: prob, probe
         type(diagnosis_t) :: sub
         type(candidate_t), allocatable :: seen_cands(:)
-        integer, allocatable :: allp(:), map(:), sexp(:), sq(:), dexp(:), dq(:), plocal(:)
+        type(status_t) :: st
+        integer, allocatable :: map(:), sexp(:), sq(:), dexp(:), dq(:), plocal(:)
         real(dp), allocatable :: pred(:), jac(:, :), ssig(:), dt(:), dsig(:), psig(:)
         logical, allocatable :: seen(:)
         integer :: c, k, j, nc, ns, q
@@ -229,28 +230,26 @@ contains
         call fit_at(prob, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
                     stat)
         if (stat%code /= STATUS_OK) return
-        ! which candidates do the data rows see at all?
-        allocate (allp(0), seen(nc))
-        do c = 1, nc
-            allp = [allp, cands(c)%params]
-        end do
-        allocate (pred(size(y)), jac(size(y), size(allp)))
-        if (size(allp) > 0) then
-            call prob%evaluate(base%params, allp, pred, jac, stat)
-            if (stat%code /= STATUS_OK) return
-        end if
-        k = 0
+        ! which candidates do the data rows see at all? (a sensitivity the
+        ! model cannot give at the null value, e.g. a locked joint's, is an
+        ! input error of that column alone: not seen either)
+        allocate (seen(nc), pred(size(y)))
         do c = 1, nc
             j = size(cands(c)%params)
-            seen(c) = j == 0
-            if (j > 0) seen(c) = any(jac(:, k + 1:k + j) /= 0.0_dp)
+            seen(c) = .true.
+            if (j == 0) cycle
             ! an effect already free or switched on is reported as such
-            if (j > 0 .and. .not. seen(c)) then
-                if (any([(any(base%free == cands(c)%params(q)), q=1, j)]) .or. &
-                    any(base%params(cands(c)%params) /= prob%nulls(cands(c)%params))) &
-                    seen(c) = .true.
+            if (any([(any(base%free == cands(c)%params(q)), q=1, j)]) .or. &
+                any(base%params(cands(c)%params) /= prob%nulls(cands(c)%params))) cycle
+            if (allocated(jac)) deallocate (jac)
+            allocate (jac(size(y), j))
+            call clear_status(st)
+            call prob%evaluate(base%params, cands(c)%params, pred, jac, st)
+            if (st%code > 0) then
+                stat = st
+                return
             end if
-            k = k + j
+            seen(c) = st%code == STATUS_OK .and. any(jac /= 0.0_dp)
         end do
         ns = count(seen)
         map = pack([(c, c=1, nc)], seen)

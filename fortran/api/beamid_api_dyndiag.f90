@@ -1,6 +1,6 @@
 !> f2py-facing API for diagnosing fits with time histories (issue 14):
 !! beamid_dyn_diagnosis on the mixed static + release problems of
-!! beamid_inverse (experiments as kind and 11 EV_* values, rows as
+!! beamid_inverse (experiments as kind and NEXPVAL EV_* values, rows as
 !! experiment, t, quantity, value, sigma; 1-based indices; arrays that may
 !! be empty carry one unused trailing entry).
 module beamid_api_dyndiag
@@ -51,18 +51,19 @@ contains
     !! mesh_params: the refined refit's parameters.
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
                                     nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
-                                    exp_values, nrow, row_exp, row_t, row_q, row_value, &
+                                    nval, exp_values, nrow, row_exp, row_t, row_q, row_value, &
                                     row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                     cand_params, alpha, nrefit, ambiguity_delta, collinear, &
                                     with_mesh, cstats, pstats, refit_params, ranking, cosine, &
                                     dstats, refit_start, sep_t, mstats, mesh_params, notes, &
                                     code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        integer(c_int), intent(in) :: nval  !< values per experiment (beamid_inverse NEXPVAL)
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
         integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(11, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(nval, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
@@ -176,19 +177,20 @@ contains
     !! continuation (start_mask bits 1, 2, 4; 0 all).
     subroutine api_problem_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                                       nominal, nprior, prior_idx, prior_mean, prior_sigma, &
-                                      nexp, exp_kind, exp_values, nrow, row_exp, row_t, row_q, &
-                                      row_value, row_sigma, tol, max_iter, start_mask, params, &
-                                      sigmas, cov, corr, flags, predictions, normalized, stats, &
+                                      nexp, exp_kind, nval, exp_values, nrow, row_exp, row_t, &
+                                      row_q, row_value, row_sigma, tol, max_iter, start_mask, &
+                                      params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                                       log_cost, log_lambda, log_step, log_params, info, code, &
                                       message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
+        integer(c_int), intent(in) :: nval  !< values per experiment (beamid_inverse NEXPVAL)
         integer(c_int), intent(in) :: max_iter, start_mask
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
         integer(c_int), intent(in) :: prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(11, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(nval, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)

@@ -266,9 +266,10 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
                              f"{when} in experiment {e} (their refits differ there by "
                              f"{k:.3g} sigma)")
         if mesh is not None and mesh.state == "tested":
-            lines.append(f"mesh: {mesh.elements_per_beam} elements per beam are fine for these "
-                         f"data (twice as many move no prediction by more than "
-                         f"{mesh.max_change:.2g} sigma, chi-square drop {mesh.chi2_drop:.3g})")
+            lines.append(f"mesh: twice the elements per beam ({2 * mesh.elements_per_beam}) do "
+                         f"not fit significantly better (chi-square drop "
+                         f"{mesh.chi2_drop:.3g}, p = {mesh.p_value:.2g}; predictions move by up "
+                         f"to {mesh.max_change:.3g} sigma)")
     if not_seen:
         lines.append("not seen by these experiments (zero sensitivity on every row, not "
                      "tested): " + ", ".join(not_seen))
