@@ -25,9 +25,12 @@
 module beamid_dyn_diagnosis
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, clear_status, STATUS_OK
-    use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, candidate_t, &
+    use beamid_model, only: param_index_global, param_index_joint_flex, IG_TAU_MOTOR, &
+                            IG_ROOT_FLEX
+    use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, fit_at, fit_least_squares, &
-                                 diagnose, chi2_sf, CAND_NOT_SEEN
+                                 diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
+                                 score_result_t
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_RELEASE, EV_NEPB, &
                               EV_GAIN
     use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
@@ -37,7 +40,26 @@ module beamid_dyn_diagnosis
     private
 
     public :: mesh_test_t, dyn_diagnose, mesh_test, dyn_probe_rows, time_structure
-    public :: MESH_ORDER, MESH_TARGET
+    public :: MESH_ORDER, MESH_TARGET, null_side_model_t, null_side_init
+
+    !> Parameters whose forward sensitivity does not exist at the null value,
+    !! because the effect adds a state or a degree of freedom only when on: the
+    !! motor lag (the torque state of Eq. 159 with a lag) and the joint and
+    !! root compliances (a hinge). Their columns at the null are one-sided
+    !! differences over these steps (s, rad per N m): the derivative from the
+    !! physical side, which is what a one-sided score test needs.
+    real(dp), parameter :: STEP_TAU = 1.0e-3_dp, STEP_FLEX = 1.0e-4_dp
+
+    !> A problem whose sensitivity columns of the parameters `fd`, when at
+    !! their null value 0, are one-sided differences (the rest: the inner
+    !! problem's forward sensitivities).
+    type, extends(residual_model_t) :: null_side_model_t
+        type(inverse_problem_t) :: inner
+        integer, allocatable :: fd(:)
+        real(dp), allocatable :: step(:)
+    contains
+        procedure :: evaluate => null_side_evaluate
+    end type null_side_model_t
 
     !> Convergence order assumed for the discretization error of the
     !! predictions (cubic Hermite elements: displacements and frequencies
@@ -64,6 +86,58 @@ module beamid_dyn_diagnosis
     end type mesh_test_t
 
 contains
+
+    !> Wrap a problem of `nbeams` beams: the motor lag and the compliances
+    !! get one-sided columns at their null values.
+    subroutine null_side_init(nbeams, inner, self)
+        integer, intent(in) :: nbeams
+        type(inverse_problem_t), intent(in) :: inner
+        type(null_side_model_t), intent(out) :: self
+        integer :: k
+        self%inner = inner
+        self%fd = [param_index_global(nbeams, IG_TAU_MOTOR), &
+                   param_index_global(nbeams, IG_ROOT_FLEX), &
+                   (param_index_joint_flex(nbeams, k), k=1, nbeams - 1)]
+        self%step = [STEP_TAU, STEP_FLEX, (STEP_FLEX, k=1, nbeams - 1)]
+    end subroutine null_side_init
+
+    subroutine null_side_evaluate(self, params, wrt, predictions, jacobian, stat)
+        class(null_side_model_t), intent(inout) :: self
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: predictions(:)
+        real(dp), intent(out) :: jacobian(:, :)
+        type(status_t), intent(inout) :: stat
+        logical :: side(size(wrt))
+        real(dp), allocatable :: j0(:, :), pp(:), jd(:, :), p(:)
+        integer :: j, k, i
+        do j = 1, size(wrt)
+            k = findloc(self%fd, wrt(j), 1)
+            side(j) = .false.
+            if (k > 0) side(j) = params(wrt(j)) == 0.0_dp
+        end do
+        allocate (j0(size(predictions), count(.not. side)))
+        call self%inner%evaluate(params, pack(wrt, .not. side), predictions, j0, stat)
+        if (stat%code /= STATUS_OK) return
+        jacobian = 0.0_dp
+        i = 0
+        do j = 1, size(wrt)
+            if (side(j)) cycle
+            i = i + 1
+            jacobian(:, j) = j0(:, i)
+        end do
+        if (.not. any(side)) return
+        allocate (pp(size(predictions)), jd(size(predictions), 0))
+        do j = 1, size(wrt)
+            if (.not. side(j)) cycle
+            k = findloc(self%fd, wrt(j), 1)
+            p = params
+            p(wrt(j)) = self%step(k)
+            call self%inner%evaluate(p, [integer ::], pp, jd, stat)
+            if (stat%code /= STATUS_OK) return
+            jacobian(:, j) = (pp - predictions)/self%step(k)
+        end do
+    end subroutine null_side_evaluate
 
     !> Probe rows of release experiments: at every distinct measured time of
     !! each release, every quantity it can measure (u_tip w_tip tip_angle
@@ -193,10 +267,14 @@ contains
     !! from the first-order estimate, params0 and `nominal`, ranking, rivals)
     !! with the probe rows of both families (pexp, pt, pq index them through
     !! diag%cand(c)%separating_row); with `with_mesh` and a release, the mesh
-    !! test at the level alpha / (number tested + 1).
+    !! test at the level alpha / (number tested + 1). A block of several
+    !! parameters (drag: c_elbow, c_tip) whose first-order estimates are not
+    !! all above their sigma is reduced to those that are (`used`): tip
+    !! histories rarely determine the elbow's parameter, and a block with an
+    !! undetermined member never passes its refit.
     subroutine dyn_diagnose(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
                             params0, nominal, free, prior, cands, fopts, dopts, with_mesh, &
-                            base, diag, mesh, pexp, pt, pq, stat)
+                            base, diag, mesh, pexp, pt, pq, used, stat)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
         real(dp), intent(in) :: params0(:), nominal(:)
@@ -211,8 +289,14 @@ contains
         type(mesh_test_t), intent(out) :: mesh
         integer, allocatable, intent(out) :: pexp(:), pq(:)
         real(dp), allocatable, intent(out) :: pt(:)
+        !> the candidates as tested: a block reduced to the parameters the
+        !! data determine (see above), else as given
+        type(candidate_t), allocatable, intent(out) :: used(:)
         type(status_t), intent(inout) :: stat
         type(inverse_problem_t) :: prob, probe
+        type(null_side_model_t) :: side
+        type(score_result_t) :: sc
+        logical, allocatable :: keep(:)
         type(diagnosis_t) :: sub
         type(candidate_t), allocatable :: seen_cands(:)
         type(status_t) :: st
@@ -227,7 +311,8 @@ contains
         call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
                                   prob, stat)
         if (stat%code /= STATUS_OK) return
-        call fit_at(prob, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
+        call null_side_init(nbeams, prob, side)
+        call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
                     stat)
         if (stat%code /= STATUS_OK) return
         ! which candidates do the data rows see at all? (a sensitivity the
@@ -244,7 +329,7 @@ contains
             if (allocated(jac)) deallocate (jac)
             allocate (jac(size(y), j))
             call clear_status(st)
-            call prob%evaluate(base%params, cands(c)%params, pred, jac, st)
+            call side%evaluate(base%params, cands(c)%params, pred, jac, st)
             if (st%code > 0) then
                 stat = st
                 return
@@ -254,6 +339,29 @@ contains
         ns = count(seen)
         map = pack([(c, c=1, nc)], seen)
         seen_cands = cands(map)
+        ! a block of several parameters (one per mass point) whose first-order
+        ! estimates are not all determined: test and refit the parameters the
+        ! data determine (estimate above its sigma), the rest stay at null
+        do k = 1, ns
+            j = size(seen_cands(k)%params)
+            if (j < 2) cycle
+            if (any([(any(base%free == seen_cands(k)%params(q)), q=1, j)]) .or. &
+                any(base%params(seen_cands(k)%params) /= prob%nulls(seen_cands(k)%params))) &
+                cycle
+            call clear_status(st)
+            call score_test(side, y, sigma, base%params, base%free, prob%lower, prob%upper, &
+                            prior, seen_cands(k)%params, fopts, sc, st)
+            if (st%code > 0) then
+                stat = st
+                return
+            end if
+            if (st%code /= STATUS_OK) cycle
+            keep = sc%estimate > sc%sigma .and. sc%sigma > 0.0_dp
+            if (count(keep) >= 1 .and. count(keep) < j) &
+                seen_cands(k)%params = pack(seen_cands(k)%params, keep)
+        end do
+        used = cands
+        used(map) = seen_cands
         ! probe rows of both families
         allocate (sexp(0), sq(0), ssig(0))
         if (prob%has_static) then
@@ -278,7 +386,7 @@ contains
             dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
         end if
         if (ns > 0) then
-            call diagnose(prob, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
+            call diagnose(side, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
                           seen_cands, fopts, dsub, sub, stat, probe, psig, nominal)
             if (stat%code /= STATUS_OK) return
         else

@@ -11,7 +11,8 @@ module beamid_api_dyndiag
                                  diagnose_options_t, diagnosis_t, fit_at, score_test, &
                                  score_result_t, refit_effect, refit_info_t
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init
-    use beamid_dyn_diagnosis, only: mesh_test_t, dyn_diagnose, time_structure
+    use beamid_dyn_diagnosis, only: mesh_test_t, dyn_diagnose, time_structure, &
+                                    null_side_model_t, null_side_init
     implicit none
     private
 
@@ -55,8 +56,8 @@ contains
                                     row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                     cand_params, alpha, nrefit, ambiguity_delta, collinear, &
                                     with_mesh, cstats, pstats, refit_params, ranking, cosine, &
-                                    dstats, refit_start, sep_t, mstats, mesh_params, notes, &
-                                    code, message)
+                                    dstats, refit_start, sep_t, mstats, mesh_params, kept, &
+                                    notes, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         integer(c_int), intent(in) :: nval  !< values per experiment (beamid_inverse NEXPVAL)
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
@@ -73,6 +74,8 @@ contains
         integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
         real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
         real(c_double), intent(out) :: mesh_params(nparams)
+        !> 1: the candidate parameter was tested, 0: left at null (not determined)
+        integer(c_int), intent(out) :: kept(ncandp + 1)
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -83,11 +86,11 @@ contains
         type(prior_t) :: prior
         type(diagnosis_t) :: diag
         type(mesh_test_t) :: mesh
-        type(candidate_t), allocatable :: cands(:)
+        type(candidate_t), allocatable :: cands(:), used(:)
         integer, allocatable :: pexp(:), pq(:)
         real(dp), allocatable :: pt(:)
         character(len=:), allocatable :: text
-        integer :: c, k, j, nf, r
+        integer :: c, k, j, nf, r, u
 
         cstats = 0.0_c_double
         pstats = 0.0_c_double
@@ -99,6 +102,7 @@ contains
         sep_t = 0.0_c_double
         mstats = 0.0_c_double
         mesh_params = params0
+        kept = 0
         notes = ''
         if (max_iter > 0) opts%max_iter = int(max_iter)
         call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
@@ -115,7 +119,7 @@ contains
                           real(row_t, dp), int(row_q), real(tol, dp), real(row_value, dp), &
                           real(row_sigma, dp), real(params0, dp), real(nominal, dp), &
                           int(free_idx), prior, cands, opts, dopts, with_mesh /= 0, base, diag, &
-                          mesh, pexp, pt, pq, stat)
+                          mesh, pexp, pt, pq, used, stat)
         code = int(stat%code, c_int)
         message = stat%message
         if (stat%code /= STATUS_OK) return
@@ -142,14 +146,18 @@ contains
                 if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
                 do j = 1, cand_start(c + 1) - cand_start(c)
                     k = cand_start(c) + j - 1
+                    ! position of this parameter in the block as tested
+                    u = findloc(used(c)%params, cands(c)%params(j), 1)
+                    if (u == 0) cycle
+                    kept(k) = 1
                     if (allocated(cr%score%estimate)) then
-                        pstats(1:3, k) = [cr%score%estimate(j), cr%score%sigma(j), &
-                                          b2r(cr%score%active(j))]
+                        pstats(1:3, k) = [cr%score%estimate(u), cr%score%sigma(u), &
+                                          b2r(cr%score%active(u))]
                     end if
                     if (cr%refit_ok) then
-                        pstats(4:6, k) = [cr%refit%params(cands(c)%params(j)), &
-                                          cr%refit%sigmas(nf + j), &
-                                          real(cr%refit%flags(nf + j), dp)]
+                        pstats(4:6, k) = [cr%refit%params(used(c)%params(u)), &
+                                          cr%refit%sigmas(nf + u), &
+                                          real(cr%refit%flags(nf + u), dp)]
                     end if
                 end do
             end associate
@@ -204,6 +212,7 @@ contains
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
+        type(null_side_model_t) :: side
         type(status_t) :: stat
         type(fit_options_t) :: opts
         type(fit_result_t) :: base, res
@@ -237,14 +246,16 @@ contains
         if (stat%code == STATUS_OK) then
             if (max_iter > 0) opts%max_iter = int(max_iter)
             call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-            call fit_at(model, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
+            ! the motor lag and compliances get one-sided columns at null
+            call null_side_init(int(nbeams), model, side)
+            call fit_at(side, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
                         int(free_idx), model%lower, model%upper, prior, opts, base, stat)
         end if
-        if (stat%code == STATUS_OK) call score_test(model, real(row_value, dp), &
+        if (stat%code == STATUS_OK) call score_test(side, real(row_value, dp), &
             real(row_sigma, dp), base%params, base%free, model%lower, model%upper, prior, &
             int(block), opts, score, stat)
         if (stat%code == STATUS_OK) then
-            call refit_effect(model, real(row_value, dp), real(row_sigma, dp), base, int(block), &
+            call refit_effect(side, real(row_value, dp), real(row_sigma, dp), base, int(block), &
                               score, real(nominal, dp), model%nulls, model%lower, model%upper, &
                               prior, opts, res, rinfo, stat, &
                               use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])

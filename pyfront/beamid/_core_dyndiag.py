@@ -39,7 +39,7 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
         int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
         float(ambiguity_delta), float(collinear), int(bool(with_mesh)))
     (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
-     mesh_params, notes, code, message) = out
+     mesh_params, kept, notes, code, message) = out
     raise_for_status(int(code), message)
     nc = len(blocks)
     lines = _msg(notes).rstrip().split("\n")
@@ -52,6 +52,7 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
             "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
             "sep_t": np.array(sep_t), "mstats": np.array(mstats),
             "mesh_params": np.array(mesh_params),
+            "kept": np.array(kept, dtype=bool)[:-1],
             "notes": [line.strip() for line in lines[:nc]]}
 
 

@@ -116,6 +116,9 @@ class DynCandidate(Candidate):
     separating measurement of a rival also has its time (s)."""
 
     separating_time: float | None = None
+    #: parameters of the effect the data do not determine (first-order
+    #: estimate below its sigma): left at their null values, not tested
+    left_at_null: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -174,11 +177,14 @@ def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None =
     out: list[Candidate] = []
     for c, eff in enumerate(effects):
         s = cst[:, c]
-        ps = pst[:, starts[c]:starts[c + 1]]
+        keep = raw["kept"][starts[c]:starts[c + 1]]
+        ps = pst[:, starts[c]:starts[c + 1]][:, keep] if keep.any() else pst[:, :0]
         state = _STATES[int(s[0])]
         if state != "tested":
             out.append(DynCandidate(eff.name, names[c], state))
             continue
+        left = tuple(n for n, k in zip(names[c], keep) if not k)
+        names[c] = tuple(n for n, k in zip(names[c], keep) if k)
         refit = bool(s[6]) and bool(s[7])
         sep, sep_t = None, None
         if s[12] and s[14] > 0:
@@ -200,7 +206,8 @@ def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None =
             refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
             significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
             separating=sep, refit_tried=bool(s[6]), refit_start=raw["refit_start"][c],
-            refit_note=_named(model, raw["notes"][c]), separating_time=sep_t))
+            refit_note=_named(model, raw["notes"][c]), separating_time=sep_t,
+            left_at_null=left))
     ranked = [out[i] for i in raw["ranking"]]
     verdict_index = int(raw["dstats"][0])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
@@ -257,6 +264,10 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         text = _dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh), verdict,
                                     plain, alpha, alpha_each)
         lines.append(text)
+        if verdict is not None and getattr(verdict, "left_at_null", ()):
+            lines.append(f"  {', '.join(verdict.left_at_null)} of {verdict.effect} left at "
+                         "the null value: not determined by these data (first-order estimate "
+                         "below its sigma)")
         for r in rivals:
             if r.separating:
                 e, q, k = r.separating
