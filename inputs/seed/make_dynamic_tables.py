@@ -26,7 +26,7 @@ QUARTER, HALF = 0.65, 1.3      # of the 2.6 s period of the dominant mode
 
 #: table: (experiment, motor gain, times, sigma_w, sigma_u, seed or None)
 TABLES = {
-    "14": ("free", 0.0, np.linspace(0.5, 2.5, 5), 1e-4, 1e-4, None),
+    "14": ("free", 0.0, np.linspace(0.2, 1.0, 5), 1e-4, 1e-4, None),
     "15": ("free", 0.0, np.linspace(QUARTER / 9, QUARTER, 9), 0.0015, 0.0006, 15),
     "16": ("free", 0.0, np.linspace(HALF / 18, HALF, 18), 0.0015, 0.0006, 16),
     "18": ("free", 0.0, np.linspace(QUARTER / 11, QUARTER, 11), 0.0015, 0.0006, 18),

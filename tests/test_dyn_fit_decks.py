@@ -1,0 +1,76 @@
+"""Estimation decks with release experiments: both fronts, same bytes; bad rows."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import beamid
+from beamid.tables import inputs_dir
+
+BATCH = Path(sys.executable).parent / "beamid-batch"
+
+
+def _copy(tmp_path: Path, table: str) -> Path:
+    for name in (f"table{table}_fit.nml", f"table{table}_data.csv"):
+        shutil.copy(inputs_dir("seed") / name, tmp_path / name)
+    return tmp_path / f"table{table}_fit.nml"
+
+
+def test_release_deck_same_bytes_from_both_fronts(tmp_path):
+    """Table 22's deck (a release with the motor): beamid-batch and beamid.run
+    write the same files, and the estimate is Table 22's."""
+    deck = _copy(tmp_path, "22")
+    run = subprocess.run([str(BATCH), str(deck)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    out = tmp_path / "out"
+    batch = {p.name: p.read_bytes() for p in out.iterdir()}
+    shutil.rmtree(out)
+    result = beamid.run(deck)
+    python = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert batch == python and len(batch) == 3
+    assert result.estimates["r_motor"] == pytest.approx(1.0, abs=1e-4)
+    rows = (out / "table22_fit_residuals.csv").read_text().splitlines()
+    assert rows[1].startswith("forced,0.13,w_tip,")
+
+
+def test_release_deck_reads_options(tmp_path):
+    deck = _copy(tmp_path, "22")
+    d = beamid.read_deck(deck)
+    x = d.experiments["forced"]
+    assert isinstance(x, beamid.Release)
+    assert x.motor_gain == 0.2 and x.elements_per_beam == 4 and x.integrator == "implicit"
+
+
+@pytest.mark.parametrize("line, words", [
+    ("&experiment name = 'forced', kind = 'release', fy = 8.0, motor_gain = -1 /",
+     "motor_gain = -1"),
+    ("&experiment name = 'forced', kind = 'release', fy = 8.0, integrator = 'euler' /",
+     "integrator = 'euler'"),
+    ("&experiment name = 'forced', kind = 'tip', fy = 8.0, motor_gain = 0.2 /",
+     "does not take motor_gain"),
+])
+def test_bad_release_experiment(tmp_path, line, words):
+    deck = _copy(tmp_path, "22")
+    text = deck.read_text().splitlines()
+    text = [line if t.startswith("&experiment") else t for t in text]
+    deck.write_text("\n".join(text) + "\n")
+    with pytest.raises(beamid.InputError, match=words):
+        beamid.read_deck(deck)
+    run = subprocess.run([str(BATCH), str(deck)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and words in run.stderr
+
+
+def test_motor_torque_without_motor_names_the_line(tmp_path):
+    deck = _copy(tmp_path, "22")
+    deck.write_text(deck.read_text().replace("motor_gain = 0.2", "motor_gain = 0.0"))
+    csv = tmp_path / "table22_data.csv"
+    csv.write_text(csv.read_text() + "forced,0.5,motor_torque,0.1,0.01\n")
+    n = len(csv.read_text().splitlines())
+    with pytest.raises(beamid.InputError, match=rf"table22_data.csv, line {n}.*motor_torque"):
+        beamid.read_deck(deck)
+    run = subprocess.run([str(BATCH), str(deck)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and f"line {n}" in run.stderr
