@@ -52,6 +52,11 @@ module beamid_dyn_diagnosis
     !> Relative chi-square change below which fits with releases count as
     !! converged (the integrator's noise floor; see dyn_diagnose).
     real(dp), parameter :: COST_FLOOR = 1.0e-6_dp
+    !> A block member is determined when its first-order estimate exceeds
+    !! this many sigmas (the others stay at null: see dyn_diagnose).
+    real(dp), parameter :: KEEP_SIGMAS = 2.0_dp
+    !> Level of the test whether a block needs more than its best member.
+    real(dp), parameter :: NEST_ALPHA = 0.01_dp
 
     !> A problem whose sensitivity columns of the parameters `fd`, when at
     !! their null value 0, are one-sided differences (the rest: the inner
@@ -271,10 +276,12 @@ contains
     !! with the probe rows of both families (pexp, pt, pq index them through
     !! diag%cand(c)%separating_row); with `with_mesh` and a release, the mesh
     !! test at the level alpha / (number tested + 1). A block of several
-    !! parameters (drag: c_elbow, c_tip) whose first-order estimates are not
-    !! all above their sigma is reduced to those that are (`used`): tip
-    !! histories rarely determine the elbow's parameter, and a block with an
-    !! undetermined member never passes its refit.
+    !! parameters (drag: c_elbow, c_tip) is reduced (`used`) to its best
+    !! single member when the whole block does not lower the chi-square
+    !! significantly more (score drops, level NEST_ALPHA), else to the
+    !! members whose first-order estimates exceed KEEP_SIGMAS sigma: tip
+    !! histories rarely separate the elbow's parameter from the tip's, and a
+    !! block with an undetermined member never passes its refit.
     subroutine dyn_diagnose(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
                             params0, nominal, free, prior, cands, fopts0, dopts, with_mesh, &
                             base, diag, mesh, pexp, pt, pq, used, stat)
@@ -298,7 +305,9 @@ contains
         type(status_t), intent(inout) :: stat
         type(inverse_problem_t) :: prob, probe
         type(null_side_model_t) :: side
-        type(score_result_t) :: sc
+        type(score_result_t) :: sc, one
+        real(dp) :: dbest
+        integer :: best
         type(fit_options_t) :: fopts
         logical, allocatable :: keep(:)
         type(diagnosis_t) :: sub
@@ -367,7 +376,32 @@ contains
                 return
             end if
             if (st%code /= STATUS_OK) cycle
-            keep = sc%estimate > sc%sigma .and. sc%sigma > 0.0_dp
+            ! the best single member: when the whole block lowers the
+            ! chi-square not significantly more (likelihood-ratio level
+            ! NEST_ALPHA), the data need only that member
+            best = 0
+            dbest = -huge(1.0_dp)
+            do q = 1, j
+                call clear_status(st)
+                call score_test(side, y, sigma, base%params, base%free, prob%lower, &
+                                prob%upper, prior, seen_cands(k)%params(q:q), fopts, one, st)
+                if (st%code > 0) then
+                    stat = st
+                    return
+                end if
+                if (st%code /= STATUS_OK) cycle
+                if (one%drop > dbest) then
+                    dbest = one%drop
+                    best = q
+                end if
+            end do
+            if (best > 0) then
+                if (chi2_sf(max(sc%drop - dbest, 0.0_dp), j - 1) > NEST_ALPHA) then
+                    seen_cands(k)%params = seen_cands(k)%params(best:best)
+                    cycle
+                end if
+            end if
+            keep = sc%estimate > KEEP_SIGMAS*sc%sigma .and. sc%sigma > 0.0_dp
             if (count(keep) >= 1 .and. count(keep) < j) &
                 seen_cands(k)%params = pack(seen_cands(k)%params, keep)
         end do

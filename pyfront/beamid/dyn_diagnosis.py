@@ -116,8 +116,9 @@ class DynCandidate(Candidate):
     separating measurement of a rival also has its time (s)."""
 
     separating_time: float | None = None
-    #: parameters of the effect the data do not determine (first-order
-    #: estimate below its sigma): left at their null values, not tested
+    #: parameters of the effect the data do not need (the block does not fit
+    #: significantly better than its best member) or do not determine
+    #: (first-order estimate below 2 sigma): left at their null values
     left_at_null: tuple[str, ...] = ()
 
 
@@ -266,8 +267,7 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         lines.append(text)
         if verdict is not None and getattr(verdict, "left_at_null", ()):
             lines.append(f"  {', '.join(verdict.left_at_null)} of {verdict.effect} left at "
-                         "the null value: not determined by these data (first-order estimate "
-                         "below its sigma)")
+                         "the null value: these data do not need or determine it")
         for r in rivals:
             if r.separating:
                 e, q, k = r.separating
