@@ -73,3 +73,25 @@ def test_identify_static_then_free():
     assert rows[("free", "EI1")].sigma_before == pytest.approx(rows[("static", "EI1")].sigma_after)
     assert rows[("free", "EI1")].sigma_after <= rows[("free", "EI1")].sigma_before * 1.0001
     assert "sigma before" in result.summary()
+
+
+def test_identify_command_runs_decks_as_stages(tmp_path, capsys):
+    """beamid identify DECK DECK: the static deck of Table 4, then the forced
+    response of Table 22, carried; writes the sigma table."""
+    import shutil
+
+    from beamid.cli import main
+    from beamid.tables import inputs_dir
+
+    for name in ("table04_fit.nml", "table04_data.csv", "table22_fit.nml",
+                 "table22_data.csv"):
+        shutil.copy(inputs_dir("seed") / name, tmp_path / name)
+    code = main(["identify", str(tmp_path / "table04_fit.nml"),
+                 str(tmp_path / "table22_fit.nml"), "--no-plots"])
+    assert code == 0
+    rows = (tmp_path / "out" / "table04_fit_identify.csv").read_text().splitlines()
+    assert rows[0] == "stage,parameter,estimate,sigma_before,sigma_after"
+    table = {(r.split(",")[0], r.split(",")[1]): r.split(",") for r in rows[1:]}
+    assert float(table[("table22_fit", "r_motor")][2]) == pytest.approx(1.0, abs=1e-3)
+    assert table[("table22_fit", "EI1")][3] == table[("table04_fit", "EI1")][4]
+    assert "sigma before" in capsys.readouterr().out

@@ -27,10 +27,25 @@ module beamid_api_estimation
 
     public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
-    public :: api_problem_predict, api_problem_fit, api_deck_experiments
+    public :: api_problem_predict, api_problem_fit, api_deck_experiments, api_problem_diagnose
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
+
+    !> The names of the columns of the result arrays (exported by
+    !! api_code_names, tables 5-8, so that no front decodes them by position):
+    !! stats of a fit, cstats (per candidate), pstats (per candidate
+    !! parameter) and dstats (the diagnosis) of api_diagnose.
+    character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
+        'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
+    character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
+        'score_drop', 'score_p', 'score_dof', 'physical', 'identifiable', 'refit_done', &
+        'refit_ok', 'lr_drop', 'lr_p', 'significant', 'acceptable', 'rival', 'separation', &
+        'sep_experiment', 'sep_quantity', 'refit_chi2', 'refit_chi2_prior']
+    character(len=*), parameter :: PSTAT_NAMES(6) = [character(len=12) :: 'estimate', &
+        'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
+    character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
+        'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
 
 contains
 
@@ -109,8 +124,9 @@ contains
 
     !> The words of a code table of beamid_estimation, one per code from 0
     !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
-    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*).
-    !! code = -1 for an unknown table.
+    !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*),
+    !! and the column names of the result arrays: 5 a fit's stats, 6 cstats,
+    !! 7 pstats, 8 dstats (from position 1). code = -1 for an unknown table.
     subroutine api_code_names(table, names, code)
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
@@ -125,6 +141,14 @@ contains
             names = joined(START_NAMES)
         case (4)
             names = joined(CAND_NAMES)
+        case (5)
+            names = joined(FIT_STAT_NAMES)
+        case (6)
+            names = joined(CSTAT_NAMES)
+        case (7)
+            names = joined(PSTAT_NAMES)
+        case (8)
+            names = joined(DSTAT_NAMES)
         case default
             names = ''
             code = -1
@@ -419,7 +443,11 @@ contains
         character(len=256), intent(out) :: message
         integer(c_int) :: refit_start(ncand)
         character(len=8192) :: notes
-        call diagnose_core(nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                            model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
                            prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
                            row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
                            tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
@@ -456,7 +484,11 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        call diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
+                            model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
                            prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
                            row_exp, row_q, row_value, row_sigma, tol, max_iter, 0.0_c_double, &
                            0.0_c_double, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
@@ -464,19 +496,22 @@ contains
                            cosine, dstats, refit_start, notes, code, message)
     end subroutine api_diagnose_nominal
 
-    subroutine diagnose_core(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
-                             prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &
-                             nrow, row_exp, row_q, row_value, row_sigma, tol, max_iter, &
-                             tol_step, tol_cost, ncand, cand_start, ncandp, cand_params, alpha, &
-                             nrefit, ambiguity_delta, collinear, cstats, pstats, refit_params, &
-                             ranking, cosine, dstats, refit_start, notes, code, message)
+    !> api_diagnose_nominal on any mix of experiment families (kinds 1-3,
+    !! exp_values(:, e) in the EV_* layout, rows with times row_t).
+    subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
+                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, &
+                                    exp_kind, exp_values, nrow, row_exp, row_t, row_q, &
+                                    row_value, row_sigma, tol, max_iter, ncand, cand_start, &
+                                    ncandp, cand_params, alpha, nrefit, ambiguity_delta, &
+                                    collinear, cstats, pstats, refit_params, ranking, cosine, &
+                                    dstats, refit_start, notes, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
         integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol, tol_step, tol_cost
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
         real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
@@ -489,6 +524,44 @@ contains
         character(len=256), intent(out) :: message
         type(inverse_problem_t) :: model
         type(status_t) :: stat
+        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
+                                  model, stat)
+        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, &
+                           nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
+                           exp_values, nrow, row_exp, row_q, row_value, row_sigma, tol, &
+                           max_iter, 0.0_c_double, 0.0_c_double, ncand, cand_start, ncandp, &
+                           cand_params, alpha, nrefit, ambiguity_delta, collinear, cstats, &
+                           pstats, refit_params, ranking, cosine, dstats, refit_start, notes, &
+                           code, message)
+    end subroutine api_problem_diagnose
+
+    subroutine diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
+                             prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &
+                             nrow, row_exp, row_q, row_value, row_sigma, tol, max_iter, &
+                             tol_step, tol_cost, ncand, cand_start, ncandp, cand_params, alpha, &
+                             nrefit, ambiguity_delta, collinear, cstats, pstats, refit_params, &
+                             ranking, cosine, dstats, refit_start, notes, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(:, :), row_value(nrow), row_sigma(nrow)
+        real(c_double), intent(in) :: tol, tol_step, tol_cost
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        !> the problem (built by the caller; stat: how that went)
+        type(inverse_problem_t), intent(inout) :: model
+        type(status_t), intent(inout) :: stat
         type(fit_options_t) :: opts
         type(diagnose_options_t) :: dopts
         type(fit_result_t) :: base
@@ -507,8 +580,6 @@ contains
         refit_start = 0
         dstats = 0.0_c_double
         notes = ''
-        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                            model, stat)
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, tol_step, tol_cost, opts)
             prior%index = int(prior_idx(1:nprior))

@@ -154,17 +154,41 @@ START_NAMES = {k: (v or None) for k, v in code_names(3).items()}
 CANDIDATE_STATES = code_names(4)
 
 
+def _columns(table: int) -> dict[str, int]:
+    """Column name -> 0-based row of a result array (api_code_names 5-8)."""
+    return {name: k for k, name in code_names(table).items()}
+
+
+#: the columns of a fit's stats, and of a diagnosis' cstats, pstats, dstats
+FIT_STATS = _columns(5)
+CSTATS = _columns(6)
+PSTATS = _columns(7)
+DSTATS = _columns(8)
+
+
+class Columns:
+    """Rows of a result array by their Fortran names: ``cols["chi2"]``."""
+
+    def __init__(self, array: np.ndarray, names: dict[str, int]) -> None:
+        self._a, self._names = np.asarray(array), names
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._a[self._names[name]]
+
+
 def _fit_dict(out, n: int) -> dict:
     (params, sigmas, cov, corr, flags, pred, norm, stats, log_cost, log_lambda, log_step,
      log_params, info, code, message, note) = out
-    nlog = int(stats[7]) + 1
+    st = Columns(stats, FIT_STATS)
+    nlog = int(st["nlog"]) + 1
     return {
         "params": np.array(params), "sigmas": np.array(sigmas),
         "cov": np.array(cov).reshape(n, n), "corr": np.array(corr).reshape(n, n),
         "flags": np.array(flags, dtype=int), "predictions": np.array(pred),
-        "normalized": np.array(norm), "chi2": float(stats[0]), "chi2_prior": float(stats[1]),
-        "cond": float(stats[2]), "dof": int(stats[3]), "rank": int(stats[4]),
-        "iterations": int(stats[5]), "converged": bool(stats[6]),
+        "normalized": np.array(norm), "chi2": float(st["chi2"]),
+        "chi2_prior": float(st["chi2_prior"]), "cond": float(st["cond"]),
+        "dof": int(st["dof"]), "rank": int(st["rank"]),
+        "iterations": int(st["iterations"]), "converged": bool(st["converged"]),
         "log_cost": np.array(log_cost[:nlog]), "log_lambda": np.array(log_lambda[:nlog]),
         "log_step": np.array(log_step[:nlog]),
         "log_params": np.array(log_params).reshape(n, -1)[:, :nlog],
@@ -219,24 +243,33 @@ def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    out = _api.api_diagnose_nominal(
-        prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-        _pad(prior_idx, np.int32), _pad(prior_mean, float),
-        _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-        prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
-        starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
-        float(collinear))
+    if prob.row_t is not None:   # release experiments (beamid_inverse)
+        out = _api.api_problem_diagnose(
+            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
+            _pad(prior_idx, np.int32), _pad(prior_mean, float),
+            _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+            _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+            int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
+            float(ambiguity_delta), float(collinear))
+    else:
+        out = _api.api_diagnose_nominal(
+            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
+            _pad(prior_idx, np.int32), _pad(prior_mean, float),
+            _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
+            prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
+            starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
+            float(collinear))
     (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes, code,
      message) = out
     raise_for_status(int(code), message)
     nc = len(blocks)
     lines = _msg(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
-    return {"cstats": np.array(cstats).reshape(18, nc),
-            "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+    return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
+            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
             "refit_params": np.array(refit_params).reshape(-1, nc),
             "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
-            "dstats": np.array(dstats), "starts": starts - 1,
+            "dstats": Columns(np.array(dstats), DSTATS), "starts": starts - 1,
             "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
             "notes": [line.strip() for line in lines[:nc]]}
 

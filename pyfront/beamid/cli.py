@@ -99,6 +99,15 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     return _estimation(deck, plots=not args.no_plots)
 
 
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from .fit_decks import run_identify
+
+    text, files, _ = run_identify(list(args.decks), plots=not args.no_plots)
+    print(text)
+    _print_files(files)
+    return EXIT_OK
+
+
 # --------------------------------------------------------------- simulate
 
 def _times(text: str) -> list[float]:
@@ -428,6 +437,11 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
         p.add_argument("--no-plots", action="store_true", help="write CSV files only")
         p.set_defaults(func=_cmd_estimate)
+    p = sub.add_parser("identify", help="run estimation decks as stages (static, free, "
+                       "forced), carrying estimates and covariance (docs/workflow.md)")
+    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order")
+    p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
+    p.set_defaults(func=_cmd_identify)
     _add_mc_parsers(sub)
     return parser
 

@@ -31,7 +31,7 @@ from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
 from .estimation import _named, _prior_arrays, _result
-from .loads import RadialWire, TipLoad
+from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
 
@@ -157,7 +157,9 @@ class Comparison:
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
     the force magnitude, else the moment magnitude, else for a wire the
-    pull-in (total length - Lw)."""
+    pull-in (total length - Lw); for a release, its load's (as beamid-batch)."""
+    if isinstance(load, Release):
+        load = load.load
     if isinstance(load, RadialWire):
         return model.total_length - load.Lw
     force = math.hypot(load.fx, load.fy)
@@ -395,38 +397,44 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     exp_names = list(fit.experiments)
     out: list[Candidate] = []
     for c, eff in enumerate(effects):
-        s = cst[:, c]
-        ps = pst[:, starts[c]:starts[c + 1]]
-        state = _STATES[int(s[0])]
+        def s(name: str) -> float:   # this candidate's column, by its Fortran name
+            return float(cst[name][c])
+
+        def ps(name: str) -> np.ndarray:
+            return pst[name][starts[c]:starts[c + 1]]
+
+        state = _STATES[int(s("state"))]
         if state != "tested":
             out.append(Candidate(eff.name, names[c], state))
             continue
-        refit = bool(s[6]) and bool(s[7])
+        refit = bool(s("refit_done")) and bool(s("refit_ok"))
         sep = None
-        if s[12] and s[14] > 0:
-            sep = (exp_names[int(s[14]) - 1], _ce.QUANTITY_NAMES[int(s[15])], float(s[13]))
+        if s("rival") and s("sep_experiment") > 0:
+            sep = (exp_names[int(s("sep_experiment")) - 1],
+                   _ce.QUANTITY_NAMES[int(s("sep_quantity"))], s("separation"))
         null = {n: float(model[n]) for n in names[c]}
+        each = list(enumerate(names[c]))
         out.append(Candidate(
-            effect=eff.name, params=names[c], state=state, score_drop=float(s[1]),
-            score_p=float(s[2]),
-            first_order={n: null[n] + float(ps[0, j]) for j, n in enumerate(names[c])},
-            first_order_sigma={n: float(ps[1, j]) for j, n in enumerate(names[c])},
-            physical=bool(s[4]), identifiable=bool(s[5]), refit=refit,
-            lr_drop=float(s[8]) if refit else math.nan,
-            lr_p=float(s[9]) if refit else math.nan,
-            refit_estimate={n: float(ps[3, j]) for j, n in enumerate(names[c])} if refit else {},
-            refit_sigma={n: float(ps[4, j]) for j, n in enumerate(names[c])} if refit else {},
-            refit_flags={n: FLAG_TEXT.get(int(ps[5, j]), "flagged")
-                         for j, n in enumerate(names[c])} if refit else {},
+            effect=eff.name, params=names[c], state=state, score_drop=s("score_drop"),
+            score_p=s("score_p"),
+            first_order={n: null[n] + float(ps("estimate")[j]) for j, n in each},
+            first_order_sigma={n: float(ps("sigma")[j]) for j, n in each},
+            physical=bool(s("physical")), identifiable=bool(s("identifiable")), refit=refit,
+            lr_drop=s("lr_drop") if refit else math.nan,
+            lr_p=s("lr_p") if refit else math.nan,
+            refit_estimate={n: float(ps("refit_value")[j]) for j, n in each} if refit else {},
+            refit_sigma={n: float(ps("refit_sigma")[j]) for j, n in each} if refit else {},
+            refit_flags={n: FLAG_TEXT.get(int(ps("refit_flag")[j]), "flagged")
+                         for j, n in each} if refit else {},
             refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
-            significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
-            separating=sep, refit_tried=bool(s[6]), refit_start=raw["refit_start"][c],
-            refit_note=_named(model, raw["notes"][c])))
+            significant=bool(s("significant")), acceptable=bool(s("acceptable")),
+            rival=bool(s("rival")), separating=sep, refit_tried=bool(s("refit_done")),
+            refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c])))
     ranked = tuple(out[i] for i in raw["ranking"])
-    verdict_index = int(raw["dstats"][0])
+    verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
     rivals = tuple(c for c in ranked if c.rival)
-    alpha_each = float(raw["dstats"][2])
+    alpha_each = float(raw["dstats"]["alpha_each"])
     message = _verdict_message(fit, ranked, verdict, rivals, alpha, alpha_each)
     return Diagnosis(fit=fit, candidates=ranked, verdict=verdict, rivals=rivals, alpha=alpha,
                      alpha_each=alpha_each, message=message)

@@ -520,10 +520,11 @@ class Identification:
         return list(self.stages.values())[-1]
 
     def summary(self) -> str:
-        lines = [f"{'stage':<10}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
+        w = max([10] + [len(r.stage) + 2 for r in self.table])
+        lines = [f"{'stage':<{w}}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
                  f"{'sigma after':>13}"]
         for r in self.table:
-            lines.append(f"{r.stage:<10}{r.parameter:<12}{r.estimate:>12.5g}"
+            lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.5g}"
                          f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
         return "\n".join(lines)
 
@@ -548,7 +549,7 @@ class Identification:
 
 
 def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
-             max_iter: int = 50) -> Identification:
+             max_iter: int = 50, starts: Mapping[str, Model] | None = None) -> Identification:
     """The sequential identification of Chapter VI: static -> free -> forced.
 
     ``stages`` is ``{name: (experiments, data, free)}`` (or a list of such
@@ -557,7 +558,10 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
     the previous stage's estimates and full covariance as a priori
     information (Eq. 146-148, 164-166; the carried parameters are updated
     too). The first stage may be given as ``(experiments, data, free,
-    prior)`` with a dict prior.
+    prior)`` with a dict prior; a later stage's a priori information is the
+    carried fit (a dict prior given there is not used). ``starts`` (optional,
+    by stage name): the model a stage starts from (a stage deck's own), its
+    carried parameters replaced by the previous stage's estimates.
     """
     items = list(stages.items()) if isinstance(stages, Mapping) else [
         (f"stage{k + 1}", s) for k, s in enumerate(stages)]
@@ -574,6 +578,9 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
         prior = spec[3] if len(spec) == 4 else None
         if previous is not None:
             prior = previous
+        if starts and name in starts:
+            carried = {n: current[n] for n in (previous.free if previous else ())}
+            current = starts[name].replace(**carried) if carried else starts[name]
         fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=max_iter)
         for p in fit_k.free:
             before = known.get(p, math.inf)

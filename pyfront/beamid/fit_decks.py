@@ -154,3 +154,46 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
         plt.close(fig)
         written.append(p)
     return written
+
+
+def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
+    """``beamid identify DECK [DECK ...]``: each estimation deck is a stage
+    (static -> free -> forced), run in order by :func:`beamid.identify`
+    (estimates and full covariance carried, Eq. 146-148, 164-166); the first
+    deck's model is the start, each later deck's model gives the starting
+    values of its newly free parameters. Writes ``<output>_identify.csv``
+    (stage, parameter, estimate, sigma_before, sigma_after) with the first
+    deck's output prefix, and ``_identify.png`` with ``plots``."""
+    from .estimation import identify
+
+    if not decks:
+        raise InputError("identify: give the stage decks in order (static, free, forced)")
+    parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
+    names = []
+    for d in parsed:
+        base = Path(d.output).name or d.path.stem
+        names.append(base if base not in names else f"{base}_{len(names) + 1}")
+    stages = {n: (d.experiments, d.data, d.free, d.prior or None)
+              for n, d in zip(names, parsed)}
+    result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
+                      starts={n: d.model for n, d in zip(names, parsed)})
+    prefix = parsed[0].output_prefix
+    prefix.parent.mkdir(parents=True, exist_ok=True)
+    csv = prefix.with_name(prefix.name + "_identify.csv")
+    lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+    lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
+              f"{r.sigma_after:.16E}" for r in result.table]
+    tmp = csv.with_name(csv.name + ".tmp")
+    tmp.write_text("\n".join(lines).replace("INF", "inf") + "\n")
+    os.replace(tmp, csv)
+    files = [csv]
+    if plots:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        ax = result.plot()
+        png = prefix.with_name(prefix.name + "_identify.png")
+        ax.figure.savefig(png, dpi=100)
+        plt.close(ax.figure)
+        files.append(png)
+    return result.summary() + "\n" + result.final.summary(), files, result
