@@ -26,20 +26,20 @@ module beamid_integrators
                              ERR_NUMERIC, fmt_int, fmt_real
     use beamid_dynamics, only: dyn_system_t, dyn_cforces, dyn_cpower, dyn_cxrate, &
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
-                               dyn_to_coords, dyn_energy, dyn_torque, band_lu_t, zband_lu_t, &
-                               band_factor, band_solve, zband_factor, zband_solve, &
+                               dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
                                FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_dforce, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
                                DP_NONE
+    use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
+                           zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+                           dband_mv, zband_mv, kc_mv
     implicit none
     private
 
     public :: integ_opts_t, integ_stats_t, history_t, radau_t, event_t
     public :: EVENT_START, EVENT_ZERO_VELOCITY, EVENT_UNSTICK
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
-    !> the symmetric band kernels, public for their tests
-    public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, dband_mv, zband_mv
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
     !> Kinds of friction events: the decision at the start (components at
@@ -1062,246 +1062,6 @@ contains
         end do
     end function band_symmetric
 
-    !> L D L^T of a symmetric band matrix of half-bandwidth k, lower band
-    !! s(1 + i - j, j) = A(i, j), without pivoting: D on row 1, L below.
-    !! False (s then unusable) at the first pivot that is not positive.
-    pure subroutine ldlt_real(n, k, s, ok)
-        integer, intent(in) :: n, k
-        logical, intent(out) :: ok
-        real(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m, j0
-        real(dp) :: d, dinv, vc
-        integer, parameter :: K7 = 7
-        ok = .false.
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                d = s(1, j)
-                if (.not. (d > 0.0_dp)) return
-                dinv = 1.0_dp/d
-                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
-                do c = 1, K7
-                    vc = s(1 + c, j)*d
-                    do r = c, K7
-                        s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
-                    end do
-                end do
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            d = s(1, j)
-            if (.not. (d > 0.0_dp)) return
-            dinv = 1.0_dp/d
-            ! the scaled column first: l_r = a_r / d; then the trailing update
-            ! A(r, c) -= l_r d l_c over the lower triangle
-            m = min(k, n - j)
-            do r = 2, m + 1
-                s(r, j) = s(r, j)*dinv
-            end do
-            do c = 1, m
-                vc = s(1 + c, j)*d
-                do r = c, m
-                    s(1 + r - c, j + c) = s(1 + r - c, j + c) - s(1 + r, j)*vc
-                end do
-            end do
-        end do
-        ok = .true.
-    end subroutine ldlt_real
-
-    !> Complex symmetric counterpart of ldlt_real; false at the first pivot
-    !! whose imaginary part is not positive.
-    pure subroutine ldlt_cplx(n, k, s, ok)
-        integer, intent(in) :: n, k
-        logical, intent(out) :: ok
-        complex(dp), intent(inout) :: s(k + 1, n)
-        integer :: j, c, r, m, j0
-        complex(dp) :: d, dinv
-        real(dp) :: vr, vi, sr, si
-        integer, parameter :: K7 = 7
-        ok = .false.
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                d = s(1, j)
-                if (.not. (d%im > 0.0_dp)) return
-                dinv = 1.0_dp/d
-                do c = 1, K7
-                    vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
-                    vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
-                    do r = c, K7
-                        sr = s(1 + r, j)%re
-                        si = s(1 + r, j)%im
-                        s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
-                        s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
-                    end do
-                end do
-                s(2:K7 + 1, j) = s(2:K7 + 1, j)*dinv
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            d = s(1, j)
-            if (.not. (d%im > 0.0_dp)) return
-            dinv = 1.0_dp/d
-            m = min(k, n - j)
-            do c = 1, m
-                vr = s(1 + c, j)%re*dinv%re - s(1 + c, j)%im*dinv%im
-                vi = s(1 + c, j)%re*dinv%im + s(1 + c, j)%im*dinv%re
-                do r = c, m
-                    sr = s(1 + r, j)%re
-                    si = s(1 + r, j)%im
-                    s(1 + r - c, j + c)%re = s(1 + r - c, j + c)%re - (sr*vr - si*vi)
-                    s(1 + r - c, j + c)%im = s(1 + r - c, j + c)%im - (sr*vi + si*vr)
-                end do
-            end do
-            do r = 2, m + 1
-                s(r, j) = s(r, j)*dinv
-            end do
-        end do
-        ok = .true.
-    end subroutine ldlt_cplx
-
-    !> Solve L D L^T x = b (ldlt_real factors), b overwritten.
-    pure subroutine ldlt_solve_real(n, k, s, b)
-        integer, intent(in) :: n, k
-        real(dp), intent(in) :: s(k + 1, n)
-        real(dp), intent(inout) :: b(n)
-        integer, parameter :: K7 = 7
-        integer :: i, j, m, j0
-        real(dp) :: bj, acc
-        ! forward: L y = b (columns j <= n - k have the full k entries; with
-        ! k = 7, the rigid chain's, the trip count is a constant)
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                bj = b(j)
-                b(j + 1:j + K7) = b(j + 1:j + K7) - bj*s(2:K7 + 1, j)
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            m = min(k, n - j)
-            bj = b(j)
-            do i = 1, m
-                b(j + i) = b(j + i) - bj*s(1 + i, j)
-            end do
-        end do
-        ! backward: D L^T x = y (the last k rows by the general loop)
-        j0 = 0
-        if (k == K7) j0 = max(0, n - K7)
-        do j = n, j0 + 1, -1
-            m = min(k, n - j)
-            acc = 0.0_dp
-            do i = 1, m
-                acc = acc + s(1 + i, j)*b(j + i)
-            end do
-            b(j) = b(j)/s(1, j) - acc
-        end do
-        if (k == K7) then
-            do j = n - K7, 1, -1
-                b(j) = b(j)/s(1, j) - sum(s(2:K7 + 1, j)*b(j + 1:j + K7))
-            end do
-        end if
-    end subroutine ldlt_solve_real
-
-    !> Solve with the ldlt_cplx factors (no conjugation), b overwritten.
-    pure subroutine ldlt_solve_cplx(n, k, s, b)
-        integer, intent(in) :: n, k
-        complex(dp), intent(in) :: s(k + 1, n)
-        complex(dp), intent(inout) :: b(n)
-        integer, parameter :: K7 = 7
-        integer :: i, j, m, j0
-        real(dp) :: br, bi, sr, si
-        j0 = 1
-        if (k == K7) then
-            do j = 1, n - K7
-                br = b(j)%re
-                bi = b(j)%im
-                do i = 1, K7
-                    sr = s(1 + i, j)%re
-                    si = s(1 + i, j)%im
-                    b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
-                    b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
-                end do
-            end do
-            j0 = max(1, n - K7 + 1)
-        end if
-        do j = j0, n
-            m = min(k, n - j)
-            br = b(j)%re
-            bi = b(j)%im
-            do i = 1, m
-                sr = s(1 + i, j)%re
-                si = s(1 + i, j)%im
-                b(j + i)%re = b(j + i)%re - (br*sr - bi*si)
-                b(j + i)%im = b(j + i)%im - (br*si + bi*sr)
-            end do
-        end do
-        j0 = 0
-        if (k == K7) j0 = max(0, n - K7)
-        do j = n, j0 + 1, -1
-            m = min(k, n - j)
-            br = 0.0_dp
-            bi = 0.0_dp
-            do i = 1, m
-                sr = s(1 + i, j)%re
-                si = s(1 + i, j)%im
-                br = br + (sr*b(j + i)%re - si*b(j + i)%im)
-                bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
-            end do
-            b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
-        end do
-        if (k == K7) then
-            do j = n - K7, 1, -1
-                br = 0.0_dp
-                bi = 0.0_dp
-                do i = 1, K7
-                    sr = s(1 + i, j)%re
-                    si = s(1 + i, j)%im
-                    br = br + (sr*b(j + i)%re - si*b(j + i)%im)
-                    bi = bi + (sr*b(j + i)%im + si*b(j + i)%re)
-                end do
-                b(j) = b(j)/s(1, j) - cmplx(br, bi, dp)
-            end do
-        end if
-    end subroutine ldlt_solve_cplx
-
-    !> y = A x for a real band matrix of order n (LAPACK general band storage,
-    !! explicit shape; one contiguous axpy per column).
-    pure subroutine dband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        real(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        real(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        real(dp) :: xj
-        y = 0.0_dp
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine dband_mv
-
-    !> y = A x for a complex band matrix (as dband_mv).
-    pure subroutine zband_mv(n, kl, ku, ab, x, y)
-        integer, intent(in) :: n, kl, ku
-        complex(dp), intent(in) :: ab(2*kl + ku + 1, n), x(n)
-        complex(dp), intent(out) :: y(n)
-        integer :: j, i1, i2, k
-        complex(dp) :: xj
-        y = (0.0_dp, 0.0_dp)
-        k = kl + ku + 1
-        do j = 1, n
-            i1 = max(1, j - ku)
-            i2 = min(n, j + kl)
-            xj = x(j)
-            y(i1:i2) = y(i1:i2) + xj*ab(k + i1 - j:k + i2 - j, j)
-        end do
-    end subroutine zband_mv
-
     !> Solve (lam - J) [x; y; z] = [r; s; t] with the real factorization
     !! (lam = gamma/h). On entry w = [r; M s; t] (the velocity row already
     !! multiplied by the step-start mass matrix M0: the "M-form" of the
@@ -1969,7 +1729,7 @@ contains
         real(dp), intent(out) :: ds(:, :), dl(:, :)
         type(status_t), intent(inout) :: stat
         logical, intent(in) :: with_p
-        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:), t(:), fp(:)
+        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:, :), t(:), fp(:)
         type(band_lu_t) :: lu
         real(dp) :: e, xp
         integer :: n, nb, j, kl, ku
@@ -1977,7 +1737,7 @@ contains
         kl = es%mesh%kl
         ku = es%mesh%ku
         nb = 2*kl + ku + 1
-        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n), t(n), fp(n))
+        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n, size(s, 2)), t(n), fp(n))
         call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
         if (es%rotary) then
             lu%n = n
@@ -1989,33 +1749,39 @@ contains
             if (stat%code /= 0) return
         end if
         dl = 0.0_dp
+        ! the right-hand sides of all parameters, then one multi-column solve
         do j = 1, size(s, 2)
-            call dband_mv(n, kl, ku, kb, s(1:n, j), t)
-            r = -t
-            call dband_mv(n, kl, ku, cb, s(n + 1:2*n, j), t)
-            r = r - t
-            if (es%nx > 0) r = r + b*s(2*n + 1, j)
+            call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), t)
+            r(:, j) = -t
+            if (es%nx > 0) r(:, j) = r(:, j) + b*s(2*n + 1, j)
             t = 0.0_dp
             call dyn_dmass_dq_mv(es, y(1:n), s(1:n, j), f(n + 1:2*n), t)
-            r = r - t
+            r(:, j) = r(:, j) - t
             xp = 0.0_dp
             if (with_p) then
                 call dyn_dforce(es, pars(j), y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, xp)
                 t = 0.0_dp
                 call dyn_dmass_mv(es, pars(j), y(1:n), f(n + 1:2*n), t)
-                r = r + fp - t
-            end if
-            if (es%rotary) then
-                call band_solve(lu, r)
-                if (es%events) call dyn_constrain(es, lu, r, dl(:, j), stat)
-            else
-                call band_solve(es%mlu, r)
-                if (es%events) call dyn_constrain(es, es%mlu, r, dl(:, j), stat)
+                r(:, j) = r(:, j) + fp - t
             end if
             ds(1:n, j) = s(n + 1:2*n, j)
-            ds(n + 1:2*n, j) = r
             if (es%nx > 0) ds(2*n + 1, j) = dot_product(p, s(1:n, j)) &
                                             + dot_product(d, s(n + 1:2*n, j)) + e*s(2*n + 1, j) + xp
+        end do
+        if (es%rotary) then
+            call band_solve(lu, r)
+        else
+            call band_solve(es%mlu, r)
+        end if
+        do j = 1, size(s, 2)
+            if (es%events) then
+                if (es%rotary) then
+                    call dyn_constrain(es, lu, r(:, j), dl(:, j), stat)
+                else
+                    call dyn_constrain(es, es%mlu, r(:, j), dl(:, j), stat)
+                end if
+            end if
+            ds(n + 1:2*n, j) = r(:, j)
         end do
     end subroutine sens_rates
 
@@ -2137,7 +1903,7 @@ contains
         integer, parameter :: MAXIT = 40
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :), r(:, :), w(:), zd(:)
-        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), del(:)
+        real(dp), allocatable :: t(:), fp(:), ys(:), w1(:), sc(:), dels(:, :)
         complex(dp), allocatable :: w2(:)
         real(dp) :: e(3), xp, ref, err, errold, lsc(3), th
         integer :: n, m, nw, nb, i, j, k, iter, kl, ku
@@ -2149,7 +1915,7 @@ contains
         nb = 2*kl + ku + 1
         allocate (kb(nb, n, 3), cb(nb, n, 3), b(n, 3), p(n, 3), d(n, 3), acc(n, 3), &
                   cst(m, 3, nw), dz(m, 3), r(m, 3), w(m), zd(m), t(n), fp(n), ys(m), &
-                  w1(m), w2(m), sc(m), del(m))
+                  w1(m), w2(m), sc(m), dels(m, 3))
         do i = 1, 3
             ys = y + z(:, i)
             call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
@@ -2188,22 +1954,24 @@ contains
             errold = huge(1.0_dp)
             do iter = 1, MAXIT
                 do i = 1, 3
-                    ys(1:n) = y(1:n) + z(1:n, i)
                     w = sm(:, j) + dz(:, i)
-                    zd = (dmat(i, 1)*dz(:, 1) + dmat(i, 2)*dz(:, 2) + dmat(i, 3)*dz(:, 3))/hh
+                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
+                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1) + dmat(i, 2)*dz(n + 1:m, 2) &
+                                   + dmat(i, 3)*dz(n + 1:m, 3))/hh
                     if (it%rot) then
+                        ys(1:n) = y(1:n) + z(1:n, i)
                         call to_mform(es, it, zd, ys(1:n))
                     else
                         call to_mform(es, it, zd)
                     end if
                     r(1:n, i) = 0.0_dp
-                    call dband_mv(n, kl, ku, kb(:, :, i), w(1:n), t)
+                    call kc_mv(n, kl, ku, kb(:, :, i), cb(:, :, i), w(1:n), w(n + 1:2*n), t)
                     r(n + 1:2*n, i) = cst(n + 1:2*n, i, j) - t - zd(n + 1:2*n)
-                    call dband_mv(n, kl, ku, cb(:, :, i), w(n + 1:2*n), t)
-                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
-                    t = 0.0_dp
-                    call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
-                    r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    if (es%rotary) then
+                        t = 0.0_dp
+                        call dyn_dmass_dq_mv(es, ys(1:n), w(1:n), acc(:, i), t)
+                        r(n + 1:2*n, i) = r(n + 1:2*n, i) - t
+                    end if
                     if (es%nx > 0) then
                         r(n + 1:2*n, i) = r(n + 1:2*n, i) + b(:, i)*w(2*n + 1)
                         r(2*n + 1, i) = dot_product(p(:, i), w(1:n)) &
@@ -2224,8 +1992,8 @@ contains
                 ref = maxval(abs(sm(1:n, j)))
                 err = 0.0_dp
                 do i = 1, 3
-                    del = tr(i)*w1 + real(tc(i)*w2, dp)
-                    dz(:, i) = dz(:, i) + del
+                    dels(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
+                    dz(:, i) = dz(:, i) + dels(:, i)
                 end do
                 ref = max(ref, maxval(abs(dz(1:n, :))), 1.0e-280_dp)
                 sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
@@ -2234,8 +2002,7 @@ contains
                 if (es%nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
                                                    maxval(abs(dz(m, :))), 1.0e-280_dp)))
                 do i = 1, 3
-                    del = tr(i)*w1 + real(tc(i)*w2, dp)
-                    err = max(err, wrms(del, sc))
+                    err = max(err, wrms(dels(:, i), sc))
                 end do
                 passes = passes + 1
                 ! converged when the remaining error th/(1 - th) |correction|

@@ -21,12 +21,12 @@ module beamid_tasks
     use beamid_deck, only: deck_t
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
-    ! The finite element and dynamics drivers are the f2py entries
-    ! (beamid.fe_static and beamid.simulate call the same), until issue 11.2
-    ! moves their logic into library modules; estimation calls the library
-    ! (beamid_inverse), as the f2py layer does.
+    ! The finite element driver is the f2py entry (beamid.fe_static calls the
+    ! same) until issue 11.2 moves its logic into a library module; the
+    ! dynamics (beamid_release) and the estimation (beamid_inverse) are
+    ! library calls, as the f2py layer makes them.
     use beamid_api_fe, only: api_fe_static, api_fe_modes, api_fe_mesh_sizes
-    use beamid_api_dynamics, only: api_dyn_sizes, api_dyn_simulate
+    use beamid_release, only: release_spec_t, release_out_t, release_response
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
                                  prior_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  FLAG_NAMES, CAND_NAMES
@@ -288,50 +288,40 @@ contains
     ! -------------------------------------------------------------- dynamics
 
     !> Dynamic decks: release from the static shape under &load and integrate
-    !! to the output times with api_dyn_simulate (the call of beamid.simulate);
-    !! <output>_history.csv has one row per output time (columns as
-    !! beamid.decks.HISTORY_COLUMNS).
+    !! to the output times with release_response (the library routine behind
+    !! beamid.simulate); <output>_history.csv has one row per output time
+    !! (columns as beamid.decks.HISTORY_COLUMNS).
     subroutine run_simulate(d, fl, st)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        integer(c_int) :: nfree, nstate, nwork, nt, info(5), code
-        real(c_double), allocatable :: states(:, :), tip(:, :), torque(:), ledger(:, :)
-        real(c_double), allocatable :: work(:, :), y_init(:)
-        real(c_double) :: loads(4)
-        character(len=256) :: message
+        type(chain_t) :: chain
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        real(dp), allocatable :: tip(:, :), ledger(:, :), work(:, :), torque(:)
         character(len=:), allocatable :: prefix, header, line
-        integer :: unit, ios, k, i, ierr
+        integer :: unit, ios, k, i, nwork, nowrt(0)
 
-        call api_dyn_sizes(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                           int(d%sim_elements_per_beam, c_int), d%sim_motor_gain, nfree, &
-                           nstate, nwork, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'simulate', trim(message))
-            st%message = message
-            return
-        end if
-        nt = int(size(d%sim_t_out), c_int)
-        allocate (states(nstate, nt), tip(3, nt), torque(nt), ledger(4, nt), work(nwork, nt), &
-                  y_init(nstate), stat=ierr)
-        if (ierr /= 0) then
-            call set_alloc_error(st, 'simulate', 'the history', &
-                                 8.0_dp*real(nstate + nwork + 8, dp)*real(nt, dp))
-            return
-        end if
-        y_init = 0.0_c_double
-        loads = [d%load%fx, d%load%fy, d%load%moment, 0.0_dp]
-        call api_dyn_simulate(int(d%nbeams, c_int), int(size(d%params), c_int), d%params, &
-                              int(d%sim_elements_per_beam, c_int), loads, d%sim_motor_gain, &
-                              int(d%sim_integrator, c_int), int(d%sim_friction, c_int), &
-                              d%sim_friction_velocity, d%sim_dt, d%sim_rtol, d%sim_atol, &
-                              0.0_c_double, 0_c_int, nstate, y_init, nt, d%sim_t_out, nwork, &
-                              states, tip, torque, ledger, work, info, code, message)
-        if (code /= 0) then
-            call set_status(st, int(code), 'simulate', trim(message))
-            st%message = message
-            return
-        end if
+        call chain_from_vector(d%nbeams, d%params, chain, st)
+        if (st%code /= STATUS_OK) return
+        spec%elements_per_beam = d%sim_elements_per_beam
+        spec%load%fx = d%load%fx
+        spec%load%fy = d%load%fy
+        spec%load%moment = d%load%moment
+        spec%motor_gain = d%sim_motor_gain
+        spec%integrator = d%sim_integrator
+        spec%friction = d%sim_friction
+        spec%friction_velocity = d%sim_friction_velocity
+        spec%dt = d%sim_dt
+        spec%rtol = d%sim_rtol
+        spec%atol = d%sim_atol
+        call release_response(chain, spec, d%sim_t_out, nowrt, out, st)
+        if (st%code /= STATUS_OK) return
+        nwork = out%nwork
+        tip = out%tip
+        ledger = out%ledger
+        work = out%hist%work
+        torque = out%hist%torque
 
         header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
         do i = 1, nwork
@@ -343,7 +333,7 @@ contains
         if (st%code /= STATUS_OK) return
         call open_output(fl, prefix//'_history.csv', header, unit, ios, st)
         if (st%code /= STATUS_OK) return
-        do k = 1, nt
+        do k = 1, size(d%sim_t_out)
             line = fmt_e(d%sim_t_out(k))//','//fmt_e(tip(1, k))//','//fmt_e(tip(2, k))// &
                    ','//fmt_e(tip(3, k))//','//fmt_e(ledger(3, k))//','//fmt_e(ledger(1, k))// &
                    ','//fmt_e(ledger(2, k))

@@ -18,12 +18,12 @@ module beamid_api_dynamics
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
-    use beamid_dynamics, only: band_lu_t, zband_lu_t, band_factor, band_solve, &
-                               zband_factor, zband_solve, dyn_system_t, dyn_setup, &
+    use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
+                           zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, &
+                           ldlt_solve_cplx, dband_mv, zband_mv
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, &
                                dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
                                dyn_cforces, dyn_cjacobian, dyn_cmass
-    use beamid_integrators, only: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                                  dband_mv, zband_mv
     implicit none
     private
 
@@ -119,7 +119,7 @@ contains
         type(status_t) :: stat
         type(release_spec_t) :: spec
         type(release_out_t) :: out
-        integer :: k, nowrt(0)
+        integer :: nowrt(0)
         states = 0.0_c_double
         tip = 0.0_c_double
         torque = 0.0_c_double

@@ -40,9 +40,8 @@ import numpy as np
 from . import _core_dynamics as _cd
 from .errors import InputError
 
-__all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS", "INTEGRATORS", "DEFAULT_RTOL",
-           "DEFAULT_FRICTION",
-           "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
+__all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
+           "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
 
 #: Friction laws and their codes in the Fortran core.
 FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
