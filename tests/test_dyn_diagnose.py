@@ -144,3 +144,20 @@ def test_coarse_mesh_is_named_first():
     refined = beamid.add_effect(fit, "mesh")
     assert refined.experiments["free"].elements_per_beam == 4
     assert refined.chi2 < fit.chi2
+
+
+def test_mixed_static_and_release_fit():
+    """Static tip shapes and a release in one fit: the static candidates are
+    tested on both families, the release's hidden rotary inertia is named."""
+    exps = {"F3": beamid.TipForce(fy=3.0), "F6": beamid.TipForce(fy=6.0)}
+    static = beamid.simulate_measurements(BASE.replace(J_tip=0.01), exps, ["y_tip"],
+                                          sigma=SIGMA, noise=True, seed=7)
+    data = static.merge(_data(BASE.replace(J_tip=0.01)))
+    fit = beamid.fit(BASE, {**exps, "free": _release()}, data, free=("EI1", "rho2"))
+    d = beamid.diagnose(fit, ("material_cubic", "rotary_inertia", "motor_lag"), nrefit=1)
+    assert d.verdict.effect == "rotary_inertia"
+    assert _within(d.verdict.estimate["J_tip"], 0.01, d.verdict.sigma["J_tip"])
+    assert d["material_cubic"].state == "tested" and not d["material_cubic"].significant
+    assert d["motor_lag"].state == "not seen by these experiments"
+    cmp = beamid.compare(fit)
+    assert len(cmp.static_rows) == 2 and len(cmp) == 3

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -507,7 +507,6 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
     axes = fig.subplots(2, n, squeeze=False, sharex="col")
     for k, s in enumerate(cmp.series):
         top, bottom = axes[0, k], axes[1, k]
-        tt = np.linspace(float(s.t.min()), float(s.t.max()), 4 * len(s.t))
         top.plot(s.t, s.model, "-", color="C0", label="model")
         top.errorbar(s.t, s.measured, yerr=s.sigma, fmt="o", ms=3, color="C1", capsize=2,
                      elinewidth=1.0, label="measured +- sigma")
@@ -522,6 +521,5 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
                          fontsize=8)
         bottom.legend(fontsize=7)
-        del tt
     fig.tight_layout()
     return fig
