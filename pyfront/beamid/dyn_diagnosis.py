@@ -498,7 +498,8 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
 def plot_time_comparison(cmp: TimeComparison, fig=None):
     """One column per (experiment, quantity): on top measured values with
     their error bars and the model over time (unit on the axis), below the
-    normalized residuals with the +-2 sigma band. Returns the figure."""
+    normalized residuals with their +-1 error bars and the +-2 sigma band.
+    Returns the figure."""
     import matplotlib.pyplot as plt
 
     n = max(len(cmp.series), 1)
@@ -515,7 +516,11 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         top.legend(fontsize=7)
         bottom.axhspan(-2.0, 2.0, color="0.9", label="+-2 sigma")
         bottom.axhline(0.0, color="0.5", lw=0.8, label="zero")
-        bottom.plot(s.t, s.normalized, "o-", ms=3, color="C3", label="normalized residual")
+        # in sigma units the error bar is +-1: visible where sigma is not
+        # beside the motion's amplitude
+        bottom.errorbar(s.t, s.normalized, yerr=np.ones_like(s.normalized), fmt="o-", ms=3,
+                        color="C3", capsize=2, elinewidth=1.0,
+                        label="normalized residual +- 1 sigma")
         bottom.set_xlabel("t (s)")
         bottom.set_ylabel("(measured - model) / sigma")
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
