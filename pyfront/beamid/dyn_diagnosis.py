@@ -335,7 +335,8 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
                     max_iter: int = 50) -> Ladder:
     """:func:`beamid.improve` for release experiments: fit, then repeat
     diagnose and add the verdict's effect (or refine the mesh to the
-    recommended elements per beam) until no candidate is significant."""
+    recommended elements per beam) until no candidate is significant. The
+    mesh is tested until it is found adequate, not at every later step."""
     experiments = dict(experiments)
     current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
     nominal = model
@@ -350,6 +351,11 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
         if diag.verdict is None or k == limit:
             break
         verdict = diag.verdict
+        if diag.mesh is not None and not diag.mesh.significant:
+            # the mesh is judged once: adding a small effect does not change
+            # the discretization error, and its refit at twice the elements
+            # per beam is the costliest test of a step
+            cands = [c for c in cands if c != "mesh"]
         if isinstance(verdict, MeshCandidate):
             experiments = refine_mesh(experiments, verdict.recommended)
             current = _fit(current.model, experiments, data, free=current.free, prior=prior,
