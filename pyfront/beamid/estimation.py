@@ -524,7 +524,7 @@ class Identification:
         lines = [f"{'stage':<{w}}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
                  f"{'sigma after':>13}"]
         for r in self.table:
-            lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.5g}"
+            lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.4g}"
                          f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
         return "\n".join(lines)
 
