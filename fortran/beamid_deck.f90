@@ -1097,7 +1097,9 @@ contains
                     if (st%code /= STATUS_OK) then
                         call add_error(errors, where//"candidates = '"//candidates(i)%s// &
                                        "' is not a known effect, expected one of: "// &
-                                       'axial_coupling, material_cubic, elbow_flex, root_flex')
+                                       'axial_coupling, material_cubic, elbow_flex, '// &
+                                       'root_flex, friction, drag, rotary_inertia, '// &
+                                       'kelvin_voigt, motor_lag, mesh')
                         st%code = STATUS_OK
                     end if
                 end do

@@ -71,14 +71,16 @@ module beamid_estimation
         'converged', 'stalled', 'runaway', 'iteration limit', 'evaluated']
     character(len=*), parameter, public :: START_NAMES(0:3) = [character(len=20) :: &
         '', 'first-order estimate', 'nominal model', 'continuation']
-    character(len=*), parameter, public :: CAND_NAMES(0:3) = [character(len=19) :: &
-        'tested', 'already free', 'already switched on', 'not in this model']
+    character(len=*), parameter, public :: CAND_NAMES(0:4) = [character(len=29) :: &
+        'tested', 'already free', 'already switched on', 'not in this model', &
+        'not seen by these experiments']
 
     !> Candidate states in a diagnosis.
     integer, parameter, public :: CAND_TESTED = 0   !< score test done
     integer, parameter, public :: CAND_FREE = 1     !< a parameter of it is already free
     integer, parameter, public :: CAND_ACTIVE = 2   !< a parameter is not at its null value
     integer, parameter, public :: CAND_NO_PARAMS = 3 !< the model has none of its parameters
+    integer, parameter, public :: CAND_NOT_SEEN = 4  !< zero sensitivity on every data row
 
     !> An experiment family: predictions and sensitivities of its data rows.
     type, abstract :: residual_model_t

@@ -17,7 +17,8 @@ module beamid_static_experiments
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int
     use beamid_model, only: chain_t, chain_from_vector, param_count, param_index_beam, &
                             param_index_joint_flex, param_index_global, PER_BEAM, IB_L, IB_C, &
-                            IB_EI, IB_EA, IB_RHO, IG_AXIAL_COUPLING, IG_ROOT_FLEX
+                            IB_EI, IB_EA, IB_RHO, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
+                            param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, LOAD_TIP, LOAD_WIRE
     use beamid_estimation, only: residual_model_t, candidate_t
@@ -218,11 +219,26 @@ contains
             end if
         case ('root_flex')
             params = [param_index_global(nbeams, IG_ROOT_FLEX)]
+        ! the candidates of release experiments (beamid_dyn_diagnosis): per
+        ! mass point (elbow, joints, tip), or global; `mesh` has no parameter
+        case ('friction')
+            params = [(param_index_mass(nbeams, i, IM_MU), i=1, nbeams)]
+        case ('drag')
+            params = [(param_index_mass(nbeams, i, IM_C), i=1, nbeams)]
+        case ('rotary_inertia')
+            params = [(param_index_mass(nbeams, i, IM_J), i=1, nbeams)]
+        case ('kelvin_voigt')
+            params = [param_index_global(nbeams, IG_ETA)]
+        case ('motor_lag')
+            params = [param_index_global(nbeams, IG_TAU_MOTOR)]
+        case ('mesh')
+            allocate (params(0))
         case default
             allocate (params(0))
             call set_status(stat, ERR_INPUT, 'effects', 'unknown effect "'//trim(name)// &
                             '", expected one of axial_coupling, material_cubic, '// &
-                            'elbow_flex, root_flex')
+                            'elbow_flex, root_flex, friction, drag, rotary_inertia, '// &
+                            'kelvin_voigt, motor_lag, mesh')
         end select
     end subroutine static_effect_params
 

@@ -24,6 +24,8 @@ from .dynamics import SENSITIVITY_QUANTITIES
 simulate_dynamics = simulate
 from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compare, diagnose,
                         improve, register_effect)
+from . import dyn_diagnosis as _dyn_diagnosis  # registers the dynamic candidates
+from .dyn_diagnosis import DYNAMIC_CANDIDATES, TimeComparison
 from .consistency import Consistency, consistency
 from .design import Advice, design
 
@@ -40,5 +42,6 @@ __all__ = [
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",
     "consistency", "Consistency", "design", "Advice",
+    "DYNAMIC_CANDIDATES", "TimeComparison",
 ]
 __version__ = "0.1.0"

@@ -82,6 +82,13 @@ STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_fle
 _STATES = dict(_ce.CANDIDATE_STATES)
 
 
+def _dynamic(experiments) -> bool:
+    """Has the fit a release experiment (beamid.dyn_diagnosis takes over)?"""
+    from .loads import Release
+    return isinstance(experiments, Mapping) and any(
+        isinstance(x, Release) for x in experiments.values())
+
+
 def _effect(name: str | Effect) -> Effect:
     if isinstance(name, Effect):
         return name
@@ -171,6 +178,9 @@ def compare(fit: FitResult) -> Comparison:
     weighted trend (slope of the normalized residuals against load)."""
     if not isinstance(fit, FitResult):
         raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
+    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
+        from .dyn_diagnosis import compare_dynamic
+        return compare_dynamic(fit)  # type: ignore[return-value]
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)
@@ -367,6 +377,11 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(nrefit) < 0:
         raise InputError(f"nrefit = {nrefit}, expected >= 0")
+    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
+        from .dyn_diagnosis import diagnose_dynamic
+        return diagnose_dynamic(fit, candidates, alpha=alpha, nrefit=nrefit,
+                                ambiguity_delta=ambiguity_delta, collinear=collinear,
+                                nominal=nominal)
     model = fit.model
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
     if not cands:
@@ -514,6 +529,10 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     start converges at all (the message says why for each). ``starts``
     limits the starts tried (names as in ``refit_start``; default all).
     """
+    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
+        from .dyn_diagnosis import add_effect_dynamic
+        return add_effect_dynamic(fit, effect, max_iter=max_iter, nominal=nominal,
+                                  starts=starts)
     eff = _effect(effect)
     params = eff.params(fit.model)
     if not params:
@@ -596,6 +615,11 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
             max_steps: int | None = None, max_iter: int = 50) -> Ladder:
     """Fit, then repeat diagnose and add the verdict's effect until no
     candidate is significant; return the ladder of fits."""
+    if _dynamic(experiments):   # time histories: beamid.dyn_diagnosis
+        from .dyn_diagnosis import improve_dynamic
+        return improve_dynamic(model, experiments, data, free=free, prior=prior,
+                               candidates=candidates, alpha=alpha, max_steps=max_steps,
+                               max_iter=max_iter)
     current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
     nominal = model
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)

@@ -99,6 +99,9 @@ def plot_compare(cmp: Comparison, fig: Any = None):
       with the +-1 and +-3 sigma bands.
 
     Every line has a legend entry. Returns the figure (``fig`` when given)."""
+    if hasattr(cmp, "series"):     # time histories (beamid.dyn_diagnosis)
+        from .dyn_diagnosis import plot_time_comparison
+        return plot_time_comparison(cmp, fig=fig)
     import matplotlib.pyplot as plt
 
     quantities = _quantities(cmp)

@@ -1,0 +1,600 @@
+!> Diagnosis of fits with time histories (issue 14): the dynamic and mixed
+!! static + release problems of beamid_inverse.
+!!
+!! On top of the generic machinery of beamid_estimation (score tests from
+!! the sensitivities at the null values, refits, ranking, rivals) this
+!! module adds what time histories need:
+!!
+!! * candidates the experiments cannot see: an effect whose sensitivity
+!!   columns (Eq. 135-140, 161-162) are zero on every data row at the fitted
+!!   model (a motor lag without a motor, a joint compliance the finite
+!!   element dynamics does not model) is reported as CAND_NOT_SEEN, not tested;
+!! * the probe rows that separate rivals: every static experiment and every
+!!   quantity it can measure (beamid_static_experiments probe_rows), and
+!!   every release experiment, at each of its measured times, for every
+!!   quantity it can measure, so a rival is separated by a quantity at a time;
+!! * the `mesh` test: the same fit at twice the elements per beam in every
+!!   release (refitted from the estimates), its chi-square drop, the largest
+!!   change of a prediction in sigma units at the fitted parameters, and the
+!!   elements per beam that bring the discretization error below
+!!   MESH_TARGET sigma assuming the h^4 convergence of the cubic Hermite
+!!   elements (Eq. 76; observed in docs/fe.md);
+!! * `time_structure`: tests for structure in time of the normalized
+!!   residuals of one time series (runs, lag-1 autocorrelation, trend of
+!!   the residual amplitude).
+module beamid_dyn_diagnosis
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, clear_status, STATUS_OK
+    use beamid_model, only: param_index_global, param_index_joint_flex, IG_TAU_MOTOR, &
+                            IG_ROOT_FLEX
+    use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, candidate_t, &
+                                 diagnose_options_t, diagnosis_t, fit_at, fit_least_squares, &
+                                 diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
+                                 score_result_t
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_RELEASE, EV_NEPB, &
+                              EV_GAIN
+    use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
+                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
+                                         Q_MOTOR_TORQUE
+    implicit none
+    private
+
+    public :: mesh_test_t, dyn_diagnose, mesh_test, dyn_probe_rows, time_structure
+    public :: MESH_ORDER, MESH_TARGET, null_side_model_t, null_side_init
+
+    !> Parameters whose forward sensitivity does not exist at the null value,
+    !! because the effect adds a state or a degree of freedom only when on: the
+    !! motor lag (the torque state of Eq. 159 with a lag) and the joint and
+    !! root compliances (a hinge). Their columns at the null are one-sided
+    !! differences over these steps (s, rad per N m): the derivative from the
+    !! physical side, which is what a one-sided score test needs.
+    real(dp), parameter :: STEP_TAU = 1.0e-3_dp, STEP_FLEX = 1.0e-4_dp
+    !> Relative chi-square change below which fits with releases count as
+    !! converged (the integrator's noise floor; see dyn_diagnose).
+    real(dp), parameter :: COST_FLOOR = 1.0e-6_dp
+    !> A block member is determined when its first-order estimate exceeds
+    !! this many sigmas (the others stay at null: see dyn_diagnose).
+    real(dp), parameter :: KEEP_SIGMAS = 2.0_dp
+    !> Level of the test whether a block needs more than its best member.
+    real(dp), parameter :: NEST_ALPHA = 0.01_dp
+
+    !> A problem whose sensitivity columns of the parameters `fd`, when at
+    !! their null value 0, are one-sided differences (the rest: the inner
+    !! problem's forward sensitivities).
+    type, extends(residual_model_t) :: null_side_model_t
+        type(inverse_problem_t) :: inner
+        integer, allocatable :: fd(:)
+        real(dp), allocatable :: step(:)
+    contains
+        procedure :: evaluate => null_side_evaluate
+    end type null_side_model_t
+
+    !> Convergence order assumed for the discretization error of the
+    !! predictions (cubic Hermite elements: displacements and frequencies
+    !! converge as h^4).
+    real(dp), parameter :: MESH_ORDER = 4.0_dp
+    !> The discretization error the recommended mesh leaves, in sigma units.
+    real(dp), parameter :: MESH_TARGET = 0.3_dp
+    !> The largest mesh recommended (elements per beam).
+    integer, parameter :: MESH_MAX = 256
+
+    !> The mesh test of a fit with release experiments.
+    type :: mesh_test_t
+        logical :: done = .false.        !< the problem has release experiments
+        logical :: ok = .false.          !< the refined fit converged
+        integer :: nepb = 0              !< elements per beam now (largest release's)
+        integer :: recommended = 0       !< elements per beam recommended
+        real(dp) :: chi2 = 0.0_dp        !< chi-square of the refined refit
+        real(dp) :: drop = 0.0_dp        !< chi-square drop of the refined refit
+        real(dp) :: p_value = 1.0_dp     !< chi2_sf(drop, 1)
+        real(dp) :: max_change = 0.0_dp  !< largest |prediction change| / sigma
+        integer :: max_row = 0           !< data row of that change
+        logical :: significant = .false.
+        real(dp), allocatable :: params(:) !< the refined refit's parameters
+    end type mesh_test_t
+
+contains
+
+    !> Wrap a problem of `nbeams` beams: the motor lag and the compliances
+    !! get one-sided columns at their null values.
+    subroutine null_side_init(nbeams, inner, self)
+        integer, intent(in) :: nbeams
+        type(inverse_problem_t), intent(in) :: inner
+        type(null_side_model_t), intent(out) :: self
+        integer :: k
+        self%inner = inner
+        self%fd = [param_index_global(nbeams, IG_TAU_MOTOR), &
+                   param_index_global(nbeams, IG_ROOT_FLEX), &
+                   (param_index_joint_flex(nbeams, k), k=1, nbeams - 1)]
+        self%step = [STEP_TAU, STEP_FLEX, (STEP_FLEX, k=1, nbeams - 1)]
+    end subroutine null_side_init
+
+    subroutine null_side_evaluate(self, params, wrt, predictions, jacobian, stat)
+        class(null_side_model_t), intent(inout) :: self
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: predictions(:)
+        real(dp), intent(out) :: jacobian(:, :)
+        type(status_t), intent(inout) :: stat
+        logical :: side(size(wrt))
+        real(dp), allocatable :: j0(:, :), pp(:), jd(:, :), p(:)
+        integer :: j, k, i
+        do j = 1, size(wrt)
+            k = findloc(self%fd, wrt(j), 1)
+            side(j) = .false.
+            if (k > 0) side(j) = params(wrt(j)) == 0.0_dp
+        end do
+        allocate (j0(size(predictions), count(.not. side)))
+        call self%inner%evaluate(params, pack(wrt, .not. side), predictions, j0, stat)
+        if (stat%code /= STATUS_OK) return
+        jacobian = 0.0_dp
+        i = 0
+        do j = 1, size(wrt)
+            if (side(j)) cycle
+            i = i + 1
+            jacobian(:, j) = j0(:, i)
+        end do
+        if (.not. any(side)) return
+        allocate (pp(size(predictions)), jd(size(predictions), 0))
+        do j = 1, size(wrt)
+            if (.not. side(j)) cycle
+            k = findloc(self%fd, wrt(j), 1)
+            p = params
+            p(wrt(j)) = self%step(k)
+            call self%inner%evaluate(p, [integer ::], pp, jd, stat)
+            if (stat%code /= STATUS_OK) return
+            jacobian(:, j) = (pp - predictions)/self%step(k)
+        end do
+    end subroutine null_side_evaluate
+
+    !> Probe rows of release experiments: at every distinct measured time of
+    !! each release, every quantity it can measure (u_tip w_tip tip_angle
+    !! x_elbow y_elbow, and motor_torque with a motor), with the sigma to judge
+    !! a difference by: the median data sigma of that quantity (u_tip and
+    !! x_tip, w_tip and y_tip alike), else of all length rows, else 1e-3
+    !! (m or rad) and 1e-2 N m for the torque.
+    pure subroutine dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, &
+                                   pexp, pt, pq, psig)
+        integer, intent(in) :: exp_kind(:), row_exp(:), row_q(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), sigma(:)
+        integer, allocatable, intent(out) :: pexp(:), pq(:)
+        real(dp), allocatable, intent(out) :: pt(:), psig(:)
+        integer, parameter :: qs(6) = [Q_U_TIP, Q_W_TIP, Q_TIP_ANGLE, Q_X_ELBOW, Q_Y_ELBOW, &
+                                       Q_MOTOR_TORQUE]
+        real(dp), allocatable :: times(:)
+        real(dp) :: sk(6), fallback
+        integer :: e, k, i
+        logical :: lengths(size(row_q))
+        lengths = row_q /= Q_TIP_ANGLE .and. row_q /= Q_MOTOR_TORQUE .and. row_q /= 4
+        fallback = median_of(pack(sigma, lengths), 1.0e-3_dp)
+        do k = 1, 6
+            select case (qs(k))
+            case (Q_U_TIP)
+                sk(k) = median_of(pack(sigma, row_q == Q_U_TIP .or. row_q == Q_X_TIP), fallback)
+            case (Q_W_TIP)
+                sk(k) = median_of(pack(sigma, row_q == Q_W_TIP .or. row_q == Q_Y_TIP), fallback)
+            case (Q_MOTOR_TORQUE)
+                sk(k) = median_of(pack(sigma, row_q == qs(k)), 1.0e-2_dp)
+            case default
+                sk(k) = median_of(pack(sigma, row_q == qs(k)), fallback)
+            end select
+        end do
+        allocate (pexp(0), pq(0), pt(0), psig(0))
+        do e = 1, size(exp_kind)
+            if (exp_kind(e) /= EXP_RELEASE) cycle
+            times = distinct_sorted(pack(row_t, row_exp == e))
+            do i = 1, size(times)
+                do k = 1, 6
+                    if (qs(k) == Q_MOTOR_TORQUE .and. .not. exp_values(EV_GAIN, e) > 0.0_dp) cycle
+                    pexp = [pexp, e]
+                    pq = [pq, qs(k)]
+                    pt = [pt, times(i)]
+                    psig = [psig, sk(k)]
+                end do
+            end do
+        end do
+    end subroutine dyn_probe_rows
+
+    !> The mesh test (see the module header): refit `free` from base%params
+    !! with every release at twice its elements per beam.
+    subroutine mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
+                         base, prior, lower, upper, fopts, alpha, res, stat)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
+        type(fit_result_t), intent(in) :: base
+        type(prior_t), intent(in) :: prior
+        real(dp), intent(in) :: lower(:), upper(:)
+        type(fit_options_t), intent(in) :: fopts
+        real(dp), intent(in) :: alpha          !< significance level of the test
+        type(mesh_test_t), intent(out) :: res
+        type(status_t), intent(inout) :: stat
+        type(inverse_problem_t) :: fine
+        type(fit_result_t) :: refit
+        type(status_t) :: st
+        real(dp), allocatable :: values(:, :), pred(:), jdummy(:, :), change(:)
+        real(dp) :: err
+        integer :: e, m
+        if (.not. any(exp_kind == EXP_RELEASE)) return
+        res%done = .true.
+        values = exp_values
+        res%nepb = 0
+        do e = 1, size(exp_kind)
+            if (exp_kind(e) /= EXP_RELEASE) cycle
+            res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
+            values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
+        end do
+        call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
+                                  stat)
+        if (stat%code /= STATUS_OK) return
+        ! the change of the predictions at the fitted parameters
+        allocate (pred(size(y)), jdummy(size(y), 0))
+        call fine%evaluate(base%params, [integer ::], pred, jdummy, stat)
+        if (stat%code /= STATUS_OK) then
+            stat%message = trim(stat%message)//' (mesh test at twice the elements per beam)'
+            return
+        end if
+        change = abs(pred - base%predictions)/sigma
+        res%max_row = maxloc(change, 1)
+        res%max_change = change(res%max_row)
+        ! the refit at the refined mesh: a failed refit is reported, not raised
+        call clear_status(st)
+        call fit_least_squares(fine, y, sigma, base%params, base%free, lower, upper, prior, &
+                               fopts, refit, st)
+        if (st%code < 0) then
+            stat = st
+            return
+        end if
+        res%ok = st%code == STATUS_OK .and. allocated(refit%params)
+        if (res%ok) then
+            res%chi2 = refit%chi2 + refit%chi2_prior
+            res%params = refit%params
+        else
+            ! judge by the refined model at the fitted parameters
+            res%chi2 = sum(((y - pred)/sigma)**2) + base%chi2_prior
+            res%params = base%params
+        end if
+        res%drop = base%chi2 + base%chi2_prior - res%chi2
+        res%p_value = chi2_sf(max(res%drop, 0.0_dp), 1)
+        res%significant = res%p_value < alpha .and. res%drop > 0.0_dp
+        ! discretization error now ~ change * 2^k / (2^k - 1); after m more
+        ! doublings it falls by 2^(k m)
+        err = res%max_change*2.0_dp**MESH_ORDER/(2.0_dp**MESH_ORDER - 1.0_dp)
+        res%recommended = res%nepb
+        do m = 1, 16
+            if (res%recommended*2 > MESH_MAX) exit
+            res%recommended = res%recommended*2
+            if (err/2.0_dp**(MESH_ORDER*m) < MESH_TARGET) exit
+        end do
+    end subroutine mesh_test
+
+    !> Diagnose a fit of any mix of static and release experiments (the
+    !! orchestration both fronts call): the base fit evaluated at params0
+    !! (not refitted); candidates whose sensitivity columns are zero on every
+    !! data row are marked CAND_NOT_SEEN; the others go through
+    !! beamid_estimation's diagnose (score tests at the null values, refits
+    !! from the first-order estimate, params0 and `nominal`, ranking, rivals)
+    !! with the probe rows of both families (pexp, pt, pq index them through
+    !! diag%cand(c)%separating_row); with `with_mesh` and a release, the mesh
+    !! test at the level alpha / (number tested + 1). A block of several
+    !! parameters (drag: c_elbow, c_tip) is reduced (`used`) to its best
+    !! single member when the whole block does not lower the chi-square
+    !! significantly more (score drops, level NEST_ALPHA), else to the
+    !! members whose first-order estimates exceed KEEP_SIGMAS sigma: tip
+    !! histories rarely separate the elbow's parameter from the tip's, and a
+    !! block with an undetermined member never passes its refit.
+    subroutine dyn_diagnose(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
+                            params0, nominal, free, prior, cands, fopts0, dopts, with_mesh, &
+                            base, diag, mesh, pexp, pt, pq, used, stat)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
+        real(dp), intent(in) :: params0(:), nominal(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(candidate_t), intent(in) :: cands(:)
+        type(fit_options_t), intent(in) :: fopts0
+        type(diagnose_options_t), intent(in) :: dopts
+        logical, intent(in) :: with_mesh
+        type(fit_result_t), intent(out) :: base
+        type(diagnosis_t), intent(out) :: diag
+        type(mesh_test_t), intent(out) :: mesh
+        integer, allocatable, intent(out) :: pexp(:), pq(:)
+        real(dp), allocatable, intent(out) :: pt(:)
+        !> the candidates as tested: a block reduced to the parameters the
+        !! data determine (see above), else as given
+        type(candidate_t), allocatable, intent(out) :: used(:)
+        type(status_t), intent(inout) :: stat
+        type(inverse_problem_t) :: prob, probe
+        type(null_side_model_t) :: side
+        type(score_result_t) :: sc, one
+        real(dp) :: dbest
+        integer :: best
+        type(fit_options_t) :: fopts
+        logical, allocatable :: keep(:)
+        type(diagnosis_t) :: sub
+        type(candidate_t), allocatable :: seen_cands(:)
+        type(status_t) :: st
+        integer, allocatable :: map(:), sexp(:), sq(:), dexp(:), dq(:), plocal(:)
+        real(dp), allocatable :: pred(:), jac(:, :), ssig(:), dt(:), dsig(:), psig(:)
+        logical, allocatable :: seen(:)
+        integer :: c, k, j, nc, ns, q
+        type(diagnose_options_t) :: dsub
+
+        allocate (pexp(0), pq(0), pt(0))
+        nc = size(cands)
+        fopts = fopts0
+        if (any(exp_kind == EXP_RELEASE)) then
+            ! an integrated response carries the integrator's error (rtol
+            ! 1e-9 by default): below a relative cost change of COST_FLOOR no
+            ! step can be judged, and a refit at that floor is converged
+            fopts%tol_cost = max(fopts%tol_cost, COST_FLOOR)
+        end if
+        call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
+                                  prob, stat)
+        if (stat%code /= STATUS_OK) return
+        call null_side_init(nbeams, prob, side)
+        call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
+                    stat)
+        if (stat%code /= STATUS_OK) return
+        ! which candidates do the data rows see at all? (a sensitivity the
+        ! model cannot give at the null value, e.g. a locked joint's, is an
+        ! input error of that column alone: not seen either)
+        allocate (seen(nc), pred(size(y)))
+        do c = 1, nc
+            j = size(cands(c)%params)
+            seen(c) = .true.
+            if (j == 0) cycle
+            ! an effect already free or switched on is reported as such
+            if (any([(any(base%free == cands(c)%params(q)), q=1, j)]) .or. &
+                any(base%params(cands(c)%params) /= prob%nulls(cands(c)%params))) cycle
+            if (allocated(jac)) deallocate (jac)
+            allocate (jac(size(y), j))
+            call clear_status(st)
+            call side%evaluate(base%params, cands(c)%params, pred, jac, st)
+            if (st%code > 0) then
+                stat = st
+                return
+            end if
+            seen(c) = st%code == STATUS_OK .and. any(jac /= 0.0_dp)
+        end do
+        ns = count(seen)
+        map = pack([(c, c=1, nc)], seen)
+        seen_cands = cands(map)
+        ! a block of several parameters (one per mass point) whose first-order
+        ! estimates are not all determined: test and refit the parameters the
+        ! data determine (estimate above its sigma), the rest stay at null
+        do k = 1, ns
+            j = size(seen_cands(k)%params)
+            if (j < 2) cycle
+            if (any([(any(base%free == seen_cands(k)%params(q)), q=1, j)]) .or. &
+                any(base%params(seen_cands(k)%params) /= prob%nulls(seen_cands(k)%params))) &
+                cycle
+            call clear_status(st)
+            call score_test(side, y, sigma, base%params, base%free, prob%lower, prob%upper, &
+                            prior, seen_cands(k)%params, fopts, sc, st)
+            if (st%code > 0) then
+                stat = st
+                return
+            end if
+            if (st%code /= STATUS_OK) cycle
+            ! the best single member: when the whole block lowers the
+            ! chi-square not significantly more (likelihood-ratio level
+            ! NEST_ALPHA), the data need only that member
+            best = 0
+            dbest = -huge(1.0_dp)
+            do q = 1, j
+                call clear_status(st)
+                call score_test(side, y, sigma, base%params, base%free, prob%lower, &
+                                prob%upper, prior, seen_cands(k)%params(q:q), fopts, one, st)
+                if (st%code > 0) then
+                    stat = st
+                    return
+                end if
+                if (st%code /= STATUS_OK) cycle
+                if (one%drop > dbest) then
+                    dbest = one%drop
+                    best = q
+                end if
+            end do
+            if (best > 0) then
+                if (chi2_sf(max(sc%drop - dbest, 0.0_dp), j - 1) > NEST_ALPHA) then
+                    seen_cands(k)%params = seen_cands(k)%params(best:best)
+                    cycle
+                end if
+            end if
+            keep = sc%estimate > KEEP_SIGMAS*sc%sigma .and. sc%sigma > 0.0_dp
+            if (count(keep) >= 1 .and. count(keep) < j) &
+                seen_cands(k)%params = pack(seen_cands(k)%params, keep)
+        end do
+        used = cands
+        used(map) = seen_cands
+        ! probe rows of both families
+        allocate (sexp(0), sq(0), ssig(0))
+        if (prob%has_static) then
+            call probe_rows(prob%st%loads, prob%st%row_quantity, sigma(prob%st_rows), plocal, &
+                            sq, ssig)
+            sexp = prob%st_exp(plocal)
+        end if
+        call dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, dexp, dt, dq, &
+                            dsig)
+        pexp = [sexp, dexp]
+        pq = [sq, dq]
+        pt = [spread(0.0_dp, 1, size(sexp)), dt]
+        psig = [ssig, dsig]
+        call inverse_problem_init(nbeams, exp_kind, exp_values, pexp, pt, pq, tol, probe, stat)
+        if (stat%code /= STATUS_OK) then
+            stat%message = 'probe rows: '//trim(stat%message)
+            return
+        end if
+        dsub = dopts
+        if (with_mesh .and. prob%has_dynamic) then
+            ! the mesh test counts as one more test in the Bonferroni level
+            dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
+        end if
+        if (ns > 0) then
+            call diagnose(side, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
+                          seen_cands, fopts, dsub, sub, stat, probe, psig, nominal)
+            if (stat%code /= STATUS_OK) return
+        else
+            allocate (sub%cand(0), sub%ranking(0), sub%cosine(0, 0))
+            sub%alpha_each = dopts%alpha
+        end if
+        ! scatter back: not seen ones after the ranked ones
+        allocate (diag%cand(nc), diag%cosine(nc, nc))
+        diag%cosine = 0.0_dp
+        do c = 1, nc
+            if (.not. seen(c)) diag%cand(c)%state = CAND_NOT_SEEN
+        end do
+        do k = 1, ns
+            diag%cand(map(k)) = sub%cand(k)
+            do j = 1, ns
+                diag%cosine(map(k), map(j)) = sub%cosine(k, j)
+            end do
+        end do
+        diag%ranking = [map(sub%ranking), pack([(c, c=1, nc)], .not. seen)]
+        diag%verdict = 0
+        if (sub%verdict > 0) diag%verdict = map(sub%verdict)
+        diag%ntested = sub%ntested
+        diag%alpha_each = sub%alpha_each
+        if (with_mesh .and. prob%has_dynamic) then
+            call mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
+                           base, prior, prob%lower, prob%upper, fopts, &
+                           dopts%alpha/real(diag%ntested + 1, dp), mesh, stat)
+        end if
+    end subroutine dyn_diagnose
+
+    !> Tests for structure in time of one series of normalized residuals r
+    !! at times t (any order; sorted here):
+    !! out(1:4) runs of signs (zeros skipped): runs, expected, z, one-sided p
+    !!   (few runs = long same-sign stretches);
+    !! out(5:7) lag-1 autocorrelation r1 = sum r_k r_k+1 / sum r_k^2 (about
+    !!   the mean of the series), z = r1 sqrt(n), one-sided p (positive r1:
+    !!   neighbours alike);
+    !! out(8:10) trend of the residual amplitude |r| with time: slope per
+    !!   second, z = slope sqrt(Sxx) / sqrt(1 - 2/pi) (|r| of unit normal noise
+    !!   has variance 1 - 2/pi), two-sided p (damping errors leave a growing or
+    !!   shrinking misfit).
+    !! Undefined results are NaN (fewer than 3 points, one sign, no spread).
+    pure subroutine time_structure(t, r, out)
+        real(dp), intent(in) :: t(:), r(:)
+        real(dp), intent(out) :: out(10)
+        real(dp), allocatable :: ts(:), rs(:), a(:), x(:)
+        integer, allocatable :: order(:), signs(:)
+        real(dp) :: nan, nn, mean, var, z, xbar, sxx, sxy, den, rbar
+        integer :: n, i, j, k, n1, n2, runs
+        nan = 0.0_dp
+        nan = nan/nan
+        out = nan
+        n = size(r)
+        if (n /= size(t) .or. n < 3) return
+        order = [(i, i=1, n)]
+        do i = 2, n
+            k = order(i)
+            j = i - 1
+            do while (j >= 1)
+                if (t(order(j)) <= t(k)) exit
+                order(j + 1) = order(j)
+                j = j - 1
+            end do
+            order(j + 1) = k
+        end do
+        ts = t(order)
+        rs = r(order)
+        ! runs of signs
+        signs = pack(merge(1, 0, rs > 0.0_dp), rs /= 0.0_dp)
+        n1 = sum(signs)
+        n2 = size(signs) - n1
+        if (n1 > 0 .and. n2 > 0) then
+            runs = 1 + count(signs(2:) /= signs(:size(signs) - 1))
+            nn = real(size(signs), dp)
+            mean = 2.0_dp*n1*n2/nn + 1.0_dp
+            var = 2.0_dp*n1*n2*(2.0_dp*n1*n2 - nn)/(nn*nn*(nn - 1.0_dp))
+            z = 0.0_dp
+            if (var > 0.0_dp) z = (real(runs, dp) - mean)/sqrt(var)
+            out(1:3) = [real(runs, dp), mean, z]
+            out(4) = one_sided_low(z)
+        end if
+        ! lag-1 autocorrelation
+        rbar = sum(rs)/real(n, dp)
+        den = sum((rs - rbar)**2)
+        if (den > 0.0_dp) then
+            out(5) = sum((rs(1:n - 1) - rbar)*(rs(2:n) - rbar))/den
+            out(6) = out(5)*sqrt(real(n, dp))
+            out(7) = one_sided_low(-out(6))
+        end if
+        ! amplitude trend
+        if (maxval(ts) > minval(ts)) then
+            a = abs(rs)
+            x = ts
+            xbar = sum(x)/real(n, dp)
+            sxx = sum((x - xbar)**2)
+            sxy = sum((x - xbar)*(a - sum(a)/real(n, dp)))
+            out(8) = sxy/sxx
+            out(9) = out(8)*sqrt(sxx)/sqrt(1.0_dp - 2.0_dp/acos(-1.0_dp))
+            out(10) = chi2_sf(out(9)**2, 1)
+        end if
+    contains
+        !> P(Z < z) for a standard normal Z.
+        pure real(dp) function one_sided_low(zz)
+            real(dp), intent(in) :: zz
+            if (zz < 0.0_dp) then
+                one_sided_low = 0.5_dp*chi2_sf(zz*zz, 1)
+            else
+                one_sided_low = 1.0_dp - 0.5_dp*chi2_sf(zz*zz, 1)
+            end if
+        end function one_sided_low
+    end subroutine time_structure
+
+    pure real(dp) function median_of(x, default)
+        real(dp), intent(in) :: x(:), default
+        real(dp), allocatable :: v(:)
+        integer :: n
+        n = size(x)
+        if (n == 0) then
+            median_of = default
+            return
+        end if
+        v = distinct_sorted_all(x)
+        if (mod(n, 2) == 1) then
+            median_of = v((n + 1)/2)
+        else
+            median_of = 0.5_dp*(v(n/2) + v(n/2 + 1))
+        end if
+    end function median_of
+
+    !> x sorted ascending (duplicates kept).
+    pure function distinct_sorted_all(x) result(v)
+        real(dp), intent(in) :: x(:)
+        real(dp) :: v(size(x)), t
+        integer :: i, j
+        v = x
+        do i = 2, size(v)
+            t = v(i)
+            j = i - 1
+            do while (j >= 1)
+                if (v(j) <= t) exit
+                v(j + 1) = v(j)
+                j = j - 1
+            end do
+            v(j + 1) = t
+        end do
+    end function distinct_sorted_all
+
+    !> The distinct values of x in ascending order.
+    pure function distinct_sorted(x) result(out)
+        real(dp), intent(in) :: x(:)
+        real(dp), allocatable :: out(:)
+        real(dp) :: v(size(x))
+        integer :: i, n
+        v = distinct_sorted_all(x)
+        allocate (out(size(v)))
+        n = 0
+        do i = 1, size(v)
+            if (n > 0) then
+                if (v(i) == out(n)) cycle
+            end if
+            n = n + 1
+            out(n) = v(i)
+        end do
+        out = out(:n)
+    end function distinct_sorted
+end module beamid_dyn_diagnosis

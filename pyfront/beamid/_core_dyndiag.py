@@ -1,0 +1,82 @@
+"""Calls into the extension for the diagnosis of fits with time histories
+(``fortran/api/beamid_api_dyndiag.f90``): the mixed static + release
+problems of :mod:`beamid._core_estimation` (its :class:`Problem`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _ext
+from ._core_estimation import (START_NAMES, Problem, _fit_dict, _mixed_values, _msg, _pad,
+                               _row_t)
+from .errors import raise_for_status
+
+_api = _ext.beamid_api_dyndiag
+
+
+def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
+    """Structure in time of one series of normalized residuals: [runs,
+    expected runs, runs z, runs p, lag-1 autocorrelation, its z, its p,
+    amplitude slope (1/s), its z, its p] (NaN where undefined)."""
+    return np.array(_api.api_time_structure(np.ascontiguousarray(t, dtype=float),
+                                            np.ascontiguousarray(normalized, dtype=float)))
+
+
+def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
+                     prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
+                     blocks: list[np.ndarray], alpha: float, nrefit: int,
+                     ambiguity_delta: float, collinear: float, nominal: np.ndarray,
+                     with_mesh: bool, max_iter: int = 50) -> dict:
+    """Score tests, refits, ranking, unseen candidates and the mesh test of a
+    mixed static + release problem (1-based indices)."""
+    starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
+    flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
+            if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
+    out = _api.api_problem_diagnose(
+        prob.nbeams, np.asarray(params0, float), np.asarray(nominal, float),
+        np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
+        _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+        _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+        int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
+        float(ambiguity_delta), float(collinear), int(bool(with_mesh)))
+    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
+     mesh_params, kept, notes, code, message) = out
+    raise_for_status(int(code), message)
+    nc = len(blocks)
+    lines = _msg(notes).rstrip().split("\n")
+    lines += [""] * (nc - len(lines))
+    return {"cstats": np.array(cstats).reshape(18, nc),
+            "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+            "refit_params": np.array(refit_params).reshape(-1, nc),
+            "ranking": np.array(ranking, dtype=int) - 1,
+            "cosine": np.array(cosine).reshape(nc, nc), "dstats": np.array(dstats),
+            "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
+            "sep_t": np.array(sep_t), "mstats": np.array(mstats),
+            "mesh_params": np.array(mesh_params),
+            "kept": np.array(kept, dtype=bool)[:-1],
+            "notes": [line.strip() for line in lines[:nc]]}
+
+
+def problem_fit_effect(prob: Problem, params0: np.ndarray, free: np.ndarray,
+                       prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
+                       block: np.ndarray, nominal: np.ndarray, start_mask: int = 0,
+                       max_iter: int = 50) -> dict:
+    """A fit at ``params0`` with the effect ``block`` freed as well (mixed
+    problems); the dict of :func:`beamid._core_estimation.fit`."""
+    free = np.asarray(free, np.int32)
+    block = np.asarray(block, np.int32)
+    out = _api.api_problem_fit_effect(
+        prob.nbeams, np.asarray(params0, float), free, block, np.asarray(nominal, float),
+        _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
+        prob.exp_kind, _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
+        prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), int(start_mask))
+    result = _fit_dict(out, free.size + block.size)
+    code, message = result["code"], result["message"]
+    if code != 0:
+        if code == 1 and result["note"]:
+            message = f"refit: no start converged: {result['note']}"
+        try:
+            raise_for_status(code, message)
+        except Exception as exc:
+            exc.partial = result  # type: ignore[attr-defined]
+            raise
+    return result

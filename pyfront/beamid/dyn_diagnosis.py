@@ -1,0 +1,536 @@
+"""Find the missing effect in time histories: compare, diagnose, add, improve
+on fits with :class:`beamid.Release` experiments (alone or mixed with static
+ones).
+
+:func:`beamid.compare`, :func:`beamid.diagnose`, :func:`beamid.add_effect`
+and :func:`beamid.improve` call into this module when the fit has a release
+experiment, so the static workflow works unchanged on time histories.
+
+The candidate effects of a release (names fixed): ``friction`` (mu_elbow,
+mu_tip, Eq. 101-102), ``drag`` (c_elbow, c_tip), ``rotary_inertia``
+(J_elbow, J_tip, Eq. 130-132), ``kelvin_voigt`` (eta), ``motor_lag``
+(tau_motor), ``elbow_flex``, ``root_flex`` (all one-sided: null value 0,
+physical values positive), and ``mesh``: the same fit at twice the elements
+per beam. An effect whose sensitivity is zero on every data row (a motor lag
+without a motor; the joint compliances, which the finite element dynamics
+does not model) is listed as "not seen by these experiments", not tested.
+
+The statistics run in Fortran (``beamid_dyn_diagnosis``): score tests from
+the forward sensitivities at the null values, refits, ranking, the probe
+rows (every measurable quantity at every measured time) that separate
+rivals, the mesh test and the tests for structure in time.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import _core_dyndiag as _cd
+from . import _core_estimation as _ce
+from .errors import ConvergenceError, InputError
+from .estimation import FLAG_TEXT, FitResult, _named, _prior_arrays, _result, build_problem
+from .estimation import fit as _fit
+from .loads import Release
+from .model import Model
+
+# the static registry, verdict words and result types (diagnosis.py imports
+# this module lazily, so this import is safe)
+from . import diagnosis as _dg
+from .diagnosis import Candidate, Diagnosis, Effect, Ladder, LadderStep, register_effect
+
+__all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
+           "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
+           "DynCandidate", "DynDiagnosis", "TimeSeries", "TimeComparison",
+           "plot_time_comparison"]
+
+
+def _points(prefix: str):
+    """Parameters of one kind at every mass point (elbow, joints, tip)."""
+    def names(m: Model) -> tuple[str, ...]:
+        out = [n for n in m.names() if n.startswith(prefix + "_") and
+               (n.endswith("_elbow") or n.endswith("_tip") or "_joint" in n)]
+        return tuple(out)
+    return names
+
+
+register_effect(Effect("friction", "Coulomb friction at the masses (Eq. 101-102)",
+                       _points("mu"), kinds=("dynamic",)))
+register_effect(Effect("drag", "viscous air drag -c v at the masses", _points("c"),
+                       kinds=("dynamic",)))
+register_effect(Effect("rotary_inertia", "rotary inertia of the end masses (Eq. 130-132)",
+                       _points("J"), kinds=("dynamic",)))
+register_effect(Effect("kelvin_voigt", "Kelvin-Voigt structural damping eta EI dchi/dt",
+                       lambda m: ("eta",), kinds=("dynamic",)))
+register_effect(Effect("motor_lag", "first-order lag of the tip motor's torque",
+                       lambda m: ("tau_motor",), kinds=("dynamic",)))
+for _name in ("elbow_flex", "root_flex"):
+    register_effect(dataclasses.replace(_dg.EFFECTS[_name], kinds=("static", "dynamic")))
+register_effect(Effect("mesh", "the discretization: the same fit at twice the elements per "
+                       "beam", lambda m: (), kinds=("dynamic",)))
+
+#: Candidate effects tried for release experiments, in order.
+DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
+                      "elbow_flex", "root_flex", "mesh")
+
+_STATES = dict(_ce.CANDIDATE_STATES)
+
+
+def is_dynamic(experiments: Any) -> bool:
+    """Has this set of experiments a release (time histories)?"""
+    try:
+        return any(isinstance(x, Release) for x in dict(experiments).values())
+    except (TypeError, ValueError):
+        return False
+
+
+def default_candidates(experiments: Any) -> tuple[str, ...]:
+    """Dynamic candidates, and for mixed fits the static ones too."""
+    static = any(not isinstance(x, Release) for x in dict(experiments).values())
+    if not static:
+        return DYNAMIC_CANDIDATES
+    return tuple(dict.fromkeys(_dg.STATIC_CANDIDATES + DYNAMIC_CANDIDATES))
+
+
+def refine_mesh(experiments: Any, elements_per_beam: int | None = None,
+                factor: int = 2) -> dict:
+    """The experiments with every release at ``elements_per_beam`` (default
+    ``factor`` times its own)."""
+    out = {}
+    for name, x in dict(experiments).items():
+        if isinstance(x, Release):
+            n = int(elements_per_beam) if elements_per_beam else x.elements_per_beam * factor
+            x = dataclasses.replace(x, elements_per_beam=n)
+        out[name] = x
+    return out
+
+
+# ------------------------------------------------------------------ diagnose
+
+@dataclass(frozen=True)
+class DynCandidate(Candidate):
+    """A :class:`beamid.Candidate` of a fit with time histories: the
+    separating measurement of a rival also has its time (s)."""
+
+    separating_time: float | None = None
+    #: parameters of the effect the data do not need (the block does not fit
+    #: significantly better than its best member) or do not determine
+    #: (first-order estimate below 2 sigma): left at their null values
+    left_at_null: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class MeshCandidate(Candidate):
+    """The ``mesh`` candidate: the fit at twice the elements per beam.
+
+    ``chi2_drop`` is the drop of the refined refit, ``max_change`` the
+    largest change of a prediction at the fitted values in sigma units (at
+    ``max_change_at`` = (experiment, t, quantity)), ``recommended`` the
+    elements per beam that bring the discretization error below 0.3 sigma
+    (assuming the h^4 convergence of the cubic elements).
+    """
+
+    elements_per_beam: int = 0
+    recommended: int = 0
+    max_change: float = math.nan
+    max_change_at: tuple[str, float, str] | None = None
+
+
+@dataclass(frozen=True)
+class DynDiagnosis(Diagnosis):
+    """:class:`beamid.Diagnosis` of a fit with time histories; ``mesh`` is
+    the mesh candidate (None when not asked), ``not_seen`` the effects the
+    experiments cannot see."""
+
+    mesh: MeshCandidate | None = None
+    not_seen: tuple[str, ...] = ()
+
+
+def _split(cands: Sequence[Any]) -> tuple[list, bool]:
+    names = [c.name if isinstance(c, Effect) else str(c) for c in cands]
+    return [c for c, n in zip(cands, names) if n != "mesh"], "mesh" in names
+
+
+def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
+                     alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
+                     collinear: float = 0.98, nominal: Model | None = None) -> DynDiagnosis:
+    """:func:`beamid.diagnose` for fits with release experiments (see there
+    and the module docstring). When the ``mesh`` candidate is significant it
+    is the verdict: refine the mesh before any physical effect is offered."""
+    model = fit.model
+    cands = list(default_candidates(fit.experiments) if candidates is None else candidates)
+    if not cands:
+        raise InputError("candidates is empty: name at least one effect")
+    physical, with_mesh = _split(cands)
+    effects, names, blocks = _dg._candidate_blocks(model, physical)
+    prob = build_problem(model, fit.experiments, fit.data)
+    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    nominal = _dg._nominal(fit, nominal)
+    raw = _cd.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks,
+                               alpha, int(nrefit), ambiguity_delta, collinear,
+                               nominal.vector(), with_mesh)
+    cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
+    exp_names = list(fit.experiments)
+    out: list[Candidate] = []
+    for c, eff in enumerate(effects):
+        s = cst[:, c]
+        keep = raw["kept"][starts[c]:starts[c + 1]]
+        ps = pst[:, starts[c]:starts[c + 1]][:, keep] if keep.any() else pst[:, :0]
+        state = _STATES[int(s[0])]
+        if state != "tested":
+            out.append(DynCandidate(eff.name, names[c], state))
+            continue
+        left = tuple(n for n, k in zip(names[c], keep) if not k)
+        names[c] = tuple(n for n, k in zip(names[c], keep) if k)
+        refit = bool(s[6]) and bool(s[7])
+        sep, sep_t = None, None
+        if s[12] and s[14] > 0:
+            sep = (exp_names[int(s[14]) - 1], _ce.QUANTITY_NAMES[int(s[15])], float(s[13]))
+            sep_t = float(raw["sep_t"][c])
+        null = {n: float(model[n]) for n in names[c]}
+        out.append(DynCandidate(
+            effect=eff.name, params=names[c], state=state, score_drop=float(s[1]),
+            score_p=float(s[2]),
+            first_order={n: null[n] + float(ps[0, j]) for j, n in enumerate(names[c])},
+            first_order_sigma={n: float(ps[1, j]) for j, n in enumerate(names[c])},
+            physical=bool(s[4]), identifiable=bool(s[5]), refit=refit,
+            lr_drop=float(s[8]) if refit else math.nan,
+            lr_p=float(s[9]) if refit else math.nan,
+            refit_estimate={n: float(ps[3, j]) for j, n in enumerate(names[c])} if refit else {},
+            refit_sigma={n: float(ps[4, j]) for j, n in enumerate(names[c])} if refit else {},
+            refit_flags={n: FLAG_TEXT.get(int(ps[5, j]), "flagged")
+                         for j, n in enumerate(names[c])} if refit else {},
+            refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
+            significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
+            separating=sep, refit_tried=bool(s[6]), refit_start=raw["refit_start"][c],
+            refit_note=_named(model, raw["notes"][c]), separating_time=sep_t,
+            left_at_null=left))
+    ranked = [out[i] for i in raw["ranking"]]
+    verdict_index = int(raw["dstats"][0])
+    verdict = out[verdict_index - 1] if verdict_index > 0 else None
+    alpha_each = float(raw["dstats"][2])
+    mesh = None
+    m = raw["mstats"]
+    if with_mesh:
+        if m[0]:
+            row = int(m[8]) - 1
+            at = ((fit.data.experiment[row], float(fit.data.t[row]), fit.data.quantity[row])
+                  if 0 <= row < len(fit.data) else None)
+            mesh = MeshCandidate(
+                "mesh", (), "tested", score_drop=float(m[5]), score_p=float(m[6]),
+                refit=bool(m[1]), refit_tried=True, lr_drop=float(m[5]), lr_p=float(m[6]),
+                refit_model=Model(model.nbeams, raw["mesh_params"]),
+                significant=bool(m[9]), acceptable=bool(m[9]),
+                elements_per_beam=int(m[2]), recommended=int(m[3]), max_change=float(m[7]),
+                max_change_at=at)
+        else:
+            mesh = MeshCandidate("mesh", (), "not in this model")
+        if mesh.significant:
+            ranked.insert(0, mesh)
+            verdict = mesh
+        else:
+            k = sum(1 for c in ranked if c.state == "tested")
+            ranked.insert(k, mesh)
+    rivals = tuple(c for c in ranked if c.rival) if verdict is not mesh or mesh is None else ()
+    not_seen = tuple(c.effect for c in ranked if c.state == _STATES[4])
+    message = _message(fit, tuple(ranked), verdict, rivals, alpha, alpha_each, mesh, not_seen)
+    return DynDiagnosis(fit=fit, candidates=tuple(ranked), verdict=verdict, rivals=rivals,
+                        alpha=alpha, alpha_each=alpha_each, message=message, mesh=mesh,
+                        not_seen=not_seen)
+
+
+def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) -> str:
+    lines = []
+    if mesh is not None and mesh.significant:
+        where = ""
+        if mesh.max_change_at:
+            e, t, q = mesh.max_change_at
+            where = f" ({q} at t = {t:g} s in experiment {e})"
+        undetermined = [n for n, f in fit.flags.items() if f != "ok"]
+        if undetermined:
+            lines.append("fitted parameters not determined by these data: " + ", ".join(
+                f"{n} ({fit.flags[n]})" for n in undetermined))
+        lines.append(
+            f"refine the mesh: at {2 * mesh.elements_per_beam} elements per beam instead of "
+            f"{mesh.elements_per_beam} the chi-square drops by {mesh.chi2_drop:.4g} "
+            f"(p = {mesh.p_value:.2g}) and a prediction moves by up to {mesh.max_change:.3g} "
+            f"sigma{where}; use {mesh.recommended} elements per beam (discretization error "
+            f"below 0.3 sigma) before any physical effect is offered")
+    else:
+        plain = tuple(dataclasses.replace(r, separating=None) for r in rivals)
+        text = _dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh), verdict,
+                                    plain, alpha, alpha_each)
+        lines.append(text)
+        if verdict is not None and getattr(verdict, "left_at_null", ()):
+            lines.append(f"  {', '.join(verdict.left_at_null)} of {verdict.effect} left at "
+                         "the null value: these data do not need or determine it")
+        for r in rivals:
+            if r.separating:
+                e, q, k = r.separating
+                t = getattr(r, "separating_time", None)
+                when = f" at t = {t:g} s" if t is not None else ""
+                lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q}"
+                             f"{when} in experiment {e} (their refits differ there by "
+                             f"{k:.3g} sigma)")
+        if mesh is not None and mesh.state == "tested":
+            lines.append(f"mesh: twice the elements per beam ({2 * mesh.elements_per_beam}) do "
+                         f"not fit significantly better (chi-square drop "
+                         f"{mesh.chi2_drop:.3g}, p = {mesh.p_value:.2g}; predictions move by up "
+                         f"to {mesh.max_change:.3g} sigma)")
+    if not_seen:
+        lines.append("not seen by these experiments (zero sensitivity on every row, not "
+                     "tested): " + ", ".join(not_seen))
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------- add / improve
+
+def add_effect_dynamic(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
+                       nominal: Model | None = None,
+                       starts: Sequence[str] | None = None) -> FitResult:
+    """:func:`beamid.add_effect` for fits with release experiments. The
+    effect ``mesh`` refits at twice the elements per beam."""
+    eff = _dg._effect(effect)
+    if eff.name == "mesh":
+        return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
+                    prior=fit.prior or None, max_iter=max_iter)
+    params = eff.params(fit.model)
+    if not params:
+        raise InputError(f"effect {eff.name!r} has no parameters in a "
+                         f"{fit.model.nbeams}-beam model")
+    already = [p for p in params if p in fit.free]
+    if already:
+        raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
+    mask = 0
+    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+        if name not in names:
+            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
+        mask |= 1 << names.index(name)
+    model = fit.model
+    nominal = _dg._nominal(fit, nominal)
+    prob = build_problem(model, fit.experiments, fit.data)
+    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    block = np.array([model.index(n) + 1 for n in params], np.int32)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    try:
+        raw = _cd.problem_fit_effect(prob, model.vector(), free_idx, pidx, pmean, psig, block,
+                                     nominal.vector(), mask, int(max_iter))
+    except ConvergenceError as exc:
+        raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
+    start = model.with_params(dict(zip(fit.free + params, raw["log_params"][:, 0])))
+    return _result(start, fit.experiments, fit.data, fit.free + params, prior_map, raw,
+                   nominal=nominal.with_params({n: float(raw["params"][model.index(n)])
+                                                for n in params}))
+
+
+def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=None, *,
+                    candidates=None, alpha: float = 0.01, max_steps: int | None = None,
+                    max_iter: int = 50) -> Ladder:
+    """:func:`beamid.improve` for release experiments: fit, then repeat
+    diagnose and add the verdict's effect (or refine the mesh to the
+    recommended elements per beam) until no candidate is significant. The
+    mesh is tested until it is found adequate, not at every later step."""
+    experiments = dict(experiments)
+    current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
+    nominal = model
+    cands = list(default_candidates(experiments) if candidates is None else candidates)
+    limit = len(cands) if max_steps is None else int(max_steps)
+    steps = []
+    effect: str | None = None
+    for k in range(limit + 1):
+        diag = diagnose_dynamic(current, cands, alpha=alpha, nominal=nominal)
+        steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
+                                dict(current.estimates), dict(current.sigmas), current, diag))
+        if diag.verdict is None or k == limit:
+            break
+        verdict = diag.verdict
+        if diag.mesh is not None and not diag.mesh.significant:
+            # the mesh is judged once: adding a small effect does not change
+            # the discretization error, and its refit at twice the elements
+            # per beam is the costliest test of a step
+            cands = [c for c in cands if c != "mesh"]
+        if isinstance(verdict, MeshCandidate):
+            experiments = refine_mesh(experiments, verdict.recommended)
+            current = _fit(current.model, experiments, data, free=current.free, prior=prior,
+                           max_iter=max_iter)
+            current = dataclasses.replace(current, nominal=nominal)
+            effect = f"mesh ({verdict.recommended} elements per beam)"
+            cands = [c for c in cands if c != "mesh"]
+            continue
+        start = verdict.refit_model or current.model
+        current = _fit(start, experiments, data, free=current.free + verdict.params,
+                       prior=prior, max_iter=max_iter)
+        current = dataclasses.replace(current, nominal=nominal.with_params(
+            {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
+        nominal = current.nominal
+        effect = verdict.effect
+    return Ladder(tuple(steps))
+
+
+# ------------------------------------------------------------------- compare
+
+@dataclass(frozen=True)
+class TimeSeries:
+    """One quantity of one release experiment over time after a fit."""
+
+    experiment: str
+    quantity: str
+    unit: str
+    t: np.ndarray
+    measured: np.ndarray
+    sigma: np.ndarray
+    model: np.ndarray
+    normalized: np.ndarray
+    chi2: float
+    expected: float            #: number of rows (the fit's dof share is not subtracted)
+    runs: float
+    expected_runs: float
+    runs_p: float              #: one-sided: too few runs of signs
+    autocorrelation: float     #: lag-1 autocorrelation of the normalized residuals
+    autocorrelation_p: float   #: one-sided: neighbours alike
+    amplitude_slope: float     #: trend of |normalized| with time (1/s)
+    amplitude_p: float         #: two-sided
+
+    @property
+    def p_min(self) -> float:
+        ps = [p for p in (self.runs_p, self.autocorrelation_p, self.amplitude_p)
+              if not math.isnan(p)]
+        return min(ps) if ps else math.nan
+
+
+@dataclass(frozen=True)
+class TimeComparison:
+    """Measured against model over time (:func:`beamid.compare` on a fit with
+    release experiments): per release and quantity a :class:`TimeSeries`
+    (indexable by ``(experiment, quantity)``), the static rows of a mixed fit
+    as in the static compare, and the overall chi-square."""
+
+    fit: FitResult
+    series: tuple[TimeSeries, ...]
+    static_rows: tuple
+    chi2: float
+    dof: int
+    expected: float
+    expected_sigma: float
+    p_value: float
+    systematic: bool
+
+    def __getitem__(self, key) -> TimeSeries:
+        if isinstance(key, tuple):
+            for s in self.series:
+                if (s.experiment, s.quantity) == tuple(key):
+                    return s
+            raise KeyError(f"no series {key!r}")
+        return self.series[key]
+
+    def __len__(self) -> int:
+        return len(self.series)
+
+    def __str__(self) -> str:
+        lines = [f"{'experiment':<12}{'quantity':<13}{'rows':>5}{'chi2':>10}{'expected':>9}"
+                 f"{'runs':>6}{'exp.':>7}{'runs p':>9}{'lag-1 r':>9}{'r p':>9}"
+                 f"{'|r| slope':>10}{'slope p':>9}"]
+        for s in self.series:
+            lines.append(f"{s.experiment:<12}{s.quantity:<13}{len(s.t):>5}{s.chi2:>10.4g}"
+                         f"{s.expected:>9.3g}{s.runs:>6.0f}{s.expected_runs:>7.2f}"
+                         f"{s.runs_p:>9.2g}{s.autocorrelation:>9.3f}{s.autocorrelation_p:>9.2g}"
+                         f"{s.amplitude_slope:>10.3g}{s.amplitude_p:>9.2g}")
+        if self.static_rows:
+            lines.append(f"{len(self.static_rows)} static rows, chi2 "
+                         f"{sum(r.normalized ** 2 for r in self.static_rows):.4g}")
+        lines.append(f"chi2 = {self.chi2:.4g}, expected {self.expected:.4g} +- "
+                     f"{self.expected_sigma:.3g} (dof {self.dof}), p = {self.p_value:.3g}")
+        lines.append("systematic structure in time: the model misses something"
+                     if self.systematic else
+                     "no systematic structure: residuals look like noise")
+        return "\n".join(lines)
+
+    def plot(self, path=None, fig=None):
+        """The figure of :func:`plot_time_comparison`; saved as PNG at ``path``."""
+        fig = plot_time_comparison(self, fig=fig)
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+
+def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
+    """Per release experiment and quantity: measured with sigma against the
+    model over time, normalized residuals, chi-square against its
+    expectation, and the tests for structure in time (Fortran
+    ``time_structure``): runs of signs, lag-1 autocorrelation, trend of the
+    residual amplitude. ``systematic`` when the overall chi-square or a
+    series' test is significant at ``alpha`` / (number of tests)."""
+    from .plot_fit import quantity_unit as _unit
+
+    def quantity_unit(q: str) -> str:
+        return "N m" if "torque" in q else _unit(q)
+
+    series = []
+    static_rows = []
+    groups: dict[tuple[str, str], list] = {}
+    for r in fit.residuals:
+        if isinstance(fit.experiments[r.experiment], Release):
+            groups.setdefault((r.experiment, r.quantity), []).append(r)
+        else:
+            static_rows.append(r)
+    for (e, q), rows in groups.items():
+        rows = sorted(rows, key=lambda r: r.t)
+        t = np.array([r.t for r in rows])
+        z = np.array([r.normalized for r in rows])
+        st = _cd.time_structure(t, z)
+        series.append(TimeSeries(
+            e, q, quantity_unit(q), t, np.array([r.measured for r in rows]),
+            np.array([r.sigma for r in rows]), np.array([r.model for r in rows]), z,
+            float(np.sum(z ** 2)), float(len(rows)), *(float(v) for v in st[[0, 1, 3, 4, 6, 7,
+                                                                               9]])))
+    chi2 = float(sum(r.normalized ** 2 for r in fit.residuals))
+    dof = fit.dof
+    p = _ce.chi2_sf(chi2 + fit.chi2_prior, dof) if dof > 0 else math.nan
+    ntests = 1 + 3 * len(series)
+    level = alpha / ntests
+    systematic = (not math.isnan(p) and p < level) or any(
+        s.p_min < level for s in series if not math.isnan(s.p_min))
+    return TimeComparison(fit, tuple(series), tuple(static_rows), chi2, dof, float(dof),
+                          math.sqrt(2.0 * max(dof, 0)), p, systematic)
+
+
+def plot_time_comparison(cmp: TimeComparison, fig=None):
+    """One column per (experiment, quantity): on top measured values with
+    their error bars and the model over time (unit on the axis), below the
+    normalized residuals with their +-1 error bars and the +-2 sigma band.
+    Returns the figure."""
+    import matplotlib.pyplot as plt
+
+    n = max(len(cmp.series), 1)
+    if fig is None:
+        fig = plt.figure(figsize=(4.2 * n, 5.6))
+    axes = fig.subplots(2, n, squeeze=False, sharex="col")
+    for k, s in enumerate(cmp.series):
+        top, bottom = axes[0, k], axes[1, k]
+        top.plot(s.t, s.model, "-", color="C0", label="model")
+        top.errorbar(s.t, s.measured, yerr=s.sigma, fmt="o", ms=3, color="C1", capsize=2,
+                     elinewidth=1.0, label="measured +- sigma")
+        top.set_title(f"{s.experiment}: {s.quantity}")
+        top.set_ylabel(f"{s.quantity} ({s.unit})")
+        top.legend(fontsize=7)
+        bottom.axhspan(-2.0, 2.0, color="0.9", label="+-2 sigma")
+        bottom.axhline(0.0, color="0.5", lw=0.8, label="zero")
+        # in sigma units the error bar is +-1: visible where sigma is not
+        # beside the motion's amplitude
+        bottom.errorbar(s.t, s.normalized, yerr=np.ones_like(s.normalized), fmt="o-", ms=3,
+                        color="C3", capsize=2, elinewidth=1.0,
+                        label="normalized residual +- 1 sigma")
+        bottom.set_xlabel("t (s)")
+        bottom.set_ylabel("(measured - model) / sigma")
+        bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
+                         fontsize=8)
+        bottom.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
