@@ -34,6 +34,7 @@ from .estimation import _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
+from .progress import progress
 
 
 # ------------------------------------------------------------------ registry
@@ -626,7 +627,8 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     limit = len(cands) if max_steps is None else int(max_steps)
     steps = []
     effect: str | None = None
-    for k in range(limit + 1):
+    rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
+    for k in rungs:
         diag = diagnose(current, cands, alpha=alpha, nominal=nominal)
         steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
                                 dict(current.estimates), dict(current.sigmas), current, diag))
@@ -640,4 +642,5 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
             {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
         nominal = current.nominal
         effect = verdict.effect
+    getattr(rungs, "close", lambda: None)()
     return Ladder(tuple(steps))

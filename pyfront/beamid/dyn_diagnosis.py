@@ -41,6 +41,7 @@ from .model import Model
 # this module lazily, so this import is safe)
 from . import diagnosis as _dg
 from .diagnosis import Candidate, Diagnosis, Effect, Ladder, LadderStep, register_effect
+from .progress import progress
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -344,7 +345,8 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
     limit = len(cands) if max_steps is None else int(max_steps)
     steps = []
     effect: str | None = None
-    for k in range(limit + 1):
+    rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
+    for k in rungs:
         diag = diagnose_dynamic(current, cands, alpha=alpha, nominal=nominal)
         steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
                                 dict(current.estimates), dict(current.sigmas), current, diag))
@@ -371,6 +373,7 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
             {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
         nominal = current.nominal
         effect = verdict.effect
+    getattr(rungs, "close", lambda: None)()
     return Ladder(tuple(steps))
 
 
