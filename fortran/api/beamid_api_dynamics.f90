@@ -116,25 +116,40 @@ contains
             spec%progress => progress
             call release_response(chain, spec, real(t_out, dp), nowrt, out, stat)
         end if
-        if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_simulate_modal', 'nstate = '// &
-                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
-                            ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
-        end if
-        if (stat%code == STATUS_OK) then
-            info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
-                        out%stats%jevals, out%stats%newton, out%hist%nevents, &
-                        out%stats%event_steps], c_int)
-            call copy_events(out, events)
-            states = out%hist%y
-            torque = out%hist%torque
-            work = out%hist%work
-            tip = out%tip
-            ledger = out%ledger
-        end if
+        call copy_history(out, 'api_dyn_simulate_modal', nstate, nwork, states, tip, torque, &
+                          ledger, work, info, events, stat)
         code = int(stat%code, c_int)
         message = stat%message
     end subroutine api_dyn_simulate_modal
+
+    !> The outputs both release entries share, after checking the caller's
+    !! state and work sizes against the run's.
+    subroutine copy_history(out, where, nstate, nwork, states, tip, torque, ledger, work, &
+                            info, events, stat)
+        type(release_out_t), intent(in) :: out
+        character(len=*), intent(in) :: where
+        integer(c_int), intent(in) :: nstate, nwork
+        real(c_double), intent(inout) :: states(:, :), tip(:, :), torque(:), ledger(:, :)
+        real(c_double), intent(inout) :: work(:, :), events(:, :)
+        integer(c_int), intent(inout) :: info(7)
+        type(status_t), intent(inout) :: stat
+        if (stat%code /= STATUS_OK) return
+        if (out%nstate /= nstate .or. out%nwork /= nwork) then
+            call set_status(stat, ERR_INPUT, where, 'nstate = '//fmt_int(int(nstate))// &
+                            ', nwork = '//fmt_int(int(nwork))//', expected '// &
+                            fmt_int(out%nstate)//', '//fmt_int(out%nwork))
+            return
+        end if
+        info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
+                    out%stats%jevals, out%stats%newton, out%hist%nevents, &
+                    out%stats%event_steps], c_int)
+        call copy_events(out, events)
+        states = out%hist%y
+        torque = out%hist%torque
+        work = out%hist%work
+        tip = out%tip
+        ledger = out%ledger
+    end subroutine copy_history
 
     !> The release spec of the binding's scalar arguments.
     subroutine release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
@@ -426,21 +441,9 @@ contains
             spec%progress => progress
             call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
         end if
-        if (stat%code == STATUS_OK .and. (out%nstate /= nstate .or. out%nwork /= nwork)) then
-            call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nstate = '// &
-                            fmt_int(int(nstate))//', nwork = '//fmt_int(int(nwork))// &
-                            ', expected '//fmt_int(out%nstate)//', '//fmt_int(out%nwork))
-        end if
+        call copy_history(out, 'api_dyn_release', nstate, nwork, states, tip, torque, &
+                          ledger, work, info, events, stat)
         if (stat%code == STATUS_OK) then
-            info = int([out%stats%steps, out%stats%rejected, out%stats%fevals, &
-                        out%stats%jevals, out%stats%newton, out%hist%nevents, &
-                        out%stats%event_steps], c_int)
-            call copy_events(out, events)
-            states = out%hist%y
-            torque = out%hist%torque
-            work = out%hist%work
-            tip = out%tip
-            ledger = out%ledger
             y = out%y
             dy = out%dy
             ds = out%dstates
