@@ -41,6 +41,7 @@ module beamid_dyn_diagnosis
 
     public :: mesh_test_t, dyn_diagnose, mesh_test, dyn_probe_rows, time_structure
     public :: MESH_ORDER, MESH_TARGET, null_side_model_t, null_side_init
+    public :: cached_model_t
 
     !> Parameters whose forward sensitivity does not exist at the null value,
     !! because the effect adds a state or a degree of freedom only when on: the
@@ -68,6 +69,21 @@ module beamid_dyn_diagnosis
     contains
         procedure :: evaluate => null_side_evaluate
     end type null_side_model_t
+
+    !> A problem with one set of sensitivities computed ahead: evaluate at
+    !! exactly `at` for columns among `cols` returns the stored predictions
+    !! and columns without running the model (the score tests of every
+    !! candidate, the check which candidates the data see and the block
+    !! reduction all read the one set computed at the null values, Eq.
+    !! 135-140); any other call runs `inner`.
+    type, extends(residual_model_t) :: cached_model_t
+        type(null_side_model_t) :: inner
+        real(dp), allocatable :: at(:), pred(:), jac(:, :)
+        integer, allocatable :: cols(:)
+        type(status_t) :: stat        !< the stored evaluation's status
+    contains
+        procedure :: evaluate => cached_evaluate
+    end type cached_model_t
 
     !> Convergence order assumed for the discretization error of the
     !! predictions (cubic Hermite elements: displacements and frequencies
@@ -146,6 +162,44 @@ contains
             jacobian(:, j) = (pp - predictions)/self%step(k)
         end do
     end subroutine null_side_evaluate
+
+    !> Store the predictions and the columns `cols` of `inner` at `params`
+    !! (one run of the forward sensitivities for every column).
+    subroutine cached_init(inner, params, cols, nrow, self)
+        type(null_side_model_t), intent(in) :: inner
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: cols(:), nrow
+        type(cached_model_t), intent(out) :: self
+        self%inner = inner
+        self%at = params
+        self%cols = cols
+        allocate (self%pred(nrow), self%jac(nrow, size(cols)))
+        call clear_status(self%stat)
+        call self%inner%evaluate(params, cols, self%pred, self%jac, self%stat)
+    end subroutine cached_init
+
+    subroutine cached_evaluate(self, params, wrt, predictions, jacobian, stat)
+        class(cached_model_t), intent(inout) :: self
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: predictions(:)
+        real(dp), intent(out) :: jacobian(:, :)
+        type(status_t), intent(inout) :: stat
+        integer :: j, k
+        logical :: hit
+        hit = self%stat%code == STATUS_OK .and. size(params) == size(self%at)
+        if (hit) hit = all(params == self%at) .and. all([(any(self%cols == wrt(j)), &
+                                                           j=1, size(wrt))])
+        if (.not. hit) then
+            call self%inner%evaluate(params, wrt, predictions, jacobian, stat)
+            return
+        end if
+        predictions = self%pred
+        do j = 1, size(wrt)
+            k = findloc(self%cols, wrt(j), 1)
+            jacobian(:, j) = self%jac(:, k)
+        end do
+    end subroutine cached_evaluate
 
     !> Probe rows of release experiments: at every distinct measured time of
     !! each release, every quantity it can measure (u_tip w_tip tip_angle
@@ -305,6 +359,8 @@ contains
         type(status_t), intent(inout) :: stat
         type(inverse_problem_t) :: prob, probe
         type(null_side_model_t) :: side
+        type(cached_model_t) :: cache
+        integer, allocatable :: union(:)
         type(score_result_t) :: sc, one
         real(dp) :: dbest
         integer :: best
@@ -335,6 +391,23 @@ contains
         call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
                     stat)
         if (stat%code /= STATUS_OK) return
+        ! one run of the forward sensitivities at the null values for the
+        ! free parameters and every candidate parameter to be tested: the
+        ! checks below and every score test read it (cached_model_t)
+        union = base%free
+        do c = 1, nc
+            do q = 1, size(cands(c)%params)
+                k = cands(c)%params(q)
+                if (any(union == k)) cycle
+                if (base%params(k) /= prob%nulls(k)) cycle
+                union = [union, k]
+            end do
+        end do
+        call cached_init(side, base%params, union, size(y), cache)
+        if (cache%stat%code > 0) then
+            stat = cache%stat
+            return
+        end if
         ! which candidates do the data rows see at all? (a sensitivity the
         ! model cannot give at the null value, e.g. a locked joint's, is an
         ! input error of that column alone: not seen either)
@@ -349,7 +422,7 @@ contains
             if (allocated(jac)) deallocate (jac)
             allocate (jac(size(y), j))
             call clear_status(st)
-            call side%evaluate(base%params, cands(c)%params, pred, jac, st)
+            call cache%evaluate(base%params, cands(c)%params, pred, jac, st)
             if (st%code > 0) then
                 stat = st
                 return
@@ -369,7 +442,7 @@ contains
                 any(base%params(seen_cands(k)%params) /= prob%nulls(seen_cands(k)%params))) &
                 cycle
             call clear_status(st)
-            call score_test(side, y, sigma, base%params, base%free, prob%lower, prob%upper, &
+            call score_test(cache, y, sigma, base%params, base%free, prob%lower, prob%upper, &
                             prior, seen_cands(k)%params, fopts, sc, st)
             if (st%code > 0) then
                 stat = st
@@ -383,7 +456,7 @@ contains
             dbest = -huge(1.0_dp)
             do q = 1, j
                 call clear_status(st)
-                call score_test(side, y, sigma, base%params, base%free, prob%lower, &
+                call score_test(cache, y, sigma, base%params, base%free, prob%lower, &
                                 prob%upper, prior, seen_cands(k)%params(q:q), fopts, one, st)
                 if (st%code > 0) then
                     stat = st
@@ -426,12 +499,19 @@ contains
             return
         end if
         dsub = dopts
+        if (prob%has_dynamic) then
+            ! every refit integrates the response with its sensitivities many
+            ! times: confirm only what the score tests find significant, and
+            ! stop at the first start that confirms the predicted drop
+            dsub%refit_significant_only = .true.
+            dsub%first_enough = .true.
+        end if
         if (with_mesh .and. prob%has_dynamic) then
             ! the mesh test counts as one more test in the Bonferroni level
             dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
         end if
         if (ns > 0) then
-            call diagnose(side, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
+            call diagnose(cache, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
                           seen_cands, fopts, dsub, sub, stat, probe, psig, nominal)
             if (stat%code /= STATUS_OK) return
         else
