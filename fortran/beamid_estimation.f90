@@ -175,9 +175,10 @@ module beamid_estimation
         real(dp) :: ambiguity_delta = 4.0_dp !< rivals: chi-square drops closer than this
         real(dp) :: collinear = 0.98_dp    !< ... or |cosine| of directions above this
         !> confirm by refits only candidates whose score test is significant at
-        !! alpha / (number tested) (a refit cannot make an effect the first-
-        !! order test finds insignificant the verdict in a nearly linear
-        !! problem; time histories make every refit costly)
+        !! the family-wise level alpha (not yet divided by the number tested:
+        !! a refit can gain more than the first-order test predicts when the
+        !! effect's column is nearly in the span of the free ones, as J_elbow
+        !! beside rho2; time histories make every refit costly)
         logical :: refit_significant_only = .false.
         !> stop a refit's starts at the first that converges with at least half
         !! the chi-square drop its score test predicts (the first-order start
@@ -1406,7 +1407,7 @@ contains
                        diag%cand(c)%score%identifiable)) cycle
             if (diag%cand(c)%score%drop <= 0.0_dp) cycle
             if (dopts%refit_significant_only .and. &
-                .not. diag%cand(c)%score%p_value < diag%alpha_each) cycle
+                .not. diag%cand(c)%score%p_value < dopts%alpha) cycle
             nrefit = nrefit + 1
             associate (cr => diag%cand(c))
                 call clear_status(st)
