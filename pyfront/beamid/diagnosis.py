@@ -581,6 +581,12 @@ class LadderStep(NamedTuple):
     sigmas: dict[str, float]
     fit: FitResult
     diagnosis: Diagnosis
+    #: parameters the rung switched on (the effect's, or the members of its
+    #: block the data determine)
+    params: tuple[str, ...] = ()
+    #: parameters an earlier rung switched on that this rung's fit no longer
+    #: needs (set back to their null values: a rival member of the block)
+    removed: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -605,6 +611,9 @@ class Ladder:
             est = ", ".join(f"{n} = {v:.5g} ({s.sigmas[n]:.2g})" for n, v in s.estimates.items())
             lines.append(f"{s.step:<6}{(s.effect or '(start)'):<18}{s.chi2:>12.5g}{s.dof:>5}"
                          f"{s.chi2_per_dof:>11.4g}  {est}")
+            if s.removed:
+                lines.append(f"{'':<6}{'':<18}{', '.join(s.params)} instead of "
+                             f"{', '.join(s.removed)} (no longer needed)")
         lines.append(self.steps[-1].diagnosis.message)
         return "\n".join(lines)
 

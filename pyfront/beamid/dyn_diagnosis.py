@@ -337,7 +337,16 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
     """:func:`beamid.improve` for release experiments: fit, then repeat
     diagnose and add the verdict's effect (or refine the mesh to the
     recommended elements per beam) until no candidate is significant. The
-    mesh is tested until it is found adequate, not at every later step."""
+    mesh is tested until it is found adequate, not at every later step.
+
+    Stepwise in both directions: a block reduced to the members the data
+    determine (drag at the elbow or at the tip) keeps its other members as a
+    candidate of the later rungs, and after every rung the parameters that
+    earlier rungs switched on are tested again (one-sided Wald test at the
+    rung's level alpha / number tested): one the new fit no longer needs,
+    typically the rival member of a block picked while another effect was
+    still missing, goes back to its null value and the rung is refitted
+    without it (``LadderStep.removed``)."""
     experiments = dict(experiments)
     current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
     nominal = model
@@ -345,11 +354,15 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
     limit = len(cands) if max_steps is None else int(max_steps)
     steps = []
     effect: str | None = None
+    added: list[str] = []
+    params: tuple[str, ...] = ()
+    removed: tuple[str, ...] = ()
     rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
     for k in rungs:
         diag = diagnose_dynamic(current, cands, alpha=alpha, nominal=nominal)
         steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
-                                dict(current.estimates), dict(current.sigmas), current, diag))
+                                dict(current.estimates), dict(current.sigmas), current, diag,
+                                params, removed))
         if diag.verdict is None or k == limit:
             break
         verdict = diag.verdict
@@ -357,24 +370,71 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
             # the mesh is judged once: adding a small effect does not change
             # the discretization error, and its refit at twice the elements
             # per beam is the costliest test of a step
-            cands = [c for c in cands if c != "mesh"]
+            cands = [c for c in cands if _name(c) != "mesh"]
+        removed = ()
         if isinstance(verdict, MeshCandidate):
             experiments = refine_mesh(experiments, verdict.recommended)
             current = _fit(current.model, experiments, data, free=current.free, prior=prior,
                            max_iter=max_iter)
             current = dataclasses.replace(current, nominal=nominal)
             effect = f"mesh ({verdict.recommended} elements per beam)"
-            cands = [c for c in cands if c != "mesh"]
+            params = ()
+            cands = [c for c in cands if _name(c) != "mesh"]
             continue
         start = verdict.refit_model or current.model
         current = _fit(start, experiments, data, free=current.free + verdict.params,
                        prior=prior, max_iter=max_iter)
+        # the members of the block left at null stay a candidate
+        left = tuple(getattr(verdict, "left_at_null", ()))
+        if left:
+            cands = [_rest(c, left) if _name(c) == verdict.effect else c for c in cands]
+        removed = _not_needed(current, added, diag.alpha_each)
+        if removed:
+            back = current.model.replace(**{n: float(model[n]) for n in removed})
+            current = _fit(back, experiments, data,
+                           free=tuple(n for n in current.free if n not in removed),
+                           prior=prior, max_iter=max_iter)
+            added = [n for n in added if n not in removed]
+        added += list(verdict.params)
         current = dataclasses.replace(current, nominal=nominal.with_params(
             {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
         nominal = current.nominal
         effect = verdict.effect
+        params = tuple(verdict.params)
     getattr(rungs, "close", lambda: None)()
     return Ladder(tuple(steps))
+
+
+def _name(c: str | Effect) -> str:
+    return c.name if isinstance(c, Effect) else str(c)
+
+
+def _rest(c: str | Effect, left: tuple[str, ...]) -> Effect:
+    """The effect ``c`` reduced to its parameters ``left`` (a block's members
+    the data did not need yet)."""
+    eff = _dg._effect(c)
+    return Effect(eff.name, eff.description, lambda m, left=left: left, kinds=eff.kinds)
+
+
+def _not_needed(fit: FitResult, names: Sequence[str], level: float) -> tuple[str, ...]:
+    """Of the parameters ``names`` (switched on by earlier rungs, one-sided:
+    physical values positive), the one whose one-sided Wald test
+    (estimate / sigma) is least significant, when its p-value exceeds
+    ``level``: the fit does not need it (empty otherwise)."""
+    worst, worst_p = None, level
+    for n in names:
+        if n not in fit.estimates:
+            continue
+        est, sig = fit.estimates[n], fit.sigmas[n]
+        if not (sig > 0) or not math.isfinite(sig):
+            p = 1.0
+        elif est <= 0:
+            p = 1.0
+        else:
+            p = 0.5 * _ce.chi2_sf((est / sig) ** 2, 1)
+        if p > worst_p:
+            worst, worst_p = n, p
+    return (worst,) if worst else ()
 
 
 # ------------------------------------------------------------------- compare
