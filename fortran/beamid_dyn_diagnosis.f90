@@ -345,14 +345,14 @@ contains
     !! histories rarely separate the elbow's parameter from the tip's, and a
     !! block with an undetermined member never passes its refit.
     subroutine dyn_diagnose(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
-                            params0, nominal, free, prior, cands, fopts0, dopts, with_mesh, &
+                            params0, nominal, free, prior, cands_in, fopts0, dopts, with_mesh, &
                             base, diag, mesh, pexp, pt, pq, used, stat)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
         real(dp), intent(in) :: params0(:), nominal(:)
         integer, intent(in) :: free(:)
         type(prior_t), intent(in) :: prior
-        type(candidate_t), intent(in) :: cands(:)
+        type(candidate_t), intent(in) :: cands_in(:)
         type(fit_options_t), intent(in) :: fopts0
         type(diagnose_options_t), intent(in) :: dopts
         logical, intent(in) :: with_mesh
@@ -375,7 +375,8 @@ contains
         type(fit_options_t) :: fopts
         logical, allocatable :: keep(:)
         type(diagnosis_t) :: sub
-        type(candidate_t), allocatable :: seen_cands(:)
+        type(candidate_t), allocatable :: seen_cands(:), cands(:)
+        logical, allocatable :: open_(:)
         type(status_t) :: st
         integer, allocatable :: map(:), sexp(:), sq(:), dexp(:), dq(:), plocal(:)
         real(dp), allocatable :: pred(:), jac(:, :), ssig(:), dt(:), dsig(:), psig(:)
@@ -384,7 +385,7 @@ contains
         type(diagnose_options_t) :: dsub
 
         allocate (pexp(0), pq(0), pt(0))
-        nc = size(cands)
+        nc = size(cands_in)
         fopts = fopts0
         if (any(exp_kind == EXP_RELEASE)) then
             ! an integrated response carries the integrator's error (rtol
@@ -399,6 +400,17 @@ contains
         call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
                     stat)
         if (stat%code /= STATUS_OK) return
+        ! a block some of whose members are free or switched on (the drag at
+        ! the elbow added by an earlier rung of improve) is tested as its
+        ! members still at their null values (the drag at the tip)
+        cands = cands_in
+        do c = 1, nc
+            j = size(cands(c)%params)
+            if (j < 2) cycle
+            open_ = [(base%params(cands(c)%params(q)) == prob%nulls(cands(c)%params(q)) .and. &
+                      .not. any(base%free == cands(c)%params(q)), q=1, j)]
+            if (any(open_) .and. .not. all(open_)) cands(c)%params = pack(cands(c)%params, open_)
+        end do
         ! one run of the forward sensitivities at the null values for the
         ! free parameters and every candidate parameter to be tested: the
         ! checks below and every score test read it (cached_model_t)

@@ -678,8 +678,8 @@ contains
 
     !> improve on a deck with releases (beamid.dyn_diagnosis.improve_dynamic,
     !! step for step, so both fronts write the same ladder): diagnose, add the
-    !! verdict's parameters (a block as tested; its other members stay a
-    !! candidate) or refine the mesh to the recommended elements per beam;
+    !! verdict's parameters (a block as tested; dyn_diagnose tests its other
+    !! members at the later rungs) or refine the mesh to the recommended elements per beam;
     !! after each rung the parameters earlier rungs added are tested again
     !! (one-sided Wald test at the rung's level) and one no longer needed
     !! goes back to the deck's value, the rung refitted without it. The mesh
@@ -697,8 +697,8 @@ contains
         type(cand_set_t) :: cs
         character(len=32) :: effect
         real(dp), allocatable :: nominal(:), start(:), p(:)
-        integer, allocatable :: added(:), newp(:), left(:)
-        integer :: k, v, e, gone, i
+        integer, allocatable :: added(:), newp(:)
+        integer :: k, v, e, gone
 
         dd = d
         cs = cs0
@@ -732,9 +732,6 @@ contains
             newp = dg%used(v)%params
             call estimation_fit(dd, start, [integer :: fo%free, newp], fo, st)
             if (st%code /= STATUS_OK) return
-            left = pack(cs%cands(v)%params, [(all(newp /= cs%cands(v)%params(i)), &
-                                              i=1, size(cs%cands(v)%params))])
-            if (size(left) > 0) cs%cands(v)%params = left
             gone = not_needed(fo, added, dg%diag%alpha_each)
             if (gone > 0) then
                 p = fo%params
