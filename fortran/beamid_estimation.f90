@@ -184,6 +184,9 @@ module beamid_estimation
         !! the chi-square drop its score test predicts (the first-order start
         !! confirmed; the other starts are for fits far from the truth)
         logical :: first_enough = .false.
+        !> the refit starts tried (refit_effect: first-order, nominal,
+        !! continuation)
+        logical :: starts(3) = .true.
     end type diagnose_options_t
 
     !> How a refit with an effect switched on went (refit_effect).
@@ -1414,11 +1417,13 @@ contains
                 if (present(nominal)) then
                     call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
                                       null_values, lower, upper, prior, fopts, cr%refit, &
-                                      cr%info, st, enough=dopts%first_enough)
+                                      cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
                 else
                     call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
                                       base%params, null_values, lower, upper, prior, fopts, &
-                                      cr%refit, cr%info, st, enough=dopts%first_enough)
+                                      cr%refit, cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
                 end if
                 if (st%code < 0) then
                     stat = st

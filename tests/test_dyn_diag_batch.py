@@ -46,7 +46,7 @@ DECK = """&beamid
 """
 
 
-def _write(folder: Path, task: str) -> Path:
+def _write(folder: Path, task: str, cands=CANDIDATES) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     truth = BASE.replace(c_tip=0.01, J_tip=0.01)
     rel = beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=2, rtol=1e-11)
@@ -60,7 +60,7 @@ def _write(folder: Path, task: str) -> Path:
     (folder / "release.csv").write_text("\n".join(lines) + "\n")
     deck = folder / f"{task}.nml"
     deck.write_text(DECK.format(task=task, out=str(folder / "out" / task),
-                                cands=", ".join(f"'{c}'" for c in CANDIDATES)))
+                                cands=", ".join(f"'{c}'" for c in cands)))
     return deck
 
 
@@ -113,7 +113,8 @@ def test_batch_diagnose_of_a_release_deck_is_the_dynamic_diagnosis(tmp_path, bat
 
 
 def test_batch_improve_of_a_release_deck_is_the_dynamic_ladder(tmp_path, batch_exe):
-    deck = _write(tmp_path, "improve")
+    # the mesh is tested by the diagnose deck above; here the ladder's steps
+    deck = _write(tmp_path, "improve", ("drag", "rotary_inertia", "kelvin_voigt"))
     _run(batch_exe, deck)
     ladder_rows = _rows(tmp_path / "out" / "improve_ladder.csv")
     from beamid.fit_decks import read_fit_deck

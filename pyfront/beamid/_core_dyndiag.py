@@ -55,7 +55,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
             "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
             "sep_t": np.array(sep_t), "mstats": Columns(np.array(mstats), MSTATS),
             "mesh_params": np.array(mesh_params),
-            "kept": np.array(kept, dtype=bool)[:-1],
+            "kept": np.array(kept, dtype=int)[:-1] == 1,
+            "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
             "notes": [line.strip() for line in lines[:nc]]}
 
 

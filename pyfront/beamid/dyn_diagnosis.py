@@ -121,6 +121,10 @@ class DynCandidate(Candidate):
     #: significantly better than its best member) or do not determine
     #: (first-order estimate below 2 sigma): left at their null values
     left_at_null: tuple[str, ...] = ()
+    #: of those, the ones the score tests find about as good alone as the
+    #: member tested (these data hardly tell them apart: drag at the elbow
+    #: or at the tip); improve tests them again at its later rungs
+    ambiguous_with: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -185,10 +189,13 @@ def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None =
         left = tuple(n for n, k in zip(names[c], keep)
                      if not k and n not in fit.free and float(model[n]) == 0.0)
         tested = tuple(n for n, k in zip(names[c], keep) if k)
+        close = raw["ambiguous"][raw["starts"][c]:raw["starts"][c + 1]]
+        alike = tuple(n for n, a in zip(names[c], close) if a)
         sep_t = (float(raw["sep_t"][c]) if raw["cstats"]["rival"][c]
                  and raw["cstats"]["sep_experiment"][c] > 0 else None)
         out.append(_dg._candidate(raw, c, eff, tested, model, exp_names, cls=DynCandidate,
-                                  keep=keep, separating_time=sep_t, left_at_null=left))
+                                  keep=keep, separating_time=sep_t, left_at_null=left,
+                                  ambiguous_with=alike))
     ranked = [out[i] for i in raw["ranking"]]
     verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
@@ -247,8 +254,15 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         text = _dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh), verdict,
                                     plain, alpha, alpha_each)
         lines.append(text)
-        if verdict is not None and getattr(verdict, "left_at_null", ()):
-            lines.append(f"  {', '.join(verdict.left_at_null)} of {verdict.effect} left at "
+        alike = getattr(verdict, "ambiguous_with", ()) if verdict is not None else ()
+        if alike:
+            lines.append(f"  ambiguous: {' or '.join(verdict.params + alike)} of "
+                         f"{verdict.effect} (these data hardly tell them apart; "
+                         f"{', '.join(verdict.params)} explains them a little better now, "
+                         "and improve tests the others again once more effects are in)")
+        rest = tuple(n for n in getattr(verdict, "left_at_null", ()) if n not in alike)
+        if verdict is not None and rest:
+            lines.append(f"  {', '.join(rest)} of {verdict.effect} left at "
                          "the null value: these data do not need or determine it")
         for r in rivals:
             if r.separating:
