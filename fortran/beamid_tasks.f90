@@ -412,10 +412,7 @@ contains
             do k = 0, size(d%candidates)
                 call estimation_diagnose(d, fo, cs, d%params, dg, st)
                 if (st%code /= STATUS_OK) return
-                step_effect = [character(len=32) :: step_effect, effect]
-                step_chi2 = [step_chi2, fo%chi2]
-                step_dof = [step_dof, fo%dof]
-                step_cpd = [step_cpd, chi2_per_dof(fo)]
+                call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
                 v = dg%diag%verdict
                 if (v == 0 .or. k == size(d%candidates)) exit
                 start = fo%params
@@ -708,10 +705,7 @@ contains
         do k = 0, size(d%candidates)
             call estimation_diagnose(dd, fo, cs, nominal, dg, st)
             if (st%code /= STATUS_OK) return
-            step_effect = [character(len=32) :: step_effect, effect]
-            step_chi2 = [step_chi2, fo%chi2]
-            step_dof = [step_dof, fo%dof]
-            step_cpd = [step_cpd, chi2_per_dof(fo)]
+            call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
             v = dg%diag%verdict
             if ((v == 0 .and. .not. dg%mesh%significant) .or. k == size(d%candidates)) exit
             if (dg%mesh%done .and. .not. dg%mesh%significant) cs%with_mesh = .false.
@@ -745,6 +739,19 @@ contains
             effect = cs%names(v)
         end do
     end subroutine dynamic_ladder
+
+    !> One rung of the ladder file: the effect added and the fit's chi-square.
+    subroutine record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
+        character(len=*), intent(in) :: effect
+        type(fit_result_t), intent(in) :: fo
+        character(len=32), allocatable, intent(inout) :: step_effect(:)
+        real(dp), allocatable, intent(inout) :: step_chi2(:), step_cpd(:)
+        integer, allocatable, intent(inout) :: step_dof(:)
+        step_effect = [character(len=32) :: step_effect, effect]
+        step_chi2 = [step_chi2, fo%chi2]
+        step_dof = [step_dof, fo%dof]
+        step_cpd = [step_cpd, chi2_per_dof(fo)]
+    end subroutine record_rung
 
     !> Of the parameters `names` (switched on by earlier rungs; one-sided,
     !! physical values positive) the one whose one-sided Wald test
