@@ -36,11 +36,15 @@ module beamid_fe_assembly
                                  fe_element_force_tabulated, fe_element_tangent_tabulated, &
                                  fe_element_mass, fe_hinge_energy, fe_hinge_force, &
                                  fe_hinge_tangent
+    ! the band helpers live in beamid_band; the fe_band_* names stay exported
+    ! from here for the callers that import them with the mesh
+    use beamid_band, only: band_add, fe_band_add => band_add, &
+                           fe_band_to_dense => band_to_dense, fe_band_matvec => band_mv
     implicit none
     private
 
     public :: fe_mesh_t, fe_load_t, fe_mesh_build
-    public :: fe_band_rows, fe_band_add, fe_band_get, fe_band_to_dense, fe_band_matvec
+    public :: fe_band_rows, fe_band_add, fe_band_to_dense, fe_band_matvec
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
     public :: fe_expand, fe_node_value, fe_spring_energy
@@ -310,53 +314,6 @@ contains
         fe_band_rows = 2*mesh%kl + mesh%ku + 1
     end function fe_band_rows
 
-    !> ab(i, j) += value in LAPACK general band storage.
-    pure subroutine fe_band_add(ab, kl, ku, i, j, value)
-        real(dp), intent(inout) :: ab(:, :)
-        integer, intent(in) :: kl, ku, i, j
-        real(dp), intent(in) :: value
-        ab(kl + ku + 1 + i - j, j) = ab(kl + ku + 1 + i - j, j) + value
-    end subroutine fe_band_add
-
-    !> A(i, j) from band storage (zero outside the band).
-    pure real(dp) function fe_band_get(ab, kl, ku, i, j)
-        real(dp), intent(in) :: ab(:, :)
-        integer, intent(in) :: kl, ku, i, j
-        if (i - j > kl .or. j - i > ku) then
-            fe_band_get = 0.0_dp
-        else
-            fe_band_get = ab(kl + ku + 1 + i - j, j)
-        end if
-    end function fe_band_get
-
-    !> Dense copy of a band matrix of order size(ab, 2).
-    pure subroutine fe_band_to_dense(ab, kl, ku, a)
-        real(dp), intent(in) :: ab(:, :)
-        integer, intent(in) :: kl, ku
-        real(dp), intent(out) :: a(:, :)
-        integer :: i, j
-        a = 0.0_dp
-        do j = 1, size(ab, 2)
-            do i = max(1, j - ku), min(size(ab, 2), j + kl)
-                a(i, j) = ab(kl + ku + 1 + i - j, j)
-            end do
-        end do
-    end subroutine fe_band_to_dense
-
-    !> y = A x for a band matrix.
-    pure subroutine fe_band_matvec(ab, kl, ku, x, y)
-        real(dp), intent(in) :: ab(:, :), x(:)
-        integer, intent(in) :: kl, ku
-        real(dp), intent(out) :: y(:)
-        integer :: i, j
-        y = 0.0_dp
-        do j = 1, size(ab, 2)
-            do i = max(1, j - ku), min(size(ab, 2), j + kl)
-                y(i) = y(i) + ab(kl + ku + 1 + i - j, j)*x(j)
-            end do
-        end do
-    end subroutine fe_band_matvec
-
     !> Full unknown vector (clamped entries zero) from the free vector q.
     pure subroutine fe_expand(mesh, q, qfull)
         type(fe_mesh_t), intent(in) :: mesh
@@ -474,7 +431,7 @@ contains
                 do a = 1, 4
                     i = idx(a)
                     if (i == 0) cycle
-                    call fe_band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
+                    call band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
                 end do
             end do
         end do
@@ -620,16 +577,16 @@ contains
                 do a = 1, FE_NDOF
                     i = mesh%free_of(idx(a))
                     if (i == 0) cycle
-                    call fe_band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
+                    call band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
                 end do
             end do
         end do
         do node = 2, mesh%nnode
             if (mesh%node_mass(node) /= 0.0_dp) then
                 i = mesh%free_of(4*(node - 1) + DOF_W)
-                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+                call band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
                 i = mesh%free_of(4*(node - 1) + DOF_U)
-                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+                call band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
             end if
             if (rotary .and. mesh%node_inertia(node) /= 0.0_dp) then
                 jm = mesh%node_inertia(node)
@@ -637,10 +594,10 @@ contains
                 iu = mesh%free_of(4*(node - 1) + DOF_DU)
                 du = q(iu)
                 dw = q(iw)
-                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iw, jm*(1.0_dp + du)**2)
-                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*dw*(1.0_dp + du))
-                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*dw*(1.0_dp + du))
-                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iu, jm*dw*dw)
+                call band_add(mb, mesh%kl, mesh%ku, iw, iw, jm*(1.0_dp + du)**2)
+                call band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*dw*(1.0_dp + du))
+                call band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*dw*(1.0_dp + du))
+                call band_add(mb, mesh%kl, mesh%ku, iu, iu, jm*dw*dw)
             end if
         end do
     end subroutine fe_mass
@@ -686,14 +643,14 @@ contains
         if (load%moment_form == FE_MOMENT_EXACT) then
             ! Q = M grad(Psi), Psi = atan2(y, x): dQ/dq = M Hessian(Psi)
             r2 = x*x + y*y
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idw, -m*2.0_dp*x*y/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idu, m*2.0_dp*x*y/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m*(y*y - x*x)/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, m*(y*y - x*x)/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idw, -m*2.0_dp*x*y/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idu, m*2.0_dp*x*y/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idu, m*(y*y - x*x)/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idw, m*(y*y - x*x)/r2**2)
         else
             ! Eq. 78: Q_w' = M (1 + u'), Q_u' = -M w' (not a gradient: unsymmetric)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idu, m)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
         end if
     end subroutine fe_tip_load_jacobian
 

@@ -10,9 +10,10 @@ module beamid_fe_modes
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NUMERIC, fmt_int, &
                              fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, set_alloc_error
     use beamid_lapack, only: sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_band_to_dense, fe_mass, &
-                                  fe_stiffness_linear, fe_band_matvec, DOF_U, DOF_DU, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_mass, &
+                                  fe_stiffness_linear, DOF_U, DOF_DU, &
                                   DOF_DU_OUT
+    use beamid_band, only: band_mv, band_to_dense
     implicit none
     private
 
@@ -65,8 +66,8 @@ contains
         q0 = 0.0_dp
         call fe_stiffness_linear(mesh, kb)
         call fe_mass(mesh, q0, rotary, mb)
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, phi)
-        call fe_band_to_dense(mb, mesh%kl, mesh%ku, m)
+        call band_to_dense(kb, mesh%kl, mesh%ku, phi)
+        call band_to_dense(mb, mesh%kl, mesh%ku, m)
         call sym_gen_eig(phi, m, w, stat)
         if (stat%code /= 0) return
         if (any(w <= 0.0_dp)) then
@@ -76,7 +77,7 @@ contains
         end if
         omega = sqrt(w)
         do i = 1, n
-            call fe_band_matvec(mb, mesh%kl, mesh%ku, phi(:, i), mphi)
+            call band_mv(mb, mesh%kl, mesh%ku, phi(:, i), mphi)
             mu = 0.0_dp
             do k = 1, n
                 if (fe_is_axial_unknown(mesh, k)) mu = mu + phi(k, i)*mphi(k)
@@ -106,7 +107,7 @@ contains
         allocate (mb(fe_band_rows(mesh), n), mq(n), q0(n))
         q0 = 0.0_dp
         call fe_mass(mesh, q0, rotary, mb)
-        call fe_band_matvec(mb, mesh%kl, mesh%ku, q, mq)
+        call band_mv(mb, mesh%kl, mesh%ku, q, mq)
         eta = matmul(mq, phi)
     end subroutine fe_modal_coordinates
 

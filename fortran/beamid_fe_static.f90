@@ -9,8 +9,9 @@ module beamid_fe_static
                              set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
-                                  fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
-                                  fe_stiffness_linear, fe_band_add, DOF_W, DOF_U
+                                  fe_tip_load, fe_tip_load_jacobian, &
+                                  fe_stiffness_linear, DOF_W, DOF_U
+    use beamid_band, only: band_add, band_to_dense
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -434,7 +435,7 @@ contains
                 do a = 1, FE_NDOF
                     i = mesh%free_of(idx(a))
                     if (i == 0) cycle
-                    call fe_band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
+                    call band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
                 end do
             end do
         end do
@@ -475,8 +476,8 @@ contains
         end if
         call fe_stiffness_linear(mesh, kb)
         call fe_geometric_stiffness(mesh, gb)
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)
-        call fe_band_to_dense(gb, mesh%kl, mesh%ku, g)
+        call band_to_dense(kb, mesh%kl, mesh%ku, k)
+        call band_to_dense(gb, mesh%kl, mesh%ku, g)
         call sym_gen_eig(k, g, w, stat)
         if (stat%code /= 0) return
         pcr = w(1)

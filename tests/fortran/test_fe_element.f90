@@ -21,7 +21,8 @@ program test_fe_element
                                  fe_element_energy, fe_element_force, fe_element_tangent, &
                                  fe_element_mass
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_tangent, &
-                                  fe_internal_force, fe_band_to_dense
+                                  fe_internal_force
+    use beamid_band, only: band_to_dense
     use beamid_testing, only: checks_t, check_close, check_true, check_finish, seed_random
     implicit none
 
@@ -381,7 +382,7 @@ contains
         call fe_internal_force(mesh, q, f0)
         call check_close(t, 'fe_tangent force = fe_internal_force', f, f0, 1.0e-13_dp, &
                          1.0e-13_dp*maxval(abs(f0)))
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)
+        call band_to_dense(kb, mesh%kl, mesh%ku, k)
         do i = 1, n
             e = 0.0_dp
             e(i) = step
