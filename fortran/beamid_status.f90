@@ -39,28 +39,44 @@ module beamid_status
     !! checked against it before anything is allocated (fmt_bytes for messages).
     real(dp), parameter, public :: MAX_BYTES = 4.0_dp*1024.0_dp**3
 
-    !> Length of status messages (also the length exchanged with Python).
-    integer, parameter, public :: MSG_LEN = 256
-
+    !> Messages have no length limit. The f2py entry points hand them to
+    !! Python in a buffer of 256 characters (`character(len=256),
+    !! intent(out) :: message`: numpy's f2py needs the literal), filled by
+    !! status_out, which says so in the buffer when a message does not fit.
     type :: status_t
         integer :: code = STATUS_OK
-        character(len=MSG_LEN) :: message = ''
+        !> What went wrong, any length (unallocated: no message yet).
+        character(len=:), allocatable :: message
     contains
         procedure :: ok => status_is_ok
     end type status_t
 
 contains
 
-    !> True when the status holds no error.
-    !> The (code, message) pair of a status, as the f2py binding returns it.
+    !> The (code, message) pair of a status, as the f2py binding returns it:
+    !! the message copied into the caller's buffer; one that does not fit is
+    !! cut and ends with '... (truncated: N characters)', never silently.
     pure subroutine status_out(stat, code, message)
         type(status_t), intent(in) :: stat
         integer, intent(out) :: code
         character(len=*), intent(out) :: message
+        character(len=:), allocatable :: tail
         code = stat%code
-        message = stat%message
+        message = ''
+        if (.not. allocated(stat%message)) return
+        if (len(stat%message) <= len(message)) then
+            message = stat%message
+            return
+        end if
+        tail = '... (truncated: '//fmt_int(len(stat%message))//' characters)'
+        if (len(tail) >= len(message)) then
+            message = tail
+        else
+            message = stat%message(:len(message) - len(tail))//tail
+        end if
     end subroutine status_out
 
+    !> True when the status holds no error.
     pure logical function status_is_ok(self)
         class(status_t), intent(in) :: self
         status_is_ok = self%code == STATUS_OK

@@ -8,7 +8,7 @@
 module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, exit_code
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, exit_code
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task
     use beamid_measurements, only: measurements_t, read_measurements
@@ -37,8 +37,7 @@ contains
         type(status_t), intent(in) :: stat
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (allocated(deck%errors)) then
             if (len(deck%errors) > 0) message = deck%errors
         end if
@@ -208,8 +207,7 @@ contains
         type(status_t) :: stat
         nrow = 0
         call read_measurements(trim(path), data, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code == STATUS_OK) nrow = int(size(data%value), c_int)
     end subroutine api_measurements_size
 
@@ -238,8 +236,7 @@ contains
         exp_index = 0
         names = ''
         call read_measurements(trim(path), data, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         if (size(data%value) /= nrow) then
             code = int(ERR_INPUT, c_int)
