@@ -45,6 +45,7 @@ module beamid_fe_assembly
 
     public :: fe_mesh_t, fe_load_t, fe_mesh_build
     public :: fe_band_rows, fe_band_add, fe_band_to_dense, fe_band_matvec
+    public :: fe_work_t, fe_work_init, fe_residual
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
     public :: fe_expand, fe_node_value, fe_spring_energy
@@ -115,7 +116,25 @@ module beamid_fe_assembly
         integer :: moment_form = FE_MOMENT_EQ78
     end type fe_load_t
 
+    !> Work arrays of the force, tangent and residual routines (BeamDyn's
+    !! MiscVar): made once per mesh by fe_work_init and handed to every call of
+    !! a solve or a run, instead of arrays made on each call. Without one, a
+    !! call makes its own.
+    type :: fe_work_t
+        real(dp), allocatable :: qpad(:), fpad(:)   !< (0:nfree): [0, q] and the force
+        real(dp), allocatable :: qv(:)              !< tip load vector Q(q)
+        real(dp), allocatable :: kb(:, :)           !< tangent of a residual-only call
+    end type fe_work_t
+
 contains
+
+    !> Work arrays for the force, tangent and residual calls on `mesh`.
+    pure subroutine fe_work_init(mesh, work)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_work_t), intent(out) :: work
+        allocate (work%qpad(0:mesh%nfree), work%fpad(0:mesh%nfree), work%qv(mesh%nfree), &
+                  work%kb(fe_band_rows(mesh), mesh%nfree))
+    end subroutine fe_work_init
 
     !> Discretize `chain` with `elements_per_beam` equal elements on each beam.
     !! A joint with joint_flex > 0 becomes a hinge with a rotational spring, a
@@ -455,11 +474,26 @@ contains
     end function fe_energy
 
     !> Internal force NLT(q) = dV/dq on the free unknowns (Eq. 79-83).
-    pure subroutine fe_internal_force(mesh, q, f)
+    pure subroutine fe_internal_force(mesh, q, f, work)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:)
-        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        type(fe_work_t), intent(inout), optional :: work
+        if (present(work)) then
+            call internal_force(mesh, q, f, work%qpad, work%fpad)
+        else
+            block
+                real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+                call internal_force(mesh, q, f, qpad, fpad)
+            end block
+        end if
+    end subroutine fe_internal_force
+
+    !> fe_internal_force on the padded work vectors qpad, fpad (0:nfree).
+    pure subroutine internal_force(mesh, q, f, qpad, fpad)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:), qpad(0:), fpad(0:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF)
         integer :: el, ib, a
         call pad_free(q, qpad)
@@ -476,7 +510,7 @@ contains
         end do
         call add_springs(mesh, qpad, fpad)
         f = fpad(1:)
-    end subroutine fe_internal_force
+    end subroutine internal_force
 
     !> Root reactions: the Lagrange multipliers of Eq. 104-105 for a static
     !! state, lambda = NLT(q) on the clamped unknowns (w, w', u of node 1);
@@ -499,11 +533,26 @@ contains
 
     !> Internal force f and tangent stiffness K_T = dNLT/dq (band storage,
     !! fe_band_rows(mesh) x nfree) at the free vector q.
-    pure subroutine fe_tangent(mesh, q, f, kb)
+    pure subroutine fe_tangent(mesh, q, f, kb, work)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:), kb(:, :)
-        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        type(fe_work_t), intent(inout), optional :: work
+        if (present(work)) then
+            call tangent(mesh, q, f, kb, work%qpad, work%fpad)
+        else
+            block
+                real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+                call tangent(mesh, q, f, kb, qpad, fpad)
+            end block
+        end if
+    end subroutine fe_tangent
+
+    !> fe_tangent on the padded work vectors qpad, fpad (0:nfree).
+    pure subroutine tangent(mesh, q, f, kb, qpad, fpad)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:), kb(:, :), qpad(0:), fpad(0:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
         integer :: el, ib, a, b, i, j, diag, first, row
         call pad_free(q, qpad)
@@ -543,7 +592,43 @@ contains
         end do
         call add_springs(mesh, qpad, fpad, kb)
         f = fpad(1:)
-    end subroutine fe_tangent
+    end subroutine tangent
+
+    !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
+    !! Jacobian db/dq in band storage (Eq. 85).
+    pure subroutine fe_residual(mesh, load, q, r, jb, work)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: r(:)
+        real(dp), intent(out), optional :: jb(:, :)
+        type(fe_work_t), intent(inout), optional :: work
+        type(fe_work_t) :: own
+        if (present(work)) then
+            call residual(mesh, load, q, r, work, jb)
+        else
+            allocate (own%qpad(0:mesh%nfree), own%fpad(0:mesh%nfree), own%qv(mesh%nfree))
+            if (.not. present(jb)) allocate (own%kb(fe_band_rows(mesh), mesh%nfree))
+            call residual(mesh, load, q, r, own, jb)
+        end if
+    end subroutine fe_residual
+
+    pure subroutine residual(mesh, load, q, r, work, jb)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: r(:)
+        type(fe_work_t), intent(inout) :: work
+        real(dp), intent(out), optional :: jb(:, :)
+        if (present(jb)) then
+            call tangent(mesh, q, r, jb, work%qpad, work%fpad)
+            call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
+        else
+            call tangent(mesh, q, r, work%kb, work%qpad, work%fpad)
+        end if
+        call fe_tip_load(mesh, q, load, work%qv)
+        r = r - work%qv
+    end subroutine residual
 
     !> Linear stiffness K = K_T(0) in band storage (Eq. 123-124).
     pure subroutine fe_stiffness_linear(mesh, kb)

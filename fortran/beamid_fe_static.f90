@@ -8,8 +8,8 @@ module beamid_fe_static
                              ERR_NUMERIC, fmt_int, fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, &
                              set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
-                                  fe_tip_load, fe_tip_load_jacobian, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_work_t, &
+                                  fe_work_init, fe_residual, fe_tip_load, &
                                   fe_stiffness_linear, DOF_W, DOF_U
     use beamid_band, only: band_add, band_to_dense
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
@@ -77,29 +77,9 @@ contains
         out%moment = a%moment + b%moment
     end function added
 
-    !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
-    !! Jacobian db/dq in band storage (Eq. 85).
-    pure subroutine fe_residual(mesh, load, q, r, jb)
-        type(fe_mesh_t), intent(in) :: mesh
-        type(fe_load_t), intent(in) :: load
-        real(dp), intent(in) :: q(:)
-        real(dp), intent(out) :: r(:)
-        real(dp), intent(out), optional :: jb(:, :)
-        real(dp), allocatable :: qv(:), kb(:, :)
-        allocate (qv(mesh%nfree))
-        if (present(jb)) then
-            call fe_tangent(mesh, q, r, jb)
-            call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
-        else
-            allocate (kb(fe_band_rows(mesh), mesh%nfree))
-            call fe_tangent(mesh, q, r, kb)
-        end if
-        call fe_tip_load(mesh, q, load, qv)
-        r = r - qv
-    end subroutine fe_residual
-
     !> Newton's method (Eq. 85) at a fixed load from the starting shape q.
-    subroutine fe_newton(mesh, load, q, opts, iterations, residual, stat)
+    !! `work`: from fe_work_init(mesh), shared by the calls of one solve.
+    subroutine fe_newton(mesh, load, q, opts, iterations, residual, stat, work)
         type(fe_mesh_t), intent(in) :: mesh
         type(fe_load_t), intent(in) :: load
         real(dp), intent(inout) :: q(:)
@@ -107,6 +87,7 @@ contains
         integer, intent(out) :: iterations
         real(dp), intent(out) :: residual
         type(status_t), intent(inout) :: stat
+        type(fe_work_t), intent(inout) :: work
         character(len=*), parameter :: where = 'fe_newton'
         real(dp), allocatable :: r(:), jb(:, :), dq(:, :)
         real(dp) :: step, turn
@@ -116,7 +97,7 @@ contains
         step = huge(1.0_dp)
         do it = 1, opts%max_iter
             iterations = it
-            call fe_residual(mesh, load, q, r, jb)
+            call fe_residual(mesh, load, q, r, jb, work)
             dq(:, 1) = -r
             call solve_banded(mesh%kl, mesh%ku, jb, dq, stat)
             if (stat%code /= 0) return
@@ -133,12 +114,12 @@ contains
                 return
             end if
             if (step <= opts%tol*(1.0_dp + maxval(abs(q)))) then
-                call fe_residual(mesh, load, q, r)
+                call fe_residual(mesh, load, q, r, work=work)
                 residual = maxval(abs(r))
                 return
             end if
         end do
-        call fe_residual(mesh, load, q, r)
+        call fe_residual(mesh, load, q, r, work=work)
         residual = maxval(abs(r))
         call set_status(stat, ERR_NO_CONVERGENCE, where, 'no convergence in '// &
                         fmt_int(opts%max_iter)//' iterations: last step '// &
@@ -164,6 +145,7 @@ contains
         real(dp) :: lam, dlam, dlam_max, dlam_prev, resid
         integer :: its, nbisect
         type(status_t) :: inner
+        type(fe_work_t) :: work
 
         if (size(q) /= mesh%nfree) then
             call set_status(stat, ERR_INPUT, where, 'q has '//fmt_int(size(q))// &
@@ -181,12 +163,13 @@ contains
             call set_status(stat, ERR_INPUT, where, 'tip load is not finite')
             return
         end if
+        call fe_work_init(mesh, work)
         if (from_guess) then
             if (.not. all(ieee_is_finite(q))) then
                 call set_status(stat, ERR_INPUT, where, 'starting shape is not finite')
                 return
             end if
-            call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat)
+            call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat, work)
             info%steps = 1
             if (stat%code == 0) info%negative = fe_negative_eigenvalues(mesh, load, q)
             return
@@ -208,7 +191,7 @@ contains
             ! secant predictor along the last accepted step
             if (dlam_prev > 0.0_dp) q_try = q + (q - q_prev)*(dlam/dlam_prev)
             inner = status_t()
-            call fe_newton(mesh, scaled(load, lam + dlam), q_try, opts, its, resid, inner)
+            call fe_newton(mesh, scaled(load, lam + dlam), q_try, opts, its, resid, inner, work)
             info%iterations = info%iterations + its
             if (inner%code /= 0) then
                 nbisect = nbisect + 1
@@ -306,6 +289,7 @@ contains
         real(dp) :: lam, lamn, tl, tl_new, h, nrm, g, dl, step, resid
         integer :: it, its, max_points, nfail
         logical :: converged
+        type(fe_work_t) :: work
 
         max_points = size(lam_out)
         npts = 0
@@ -333,9 +317,10 @@ contains
         allocate (q(mesh%nfree), qn(mesh%nfree), r(mesh%nfree), rl(mesh%nfree), &
                   jb(fe_band_rows(mesh), mesh%nfree), rhs(mesh%nfree, 2), &
                   tq(mesh%nfree), tq_new(mesh%nfree))
+        call fe_work_init(mesh, work)
         q = q0
         lam = lam0
-        call fe_newton(mesh, added(load0, scaled(dload, lam)), q, opts, its, resid, stat)
+        call fe_newton(mesh, added(load0, scaled(dload, lam)), q, opts, its, resid, stat, work)
         if (stat%code /= 0) return
         npts = 1
         lam_out(1) = lam
@@ -347,7 +332,7 @@ contains
         nfail = 0
         do while (npts < max_points)
             ! tangent: J z = Q(q; dload), t = (z, 1)/|(z, 1)|, oriented along the last one
-            call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+            call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb, work)
             call fe_tip_load(mesh, q, dload, rl)   ! -dR/dlam
             rhs(:, 1) = rl
             call solve_banded(mesh%kl, mesh%ku, jb, rhs(:, 1:1), stat)
@@ -368,7 +353,7 @@ contains
             q = qn + h*tq
             lam = lamn + h*tl
             do it = 1, opts%max_iter
-                call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+                call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb, work)
                 call fe_tip_load(mesh, q, dload, rl)
                 rhs(:, 1) = -r
                 rhs(:, 2) = rl
