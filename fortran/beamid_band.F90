@@ -21,7 +21,7 @@ module beamid_band
     public :: band_factor, band_solve, zband_factor, zband_solve, band_solve_many, &
               zband_solve_many
     public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, ldlt_factor, ldlt_solve
-    public :: dband_mv, zband_mv, band_mv, kc_mv
+    public :: dband_mv, zband_mv, band_mv, kc_mv, ldlt_inertia
     public :: band_add, band_to_dense
 
     !> Factor a real or complex band matrix (band_lu_t, zband_lu_t).
@@ -132,6 +132,23 @@ contains
 #define ADD_ zband_add
 #define TO_DENSE_ zband_to_dense
 #include "beamid_band_generic.inc"
+
+    !> Number of negative pivots of the L D L^T without pivoting of a real
+    !! symmetric band matrix (lower band as for ldlt_real, overwritten): by
+    !! Sylvester's law of inertia its number of negative eigenvalues. A zero
+    !! pivot (exactly at a critical point) counts as neither sign and its
+    !! column updates nothing.
+    pure subroutine ldlt_inertia(n, k, s, negative)
+        integer, intent(in) :: n, k
+        real(dp), intent(inout) :: s(k + 1, n)
+        integer, intent(out) :: negative
+        integer :: j
+        negative = 0
+        do j = 1, n
+            if (s(1, j) < 0.0_dp) negative = negative + 1
+            if (s(1, j) /= 0.0_dp) call ldlt_column_real(k, min(k, n - j), 1.0_dp/s(1, j), s(1, j))
+        end do
+    end subroutine ldlt_inertia
 
     !> y = K x + C v for two band matrices of the same shape (one pass).
     pure subroutine kc_mv(n, kl, ku, kb, cb, x, v, y)

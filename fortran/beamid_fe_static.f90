@@ -11,7 +11,7 @@ module beamid_fe_static
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_work_t, &
                                   fe_work_init, fe_residual, fe_tip_load, &
                                   fe_stiffness_linear, DOF_W, DOF_U
-    use beamid_band, only: band_add, band_to_dense
+    use beamid_band, only: band_add, band_to_dense, ldlt_inertia
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -220,18 +220,16 @@ contains
     !> Number of negative eigenvalues of the tangent d(NLT - Q)/dq at q (its
     !! symmetric part, exact for the conservative fixed-direction tip force):
     !! Sylvester's law of inertia on the band L D L^T factorization without
-    !! pivoting, O(n b^2). A zero pivot (exactly at a critical point) counts
-    !! as neither sign.
+    !! pivoting (beamid_band ldlt_inertia), O(n b^2).
     pure integer function fe_negative_eigenvalues(mesh, load, q) result(negative)
         type(fe_mesh_t), intent(in) :: mesh
         type(fe_load_t), intent(in) :: load
         real(dp), intent(in) :: q(:)
-        real(dp), allocatable :: r(:), jb(:, :), w(:, :), d(:)
-        integer :: n, b, i, j, k, row
-        real(dp) :: sum_
+        real(dp), allocatable :: r(:), jb(:, :), w(:, :)
+        integer :: n, b, i, j, row
         n = mesh%nfree
         b = max(mesh%kl, mesh%ku)
-        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n), d(n))
+        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n))
         call fe_residual(mesh, load, q, r, jb)
         ! lower band of the symmetric part: w(i - j, j) = (A(i, j) + A(j, i))/2
         row = mesh%kl + mesh%ku + 1
@@ -242,26 +240,7 @@ contains
                 if (i - j <= mesh%ku) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + j - i, i)
             end do
         end do
-        ! L D L^T in place: w(i - k, k) holds L(i, k)
-        do j = 1, n
-            sum_ = w(0, j)
-            do k = max(1, j - b), j - 1
-                sum_ = sum_ - w(j - k, k)**2*d(k)
-            end do
-            d(j) = sum_
-            do i = j + 1, min(n, j + b)
-                sum_ = w(i - j, j)
-                do k = max(1, i - b), j - 1
-                    sum_ = sum_ - w(i - k, k)*w(j - k, k)*d(k)
-                end do
-                if (d(j) /= 0.0_dp) then
-                    w(i - j, j) = sum_/d(j)
-                else
-                    w(i - j, j) = 0.0_dp
-                end if
-            end do
-        end do
-        negative = count(d < 0.0_dp)
+        call ldlt_inertia(n, b, w, negative)
     end function fe_negative_eigenvalues
 
     !> Pseudo-arc-length continuation (Keller) of equilibria under the load

@@ -9,13 +9,14 @@
 !! band, and the failures (a singular band, a zero complex pivot, a pivot
 !! that is not positive); the assembly helpers (band_add, band_to_dense,
 !! band_mv on an assembly array) and the solves with several right-hand
-!! sides, real and complex, against dense ones.
+!! sides, real and complex, against dense ones; the inertia count of an
+!! indefinite band matrix L D L^T against the signs of D.
 program test_band
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                           dband_mv, zband_mv, band_add, band_to_dense, band_mv
+                           dband_mv, zband_mv, band_add, band_to_dense, band_mv, ldlt_inertia
     use beamid_testing, only: checks_t, check_close, check_below, check_true, check_finish, &
                               seed_random
     implicit none
@@ -52,6 +53,8 @@ program test_band
     call symmetric_band_refuses_bad_pivots()
     call assembly_helpers(9, 2, 3)
     call assembly_helpers(20, 7, 7)
+    call inertia(12, 1)
+    call inertia(30, 7)
     call check_finish(t, 'test_band')
 
 contains
@@ -314,5 +317,34 @@ contains
                              [real(zx, dp), aimag(zx)], 0.0_dp, 0.0_dp)
         end do
     end subroutine assembly_helpers
+
+    !> A = L D L^T from a unit lower band L of half-bandwidth k (so A has the
+    !! same band) and a D with chosen signs: ldlt_inertia counts the negative
+    !! entries of D (Sylvester's law of inertia).
+    subroutine inertia(n, k)
+        integer, intent(in) :: n, k
+        real(dp) :: l(n, n), a(n, n), d(n), s(k + 1, n)
+        character(len=64) :: label
+        integer :: i, j, negative
+        write (label, '(a, 2(i0, 1x))') 'inertia n k: ', n, k
+        l = 0.3_dp*normal(n, n)
+        d = 1.0_dp + abs(reshape(normal(n, 1), [n]))
+        d(2:n:4) = -d(2:n:4)
+        do j = 1, n
+            do i = 1, n
+                if (i < j .or. i - j > k) l(i, j) = 0.0_dp
+            end do
+            l(j, j) = 1.0_dp
+        end do
+        a = matmul(l*spread(d, 1, n), transpose(l))
+        do j = 1, n
+            do i = j, min(n, j + k)
+                s(1 + i - j, j) = a(i, j)
+            end do
+        end do
+        call ldlt_inertia(n, k, s, negative)
+        call check_true(t, trim(label)//': negative pivots = negative entries of D', &
+                        negative == count(d < 0.0_dp))
+    end subroutine inertia
 
 end program test_band
