@@ -145,17 +145,37 @@ contains
         integer, intent(in) :: elements_per_beam
         type(fe_mesh_t), intent(out) :: mesh
         type(status_t), intent(inout) :: stat
-        character(len=*), parameter :: where = 'fe_mesh_build'
-        integer :: ib, k, el, nb, i, j, node, kf, r, full, span
-        integer :: order(6), ierr
-        integer, allocatable :: idx(:)
+        type(status_t) :: st
         real(dp) :: bytes
+        call check_mesh_request(chain, elements_per_beam, bytes, st)
+        if (st%code == 0) call mesh_elements(chain, elements_per_beam, bytes, mesh, st)
+        if (st%code == 0) call mesh_numbering(chain, elements_per_beam, bytes, mesh, st)
+        if (st%code == 0) call mesh_free_numbering(bytes, mesh, st)
+        if (st%code == 0) then
+            mesh%kl = half_bandwidth(mesh)
+            mesh%ku = mesh%kl
+            call mesh_assembly_tables(elements_per_beam, bytes, mesh, st)
+        end if
+        if (st%code /= 0) stat = st
+    end subroutine fe_mesh_build
+
+    !> The checks of fe_mesh_build before anything is allocated; bytes: the
+    !! memory the mesh's solvers need (in 64 bits: about 40 numbers per
+    !! unknown, 4 unknowns per node), held against MAX_BYTES.
+    pure subroutine check_mesh_request(chain, elements_per_beam, bytes, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(out) :: bytes
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_mesh_build'
+        integer :: i, nb
+        nb = chain%nbeams
+        bytes = 8.0_dp*40.0_dp*4.0_dp*(real(nb, dp)*real(elements_per_beam, dp) + 1.0_dp)
         if (elements_per_beam < 1) then
             call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//', expected at least 1')
             return
         end if
-        nb = chain%nbeams
         if (nb < 1) then
             call set_status(stat, ERR_INPUT, where, 'the chain has no beams')
             return
@@ -174,17 +194,25 @@ contains
                 return
             end if
         end do
-        ! sizes in 64 bits before anything is allocated: the banded solvers
-        ! keep about 40 numbers per unknown, 4 unknowns per node
-        bytes = 8.0_dp*40.0_dp*4.0_dp*(real(nb, dp)*real(elements_per_beam, dp) + 1.0_dp)
         if (bytes > MAX_BYTES) then
             call set_status(stat, ERR_SIZE, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//': a mesh of '// &
                             fmt_count(real(nb, dp)*real(elements_per_beam, dp))// &
                             ' elements would need about '//fmt_bytes(bytes)// &
                             ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
-            return
         end if
+    end subroutine check_mesh_request
+
+    !> Sizes, element properties, node positions s and the point masses and
+    !! inertias at the joints and the tip.
+    pure subroutine mesh_elements(chain, elements_per_beam, bytes, mesh, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: ib, k, el, nb, ierr
+        nb = chain%nbeams
         mesh%nbeams = nb
         mesh%nel = nb*elements_per_beam
         mesh%nnode = mesh%nel + 1
@@ -194,15 +222,11 @@ contains
         mesh%nfree = mesh%ndof - 3
         if (mesh%root_flex > 0.0_dp) mesh%nfree = mesh%ndof - 2
         allocate (mesh%h(mesh%nel), mesh%ea(mesh%nel), mesh%ei(mesh%nel), &
-                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel), stat=ierr)
-        if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the element tables', bytes)
-            return
-        end if
-        allocate (mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
+                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel), &
+                  mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
                   mesh%node_inertia(mesh%nnode), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the node tables', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the element and node tables', bytes)
             return
         end if
         mesh%node_mass = 0.0_dp
@@ -229,11 +253,21 @@ contains
             mesh%node_mass(el + 1) = chain%mass(ib)
             mesh%node_inertia(el + 1) = chain%inertia(ib)
         end do
-        ! node table of full indices; hinges get their outboard slopes after 4 nnode
+    end subroutine mesh_elements
+
+    !> Full indices of the node and element unknowns; a hinge's outboard
+    !! slopes come after the 4 nnode node unknowns.
+    pure subroutine mesh_numbering(chain, elements_per_beam, bytes, mesh, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: i, j, node, el, ierr
         allocate (mesh%node_dof(6, mesh%nnode), mesh%hinge_node(mesh%nhinge), &
-                  mesh%hinge_flex(mesh%nhinge), stat=ierr)
+                  mesh%hinge_flex(mesh%nhinge), mesh%el_dof(FE_NDOF, mesh%nel), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the node numbering', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the node numbering', bytes)
             return
         end if
         do node = 1, mesh%nnode
@@ -241,7 +275,7 @@ contains
             mesh%node_dof(5:6, node) = mesh%node_dof([DOF_DW, DOF_DU], node)
         end do
         j = 0
-        do i = 1, nb - 1
+        do i = 1, mesh%nbeams - 1
             if (chain%joint_flex(i) > 0.0_dp) then
                 j = j + 1
                 node = i*elements_per_beam + 1
@@ -250,21 +284,24 @@ contains
                 mesh%node_dof(5:6, node) = 4*mesh%nnode + 2*(j - 1) + [1, 2]
             end if
         end do
-        allocate (mesh%el_dof(FE_NDOF, mesh%nel), stat=ierr)
-        if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the element numbering', bytes)
-            return
-        end if
         do el = 1, mesh%nel
             mesh%el_dof(:, el) = [mesh%node_dof([DOF_W, DOF_DW_OUT, DOF_U, DOF_DU_OUT], el), &
                                   mesh%node_dof(1:4, el + 1)]
         end do
-        ! free numbering node by node; the clamp of Eq. 103 fixes w, w', u of the
-        ! root (w and u only with a root hinge); u' (the root strain) stays free
+    end subroutine mesh_numbering
+
+    !> The free numbering, node by node; the clamp of Eq. 103 fixes w, w', u
+    !! of the root (w and u only with a root hinge); u' (the root strain)
+    !! stays free.
+    pure subroutine mesh_free_numbering(bytes, mesh, stat)
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: node, i, k, kf, r, full, order(6), ierr
         allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree), &
                   mesh%free_comp(mesh%nfree), mesh%free_node(mesh%nfree), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the free numbering', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the free numbering', bytes)
             return
         end if
         mesh%free_of = 0
@@ -289,7 +326,13 @@ contains
                 mesh%free_node(kf) = node
             end do
         end do
-        ! half-bandwidth: widest coupling of an element or of a hinge spring
+    end subroutine mesh_free_numbering
+
+    !> Half-bandwidth: the widest coupling of an element or a hinge spring.
+    pure integer function half_bandwidth(mesh) result(span)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, allocatable :: idx(:)
+        integer :: el, j
         span = 0
         do el = 1, mesh%nel
             idx = pack(mesh%free_of(mesh%el_dof(:, el)), mesh%free_of(mesh%el_dof(:, el)) > 0)
@@ -300,15 +343,23 @@ contains
                                              mesh%hinge_node(j)))
             span = max(span, maxval(idx) - minval(idx))
         end do
-        mesh%kl = span
-        mesh%ku = span
+    end function half_bandwidth
+
+    !> The quadrature and the tables of the assembly loops (fe_internal_force,
+    !! fe_tangent): free indices per element, the first of 8 consecutive ones,
+    !! and the Hermite derivatives at the Gauss points of each beam.
+    pure subroutine mesh_assembly_tables(elements_per_beam, bytes, mesh, stat)
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: k, el, ib, i, kf, ierr
         k = fe_quadrature_order(maxval(abs(mesh%cubic)))
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
-        ! tables for the assembly loops (fe_internal_force, fe_tangent)
         allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the assembly tables', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the assembly tables', bytes)
             return
         end if
         do el = 1, mesh%nel
@@ -319,13 +370,14 @@ contains
                 if (kf == 0 .or. mesh%el_free(i, el) /= kf + i - 1) mesh%el_first_free(el) = 0
             end do
         end do
-        allocate (mesh%gauss_d1(4, k, nb), mesh%gauss_d2(4, k, nb), mesh%gauss_wh(k, nb))
-        do ib = 1, nb
+        allocate (mesh%gauss_d1(4, k, mesh%nbeams), mesh%gauss_d2(4, k, mesh%nbeams), &
+                  mesh%gauss_wh(k, mesh%nbeams))
+        do ib = 1, mesh%nbeams
             el = (ib - 1)*elements_per_beam + 1   ! first element of beam ib
             call fe_gauss_table(mesh%h(el), mesh%xg, mesh%wg, mesh%gauss_d1(:, :, ib), &
                                 mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib))
         end do
-    end subroutine fe_mesh_build
+    end subroutine mesh_assembly_tables
 
     !> Rows of the band storage (2 kl + ku + 1).
     pure integer function fe_band_rows(mesh)
