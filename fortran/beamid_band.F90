@@ -22,7 +22,7 @@ module beamid_band
               zband_solve_many
     public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, ldlt_factor, ldlt_solve
     public :: dband_mv, zband_mv, band_mv, kc_mv, ldlt_inertia
-    public :: band_add, band_to_dense
+    public :: band_add, band_scatter, band_to_dense
 
     !> Factor a real or complex band matrix (band_lu_t, zband_lu_t).
     interface band_factor
@@ -49,6 +49,10 @@ module beamid_band
     interface band_add
         module procedure dband_add, zband_add
     end interface band_add
+    !> Add an element matrix into band storage.
+    interface band_scatter
+        module procedure dband_scatter, zband_scatter
+    end interface band_scatter
     !> Dense copy of a band matrix.
     interface band_to_dense
         module procedure dband_to_dense, zband_to_dense
@@ -89,28 +93,9 @@ contains
 #define MV_ dband_mv
 #define MV_SHAPED_ dband_mv_shaped
 #define ADD_ dband_add
+#define SCATTER_ dband_scatter
 #define TO_DENSE_ dband_to_dense
 #include "beamid_band_generic.inc"
-#undef BAND_T
-#undef LU_T
-#undef WHERE_
-#undef ABS1_
-#undef PIVOT_OK_
-#undef FACTOR_
-#undef SOLVE_
-#undef SOLVE_MANY_
-#undef LU_
-#undef UPDATE_
-#undef LU_SOLVE_
-#undef LDLT_
-#undef LDLT_COLUMN_
-#undef LDLT_SOLVE_
-#undef LDLT_AXPY_
-#undef LDLT_DOT_
-#undef MV_
-#undef MV_SHAPED_
-#undef ADD_
-#undef TO_DENSE_
 #define BAND_T complex(dp)
 #define LU_T zband_lu_t
 #define WHERE_ 'zband_factor'
@@ -130,6 +115,7 @@ contains
 #define MV_ zband_mv
 #define MV_SHAPED_ zband_mv_shaped
 #define ADD_ zband_add
+#define SCATTER_ zband_scatter
 #define TO_DENSE_ zband_to_dense
 #include "beamid_band_generic.inc"
 

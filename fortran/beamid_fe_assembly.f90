@@ -38,7 +38,7 @@ module beamid_fe_assembly
                                  fe_hinge_tangent
     ! the band helpers live in beamid_band; the fe_band_* names stay exported
     ! from here for the callers that import them with the mesh
-    use beamid_band, only: band_add, fe_band_add => band_add, &
+    use beamid_band, only: band_add, band_scatter, fe_band_add => band_add, &
                            fe_band_to_dense => band_to_dense, fe_band_matvec => band_mv
     implicit none
     private
@@ -483,7 +483,7 @@ contains
         real(dp), intent(in) :: qpad(0:)
         real(dp), intent(inout) :: fpad(0:)
         real(dp), intent(inout), optional :: kb(:, :)
-        integer :: j, a, b, i, jj, idx(4)
+        integer :: j, a, idx(4)
         real(dp) :: flex, fs(4), ks(4, 4)
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
             call spring_dofs(mesh, j, idx, flex)
@@ -495,16 +495,7 @@ contains
             do a = 1, 4
                 fpad(idx(a)) = fpad(idx(a)) + fs(a)
             end do
-            if (.not. present(kb)) cycle
-            do b = 1, 4
-                jj = idx(b)
-                if (jj == 0) cycle
-                do a = 1, 4
-                    i = idx(a)
-                    if (i == 0) cycle
-                    call band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
-                end do
-            end do
+            if (present(kb)) call band_scatter(kb, mesh%kl, mesh%ku, idx, ks)
         end do
     end subroutine add_springs
 
@@ -606,7 +597,7 @@ contains
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:), kb(:, :), qpad(0:), fpad(0:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
-        integer :: el, ib, a, b, i, j, diag, first, row
+        integer :: el, ib, b, j, diag, first, row
         call pad_free(q, qpad)
         fpad = 0.0_dp
         kb = 0.0_dp
@@ -632,15 +623,9 @@ contains
                 cycle
             end if
             do b = 1, FE_NDOF
-                j = mesh%el_free(b, el)
-                fpad(j) = fpad(j) + fe(b)
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%el_free(a, el)
-                    if (i == 0) cycle
-                    kb(diag + i - j, j) = kb(diag + i - j, j) + ke(a, b)
-                end do
+                fpad(mesh%el_free(b, el)) = fpad(mesh%el_free(b, el)) + fe(b)
             end do
+            call band_scatter(kb, mesh%kl, mesh%ku, mesh%el_free(:, el), ke)
         end do
         call add_springs(mesh, qpad, fpad, kb)
         f = fpad(1:)
@@ -703,20 +688,11 @@ contains
         logical, intent(in) :: rotary
         real(dp), intent(out) :: mb(:, :)
         real(dp) :: me(FE_NDOF, FE_NDOF), du, dw, jm
-        integer :: el, a, b, i, j, node, iw, iu, idx(FE_NDOF)
+        integer :: el, i, node, iw, iu
         mb = 0.0_dp
         do el = 1, mesh%nel
-            idx = mesh%el_dof(:, el)
             call fe_element_mass(mesh%h(el), mesh%rho(el), me)
-            do b = 1, FE_NDOF
-                j = mesh%free_of(idx(b))
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%free_of(idx(a))
-                    if (i == 0) cycle
-                    call band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
-                end do
-            end do
+            call band_scatter(mb, mesh%kl, mesh%ku, mesh%el_free(:, el), me)
         end do
         do node = 2, mesh%nnode
             if (mesh%node_mass(node) /= 0.0_dp) then

@@ -11,7 +11,7 @@ module beamid_fe_static
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_work_t, &
                                   fe_work_init, fe_residual, fe_tip_load, &
                                   fe_stiffness_linear, DOF_W, DOF_U
-    use beamid_band, only: band_add, band_to_dense, ldlt_inertia
+    use beamid_band, only: band_scatter, band_to_dense, ldlt_inertia
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -377,7 +377,7 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(out) :: gb(:, :)
         real(dp) :: f(4), f1(4), f2(4), ge(FE_NDOF, FE_NDOF)
-        integer :: el, g, a, b, i, j, idx(FE_NDOF)
+        integer :: el, g, a, b
         gb = 0.0_dp
         do el = 1, mesh%nel
             ge = 0.0_dp
@@ -392,16 +392,7 @@ contains
                     end do
                 end do
             end do
-            idx = mesh%el_dof(:, el)
-            do b = 1, FE_NDOF
-                j = mesh%free_of(idx(b))
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%free_of(idx(a))
-                    if (i == 0) cycle
-                    call band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
-                end do
-            end do
+            call band_scatter(gb, mesh%kl, mesh%ku, mesh%el_free(:, el), ge)
         end do
     end subroutine fe_geometric_stiffness
 
