@@ -45,7 +45,7 @@ module beamid_fe_assembly
 
     public :: fe_mesh_t, fe_load_t, fe_mesh_build
     public :: fe_band_rows, fe_band_add, fe_band_to_dense, fe_band_matvec
-    public :: fe_work_t, fe_work_init, fe_residual
+    public :: fe_work_t, fe_work_init, fe_residual, fe_check_dense
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
     public :: fe_expand, fe_node_value, fe_spring_energy
@@ -135,6 +135,19 @@ contains
         allocate (work%qpad(0:mesh%nfree), work%fpad(0:mesh%nfree), work%qv(mesh%nfree), &
                   work%kb(fe_band_rows(mesh), mesh%nfree))
     end subroutine fe_work_init
+
+    !> ERR_SIZE, naming `where`, when a dense eigenproblem of order n (three
+    !! n x n matrices) would need more memory than MAX_BYTES.
+    pure subroutine fe_check_dense(n, where, stat)
+        integer, intent(in) :: n
+        character(len=*), intent(in) :: where
+        type(status_t), intent(inout) :: stat
+        real(dp) :: bytes
+        bytes = 8.0_dp*3.0_dp*real(n, dp)**2
+        if (bytes > MAX_BYTES) call set_status(stat, ERR_SIZE, where, &
+            'the dense eigenproblem of '//fmt_int(n)//' unknowns would need about '// &
+            fmt_bytes(bytes)//' of memory (limit '//fmt_bytes(MAX_BYTES)//'): use fewer elements')
+    end subroutine fe_check_dense
 
     !> Discretize `chain` with `elements_per_beam` equal elements on each beam.
     !! A joint with joint_flex > 0 becomes a hinge with a rotational spring, a

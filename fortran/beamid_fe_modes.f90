@@ -8,9 +8,9 @@
 module beamid_fe_modes
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NUMERIC, fmt_int, &
-                             fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, set_alloc_error
+                             fmt_real, set_alloc_error
     use beamid_lapack, only: sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_mass, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_check_dense, fe_band_rows, fe_mass, &
                                   fe_stiffness_linear, DOF_U, DOF_DU, &
                                   DOF_DU_OUT
     use beamid_band, only: band_mv, band_to_dense
@@ -50,17 +50,13 @@ contains
                             'nfree = '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_modes', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_modes', stat)
+        if (stat%code /= 0) return
         allocate (kb(fe_band_rows(mesh), n), mb(fe_band_rows(mesh), n), m(n, n), w(n), &
                   q0(n), mphi(n), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, 'fe_modes', 'the mode matrices', 8.0_dp*3.0_dp*real(n, dp)**2)
+            call set_alloc_error(stat, 'fe_modes', 'the mode matrices', &
+                                 8.0_dp*3.0_dp*real(n, dp)**2)
             return
         end if
         q0 = 0.0_dp
@@ -152,13 +148,8 @@ contains
                             fmt_int(size(omega))//' entries, expected '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_axial_modes_linear', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_axial_modes_linear', stat)
+        if (stat%code /= 0) return
         ! unknown i is u at node i + 1
         allocate (k(n, n), m(n, n), w(n), stat=ierr)
         if (ierr /= 0) then

@@ -5,11 +5,10 @@ module beamid_fe_static
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
-                             ERR_NUMERIC, fmt_int, fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, &
-                             set_alloc_error
+                             ERR_NUMERIC, fmt_int, fmt_real, set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_work_t, &
-                                  fe_work_init, fe_residual, fe_tip_load, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_check_dense, fe_load_t, fe_band_rows, &
+                                  fe_work_t, fe_work_init, fe_residual, fe_tip_load, &
                                   fe_stiffness_linear, DOF_W, DOF_U
     use beamid_band, only: band_scatter, band_to_dense, ldlt_inertia
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
@@ -415,13 +414,8 @@ contains
                             fmt_int(size(mode))//' entries, expected '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_buckling_load', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_buckling_load', stat)
+        if (stat%code /= 0) return
         allocate (kb(fe_band_rows(mesh), n), gb(fe_band_rows(mesh), n), k(n, n), g(n, n), &
                   w(n), stat=ierr)
         if (ierr /= 0) then
