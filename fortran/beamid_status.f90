@@ -11,7 +11,7 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, status_out, set_status, clear_status, fmt_real, fmt_int, lower, &
+    public :: status_t, status_out, put_text, set_status, clear_status, fmt_real, fmt_int, lower, &
               exit_code, fmt_bytes, fmt_count, set_alloc_error
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
@@ -54,27 +54,34 @@ module beamid_status
 contains
 
     !> The (code, message) pair of a status, as the f2py binding returns it:
-    !! the message copied into the caller's buffer; one that does not fit is
-    !! cut and ends with '... (truncated: N characters)', never silently.
+    !! the message copied into the caller's buffer by put_text.
     pure subroutine status_out(stat, code, message)
         type(status_t), intent(in) :: stat
         integer, intent(out) :: code
         character(len=*), intent(out) :: message
-        character(len=:), allocatable :: tail
         code = stat%code
         message = ''
-        if (.not. allocated(stat%message)) return
-        if (len(stat%message) <= len(message)) then
-            message = stat%message
+        if (allocated(stat%message)) call put_text(stat%message, message)
+    end subroutine status_out
+
+    !> Text into a fixed-length buffer (the f2py boundary); text that does
+    !! not fit is cut and ends with '... (truncated: N characters)', never
+    !! clipped silently.
+    pure subroutine put_text(text, buffer)
+        character(len=*), intent(in) :: text
+        character(len=*), intent(out) :: buffer
+        character(len=:), allocatable :: tail
+        if (len(text) <= len(buffer)) then
+            buffer = text
             return
         end if
-        tail = '... (truncated: '//fmt_int(len(stat%message))//' characters)'
-        if (len(tail) >= len(message)) then
-            message = tail
+        tail = '... (truncated: '//fmt_int(len(text))//' characters)'
+        if (len(tail) >= len(buffer)) then
+            buffer = tail
         else
-            message = stat%message(:len(message) - len(tail))//tail
+            buffer = text(:len(buffer) - len(tail))//tail
         end if
-    end subroutine status_out
+    end subroutine put_text
 
     !> True when the status holds no error.
     pure logical function status_is_ok(self)

@@ -8,7 +8,8 @@
 module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, exit_code
+    use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
+                             exit_code
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task
     use beamid_measurements, only: measurements_t, read_measurements
@@ -39,7 +40,7 @@ contains
         character(len=65536), intent(out) :: message
         call status_out(stat, code, message)
         if (allocated(deck%errors)) then
-            if (len(deck%errors) > 0) message = deck%errors
+            if (len(deck%errors) > 0) call put_text(deck%errors, message)
         end if
     end subroutine put_errors
 
@@ -91,7 +92,7 @@ contains
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
             message = trim(path)//': the names of the deck are too long (over '// &
-                      'TEXT_LEN characters)'
+                      fmt_int(TEXT_LEN)//' characters)'
             return
         end if
         text = t
@@ -193,7 +194,7 @@ contains
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         if (stat%code == STATUS_OK) then
             call run_task(d, files, stat)
-            if (stat%code == STATUS_OK) written = files
+            if (stat%code == STATUS_OK) call put_text(files, written)
         end if
         call put_errors(d, stat, code, message)
     end subroutine api_run_deck
@@ -269,7 +270,8 @@ contains
         end do
         if (len(joined) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the experiment names take over 65536 characters'
+            message = trim(path)//': the experiment names take over '//fmt_int(TEXT_LEN)// &
+                      ' characters'
             return
         end if
         names = joined
