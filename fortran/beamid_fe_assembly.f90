@@ -48,7 +48,7 @@ module beamid_fe_assembly
     public :: fe_work_t, fe_work_init, fe_residual, fe_check_dense
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
-    public :: fe_expand, fe_node_value, fe_spring_energy
+    public :: fe_expand, fe_node_value, fe_spring_energy, fe_spring_dofs
     public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
 
@@ -450,7 +450,7 @@ contains
     !> Free indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]
     !! (0 for a clamped one): spring 0 is the root hinge (its inboard side is
     !! the clamp), spring j >= 1 the hinge at mesh%hinge_node(j).
-    pure subroutine spring_dofs(mesh, j, idx, flex)
+    pure subroutine fe_spring_dofs(mesh, j, idx, flex)
         type(fe_mesh_t), intent(in) :: mesh
         integer, intent(in) :: j
         integer, intent(out) :: idx(4)
@@ -464,7 +464,7 @@ contains
                                              mesh%hinge_node(j)))
             flex = mesh%hinge_flex(j)
         end if
-    end subroutine spring_dofs
+    end subroutine fe_spring_dofs
 
     !> Energy of the joint and root springs at the padded free vector qpad.
     pure real(dp) function spring_energy(mesh, qpad) result(v)
@@ -474,7 +474,7 @@ contains
         real(dp) :: flex
         v = 0.0_dp
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
-            call spring_dofs(mesh, j, idx, flex)
+            call fe_spring_dofs(mesh, j, idx, flex)
             v = v + fe_hinge_energy(flex, qpad(idx))
         end do
     end function spring_energy
@@ -499,7 +499,7 @@ contains
         integer :: j, a, idx(4)
         real(dp) :: flex, fs(4), ks(4, 4)
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
-            call spring_dofs(mesh, j, idx, flex)
+            call fe_spring_dofs(mesh, j, idx, flex)
             if (present(kb)) then
                 call fe_hinge_tangent(flex, qpad(idx), fs, ks)
             else
