@@ -630,6 +630,7 @@ contains
         integer :: k, j
         logical :: ok, bad
         real(dp) :: v
+        character(len=:), allocatable :: why
         n = 0
         k = item_index(g, key)
         if (k == 0) return
@@ -640,16 +641,11 @@ contains
                 return
             end if
             if (it%first - 1 + size(it%values) > size(x)) then
-                if (present(what)) then
-                    call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
-                                   fmt_int(it%first - 1 + size(it%values))// &
-                                   ' values, expected at most '//fmt_int(size(x))//' ('// &
-                                   what//')')
-                else
-                    call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
-                                   fmt_int(it%first - 1 + size(it%values))// &
-                                   ' values, expected at most '//fmt_int(size(x)))
-                end if
+                why = ''
+                if (present(what)) why = ' ('//what//')'
+                call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
+                               fmt_int(it%first - 1 + size(it%values))// &
+                               ' values, expected at most '//fmt_int(size(x))//why)
                 return
             end if
             bad = .false.
