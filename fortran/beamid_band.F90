@@ -2,15 +2,19 @@
 !! partial pivoting (LAPACK general band storage, the algorithm of
 !! dgbtf2/dgbtrs written out for the narrow bands of the chain), the L D L^T
 !! of symmetric band matrices without pivoting (real, and complex symmetric:
-!! no conjugation), band products, multi-right-hand-side solves and the
-!! assembly helpers (band_add, band_to_dense), real and complex behind
-!! generic interfaces (band_factor, band_solve, ldlt_factor, ldlt_solve,
-!! band_mv, band_add, band_to_dense). Every routine that exists for both
+!! no conjugation), band products, multi-right-hand-side solves, the
+!! assembly helpers and the inertia count of the FE stability check, real
+!! and complex behind generic interfaces (band_factor, band_solve,
+!! ldlt_factor, ldlt_solve, band_mv, band_add, band_scatter, band_to_dense).
+!! Every routine that exists for both
 !! kinds is written once, in beamid_band_generic.inc, and instantiated for
 !! real(dp) and complex(dp) by the preprocessor (as fortran-lang/stdlib does
-!! with fypp); the kinds differ only in the two scalar rules ABS1 and
-!! PIVOT_OK defined below. The specific names (dband_*, zband_*, ldlt_real,
-!! ldlt_cplx, ...) stay public for callers that name the kind.
+!! with fypp); the kinds differ only in the scalar rules defined below: the
+!! pivot size, the accepted L D L^T pivot and the form of the LU update's
+!! product (complex: re(u) l + im(u) (i l) with i l stored beside l, which
+!! keeps the complex step as fast as hand-written (re, im) code). The
+!! specific names (dband_*, zband_*, ldlt_real, ldlt_cplx, ...) stay public
+!! for callers that name the kind.
 module beamid_band
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_SINGULAR, fmt_int
@@ -79,6 +83,9 @@ contains
 #define WHERE_ 'band_factor'
 #define ABS1_(x) abs(x)
 #define PIVOT_OK_(d) (d > 0.0_dp)
+#define NL_ 1
+#define TIMES_I_(x) x
+#define MUL_(u, l, il) u*l
 #define FACTOR_ dband_factor
 #define SOLVE_ dband_solve
 #define SOLVE_MANY_ band_solve_many
@@ -101,6 +108,9 @@ contains
 #define WHERE_ 'zband_factor'
 #define ABS1_(x) (abs(x%re) + abs(x%im))
 #define PIVOT_OK_(d) (d%im > 0.0_dp)
+#define NL_ 2
+#define TIMES_I_(x) cmplx(-x%im, x%re, dp)
+#define MUL_(u, l, il) cmplx(u%re*l%re + u%im*il%re, u%re*l%im + u%im*il%im, dp)
 #define FACTOR_ zband_factor
 #define SOLVE_ zband_solve
 #define SOLVE_MANY_ zband_solve_many
