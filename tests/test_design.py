@@ -280,3 +280,23 @@ def test_release_times_ranked_and_checked_by_refits():
         beamid.design(base, {"free": rel}, ["w_tip"], sigma=sig, target="rho1")
     with pytest.raises(InputError, match="expected finite times > 0"):
         beamid.design(base, {"free": (rel, [0.0, 1.0])}, ["w_tip"], sigma=sig, target="rho1")
+
+
+def test_cli_design_on_a_release_deck(tmp_path, capsys):
+    """`beamid design DECK --times ...` on a release deck (Table 19): the
+    deck's release at the given times, measuring the deck's own quantities
+    (w and u) with their sigmas; without --times it says what to give."""
+    from beamid.cli import main
+
+    deck = str(ROOT / "inputs" / "seed" / "table19_fit.nml")
+    code = main(["design", deck, "--times", "0.8", "1.6", "2.4", "--target", "mu_elbow",
+                 "--out", str(tmp_path), "--no-plots"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    rows = (tmp_path / "table19_fit_design.csv").read_text().splitlines()
+    assert rows[1] == "rank,experiment,quantity,sigma,predicted" and len(rows) == 2 + 6
+    labels = {r.split(",")[2] for r in rows[2:]}
+    assert labels == {f"{q}@{t}" for q in ("w_tip", "u_tip") for t in ("0.8", "1.6", "2.4")}
+    assert "predicted sigma of mu_elbow" in out
+    assert main(["design", deck, "--out", str(tmp_path / "x"), "--no-plots"]) == 2
+    assert "give --times" in capsys.readouterr().err

@@ -386,14 +386,17 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
                     moments: Sequence[float] = (), wires: Sequence[float] = (),
                     quantities: Sequence[str] | None = None,
                     sigma: Sequence[str] | None = None, target: str | None = None,
-                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True
-                    ) -> tuple[str, list[Path], Advice]:
+                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True,
+                    times: Sequence[float] = ()) -> tuple[str, list[Path], Advice]:
     """``beamid design DECK``: fit an estimation deck and rank candidate
     measurements: transverse tip forces ``F<f>`` (fy = f), tip moments
     ``M<m>`` and radial wires ``Lw<length>`` (the deck's own experiments when
     none is given), each measuring ``quantities``. Writes
     ``<prefix>_design.csv`` (rank, experiment, quantity, sigma, predicted)
-    and ``_design.png``. Returns (text, files, advice)."""
+    and ``_design.png``. A deck's release experiments are candidates at the
+    measurement ``times`` (s; ``--times``), one row per time, measuring by
+    default the quantities of the deck's own rows. Returns (text, files,
+    advice)."""
     from .estimation import fit as _fit
     from .fit_decks import read_fit_deck
     from .loads import RadialWire, TipForce, TipMoment
@@ -413,9 +416,19 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
             cands[f"{name}_new"] = cands.pop(name)
     if not cands:
         cands = dict(base.experiments)
-    qs = tuple(quantities) if quantities else DEFAULT_QUANTITIES
+    releases = [n for n, x in cands.items() if isinstance(x, Release)]
+    if releases and not times:
+        raise InputError(f"{deck}: the release experiment {releases[0]!r} is a candidate at "
+                         "measurement times: give --times T [T ...] (s after the release)")
+    if quantities:
+        qs = tuple(quantities)
+    elif releases:
+        qs = tuple(dict.fromkeys(d.data.quantity))    # the deck's own quantities
+    else:
+        qs = DEFAULT_QUANTITIES
     sig = parse_sigma(sigma, qs, d.data)
-    adv = design(base, cands, qs, sigma=sig, target=target)
+    adv = design(base, cands, qs, sigma=sig, target=target,
+                 times=[float(t) for t in times] if releases else None)
     from .consistency import _atomic_write, _output_prefix
 
     prefix = _output_prefix(deck, out, d.output_prefix)
