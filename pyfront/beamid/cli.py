@@ -451,7 +451,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=_cmd_estimate)
     p = sub.add_parser("identify", help="run estimation decks as stages (static, free, "
                        "forced), carrying estimates and covariance (docs/workflow.md)")
-    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order")
+    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order, or one "
+                   "deck of task 'identify' holding its stages (docs/decks.md)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
     p.set_defaults(func=_cmd_identify)
     _add_mc_parsers(sub)
