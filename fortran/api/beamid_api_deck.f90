@@ -52,7 +52,8 @@ contains
     !! wire_length, tol, fe_tol, sim_dt, sim_rtol, sim_atol, sim_motor_gain,
     !! sim_friction_velocity, alpha. text: task, output, data path, then the
     !! experiment names and the candidates, one per line, then the &published
-    !! lines (deck_t%published).
+    !! lines (deck_t%published), then for task identify one line per stage
+    !! (deck_t%stage_text).
     subroutine api_deck_sizes(path, sizes, reals, text, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(out) :: sizes(21)
@@ -89,6 +90,7 @@ contains
             t = t//trim(d%candidates(i))//new_line('a')
         end do
         t = t//d%published
+        if (allocated(d%stage_text)) t = t//d%stage_text   ! task identify: 'S' lines
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
             message = trim(path)//': the names of the deck are too long (over '// &
