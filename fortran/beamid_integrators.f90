@@ -532,10 +532,27 @@ contains
             sb = real(k, dp)/real(NS, dp)
             gb = gfun(sb)
             if (ga <= 0.0_dp .and. k == 1 .and. gb < 0.0_dp) then
-                ! at or below zero from the start
-                found = .true.
+                ! at zero at the start (a component just switched, its velocity
+                ! or excess force exactly zero) and below zero at the first
+                ! sample: it may still go the right way first and turn within
+                ! (0, sb) (a stiff axial vibration reverses the push within a
+                ! fraction of the step). Look closer to the start, on a
+                ! geometric grid: the first positive sample brackets the root.
+                ! None down to 2^-50 of the step: wrong way from the start.
                 sroot = 0.0_dp
-                return
+                found = .true.
+                if (g0 < 0.0_dp) return
+                do it = 5, 50
+                    sm = 0.5_dp**it
+                    gm = gfun(sm)
+                    if (gm > 0.0_dp) then
+                        sa = sm
+                        ga = gm
+                        exit
+                    end if
+                    sb = sm
+                end do
+                if (ga <= 0.0_dp) return
             end if
             if (ga > 0.0_dp .and. gb <= 0.0_dp) then
                 do it = 1, 60
@@ -600,7 +617,7 @@ contains
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
-        real(dp) :: t, h, hs, theta, sr, cap, d3(3)
+        real(dp) :: t, h, hs, theta, sr, cap, d3(3), hcap
         integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall
         logical :: evon, found
         m = sys%ncstate
@@ -630,11 +647,13 @@ contains
         stats%fevals = stats%fevals + 1
         if (stat%code /= 0) return
         nstall = 0
+        hcap = opts%dt
         do k = 1, size(t_out)
             nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
             i = 0
             do while (i < nsub)
                 h = (t_out(k) - t)/real(nsub - i, dp)
+                if (hcap < opts%dt) h = min(h, hcap)
                 call rk_step(es, s, k1, h, k2, k3, k4, sn, stat)
                 call rk_rates(es, sn, k1n, stat, holdn)
                 stats%fevals = stats%fevals + 4
@@ -684,10 +703,27 @@ contains
                     hold = holdn
                     t = t + h
                     i = i + 1
+                    if (hcap < opts%dt) then
+                        ! past the unresolved start: equal steps of dt again
+                        hcap = opts%dt
+                        if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
+                        nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+                        i = 0
+                    end if
                     cycle
                 end if
                 ! redo the step to the event, switch there
                 hs = theta*h
+                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t)) .and. &
+                    h > 1.0e-10_dp*max(1.0_dp, abs(t))) then
+                    ! wrong way from the start along the step's cubic: the step may
+                    ! be too long to resolve a push that a fast (axial) vibration
+                    ! reverses within it (small friction coefficients). Retry with
+                    ! a shorter step before believing it.
+                    hcap = h/16.0_dp
+                    stats%event_steps = stats%event_steps + 1
+                    cycle
+                end if
                 if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) then
                     nstall = nstall + 1
                 else
@@ -1589,6 +1625,16 @@ contains
                              (pend == jev .and. hh == hpend .and. sev >= 0.5_dp)
                     if (.not. at_end) then
                         stats%event_steps = stats%event_steps + 1
+                        if (sev*hh <= tiny_h .and. hh > 1.0e4_dp*tiny_h) then
+                            ! wrong way from the start along this step's polynomial:
+                            ! the step may be too long to resolve a push that a fast
+                            ! (axial) vibration reverses within it. Retry shorter
+                            ! before believing it (small friction coefficients).
+                            may_reuse = .false.
+                            pend = 0
+                            h = hh/16.0_dp
+                            cycle
+                        end if
                         if (sev*hh <= tiny_h) then
                             ! pushed the wrong way from the start: switch now
                             nstall = nstall + 1
