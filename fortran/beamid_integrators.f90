@@ -1315,6 +1315,26 @@ contains
         end do
     end subroutine radau_events
 
+    !> Is the switching function of component j (kind kev) at the end of
+    !! the step small against its change over the step (a root at the end)?
+    logical function near_root(es, y, z, hold0, hst, j, kev)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: y(:), z(:, :), hold0(:), hst(:, :)
+        integer, intent(in) :: j, kev
+        real(dp), parameter :: FRAC = 1.0e-6_dp
+        integer :: i
+        real(dp) :: g1, dg
+        if (kev == EVENT_ZERO_VELOCITY) then
+            i = es%nc + dyn_fric_dof(es, j)
+            g1 = real(es%fmode(j), dp)*(y(i) + z(i, 3))
+            dg = maxval(abs(z(i, :)))
+        else
+            g1 = es%fric((j + 1)/2) - abs(hst(j, 3))
+            dg = maxval(abs(hst(j, :) - hold0(j)))
+        end if
+        near_root = g1 <= FRAC*dg
+    end function near_root
+
     !> Radau IIA (order 5) with simplified Newton and step-size control.
     !!
     !! Cost per step (constant mass matrix): one Jacobian and the two
@@ -1675,9 +1695,17 @@ contains
                         cycle
                     end if
                 else if (pend /= 0 .and. hh == hpend) then
-                    ! the targeted step ended just short of the root
-                    jev = pend
-                    kev = pkind
+                    ! the targeted step ended just short of the root, unless the
+                    ! root went away on the shorter step: the switching function
+                    ! at its end is then not small against its change over the
+                    ! step (a root the longer step's polynomial made up, as right
+                    ! after a component started to slide from rest)
+                    if (near_root(es, y, z, hold0, hst, pend, pkind)) then
+                        jev = pend
+                        kev = pkind
+                    else if (pend /= 0) then
+                        h = max(h, hcut)
+                    end if
                 end if
                 ! accept: work by the collocation quadrature on the stages
                 if (es%nwork > 0) then
