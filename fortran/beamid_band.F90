@@ -22,6 +22,7 @@ module beamid_band
     public :: band_factor, band_solve, zband_factor, zband_solve, band_solve_many
     public :: ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, ldlt_factor, ldlt_solve
     public :: dband_mv, zband_mv, band_mv, kc_mv
+    public :: ldlt_solve_real_many, ldlt_solve_cplx_many
 
     !> Factor a real or complex band matrix (band_lu_t, zband_lu_t).
     interface band_factor
@@ -489,5 +490,54 @@ contains
             call dband_lu_solve(lu%n, lu%kl, lu%ku, lu%ab, lu%ipiv, b(:, j))
         end do
     end subroutine band_solve_many
+
+    !> ldlt_solve_real for nc right-hand sides at once, stored as the rows of
+    !! b(nc, n) (the inner loops run over the right-hand sides, contiguous):
+    !! the multi-parameter sensitivity solves of the implicit integrator.
+    pure subroutine ldlt_solve_real_many(n, k, s, nc, b)
+        integer, intent(in) :: n, k, nc
+        real(dp), intent(in) :: s(k + 1, n)
+        real(dp), intent(inout) :: b(nc, n)
+        real(dp) :: acc(nc)
+        integer :: i, j, m
+        do j = 1, n
+            m = min(k, n - j)
+            do i = 1, m
+                b(:, j + i) = b(:, j + i) - s(1 + i, j)*b(:, j)
+            end do
+        end do
+        do j = n, 1, -1
+            m = min(k, n - j)
+            acc = 0.0_dp
+            do i = 1, m
+                acc = acc + s(1 + i, j)*b(:, j + i)
+            end do
+            b(:, j) = b(:, j)/s(1, j) - acc
+        end do
+    end subroutine ldlt_solve_real_many
+
+    !> Complex counterpart of ldlt_solve_real_many (the ldlt_cplx factors, no
+    !! conjugation).
+    pure subroutine ldlt_solve_cplx_many(n, k, s, nc, b)
+        integer, intent(in) :: n, k, nc
+        complex(dp), intent(in) :: s(k + 1, n)
+        complex(dp), intent(inout) :: b(nc, n)
+        complex(dp) :: acc(nc)
+        integer :: i, j, m
+        do j = 1, n
+            m = min(k, n - j)
+            do i = 1, m
+                b(:, j + i) = b(:, j + i) - s(1 + i, j)*b(:, j)
+            end do
+        end do
+        do j = n, 1, -1
+            m = min(k, n - j)
+            acc = (0.0_dp, 0.0_dp)
+            do i = 1, m
+                acc = acc + s(1 + i, j)*b(:, j + i)
+            end do
+            b(:, j) = b(:, j)/s(1, j) - acc
+        end do
+    end subroutine ldlt_solve_cplx_many
 
 end module beamid_band
