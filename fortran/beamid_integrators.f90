@@ -630,7 +630,7 @@ contains
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
         real(dp) :: t, h, hs, theta, sr, cap, d3(3), hcap
-        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall
+        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall, nev0, skipj
         logical :: evon, found
         m = sys%ncstate
         n = sys%nc
@@ -659,6 +659,7 @@ contains
         stats%fevals = stats%fevals + 1
         if (stat%code /= 0) return
         nstall = 0
+        skipj = 0
         hcap = opts%dt
         do k = 1, size(t_out)
             nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
@@ -682,7 +683,7 @@ contains
                 if (evon) then
                     do j = 1, 2*es%npt
                         cap = es%fric((j + 1)/2)
-                        if (cap == 0.0_dp) cycle
+                        if (cap == 0.0_dp .or. j == skipj) cycle
                         if (es%fmode(j) /= 0) then
                             kindj = EVENT_ZERO_VELOCITY
                             if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
@@ -715,6 +716,8 @@ contains
                     hold = holdn
                     t = t + h
                     i = i + 1
+                    nstall = 0
+                    skipj = 0
                     if (hcap < opts%dt) then
                         ! past the unresolved start: equal steps of dt again
                         hcap = opts%dt
@@ -736,11 +739,9 @@ contains
                     stats%event_steps = stats%event_steps + 1
                     cycle
                 end if
-                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) then
-                    nstall = nstall + 1
-                else
-                    nstall = 0
-                end if
+                ! no progress: a switch at the step start, or (below) a switch that
+                ! changes no mode; a plain step or a switch that changes one resets
+                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
                 if (nstall > 4*es%npt + 4) then
                     call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
                                     'component '//fmt_int(jev)//' does not settle at t = '// &
@@ -769,12 +770,24 @@ contains
                     call sens_event_pre(es, pars, s(1:m), kind, jev, hold(jev), sm, fm, dtp, stat)
                     if (stat%code /= 0) return
                 end if
+                nev0 = stats%events
                 if (kind == EVENT_ZERO_VELOCITY) then
                     call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
                 else
                     call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
                 end if
                 if (stat%code /= 0) return
+                if (stats%events == nev0) then
+                    ! the velocity only touched zero: once is legitimate, again and
+                    ! again (roots ever closer together: a push that the vibration
+                    ! reverses at once, tiny mu) is chatter: the component keeps its
+                    ! mode over the next step and the sign change is handled once,
+                    ! at its start, after it
+                    if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
+                    if (nstall >= 3) skipj = jev
+                else if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) then
+                    nstall = 0
+                end if
                 if (sens) then
                     call sens_event_post(es, s(1:m), fm, dtp, sm, stat)
                     if (stat%code /= 0) return
@@ -1399,7 +1412,7 @@ contains
         type(dyn_system_t) :: es
         real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
         real(dp) :: sev, hpend, hcut, torq
-        integer :: jev, kev, pend, pkind, nfc, jforce, nstall
+        integer :: jev, kev, pend, pkind, nfc, jforce, nstall, nev0
         logical :: evon, rot_slow, at_end, reused, may_reuse
 
         call radau_tableau(a, dmat, gam, mu, tm, ti)
@@ -1766,7 +1779,7 @@ contains
                     return
                 end if
                 hold0 = hst(:, 3)
-                nstall = 0
+                if (jev == 0) nstall = 0
                 if (jev /= 0) then
                     ! the switch: a velocity that reached zero is zero; the
                     ! right-hand side changes, so the step-start rates are new
@@ -1777,8 +1790,24 @@ contains
                         call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, dtp, stat)
                         if (stat%code /= 0) return
                     end if
+                    nev0 = stats%events
                     call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
                     if (stat%code /= 0) return
+                    ! a switch that changes no mode (a velocity touching zero): once
+                    ! is legitimate, again and again without a plain step between is
+                    ! no progress (roots ever closer together)
+                    if (stats%events == nev0) then
+                        nstall = nstall + 1
+                        if (nstall > 4*es%npt + 4) then
+                            call set_status(stat, ERR_NO_CONVERGENCE, where, &
+                                            'friction switching of component '// &
+                                            fmt_int(jev)//' does not settle at t = '// &
+                                            fmt_real(t))
+                            return
+                        end if
+                    else
+                        nstall = 0
+                    end if
                     call set_stuck(es, it)
                     if (sens) then
                         call sens_event_post(es, y, fm, dtp, sm, stat)
