@@ -36,16 +36,16 @@ module beamid_deck
     implicit none
     private
 
-    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task
+    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, copy_measurements
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
         ' beamid model load static fe published experiment fit simulate '
     !> Tasks the batch runs.
     character(len=*), parameter :: KNOWN_TASKS = &
-        ' static fe_static fe_modes fit compare diagnose improve simulate '
+        ' static fe_static fe_modes fit compare diagnose improve simulate identify '
     !> Estimation tasks and the groups their decks may hold.
-    character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve '
+    character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve identify '
     character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published '
     !> Size bounds, checked before anything is allocated: beams of a chain,
     !! output times, and the memory a mesh or a table may need (bytes).
@@ -53,6 +53,20 @@ module beamid_deck
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
+
+    !> One stage of an identification deck (task identify: one &fit group
+    !! per stage, in order; beamid_tasks carries each stage's estimates and
+    !! covariance into the next as a priori information, Eq. 146-148, 164-166).
+    type, public :: stage_t
+        character(len=:), allocatable :: name
+        character(len=:), allocatable :: data_path
+        type(measurements_t) :: data
+        integer, allocatable :: row_exp(:)              !< experiment index of each data row
+        integer, allocatable :: free(:)
+        integer, allocatable :: prior_index(:)          !< a priori (first stage only)
+        real(dp), allocatable :: prior_mean(:), prior_sigma(:)
+        integer :: max_iter = 50
+    end type stage_t
 
     !> Everything a deck says.
     type :: deck_t
@@ -99,6 +113,10 @@ module beamid_deck
         character(len=NAME_LEN), allocatable :: candidates(:) !< effects for diagnose/improve
         real(dp) :: alpha = 0.01_dp
         integer :: max_iter = 50
+        !> task identify: the stages (the deck's own fit fields hold the first)
+        type(stage_t), allocatable :: stages(:)
+        !> the stages for the Python reader, one line each (read_fit_groups)
+        character(len=:), allocatable :: stage_text
         ! &simulate (task simulate; docs/decks.md, Dynamic decks): the arguments of
         ! beamid.simulate, defaults resolved as there
         real(dp), allocatable :: sim_t_out(:)           !< output times (s)
@@ -199,7 +217,8 @@ contains
                 call add_error(errors, f%path//', line '//fmt_int(f%groups(k)%line)// &
                                ': unknown group &'//name//', expected one of:'// &
                                KNOWN_GROUPS(:len_trim(KNOWN_GROUPS)))
-            else if (index(REPEATABLE, ' '//name//' ') == 0 .and. nml_find(f, name) /= k) then
+            else if (index(REPEATABLE, ' '//name//' ') == 0 .and. nml_find(f, name) /= k .and. &
+                     name /= 'fit') then   ! &fit: once, or per stage (read_fit_groups)
                 call add_error(errors, f%path//', line '//fmt_int(f%groups(k)%line)// &
                                ': group &'//name//' appears '//fmt_int(nml_count(f, name))// &
                                ' times (once only)')
@@ -951,21 +970,18 @@ contains
         type(nml_file_t), intent(in) :: f
         type(deck_t), intent(inout) :: deck
         character(len=:), allocatable, intent(inout) :: errors
-        character(len=:), allocatable :: name, label, where, data, free_list
-        type(nml_text_t), allocatable :: free(:), prior_names(:), candidates(:)
-        real(dp), allocatable :: prior_means(:), prior_sigmas(:)
+        character(len=:), allocatable :: name, label, where, free_list
         type(static_load_t), allocatable :: loads(:)
         type(nml_text_t), allocatable :: names(:)
-        integer, allocatable :: block(:)
         logical, allocatable :: is_wire(:), has_motor(:)
         integer, allocatable :: kinds(:)
         real(dp), allocatable :: evalues(:, :)
         real(dp) :: ev(NEXPVAL)
-        logical :: given, data_ok
-        integer :: ne, k, i, ig, np, nm, ns, maxlen, slash, kk, nerr
-        type(status_t) :: st
+        logical :: given
+        integer :: ne, k, i, ig, maxlen, nerr, nf
         type(static_load_t) :: load
         type(nml_group_t) :: gx
+        type(stage_t), allocatable :: stages(:)
 
         ! ---- &experiment, one group per experiment
         nerr = count_lines_alloc(errors)
@@ -1014,119 +1030,222 @@ contains
         is_wire = loads%kind == LOAD_WIRE .and. kinds == 0
         has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
 
-        ! ---- &fit
-        allocate (deck%free(0), deck%prior_index(0), deck%prior_mean(0), deck%prior_sigma(0))
+        ! ---- &fit: one group, or for task identify one per stage, in order
         deck%candidates = EFFECT_NAMES
-        ig = nml_find(f, 'fit')
-        if (ig == 0) then
+        nf = nml_count(f, 'fit')
+        if (nf == 0) then
             call add_error(errors, f%path//': group &fit is missing (data, free)')
             return
         end if
-        associate (g => f%groups(ig))
-            where = f%path//', line '//fmt_int(g%line)//': &fit '
-            call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
-                                'candidates alpha max_iter ', errors)
-            data = ''
-            call nml_str(f, g, 'data', data, given, errors)
-            call nml_strs(f, g, 'free', free, given, errors)
-            call nml_strs(f, g, 'prior_names', prior_names, given, errors)
-            call nml_strs(f, g, 'candidates', candidates, given, errors)
-            np = size(prior_names)
-            nm = 0
-            ns = 0
-            do i = 1, size(g%items)
-                if (g%items(i)%key == 'prior_means') nm = size(g%items(i)%values)
-                if (g%items(i)%key == 'prior_sigmas') ns = size(g%items(i)%values)
+        if (nf > 1 .and. deck%task /= 'identify') then
+            ig = nml_find(f, 'fit', 2)
+            call add_error(errors, f%path//', line '//fmt_int(f%groups(ig)%line)// &
+                           ': group &fit appears '//fmt_int(nf)//" times (once only; several "// &
+                           "&fit groups are the stages of task 'identify')")
+            nf = 1
+        end if
+        allocate (stages(nf))
+        do k = 1, nf
+            call read_fit_group(f, f%groups(nml_find(f, 'fit', k)), k, deck, is_wire, kinds, &
+                                has_motor, nerr, stages(k), errors)
+            do i = 1, k - 1
+                if (stages(i)%name == stages(k)%name) call add_error(errors, f%path// &
+                    ', line '//fmt_int(f%groups(nml_find(f, 'fit', k))%line)// &
+                    ": &fit stage = '"//stages(k)%name//"' names two stages")
             end do
-            allocate (prior_means(nm), prior_sigmas(ns))
-            call nml_reals(f, g, 'prior_means', prior_means, nm, errors)
-            call nml_reals(f, g, 'prior_sigmas', prior_sigmas, ns, errors)
-            call nml_real(f, g, 'alpha', deck%alpha, given, errors)
-            call nml_int(f, g, 'max_iter', deck%max_iter, given, errors)
-
-            deck%free = [integer ::]
+        end do
+        ! the deck's own fit is its first (only) stage
+        deck%free = stages(1)%free
+        deck%prior_index = stages(1)%prior_index
+        deck%prior_mean = stages(1)%prior_mean
+        deck%prior_sigma = stages(1)%prior_sigma
+        deck%max_iter = stages(1)%max_iter
+        if (allocated(stages(1)%data_path)) deck%data_path = stages(1)%data_path
+        call copy_measurements(stages(1)%data, deck%data)
+        if (allocated(stages(1)%row_exp)) deck%row_exp = stages(1)%row_exp
+        if (deck%task /= 'identify') return
+        call move_alloc(stages, deck%stages)   ! not copied: see copy_measurements
+        associate (stages => deck%stages)
+        ! one line per stage for the Python reader: 'S name data free max_iter'
+        ! (tab separated, free as 1-based indices separated by commas)
+        deck%stage_text = ''
+        do k = 1, nf
             free_list = ''
-            do i = 1, size(free)
-                kk = param_lookup(deck%nbeams, free(i)%s)
-                if (kk == 0) then
-                    call add_error(errors, where//"free = '"//free(i)%s// &
-                                   "' is not a parameter name")
-                    cycle
-                end if
-                if (any(deck%free == kk)) then
-                    call add_error(errors, where//"free names parameter '"// &
-                                   param_name(deck%nbeams, kk)//"' twice")
-                    cycle
-                end if
-                deck%free = [deck%free, kk]
-                if (len(free_list) > 0) free_list = free_list//', '
-                free_list = free_list//param_name(deck%nbeams, kk)
+            do i = 1, size(stages(k)%free)
+                if (i > 1) free_list = free_list//','
+                free_list = free_list//fmt_int(stages(k)%free(i))
             end do
-            if (size(free) == 0) call add_error(errors, where//'free is missing: name the '// &
-                                                'parameters to estimate')
-            if (np /= size(prior_means) .or. np /= size(prior_sigmas)) then
-                call add_error(errors, where//'prior_names, prior_means and prior_sigmas '// &
-                               'must have equal lengths (got '//fmt_int(np)//', '// &
-                               fmt_int(size(prior_means))//', '//fmt_int(size(prior_sigmas))//')')
-            else
-                deallocate (deck%prior_index, deck%prior_mean, deck%prior_sigma)
-                allocate (deck%prior_index(np), deck%prior_mean(np), deck%prior_sigma(np))
-                do i = 1, np
-                    kk = param_lookup(deck%nbeams, prior_names(i)%s)
-                    deck%prior_index(i) = kk
-                    deck%prior_mean(i) = prior_means(i)
-                    deck%prior_sigma(i) = prior_sigmas(i)
-                    if (kk == 0) then
-                        call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
-                                       "' is not a parameter name")
-                    else if (.not. any(deck%free == kk)) then
-                        call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
-                                       "' is not free (free: "//free_list//')')
-                    end if
-                    if (.not. prior_sigmas(i) > 0.0_dp) call add_error(errors, where// &
-                        "prior for '"//prior_names(i)%s//"' = ("//fmt_g(prior_means(i))// &
-                        ', '//fmt_g(prior_sigmas(i))//'), expected a finite mean and sigma > 0')
-                end do
-            end if
-            if (size(candidates) > 0) then
-                deallocate (deck%candidates)
-                allocate (deck%candidates(size(candidates)))
-                do i = 1, size(candidates)
-                    deck%candidates(i) = candidates(i)%s
-                    call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
-                    if (st%code /= STATUS_OK) then
-                        call add_error(errors, where//"candidates = '"//candidates(i)%s// &
-                                       "' is not a known effect, expected one of: "// &
-                                       'axial_coupling, material_cubic, elbow_flex, '// &
-                                       'root_flex, friction, drag, rotary_inertia, '// &
-                                       'kelvin_voigt, motor_lag, mesh')
-                        st%code = STATUS_OK
-                    end if
-                end do
-            end if
-            if (.not. (deck%alpha > 0.0_dp .and. deck%alpha < 1.0_dp)) call add_error(errors, &
-                where//'alpha = '//fmt_g(deck%alpha)//', expected a significance level in (0, 1)')
-            if (deck%max_iter < 1) call add_error(errors, where//'max_iter = '// &
-                                                  fmt_int(deck%max_iter)//', expected at least 1')
-            ! the data: read only when the experiments are valid
-            data_ok = len_trim(data) > 0
-            if (.not. data_ok) call add_error(errors, where//'data is missing: give the '// &
-                                              'measurement CSV file')
+            deck%stage_text = deck%stage_text//'S'//achar(9)//stages(k)%name//achar(9)// &
+                              stages(k)%data_path//achar(9)//free_list//achar(9)// &
+                              fmt_int(stages(k)%max_iter)//new_line('a')
+        end do
         end associate
-        if (.not. data_ok) return
+    end subroutine read_fit_groups
+
+    !> dst = src for measurements. (gfortran 12's intrinsic assignment of a
+    !! derived type with a deferred-length character array component, as
+    !! measurements_t%experiment, allocates the array one element long and
+    !! copies past its end: copy the components one by one instead.)
+    subroutine copy_measurements(src, dst)
+        type(measurements_t), intent(in) :: src
+        type(measurements_t), intent(out) :: dst
+        if (allocated(src%source)) dst%source = src%source
+        if (allocated(src%experiment)) then
+            allocate (character(len=len(src%experiment)) :: dst%experiment(size(src%experiment)))
+            dst%experiment(:) = src%experiment(:)
+        end if
+        if (allocated(src%t)) dst%t = src%t
+        if (allocated(src%quantity)) dst%quantity = src%quantity
+        if (allocated(src%value)) dst%value = src%value
+        if (allocated(src%sigma)) dst%sigma = src%sigma
+        if (allocated(src%line)) dst%line = src%line
+    end subroutine copy_measurements
+
+    !> One &fit group: the data CSV (its rows checked against the
+    !! experiments when no error was found since error count `nerr`), free parameters, a priori
+    !! information, candidates, alpha, max_iter; for task identify the
+    !! stage's name (`stage`, default stage<k>), a priori information on the
+    !! first stage only (a later stage's is the previous fit, Eq. 146-148).
+    subroutine read_fit_group(f, g, k, deck, is_wire, kinds, has_motor, nerr, stage, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        integer, intent(in) :: k, nerr
+        type(deck_t), intent(inout) :: deck
+        logical, intent(in) :: is_wire(:), has_motor(:)
+        integer, intent(in) :: kinds(:)
+        type(stage_t), intent(out) :: stage
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: where, data, free_list, name
+        type(nml_text_t), allocatable :: free(:), prior_names(:), candidates(:)
+        real(dp), allocatable :: prior_means(:), prior_sigmas(:)
+        integer, allocatable :: block(:)
+        logical :: given, identify
+        integer :: i, np, nm, ns, kk, slash
+        type(status_t) :: st
+
+        identify = deck%task == 'identify'
+        allocate (stage%free(0), stage%prior_index(0), stage%prior_mean(0), stage%prior_sigma(0))
+        where = f%path//', line '//fmt_int(g%line)//': &fit '
+        call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
+                            'candidates alpha max_iter stage ', errors)
+        data = ''
+        name = 'stage'//fmt_int(k)
+        call nml_str(f, g, 'data', data, given, errors)
+        call nml_str(f, g, 'stage', name, given, errors)
+        name = trim(adjustl(name))
+        if (given .and. .not. identify) call add_error(errors, where//"stage = '"//name// &
+            "': stages belong to task 'identify' (one &fit group per stage)")
+        if (given .and. (len(name) == 0 .or. index(name, ',') > 0 .or. &
+                         index(name, achar(9)) > 0)) then
+            call add_error(errors, where//"stage = '"//name//"', expected a name without "// &
+                           'commas')
+            name = 'stage'//fmt_int(k)
+        end if
+        stage%name = name
+        if (identify) where = where//"(stage '"//name//"') "
+        call nml_strs(f, g, 'free', free, given, errors)
+        call nml_strs(f, g, 'prior_names', prior_names, given, errors)
+        call nml_strs(f, g, 'candidates', candidates, given, errors)
+        np = size(prior_names)
+        nm = 0
+        ns = 0
+        do i = 1, size(g%items)
+            if (g%items(i)%key == 'prior_means') nm = size(g%items(i)%values)
+            if (g%items(i)%key == 'prior_sigmas') ns = size(g%items(i)%values)
+        end do
+        allocate (prior_means(nm), prior_sigmas(ns))
+        call nml_reals(f, g, 'prior_means', prior_means, nm, errors)
+        call nml_reals(f, g, 'prior_sigmas', prior_sigmas, ns, errors)
+        call nml_real(f, g, 'alpha', deck%alpha, given, errors)
+        call nml_int(f, g, 'max_iter', stage%max_iter, given, errors)
+        if (identify .and. (size(candidates) > 0 .or. nml_given(g, 'alpha'))) &
+            call add_error(errors, where//"candidates and alpha are not used by task "// &
+                           "'identify' (diagnose a stage's deck on its own)")
+        if (identify .and. k > 1 .and. max(np, nm, ns) > 0) call add_error(errors, where// &
+            'prior_names: the a priori information of a later stage is the previous '// &
+            "stage's fit, carried forward (Eq. 146-148); give a priori values in the first")
+
+        free_list = ''
+        do i = 1, size(free)
+            kk = param_lookup(deck%nbeams, free(i)%s)
+            if (kk == 0) then
+                call add_error(errors, where//"free = '"//free(i)%s// &
+                               "' is not a parameter name")
+                cycle
+            end if
+            if (any(stage%free == kk)) then
+                call add_error(errors, where//"free names parameter '"// &
+                               param_name(deck%nbeams, kk)//"' twice")
+                cycle
+            end if
+            stage%free = [stage%free, kk]
+            if (len(free_list) > 0) free_list = free_list//', '
+            free_list = free_list//param_name(deck%nbeams, kk)
+        end do
+        if (size(free) == 0) call add_error(errors, where//'free is missing: name the '// &
+                                            'parameters to estimate')
+        if (np /= size(prior_means) .or. np /= size(prior_sigmas)) then
+            call add_error(errors, where//'prior_names, prior_means and prior_sigmas '// &
+                           'must have equal lengths (got '//fmt_int(np)//', '// &
+                           fmt_int(size(prior_means))//', '//fmt_int(size(prior_sigmas))//')')
+        else
+            deallocate (stage%prior_index, stage%prior_mean, stage%prior_sigma)
+            allocate (stage%prior_index(np), stage%prior_mean(np), stage%prior_sigma(np))
+            do i = 1, np
+                kk = param_lookup(deck%nbeams, prior_names(i)%s)
+                stage%prior_index(i) = kk
+                stage%prior_mean(i) = prior_means(i)
+                stage%prior_sigma(i) = prior_sigmas(i)
+                if (kk == 0) then
+                    call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
+                                   "' is not a parameter name")
+                else if (.not. any(stage%free == kk)) then
+                    call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
+                                   "' is not free (free: "//free_list//')')
+                end if
+                if (.not. prior_sigmas(i) > 0.0_dp) call add_error(errors, where// &
+                    "prior for '"//prior_names(i)%s//"' = ("//fmt_g(prior_means(i))// &
+                    ', '//fmt_g(prior_sigmas(i))//'), expected a finite mean and sigma > 0')
+            end do
+        end if
+        if (size(candidates) > 0 .and. .not. identify) then
+            deallocate (deck%candidates)
+            allocate (deck%candidates(size(candidates)))
+            do i = 1, size(candidates)
+                deck%candidates(i) = candidates(i)%s
+                call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
+                if (st%code /= STATUS_OK) then
+                    call add_error(errors, where//"candidates = '"//candidates(i)%s// &
+                                   "' is not a known effect, expected one of: "// &
+                                   'axial_coupling, material_cubic, elbow_flex, '// &
+                                   'root_flex, friction, drag, rotary_inertia, '// &
+                                   'kelvin_voigt, motor_lag, mesh')
+                    st%code = STATUS_OK
+                end if
+            end do
+        end if
+        if (.not. (deck%alpha > 0.0_dp .and. deck%alpha < 1.0_dp)) call add_error(errors, &
+            where//'alpha = '//fmt_g(deck%alpha)//', expected a significance level in (0, 1)')
+        if (stage%max_iter < 1) call add_error(errors, where//'max_iter = '// &
+                                               fmt_int(stage%max_iter)//', expected at least 1')
+        ! the data: read only when the experiments are valid
+        if (len_trim(data) == 0) then
+            call add_error(errors, where//'data is missing: give the measurement CSV file')
+            return
+        end if
         if (data(1:1) == '/') then
-            deck%data_path = trim(data)
+            stage%data_path = trim(data)
         else
             slash = index(f%path, '/', back=.true.)
-            deck%data_path = f%path(:slash)//trim(data)
+            stage%data_path = f%path(:slash)//trim(data)
         end if
-        call read_measurements(deck%data_path, deck%data, st)
-        if (st%code == STATUS_OK .and. ne > 0 .and. count_lines_alloc(errors) == nerr) &
-            call check_static_rows(deck%data, &
-            deck%exp_names, is_wire, deck%row_exp, st, kinds == EXP_RELEASE, has_motor)
+        call read_measurements(stage%data_path, stage%data, st)
+        if (st%code == STATUS_OK .and. size(kinds) > 0 .and. count_lines_alloc(errors) == nerr) &
+            call check_static_rows(stage%data, deck%exp_names, is_wire, stage%row_exp, st, &
+                                   kinds == EXP_RELEASE, has_motor)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
-            fmt_int(f%groups(ig)%line)//': &fit data: '//trim(st%message))
-    end subroutine read_fit_groups
+            fmt_int(g%line)//': &fit data: '//trim(st%message))
+    end subroutine read_fit_group
 
     !> Run a deck with another task (`beamid fit|compare|diagnose|improve
     !! DECK`): a blank `task` keeps the deck's; an estimation task replaces

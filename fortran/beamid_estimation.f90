@@ -84,6 +84,12 @@ module beamid_estimation
 
     !> An experiment family: predictions and sensitivities of its data rows.
     type, abstract :: residual_model_t
+        !> Trial steps of the fit are judged on predictions alone, the
+        !! sensitivities computed only at the step accepted (for a model whose
+        !! predictions do not depend on whether sensitivities are asked, and
+        !! whose sensitivities cost several plain evaluations: an integrated
+        !! response)
+        logical :: plain_trials = .false.
     contains
         procedure(evaluate_interface), deferred :: evaluate
     end type residual_model_t
@@ -118,6 +124,11 @@ module beamid_estimation
         integer :: max_trials = 20        !< LM damping increases per iteration
         real(dp) :: tol_step = 1.0e-9_dp  !< converged when max |dp_i| / |p_i| is below
         real(dp) :: tol_cost = 1.0e-10_dp !< ... or the relative cost change is below
+        !> ... or, after a damped or poorly predicted step, both the chi-square
+        !! decrease it achieved and the one the next step predicts are below
+        !! floor_chi2 (the cost's noise floor: every parameter within
+        !! sqrt(floor_chi2) sigma of the linearized minimum)
+        real(dp) :: floor_chi2 = 1.0e-2_dp
         real(dp) :: rcond = 1.0e-10_dp    !< rank cutoff on scaled singular values
         real(dp) :: corr_limit = 0.999_dp !< flag |correlation| above this
         real(dp) :: runaway_factor = 100.0_dp
@@ -509,9 +520,18 @@ contains
     !! parameters params(free), starting from params0, with a priori
     !! pseudo-measurements (Eq. 142-145) and bounds lower <= p <= upper (a step
     !! that would leave the box is clipped to it). A step that does not reduce
-    !! the cost is retried with Levenberg-Marquardt damping. Converged when
-    !! the relative step or the relative cost change of an undamped step falls
-    !! below the tolerances.
+    !! the cost is retried with Levenberg-Marquardt damping. Converged (in
+    !! statistical units, docs/workflow.md "When a fit has converged") when
+    !! * the Gauss-Newton step would lower the chi-square by less than
+    !!   tol_cost times the cost, or an undamped step moved the parameters by
+    !!   less than tol_step relatively or the cost by less than tol_cost
+    !!   relatively (a smooth model: quadratic convergence to working
+    !!   precision, the dissertation's iteration counts on exact data);
+    !! * at the cost's noise floor: a damped (or poorly predicted) step lowered
+    !!   the chi-square by less than floor_chi2 (0.01) and the next Gauss-Newton
+    !!   step predicts less than floor_chi2 more (every parameter within 0.1
+    !!   sigma of the linearized minimum; an integrated response is not smooth
+    !!   in the parameters below that).
     !!
     !! How the iteration ended is `res%stop` (STOP_*), said in words in
     !! `res%note`; every ending but one comes back with STATUS_OK and the
@@ -545,7 +565,8 @@ contains
         real(dp), allocatable :: aa(:, :), g(:)
         real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
         real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor, lambda_in
-        logical :: accepted, evaluated, failed_trial, stalled
+        real(dp) :: pred_gn, pred_step
+        logical :: accepted, evaluated, failed_trial, stalled, stall_pending, poor_step
         type(status_t) :: trial_stat, fail_stat
         logical, allocatable :: undetermined(:), held(:)
 
@@ -580,6 +601,9 @@ contains
         held = .false.
         nstuck = 0
         stalled = .false.
+        stall_pending = .false.
+        poor_step = .false.
+        pred_step = 0.0_dp
         failed_trial = .false.
         do it = 1, opts%max_iter
             ! projected Gauss-Newton: a parameter on a bound whose descent
@@ -612,12 +636,32 @@ contains
             end do
             lam_floor = 1.0e-6_dp*s(1)**2
             ! first-order optimality: the undamped step would lower the cost by
-            ! |U^T r|^2; when that is negligible the iterate is the minimum
-            ! (or the data are matched to 1e-9 sigma a row: exact synthetic data)
-            if (predicted_decrease(s, u, rr, opts%rcond) <= opts%tol_cost*cost + &
-                tiny(1.0_dp) .or. cost <= 1.0e-18_dp*mt) then
+            ! pred_gn = |U^T r|^2 = dx^T (A^T A) dx, the squared length of the
+            ! step in units of the parameters' covariance (Eq. 55), so that
+            ! |dx_i| <= sqrt(pred_gn) sigma_i for every parameter. Converged when
+            ! that is negligible against the cost, or the data are matched to
+            ! 1e-9 sigma a row (exact synthetic data)
+            pred_gn = predicted_decrease(s, u, rr, opts%rcond)
+            if (pred_gn <= opts%tol_cost*cost + tiny(1.0_dp) .or. cost <= 1.0e-18_dp*mt) then
                 res%converged = .true.
                 res%iterations = it - 1
+                exit
+            end if
+            ! the cost's noise floor: the last step had to be damped or gained
+            ! less than a quarter of its linear prediction (the model is not
+            ! smooth at this scale: an integrated response's switching events,
+            ! its error control), it lowered the chi-square by less than
+            ! floor_chi2 and the next step promises less than floor_chi2 more:
+            ! what is left to gain has no statistical meaning
+            if (it > 1 .and. poor_step .and. dcost <= opts%floor_chi2 .and. &
+                pred_gn <= opts%floor_chi2) then
+                res%converged = .true.
+                res%iterations = it - 1
+                exit
+            end if
+            if (stall_pending) then
+                res%iterations = it - 1
+                stalled = .true.
                 exit
             end if
             accepted = .false.
@@ -630,14 +674,27 @@ contains
                 pt(free) = min(max(p(free) + dx, lower(free)), upper(free))
                 dx = pt(free) - p(free)
                 call clear_status(trial_stat)
-                call weighted_system(model, y, sigma, pt, free, prior, predt, at, rt, trial_stat)
+                if (model%plain_trials) then
+                    call weighted_system(model, y, sigma, pt, free(1:0), prior, predt, at(:, 1:0), &
+                                         rt, trial_stat)
+                else
+                    call weighted_system(model, y, sigma, pt, free, prior, predt, at, rt, trial_stat)
+                end if
                 if (trial_stat%code == STATUS_OK) then
                     evaluated = .true.
                     failed_trial = .false.
                     cost_t = sum(rt**2)
                     if (cost_t <= cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
-                        accepted = .true.
-                        exit
+                        ! the sensitivities at the accepted step
+                        if (model%plain_trials) call weighted_system(model, y, sigma, pt, free, &
+                                                 prior, predt, at, rt, trial_stat)
+                        if (trial_stat%code == STATUS_OK) then
+                            cost_t = sum(rt**2)
+                            accepted = .true.
+                            exit
+                        end if
+                        failed_trial = .true.
+                        fail_stat = trial_stat
                     end if
                 else
                     failed_trial = .true.
@@ -661,6 +718,8 @@ contains
             end if
             relstep = maxval(abs(dx)/max(abs(p(free)), abs(pt(free)), tiny(1.0_dp)))
             dcost = cost - cost_t
+            pred_step = cost - sum((rr - matmul(aa, dx))**2)
+            poor_step = lambda > 0.0_dp .or. dcost < 0.25_dp*pred_step
             p = pt
             pred = predt
             a = at
@@ -693,8 +752,12 @@ contains
                     res%log_cost(it - CRAWL_STEPS) - cost_t < CRAWL_DROP) nstuck = 3
             end if
             if (nstuck >= 3) then
-                stalled = .true.
-                exit
+                ! a stall unless the next iterate's test finds the noise floor
+                if (it == opts%max_iter) then
+                    stalled = .true.
+                    exit
+                end if
+                stall_pending = .true.
             end if
             lambda = lambda/10.0_dp
             if (lambda < lam_floor) lambda = 0.0_dp
@@ -705,6 +768,7 @@ contains
                     held(i) = .true.
                     lambda = 0.0_dp
                     nstuck = 0
+                    stall_pending = .false.
                 end if
             end do
             if (all(held)) exit

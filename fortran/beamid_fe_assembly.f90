@@ -36,14 +36,19 @@ module beamid_fe_assembly
                                  fe_element_force_tabulated, fe_element_tangent_tabulated, &
                                  fe_element_mass, fe_hinge_energy, fe_hinge_force, &
                                  fe_hinge_tangent
+    ! the band helpers live in beamid_band; the fe_band_* names stay exported
+    ! from here for the callers that import them with the mesh
+    use beamid_band, only: band_add, band_scatter, fe_band_add => band_add, &
+                           fe_band_to_dense => band_to_dense, fe_band_matvec => band_mv
     implicit none
     private
 
     public :: fe_mesh_t, fe_load_t, fe_mesh_build
-    public :: fe_band_rows, fe_band_add, fe_band_get, fe_band_to_dense, fe_band_matvec
+    public :: fe_band_rows, fe_band_add, fe_band_to_dense, fe_band_matvec
+    public :: fe_work_t, fe_work_init, fe_residual, fe_check_dense
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
-    public :: fe_expand, fe_node_value, fe_spring_energy
+    public :: fe_expand, fe_node_value, fe_spring_energy, fe_spring_dofs
     public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
 
@@ -111,7 +116,38 @@ module beamid_fe_assembly
         integer :: moment_form = FE_MOMENT_EQ78
     end type fe_load_t
 
+    !> Work arrays of the force, tangent and residual routines (BeamDyn's
+    !! MiscVar): made once per mesh by fe_work_init and handed to every call of
+    !! a solve or a run, instead of arrays made on each call. Without one, a
+    !! call makes its own.
+    type :: fe_work_t
+        real(dp), allocatable :: qpad(:), fpad(:)   !< (0:nfree): [0, q] and the force
+        real(dp), allocatable :: qv(:)              !< tip load vector Q(q)
+        real(dp), allocatable :: kb(:, :)           !< tangent of a residual-only call
+    end type fe_work_t
+
 contains
+
+    !> Work arrays for the force, tangent and residual calls on `mesh`.
+    pure subroutine fe_work_init(mesh, work)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_work_t), intent(out) :: work
+        allocate (work%qpad(0:mesh%nfree), work%fpad(0:mesh%nfree), work%qv(mesh%nfree), &
+                  work%kb(fe_band_rows(mesh), mesh%nfree))
+    end subroutine fe_work_init
+
+    !> ERR_SIZE, naming `where`, when a dense eigenproblem of order n (three
+    !! n x n matrices) would need more memory than MAX_BYTES.
+    pure subroutine fe_check_dense(n, where, stat)
+        integer, intent(in) :: n
+        character(len=*), intent(in) :: where
+        type(status_t), intent(inout) :: stat
+        real(dp) :: bytes
+        bytes = 8.0_dp*3.0_dp*real(n, dp)**2
+        if (bytes > MAX_BYTES) call set_status(stat, ERR_SIZE, where, &
+            'the dense eigenproblem of '//fmt_int(n)//' unknowns would need about '// &
+            fmt_bytes(bytes)//' of memory (limit '//fmt_bytes(MAX_BYTES)//'): use fewer elements')
+    end subroutine fe_check_dense
 
     !> Discretize `chain` with `elements_per_beam` equal elements on each beam.
     !! A joint with joint_flex > 0 becomes a hinge with a rotational spring, a
@@ -122,17 +158,37 @@ contains
         integer, intent(in) :: elements_per_beam
         type(fe_mesh_t), intent(out) :: mesh
         type(status_t), intent(inout) :: stat
-        character(len=*), parameter :: where = 'fe_mesh_build'
-        integer :: ib, k, el, nb, i, j, node, kf, r, full, span
-        integer :: order(6), ierr
-        integer, allocatable :: idx(:)
+        type(status_t) :: st
         real(dp) :: bytes
+        call check_mesh_request(chain, elements_per_beam, bytes, st)
+        if (st%code == 0) call mesh_elements(chain, elements_per_beam, bytes, mesh, st)
+        if (st%code == 0) call mesh_numbering(chain, elements_per_beam, bytes, mesh, st)
+        if (st%code == 0) call mesh_free_numbering(bytes, mesh, st)
+        if (st%code == 0) then
+            mesh%kl = half_bandwidth(mesh)
+            mesh%ku = mesh%kl
+            call mesh_assembly_tables(elements_per_beam, bytes, mesh, st)
+        end if
+        if (st%code /= 0) stat = st
+    end subroutine fe_mesh_build
+
+    !> The checks of fe_mesh_build before anything is allocated; bytes: the
+    !! memory the mesh's solvers need (in 64 bits: about 40 numbers per
+    !! unknown, 4 unknowns per node), held against MAX_BYTES.
+    pure subroutine check_mesh_request(chain, elements_per_beam, bytes, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(out) :: bytes
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_mesh_build'
+        integer :: i, nb
+        nb = chain%nbeams
+        bytes = 8.0_dp*40.0_dp*4.0_dp*(real(nb, dp)*real(elements_per_beam, dp) + 1.0_dp)
         if (elements_per_beam < 1) then
             call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//', expected at least 1')
             return
         end if
-        nb = chain%nbeams
         if (nb < 1) then
             call set_status(stat, ERR_INPUT, where, 'the chain has no beams')
             return
@@ -151,17 +207,25 @@ contains
                 return
             end if
         end do
-        ! sizes in 64 bits before anything is allocated: the banded solvers
-        ! keep about 40 numbers per unknown, 4 unknowns per node
-        bytes = 8.0_dp*40.0_dp*4.0_dp*(real(nb, dp)*real(elements_per_beam, dp) + 1.0_dp)
         if (bytes > MAX_BYTES) then
             call set_status(stat, ERR_SIZE, where, 'elements_per_beam = '// &
                             fmt_int(elements_per_beam)//': a mesh of '// &
                             fmt_count(real(nb, dp)*real(elements_per_beam, dp))// &
                             ' elements would need about '//fmt_bytes(bytes)// &
                             ' of memory (limit '//fmt_bytes(MAX_BYTES)//')')
-            return
         end if
+    end subroutine check_mesh_request
+
+    !> Sizes, element properties, node positions s and the point masses and
+    !! inertias at the joints and the tip.
+    pure subroutine mesh_elements(chain, elements_per_beam, bytes, mesh, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: ib, k, el, nb, ierr
+        nb = chain%nbeams
         mesh%nbeams = nb
         mesh%nel = nb*elements_per_beam
         mesh%nnode = mesh%nel + 1
@@ -171,15 +235,11 @@ contains
         mesh%nfree = mesh%ndof - 3
         if (mesh%root_flex > 0.0_dp) mesh%nfree = mesh%ndof - 2
         allocate (mesh%h(mesh%nel), mesh%ea(mesh%nel), mesh%ei(mesh%nel), &
-                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel), stat=ierr)
-        if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the element tables', bytes)
-            return
-        end if
-        allocate (mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
+                  mesh%rho(mesh%nel), mesh%cubic(mesh%nel), mesh%beam(mesh%nel), &
+                  mesh%s(mesh%nnode), mesh%node_mass(mesh%nnode), &
                   mesh%node_inertia(mesh%nnode), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the node tables', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the element and node tables', bytes)
             return
         end if
         mesh%node_mass = 0.0_dp
@@ -206,11 +266,21 @@ contains
             mesh%node_mass(el + 1) = chain%mass(ib)
             mesh%node_inertia(el + 1) = chain%inertia(ib)
         end do
-        ! node table of full indices; hinges get their outboard slopes after 4 nnode
+    end subroutine mesh_elements
+
+    !> Full indices of the node and element unknowns; a hinge's outboard
+    !! slopes come after the 4 nnode node unknowns.
+    pure subroutine mesh_numbering(chain, elements_per_beam, bytes, mesh, stat)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: i, j, node, el, ierr
         allocate (mesh%node_dof(6, mesh%nnode), mesh%hinge_node(mesh%nhinge), &
-                  mesh%hinge_flex(mesh%nhinge), stat=ierr)
+                  mesh%hinge_flex(mesh%nhinge), mesh%el_dof(FE_NDOF, mesh%nel), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the node numbering', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the node numbering', bytes)
             return
         end if
         do node = 1, mesh%nnode
@@ -218,7 +288,7 @@ contains
             mesh%node_dof(5:6, node) = mesh%node_dof([DOF_DW, DOF_DU], node)
         end do
         j = 0
-        do i = 1, nb - 1
+        do i = 1, mesh%nbeams - 1
             if (chain%joint_flex(i) > 0.0_dp) then
                 j = j + 1
                 node = i*elements_per_beam + 1
@@ -227,21 +297,24 @@ contains
                 mesh%node_dof(5:6, node) = 4*mesh%nnode + 2*(j - 1) + [1, 2]
             end if
         end do
-        allocate (mesh%el_dof(FE_NDOF, mesh%nel), stat=ierr)
-        if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the element numbering', bytes)
-            return
-        end if
         do el = 1, mesh%nel
             mesh%el_dof(:, el) = [mesh%node_dof([DOF_W, DOF_DW_OUT, DOF_U, DOF_DU_OUT], el), &
                                   mesh%node_dof(1:4, el + 1)]
         end do
-        ! free numbering node by node; the clamp of Eq. 103 fixes w, w', u of the
-        ! root (w and u only with a root hinge); u' (the root strain) stays free
+    end subroutine mesh_numbering
+
+    !> The free numbering, node by node; the clamp of Eq. 103 fixes w, w', u
+    !! of the root (w and u only with a root hinge); u' (the root strain)
+    !! stays free.
+    pure subroutine mesh_free_numbering(bytes, mesh, stat)
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: node, i, k, kf, r, full, order(6), ierr
         allocate (mesh%free_of(mesh%ndof), mesh%full_of(mesh%nfree), &
                   mesh%free_comp(mesh%nfree), mesh%free_node(mesh%nfree), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the free numbering', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the free numbering', bytes)
             return
         end if
         mesh%free_of = 0
@@ -266,7 +339,13 @@ contains
                 mesh%free_node(kf) = node
             end do
         end do
-        ! half-bandwidth: widest coupling of an element or of a hinge spring
+    end subroutine mesh_free_numbering
+
+    !> Half-bandwidth: the widest coupling of an element or a hinge spring.
+    pure integer function half_bandwidth(mesh) result(span)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, allocatable :: idx(:)
+        integer :: el, j
         span = 0
         do el = 1, mesh%nel
             idx = pack(mesh%free_of(mesh%el_dof(:, el)), mesh%free_of(mesh%el_dof(:, el)) > 0)
@@ -277,15 +356,23 @@ contains
                                              mesh%hinge_node(j)))
             span = max(span, maxval(idx) - minval(idx))
         end do
-        mesh%kl = span
-        mesh%ku = span
+    end function half_bandwidth
+
+    !> The quadrature and the tables of the assembly loops (fe_internal_force,
+    !! fe_tangent): free indices per element, the first of 8 consecutive ones,
+    !! and the Hermite derivatives at the Gauss points of each beam.
+    pure subroutine mesh_assembly_tables(elements_per_beam, bytes, mesh, stat)
+        integer, intent(in) :: elements_per_beam
+        real(dp), intent(in) :: bytes
+        type(fe_mesh_t), intent(inout) :: mesh
+        type(status_t), intent(inout) :: stat
+        integer :: k, el, ib, i, kf, ierr
         k = fe_quadrature_order(maxval(abs(mesh%cubic)))
         allocate (mesh%xg(k), mesh%wg(k))
         call fe_gauss_points(k, mesh%xg, mesh%wg)
-        ! tables for the assembly loops (fe_internal_force, fe_tangent)
         allocate (mesh%el_free(FE_NDOF, mesh%nel), mesh%el_first_free(mesh%nel), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, where, 'the assembly tables', bytes)
+            call set_alloc_error(stat, 'fe_mesh_build', 'the assembly tables', bytes)
             return
         end if
         do el = 1, mesh%nel
@@ -296,66 +383,20 @@ contains
                 if (kf == 0 .or. mesh%el_free(i, el) /= kf + i - 1) mesh%el_first_free(el) = 0
             end do
         end do
-        allocate (mesh%gauss_d1(4, k, nb), mesh%gauss_d2(4, k, nb), mesh%gauss_wh(k, nb))
-        do ib = 1, nb
+        allocate (mesh%gauss_d1(4, k, mesh%nbeams), mesh%gauss_d2(4, k, mesh%nbeams), &
+                  mesh%gauss_wh(k, mesh%nbeams))
+        do ib = 1, mesh%nbeams
             el = (ib - 1)*elements_per_beam + 1   ! first element of beam ib
             call fe_gauss_table(mesh%h(el), mesh%xg, mesh%wg, mesh%gauss_d1(:, :, ib), &
                                 mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib))
         end do
-    end subroutine fe_mesh_build
+    end subroutine mesh_assembly_tables
 
     !> Rows of the band storage (2 kl + ku + 1).
     pure integer function fe_band_rows(mesh)
         type(fe_mesh_t), intent(in) :: mesh
         fe_band_rows = 2*mesh%kl + mesh%ku + 1
     end function fe_band_rows
-
-    !> ab(i, j) += value in LAPACK general band storage.
-    pure subroutine fe_band_add(ab, kl, ku, i, j, value)
-        real(dp), intent(inout) :: ab(:, :)
-        integer, intent(in) :: kl, ku, i, j
-        real(dp), intent(in) :: value
-        ab(kl + ku + 1 + i - j, j) = ab(kl + ku + 1 + i - j, j) + value
-    end subroutine fe_band_add
-
-    !> A(i, j) from band storage (zero outside the band).
-    pure real(dp) function fe_band_get(ab, kl, ku, i, j)
-        real(dp), intent(in) :: ab(:, :)
-        integer, intent(in) :: kl, ku, i, j
-        if (i - j > kl .or. j - i > ku) then
-            fe_band_get = 0.0_dp
-        else
-            fe_band_get = ab(kl + ku + 1 + i - j, j)
-        end if
-    end function fe_band_get
-
-    !> Dense copy of a band matrix of order size(ab, 2).
-    pure subroutine fe_band_to_dense(ab, kl, ku, a)
-        real(dp), intent(in) :: ab(:, :)
-        integer, intent(in) :: kl, ku
-        real(dp), intent(out) :: a(:, :)
-        integer :: i, j
-        a = 0.0_dp
-        do j = 1, size(ab, 2)
-            do i = max(1, j - ku), min(size(ab, 2), j + kl)
-                a(i, j) = ab(kl + ku + 1 + i - j, j)
-            end do
-        end do
-    end subroutine fe_band_to_dense
-
-    !> y = A x for a band matrix.
-    pure subroutine fe_band_matvec(ab, kl, ku, x, y)
-        real(dp), intent(in) :: ab(:, :), x(:)
-        integer, intent(in) :: kl, ku
-        real(dp), intent(out) :: y(:)
-        integer :: i, j
-        y = 0.0_dp
-        do j = 1, size(ab, 2)
-            do i = max(1, j - ku), min(size(ab, 2), j + kl)
-                y(i) = y(i) + ab(kl + ku + 1 + i - j, j)*x(j)
-            end do
-        end do
-    end subroutine fe_band_matvec
 
     !> Full unknown vector (clamped entries zero) from the free vector q.
     pure subroutine fe_expand(mesh, q, qfull)
@@ -409,7 +450,7 @@ contains
     !> Free indices of the slopes a spring acts on, [w'-, u'-, w'+, u'+]
     !! (0 for a clamped one): spring 0 is the root hinge (its inboard side is
     !! the clamp), spring j >= 1 the hinge at mesh%hinge_node(j).
-    pure subroutine spring_dofs(mesh, j, idx, flex)
+    pure subroutine fe_spring_dofs(mesh, j, idx, flex)
         type(fe_mesh_t), intent(in) :: mesh
         integer, intent(in) :: j
         integer, intent(out) :: idx(4)
@@ -423,7 +464,7 @@ contains
                                              mesh%hinge_node(j)))
             flex = mesh%hinge_flex(j)
         end if
-    end subroutine spring_dofs
+    end subroutine fe_spring_dofs
 
     !> Energy of the joint and root springs at the padded free vector qpad.
     pure real(dp) function spring_energy(mesh, qpad) result(v)
@@ -433,7 +474,7 @@ contains
         real(dp) :: flex
         v = 0.0_dp
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
-            call spring_dofs(mesh, j, idx, flex)
+            call fe_spring_dofs(mesh, j, idx, flex)
             v = v + fe_hinge_energy(flex, qpad(idx))
         end do
     end function spring_energy
@@ -455,10 +496,10 @@ contains
         real(dp), intent(in) :: qpad(0:)
         real(dp), intent(inout) :: fpad(0:)
         real(dp), intent(inout), optional :: kb(:, :)
-        integer :: j, a, b, i, jj, idx(4)
+        integer :: j, a, idx(4)
         real(dp) :: flex, fs(4), ks(4, 4)
         do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
-            call spring_dofs(mesh, j, idx, flex)
+            call fe_spring_dofs(mesh, j, idx, flex)
             if (present(kb)) then
                 call fe_hinge_tangent(flex, qpad(idx), fs, ks)
             else
@@ -467,16 +508,7 @@ contains
             do a = 1, 4
                 fpad(idx(a)) = fpad(idx(a)) + fs(a)
             end do
-            if (.not. present(kb)) cycle
-            do b = 1, 4
-                jj = idx(b)
-                if (jj == 0) cycle
-                do a = 1, 4
-                    i = idx(a)
-                    if (i == 0) cycle
-                    call fe_band_add(kb, mesh%kl, mesh%ku, i, jj, ks(a, b))
-                end do
-            end do
+            if (present(kb)) call band_scatter(kb, mesh%kl, mesh%ku, idx, ks)
         end do
     end subroutine add_springs
 
@@ -498,11 +530,26 @@ contains
     end function fe_energy
 
     !> Internal force NLT(q) = dV/dq on the free unknowns (Eq. 79-83).
-    pure subroutine fe_internal_force(mesh, q, f)
+    pure subroutine fe_internal_force(mesh, q, f, work)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:)
-        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        type(fe_work_t), intent(inout), optional :: work
+        if (present(work)) then
+            call internal_force(mesh, q, f, work%qpad, work%fpad)
+        else
+            block
+                real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+                call internal_force(mesh, q, f, qpad, fpad)
+            end block
+        end if
+    end subroutine fe_internal_force
+
+    !> fe_internal_force on the padded work vectors qpad, fpad (0:nfree).
+    pure subroutine internal_force(mesh, q, f, qpad, fpad)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:), qpad(0:), fpad(0:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF)
         integer :: el, ib, a
         call pad_free(q, qpad)
@@ -519,7 +566,7 @@ contains
         end do
         call add_springs(mesh, qpad, fpad)
         f = fpad(1:)
-    end subroutine fe_internal_force
+    end subroutine internal_force
 
     !> Root reactions: the Lagrange multipliers of Eq. 104-105 for a static
     !! state, lambda = NLT(q) on the clamped unknowns (w, w', u of node 1);
@@ -542,13 +589,28 @@ contains
 
     !> Internal force f and tangent stiffness K_T = dNLT/dq (band storage,
     !! fe_band_rows(mesh) x nfree) at the free vector q.
-    pure subroutine fe_tangent(mesh, q, f, kb)
+    pure subroutine fe_tangent(mesh, q, f, kb, work)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: f(:), kb(:, :)
-        real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+        type(fe_work_t), intent(inout), optional :: work
+        if (present(work)) then
+            call tangent(mesh, q, f, kb, work%qpad, work%fpad)
+        else
+            block
+                real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
+                call tangent(mesh, q, f, kb, qpad, fpad)
+            end block
+        end if
+    end subroutine fe_tangent
+
+    !> fe_tangent on the padded work vectors qpad, fpad (0:nfree).
+    pure subroutine tangent(mesh, q, f, kb, qpad, fpad)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: f(:), kb(:, :), qpad(0:), fpad(0:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
-        integer :: el, ib, a, b, i, j, diag, first, row
+        integer :: el, ib, b, j, diag, first, row
         call pad_free(q, qpad)
         fpad = 0.0_dp
         kb = 0.0_dp
@@ -574,19 +636,49 @@ contains
                 cycle
             end if
             do b = 1, FE_NDOF
-                j = mesh%el_free(b, el)
-                fpad(j) = fpad(j) + fe(b)
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%el_free(a, el)
-                    if (i == 0) cycle
-                    kb(diag + i - j, j) = kb(diag + i - j, j) + ke(a, b)
-                end do
+                fpad(mesh%el_free(b, el)) = fpad(mesh%el_free(b, el)) + fe(b)
             end do
+            call band_scatter(kb, mesh%kl, mesh%ku, mesh%el_free(:, el), ke)
         end do
         call add_springs(mesh, qpad, fpad, kb)
         f = fpad(1:)
-    end subroutine fe_tangent
+    end subroutine tangent
+
+    !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
+    !! Jacobian db/dq in band storage (Eq. 85).
+    pure subroutine fe_residual(mesh, load, q, r, jb, work)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: r(:)
+        real(dp), intent(out), optional :: jb(:, :)
+        type(fe_work_t), intent(inout), optional :: work
+        type(fe_work_t) :: own
+        if (present(work)) then
+            call residual(mesh, load, q, r, work, jb)
+        else
+            allocate (own%qpad(0:mesh%nfree), own%fpad(0:mesh%nfree), own%qv(mesh%nfree))
+            if (.not. present(jb)) allocate (own%kb(fe_band_rows(mesh), mesh%nfree))
+            call residual(mesh, load, q, r, own, jb)
+        end if
+    end subroutine fe_residual
+
+    pure subroutine residual(mesh, load, q, r, work, jb)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: r(:)
+        type(fe_work_t), intent(inout) :: work
+        real(dp), intent(out), optional :: jb(:, :)
+        if (present(jb)) then
+            call tangent(mesh, q, r, jb, work%qpad, work%fpad)
+            call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
+        else
+            call tangent(mesh, q, r, work%kb, work%qpad, work%fpad)
+        end if
+        call fe_tip_load(mesh, q, load, work%qv)
+        r = r - work%qv
+    end subroutine residual
 
     !> Linear stiffness K = K_T(0) in band storage (Eq. 123-124).
     pure subroutine fe_stiffness_linear(mesh, kb)
@@ -609,27 +701,18 @@ contains
         logical, intent(in) :: rotary
         real(dp), intent(out) :: mb(:, :)
         real(dp) :: me(FE_NDOF, FE_NDOF), du, dw, jm
-        integer :: el, a, b, i, j, node, iw, iu, idx(FE_NDOF)
+        integer :: el, i, node, iw, iu
         mb = 0.0_dp
         do el = 1, mesh%nel
-            idx = mesh%el_dof(:, el)
             call fe_element_mass(mesh%h(el), mesh%rho(el), me)
-            do b = 1, FE_NDOF
-                j = mesh%free_of(idx(b))
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%free_of(idx(a))
-                    if (i == 0) cycle
-                    call fe_band_add(mb, mesh%kl, mesh%ku, i, j, me(a, b))
-                end do
-            end do
+            call band_scatter(mb, mesh%kl, mesh%ku, mesh%el_free(:, el), me)
         end do
         do node = 2, mesh%nnode
             if (mesh%node_mass(node) /= 0.0_dp) then
                 i = mesh%free_of(4*(node - 1) + DOF_W)
-                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+                call band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
                 i = mesh%free_of(4*(node - 1) + DOF_U)
-                call fe_band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
+                call band_add(mb, mesh%kl, mesh%ku, i, i, mesh%node_mass(node))
             end if
             if (rotary .and. mesh%node_inertia(node) /= 0.0_dp) then
                 jm = mesh%node_inertia(node)
@@ -637,10 +720,10 @@ contains
                 iu = mesh%free_of(4*(node - 1) + DOF_DU)
                 du = q(iu)
                 dw = q(iw)
-                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iw, jm*(1.0_dp + du)**2)
-                call fe_band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*dw*(1.0_dp + du))
-                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*dw*(1.0_dp + du))
-                call fe_band_add(mb, mesh%kl, mesh%ku, iu, iu, jm*dw*dw)
+                call band_add(mb, mesh%kl, mesh%ku, iw, iw, jm*(1.0_dp + du)**2)
+                call band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*dw*(1.0_dp + du))
+                call band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*dw*(1.0_dp + du))
+                call band_add(mb, mesh%kl, mesh%ku, iu, iu, jm*dw*dw)
             end if
         end do
     end subroutine fe_mass
@@ -686,14 +769,14 @@ contains
         if (load%moment_form == FE_MOMENT_EXACT) then
             ! Q = M grad(Psi), Psi = atan2(y, x): dQ/dq = M Hessian(Psi)
             r2 = x*x + y*y
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idw, -m*2.0_dp*x*y/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idu, m*2.0_dp*x*y/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m*(y*y - x*x)/r2**2)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, m*(y*y - x*x)/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idw, -m*2.0_dp*x*y/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idu, m*2.0_dp*x*y/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idu, m*(y*y - x*x)/r2**2)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idw, m*(y*y - x*x)/r2**2)
         else
             ! Eq. 78: Q_w' = M (1 + u'), Q_u' = -M w' (not a gradient: unsymmetric)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idw, idu, m)
-            call fe_band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
+            call band_add(kb, mesh%kl, mesh%ku, idw, idu, m)
+            call band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
         end if
     end subroutine fe_tip_load_jacobian
 

@@ -72,36 +72,39 @@ contains
     pure subroutine fe_gauss_points(n, x, w)
         integer, intent(in) :: n
         real(dp), intent(out) :: x(n), w(n)
-        real(dp) :: z, p0, p1, p2, dp_dz, dz
-        integer :: i, j, it
+        real(dp) :: z, p, dp_dz, dz
+        integer :: i, it
         do i = 1, n
             z = cos(pi*(real(i, dp) - 0.25_dp)/(real(n, dp) + 0.5_dp))
             do it = 1, 100
-                p0 = 1.0_dp
-                p1 = z
-                do j = 2, n
-                    p2 = ((2*j - 1)*z*p1 - (j - 1)*p0)/real(j, dp)
-                    p0 = p1
-                    p1 = p2
-                end do
-                dp_dz = n*(z*p1 - p0)/(z*z - 1.0_dp)
-                dz = p1/dp_dz
+                call legendre(n, z, p, dp_dz)
+                dz = p/dp_dz
                 z = z - dz
                 if (abs(dz) <= 1.0e-16_dp) exit
             end do
-            p0 = 1.0_dp
-            p1 = z
-            do j = 2, n
-                p2 = ((2*j - 1)*z*p1 - (j - 1)*p0)/real(j, dp)
-                p0 = p1
-                p1 = p2
-            end do
-            dp_dz = n*(z*p1 - p0)/(z*z - 1.0_dp)
+            call legendre(n, z, p, dp_dz)
             ! z decreases with i, so x = (1 - z)/2 comes out ascending
             x(i) = 0.5_dp*(1.0_dp - z)
             w(i) = 1.0_dp/((1.0_dp - z*z)*dp_dz*dp_dz)
         end do
     end subroutine fe_gauss_points
+
+    !> The Legendre polynomial P_n(z) by its three-term recurrence, and P_n'(z).
+    pure subroutine legendre(n, z, p1, dp_dz)
+        integer, intent(in) :: n
+        real(dp), intent(in) :: z
+        real(dp), intent(out) :: p1, dp_dz
+        real(dp) :: p0, p2
+        integer :: j
+        p0 = 1.0_dp
+        p1 = z
+        do j = 2, n
+            p2 = ((2*j - 1)*z*p1 - (j - 1)*p0)/real(j, dp)
+            p0 = p1
+            p1 = p2
+        end do
+        dp_dz = n*(z*p1 - p0)/(z*z - 1.0_dp)
+    end subroutine legendre
 
     !> Cubic Hermite functions of Eq. 76 at zeta = s/h, with their first and
     !! second derivatives with respect to s.

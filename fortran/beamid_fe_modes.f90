@@ -8,11 +8,12 @@
 module beamid_fe_modes
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NUMERIC, fmt_int, &
-                             fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, set_alloc_error
+                             fmt_real, set_alloc_error
     use beamid_lapack, only: sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_band_rows, fe_band_to_dense, fe_mass, &
-                                  fe_stiffness_linear, fe_band_matvec, DOF_U, DOF_DU, &
+    use beamid_fe_assembly, only: fe_mesh_t, fe_check_dense, fe_band_rows, fe_mass, &
+                                  fe_stiffness_linear, DOF_U, DOF_DU, &
                                   DOF_DU_OUT
+    use beamid_band, only: band_mv, band_to_dense
     implicit none
     private
 
@@ -49,24 +50,20 @@ contains
                             'nfree = '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_modes', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_modes', stat)
+        if (stat%code /= 0) return
         allocate (kb(fe_band_rows(mesh), n), mb(fe_band_rows(mesh), n), m(n, n), w(n), &
                   q0(n), mphi(n), stat=ierr)
         if (ierr /= 0) then
-            call set_alloc_error(stat, 'fe_modes', 'the mode matrices', 8.0_dp*3.0_dp*real(n, dp)**2)
+            call set_alloc_error(stat, 'fe_modes', 'the mode matrices', &
+                                 8.0_dp*3.0_dp*real(n, dp)**2)
             return
         end if
         q0 = 0.0_dp
         call fe_stiffness_linear(mesh, kb)
         call fe_mass(mesh, q0, rotary, mb)
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, phi)
-        call fe_band_to_dense(mb, mesh%kl, mesh%ku, m)
+        call band_to_dense(kb, mesh%kl, mesh%ku, phi)
+        call band_to_dense(mb, mesh%kl, mesh%ku, m)
         call sym_gen_eig(phi, m, w, stat)
         if (stat%code /= 0) return
         if (any(w <= 0.0_dp)) then
@@ -76,7 +73,7 @@ contains
         end if
         omega = sqrt(w)
         do i = 1, n
-            call fe_band_matvec(mb, mesh%kl, mesh%ku, phi(:, i), mphi)
+            call band_mv(mb, mesh%kl, mesh%ku, phi(:, i), mphi)
             mu = 0.0_dp
             do k = 1, n
                 if (fe_is_axial_unknown(mesh, k)) mu = mu + phi(k, i)*mphi(k)
@@ -106,7 +103,7 @@ contains
         allocate (mb(fe_band_rows(mesh), n), mq(n), q0(n))
         q0 = 0.0_dp
         call fe_mass(mesh, q0, rotary, mb)
-        call fe_band_matvec(mb, mesh%kl, mesh%ku, q, mq)
+        call band_mv(mb, mesh%kl, mesh%ku, q, mq)
         eta = matmul(mq, phi)
     end subroutine fe_modal_coordinates
 
@@ -151,13 +148,8 @@ contains
                             fmt_int(size(omega))//' entries, expected '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_axial_modes_linear', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_axial_modes_linear', stat)
+        if (stat%code /= 0) return
         ! unknown i is u at node i + 1
         allocate (k(n, n), m(n, n), w(n), stat=ierr)
         if (ierr /= 0) then

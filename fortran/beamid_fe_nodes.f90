@@ -17,12 +17,13 @@ module beamid_fe_nodes
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_mesh_build, fe_band_rows, &
-                                  fe_band_to_dense, fe_mass, fe_energy, fe_tip_load, &
+                                  fe_mass, fe_energy, fe_tip_load, &
                                   fe_reactions, fe_node_value, DOF_W, DOF_DW, DOF_U, DOF_DU, &
                                   DOF_DW_OUT, DOF_DU_OUT, FE_MOMENT_EQ78, FE_MOMENT_EXACT
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static, &
                                 fe_residual, fe_path, fe_buckling_load
     use beamid_fe_modes, only: fe_modes, fe_modal_coordinates, fe_modal_cost
+    use beamid_band, only: band_to_dense
     implicit none
     private
 
@@ -334,9 +335,9 @@ contains
         call fe_residual(mesh, load, q, r, band)
         call fe_tip_load(mesh, q, load, qload)
         force = r + qload
-        call fe_band_to_dense(band, mesh%kl, mesh%ku, jac)
+        call band_to_dense(band, mesh%kl, mesh%ku, jac)
         call fe_mass(mesh, q, rotary, band)
-        call fe_band_to_dense(band, mesh%kl, mesh%ku, mass)
+        call band_to_dense(band, mesh%kl, mesh%ku, mass)
         energy = fe_energy(mesh, q)
     end subroutine fe_system_dense
 end module beamid_fe_nodes

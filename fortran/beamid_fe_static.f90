@@ -5,12 +5,12 @@ module beamid_fe_static
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
-                             ERR_NUMERIC, fmt_int, fmt_real, ERR_SIZE, MAX_BYTES, fmt_bytes, &
-                             set_alloc_error
+                             ERR_NUMERIC, fmt_int, fmt_real, set_alloc_error
     use beamid_lapack, only: solve_banded, sym_gen_eig
-    use beamid_fe_assembly, only: fe_mesh_t, fe_load_t, fe_band_rows, fe_tangent, &
-                                  fe_tip_load, fe_tip_load_jacobian, fe_band_to_dense, &
-                                  fe_stiffness_linear, fe_band_add, DOF_W, DOF_U
+    use beamid_fe_assembly, only: fe_mesh_t, fe_check_dense, fe_load_t, fe_band_rows, &
+                                  fe_work_t, fe_work_init, fe_residual, fe_tip_load, &
+                                  fe_stiffness_linear, DOF_W, DOF_U
+    use beamid_band, only: band_scatter, band_to_dense, ldlt_inertia
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
     private
@@ -76,29 +76,9 @@ contains
         out%moment = a%moment + b%moment
     end function added
 
-    !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
-    !! Jacobian db/dq in band storage (Eq. 85).
-    pure subroutine fe_residual(mesh, load, q, r, jb)
-        type(fe_mesh_t), intent(in) :: mesh
-        type(fe_load_t), intent(in) :: load
-        real(dp), intent(in) :: q(:)
-        real(dp), intent(out) :: r(:)
-        real(dp), intent(out), optional :: jb(:, :)
-        real(dp), allocatable :: qv(:), kb(:, :)
-        allocate (qv(mesh%nfree))
-        if (present(jb)) then
-            call fe_tangent(mesh, q, r, jb)
-            call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
-        else
-            allocate (kb(fe_band_rows(mesh), mesh%nfree))
-            call fe_tangent(mesh, q, r, kb)
-        end if
-        call fe_tip_load(mesh, q, load, qv)
-        r = r - qv
-    end subroutine fe_residual
-
     !> Newton's method (Eq. 85) at a fixed load from the starting shape q.
-    subroutine fe_newton(mesh, load, q, opts, iterations, residual, stat)
+    !! `work`: from fe_work_init(mesh), shared by the calls of one solve.
+    subroutine fe_newton(mesh, load, q, opts, iterations, residual, stat, work)
         type(fe_mesh_t), intent(in) :: mesh
         type(fe_load_t), intent(in) :: load
         real(dp), intent(inout) :: q(:)
@@ -106,6 +86,7 @@ contains
         integer, intent(out) :: iterations
         real(dp), intent(out) :: residual
         type(status_t), intent(inout) :: stat
+        type(fe_work_t), intent(inout) :: work
         character(len=*), parameter :: where = 'fe_newton'
         real(dp), allocatable :: r(:), jb(:, :), dq(:, :)
         real(dp) :: step, turn
@@ -115,7 +96,7 @@ contains
         step = huge(1.0_dp)
         do it = 1, opts%max_iter
             iterations = it
-            call fe_residual(mesh, load, q, r, jb)
+            call fe_residual(mesh, load, q, r, jb, work)
             dq(:, 1) = -r
             call solve_banded(mesh%kl, mesh%ku, jb, dq, stat)
             if (stat%code /= 0) return
@@ -132,12 +113,12 @@ contains
                 return
             end if
             if (step <= opts%tol*(1.0_dp + maxval(abs(q)))) then
-                call fe_residual(mesh, load, q, r)
+                call fe_residual(mesh, load, q, r, work=work)
                 residual = maxval(abs(r))
                 return
             end if
         end do
-        call fe_residual(mesh, load, q, r)
+        call fe_residual(mesh, load, q, r, work=work)
         residual = maxval(abs(r))
         call set_status(stat, ERR_NO_CONVERGENCE, where, 'no convergence in '// &
                         fmt_int(opts%max_iter)//' iterations: last step '// &
@@ -163,6 +144,7 @@ contains
         real(dp) :: lam, dlam, dlam_max, dlam_prev, resid
         integer :: its, nbisect
         type(status_t) :: inner
+        type(fe_work_t) :: work
 
         if (size(q) /= mesh%nfree) then
             call set_status(stat, ERR_INPUT, where, 'q has '//fmt_int(size(q))// &
@@ -180,12 +162,13 @@ contains
             call set_status(stat, ERR_INPUT, where, 'tip load is not finite')
             return
         end if
+        call fe_work_init(mesh, work)
         if (from_guess) then
             if (.not. all(ieee_is_finite(q))) then
                 call set_status(stat, ERR_INPUT, where, 'starting shape is not finite')
                 return
             end if
-            call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat)
+            call fe_newton(mesh, load, q, opts, info%iterations, info%residual, stat, work)
             info%steps = 1
             if (stat%code == 0) info%negative = fe_negative_eigenvalues(mesh, load, q)
             return
@@ -207,7 +190,7 @@ contains
             ! secant predictor along the last accepted step
             if (dlam_prev > 0.0_dp) q_try = q + (q - q_prev)*(dlam/dlam_prev)
             inner = status_t()
-            call fe_newton(mesh, scaled(load, lam + dlam), q_try, opts, its, resid, inner)
+            call fe_newton(mesh, scaled(load, lam + dlam), q_try, opts, its, resid, inner, work)
             info%iterations = info%iterations + its
             if (inner%code /= 0) then
                 nbisect = nbisect + 1
@@ -236,18 +219,16 @@ contains
     !> Number of negative eigenvalues of the tangent d(NLT - Q)/dq at q (its
     !! symmetric part, exact for the conservative fixed-direction tip force):
     !! Sylvester's law of inertia on the band L D L^T factorization without
-    !! pivoting, O(n b^2). A zero pivot (exactly at a critical point) counts
-    !! as neither sign.
+    !! pivoting (beamid_band ldlt_inertia), O(n b^2).
     pure integer function fe_negative_eigenvalues(mesh, load, q) result(negative)
         type(fe_mesh_t), intent(in) :: mesh
         type(fe_load_t), intent(in) :: load
         real(dp), intent(in) :: q(:)
-        real(dp), allocatable :: r(:), jb(:, :), w(:, :), d(:)
-        integer :: n, b, i, j, k, row
-        real(dp) :: sum_
+        real(dp), allocatable :: r(:), jb(:, :), w(:, :)
+        integer :: n, b, i, j, row
         n = mesh%nfree
         b = max(mesh%kl, mesh%ku)
-        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n), d(n))
+        allocate (r(n), jb(fe_band_rows(mesh), n), w(0:b, n))
         call fe_residual(mesh, load, q, r, jb)
         ! lower band of the symmetric part: w(i - j, j) = (A(i, j) + A(j, i))/2
         row = mesh%kl + mesh%ku + 1
@@ -258,26 +239,7 @@ contains
                 if (i - j <= mesh%ku) w(i - j, j) = w(i - j, j) + 0.5_dp*jb(row + j - i, i)
             end do
         end do
-        ! L D L^T in place: w(i - k, k) holds L(i, k)
-        do j = 1, n
-            sum_ = w(0, j)
-            do k = max(1, j - b), j - 1
-                sum_ = sum_ - w(j - k, k)**2*d(k)
-            end do
-            d(j) = sum_
-            do i = j + 1, min(n, j + b)
-                sum_ = w(i - j, j)
-                do k = max(1, i - b), j - 1
-                    sum_ = sum_ - w(i - k, k)*w(j - k, k)*d(k)
-                end do
-                if (d(j) /= 0.0_dp) then
-                    w(i - j, j) = sum_/d(j)
-                else
-                    w(i - j, j) = 0.0_dp
-                end if
-            end do
-        end do
-        negative = count(d < 0.0_dp)
+        call ldlt_inertia(n, b, w, negative)
     end function fe_negative_eigenvalues
 
     !> Pseudo-arc-length continuation (Keller) of equilibria under the load
@@ -305,6 +267,7 @@ contains
         real(dp) :: lam, lamn, tl, tl_new, h, nrm, g, dl, step, resid
         integer :: it, its, max_points, nfail
         logical :: converged
+        type(fe_work_t) :: work
 
         max_points = size(lam_out)
         npts = 0
@@ -332,9 +295,10 @@ contains
         allocate (q(mesh%nfree), qn(mesh%nfree), r(mesh%nfree), rl(mesh%nfree), &
                   jb(fe_band_rows(mesh), mesh%nfree), rhs(mesh%nfree, 2), &
                   tq(mesh%nfree), tq_new(mesh%nfree))
+        call fe_work_init(mesh, work)
         q = q0
         lam = lam0
-        call fe_newton(mesh, added(load0, scaled(dload, lam)), q, opts, its, resid, stat)
+        call fe_newton(mesh, added(load0, scaled(dload, lam)), q, opts, its, resid, stat, work)
         if (stat%code /= 0) return
         npts = 1
         lam_out(1) = lam
@@ -346,7 +310,7 @@ contains
         nfail = 0
         do while (npts < max_points)
             ! tangent: J z = Q(q; dload), t = (z, 1)/|(z, 1)|, oriented along the last one
-            call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+            call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb, work)
             call fe_tip_load(mesh, q, dload, rl)   ! -dR/dlam
             rhs(:, 1) = rl
             call solve_banded(mesh%kl, mesh%ku, jb, rhs(:, 1:1), stat)
@@ -367,7 +331,7 @@ contains
             q = qn + h*tq
             lam = lamn + h*tl
             do it = 1, opts%max_iter
-                call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb)
+                call fe_residual(mesh, added(load0, scaled(dload, lam)), q, r, jb, work)
                 call fe_tip_load(mesh, q, dload, rl)
                 rhs(:, 1) = -r
                 rhs(:, 2) = rl
@@ -412,7 +376,7 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(out) :: gb(:, :)
         real(dp) :: f(4), f1(4), f2(4), ge(FE_NDOF, FE_NDOF)
-        integer :: el, g, a, b, i, j, idx(FE_NDOF)
+        integer :: el, g, a, b
         gb = 0.0_dp
         do el = 1, mesh%nel
             ge = 0.0_dp
@@ -427,16 +391,7 @@ contains
                     end do
                 end do
             end do
-            idx = mesh%el_dof(:, el)
-            do b = 1, FE_NDOF
-                j = mesh%free_of(idx(b))
-                if (j == 0) cycle
-                do a = 1, FE_NDOF
-                    i = mesh%free_of(idx(a))
-                    if (i == 0) cycle
-                    call fe_band_add(gb, mesh%kl, mesh%ku, i, j, ge(a, b))
-                end do
-            end do
+            call band_scatter(gb, mesh%kl, mesh%ku, mesh%el_free(:, el), ge)
         end do
     end subroutine fe_geometric_stiffness
 
@@ -459,13 +414,8 @@ contains
                             fmt_int(size(mode))//' entries, expected '//fmt_int(n))
             return
         end if
-        if (8.0_dp*3.0_dp*real(n, dp)**2 > MAX_BYTES) then
-            call set_status(stat, ERR_SIZE, 'fe_buckling_load', 'the dense eigenproblem of '// &
-                            fmt_int(n)//' unknowns would need about '// &
-                            fmt_bytes(8.0_dp*3.0_dp*real(n, dp)**2)//' of memory (limit '// &
-                            fmt_bytes(MAX_BYTES)//'): use fewer elements')
-            return
-        end if
+        call fe_check_dense(n, 'fe_buckling_load', stat)
+        if (stat%code /= 0) return
         allocate (kb(fe_band_rows(mesh), n), gb(fe_band_rows(mesh), n), k(n, n), g(n, n), &
                   w(n), stat=ierr)
         if (ierr /= 0) then
@@ -475,8 +425,8 @@ contains
         end if
         call fe_stiffness_linear(mesh, kb)
         call fe_geometric_stiffness(mesh, gb)
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)
-        call fe_band_to_dense(gb, mesh%kl, mesh%ku, g)
+        call band_to_dense(kb, mesh%kl, mesh%ku, k)
+        call band_to_dense(gb, mesh%kl, mesh%ku, g)
         call sym_gen_eig(k, g, w, stat)
         if (stat%code /= 0) return
         pcr = w(1)

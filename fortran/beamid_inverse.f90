@@ -147,6 +147,9 @@ contains
         self%dy_rows = pack([(i, i=1, size(row_exp))], dmap(row_exp) > 0)
         self%has_static = ns > 0
         self%has_dynamic = nd > 0
+        ! a release's predictions do not depend on the sensitivities asked,
+        ! which cost several runs: the fit judges its trial steps without them
+        self%plain_trials = nd > 0
         self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
         self%tol = tol
         call static_bounds(nbeams, self%lower, self%upper)

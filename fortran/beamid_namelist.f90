@@ -111,18 +111,14 @@ contains
         integer :: i, n, line, j
         character(len=:), allocatable :: name
         type(nml_group_t) :: g
+        logical :: skipped
         n = len(text)
         i = 1
         line = 1
         do while (i <= n)
+            call skip_blank(text, i, line, skipped)
+            if (skipped) cycle
             select case (text(i:i))
-            case (new_line('a'))
-                line = line + 1
-                i = i + 1
-            case (' ', char(9), char(13), ',')
-                i = i + 1
-            case ('!')
-                call skip_comment(text, i)
             case ('&', '$')
                 j = i + 1
                 do while (j <= n)
@@ -156,30 +152,27 @@ contains
         end do
     end subroutine scan_text
 
-    !> The items of one group, from after its name to its closing '/'.
+    !> The items of one group, from after its name to its closing '/' (or an
+    !! old-style '&end'): a name followed by '=' starts an item, the values up
+    !! to the next one are its values (quoted strings, r*value repeats).
     subroutine scan_group(text, i, line, path, g, errors)
         character(len=*), intent(in) :: text, path
         integer, intent(inout) :: i, line
         type(nml_group_t), intent(inout) :: g
         character(len=:), allocatable, intent(inout) :: errors
-        integer :: n, j, k, rep, ios, nval
+        integer :: n, j, nval
         type(nml_item_t) :: item
-        character(len=:), allocatable :: token
-        logical :: quoted, have_item, closed, orphan
+        character(len=:), allocatable :: token, at
+        logical :: have_item, closed, orphan, skipped
         n = len(text)
         have_item = .false.
         closed = .false.
         orphan = .false.
         nval = 0
         do while (i <= n)
+            call skip_blank(text, i, line, skipped)
+            if (skipped) cycle
             select case (text(i:i))
-            case (new_line('a'))
-                line = line + 1
-                i = i + 1
-            case (' ', char(9), char(13), ',')
-                i = i + 1
-            case ('!')
-                call skip_comment(text, i)
             case ('/')
                 i = i + 1
                 closed = .true.
@@ -195,87 +188,26 @@ contains
                 call read_quoted(text, i, line, token)
                 call add_value(token, .true.)
             case default
-                j = i
-                do while (j <= n)
-                    if (index(' ,/!&$'//char(9)//char(13)//new_line('a'), text(j:j)) > 0) exit
-                    if (text(j:j) == '=') exit
-                    j = j + 1
-                end do
+                j = bare_token_end(text, i)
                 token = text(i:j - 1)
+                at = path//', line '//fmt_int(line)//': &'//g%name
                 if (len(token) == 0) then
                     ! '=' right where a name should be: its values are not
                     ! reported again
-                    call add_error(errors, path//', line '//fmt_int(line)//': &'// &
-                                   g%name//": '=' without a variable name")
+                    call add_error(errors, at//": '=' without a variable name")
                     if (have_item) call push_item()
                     orphan = .true.
                     i = j + 1
-                    cycle
-                end if
-                if (next_is_equals(text, j)) then
-                    ! a new item: key or key(index)
+                else if (next_is_equals(text, j)) then
                     if (have_item) call push_item()
-                    orphan = .false.
-                    item = nml_item_t()
-                    item%line = line
-                    allocate (item%values(0), item%quoted(0))
-                    k = index(token, '(')
-                    if (k > 0) then
-                        item%key = lower(token(:k - 1))
-                        item%name = token(:k - 1)
-                        read (token(k + 1:max(k, len(token) - 1)), *, iostat=ios) item%first
-                        if (ios /= 0 .or. token(len(token):) /= ')' .or. item%first < 1) then
-                            call add_error(errors, path//', line '//fmt_int(line)//': &'// &
-                                           g%name//' '//token//': expected key(index) '// &
-                                           'with an index >= 1')
-                            item%first = 1
-                        end if
-                    else
-                        item%key = lower(token)
-                        item%name = token
-                    end if
+                    item = new_item(token, line, at, errors)
                     have_item = .true.
-                    do while (text(j:j) /= '=')
-                        j = j + 1
-                    end do
-                    i = j + 1
-                    cycle
+                    orphan = .false.
+                    i = j + index(text(j:), '=')
+                else
+                    i = j
+                    call add_values(token, j)
                 end if
-                i = j
-                if (j <= n) then
-                    if (text(j:j) == '=') then
-                        call add_error(errors, path//', line '//fmt_int(line)//': &'// &
-                                       g%name//": '=' without a variable name")
-                        i = j + 1
-                        cycle
-                    end if
-                end if
-                ! r*value repeats
-                k = index(token, '*')
-                rep = 1
-                if (k > 1) then
-                    read (token(:k - 1), *, iostat=ios) rep
-                    if (ios /= 0 .or. verify(token(:k - 1), '0123456789') /= 0 .or. rep < 1 &
-                        .or. rep > 1000000) then
-                        rep = 1
-                    else
-                        token = token(k + 1:)
-                        quoted = .false.
-                        if (len(token) > 0) then
-                            if (token(1:1) == "'" .or. token(1:1) == '"') then
-                                ! r*'text': the quoted part follows
-                                i = j - len(token)
-                                call read_quoted(text, i, line, token)
-                                quoted = .true.
-                            end if
-                        end if
-                        do k = 1, rep
-                            call add_value(token, quoted)
-                        end do
-                        cycle
-                    end if
-                end if
-                call add_value(token, .false.)
             end select
         end do
         if (have_item) call push_item()
@@ -284,6 +216,31 @@ contains
             'before the next group)')
 
     contains
+
+        !> The values of a bare token ending before text(j:j): the token
+        !! itself, or r copies of the value of an r*value token (r*'text'
+        !! reads the quoted text that starts after the '*').
+        subroutine add_values(token, j)
+            character(len=:), allocatable, intent(inout) :: token
+            integer, intent(in) :: j
+            integer :: rep, k
+            logical :: quoted
+            rep = repeat_count(token)
+            if (rep == 0) then
+                call add_value(token, .false.)
+                return
+            end if
+            token = token(index(token, '*') + 1:)
+            quoted = .false.
+            if (len(token) > 0) quoted = token(1:1) == "'" .or. token(1:1) == '"'
+            if (quoted) then
+                i = j - len(token)
+                call read_quoted(text, i, line, token)
+            end if
+            do k = 1, rep
+                call add_value(token, quoted)
+            end do
+        end subroutine add_values
 
         !> Append a value (capacity doubled when full: long lists stay O(n)).
         subroutine add_value(value, is_quoted)
@@ -318,6 +275,73 @@ contains
             nval = 0
         end subroutine push_item
     end subroutine scan_group
+
+    !> A new item from its name token, key or key(index), on line `line`;
+    !! `at` starts the message of a bad index.
+    function new_item(token, line, at, errors) result(item)
+        character(len=*), intent(in) :: token, at
+        integer, intent(in) :: line
+        character(len=:), allocatable, intent(inout) :: errors
+        type(nml_item_t) :: item
+        integer :: k, ios
+        item%line = line
+        allocate (item%values(0), item%quoted(0))
+        k = index(token, '(')
+        if (k == 0) k = len(token) + 1
+        item%key = lower(token(:k - 1))
+        item%name = token(:k - 1)
+        if (k > len(token)) return
+        read (token(k + 1:max(k, len(token) - 1)), *, iostat=ios) item%first
+        if (ios /= 0 .or. token(len(token):) /= ')' .or. item%first < 1) then
+            call add_error(errors, at//' '//token//': expected key(index) with an index >= 1')
+            item%first = 1
+        end if
+    end function new_item
+
+    !> The r of an r*value token; 0 when it is not one (no '*' after a count
+    !! of digits, or a count outside 1..1000000: the token is a plain value).
+    pure integer function repeat_count(token) result(rep)
+        character(len=*), intent(in) :: token
+        integer :: k, ios
+        rep = 0
+        k = index(token, '*')
+        if (k <= 1) return
+        if (verify(token(:k - 1), '0123456789') /= 0) return
+        read (token(:k - 1), *, iostat=ios) rep
+        if (ios /= 0 .or. rep < 1 .or. rep > 1000000) rep = 0
+    end function repeat_count
+
+    !> End (exclusive) of the bare token starting at text(i:i): the first
+    !! blank, comma, '/', '!', '&', '$', newline or '='.
+    pure integer function bare_token_end(text, i) result(j)
+        character(len=*), intent(in) :: text
+        integer, intent(in) :: i
+        j = i
+        do while (j <= len(text))
+            if (index(' ,/!&$='//char(9)//char(13)//new_line('a'), text(j:j)) > 0) exit
+            j = j + 1
+        end do
+    end function bare_token_end
+
+    !> Step over a blank, comma, newline (counted in `line`) or comment at
+    !! text(i:i); skipped is false, and nothing done, at anything else.
+    pure subroutine skip_blank(text, i, line, skipped)
+        character(len=*), intent(in) :: text
+        integer, intent(inout) :: i, line
+        logical, intent(out) :: skipped
+        skipped = .true.
+        select case (text(i:i))
+        case (new_line('a'))
+            line = line + 1
+            i = i + 1
+        case (' ', char(9), char(13), ',')
+            i = i + 1
+        case ('!')
+            call skip_comment(text, i)
+        case default
+            skipped = .false.
+        end select
+    end subroutine skip_blank
 
     !> A quoted string starting at text(i:i); doubled quotes stand for one.
     subroutine read_quoted(text, i, line, token)
@@ -606,6 +630,7 @@ contains
         integer :: k, j
         logical :: ok, bad
         real(dp) :: v
+        character(len=:), allocatable :: why
         n = 0
         k = item_index(g, key)
         if (k == 0) return
@@ -616,16 +641,11 @@ contains
                 return
             end if
             if (it%first - 1 + size(it%values) > size(x)) then
-                if (present(what)) then
-                    call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
-                                   fmt_int(it%first - 1 + size(it%values))// &
-                                   ' values, expected at most '//fmt_int(size(x))//' ('// &
-                                   what//')')
-                else
-                    call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
-                                   fmt_int(it%first - 1 + size(it%values))// &
-                                   ' values, expected at most '//fmt_int(size(x)))
-                end if
+                why = ''
+                if (present(what)) why = ' ('//what//')'
+                call add_error(errors, nml_where(file, g, it)//' = '//shown(it)//': '// &
+                               fmt_int(it%first - 1 + size(it%values))// &
+                               ' values, expected at most '//fmt_int(size(x))//why)
                 return
             end if
             bad = .false.

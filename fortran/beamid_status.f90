@@ -11,7 +11,7 @@ module beamid_status
     implicit none
     private
 
-    public :: status_t, status_out, set_status, clear_status, fmt_real, fmt_int, lower, &
+    public :: status_t, status_out, put_text, set_status, clear_status, fmt_real, fmt_int, lower, &
               exit_code, fmt_bytes, fmt_count, set_alloc_error
 
     !> Status codes. Negative: input errors. Positive: numerical failures.
@@ -39,28 +39,51 @@ module beamid_status
     !! checked against it before anything is allocated (fmt_bytes for messages).
     real(dp), parameter, public :: MAX_BYTES = 4.0_dp*1024.0_dp**3
 
-    !> Length of status messages (also the length exchanged with Python).
-    integer, parameter, public :: MSG_LEN = 256
-
+    !> Messages have no length limit. The f2py entry points hand them to
+    !! Python in a buffer of 256 characters (`character(len=256),
+    !! intent(out) :: message`: numpy's f2py needs the literal), filled by
+    !! status_out, which says so in the buffer when a message does not fit.
     type :: status_t
         integer :: code = STATUS_OK
-        character(len=MSG_LEN) :: message = ''
+        !> What went wrong, any length (unallocated: no message yet).
+        character(len=:), allocatable :: message
     contains
         procedure :: ok => status_is_ok
     end type status_t
 
 contains
 
-    !> True when the status holds no error.
-    !> The (code, message) pair of a status, as the f2py binding returns it.
+    !> The (code, message) pair of a status, as the f2py binding returns it:
+    !! the message copied into the caller's buffer by put_text.
     pure subroutine status_out(stat, code, message)
         type(status_t), intent(in) :: stat
         integer, intent(out) :: code
         character(len=*), intent(out) :: message
         code = stat%code
-        message = stat%message
+        message = ''
+        if (allocated(stat%message)) call put_text(stat%message, message)
     end subroutine status_out
 
+    !> Text into a fixed-length buffer (the f2py boundary); text that does
+    !! not fit is cut and ends with '... (truncated: N characters)', never
+    !! clipped silently.
+    pure subroutine put_text(text, buffer)
+        character(len=*), intent(in) :: text
+        character(len=*), intent(out) :: buffer
+        character(len=:), allocatable :: tail
+        if (len(text) <= len(buffer)) then
+            buffer = text
+            return
+        end if
+        tail = '... (truncated: '//fmt_int(len(text))//' characters)'
+        if (len(tail) >= len(buffer)) then
+            buffer = tail
+        else
+            buffer = text(:len(buffer) - len(tail))//tail
+        end if
+    end subroutine put_text
+
+    !> True when the status holds no error.
     pure logical function status_is_ok(self)
         class(status_t), intent(in) :: self
         status_is_ok = self%code == STATUS_OK

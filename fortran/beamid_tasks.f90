@@ -13,12 +13,13 @@
 !! and the status (ERR_OUTPUT) names the path. Library code: no printing.
 module beamid_tasks
     use, intrinsic :: iso_c_binding, only: c_int, c_double, c_char, c_null_char
-    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
+    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, &
+                                             ieee_positive_inf
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, set_status, fmt_int, &
                              set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
-    use beamid_deck, only: deck_t
+    use beamid_deck, only: deck_t, stage_t, copy_measurements
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
@@ -30,7 +31,7 @@ module beamid_tasks
     use beamid_release, only: release_spec_t, release_out_t, release_response
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
                                  prior_t, candidate_t, diagnose_options_t, diagnosis_t, &
-                                 FLAG_NAMES, CAND_NAMES
+                                 FLAG_NAMES, CAND_NAMES, prior_from_covariance
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
                               inverse_diagnose, NEXPVAL
     use beamid_static_experiments, only: static_effect_params, quantity_label
@@ -89,6 +90,8 @@ contains
             call run_fe_modes(deck, fl, stat)
         case ('fit', 'compare', 'diagnose', 'improve')
             call run_estimation(deck, fl, stat)
+        case ('identify')
+            call run_identify(deck, fl, stat)
         case ('simulate')
             call run_simulate(deck, fl, stat)
         case default
@@ -430,6 +433,104 @@ contains
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
 
+    !> Task identify: the stages in order (static -> free -> forced), each a
+    !! weighted fit of its free parameters and of every earlier stage's (both
+    !! updated, Eq. 147) from where the previous stage ended, with the
+    !! previous stage's estimates and full covariance as a priori
+    !! information (Eq. 146-148, 164-166; the first stage takes the deck's a
+    !! priori values, Eq. 142-145), as beamid.identify. Files:
+    !! <prefix>_identify.csv (stage, parameter, estimate, sigma before and
+    !! after: what each stage taught) and every stage's fit files
+    !! <prefix>_<stage>_estimates.csv, _covariance.csv and _residuals.csv.
+    subroutine run_identify(d, fl, st)
+        type(deck_t), intent(in) :: d
+        type(files_t), intent(inout) :: fl
+        type(status_t), intent(inout) :: st
+        type(fit_result_t), allocatable :: fits(:)
+        type(deck_t), allocatable :: ds(:)
+        type(prior_t) :: prior
+        real(dp), allocatable :: params(:), known(:), before(:)
+        integer, allocatable :: free(:)
+        character(len=:), allocatable :: prefix, rows
+        integer :: k, i, p, ns, unit, ios
+
+        ns = size(d%stages)
+        allocate (fits(ns), ds(ns), known(size(d%params)))
+        known = ieee_value(1.0_dp, ieee_positive_inf)
+        params = d%params
+        rows = ''
+        do k = 1, ns
+            call stage_deck(d, d%stages(k), ds(k))
+            free = d%stages(k)%free
+            if (k == 1) then
+                prior = deck_prior(ds(k))
+                do i = 1, size(prior%index)
+                    known(prior%index(i)) = prior%sigma(i)
+                end do
+            else
+                associate (prev => fits(k - 1))
+                    do i = 1, size(prev%free)
+                        if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
+                    end do
+                    call prior_from_covariance(prev%free, prev%estimates, prev%cov, prior, st)
+                end associate
+            end if
+            if (st%code == STATUS_OK) call estimation_fit(ds(k), params, free, fits(k), st, prior)
+            if (st%code /= STATUS_OK) then
+                st%message = "stage '"//d%stages(k)%name//"': "//trim(st%message)
+                return
+            end if
+            before = known(fits(k)%free)
+            do i = 1, size(fits(k)%free)
+                p = fits(k)%free(i)
+                rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
+                       fmt_e(fits(k)%params(p))//','//fmt_e(before(i))//','// &
+                       fmt_e(fits(k)%sigmas(i))//new_line('a')
+                known(p) = fits(k)%sigmas(i)
+            end do
+            params = fits(k)%params
+        end do
+
+        prefix = output_prefix(d)
+        call make_parent_folder(prefix, st)
+        if (st%code /= STATUS_OK) return
+        call open_output(fl, prefix//'_identify.csv', &
+                         'stage,parameter,estimate,sigma_before,sigma_after', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
+        call close_checked(unit, ios, prefix//'_identify.csv', st)
+        do k = 1, ns
+            if (st%code /= STATUS_OK) return
+            call write_fit_files(ds(k), fits(k), prefix//'_'//d%stages(k)%name, fl, st)
+        end do
+    end subroutine run_identify
+
+    !> The deck as its stage's fit deck: the experiments, the stage's data,
+    !! rows, free parameters, a priori values and iteration limit (what
+    !! estimation_fit and write_fit_files read; not a copy of the whole deck,
+    !! see copy_measurements).
+    subroutine stage_deck(d, stage, ds)
+        type(deck_t), intent(in) :: d
+        type(stage_t), intent(in) :: stage
+        type(deck_t), intent(out) :: ds
+        ds%path = d%path
+        ds%task = 'fit'
+        ds%output = d%output
+        ds%nbeams = d%nbeams
+        ds%params = d%params
+        ds%experiments = d%experiments
+        if (allocated(d%exp_kind)) ds%exp_kind = d%exp_kind
+        if (allocated(d%exp_values)) ds%exp_values = d%exp_values
+        call copy_measurements(stage%data, ds%data)
+        ds%row_exp = stage%row_exp
+        ds%free = stage%free
+        ds%prior_index = stage%prior_index
+        ds%prior_mean = stage%prior_mean
+        ds%prior_sigma = stage%prior_sigma
+        ds%max_iter = stage%max_iter
+        ds%data_path = stage%data_path
+    end subroutine stage_deck
+
     !> A solver message '... (experiment k)' names the experiment and the deck
     !! instead: "... (experiment 'W13' of DECK)".
     subroutine name_experiment(d, st)
@@ -542,13 +643,14 @@ contains
     end function deck_prior
 
     !> Weighted GN/LM fit of the free parameters from params0 (inverse_fit,
-    !! as beamid.fit).
-    subroutine estimation_fit(d, params0, free, fo, st)
+    !! as beamid.fit) with the deck's a priori information or `prior`.
+    subroutine estimation_fit(d, params0, free, fo, st, prior)
         type(deck_t), intent(in) :: d
         real(dp), intent(in) :: params0(:)
         integer, intent(in) :: free(:)
         type(fit_result_t), intent(out) :: fo
         type(status_t), intent(inout) :: st
+        type(prior_t), intent(in), optional :: prior
         type(inverse_problem_t) :: problem
         type(fit_options_t) :: opts
         type(status_t) :: stat
@@ -556,8 +658,13 @@ contains
         call deck_problem(d, problem, stat)
         if (stat%code == STATUS_OK) then
             opts%max_iter = d%max_iter
-            call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, deck_prior(d), &
-                             opts, fo, stat)
+            if (present(prior)) then
+                call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, prior, &
+                                 opts, fo, stat)
+            else
+                call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, &
+                                 deck_prior(d), opts, fo, stat)
+            end if
         end if
         if (stat%code /= STATUS_OK) st = stat
     end subroutine estimation_fit

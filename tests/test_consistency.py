@@ -242,3 +242,24 @@ def test_table5_ei2_errors_are_skewed_not_mis_sized(table5_fit):
     compliance = 1.0 / mc.estimates["EI2"]
     skew = lambda x: np.mean((x - x.mean()) ** 3) / x.std() ** 3   # noqa: E731
     assert skew(mc.estimates["EI2"]) > 0.25 and abs(skew(compliance)) < 0.12
+
+
+def test_cli_consistency_on_a_dynamic_deck(tmp_path, capsys):
+    """`beamid consistency DECK` on a release deck (Table 19: the friction
+    from the tip w and u after the release, with a priori information): the
+    replicates refit the dynamic fit; the a priori means are redrawn too."""
+    from beamid.cli import main
+
+    deck = ROOT / "inputs" / "seed" / "table19_fit.nml"
+    code = main(["consistency", str(deck), "--replicates", "3", "--seed", "7",
+                 "--workers", "1", "--out", str(tmp_path), "--no-plots"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "3 replicates (seed 7, serial); 3 converged" in out
+    lines = [ln for ln in (tmp_path / "table19_fit_consistency.csv").read_text().splitlines()
+             if not ln.startswith("#")]
+    assert lines[0].startswith("replicate,status,iterations,chi2,chi2_prior,dof,chi2_p,mu_elbow")
+    rows = [ln.split(",") for ln in lines[1:]]
+    assert len(rows) == 3 and all(r[1] in ("ok", "flagged") for r in rows)   # converged
+    assert all(float(r[4]) > 0.0 for r in rows)             # the a priori rows count
+    assert len({r[7] for r in rows}) == 3                   # three different estimates

@@ -234,3 +234,69 @@ def test_information_covariance_rank_deficient():
     _, sig, _, rank = dc.information_covariance(a.T @ a)
     assert rank == 2 and math.isinf(sig[0]) and math.isinf(sig[1])
     assert sig[2] == pytest.approx(1.0 / math.sqrt(9.0 + 0.0), rel=1e-12)
+
+
+# ------------------------------------------------- release candidates (issue 17)
+
+def test_release_times_ranked_and_checked_by_refits():
+    """Which measurement times determine the densities after Table 15's
+    design (w, u at nine times over 1/4 cycle)? The advisor ranks single
+    rows of the same release at later times by the predicted sigma of rho1;
+    refits on the merged data (data.merge(simulated rows)) confirm the
+    predicted sigmas of the four best and the four worst rows and their
+    order. Data from the tighter integrator (rtol 1e-11) than the fits use,
+    without noise, so the refits sit where the prediction was linearized and
+    the check is of the first-order algebra and the release sensitivities."""
+    from beamid.design import predicted_covariance, time_label
+
+    truth = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
+    rel = beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4)
+    fine = {"free": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, rtol=1e-11)}
+    sig = {"w_tip": 0.0015, "u_tip": 0.0006}
+    t15 = [0.65 * k / 9 for k in range(1, 10)]
+    free = ("mu_elbow", "mu_tip", "rho1", "rho2")
+    data = beamid.simulate_measurements(truth, fine, ["w_tip", "u_tip"], sigma=sig, t=t15)
+    base = beamid.fit(truth, {"free": rel}, data, free=free)
+    times = [0.8, 1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.2, 2.4]
+    adv = beamid.design(base, {"free": rel}, ["w_tip", "u_tip"], sigma=sig, target="rho1",
+                        times=times)
+    assert len(adv.ranking) == 18 and adv.ranking[0].key[1] == time_label(
+        adv.ranking[0].key[1].split("@")[0], float(adv.ranking[0].key[1].split("@")[1]))
+    assert adv.current == pytest.approx(base.sigmas["rho1"], rel=1e-6)
+    refit = {}
+    for name, keys in (("best", adv.ranking.keys()[:4]), ("worst", adv.ranking.keys()[-4:])):
+        _, predicted = predicted_covariance(base, [(adv.sensitivity[k], adv.sigma[k])
+                                                   for k in keys])
+        rows = [("free", float(lab.split("@")[1]), lab.split("@")[0], 0.0, adv.sigma[(e, lab)])
+                for e, lab in keys]
+        new = beamid.Measurements.from_rows(rows, source="<candidates>")
+        new = new.with_values(beamid.estimation.predict(truth, fine, new)[0])
+        fit = beamid.fit(truth, {"free": rel}, data.merge(new), free=free)
+        refit[name] = fit.sigmas["rho1"]
+        for j, p in enumerate(free):
+            assert fit.sigmas[p] == pytest.approx(predicted[j], rel=0.02), (name, p)
+    assert refit["best"] < 0.8 * refit["worst"] < 0.8 * base.sigmas["rho1"]
+    with pytest.raises(InputError, match="give its measurement times"):
+        beamid.design(base, {"free": rel}, ["w_tip"], sigma=sig, target="rho1")
+    with pytest.raises(InputError, match="expected finite times > 0"):
+        beamid.design(base, {"free": (rel, [0.0, 1.0])}, ["w_tip"], sigma=sig, target="rho1")
+
+
+def test_cli_design_on_a_release_deck(tmp_path, capsys):
+    """`beamid design DECK --times ...` on a release deck (Table 19): the
+    deck's release at the given times, measuring the deck's own quantities
+    (w and u) with their sigmas; without --times it says what to give."""
+    from beamid.cli import main
+
+    deck = str(ROOT / "inputs" / "seed" / "table19_fit.nml")
+    code = main(["design", deck, "--times", "0.8", "1.6", "2.4", "--target", "mu_elbow",
+                 "--out", str(tmp_path), "--no-plots"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    rows = (tmp_path / "table19_fit_design.csv").read_text().splitlines()
+    assert rows[1] == "rank,experiment,quantity,sigma,predicted" and len(rows) == 2 + 6
+    labels = {r.split(",")[2] for r in rows[2:]}
+    assert labels == {f"{q}@{t}" for q in ("w_tip", "u_tip") for t in ("0.8", "1.6", "2.4")}
+    assert "predicted sigma of mu_elbow" in out
+    assert main(["design", deck, "--out", str(tmp_path / "x"), "--no-plots"]) == 2
+    assert "give --times" in capsys.readouterr().err

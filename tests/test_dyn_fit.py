@@ -135,3 +135,29 @@ def test_release_arguments():
         beamid.Release(beamid.TipForce(fy=8.0), integrator="euler")
     with pytest.raises(beamid.InputError, match="load"):
         beamid.Release(beamid.RadialWire(1.3))
+
+
+def test_beam_lengths_static_rows_only():
+    """Beam lengths: a static row's x_tip = L1 + L2 + u and x_elbow = L1 + u1
+    carry the +1 of the length itself (checked against central differences);
+    a release does not offer them (the finite element mesh is built on the
+    lengths and its derivative is not coded), and says so instead of
+    returning d u / d L for d x / d L (docs/workflow.md, "Beam lengths")."""
+    exps = {"F3": beamid.TipForce(fy=3.0)}
+    data = beamid.Measurements.from_rows(
+        [("F3", 0.0, q, 0.0, 1e-3) for q in ("x_tip", "y_tip", "x_elbow", "y_elbow")],
+        source="<test>")
+    model = beamid.pace()
+    _, jac = beamid.estimation.predict(model, exps, data, ("L1", "L2"))
+    for j, name in enumerate(("L1", "L2")):
+        h = 1e-6
+        yp, _ = beamid.estimation.predict(model.replace(**{name: model[name] + h}), exps, data)
+        ym, _ = beamid.estimation.predict(model.replace(**{name: model[name] - h}), exps, data)
+        np.testing.assert_allclose(jac[:, j], (yp - ym) / (2 * h), rtol=1e-6, atol=1e-8)
+    assert jac[0, 0] > 0.85 and jac[2, 0] > 0.95     # mostly the +1: x_tip, x_elbow
+    with pytest.raises(beamid.InputError, match="L1 .the mesh depends on it. is not available"):
+        beamid.simulate(TRUTH, release=beamid.TipForce(fy=8.0), t_out=[0.1], wrt=("L1",))
+    rel = {"free": FREE}
+    rows = _data(rel, [0.1, 0.2], quantities=("x_tip",))
+    with pytest.raises(beamid.InputError, match="L1 .the mesh depends on it. is not available"):
+        beamid.fit(TRUTH.replace(L1=0.78), rel, rows, free=("L1",))

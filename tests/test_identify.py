@@ -95,3 +95,78 @@ def test_identify_command_runs_decks_as_stages(tmp_path, capsys):
     assert float(table[("table22_fit", "r_motor")][2]) == pytest.approx(1.0, abs=1e-3)
     assert table[("table22_fit", "EI1")][3] == table[("table04_fit", "EI1")][4]
     assert "sigma before" in capsys.readouterr().out
+
+
+# ------------------------------------------------ multi-stage decks (task identify)
+
+STAGE_FILES = ("identify_three_stages.nml", "table05_data.csv", "table16_data.csv",
+               "table23_data.csv")
+
+
+def _stage_copy(folder):
+    import shutil
+
+    from beamid.tables import inputs_dir
+
+    folder.mkdir()
+    for name in STAGE_FILES:
+        shutil.copy(inputs_dir("seed") / name, folder / name)
+    return folder / STAGE_FILES[0]
+
+
+def test_three_stage_deck_same_numbers_from_both_fronts(tmp_path, batch_exe):
+    """The bundled three-stage deck (static -> free -> forced, Eq. 146-148,
+    164-166) through beamid-batch and through `beamid identify DECK` (the
+    same Fortran runner) writes the same bytes, and beamid.identify on the
+    deck's stages gives the same numbers."""
+    import subprocess
+
+    from beamid.fit_decks import run_identify
+
+    batch_deck = _stage_copy(tmp_path / "batch")
+    run = subprocess.run([str(batch_exe), str(batch_deck)], capture_output=True, text=True,
+                         check=False)
+    assert run.returncode == 0, run.stderr
+    text, files, result = run_identify([_stage_copy(tmp_path / "py")], plots=False)
+    names = sorted(p.name for p in files)
+    assert len(names) == 10 and "identify_three_stages_identify.csv" in names
+    for name in names:     # every stage's estimates, covariance and residuals too
+        assert (tmp_path / "batch" / "out" / name).read_bytes() == \
+            (tmp_path / "py" / "out" / name).read_bytes(), name
+    lines = (tmp_path / "batch" / "out" / "identify_three_stages_identify.csv"
+             ).read_text().splitlines()
+    assert lines[0] == "stage,parameter,estimate,sigma_before,sigma_after"
+    table = {(r.stage, r.parameter): r for r in result.table}
+    for line in lines[1:]:
+        stage, name, est, before, after = line.split(",")
+        row = table[(stage, name)]
+        assert (float(est), float(before), float(after)) == (
+            row.estimate, row.sigma_before, row.sigma_after)
+    assert [s for s in result.stages] == ["static", "free", "forced"]
+    # what each stage taught: Table 5 leaves EI2 poorly determined, the free
+    # response (carrying the static covariance) fixes it three times better
+    assert table[("static", "EI2")].sigma_after > 0.5
+    assert table[("free", "EI2")].sigma_before == table[("static", "EI2")].sigma_after
+    assert table[("free", "EI2")].sigma_after < table[("static", "EI2")].sigma_after / 3
+    final = result.final
+    assert final.free == ("r_motor", "mu_elbow", "mu_tip", "rho1", "rho2", "EI1", "EI2")
+    for name, true in (("r_motor", 1.0), ("mu_elbow", 0.01), ("mu_tip", 0.02),
+                       ("rho1", 0.532), ("rho2", 0.530), ("EI1", 11.413), ("EI2", 11.275)):
+        assert abs(final.estimates[name] - true) < 3 * final.sigmas[name], name
+    assert "sigma before" in text
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace("  free = 'r_motor'\n", "  free = 'r_motor'\n  prior_names = 'r_motor'"
+                         "\n  prior_means = 1.0\n  prior_sigmas = 0.1\n"),
+     "stage 'forced'.*a later stage's a priori information|a priori information of a later"),
+    (lambda t: t.replace("stage = 'forced'", "stage = 'free'"), "names two stages"),
+    (lambda t: t.replace("task = 'identify'", "task = 'fit'"), "&fit appears 3 times"),
+])
+def test_three_stage_deck_bad_input(tmp_path, edit, message):
+    from beamid.errors import InputError
+
+    deck = _stage_copy(tmp_path / "d")
+    deck.write_text(edit(deck.read_text()))
+    with pytest.raises(InputError, match=message):
+        beamid.read_deck(deck)

@@ -8,7 +8,8 @@
 module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, exit_code
+    use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
+                             exit_code
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task
     use beamid_measurements, only: measurements_t, read_measurements
@@ -37,10 +38,9 @@ contains
         type(status_t), intent(in) :: stat
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (allocated(deck%errors)) then
-            if (len(deck%errors) > 0) message = deck%errors
+            if (len(deck%errors) > 0) call put_text(deck%errors, message)
         end if
     end subroutine put_errors
 
@@ -52,7 +52,8 @@ contains
     !! wire_length, tol, fe_tol, sim_dt, sim_rtol, sim_atol, sim_motor_gain,
     !! sim_friction_velocity, alpha. text: task, output, data path, then the
     !! experiment names and the candidates, one per line, then the &published
-    !! lines (deck_t%published).
+    !! lines (deck_t%published), then for task identify one line per stage
+    !! (deck_t%stage_text).
     subroutine api_deck_sizes(path, sizes, reals, text, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(out) :: sizes(21)
@@ -89,10 +90,11 @@ contains
             t = t//trim(d%candidates(i))//new_line('a')
         end do
         t = t//d%published
+        if (allocated(d%stage_text)) t = t//d%stage_text   ! task identify: 'S' lines
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
             message = trim(path)//': the names of the deck are too long (over '// &
-                      'TEXT_LEN characters)'
+                      fmt_int(TEXT_LEN)//' characters)'
             return
         end if
         text = t
@@ -194,7 +196,7 @@ contains
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         if (stat%code == STATUS_OK) then
             call run_task(d, files, stat)
-            if (stat%code == STATUS_OK) written = files
+            if (stat%code == STATUS_OK) call put_text(files, written)
         end if
         call put_errors(d, stat, code, message)
     end subroutine api_run_deck
@@ -208,8 +210,7 @@ contains
         type(status_t) :: stat
         nrow = 0
         call read_measurements(trim(path), data, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code == STATUS_OK) nrow = int(size(data%value), c_int)
     end subroutine api_measurements_size
 
@@ -238,8 +239,7 @@ contains
         exp_index = 0
         names = ''
         call read_measurements(trim(path), data, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         if (size(data%value) /= nrow) then
             code = int(ERR_INPUT, c_int)
@@ -272,7 +272,8 @@ contains
         end do
         if (len(joined) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the experiment names take over 65536 characters'
+            message = trim(path)//': the experiment names take over '//fmt_int(TEXT_LEN)// &
+                      ' characters'
             return
         end if
         names = joined

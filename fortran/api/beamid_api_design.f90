@@ -3,7 +3,7 @@
 module beamid_api_design
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t
+    use beamid_status, only: status_t, status_out
     use beamid_estimation, only: chi2_sf
     use beamid_design, only: information_covariance, rank_candidates, mc_summary, &
                              information_add_row
@@ -31,8 +31,7 @@ contains
         sig = s
         d_crit = dc
         rank = int(r, c_int)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_information_covariance
 
     !> Predicted sigma of free parameter `target` (0: D-criterion) after each
@@ -52,8 +51,7 @@ contains
         base = b
         crit = cr
         order = int(o, c_int)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_rank_candidates
 
     !> Information after measurement rows: info + sum_c rows(:, c) rows(:, c)^T

@@ -11,7 +11,7 @@
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
     use beamid_fe_assembly, only: fe_band_rows, fe_band_to_dense, fe_node_value, &
@@ -59,8 +59,7 @@ contains
             nstate = int(sys%nstate, c_int)
             nwork = int(sys%nwork, c_int)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_sizes
 
     !> A release: the static shape under loads (fx, fy, moment, moment form)
@@ -118,8 +117,7 @@ contains
         end if
         call copy_history(out, 'api_dyn_simulate_modal', nstate, nwork, states, tip, torque, &
                           ledger, work, info, events, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_simulate_modal
 
     !> The outputs both release entries share, after checking the caller's
@@ -246,8 +244,7 @@ contains
             d = dd
             e = ee
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_system
 
     !> api_dyn_system in the coordinates of a truncated modal model (Eq. 127):
@@ -312,8 +309,7 @@ contains
             d = dd
             e = ee
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_system_modal
 
     !> Deformed shape x = s + u(s), y = w(s) at nsub points per element
@@ -372,8 +368,7 @@ contains
                 end do
             end do
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_profile
 
     !> The quantity table of a release (beamid_release QTY_*): the name of
@@ -448,8 +443,7 @@ contains
             dy = out%dy
             ds = out%dstates
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
     end subroutine api_dyn_release
 
 end module beamid_api_dynamics

@@ -6,7 +6,7 @@
 module beamid_api_dyndiag
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, fit_at, score_test, &
                                  score_result_t, refit_effect, refit_info_t
@@ -120,8 +120,7 @@ contains
                           real(row_sigma, dp), real(params0, dp), real(nominal, dp), &
                           int(free_idx), prior, cands, opts, dopts, with_mesh /= 0, base, diag, &
                           mesh, pexp, pt, pq, used, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         nf = size(base%free)
         text = ''
@@ -262,8 +261,7 @@ contains
             info(2) = int(rinfo%start, c_int)
             if (allocated(rinfo%note)) note = rinfo%note
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (.not. allocated(res%params)) return
         if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
         info(1) = int(res%stop, c_int)

@@ -9,7 +9,7 @@
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
     use beamid_arclength, only: static_load_t
     use beamid_estimation, only: residual_structure
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
@@ -190,8 +190,7 @@ contains
         call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
                               model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         pred = p
         jac = j
@@ -253,8 +252,7 @@ contains
                                    real(params0, dp), int(free_idx), lower, upper, prior, opts, &
                                    res, stat)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
         if (.not. allocated(res%params)) return
         if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
@@ -397,8 +395,7 @@ contains
                 end if
             end if
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (.not. allocated(res%params)) return
         info(1) = int(res%stop, c_int)
         if (nblock == 0 .and. allocated(res%note)) note = res%note
@@ -602,8 +599,7 @@ contains
                                   real(params0, dp), real(nominal, dp), int(free_idx), prior, &
                                   cands, opts, dopts, base, diag, pexp, pq, stat)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         nf = size(base%free)
         text = ''
@@ -666,8 +662,7 @@ contains
         exp_values = 0.0_c_double
         count = 0
         call read_deck(path, d, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
         count = int(size(d%experiments), c_int)
         do e = 1, min(int(nexp), size(d%experiments))
@@ -706,8 +701,7 @@ contains
                                   model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt(1:nwrt)), p, &
                                                         j, stat)
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         pred = p
         jac(:, 1:nwrt) = j
@@ -784,8 +778,7 @@ contains
                                    real(params0, dp), int(free_idx), lower, upper, prior, opts, &
                                    res, stat)
         end if
-        code = int(stat%code, c_int)
-        message = stat%message
+        call status_out(stat, code, message)
         if (.not. allocated(res%params)) return
         info(1) = int(res%stop, c_int)
         if (allocated(res%note)) note = res%note

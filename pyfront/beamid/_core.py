@@ -182,6 +182,12 @@ def read_deck(path: str) -> dict:
         "candidates": lines[3 + nexp:3 + nexp + ncand], "alpha": float(reals[11]),
         "max_iter": max_iter, "ndata": ndata,
         "published": _published_groups(lines[3 + nexp + ncand:]),
+        # task identify: one 'S name data free max_iter' line per stage
+        "stages": [{"name": f[1], "data_path": f[2],
+                    "free": [int(i) - 1 for i in f[3].split(",") if i],
+                    "max_iter": int(f[4])}
+                   for f in (ln.split("\t") for ln in lines[3 + nexp + ncand:])
+                   if f[0] == "S" and len(f) == 5],
     }
 
 

@@ -1,12 +1,15 @@
 """The only module that calls the dynamics part of the extension
-(``beamid._ext.beamid_api_dynamics``); status codes become
-:class:`beamid.InputError` / :class:`beamid.ConvergenceError`."""
+(``beamid._ext.beamid_api_dynamics``), through :func:`beamid._core._call`:
+status codes become :class:`beamid.InputError` /
+:class:`beamid.ConvergenceError`."""
 from __future__ import annotations
+
+from typing import Any, Callable
 
 import numpy as np
 
 from . import _ext
-from .errors import raise_for_status
+from ._core import _call, _floats, _text
 from .progress import watch
 
 _api = _ext.beamid_api_dynamics
@@ -14,10 +17,25 @@ _api = _ext.beamid_api_dynamics
 
 def sizes(nbeams: int, params: np.ndarray, nepb: int, gain: float) -> tuple[int, int, int]:
     """(nfree, nstate, nwork) of the dynamic system."""
-    nfree, nstate, nwork, code, message = _api.api_dyn_sizes(
-        nbeams, np.asarray(params, dtype=float), nepb, float(gain))
-    raise_for_status(int(code), message)
+    nfree, nstate, nwork = _call(_api.api_dyn_sizes, nbeams, _floats(params), nepb, float(gain))
     return int(nfree), int(nstate), int(nwork)
+
+
+def _with_room_for_events(run: Callable[[int, Any], tuple], t_end: float, maxev: int):
+    """Call ``run(maxev, slot)`` under a progress watch until the events fit:
+    a run whose info[5] (the number of friction switches) exceeds ``maxev``
+    is repeated with room for all of them. Returns its results with info as
+    ints and the events cut to their number."""
+    while True:
+        with watch(t_end, desc="simulate") as slot:
+            states, tip, torque, ledger, work, info, events, *rest = run(maxev, slot)
+        if int(info[5]) <= maxev:
+            break
+        maxev = int(info[5])
+    nev = int(info[5])
+    return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
+            np.array(work), tuple(int(v) for v in info), np.array(events[:, :nev]),
+            *(np.array(r) for r in rest))
 
 
 def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,
@@ -31,34 +49,23 @@ def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain
     force before, after); run again with room for all of them when there were
     more than ``maxev``."""
     use_init = 0 if y_init is None else 1
-    y = np.zeros(nstate) if y_init is None else np.asarray(y_init, dtype=float)
+    y = np.zeros(nstate) if y_init is None else _floats(y_init)
     mode_arr = np.zeros(0, dtype=np.int32) if modes is None else np.asarray(modes, np.int32)
     t_out = np.ascontiguousarray(t_out, dtype=float)
-    while True:
-        with watch(t_out[-1] if t_out.size else 0.0, desc="simulate") as slot:
-            (states, tip, torque, ledger, work, info, events, code,
-             message) = _api.api_dyn_simulate_modal(
-                nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
-                float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
-                float(atol), float(h0), use_init, y, t_out, nwork, mode_arr, int(maxev), slot)
-        raise_for_status(int(code), message)
-        if int(info[5]) <= maxev:
-            break
-        maxev = int(info[5])
-    nev = int(info[5])
-    return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
-            np.array(work), tuple(int(v) for v in info), np.array(events[:, :nev]))
+    return _with_room_for_events(
+        lambda room, slot: _call(
+            _api.api_dyn_simulate_modal, nbeams, _floats(params), nepb, _floats(loads),
+            float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
+            float(atol), float(h0), use_init, y, t_out, nwork, mode_arr, int(room), slot),
+        t_out[-1] if t_out.size else 0.0, maxev)
 
 
 def system(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int, vslip: float,
            q: np.ndarray, v: np.ndarray, x: float, nx: int, nwork: int) -> dict:
     """Generalized force, work rates, Jacobians K = -dF/dq, C = -dF/dv, M(q)."""
-    (force, power, torque, kmat, cmat, mass, b, p, d, e, code,
-     message) = _api.api_dyn_system(
-        nbeams, np.asarray(params, dtype=float), nepb, float(gain), int(law), float(vslip),
-        nx, np.asarray(q, dtype=float), np.asarray(v, dtype=float),
-        np.array([x], dtype=float), nwork)
-    raise_for_status(int(code), message)
+    force, power, torque, kmat, cmat, mass, b, p, d, e = _call(
+        _api.api_dyn_system, nbeams, _floats(params), nepb, float(gain), int(law),
+        float(vslip), nx, _floats(q), _floats(v), np.array([x], dtype=float), nwork)
     return {"force": np.array(force), "power": np.array(power), "torque": float(torque),
             "K": np.array(kmat), "C": np.array(cmat), "M": np.array(mass),
             "b": np.array(b), "p": np.array(p), "d": np.array(d), "e": float(e)}
@@ -66,9 +73,7 @@ def system(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int, vs
 
 def profile(nbeams: int, params: np.ndarray, nepb: int, q: np.ndarray, npts: int):
     """(s, x, y) of the deformed chain at npts points (npts = nel*nsub + 1)."""
-    s, x, y, code, message = _api.api_dyn_profile(
-        nbeams, np.asarray(params, dtype=float), nepb, np.asarray(q, dtype=float), npts)
-    raise_for_status(int(code), message)
+    s, x, y = _call(_api.api_dyn_profile, nbeams, _floats(params), nepb, _floats(q), npts)
     return np.array(s), np.array(x), np.array(y)
 
 
@@ -76,12 +81,10 @@ def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: i
                  vslip: float, modes: np.ndarray, eta: np.ndarray, etad: np.ndarray,
                  x: float, nx: int, nwork: int) -> dict:
     """Projected force, Jacobians and mass of a truncated modal model (Eq. 127)."""
-    (force, power, kmat, cmat, mass, b, p, d, e, code,
-     message) = _api.api_dyn_system_modal(
-        nbeams, np.asarray(params, dtype=float), nepb, float(gain), int(law), float(vslip),
-        np.asarray(modes, dtype=np.int32), nx, np.asarray(eta, dtype=float),
-        np.asarray(etad, dtype=float), np.array([x], dtype=float), nwork)
-    raise_for_status(int(code), message)
+    force, power, kmat, cmat, mass, b, p, d, e = _call(
+        _api.api_dyn_system_modal, nbeams, _floats(params), nepb, float(gain), int(law),
+        float(vslip), np.asarray(modes, dtype=np.int32), nx, _floats(eta), _floats(etad),
+        np.array([x], dtype=float), nwork)
     return {"force": np.array(force), "power": np.array(power), "K": np.array(kmat),
             "C": np.array(cmat), "M": np.array(mass), "b": np.array(b), "p": np.array(p),
             "d": np.array(d), "e": float(e)}
@@ -90,14 +93,14 @@ def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: i
 def quantity_names() -> tuple[str, ...]:
     """Names of the exported quantities of a release (Fortran beamid_release QTY_*)."""
     _, nq = _api.api_dyn_quantity_name(1)
-    return tuple(_api.api_dyn_quantity_name(k)[0].decode().strip() for k in range(1, nq + 1))
+    return tuple(_text(_api.api_dyn_quantity_name(k)[0]) for k in range(1, nq + 1))
 
 
 def wrt_names(nbeams: int, nparams: int) -> tuple[str, ...]:
     """Names of the sensitivity indices 1..nparams + nload: the parameters,
     then load_fx, load_fy, load_moment (Fortran release_wrt_name)."""
     _, nload = _api.api_dyn_wrt_name(nbeams, 1)
-    return tuple(_api.api_dyn_wrt_name(nbeams, k)[0].decode().strip()
+    return tuple(_text(_api.api_dyn_wrt_name(nbeams, k)[0])
                  for k in range(1, nparams + nload + 1))
 
 
@@ -111,18 +114,9 @@ def release(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain:
     nq = len(quantity_names())
     w = np.ascontiguousarray(wrt, dtype=np.int32)
     t_out = np.ascontiguousarray(t_out, dtype=float)
-    while True:
-        with watch(t_out[-1] if t_out.size else 0.0, desc="simulate") as slot:
-            (states, tip, torque, ledger, work, info, events, y, dy, ds, code,
-             message) = _api.api_dyn_release(
-                nbeams, np.asarray(params, dtype=float), nepb, np.asarray(loads, dtype=float),
-                float(gain), int(method), int(law), float(vslip), float(dt), float(rtol),
-                float(atol), float(h0), nstate, t_out, nwork, w, nq, int(maxev), slot)
-        raise_for_status(int(code), message)
-        if int(info[5]) <= maxev:
-            break
-        maxev = int(info[5])
-    nev = int(info[5])
-    return (np.array(states), np.array(tip), np.array(torque), np.array(ledger),
-            np.array(work), tuple(int(v) for v in info), np.array(events[:, :nev]),
-            np.array(y), np.array(dy), np.array(ds))
+    return _with_room_for_events(
+        lambda room, slot: _call(
+            _api.api_dyn_release, nbeams, _floats(params), nepb, _floats(loads), float(gain),
+            int(method), int(law), float(vslip), float(dt), float(rtol), float(atol),
+            float(h0), nstate, t_out, nwork, w, nq, int(room), slot),
+        t_out[-1] if t_out.size else 0.0, maxev)

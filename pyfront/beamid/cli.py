@@ -317,7 +317,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     text, files, _ = run_design_deck(args.deck, forces=args.force, moments=args.moment,
                                      wires=args.wire, quantities=args.quantities,
                                      sigma=args.sigma, target=args.target, out=args.out,
-                                     top=args.top, plots=not args.no_plots)
+                                     top=args.top, plots=not args.no_plots,
+                                     times=args.times)
     print(text)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
@@ -353,6 +354,8 @@ def _add_mc_parsers(sub) -> None:
     p.add_argument("--top", type=int, default=20, help="rows to print (default 20)")
     p.add_argument("--out", default=None, help="folder for the CSV and PNG (default: the deck's output)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV only")
+    p.add_argument("--times", type=float, nargs="*", default=[], metavar="T",
+                   help="measurement times (s) of the deck's release experiments as candidates")
     p.set_defaults(func=_cmd_design)
 
 
@@ -448,7 +451,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=_cmd_estimate)
     p = sub.add_parser("identify", help="run estimation decks as stages (static, free, "
                        "forced), carrying estimates and covariance (docs/workflow.md)")
-    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order")
+    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order, or one "
+                   "deck of task 'identify' holding its stages (docs/decks.md)")
     p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
     p.set_defaults(func=_cmd_identify)
     _add_mc_parsers(sub)

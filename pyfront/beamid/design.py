@@ -38,6 +38,7 @@ import numpy as np
 from . import _design_core as _dc
 from .errors import InputError
 from .estimation import FitResult, predict
+from .loads import Release
 from .measurements import QUANTITIES, Measurements
 
 
@@ -186,7 +187,38 @@ def _sigma_of(sigma: float | Mapping[str, float], q: str) -> float:
     return s
 
 
-def _rows(experiments: dict, quantities, sigma):
+def time_label(quantity: str, t: float) -> str:
+    """The quantity label of a release's candidate row at time t: 'w_tip@0.65'."""
+    return f"{quantity}@{t:g}"
+
+
+def _release_times(candidates: Mapping[str, Any], times) -> tuple[dict, dict]:
+    """Split candidates into experiments and, for releases, their
+    measurement times: ``(Release, times)`` or ``times=`` (one sequence for
+    every release or ``{name: times}``)."""
+    loads, rtimes = {}, {}
+    for name, value in candidates.items():
+        name = str(name)
+        if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], Release):
+            value, ts = value
+        elif isinstance(value, Release):
+            ts = times.get(name) if isinstance(times, Mapping) else times
+            if ts is None:
+                raise InputError(f"candidate {name!r} is a release: give its measurement times "
+                                 f"({name!r}: (release, times)) or times=")
+        else:
+            loads[name] = value
+            continue
+        ts = np.atleast_1d(np.asarray(ts, float))
+        if ts.size == 0 or not np.all(np.isfinite(ts) & (ts > 0.0)):
+            raise InputError(f"candidate {name!r}: measurement times {ts.tolist()}, expected "
+                             "finite times > 0 s (after the release)")
+        loads[name], rtimes[name] = value, [float(t) for t in ts]
+    return loads, rtimes
+
+
+def _rows(experiments: dict, quantities, sigma, rtimes: Mapping[str, list] | None = None):
+    """Candidate rows (experiment, quantity, sigma, t): one per release time."""
     rows = []
     for name in experiments:
         qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
@@ -195,7 +227,8 @@ def _rows(experiments: dict, quantities, sigma):
         for q in qs:
             if q not in QUANTITIES:
                 raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
-            rows.append((name, q, _sigma_of(sigma, q)))
+            for t in (rtimes or {}).get(name, [0.0]):
+                rows.append((name, q, _sigma_of(sigma, q), t))
     if not rows:
         raise InputError("no candidate measurements: give candidates and quantities")
     return rows
@@ -203,34 +236,40 @@ def _rows(experiments: dict, quantities, sigma):
 
 def _sensitivities(fit: FitResult, exps: dict, rows):
     """Sensitivity of every candidate row (rows a load cannot produce, e.g. a
-    wire force without a wire, are skipped with the reason)."""
+    wire force without a wire, are skipped with the reason). A release's row
+    is labelled by its time (time_label)."""
     out, skipped = [], []
     by_exp: dict[str, list] = {}
-    for e, q, s in rows:
-        by_exp.setdefault(e, []).append((q, s))
+    for e, q, s, t in rows:
+        by_exp.setdefault(e, []).append((q, s, t))
+
+    def label(e, q, t):
+        return time_label(q, t) if isinstance(exps[e], Release) else q
+
     for e, items in by_exp.items():
-        table = Measurements.from_rows([(e, 0.0, q, 0.0, s) for q, s in items],
+        table = Measurements.from_rows([(e, t, q, 0.0, s) for q, s, t in items],
                                        source="<candidates>")
         try:
             _, jac = predict(fit.model, {e: exps[e]}, table, fit.free)
-            out += [(e, q, s, jac[i]) for i, (q, s) in enumerate(items)]
+            out += [(e, label(e, q, t), s, jac[i]) for i, (q, s, t) in enumerate(items)]
             continue
         except InputError:
             pass
-        for q, s in items:  # find the rows that cannot be predicted
-            one = Measurements.from_rows([(e, 0.0, q, 0.0, s)], source="<candidates>")
+        for q, s, t in items:  # find the rows that cannot be predicted
+            one = Measurements.from_rows([(e, t, q, 0.0, s)], source="<candidates>")
             try:
                 _, jac = predict(fit.model, {e: exps[e]}, one, fit.free)
             except InputError as exc:
-                skipped.append((e, q, str(exc).splitlines()[0]))
+                skipped.append((e, label(e, q, t), str(exc).splitlines()[0]))
                 continue
-            out.append((e, q, s, jac[0]))
+            out.append((e, label(e, q, t), s, jac[0]))
     return out, skipped
 
 
 def design(fit: FitResult, candidates: Mapping[str, Any],
            quantities: Sequence[str] | Mapping[str, Sequence[str]] = ("y_tip",),
-           sigma: float | Mapping[str, float] = 1e-3, target: str | None = "EI2") -> Advice:
+           sigma: float | Mapping[str, float] = 1e-3, target: str | None = "EI2", *,
+           times: Sequence[float] | Mapping[str, Sequence[float]] | None = None) -> Advice:
     """Rank candidate measurements by the sigma of ``target`` they would leave.
 
     Parameters
@@ -240,8 +279,11 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
         sensitivities are taken, its data and prior give the information now.
     candidates:
         ``{name: experiment}`` (static loads: ``TipForce``, ``TipMoment``,
-        ``RadialWire``). A name of one of the fit's own experiments adds
-        quantities to that experiment (the load must be the same).
+        ``RadialWire``; releases ``beamid.Release`` with their measurement
+        times, ``{name: (release, times)}`` or ``times=``). A name of one of
+        the fit's own experiments adds quantities (or times) to that
+        experiment (the load must be the same). A release's candidate rows
+        are one per time, labelled ``"w_tip@0.65"`` (quantity at t = 0.65 s).
     quantities:
         Quantities measured in every candidate, or ``{name: [quantities]}``.
     sigma:
@@ -249,6 +291,9 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
     target:
         A free parameter, or ``None`` for the D-criterion over all free
         parameters.
+    times:
+        Measurement times (s) of the release candidates given without them:
+        one sequence for all or ``{name: times}``.
 
     Returns an :class:`Advice`; ``advice.ranking`` lists
     ``((experiment, quantity), predicted)`` best first and is indexable by
@@ -261,8 +306,8 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
         raise InputError("candidates must be a non-empty dict {name: experiment}, e.g. "
                          "{'M2': beamid.TipMoment(2.0)}")
     exps = dict(fit.experiments)
-    for name, load in candidates.items():
-        name = str(name)
+    loads, rtimes = _release_times(candidates, times)
+    for name, load in loads.items():
         if name in exps and exps[name] != load:
             raise InputError(f"candidate {name!r} = {load!r} differs from the fit's "
                              f"experiment of that name ({exps[name]!r}); rename it")
@@ -274,7 +319,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
             raise InputError(f"target = {target!r} is not a free parameter of the fit "
                              f"(free: {', '.join(fit.free)}); None ranks by the D-criterion")
         tindex = fit.free.index(target) + 1
-    rows = _rows({str(k): v for k, v in candidates.items()}, quantities, sigma)
+    rows = _rows(loads, quantities, sigma, rtimes)
     evaluated, skipped = _sensitivities(fit, exps, rows)
     if not evaluated:
         raise InputError("no candidate measurement can be predicted: "
@@ -287,7 +332,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
     return Advice(target=target, free=tuple(fit.free), current=base, ranking=ranking,
                   sigma={(e, q): s for e, q, s, _ in evaluated},
                   sensitivity={(e, q): np.array(j) for e, q, _, j in evaluated},
-                  loads={str(k): v for k, v in candidates.items()}, skipped=tuple(skipped))
+                  loads=loads, skipped=tuple(skipped))
 
 
 def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], float]] = ()
@@ -341,14 +386,17 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
                     moments: Sequence[float] = (), wires: Sequence[float] = (),
                     quantities: Sequence[str] | None = None,
                     sigma: Sequence[str] | None = None, target: str | None = None,
-                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True
-                    ) -> tuple[str, list[Path], Advice]:
+                    out: str | os.PathLike | None = None, top: int = 20, plots: bool = True,
+                    times: Sequence[float] = ()) -> tuple[str, list[Path], Advice]:
     """``beamid design DECK``: fit an estimation deck and rank candidate
     measurements: transverse tip forces ``F<f>`` (fy = f), tip moments
     ``M<m>`` and radial wires ``Lw<length>`` (the deck's own experiments when
     none is given), each measuring ``quantities``. Writes
     ``<prefix>_design.csv`` (rank, experiment, quantity, sigma, predicted)
-    and ``_design.png``. Returns (text, files, advice)."""
+    and ``_design.png``. A deck's release experiments are candidates at the
+    measurement ``times`` (s; ``--times``), one row per time, measuring by
+    default the quantities of the deck's own rows. Returns (text, files,
+    advice)."""
     from .estimation import fit as _fit
     from .fit_decks import read_fit_deck
     from .loads import RadialWire, TipForce, TipMoment
@@ -368,9 +416,19 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
             cands[f"{name}_new"] = cands.pop(name)
     if not cands:
         cands = dict(base.experiments)
-    qs = tuple(quantities) if quantities else DEFAULT_QUANTITIES
+    releases = [n for n, x in cands.items() if isinstance(x, Release)]
+    if releases and not times:
+        raise InputError(f"{deck}: the release experiment {releases[0]!r} is a candidate at "
+                         "measurement times: give --times T [T ...] (s after the release)")
+    if quantities:
+        qs = tuple(quantities)
+    elif releases:
+        qs = tuple(dict.fromkeys(d.data.quantity))    # the deck's own quantities
+    else:
+        qs = DEFAULT_QUANTITIES
     sig = parse_sigma(sigma, qs, d.data)
-    adv = design(base, cands, qs, sigma=sig, target=target)
+    adv = design(base, cands, qs, sigma=sig, target=target,
+                 times=[float(t) for t in times] if releases else None)
     from .consistency import _atomic_write, _output_prefix
 
     prefix = _output_prefix(deck, out, d.output_prefix)

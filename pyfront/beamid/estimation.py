@@ -549,7 +549,8 @@ class Identification:
 
 
 def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
-             max_iter: int = 50, starts: Mapping[str, Model] | None = None) -> Identification:
+             max_iter: int | Mapping[str, int] = 50,
+             starts: Mapping[str, Model] | None = None) -> Identification:
     """The sequential identification of Chapter VI: static -> free -> forced.
 
     ``stages`` is ``{name: (experiments, data, free)}`` (or a list of such
@@ -562,6 +563,8 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
     carried fit (a dict prior given there is not used). ``starts`` (optional,
     by stage name): the model a stage starts from (a stage deck's own), its
     carried parameters replaced by the previous stage's estimates.
+    ``max_iter``: one limit for every stage or ``{stage: limit}`` (50 for a
+    stage not named).
     """
     items = list(stages.items()) if isinstance(stages, Mapping) else [
         (f"stage{k + 1}", s) for k, s in enumerate(stages)]
@@ -581,7 +584,8 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
         if starts and name in starts:
             carried = {n: current[n] for n in (previous.free if previous else ())}
             current = starts[name].replace(**carried) if carried else starts[name]
-        fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=max_iter)
+        limit = max_iter.get(name, 50) if isinstance(max_iter, Mapping) else max_iter
+        fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=limit)
         for p in fit_k.free:
             before = known.get(p, math.inf)
             if isinstance(prior, Mapping) and p in fit_k.prior:

@@ -31,9 +31,20 @@ from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 
-FIT_TASKS = ("fit", "compare", "diagnose", "improve")
+FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
 #: the same, under the name decks.py uses
 ESTIMATION_TASKS = FIT_TASKS
+@dataclass(frozen=True)
+class Stage:
+    """One stage of an identification deck (task ``identify``: one ``&fit``
+    group per stage, in order; docs/workflow.md)."""
+
+    name: str
+    data: Measurements
+    free: tuple[str, ...]
+    max_iter: int = 50
+
+
 @dataclass(frozen=True)
 class FitDeck:
     """A parsed estimation deck."""
@@ -50,6 +61,7 @@ class FitDeck:
     alpha: float = 0.01
     max_iter: int = 50
     published: tuple = ()     #: &published groups (beamid.decks.Published)
+    stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
 
     @property
     def output_prefix(self) -> Path:
@@ -70,12 +82,17 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
             if kind == LOAD_RELEASE:
                 experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
+    stages = tuple(Stage(s["name"], data if k == 0 else
+                         read_measurements(s["data_path"], experiments),
+                         tuple(names[i] for i in s["free"]), s["max_iter"])
+                   for k, s in enumerate(values.get("stages", ())))
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
                    experiments=experiments, data=data,
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
-                   max_iter=values["max_iter"], published=published_groups(values))
+                   max_iter=values["max_iter"], published=published_groups(values),
+                   stages=stages)
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
@@ -90,7 +107,10 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
 
 def _result(deck: FitDeck) -> Any:
     """The result object of the deck's task: FitResult (fit), Comparison
-    (compare), Diagnosis (diagnose) or Ladder (improve)."""
+    (compare), Diagnosis (diagnose), Ladder (improve) or Identification
+    (identify)."""
+    if deck.task == "identify":
+        return identify_deck(deck)
     if deck.task == "improve":
         return improve(deck.model, deck.experiments, deck.data, free=deck.free,
                        prior=deck.prior, candidates=deck.candidates, alpha=deck.alpha,
@@ -156,6 +176,33 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
     return written
 
 
+def identify_deck(deck: FitDeck) -> Any:
+    """:func:`beamid.identify` on the stages of an identification deck (task
+    ``identify``): the deck's model is the start, its experiments serve every
+    stage, the first stage takes the deck's a priori values. The numbers of
+    the files ``beamid-batch`` writes for the deck."""
+    from .estimation import identify
+
+    if deck.task != "identify" or not deck.stages:
+        raise InputError(f"{deck.path}: task {deck.task!r} is not 'identify' (one &fit group "
+                         "per stage)")
+    stages = {s.name: (deck.experiments, s.data, s.free) + ((deck.prior,) if k == 0 and
+                                                             deck.prior else ())
+              for k, s in enumerate(deck.stages)}
+    return identify(deck.model, stages, max_iter={s.name: s.max_iter for s in deck.stages})
+
+
+def _identify_figure(result: Any, prefix: Path) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ax = result.plot()
+    png = prefix.with_name(prefix.name + "_identify.png")
+    ax.figure.savefig(png, dpi=100)
+    plt.close(ax.figure)
+    return png
+
+
 def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
     """``beamid identify DECK [DECK ...]``: each estimation deck is a stage
     (static -> free -> forced), run in order by :func:`beamid.identify`
@@ -163,12 +210,27 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     deck's model is the start, each later deck's model gives the starting
     values of its newly free parameters. Writes ``<output>_identify.csv``
     (stage, parameter, estimate, sigma_before, sigma_after) with the first
-    deck's output prefix, and ``_identify.png`` with ``plots``."""
+    deck's output prefix, and ``_identify.png`` with ``plots``.
+
+    One deck of task ``identify`` holds all its stages: its files are
+    written by the Fortran runner of ``beamid-batch`` (the same bytes:
+    ``_identify.csv`` and every stage's ``_<stage>_estimates.csv``,
+    ``_covariance.csv``, ``_residuals.csv``)."""
     from .estimation import identify
 
     if not decks:
         raise InputError("identify: give the stage decks in order (static, free, forced)")
     parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
+    if len(parsed) == 1 and parsed[0].task == "identify":
+        files = run_files(parsed[0])
+        result = identify_deck(parsed[0])
+        if plots:
+            files.append(_identify_figure(result, parsed[0].output_prefix))
+        return result.summary() + "\n" + result.final.summary(), files, result
+    staged = [d.path for d in parsed if d.task == "identify"]
+    if staged:
+        raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
+                         "give it alone")
     names = []
     for d in parsed:
         base = Path(d.output).name or d.path.stem
@@ -188,12 +250,5 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     os.replace(tmp, csv)
     files = [csv]
     if plots:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        ax = result.plot()
-        png = prefix.with_name(prefix.name + "_identify.png")
-        ax.figure.savefig(png, dpi=100)
-        plt.close(ax.figure)
-        files.append(png)
+        files.append(_identify_figure(result, prefix))
     return result.summary() + "\n" + result.final.summary(), files, result

@@ -7,13 +7,16 @@
 !! LAPACK's tests do: ||b - A x|| / (||A|| ||x|| n eps) below 30; matrices
 !! that need row interchanges, one-sided bands, a dense matrix stored as a
 !! band, and the failures (a singular band, a zero complex pivot, a pivot
-!! that is not positive).
+!! that is not positive); the assembly helpers (band_add, band_to_dense,
+!! band_mv on an assembly array) and the solves with several right-hand
+!! sides, real and complex, against dense ones; the inertia count of an
+!! indefinite band matrix L D L^T against the signs of D.
 program test_band
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                           dband_mv, zband_mv
+                           dband_mv, zband_mv, band_add, band_to_dense, band_mv, ldlt_inertia
     use beamid_testing, only: checks_t, check_close, check_below, check_true, check_finish, &
                               seed_random
     implicit none
@@ -48,6 +51,10 @@ program test_band
         end do
     end do
     call symmetric_band_refuses_bad_pivots()
+    call assembly_helpers(9, 2, 3)
+    call assembly_helpers(20, 7, 7)
+    call inertia(12, 1)
+    call inertia(30, 7)
     call check_finish(t, 'test_band')
 
 contains
@@ -249,4 +256,95 @@ contains
         call check_true(t, 'complex L D L^T refuses a pivot with a negative imaginary part', &
                         .not. ok)
     end subroutine symmetric_band_refuses_bad_pivots
+
+    !> band_add builds the band storage entry by entry (real and complex);
+    !! band_to_dense gives the matrix back exactly, band_mv on the assembly
+    !! array is the dense product, and band_solve with several right-hand
+    !! sides is the single solves column by column.
+    subroutine assembly_helpers(n, kl, ku)
+        integer, intent(in) :: n, kl, ku
+        real(dp) :: a(n, n), b(n, n), d(n, n), ab(2*kl + ku + 1, n), x(n), y(n), r(n, 2), r0(n, 2)
+        complex(dp) :: zab(2*kl + ku + 1, n), zd(n, n), zy(n), zr(n, 2), zx(n)
+        type(band_lu_t) :: lu
+        type(zband_lu_t) :: zlu
+        type(status_t) :: stat
+        character(len=64) :: label
+        integer :: i, j
+        write (label, '(a, 3(i0, 1x))') 'assembly helpers n kl ku: ', n, kl, ku
+        a = band_matrix(n, kl, ku, .false.)
+        b = band_matrix(n, kl, ku, .false.)
+        ab = 0.0_dp
+        zab = (0.0_dp, 0.0_dp)
+        do j = 1, n
+            do i = max(1, j - ku), min(n, j + kl)
+                call band_add(ab, kl, ku, i, j, a(i, j))
+                call band_add(zab, kl, ku, i, j, cmplx(a(i, j), 0.0_dp, dp))
+                call band_add(zab, kl, ku, i, j, cmplx(0.0_dp, b(i, j), dp))
+            end do
+        end do
+        call band_to_dense(ab, kl, ku, d)
+        call check_close(t, trim(label)//': real dense copy', d, a, 0.0_dp, 0.0_dp)
+        call band_to_dense(zab, kl, ku, zd)
+        call check_close(t, trim(label)//': complex dense copy', &
+                         reshape([real(zd, dp), aimag(zd)], [2*n*n]), &
+                         reshape([a, b], [2*n*n]), 0.0_dp, 0.0_dp)
+        x = reshape(normal(n, 1), [n])
+        call band_mv(ab, kl, ku, x, y)
+        call check_close(t, trim(label)//': real product', y, matmul(a, x), 1.0e-13_dp, &
+                         1.0e-13_dp)
+        call band_mv(zab, kl, ku, cmplx(x, 0.0_dp, dp), zy)
+        call check_close(t, trim(label)//': complex product', aimag(zy), matmul(b, x), &
+                         1.0e-13_dp, 1.0e-13_dp)
+        lu = band_lu_t(n=n, kl=kl, ku=ku, ab=ab)
+        zlu = zband_lu_t(n=n, kl=kl, ku=ku, ab=zab)
+        call band_factor(lu, stat)
+        call band_factor(zlu, stat)
+        call check_true(t, trim(label)//': factored', stat%code == STATUS_OK)
+        r0 = normal(n, 2)
+        r = r0
+        zr = cmplx(r0, 2.0_dp*r0, dp)
+        call band_solve(lu, r)
+        call band_solve(zlu, zr)
+        do j = 1, 2
+            y = r0(:, j)
+            call band_solve(lu, y)
+            call check_close(t, trim(label)//': real several right-hand sides', r(:, j), y, &
+                             0.0_dp, 0.0_dp)
+            zx = cmplx(r0(:, j), 2.0_dp*r0(:, j), dp)
+            call band_solve(zlu, zx)
+            call check_close(t, trim(label)//': complex several right-hand sides', &
+                             [real(zr(:, j), dp), aimag(zr(:, j))], &
+                             [real(zx, dp), aimag(zx)], 0.0_dp, 0.0_dp)
+        end do
+    end subroutine assembly_helpers
+
+    !> A = L D L^T from a unit lower band L of half-bandwidth k (so A has the
+    !! same band) and a D with chosen signs: ldlt_inertia counts the negative
+    !! entries of D (Sylvester's law of inertia).
+    subroutine inertia(n, k)
+        integer, intent(in) :: n, k
+        real(dp) :: l(n, n), a(n, n), d(n), s(k + 1, n)
+        character(len=64) :: label
+        integer :: i, j, negative
+        write (label, '(a, 2(i0, 1x))') 'inertia n k: ', n, k
+        l = 0.3_dp*normal(n, n)
+        d = 1.0_dp + abs(reshape(normal(n, 1), [n]))
+        d(2:n:4) = -d(2:n:4)
+        do j = 1, n
+            do i = 1, n
+                if (i < j .or. i - j > k) l(i, j) = 0.0_dp
+            end do
+            l(j, j) = 1.0_dp
+        end do
+        a = matmul(l*spread(d, 1, n), transpose(l))
+        do j = 1, n
+            do i = j, min(n, j + k)
+                s(1 + i - j, j) = a(i, j)
+            end do
+        end do
+        call ldlt_inertia(n, k, s, negative)
+        call check_true(t, trim(label)//': negative pivots = negative entries of D', &
+                        negative == count(d < 0.0_dp))
+    end subroutine inertia
+
 end program test_band

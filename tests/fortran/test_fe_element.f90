@@ -21,7 +21,8 @@ program test_fe_element
                                  fe_element_energy, fe_element_force, fe_element_tangent, &
                                  fe_element_mass
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_tangent, &
-                                  fe_internal_force, fe_band_to_dense
+                                  fe_internal_force, fe_work_t, fe_work_init
+    use beamid_band, only: band_to_dense
     use beamid_testing, only: checks_t, check_close, check_true, check_finish, seed_random
     implicit none
 
@@ -344,10 +345,12 @@ contains
     !> The banded tangent of the PACE chain with a hinged elbow, a root hinge
     !! and the cubic moment law (every path of fe_tangent: consecutive
     !! elements, the clamp, the hinges' springs) against central differences
-    !! of fe_internal_force; f of fe_tangent is fe_internal_force.
+    !! of fe_internal_force; f of fe_tangent is fe_internal_force; a work
+    !! type (fe_work_init) gives the same numbers as the calls without one.
     subroutine assembled_tangent()
         type(chain_t) :: chain
         type(fe_mesh_t) :: mesh
+        type(fe_work_t) :: work
         type(status_t) :: stat
         real(dp), allocatable :: params(:), q(:), f(:), f0(:), kb(:, :), k(:, :), jac(:, :)
         real(dp), allocatable :: e(:), fp(:), fm(:)
@@ -381,7 +384,7 @@ contains
         call fe_internal_force(mesh, q, f0)
         call check_close(t, 'fe_tangent force = fe_internal_force', f, f0, 1.0e-13_dp, &
                          1.0e-13_dp*maxval(abs(f0)))
-        call fe_band_to_dense(kb, mesh%kl, mesh%ku, k)
+        call band_to_dense(kb, mesh%kl, mesh%ku, k)
         do i = 1, n
             e = 0.0_dp
             e(i) = step
@@ -391,5 +394,12 @@ contains
         end do
         call check_close(t, 'assembled tangent = central differences', k, jac, 0.0_dp, &
                          1.0e-7_dp*maxval(abs(k)))
+        call fe_work_init(mesh, work)
+        call fe_tangent(mesh, q, fp, kb, work)
+        call band_to_dense(kb, mesh%kl, mesh%ku, jac)
+        call check_close(t, 'fe_tangent with a work type', [fp, reshape(jac, [n*n])], &
+                         [f, reshape(k, [n*n])], 0.0_dp, 0.0_dp)
+        call fe_internal_force(mesh, q, fm, work)
+        call check_close(t, 'fe_internal_force with a work type', fm, f0, 0.0_dp, 0.0_dp)
     end subroutine assembled_tangent
 end program test_fe_element
