@@ -25,6 +25,17 @@ stopped by a timeout) - the 60 s target is MISSED. Peak resident memory
 in the integrator's sensitivity step (radau_sens_step). Where the remaining
 time goes by phase has not been profiled; the candidates are the friction
 refits (the sign law chatters) and the refit at 16 elements per beam.
+
+Measured again (24 November 2026, 13:18 UTC, with main's friction-event fixes
+for tiny mu merged, run once under a 4 GB address-space cap at nice 10): 64.8 s
+- the 60 s target is MISSED by 8 %; peak resident memory 49 MB (sampled every
+5 s). Ladder: mesh (16 elements per beam), rotary_inertia (J_tip 0.0092 +-
+0.0001), drag (c_tip 0.0104 +- 0.0002), chi2/dof 1.004. A single release with
+10 sensitivities at 16 elements per beam over 1.3 s peaks at 42 MB. The 19.9 GB
+is not reproduced: its likely source, a run chattering at a tiny mu during the
+friction refits with an event record per step (each holding an unused
+whole-state rate jump) in a list grown by doubling, is gone with those fixes
+and the records' trimming.
 """
 from __future__ import annotations
 
