@@ -25,6 +25,19 @@ stopped by a timeout) - the 60 s target is MISSED. Peak resident memory
 in the integrator's sensitivity step (radau_sens_step). Where the remaining
 time goes by phase has not been profiled; the candidates are the friction
 refits (the sign law chatters) and the refit at 16 elements per beam.
+
+Measured again (24 November 2026, 13:18 UTC, with main's friction-event fixes
+for tiny mu merged, run once under a 4 GB address-space cap at nice 10): 64.8 s
+- the 60 s target is MISSED by 8 %; peak resident memory 49 MB (sampled every
+5 s). Ladder: mesh (16 elements per beam), rotary_inertia (J_tip 0.0092 +-
+0.0001), drag (c_tip 0.0104 +- 0.0002), chi2/dof 1.004. A single release with
+10 sensitivities at 16 elements per beam over 1.3 s peaks at 42 MB. The 19.9 GB
+is not reproduced. Its source, found by running the build of that measurement
+(a670081) under a 3 GB cap: a friction refit's release run chattering at a tiny
+mu (gdb samples in apply_switch and sens_event_pre) grew its event list by
+doubling to 1.2 then 2.4 GB within 2 min, each record holding an unused
+whole-state rate jump (~1 KB at 8 elements per beam). Gone with those fixes;
+an event record is now 40 bytes.
 """
 from __future__ import annotations
 

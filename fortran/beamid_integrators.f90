@@ -59,11 +59,9 @@ module beamid_integrators
         real(dp) :: t = 0.0_dp
         integer :: comp = 0, kind = 0, before = 0, after = 0
         real(dp) :: force_before = 0.0_dp, force_after = 0.0_dp
-        !> f+ - f-: the jump of the state rates (q', v', x') across the switch,
-        !! with every component's mode and constraint before and after (the
-        !! term of S+ = S- + (f- - f+) dt*/dp; the whole switch when several
-        !! components change at once; zero for EVENT_START)
-        real(dp), allocatable :: rate_jump(:)
+        ! No per-event state vectors here (a rate jump of the whole state was
+        ! stored and never read): a chattering run records an event per step,
+        ! and the list must stay small per record.
     end type event_t
 
     !> Controls of the integrators.
@@ -449,16 +447,9 @@ contains
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
         integer :: before(size(es%fmode)), j
-        real(dp) :: fb(size(es%fmode)), cap, fminus(size(y)), fplus(size(y))
-        real(dp) :: pw(es%nwork), torque, hdummy(size(es%fmode))
+        real(dp) :: fb(size(es%fmode)), cap
         type(event_t) :: ev
         before = es%fmode
-        fminus = 0.0_dp
-        fplus = 0.0_dp
-        if (kind /= EVENT_START) then
-            call dyn_crates(es, y, fminus, pw, torque, stat, hdummy)
-            if (stat%code /= 0) return
-        end if
         do j = 1, size(es%fmode)
             cap = es%fric((j + 1)/2)
             if (before(j) == 0) then
@@ -469,10 +460,6 @@ contains
         end do
         call dyn_switch(es, y, jforce, hold, stat)
         if (stat%code /= 0) return
-        if (kind /= EVENT_START) then
-            call dyn_crates(es, y, fplus, pw, torque, stat, hdummy)
-            if (stat%code /= 0) return
-        end if
         do j = 1, size(es%fmode)
             if (es%fric((j + 1)/2) == 0.0_dp) cycle
             if (es%fmode(j) == before(j) .and. kind /= EVENT_START) cycle
@@ -490,7 +477,6 @@ contains
                 ev%force_after = -es%fric((j + 1)/2)*es%fmode(j)
             end if
             if (kind == EVENT_START) ev%force_before = 0.0_dp
-            ev%rate_jump = fplus - fminus
             call add_event(hist, ev)
             stats%events = stats%events + 1
         end do
