@@ -11,10 +11,20 @@ is reported as missed).
 
 Measured (24 November 2026, shared 2-core machine, before the mesh was judged
 only once per ladder): not finished after 26 min wall (21 CPU min) - the 60 s
-target is MISSED by more than 25x. Where it goes has not been profiled; the
-candidates are every step's refits (three starts each, the friction refits
-stall through their iteration limits) and the mesh test's refit at 16 elements
-per beam.
+target is MISSED by more than 25x.
+
+Measured again (24 November 2026, load average 4-5 on the 2 cores) after the
+diagnosis changes of issue 14 (one run of the forward sensitivities at the
+null values for every score test, refits only for candidates whose score test
+is significant, a refit stopped at the first start that confirms half the
+predicted drop, refits capped at 20 iterations without the continuation
+start): still not finished after 30 min wall (13.7 CPU min at a 48 % share;
+stopped by a timeout) - the 60 s target is MISSED. Peak resident memory
+19.9 GB (one release with 8 sensitivities at 8 elements per beam stays at
+35 MB, so it is not the sensitivity runs; not yet found). gdb samples land
+in the integrator's sensitivity step (radau_sens_step). Where the remaining
+time goes by phase has not been profiled; the candidates are the friction
+refits (the sign law chatters) and the refit at 16 elements per beam.
 """
 from __future__ import annotations
 

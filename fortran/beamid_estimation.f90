@@ -195,6 +195,19 @@ module beamid_estimation
         integer :: nrefit = 3              !< leading candidates confirmed by refits
         real(dp) :: ambiguity_delta = 4.0_dp !< rivals: chi-square drops closer than this
         real(dp) :: collinear = 0.98_dp    !< ... or |cosine| of directions above this
+        !> confirm by refits only candidates whose score test is significant at
+        !! the family-wise level alpha (not yet divided by the number tested:
+        !! a refit can gain more than the first-order test predicts when the
+        !! effect's column is nearly in the span of the free ones, as J_elbow
+        !! beside rho2; time histories make every refit costly)
+        logical :: refit_significant_only = .false.
+        !> stop a refit's starts at the first that converges with at least half
+        !! the chi-square drop its score test predicts (the first-order start
+        !! confirmed; the other starts are for fits far from the truth)
+        logical :: first_enough = .false.
+        !> the refit starts tried (refit_effect: first-order, nominal,
+        !! continuation)
+        logical :: starts(3) = .true.
     end type diagnose_options_t
 
     !> How a refit with an effect switched on went (refit_effect).
@@ -1237,7 +1250,7 @@ contains
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
     subroutine refit_effect(model, y, sigma, base, block, score, nominal, null_values, lower, &
-                            upper, prior, opts, res, info, stat, ncont, use)
+                            upper, prior, opts, res, info, stat, ncont, use, enough)
         class(residual_model_t), intent(inout) :: model
         real(dp), intent(in) :: y(:), sigma(:), nominal(:), null_values(:), lower(:), upper(:)
         type(fit_result_t), intent(in) :: base
@@ -1250,11 +1263,13 @@ contains
         type(status_t), intent(inout) :: stat
         integer, intent(in), optional :: ncont  !< continuation steps (default 4)
         logical, intent(in), optional :: use(3) !< which starts to try (default all)
+        !> stop at a converged start with half the predicted drop (default no)
+        logical, intent(in), optional :: enough
         integer :: nf, nb, k, j, half, nsteps, kk
         logical :: try(3)
         integer, allocatable :: all_free(:)
         real(dp), allocatable :: target(:), start(:), shift(:), p(:)
-        real(dp) :: best_cost, noise, t
+        real(dp) :: best_cost, noise, t, base_cost, half_drop
         type(fit_result_t) :: trial, fallback, fixed
         type(status_t) :: st
         logical :: have_best, have_fallback, same
@@ -1268,6 +1283,11 @@ contains
         if (present(ncont)) nsteps = max(ncont, 1)
         try = .true.
         if (present(use)) try = use
+        base_cost = base%chi2 + base%chi2_prior
+        half_drop = huge(1.0_dp)
+        if (present(enough)) then
+            if (enough .and. score%drop > 0.0_dp) half_drop = 0.5_dp*score%drop
+        end if
         all_free = [base%free, block]
         info%note = ''
         info%start = START_NONE
@@ -1422,7 +1442,7 @@ contains
         end subroutine consider
 
         logical function done()
-            done = have_best .and. best_cost <= noise
+            done = have_best .and. (best_cost <= noise .or. base_cost - best_cost >= half_drop)
         end function done
 
         subroutine add_note(text)
@@ -1541,17 +1561,21 @@ contains
             if (.not. (diag%cand(c)%score%physical .and. &
                        diag%cand(c)%score%identifiable)) cycle
             if (diag%cand(c)%score%drop <= 0.0_dp) cycle
+            if (dopts%refit_significant_only .and. &
+                .not. diag%cand(c)%score%p_value < dopts%alpha) cycle
             nrefit = nrefit + 1
             associate (cr => diag%cand(c))
                 call clear_status(st)
                 if (present(nominal)) then
                     call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
                                       null_values, lower, upper, prior, fopts, cr%refit, &
-                                      cr%info, st)
+                                      cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
                 else
                     call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
                                       base%params, null_values, lower, upper, prior, fopts, &
-                                      cr%refit, cr%info, st)
+                                      cr%refit, cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
                 end if
                 if (st%code < 0) then
                     stat = st

@@ -33,7 +33,8 @@ module beamid_tasks
                                  prior_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  FLAG_NAMES, CAND_NAMES, prior_from_covariance
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
-                              inverse_diagnose, NEXPVAL
+                              inverse_diagnose, NEXPVAL, EXP_RELEASE, EV_NEPB
+    use beamid_dyn_diagnosis, only: dyn_diagnose, mesh_test_t
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
@@ -51,7 +52,22 @@ module beamid_tasks
     type :: diag_out_t
         type(diagnosis_t) :: diag
         integer, allocatable :: start(:), cparams(:), pexp(:), pq(:)
+        character(len=32), allocatable :: names(:) !< candidate names (mesh apart)
+        logical :: dynamic = .false.   !< release experiments: beamid_dyn_diagnosis
+        type(mesh_test_t) :: mesh      !< the mesh test (dynamic, when asked)
+        !> the blocks as tested (dyn_diagnose: reduced to the members the
+        !! data determine)
+        type(candidate_t), allocatable :: used(:)
     end type diag_out_t
+
+    !> The candidates of one diagnosis: the deck's effects, except that a
+    !! release deck tests `mesh` apart (with_mesh) and the dynamic ladder
+    !! reduces a block to its members not switched on yet.
+    type :: cand_set_t
+        character(len=32), allocatable :: names(:)
+        type(candidate_t), allocatable :: cands(:)
+        logical :: with_mesh = .false.
+    end type cand_set_t
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
         'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
@@ -373,6 +389,7 @@ contains
         type(status_t), intent(inout) :: st
         type(fit_result_t) :: fo
         type(diag_out_t) :: dg
+        type(cand_set_t) :: cs
         character(len=:), allocatable :: prefix
         character(len=32), allocatable :: step_effect(:)
         real(dp), allocatable :: step_chi2(:), step_cpd(:), start(:)
@@ -382,8 +399,13 @@ contains
 
         call estimation_fit(d, d%params, d%free, fo, st)
         if (st%code /= STATUS_OK) return
+        call deck_candidates(d, cs, st)
+        if (st%code /= STATUS_OK) return
         if (d%task == 'diagnose') then
-            call estimation_diagnose(d, fo, dg, st)
+            call estimation_diagnose(d, fo, cs, d%params, dg, st)
+            if (st%code /= STATUS_OK) return
+        else if (d%task == 'improve' .and. deck_dynamic(d)) then
+            call dynamic_ladder(d, cs, fo, dg, step_effect, step_chi2, step_dof, step_cpd, st)
             if (st%code /= STATUS_OK) return
         else if (d%task == 'improve') then
             ! fit, then diagnose and add the verdict's effect until none is
@@ -391,12 +413,9 @@ contains
             allocate (step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
             effect = 'start'
             do k = 0, size(d%candidates)
-                call estimation_diagnose(d, fo, dg, st)
+                call estimation_diagnose(d, fo, cs, d%params, dg, st)
                 if (st%code /= STATUS_OK) return
-                step_effect = [character(len=32) :: step_effect, effect]
-                step_chi2 = [step_chi2, fo%chi2]
-                step_dof = [step_dof, fo%dof]
-                step_cpd = [step_cpd, chi2_per_dof(fo)]
+                call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
                 v = dg%diag%verdict
                 if (v == 0 .or. k == size(d%candidates)) exit
                 start = fo%params
@@ -615,6 +634,17 @@ contains
         type(status_t), intent(inout) :: st
         real(dp), allocatable :: values(:, :)
         integer, allocatable :: kinds(:)
+        call deck_experiments(d, kinds, values)
+        call inverse_problem_init(d%nbeams, kinds, values, d%row_exp, d%data%t, &
+                                  d%data%quantity, 0.0_dp, problem, st)
+    end subroutine deck_problem
+
+    !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
+    !! values.
+    pure subroutine deck_experiments(d, kinds, values)
+        type(deck_t), intent(in) :: d
+        integer, allocatable, intent(out) :: kinds(:)
+        real(dp), allocatable, intent(out) :: values(:, :)
         integer :: e
         allocate (values(NEXPVAL, size(d%experiments)), kinds(size(d%experiments)))
         values = 0.0_dp
@@ -629,9 +659,7 @@ contains
                 if (d%exp_kind(e) > 0) values(:, e) = d%exp_values(:, e)
             end do
         end if
-        call inverse_problem_init(d%nbeams, kinds, values, d%row_exp, d%data%t, &
-                                  d%data%quantity, 0.0_dp, problem, st)
-    end subroutine deck_problem
+    end subroutine deck_experiments
 
     !> The deck's a priori information (Eq. 142-145).
     pure function deck_prior(d) result(prior)
@@ -669,46 +697,195 @@ contains
         if (stat%code /= STATUS_OK) st = stat
     end subroutine estimation_fit
 
-    !> Score tests, refits and ranking of the deck's candidates around a fit
-    !! (inverse_diagnose with the defaults of beamid.diagnose: 3 refits,
-    !! ambiguity 4, collinearity 0.98, 50 iterations; the refits also start
-    !! from the deck's model, as beamid.diagnose starts them from the user's).
-    subroutine estimation_diagnose(d, fo, dg, st)
+    !> Does the deck have a release experiment (time histories)?
+    pure logical function deck_dynamic(d)
+        type(deck_t), intent(in) :: d
+        deck_dynamic = .false.
+        if (allocated(d%exp_kind)) deck_dynamic = any(d%exp_kind == EXP_RELEASE)
+    end function deck_dynamic
+
+    !> The deck's candidates: every effect named, with its parameters; in a
+    !! deck with releases `mesh` is the mesh test of beamid_dyn_diagnosis
+    !! (as beamid.diagnose does), not a candidate without parameters.
+    subroutine deck_candidates(d, cs, st)
+        type(deck_t), intent(in) :: d
+        type(cand_set_t), intent(out) :: cs
+        type(status_t), intent(inout) :: st
+        integer :: c
+        logical :: dyn
+        type(candidate_t) :: one
+        dyn = deck_dynamic(d)
+        allocate (cs%names(0), cs%cands(0))
+        do c = 1, size(d%candidates)
+            if (dyn .and. trim(adjustl(d%candidates(c))) == 'mesh') then
+                cs%with_mesh = .true.
+                cycle
+            end if
+            one%name = trim(d%candidates(c))
+            call static_effect_params(d%nbeams, d%candidates(c), one%params, st)
+            if (st%code /= STATUS_OK) return
+            cs%names = [character(len=32) :: cs%names, d%candidates(c)]
+            cs%cands = [cs%cands, one]
+        end do
+    end subroutine deck_candidates
+
+    !> Score tests, refits and ranking of the candidates `cs` around a fit
+    !! (inverse_diagnose, or for decks with releases dyn_diagnose, with the
+    !! defaults of beamid.diagnose: 3 refits, ambiguity 4, collinearity 0.98,
+    !! 50 iterations; the refits also start from `nominal`, the deck's model
+    !! as beamid.diagnose starts them from the user's).
+    subroutine estimation_diagnose(d, fo, cs, nominal, dg, st)
         type(deck_t), intent(in) :: d
         type(fit_result_t), intent(in) :: fo
+        type(cand_set_t), intent(in) :: cs
+        real(dp), intent(in) :: nominal(:)
         type(diag_out_t), intent(out) :: dg
         type(status_t), intent(inout) :: st
         type(inverse_problem_t) :: problem
         type(fit_options_t) :: opts
         type(diagnose_options_t) :: dopts
         type(fit_result_t) :: base
-        type(candidate_t), allocatable :: cands(:)
         type(status_t) :: stat
+        real(dp), allocatable :: values(:, :), pt(:)
+        integer, allocatable :: kinds(:)
         integer :: c, nc
 
-        nc = size(d%candidates)
-        allocate (dg%start(nc + 1), dg%cparams(0), cands(nc))
+        nc = size(cs%cands)
+        dg%names = cs%names
+        allocate (dg%start(nc + 1), dg%cparams(0))
         dg%start(1) = 1
         do c = 1, nc
-            call static_effect_params(d%nbeams, d%candidates(c), cands(c)%params, st)
-            if (st%code /= STATUS_OK) return
-            cands(c)%name = trim(d%candidates(c))
-            dg%cparams = [dg%cparams, cands(c)%params]
-            dg%start(c + 1) = dg%start(c) + size(cands(c)%params)
+            dg%cparams = [dg%cparams, cs%cands(c)%params]
+            dg%start(c + 1) = dg%start(c) + size(cs%cands(c)%params)
         end do
-        call deck_problem(d, problem, stat)
-        if (stat%code == STATUS_OK) then
-            opts%max_iter = 50
-            dopts%alpha = d%alpha
-            dopts%nrefit = 3
-            dopts%ambiguity_delta = 4.0_dp
-            dopts%collinear = 0.98_dp
-            call inverse_diagnose(problem, d%data%value, d%data%sigma, fo%params, d%params, &
-                                  fo%free, deck_prior(d), cands, opts, dopts, base, dg%diag, &
-                                  dg%pexp, dg%pq, stat)
+        opts%max_iter = 50
+        dopts%alpha = d%alpha
+        dopts%nrefit = 3
+        dopts%ambiguity_delta = 4.0_dp
+        dopts%collinear = 0.98_dp
+        dg%dynamic = deck_dynamic(d)
+        if (dg%dynamic) then
+            call deck_experiments(d, kinds, values)
+            call dyn_diagnose(d%nbeams, kinds, values, d%row_exp, d%data%t, d%data%quantity, &
+                              0.0_dp, d%data%value, d%data%sigma, fo%params, nominal, fo%free, &
+                              deck_prior(d), cs%cands, opts, dopts, cs%with_mesh, base, dg%diag, &
+                              dg%mesh, dg%pexp, pt, dg%pq, dg%used, stat)
+        else
+            call deck_problem(d, problem, stat)
+            if (stat%code == STATUS_OK) &
+                call inverse_diagnose(problem, d%data%value, d%data%sigma, fo%params, nominal, &
+                                      fo%free, deck_prior(d), cs%cands, opts, dopts, base, &
+                                      dg%diag, dg%pexp, dg%pq, stat)
         end if
         if (stat%code /= STATUS_OK) st = stat
     end subroutine estimation_diagnose
+
+    !> improve on a deck with releases (beamid.dyn_diagnosis.improve_dynamic,
+    !! step for step, so both fronts write the same ladder): diagnose, add the
+    !! verdict's parameters (a block as tested; dyn_diagnose tests its other
+    !! members at the later rungs) or refine the mesh to the recommended elements per beam;
+    !! after each rung the parameters earlier rungs added are tested again
+    !! (one-sided Wald test at the rung's level) and one no longer needed
+    !! goes back to the deck's value, the rung refitted without it. The mesh
+    !! is tested until found adequate.
+    subroutine dynamic_ladder(d, cs0, fo, dg, step_effect, step_chi2, step_dof, step_cpd, st)
+        type(deck_t), intent(in) :: d
+        type(cand_set_t), intent(in) :: cs0
+        type(fit_result_t), intent(inout) :: fo
+        type(diag_out_t), intent(out) :: dg
+        character(len=32), allocatable, intent(out) :: step_effect(:)
+        real(dp), allocatable, intent(out) :: step_chi2(:), step_cpd(:)
+        integer, allocatable, intent(out) :: step_dof(:)
+        type(status_t), intent(inout) :: st
+        type(deck_t) :: dd
+        type(cand_set_t) :: cs
+        character(len=32) :: effect
+        real(dp), allocatable :: nominal(:), start(:), p(:)
+        integer, allocatable :: added(:), newp(:)
+        integer :: k, v, e, gone
+
+        dd = d
+        cs = cs0
+        nominal = d%params
+        allocate (added(0), step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
+        effect = 'start'
+        do k = 0, size(d%candidates)
+            call estimation_diagnose(dd, fo, cs, nominal, dg, st)
+            if (st%code /= STATUS_OK) return
+            call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
+            v = dg%diag%verdict
+            if ((v == 0 .and. .not. dg%mesh%significant) .or. k == size(d%candidates)) exit
+            if (dg%mesh%done .and. .not. dg%mesh%significant) cs%with_mesh = .false.
+            if (dg%mesh%significant) then
+                do e = 1, size(dd%exp_kind)
+                    if (dd%exp_kind(e) == EXP_RELEASE) &
+                        dd%exp_values(EV_NEPB, e) = real(dg%mesh%recommended, dp)
+                end do
+                call estimation_fit(dd, fo%params, fo%free, fo, st)
+                if (st%code /= STATUS_OK) return
+                effect = 'mesh ('//fmt_int(dg%mesh%recommended)//' elements per beam)'
+                cs%with_mesh = .false.
+                cycle
+            end if
+            start = fo%params
+            if (dg%diag%cand(v)%refit_done .and. dg%diag%cand(v)%refit_ok) &
+                start = dg%diag%cand(v)%refit%params
+            newp = dg%used(v)%params
+            call estimation_fit(dd, start, [integer :: fo%free, newp], fo, st)
+            if (st%code /= STATUS_OK) return
+            gone = not_needed(fo, added, dg%diag%alpha_each)
+            if (gone > 0) then
+                p = fo%params
+                p(gone) = d%params(gone)
+                call estimation_fit(dd, p, pack(fo%free, fo%free /= gone), fo, st)
+                if (st%code /= STATUS_OK) return
+                added = pack(added, added /= gone)
+            end if
+            added = [added, newp]
+            nominal(newp) = fo%params(newp)
+            effect = cs%names(v)
+        end do
+    end subroutine dynamic_ladder
+
+    !> One rung of the ladder file: the effect added and the fit's chi-square.
+    subroutine record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
+        character(len=*), intent(in) :: effect
+        type(fit_result_t), intent(in) :: fo
+        character(len=32), allocatable, intent(inout) :: step_effect(:)
+        real(dp), allocatable, intent(inout) :: step_chi2(:), step_cpd(:)
+        integer, allocatable, intent(inout) :: step_dof(:)
+        step_effect = [character(len=32) :: step_effect, effect]
+        step_chi2 = [step_chi2, fo%chi2]
+        step_dof = [step_dof, fo%dof]
+        step_cpd = [step_cpd, chi2_per_dof(fo)]
+    end subroutine record_rung
+
+    !> Of the parameters `names` (switched on by earlier rungs; one-sided,
+    !! physical values positive) the one whose one-sided Wald test
+    !! (estimate / sigma) is least significant, when its p-value exceeds
+    !! `level` (0: every one is needed).
+    integer function not_needed(fo, names, level) result(worst)
+        type(fit_result_t), intent(in) :: fo
+        integer, intent(in) :: names(:)
+        real(dp), intent(in) :: level
+        real(dp) :: p, worst_p, est, sig
+        integer :: i, j
+        worst = 0
+        worst_p = level
+        do i = 1, size(names)
+            j = findloc(fo%free, names(i), 1)
+            if (j == 0) cycle
+            est = fo%estimates(j)
+            sig = fo%sigmas(j)
+            p = 1.0_dp
+            if (sig > 0.0_dp .and. sig < huge(1.0_dp) .and. est > 0.0_dp) &
+                p = 0.5_dp*chi2_sf((est/sig)**2, 1)
+            if (p > worst_p) then
+                worst = names(i)
+                worst_p = p
+            end if
+        end do
+    end function not_needed
 
     !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine write_fit_files(d, fo, prefix, fl, st)
@@ -776,7 +953,8 @@ contains
         type(status_t), intent(inout) :: st
         real(dp) :: nan, score_drop, score_p, lr_drop, lr_p, drop, p, est, sig
         logical :: tested, refit
-        integer :: unit, ios, rank, c, j, k, nj, state
+        integer :: unit, ios, rank, c, j, k, nj, state, u, q, at_mesh, ntested
+        integer, allocatable :: block(:)
         character(len=:), allocatable :: pname, flags
 
         nan = ieee_value(1.0_dp, ieee_quiet_nan)
@@ -784,8 +962,26 @@ contains
                          'refit_p,chi2_drop,p_value,estimate,sigma,physical,identifiable,'// &
                          'significant,acceptable,rival', unit, ios, st)
         if (st%code /= STATUS_OK) return
-        do rank = 1, size(dg%diag%ranking)
-            c = dg%diag%ranking(rank)
+        ! the mesh test ranks first when significant, else after the tested
+        ! candidates (beamid.dyn_diagnosis.diagnose_dynamic)
+        at_mesh = 0
+        if (dg%mesh%done) then
+            ntested = count(dg%diag%cand%state == 0)
+            at_mesh = merge(1, ntested + 1, dg%mesh%significant)
+        end if
+        rank = 0
+        do q = 1, size(dg%diag%ranking) + merge(1, 0, at_mesh > 0)
+            rank = rank + 1
+            if (rank == at_mesh) then
+                call put(unit, ios, fmt_int(rank)//',mesh,'//trim(CAND_NAMES(0))//',,'// &
+                         fmt_e(dg%mesh%drop)//','//fmt_e(dg%mesh%p_value)//','// &
+                         fmt_e(dg%mesh%drop)//','//fmt_e(dg%mesh%p_value)//','// &
+                         fmt_e(dg%mesh%drop)//','//fmt_e(dg%mesh%p_value)//','// &
+                         fmt_e(nan)//','//fmt_e(nan)//',1,1,'//b2s(dg%mesh%significant)// &
+                         ','//b2s(dg%mesh%significant)//',0')
+                cycle
+            end if
+            c = dg%diag%ranking(q - merge(1, 0, at_mesh > 0 .and. q > at_mesh))
             associate (cr => dg%diag%cand(c))
                 state = cr%state
                 tested = state == 0
@@ -804,26 +1000,31 @@ contains
                 else
                     flags = '1,1,0,0,0'
                 end if
-                nj = dg%start(c + 1) - dg%start(c)
+                ! the block as tested (a dynamic block reduced to the members
+                ! the data determine; the others are left at their null values)
+                block = dg%cparams(dg%start(c):dg%start(c + 1) - 1)
+                if (dg%dynamic .and. tested) block = dg%used(c)%params
+                nj = size(block)
                 do j = 1, max(nj, 1)
                     pname = ''
                     est = nan
                     sig = nan
                     if (nj > 0) then
-                        k = dg%start(c) + j - 1
-                        pname = param_name(d%nbeams, dg%cparams(k))
+                        k = block(j)
+                        u = j
+                        pname = param_name(d%nbeams, k)
                         if (refit) then
-                            est = cr%refit%params(dg%cparams(k))
-                            sig = cr%refit%sigmas(size(fo%free) + j)
+                            est = cr%refit%params(k)
+                            sig = cr%refit%sigmas(size(fo%free) + u)
                         else if (tested .and. allocated(cr%score%estimate)) then
-                            est = fo%params(dg%cparams(k)) + cr%score%estimate(j)
-                            sig = cr%score%sigma(j)
+                            est = fo%params(k) + cr%score%estimate(u)
+                            sig = cr%score%sigma(u)
                         else if (tested) then
-                            est = fo%params(dg%cparams(k))
+                            est = fo%params(k)
                             sig = 0.0_dp
                         end if
                     end if
-                    call put(unit, ios, fmt_int(rank)//','//trim(d%candidates(c))//','// &
+                    call put(unit, ios, fmt_int(rank)//','//trim(dg%names(c))//','// &
                              trim(CAND_NAMES(state))//','//pname//','//fmt_e(score_drop)//','// &
                              fmt_e(score_p)//','//fmt_e(lr_drop)//','//fmt_e(lr_p)//','// &
                              fmt_e(drop)//','//fmt_e(p)//','//fmt_e(est)//','//fmt_e(sig)//','// &

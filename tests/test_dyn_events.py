@@ -145,3 +145,55 @@ def test_rk4_step_bound_is_an_input_error():
     model = beamid.pace(J_elbow=0.0, J_tip=0.0)
     with pytest.raises(beamid.InputError, match=r"dt = 0.10+E-8 s needs 0.260*E\+10 RK4 steps"):
         simulate(model, RELEASE, [0.0, 2.6], integrator="rk4", dt=1e-9)
+
+
+@pytest.fixture(scope="module")
+def small_mu_runs():
+    """The seed release (4 elements per beam, 0.2 s) with tiny friction
+    coefficients on both masses, with both integrators (issue 12: below
+    about 1e-3 the start used to stop with "does not settle")."""
+    t = np.linspace(0.0, 0.2, 5)
+    runs = {}
+    for mu in (0.0, 1e-4, 1e-3):
+        model = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=mu, mu_tip=mu)
+        for integrator in ("implicit", "rk4"):
+            runs[mu, integrator] = simulate(model, RELEASE, t, elements_per_beam=4,
+                                            integrator=integrator)
+    return runs
+
+
+@pytest.mark.parametrize("integrator", ["implicit", "rk4"])
+def test_small_friction_coefficients_run_and_tend_to_frictionless(small_mu_runs, integrator):
+    """A fast axial vibration reverses a just-released component's push within
+    a step: the integrators shorten the step to resolve it instead of
+    switching back and forth at one instant. The tip response is continuous
+    as mu -> 0 (friction's effect on it is linear in mu: the 1e-3 run is
+    ten times further from the frictionless one than the 1e-4 run)."""
+    free = small_mu_runs[0.0, integrator]
+    assert free.events == ()
+    d = {}
+    for mu in (1e-4, 1e-3):
+        run = small_mu_runs[mu, integrator]
+        assert len(run.events) >= 4            # the start decisions at least
+        d[mu] = np.max(np.abs(run.tip_w - free.tip_w))
+    assert 1e-6 < d[1e-4] < 2e-4
+    assert d[1e-3] / d[1e-4] == pytest.approx(10.0, rel=0.2)
+
+
+@pytest.mark.parametrize("mu", [0.0, 1e-4, 1e-3])
+def test_small_friction_coefficients_both_integrators_agree(small_mu_runs, mu):
+    imp, rk4 = small_mu_runs[mu, "implicit"], small_mu_runs[mu, "rk4"]
+    assert np.max(np.abs(imp.tip_w - rk4.tip_w)) < 1e-6
+    assert np.max(np.abs(imp.tip_u - rk4.tip_u)) < 1e-6
+
+
+def test_tiny_friction_with_the_motor_runs_with_both_integrators():
+    """mu = 1e-5 with the Chapter V motor: the pushed tip component turns back
+    within 1e-13 s again and again at the start (chatter); RK4 handles its
+    sign change once instead of crawling on, and both integrators agree."""
+    model = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=1e-5, mu_tip=1e-5)
+    t = np.linspace(0.0, 0.1, 3)
+    imp = simulate(model, RELEASE, t, elements_per_beam=4, motor_gain=0.2)
+    rk4 = simulate(model, RELEASE, t, elements_per_beam=4, motor_gain=0.2, integrator="rk4")
+    assert np.max(np.abs(imp.tip_w - rk4.tip_w)) < 1e-6
+    assert np.max(np.abs(imp.tip_u - rk4.tip_u)) < 1e-6

@@ -80,26 +80,20 @@ def test_motor_torque_without_motor_names_the_line(tmp_path):
 
 
 def test_table15_fit_stalls_flagged_where_the_release_cannot_be_solved():
-    # Table 15's noisy quarter cycle pulls mu_tip towards 0; below about 1e-3
-    # the sign law's start chatters ("does not settle"), so the damped trial
-    # steps there cannot be solved: the fit comes back flagged at its last
-    # good point (with the solver's message), not raised (issue 15)
+    # Table 15's noisy quarter cycle pulls mu_tip towards 0. The sign law's
+    # start used to chatter below about 1e-3 ("does not settle") and the fit
+    # came back flagged at its last good point; since issue 12 the release runs
+    # for any mu >= 0, so the fit converges there, with mu_tip poorly
+    # determined (the true 0.02 within one sigma)
     seed = inputs_dir("seed")
     model = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.015, mu_tip=0.01,
                         rho1=0.5603, rho2=0.5437)
     data = beamid.read_measurements(seed / "table15_data.csv")
-    exps = {"free": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4)}
-    free = ("mu_elbow", "mu_tip", "rho1", "rho2")
-    # with the accurate Jacobian at every iteration the path runs into mu_tip = 0
-    fit = beamid.fit(model, exps, data, free=free, jacobian="exact")
-    assert fit.stop in ("stalled", "runaway")                     # flagged, not raised
-    assert "mu_tip" in fit.note
+    fit = beamid.fit(model, {"free": beamid.Release(beamid.TipForce(fy=8.0),
+                                                    elements_per_beam=4)},
+                     data, free=("mu_elbow", "mu_tip", "rho1", "rho2"))
+    assert fit.stop in ("converged", "stalled", "runaway")        # not raised
+    assert 0.0 <= fit.estimates["mu_tip"] < 0.005
+    assert abs(fit.estimates["mu_tip"] - 0.02) < fit.sigmas["mu_tip"]
     assert abs(fit.estimates["mu_elbow"] - 0.0108) < 0.002       # well determined
     assert fit.sigmas["rho1"] > 0.1                               # densities are not
-    # steered by rough sensitivities (the default) it stops at the noise
-    # floor just above it, mu_tip flagged as not determined: the same verdict
-    rough = beamid.fit(model, exps, data, free=free)
-    assert rough.stop in ("converged", "stalled", "runaway")
-    assert rough.flags["mu_tip"] != "ok" and rough.estimates["mu_tip"] < 0.002
-    assert abs(rough.estimates["mu_elbow"] - fit.estimates["mu_elbow"]) < 0.1 * fit.sigmas["mu_elbow"]
-    assert rough.sigmas["rho1"] > 0.1 and abs(rough.chi2 - fit.chi2) < 0.01

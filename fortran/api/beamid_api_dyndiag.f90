@@ -74,7 +74,9 @@ contains
         integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
         real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
         real(c_double), intent(out) :: mesh_params(nparams)
-        !> 1: the candidate parameter was tested, 0: left at null (not determined)
+        !> 1: the candidate parameter was tested, 0: left at null (not needed
+        !! or not determined), 2: left at null although about as good alone as
+        !! the member tested (these data hardly tell them apart)
         integer(c_int), intent(out) :: kept(ncandp + 1)
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
@@ -87,7 +89,7 @@ contains
         type(diagnosis_t) :: diag
         type(mesh_test_t) :: mesh
         type(candidate_t), allocatable :: cands(:), used(:)
-        integer, allocatable :: pexp(:), pq(:)
+        integer, allocatable :: pexp(:), pq(:), ambiguous(:)
         real(dp), allocatable :: pt(:)
         character(len=:), allocatable :: text
         integer :: c, k, j, nf, r, u
@@ -119,7 +121,7 @@ contains
                           real(row_t, dp), int(row_q), real(tol, dp), real(row_value, dp), &
                           real(row_sigma, dp), real(params0, dp), real(nominal, dp), &
                           int(free_idx), prior, cands, opts, dopts, with_mesh /= 0, base, diag, &
-                          mesh, pexp, pt, pq, used, stat)
+                          mesh, pexp, pt, pq, used, stat, ambiguous)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         nf = size(base%free)
@@ -147,6 +149,7 @@ contains
                     k = cand_start(c) + j - 1
                     ! position of this parameter in the block as tested
                     u = findloc(used(c)%params, cands(c)%params(j), 1)
+                    if (u == 0 .and. any(ambiguous == cands(c)%params(j))) kept(k) = 2
                     if (u == 0) cycle
                     kept(k) = 1
                     if (allocated(cr%score%estimate)) then

@@ -25,9 +25,9 @@ module beamid_api_estimation
     implicit none
     private
 
-    public :: api_static_predict, api_fit, api_diagnose, api_chi2_sf, api_static_bounds
+    public :: api_static_predict, api_fit, api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
-    public :: api_problem_predict, api_problem_fit, api_deck_experiments, api_problem_diagnose
+    public :: api_problem_predict, api_problem_fit, api_deck_experiments
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -35,7 +35,7 @@ module beamid_api_estimation
     !> The names of the columns of the result arrays (exported by
     !! api_code_names, tables 5-8, so that no front decodes them by position):
     !! stats of a fit, cstats (per candidate), pstats (per candidate
-    !! parameter) and dstats (the diagnosis) of api_diagnose.
+    !! parameter) and dstats (the diagnosis) of api_diagnose_nominal.
     character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
         'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
     character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
@@ -46,6 +46,10 @@ module beamid_api_estimation
         'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
     character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
         'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
+    !> mstats of the mesh test (beamid_api_dyndiag api_problem_diagnose)
+    character(len=*), parameter :: MSTAT_NAMES(10) = [character(len=17) :: 'done', 'ok', &
+        'elements_per_beam', 'recommended', 'chi2', 'drop', 'p_value', 'max_change', &
+        'max_row', 'significant']
 
 contains
 
@@ -126,7 +130,7 @@ contains
     !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
     !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*),
     !! and the column names of the result arrays: 5 a fit's stats, 6 cstats,
-    !! 7 pstats, 8 dstats (from position 1). code = -1 for an unknown table.
+    !! 7 pstats, 8 dstats, 9 mstats of the mesh test (from position 1). code = -1 for an unknown table.
     subroutine api_code_names(table, names, code)
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
@@ -149,6 +153,8 @@ contains
             names = joined(PSTAT_NAMES)
         case (8)
             names = joined(DSTAT_NAMES)
+        case (9)
+            names = joined(MSTAT_NAMES)
         case default
             names = ''
             code = -1
@@ -405,59 +411,16 @@ contains
                       log_cost, log_lambda, log_step, log_params)
     end subroutine api_fit_effect
 
-    !> Diagnose a fitted model: the base fit is evaluated at `params0` (the
-    !! estimates; not refitted, so a fit with a parameter held after running
-    !! away stays as it was), then every candidate block
+    !> Diagnose a fit of static experiments (fits with releases: the one
+    !! binding of the dynamic diagnosis, beamid_api_dyndiag
+    !! api_problem_diagnose): the base fit is evaluated at `params0` (the
+    !! estimates; not refitted), then every candidate block
     !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
-    !! leading ones refitted (beamid_estimation::diagnose, the refits from
-    !! the first-order estimate, from params0 with the effect at null and by
-    !! continuation; api_diagnose_nominal also starts from the user's values).
-    !! cstats(:, c) = state, score_drop, score_p, score_dof, physical,
-    !!   identifiable, refit_done, refit_ok, lr_drop, lr_p, significant,
-    !!   acceptable, rival, separation, sep_experiment, sep_quantity,
-    !!   refit_chi2, refit_chi2_prior (18 values).
-    !! pstats(:, k) for candidate parameter k = estimate, sigma, active,
-    !!   refit value, refit sigma, refit flag (6 values).
-    !! dstats = verdict, ntested, alpha_each, base chi2, base chi2_prior, base dof.
-    subroutine api_diagnose(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                            prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
-                            row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
-                            tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
-                            ambiguity_delta, collinear, cstats, pstats, refit_params, &
-                            ranking, cosine, dstats, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams)
-        !> a priori arrays carry one unused trailing entry (f2py cannot pass empty arrays)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol, tol_step, tol_cost
-        integer(c_int), intent(in) :: ncand, ncandp, nrefit
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
-        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
-        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
-        integer(c_int), intent(out) :: ranking(ncand)
-        real(c_double), intent(out) :: dstats(6)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        integer(c_int) :: refit_start(ncand)
-        character(len=8192) :: notes
-        type(inverse_problem_t) :: model
-        type(status_t) :: stat
-        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                            model, stat)
-        call diagnose_core(model, stat, nbeams, nparams, params0, params0, nfree, free_idx, nprior, &
-                           prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
-                           row_exp, row_q, row_value, row_sigma, tol, max_iter, tol_step, &
-                           tol_cost, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
-                           ambiguity_delta, collinear, cstats, pstats, refit_params, ranking, &
-                           cosine, dstats, refit_start, notes, code, message)
-    end subroutine api_diagnose
-
-    !> api_diagnose with the user's starting values `nominal` as a start of
-    !! the refits, and for every candidate the start its refit kept
+    !! leading ones refitted (beamid_estimation::diagnose, from the
+    !! first-order estimate, from the user's starting values `nominal` and by
+    !! continuation). Result columns by name: api_code_names tables 6-8
+    !! (cstats 18 values per candidate, pstats 6 per candidate parameter,
+    !! dstats 6). For every candidate the start its refit kept
     !! (refit_start, START_* of beamid_estimation, 0 when none converged or
     !! no refit was made) and what the refit starts gave: `notes` holds one
     !! line per candidate (newline-separated, empty without a refit).
@@ -496,46 +459,6 @@ contains
                            ambiguity_delta, collinear, cstats, pstats, refit_params, ranking, &
                            cosine, dstats, refit_start, notes, code, message)
     end subroutine api_diagnose_nominal
-
-    !> api_diagnose_nominal on any mix of experiment families (kinds 1-3,
-    !! exp_values(:, e) in the EV_* layout, rows with times row_t).
-    subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
-                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, &
-                                    exp_kind, exp_values, nrow, row_exp, row_t, row_q, &
-                                    row_value, row_sigma, tol, max_iter, ncand, cand_start, &
-                                    ncandp, cand_params, alpha, nrefit, ambiguity_delta, &
-                                    collinear, cstats, pstats, refit_params, ranking, cosine, &
-                                    dstats, refit_start, notes, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
-        real(c_double), intent(in) :: row_sigma(nrow), tol
-        integer(c_int), intent(in) :: ncand, ncandp, nrefit
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
-        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
-        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
-        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
-        real(c_double), intent(out) :: dstats(6)
-        character(len=8192), intent(out) :: notes
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(inverse_problem_t) :: model
-        type(status_t) :: stat
-        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat)
-        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, &
-                           nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
-                           exp_values, nrow, row_exp, row_q, row_value, row_sigma, tol, &
-                           max_iter, 0.0_c_double, 0.0_c_double, ncand, cand_start, ncandp, &
-                           cand_params, alpha, nrefit, ambiguity_delta, collinear, cstats, &
-                           pstats, refit_params, ranking, cosine, dstats, refit_start, notes, &
-                           code, message)
-    end subroutine api_problem_diagnose
 
     subroutine diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
                              prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &

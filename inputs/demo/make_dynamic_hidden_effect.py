@@ -6,7 +6,9 @@ Table 1 values) and air drag at the tip mass (c_tip = 0.01 N s/m), besides
 the Chapter IV friction. Released from an 8 N tip force, integrated at
 rtol 1e-11 (the fits use 1e-9) on 4 elements per beam; tip u, w and the
 elbow's y at 13 times over 1.3 s with Gaussian errors of sigma 1e-4 m from a
-fixed seed.
+fixed seed. The deck (dynamic_hidden_effect.nml) fits a model with the
+elbow's rotary inertia but not the tip's, and no drag: improve must add the
+tip's rotary inertia and the tip's drag (tests/test_dyn_hidden_demo.py).
 
     python inputs/demo/make_dynamic_hidden_effect.py
 """

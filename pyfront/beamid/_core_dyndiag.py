@@ -1,14 +1,18 @@
 """Calls into the extension for the diagnosis of fits with time histories
 (``fortran/api/beamid_api_dyndiag.f90``): the mixed static + release
-problems of :mod:`beamid._core_estimation` (its :class:`Problem`)."""
+problems of :mod:`beamid._core_estimation` (its :class:`Problem`), by the
+calling convention of :func:`beamid._core._call` (fits by
+:func:`beamid._core_estimation._fit_call`). Result arrays are read by the
+column names the Fortran exports (``_core_estimation.CSTATS`` and friends).
+"""
 from __future__ import annotations
 
 import numpy as np
 
 from . import _ext
-from ._core_estimation import (START_NAMES, Problem, _fit_dict, _mixed_values, _msg, _pad,
-                               _row_t)
-from .errors import raise_for_status
+from ._core import _call
+from ._core_estimation import (CSTATS, DSTATS, MSTATS, PSTATS, START_NAMES, Columns,
+                               Problem, _fit_call, _mixed_values, _msg, _pad, _row_t)
 
 _api = _ext.beamid_api_dyndiag
 
@@ -31,28 +35,28 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
     starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
     flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
-    out = _api.api_problem_diagnose(
-        prob.nbeams, np.asarray(params0, float), np.asarray(nominal, float),
-        np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
-        _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
-        _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-        int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
-        float(ambiguity_delta), float(collinear), int(bool(with_mesh)))
     (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
-     mesh_params, kept, notes, code, message) = out
-    raise_for_status(int(code), message)
+     mesh_params, kept, notes) = _call(
+        _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
+        np.asarray(nominal, float), np.asarray(free, np.int32), _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob),
+        prob.row_exp, _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+        float(prob.tol), int(max_iter), starts, _pad(flat, np.int32), float(alpha),
+        int(nrefit), float(ambiguity_delta), float(collinear), int(bool(with_mesh)))
     nc = len(blocks)
     lines = _msg(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
-    return {"cstats": np.array(cstats).reshape(18, nc),
-            "pstats": np.array(pstats).reshape(6, -1)[:, :-1],
+    return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
+            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
             "refit_params": np.array(refit_params).reshape(-1, nc),
             "ranking": np.array(ranking, dtype=int) - 1,
-            "cosine": np.array(cosine).reshape(nc, nc), "dstats": np.array(dstats),
+            "cosine": np.array(cosine).reshape(nc, nc),
+            "dstats": Columns(np.array(dstats), DSTATS),
             "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
-            "sep_t": np.array(sep_t), "mstats": np.array(mstats),
+            "sep_t": np.array(sep_t), "mstats": Columns(np.array(mstats), MSTATS),
             "mesh_params": np.array(mesh_params),
-            "kept": np.array(kept, dtype=bool)[:-1],
+            "kept": np.array(kept, dtype=int)[:-1] == 1,
+            "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
             "notes": [line.strip() for line in lines[:nc]]}
 
 
@@ -64,19 +68,10 @@ def problem_fit_effect(prob: Problem, params0: np.ndarray, free: np.ndarray,
     problems); the dict of :func:`beamid._core_estimation.fit`."""
     free = np.asarray(free, np.int32)
     block = np.asarray(block, np.int32)
-    out = _api.api_problem_fit_effect(
-        prob.nbeams, np.asarray(params0, float), free, block, np.asarray(nominal, float),
-        _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
-        prob.exp_kind, _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-        prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), int(start_mask))
-    result = _fit_dict(out, free.size + block.size)
-    code, message = result["code"], result["message"]
-    if code != 0:
-        if code == 1 and result["note"]:
-            message = f"refit: no start converged: {result['note']}"
-        try:
-            raise_for_status(code, message)
-        except Exception as exc:
-            exc.partial = result  # type: ignore[attr-defined]
-            raise
-    return result
+    return _fit_call(_api.api_problem_fit_effect, free.size + block.size, True,
+                     prob.nbeams, np.asarray(params0, float), free, block,
+                     np.asarray(nominal, float), _pad(prior_idx, np.int32),
+                     _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
+                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
+                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
+                     int(start_mask))

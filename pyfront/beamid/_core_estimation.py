@@ -4,6 +4,11 @@ A static estimation problem crosses the boundary as plain arrays (see
 ``fortran/api/beamid_api_estimation.f90``): experiments as load kinds and
 ``(fx, fy, moment, wire_length)`` columns, data rows as (experiment index,
 quantity code, value, sigma), 1-based parameter indices.
+
+The calling convention is :func:`beamid._core._call` (the status is the
+last two results; a bad one raises). Fits are the exception that
+:func:`_fit_call` makes: a fit that fails still returns its last point,
+attached to the exception as ``exc.partial``.
 """
 from __future__ import annotations
 
@@ -12,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
+from ._core import _call
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
@@ -58,10 +64,8 @@ def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
     """(kind, NEXPVAL values) of every experiment of an estimation deck, in deck
     order (kind 3: a release, beamid_inverse's EV_* layout)."""
     raw = str(path).encode()
-    _, _, count, code, message = _api.api_deck_experiments(raw, 0)
-    raise_for_status(int(code), message)
-    kinds, values, count, code, message = _api.api_deck_experiments(raw, int(count))
-    raise_for_status(int(code), message)
+    _, _, count = _call(_api.api_deck_experiments, raw, 0)
+    kinds, values, count = _call(_api.api_deck_experiments, raw, int(count))
     values = np.array(values).reshape(NEXPVAL, -1)
     return [(int(kinds[e]), values[:, e].copy()) for e in range(int(count))]
 
@@ -71,11 +75,10 @@ def problem_predict(prob: Problem, params: np.ndarray,
     """Predictions and d/d params(wrt) of any mix of static and release
     experiments (beamid_inverse; wrt 1-based)."""
     wrt = np.asarray(wrt, dtype=np.int32)
-    pred, jac, code, message = _api.api_problem_predict(
-        prob.nbeams, np.asarray(params, float), prob.exp_kind, _mixed_values(prob),
-        prob.row_exp, _row_t(prob), prob.row_q, _pad(wrt, np.int32),
-        float(prob.tol))
-    raise_for_status(int(code), message)
+    pred, jac = _call(_api.api_problem_predict,
+                      prob.nbeams, np.asarray(params, float), prob.exp_kind, _mixed_values(prob),
+                      prob.row_exp, _row_t(prob), prob.row_q, _pad(wrt, np.int32),
+                      float(prob.tol))
     jac = np.array(jac).reshape(prob.row_exp.size, wrt.size + 1)
     return np.array(pred), jac[:, :wrt.size]
 
@@ -91,20 +94,12 @@ def problem_fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx:
     cov = np.zeros((n + 1, n + 1))
     if prior_cov is not None:
         cov[:n, :n] = prior_cov
-    out = _api.api_problem_fit(
-        prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
-        _pad(prior_mean, float), _pad(prior_sigma, float), int(prior_cov is not None),
-        np.asfortranarray(cov), prob.exp_kind, _mixed_values(prob), prob.row_exp,
-        _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-        int(max_iter))
-    result = _fit_dict(out, free.size)
-    if result["code"] != 0:
-        try:
-            raise_for_status(result["code"], result["message"])
-        except Exception as exc:
-            exc.partial = result  # type: ignore[attr-defined]
-            raise
-    return result
+    return _fit_call(_api.api_problem_fit, free.size, False,
+                     prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
+                     _pad(prior_mean, float), _pad(prior_sigma, float),
+                     int(prior_cov is not None), np.asfortranarray(cov), prob.exp_kind,
+                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
+                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter))
 
 
 def _msg(message: bytes | str) -> str:
@@ -131,10 +126,9 @@ def chi2_sf(x: float, k: int) -> float:
 def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Predictions of the data rows and d/d params(wrt) (wrt 1-based)."""
     wrt = np.asarray(wrt, dtype=np.int32)
-    pred, jac, code, message = _api.api_static_predict(
-        prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
-        prob.row_exp, prob.row_q, wrt, float(prob.tol))
-    raise_for_status(int(code), message)
+    pred, jac = _call(_api.api_static_predict, prob.nbeams, np.asarray(params, float),
+                      prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, wrt,
+                      float(prob.tol))
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
@@ -159,11 +153,13 @@ def _columns(table: int) -> dict[str, int]:
     return {name: k for k, name in code_names(table).items()}
 
 
-#: the columns of a fit's stats, and of a diagnosis' cstats, pstats, dstats
+#: the columns of a fit's stats, of a diagnosis' cstats, pstats, dstats, and
+#: of the mesh test's mstats (dynamic diagnosis)
 FIT_STATS = _columns(5)
 CSTATS = _columns(6)
 PSTATS = _columns(7)
 DSTATS = _columns(8)
+MSTATS = _columns(9)
 
 
 class Columns:
@@ -197,6 +193,25 @@ def _fit_dict(out, n: int) -> dict:
     }
 
 
+def _fit_call(entry, n: int, refit: bool, *args) -> dict:
+    """Call a fit entry point (results as api_fit_effect's, ``n`` free
+    parameters) and return :func:`_fit_dict`; a bad status raises with the
+    result in ``exc.partial`` (a refit none of whose starts converged says
+    what each start gave: the Fortran message holds 256 characters, the
+    notes all of it)."""
+    result = _fit_dict(entry(*args), n)
+    code, message = result["code"], result["message"]
+    if code != 0:
+        if code == 1 and result["note"] and refit:
+            message = f"refit: no start converged: {result['note']}"
+        try:
+            raise_for_status(code, message)
+        except Exception as exc:
+            exc.partial = result  # type: ignore[attr-defined]
+            raise
+    return result
+
+
 def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
         block: np.ndarray | None = None, nominal: np.ndarray | None = None,
@@ -213,23 +228,12 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
     block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    out = _api.api_fit_effect(
-        prob.nbeams, params0, free, _pad(block, np.int32), nominal, _pad(prior_idx, np.int32),
-        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
-        prob.exp_values, prob.row_exp, prob.row_q, prob.row_value, prob.row_sigma,
-        float(prob.tol), int(max_iter), int(start_mask))
-    result = _fit_dict(out, free.size + block.size)
-    code, message = result["code"], result["message"]
-    if code != 0:
-        if code == 1 and result["note"] and block.size:
-            # the Fortran message holds 256 characters; the notes all of it
-            message = f"refit: no start converged: {result['note']}"
-        try:
-            raise_for_status(code, message)
-        except Exception as exc:
-            exc.partial = result  # type: ignore[attr-defined]
-            raise
-    return result
+    return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
+                     prob.nbeams, params0, free, _pad(block, np.int32), nominal,
+                     _pad(prior_idx, np.int32), _pad(prior_mean, float),
+                     _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
+                     prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+                     int(max_iter), int(start_mask))
 
 
 def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
@@ -243,25 +247,14 @@ def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    if prob.row_t is not None:   # release experiments (beamid_inverse)
-        out = _api.api_problem_diagnose(
-            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-            _pad(prior_idx, np.int32), _pad(prior_mean, float),
-            _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
-            _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-            int(max_iter), starts, _pad(flat, np.int32), float(alpha), int(nrefit),
-            float(ambiguity_delta), float(collinear))
-    else:
-        out = _api.api_diagnose_nominal(
-            prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-            _pad(prior_idx, np.int32), _pad(prior_mean, float),
-            _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-            prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
-            starts, _pad(flat, np.int32), float(alpha), int(nrefit), float(ambiguity_delta),
-            float(collinear))
-    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes, code,
-     message) = out
-    raise_for_status(int(code), message)
+    # static experiments only: fits with releases go through the dynamic
+    # diagnosis (beamid._core_dyndiag.problem_diagnose)
+    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes) = _call(
+        _api.api_diagnose_nominal, prob.nbeams, params0, nominal, np.asarray(free, np.int32),
+        _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
+        prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, prob.row_value,
+        prob.row_sigma, float(prob.tol), int(max_iter), starts, _pad(flat, np.int32),
+        float(alpha), int(nrefit), float(ambiguity_delta), float(collinear))
     nc = len(blocks)
     lines = _msg(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))

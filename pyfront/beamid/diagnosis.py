@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -347,6 +347,77 @@ def _candidate_blocks(model: Model, candidates: Iterable[str | Effect]):
     return effects, names, blocks
 
 
+def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: Model,
+               exp_names: list[str], cls: type | None = None, keep: np.ndarray | None = None,
+               **extra: Any) -> Candidate:
+    """Candidate ``c`` of a diagnosis from the Fortran result arrays, read by
+    the column names the Fortran exports (static and dynamic diagnoses
+    alike): ``cls`` the result type (default :class:`Candidate`), ``keep``
+    the block's parameters as tested (default all), ``extra`` the fields a
+    subclass adds."""
+    cls = cls or Candidate
+    cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
+
+    def s(name: str) -> float:   # this candidate's column, by its Fortran name
+        return float(cst[name][c])
+
+    def ps(name: str) -> np.ndarray:
+        block = pst[name][starts[c]:starts[c + 1]]
+        return block if keep is None else block[keep]
+
+    state = _STATES[int(s("state"))]
+    if state != "tested":
+        return cls(eff.name, params, state)
+    refit = bool(s("refit_done")) and bool(s("refit_ok"))
+    sep = None
+    if s("rival") and s("sep_experiment") > 0:
+        sep = (exp_names[int(s("sep_experiment")) - 1],
+               _ce.QUANTITY_NAMES[int(s("sep_quantity"))], s("separation"))
+    null = {n: float(model[n]) for n in params}
+    each = list(enumerate(params))
+    return cls(
+        effect=eff.name, params=params, state=state, score_drop=s("score_drop"),
+        score_p=s("score_p"),
+        first_order={n: null[n] + float(ps("estimate")[j]) for j, n in each},
+        first_order_sigma={n: float(ps("sigma")[j]) for j, n in each},
+        physical=bool(s("physical")), identifiable=bool(s("identifiable")), refit=refit,
+        lr_drop=s("lr_drop") if refit else math.nan,
+        lr_p=s("lr_p") if refit else math.nan,
+        refit_estimate={n: float(ps("refit_value")[j]) for j, n in each} if refit else {},
+        refit_sigma={n: float(ps("refit_sigma")[j]) for j, n in each} if refit else {},
+        refit_flags={n: FLAG_TEXT.get(int(ps("refit_flag")[j]), "flagged")
+                     for j, n in each} if refit else {},
+        refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
+        significant=bool(s("significant")), acceptable=bool(s("acceptable")),
+        rival=bool(s("rival")), separating=sep, refit_tried=bool(s("refit_done")),
+        refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c]), **extra)
+
+
+def _effect_request(fit: FitResult, effect: str | Effect, max_iter: int,
+                    starts: Sequence[str] | str | None) -> tuple[Effect, tuple[str, ...], int]:
+    """The checks of add_effect (static and dynamic alike): the effect, its
+    parameters and the bit mask of the refit starts asked for (0: all)."""
+    eff = _effect(effect)
+    params = tuple(eff.params(fit.model))
+    if not params:
+        raise InputError(f"effect {eff.name!r} has no parameters in a "
+                         f"{fit.model.nbeams}-beam model")
+    already = [p for p in params if p in fit.free]
+    if already:
+        raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
+    mask = 0
+    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+        if name not in names:
+            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
+        mask |= 1 << names.index(name)
+    if starts is not None and mask == 0:
+        raise InputError(f"starts is empty: name some of {', '.join(names)}")
+    return eff, params, mask
+
+
 def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
              alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
              collinear: float = 0.98, nominal: Model | None = None) -> Diagnosis:
@@ -394,43 +465,8 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     nominal = _nominal(fit, nominal)
     raw = _ce.diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
                        int(nrefit), ambiguity_delta, collinear, nominal=nominal.vector())
-    cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
     exp_names = list(fit.experiments)
-    out: list[Candidate] = []
-    for c, eff in enumerate(effects):
-        def s(name: str) -> float:   # this candidate's column, by its Fortran name
-            return float(cst[name][c])
-
-        def ps(name: str) -> np.ndarray:
-            return pst[name][starts[c]:starts[c + 1]]
-
-        state = _STATES[int(s("state"))]
-        if state != "tested":
-            out.append(Candidate(eff.name, names[c], state))
-            continue
-        refit = bool(s("refit_done")) and bool(s("refit_ok"))
-        sep = None
-        if s("rival") and s("sep_experiment") > 0:
-            sep = (exp_names[int(s("sep_experiment")) - 1],
-                   _ce.QUANTITY_NAMES[int(s("sep_quantity"))], s("separation"))
-        null = {n: float(model[n]) for n in names[c]}
-        each = list(enumerate(names[c]))
-        out.append(Candidate(
-            effect=eff.name, params=names[c], state=state, score_drop=s("score_drop"),
-            score_p=s("score_p"),
-            first_order={n: null[n] + float(ps("estimate")[j]) for j, n in each},
-            first_order_sigma={n: float(ps("sigma")[j]) for j, n in each},
-            physical=bool(s("physical")), identifiable=bool(s("identifiable")), refit=refit,
-            lr_drop=s("lr_drop") if refit else math.nan,
-            lr_p=s("lr_p") if refit else math.nan,
-            refit_estimate={n: float(ps("refit_value")[j]) for j, n in each} if refit else {},
-            refit_sigma={n: float(ps("refit_sigma")[j]) for j, n in each} if refit else {},
-            refit_flags={n: FLAG_TEXT.get(int(ps("refit_flag")[j]), "flagged")
-                         for j, n in each} if refit else {},
-            refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
-            significant=bool(s("significant")), acceptable=bool(s("acceptable")),
-            rival=bool(s("rival")), separating=sep, refit_tried=bool(s("refit_done")),
-            refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c])))
+    out = [_candidate(raw, c, eff, names[c], model, exp_names) for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
     verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
@@ -534,24 +570,7 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         from .dyn_diagnosis import add_effect_dynamic
         return add_effect_dynamic(fit, effect, max_iter=max_iter, nominal=nominal,
                                   starts=starts)
-    eff = _effect(effect)
-    params = eff.params(fit.model)
-    if not params:
-        raise InputError(f"effect {eff.name!r} has no parameters in a "
-                         f"{fit.model.nbeams}-beam model")
-    already = [p for p in params if p in fit.free]
-    if already:
-        raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
-    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
-    mask = 0
-    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
-        if name not in names:
-            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
-        mask |= 1 << names.index(name)
-    if starts is not None and mask == 0:
-        raise InputError(f"starts is empty: name some of {', '.join(names)}")
+    eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)
     prob = build_problem(model, fit.experiments, fit.data)
@@ -581,6 +600,12 @@ class LadderStep(NamedTuple):
     sigmas: dict[str, float]
     fit: FitResult
     diagnosis: Diagnosis
+    #: parameters the rung switched on (the effect's, or the members of its
+    #: block the data determine)
+    params: tuple[str, ...] = ()
+    #: parameters an earlier rung switched on that this rung's fit no longer
+    #: needs (set back to their null values: a rival member of the block)
+    removed: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -605,6 +630,9 @@ class Ladder:
             est = ", ".join(f"{n} = {v:.5g} ({s.sigmas[n]:.2g})" for n, v in s.estimates.items())
             lines.append(f"{s.step:<6}{(s.effect or '(start)'):<18}{s.chi2:>12.5g}{s.dof:>5}"
                          f"{s.chi2_per_dof:>11.4g}  {est}")
+            if s.removed:
+                lines.append(f"{'':<6}{'':<18}{', '.join(s.params)} instead of "
+                             f"{', '.join(s.removed)} (no longer needed)")
         lines.append(self.steps[-1].diagnosis.message)
         return "\n".join(lines)
 

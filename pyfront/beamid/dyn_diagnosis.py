@@ -121,6 +121,10 @@ class DynCandidate(Candidate):
     #: significantly better than its best member) or do not determine
     #: (first-order estimate below 2 sigma): left at their null values
     left_at_null: tuple[str, ...] = ()
+    #: of those, the ones the score tests find about as good alone as the
+    #: member tested (these data hardly tell them apart: drag at the elbow
+    #: or at the tip); improve tests them again at its later rungs
+    ambiguous_with: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -174,59 +178,43 @@ def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None =
     raw = _cd.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks,
                                alpha, int(nrefit), ambiguity_delta, collinear,
                                nominal.vector(), with_mesh)
-    cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
     exp_names = list(fit.experiments)
     out: list[Candidate] = []
     for c, eff in enumerate(effects):
-        s = cst[:, c]
-        keep = raw["kept"][starts[c]:starts[c + 1]]
-        ps = pst[:, starts[c]:starts[c + 1]][:, keep] if keep.any() else pst[:, :0]
-        state = _STATES[int(s[0])]
-        if state != "tested":
-            out.append(DynCandidate(eff.name, names[c], state))
+        keep = raw["kept"][raw["starts"][c]:raw["starts"][c + 1]]
+        if _STATES[int(raw["cstats"]["state"][c])] != "tested":
+            out.append(DynCandidate(eff.name, names[c], _STATES[int(raw["cstats"]["state"][c])]))
             continue
-        left = tuple(n for n, k in zip(names[c], keep) if not k)
-        names[c] = tuple(n for n, k in zip(names[c], keep) if k)
-        refit = bool(s[6]) and bool(s[7])
-        sep, sep_t = None, None
-        if s[12] and s[14] > 0:
-            sep = (exp_names[int(s[14]) - 1], _ce.QUANTITY_NAMES[int(s[15])], float(s[13]))
-            sep_t = float(raw["sep_t"][c])
-        null = {n: float(model[n]) for n in names[c]}
-        out.append(DynCandidate(
-            effect=eff.name, params=names[c], state=state, score_drop=float(s[1]),
-            score_p=float(s[2]),
-            first_order={n: null[n] + float(ps[0, j]) for j, n in enumerate(names[c])},
-            first_order_sigma={n: float(ps[1, j]) for j, n in enumerate(names[c])},
-            physical=bool(s[4]), identifiable=bool(s[5]), refit=refit,
-            lr_drop=float(s[8]) if refit else math.nan,
-            lr_p=float(s[9]) if refit else math.nan,
-            refit_estimate={n: float(ps[3, j]) for j, n in enumerate(names[c])} if refit else {},
-            refit_sigma={n: float(ps[4, j]) for j, n in enumerate(names[c])} if refit else {},
-            refit_flags={n: FLAG_TEXT.get(int(ps[5, j]), "flagged")
-                         for j, n in enumerate(names[c])} if refit else {},
-            refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
-            significant=bool(s[10]), acceptable=bool(s[11]), rival=bool(s[12]),
-            separating=sep, refit_tried=bool(s[6]), refit_start=raw["refit_start"][c],
-            refit_note=_named(model, raw["notes"][c]), separating_time=sep_t,
-            left_at_null=left))
+        # the block as tested; the rest at null (not needed or determined)
+        left = tuple(n for n, k in zip(names[c], keep)
+                     if not k and n not in fit.free and float(model[n]) == 0.0)
+        tested = tuple(n for n, k in zip(names[c], keep) if k)
+        close = raw["ambiguous"][raw["starts"][c]:raw["starts"][c + 1]]
+        alike = tuple(n for n, a in zip(names[c], close) if a)
+        sep_t = (float(raw["sep_t"][c]) if raw["cstats"]["rival"][c]
+                 and raw["cstats"]["sep_experiment"][c] > 0 else None)
+        out.append(_dg._candidate(raw, c, eff, tested, model, exp_names, cls=DynCandidate,
+                                  keep=keep, separating_time=sep_t, left_at_null=left,
+                                  ambiguous_with=alike))
     ranked = [out[i] for i in raw["ranking"]]
-    verdict_index = int(raw["dstats"][0])
+    verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
-    alpha_each = float(raw["dstats"][2])
+    alpha_each = float(raw["dstats"]["alpha_each"])
     mesh = None
     m = raw["mstats"]
     if with_mesh:
-        if m[0]:
-            row = int(m[8]) - 1
+        if m["done"]:
+            row = int(m["max_row"]) - 1
             at = ((fit.data.experiment[row], float(fit.data.t[row]), fit.data.quantity[row])
                   if 0 <= row < len(fit.data) else None)
+            drop, p, significant = float(m["drop"]), float(m["p_value"]), bool(m["significant"])
             mesh = MeshCandidate(
-                "mesh", (), "tested", score_drop=float(m[5]), score_p=float(m[6]),
-                refit=bool(m[1]), refit_tried=True, lr_drop=float(m[5]), lr_p=float(m[6]),
+                "mesh", (), "tested", score_drop=drop, score_p=p, refit=bool(m["ok"]),
+                refit_tried=True, lr_drop=drop, lr_p=p,
                 refit_model=Model(model.nbeams, raw["mesh_params"]),
-                significant=bool(m[9]), acceptable=bool(m[9]),
-                elements_per_beam=int(m[2]), recommended=int(m[3]), max_change=float(m[7]),
+                significant=significant, acceptable=significant,
+                elements_per_beam=int(m["elements_per_beam"]),
+                recommended=int(m["recommended"]), max_change=float(m["max_change"]),
                 max_change_at=at)
         else:
             mesh = MeshCandidate("mesh", (), "not in this model")
@@ -266,8 +254,15 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         text = _dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh), verdict,
                                     plain, alpha, alpha_each)
         lines.append(text)
-        if verdict is not None and getattr(verdict, "left_at_null", ()):
-            lines.append(f"  {', '.join(verdict.left_at_null)} of {verdict.effect} left at "
+        alike = getattr(verdict, "ambiguous_with", ()) if verdict is not None else ()
+        if alike:
+            lines.append(f"  ambiguous: {' or '.join(verdict.params + alike)} of "
+                         f"{verdict.effect} (these data hardly tell them apart; "
+                         f"{', '.join(verdict.params)} explains them a little better now, "
+                         "and improve tests the others again once more effects are in)")
+        rest = tuple(n for n in getattr(verdict, "left_at_null", ()) if n not in alike)
+        if verdict is not None and rest:
+            lines.append(f"  {', '.join(rest)} of {verdict.effect} left at "
                          "the null value: these data do not need or determine it")
         for r in rivals:
             if r.separating:
@@ -295,25 +290,10 @@ def add_effect_dynamic(fit: FitResult, effect: str | Effect, *, max_iter: int = 
                        starts: Sequence[str] | None = None) -> FitResult:
     """:func:`beamid.add_effect` for fits with release experiments. The
     effect ``mesh`` refits at twice the elements per beam."""
-    eff = _dg._effect(effect)
-    if eff.name == "mesh":
+    if _dg._effect(effect).name == "mesh":
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
-    params = eff.params(fit.model)
-    if not params:
-        raise InputError(f"effect {eff.name!r} has no parameters in a "
-                         f"{fit.model.nbeams}-beam model")
-    already = [p for p in params if p in fit.free]
-    if already:
-        raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
-    names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
-    mask = 0
-    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
-        if name not in names:
-            raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
-        mask |= 1 << names.index(name)
+    eff, params, mask = _dg._effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _dg._nominal(fit, nominal)
     prob = build_problem(model, fit.experiments, fit.data)
@@ -337,7 +317,16 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
     """:func:`beamid.improve` for release experiments: fit, then repeat
     diagnose and add the verdict's effect (or refine the mesh to the
     recommended elements per beam) until no candidate is significant. The
-    mesh is tested until it is found adequate, not at every later step."""
+    mesh is tested until it is found adequate, not at every later step.
+
+    Stepwise in both directions: a block reduced to the members the data
+    determine (drag at the elbow or at the tip) stays a candidate of the
+    later rungs with its members still at null, and after every rung the parameters that
+    earlier rungs switched on are tested again (one-sided Wald test at the
+    rung's level alpha / number tested): one the new fit no longer needs,
+    typically the rival member of a block picked while another effect was
+    still missing, goes back to its null value and the rung is refitted
+    without it (``LadderStep.removed``)."""
     experiments = dict(experiments)
     current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
     nominal = model
@@ -345,11 +334,15 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
     limit = len(cands) if max_steps is None else int(max_steps)
     steps = []
     effect: str | None = None
+    added: list[str] = []
+    params: tuple[str, ...] = ()
+    removed: tuple[str, ...] = ()
     rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
     for k in rungs:
         diag = diagnose_dynamic(current, cands, alpha=alpha, nominal=nominal)
         steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
-                                dict(current.estimates), dict(current.sigmas), current, diag))
+                                dict(current.estimates), dict(current.sigmas), current, diag,
+                                params, removed))
         if diag.verdict is None or k == limit:
             break
         verdict = diag.verdict
@@ -357,24 +350,60 @@ def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=
             # the mesh is judged once: adding a small effect does not change
             # the discretization error, and its refit at twice the elements
             # per beam is the costliest test of a step
-            cands = [c for c in cands if c != "mesh"]
+            cands = [c for c in cands if _name(c) != "mesh"]
+        removed = ()
         if isinstance(verdict, MeshCandidate):
             experiments = refine_mesh(experiments, verdict.recommended)
             current = _fit(current.model, experiments, data, free=current.free, prior=prior,
                            max_iter=max_iter)
             current = dataclasses.replace(current, nominal=nominal)
             effect = f"mesh ({verdict.recommended} elements per beam)"
-            cands = [c for c in cands if c != "mesh"]
+            params = ()
+            cands = [c for c in cands if _name(c) != "mesh"]
             continue
         start = verdict.refit_model or current.model
         current = _fit(start, experiments, data, free=current.free + verdict.params,
                        prior=prior, max_iter=max_iter)
+        removed = _not_needed(current, added, diag.alpha_each)
+        if removed:
+            back = current.model.replace(**{n: float(model[n]) for n in removed})
+            current = _fit(back, experiments, data,
+                           free=tuple(n for n in current.free if n not in removed),
+                           prior=prior, max_iter=max_iter)
+            added = [n for n in added if n not in removed]
+        added += list(verdict.params)
         current = dataclasses.replace(current, nominal=nominal.with_params(
             {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
         nominal = current.nominal
         effect = verdict.effect
+        params = tuple(verdict.params)
     getattr(rungs, "close", lambda: None)()
     return Ladder(tuple(steps))
+
+
+def _name(c: str | Effect) -> str:
+    return c.name if isinstance(c, Effect) else str(c)
+
+
+def _not_needed(fit: FitResult, names: Sequence[str], level: float) -> tuple[str, ...]:
+    """Of the parameters ``names`` (switched on by earlier rungs, one-sided:
+    physical values positive), the one whose one-sided Wald test
+    (estimate / sigma) is least significant, when its p-value exceeds
+    ``level``: the fit does not need it (empty otherwise)."""
+    worst, worst_p = None, level
+    for n in names:
+        if n not in fit.estimates:
+            continue
+        est, sig = fit.estimates[n], fit.sigmas[n]
+        if not (sig > 0) or not math.isfinite(sig):
+            p = 1.0
+        elif est <= 0:
+            p = 1.0
+        else:
+            p = 0.5 * _ce.chi2_sf((est / sig) ** 2, 1)
+        if p > worst_p:
+            worst, worst_p = n, p
+    return (worst,) if worst else ()
 
 
 # ------------------------------------------------------------------- compare
