@@ -647,6 +647,10 @@ contains
         pred_step = 0.0_dp
         failed_trial = .false.
         it0 = 1
+        ! two phases: iterate (steered by rough Jacobians when the model
+        ! offers them), then confirm at the final point with the accurate
+        ! Jacobian and iterate on with it while it promises more than the
+        ! noise floor (the inner loop's body is the one Gauss-Newton step)
         phases: do
         iterate: do it = it0, opts%max_iter
             call projected_svd(stat)
@@ -793,11 +797,11 @@ contains
             end do
             if (all(held)) exit
         end do iterate
-            if (.not. model%rough) exit phases
-            call confirm_at_final_point(go_on, stat)
-            if (stat%code /= STATUS_OK) return
-            if (.not. go_on) exit phases
-            call restart_accurate()
+        if (.not. model%rough) exit phases
+        call confirm_at_final_point(go_on, stat)
+        if (stat%code /= STATUS_OK) return
+        if (.not. go_on) exit phases
+        call restart_accurate()
         end do phases
         res%log_cost = res%log_cost(0:res%nlog)
         res%log_lambda = res%log_lambda(0:res%nlog)
