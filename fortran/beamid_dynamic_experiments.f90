@@ -17,6 +17,15 @@
 !! release with `fd` set gets them by central differences of whole runs
 !! instead (steps 1e-4 of the parameter's scale): the baseline of the
 !! benchmark (benchmarks/bench_dynfit.py), not for fits.
+!!
+!! Rough Jacobians (residual_model_t%rough, set by the fit while it
+!! iterates; docs/workflow.md "How the fit uses the Jacobian"): a release on
+!! the implicit integrator then predicts its rows from a plain run at its own
+!! tolerance (the last plain run is cached per experiment, so the plain run
+!! that judged an accepted trial step is reused) and takes its sensitivities
+!! from a sensitivity run at ROUGH_RTOL when that is looser than its own
+!! tolerance. RK4 releases (fixed dt), central-difference ones and those
+!! marked `exact` ignore rough mode.
 module beamid_dynamic_experiments
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
@@ -52,7 +61,28 @@ module beamid_dynamic_experiments
         real(dp) :: rtol = 0.0_dp, dt = 0.0_dp
         real(dp) :: vslip = 1.0e-4_dp
         logical :: fd = .false.   !< central-difference columns (benchmark baseline)
+        !> sensitivities at the experiment's own tolerance at every fit
+        !! iteration (no rough Jacobian: fit(..., jacobian="exact"))
+        logical :: exact = .false.
     end type release_exp_t
+
+    !> Relative (and absolute) integration tolerance of the rough
+    !! sensitivities. On the Table 16 release (4 elements per beam, 19
+    !! outputs over 0.65 s) the sensitivities' relative error against rtol
+    !! 1e-11 is 1e-3 at rtol 1e-9 (5482 steps, 336 ms), 2e-2 at 1e-7 (123
+    !! ms), 3.4e-2 at 1e-6 (275 steps, 18 ms) and 3.6e-2 at 1e-5 (12 ms):
+    !! 1e-6 is where the cost levels off while the columns stay within a few
+    !! per cent, which only slows Gauss-Newton's convergence factor by about
+    !! that much (an inexact-Jacobian Newton method converges linearly at the
+    !! rate of the Jacobian's relative error).
+    real(dp), parameter :: ROUGH_RTOL = 1.0e-6_dp
+
+    !> The last plain run of an experiment: its parameters and response.
+    type :: plain_cache_t
+        logical :: valid = .false.
+        real(dp), allocatable :: params(:)
+        real(dp), allocatable :: y(:, :)
+    end type plain_cache_t
 
     !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
     !! quantity code of the estimation registry (0: wire_force, none).
@@ -66,6 +96,7 @@ module beamid_dynamic_experiments
         type(release_exp_t), allocatable :: exps(:)
         integer, allocatable :: row_exp(:), row_quantity(:)
         real(dp), allocatable :: row_t(:)
+        type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
     contains
         procedure :: evaluate => dynamic_evaluate
     end type dynamic_experiments_t
@@ -143,7 +174,27 @@ contains
         self%row_exp = row_exp
         self%row_t = row_t
         self%row_quantity = row_quantity
+        allocate (self%cache(size(exps)))
+        self%rough_jacobian_ok = .false.
+        do i = 1, size(exps)
+            if (.not. any(row_exp == i)) cycle
+            if (rough_tolerance(exps(i)) > 0.0_dp) self%rough_jacobian_ok = .true.
+        end do
     end subroutine dynamic_experiments_init
+
+    !> The looser tolerance of x's rough sensitivities, 0 when x has none:
+    !! RK4 (fixed dt), central differences, `exact`, or a tolerance of its own
+    !! already at ROUGH_RTOL or looser.
+    pure real(dp) function rough_tolerance(x)
+        type(release_exp_t), intent(in) :: x
+        type(integ_opts_t) :: defaults
+        real(dp) :: own
+        rough_tolerance = 0.0_dp
+        if (x%method /= METHOD_IMPLICIT .or. x%fd .or. x%exact) return
+        own = defaults%rtol
+        if (x%rtol > 0.0_dp) own = x%rtol
+        if (own < ROUGH_RTOL) rough_tolerance = ROUGH_RTOL
+    end function rough_tolerance
 
     !> The response of one release at the ascending times t_out: y(q, k) for
     !! every quantity code q (the registry of beamid_static_experiments;
@@ -275,7 +326,10 @@ contains
     end subroutine release_run
 
     !> Predictions and sensitivities of the rows: one response per experiment
-    !! that has rows, at the distinct times of its rows.
+    !! that has rows, at the distinct times of its rows. In rough mode with
+    !! sensitivities asked, a release with a rough tolerance predicts from a
+    !! plain run at its own tolerance (the cached one when the parameters are
+    !! those of the last plain run) and differentiates at the rough one.
     subroutine dynamic_evaluate(self, params, wrt, predictions, jacobian, stat)
         class(dynamic_experiments_t), intent(inout) :: self
         real(dp), intent(in) :: params(:)
@@ -287,11 +341,17 @@ contains
         integer :: e, i, k
         predictions = 0.0_dp
         jacobian = 0.0_dp
+        if (.not. allocated(self%cache)) allocate (self%cache(size(self%exps)))
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
             times = distinct_sorted(pack(self%row_t, self%row_exp == e))
             allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)))
-            call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, stat)
+            if (self%rough .and. size(wrt) > 0 .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
+                call rough_response(e, times, y, dy)
+            else
+                call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, stat)
+                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, y)
+            end if
             if (stat%code /= STATUS_OK) then
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
                 return
@@ -304,6 +364,40 @@ contains
             end do
             deallocate (y, dy)
         end do
+    contains
+        !> Predictions at the experiment's own tolerance (the cached plain
+        !! run or a new one), sensitivities at its rough tolerance.
+        subroutine rough_response(e, times, y, dy)
+            integer, intent(in) :: e
+            real(dp), intent(in) :: times(:)
+            real(dp), intent(out) :: y(:, :), dy(:, :, :)
+            type(release_exp_t) :: rough
+            real(dp), allocatable :: yr(:, :), none(:, :, :)
+            logical :: cached
+            cached = self%cache(e)%valid
+            if (cached) cached = all(self%cache(e)%params == params)
+            if (cached) then
+                y = self%cache(e)%y
+            else
+                allocate (none(NQUANT, size(times), 0))
+                call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), y, &
+                                      none, stat)
+                if (stat%code /= STATUS_OK) return
+                call remember(e, y)
+            end if
+            rough = self%exps(e)
+            rough%rtol = rough_tolerance(rough)
+            allocate (yr(NQUANT, size(times)))
+            call release_response(self%nbeams, params, rough, times, wrt, yr, dy, stat)
+        end subroutine rough_response
+
+        subroutine remember(e, y)
+            integer, intent(in) :: e
+            real(dp), intent(in) :: y(:, :)
+            self%cache(e)%valid = .true.
+            self%cache(e)%params = params
+            self%cache(e)%y = y
+        end subroutine remember
     end subroutine dynamic_evaluate
 
     !> The distinct values of x in ascending order.

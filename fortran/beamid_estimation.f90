@@ -90,6 +90,16 @@ module beamid_estimation
         !! whose sensitivities cost several plain evaluations: an integrated
         !! response)
         logical :: plain_trials = .false.
+        !> The model can give a rough Jacobian (sensitivities integrated at a
+        !! looser tolerance, predictions still at the user's): set by models
+        !! whose columns are integrated responses (beamid_inverse, for
+        !! releases on the implicit integrator). Static models leave it off.
+        logical :: rough_jacobian_ok = .false.
+        !> Mode switch set by fit_least_squares while it iterates (only when
+        !! rough_jacobian_ok): the Jacobian only steers the search; the
+        !! estimates are confirmed, and the covariance computed, with the
+        !! accurate Jacobian (rough = .false.) at the final point.
+        logical :: rough = .false.
     contains
         procedure(evaluate_interface), deferred :: evaluate
     end type residual_model_t
@@ -564,6 +574,19 @@ contains
     !!   holding the last iterate and its log;
     !! * a model that cannot be evaluated at params0 (the values asked): the
     !!   model's own status (genuine numerical failure).
+    !!
+    !! Inexact-Jacobian Gauss-Newton (a model with rough_jacobian_ok: an
+    !! integrated response whose sensitivities cost several runs): while
+    !! iterating the Jacobian only steers the search, so the model is asked
+    !! for a rough one (model%rough: sensitivities at a looser integration
+    !! tolerance, residuals still at the user's). When the iteration ends
+    !! (converged, noise floor or stall) the Jacobian is evaluated once at the
+    !! user's tolerance at the final point and the Gauss-Newton decrease it
+    !! predicts recomputed; if that still promises more than floor_chi2 the
+    !! fit iterates on with accurate Jacobians, so the estimates are the
+    !! minimum of the accurate model to the same criterion. The covariance,
+    !! sigmas, flags and condition number always come from the accurate
+    !! Jacobian. Static models never use rough mode.
     subroutine fit_least_squares(model, y, sigma, params0, free, lower, upper, prior, opts, &
                                  res, stat)
         class(residual_model_t), intent(inout) :: model
@@ -573,7 +596,8 @@ contains
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
-        integer :: m, n, mt, r, it, trial, i, nstuck, nbound
+        integer :: m, n, mt, r, it, it0, trial, i, nstuck, nbound
+        logical :: go_on
         real(dp), allocatable :: p(:), pt(:), pred(:), predt(:), a(:, :), at(:, :), rr(:), rt(:)
         real(dp), allocatable :: aa(:, :), g(:)
         real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
@@ -595,8 +619,12 @@ contains
                   res%log_step(0:opts%max_iter), res%log_params(n, 0:opts%max_iter))
         res%free = free
         p = params0
+        ! the Jacobian steers the search: rough while iterating when the
+        ! model can give one (confirm_at_final_point makes it accurate)
+        model%rough = model%rough_jacobian_ok
         call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, stat)
         if (stat%code /= STATUS_OK) then
+            model%rough = .false.
             stat%message = trim(stat%message)//' (at the starting values)'
             return
         end if
@@ -618,35 +646,18 @@ contains
         poor_step = .false.
         pred_step = 0.0_dp
         failed_trial = .false.
-        do it = 1, opts%max_iter
-            ! projected Gauss-Newton: a parameter on a bound whose descent
-            ! direction (a^T r) points out of the box is held for this step,
-            ! a parameter that ran away for good
-            aa = a
-            g = matmul(rr, a)
-            do i = 1, n
-                if (held(i) .or. (p(free(i)) <= lower(free(i)) .and. g(i) < 0.0_dp) .or. &
-                    (p(free(i)) >= upper(free(i)) .and. g(i) > 0.0_dp)) aa(:, i) = 0.0_dp
-            end do
-            call scaled_svd(aa, d, s, u, vt, stat)
-            if (stat%code /= STATUS_OK) return
-            ! ... and one on a bound that the Gauss-Newton step would push out
-            ! of the box (a clipped step would crawl along the bound)
-            do trial = 1, n
-                dx = lm_step(d, s, u, vt, rr, 0.0_dp, opts%rcond)
-                nbound = 0
-                do i = 1, n
-                    if (all(aa(:, i) == 0.0_dp)) cycle
-                    if ((p(free(i)) <= lower(free(i)) .and. dx(i) < 0.0_dp) .or. &
-                        (p(free(i)) >= upper(free(i)) .and. dx(i) > 0.0_dp)) then
-                        aa(:, i) = 0.0_dp
-                        nbound = nbound + 1
-                    end if
-                end do
-                if (nbound == 0) exit
-                call scaled_svd(aa, d, s, u, vt, stat)
-                if (stat%code /= STATUS_OK) return
-            end do
+        it0 = 1
+        ! two phases: iterate (steered by rough Jacobians when the model
+        ! offers them), then confirm at the final point with the accurate
+        ! Jacobian and iterate on with it while it promises more than the
+        ! noise floor (the inner loop's body is the one Gauss-Newton step)
+        phases: do
+        iterate: do it = it0, opts%max_iter
+            call projected_svd(stat)
+            if (stat%code /= STATUS_OK) then
+                model%rough = .false.
+                return
+            end if
             lam_floor = 1.0e-6_dp*s(1)**2
             ! first-order optimality: the undamped step would lower the cost by
             ! pred_gn = |U^T r|^2 = dx^T (A^T A) dx, the squared length of the
@@ -785,7 +796,13 @@ contains
                 end if
             end do
             if (all(held)) exit
-        end do
+        end do iterate
+        if (.not. model%rough) exit phases
+        call confirm_at_final_point(go_on, stat)
+        if (stat%code /= STATUS_OK) return
+        if (.not. go_on) exit phases
+        call restart_accurate()
+        end do phases
         res%log_cost = res%log_cost(0:res%nlog)
         res%log_lambda = res%log_lambda(0:res%nlog)
         res%log_step = res%log_step(0:res%nlog)
@@ -850,6 +867,81 @@ contains
                             ', chi-square '//fmt_real(res%chi2)//')')
             res%note = trim(stat%message)
         end if
+
+    contains
+
+        !> Projected Gauss-Newton: a parameter on a bound whose descent
+        !! direction (a^T r) points out of the box is held for this step, a
+        !! parameter that ran away for good; aa = a without their columns and
+        !! its scaled SVD (d, s, u, vt).
+        subroutine projected_svd(st)
+            type(status_t), intent(inout) :: st
+            aa = a
+            g = matmul(rr, a)
+            do i = 1, n
+                if (held(i) .or. (p(free(i)) <= lower(free(i)) .and. g(i) < 0.0_dp) .or. &
+                    (p(free(i)) >= upper(free(i)) .and. g(i) > 0.0_dp)) aa(:, i) = 0.0_dp
+            end do
+            call scaled_svd(aa, d, s, u, vt, st)
+            if (st%code /= STATUS_OK) return
+            ! ... and one on a bound that the Gauss-Newton step would push out
+            ! of the box (a clipped step would crawl along the bound)
+            do trial = 1, n
+                dx = lm_step(d, s, u, vt, rr, 0.0_dp, opts%rcond)
+                nbound = 0
+                do i = 1, n
+                    if (all(aa(:, i) == 0.0_dp)) cycle
+                    if ((p(free(i)) <= lower(free(i)) .and. dx(i) < 0.0_dp) .or. &
+                        (p(free(i)) >= upper(free(i)) .and. dx(i) > 0.0_dp)) then
+                        aa(:, i) = 0.0_dp
+                        nbound = nbound + 1
+                    end if
+                end do
+                if (nbound == 0) exit
+                call scaled_svd(aa, d, s, u, vt, st)
+                if (st%code /= STATUS_OK) return
+            end do
+        end subroutine projected_svd
+
+        !> The end of the rough phase: the Jacobian at the user's tolerance at
+        !! the final point (predictions and residuals are the same runs), and
+        !! the Gauss-Newton decrease it predicts. go_on: that still promises
+        !! more than the noise floor and iterations are left.
+        subroutine confirm_at_final_point(go_on, st)
+            logical, intent(out) :: go_on
+            type(status_t), intent(inout) :: st
+            type(status_t) :: est
+            model%rough = .false.
+            go_on = .false.
+            call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, est)
+            if (est%code /= STATUS_OK) then
+                est%message = trim(est%message)//' (the accurate Jacobian at the estimates)'
+                st = est
+                return
+            end if
+            cost = sum(rr**2)
+            if (all(held) .or. res%iterations >= opts%max_iter) return
+            call projected_svd(est)
+            if (est%code /= STATUS_OK) then
+                st = est
+                return
+            end if
+            pred_gn = predicted_decrease(s, u, rr, opts%rcond)
+            go_on = pred_gn > opts%floor_chi2
+        end subroutine confirm_at_final_point
+
+        !> Iterate on from the final point with accurate Jacobians, the
+        !! iteration's state as after an undamped step.
+        subroutine restart_accurate()
+            it0 = res%iterations + 1
+            res%converged = .false.
+            stalled = .false.
+            stall_pending = .false.
+            failed_trial = .false.
+            poor_step = .false.
+            nstuck = 0
+            lambda = 0.0_dp
+        end subroutine restart_accurate
     end subroutine fit_least_squares
 
     !> Has x run away from its start x0: beyond runaway_factor times |x0|, or

@@ -35,7 +35,9 @@ module beamid_inverse
     integer, parameter, public :: EV_FX = 1, EV_FY = 2, EV_MOMENT = 3, EV_WIRE_LENGTH = 4, &
                                   EV_NEPB = 5, EV_GAIN = 6, EV_METHOD = 7, EV_LAW = 8, &
                                   EV_RTOL = 9, EV_DT = 10, EV_VSLIP = 11, EV_FD = 12
-    !! (EV_FD = 1: central-difference sensitivities, the benchmark baseline)
+    !! (EV_FD = 1: central-difference sensitivities, the benchmark baseline;
+    !! 2: forward sensitivities at the experiment's tolerance at every fit
+    !! iteration, no rough Jacobian: fit(..., jacobian="exact"))
     integer, parameter, public :: NEXPVAL = 12
 
     type, extends(residual_model_t) :: inverse_problem_t
@@ -109,7 +111,8 @@ contains
                                             dt=exp_values(EV_DT, e), &
                                             vslip=merge(exp_values(EV_VSLIP, e), 1.0e-4_dp, &
                                                         exp_values(EV_VSLIP, e) > 0.0_dp), &
-                                            fd=exp_values(EV_FD, e) /= 0.0_dp)]
+                                            fd=nint(exp_values(EV_FD, e)) == 1, &
+                                            exact=nint(exp_values(EV_FD, e)) == 2)]
             case default
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected 1 (tip load), '// &
@@ -164,6 +167,9 @@ contains
                                       row_t(self%dy_rows), row_quantity(self%dy_rows), &
                                       self%dy, stat)
         if (stat%code /= STATUS_OK) call renumber(self%dy_rows)
+        ! releases on the implicit integrator can steer the fit with rough
+        ! sensitivities (beamid_dynamic_experiments, ROUGH_RTOL)
+        self%rough_jacobian_ok = self%dy%rough_jacobian_ok
     contains
         !> A family's message names its own row k: name the data row.
         subroutine renumber(rows)
@@ -199,6 +205,7 @@ contains
         end if
         if (size(self%dy_rows) > 0) then
             allocate (p(size(self%dy_rows)), j(size(self%dy_rows), size(wrt)))
+            self%dy%rough = self%rough   ! the fit's mode reaches the releases
             call self%dy%evaluate(params, wrt, p, j, stat)
             if (stat%code /= STATUS_OK) return
             predictions(self%dy_rows) = p

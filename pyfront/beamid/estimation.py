@@ -23,13 +23,16 @@ import numpy as np
 
 from . import _core_estimation as _ce
 from .errors import InputError
-from .loads import RadialWire, Release, TipLoad
+from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
 FLAG_TEXT = dict(_ce.FLAG_NAMES)
+#: row of a release's value column that selects its Jacobian (beamid_inverse
+#: EV_FD, 0-based): 0 forward sensitivities, 1 central differences, 2 exact
+_EV_FD = 11
 
 Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
 
@@ -282,7 +285,7 @@ def _check_fit_args(data, tol, max_iter) -> None:
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
-        max_iter: int = 50, tol: float = 0.0) -> FitResult:
+        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto") -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -315,6 +318,16 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         iterate).
     tol:
         Static solver tolerance (0: default).
+    jacobian:
+        ``"auto"`` (default): releases on the implicit integrator steer the
+        iteration with sensitivities integrated at rtol 1e-6 (predictions
+        and residuals at their own tolerance); at the end the Jacobian is
+        evaluated at the release's own tolerance, the fit iterates on with
+        it if it still promises a chi-square decrease above 0.01, and the
+        covariance comes from it (docs/workflow.md, "How the fit uses the
+        Jacobian"). ``"exact"``: sensitivities at the release's own
+        tolerance at every iteration. Static experiments are the same
+        either way.
 
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
@@ -328,7 +341,14 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if int(max_iter) < 1:
         raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    if jacobian not in ("auto", "exact"):
+        raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
     prob = build_problem(model, experiments, data, tol)
+    if jacobian == "exact" and prob.exp_values.shape[0] > _EV_FD:
+        # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
+        # tolerance at every iteration (1, central differences, is kept)
+        rel = (prob.exp_kind == LOAD_RELEASE) & (prob.exp_values[_EV_FD] == 0.0)
+        prob.exp_values[_EV_FD, rel] = 2.0
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
         prior_map, pidx, pmean, pcov = _carried_prior(model, prior)
