@@ -96,6 +96,7 @@ contains
 #define LDLT_ ldlt_real
 #define LDLT_COLUMN_ ldlt_column_real
 #define LDLT_SOLVE_ ldlt_solve_real
+#define LDLT_SOLVE_MANY_ ldlt_solve_real_many
 #define LDLT_AXPY_ ldlt_axpy_real
 #define LDLT_DOT_ ldlt_dot_real
 #define MV_ dband_mv
@@ -121,6 +122,7 @@ contains
 #define LDLT_ ldlt_cplx
 #define LDLT_COLUMN_ ldlt_column_cplx
 #define LDLT_SOLVE_ ldlt_solve_cplx
+#define LDLT_SOLVE_MANY_ ldlt_solve_cplx_many
 #define LDLT_AXPY_ ldlt_axpy_cplx
 #define LDLT_DOT_ ldlt_dot_cplx
 #define MV_ zband_mv
@@ -164,54 +166,5 @@ contains
             y(i1:i2) = y(i1:i2) + xj*kb(k + i1 - j:k + i2 - j, j) + vj*cb(k + i1 - j:k + i2 - j, j)
         end do
     end subroutine kc_mv
-
-    !> ldlt_solve_real for nc right-hand sides at once, stored as the rows of
-    !! b(nc, n) (the inner loops run over the right-hand sides, contiguous):
-    !! the multi-parameter sensitivity solves of the implicit integrator.
-    pure subroutine ldlt_solve_real_many(n, k, s, nc, b)
-        integer, intent(in) :: n, k, nc
-        real(dp), intent(in) :: s(k + 1, n)
-        real(dp), intent(inout) :: b(nc, n)
-        real(dp) :: acc(nc)
-        integer :: i, j, m
-        do j = 1, n
-            m = min(k, n - j)
-            do i = 1, m
-                b(:, j + i) = b(:, j + i) - s(1 + i, j)*b(:, j)
-            end do
-        end do
-        do j = n, 1, -1
-            m = min(k, n - j)
-            acc = 0.0_dp
-            do i = 1, m
-                acc = acc + s(1 + i, j)*b(:, j + i)
-            end do
-            b(:, j) = b(:, j)/s(1, j) - acc
-        end do
-    end subroutine ldlt_solve_real_many
-
-    !> Complex counterpart of ldlt_solve_real_many (the ldlt_cplx factors, no
-    !! conjugation).
-    pure subroutine ldlt_solve_cplx_many(n, k, s, nc, b)
-        integer, intent(in) :: n, k, nc
-        complex(dp), intent(in) :: s(k + 1, n)
-        complex(dp), intent(inout) :: b(nc, n)
-        complex(dp) :: acc(nc)
-        integer :: i, j, m
-        do j = 1, n
-            m = min(k, n - j)
-            do i = 1, m
-                b(:, j + i) = b(:, j + i) - s(1 + i, j)*b(:, j)
-            end do
-        end do
-        do j = n, 1, -1
-            m = min(k, n - j)
-            acc = (0.0_dp, 0.0_dp)
-            do i = 1, m
-                acc = acc + s(1 + i, j)*b(:, j + i)
-            end do
-            b(:, j) = b(:, j)/s(1, j) - acc
-        end do
-    end subroutine ldlt_solve_cplx_many
 
 end module beamid_band

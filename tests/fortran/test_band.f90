@@ -16,6 +16,7 @@ program test_band
     use beamid_status, only: status_t, STATUS_OK
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
+                           ldlt_solve_real_many, ldlt_solve_cplx_many, &
                            dband_mv, zband_mv, band_add, band_to_dense, band_mv, ldlt_inertia
     use beamid_testing, only: checks_t, check_close, check_below, check_true, check_finish, &
                               seed_random
@@ -196,7 +197,8 @@ contains
     subroutine symmetric_band(n, k)
         integer, intent(in) :: n, k
         real(dp) :: a(n, n), b(n, n), r(n), s(n), x(n), s1(k + 1, n), g1(3*k + 1, n), ax(n)
-        complex(dp) :: s2(k + 1, n), g2(3*k + 1, n), z(n), az(n)
+        complex(dp) :: s2(k + 1, n), g2(3*k + 1, n), z(n), az(n), zm(2, n)
+        real(dp) :: bm(3, n)
         character(len=64) :: label
         logical :: ok
         integer :: i, j
@@ -240,6 +242,29 @@ contains
         call ldlt_solve_cplx(n, k, s2, z)
         call check_below(t, trim(label)//': complex residual ratio', &
                          ratio(cmplx(a, b, dp), z, cmplx(r, s, dp)), THRESH)
+        ! three right-hand sides at once (rows of bm): the same solutions as
+        ! one at a time, to rounding
+        bm(1, :) = r
+        bm(2, :) = s
+        bm(3, :) = r - 2.0_dp*s
+        call ldlt_solve_real_many(n, k, s1, 3, bm)
+        call check_close(t, trim(label)//': real many-column solve', bm(1, :), x, &
+                         1.0e-13_dp, 1.0e-13_dp)
+        x = r - 2.0_dp*s
+        call ldlt_solve_real(n, k, s1, x)
+        call check_close(t, trim(label)//': real many-column solve, third column', &
+                         bm(3, :), x, 1.0e-13_dp, 1.0e-13_dp)
+        zm(1, :) = cmplx(r, s, dp)
+        zm(2, :) = cmplx(s, -r, dp)
+        call ldlt_solve_cplx_many(n, k, s2, 2, zm)
+        call check_close(t, trim(label)//': complex many-column solve (real part)', &
+                         real(zm(1, :), dp), real(z, dp), 1.0e-13_dp, 1.0e-13_dp)
+        call check_close(t, trim(label)//': complex many-column solve (imaginary part)', &
+                         aimag(zm(1, :)), aimag(z), 1.0e-13_dp, 1.0e-13_dp)
+        z = cmplx(s, -r, dp)
+        call ldlt_solve_cplx(n, k, s2, z)
+        call check_close(t, trim(label)//': complex many-column solve, second column', &
+                         real(zm(2, :), dp), real(z, dp), 1.0e-13_dp, 1.0e-13_dp)
     end subroutine symmetric_band
 
     subroutine symmetric_band_refuses_bad_pivots()
