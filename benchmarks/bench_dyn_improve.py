@@ -38,6 +38,11 @@ mu (gdb samples in apply_switch and sens_event_pre) grew its event list by
 doubling to 1.2 then 2.4 GB within 2 min, each record holding an unused
 whole-state rate jump (~1 KB at 8 elements per beam). Gone with those fixes;
 an event record is now 40 bytes.
+
+Measured again (24 November 2026, 13:46 UTC, machine otherwise idle, with the
+inexact-Jacobian fit (issue 13) and the diagnosis refits using it): 62.1 s
+(62.5 s before the refits used it) - the 60 s target is MISSED by 3 %. Same
+ladder, chi2/dof 1.004.
 """
 from __future__ import annotations
 

@@ -138,6 +138,10 @@ contains
         type(null_side_model_t), intent(out) :: self
         integer :: k
         self%inner = inner
+        ! the refits get the fit's savings of the wrapped problem: trial steps
+        ! on plain runs, the search steered by rough Jacobians
+        self%plain_trials = inner%plain_trials
+        self%rough_jacobian_ok = inner%rough_jacobian_ok
         self%fd = [param_index_global(nbeams, IG_TAU_MOTOR), &
                    param_index_global(nbeams, IG_ROOT_FLEX), &
                    (param_index_joint_flex(nbeams, k), k=1, nbeams - 1), &
@@ -161,6 +165,7 @@ contains
             if (k > 0) side(j) = params(wrt(j)) == 0.0_dp
         end do
         allocate (j0(size(predictions), count(.not. side)))
+        self%inner%rough = self%rough
         call self%inner%evaluate(params, pack(wrt, .not. side), predictions, j0, stat)
         if (stat%code /= STATUS_OK) return
         jacobian = 0.0_dp
@@ -191,6 +196,8 @@ contains
         integer, intent(in) :: cols(:), nrow
         type(cached_model_t), intent(out) :: self
         self%inner = inner
+        self%plain_trials = inner%plain_trials
+        self%rough_jacobian_ok = inner%rough_jacobian_ok
         self%at = params
         self%cols = cols
         allocate (self%pred(nrow), self%jac(nrow, size(cols)))
@@ -211,6 +218,7 @@ contains
         if (hit) hit = all(params == self%at) .and. all([(any(self%cols == wrt(j)), &
                                                            j=1, size(wrt))])
         if (.not. hit) then
+            self%inner%rough = self%rough
             call self%inner%evaluate(params, wrt, predictions, jacobian, stat)
             return
         end if
