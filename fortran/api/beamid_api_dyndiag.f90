@@ -6,17 +6,16 @@
 module beamid_api_dyndiag
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
+    use beamid_status, only: status_t, status_out, STATUS_OK
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, candidate_t, &
-                                 diagnose_options_t, diagnosis_t, fit_at, score_test, &
-                                 score_result_t, refit_effect, refit_info_t
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init
-    use beamid_dyn_diagnosis, only: mesh_test_t, dyn_diagnose, time_structure, &
-                                    null_side_model_t, null_side_init
+                                 diagnose_options_t, diagnosis_t
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_diagnose, &
+                              EXP_RELEASE
+    use beamid_dyn_diagnosis, only: mesh_test_t, dyn_diagnose, time_structure
     implicit none
     private
 
-    public :: api_problem_diagnose, api_problem_fit_effect, api_time_structure
+    public :: api_problem_diagnose, api_time_structure
 
 contains
 
@@ -41,10 +40,17 @@ contains
         prior%sigma = real(prior_sigma(1:nprior), dp)
     end subroutine make_prior
 
-    !> Diagnose a fit of any mix of static and release experiments
-    !! (beamid_dyn_diagnosis dyn_diagnose). Outputs as api_diagnose_nominal of
-    !! beamid_api_estimation (cstats 18 values per candidate, pstats 6 per
-    !! candidate parameter, dstats 6), with candidate state 4 (CAND_NOT_SEEN)
+    !> Diagnose a fit (the one diagnose binding): with release experiments
+    !! beamid_dyn_diagnosis dyn_diagnose, of static experiments alone
+    !! beamid_inverse inverse_diagnose. The base fit is evaluated at
+    !! `params0` (the estimates; not refitted), every candidate block
+    !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
+    !! leading ones refitted (from the first-order estimate, from the user's
+    !! starting values `nominal` and by continuation). Result columns by
+    !! name: api_code_names tables 6-9 (cstats 18 values per candidate, pstats
+    !! 6 per candidate parameter, dstats 6); refit_start(c) the start the
+    !! refit kept (START_*, 0: none), `notes` one line per candidate (what
+    !! the refit starts gave); candidate state 4 (CAND_NOT_SEEN)
     !! for effects the data rows do not see, and
     !! sep_t(c): the time of the probe row separating rival c from the verdict;
     !! mstats = done, ok, elements per beam, recommended, refined chi2, drop,
@@ -88,6 +94,7 @@ contains
         type(prior_t) :: prior
         type(diagnosis_t) :: diag
         type(mesh_test_t) :: mesh
+        type(inverse_problem_t) :: model
         type(candidate_t), allocatable :: cands(:), used(:)
         integer, allocatable :: pexp(:), pq(:), ambiguous(:)
         real(dp), allocatable :: pt(:)
@@ -117,11 +124,27 @@ contains
         dopts%nrefit = int(nrefit)
         dopts%ambiguity_delta = ambiguity_delta
         dopts%collinear = collinear
-        call dyn_diagnose(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
-                          real(row_t, dp), int(row_q), real(tol, dp), real(row_value, dp), &
-                          real(row_sigma, dp), real(params0, dp), real(nominal, dp), &
-                          int(free_idx), prior, cands, opts, dopts, with_mesh /= 0, base, diag, &
-                          mesh, pexp, pt, pq, used, stat, ambiguous)
+        if (any(exp_kind == EXP_RELEASE)) then
+            call dyn_diagnose(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
+                              real(row_t, dp), int(row_q), real(tol, dp), real(row_value, dp), &
+                              real(row_sigma, dp), real(params0, dp), real(nominal, dp), &
+                              int(free_idx), prior, cands, opts, dopts, with_mesh /= 0, base, &
+                              diag, mesh, pexp, pt, pq, used, stat, ambiguous)
+        else
+            ! static experiments only: the static diagnosis (beamid_inverse;
+            ! dyn_diagnose's block reduction and one-sided columns would move
+            ! the static results), every block tested as given
+            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                      int(row_exp), real(row_t, dp), int(row_q), &
+                                      real(tol, dp), model, stat)
+            if (stat%code == STATUS_OK) &
+                call inverse_diagnose(model, real(row_value, dp), real(row_sigma, dp), &
+                                      real(params0, dp), real(nominal, dp), int(free_idx), &
+                                      prior, cands, opts, dopts, base, diag, pexp, pq, stat)
+            used = cands
+            allocate (ambiguous(0))
+            if (allocated(pexp)) allocate (pt(size(pexp)), source=0.0_dp)
+        end if
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         nf = size(base%free)
@@ -179,109 +202,4 @@ contains
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
     end subroutine api_problem_diagnose
-
-    !> Add an effect to a fit of any mix of experiment families (the mixed
-    !! form of api_fit_effect with nblock > 0; same outputs and layout):
-    !! the fit evaluated at params0, the block score-tested at its null
-    !! values, refitted from the first-order estimate, from `nominal` and by
-    !! continuation (start_mask bits 1, 2, 4; 0 all).
-    subroutine api_problem_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
-                                      nominal, nprior, prior_idx, prior_mean, prior_sigma, &
-                                      nexp, exp_kind, nval, exp_values, nrow, row_exp, row_t, &
-                                      row_q, row_value, row_sigma, tol, max_iter, start_mask, &
-                                      params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                                      log_cost, log_lambda, log_step, log_params, info, code, &
-                                      message, note)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
-        integer(c_int), intent(in) :: nval  !< values per experiment (beamid_inverse NEXPVAL)
-        integer(c_int), intent(in) :: max_iter, start_mask
-        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(nval, nexp), row_t(nrow), row_value(nrow)
-        real(c_double), intent(in) :: row_sigma(nrow), tol
-        real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
-        real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
-        real(c_double), intent(out) :: corr(nfree + nblock, nfree + nblock)
-        real(c_double), intent(out) :: predictions(nrow), normalized(nrow), stats(8)
-        integer(c_int), intent(out) :: flags(nfree + nblock), info(2)
-        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
-        real(c_double), intent(out) :: log_step(max_iter + 1)
-        real(c_double), intent(out) :: log_params(nfree + nblock, max_iter + 1)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        character(len=8192), intent(out) :: note
-        type(inverse_problem_t) :: model
-        type(null_side_model_t) :: side
-        type(status_t) :: stat
-        type(fit_options_t) :: opts
-        type(fit_result_t) :: base, res
-        type(score_result_t) :: score
-        type(refit_info_t) :: rinfo
-        type(prior_t) :: prior
-        integer :: k, n
-
-        params = params0
-        sigmas = 0.0_c_double
-        cov = 0.0_c_double
-        corr = 0.0_c_double
-        flags = 0
-        predictions = 0.0_c_double
-        normalized = 0.0_c_double
-        stats = 0.0_c_double
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
-        info = 0
-        note = ''
-        if (nblock < 1 .or. any(block < 1 .or. block > nparams)) then
-            call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter indices '// &
-                            'empty or outside 1..nparams')
-        else
-            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                      int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat)
-        end if
-        if (stat%code == STATUS_OK) then
-            if (max_iter > 0) opts%max_iter = int(max_iter)
-            call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-            ! the motor lag and compliances get one-sided columns at null
-            call null_side_init(int(nbeams), model, side)
-            call fit_at(side, real(row_value, dp), real(row_sigma, dp), real(params0, dp), &
-                        int(free_idx), model%lower, model%upper, prior, opts, base, stat)
-        end if
-        if (stat%code == STATUS_OK) call score_test(side, real(row_value, dp), &
-            real(row_sigma, dp), base%params, base%free, model%lower, model%upper, prior, &
-            int(block), opts, score, stat)
-        if (stat%code == STATUS_OK) then
-            call refit_effect(side, real(row_value, dp), real(row_sigma, dp), base, int(block), &
-                              score, real(nominal, dp), model%nulls, model%lower, model%upper, &
-                              prior, opts, res, rinfo, stat, &
-                              use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
-            info(2) = int(rinfo%start, c_int)
-            if (allocated(rinfo%note)) note = rinfo%note
-        end if
-        call status_out(stat, code, message)
-        if (.not. allocated(res%params)) return
-        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
-        info(1) = int(res%stop, c_int)
-        params = res%params
-        sigmas = res%sigmas
-        cov = res%cov
-        corr = res%corr
-        flags = int(res%flags, c_int)
-        predictions = res%predictions
-        normalized = res%normalized
-        stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
-                 real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
-                 real(res%nlog, dp)]
-        n = min(res%nlog + 1, size(log_cost))
-        log_cost(1:n) = res%log_cost(1:n)
-        log_lambda(1:n) = res%log_lambda(1:n)
-        log_step(1:n) = res%log_step(1:n)
-        log_params(:, 1:n) = res%log_params(:, 1:n)
-    end subroutine api_problem_fit_effect
 end module beamid_api_dyndiag

@@ -12,7 +12,7 @@ import numpy as np
 from . import _ext
 from ._core import _call
 from ._core_estimation import (CSTATS, DSTATS, MSTATS, PSTATS, START_NAMES, Columns,
-                               Problem, _fit_call, _mixed_values, _msg, _pad, _row_t)
+                               Problem, _mixed_values, _msg, _pad, _row_t)
 
 _api = _ext.beamid_api_dyndiag
 
@@ -29,9 +29,11 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
                      prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
                      blocks: list[np.ndarray], alpha: float, nrefit: int,
                      ambiguity_delta: float, collinear: float, nominal: np.ndarray,
-                     with_mesh: bool, max_iter: int = 50) -> dict:
-    """Score tests, refits, ranking, unseen candidates and the mesh test of a
-    mixed static + release problem (1-based indices)."""
+                     with_mesh: bool = False, max_iter: int = 50) -> dict:
+    """Score tests, refits, ranking, unseen candidates and the mesh test of
+    any mix of static and release experiments (1-based indices; static
+    experiments alone: the static diagnosis, every block tested as given);
+    the refits also start from ``nominal``."""
     starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
     flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
             if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
@@ -58,20 +60,3 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
             "kept": np.array(kept, dtype=int)[:-1] == 1,
             "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
             "notes": [line.strip() for line in lines[:nc]]}
-
-
-def problem_fit_effect(prob: Problem, params0: np.ndarray, free: np.ndarray,
-                       prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
-                       block: np.ndarray, nominal: np.ndarray, start_mask: int = 0,
-                       max_iter: int = 50) -> dict:
-    """A fit at ``params0`` with the effect ``block`` freed as well (mixed
-    problems); the dict of :func:`beamid._core_estimation.fit`."""
-    free = np.asarray(free, np.int32)
-    block = np.asarray(block, np.int32)
-    return _fit_call(_api.api_problem_fit_effect, free.size + block.size, True,
-                     prob.nbeams, np.asarray(params0, float), free, block,
-                     np.asarray(nominal, float), _pad(prior_idx, np.int32),
-                     _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
-                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
-                     int(start_mask))

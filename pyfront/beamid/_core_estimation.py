@@ -123,13 +123,8 @@ def chi2_sf(x: float, k: int) -> float:
     return float(_api.api_chi2_sf(float(x), int(k)))
 
 
-def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Predictions of the data rows and d/d params(wrt) (wrt 1-based)."""
-    wrt = np.asarray(wrt, dtype=np.int32)
-    pred, jac = _call(_api.api_static_predict, prob.nbeams, np.asarray(params, float),
-                      prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, wrt,
-                      float(prob.tol))
-    return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
+#: predictions and d/d params(wrt) of the data rows (one binding for every family)
+predict = problem_predict
 
 
 def code_names(table: int) -> dict[int, str]:
@@ -216,55 +211,28 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
         block: np.ndarray | None = None, nominal: np.ndarray | None = None,
         start_mask: int = 0) -> dict:
-    """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
-    at ``params0`` with the parameters ``block`` freed as well, from the
-    first-order estimate, from ``nominal`` and by continuation (1-based
-    indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
-    continuation starts, 0 all). Returns a dict of arrays; a fit that stalls or whose
-    parameter runs away comes back with ``stop`` and ``note`` saying so.
-    Raises ConvergenceError (with the partial result in ``exc.partial``)
-    when still moving at ``max_iter`` or when no refit start converged."""
+    """Weighted Gauss-Newton/LM fit (``block`` empty: :func:`problem_fit`),
+    or the refit of a fit at ``params0`` with the parameters ``block`` freed
+    as well, from the first-order estimate, from ``nominal`` and by
+    continuation (1-based indices; ``start_mask`` bits 1, 2, 4 choose the
+    first-order, nominal and continuation starts, 0 all). Returns a dict of
+    arrays; a fit that stalls or whose parameter runs away comes back with
+    ``stop`` and ``note`` saying so. Raises ConvergenceError (with the partial
+    result in ``exc.partial``) when still moving at ``max_iter`` or when no
+    refit start converged."""
     free = np.asarray(free, dtype=np.int32)
-    block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
+    if block is None or not len(block):
+        return problem_fit(prob, params0, free, prior_idx, prior_mean, prior_sigma,
+                           max_iter=max_iter)
+    block = np.asarray(block, np.int32)
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
-                     prob.nbeams, params0, free, _pad(block, np.int32), nominal,
-                     _pad(prior_idx, np.int32), _pad(prior_mean, float),
-                     _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-                     prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-                     int(max_iter), int(start_mask))
-
-
-def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-             prior_mean: np.ndarray, prior_sigma: np.ndarray,
-             blocks: list[np.ndarray], alpha: float, nrefit: int, ambiguity_delta: float,
-             collinear: float, max_iter: int = 50, nominal: np.ndarray | None = None) -> dict:
-    """Score tests, refits and ranking of candidate blocks (1-based indices);
-    the refits also start from ``nominal`` (default ``params0``)."""
-    starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
-    flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
-            if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
-    params0 = np.asarray(params0, float)
-    nominal = params0 if nominal is None else np.asarray(nominal, float)
-    # static experiments only: fits with releases go through the dynamic
-    # diagnosis (beamid._core_dyndiag.problem_diagnose)
-    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes) = _call(
-        _api.api_diagnose_nominal, prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-        _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
-        prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, prob.row_value,
-        prob.row_sigma, float(prob.tol), int(max_iter), starts, _pad(flat, np.int32),
-        float(alpha), int(nrefit), float(ambiguity_delta), float(collinear))
-    nc = len(blocks)
-    lines = _msg(notes).rstrip().split("\n")
-    lines += [""] * (nc - len(lines))
-    return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
-            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
-            "refit_params": np.array(refit_params).reshape(-1, nc),
-            "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
-            "dstats": Columns(np.array(dstats), DSTATS), "starts": starts - 1,
-            "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
-            "notes": [line.strip() for line in lines[:nc]]}
+    return _fit_call(_api.api_fit_effect, free.size + block.size, True,
+                     prob.nbeams, params0, free, block, nominal, _pad(prior_idx, np.int32),
+                     _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
+                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
+                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
+                     int(start_mask))
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,

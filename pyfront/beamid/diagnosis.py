@@ -27,6 +27,7 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from . import _core_dyndiag as _cd
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
@@ -463,8 +464,8 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
-    raw = _ce.diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
-                       int(nrefit), ambiguity_delta, collinear, nominal=nominal.vector())
+    raw = _cd.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+                               int(nrefit), ambiguity_delta, collinear, nominal.vector())
     exp_names = list(fit.experiments)
     out = [_candidate(raw, c, eff, names[c], model, exp_names) for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
@@ -564,12 +565,14 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     which, ``result.note`` what every start gave). A refit that runs away or
     stalls comes back flagged; :class:`beamid.ConvergenceError` only when no
     start converges at all (the message says why for each). ``starts``
-    limits the starts tried (names as in ``refit_start``; default all).
+    limits the starts tried (names as in ``refit_start``; default all). On
+    fits with release experiments the effect ``mesh`` refits at twice the
+    elements per beam.
     """
-    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import add_effect_dynamic
-        return add_effect_dynamic(fit, effect, max_iter=max_iter, nominal=nominal,
-                                  starts=starts)
+    if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
+        from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
+        return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
+                    prior=fit.prior or None, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)

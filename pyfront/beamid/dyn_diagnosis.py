@@ -288,27 +288,8 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
 def add_effect_dynamic(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
                        nominal: Model | None = None,
                        starts: Sequence[str] | None = None) -> FitResult:
-    """:func:`beamid.add_effect` for fits with release experiments. The
-    effect ``mesh`` refits at twice the elements per beam."""
-    if _dg._effect(effect).name == "mesh":
-        return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
-                    prior=fit.prior or None, max_iter=max_iter)
-    eff, params, mask = _dg._effect_request(fit, effect, max_iter, starts)
-    model = fit.model
-    nominal = _dg._nominal(fit, nominal)
-    prob = build_problem(model, fit.experiments, fit.data)
-    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    block = np.array([model.index(n) + 1 for n in params], np.int32)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
-    try:
-        raw = _cd.problem_fit_effect(prob, model.vector(), free_idx, pidx, pmean, psig, block,
-                                     nominal.vector(), mask, int(max_iter))
-    except ConvergenceError as exc:
-        raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
-    start = model.with_params(dict(zip(fit.free + params, raw["log_params"][:, 0])))
-    return _result(start, fit.experiments, fit.data, fit.free + params, prior_map, raw,
-                   nominal=nominal.with_params({n: float(raw["params"][model.index(n)])
-                                                for n in params}))
+    """:func:`beamid.add_effect` (one implementation for every fit)."""
+    return _dg.add_effect(fit, effect, max_iter=max_iter, nominal=nominal, starts=starts)
 
 
 def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=None, *,
