@@ -10,22 +10,34 @@
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
+                             set_status, fmt_int
     use beamid_estimation, only: residual_structure, residual_model_t
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
+                                 diagnose_options_t, &
                                  chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_static_experiments, only: static_bounds
     use beamid_estimation, only: prior_from_covariance
     use beamid_deck, only: deck_t, read_deck
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init
-    use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init
+    use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
+    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
+                             improve_ladder
     implicit none
     private
 
     public :: api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_problem_predict, api_problem_fit, api_deck_experiments
+    public :: api_problem_diagnose, api_time_structure
+    public :: api_improve, api_ladder_rung, api_ladder_fit, api_ladder_diag
+
+    !> The rungs of the last api_improve and its candidates, until read by
+    !! api_ladder_rung, api_ladder_fit and api_ladder_diag (results of a size
+    !! known only after the run: GUIDE, module arrays of the binding).
+    type(rung_t), allocatable, save :: ladder(:)
+    type(cand_set_t), save :: ladder_cands
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -260,9 +272,7 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            prior%index = int(prior_idx(1:nprior))
-            prior%mean = real(prior_mean(1:nprior), dp)
-            prior%sigma = real(prior_sigma(1:nprior), dp)
+            call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
             if (model%has_dynamic) then
                 call null_side_init(int(nbeams), model, side)
                 call add_effect(side)
@@ -412,9 +422,7 @@ contains
                 call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
                                            real(prior_cov(1:n, 1:n), dp), prior, stat)
             else
-                prior%index = int(prior_idx(1:n))
-                prior%mean = real(prior_mean(1:n), dp)
-                prior%sigma = real(prior_sigma(1:n), dp)
+                call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
             end if
         end if
         if (stat%code == STATUS_OK) then
@@ -432,4 +440,367 @@ contains
         call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                       log_cost, log_lambda, log_step, log_params)
     end subroutine api_problem_fit
+
+    subroutine make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
+        integer(c_int), intent(in) :: nprior
+        integer(c_int), intent(in) :: prior_idx(:)
+        real(c_double), intent(in) :: prior_mean(:), prior_sigma(:)
+        type(prior_t), intent(out) :: prior
+        prior%index = int(prior_idx(1:nprior))
+        prior%mean = real(prior_mean(1:nprior), dp)
+        prior%sigma = real(prior_sigma(1:nprior), dp)
+    end subroutine make_prior
+
+    !> The problem of beamid_ladder from a binding's arrays (a priori arrays
+    !! with their unused trailing entry).
+    subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                            row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, &
+                            max_iter, pb)
+        integer(c_int), intent(in) :: nbeams, nprior, max_iter
+        integer(c_int), intent(in) :: exp_kind(:), row_exp(:), row_q(:), prior_idx(:)
+        real(c_double), intent(in) :: exp_values(:, :), row_t(:), row_value(:), row_sigma(:)
+        real(c_double), intent(in) :: tol, prior_mean(:), prior_sigma(:)
+        type(problem_t), intent(out) :: pb
+        pb%nbeams = int(nbeams)
+        pb%exp_kind = int(exp_kind)
+        pb%exp_values = real(exp_values, dp)
+        pb%row_exp = int(row_exp)
+        pb%row_t = real(row_t, dp)
+        pb%row_q = int(row_q)
+        pb%y = real(row_value, dp)
+        pb%sigma = real(row_sigma, dp)
+        pb%tol = real(tol, dp)
+        call make_prior(nprior, prior_idx, prior_mean, prior_sigma, pb%prior)
+        if (max_iter > 0) pb%max_iter = int(max_iter)
+    end subroutine make_problem
+
+    !> The candidate blocks cand_params(cand_start(c):cand_start(c+1)-1),
+    !! named by their number c (the front names them).
+    function make_cands(cand_start, cand_params, with_mesh) result(cs)
+        integer(c_int), intent(in) :: cand_start(:), cand_params(:), with_mesh
+        type(cand_set_t) :: cs
+        integer :: c
+        allocate (cs%cands(size(cand_start) - 1), cs%names(size(cand_start) - 1))
+        do c = 1, size(cs%cands)
+            cs%names(c) = fmt_int(c)
+            cs%cands(c)%name = trim(cs%names(c))
+            cs%cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
+        end do
+        cs%with_mesh = with_mesh /= 0
+    end function make_cands
+
+    !> Structure in time of one series of normalized residuals
+    !! (beamid_dyn_diagnosis time_structure; out layout there).
+    subroutine api_time_structure(n, t, r, out)
+        integer(c_int), intent(in) :: n
+        real(c_double), intent(in) :: t(n), r(n)
+        real(c_double), intent(out) :: out(10)
+        real(dp) :: o(10)
+        call time_structure(real(t, dp), real(r, dp), o)
+        out = o
+    end subroutine api_time_structure
+
+    !> Diagnose a fit (beamid_ladder problem_diagnose: with release
+    !! experiments beamid_dyn_diagnosis, of static experiments alone the
+    !! static diagnosis). The base fit is evaluated at `params0` (the
+    !! estimates; not refitted), every candidate block
+    !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
+    !! leading ones refitted (from the first-order estimate, from the user's
+    !! starting values `nominal` and by continuation). Outputs: copy_diag.
+    subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
+                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
+                                    exp_values, nrow, row_exp, row_t, row_q, row_value, &
+                                    row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                    cand_params, alpha, nrefit, ambiguity_delta, collinear, &
+                                    with_mesh, cstats, pstats, refit_params, ranking, cosine, &
+                                    dstats, refit_start, sep_t, mstats, mesh_params, kept, &
+                                    notes, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
+        real(c_double), intent(out) :: mesh_params(nparams)
+        integer(c_int), intent(out) :: kept(ncandp + 1)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        type(problem_t) :: pb
+        type(fit_options_t) :: opts
+        type(diagnose_options_t) :: dopts
+        type(diag_out_t) :: dg
+        type(cand_set_t) :: cs
+
+        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, 0, pb)
+        cs = make_cands(cand_start, cand_params, with_mesh)
+        if (max_iter > 0) opts%max_iter = int(max_iter)
+        dopts%alpha = alpha
+        dopts%nrefit = int(nrefit)
+        dopts%ambiguity_delta = ambiguity_delta
+        dopts%collinear = collinear
+        call problem_diagnose(pb, real(params0, dp), int(free_idx), real(nominal, dp), cs, &
+                              opts, dopts, dg, stat)
+        call status_out(stat, code, message)
+        call copy_diag(dg, cs, stat%code == STATUS_OK, real(params0, dp), cstats, pstats, &
+                       refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                       mesh_params, kept, notes)
+    end subroutine api_problem_diagnose
+
+    !> The outputs of a diagnosis (zero when `ok` is false): cstats 18 values
+    !! per candidate, pstats 6 per candidate parameter, dstats 6 (names:
+    !! api_code_names tables 6-8); candidate state 4 (CAND_NOT_SEEN) for
+    !! effects the data rows do not see; refit_start(c) the start the refit
+    !! kept (START_*, 0: none); sep_t(c) the time of the probe row separating
+    !! rival c from the verdict; mstats the mesh test (table 9), mesh_params
+    !! its refined refit's parameters (else `params`); kept(k) 1: the
+    !! candidate parameter was tested, 0: left at null (not needed or not
+    !! determined), 2: left at null although about as good alone as the
+    !! member tested; `notes` one line per candidate (what the refit starts
+    !! gave, newline-separated).
+    subroutine copy_diag(dg, cs, ok, params, cstats, pstats, refit_params, ranking, cosine, &
+                         dstats, refit_start, sep_t, mstats, mesh_params, kept, notes)
+        type(diag_out_t), intent(in) :: dg
+        type(cand_set_t), intent(in) :: cs
+        logical, intent(in) :: ok
+        real(dp), intent(in) :: params(:)
+        real(c_double), intent(out) :: cstats(:, :), pstats(:, :), refit_params(:, :)
+        real(c_double), intent(out) :: cosine(:, :), dstats(:), sep_t(:), mstats(:)
+        real(c_double), intent(out) :: mesh_params(:)
+        integer(c_int), intent(out) :: ranking(:), refit_start(:), kept(:)
+        character(len=*), intent(out) :: notes
+        character(len=:), allocatable :: text
+        integer :: c, k, j, nf, r, u
+
+        cstats = 0.0_c_double
+        pstats = 0.0_c_double
+        refit_params = 0.0_c_double
+        cosine = 0.0_c_double
+        ranking = 0
+        refit_start = 0
+        dstats = 0.0_c_double
+        sep_t = 0.0_c_double
+        mstats = 0.0_c_double
+        mesh_params = params
+        kept = 0
+        notes = ''
+        if (.not. ok) return
+        nf = size(dg%base%free)
+        text = ''
+        k = 0
+        do c = 1, size(cs%cands)
+            associate (cr => dg%diag%cand(c))
+                r = cr%separating_row
+                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
+                                real(cr%score%dof, dp), b2r(cr%score%physical), &
+                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
+                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
+                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
+                                real(merge(dg%pexp(max(r, 1)), 0, r > 0), dp), &
+                                real(merge(dg%pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
+                if (r > 0) sep_t(c) = dg%pt(r)
+                if (cr%refit_ok) then
+                    cstats(17, c) = cr%refit%chi2
+                    cstats(18, c) = cr%refit%chi2_prior
+                    refit_params(:, c) = cr%refit%params
+                end if
+                refit_start(c) = int(cr%info%start, c_int)
+                if (c > 1) text = text//new_line('a')
+                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
+                do j = 1, size(cs%cands(c)%params)
+                    k = k + 1
+                    ! position of this parameter in the block as tested
+                    u = findloc(dg%used(c)%params, cs%cands(c)%params(j), 1)
+                    if (u == 0 .and. any(dg%ambiguous == cs%cands(c)%params(j))) kept(k) = 2
+                    if (u == 0) cycle
+                    kept(k) = 1
+                    if (allocated(cr%score%estimate)) then
+                        pstats(1:3, k) = [cr%score%estimate(u), cr%score%sigma(u), &
+                                          b2r(cr%score%active(u))]
+                    end if
+                    if (cr%refit_ok) then
+                        pstats(4:6, k) = [cr%refit%params(dg%used(c)%params(u)), &
+                                          cr%refit%sigmas(nf + u), &
+                                          real(cr%refit%flags(nf + u), dp)]
+                    end if
+                end do
+            end associate
+        end do
+        notes = text
+        ranking = int(dg%diag%ranking, c_int)
+        cosine = dg%diag%cosine
+        dstats = [real(dg%diag%verdict, dp), real(dg%diag%ntested, dp), dg%diag%alpha_each, &
+                  dg%base%chi2, dg%base%chi2_prior, real(dg%base%dof, dp)]
+        associate (m => dg%mesh)
+            mstats = [b2r(m%done), b2r(m%ok), real(m%nepb, dp), real(m%recommended, dp), &
+                      m%chi2, m%drop, m%p_value, m%max_change, real(m%max_row, dp), &
+                      b2r(m%significant)]
+            if (allocated(m%params)) mesh_params = m%params
+        end associate
+    contains
+        pure real(dp) function b2r(flag)
+            logical, intent(in) :: flag
+            b2r = merge(1.0_dp, 0.0_dp, flag)
+        end function b2r
+    end subroutine copy_diag
+
+    !> The improve ladder (beamid_ladder improve_ladder, as beamid-batch runs
+    !! it): fit params0(free_idx), then diagnose (candidate blocks as
+    !! api_problem_diagnose, with_mesh: test the mesh apart) and add the
+    !! verdict's effect until none is significant at alpha or max_steps rungs
+    !! were added. nrung: the rungs (the start included), read one by one
+    !! with api_ladder_rung, api_ladder_fit and api_ladder_diag.
+    subroutine api_improve(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                           prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, row_exp, &
+                           row_t, row_q, row_value, row_sigma, tol, max_iter, ncand, cand_start, &
+                           ncandp, cand_params, with_mesh, alpha, max_steps, nrung, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha
+        integer(c_int), intent(out) :: nrung, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        type(problem_t) :: pb
+
+        nrung = 0
+        if (allocated(ladder)) deallocate (ladder)
+        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, max_iter, &
+                          pb)
+        ladder_cands = make_cands(cand_start, cand_params, with_mesh)
+        call improve_ladder(pb, real(params0, dp), int(free_idx), ladder_cands, real(alpha, dp), &
+                            int(max_steps), ladder, stat)
+        call status_out(stat, code, message)
+        if (stat%code /= STATUS_OK .and. allocated(ladder)) deallocate (ladder)
+        if (allocated(ladder)) nrung = int(size(ladder), c_int)
+    end subroutine api_improve
+
+    !> Rung k of the last api_improve: effect ('start', the number of the
+    !! candidate added, or 'mesh (N elements per beam)'), info = [free
+    !! parameters, elements per beam of the releases (0: as given), the
+    !! start the verdict's refit kept (START_*)], the free parameters free_idx (an
+    !! argument named `free` would shadow C's free() in f2py's wrapper), those
+    !! the rung switched on and those it set back (index lists ended by 0),
+    !! where its fit started and the nominal model of its refits.
+    subroutine api_ladder_rung(k, nparams, info, free_idx, added, removed, start, nominal, effect, &
+                               code, message)
+        integer(c_int), intent(in) :: k, nparams
+        integer(c_int), intent(out) :: info(3), free_idx(nparams + 1), added(nparams + 1)
+        integer(c_int), intent(out) :: removed(nparams + 1)
+        real(c_double), intent(out) :: start(nparams), nominal(nparams)
+        character(len=64), intent(out) :: effect
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        info = 0
+        free_idx = 0
+        added = 0
+        removed = 0
+        start = 0.0_c_double
+        nominal = 0.0_c_double
+        effect = ''
+        if (.not. rung_ok(k, code, message)) return
+        associate (r => ladder(k))
+            info = [size(r%fit%free), r%nepb, r%refit_start]
+            free_idx(:size(r%fit%free)) = r%fit%free
+            added(:size(r%params)) = r%params
+            removed(:size(r%removed)) = r%removed
+            start = r%start
+            nominal = r%nominal
+            effect = r%effect
+        end associate
+    end subroutine api_ladder_rung
+
+    !> The fit of rung k of the last api_improve (outputs as api_problem_fit).
+    subroutine api_ladder_fit(k, nparams, nfree, nrow, max_iter, params, sigmas, cov, corr, &
+                              flags, predictions, normalized, stats, log_cost, log_lambda, &
+                              log_step, log_params, info, code, message, note)
+        integer(c_int), intent(in) :: k, nparams, nfree, nrow, max_iter
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
+        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: stats(8)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        params = 0.0_c_double
+        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                       log_lambda, log_step, log_params)
+        info = 0
+        note = ''
+        if (.not. rung_ok(k, code, message)) return
+        associate (f => ladder(k)%fit)
+            info(1) = int(f%stop, c_int)
+            if (allocated(f%note)) note = f%note
+            if (allocated(f%note)) message = f%note
+            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                          log_cost, log_lambda, log_step, log_params)
+        end associate
+    end subroutine api_ladder_fit
+
+    !> The diagnosis of rung k of the last api_improve (outputs as
+    !! api_problem_diagnose).
+    subroutine api_ladder_diag(k, nparams, ncand, ncandp, cstats, pstats, refit_params, ranking, &
+                               cosine, dstats, refit_start, sep_t, mstats, mesh_params, kept, &
+                               notes, code, message)
+        integer(c_int), intent(in) :: k, nparams, ncand, ncandp
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
+        real(c_double), intent(out) :: mesh_params(nparams)
+        integer(c_int), intent(out) :: kept(ncandp + 1)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(diag_out_t) :: none
+        type(status_t) :: stat
+        if (rung_ok(k, code, message)) then
+            if (size(ladder_cands%cands) == ncand .and. size(ladder(k)%fit%params) == nparams) then
+                call copy_diag(ladder(k)%dg, ladder_cands, .true., ladder(k)%fit%params, cstats, &
+                               pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                               mstats, mesh_params, kept, notes)
+                return
+            end if
+            call set_status(stat, ERR_INPUT, 'ladder', 'ncand or nparams differ from the '// &
+                            'last api_improve')
+            call status_out(stat, code, message)
+        end if
+        call copy_diag(none, ladder_cands, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
+                       pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                       mesh_params, kept, notes)
+    end subroutine api_ladder_diag
+
+    !> Is k a rung of the last api_improve? (else ERR_INPUT naming k)
+    logical function rung_ok(k, code, message)
+        integer(c_int), intent(in) :: k
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        integer :: n
+        n = 0
+        if (allocated(ladder)) n = size(ladder)
+        rung_ok = k >= 1 .and. k <= n
+        if (.not. rung_ok) call set_status(stat, ERR_INPUT, 'ladder', 'rung '// &
+            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (run api_improve first)')
+        call status_out(stat, code, message)
+    end function rung_ok
 end module beamid_api_estimation

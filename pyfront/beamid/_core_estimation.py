@@ -1,9 +1,11 @@
-"""The only module that calls the extension for estimation and diagnosis.
+"""The only module that calls the extension for estimation, diagnosis and
+the improve ladder.
 
-A static estimation problem crosses the boundary as plain arrays (see
-``fortran/api/beamid_api_estimation.f90``): experiments as load kinds and
-``(fx, fy, moment, wire_length)`` columns, data rows as (experiment index,
-quantity code, value, sigma), 1-based parameter indices.
+An estimation problem (any mix of static and release experiments) crosses
+the boundary as plain arrays (see ``fortran/api/beamid_api_estimation.f90``):
+experiments as kinds and NEXPVAL value columns, data rows as (experiment
+index, t, quantity code, value, sigma), 1-based parameter indices. Result
+arrays are read by the column names the Fortran exports (CSTATS and friends).
 
 The calling convention is :func:`beamid._core._call` (the status is the
 last two results; a bad one raises). Fits are the exception that
@@ -233,6 +235,97 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
                      _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
                      prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
                      int(start_mask))
+
+
+def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
+    """Structure in time of one series of normalized residuals: [runs,
+    expected runs, runs z, runs p, lag-1 autocorrelation, its z, its p,
+    amplitude slope (1/s), its z, its p] (NaN where undefined)."""
+    return np.array(_api.api_time_structure(np.ascontiguousarray(t, dtype=float),
+                                            np.ascontiguousarray(normalized, dtype=float)))
+
+
+def _blocks(blocks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate blocks as (starts, flat parameter list + 1 unused entry)."""
+    starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
+    flat = [np.asarray(b, np.int32) for b in blocks]
+    return starts, _pad(np.concatenate(flat) if flat else np.zeros(0), np.int32)
+
+
+def _diag_dict(out, starts: np.ndarray) -> dict:
+    """The dict of :func:`problem_diagnose` from the outputs of a diagnosis entry."""
+    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
+     mesh_params, kept, notes) = out
+    nc = starts.size - 1
+    lines = _msg(notes).rstrip().split("\n")
+    lines += [""] * (nc - len(lines))
+    return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
+            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
+            "refit_params": np.array(refit_params).reshape(-1, nc),
+            "ranking": np.array(ranking, dtype=int) - 1,
+            "cosine": np.array(cosine).reshape(nc, nc),
+            "dstats": Columns(np.array(dstats), DSTATS),
+            "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
+            "sep_t": np.array(sep_t), "mstats": Columns(np.array(mstats), MSTATS),
+            "mesh_params": np.array(mesh_params),
+            "kept": np.array(kept, dtype=int)[:-1] == 1,
+            "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
+            "notes": [line.strip() for line in lines[:nc]]}
+
+
+def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
+                     prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
+                     blocks: list[np.ndarray], alpha: float, nrefit: int,
+                     ambiguity_delta: float, collinear: float, nominal: np.ndarray,
+                     with_mesh: bool = False, max_iter: int = 50) -> dict:
+    """Score tests, refits, ranking, unseen candidates and the mesh test of
+    any mix of static and release experiments (1-based indices; static
+    experiments alone: the static diagnosis, every block tested as given);
+    the refits also start from ``nominal``."""
+    starts, flat = _blocks(blocks)
+    return _diag_dict(_call(
+        _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
+        np.asarray(nominal, float), np.asarray(free, np.int32), _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob),
+        prob.row_exp, _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+        float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
+        float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
+
+
+def improve(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+            prior_mean: np.ndarray, prior_sigma: np.ndarray, blocks: list[np.ndarray],
+            with_mesh: bool, alpha: float, max_steps: int, max_iter: int = 50) -> list[dict]:
+    """The improve ladder (Fortran beamid_ladder, the one beamid-batch runs):
+    per rung a dict with ``effect`` (None for the start, else the candidate's
+    0-based index or ``"mesh (N elements per beam)"``), ``fit`` (the dict of
+    :func:`fit`), ``diag`` (of :func:`problem_diagnose`), ``free``, ``params``
+    (switched on), ``removed`` (set back), ``start`` and ``nominal``
+    (parameter vectors), ``elements_per_beam`` (of the releases, 0: as
+    given) and ``refit_start``."""
+    params0 = np.asarray(params0, float)
+    n = params0.size
+    starts, flat = _blocks(blocks)
+    nrung = _call(_api.api_improve, prob.nbeams, params0, np.asarray(free, np.int32),
+                  _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
+                  prob.exp_kind, _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
+                  prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), starts, flat,
+                  int(bool(with_mesh)), float(alpha), int(max_steps))
+    rungs = []
+    for k in range(1, int(nrung) + 1):
+        info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k, n)
+        nfree = int(info[0])
+        effect = _msg(effect).strip()
+        rungs.append({
+            "effect": None if effect == "start" else effect,
+            "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, n, nfree,
+                             prob.row_exp.size, int(max_iter)),
+            "diag": _diag_dict(_call(_api.api_ladder_diag, k, n, starts.size - 1,
+                                     flat.size - 1), starts),
+            "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
+            "removed": removed[removed > 0] - 1, "start": np.array(start),
+            "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
+            "refit_start": START_NAMES.get(int(info[2]))})
+    return rungs
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,

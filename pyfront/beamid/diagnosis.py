@@ -27,15 +27,13 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from . import _core_dyndiag as _cd
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
-from .estimation import _named, _prior_arrays, _result
+from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
-from .progress import progress
 
 
 # ------------------------------------------------------------------ registry
@@ -464,10 +462,17 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
-    raw = _cd.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+    raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
                                int(nrefit), ambiguity_delta, collinear, nominal.vector())
+    return _diagnosis(fit, raw, effects, names, alpha)
+
+
+def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
+               alpha: float) -> Diagnosis:
+    """The Diagnosis of a static fit from the Fortran result arrays."""
     exp_names = list(fit.experiments)
-    out = [_candidate(raw, c, eff, names[c], model, exp_names) for c, eff in enumerate(effects)]
+    out = [_candidate(raw, c, eff, names[c], fit.model, exp_names)
+           for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
     verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
@@ -646,32 +651,60 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
             candidates: Sequence[str | Effect] | None = None, alpha: float = 0.01,
             max_steps: int | None = None, max_iter: int = 50) -> Ladder:
     """Fit, then repeat diagnose and add the verdict's effect until no
-    candidate is significant; return the ladder of fits."""
-    if _dynamic(experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import improve_dynamic
-        return improve_dynamic(model, experiments, data, free=free, prior=prior,
-                               candidates=candidates, alpha=alpha, max_steps=max_steps,
-                               max_iter=max_iter)
-    current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
-    nominal = model
-    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    candidate is significant (at most ``max_steps`` rungs, default one per
+    candidate); return the ladder of fits.
+
+    The ladder runs in Fortran (``beamid_ladder``, the one ``beamid-batch``
+    runs for ``task = 'improve'``). With release experiments
+    (:mod:`beamid.dyn_diagnosis`) it is stepwise in both directions: a block
+    reduced to the members the data determine (drag at the elbow or at the
+    tip) stays a candidate of the later rungs with its members still at
+    null, and after every rung the parameters that earlier rungs switched on
+    are tested again (one-sided Wald test at the rung's level alpha / number
+    tested): one the new fit no longer needs, typically the rival member of
+    a block picked while another effect was still missing, goes back to its
+    null value and the rung is refitted without it (``LadderStep.removed``).
+    A significant ``mesh`` candidate refines every release to the
+    recommended elements per beam; the mesh is tested until found adequate.
+    """
+    dynamic = _dynamic(experiments)
+    if dynamic:
+        from .dyn_diagnosis import _dyn_diagnosis, default_candidates, refine_mesh
+    cands = list((default_candidates(experiments) if dynamic else STATIC_CANDIDATES)
+                 if candidates is None else candidates)
+    if not cands:
+        raise InputError("candidates is empty: name at least one effect")
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    with_mesh = dynamic and any(_effect(c).name == "mesh" for c in cands)
+    effects, names, blocks = _candidate_blocks(
+        model, [c for c in cands if not (dynamic and _effect(c).name == "mesh")])
     limit = len(cands) if max_steps is None else int(max_steps)
+    prob = build_problem(model, experiments, data)
+    free_names, free_idx = _free_indices(model, free)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    rungs = _ce.improve(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, with_mesh,
+                        alpha, limit, int(max_iter))
+    all_names = model.names()
     steps = []
-    effect: str | None = None
-    rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
-    for k in rungs:
-        diag = diagnose(current, cands, alpha=alpha, nominal=nominal)
-        steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
-                                dict(current.estimates), dict(current.sigmas), current, diag))
-        if diag.verdict is None or k == limit:
-            break
-        verdict = diag.verdict
-        start = verdict.refit_model or current.model
-        current = _fit(start, experiments, data, free=current.free + verdict.params,
-                       prior=prior, max_iter=max_iter)
-        current = dataclasses.replace(current, nominal=nominal.with_params(
-            {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
-        nominal = current.nominal
-        effect = verdict.effect
-    getattr(rungs, "close", lambda: None)()
+    for k, r in enumerate(rungs):
+        if r["elements_per_beam"]:
+            experiments = refine_mesh(experiments, r["elements_per_beam"])
+        fit = _result(Model(model.nbeams, r["start"]), experiments, data,
+                      tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
+                      nominal=Model(model.nbeams, r["nominal"]))
+        fit = dataclasses.replace(fit, refit_start=r["refit_start"])
+        diag = (_dyn_diagnosis(fit, r["diag"], effects, names, alpha, with_mesh) if dynamic
+                else _diagnosis(fit, r["diag"], effects, names, alpha))
+        effect = r["effect"]
+        if effect is not None and not effect.startswith("mesh"):
+            effect = effects[int(effect) - 1].name
+        steps.append(LadderStep(k, effect, fit.chi2, fit.dof, fit.chi2_per_dof,
+                                dict(fit.estimates), dict(fit.sigmas), fit, diag,
+                                tuple(all_names[i] for i in r["params"]),
+                                tuple(all_names[i] for i in r["removed"])))
+        if dynamic and diag.mesh is not None:
+            with_mesh = False    # the mesh is judged once (beamid_ladder)
     return Ladder(tuple(steps))
