@@ -118,7 +118,8 @@ contains
         type(static_solution_t) :: sol
         real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
         character(len=:), allocatable :: prefix
-        integer :: i, j, n, unit, ios, ierr
+        character(len=64), allocatable :: names(:)
+        integer :: i, j, n, ierr
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
@@ -141,33 +142,16 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_summary.csv', 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, NOUT
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(output_names(i)), &
-                sol%outputs(i)
-        end do
+        names = [(output_names(i), i=1, NOUT)]
         do j = 1, size(d%wrt)
-            do i = 1, NOUT
-                if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) &
-                    'd('//trim(output_names(i))//')/d('//param_name(d%nbeams, d%wrt(j))//')', &
-                    sol%doutputs(i, j)
-            end do
+            names = [character(len=64) :: names, ('d('//trim(output_names(i))//')/d('// &
+                     param_name(d%nbeams, d%wrt(j))//')', i=1, NOUT)]
         end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', &
-            sol%newton_iterations
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', sol%load_steps
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-
-        if (n < 2) return
-        call open_output(fl, prefix//'_shape.csv', 's,x,y,psi,moment', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, n
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) &
-                s(i), x(i), y(i), psi(i), moment(i)
-        end do
-        call close_checked(unit, ios, prefix//'_shape.csv', st)
+        call write_summary(fl, prefix//'_summary.csv', names, [sol%outputs, sol%doutputs], &
+                           [sol%newton_iterations, sol%load_steps], st)
+        if (st%code /= STATUS_OK .or. n < 2) return
+        call write_table(fl, prefix//'_shape.csv', 's,x,y,psi,moment', &
+                         transpose(reshape([s, x, y, psi, moment], [n, 5])), st)
     end subroutine run_static
 
     !> Finite element statics (docs/fe.md): tip values and the node table.
@@ -182,8 +166,8 @@ contains
         real(dp), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(dp) :: energy, reactions(3), residual
         character(len=:), allocatable :: prefix
-        integer :: unit, ios, i, ierr
-        real(dp) :: total, values(8)
+        integer :: ierr
+        real(dp) :: total
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
@@ -208,24 +192,11 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_summary.csv', 'quantity,value', unit, ios, st)
+        call write_summary(fl, prefix//'_summary.csv', names, [nodes(4, nnode), &
+                           nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
+                           total + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
         if (st%code /= STATUS_OK) return
-        values = [nodes(4, nnode), nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), &
-                  nodes(3, 1), energy, total + nodes(2, nnode), nodes(4, nnode)]
-        do i = 1, size(names)
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), &
-                values(i)
-        end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', info(1)
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', info(2)
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_nodes.csv', 's,u,du,w,dw', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, nnode
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) nodes(:, i)
-        end do
-        call close_checked(unit, ios, prefix//'_nodes.csv', st)
+        call write_table(fl, prefix//'_nodes.csv', 's,u,du,w,dw', nodes, st)
     end subroutine run_fe_static
 
     !> Finite element linear modes: frequencies by family (Tables 9, 10).
@@ -410,8 +381,8 @@ contains
             return
         end if
         if (d%task /= 'improve') return
-        call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, ios, &
-                         st)
+        call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
+                         ios, st)
         if (st%code /= STATUS_OK) return
         do k = 1, size(rungs)
             associate (f => rungs(k)%fit)
@@ -825,6 +796,40 @@ contains
         end do
         call close_checked(unit, ios, name, st)
     end subroutine write_ranking
+
+    !> <name>: 'quantity,value' rows (names, values), then the solver's Newton
+    !! iterations and load steps (counts).
+    subroutine write_summary(fl, name, names, values, counts, st)
+        type(files_t), intent(inout) :: fl
+        character(len=*), intent(in) :: name, names(:)
+        real(dp), intent(in) :: values(:)
+        integer, intent(in) :: counts(2)
+        type(status_t), intent(inout) :: st
+        integer :: unit, ios, i
+        call open_output(fl, name, 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(values)
+            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), values(i)
+        end do
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', counts(1)
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', counts(2)
+        call close_checked(unit, ios, name, st)
+    end subroutine write_summary
+
+    !> <name>: the header, then one row per column of `table`.
+    subroutine write_table(fl, name, header, table, st)
+        type(files_t), intent(inout) :: fl
+        character(len=*), intent(in) :: name, header
+        real(dp), intent(in) :: table(:, :)
+        type(status_t), intent(inout) :: st
+        integer :: unit, ios, i
+        call open_output(fl, name, header, unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(table, 2)
+            if (ios == 0) write (unit, '(*(es24.16e3,:,","))', iostat=ios) table(:, i)
+        end do
+        call close_checked(unit, ios, name, st)
+    end subroutine write_table
 
     !> A logical as '0' or '1'.
     pure function b2s(x) result(text)

@@ -29,7 +29,7 @@ module beamid_api_estimation
 
     public :: api_chi2_sf, api_static_bounds
     public :: api_residual_structure, api_fit_effect, api_code_names
-    public :: api_problem_predict, api_problem_fit, api_deck_experiments
+    public :: api_problem_predict, api_deck_experiments
     public :: api_problem_diagnose, api_time_structure
     public :: api_improve, api_ladder_rung, api_ladder_fit, api_ladder_diag
 
@@ -208,32 +208,40 @@ contains
         log_params(:, 1:n) = res%log_params(:, lo:lo + n - 1)
     end subroutine copy_fit
 
-    !> Add an effect to a fit (beamid.add_effect) of any mix of experiment
-    !! families (beamid_inverse layout, as api_problem_fit): params0 holds the
-    !! estimates of a fit of free_idx (evaluated there, not refitted); the
-    !! effect's parameters block(1:nblock), at their null values, are
-    !! score-tested and freed, and the refit starts from the first-order
-    !! estimate, from `nominal` (the user's starting values) with the effect at
-    !! null, and by continuation in the effect's strength (refit_effect;
-    !! start_mask bits 1, 2, 4 = START_SCORE, START_NOMINAL,
+    !> The one fit entry (beamid.fit, beamid.add_effect) on any mix of
+    !! experiment families (beamid_inverse layout). A priori information is
+    !! independent (use_cov = 0: mean, sigma) or a full covariance prior_cov
+    !! of the prior parameters (use_cov = 1: a previous fit carried forward,
+    !! Eq. 146-148, 164-166).
+    !! nblock = 0: weighted Gauss-Newton / LM fit of free_idx from params0
+    !! (Eq. 39, 53-55, 142-145); info(1) = how it ended (STOP_*), note = what
+    !! happened when it did not converge (flagged parameters).
+    !! nblock > 0: params0 holds the estimates of a fit of free_idx (evaluated
+    !! there, not refitted); the effect's parameters block(1:nblock), at their
+    !! null values, are score-tested and freed, and the refit starts from the
+    !! first-order estimate, from `nominal` (the user's starting values) with
+    !! the effect at null, and by continuation in the effect's strength
+    !! (refit_effect; start_mask bits 1, 2, 4 = START_SCORE, START_NOMINAL,
     !! START_CONTINUATION, 0: all), keeping the best that converges. With
     !! release experiments the motor lag, compliances and rotary inertias get
-    !! one-sided columns at null (beamid_dyn_diagnosis null_side_model_t). The
-    !! outputs are those of the fit of [free_idx, block] (api_problem_fit's);
+    !! one-sided columns at null (beamid_dyn_diagnosis null_side_model_t).
+    !! The outputs are those of the fit of [free_idx, block] (copy_fit);
     !! info(2) = the start kept (START_*), note = what every start gave. No
     !! start converging is ERR_NO_CONVERGENCE with the notes (and the best
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
-                              nominal, nprior, prior_idx, prior_mean, prior_sigma, nexp, &
-                              exp_kind, exp_values, nrow, row_exp, row_t, row_q, row_value, &
-                              row_sigma, tol, max_iter, start_mask, params, sigmas, cov, corr, &
-                              flags, predictions, normalized, stats, log_cost, log_lambda, &
-                              log_step, log_params, info, code, message, note)
+                              nominal, nprior, prior_idx, prior_mean, prior_sigma, use_cov, &
+                              prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
+                              row_q, row_value, row_sigma, tol, max_iter, start_mask, params, &
+                              sigmas, cov, corr, flags, predictions, normalized, stats, &
+                              log_cost, log_lambda, log_step, log_params, info, code, message, &
+                              note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
-        integer(c_int), intent(in) :: max_iter, start_mask
+        integer(c_int), intent(in) :: max_iter, start_mask, use_cov
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
+        integer(c_int), intent(in) :: free_idx(nfree), block(nblock + 1)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
         integer(c_int), intent(in) :: prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
@@ -256,15 +264,17 @@ contains
         type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
         type(prior_t) :: prior
+        integer :: n
 
         params = params0
         call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                        log_lambda, log_step, log_params)
         info = 0
         note = ''
-        if (nblock < 1 .or. any(block < 1 .or. block > nparams)) then
-            call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter indices '// &
-                            'empty or outside 1..nparams')
+        n = int(nprior)
+        if (any(block(1:nblock) < 1 .or. block(1:nblock) > nparams)) then
+            call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
+                            'outside 1..nparams')
         else
             call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                       int(row_exp), real(row_t, dp), int(row_q), &
@@ -272,15 +282,26 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-            if (model%has_dynamic) then
-                call null_side_init(int(nbeams), model, side)
-                call add_effect(side)
+            if (use_cov /= 0) then
+                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
+                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
             else
-                call add_effect(model)
+                call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
             end if
         end if
+        if (stat%code == STATUS_OK .and. nblock == 0) then
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), model%lower, model%upper, &
+                                   prior, opts, res, stat)
+            if (allocated(res%note)) note = res%note
+        else if (stat%code == STATUS_OK .and. model%has_dynamic) then
+            call null_side_init(int(nbeams), model, side)
+            call add_effect(side)
+        else if (stat%code == STATUS_OK) then
+            call add_effect(model)
+        end if
         call status_out(stat, code, message)
+        if (nblock == 0 .and. stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
         if (.not. allocated(res%params)) return
         info(1) = int(res%stop, c_int)
         if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
@@ -300,9 +321,9 @@ contains
             call fit_at(m, y, sig, real(params0, dp), int(free_idx), model%lower, model%upper, &
                         prior, opts, base, stat)
             if (stat%code == STATUS_OK) call score_test(m, y, sig, base%params, base%free, &
-                model%lower, model%upper, prior, int(block), opts, score, stat)
+                model%lower, model%upper, prior, int(block(1:nblock)), opts, score, stat)
             if (stat%code /= STATUS_OK) return
-            call refit_effect(m, y, sig, base, int(block), score, real(nominal, dp), &
+            call refit_effect(m, y, sig, base, int(block(1:nblock)), score, real(nominal, dp), &
                               model%nulls, model%lower, model%upper, prior, opts, res, rinfo, &
                               stat, use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
             info(2) = int(rinfo%start, c_int)
@@ -370,76 +391,6 @@ contains
         pred = p
         jac(:, 1:nwrt) = j
     end subroutine api_problem_predict
-
-    !> api_fit_effect (nblock = 0) on any mix of experiment families, with
-    !! a priori information either independent (use_cov = 0: mean, sigma) or
-    !! a full covariance prior_cov of the prior parameters (use_cov = 1: a
-    !! previous fit carried forward, Eq. 146-148, 164-166).
-    subroutine api_problem_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                               prior_mean, prior_sigma, use_cov, prior_cov, nexp, exp_kind, &
-                               exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
-                               tol, max_iter, params, sigmas, cov, corr, flags, predictions, &
-                               normalized, stats, log_cost, log_lambda, log_step, log_params, &
-                               info, code, message, note)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        integer(c_int), intent(in) :: use_cov
-        real(c_double), intent(in) :: params0(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
-        real(c_double), intent(in) :: row_sigma(nrow), tol
-        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
-        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
-        integer(c_int), intent(out) :: flags(nfree), info(2)
-        real(c_double), intent(out) :: stats(8)
-        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
-        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        character(len=8192), intent(out) :: note
-        type(inverse_problem_t) :: model
-        type(status_t) :: stat
-        type(fit_options_t) :: opts
-        type(fit_result_t) :: res
-        type(prior_t) :: prior
-        real(dp), allocatable :: lower(:), upper(:)
-        integer :: n
-
-        params = params0
-        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
-                       log_lambda, log_step, log_params)
-        info = 0
-        note = ''
-        n = int(nprior)
-        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat)
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            if (use_cov /= 0) then
-                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
-                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
-            else
-                call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-            end if
-        end if
-        if (stat%code == STATUS_OK) then
-            call static_bounds(int(nbeams), lower, upper)
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
-                                   res, stat)
-        end if
-        call status_out(stat, code, message)
-        if (.not. allocated(res%params)) return
-        info(1) = int(res%stop, c_int)
-        if (allocated(res%note)) note = res%note
-        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
-        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
-        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                      log_cost, log_lambda, log_step, log_params)
-    end subroutine api_problem_fit
 
     subroutine make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
         integer(c_int), intent(in) :: nprior
@@ -727,7 +678,7 @@ contains
         end associate
     end subroutine api_ladder_rung
 
-    !> The fit of rung k of the last api_improve (outputs as api_problem_fit).
+    !> The fit of rung k of the last api_improve (outputs as api_fit_effect).
     subroutine api_ladder_fit(k, nparams, nfree, nrow, max_iter, params, sigmas, cov, corr, &
                               flags, predictions, normalized, stats, log_cost, log_lambda, &
                               log_step, log_params, info, code, message, note)

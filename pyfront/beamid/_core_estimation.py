@@ -91,17 +91,8 @@ def problem_fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx:
     """Weighted Gauss-Newton/LM fit of any mix of experiment families; with
     ``prior_cov`` the a priori information is a full covariance (a previous
     fit carried forward, Eq. 146-148). Same dict and errors as :func:`fit`."""
-    free = np.asarray(free, dtype=np.int32)
-    n = len(prior_idx)
-    cov = np.zeros((n + 1, n + 1))
-    if prior_cov is not None:
-        cov[:n, :n] = prior_cov
-    return _fit_call(_api.api_problem_fit, free.size, False,
-                     prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
-                     _pad(prior_mean, float), _pad(prior_sigma, float),
-                     int(prior_cov is not None), np.asfortranarray(cov), prob.exp_kind,
-                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter))
+    return fit(prob, params0, free, prior_idx, prior_mean, prior_sigma, max_iter=max_iter,
+               prior_cov=prior_cov)
 
 
 def _msg(message: bytes | str) -> str:
@@ -212,29 +203,31 @@ def _fit_call(entry, n: int, refit: bool, *args) -> dict:
 def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
         block: np.ndarray | None = None, nominal: np.ndarray | None = None,
-        start_mask: int = 0) -> dict:
-    """Weighted Gauss-Newton/LM fit (``block`` empty: :func:`problem_fit`),
-    or the refit of a fit at ``params0`` with the parameters ``block`` freed
-    as well, from the first-order estimate, from ``nominal`` and by
-    continuation (1-based indices; ``start_mask`` bits 1, 2, 4 choose the
-    first-order, nominal and continuation starts, 0 all). Returns a dict of
-    arrays; a fit that stalls or whose parameter runs away comes back with
-    ``stop`` and ``note`` saying so. Raises ConvergenceError (with the partial
-    result in ``exc.partial``) when still moving at ``max_iter`` or when no
-    refit start converged."""
+        start_mask: int = 0, prior_cov: np.ndarray | None = None) -> dict:
+    """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
+    at ``params0`` with the parameters ``block`` freed as well, from the
+    first-order estimate, from ``nominal`` and by continuation (1-based
+    indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
+    continuation starts, 0 all); ``prior_cov``: see :func:`problem_fit`.
+    Returns a dict of arrays; a fit that stalls or whose parameter runs away
+    comes back with ``stop`` and ``note`` saying so. Raises ConvergenceError
+    (with the partial result in ``exc.partial``) when still moving at
+    ``max_iter`` or when no refit start converged."""
     free = np.asarray(free, dtype=np.int32)
-    if block is None or not len(block):
-        return problem_fit(prob, params0, free, prior_idx, prior_mean, prior_sigma,
-                           max_iter=max_iter)
-    block = np.asarray(block, np.int32)
+    block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    return _fit_call(_api.api_fit_effect, free.size + block.size, True,
-                     prob.nbeams, params0, free, block, nominal, _pad(prior_idx, np.int32),
-                     _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind,
-                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter),
-                     int(start_mask))
+    n = len(prior_idx)
+    cov = np.zeros((n + 1, n + 1))
+    if prior_cov is not None:
+        cov[:n, :n] = prior_cov
+    return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
+                     prob.nbeams, params0, free, _pad(block, np.int32), nominal,
+                     _pad(prior_idx, np.int32), _pad(prior_mean, float),
+                     _pad(prior_sigma, float), int(prior_cov is not None),
+                     np.asfortranarray(cov), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+                     _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+                     float(prob.tol), int(max_iter), int(start_mask))
 
 
 def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:

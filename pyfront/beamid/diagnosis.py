@@ -448,23 +448,35 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(nrefit) < 0:
         raise InputError(f"nrefit = {nrefit}, expected >= 0")
-    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import diagnose_dynamic
-        return diagnose_dynamic(fit, candidates, alpha=alpha, nrefit=nrefit,
-                                ambiguity_delta=ambiguity_delta, collinear=collinear,
-                                nominal=nominal)
     model = fit.model
-    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
-    if not cands:
-        raise InputError("candidates is empty: name at least one effect")
-    effects, names, blocks = _candidate_blocks(model, cands)
+    with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
     raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
-                               int(nrefit), ambiguity_delta, collinear, nominal.vector())
+                               int(nrefit), ambiguity_delta, collinear, nominal.vector(),
+                               with_mesh)
+    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis names the results
+        from .dyn_diagnosis import _dyn_diagnosis
+        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
     return _diagnosis(fit, raw, effects, names, alpha)
+
+
+def _candidate_set(model: Model, experiments, candidates):
+    """(with_mesh, effects, their parameter names, their 1-based blocks) of
+    the candidates asked for (default: the static ones, or with releases
+    beamid.dyn_diagnosis.default_candidates); with releases ``mesh`` is the
+    mesh test, not a block."""
+    dynamic = _dynamic(experiments)
+    if candidates is None and dynamic:
+        from .dyn_diagnosis import default_candidates
+        candidates = default_candidates(experiments)
+    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    if not cands:
+        raise InputError("candidates is empty: name at least one effect")
+    mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
+    return (any(mesh), *_candidate_blocks(model, [c for c, m in zip(cands, mesh) if not m]))
 
 
 def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
@@ -667,21 +679,15 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     A significant ``mesh`` candidate refines every release to the
     recommended elements per beam; the mesh is tested until found adequate.
     """
-    dynamic = _dynamic(experiments)
-    if dynamic:
-        from .dyn_diagnosis import _dyn_diagnosis, default_candidates, refine_mesh
-    cands = list((default_candidates(experiments) if dynamic else STATIC_CANDIDATES)
-                 if candidates is None else candidates)
-    if not cands:
-        raise InputError("candidates is empty: name at least one effect")
     if not 0.0 < alpha < 1.0:
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(max_iter) < 1:
         raise InputError(f"max_iter = {max_iter}, expected at least 1")
-    with_mesh = dynamic and any(_effect(c).name == "mesh" for c in cands)
-    effects, names, blocks = _candidate_blocks(
-        model, [c for c in cands if not (dynamic and _effect(c).name == "mesh")])
-    limit = len(cands) if max_steps is None else int(max_steps)
+    dynamic = _dynamic(experiments)
+    if dynamic:
+        from .dyn_diagnosis import _dyn_diagnosis, refine_mesh
+    with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
     prob = build_problem(model, experiments, data)
     free_names, free_idx = _free_indices(model, free)
     prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)

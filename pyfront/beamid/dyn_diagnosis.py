@@ -30,8 +30,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
-from .errors import InputError
-from .estimation import FitResult, _prior_arrays, build_problem
+from .estimation import FitResult
 from .loads import Release
 from .model import Model
 
@@ -151,31 +150,14 @@ class DynDiagnosis(Diagnosis):
     not_seen: tuple[str, ...] = ()
 
 
-def _split(cands: Sequence[Any]) -> tuple[list, bool]:
-    names = [c.name if isinstance(c, Effect) else str(c) for c in cands]
-    return [c for c, n in zip(cands, names) if n != "mesh"], "mesh" in names
-
-
 def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
                      alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
                      collinear: float = 0.98, nominal: Model | None = None) -> DynDiagnosis:
-    """:func:`beamid.diagnose` for fits with release experiments (see there
+    """:func:`beamid.diagnose` (one implementation for every fit; see there
     and the module docstring). When the ``mesh`` candidate is significant it
     is the verdict: refine the mesh before any physical effect is offered."""
-    model = fit.model
-    cands = list(default_candidates(fit.experiments) if candidates is None else candidates)
-    if not cands:
-        raise InputError("candidates is empty: name at least one effect")
-    physical, with_mesh = _split(cands)
-    effects, names, blocks = _dg._candidate_blocks(model, physical)
-    prob = build_problem(model, fit.experiments, fit.data)
-    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
-    nominal = _dg._nominal(fit, nominal)
-    raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks,
-                               alpha, int(nrefit), ambiguity_delta, collinear,
-                               nominal.vector(), with_mesh)
-    return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    return _dg.diagnose(fit, candidates, alpha=alpha, nrefit=nrefit,
+                        ambiguity_delta=ambiguity_delta, collinear=collinear, nominal=nominal)
 
 
 def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
