@@ -19,15 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
-from ._core import _call
+from ._core import _call, quantity_labels
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
 
-#: Quantity codes of the Fortran core (beamid_static_experiments).
-QUANTITY_CODES = {"x_tip": 1, "y_tip": 2, "tip_angle": 3, "wire_force": 4,
-                  "x_elbow": 5, "y_elbow": 6, "u_tip": 7, "w_tip": 8, "motor_torque": 9}
-QUANTITY_NAMES = {v: k for k, v in QUANTITY_CODES.items()}
+#: Quantity codes of the Fortran core (beamid_static_experiments' one table).
+QUANTITY_NAMES = dict(enumerate(quantity_labels(), start=1))
+QUANTITY_CODES = {v: k for k, v in QUANTITY_NAMES.items()}
 
 
 @dataclass(frozen=True)
