@@ -1,6 +1,6 @@
-!> f2py-facing API for estimation (beamid_estimation on the problems of
-!! beamid_inverse: any mix of static and release experiments; the diagnosis
-!! binding is beamid_api_dyndiag).
+!> f2py-facing API for estimation: fits, the diagnosis and the improve
+!! ladder (beamid_estimation, beamid_ladder) on the problems of
+!! beamid_inverse, any mix of static and release experiments.
 !!
 !! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
 !! values per experiment, beamid_inverse's EV_* layout), data rows
@@ -45,7 +45,7 @@ module beamid_api_estimation
     !> The names of the columns of the result arrays (exported by
     !! api_code_names, tables 5-8, so that no front decodes them by position):
     !! stats of a fit, cstats (per candidate), pstats (per candidate
-    !! parameter) and dstats (the diagnosis) of beamid_api_dyndiag api_problem_diagnose.
+    !! parameter) and dstats (the diagnosis) of api_problem_diagnose.
     character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
         'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
     character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
@@ -56,7 +56,7 @@ module beamid_api_estimation
         'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
     character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
         'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
-    !> mstats of the mesh test (beamid_api_dyndiag api_problem_diagnose)
+    !> mstats of the mesh test (api_problem_diagnose)
     character(len=*), parameter :: MSTAT_NAMES(10) = [character(len=17) :: 'done', 'ok', &
         'elements_per_beam', 'recommended', 'chi2', 'drop', 'p_value', 'max_change', &
         'max_row', 'significant']
