@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from .model import Model
 # the static registry, verdict words and result types (diagnosis.py imports
 # this module lazily, so this import is safe)
 from . import diagnosis as _dg
-from .diagnosis import Candidate, Diagnosis, Effect, Ladder, register_effect
+from .diagnosis import Candidate, Diagnosis, Effect, register_effect
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -150,14 +150,11 @@ class DynDiagnosis(Diagnosis):
     not_seen: tuple[str, ...] = ()
 
 
-def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
-                     alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
-                     collinear: float = 0.98, nominal: Model | None = None) -> DynDiagnosis:
-    """:func:`beamid.diagnose` (one implementation for every fit; see there
-    and the module docstring). When the ``mesh`` candidate is significant it
-    is the verdict: refine the mesh before any physical effect is offered."""
-    return _dg.diagnose(fit, candidates, alpha=alpha, nrefit=nrefit,
-                        ambiguity_delta=ambiguity_delta, collinear=collinear, nominal=nominal)
+#: beamid.diagnose, add_effect and improve serve fits with releases too (one
+#: implementation each; when the ``mesh`` candidate is significant it is the
+#: verdict: refine the mesh before any physical effect is offered); the
+#: names of this module stay for scripts that use them.
+diagnose_dynamic, add_effect_dynamic, improve_dynamic = _dg.diagnose, _dg.add_effect, _dg.improve
 
 
 def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
@@ -267,23 +264,6 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         lines.append("not seen by these experiments (zero sensitivity on every row, not "
                      "tested): " + ", ".join(not_seen))
     return "\n".join(lines)
-
-
-# --------------------------------------------------------------- add / improve
-
-def add_effect_dynamic(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
-                       nominal: Model | None = None,
-                       starts: Sequence[str] | None = None) -> FitResult:
-    """:func:`beamid.add_effect` (one implementation for every fit)."""
-    return _dg.add_effect(fit, effect, max_iter=max_iter, nominal=nominal, starts=starts)
-
-
-def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=None, *,
-                    candidates=None, alpha: float = 0.01, max_steps: int | None = None,
-                    max_iter: int = 50) -> Ladder:
-    """:func:`beamid.improve` (one implementation for every fit)."""
-    return _dg.improve(model, experiments, data, free=free, prior=prior, candidates=candidates,
-                       alpha=alpha, max_steps=max_steps, max_iter=max_iter)
 
 
 # ------------------------------------------------------------------- compare
