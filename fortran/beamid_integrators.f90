@@ -139,8 +139,8 @@ module beamid_integrators
     type :: sens_work_t
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
-        real(dp), allocatable :: zd(:), t(:), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
-        real(dp), allocatable :: errold(:), wq(:), wv(:)
+        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
+        real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
         complex(dp), allocatable :: w2(:, :)
         integer, allocatable :: act(:)
     end type sens_work_t
@@ -1992,7 +1992,8 @@ contains
     !! (the real and complex blocks), each pass one solve of each plus band
     !! products with the exact stage Jacobians, until the remaining error is
     !! below the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate). All
-    !! parameters go through each pass together (one multi-column solve per
+    !! parameters go through each pass together (one sweep over each stage
+    !! Jacobian for the products of every column, one multi-column solve per
     !! block, the stage Jacobians and f_p assembled once per step, no C
     !! products without velocity coupling); a column leaves the pass loop
     !! when it has converged.
@@ -2041,9 +2042,9 @@ contains
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
-                    t = 0.0_dp
-                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t)
-                    cst(1:n, i, j) = fp - t
+                    t(:, 1) = 0.0_dp
+                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
+                    cst(1:n, i, j) = fp - t(:, 1)
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
             end do
@@ -2075,48 +2076,54 @@ contains
             end do
             do iter = 1, MAXIT
                 if (na == 0) exit
-                ! residuals of the active columns: velocity (and torque) rows only
-                do ja = 1, na
-                    j = act(ja)
-                    do i = 1, 3
-                        wq = sm(1:n, j) + dz(1:n, i, j)
+                ! residuals of the active columns, velocity (and torque) rows
+                ! only, stage by stage: the products of all columns with the
+                ! stage Jacobian in one sweep over its band
+                do i = 1, 3
+                    do ja = 1, na
+                        j = act(ja)
+                        wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
+                        wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    end do
+                    if (cz(i)) then
+                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
+                    else
+                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                    end if
+                    if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
+                    do ja = 1, na
+                        j = act(ja)
                         ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
                         zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
                                        + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
-                        if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
                         if (it%rot) then
                             call to_mform(es, it, zd, ys(1:n))
                         else
                             call to_mform(es, it, zd)
                         end if
-                        if (cz(i)) then
-                            call dband_mv(n, kl, ku, kb(:, :, i), wq, t)
-                        else
-                            wv = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
-                            call kc_mv(n, kl, ku, kb(:, :, i), cb(:, :, i), wq, wv, t)
-                        end if
-                        r(1:n, i, ja) = cst(1:n, i, j) - t - zd(n + 1:2*n)
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
                         if (es%rotary) then
-                            t = 0.0_dp
-                            call dyn_dmass_dq_mv(es, ys(1:n), wq, acc(:, i), t)
-                            r(1:n, i, ja) = r(1:n, i, ja) - t
+                            fp = 0.0_dp
+                            call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
+                            r(1:n, i, ja) = r(1:n, i, ja) - fp
                         end if
                         if (nx > 0) then
-                            if (cz(i)) wv = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
                             xp = sm(m, j) + dz(m, i, j)
                             r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
-                            r(n + 1, i, ja) = dot_product(p(:, i), wq) + dot_product(d(:, i), wv) &
+                            r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
+                                              + dot_product(d(:, i), wv(:, ja)) &
                                               + e(i)*xp + cst(n + 1, i, j) - zd(m)
                         end if
                         do k = 1, it%nst
                             r(it%stuck(k), i, ja) = 0.0_dp
                         end do
                     end do
+                end do
+                do ja = 1, na
                     w1(:, ja) = ti1(1)*r(:, 1, ja) + ti1(2)*r(:, 2, ja) + ti1(3)*r(:, 3, ja)
                     w2(:, ja) = ti2(1)*r(:, 1, ja) + ti2(2)*r(:, 2, ja) + ti2(3)*r(:, 3, ja)
                 end do
-                call solve_real_many(es, it, gam/hh, na, w1)
-                call solve_cplx_many(es, it, mu/hh, na, w2)
+                call solve_stage_many(es, it, gam/hh, mu/hh, na, w1, w2)
                 ! corrections, convergence column by column
                 k = 0
                 do ja = 1, na
@@ -2185,86 +2192,92 @@ contains
         nr = n + (m - 2*n)
         allocate (ws%kb(nb, n, 3), ws%cb(nb, n, 3), ws%b(n, 3), ws%p(n, 3), ws%d(n, 3), &
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
-                  ws%zd(m), ws%t(n), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
-                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n), ws%wv(n))
+                  ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
+                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
+                  ws%wv(n, nw))
         ws%zd = 0.0_dp
     end subroutine sens_work_alloc
 
-    !> solve_real for na right-hand sides at once, in the reduced layout of
-    !! the sensitivity iteration: in, w(1:n, c) the velocity rows (M-form)
-    !! and w(n + 1, c) the torque row (motor lag), the displacement rows
-    !! being zero; out, the displacement correction x in w(1:n, c) (the
-    !! velocity correction is lam x) and the torque correction in w(n + 1, c).
-    subroutine solve_real_many(sys, it, lam, na, w)
-        type(dyn_system_t), intent(in) :: sys
-        type(radau_t), intent(inout) :: it
-        real(dp), intent(in) :: lam
-        integer, intent(in) :: na
-        real(dp), intent(inout) :: w(:, :)
-        real(dp) :: bt(na, sys%nc), zt(na)
-        integer :: n, c
-        n = sys%nc
-        if (na == 0) return
-        zt = 0.0_dp
-        do c = 1, na
-            if (sys%nx > 0) then
-                zt(c) = w(n + 1, c)
-                w(1:n, c) = w(1:n, c) + it%b*zt(c)/(lam - it%e)
-            end if
-            if (it%nst > 0) w(it%stuck(1:it%nst), c) = 0.0_dp
+    !> y(:, c) = K x(:, c) (+ C v(:, c)) for the na columns of x (and v): one
+    !! sweep over the band storage of K (and C) serves every column.
+    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v)
+        integer, intent(in) :: n, kl, ku, na
+        real(dp), intent(in) :: kb(2*kl + ku + 1, n), x(:, :)
+        real(dp), intent(inout) :: y(:, :)
+        real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
+        integer :: j, c, i1, i2, k
+        logical :: with_c
+        with_c = present(cb)
+        k = kl + ku + 1
+        y(1:n, 1:na) = 0.0_dp
+        do j = 1, n
+            i1 = max(1, j - ku)
+            i2 = min(n, j + kl)
+            do c = 1, na
+                y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(k + i1 - j:k + i2 - j, j)
+            end do
+            if (.not. with_c) cycle
+            do c = 1, na
+                y(i1:i2, c) = y(i1:i2, c) + v(j, c)*cb(k + i1 - j:k + i2 - j, j)
+            end do
         end do
-        if (it%sym) then
-            bt = transpose(w(1:n, 1:na))
-            call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt)
-            w(1:n, 1:na) = transpose(bt)
-        else
-            do c = 1, na
-                call band_solve(it%lu1, w(1:n, c))
-            end do
-        end if
-        if (sys%nx > 0) then
-            do c = 1, na
-                w(n + 1, c) = (zt(c) + dot_product(it%p + lam*it%d, w(1:n, c)))/(lam - it%e)
-            end do
-        end if
-    end subroutine solve_real_many
+    end subroutine kc_mv_many
 
-    !> Complex counterpart of solve_real_many (lam = mu/h).
-    subroutine solve_cplx_many(sys, it, lam, na, w)
+    !> The real (lam1 = gamma/h) and the complex (lam2 = mu/h) block of the
+    !! stage sensitivity system for na right-hand sides at once, in the
+    !! reduced layout of the iteration: in, w(1:n, c) the velocity rows
+    !! (M-form) and w(n + 1, c) the torque row (motor lag), the displacement
+    !! rows being zero; out, the displacement correction x in w(1:n, c) (the
+    !! velocity correction is lam x) and the torque correction in w(n + 1, c).
+    !! One routine for both kinds: the blocks are always solved together.
+    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
-        complex(dp), intent(in) :: lam
+        real(dp), intent(in) :: lam1
+        complex(dp), intent(in) :: lam2
         integer, intent(in) :: na
-        complex(dp), intent(inout) :: w(:, :)
-        complex(dp) :: bt(na, sys%nc), zt(na)
+        real(dp), intent(inout) :: w1(:, :)
+        complex(dp), intent(inout) :: w2(:, :)
+        real(dp) :: bt1(na, sys%nc), zt1(na)
+        complex(dp) :: bt2(na, sys%nc), zt2(na)
         integer :: n, c
         n = sys%nc
         if (na == 0) return
-        zt = (0.0_dp, 0.0_dp)
-        do c = 1, na
-            if (sys%nx > 0) then
-                zt(c) = w(n + 1, c)
-                w(1:n, c) = w(1:n, c) + it%b*zt(c)/(lam - it%e)
-            end if
-            if (it%nst > 0) w(it%stuck(1:it%nst), c) = (0.0_dp, 0.0_dp)
+        if (sys%nx > 0) then
+            ! the torque row eliminated (Eq. 158 lag): the motor column b
+            zt1 = w1(n + 1, 1:na)
+            zt2 = w2(n + 1, 1:na)
+            do c = 1, na
+                w1(1:n, c) = w1(1:n, c) + it%b*zt1(c)/(lam1 - it%e)
+                w2(1:n, c) = w2(1:n, c) + it%b*zt2(c)/(lam2 - it%e)
+            end do
+        end if
+        do c = 1, it%nst
+            w1(it%stuck(c), 1:na) = 0.0_dp
+            w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
         if (it%sym) then
-            bt = transpose(w(1:n, 1:na))
-            call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt)
-            w(1:n, 1:na) = transpose(bt)
+            bt1 = transpose(w1(1:n, 1:na))
+            bt2 = transpose(w2(1:n, 1:na))
+            call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
+            call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt2)
+            w1(1:n, 1:na) = transpose(bt1)
+            w2(1:n, 1:na) = transpose(bt2)
         else
             do c = 1, na
-                it%zrhs = w(1:n, c)
+                call band_solve(it%lu1, w1(1:n, c))
+                it%zrhs = w2(1:n, c)
                 call zband_solve(it%lu2, it%zrhs)
-                w(1:n, c) = it%zrhs
+                w2(1:n, c) = it%zrhs
             end do
         end if
         if (sys%nx > 0) then
             do c = 1, na
-                w(n + 1, c) = (zt(c) + sum((it%p + lam*it%d)*w(1:n, c)))/(lam - it%e)
+                w1(n + 1, c) = (zt1(c) + dot_product(it%p + lam1*it%d, w1(1:n, c)))/(lam1 - it%e)
+                w2(n + 1, c) = (zt2(c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
             end do
         end if
-    end subroutine solve_cplx_many
+    end subroutine solve_stage_many
 
 
 end module beamid_integrators
