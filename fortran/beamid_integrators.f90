@@ -141,6 +141,9 @@ module beamid_integrators
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
         real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> each column's last observed contraction of the pass loop (0: none
+        !! yet), carried across steps as CVODES carries its rate estimate
+        real(dp), allocatable :: thc(:)
         complex(dp), allocatable :: w2(:, :)
         integer, allocatable :: act(:)
     end type sens_work_t
@@ -2148,17 +2151,25 @@ contains
                     err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
                     passes = passes + 1
                     ! converged when the remaining error th/(1 - th) |correction|
-                    ! is below the tolerance (th: the observed contraction, at the
-                    ! first pass the Newton one). The sensitivities of the seed's
-                    ! release agree with central differences of rtol 1e-11 runs
-                    ! to the same digits as with 1 % of it (the Newton test), at
-                    ! 8 passes per step for 4 parameters instead of 10.
+                    ! is below the tolerance (th: the observed contraction; at the
+                    ! first pass the column's last observed one, carried across
+                    ! steps as CVODES carries its rate (the iteration matrices
+                    ! change little from step to step), before any the Newton
+                    ! one). The sensitivities of the seed's release agree with
+                    ! central differences of rtol 1e-11 runs to the same digits
+                    ! as with 1 % of it (the Newton test), at 8 passes per step
+                    ! for 4 parameters instead of 10.
                     ! Below the tolerance and no longer contracting: the
                     ! round-off floor of the residuals (tolerances near 1e-12)
                     if (iter == 1) then
-                        th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                        if (ws%thc(j) > 0.0_dp) then
+                            th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
+                        else
+                            th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                        end if
                     else
                         th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
+                        ws%thc(j) = th
                     end if
                     if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
                     if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
@@ -2194,8 +2205,9 @@ contains
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
-                  ws%wv(n, nw))
+                  ws%wv(n, nw), ws%thc(nw))
         ws%zd = 0.0_dp
+        ws%thc = 0.0_dp
     end subroutine sens_work_alloc
 
     !> y(:, c) = K x(:, c) (+ C v(:, c)) for the na columns of x (and v): one
