@@ -697,7 +697,7 @@ contains
                 end if
                 if (jev == 0) then
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, h, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -742,7 +742,7 @@ contains
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, hs, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, hs, sm, stat)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -1897,34 +1897,32 @@ contains
 
     !> The RK4 step of the sensitivities (the variational equations on the
     !! same step, the derivative of the discrete map): from S at the state s
-    !! with rates k1 over h.
-    subroutine rk_sens_step(es, pars, s, k1, h, sm, stat)
+    !! over h, with the rates k1..k4 of the state's own step (rk_step: its
+    !! stage states s + h/2 k1, s + h/2 k2, s + h k3 are those the variational
+    !! equations need, so their rates are not evaluated again).
+    subroutine rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
-        real(dp), intent(in) :: s(:), k1(:), h
+        real(dp), intent(in) :: s(:), k1(:), k2(:), k3(:), k4(:), h
         real(dp), intent(inout) :: sm(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: y(:), f(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
-        real(dp), allocatable :: dl(:, :), pw(:)
-        real(dp) :: torque
+        real(dp), allocatable :: y(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
+        real(dp), allocatable :: dl(:, :)
         integer :: m, nw
         m = es%ncstate
         nw = size(sm, 2)
-        allocate (y(m), f(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
-                  dl(2*es%npt, nw), pw(es%nwork))
+        allocate (y(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
+                  dl(2*es%npt, nw))
         call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true.)
         y = s(1:m) + 0.5_dp*h*k1(1:m)
-        call dyn_crates(es, y, f, pw, torque, stat)
         st = sm + 0.5_dp*h*d1
-        call sens_rates(es, pars, y, f, st, d2, dl, stat, .true.)
-        y = s(1:m) + 0.5_dp*h*f
-        call dyn_crates(es, y, f, pw, torque, stat)
+        call sens_rates(es, pars, y, k2(1:m), st, d2, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*k2(1:m)
         st = sm + 0.5_dp*h*d2
-        call sens_rates(es, pars, y, f, st, d3, dl, stat, .true.)
-        y = s(1:m) + h*f
-        call dyn_crates(es, y, f, pw, torque, stat)
+        call sens_rates(es, pars, y, k3(1:m), st, d3, dl, stat, .true.)
+        y = s(1:m) + h*k3(1:m)
         st = sm + h*d3
-        call sens_rates(es, pars, y, f, st, d4, dl, stat, .true.)
+        call sens_rates(es, pars, y, k4(1:m), st, d4, dl, stat, .true.)
         sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
     end subroutine rk_sens_step
 
