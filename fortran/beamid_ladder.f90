@@ -14,8 +14,9 @@ module beamid_ladder
     implicit none
     private
 
-    public :: problem_t, cand_set_t, diag_out_t, rung_t
+    public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
     public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
+    public :: ladder_start, ladder_step
 
     !> An estimation problem: experiments (kind, EV_* values), data rows
     !! (experiment, t, quantity, value, sigma), a priori information and the
@@ -65,6 +66,25 @@ module beamid_ladder
         integer :: nepb = 0                  !< elements per beam of the releases (0: as given)
         integer :: refit_start = 0           !< START_* of the verdict's refit kept
     end type rung_t
+
+    !> The improve ladder under way (ladder_start, ladder_step): the problem
+    !! (its releases refined by the mesh rungs), the candidates, the rungs
+    !! done and the next rung's fit.
+    type :: ladder_t
+        type(problem_t) :: pb
+        type(cand_set_t) :: cs
+        type(fit_options_t) :: fopts          !< the diagnoses' refits
+        type(diagnose_options_t) :: dopts
+        real(dp), allocatable :: params(:)    !< the user's model
+        real(dp), allocatable :: nominal(:)   !< params, added parameters as fitted
+        integer, allocatable :: added(:)      !< parameters the rungs switched on
+        integer :: max_steps = 0
+        integer :: k = 0                      !< rungs added so far
+        type(rung_t) :: r                     !< the rung whose fit is done
+        type(rung_t), allocatable :: rungs(:) !< rungs(:n): the rungs diagnosed
+        integer :: n = 0
+        logical :: done = .true.              !< no further ladder_step
+    end type ladder_t
 
 contains
 
@@ -148,47 +168,77 @@ contains
     !! until found adequate), and after each rung the parameters earlier
     !! rungs added are tested again (one-sided Wald test at the rung's level):
     !! one no longer needed goes back to its value in `params` and the rung
-    !! is refitted without it.
-    subroutine improve_ladder(pb0, params, free, cs0, alpha, max_steps, rungs, st)
-        type(problem_t), intent(in) :: pb0
+    !! is refitted without it. ladder_start and ladder_step one rung at a
+    !! time (a front that shows progress steps itself).
+    subroutine improve_ladder(pb, params, free, cs, alpha, max_steps, rungs, st)
+        type(problem_t), intent(in) :: pb
         real(dp), intent(in) :: params(:)
         integer, intent(in) :: free(:)
-        type(cand_set_t), intent(in) :: cs0
+        type(cand_set_t), intent(in) :: cs
         real(dp), intent(in) :: alpha
         integer, intent(in) :: max_steps
         type(rung_t), allocatable, intent(out) :: rungs(:)
         type(status_t), intent(inout) :: st
-        type(problem_t) :: pb
-        type(cand_set_t) :: cs
-        type(fit_options_t) :: fopts
-        type(diagnose_options_t) :: dopts
-        type(rung_t) :: r
-        real(dp), allocatable :: nominal(:), p(:)
-        integer, allocatable :: added(:), now(:)
-        integer :: k, v, gone, j, n
+        type(ladder_t) :: lad
+        call ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
+        do while (.not. lad%done)
+            call ladder_step(lad, st)
+        end do
+        rungs = lad%rungs(:lad%n)
+    end subroutine improve_ladder
 
-        pb = pb0
-        cs = cs0
-        nominal = params
-        dopts%alpha = alpha
-        fopts%max_iter = 50
-        allocate (added(0), rungs(max_steps + 1))
-        n = 0
-        r%effect = 'start'
-        r%start = params
-        r%params = [integer ::]
-        r%removed = [integer ::]
-        call problem_fit(pb, params, free, r%fit, st)
-        do k = 0, max_steps
+    !> Start the ladder of improve_ladder: the fit of params(free) (rung 0,
+    !! diagnosed by the first ladder_step).
+    subroutine ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
+        type(ladder_t), intent(out) :: lad
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: free(:)
+        type(cand_set_t), intent(in) :: cs
+        real(dp), intent(in) :: alpha
+        integer, intent(in) :: max_steps
+        type(status_t), intent(inout) :: st
+        lad%pb = pb
+        lad%cs = cs
+        lad%params = params
+        lad%nominal = params
+        lad%dopts%alpha = alpha
+        lad%fopts%max_iter = 50
+        lad%max_steps = max_steps
+        allocate (lad%added(0), lad%rungs(max_steps + 1))
+        lad%r%effect = 'start'
+        lad%r%start = params
+        lad%r%params = [integer ::]
+        lad%r%removed = [integer ::]
+        call problem_fit(lad%pb, params, free, lad%r%fit, st)
+        lad%done = st%code /= STATUS_OK
+    end subroutine ladder_start
+
+    !> One rung of the ladder: diagnose the rung's fit and keep the rung
+    !! (lad%rungs(lad%n)); unless the ladder ends here (nothing significant,
+    !! max_steps rungs added or a failure: lad%done), refine the mesh or add
+    !! the verdict's parameters, refit, and set back a parameter no longer
+    !! needed (the next rung's fit).
+    subroutine ladder_step(lad, st)
+        type(ladder_t), intent(inout) :: lad
+        type(status_t), intent(inout) :: st
+        real(dp), allocatable :: p(:)
+        integer, allocatable :: now(:)
+        integer :: v, gone, j
+
+        if (lad%done) return
+        lad%done = .true.           ! unless the rung ends with the next fit
+        if (st%code /= STATUS_OK) return
+        associate (r => lad%r, pb => lad%pb, cs => lad%cs)
+            r%nominal = lad%nominal
+            call problem_diagnose(pb, r%fit%params, r%fit%free, lad%nominal, cs, lad%fopts, &
+                                  lad%dopts, r%dg, st)
             if (st%code /= STATUS_OK) return
-            r%nominal = nominal
-            call problem_diagnose(pb, r%fit%params, r%fit%free, nominal, cs, fopts, dopts, &
-                                  r%dg, st)
-            if (st%code /= STATUS_OK) return
-            n = n + 1
-            rungs(n) = r
+            lad%n = lad%n + 1
+            lad%rungs(lad%n) = r
             v = r%dg%diag%verdict
-            if ((v == 0 .and. .not. r%dg%mesh%significant) .or. k == max_steps) exit
+            if ((v == 0 .and. .not. r%dg%mesh%significant) .or. lad%k == lad%max_steps) return
+            lad%k = lad%k + 1
             if (r%dg%mesh%done .and. .not. r%dg%mesh%significant) cs%with_mesh = .false.
             now = r%fit%free    ! (a copy: the fit below overwrites r%fit)
             r%removed = [integer ::]
@@ -201,7 +251,8 @@ contains
                 r%refit_start = 0
                 cs%with_mesh = .false.
                 call problem_fit(pb, r%start, now, r%fit, st)
-                cycle
+                lad%done = .false.
+                return
             end if
             associate (c => r%dg%diag%cand(v))
                 r%start = r%fit%params
@@ -215,22 +266,22 @@ contains
             call problem_fit(pb, r%start, [now, r%params], r%fit, st)
             if (st%code /= STATUS_OK) return
             if (r%dg%dynamic) then
-                gone = not_needed(r%fit, added, r%dg%diag%alpha_each)
+                gone = not_needed(r%fit, lad%added, r%dg%diag%alpha_each)
                 if (gone > 0) then
                     r%removed = [gone]
                     p = r%fit%params
-                    p(gone) = params(gone)
+                    p(gone) = lad%params(gone)
                     now = pack(r%fit%free, r%fit%free /= gone)
                     call problem_fit(pb, p, now, r%fit, st)
                     if (st%code /= STATUS_OK) return
-                    added = pack(added, added /= gone)
+                    lad%added = pack(lad%added, lad%added /= gone)
                 end if
             end if
-            added = [added, r%params]
-            nominal(r%params) = r%fit%params(r%params)
-        end do
-        rungs = rungs(:n)
-    end subroutine improve_ladder
+            lad%added = [lad%added, r%params]
+            lad%nominal(r%params) = r%fit%params(r%params)
+        end associate
+        lad%done = .false.
+    end subroutine ladder_step
 
     !> Of the parameters `names` (switched on by earlier rungs; one-sided,
     !! physical values positive) the one whose one-sided Wald test

@@ -40,7 +40,7 @@ module beamid_tasks
     implicit none
     private
 
-    public :: run_task, output_prefix, files_t
+    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t
@@ -70,10 +70,14 @@ contains
 
     !> Run the task of a validated deck and write its files, all or none.
     !! `written` lists the files written (newline separated) on success.
-    subroutine run_task(deck, written, stat)
+    !! `ladder`: the rungs of the deck's improve ladder when already run
+    !! (ladder_start and ladder_step on deck_problem and deck_candidates, as
+    !! beamid.run steps it to show progress): only the files are written.
+    subroutine run_task(deck, written, stat, ladder)
         type(deck_t), intent(in) :: deck
         character(len=:), allocatable, intent(out) :: written
         type(status_t), intent(inout) :: stat
+        type(rung_t), intent(in), optional :: ladder(:)
         type(files_t) :: fl
         fl%names = ''
         written = ''
@@ -83,7 +87,7 @@ contains
         case ('fe_modes')
             call run_fe_modes(deck, fl, stat)
         case ('fit', 'compare', 'diagnose', 'improve')
-            call run_estimation(deck, fl, stat)
+            call run_estimation(deck, fl, stat, ladder)
         case ('identify')
             call run_identify(deck, fl, stat)
         case ('simulate')
@@ -333,10 +337,11 @@ contains
     !> Estimation decks: fit (and compare: the same files), diagnose, improve
     !! (beamid_ladder, as beamid.diagnose and beamid.improve). Everything is
     !! computed first; the files are written after success.
-    subroutine run_estimation(d, fl, st)
+    subroutine run_estimation(d, fl, st, ladder)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
+        type(rung_t), intent(in), optional :: ladder(:)
         type(fit_result_t) :: fo
         type(diag_out_t) :: dg
         type(cand_set_t) :: cs
@@ -349,8 +354,12 @@ contains
         call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
         if (d%task == 'improve') then
-            call improve_ladder(deck_problem(d), d%params, d%free, cs, d%alpha, &
-                                size(d%candidates), rungs, st)
+            if (present(ladder)) then
+                rungs = ladder
+            else
+                call improve_ladder(deck_problem(d), d%params, d%free, cs, d%alpha, &
+                                    size(d%candidates), rungs, st)
+            end if
             if (st%code /= STATUS_OK) return
             fo = rungs(size(rungs))%fit
             dg = rungs(size(rungs))%dg

@@ -19,11 +19,12 @@ module beamid_api_estimation
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_static_experiments, only: static_bounds
     use beamid_estimation, only: prior_from_covariance
-    use beamid_deck, only: deck_t, read_deck
+    use beamid_deck, only: deck_t, read_deck, deck_set_task
+    use beamid_tasks, only: run_task, deck_problem, deck_candidates
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
-                             improve_ladder
+                             ladder_t, ladder_start, ladder_step
     implicit none
     private
 
@@ -31,13 +32,15 @@ module beamid_api_estimation
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_problem_predict, api_deck_experiments
     public :: api_problem_diagnose, api_time_structure
-    public :: api_improve, api_ladder_rung, api_ladder_fit, api_ladder_diag
+    public :: api_ladder_start, api_deck_ladder_start, api_ladder_step, api_deck_ladder_write
+    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
 
-    !> The rungs of the last api_improve and its candidates, until read by
-    !! api_ladder_rung, api_ladder_fit and api_ladder_diag (results of a size
-    !! known only after the run: GUIDE, module arrays of the binding).
-    type(rung_t), allocatable, save :: ladder(:)
-    type(cand_set_t), save :: ladder_cands
+    !> The improve ladder of the last api_ladder_start or api_deck_ladder_start,
+    !! stepped by api_ladder_step (a rung per call: the front shows progress)
+    !! and read by api_ladder_rung, api_ladder_fit and api_ladder_diag
+    !! (results of a size known only after the run: GUIDE, module arrays of
+    !! the binding). One ladder at a time.
+    type(ladder_t), save :: lad
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -605,16 +608,17 @@ contains
         end function b2r
     end subroutine copy_diag
 
-    !> The improve ladder (beamid_ladder improve_ladder, as beamid-batch runs
-    !! it): fit params0(free_idx), then diagnose (candidate blocks as
-    !! api_problem_diagnose, with_mesh: test the mesh apart) and add the
-    !! verdict's effect until none is significant at alpha or max_steps rungs
-    !! were added. nrung: the rungs (the start included), read one by one
-    !! with api_ladder_rung, api_ladder_fit and api_ladder_diag.
-    subroutine api_improve(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                           prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, row_exp, &
-                           row_t, row_q, row_value, row_sigma, tol, max_iter, ncand, cand_start, &
-                           ncandp, cand_params, with_mesh, alpha, max_steps, nrung, code, message)
+    !> Start the improve ladder (beamid_ladder ladder_start; the ladder of
+    !! improve_ladder, as beamid-batch runs it): fit params0(free_idx); then
+    !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
+    !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
+    !! per call, until none is significant at alpha or max_steps rungs were
+    !! added.
+    subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                                prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
+                                row_exp, row_t, row_q, row_value, row_sigma, tol, max_iter, &
+                                ncand, cand_start, ncandp, cand_params, with_mesh, alpha, &
+                                max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         real(c_double), intent(in) :: params0(nparams)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
@@ -625,35 +629,89 @@ contains
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
         real(c_double), intent(in) :: alpha
-        integer(c_int), intent(out) :: nrung, code
+        integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         type(problem_t) :: pb
-
-        nrung = 0
-        if (allocated(ladder)) deallocate (ladder)
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, max_iter, &
                           pb)
-        ladder_cands = make_cands(cand_start, cand_params, with_mesh)
-        call improve_ladder(pb, real(params0, dp), int(free_idx), ladder_cands, real(alpha, dp), &
-                            int(max_steps), ladder, stat)
+        call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
+                          make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
+                          int(max_steps), stat)
         call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK .and. allocated(ladder)) deallocate (ladder)
-        if (allocated(ladder)) nrung = int(size(ladder), c_int)
-    end subroutine api_improve
+    end subroutine api_ladder_start
 
-    !> Rung k of the last api_improve: effect ('start', the number of the
+    !> Start the improve ladder of an estimation deck as beamid-batch runs
+    !! it (deck_problem, deck_candidates; candidates named by their effect):
+    !! step it with api_ladder_step, write its files with
+    !! api_deck_ladder_write.
+    subroutine api_deck_ladder_start(path, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(cand_set_t) :: cs
+        type(status_t) :: stat
+        lad%done = .true.
+        lad%n = 0
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) call deck_candidates(d, cs, stat)
+        if (stat%code == STATUS_OK) &
+            call ladder_start(lad, deck_problem(d), d%params, d%free, cs, d%alpha, &
+                              size(d%candidates), stat)
+        call status_out(stat, code, message)
+    end subroutine api_deck_ladder_start
+
+    !> One rung of the ladder started last (beamid_ladder ladder_step):
+    !! nrung rungs are done; done = 1 when the ladder has ended.
+    subroutine api_ladder_step(nrung, done, code, message)
+        integer(c_int), intent(out) :: nrung, done, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        call ladder_step(lad, stat)
+        nrung = int(lad%n, c_int)
+        done = merge(1_c_int, 0_c_int, lad%done)
+        call status_out(stat, code, message)
+    end subroutine api_ladder_step
+
+    !> Write the files of the deck at `path` (task improve, all or none,
+    !! beamid_tasks run_task: the bytes beamid-batch writes) from the ladder
+    !! api_deck_ladder_start started on it and api_ladder_step ended;
+    !! `written`: the files, one per line.
+    subroutine api_deck_ladder_write(path, written, code, message)
+        character(len=*), intent(in) :: path
+        character(len=65536), intent(out) :: written
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: files
+        written = ''
+        if (.not. lad%done .or. lad%n < 1) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+                            'api_deck_ladder_start and api_ladder_step first)')
+        else
+            call read_deck(trim(path), d, stat)
+            if (stat%code == STATUS_OK) call deck_set_task(d, 'improve', stat)
+            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
+            if (stat%code == STATUS_OK) written = files
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_deck_ladder_write
+
+    !> Rung k of the ladder started last: effect ('start', the number of the
     !! candidate added, or 'mesh (N elements per beam)'), info = [free
     !! parameters, elements per beam of the releases (0: as given), the
-    !! start the verdict's refit kept (START_*)], the free parameters free_idx (an
+    !! start the verdict's refit kept (START_*), data rows, the fits' iteration
+    !! limit], the free parameters free_idx (an
     !! argument named `free` would shadow C's free() in f2py's wrapper), those
     !! the rung switched on and those it set back (index lists ended by 0),
     !! where its fit started and the nominal model of its refits.
     subroutine api_ladder_rung(k, nparams, info, free_idx, added, removed, start, nominal, effect, &
                                code, message)
         integer(c_int), intent(in) :: k, nparams
-        integer(c_int), intent(out) :: info(3), free_idx(nparams + 1), added(nparams + 1)
+        integer(c_int), intent(out) :: info(5), free_idx(nparams + 1), added(nparams + 1)
         integer(c_int), intent(out) :: removed(nparams + 1)
         real(c_double), intent(out) :: start(nparams), nominal(nparams)
         character(len=64), intent(out) :: effect
@@ -667,8 +725,8 @@ contains
         nominal = 0.0_c_double
         effect = ''
         if (.not. rung_ok(k, code, message)) return
-        associate (r => ladder(k))
-            info = [size(r%fit%free), r%nepb, r%refit_start]
+        associate (r => lad%rungs(k))
+            info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
             free_idx(:size(r%fit%free)) = r%fit%free
             added(:size(r%params)) = r%params
             removed(:size(r%removed)) = r%removed
@@ -678,7 +736,7 @@ contains
         end associate
     end subroutine api_ladder_rung
 
-    !> The fit of rung k of the last api_improve (outputs as api_fit_effect).
+    !> The fit of rung k of the ladder started last (outputs as api_fit_effect).
     subroutine api_ladder_fit(k, nparams, nfree, nrow, max_iter, params, sigmas, cov, corr, &
                               flags, predictions, normalized, stats, log_cost, log_lambda, &
                               log_step, log_params, info, code, message, note)
@@ -698,7 +756,7 @@ contains
         info = 0
         note = ''
         if (.not. rung_ok(k, code, message)) return
-        associate (f => ladder(k)%fit)
+        associate (f => lad%rungs(k)%fit)
             info(1) = int(f%stop, c_int)
             if (allocated(f%note)) note = f%note
             if (allocated(f%note)) message = f%note
@@ -707,7 +765,7 @@ contains
         end associate
     end subroutine api_ladder_fit
 
-    !> The diagnosis of rung k of the last api_improve (outputs as
+    !> The diagnosis of rung k of the ladder started last (outputs as
     !! api_problem_diagnose).
     subroutine api_ladder_diag(k, nparams, ncand, ncandp, cstats, pstats, refit_params, ranking, &
                                cosine, dstats, refit_start, sep_t, mstats, mesh_params, kept, &
@@ -725,33 +783,32 @@ contains
         type(diag_out_t) :: none
         type(status_t) :: stat
         if (rung_ok(k, code, message)) then
-            if (size(ladder_cands%cands) == ncand .and. size(ladder(k)%fit%params) == nparams) then
-                call copy_diag(ladder(k)%dg, ladder_cands, .true., ladder(k)%fit%params, cstats, &
+            if (size(lad%cs%cands) == ncand .and. size(lad%rungs(k)%fit%params) == nparams) then
+                call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
                                pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
                                mstats, mesh_params, kept, notes)
                 return
             end if
             call set_status(stat, ERR_INPUT, 'ladder', 'ncand or nparams differ from the '// &
-                            'last api_improve')
+                            'ladder started last')
             call status_out(stat, code, message)
         end if
-        call copy_diag(none, ladder_cands, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
+        call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
                        pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
                        mesh_params, kept, notes)
     end subroutine api_ladder_diag
 
-    !> Is k a rung of the last api_improve? (else ERR_INPUT naming k)
+    !> Is k a rung of the ladder started last? (else ERR_INPUT naming k)
     logical function rung_ok(k, code, message)
         integer(c_int), intent(in) :: k
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         integer :: n
-        n = 0
-        if (allocated(ladder)) n = size(ladder)
+        n = lad%n
         rung_ok = k >= 1 .and. k <= n
         if (.not. rung_ok) call set_status(stat, ERR_INPUT, 'ladder', 'rung '// &
-            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (run api_improve first)')
+            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
         call status_out(stat, code, message)
     end function rung_ok
 end module beamid_api_estimation

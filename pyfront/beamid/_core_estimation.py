@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
-from ._core import _call, quantity_labels
+from ._core import _call, _path, _text, quantity_labels
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
@@ -284,34 +284,62 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
 
 
-def improve(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-            prior_mean: np.ndarray, prior_sigma: np.ndarray, blocks: list[np.ndarray],
-            with_mesh: bool, alpha: float, max_steps: int, max_iter: int = 50) -> list[dict]:
-    """The improve ladder (Fortran beamid_ladder, the one beamid-batch runs):
-    per rung a dict with ``effect`` (None for the start, else the candidate's
-    0-based index or ``"mesh (N elements per beam)"``), ``fit`` (the dict of
-    :func:`fit`), ``diag`` (of :func:`problem_diagnose`), ``free``, ``params``
-    (switched on), ``removed`` (set back), ``start`` and ``nominal``
-    (parameter vectors), ``elements_per_beam`` (of the releases, 0: as
-    given) and ``refit_start``."""
-    params0 = np.asarray(params0, float)
-    n = params0.size
+def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+                 prior_mean: np.ndarray, prior_sigma: np.ndarray, blocks: list[np.ndarray],
+                 with_mesh: bool, alpha: float, max_steps: int, max_iter: int = 50) -> None:
+    """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
+    runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
+    rungs (the extension holds one ladder at a time)."""
     starts, flat = _blocks(blocks)
-    nrung = _call(_api.api_improve, prob.nbeams, params0, np.asarray(free, np.int32),
-                  _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
-                  prob.exp_kind, _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-                  prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter), starts, flat,
-                  int(bool(with_mesh)), float(alpha), int(max_steps))
+    _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
+          np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
+          _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+          _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+          int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
+
+
+def deck_ladder_start(path: str) -> None:
+    """Start the improve ladder of an estimation deck as beamid-batch runs it
+    (the deck's problem and candidates, read by the Fortran reader)."""
+    _call(_api.api_deck_ladder_start, _path(path))
+
+
+def ladder_step() -> bool:
+    """Diagnose the ladder's last fit and, unless the ladder ends there, add
+    the verdict's effect and refit (one rung); True once the ladder has
+    ended."""
+    _nrung, done = _call(_api.api_ladder_step)
+    return bool(done)
+
+
+def deck_ladder_write(path: str) -> list[str]:
+    """Write the deck's improve files (all or none, the bytes of beamid-batch)
+    from the ladder :func:`deck_ladder_start` started on it; the files."""
+    written = _call(_api.api_deck_ladder_write, _path(path))
+    return [line for line in _text(written).split("\n") if line]
+
+
+def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
+    """The rungs of the ladder ended by :func:`ladder_step`: per rung a dict
+    with ``effect`` (None for the start, else the candidate's 1-based
+    number or effect name, or ``"mesh (N elements per beam)"``), ``fit``
+    (the dict of :func:`fit`), ``diag`` (of :func:`problem_diagnose`),
+    ``free``, ``params`` (switched on), ``removed`` (set back), ``start``
+    and ``nominal`` (parameter vectors), ``elements_per_beam`` (of the
+    releases, 0: as given) and ``refit_start``."""
+    starts, flat = _blocks(blocks)
+    nrung, _done = _call(_api.api_ladder_step)   # an ended ladder: no step, the count
     rungs = []
     for k in range(1, int(nrung) + 1):
-        info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k, n)
+        info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k,
+                                                                     nparams)
         nfree = int(info[0])
         effect = _msg(effect).strip()
         rungs.append({
             "effect": None if effect == "start" else effect,
-            "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, n, nfree,
-                             prob.row_exp.size, int(max_iter)),
-            "diag": _diag_dict(_call(_api.api_ladder_diag, k, n, starts.size - 1,
+            "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, nparams, nfree,
+                             int(info[3]), int(info[4])),
+            "diag": _diag_dict(_call(_api.api_ladder_diag, k, nparams, starts.size - 1,
                                      flat.size - 1), starts),
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),

@@ -23,7 +23,7 @@ import f90nml
 from ._deck_common import Published, check_path as _check_path, load as _load
 from ._deck_common import published as _published, run_files
 from .errors import OutputError
-from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, _result
+from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, run_fit_deck
 from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
@@ -179,9 +179,9 @@ def run(deck: Deck | str | os.PathLike):
     """
     if not isinstance(deck, (Deck, FitDeck)):
         deck = read_deck(_check_path(deck, "deck"))
+    if isinstance(deck, FitDeck):   # (improve: its ladder runs once, for files and result)
+        return run_fit_deck(deck, plots=False)[2]
     run_files(deck)
-    if isinstance(deck, FitDeck):
-        return _result(deck)
     if deck.task == "fe_static":
         from . import fe
 

@@ -21,6 +21,7 @@ families (dynamics) add theirs with :func:`register_effect`.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
@@ -34,6 +35,7 @@ from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
+from .progress import progress
 
 
 # ------------------------------------------------------------------ registry
@@ -683,19 +685,32 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(max_iter) < 1:
         raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
+    free_names, free_idx = _free_indices(model, free)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx, pidx,
+                     pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
+    return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+
+
+def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
+                prior_map: Mapping[str, tuple[float, float]],
+                candidates: Sequence[str | Effect] | None, alpha: float,
+                max_steps: int) -> Ladder:
+    """Run the ladder started in the extension (``_ce.ladder_start`` or
+    ``_ce.deck_ladder_start``) a rung per call, with a progress bar on a
+    terminal, and name its rungs."""
     dynamic = _dynamic(experiments)
     if dynamic:
         from .dyn_diagnosis import _dyn_diagnosis, refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
-    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
-    prob = build_problem(model, experiments, data)
-    free_names, free_idx = _free_indices(model, free)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    rungs = _ce.improve(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, with_mesh,
-                        alpha, limit, int(max_iter))
+    for _ in progress(itertools.count(), total=max_steps + 1, desc="improve"):  # on a tty only
+        if _ce.ladder_step():
+            break
     all_names = model.names()
     steps = []
-    for k, r in enumerate(rungs):
+    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
             experiments = refine_mesh(experiments, r["elements_per_beam"])
         fit = _result(Model(model.nbeams, r["start"]), experiments, data,
@@ -705,7 +720,7 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
         diag = (_dyn_diagnosis(fit, r["diag"], effects, names, alpha, with_mesh) if dynamic
                 else _diagnosis(fit, r["diag"], effects, names, alpha))
         effect = r["effect"]
-        if effect is not None and not effect.startswith("mesh"):
+        if effect is not None and effect.isdigit():   # a candidate's number (not a deck's name)
             effect = effects[int(effect) - 1].name
         steps.append(LadderStep(k, effect, fit.chi2, fit.dof, fit.chi2_per_dof,
                                 dict(fit.estimates), dict(fit.sigmas), fit, diag,
