@@ -1541,19 +1541,71 @@ contains
         real(dp), intent(in), optional :: probe_sigma(:)
         real(dp), intent(in), optional :: nominal(:) !< starting values of the user's
         !! model, a start of the refits (default: base%params)
-        integer :: nc, c, k, nrefit, best, q
-        integer, allocatable :: order(:), tier(:)
-        real(dp), allocatable :: key(:), pa(:), pb(:), jdummy(:, :)
+        integer :: nc, c, q, nrefit
+        integer, allocatable :: order(:)
         type(status_t) :: st
-        real(dp) :: sep
-        integer :: row
 
         nc = size(cands)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
         diag%verdict = 0
         diag%ntested = 0
-        do c = 1, nc
+        call score_candidates(model, y, sigma, base, null_values, lower, upper, prior, cands, &
+                              fopts, diag, stat)
+        if (stat%code /= STATUS_OK) return
+        diag%alpha_each = dopts%alpha/real(max(diag%ntested, 1), dp)
+        call direction_cosines(diag)
+        order = sort_desc(first_pass_key(diag))
+        ! confirm the leading candidates by refits
+        nrefit = 0
+        do q = 1, nc
+            c = order(q)
+            if (nrefit >= dopts%nrefit) exit
+            if (.not. worth_refit(diag%cand(c)%state, diag%cand(c)%score, dopts)) cycle
+            nrefit = nrefit + 1
+            associate (cr => diag%cand(c))
+                call clear_status(st)
+                if (present(nominal)) then
+                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
+                                      null_values, lower, upper, prior, fopts, cr%refit, &
+                                      cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
+                else
+                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
+                                      base%params, null_values, lower, upper, prior, fopts, &
+                                      cr%refit, cr%info, st, use=dopts%starts, &
+                                      enough=dopts%first_enough)
+                end if
+                if (st%code < 0) then
+                    stat = st
+                    return
+                end if
+                call judge_refit(cr, st%code == STATUS_OK, base, cands(c)%params, null_values, &
+                                 lower, upper, diag%alpha_each)
+            end associate
+        end do
+        call rank_candidates(diag, cands)
+        if (diag%verdict == 0) return
+        call mark_rivals(diag, cands, dopts)
+        if (.not. present(probe) .or. .not. present(probe_sigma)) return
+        if (.not. any(diag%cand%rival)) return
+        call separating_rows(probe, probe_sigma, diag, stat)
+    end subroutine diagnose
+
+    !> Diagnosis step 1: the state of every candidate, and the score test of
+    !! those whose parameters are all at their null values and not free.
+    subroutine score_candidates(model, y, sigma, base, null_values, lower, upper, prior, &
+                                cands, fopts, diag, stat)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), null_values(:), lower(:), upper(:)
+        type(fit_result_t), intent(in) :: base
+        type(prior_t), intent(in) :: prior
+        type(candidate_t), intent(in) :: cands(:)
+        type(fit_options_t), intent(in) :: fopts
+        type(diagnosis_t), intent(inout) :: diag
+        type(status_t), intent(inout) :: stat
+        integer :: c, k
+        do c = 1, size(cands)
             associate (cr => diag%cand(c))
                 if (size(cands(c)%params) == 0) then
                     cr%state = CAND_NO_PARAMS
@@ -1575,84 +1627,94 @@ contains
                 end if
             end associate
         end do
-        diag%alpha_each = dopts%alpha/real(max(diag%ntested, 1), dp)
-        do c = 1, nc
-            do k = 1, nc
+    end subroutine score_candidates
+
+    !> Diagnosis step 2: cosines between the tested candidates' directions.
+    pure subroutine direction_cosines(diag)
+        type(diagnosis_t), intent(inout) :: diag
+        integer :: c, k
+        do c = 1, size(diag%cand)
+            do k = 1, size(diag%cand)
                 if (diag%cand(c)%state == CAND_TESTED .and. &
                     diag%cand(k)%state == CAND_TESTED) diag%cosine(c, k) = &
                     dot_product(diag%cand(c)%score%direction, diag%cand(k)%score%direction)
             end do
         end do
-        ! first pass: order by predicted drop, physical candidates first
-        allocate (key(nc))
-        do c = 1, nc
+    end subroutine direction_cosines
+
+    !> Diagnosis step 3, the order of the refits: by predicted drop, physical
+    !! and identifiable candidates first, untested ones last.
+    pure function first_pass_key(diag) result(key)
+        type(diagnosis_t), intent(in) :: diag
+        real(dp) :: key(size(diag%cand))
+        integer :: c
+        do c = 1, size(diag%cand)
             key(c) = -huge(1.0_dp)
             if (diag%cand(c)%state /= CAND_TESTED) cycle
             key(c) = diag%cand(c)%score%drop
             if (.not. (diag%cand(c)%score%physical .and. diag%cand(c)%score%identifiable)) &
                 key(c) = key(c) - 1.0e30_dp
         end do
-        order = sort_desc(key)
-        ! confirm the leading candidates by refits
-        nrefit = 0
-        do q = 1, nc
-            c = order(q)
-            if (nrefit >= dopts%nrefit) exit
-            if (diag%cand(c)%state /= CAND_TESTED) cycle
-            if (.not. (diag%cand(c)%score%physical .and. &
-                       diag%cand(c)%score%identifiable)) cycle
-            if (diag%cand(c)%score%drop <= 0.0_dp) cycle
-            if (dopts%refit_significant_only .and. &
-                .not. diag%cand(c)%score%p_value < dopts%alpha) cycle
-            nrefit = nrefit + 1
-            associate (cr => diag%cand(c))
-                call clear_status(st)
-                if (present(nominal)) then
-                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
-                                      null_values, lower, upper, prior, fopts, cr%refit, &
-                                      cr%info, st, use=dopts%starts, &
-                                      enough=dopts%first_enough)
-                else
-                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
-                                      base%params, null_values, lower, upper, prior, fopts, &
-                                      cr%refit, cr%info, st, use=dopts%starts, &
-                                      enough=dopts%first_enough)
-                end if
-                if (st%code < 0) then
-                    stat = st
-                    return
-                end if
-                cr%refit_done = .true.
-                cr%refit_ok = st%code == STATUS_OK
-                if (cr%refit_ok) then
-                    cr%lr_drop = (base%chi2 + base%chi2_prior) - &
-                                 (cr%refit%chi2 + cr%refit%chi2_prior)
-                    cr%lr_p = chi2_sf(max(cr%lr_drop, 0.0_dp), size(cands(c)%params))
-                    if (size(cands(c)%params) == 1 .and. any(cr%score%active .and. &
-                        (base%params(cands(c)%params) <= lower(cands(c)%params) .or. &
-                         base%params(cands(c)%params) >= upper(cands(c)%params)))) &
-                        cr%lr_p = 0.5_dp*cr%lr_p
-                    cr%significant = cr%lr_p < diag%alpha_each
-                    k = size(base%free)
-                    ! a refit that returns the effect to its null value (a bound) or
-                    ! cannot determine it is not an explanation; a bound away from
-                    ! the null (axial_coupling = 1, the exact form) is
-                    cr%acceptable = cr%significant .and. &
-                                    all(cr%refit%flags(k + 1:) /= FLAG_UNDETERMINED) .and. &
-                                    all(cr%refit%flags(k + 1:) /= FLAG_RUNAWAY) .and. &
-                                    any(cr%refit%params(cands(c)%params) /= &
-                                        null_values(cands(c)%params))
-                else
-                    cr%lr_drop = not_a_number()
-                    cr%lr_p = not_a_number()
-                end if
-            end associate
-        end do
-        ! final ranking in tiers: acceptable refits, other refits, physical score
-        ! tests, the rest; within a tier by the Akaike-style gain drop - 2 dof
-        ! (refits: actual drop, otherwise the predicted one)
-        allocate (tier(nc))
-        do c = 1, nc
+    end function first_pass_key
+
+    !> Is a candidate worth confirming by a refit: tested, physical,
+    !! identifiable, a positive predicted drop (and, when asked, significant).
+    pure logical function worth_refit(state, score, dopts)
+        integer, intent(in) :: state
+        type(score_result_t), intent(in) :: score
+        type(diagnose_options_t), intent(in) :: dopts
+        worth_refit = .false.
+        if (state /= CAND_TESTED) return
+        if (.not. (score%physical .and. score%identifiable)) return
+        if (score%drop <= 0.0_dp) return
+        if (dopts%refit_significant_only .and. .not. score%p_value < dopts%alpha) return
+        worth_refit = .true.
+    end function worth_refit
+
+    !> Diagnosis step 4: the likelihood-ratio test of a refit (`ok`: it
+    !! converged) and whether it is an acceptable explanation.
+    pure subroutine judge_refit(cr, ok, base, block, null_values, lower, upper, alpha_each)
+        type(candidate_report_t), intent(inout) :: cr
+        logical, intent(in) :: ok
+        type(fit_result_t), intent(in) :: base
+        integer, intent(in) :: block(:)
+        real(dp), intent(in) :: null_values(:), lower(:), upper(:), alpha_each
+        integer :: k
+        cr%refit_done = .true.
+        cr%refit_ok = ok
+        if (.not. ok) then
+            cr%lr_drop = not_a_number()
+            cr%lr_p = not_a_number()
+            return
+        end if
+        cr%lr_drop = (base%chi2 + base%chi2_prior) - (cr%refit%chi2 + cr%refit%chi2_prior)
+        cr%lr_p = chi2_sf(max(cr%lr_drop, 0.0_dp), size(block))
+        if (size(block) == 1 .and. any(cr%score%active .and. &
+            (base%params(block) <= lower(block) .or. base%params(block) >= upper(block)))) &
+            cr%lr_p = 0.5_dp*cr%lr_p
+        cr%significant = cr%lr_p < alpha_each
+        k = size(base%free)
+        ! a refit that returns the effect to its null value (a bound) or
+        ! cannot determine it is not an explanation; a bound away from
+        ! the null (axial_coupling = 1, the exact form) is
+        cr%acceptable = cr%significant .and. &
+                        all(cr%refit%flags(k + 1:) /= FLAG_UNDETERMINED) .and. &
+                        all(cr%refit%flags(k + 1:) /= FLAG_RUNAWAY) .and. &
+                        any(cr%refit%params(block) /= null_values(block))
+    end subroutine judge_refit
+
+    !> Diagnosis step 5: final ranking in tiers: acceptable refits, other
+    !! refits, physical score tests, the rest; within a tier by the
+    !! Akaike-style gain drop - 2 dof (refits: actual drop, otherwise the
+    !! predicted one). The verdict is the best acceptable candidate.
+    pure subroutine rank_candidates(diag, cands)
+        type(diagnosis_t), intent(inout) :: diag
+        type(candidate_t), intent(in) :: cands(:)
+        real(dp) :: key(size(diag%cand))
+        integer :: tier(size(diag%cand))
+        integer :: c, q
+        do c = 1, size(diag%cand)
+            key(c) = -huge(1.0_dp)
             tier(c) = 0
             if (diag%cand(c)%state /= CAND_TESTED) cycle
             key(c) = diag%cand(c)%score%drop - 2.0_dp*diag%cand(c)%score%dof
@@ -1665,18 +1727,25 @@ contains
             end if
         end do
         diag%ranking = sort_desc(key, tier)
-        best = 0
-        do q = 1, nc
+        diag%verdict = 0
+        do q = 1, size(diag%cand)
             c = diag%ranking(q)
             if (diag%cand(c)%acceptable) then
-                best = c
+                diag%verdict = c
                 exit
             end if
         end do
-        diag%verdict = best
-        if (best == 0) return
-        ! rivals: explain the residuals about as well as the verdict
-        do c = 1, nc
+    end subroutine rank_candidates
+
+    !> Diagnosis step 6: rivals explain the residuals about as well as the
+    !! verdict (gains within ambiguity_delta, or twice that when collinear).
+    pure subroutine mark_rivals(diag, cands, dopts)
+        type(diagnosis_t), intent(inout) :: diag
+        type(candidate_t), intent(in) :: cands(:)
+        type(diagnose_options_t), intent(in) :: dopts
+        integer :: c, best
+        best = diag%verdict
+        do c = 1, size(diag%cand)
             if (c == best .or. .not. diag%cand(c)%acceptable) cycle
             if ((diag%cand(best)%lr_drop - 2.0_dp*size(cands(best)%params)) - &
                 (diag%cand(c)%lr_drop - 2.0_dp*size(cands(c)%params)) < &
@@ -1685,21 +1754,28 @@ contains
                 (diag%cand(c)%lr_drop - 2.0_dp*size(cands(c)%params)) < &
                 2.0_dp*dopts%ambiguity_delta)) diag%cand(c)%rival = .true.
         end do
-        if (.not. present(probe) .or. .not. present(probe_sigma)) return
-        if (.not. any(diag%cand%rival)) return
-        allocate (pa(size(probe_sigma)), pb(size(probe_sigma)), jdummy(size(probe_sigma), 0))
-        call probe%evaluate(diag%cand(best)%refit%params, [integer ::], pa, jdummy, stat)
+    end subroutine mark_rivals
+
+    !> Diagnosis step 7: for each rival, the probe row whose predictions
+    !! differ most from the verdict's (in units of probe_sigma).
+    subroutine separating_rows(probe, probe_sigma, diag, stat)
+        class(residual_model_t), intent(inout) :: probe
+        real(dp), intent(in) :: probe_sigma(:)
+        type(diagnosis_t), intent(inout) :: diag
+        type(status_t), intent(inout) :: stat
+        real(dp) :: pa(size(probe_sigma)), pb(size(probe_sigma)), jdummy(size(probe_sigma), 0)
+        integer :: c, row
+        call probe%evaluate(diag%cand(diag%verdict)%refit%params, [integer ::], pa, jdummy, stat)
         if (stat%code /= STATUS_OK) return
-        do c = 1, nc
+        do c = 1, size(diag%cand)
             if (.not. diag%cand(c)%rival) cycle
             call probe%evaluate(diag%cand(c)%refit%params, [integer ::], pb, jdummy, stat)
             if (stat%code /= STATUS_OK) return
             row = maxloc(abs(pa - pb)/probe_sigma, 1)
-            sep = abs(pa(row) - pb(row))/probe_sigma(row)
             diag%cand(c)%separating_row = row
-            diag%cand(c)%separation = sep
+            diag%cand(c)%separation = abs(pa(row) - pb(row))/probe_sigma(row)
         end do
-    end subroutine diagnose
+    end subroutine separating_rows
 
     !> Indices that sort by `tier` then `key`, both descending (stable
     !! insertion sort; without tiers by key alone).
