@@ -248,6 +248,26 @@ module beamid_estimation
         real(dp) :: alpha_each = 0.0_dp     !< per-candidate level after Bonferroni
     end type diagnosis_t
 
+    !> The working state of fit_least_squares, shared by its steps.
+    type :: gn_state_t
+        integer :: m = 0, n = 0, mt = 0    !< data rows, free parameters, rows + priors
+        integer :: it0 = 1                 !< first iteration of the current phase
+        integer :: level = ROUGH_OFF       !< roughness of the phase being confirmed
+        integer :: nstuck = 0              !< damped steps in a row that moved nothing
+        real(dp), allocatable :: p(:), pred(:), a(:, :), rr(:)    !< the iterate
+        real(dp), allocatable :: pt(:), predt(:), at(:, :), rt(:) !< a trial step
+        !> the projected Jacobian, gradient, its scaled SVD, the step
+        real(dp), allocatable :: aa(:, :), g(:), d(:), s(:), u(:, :), vt(:, :), dx(:)
+        logical, allocatable :: held(:)    !< ran away: held where found
+        real(dp) :: cost = 0.0_dp, cost_t = 0.0_dp     !< at the iterate, at the trial
+        real(dp) :: lambda = 0.0_dp, lambda_in = 0.0_dp, lam_floor = 0.0_dp
+        real(dp) :: relstep = 0.0_dp, dcost = 0.0_dp  !< of the last step
+        real(dp) :: pred_gn = 0.0_dp, pred_step = 0.0_dp
+        logical :: stalled = .false., stall_pending = .false., poor_step = .false.
+        logical :: failed_trial = .false.
+        type(status_t) :: fail_stat        !< the model's message at the last failed trial
+    end type gn_state_t
+
 contains
 
     ! ----------------------------------------------------------------- helpers
@@ -604,154 +624,40 @@ contains
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
-        integer :: m, n, mt, r, it, it0, trial, i, nstuck, nbound
-        logical :: go_on
-        real(dp), allocatable :: p(:), pt(:), pred(:), predt(:), a(:, :), at(:, :), rr(:), rt(:)
-        real(dp), allocatable :: aa(:, :), g(:)
-        real(dp), allocatable :: d(:), s(:), u(:, :), vt(:, :), dx(:)
-        real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor, lambda_in
-        real(dp) :: pred_gn, pred_step
-        logical :: accepted, evaluated, failed_trial, stalled, stall_pending, poor_step
-        integer :: level
-        type(status_t) :: trial_stat, fail_stat
-        logical, allocatable :: undetermined(:), held(:)
+        type(gn_state_t) :: w
+        integer :: it
+        logical :: go_on, accepted, evaluated
 
         call check_problem(y, sigma, params0, free, lower, upper, prior, stat)
         if (stat%code /= STATUS_OK) return
-        m = size(y)
-        n = size(free)
-        mt = m + size(prior%index)
-        r = min(mt, n)
-        allocate (pred(m), predt(m), a(mt, n), at(mt, n), rr(mt), rt(mt))
-        allocate (d(n), s(r), u(mt, r), vt(r, n), dx(n), held(n))
-        allocate (res%log_cost(0:opts%max_iter), res%log_lambda(0:opts%max_iter), &
-                  res%log_step(0:opts%max_iter), res%log_params(n, 0:opts%max_iter))
-        res%free = free
-        p = params0
-        ! the search starts on the rough model when the model has one
-        ! (confirm_at_final_point makes each phase's end point accurate)
-        model%rough = ROUGH_OFF
-        if (model%rough_jacobian_ok) model%rough = ROUGH_ALL
-        call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, stat)
-        if (stat%code /= STATUS_OK .and. model%rough == ROUGH_ALL) then
-            ! not solvable at the rough tolerance: start at the user's
-            call clear_status(stat)
-            model%rough = ROUGH_JACOBIAN
-            call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, stat)
-        end if
-        if (stat%code /= STATUS_OK) then
-            model%rough = ROUGH_OFF
-            stat%message = trim(stat%message)//' (at the starting values)'
-            return
-        end if
-        cost = sum(rr**2)
-        res%nlog = 0
-        res%log_cost(0) = cost
-        res%log_lambda(0) = 0.0_dp
-        res%log_step(0) = 0.0_dp
-        res%log_params(:, 0) = p(free)
-        lambda = 0.0_dp
-        res%converged = .false.
-        res%stop = STOP_MAX_ITER
-        relstep = 0.0_dp
-        dcost = 0.0_dp
-        held = .false.
-        nstuck = 0
-        stalled = .false.
-        stall_pending = .false.
-        poor_step = .false.
-        pred_step = 0.0_dp
-        failed_trial = .false.
-        it0 = 1
+        call start_search(model, y, sigma, params0, free, prior, opts, w, res, stat)
+        if (stat%code /= STATUS_OK) return
         ! phases: iterate (on the rough model, then steered by rough
         ! Jacobians, when the model offers them), confirm at the final point
         ! with the accurate model and iterate on, one level less rough, while
         ! it promises more than the noise floor (the inner loop's body is the
         ! one Gauss-Newton step)
         phases: do
-        iterate: do it = it0, opts%max_iter
-            call projected_svd(stat)
+        iterate: do it = w%it0, opts%max_iter
+            call projected_svd(w, free, lower, upper, opts, stat)
             if (stat%code /= STATUS_OK) then
                 model%rough = ROUGH_OFF
                 return
             end if
-            lam_floor = 1.0e-6_dp*s(1)**2
-            ! first-order optimality: the undamped step would lower the cost by
-            ! pred_gn = |U^T r|^2 = dx^T (A^T A) dx, the squared length of the
-            ! step in units of the parameters' covariance (Eq. 55), so that
-            ! |dx_i| <= sqrt(pred_gn) sigma_i for every parameter. Converged when
-            ! that is negligible against the cost, or the data are matched to
-            ! 1e-9 sigma a row (exact synthetic data)
-            pred_gn = predicted_decrease(s, u, rr, opts%rcond)
-            if (pred_gn <= opts%tol_cost*cost + tiny(1.0_dp) .or. cost <= 1.0e-18_dp*mt) then
+            w%lam_floor = 1.0e-6_dp*w%s(1)**2
+            w%pred_gn = predicted_decrease(w%s, w%u, w%rr, opts%rcond)
+            if (at_minimum(w, it, model%rough, opts)) then
                 res%converged = .true.
                 res%iterations = it - 1
                 exit
             end if
-            ! the cost's noise floor: the last step had to be damped or gained
-            ! less than a quarter of its linear prediction (the model is not
-            ! smooth at this scale: an integrated response's switching events,
-            ! its error control), it lowered the chi-square by less than
-            ! floor_chi2 and the next step promises less than floor_chi2 more:
-            ! what is left to gain has no statistical meaning
-            if (it > 1 .and. poor_step .and. dcost <= opts%floor_chi2 .and. &
-                pred_gn <= opts%floor_chi2) then
-                res%converged = .true.
+            if (w%stall_pending) then
                 res%iterations = it - 1
+                w%stalled = .true.
                 exit
             end if
-            ! the rough model pays while the misfit is well above the data's
-            ! noise; once the data are fitted better than their sigmas (chi2
-            ! below half the degrees of freedom, as with exact data) what is
-            ! left may be the rough model's own error: on to the accurate one
-            if (model%rough == ROUGH_ALL .and. cost < 0.5_dp*max(mt - n, 1)) then
-                res%converged = .true.
-                res%iterations = it - 1
-                exit
-            end if
-            if (stall_pending) then
-                res%iterations = it - 1
-                stalled = .true.
-                exit
-            end if
-            accepted = .false.
-            evaluated = .false.
-            failed_trial = .false.
-            lambda_in = lambda
-            do trial = 1, opts%max_trials
-                dx = lm_step(d, s, u, vt, rr, lambda, opts%rcond)
-                pt = p
-                pt(free) = min(max(p(free) + dx, lower(free)), upper(free))
-                dx = pt(free) - p(free)
-                call clear_status(trial_stat)
-                if (model%plain_trials) then
-                    call weighted_system(model, y, sigma, pt, free(1:0), prior, predt, at(:, 1:0), &
-                                         rt, trial_stat)
-                else
-                    call weighted_system(model, y, sigma, pt, free, prior, predt, at, rt, trial_stat)
-                end if
-                if (trial_stat%code == STATUS_OK) then
-                    evaluated = .true.
-                    failed_trial = .false.
-                    cost_t = sum(rt**2)
-                    if (cost_t <= cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
-                        ! the sensitivities at the accepted step
-                        if (model%plain_trials) call weighted_system(model, y, sigma, pt, free, &
-                                                 prior, predt, at, rt, trial_stat)
-                        if (trial_stat%code == STATUS_OK) then
-                            cost_t = sum(rt**2)
-                            accepted = .true.
-                            exit
-                        end if
-                        failed_trial = .true.
-                        fail_stat = trial_stat
-                    end if
-                else
-                    failed_trial = .true.
-                    fail_stat = trial_stat
-                end if
-                lambda = max(10.0_dp*lambda, 1.0e-3_dp*s(1)**2)
-            end do
+            call damped_trials(model, y, sigma, free, lower, upper, prior, opts, w, accepted, &
+                               evaluated)
             res%iterations = it
             if (.not. accepted) then
                 ! no damped step lowers the cost: a minimum to working precision
@@ -759,227 +665,435 @@ contains
                 ! it could not (the model could not be solved at the fit's own
                 ! trial parameters, however short the step: the fit comes back at
                 ! its last good point, flagged, with the solver's message)
-                if (failed_trial .or. .not. evaluated) then
-                    stalled = .true.
+                if (w%failed_trial .or. .not. evaluated) then
+                    w%stalled = .true.
                 else
                     res%converged = .true.
                 end if
                 exit
             end if
-            relstep = maxval(abs(dx)/max(abs(p(free)), abs(pt(free)), tiny(1.0_dp)))
-            dcost = cost - cost_t
-            pred_step = cost - sum((rr - matmul(aa, dx))**2)
-            poor_step = lambda > 0.0_dp .or. dcost < 0.25_dp*pred_step
-            p = pt
-            pred = predt
-            a = at
-            rr = rt
-            res%nlog = it
-            res%log_cost(it) = cost_t
-            res%log_lambda(it) = lambda
-            res%log_step(it) = relstep
-            res%log_params(:, it) = p(free)
-            if (lambda == 0.0_dp .and. (relstep < opts%tol_step .or. &
-                dcost <= opts%tol_cost*cost_t .or. cost_t <= 1.0e-18_dp*mt)) then
-                cost = cost_t
+            call take_step(w, free, it, res)
+            if (w%lambda == 0.0_dp .and. (w%relstep < opts%tol_step .or. &
+                w%dcost <= opts%tol_cost*w%cost_t .or. w%cost_t <= 1.0e-18_dp*w%mt)) then
+                w%cost = w%cost_t
                 res%converged = .true.
                 exit
             end if
-            ! a damped step that moves nothing though the damping had to be
-            ! raised again (not on its way down): three in a row is a stall
-            if (lambda > lambda_in .and. &
-                (relstep < opts%tol_step .or. dcost <= opts%tol_cost*cost_t)) then
-                nstuck = nstuck + 1
-            else
-                nstuck = 0
-            end if
-            cost = cost_t
-            ! ... and so is a damped crawl: ten damped steps that lower the
-            ! chi-square by less than 0.01 together (a curved valley along
-            ! collinear columns; no statistical meaning is left to gain)
-            if (it > CRAWL_STEPS) then
-                if (all(res%log_lambda(it - CRAWL_STEPS + 1:it) > 0.0_dp) .and. &
-                    res%log_cost(it - CRAWL_STEPS) - cost_t < CRAWL_DROP) nstuck = 3
-            end if
-            if (nstuck >= 3) then
+            call count_stuck_steps(w, it, res, opts)
+            if (w%nstuck >= 3) then
                 ! a stall unless the next iterate's test finds the noise floor
                 if (it == opts%max_iter) then
-                    stalled = .true.
+                    w%stalled = .true.
                     exit
                 end if
-                stall_pending = .true.
+                w%stall_pending = .true.
             end if
-            lambda = lambda/10.0_dp
-            if (lambda < lam_floor) lambda = 0.0_dp
-            ! a parameter that ran away is held there; the others go on
-            do i = 1, n
-                if (held(i)) cycle
-                if (ran_away(p(free(i)), params0(free(i)), lower(free(i)), opts)) then
-                    held(i) = .true.
-                    lambda = 0.0_dp
-                    nstuck = 0
-                    stall_pending = .false.
-                end if
-            end do
-            if (all(held)) exit
+            w%lambda = w%lambda/10.0_dp
+            if (w%lambda < w%lam_floor) w%lambda = 0.0_dp
+            call hold_runaways(w, params0, free, lower, opts)
+            if (all(w%held)) exit
         end do iterate
         if (model%rough == ROUGH_OFF) exit phases
-        level = model%rough
-        call confirm_at_final_point(go_on, stat)
+        w%level = model%rough
+        call confirm_at_final_point(model, y, sigma, free, lower, upper, prior, opts, w, &
+                                    res%iterations, go_on, stat)
         if (stat%code /= STATUS_OK) return
         if (.not. go_on) exit phases
-        model%rough = level - 1
-        call restart_phase()
+        model%rough = w%level - 1
+        call restart_phase(w, res)
         end do phases
+        call store_result(w, params0, free, lower, upper, opts, res, stat)
+        if (stat%code /= STATUS_OK) return   ! the model failed at every trial step
+        call describe_ending(w, params0, lower, upper, opts, res, stat)
+    end subroutine fit_least_squares
+
+    !> fit_least_squares' first step: the work arrays, the weighted system at
+    !! the start (on the rough model when the model has one, at the user's
+    !! tolerance when that cannot be solved) and the log's entry 0.
+    subroutine start_search(model, y, sigma, params0, free, prior, opts, w, res, stat)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), params0(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(gn_state_t), intent(inout) :: w
+        type(fit_result_t), intent(inout) :: res
+        type(status_t), intent(inout) :: stat
+        integer :: m, n, mt, r
+        m = size(y)
+        n = size(free)
+        mt = m + size(prior%index)
+        r = min(mt, n)
+        w%m = m
+        w%n = n
+        w%mt = mt
+        allocate (w%pred(m), w%predt(m), w%a(mt, n), w%at(mt, n), w%rr(mt), w%rt(mt))
+        allocate (w%d(n), w%s(r), w%u(mt, r), w%vt(r, n), w%dx(n), w%held(n))
+        allocate (res%log_cost(0:opts%max_iter), res%log_lambda(0:opts%max_iter), &
+                  res%log_step(0:opts%max_iter), res%log_params(n, 0:opts%max_iter))
+        res%free = free
+        w%p = params0
+        ! the search starts on the rough model when the model has one
+        ! (confirm_at_final_point makes each phase's end point accurate)
+        model%rough = ROUGH_OFF
+        if (model%rough_jacobian_ok) model%rough = ROUGH_ALL
+        call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, stat)
+        if (stat%code /= STATUS_OK .and. model%rough == ROUGH_ALL) then
+            ! not solvable at the rough tolerance: start at the user's
+            call clear_status(stat)
+            model%rough = ROUGH_JACOBIAN
+            call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, stat)
+        end if
+        if (stat%code /= STATUS_OK) then
+            model%rough = ROUGH_OFF
+            stat%message = trim(stat%message)//' (at the starting values)'
+            return
+        end if
+        w%cost = sum(w%rr**2)
+        res%nlog = 0
+        res%log_cost(0) = w%cost
+        res%log_lambda(0) = 0.0_dp
+        res%log_step(0) = 0.0_dp
+        res%log_params(:, 0) = w%p(free)
+        w%lambda = 0.0_dp
+        res%converged = .false.
+        res%stop = STOP_MAX_ITER
+        w%held = .false.
+    end subroutine start_search
+
+    !> Projected Gauss-Newton: a parameter on a bound whose descent
+    !! direction (a^T r) points out of the box is held for this step, a
+    !! parameter that ran away for good; w%aa = w%a without their columns and
+    !! its scaled SVD (d, s, u, vt).
+    subroutine projected_svd(w, free, lower, upper, opts, st)
+        type(gn_state_t), intent(inout) :: w
+        integer, intent(in) :: free(:)
+        real(dp), intent(in) :: lower(:), upper(:)
+        type(fit_options_t), intent(in) :: opts
+        type(status_t), intent(inout) :: st
+        integer :: i, k, nbound
+        w%aa = w%a
+        w%g = matmul(w%rr, w%a)
+        do i = 1, w%n
+            if (w%held(i) .or. (w%p(free(i)) <= lower(free(i)) .and. w%g(i) < 0.0_dp) .or. &
+                (w%p(free(i)) >= upper(free(i)) .and. w%g(i) > 0.0_dp)) w%aa(:, i) = 0.0_dp
+        end do
+        call scaled_svd(w%aa, w%d, w%s, w%u, w%vt, st)
+        if (st%code /= STATUS_OK) return
+        ! ... and one on a bound that the Gauss-Newton step would push out
+        ! of the box (a clipped step would crawl along the bound)
+        do k = 1, w%n
+            w%dx = lm_step(w%d, w%s, w%u, w%vt, w%rr, 0.0_dp, opts%rcond)
+            nbound = 0
+            do i = 1, w%n
+                if (all(w%aa(:, i) == 0.0_dp)) cycle
+                if ((w%p(free(i)) <= lower(free(i)) .and. w%dx(i) < 0.0_dp) .or. &
+                    (w%p(free(i)) >= upper(free(i)) .and. w%dx(i) > 0.0_dp)) then
+                    w%aa(:, i) = 0.0_dp
+                    nbound = nbound + 1
+                end if
+            end do
+            if (nbound == 0) exit
+            call scaled_svd(w%aa, w%d, w%s, w%u, w%vt, st)
+            if (st%code /= STATUS_OK) return
+        end do
+    end subroutine projected_svd
+
+    !> Is iteration `it` at a minimum, before its step (w%pred_gn set)?
+    pure logical function at_minimum(w, it, rough, opts)
+        type(gn_state_t), intent(in) :: w
+        integer, intent(in) :: it, rough
+        type(fit_options_t), intent(in) :: opts
+        ! first-order optimality: the undamped step would lower the cost by
+        ! pred_gn = |U^T r|^2 = dx^T (A^T A) dx, the squared length of the
+        ! step in units of the parameters' covariance (Eq. 55), so that
+        ! |dx_i| <= sqrt(pred_gn) sigma_i for every parameter. Converged when
+        ! that is negligible against the cost, or the data are matched to
+        ! 1e-9 sigma a row (exact synthetic data)
+        at_minimum = w%pred_gn <= opts%tol_cost*w%cost + tiny(1.0_dp) .or. &
+                     w%cost <= 1.0e-18_dp*w%mt
+        if (at_minimum) return
+        ! the cost's noise floor: the last step had to be damped or gained
+        ! less than a quarter of its linear prediction (the model is not
+        ! smooth at this scale: an integrated response's switching events,
+        ! its error control), it lowered the chi-square by less than
+        ! floor_chi2 and the next step promises less than floor_chi2 more:
+        ! what is left to gain has no statistical meaning
+        at_minimum = it > 1 .and. w%poor_step .and. w%dcost <= opts%floor_chi2 .and. &
+                     w%pred_gn <= opts%floor_chi2
+        if (at_minimum) return
+        ! the rough model pays while the misfit is well above the data's
+        ! noise; once the data are fitted better than their sigmas (chi2
+        ! below half the degrees of freedom, as with exact data) what is
+        ! left may be the rough model's own error: on to the accurate one
+        at_minimum = rough == ROUGH_ALL .and. w%cost < 0.5_dp*max(w%mt - w%n, 1)
+    end function at_minimum
+
+    !> The Levenberg-Marquardt trials of one iteration: the damping raised
+    !! until a step inside the box lowers the cost (accepted: the trial
+    !! arrays w%pt, w%predt, w%at, w%rt hold it, w%cost_t its cost).
+    !! evaluated: some trial could be evaluated; w%failed_trial: the last
+    !! could not (its message in w%fail_stat).
+    subroutine damped_trials(model, y, sigma, free, lower, upper, prior, opts, w, accepted, &
+                             evaluated)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), lower(:), upper(:)
+        integer, intent(in) :: free(:)
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(gn_state_t), intent(inout) :: w
+        logical, intent(out) :: accepted, evaluated
+        type(status_t) :: trial_stat
+        integer :: trial
+        accepted = .false.
+        evaluated = .false.
+        w%failed_trial = .false.
+        w%lambda_in = w%lambda
+        do trial = 1, opts%max_trials
+            w%dx = lm_step(w%d, w%s, w%u, w%vt, w%rr, w%lambda, opts%rcond)
+            w%pt = w%p
+            w%pt(free) = min(max(w%p(free) + w%dx, lower(free)), upper(free))
+            w%dx = w%pt(free) - w%p(free)
+            call clear_status(trial_stat)
+            if (model%plain_trials) then
+                call weighted_system(model, y, sigma, w%pt, free(1:0), prior, w%predt, &
+                                     w%at(:, 1:0), w%rt, trial_stat)
+            else
+                call weighted_system(model, y, sigma, w%pt, free, prior, w%predt, w%at, w%rt, &
+                                     trial_stat)
+            end if
+            if (trial_stat%code == STATUS_OK) then
+                evaluated = .true.
+                w%failed_trial = .false.
+                w%cost_t = sum(w%rt**2)
+                if (w%cost_t <= w%cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
+                    ! the sensitivities at the accepted step
+                    if (model%plain_trials) call weighted_system(model, y, sigma, w%pt, free, &
+                                             prior, w%predt, w%at, w%rt, trial_stat)
+                    if (trial_stat%code == STATUS_OK) then
+                        w%cost_t = sum(w%rt**2)
+                        accepted = .true.
+                        return
+                    end if
+                    w%failed_trial = .true.
+                    w%fail_stat = trial_stat
+                end if
+            else
+                w%failed_trial = .true.
+                w%fail_stat = trial_stat
+            end if
+            w%lambda = max(10.0_dp*w%lambda, 1.0e-3_dp*w%s(1)**2)
+        end do
+    end subroutine damped_trials
+
+    !> Move to the accepted trial step and log it as iteration `it`.
+    pure subroutine take_step(w, free, it, res)
+        type(gn_state_t), intent(inout) :: w
+        integer, intent(in) :: free(:), it
+        type(fit_result_t), intent(inout) :: res
+        w%relstep = maxval(abs(w%dx)/max(abs(w%p(free)), abs(w%pt(free)), tiny(1.0_dp)))
+        w%dcost = w%cost - w%cost_t
+        w%pred_step = w%cost - sum((w%rr - matmul(w%aa, w%dx))**2)
+        w%poor_step = w%lambda > 0.0_dp .or. w%dcost < 0.25_dp*w%pred_step
+        w%p = w%pt
+        w%pred = w%predt
+        w%a = w%at
+        w%rr = w%rt
+        res%nlog = it
+        res%log_cost(it) = w%cost_t
+        res%log_lambda(it) = w%lambda
+        res%log_step(it) = w%relstep
+        res%log_params(:, it) = w%p(free)
+    end subroutine take_step
+
+    !> Count the damped steps that get nowhere (w%nstuck: three is a stall)
+    !! after the step of iteration `it`, which becomes the current cost.
+    pure subroutine count_stuck_steps(w, it, res, opts)
+        type(gn_state_t), intent(inout) :: w
+        integer, intent(in) :: it
+        type(fit_result_t), intent(in) :: res
+        type(fit_options_t), intent(in) :: opts
+        ! a damped step that moves nothing though the damping had to be
+        ! raised again (not on its way down): three in a row is a stall
+        if (w%lambda > w%lambda_in .and. &
+            (w%relstep < opts%tol_step .or. w%dcost <= opts%tol_cost*w%cost_t)) then
+            w%nstuck = w%nstuck + 1
+        else
+            w%nstuck = 0
+        end if
+        w%cost = w%cost_t
+        ! ... and so is a damped crawl: ten damped steps that lower the
+        ! chi-square by less than 0.01 together (a curved valley along
+        ! collinear columns; no statistical meaning is left to gain)
+        if (it > CRAWL_STEPS) then
+            if (all(res%log_lambda(it - CRAWL_STEPS + 1:it) > 0.0_dp) .and. &
+                res%log_cost(it - CRAWL_STEPS) - w%cost_t < CRAWL_DROP) w%nstuck = 3
+        end if
+    end subroutine count_stuck_steps
+
+    !> A parameter that ran away is held there; the others go on.
+    pure subroutine hold_runaways(w, params0, free, lower, opts)
+        type(gn_state_t), intent(inout) :: w
+        real(dp), intent(in) :: params0(:), lower(:)
+        integer, intent(in) :: free(:)
+        type(fit_options_t), intent(in) :: opts
+        integer :: i
+        do i = 1, w%n
+            if (w%held(i)) cycle
+            if (ran_away(w%p(free(i)), params0(free(i)), lower(free(i)), opts)) then
+                w%held(i) = .true.
+                w%lambda = 0.0_dp
+                w%nstuck = 0
+                w%stall_pending = .false.
+            end if
+        end do
+    end subroutine hold_runaways
+
+    !> The end of a rough phase: predictions and Jacobian at the user's
+    !! tolerance at the final point (one sensitivity run), and the
+    !! Gauss-Newton decrease they predict. go_on: that still promises more
+    !! than the noise floor and iterations are left. After the phase on
+    !! the rough model the floor is scaled by the misfit, chi-square per
+    !! degree of freedom (about 1 with noisy data: the same floor): with
+    !! (nearly) exact data the rough model's own noise floor is far above
+    !! the accurate model's, and the fit goes on to the accurate minimum.
+    subroutine confirm_at_final_point(model, y, sigma, free, lower, upper, prior, opts, w, &
+                                      iterations, go_on, st)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), lower(:), upper(:)
+        integer, intent(in) :: free(:), iterations
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        type(gn_state_t), intent(inout) :: w
+        logical, intent(out) :: go_on
+        type(status_t), intent(inout) :: st
+        type(status_t) :: est
+        model%rough = ROUGH_OFF
+        go_on = .false.
+        call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, est)
+        if (est%code /= STATUS_OK) then
+            est%message = trim(est%message)//' (the accurate Jacobian at the estimates)'
+            st = est
+            return
+        end if
+        w%cost = sum(w%rr**2)
+        if (all(w%held) .or. iterations >= opts%max_iter) return
+        call projected_svd(w, free, lower, upper, opts, est)
+        if (est%code /= STATUS_OK) then
+            st = est
+            return
+        end if
+        w%pred_gn = predicted_decrease(w%s, w%u, w%rr, opts%rcond)
+        if (w%level == ROUGH_ALL) then
+            go_on = w%pred_gn > opts%floor_chi2*min(1.0_dp, w%cost/max(w%mt - w%n, 1)) .and. &
+                    w%cost > 1.0e-18_dp*w%mt
+        else
+            go_on = w%pred_gn > opts%floor_chi2
+        end if
+    end subroutine confirm_at_final_point
+
+    !> Iterate on from the final point (one level less rough), the
+    !! iteration's state as after an undamped step.
+    pure subroutine restart_phase(w, res)
+        type(gn_state_t), intent(inout) :: w
+        type(fit_result_t), intent(inout) :: res
+        w%it0 = res%iterations + 1
+        res%converged = .false.
+        w%stalled = .false.
+        w%stall_pending = .false.
+        w%failed_trial = .false.
+        w%poor_step = .false.
+        w%nstuck = 0
+        w%lambda = 0.0_dp
+    end subroutine restart_phase
+
+    !> The fit's result at the final iterate: the log cut to its length,
+    !! residuals, chi-square, and the covariance, sigmas and flags from the
+    !! accurate Jacobian (a held parameter's column left out: the others'
+    !! covariance is conditional on it, and it gets an infinite sigma).
+    subroutine store_result(w, params0, free, lower, upper, opts, res, stat)
+        type(gn_state_t), intent(inout) :: w
+        real(dp), intent(in) :: params0(:), lower(:), upper(:)
+        integer, intent(in) :: free(:)
+        type(fit_options_t), intent(in) :: opts
+        type(fit_result_t), intent(inout) :: res
+        type(status_t), intent(inout) :: stat
+        logical :: undetermined(w%n)
+        type(status_t) :: cov_stat
+        integer :: i, m, n
+        m = w%m
+        n = w%n
         res%log_cost = res%log_cost(0:res%nlog)
         res%log_lambda = res%log_lambda(0:res%nlog)
         res%log_step = res%log_step(0:res%nlog)
         res%log_params = res%log_params(:, 0:res%nlog)
-
-        res%params = p
-        res%estimates = p(free)
-        res%predictions = pred
-        res%normalized = rr(1:m)
-        res%chi2 = sum(rr(1:m)**2)
-        res%chi2_prior = sum(rr(m + 1:)**2)
-        res%dof = mt - n
-        allocate (res%cov(n, n), res%corr(n, n), res%sigmas(n), res%flags(n), undetermined(n))
-        ! a held parameter's column is left out: the others' covariance is
-        ! conditional on it, and it gets an infinite sigma
-        aa = a
+        res%params = w%p
+        res%estimates = w%p(free)
+        res%predictions = w%pred
+        res%normalized = w%rr(1:m)
+        res%chi2 = sum(w%rr(1:m)**2)
+        res%chi2_prior = sum(w%rr(m + 1:)**2)
+        res%dof = w%mt - n
+        allocate (res%cov(n, n), res%corr(n, n), res%sigmas(n), res%flags(n))
+        w%aa = w%a
         do i = 1, n
-            if (held(i)) aa(:, i) = 0.0_dp
+            if (w%held(i)) w%aa(:, i) = 0.0_dp
         end do
-        call clear_status(trial_stat)
-        call covariance(aa, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
-                        undetermined, trial_stat)
-        if (trial_stat%code /= STATUS_OK) then
-            if (stat%code == STATUS_OK) stat = trial_stat
+        call covariance(w%aa, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
+                        undetermined, cov_stat)
+        if (cov_stat%code /= STATUS_OK) then
+            if (stat%code == STATUS_OK) stat = cov_stat
             return
         end if
         call set_flags(res, params0, lower, upper, undetermined, opts)
-        if (stat%code /= STATUS_OK) return   ! the model failed at every trial step
-        if (any(held)) then
+    end subroutine store_result
+
+    !> How the fit ended (res%stop) and, unless converged, why (res%note);
+    !! still moving at the iteration limit is ERR_NO_CONVERGENCE.
+    subroutine describe_ending(w, params0, lower, upper, opts, res, stat)
+        type(gn_state_t), intent(in) :: w
+        real(dp), intent(in) :: params0(:), lower(:), upper(:)
+        type(fit_options_t), intent(in) :: opts
+        type(fit_result_t), intent(inout) :: res
+        type(status_t), intent(inout) :: stat
+        if (any(w%held)) then
             res%stop = STOP_RUNAWAY
-            if (all(held)) then
+            if (all(w%held)) then
                 res%note = 'no parameter left to fit'
             else if (res%converged) then
                 res%note = 'the others fitted'
-            else if (stalled) then
+            else if (w%stalled) then
                 res%note = 'the others stalled'
             else
                 res%note = 'the others still moving at the iteration limit'
             end if
-            res%note = flag_list(res, params0, lower, upper, opts, held)// &
+            res%note = flag_list(res, params0, lower, upper, opts, w%held)// &
                        '; held where found after '//fmt_int(res%iterations)// &
                        ' iterations, '//res%note
             res%converged = .false.
-        else if (stalled) then
+        else if (w%stalled) then
             res%converged = .false.
             res%stop = STOP_STALLED
             res%note = 'Gauss-Newton stalled after '//fmt_int(res%iterations)// &
-                       ' iterations (last relative step '//fmt_real(relstep)// &
-                       ', cost change '//fmt_real(dcost)//', damping '//fmt_real(lambda)//'): '
-            if (failed_trial) then
+                       ' iterations (last relative step '//fmt_real(w%relstep)// &
+                       ', cost change '//fmt_real(w%dcost)//', damping '// &
+                       fmt_real(w%lambda)//'): '
+            if (w%failed_trial) then
                 res%note = res%note//'the model could not be solved at the smallest trial '// &
-                           'step ('//trim(fail_stat%message)//'); '
+                           'step ('//trim(w%fail_stat%message)//'); '
             end if
-            res%note = res%note//flag_list(res, params0, lower, upper, opts, held)
+            res%note = res%note//flag_list(res, params0, lower, upper, opts, w%held)
         else if (res%converged) then
             res%stop = STOP_CONVERGED
         else
             res%stop = STOP_MAX_ITER
             call set_status(stat, ERR_NO_CONVERGENCE, 'fit', 'Gauss-Newton did not converge '// &
                             'in '//fmt_int(res%iterations)//' iterations (last relative step '// &
-                            fmt_real(relstep)//', cost change '//fmt_real(dcost)// &
+                            fmt_real(w%relstep)//', cost change '//fmt_real(w%dcost)// &
                             ', chi-square '//fmt_real(res%chi2)//')')
             res%note = trim(stat%message)
         end if
-
-    contains
-
-        !> Projected Gauss-Newton: a parameter on a bound whose descent
-        !! direction (a^T r) points out of the box is held for this step, a
-        !! parameter that ran away for good; aa = a without their columns and
-        !! its scaled SVD (d, s, u, vt).
-        subroutine projected_svd(st)
-            type(status_t), intent(inout) :: st
-            aa = a
-            g = matmul(rr, a)
-            do i = 1, n
-                if (held(i) .or. (p(free(i)) <= lower(free(i)) .and. g(i) < 0.0_dp) .or. &
-                    (p(free(i)) >= upper(free(i)) .and. g(i) > 0.0_dp)) aa(:, i) = 0.0_dp
-            end do
-            call scaled_svd(aa, d, s, u, vt, st)
-            if (st%code /= STATUS_OK) return
-            ! ... and one on a bound that the Gauss-Newton step would push out
-            ! of the box (a clipped step would crawl along the bound)
-            do trial = 1, n
-                dx = lm_step(d, s, u, vt, rr, 0.0_dp, opts%rcond)
-                nbound = 0
-                do i = 1, n
-                    if (all(aa(:, i) == 0.0_dp)) cycle
-                    if ((p(free(i)) <= lower(free(i)) .and. dx(i) < 0.0_dp) .or. &
-                        (p(free(i)) >= upper(free(i)) .and. dx(i) > 0.0_dp)) then
-                        aa(:, i) = 0.0_dp
-                        nbound = nbound + 1
-                    end if
-                end do
-                if (nbound == 0) exit
-                call scaled_svd(aa, d, s, u, vt, st)
-                if (st%code /= STATUS_OK) return
-            end do
-        end subroutine projected_svd
-
-        !> The end of a rough phase: predictions and Jacobian at the user's
-        !! tolerance at the final point (one sensitivity run), and the
-        !! Gauss-Newton decrease they predict. go_on: that still promises more
-        !! than the noise floor and iterations are left. After the phase on
-        !! the rough model the floor is scaled by the misfit, chi-square per
-        !! degree of freedom (about 1 with noisy data: the same floor): with
-        !! (nearly) exact data the rough model's own noise floor is far above
-        !! the accurate model's, and the fit goes on to the accurate minimum.
-        subroutine confirm_at_final_point(go_on, st)
-            logical, intent(out) :: go_on
-            type(status_t), intent(inout) :: st
-            type(status_t) :: est
-            model%rough = ROUGH_OFF
-            go_on = .false.
-            call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, est)
-            if (est%code /= STATUS_OK) then
-                est%message = trim(est%message)//' (the accurate Jacobian at the estimates)'
-                st = est
-                return
-            end if
-            cost = sum(rr**2)
-            if (all(held) .or. res%iterations >= opts%max_iter) return
-            call projected_svd(est)
-            if (est%code /= STATUS_OK) then
-                st = est
-                return
-            end if
-            pred_gn = predicted_decrease(s, u, rr, opts%rcond)
-            if (level == ROUGH_ALL) then
-                go_on = pred_gn > opts%floor_chi2*min(1.0_dp, cost/max(mt - n, 1)) .and. &
-                        cost > 1.0e-18_dp*mt
-            else
-                go_on = pred_gn > opts%floor_chi2
-            end if
-        end subroutine confirm_at_final_point
-
-        !> Iterate on from the final point (one level less rough), the
-        !! iteration's state as after an undamped step.
-        subroutine restart_phase()
-            it0 = res%iterations + 1
-            res%converged = .false.
-            stalled = .false.
-            stall_pending = .false.
-            failed_trial = .false.
-            poor_step = .false.
-            nstuck = 0
-            lambda = 0.0_dp
-        end subroutine restart_phase
-    end subroutine fit_least_squares
+    end subroutine describe_ending
 
     !> Has x run away from its start x0: beyond runaway_factor times |x0|, or
     !! for a parameter bounded below by 0 (a stiffness: the solver never
