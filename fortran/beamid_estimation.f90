@@ -223,6 +223,21 @@ module beamid_estimation
         character(len=:), allocatable :: note !< per start: what happened
     end type refit_info_t
 
+    !> The starts of refit_effect, in words (its notes).
+    character(len=*), parameter :: REFIT_LABEL(3) = [character(len=27) :: &
+        'from the first-order start', 'from the nominal model', 'by continuation']
+
+    !> What refit_effect's starts share: the best converged refit's cost,
+    !! the lowest-cost attempt while none converged, and when to stop.
+    type :: refit_state_t
+        logical :: have_best = .false., have_fallback = .false.
+        real(dp) :: best_cost = huge(1.0_dp)
+        real(dp) :: noise = huge(1.0_dp)      !< a chi-square consistent with the noise
+        real(dp) :: base_cost = 0.0_dp        !< of the fit refitted
+        real(dp) :: half_drop = huge(1.0_dp)  !< enough gain (first_enough)
+        type(fit_result_t) :: fallback
+    end type refit_state_t
+
     type :: candidate_report_t
         integer :: state = CAND_TESTED
         type(score_result_t) :: score
@@ -1420,53 +1435,32 @@ contains
         logical, intent(in), optional :: use(3) !< which starts to try (default all)
         !> stop at a converged start with half the predicted drop (default no)
         logical, intent(in), optional :: enough
-        integer :: nf, nb, k, j, half, nsteps, kk
-        logical :: try(3)
+        integer :: nb, half, nsteps, kk
+        logical :: try(3), same
         integer, allocatable :: all_free(:)
         real(dp), allocatable :: target(:), start(:), shift(:), p(:)
-        real(dp) :: best_cost, noise, t, base_cost, half_drop
-        type(fit_result_t) :: trial, fallback, fixed
+        real(dp) :: t
+        type(fit_result_t) :: trial
         type(status_t) :: st
-        logical :: have_best, have_fallback, same
+        type(refit_state_t) :: rs
         character(len=:), allocatable :: why
-        character(len=*), parameter :: label(3) = [character(len=27) :: &
-            'from the first-order start', 'from the nominal model', 'by continuation']
 
-        nf = size(base%free)
         nb = size(block)
         nsteps = 4
         if (present(ncont)) nsteps = max(ncont, 1)
         try = .true.
         if (present(use)) try = use
-        base_cost = base%chi2 + base%chi2_prior
-        half_drop = huge(1.0_dp)
+        rs%base_cost = base%chi2 + base%chi2_prior
         if (present(enough)) then
-            if (enough .and. score%drop > 0.0_dp) half_drop = 0.5_dp*score%drop
+            if (enough .and. score%drop > 0.0_dp) rs%half_drop = 0.5_dp*score%drop
         end if
         all_free = [base%free, block]
         info%note = ''
         info%start = START_NONE
         info%tried = 0
-        have_best = .false.
-        have_fallback = .false.
-        best_cost = huge(1.0_dp)
-        noise = huge(1.0_dp)
-        if (base%dof - nb > 0) noise = real(base%dof - nb, dp) + &
-                                       3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
-        ! the first-order target of the block and the free parameters' shift
-        target = null_values(block)
-        allocate (shift(nf))
-        shift = 0.0_dp
-        if (allocated(score%estimate)) then
-            if (size(score%estimate) == nb) then
-                do j = 1, nb
-                    if (score%active(j)) target(j) = null_values(block(j)) + score%estimate(j)
-                end do
-            end if
-            if (allocated(score%free_step)) then
-                if (size(score%free_step) == nf) shift = score%free_step
-            end if
-        end if
+        if (base%dof - nb > 0) rs%noise = real(base%dof - nb, dp) + &
+                                          3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
+        call first_order_target(score, null_values(block), size(base%free), target, shift)
 
         ! 1. the first-order start, halved while the model cannot be solved there
         t = 1.0_dp
@@ -1475,151 +1469,206 @@ contains
                 start = base%params
                 start(base%free) = base%params(base%free) + t*shift
                 start(block) = null_values(block) + t*(target - null_values(block))
-                call into_box(start)
+                call into_box(start, all_free, lower, upper, base%params)
                 call clear_status(st)
                 call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
                                        opts, trial, st)
                 if (allocated(trial%params) .or. st%code <= 0 .or. half == 4) exit
                 t = 0.5_dp*t
             end do
-            call consider(START_SCORE, trial, st, shortened=t < 1.0_dp)
+            call consider_refit(START_SCORE, trial, st, rs, res, info, stat, shortened_to=t)
             if (stat%code /= STATUS_OK) return
         end if
 
         ! 2. the nominal model with the effect at its null value
-        if (try(2) .and. .not. done()) then
+        if (try(2) .and. .not. refit_done(rs)) then
             start = base%params
             start(base%free) = nominal(base%free)
             start(block) = null_values(block)
-            call into_box(start)
+            call into_box(start, all_free, lower, upper, base%params)
             same = try(1) .and. all(start == base%params) .and. all(shift == 0.0_dp) .and. &
                    all(target == null_values(block))
             if (.not. same) then
                 call clear_status(st)
                 call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
                                        opts, trial, st)
-                call consider(START_NOMINAL, trial, st)
+                call consider_refit(START_NOMINAL, trial, st, rs, res, info, stat)
                 if (stat%code /= STATUS_OK) return
             end if
         end if
 
         ! 3. continuation in the effect's strength from its null value
-        if (try(3) .and. .not. done() .and. any(target /= null_values(block))) then
-            p = base%params
-            kk = 0
-            why = ''
-            do k = 1, nsteps
-                start = p
-                start(block) = null_values(block) + real(k, dp)/real(nsteps, dp)* &
-                               (target - null_values(block))
-                call into_box(start)
-                call clear_status(st)
-                call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
-                                       opts, fixed, st)
-                if (st%code /= STATUS_OK) then
-                    why = trim(st%message)
-                    exit
-                end if
-                if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) then
-                    why = fixed%note
-                    exit
-                end if
-                p = fixed%params
-                kk = k
-            end do
+        if (try(3) .and. .not. refit_done(rs) .and. any(target /= null_values(block))) then
+            call continue_in_strength(model, y, sigma, base, block, target, null_values, &
+                                      all_free, lower, upper, prior, opts, nsteps, p, kk, why)
             if (kk > 0) then
                 call clear_status(st)
                 call fit_least_squares(model, y, sigma, p, all_free, lower, upper, prior, &
                                        opts, trial, st)
-                call consider(START_CONTINUATION, trial, st)
+                call consider_refit(START_CONTINUATION, trial, st, rs, res, info, stat)
                 if (stat%code /= STATUS_OK) return
             else
-                call add_note(trim(label(3))//': the first step could not be fitted ('// &
-                              why//')')
+                call add_refit_note(info, trim(REFIT_LABEL(3))// &
+                                    ': the first step could not be fitted ('//why//')')
             end if
         end if
 
-        if (.not. have_best) then
-            if (have_fallback) res = fallback
+        if (.not. rs%have_best) then
+            if (rs%have_fallback) res = rs%fallback
             call set_status(stat, ERR_NO_CONVERGENCE, 'refit', 'no start converged: '// &
                             info%note)
         end if
-
-    contains
-
-        !> Keep `trial` if it converged and beats the best so far.
-        subroutine consider(which, tr, st1, shortened)
-            integer, intent(in) :: which
-            type(fit_result_t), intent(in) :: tr
-            type(status_t), intent(in) :: st1
-            logical, intent(in), optional :: shortened
-            character(len=:), allocatable :: what
-            real(dp) :: cost
-            info%tried = info%tried + 1
-            what = trim(label(which))
-            if (present(shortened)) then
-                if (shortened) what = what//' (shortened to '//fmt_real(t)//')'
-            end if
-            if (st1%code < 0) then
-                ! bad input is bad input, whatever the start
-                stat = st1
-                return
-            end if
-            if (.not. allocated(tr%params)) then
-                call add_note(what//': '//trim(st1%message))
-                return
-            end if
-            cost = tr%chi2 + tr%chi2_prior
-            if (st1%code == STATUS_OK .and. tr%stop == STOP_CONVERGED) then
-                call add_note(what//': converged, chi-square '//fmt_real(tr%chi2))
-                ! a later start must do better than the same minimum reached
-                ! again (ties go to the earlier start)
-                if (.not. have_best .or. &
-                    cost < best_cost - 1.0e-6_dp*best_cost - 1.0e-9_dp) then
-                    res = tr
-                    best_cost = cost
-                    have_best = .true.
-                    info%start = which
-                end if
-            else
-                if (allocated(tr%note)) then
-                    call add_note(what//': '//tr%note)
-                else
-                    call add_note(what//': '//trim(st1%message))
-                end if
-                if (.not. have_best .and. .not. have_fallback) then
-                    fallback = tr
-                    have_fallback = .true.
-                else if (.not. have_best) then
-                    if (cost < fallback%chi2 + fallback%chi2_prior) fallback = tr
-                end if
-            end if
-        end subroutine consider
-
-        logical function done()
-            done = have_best .and. (best_cost <= noise .or. base_cost - best_cost >= half_drop)
-        end function done
-
-        subroutine add_note(text)
-            character(len=*), intent(in) :: text
-            if (len(info%note) > 0) info%note = info%note//'; '
-            info%note = info%note//text
-        end subroutine add_note
-
-        !> Clip into the bounds; a parameter bounded below by 0 (a
-        !! stiffness, never 0 in the solver) keeps half its base value.
-        subroutine into_box(q)
-            real(dp), intent(inout) :: q(:)
-            integer :: i, ip
-            do i = 1, size(all_free)
-                ip = all_free(i)
-                q(ip) = min(max(q(ip), lower(ip)), upper(ip))
-                if (lower(ip) == 0.0_dp .and. q(ip) <= 0.0_dp .and. base%params(ip) > 0.0_dp) &
-                    q(ip) = 0.5_dp*base%params(ip)
-            end do
-        end subroutine into_box
-
     end subroutine refit_effect
+
+    !> The first-order target of an effect's block (null values plus the
+    !! score test's estimate of its active parameters) and the free
+    !! parameters' shift that goes with it (score%free_step; 0 without one).
+    pure subroutine first_order_target(score, null_block, nf, target, shift)
+        type(score_result_t), intent(in) :: score
+        real(dp), intent(in) :: null_block(:)
+        integer, intent(in) :: nf
+        real(dp), allocatable, intent(out) :: target(:), shift(:)
+        integer :: j
+        target = null_block
+        allocate (shift(nf))
+        shift = 0.0_dp
+        if (.not. allocated(score%estimate)) return
+        if (size(score%estimate) == size(null_block)) then
+            do j = 1, size(null_block)
+                if (score%active(j)) target(j) = null_block(j) + score%estimate(j)
+            end do
+        end if
+        if (allocated(score%free_step)) then
+            if (size(score%free_step) == nf) shift = score%free_step
+        end if
+    end subroutine first_order_target
+
+    !> Refit start 3: the block stepped from its null value to `target` in
+    !! nsteps steps, base%free fitted at each; p: the last point fitted
+    !! (kk steps done; 0: the first failed, `why` says how).
+    subroutine continue_in_strength(model, y, sigma, base, block, target, null_values, &
+                                    all_free, lower, upper, prior, opts, nsteps, p, kk, why)
+        class(residual_model_t), intent(inout) :: model
+        real(dp), intent(in) :: y(:), sigma(:), target(:), null_values(:), lower(:), upper(:)
+        type(fit_result_t), intent(in) :: base
+        integer, intent(in) :: block(:), all_free(:), nsteps
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: opts
+        real(dp), allocatable, intent(out) :: p(:)
+        integer, intent(out) :: kk
+        character(len=:), allocatable, intent(out) :: why
+        real(dp), allocatable :: start(:)
+        type(fit_result_t) :: fixed
+        type(status_t) :: st
+        integer :: k
+        p = base%params
+        kk = 0
+        why = ''
+        do k = 1, nsteps
+            start = p
+            start(block) = null_values(block) + real(k, dp)/real(nsteps, dp)* &
+                           (target - null_values(block))
+            call into_box(start, all_free, lower, upper, base%params)
+            call clear_status(st)
+            call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
+                                   opts, fixed, st)
+            if (st%code /= STATUS_OK) then
+                why = trim(st%message)
+                exit
+            end if
+            if (fixed%stop /= STOP_CONVERGED .and. fixed%stop /= STOP_RUNAWAY) then
+                why = fixed%note
+                exit
+            end if
+            p = fixed%params
+            kk = k
+        end do
+    end subroutine continue_in_strength
+
+    !> Keep the refit `tr` (start `which`) if it converged and beats the best
+    !! so far, else as the fallback if it is the lowest-cost attempt; note
+    !! what it gave. Bad input (st1%code < 0) is returned in stat.
+    subroutine consider_refit(which, tr, st1, rs, res, info, stat, shortened_to)
+        integer, intent(in) :: which
+        type(fit_result_t), intent(in) :: tr
+        type(status_t), intent(in) :: st1
+        type(refit_state_t), intent(inout) :: rs
+        type(fit_result_t), intent(inout) :: res
+        type(refit_info_t), intent(inout) :: info
+        type(status_t), intent(inout) :: stat
+        real(dp), intent(in), optional :: shortened_to !< step factor of the start
+        character(len=:), allocatable :: what
+        real(dp) :: cost
+        info%tried = info%tried + 1
+        what = trim(REFIT_LABEL(which))
+        if (present(shortened_to)) then
+            if (shortened_to < 1.0_dp) what = what//' (shortened to '//fmt_real(shortened_to)//')'
+        end if
+        if (st1%code < 0) then
+            ! bad input is bad input, whatever the start
+            stat = st1
+            return
+        end if
+        if (.not. allocated(tr%params)) then
+            call add_refit_note(info, what//': '//trim(st1%message))
+            return
+        end if
+        cost = tr%chi2 + tr%chi2_prior
+        if (st1%code == STATUS_OK .and. tr%stop == STOP_CONVERGED) then
+            call add_refit_note(info, what//': converged, chi-square '//fmt_real(tr%chi2))
+            ! a later start must do better than the same minimum reached
+            ! again (ties go to the earlier start)
+            if (.not. rs%have_best .or. &
+                cost < rs%best_cost - 1.0e-6_dp*rs%best_cost - 1.0e-9_dp) then
+                res = tr
+                rs%best_cost = cost
+                rs%have_best = .true.
+                info%start = which
+            end if
+        else
+            if (allocated(tr%note)) then
+                call add_refit_note(info, what//': '//tr%note)
+            else
+                call add_refit_note(info, what//': '//trim(st1%message))
+            end if
+            if (.not. rs%have_best .and. .not. rs%have_fallback) then
+                rs%fallback = tr
+                rs%have_fallback = .true.
+            else if (.not. rs%have_best) then
+                if (cost < rs%fallback%chi2 + rs%fallback%chi2_prior) rs%fallback = tr
+            end if
+        end if
+    end subroutine consider_refit
+
+    !> No further refit start is needed: the best so far is consistent with
+    !! the noise, or (first_enough) gained half the predicted drop.
+    pure logical function refit_done(rs)
+        type(refit_state_t), intent(in) :: rs
+        refit_done = rs%have_best .and. (rs%best_cost <= rs%noise .or. &
+                                         rs%base_cost - rs%best_cost >= rs%half_drop)
+    end function refit_done
+
+    pure subroutine add_refit_note(info, text)
+        type(refit_info_t), intent(inout) :: info
+        character(len=*), intent(in) :: text
+        if (len(info%note) > 0) info%note = info%note//'; '
+        info%note = info%note//text
+    end subroutine add_refit_note
+
+    !> Clip the parameters `free` of q into the bounds; a parameter bounded
+    !! below by 0 (a stiffness, never 0 in the solver) keeps half its base value.
+    pure subroutine into_box(q, free, lower, upper, base_params)
+        real(dp), intent(inout) :: q(:)
+        integer, intent(in) :: free(:)
+        real(dp), intent(in) :: lower(:), upper(:), base_params(:)
+        integer :: i, ip
+        do i = 1, size(free)
+            ip = free(i)
+            q(ip) = min(max(q(ip), lower(ip)), upper(ip))
+            if (lower(ip) == 0.0_dp .and. q(ip) <= 0.0_dp .and. base_params(ip) > 0.0_dp) &
+                q(ip) = 0.5_dp*base_params(ip)
+        end do
+    end subroutine into_box
 
     ! -------------------------------------------------------------- diagnosis
 
