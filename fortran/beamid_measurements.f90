@@ -42,13 +42,27 @@ contains
         character(len=*), intent(in) :: path
         type(measurements_t), intent(out) :: data
         type(status_t), intent(inout) :: stat
-        character(len=:), allocatable :: lines(:), line, where, field
-        integer :: unit, ios, nlines, maxlen, i, k, nrow, nf, first, ierr
-        integer, allocatable :: comma(:)
-        character(len=512) :: msg
-        logical :: exists, header_seen
+        character(len=:), allocatable :: lines(:)
 
         data%source = path
+        call read_lines(path, lines, stat)
+        if (stat%code /= STATUS_OK) return
+        call parse_rows(path, lines, data, stat)
+        if (stat%code /= STATUS_OK) return
+        call check_row_values(path, data, stat)
+    end subroutine read_measurements
+
+    !> Every line of the file `path`, as long as its longest (ERR_IO when it
+    !! cannot be opened or read, ERR_SIZE when it would not fit in MAX_BYTES).
+    subroutine read_lines(path, lines, stat)
+        character(len=*), intent(in) :: path
+        character(len=:), allocatable, intent(out) :: lines(:)
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: line
+        integer :: unit, ios, nlines, maxlen, i, ierr
+        character(len=512) :: msg
+        logical :: exists
+
         inquire (file=path, exist=exists)
         if (.not. exists) then
             call set_status(stat, ERR_IO, 'cannot open measurement file '//path, 'no such file')
@@ -93,9 +107,21 @@ contains
             call set_status(stat, ERR_IO, 'cannot read measurement file '//path, 'read error')
             return
         end if
+    end subroutine read_lines
 
-        ! pass 1: syntax of every line (as read_measurements in Python)
-        allocate (character(len=maxlen) :: data%experiment(nlines))
+    !> Pass 1: the syntax of every line (as read_measurements in Python): the
+    !! header, then rows of 5 fields; data holds the rows, in file order.
+    subroutine parse_rows(path, lines, data, stat)
+        character(len=*), intent(in) :: path, lines(:)
+        type(measurements_t), intent(inout) :: data
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: line, where
+        integer, allocatable :: comma(:)
+        integer :: nlines, i, nrow, nf, ierr
+        logical :: header_seen
+
+        nlines = size(lines)
+        allocate (character(len=len(lines)) :: data%experiment(nlines))
         allocate (data%t(nlines), data%quantity(nlines), data%value(nlines), &
                   data%sigma(nlines), data%line(nlines), stat=ierr)
         if (ierr /= 0) then
@@ -126,25 +152,8 @@ contains
                 return
             end if
             nrow = nrow + 1
-            field = field_of(line, comma, 1)
-            if (len(field) == 0) then
-                call set_status(stat, ERR_INPUT, where, 'field experiment is empty')
-                return
-            end if
-            data%experiment(nrow) = field
             data%line(nrow) = i
-            call parse_number(field_of(line, comma, 2), where, 't', data%t(nrow), stat)
-            if (stat%code /= STATUS_OK) return
-            field = field_of(line, comma, 3)
-            data%quantity(nrow) = quantity_code(field)
-            if (data%quantity(nrow) == 0 .or. len(field) == 0) then
-                call set_status(stat, ERR_INPUT, where, 'field quantity = '//quote(field)// &
-                                ', expected one of '//quantity_list())
-                return
-            end if
-            call parse_number(field_of(line, comma, 4), where, 'value', data%value(nrow), stat)
-            if (stat%code /= STATUS_OK) return
-            call parse_number(field_of(line, comma, 5), where, 'sigma', data%sigma(nrow), stat)
+            call parse_row(line, comma, where, data, nrow, stat)
             if (stat%code /= STATUS_OK) return
         end do
         if (.not. header_seen) then
@@ -161,9 +170,45 @@ contains
         data%value = data%value(:nrow)
         data%sigma = data%sigma(:nrow)
         data%line = data%line(:nrow)
+    end subroutine parse_rows
 
-        ! pass 2: values of every row (as Measurements.__post_init__)
-        do i = 1, nrow
+    !> The fields of one row (a line split at `comma` into 5 fields) into
+    !! row `irow` of data.
+    subroutine parse_row(line, comma, where, data, irow, stat)
+        character(len=*), intent(in) :: line, where
+        integer, intent(in) :: comma(:), irow
+        type(measurements_t), intent(inout) :: data
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: field
+        field = field_of(line, comma, 1)
+        if (len(field) == 0) then
+            call set_status(stat, ERR_INPUT, where, 'field experiment is empty')
+            return
+        end if
+        data%experiment(irow) = field
+        call parse_number(field_of(line, comma, 2), where, 't', data%t(irow), stat)
+        if (stat%code /= STATUS_OK) return
+        field = field_of(line, comma, 3)
+        data%quantity(irow) = quantity_code(field)
+        if (data%quantity(irow) == 0 .or. len(field) == 0) then
+            call set_status(stat, ERR_INPUT, where, 'field quantity = '//quote(field)// &
+                            ', expected one of '//quantity_list())
+            return
+        end if
+        call parse_number(field_of(line, comma, 4), where, 'value', data%value(irow), stat)
+        if (stat%code /= STATUS_OK) return
+        call parse_number(field_of(line, comma, 5), where, 'sigma', data%sigma(irow), stat)
+    end subroutine parse_row
+
+    !> Pass 2: the values of every row (as Measurements.__post_init__):
+    !! sigma > 0, t >= 0, no row given twice.
+    pure subroutine check_row_values(path, data, stat)
+        character(len=*), intent(in) :: path
+        type(measurements_t), intent(in) :: data
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: where
+        integer :: i, k, first
+        do i = 1, size(data%t)
             where = path//', line '//fmt_int(data%line(i))
             if (.not. data%sigma(i) > 0.0_dp) then
                 call set_status(stat, ERR_INPUT, where, 'field sigma = '//fmt_g(data%sigma(i))// &
@@ -192,7 +237,7 @@ contains
                 return
             end if
         end do
-    end subroutine read_measurements
+    end subroutine check_row_values
 
     !> Error for a row whose experiment is not among `names`.
     pure subroutine check_experiments(data, names, stat)
