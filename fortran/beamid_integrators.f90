@@ -152,6 +152,8 @@ module beamid_integrators
     !! for the L D L^T path with its low-rank correction (two masses, a
     !! motor: two rows), and four times as many nonzeros in them
     integer, parameter :: LR_MAX = 8, LE_MAX = 4*LR_MAX
+    !> largest entry of (I + D W)^-1 the correction accepts (else band LU)
+    real(dp), parameter :: LR_COND = 1.0e6_dp
 
     !> Work arrays of the implicit sensitivity step, allocated once per run
     !! (stage Jacobians, parameter derivatives of the forces, the stage
@@ -1169,6 +1171,10 @@ contains
         end do
         call small_inverse(r, it%lr_c1, ok)
         if (ok) call small_inverse(r, it%lr_c2, ok)
+        ! a large inverse: A_L is nearly singular where A is not (skew parts
+        ! as large as the symmetric ones); the correction would lose digits
+        if (ok) ok = maxval(abs(it%lr_c1(1:r, 1:r))) < LR_COND .and. &
+                     maxval(abs(it%lr_c2(1:r, 1:r))) < LR_COND
     end subroutine lr_setup
 
     !> a(1:r, 1:r) replaced by its inverse (Gauss-Jordan with partial
