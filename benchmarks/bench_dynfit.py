@@ -5,9 +5,10 @@ The fit: mu_elbow, mu_tip, rho1, rho2 of the 8-element PACE chain (4 elements
 per beam, no rotary inertia) from the tip w and u at 18 times over half a
 cycle after the release from 8 N (36 rows; inputs/seed/table16_data.csv,
 noise of the stated sigmas from a fixed seed), from the published starting
-estimates. Three Jacobians: the default (forward sensitivities integrated at
-rtol 1e-6 steer the iteration, the accurate ones at the user's tolerance
-confirm the end point and give the covariance: docs/workflow.md), the
+estimates. Three Jacobians: the default (the search runs on the rough model,
+predictions and forward sensitivities integrated at rtol 1e-6, then on rough
+sensitivities if needed; the accurate ones at the user's tolerance confirm
+the end point and give the covariance: docs/workflow.md), the
 forward sensitivities at the user's tolerance at every iteration
 (jacobian="exact", for reference) and central differences of whole runs (9
 runs per Jacobian), each fit timed best of three in this process.
@@ -60,7 +61,7 @@ def main() -> None:
     same = max(abs(fit.estimates[n] - fit_fd.estimates[n]) / fit.sigmas[n] for n in FREE)
     print(f"Table 16 fit ({len(FREE)} parameters, {len(deck.data)} rows, 4 elements per beam)")
     print(f"  forward sensitivities: {t_sens:7.3f} s, {fit.iterations} iterations, "
-          f"stop {fit.stop} (default: rough steering, accurate end point)")
+          f"stop {fit.stop} (default: rough model, accurate end point)")
     print(f"  ... exact every step:  {t_exact:7.3f} s, {fit_exact.iterations} iterations, "
           f"stop {fit_exact.stop}")
     print(f"  central differences:   {t_fd:7.3f} s, {fit_fd.iterations} iterations, "

@@ -51,6 +51,12 @@ module beamid_estimation
     integer, parameter, public :: STOP_MAX_ITER = 3  !< still moving at the iteration limit
     integer, parameter, public :: STOP_EVALUATED = 4 !< evaluated at given values (fit_at)
 
+    !> How rough a model answers (residual_model_t%rough, set by the fit while
+    !! it iterates): accurate, the Jacobian rough (predictions at the user's
+    !! tolerance), or predictions and Jacobian rough (the search's first
+    !! phase). Each phase ends with the accurate evaluation at its final point.
+    integer, parameter, public :: ROUGH_OFF = 0, ROUGH_JACOBIAN = 1, ROUGH_ALL = 2
+
     !> A damped crawl: CRAWL_STEPS damped steps lowering the chi-square by
     !! less than CRAWL_DROP together count as a stall (fit_least_squares).
     integer, parameter :: CRAWL_STEPS = 10
@@ -90,16 +96,16 @@ module beamid_estimation
         !! whose sensitivities cost several plain evaluations: an integrated
         !! response)
         logical :: plain_trials = .false.
-        !> The model can give a rough Jacobian (sensitivities integrated at a
-        !! looser tolerance, predictions still at the user's): set by models
+        !> The model can answer roughly (sensitivities, and on request
+        !! predictions, integrated at a looser tolerance): set by models
         !! whose columns are integrated responses (beamid_inverse, for
         !! releases on the implicit integrator). Static models leave it off.
         logical :: rough_jacobian_ok = .false.
         !> Mode switch set by fit_least_squares while it iterates (only when
-        !! rough_jacobian_ok): the Jacobian only steers the search; the
-        !! estimates are confirmed, and the covariance computed, with the
-        !! accurate Jacobian (rough = .false.) at the final point.
-        logical :: rough = .false.
+        !! rough_jacobian_ok; ROUGH_*): rough answers only steer the search;
+        !! the estimates are confirmed, and the covariance computed, with the
+        !! accurate model (rough = ROUGH_OFF) at the final point.
+        integer :: rough = ROUGH_OFF
     contains
         procedure(evaluate_interface), deferred :: evaluate
     end type residual_model_t
@@ -575,18 +581,20 @@ contains
     !! * a model that cannot be evaluated at params0 (the values asked): the
     !!   model's own status (genuine numerical failure).
     !!
-    !! Inexact-Jacobian Gauss-Newton (a model with rough_jacobian_ok: an
-    !! integrated response whose sensitivities cost several runs): while
-    !! iterating the Jacobian only steers the search, so the model is asked
-    !! for a rough one (model%rough: sensitivities at a looser integration
-    !! tolerance, residuals still at the user's). When the iteration ends
-    !! (converged, noise floor or stall) the Jacobian is evaluated once at the
-    !! user's tolerance at the final point and the Gauss-Newton decrease it
-    !! predicts recomputed; if that still promises more than floor_chi2 the
-    !! fit iterates on with accurate Jacobians, so the estimates are the
-    !! minimum of the accurate model to the same criterion. The covariance,
-    !! sigmas, flags and condition number always come from the accurate
-    !! Jacobian. Static models never use rough mode.
+    !! Rough phases (a model with rough_jacobian_ok: an integrated response
+    !! whose runs cost more the tighter their tolerance, and whose
+    !! sensitivities cost several runs): the search only needs to get near
+    !! the minimum, so it starts on the rough model (model%rough = ROUGH_ALL:
+    !! predictions and sensitivities at a looser integration tolerance, runs
+    !! a twentieth of the user's), then, if needed, goes on with rough
+    !! Jacobians and residuals at the user's tolerance (ROUGH_JACOBIAN), then
+    !! with the accurate model. Each phase ends (converged, noise floor or
+    !! stall) with the accurate predictions and Jacobian at its final point
+    !! and the Gauss-Newton decrease they predict; the fit goes on to the
+    !! next phase only while that still promises more than floor_chi2, so
+    !! the estimates are the minimum of the accurate model to the same
+    !! criterion. The covariance, sigmas, flags and condition number always
+    !! come from the accurate Jacobian. Static models never use rough mode.
     subroutine fit_least_squares(model, y, sigma, params0, free, lower, upper, prior, opts, &
                                  res, stat)
         class(residual_model_t), intent(inout) :: model
@@ -604,6 +612,7 @@ contains
         real(dp) :: cost, cost_t, lambda, relstep, dcost, lam_floor, lambda_in
         real(dp) :: pred_gn, pred_step
         logical :: accepted, evaluated, failed_trial, stalled, stall_pending, poor_step
+        integer :: level
         type(status_t) :: trial_stat, fail_stat
         logical, allocatable :: undetermined(:), held(:)
 
@@ -619,12 +628,19 @@ contains
                   res%log_step(0:opts%max_iter), res%log_params(n, 0:opts%max_iter))
         res%free = free
         p = params0
-        ! the Jacobian steers the search: rough while iterating when the
-        ! model can give one (confirm_at_final_point makes it accurate)
-        model%rough = model%rough_jacobian_ok
+        ! the search starts on the rough model when the model has one
+        ! (confirm_at_final_point makes each phase's end point accurate)
+        model%rough = ROUGH_OFF
+        if (model%rough_jacobian_ok) model%rough = ROUGH_ALL
         call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, stat)
+        if (stat%code /= STATUS_OK .and. model%rough == ROUGH_ALL) then
+            ! not solvable at the rough tolerance: start at the user's
+            call clear_status(stat)
+            model%rough = ROUGH_JACOBIAN
+            call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, stat)
+        end if
         if (stat%code /= STATUS_OK) then
-            model%rough = .false.
+            model%rough = ROUGH_OFF
             stat%message = trim(stat%message)//' (at the starting values)'
             return
         end if
@@ -647,15 +663,16 @@ contains
         pred_step = 0.0_dp
         failed_trial = .false.
         it0 = 1
-        ! two phases: iterate (steered by rough Jacobians when the model
-        ! offers them), then confirm at the final point with the accurate
-        ! Jacobian and iterate on with it while it promises more than the
-        ! noise floor (the inner loop's body is the one Gauss-Newton step)
+        ! phases: iterate (on the rough model, then steered by rough
+        ! Jacobians, when the model offers them), confirm at the final point
+        ! with the accurate model and iterate on, one level less rough, while
+        ! it promises more than the noise floor (the inner loop's body is the
+        ! one Gauss-Newton step)
         phases: do
         iterate: do it = it0, opts%max_iter
             call projected_svd(stat)
             if (stat%code /= STATUS_OK) then
-                model%rough = .false.
+                model%rough = ROUGH_OFF
                 return
             end if
             lam_floor = 1.0e-6_dp*s(1)**2
@@ -679,6 +696,15 @@ contains
             ! what is left to gain has no statistical meaning
             if (it > 1 .and. poor_step .and. dcost <= opts%floor_chi2 .and. &
                 pred_gn <= opts%floor_chi2) then
+                res%converged = .true.
+                res%iterations = it - 1
+                exit
+            end if
+            ! the rough model pays while the misfit is well above the data's
+            ! noise; once the data are fitted better than their sigmas (chi2
+            ! below half the degrees of freedom, as with exact data) what is
+            ! left may be the rough model's own error: on to the accurate one
+            if (model%rough == ROUGH_ALL .and. cost < 0.5_dp*max(mt - n, 1)) then
                 res%converged = .true.
                 res%iterations = it - 1
                 exit
@@ -797,11 +823,13 @@ contains
             end do
             if (all(held)) exit
         end do iterate
-        if (.not. model%rough) exit phases
+        if (model%rough == ROUGH_OFF) exit phases
+        level = model%rough
         call confirm_at_final_point(go_on, stat)
         if (stat%code /= STATUS_OK) return
         if (.not. go_on) exit phases
-        call restart_accurate()
+        model%rough = level - 1
+        call restart_phase()
         end do phases
         res%log_cost = res%log_cost(0:res%nlog)
         res%log_lambda = res%log_lambda(0:res%nlog)
@@ -903,15 +931,19 @@ contains
             end do
         end subroutine projected_svd
 
-        !> The end of the rough phase: the Jacobian at the user's tolerance at
-        !! the final point (predictions and residuals are the same runs), and
-        !! the Gauss-Newton decrease it predicts. go_on: that still promises
-        !! more than the noise floor and iterations are left.
+        !> The end of a rough phase: predictions and Jacobian at the user's
+        !! tolerance at the final point (one sensitivity run), and the
+        !! Gauss-Newton decrease they predict. go_on: that still promises more
+        !! than the noise floor and iterations are left. After the phase on
+        !! the rough model the floor is scaled by the misfit, chi-square per
+        !! degree of freedom (about 1 with noisy data: the same floor): with
+        !! (nearly) exact data the rough model's own noise floor is far above
+        !! the accurate model's, and the fit goes on to the accurate minimum.
         subroutine confirm_at_final_point(go_on, st)
             logical, intent(out) :: go_on
             type(status_t), intent(inout) :: st
             type(status_t) :: est
-            model%rough = .false.
+            model%rough = ROUGH_OFF
             go_on = .false.
             call weighted_system(model, y, sigma, p, free, prior, pred, a, rr, est)
             if (est%code /= STATUS_OK) then
@@ -927,12 +959,17 @@ contains
                 return
             end if
             pred_gn = predicted_decrease(s, u, rr, opts%rcond)
-            go_on = pred_gn > opts%floor_chi2
+            if (level == ROUGH_ALL) then
+                go_on = pred_gn > opts%floor_chi2*min(1.0_dp, cost/max(mt - n, 1)) .and. &
+                        cost > 1.0e-18_dp*mt
+            else
+                go_on = pred_gn > opts%floor_chi2
+            end if
         end subroutine confirm_at_final_point
 
-        !> Iterate on from the final point with accurate Jacobians, the
+        !> Iterate on from the final point (one level less rough), the
         !! iteration's state as after an undamped step.
-        subroutine restart_accurate()
+        subroutine restart_phase()
             it0 = res%iterations + 1
             res%converged = .false.
             stalled = .false.
@@ -941,7 +978,7 @@ contains
             poor_step = .false.
             nstuck = 0
             lambda = 0.0_dp
-        end subroutine restart_accurate
+        end subroutine restart_phase
     end subroutine fit_least_squares
 
     !> Has x run away from its start x0: beyond runaway_factor times |x0|, or

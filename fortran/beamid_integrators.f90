@@ -161,8 +161,11 @@ module beamid_integrators
     type :: sens_work_t
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
-        real(dp), allocatable :: zd(:), t(:), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
-        real(dp), allocatable :: errold(:), wq(:), wv(:)
+        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
+        real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> each column's last observed contraction of the pass loop (0: none
+        !! yet), carried across steps as CVODES carries its rate estimate
+        real(dp), allocatable :: thc(:)
         complex(dp), allocatable :: w2(:, :)
         integer, allocatable :: act(:)
     end type sens_work_t
@@ -716,7 +719,7 @@ contains
                 end if
                 if (jev == 0) then
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, h, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -761,7 +764,7 @@ contains
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, hs, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, hs, sm, stat)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -2075,34 +2078,32 @@ contains
 
     !> The RK4 step of the sensitivities (the variational equations on the
     !! same step, the derivative of the discrete map): from S at the state s
-    !! with rates k1 over h.
-    subroutine rk_sens_step(es, pars, s, k1, h, sm, stat)
+    !! over h, with the rates k1..k4 of the state's own step (rk_step: its
+    !! stage states s + h/2 k1, s + h/2 k2, s + h k3 are those the variational
+    !! equations need, so their rates are not evaluated again).
+    subroutine rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
-        real(dp), intent(in) :: s(:), k1(:), h
+        real(dp), intent(in) :: s(:), k1(:), k2(:), k3(:), k4(:), h
         real(dp), intent(inout) :: sm(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: y(:), f(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
-        real(dp), allocatable :: dl(:, :), pw(:)
-        real(dp) :: torque
+        real(dp), allocatable :: y(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
+        real(dp), allocatable :: dl(:, :)
         integer :: m, nw
         m = es%ncstate
         nw = size(sm, 2)
-        allocate (y(m), f(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
-                  dl(2*es%npt, nw), pw(es%nwork))
+        allocate (y(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
+                  dl(2*es%npt, nw))
         call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true.)
         y = s(1:m) + 0.5_dp*h*k1(1:m)
-        call dyn_crates(es, y, f, pw, torque, stat)
         st = sm + 0.5_dp*h*d1
-        call sens_rates(es, pars, y, f, st, d2, dl, stat, .true.)
-        y = s(1:m) + 0.5_dp*h*f
-        call dyn_crates(es, y, f, pw, torque, stat)
+        call sens_rates(es, pars, y, k2(1:m), st, d2, dl, stat, .true.)
+        y = s(1:m) + 0.5_dp*h*k2(1:m)
         st = sm + 0.5_dp*h*d2
-        call sens_rates(es, pars, y, f, st, d3, dl, stat, .true.)
-        y = s(1:m) + h*f
-        call dyn_crates(es, y, f, pw, torque, stat)
+        call sens_rates(es, pars, y, k3(1:m), st, d3, dl, stat, .true.)
+        y = s(1:m) + h*k3(1:m)
         st = sm + h*d3
-        call sens_rates(es, pars, y, f, st, d4, dl, stat, .true.)
+        call sens_rates(es, pars, y, k4(1:m), st, d4, dl, stat, .true.)
         sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
     end subroutine rk_sens_step
 
@@ -2173,7 +2174,8 @@ contains
     !! (the real and complex blocks), each pass one solve of each plus band
     !! products with the exact stage Jacobians, until the remaining error is
     !! below the tolerance; S_{n+1} = S_n + dZ_3 (stiffly accurate). All
-    !! parameters go through each pass together (one multi-column solve per
+    !! parameters go through each pass together (one sweep over each stage
+    !! Jacobian for the products of every column, one multi-column solve per
     !! block, the stage Jacobians and f_p assembled once per step, no C
     !! products without velocity coupling); a column leaves the pass loop
     !! when it has converged.
@@ -2222,9 +2224,9 @@ contains
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
-                    t = 0.0_dp
-                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t)
-                    cst(1:n, i, j) = fp - t
+                    t(:, 1) = 0.0_dp
+                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
+                    cst(1:n, i, j) = fp - t(:, 1)
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
             end do
@@ -2256,48 +2258,54 @@ contains
             end do
             do iter = 1, MAXIT
                 if (na == 0) exit
-                ! residuals of the active columns: velocity (and torque) rows only
-                do ja = 1, na
-                    j = act(ja)
-                    do i = 1, 3
-                        wq = sm(1:n, j) + dz(1:n, i, j)
+                ! residuals of the active columns, velocity (and torque) rows
+                ! only, stage by stage: the products of all columns with the
+                ! stage Jacobian in one sweep over its band
+                do i = 1, 3
+                    do ja = 1, na
+                        j = act(ja)
+                        wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
+                        wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    end do
+                    if (cz(i)) then
+                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
+                    else
+                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                    end if
+                    if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
+                    do ja = 1, na
+                        j = act(ja)
                         ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
                         zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
                                        + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
-                        if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
                         if (it%rot) then
                             call to_mform(es, it, zd, ys(1:n))
                         else
                             call to_mform(es, it, zd)
                         end if
-                        if (cz(i)) then
-                            call dband_mv(n, kl, ku, kb(:, :, i), wq, t)
-                        else
-                            wv = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
-                            call kc_mv(n, kl, ku, kb(:, :, i), cb(:, :, i), wq, wv, t)
-                        end if
-                        r(1:n, i, ja) = cst(1:n, i, j) - t - zd(n + 1:2*n)
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
                         if (es%rotary) then
-                            t = 0.0_dp
-                            call dyn_dmass_dq_mv(es, ys(1:n), wq, acc(:, i), t)
-                            r(1:n, i, ja) = r(1:n, i, ja) - t
+                            fp = 0.0_dp
+                            call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
+                            r(1:n, i, ja) = r(1:n, i, ja) - fp
                         end if
                         if (nx > 0) then
-                            if (cz(i)) wv = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
                             xp = sm(m, j) + dz(m, i, j)
                             r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
-                            r(n + 1, i, ja) = dot_product(p(:, i), wq) + dot_product(d(:, i), wv) &
+                            r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
+                                              + dot_product(d(:, i), wv(:, ja)) &
                                               + e(i)*xp + cst(n + 1, i, j) - zd(m)
                         end if
                         do k = 1, it%nst
                             r(it%stuck(k), i, ja) = 0.0_dp
                         end do
                     end do
+                end do
+                do ja = 1, na
                     w1(:, ja) = ti1(1)*r(:, 1, ja) + ti1(2)*r(:, 2, ja) + ti1(3)*r(:, 3, ja)
                     w2(:, ja) = ti2(1)*r(:, 1, ja) + ti2(2)*r(:, 2, ja) + ti2(3)*r(:, 3, ja)
                 end do
-                call solve_real_many(es, it, gam/hh, na, w1)
-                call solve_cplx_many(es, it, mu/hh, na, w2)
+                call solve_stage_many(es, it, gam/hh, mu/hh, na, w1, w2)
                 ! corrections, convergence column by column
                 k = 0
                 do ja = 1, na
@@ -2322,17 +2330,25 @@ contains
                     err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
                     passes = passes + 1
                     ! converged when the remaining error th/(1 - th) |correction|
-                    ! is below the tolerance (th: the observed contraction, at the
-                    ! first pass the Newton one). The sensitivities of the seed's
-                    ! release agree with central differences of rtol 1e-11 runs
-                    ! to the same digits as with 1 % of it (the Newton test), at
-                    ! 8 passes per step for 4 parameters instead of 10.
+                    ! is below the tolerance (th: the observed contraction; at the
+                    ! first pass the column's last observed one, carried across
+                    ! steps as CVODES carries its rate (the iteration matrices
+                    ! change little from step to step), before any the Newton
+                    ! one). The sensitivities of the seed's release agree with
+                    ! central differences of rtol 1e-11 runs to the same digits
+                    ! as with 1 % of it (the Newton test), at 8 passes per step
+                    ! for 4 parameters instead of 10.
                     ! Below the tolerance and no longer contracting: the
                     ! round-off floor of the residuals (tolerances near 1e-12)
                     if (iter == 1) then
-                        th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                        if (ws%thc(j) > 0.0_dp) then
+                            th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
+                        else
+                            th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                        end if
                     else
                         th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
+                        ws%thc(j) = th
                     end if
                     if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
                     if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
@@ -2366,92 +2382,97 @@ contains
         nr = n + (m - 2*n)
         allocate (ws%kb(nb, n, 3), ws%cb(nb, n, 3), ws%b(n, 3), ws%p(n, 3), ws%d(n, 3), &
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
-                  ws%zd(m), ws%t(n), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
-                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n), ws%wv(n))
+                  ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
+                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
+                  ws%wv(n, nw), ws%thc(nw))
         ws%zd = 0.0_dp
+        ws%thc = 0.0_dp
     end subroutine sens_work_alloc
 
-    !> solve_real for na right-hand sides at once, in the reduced layout of
-    !! the sensitivity iteration: in, w(1:n, c) the velocity rows (M-form)
-    !! and w(n + 1, c) the torque row (motor lag), the displacement rows
-    !! being zero; out, the displacement correction x in w(1:n, c) (the
-    !! velocity correction is lam x) and the torque correction in w(n + 1, c).
-    subroutine solve_real_many(sys, it, lam, na, w)
-        type(dyn_system_t), intent(in) :: sys
-        type(radau_t), intent(inout) :: it
-        real(dp), intent(in) :: lam
-        integer, intent(in) :: na
-        real(dp), intent(inout) :: w(:, :)
-        real(dp) :: bt(na, sys%nc), zt(na)
-        integer :: n, c
-        n = sys%nc
-        if (na == 0) return
-        zt = 0.0_dp
-        do c = 1, na
-            if (sys%nx > 0) then
-                zt(c) = w(n + 1, c)
-                w(1:n, c) = w(1:n, c) + it%b*zt(c)/(lam - it%e)
-            end if
-            if (it%nst > 0) w(it%stuck(1:it%nst), c) = 0.0_dp
+    !> y(:, c) = K x(:, c) (+ C v(:, c)) for the na columns of x (and v): one
+    !! sweep over the band storage of K (and C) serves every column.
+    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v)
+        integer, intent(in) :: n, kl, ku, na
+        real(dp), intent(in) :: kb(2*kl + ku + 1, n), x(:, :)
+        real(dp), intent(inout) :: y(:, :)
+        real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
+        integer :: j, c, i1, i2, k
+        logical :: with_c
+        with_c = present(cb)
+        k = kl + ku + 1
+        y(1:n, 1:na) = 0.0_dp
+        do j = 1, n
+            i1 = max(1, j - ku)
+            i2 = min(n, j + kl)
+            do c = 1, na
+                y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(k + i1 - j:k + i2 - j, j)
+            end do
+            if (.not. with_c) cycle
+            do c = 1, na
+                y(i1:i2, c) = y(i1:i2, c) + v(j, c)*cb(k + i1 - j:k + i2 - j, j)
+            end do
         end do
-        if (it%sym) then
-            bt = transpose(w(1:n, 1:na))
-            call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt)
-            do c = 1, merge(na, 0, it%nlr > 0)
-                call lr_real(it, bt(c, :))
-            end do
-            w(1:n, 1:na) = transpose(bt)
-        else
-            do c = 1, na
-                call band_solve(it%lu1, w(1:n, c))
-            end do
-        end if
-        if (sys%nx > 0) then
-            do c = 1, na
-                w(n + 1, c) = (zt(c) + dot_product(it%p + lam*it%d, w(1:n, c)))/(lam - it%e)
-            end do
-        end if
-    end subroutine solve_real_many
+    end subroutine kc_mv_many
 
-    !> Complex counterpart of solve_real_many (lam = mu/h).
-    subroutine solve_cplx_many(sys, it, lam, na, w)
+    !> The real (lam1 = gamma/h) and the complex (lam2 = mu/h) block of the
+    !! stage sensitivity system for na right-hand sides at once, in the
+    !! reduced layout of the iteration: in, w(1:n, c) the velocity rows
+    !! (M-form) and w(n + 1, c) the torque row (motor lag), the displacement
+    !! rows being zero; out, the displacement correction x in w(1:n, c) (the
+    !! velocity correction is lam x) and the torque correction in w(n + 1, c).
+    !! One routine for both kinds: the blocks are always solved together.
+    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
-        complex(dp), intent(in) :: lam
+        real(dp), intent(in) :: lam1
+        complex(dp), intent(in) :: lam2
         integer, intent(in) :: na
-        complex(dp), intent(inout) :: w(:, :)
-        complex(dp) :: bt(na, sys%nc), zt(na)
+        real(dp), intent(inout) :: w1(:, :)
+        complex(dp), intent(inout) :: w2(:, :)
+        real(dp) :: bt1(na, sys%nc), zt1(na)
+        complex(dp) :: bt2(na, sys%nc), zt2(na)
         integer :: n, c
         n = sys%nc
         if (na == 0) return
-        zt = (0.0_dp, 0.0_dp)
-        do c = 1, na
-            if (sys%nx > 0) then
-                zt(c) = w(n + 1, c)
-                w(1:n, c) = w(1:n, c) + it%b*zt(c)/(lam - it%e)
-            end if
-            if (it%nst > 0) w(it%stuck(1:it%nst), c) = (0.0_dp, 0.0_dp)
+        if (sys%nx > 0) then
+            ! the torque row eliminated (Eq. 158 lag): the motor column b
+            zt1 = w1(n + 1, 1:na)
+            zt2 = w2(n + 1, 1:na)
+            do c = 1, na
+                w1(1:n, c) = w1(1:n, c) + it%b*zt1(c)/(lam1 - it%e)
+                w2(1:n, c) = w2(1:n, c) + it%b*zt2(c)/(lam2 - it%e)
+            end do
+        end if
+        do c = 1, it%nst
+            w1(it%stuck(c), 1:na) = 0.0_dp
+            w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
         if (it%sym) then
-            bt = transpose(w(1:n, 1:na))
-            call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt)
+            bt1 = transpose(w1(1:n, 1:na))
+            bt2 = transpose(w2(1:n, 1:na))
+            call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
+            call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt2)
             do c = 1, merge(na, 0, it%nlr > 0)
-                call lr_cplx(it, bt(c, :))
+                call lr_real(it, bt1(c, :))
+                call lr_cplx(it, bt2(c, :))
             end do
-            w(1:n, 1:na) = transpose(bt)
+            w1(1:n, 1:na) = transpose(bt1)
+            w2(1:n, 1:na) = transpose(bt2)
         else
             do c = 1, na
-                it%zrhs = w(1:n, c)
+                call band_solve(it%lu1, w1(1:n, c))
+                it%zrhs = w2(1:n, c)
                 call zband_solve(it%lu2, it%zrhs)
-                w(1:n, c) = it%zrhs
+                w2(1:n, c) = it%zrhs
             end do
         end if
         if (sys%nx > 0) then
             do c = 1, na
-                w(n + 1, c) = (zt(c) + sum((it%p + lam*it%d)*w(1:n, c)))/(lam - it%e)
+                w1(n + 1, c) = (zt1(c) + dot_product(it%p + lam1*it%d, w1(1:n, c)))/(lam1 - it%e)
+                w2(n + 1, c) = (zt2(c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
             end do
         end if
-    end subroutine solve_cplx_many
+    end subroutine solve_stage_many
 
 
 end module beamid_integrators

@@ -30,44 +30,22 @@ module beamid_tasks
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
-                                 prior_t, candidate_t, diagnose_options_t, diagnosis_t, &
-                                 FLAG_NAMES, CAND_NAMES, prior_from_covariance
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
-                              inverse_diagnose, NEXPVAL, EXP_RELEASE, EV_NEPB
-    use beamid_dyn_diagnosis, only: dyn_diagnose, mesh_test_t
+                                 prior_t, candidate_t, diagnose_options_t, FLAG_NAMES, &
+                                 CAND_NAMES, prior_from_covariance
+    use beamid_inverse, only: NEXPVAL, EXP_RELEASE
+    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_fit, &
+                             problem_diagnose, improve_ladder
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
     private
 
-    public :: run_task, output_prefix, files_t
+    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t
         character(len=:), allocatable :: names
     end type files_t
-
-    !> One diagnosis: the library's report, the probe rows and the
-    !! candidate blocks (parameters cparams(start(c):start(c+1)-1)).
-    type :: diag_out_t
-        type(diagnosis_t) :: diag
-        integer, allocatable :: start(:), cparams(:), pexp(:), pq(:)
-        character(len=32), allocatable :: names(:) !< candidate names (mesh apart)
-        logical :: dynamic = .false.   !< release experiments: beamid_dyn_diagnosis
-        type(mesh_test_t) :: mesh      !< the mesh test (dynamic, when asked)
-        !> the blocks as tested (dyn_diagnose: reduced to the members the
-        !! data determine)
-        type(candidate_t), allocatable :: used(:)
-    end type diag_out_t
-
-    !> The candidates of one diagnosis: the deck's effects, except that a
-    !! release deck tests `mesh` apart (with_mesh) and the dynamic ladder
-    !! reduces a block to its members not switched on yet.
-    type :: cand_set_t
-        character(len=32), allocatable :: names(:)
-        type(candidate_t), allocatable :: cands(:)
-        logical :: with_mesh = .false.
-    end type cand_set_t
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
         'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', &
@@ -92,10 +70,14 @@ contains
 
     !> Run the task of a validated deck and write its files, all or none.
     !! `written` lists the files written (newline separated) on success.
-    subroutine run_task(deck, written, stat)
+    !! `ladder`: the rungs of the deck's improve ladder when already run
+    !! (ladder_start and ladder_step on deck_problem and deck_candidates, as
+    !! beamid.run steps it to show progress): only the files are written.
+    subroutine run_task(deck, written, stat, ladder)
         type(deck_t), intent(in) :: deck
         character(len=:), allocatable, intent(out) :: written
         type(status_t), intent(inout) :: stat
+        type(rung_t), intent(in), optional :: ladder(:)
         type(files_t) :: fl
         fl%names = ''
         written = ''
@@ -105,7 +87,7 @@ contains
         case ('fe_modes')
             call run_fe_modes(deck, fl, stat)
         case ('fit', 'compare', 'diagnose', 'improve')
-            call run_estimation(deck, fl, stat)
+            call run_estimation(deck, fl, stat, ladder)
         case ('identify')
             call run_identify(deck, fl, stat)
         case ('simulate')
@@ -140,7 +122,8 @@ contains
         type(static_solution_t) :: sol
         real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
         character(len=:), allocatable :: prefix
-        integer :: i, j, n, unit, ios, ierr
+        character(len=64), allocatable :: names(:)
+        integer :: i, j, n, ierr
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
@@ -163,33 +146,16 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_summary.csv', 'quantity,value', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, NOUT
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(output_names(i)), &
-                sol%outputs(i)
-        end do
+        names = [(output_names(i), i=1, NOUT)]
         do j = 1, size(d%wrt)
-            do i = 1, NOUT
-                if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) &
-                    'd('//trim(output_names(i))//')/d('//param_name(d%nbeams, d%wrt(j))//')', &
-                    sol%doutputs(i, j)
-            end do
+            names = [character(len=64) :: names, ('d('//trim(output_names(i))//')/d('// &
+                     param_name(d%nbeams, d%wrt(j))//')', i=1, NOUT)]
         end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', &
-            sol%newton_iterations
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', sol%load_steps
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-
-        if (n < 2) return
-        call open_output(fl, prefix//'_shape.csv', 's,x,y,psi,moment', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, n
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) &
-                s(i), x(i), y(i), psi(i), moment(i)
-        end do
-        call close_checked(unit, ios, prefix//'_shape.csv', st)
+        call write_summary(fl, prefix//'_summary.csv', names, [sol%outputs, sol%doutputs], &
+                           [sol%newton_iterations, sol%load_steps], st)
+        if (st%code /= STATUS_OK .or. n < 2) return
+        call write_table(fl, prefix//'_shape.csv', 's,x,y,psi,moment', &
+                         transpose(reshape([s, x, y, psi, moment], [n, 5])), st)
     end subroutine run_static
 
     !> Finite element statics (docs/fe.md): tip values and the node table.
@@ -204,8 +170,8 @@ contains
         real(dp), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(dp) :: energy, reactions(3), residual
         character(len=:), allocatable :: prefix
-        integer :: unit, ios, i, ierr
-        real(dp) :: total, values(8)
+        integer :: ierr
+        real(dp) :: total
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
@@ -230,24 +196,11 @@ contains
         prefix = output_prefix(d)
         call make_parent_folder(prefix, st)
         if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_summary.csv', 'quantity,value', unit, ios, st)
+        call write_summary(fl, prefix//'_summary.csv', names, [nodes(4, nnode), &
+                           nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
+                           total + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
         if (st%code /= STATUS_OK) return
-        values = [nodes(4, nnode), nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), &
-                  nodes(3, 1), energy, total + nodes(2, nnode), nodes(4, nnode)]
-        do i = 1, size(names)
-            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), &
-                values(i)
-        end do
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', info(1)
-        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', info(2)
-        call close_checked(unit, ios, prefix//'_summary.csv', st)
-        if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_nodes.csv', 's,u,du,w,dw', unit, ios, st)
-        if (st%code /= STATUS_OK) return
-        do i = 1, nnode
-            if (ios == 0) write (unit, '(4(es24.16e3,","),es24.16e3)', iostat=ios) nodes(:, i)
-        end do
-        call close_checked(unit, ios, prefix//'_nodes.csv', st)
+        call write_table(fl, prefix//'_nodes.csv', 's,u,du,w,dw', nodes, st)
     end subroutine run_fe_static
 
     !> Finite element linear modes: frequencies by family (Tables 9, 10).
@@ -381,51 +334,46 @@ contains
 
     ! ------------------------------------------------------------ estimation
 
-    !> Estimation decks: fit (and compare: the same files), diagnose, improve.
-    !! Everything is computed first; the files are written after success.
-    subroutine run_estimation(d, fl, st)
+    !> Estimation decks: fit (and compare: the same files), diagnose, improve
+    !! (beamid_ladder, as beamid.diagnose and beamid.improve). Everything is
+    !! computed first; the files are written after success.
+    subroutine run_estimation(d, fl, st, ladder)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
+        type(rung_t), intent(in), optional :: ladder(:)
         type(fit_result_t) :: fo
         type(diag_out_t) :: dg
         type(cand_set_t) :: cs
+        type(rung_t), allocatable :: rungs(:)
+        type(fit_options_t) :: fopts
+        type(diagnose_options_t) :: dopts
         character(len=:), allocatable :: prefix
-        character(len=32), allocatable :: step_effect(:)
-        real(dp), allocatable :: step_chi2(:), step_cpd(:), start(:)
-        integer, allocatable :: step_dof(:)
-        character(len=32) :: effect
-        integer :: k, v, unit, ios
+        integer :: k, unit, ios
 
-        call estimation_fit(d, d%params, d%free, fo, st)
-        if (st%code /= STATUS_OK) return
         call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
+        if (d%task == 'improve') then
+            if (present(ladder)) then
+                rungs = ladder
+            else
+                call improve_ladder(deck_problem(d), d%params, d%free, cs, d%alpha, &
+                                    size(d%candidates), rungs, st)
+            end if
+            if (st%code /= STATUS_OK) return
+            fo = rungs(size(rungs))%fit
+            dg = rungs(size(rungs))%dg
+        else
+            call problem_fit(deck_problem(d), d%params, d%free, fo, st)
+            if (st%code /= STATUS_OK) return
+        end if
         if (d%task == 'diagnose') then
-            call estimation_diagnose(d, fo, cs, d%params, dg, st)
+            ! beamid.diagnose's defaults: 3 refits of 50 iterations
+            fopts%max_iter = 50
+            dopts%alpha = d%alpha
+            call problem_diagnose(deck_problem(d), fo%params, fo%free, d%params, cs, fopts, &
+                                  dopts, dg, st)
             if (st%code /= STATUS_OK) return
-        else if (d%task == 'improve' .and. deck_dynamic(d)) then
-            call dynamic_ladder(d, cs, fo, dg, step_effect, step_chi2, step_dof, step_cpd, st)
-            if (st%code /= STATUS_OK) return
-        else if (d%task == 'improve') then
-            ! fit, then diagnose and add the verdict's effect until none is
-            ! significant (beamid.diagnosis.improve)
-            allocate (step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
-            effect = 'start'
-            do k = 0, size(d%candidates)
-                call estimation_diagnose(d, fo, cs, d%params, dg, st)
-                if (st%code /= STATUS_OK) return
-                call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
-                v = dg%diag%verdict
-                if (v == 0 .or. k == size(d%candidates)) exit
-                start = fo%params
-                if (dg%diag%cand(v)%refit_done .and. dg%diag%cand(v)%refit_ok) &
-                    start = dg%diag%cand(v)%refit%params
-                effect = d%candidates(v)
-                call estimation_fit(d, start, [integer :: fo%free, &
-                                    dg%cparams(dg%start(v):dg%start(v + 1) - 1)], fo, st)
-                if (st%code /= STATUS_OK) return
-            end do
         end if
 
         prefix = output_prefix(d)
@@ -434,7 +382,7 @@ contains
         call write_fit_files(d, fo, prefix, fl, st)
         if (st%code /= STATUS_OK) return
         if (d%task == 'diagnose' .or. d%task == 'improve') then
-            call write_ranking(d, fo, dg, prefix//'_ranking.csv', fl, st)
+            call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
             if (st%code /= STATUS_OK) return
         end if
         if (d%task == 'compare') then
@@ -442,12 +390,14 @@ contains
             return
         end if
         if (d%task /= 'improve') return
-        call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, ios, &
-                         st)
+        call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
+                         ios, st)
         if (st%code /= STATUS_OK) return
-        do k = 1, size(step_chi2)
-            call put(unit, ios, fmt_int(k - 1)//','//trim(step_effect(k))//','// &
-                     fmt_e(step_chi2(k))//','//fmt_int(step_dof(k))//','//fmt_e(step_cpd(k)))
+        do k = 1, size(rungs)
+            associate (f => rungs(k)%fit)
+                call put(unit, ios, fmt_int(k - 1)//','//rungs(k)%effect//','//fmt_e(f%chi2)// &
+                         ','//fmt_int(f%dof)//','//fmt_e(chi2_per_dof(f)))
+            end associate
         end do
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
@@ -494,7 +444,8 @@ contains
                     call prior_from_covariance(prev%free, prev%estimates, prev%cov, prior, st)
                 end associate
             end if
-            if (st%code == STATUS_OK) call estimation_fit(ds(k), params, free, fits(k), st, prior)
+            if (st%code == STATUS_OK) call problem_fit(deck_problem(ds(k)), params, free, &
+                                                       fits(k), st, prior)
             if (st%code /= STATUS_OK) then
                 st%message = "stage '"//d%stages(k)%name//"': "//trim(st%message)
                 return
@@ -526,7 +477,7 @@ contains
 
     !> The deck as its stage's fit deck: the experiments, the stage's data,
     !! rows, free parameters, a priori values and iteration limit (what
-    !! estimation_fit and write_fit_files read; not a copy of the whole deck,
+    !! deck_problem and write_fit_files read; not a copy of the whole deck,
     !! see copy_measurements).
     subroutine stage_deck(d, stage, ds)
         type(deck_t), intent(in) :: d
@@ -627,17 +578,21 @@ contains
         if (fo%dof > 0) chi2_per_dof = (fo%chi2 + fo%chi2_prior)/real(fo%dof, dp)
     end function chi2_per_dof
 
-    !> The deck's inverse problem (beamid_inverse): its experiments and rows.
-    subroutine deck_problem(d, problem, st)
+    !> The deck's estimation problem (beamid_ladder): its experiments, data
+    !! rows, a priori information (Eq. 142-145) and iteration limit.
+    function deck_problem(d) result(pb)
         type(deck_t), intent(in) :: d
-        type(inverse_problem_t), intent(out) :: problem
-        type(status_t), intent(inout) :: st
-        real(dp), allocatable :: values(:, :)
-        integer, allocatable :: kinds(:)
-        call deck_experiments(d, kinds, values)
-        call inverse_problem_init(d%nbeams, kinds, values, d%row_exp, d%data%t, &
-                                  d%data%quantity, 0.0_dp, problem, st)
-    end subroutine deck_problem
+        type(problem_t) :: pb
+        pb%nbeams = d%nbeams
+        call deck_experiments(d, pb%exp_kind, pb%exp_values)
+        pb%row_exp = d%row_exp
+        pb%row_t = d%data%t
+        pb%row_q = d%data%quantity
+        pb%y = d%data%value
+        pb%sigma = d%data%sigma
+        pb%prior = deck_prior(d)
+        pb%max_iter = d%max_iter
+    end function deck_problem
 
     !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
     !! values.
@@ -670,33 +625,6 @@ contains
         prior%sigma = d%prior_sigma
     end function deck_prior
 
-    !> Weighted GN/LM fit of the free parameters from params0 (inverse_fit,
-    !! as beamid.fit) with the deck's a priori information or `prior`.
-    subroutine estimation_fit(d, params0, free, fo, st, prior)
-        type(deck_t), intent(in) :: d
-        real(dp), intent(in) :: params0(:)
-        integer, intent(in) :: free(:)
-        type(fit_result_t), intent(out) :: fo
-        type(status_t), intent(inout) :: st
-        type(prior_t), intent(in), optional :: prior
-        type(inverse_problem_t) :: problem
-        type(fit_options_t) :: opts
-        type(status_t) :: stat
-
-        call deck_problem(d, problem, stat)
-        if (stat%code == STATUS_OK) then
-            opts%max_iter = d%max_iter
-            if (present(prior)) then
-                call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, prior, &
-                                 opts, fo, stat)
-            else
-                call inverse_fit(problem, d%data%value, d%data%sigma, params0, free, &
-                                 deck_prior(d), opts, fo, stat)
-            end if
-        end if
-        if (stat%code /= STATUS_OK) st = stat
-    end subroutine estimation_fit
-
     !> Does the deck have a release experiment (time histories)?
     pure logical function deck_dynamic(d)
         type(deck_t), intent(in) :: d
@@ -728,164 +656,6 @@ contains
             cs%cands = [cs%cands, one]
         end do
     end subroutine deck_candidates
-
-    !> Score tests, refits and ranking of the candidates `cs` around a fit
-    !! (inverse_diagnose, or for decks with releases dyn_diagnose, with the
-    !! defaults of beamid.diagnose: 3 refits, ambiguity 4, collinearity 0.98,
-    !! 50 iterations; the refits also start from `nominal`, the deck's model
-    !! as beamid.diagnose starts them from the user's).
-    subroutine estimation_diagnose(d, fo, cs, nominal, dg, st)
-        type(deck_t), intent(in) :: d
-        type(fit_result_t), intent(in) :: fo
-        type(cand_set_t), intent(in) :: cs
-        real(dp), intent(in) :: nominal(:)
-        type(diag_out_t), intent(out) :: dg
-        type(status_t), intent(inout) :: st
-        type(inverse_problem_t) :: problem
-        type(fit_options_t) :: opts
-        type(diagnose_options_t) :: dopts
-        type(fit_result_t) :: base
-        type(status_t) :: stat
-        real(dp), allocatable :: values(:, :), pt(:)
-        integer, allocatable :: kinds(:)
-        integer :: c, nc
-
-        nc = size(cs%cands)
-        dg%names = cs%names
-        allocate (dg%start(nc + 1), dg%cparams(0))
-        dg%start(1) = 1
-        do c = 1, nc
-            dg%cparams = [dg%cparams, cs%cands(c)%params]
-            dg%start(c + 1) = dg%start(c) + size(cs%cands(c)%params)
-        end do
-        opts%max_iter = 50
-        dopts%alpha = d%alpha
-        dopts%nrefit = 3
-        dopts%ambiguity_delta = 4.0_dp
-        dopts%collinear = 0.98_dp
-        dg%dynamic = deck_dynamic(d)
-        if (dg%dynamic) then
-            call deck_experiments(d, kinds, values)
-            call dyn_diagnose(d%nbeams, kinds, values, d%row_exp, d%data%t, d%data%quantity, &
-                              0.0_dp, d%data%value, d%data%sigma, fo%params, nominal, fo%free, &
-                              deck_prior(d), cs%cands, opts, dopts, cs%with_mesh, base, dg%diag, &
-                              dg%mesh, dg%pexp, pt, dg%pq, dg%used, stat)
-        else
-            call deck_problem(d, problem, stat)
-            if (stat%code == STATUS_OK) &
-                call inverse_diagnose(problem, d%data%value, d%data%sigma, fo%params, nominal, &
-                                      fo%free, deck_prior(d), cs%cands, opts, dopts, base, &
-                                      dg%diag, dg%pexp, dg%pq, stat)
-        end if
-        if (stat%code /= STATUS_OK) st = stat
-    end subroutine estimation_diagnose
-
-    !> improve on a deck with releases (beamid.dyn_diagnosis.improve_dynamic,
-    !! step for step, so both fronts write the same ladder): diagnose, add the
-    !! verdict's parameters (a block as tested; dyn_diagnose tests its other
-    !! members at the later rungs) or refine the mesh to the recommended elements per beam;
-    !! after each rung the parameters earlier rungs added are tested again
-    !! (one-sided Wald test at the rung's level) and one no longer needed
-    !! goes back to the deck's value, the rung refitted without it. The mesh
-    !! is tested until found adequate.
-    subroutine dynamic_ladder(d, cs0, fo, dg, step_effect, step_chi2, step_dof, step_cpd, st)
-        type(deck_t), intent(in) :: d
-        type(cand_set_t), intent(in) :: cs0
-        type(fit_result_t), intent(inout) :: fo
-        type(diag_out_t), intent(out) :: dg
-        character(len=32), allocatable, intent(out) :: step_effect(:)
-        real(dp), allocatable, intent(out) :: step_chi2(:), step_cpd(:)
-        integer, allocatable, intent(out) :: step_dof(:)
-        type(status_t), intent(inout) :: st
-        type(deck_t) :: dd
-        type(cand_set_t) :: cs
-        character(len=32) :: effect
-        real(dp), allocatable :: nominal(:), start(:), p(:)
-        integer, allocatable :: added(:), newp(:)
-        integer :: k, v, e, gone
-
-        dd = d
-        cs = cs0
-        nominal = d%params
-        allocate (added(0), step_effect(0), step_chi2(0), step_cpd(0), step_dof(0))
-        effect = 'start'
-        do k = 0, size(d%candidates)
-            call estimation_diagnose(dd, fo, cs, nominal, dg, st)
-            if (st%code /= STATUS_OK) return
-            call record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
-            v = dg%diag%verdict
-            if ((v == 0 .and. .not. dg%mesh%significant) .or. k == size(d%candidates)) exit
-            if (dg%mesh%done .and. .not. dg%mesh%significant) cs%with_mesh = .false.
-            if (dg%mesh%significant) then
-                do e = 1, size(dd%exp_kind)
-                    if (dd%exp_kind(e) == EXP_RELEASE) &
-                        dd%exp_values(EV_NEPB, e) = real(dg%mesh%recommended, dp)
-                end do
-                call estimation_fit(dd, fo%params, fo%free, fo, st)
-                if (st%code /= STATUS_OK) return
-                effect = 'mesh ('//fmt_int(dg%mesh%recommended)//' elements per beam)'
-                cs%with_mesh = .false.
-                cycle
-            end if
-            start = fo%params
-            if (dg%diag%cand(v)%refit_done .and. dg%diag%cand(v)%refit_ok) &
-                start = dg%diag%cand(v)%refit%params
-            newp = dg%used(v)%params
-            call estimation_fit(dd, start, [integer :: fo%free, newp], fo, st)
-            if (st%code /= STATUS_OK) return
-            gone = not_needed(fo, added, dg%diag%alpha_each)
-            if (gone > 0) then
-                p = fo%params
-                p(gone) = d%params(gone)
-                call estimation_fit(dd, p, pack(fo%free, fo%free /= gone), fo, st)
-                if (st%code /= STATUS_OK) return
-                added = pack(added, added /= gone)
-            end if
-            added = [added, newp]
-            nominal(newp) = fo%params(newp)
-            effect = cs%names(v)
-        end do
-    end subroutine dynamic_ladder
-
-    !> One rung of the ladder file: the effect added and the fit's chi-square.
-    subroutine record_rung(effect, fo, step_effect, step_chi2, step_dof, step_cpd)
-        character(len=*), intent(in) :: effect
-        type(fit_result_t), intent(in) :: fo
-        character(len=32), allocatable, intent(inout) :: step_effect(:)
-        real(dp), allocatable, intent(inout) :: step_chi2(:), step_cpd(:)
-        integer, allocatable, intent(inout) :: step_dof(:)
-        step_effect = [character(len=32) :: step_effect, effect]
-        step_chi2 = [step_chi2, fo%chi2]
-        step_dof = [step_dof, fo%dof]
-        step_cpd = [step_cpd, chi2_per_dof(fo)]
-    end subroutine record_rung
-
-    !> Of the parameters `names` (switched on by earlier rungs; one-sided,
-    !! physical values positive) the one whose one-sided Wald test
-    !! (estimate / sigma) is least significant, when its p-value exceeds
-    !! `level` (0: every one is needed).
-    integer function not_needed(fo, names, level) result(worst)
-        type(fit_result_t), intent(in) :: fo
-        integer, intent(in) :: names(:)
-        real(dp), intent(in) :: level
-        real(dp) :: p, worst_p, est, sig
-        integer :: i, j
-        worst = 0
-        worst_p = level
-        do i = 1, size(names)
-            j = findloc(fo%free, names(i), 1)
-            if (j == 0) cycle
-            est = fo%estimates(j)
-            sig = fo%sigmas(j)
-            p = 1.0_dp
-            if (sig > 0.0_dp .and. sig < huge(1.0_dp) .and. est > 0.0_dp) &
-                p = 0.5_dp*chi2_sf((est/sig)**2, 1)
-            if (p > worst_p) then
-                worst = names(i)
-                worst_p = p
-            end if
-        end do
-    end function not_needed
 
     !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine write_fit_files(d, fo, prefix, fl, st)
@@ -944,10 +714,11 @@ contains
     !! (columns as beamid.fit_decks.write_ranking). The drop, p-value,
     !! estimate and sigma are the refit's when one was made, else the score
     !! test's (first order).
-    subroutine write_ranking(d, fo, dg, name, fl, st)
+    subroutine write_ranking(d, fo, dg, cs, name, fl, st)
         type(deck_t), intent(in) :: d
         type(fit_result_t), intent(in) :: fo
         type(diag_out_t), intent(in) :: dg
+        type(cand_set_t), intent(in) :: cs
         character(len=*), intent(in) :: name
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
@@ -1002,7 +773,7 @@ contains
                 end if
                 ! the block as tested (a dynamic block reduced to the members
                 ! the data determine; the others are left at their null values)
-                block = dg%cparams(dg%start(c):dg%start(c + 1) - 1)
+                block = cs%cands(c)%params
                 if (dg%dynamic .and. tested) block = dg%used(c)%params
                 nj = size(block)
                 do j = 1, max(nj, 1)
@@ -1024,7 +795,7 @@ contains
                             sig = 0.0_dp
                         end if
                     end if
-                    call put(unit, ios, fmt_int(rank)//','//trim(dg%names(c))//','// &
+                    call put(unit, ios, fmt_int(rank)//','//trim(cs%names(c))//','// &
                              trim(CAND_NAMES(state))//','//pname//','//fmt_e(score_drop)//','// &
                              fmt_e(score_p)//','//fmt_e(lr_drop)//','//fmt_e(lr_p)//','// &
                              fmt_e(drop)//','//fmt_e(p)//','//fmt_e(est)//','//fmt_e(sig)//','// &
@@ -1034,6 +805,40 @@ contains
         end do
         call close_checked(unit, ios, name, st)
     end subroutine write_ranking
+
+    !> <name>: 'quantity,value' rows (names, values), then the solver's Newton
+    !! iterations and load steps (counts).
+    subroutine write_summary(fl, name, names, values, counts, st)
+        type(files_t), intent(inout) :: fl
+        character(len=*), intent(in) :: name, names(:)
+        real(dp), intent(in) :: values(:)
+        integer, intent(in) :: counts(2)
+        type(status_t), intent(inout) :: st
+        integer :: unit, ios, i
+        call open_output(fl, name, 'quantity,value', unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(values)
+            if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), values(i)
+        end do
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', counts(1)
+        if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', counts(2)
+        call close_checked(unit, ios, name, st)
+    end subroutine write_summary
+
+    !> <name>: the header, then one row per column of `table`.
+    subroutine write_table(fl, name, header, table, st)
+        type(files_t), intent(inout) :: fl
+        character(len=*), intent(in) :: name, header
+        real(dp), intent(in) :: table(:, :)
+        type(status_t), intent(inout) :: st
+        integer :: unit, ios, i
+        call open_output(fl, name, header, unit, ios, st)
+        if (st%code /= STATUS_OK) return
+        do i = 1, size(table, 2)
+            if (ios == 0) write (unit, '(*(es24.16e3,:,","))', iostat=ios) table(:, i)
+        end do
+        call close_checked(unit, ios, name, st)
+    end subroutine write_table
 
     !> A logical as '0' or '1'.
     pure function b2s(x) result(text)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import beamid
-from beamid import _core_dyndiag
+from beamid import _core_estimation as _core_dyndiag
 
 SIGMA = 1e-4
 TIMES = [round(0.1 * k, 3) for k in range(1, 14)]

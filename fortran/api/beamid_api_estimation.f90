@@ -1,33 +1,46 @@
-!> f2py-facing API for static estimation and diagnosis (beamid_estimation,
-!! beamid_static_experiments).
+!> f2py-facing API for estimation: fits, the diagnosis and the improve
+!! ladder (beamid_estimation, beamid_ladder) on the problems of
+!! beamid_inverse, any mix of static and release experiments.
 !!
-!! A problem crosses as plain arrays: experiments (load kind and the four
-!! load values fx, fy, moment, wire_length per experiment), data rows
-!! (experiment index, quantity code, value, sigma), free parameter indices,
+!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
+!! values per experiment, beamid_inverse's EV_* layout), data rows
+!! (experiment index, t, quantity code, value, sigma), free parameter indices,
 !! a priori index/mean/sigma (Eq. 142-145). Indices are 1-based. Status
 !! codes follow beamid_status; logical results are 0/1 integers.
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, set_status
-    use beamid_arclength, only: static_load_t
-    use beamid_estimation, only: residual_structure
+    use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
+                             set_status, fmt_int
+    use beamid_estimation, only: residual_structure, residual_model_t
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
-                                 candidate_t, diagnose_options_t, diagnosis_t, diagnose, &
+                                 diagnose_options_t, &
                                  chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
-
-    use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         static_bounds, static_null_values, probe_rows
-    use beamid_estimation, only: prior_from_covariance, STOP_NAMES
-    use beamid_deck, only: deck_t, read_deck
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_diagnose, NEXPVAL
+    use beamid_static_experiments, only: static_bounds
+    use beamid_estimation, only: prior_from_covariance
+    use beamid_deck, only: deck_t, read_deck, deck_set_task
+    use beamid_tasks, only: run_task, deck_problem, deck_candidates
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init
+    use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
+    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
+                             ladder_t, ladder_start, ladder_step
     implicit none
     private
 
-    public :: api_static_predict, api_fit, api_chi2_sf, api_static_bounds
-    public :: api_residual_structure, api_fit_effect, api_diagnose_nominal, api_code_names
-    public :: api_problem_predict, api_problem_fit, api_deck_experiments
+    public :: api_chi2_sf, api_static_bounds
+    public :: api_residual_structure, api_fit_effect, api_code_names
+    public :: api_problem_predict, api_deck_experiments
+    public :: api_problem_diagnose, api_time_structure
+    public :: api_ladder_start, api_deck_ladder_start, api_ladder_step, api_deck_ladder_write
+    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
+
+    !> The improve ladder of the last api_ladder_start or api_deck_ladder_start,
+    !! stepped by api_ladder_step (a rung per call: the front shows progress)
+    !! and read by api_ladder_rung, api_ladder_fit and api_ladder_diag
+    !! (results of a size known only after the run: GUIDE, module arrays of
+    !! the binding). One ladder at a time.
+    type(ladder_t), save :: lad
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -35,7 +48,7 @@ module beamid_api_estimation
     !> The names of the columns of the result arrays (exported by
     !! api_code_names, tables 5-8, so that no front decodes them by position):
     !! stats of a fit, cstats (per candidate), pstats (per candidate
-    !! parameter) and dstats (the diagnosis) of api_diagnose_nominal.
+    !! parameter) and dstats (the diagnosis) of api_problem_diagnose.
     character(len=*), parameter :: FIT_STAT_NAMES(8) = [character(len=10) :: 'chi2', &
         'chi2_prior', 'cond', 'dof', 'rank', 'iterations', 'converged', 'nlog']
     character(len=*), parameter :: CSTAT_NAMES(18) = [character(len=16) :: 'state', &
@@ -46,51 +59,14 @@ module beamid_api_estimation
         'sigma', 'active', 'refit_value', 'refit_sigma', 'refit_flag']
     character(len=*), parameter :: DSTAT_NAMES(6) = [character(len=16) :: 'verdict', &
         'ntested', 'alpha_each', 'base_chi2', 'base_chi2_prior', 'base_dof']
-    !> mstats of the mesh test (beamid_api_dyndiag api_problem_diagnose)
+    !> mstats of the mesh test (api_problem_diagnose)
     character(len=*), parameter :: MSTAT_NAMES(10) = [character(len=17) :: 'done', 'ok', &
         'elements_per_beam', 'recommended', 'chi2', 'drop', 'p_value', 'max_change', &
         'max_row', 'significant']
 
 contains
 
-    subroutine make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, &
-                                tol, model, stat)
-        integer(c_int), intent(in) :: nbeams, nexp, nrow
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), tol
-        type(static_experiments_t), intent(out) :: model
-        type(status_t), intent(inout) :: stat
-        type(static_load_t), allocatable :: loads(:)
-        integer :: e
-        allocate (loads(nexp))
-        do e = 1, nexp
-            loads(e)%kind = int(exp_kind(e))
-            loads(e)%fx = exp_values(1, e)
-            loads(e)%fy = exp_values(2, e)
-            loads(e)%moment = exp_values(3, e)
-            loads(e)%wire_length = exp_values(4, e)
-        end do
-        call static_experiments_init(int(nbeams), loads, int(row_exp), int(row_q), &
-                                     real(tol, dp), model, stat)
-    end subroutine make_experiments
 
-    !> The inverse problem (beamid_inverse) of static experiments given as
-    !! (kind, fx, fy, moment, wire_length) columns: rows at t = 0.
-    subroutine static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
-        integer(c_int), intent(in) :: nbeams, nexp, nrow
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), tol
-        type(inverse_problem_t), intent(out) :: model
-        type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: values(:, :), t(:)
-        allocate (values(NEXPVAL, nexp), t(nrow))
-        values = 0.0_dp
-        values(1:4, :) = exp_values
-        t = 0.0_dp
-        call inverse_problem_init(int(nbeams), int(exp_kind), values, int(row_exp), t, &
-                                  int(row_q), real(tol, dp), model, stat)
-    end subroutine static_problem
 
     subroutine make_options(max_iter, tol_step, tol_cost, opts)
         integer(c_int), intent(in) :: max_iter
@@ -179,62 +155,13 @@ contains
         p = chi2_sf(real(x, dp), int(k))
     end subroutine api_chi2_sf
 
-    !> Predictions of the data rows and their derivatives w.r.t. params(wrt).
-    subroutine api_static_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
-                                  row_exp, row_q, nwrt, wrt, tol, pred, jac, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(4, nexp), tol
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
-        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(static_experiments_t) :: model
-        type(status_t) :: stat
-        real(dp) :: p(nrow), j(nrow, nwrt)
-        pred = 0.0_c_double
-        jac = 0.0_c_double
-        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
-        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
-        call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK) return
-        pred = p
-        jac = j
-    end subroutine api_static_predict
-
-    !> Weighted Gauss-Newton / LM fit (Eq. 39, 53-55, 142-145).
-    !! stats = chi2, chi2_prior, cond, dof, rank, iterations, converged, nlog.
-    !! The log arrays hold nlog + 1 entries (entry 1 = start).
-    subroutine api_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                       prior_mean, &
-                       prior_sigma, nexp, exp_kind, exp_values, nrow, row_exp, row_q, &
-                       row_value, row_sigma, tol, max_iter, tol_step, tol_cost, params, &
-                       sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
-                       log_lambda, log_step, log_params, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams)
-        !> a priori arrays carry one unused trailing entry (f2py cannot pass empty arrays)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol, tol_step, tol_cost
-        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
-        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
-        integer(c_int), intent(out) :: flags(nfree)
-        real(c_double), intent(out) :: stats(8)
-        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
-        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(static_experiments_t) :: model
-        type(status_t) :: stat
-        type(fit_options_t) :: opts
-        type(fit_result_t) :: res
-        type(prior_t) :: prior
-        real(dp), allocatable :: lower(:), upper(:)
-
-        params = params0
+    !> The outputs of a fit entry before the fit (zero; params are set by the caller).
+    subroutine clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                         log_lambda, log_step, log_params)
+        real(c_double), intent(out) :: sigmas(:), cov(:, :), corr(:, :), predictions(:)
+        real(c_double), intent(out) :: normalized(:), stats(:), log_cost(:), log_lambda(:)
+        real(c_double), intent(out) :: log_step(:), log_params(:, :)
+        integer(c_int), intent(out) :: flags(:)
         sigmas = 0.0_c_double
         cov = 0.0_c_double
         corr = 0.0_c_double
@@ -246,27 +173,11 @@ contains
         log_lambda = 0.0_c_double
         log_step = 0.0_c_double
         log_params = 0.0_c_double
-        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, tol_step, tol_cost, opts)
-            prior%index = int(prior_idx(1:nprior))
-            prior%mean = real(prior_mean(1:nprior), dp)
-            prior%sigma = real(prior_sigma(1:nprior), dp)
-            call static_bounds(int(nbeams), lower, upper)
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
-                                   res, stat)
-        end if
-        call status_out(stat, code, message)
-        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
-        if (.not. allocated(res%params)) return
-        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
-        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                      log_cost, log_lambda, log_step, log_params)
-    end subroutine api_fit
+    end subroutine clear_fit
 
-    !> The outputs of api_fit from a fit result (stats and log layout there).
+    !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
+    !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
+    !! the log arrays hold nlog + 1 entries (entry 1 = start).
     subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                         log_cost, log_lambda, log_step, log_params)
         type(fit_result_t), intent(in) :: res
@@ -300,38 +211,44 @@ contains
         log_params(:, 1:n) = res%log_params(:, lo:lo + n - 1)
     end subroutine copy_fit
 
-    !> Fit, or add an effect to a fit (beamid.fit, beamid.add_effect).
-    !! nblock = 0: as api_fit from params0, plus how it ended: info(1) = stop
-    !! (beamid_estimation STOP_*), info(2) = 0; note = what happened when it
-    !! did not converge (flagged parameters), else ''.
+    !> The one fit entry (beamid.fit, beamid.add_effect) on any mix of
+    !! experiment families (beamid_inverse layout). A priori information is
+    !! independent (use_cov = 0: mean, sigma) or a full covariance prior_cov
+    !! of the prior parameters (use_cov = 1: a previous fit carried forward,
+    !! Eq. 146-148, 164-166).
+    !! nblock = 0: weighted Gauss-Newton / LM fit of free_idx from params0
+    !! (Eq. 39, 53-55, 142-145); info(1) = how it ended (STOP_*), note = what
+    !! happened when it did not converge (flagged parameters).
     !! nblock > 0: params0 holds the estimates of a fit of free_idx (evaluated
     !! there, not refitted); the effect's parameters block(1:nblock), at their
     !! null values, are score-tested and freed, and the refit starts from the
     !! first-order estimate, from `nominal` (the user's starting values) with
     !! the effect at null, and by continuation in the effect's strength
-    !! (refit_effect; start_mask limits the starts), keeping the best that
-    !! converges. The outputs are those
-    !! of the fit of [free_idx, block]; info(2) = the start kept (START_*),
-    !! note = what every start gave. No start converging is ERR_NO_CONVERGENCE
-    !! with the notes (and the best attempt in the outputs).
+    !! (refit_effect; start_mask bits 1, 2, 4 = START_SCORE, START_NOMINAL,
+    !! START_CONTINUATION, 0: all), keeping the best that converges. With
+    !! release experiments the motor lag, compliances and rotary inertias get
+    !! one-sided columns at null (beamid_dyn_diagnosis null_side_model_t).
+    !! The outputs are those of the fit of [free_idx, block] (copy_fit);
+    !! info(2) = the start kept (START_*), note = what every start gave. No
+    !! start converging is ERR_NO_CONVERGENCE with the notes (and the best
+    !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
-                              nominal, nprior, prior_idx, prior_mean, prior_sigma, nexp, &
-                              exp_kind, exp_values, nrow, row_exp, row_q, row_value, row_sigma, &
-                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
-                              predictions, normalized, stats, log_cost, log_lambda, log_step, &
-                              log_params, info, code, message, note)
+                              nominal, nprior, prior_idx, prior_mean, prior_sigma, use_cov, &
+                              prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
+                              row_q, row_value, row_sigma, tol, max_iter, start_mask, params, &
+                              sigmas, cov, corr, flags, predictions, normalized, stats, &
+                              log_cost, log_lambda, log_step, log_params, info, code, message, &
+                              note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
-        integer(c_int), intent(in) :: max_iter
-        !> which refit starts to try, bits 1, 2, 4 = START_SCORE, START_NOMINAL,
-        !! START_CONTINUATION (0: all)
-        integer(c_int), intent(in) :: start_mask
+        integer(c_int), intent(in) :: max_iter, start_mask, use_cov
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock + 1)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
         integer(c_int), intent(in) :: prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
         real(c_double), intent(out) :: corr(nfree + nblock, nfree + nblock)
@@ -343,231 +260,79 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        type(static_experiments_t) :: model
+        type(inverse_problem_t) :: model
+        type(null_side_model_t) :: side
         type(status_t) :: stat
         type(fit_options_t) :: opts
-        type(fit_result_t) :: base, res
-        type(score_result_t) :: score
+        type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
         type(prior_t) :: prior
-        real(dp), allocatable :: lower(:), upper(:), nulls(:), y(:), sig(:)
-        integer, allocatable :: blk(:)
-        integer :: k
+        integer :: n
 
         params = params0
-        sigmas = 0.0_c_double
-        cov = 0.0_c_double
-        corr = 0.0_c_double
-        flags = 0
-        predictions = 0.0_c_double
-        normalized = 0.0_c_double
-        stats = 0.0_c_double
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
+        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                       log_lambda, log_step, log_params)
         info = 0
         note = ''
-        call make_experiments(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                              model, stat)
+        n = int(nprior)
+        if (any(block(1:nblock) < 1 .or. block(1:nblock) > nparams)) then
+            call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
+                            'outside 1..nparams')
+        else
+            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                      int(row_exp), real(row_t, dp), int(row_q), &
+                                      real(tol, dp), model, stat)
+        end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            prior%index = int(prior_idx(1:nprior))
-            prior%mean = real(prior_mean(1:nprior), dp)
-            prior%sigma = real(prior_sigma(1:nprior), dp)
-            call static_bounds(int(nbeams), lower, upper)
-            call static_null_values(int(nbeams), nulls)
-            y = real(row_value, dp)
-            sig = real(row_sigma, dp)
-            blk = int(block(1:nblock))
-            if (nblock == 0) then
-                call fit_least_squares(model, y, sig, real(params0, dp), int(free_idx), lower, &
-                                       upper, prior, opts, res, stat)
+            if (use_cov /= 0) then
+                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
+                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
             else
-                if (any(blk < 1 .or. blk > nparams)) then
-                    call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
-                                    'outside 1..nparams')
-                end if
-                if (stat%code == STATUS_OK) call fit_at(model, y, sig, real(params0, dp), &
-                    int(free_idx), lower, upper, prior, opts, base, stat)
-                if (stat%code == STATUS_OK) call score_test(model, y, sig, base%params, &
-                    base%free, lower, upper, prior, blk, opts, score, stat)
-                if (stat%code == STATUS_OK) then
-                    call refit_effect(model, y, sig, base, blk, score, real(nominal, dp), nulls, &
-                                      lower, upper, prior, opts, res, rinfo, stat, &
-                                      use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
-                    info(2) = int(rinfo%start, c_int)
-                    note = rinfo%note
-                end if
+                call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
             end if
         end if
+        if (stat%code == STATUS_OK .and. nblock == 0) then
+            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
+                                   real(params0, dp), int(free_idx), model%lower, model%upper, &
+                                   prior, opts, res, stat)
+            if (allocated(res%note)) note = res%note
+        else if (stat%code == STATUS_OK .and. model%has_dynamic) then
+            call null_side_init(int(nbeams), model, side)
+            call add_effect(side)
+        else if (stat%code == STATUS_OK) then
+            call add_effect(model)
+        end if
         call status_out(stat, code, message)
+        if (nblock == 0 .and. stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
         if (.not. allocated(res%params)) return
         info(1) = int(res%stop, c_int)
-        if (nblock == 0 .and. allocated(res%note)) note = res%note
-        if (stat%code == STATUS_OK .and. allocated(res%note) .and. nblock == 0) message = res%note
         if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
         call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                       log_cost, log_lambda, log_step, log_params)
-    end subroutine api_fit_effect
-
-    !> Diagnose a fit of static experiments (fits with releases: the one
-    !! binding of the dynamic diagnosis, beamid_api_dyndiag
-    !! api_problem_diagnose): the base fit is evaluated at `params0` (the
-    !! estimates; not refitted), then every candidate block
-    !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
-    !! leading ones refitted (beamid_estimation::diagnose, from the
-    !! first-order estimate, from the user's starting values `nominal` and by
-    !! continuation). Result columns by name: api_code_names tables 6-8
-    !! (cstats 18 values per candidate, pstats 6 per candidate parameter,
-    !! dstats 6). For every candidate the start its refit kept
-    !! (refit_start, START_* of beamid_estimation, 0 when none converged or
-    !! no refit was made) and what the refit starts gave: `notes` holds one
-    !! line per candidate (newline-separated, empty without a refit).
-    subroutine api_diagnose_nominal(nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
-                                    prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
-                                    exp_values, nrow, row_exp, row_q, row_value, row_sigma, tol, &
-                                    max_iter, ncand, cand_start, ncandp, cand_params, alpha, &
-                                    nrefit, ambiguity_delta, collinear, cstats, pstats, &
-                                    refit_params, ranking, cosine, dstats, refit_start, notes, &
-                                    code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(4, nexp), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol
-        integer(c_int), intent(in) :: ncand, ncandp, nrefit
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
-        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
-        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
-        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
-        real(c_double), intent(out) :: dstats(6)
-        character(len=8192), intent(out) :: notes
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(inverse_problem_t) :: model
-        type(status_t) :: stat
-        call static_problem(nbeams, nexp, exp_kind, exp_values, nrow, row_exp, row_q, tol, &
-                            model, stat)
-        call diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
-                           prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
-                           row_exp, row_q, row_value, row_sigma, tol, max_iter, 0.0_c_double, &
-                           0.0_c_double, ncand, cand_start, ncandp, cand_params, alpha, nrefit, &
-                           ambiguity_delta, collinear, cstats, pstats, refit_params, ranking, &
-                           cosine, dstats, refit_start, notes, code, message)
-    end subroutine api_diagnose_nominal
-
-    subroutine diagnose_core(model, stat, nbeams, nparams, params0, nominal, nfree, free_idx, nprior, &
-                             prior_idx, prior_mean, prior_sigma, nexp, exp_kind, exp_values, &
-                             nrow, row_exp, row_q, row_value, row_sigma, tol, max_iter, &
-                             tol_step, tol_cost, ncand, cand_start, ncandp, cand_params, alpha, &
-                             nrefit, ambiguity_delta, collinear, cstats, pstats, refit_params, &
-                             ranking, cosine, dstats, refit_start, notes, code, message)
-        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(:, :), row_value(nrow), row_sigma(nrow)
-        real(c_double), intent(in) :: tol, tol_step, tol_cost
-        integer(c_int), intent(in) :: ncand, ncandp, nrefit
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
-        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
-        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
-        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
-        real(c_double), intent(out) :: dstats(6)
-        character(len=8192), intent(out) :: notes
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        !> the problem (built by the caller; stat: how that went)
-        type(inverse_problem_t), intent(inout) :: model
-        type(status_t), intent(inout) :: stat
-        type(fit_options_t) :: opts
-        type(diagnose_options_t) :: dopts
-        type(fit_result_t) :: base
-        type(prior_t) :: prior
-        type(diagnosis_t) :: diag
-        type(candidate_t), allocatable :: cands(:)
-        integer, allocatable :: pexp(:), pq(:)
-        character(len=:), allocatable :: text
-        integer :: c, k, j, nf, r
-
-        cstats = 0.0_c_double
-        pstats = 0.0_c_double
-        refit_params = 0.0_c_double
-        cosine = 0.0_c_double
-        ranking = 0
-        refit_start = 0
-        dstats = 0.0_c_double
-        notes = ''
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, tol_step, tol_cost, opts)
-            prior%index = int(prior_idx(1:nprior))
-            prior%mean = real(prior_mean(1:nprior), dp)
-            prior%sigma = real(prior_sigma(1:nprior), dp)
-            allocate (cands(ncand))
-            do c = 1, ncand
-                cands(c)%name = 'candidate'
-                cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
-            end do
-            dopts%alpha = alpha
-            dopts%nrefit = int(nrefit)
-            dopts%ambiguity_delta = ambiguity_delta
-            dopts%collinear = collinear
-            call inverse_diagnose(model, real(row_value, dp), real(row_sigma, dp), &
-                                  real(params0, dp), real(nominal, dp), int(free_idx), prior, &
-                                  cands, opts, dopts, base, diag, pexp, pq, stat)
-        end if
-        call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK) return
-        nf = size(base%free)
-        text = ''
-        do c = 1, ncand
-            associate (cr => diag%cand(c))
-                r = cr%separating_row
-                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
-                                real(cr%score%dof, dp), b2r(cr%score%physical), &
-                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
-                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
-                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
-                                real(merge(pexp(max(r, 1)), 0, r > 0), dp), &
-                                real(merge(pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
-                if (cr%refit_ok) then
-                    cstats(17, c) = cr%refit%chi2
-                    cstats(18, c) = cr%refit%chi2_prior
-                    refit_params(:, c) = cr%refit%params
-                end if
-                refit_start(c) = int(cr%info%start, c_int)
-                if (c > 1) text = text//new_line('a')
-                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
-                do j = 1, cand_start(c + 1) - cand_start(c)
-                    k = cand_start(c) + j - 1
-                    if (allocated(cr%score%estimate)) then
-                        pstats(1:3, k) = [cr%score%estimate(j), cr%score%sigma(j), &
-                                          b2r(cr%score%active(j))]
-                    end if
-                    if (cr%refit_ok) then
-                        pstats(4:6, k) = [cr%refit%params(cands(c)%params(j)), &
-                                          cr%refit%sigmas(nf + j), real(cr%refit%flags(nf + j), dp)]
-                    end if
-                end do
-            end associate
-        end do
-        notes = text
-        ranking = int(diag%ranking, c_int)
-        cosine = diag%cosine
-        dstats = [real(diag%verdict, dp), real(diag%ntested, dp), diag%alpha_each, base%chi2, &
-                  base%chi2_prior, real(base%dof, dp)]
     contains
-        pure real(dp) function b2r(flag)
-            logical, intent(in) :: flag
-            b2r = merge(1.0_dp, 0.0_dp, flag)
-        end function b2r
-    end subroutine diagnose_core
+        !> fit_at, score_test, refit_effect on `m` (the problem, or its
+        !! one-sided wrapper), with the problem's bounds and null values
+        subroutine add_effect(m)
+            class(residual_model_t), intent(inout) :: m
+            type(fit_result_t) :: base
+            type(score_result_t) :: score
+            real(dp), allocatable :: y(:), sig(:)
+            integer :: k
+            y = real(row_value, dp)
+            sig = real(row_sigma, dp)
+            call fit_at(m, y, sig, real(params0, dp), int(free_idx), model%lower, model%upper, &
+                        prior, opts, base, stat)
+            if (stat%code == STATUS_OK) call score_test(m, y, sig, base%params, base%free, &
+                model%lower, model%upper, prior, int(block(1:nblock)), opts, score, stat)
+            if (stat%code /= STATUS_OK) return
+            call refit_effect(m, y, sig, base, int(block(1:nblock)), score, real(nominal, dp), &
+                              model%nulls, model%lower, model%upper, prior, opts, res, rinfo, &
+                              stat, use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
+            info(2) = int(rinfo%start, c_int)
+            if (allocated(rinfo%note)) note = rinfo%note
+        end subroutine add_effect
+    end subroutine api_fit_effect
 
     !> The experiments of an estimation deck in beamid_inverse's layout
     !! (kind 1 tip, 2 wire, 3 release; exp_values(:, e) EV_*), nexp of them
@@ -630,25 +395,352 @@ contains
         jac(:, 1:nwrt) = j
     end subroutine api_problem_predict
 
-    !> api_fit_effect (nblock = 0) on any mix of experiment families, with
-    !! a priori information either independent (use_cov = 0: mean, sigma) or
-    !! a full covariance prior_cov of the prior parameters (use_cov = 1: a
-    !! previous fit carried forward, Eq. 146-148, 164-166).
-    subroutine api_problem_fit(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                               prior_mean, prior_sigma, use_cov, prior_cov, nexp, exp_kind, &
-                               exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
-                               tol, max_iter, params, sigmas, cov, corr, flags, predictions, &
-                               normalized, stats, log_cost, log_lambda, log_step, log_params, &
-                               info, code, message, note)
+    subroutine make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
+        integer(c_int), intent(in) :: nprior
+        integer(c_int), intent(in) :: prior_idx(:)
+        real(c_double), intent(in) :: prior_mean(:), prior_sigma(:)
+        type(prior_t), intent(out) :: prior
+        prior%index = int(prior_idx(1:nprior))
+        prior%mean = real(prior_mean(1:nprior), dp)
+        prior%sigma = real(prior_sigma(1:nprior), dp)
+    end subroutine make_prior
+
+    !> The problem of beamid_ladder from a binding's arrays (a priori arrays
+    !! with their unused trailing entry).
+    subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                            row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, &
+                            max_iter, pb)
+        integer(c_int), intent(in) :: nbeams, nprior, max_iter
+        integer(c_int), intent(in) :: exp_kind(:), row_exp(:), row_q(:), prior_idx(:)
+        real(c_double), intent(in) :: exp_values(:, :), row_t(:), row_value(:), row_sigma(:)
+        real(c_double), intent(in) :: tol, prior_mean(:), prior_sigma(:)
+        type(problem_t), intent(out) :: pb
+        pb%nbeams = int(nbeams)
+        pb%exp_kind = int(exp_kind)
+        pb%exp_values = real(exp_values, dp)
+        pb%row_exp = int(row_exp)
+        pb%row_t = real(row_t, dp)
+        pb%row_q = int(row_q)
+        pb%y = real(row_value, dp)
+        pb%sigma = real(row_sigma, dp)
+        pb%tol = real(tol, dp)
+        call make_prior(nprior, prior_idx, prior_mean, prior_sigma, pb%prior)
+        if (max_iter > 0) pb%max_iter = int(max_iter)
+    end subroutine make_problem
+
+    !> The candidate blocks cand_params(cand_start(c):cand_start(c+1)-1),
+    !! named by their number c (the front names them).
+    function make_cands(cand_start, cand_params, with_mesh) result(cs)
+        integer(c_int), intent(in) :: cand_start(:), cand_params(:), with_mesh
+        type(cand_set_t) :: cs
+        integer :: c
+        allocate (cs%cands(size(cand_start) - 1), cs%names(size(cand_start) - 1))
+        do c = 1, size(cs%cands)
+            cs%names(c) = fmt_int(c)
+            cs%cands(c)%name = trim(cs%names(c))
+            cs%cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
+        end do
+        cs%with_mesh = with_mesh /= 0
+    end function make_cands
+
+    !> Structure in time of one series of normalized residuals
+    !! (beamid_dyn_diagnosis time_structure; out layout there).
+    subroutine api_time_structure(n, t, r, out)
+        integer(c_int), intent(in) :: n
+        real(c_double), intent(in) :: t(n), r(n)
+        real(c_double), intent(out) :: out(10)
+        real(dp) :: o(10)
+        call time_structure(real(t, dp), real(r, dp), o)
+        out = o
+    end subroutine api_time_structure
+
+    !> Diagnose a fit (beamid_ladder problem_diagnose: with release
+    !! experiments beamid_dyn_diagnosis, of static experiments alone the
+    !! static diagnosis). The base fit is evaluated at `params0` (the
+    !! estimates; not refitted), every candidate block
+    !! cand_params(cand_start(c):cand_start(c+1)-1) is score-tested and the
+    !! leading ones refitted (from the first-order estimate, from the user's
+    !! starting values `nominal` and by continuation). Outputs: copy_diag.
+    subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
+                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
+                                    exp_values, nrow, row_exp, row_t, row_q, row_value, &
+                                    row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                    cand_params, alpha, nrefit, ambiguity_delta, collinear, &
+                                    with_mesh, cstats, pstats, refit_params, ranking, cosine, &
+                                    dstats, refit_start, sep_t, mstats, mesh_params, kept, &
+                                    notes, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        integer(c_int), intent(in) :: use_cov
-        real(c_double), intent(in) :: params0(nparams)
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
         integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
+        integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
+        real(c_double), intent(out) :: mesh_params(nparams)
+        integer(c_int), intent(out) :: kept(ncandp + 1)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        type(problem_t) :: pb
+        type(fit_options_t) :: opts
+        type(diagnose_options_t) :: dopts
+        type(diag_out_t) :: dg
+        type(cand_set_t) :: cs
+
+        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, 0, pb)
+        cs = make_cands(cand_start, cand_params, with_mesh)
+        if (max_iter > 0) opts%max_iter = int(max_iter)
+        dopts%alpha = alpha
+        dopts%nrefit = int(nrefit)
+        dopts%ambiguity_delta = ambiguity_delta
+        dopts%collinear = collinear
+        call problem_diagnose(pb, real(params0, dp), int(free_idx), real(nominal, dp), cs, &
+                              opts, dopts, dg, stat)
+        call status_out(stat, code, message)
+        call copy_diag(dg, cs, stat%code == STATUS_OK, real(params0, dp), cstats, pstats, &
+                       refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                       mesh_params, kept, notes)
+    end subroutine api_problem_diagnose
+
+    !> The outputs of a diagnosis (zero when `ok` is false): cstats 18 values
+    !! per candidate, pstats 6 per candidate parameter, dstats 6 (names:
+    !! api_code_names tables 6-8); candidate state 4 (CAND_NOT_SEEN) for
+    !! effects the data rows do not see; refit_start(c) the start the refit
+    !! kept (START_*, 0: none); sep_t(c) the time of the probe row separating
+    !! rival c from the verdict; mstats the mesh test (table 9), mesh_params
+    !! its refined refit's parameters (else `params`); kept(k) 1: the
+    !! candidate parameter was tested, 0: left at null (not needed or not
+    !! determined), 2: left at null although about as good alone as the
+    !! member tested; `notes` one line per candidate (what the refit starts
+    !! gave, newline-separated).
+    subroutine copy_diag(dg, cs, ok, params, cstats, pstats, refit_params, ranking, cosine, &
+                         dstats, refit_start, sep_t, mstats, mesh_params, kept, notes)
+        type(diag_out_t), intent(in) :: dg
+        type(cand_set_t), intent(in) :: cs
+        logical, intent(in) :: ok
+        real(dp), intent(in) :: params(:)
+        real(c_double), intent(out) :: cstats(:, :), pstats(:, :), refit_params(:, :)
+        real(c_double), intent(out) :: cosine(:, :), dstats(:), sep_t(:), mstats(:)
+        real(c_double), intent(out) :: mesh_params(:)
+        integer(c_int), intent(out) :: ranking(:), refit_start(:), kept(:)
+        character(len=*), intent(out) :: notes
+        character(len=:), allocatable :: text
+        integer :: c, k, j, nf, r, u
+
+        cstats = 0.0_c_double
+        pstats = 0.0_c_double
+        refit_params = 0.0_c_double
+        cosine = 0.0_c_double
+        ranking = 0
+        refit_start = 0
+        dstats = 0.0_c_double
+        sep_t = 0.0_c_double
+        mstats = 0.0_c_double
+        mesh_params = params
+        kept = 0
+        notes = ''
+        if (.not. ok) return
+        nf = size(dg%base%free)
+        text = ''
+        k = 0
+        do c = 1, size(cs%cands)
+            associate (cr => dg%diag%cand(c))
+                r = cr%separating_row
+                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
+                                real(cr%score%dof, dp), b2r(cr%score%physical), &
+                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
+                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
+                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
+                                real(merge(dg%pexp(max(r, 1)), 0, r > 0), dp), &
+                                real(merge(dg%pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
+                if (r > 0) sep_t(c) = dg%pt(r)
+                if (cr%refit_ok) then
+                    cstats(17, c) = cr%refit%chi2
+                    cstats(18, c) = cr%refit%chi2_prior
+                    refit_params(:, c) = cr%refit%params
+                end if
+                refit_start(c) = int(cr%info%start, c_int)
+                if (c > 1) text = text//new_line('a')
+                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
+                do j = 1, size(cs%cands(c)%params)
+                    k = k + 1
+                    ! position of this parameter in the block as tested
+                    u = findloc(dg%used(c)%params, cs%cands(c)%params(j), 1)
+                    if (u == 0 .and. any(dg%ambiguous == cs%cands(c)%params(j))) kept(k) = 2
+                    if (u == 0) cycle
+                    kept(k) = 1
+                    if (allocated(cr%score%estimate)) then
+                        pstats(1:3, k) = [cr%score%estimate(u), cr%score%sigma(u), &
+                                          b2r(cr%score%active(u))]
+                    end if
+                    if (cr%refit_ok) then
+                        pstats(4:6, k) = [cr%refit%params(dg%used(c)%params(u)), &
+                                          cr%refit%sigmas(nf + u), &
+                                          real(cr%refit%flags(nf + u), dp)]
+                    end if
+                end do
+            end associate
+        end do
+        notes = text
+        ranking = int(dg%diag%ranking, c_int)
+        cosine = dg%diag%cosine
+        dstats = [real(dg%diag%verdict, dp), real(dg%diag%ntested, dp), dg%diag%alpha_each, &
+                  dg%base%chi2, dg%base%chi2_prior, real(dg%base%dof, dp)]
+        associate (m => dg%mesh)
+            mstats = [b2r(m%done), b2r(m%ok), real(m%nepb, dp), real(m%recommended, dp), &
+                      m%chi2, m%drop, m%p_value, m%max_change, real(m%max_row, dp), &
+                      b2r(m%significant)]
+            if (allocated(m%params)) mesh_params = m%params
+        end associate
+    contains
+        pure real(dp) function b2r(flag)
+            logical, intent(in) :: flag
+            b2r = merge(1.0_dp, 0.0_dp, flag)
+        end function b2r
+    end subroutine copy_diag
+
+    !> Start the improve ladder (beamid_ladder ladder_start; the ladder of
+    !! improve_ladder, as beamid-batch runs it): fit params0(free_idx); then
+    !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
+    !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
+    !! per call, until none is significant at alpha or max_steps rungs were
+    !! added.
+    subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
+                                prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
+                                row_exp, row_t, row_q, row_value, row_sigma, tol, max_iter, &
+                                ncand, cand_start, ncandp, cand_params, with_mesh, alpha, &
+                                max_steps, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        real(c_double), intent(in) :: alpha
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        type(problem_t) :: pb
+        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, max_iter, &
+                          pb)
+        call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
+                          make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
+                          int(max_steps), stat)
+        call status_out(stat, code, message)
+    end subroutine api_ladder_start
+
+    !> Start the improve ladder of an estimation deck as beamid-batch runs
+    !! it (deck_problem, deck_candidates; candidates named by their effect):
+    !! step it with api_ladder_step, write its files with
+    !! api_deck_ladder_write.
+    subroutine api_deck_ladder_start(path, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(cand_set_t) :: cs
+        type(status_t) :: stat
+        lad%done = .true.
+        lad%n = 0
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) call deck_candidates(d, cs, stat)
+        if (stat%code == STATUS_OK) &
+            call ladder_start(lad, deck_problem(d), d%params, d%free, cs, d%alpha, &
+                              size(d%candidates), stat)
+        call status_out(stat, code, message)
+    end subroutine api_deck_ladder_start
+
+    !> One rung of the ladder started last (beamid_ladder ladder_step):
+    !! nrung rungs are done; done = 1 when the ladder has ended.
+    subroutine api_ladder_step(nrung, done, code, message)
+        integer(c_int), intent(out) :: nrung, done, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        call ladder_step(lad, stat)
+        nrung = int(lad%n, c_int)
+        done = merge(1_c_int, 0_c_int, lad%done)
+        call status_out(stat, code, message)
+    end subroutine api_ladder_step
+
+    !> Write the files of the deck at `path` (task improve, all or none,
+    !! beamid_tasks run_task: the bytes beamid-batch writes) from the ladder
+    !! api_deck_ladder_start started on it and api_ladder_step ended;
+    !! `written`: the files, one per line.
+    subroutine api_deck_ladder_write(path, written, code, message)
+        character(len=*), intent(in) :: path
+        character(len=65536), intent(out) :: written
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: files
+        written = ''
+        if (.not. lad%done .or. lad%n < 1) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+                            'api_deck_ladder_start and api_ladder_step first)')
+        else
+            call read_deck(trim(path), d, stat)
+            if (stat%code == STATUS_OK) call deck_set_task(d, 'improve', stat)
+            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
+            if (stat%code == STATUS_OK) written = files
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_deck_ladder_write
+
+    !> Rung k of the ladder started last: effect ('start', the number of the
+    !! candidate added, or 'mesh (N elements per beam)'), info = [free
+    !! parameters, elements per beam of the releases (0: as given), the
+    !! start the verdict's refit kept (START_*), data rows, the fits' iteration
+    !! limit], the free parameters free_idx (an
+    !! argument named `free` would shadow C's free() in f2py's wrapper), those
+    !! the rung switched on and those it set back (index lists ended by 0),
+    !! where its fit started and the nominal model of its refits.
+    subroutine api_ladder_rung(k, nparams, info, free_idx, added, removed, start, nominal, effect, &
+                               code, message)
+        integer(c_int), intent(in) :: k, nparams
+        integer(c_int), intent(out) :: info(5), free_idx(nparams + 1), added(nparams + 1)
+        integer(c_int), intent(out) :: removed(nparams + 1)
+        real(c_double), intent(out) :: start(nparams), nominal(nparams)
+        character(len=64), intent(out) :: effect
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        info = 0
+        free_idx = 0
+        added = 0
+        removed = 0
+        start = 0.0_c_double
+        nominal = 0.0_c_double
+        effect = ''
+        if (.not. rung_ok(k, code, message)) return
+        associate (r => lad%rungs(k))
+            info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
+            free_idx(:size(r%fit%free)) = r%fit%free
+            added(:size(r%params)) = r%params
+            removed(:size(r%removed)) = r%removed
+            start = r%start
+            nominal = r%nominal
+            effect = r%effect
+        end associate
+    end subroutine api_ladder_rung
+
+    !> The fit of rung k of the ladder started last (outputs as api_fit_effect).
+    subroutine api_ladder_fit(k, nparams, nfree, nrow, max_iter, params, sigmas, cov, corr, &
+                              flags, predictions, normalized, stats, log_cost, log_lambda, &
+                              log_step, log_params, info, code, message, note)
+        integer(c_int), intent(in) :: k, nparams, nfree, nrow, max_iter
         real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
         real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
         integer(c_int), intent(out) :: flags(nfree), info(2)
@@ -658,56 +750,65 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        type(inverse_problem_t) :: model
-        type(status_t) :: stat
-        type(fit_options_t) :: opts
-        type(fit_result_t) :: res
-        type(prior_t) :: prior
-        real(dp), allocatable :: lower(:), upper(:)
-        integer :: n
-
-        params = params0
-        sigmas = 0.0_c_double
-        cov = 0.0_c_double
-        corr = 0.0_c_double
-        flags = 0
-        predictions = 0.0_c_double
-        normalized = 0.0_c_double
-        stats = 0.0_c_double
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
+        params = 0.0_c_double
+        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                       log_lambda, log_step, log_params)
         info = 0
         note = ''
-        n = int(nprior)
-        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat)
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            if (use_cov /= 0) then
-                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
-                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
-            else
-                prior%index = int(prior_idx(1:n))
-                prior%mean = real(prior_mean(1:n), dp)
-                prior%sigma = real(prior_sigma(1:n), dp)
+        if (.not. rung_ok(k, code, message)) return
+        associate (f => lad%rungs(k)%fit)
+            info(1) = int(f%stop, c_int)
+            if (allocated(f%note)) note = f%note
+            if (allocated(f%note)) message = f%note
+            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                          log_cost, log_lambda, log_step, log_params)
+        end associate
+    end subroutine api_ladder_fit
+
+    !> The diagnosis of rung k of the ladder started last (outputs as
+    !! api_problem_diagnose).
+    subroutine api_ladder_diag(k, nparams, ncand, ncandp, cstats, pstats, refit_params, ranking, &
+                               cosine, dstats, refit_start, sep_t, mstats, mesh_params, kept, &
+                               notes, code, message)
+        integer(c_int), intent(in) :: k, nparams, ncand, ncandp
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
+        real(c_double), intent(out) :: mesh_params(nparams)
+        integer(c_int), intent(out) :: kept(ncandp + 1)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(diag_out_t) :: none
+        type(status_t) :: stat
+        if (rung_ok(k, code, message)) then
+            if (size(lad%cs%cands) == ncand .and. size(lad%rungs(k)%fit%params) == nparams) then
+                call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
+                               pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                               mstats, mesh_params, kept, notes)
+                return
             end if
+            call set_status(stat, ERR_INPUT, 'ladder', 'ncand or nparams differ from the '// &
+                            'ladder started last')
+            call status_out(stat, code, message)
         end if
-        if (stat%code == STATUS_OK) then
-            call static_bounds(int(nbeams), lower, upper)
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), lower, upper, prior, opts, &
-                                   res, stat)
-        end if
+        call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
+                       pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                       mesh_params, kept, notes)
+    end subroutine api_ladder_diag
+
+    !> Is k a rung of the ladder started last? (else ERR_INPUT naming k)
+    logical function rung_ok(k, code, message)
+        integer(c_int), intent(in) :: k
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        integer :: n
+        n = lad%n
+        rung_ok = k >= 1 .and. k <= n
+        if (.not. rung_ok) call set_status(stat, ERR_INPUT, 'ladder', 'rung '// &
+            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
         call status_out(stat, code, message)
-        if (.not. allocated(res%params)) return
-        info(1) = int(res%stop, c_int)
-        if (allocated(res%note)) note = res%note
-        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
-        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
-        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                      log_cost, log_lambda, log_step, log_params)
-    end subroutine api_problem_fit
+    end function rung_ok
 end module beamid_api_estimation

@@ -1,9 +1,11 @@
-"""The only module that calls the extension for estimation and diagnosis.
+"""The only module that calls the extension for estimation, diagnosis and
+the improve ladder.
 
-A static estimation problem crosses the boundary as plain arrays (see
-``fortran/api/beamid_api_estimation.f90``): experiments as load kinds and
-``(fx, fy, moment, wire_length)`` columns, data rows as (experiment index,
-quantity code, value, sigma), 1-based parameter indices.
+An estimation problem (any mix of static and release experiments) crosses
+the boundary as plain arrays (see ``fortran/api/beamid_api_estimation.f90``):
+experiments as kinds and NEXPVAL value columns, data rows as (experiment
+index, t, quantity code, value, sigma), 1-based parameter indices. Result
+arrays are read by the column names the Fortran exports (CSTATS and friends).
 
 The calling convention is :func:`beamid._core._call` (the status is the
 last two results; a bad one raises). Fits are the exception that
@@ -17,15 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
-from ._core import _call
+from ._core import _call, _path, _text, quantity_labels
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
 
-#: Quantity codes of the Fortran core (beamid_static_experiments).
-QUANTITY_CODES = {"x_tip": 1, "y_tip": 2, "tip_angle": 3, "wire_force": 4,
-                  "x_elbow": 5, "y_elbow": 6, "u_tip": 7, "w_tip": 8, "motor_torque": 9}
-QUANTITY_NAMES = {v: k for k, v in QUANTITY_CODES.items()}
+#: Quantity codes of the Fortran core (beamid_static_experiments' one table).
+QUANTITY_NAMES = dict(enumerate(quantity_labels(), start=1))
+QUANTITY_CODES = {v: k for k, v in QUANTITY_NAMES.items()}
 
 
 @dataclass(frozen=True)
@@ -89,17 +90,8 @@ def problem_fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx:
     """Weighted Gauss-Newton/LM fit of any mix of experiment families; with
     ``prior_cov`` the a priori information is a full covariance (a previous
     fit carried forward, Eq. 146-148). Same dict and errors as :func:`fit`."""
-    free = np.asarray(free, dtype=np.int32)
-    n = len(prior_idx)
-    cov = np.zeros((n + 1, n + 1))
-    if prior_cov is not None:
-        cov[:n, :n] = prior_cov
-    return _fit_call(_api.api_problem_fit, free.size, False,
-                     prob.nbeams, np.asarray(params0, float), free, _pad(prior_idx, np.int32),
-                     _pad(prior_mean, float), _pad(prior_sigma, float),
-                     int(prior_cov is not None), np.asfortranarray(cov), prob.exp_kind,
-                     _mixed_values(prob), prob.row_exp, _row_t(prob), prob.row_q,
-                     prob.row_value, prob.row_sigma, float(prob.tol), int(max_iter))
+    return fit(prob, params0, free, prior_idx, prior_mean, prior_sigma, max_iter=max_iter,
+               prior_cov=prior_cov)
 
 
 def _msg(message: bytes | str) -> str:
@@ -123,13 +115,8 @@ def chi2_sf(x: float, k: int) -> float:
     return float(_api.api_chi2_sf(float(x), int(k)))
 
 
-def predict(prob: Problem, params: np.ndarray, wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Predictions of the data rows and d/d params(wrt) (wrt 1-based)."""
-    wrt = np.asarray(wrt, dtype=np.int32)
-    pred, jac = _call(_api.api_static_predict, prob.nbeams, np.asarray(params, float),
-                      prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, wrt,
-                      float(prob.tol))
-    return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
+#: predictions and d/d params(wrt) of the data rows (one binding for every family)
+predict = problem_predict
 
 
 def code_names(table: int) -> dict[int, str]:
@@ -215,56 +202,150 @@ def _fit_call(entry, n: int, refit: bool, *args) -> dict:
 def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
         block: np.ndarray | None = None, nominal: np.ndarray | None = None,
-        start_mask: int = 0) -> dict:
+        start_mask: int = 0, prior_cov: np.ndarray | None = None) -> dict:
     """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
     at ``params0`` with the parameters ``block`` freed as well, from the
     first-order estimate, from ``nominal`` and by continuation (1-based
     indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
-    continuation starts, 0 all). Returns a dict of arrays; a fit that stalls or whose
-    parameter runs away comes back with ``stop`` and ``note`` saying so.
-    Raises ConvergenceError (with the partial result in ``exc.partial``)
-    when still moving at ``max_iter`` or when no refit start converged."""
+    continuation starts, 0 all); ``prior_cov``: see :func:`problem_fit`.
+    Returns a dict of arrays; a fit that stalls or whose parameter runs away
+    comes back with ``stop`` and ``note`` saying so. Raises ConvergenceError
+    (with the partial result in ``exc.partial``) when still moving at
+    ``max_iter`` or when no refit start converged."""
     free = np.asarray(free, dtype=np.int32)
     block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
+    n = len(prior_idx)
+    cov = np.zeros((n + 1, n + 1))
+    if prior_cov is not None:
+        cov[:n, :n] = prior_cov
     return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
                      prob.nbeams, params0, free, _pad(block, np.int32), nominal,
                      _pad(prior_idx, np.int32), _pad(prior_mean, float),
-                     _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-                     prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-                     int(max_iter), int(start_mask))
+                     _pad(prior_sigma, float), int(prior_cov is not None),
+                     np.asfortranarray(cov), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+                     _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+                     float(prob.tol), int(max_iter), int(start_mask))
 
 
-def diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-             prior_mean: np.ndarray, prior_sigma: np.ndarray,
-             blocks: list[np.ndarray], alpha: float, nrefit: int, ambiguity_delta: float,
-             collinear: float, max_iter: int = 50, nominal: np.ndarray | None = None) -> dict:
-    """Score tests, refits and ranking of candidate blocks (1-based indices);
-    the refits also start from ``nominal`` (default ``params0``)."""
+def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
+    """Structure in time of one series of normalized residuals: [runs,
+    expected runs, runs z, runs p, lag-1 autocorrelation, its z, its p,
+    amplitude slope (1/s), its z, its p] (NaN where undefined)."""
+    return np.array(_api.api_time_structure(np.ascontiguousarray(t, dtype=float),
+                                            np.ascontiguousarray(normalized, dtype=float)))
+
+
+def _blocks(blocks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate blocks as (starts, flat parameter list + 1 unused entry)."""
     starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
-    flat = (np.concatenate([np.asarray(b, np.int32) for b in blocks]).astype(np.int32)
-            if blocks and sum(len(b) for b in blocks) else np.zeros(0, np.int32))
-    params0 = np.asarray(params0, float)
-    nominal = params0 if nominal is None else np.asarray(nominal, float)
-    # static experiments only: fits with releases go through the dynamic
-    # diagnosis (beamid._core_dyndiag.problem_diagnose)
-    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, notes) = _call(
-        _api.api_diagnose_nominal, prob.nbeams, params0, nominal, np.asarray(free, np.int32),
-        _pad(prior_idx, np.int32), _pad(prior_mean, float), _pad(prior_sigma, float),
-        prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_q, prob.row_value,
-        prob.row_sigma, float(prob.tol), int(max_iter), starts, _pad(flat, np.int32),
-        float(alpha), int(nrefit), float(ambiguity_delta), float(collinear))
-    nc = len(blocks)
+    flat = [np.asarray(b, np.int32) for b in blocks]
+    return starts, _pad(np.concatenate(flat) if flat else np.zeros(0), np.int32)
+
+
+def _diag_dict(out, starts: np.ndarray) -> dict:
+    """The dict of :func:`problem_diagnose` from the outputs of a diagnosis entry."""
+    (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
+     mesh_params, kept, notes) = out
+    nc = starts.size - 1
     lines = _msg(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
     return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
             "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
             "refit_params": np.array(refit_params).reshape(-1, nc),
-            "ranking": np.array(ranking, dtype=int) - 1, "cosine": np.array(cosine).reshape(nc, nc),
-            "dstats": Columns(np.array(dstats), DSTATS), "starts": starts - 1,
-            "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
+            "ranking": np.array(ranking, dtype=int) - 1,
+            "cosine": np.array(cosine).reshape(nc, nc),
+            "dstats": Columns(np.array(dstats), DSTATS),
+            "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
+            "sep_t": np.array(sep_t), "mstats": Columns(np.array(mstats), MSTATS),
+            "mesh_params": np.array(mesh_params),
+            "kept": np.array(kept, dtype=int)[:-1] == 1,
+            "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
             "notes": [line.strip() for line in lines[:nc]]}
+
+
+def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
+                     prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
+                     blocks: list[np.ndarray], alpha: float, nrefit: int,
+                     ambiguity_delta: float, collinear: float, nominal: np.ndarray,
+                     with_mesh: bool = False, max_iter: int = 50) -> dict:
+    """Score tests, refits, ranking, unseen candidates and the mesh test of
+    any mix of static and release experiments (1-based indices; static
+    experiments alone: the static diagnosis, every block tested as given);
+    the refits also start from ``nominal``."""
+    starts, flat = _blocks(blocks)
+    return _diag_dict(_call(
+        _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
+        np.asarray(nominal, float), np.asarray(free, np.int32), _pad(prior_idx, np.int32),
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob),
+        prob.row_exp, _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+        float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
+        float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
+
+
+def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
+                 prior_mean: np.ndarray, prior_sigma: np.ndarray, blocks: list[np.ndarray],
+                 with_mesh: bool, alpha: float, max_steps: int, max_iter: int = 50) -> None:
+    """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
+    runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
+    rungs (the extension holds one ladder at a time)."""
+    starts, flat = _blocks(blocks)
+    _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
+          np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
+          _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
+          _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+          int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
+
+
+def deck_ladder_start(path: str) -> None:
+    """Start the improve ladder of an estimation deck as beamid-batch runs it
+    (the deck's problem and candidates, read by the Fortran reader)."""
+    _call(_api.api_deck_ladder_start, _path(path))
+
+
+def ladder_step() -> bool:
+    """Diagnose the ladder's last fit and, unless the ladder ends there, add
+    the verdict's effect and refit (one rung); True once the ladder has
+    ended."""
+    _nrung, done = _call(_api.api_ladder_step)
+    return bool(done)
+
+
+def deck_ladder_write(path: str) -> list[str]:
+    """Write the deck's improve files (all or none, the bytes of beamid-batch)
+    from the ladder :func:`deck_ladder_start` started on it; the files."""
+    written = _call(_api.api_deck_ladder_write, _path(path))
+    return [line for line in _text(written).split("\n") if line]
+
+
+def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
+    """The rungs of the ladder ended by :func:`ladder_step`: per rung a dict
+    with ``effect`` (None for the start, else the candidate's 1-based
+    number or effect name, or ``"mesh (N elements per beam)"``), ``fit``
+    (the dict of :func:`fit`), ``diag`` (of :func:`problem_diagnose`),
+    ``free``, ``params`` (switched on), ``removed`` (set back), ``start``
+    and ``nominal`` (parameter vectors), ``elements_per_beam`` (of the
+    releases, 0: as given) and ``refit_start``."""
+    starts, flat = _blocks(blocks)
+    nrung, _done = _call(_api.api_ladder_step)   # an ended ladder: no step, the count
+    rungs = []
+    for k in range(1, int(nrung) + 1):
+        info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k,
+                                                                     nparams)
+        nfree = int(info[0])
+        effect = _msg(effect).strip()
+        rungs.append({
+            "effect": None if effect == "start" else effect,
+            "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, nparams, nfree,
+                             int(info[3]), int(info[4])),
+            "diag": _diag_dict(_call(_api.api_ladder_diag, k, nparams, starts.size - 1,
+                                     flat.size - 1), starts),
+            "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
+            "removed": removed[removed > 0] - 1, "start": np.array(start),
+            "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
+            "refit_start": START_NAMES.get(int(info[2]))})
+    return rungs
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,

@@ -12,13 +12,13 @@ import dataclasses
 import math
 import os
 import sys
-import tempfile
 import time
 import traceback
 from pathlib import Path
 from typing import Sequence
 
-from .errors import BeamidError, InputError, OutputError
+from .decks import _write_all
+from .errors import BeamidError, InputError
 
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)
 EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
@@ -183,41 +183,6 @@ def simulate_command(args: argparse.Namespace):
     if args.output is not None:
         prefix = Path(args.output)
     return source, model, load, t_out, opts, prefix
-
-
-def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
-    """Write every output through a temporary file in its folder and rename
-    them only when all are written: all files or none (exit code 4)."""
-    temps: list[tuple[str, Path]] = []
-    try:
-        for path, write in outputs:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
-                                       suffix=path.suffix)
-            os.close(fd)
-            temps.append((tmp, path))
-            write(tmp)
-            os.chmod(tmp, 0o666 & ~_umask())
-        for tmp, path in temps:
-            os.replace(tmp, path)
-    except OSError as exc:
-        for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        raise OutputError(f"cannot write {exc.filename or path}: {exc.strerror or exc}") \
-            from None
-    except BaseException:
-        for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        raise
-    return [path for _, path in temps]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:

@@ -22,8 +22,8 @@ import f90nml
 
 from ._deck_common import Published, check_path as _check_path, load as _load
 from ._deck_common import published as _published, run_files
-from .errors import InputError
-from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, _result
+from .errors import OutputError
+from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, run_fit_deck
 from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
@@ -122,7 +122,7 @@ def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     groups["static"] = static
     nml = f90nml.Namelist(groups)
     nml.float_format = ".17g"
-    _atomic_write(Path(path), str(nml) + "\n")
+    _write_all([(Path(path), lambda tmp: Path(tmp).write_text(str(nml) + "\n"))])
 
 
 def history_columns(nbeams: int) -> tuple[str, ...]:
@@ -135,31 +135,30 @@ def history_columns(nbeams: int) -> tuple[str, ...]:
             *work_names(nbeams), "work", "numerical", "motor_torque")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    """Write text to path through a temporary file, so no half file is left."""
-    path = Path(path)
+def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
+    """Write every output through a temporary file in its folder and rename
+    them only when all are written: all files or none (exit code 4)."""
+    temps: list[tuple[str, Path]] = []
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as exc:
-        error = InputError(f"cannot write {path}: {exc.strerror or exc}")
-        error.exit_code = 4
-        raise error from None
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except OSError as exc:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        error = InputError(f"cannot write {path}: {exc.strerror or exc}")
-        error.exit_code = 4
-        raise error from None
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for path, write in outputs:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                       suffix=path.suffix)
+            os.close(fd)
+            temps.append((tmp, path))
+            write(tmp)
+            os.chmod(tmp, 0o666 & ~_umask())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    except BaseException as exc:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {exc.filename or path}: "
+                              f"{exc.strerror or exc}") from None
         raise
+    return [path for _, path in temps]
 
 
 def _umask() -> int:
@@ -180,9 +179,9 @@ def run(deck: Deck | str | os.PathLike):
     """
     if not isinstance(deck, (Deck, FitDeck)):
         deck = read_deck(_check_path(deck, "deck"))
+    if isinstance(deck, FitDeck):   # (improve: its ladder runs once, for files and result)
+        return run_fit_deck(deck, plots=False)[2]
     run_files(deck)
-    if isinstance(deck, FitDeck):
-        return _result(deck)
     if deck.task == "fe_static":
         from . import fe
 

@@ -21,6 +21,7 @@ families (dynamics) add theirs with :func:`register_effect`.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
@@ -30,7 +31,7 @@ import numpy as np
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
-from .estimation import _named, _prior_arrays, _result
+from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
@@ -449,24 +450,43 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(nrefit) < 0:
         raise InputError(f"nrefit = {nrefit}, expected >= 0")
-    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import diagnose_dynamic
-        return diagnose_dynamic(fit, candidates, alpha=alpha, nrefit=nrefit,
-                                ambiguity_delta=ambiguity_delta, collinear=collinear,
-                                nominal=nominal)
     model = fit.model
-    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
-    if not cands:
-        raise InputError("candidates is empty: name at least one effect")
-    effects, names, blocks = _candidate_blocks(model, cands)
+    with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
-    raw = _ce.diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
-                       int(nrefit), ambiguity_delta, collinear, nominal=nominal.vector())
+    raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+                               int(nrefit), ambiguity_delta, collinear, nominal.vector(),
+                               with_mesh)
+    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis names the results
+        from .dyn_diagnosis import _dyn_diagnosis
+        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    return _diagnosis(fit, raw, effects, names, alpha)
+
+
+def _candidate_set(model: Model, experiments, candidates):
+    """(with_mesh, effects, their parameter names, their 1-based blocks) of
+    the candidates asked for (default: the static ones, or with releases
+    beamid.dyn_diagnosis.default_candidates); with releases ``mesh`` is the
+    mesh test, not a block."""
+    dynamic = _dynamic(experiments)
+    if candidates is None and dynamic:
+        from .dyn_diagnosis import default_candidates
+        candidates = default_candidates(experiments)
+    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    if not cands:
+        raise InputError("candidates is empty: name at least one effect")
+    mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
+    return (any(mesh), *_candidate_blocks(model, [c for c, m in zip(cands, mesh) if not m]))
+
+
+def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
+               alpha: float) -> Diagnosis:
+    """The Diagnosis of a static fit from the Fortran result arrays."""
     exp_names = list(fit.experiments)
-    out = [_candidate(raw, c, eff, names[c], model, exp_names) for c, eff in enumerate(effects)]
+    out = [_candidate(raw, c, eff, names[c], fit.model, exp_names)
+           for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
     verdict_index = int(raw["dstats"]["verdict"])
     verdict = out[verdict_index - 1] if verdict_index > 0 else None
@@ -564,12 +584,14 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     which, ``result.note`` what every start gave). A refit that runs away or
     stalls comes back flagged; :class:`beamid.ConvergenceError` only when no
     start converges at all (the message says why for each). ``starts``
-    limits the starts tried (names as in ``refit_start``; default all).
+    limits the starts tried (names as in ``refit_start``; default all). On
+    fits with release experiments the effect ``mesh`` refits at twice the
+    elements per beam.
     """
-    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import add_effect_dynamic
-        return add_effect_dynamic(fit, effect, max_iter=max_iter, nominal=nominal,
-                                  starts=starts)
+    if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
+        from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
+        return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
+                    prior=fit.prior or None, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)
@@ -643,32 +665,67 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
             candidates: Sequence[str | Effect] | None = None, alpha: float = 0.01,
             max_steps: int | None = None, max_iter: int = 50) -> Ladder:
     """Fit, then repeat diagnose and add the verdict's effect until no
-    candidate is significant; return the ladder of fits."""
-    if _dynamic(experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import improve_dynamic
-        return improve_dynamic(model, experiments, data, free=free, prior=prior,
-                               candidates=candidates, alpha=alpha, max_steps=max_steps,
-                               max_iter=max_iter)
-    current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
-    nominal = model
-    cands = list(STATIC_CANDIDATES if candidates is None else candidates)
-    limit = len(cands) if max_steps is None else int(max_steps)
-    steps = []
-    effect: str | None = None
-    rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
-    for k in rungs:
-        diag = diagnose(current, cands, alpha=alpha, nominal=nominal)
-        steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
-                                dict(current.estimates), dict(current.sigmas), current, diag))
-        if diag.verdict is None or k == limit:
+    candidate is significant (at most ``max_steps`` rungs, default one per
+    candidate); return the ladder of fits.
+
+    The ladder runs in Fortran (``beamid_ladder``, the one ``beamid-batch``
+    runs for ``task = 'improve'``). With release experiments
+    (:mod:`beamid.dyn_diagnosis`) it is stepwise in both directions: a block
+    reduced to the members the data determine (drag at the elbow or at the
+    tip) stays a candidate of the later rungs with its members still at
+    null, and after every rung the parameters that earlier rungs switched on
+    are tested again (one-sided Wald test at the rung's level alpha / number
+    tested): one the new fit no longer needs, typically the rival member of
+    a block picked while another effect was still missing, goes back to its
+    null value and the rung is refitted without it (``LadderStep.removed``).
+    A significant ``mesh`` candidate refines every release to the
+    recommended elements per beam; the mesh is tested until found adequate.
+    """
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
+    if int(max_iter) < 1:
+        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
+    free_names, free_idx = _free_indices(model, free)
+    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx, pidx,
+                     pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
+    return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+
+
+def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
+                prior_map: Mapping[str, tuple[float, float]],
+                candidates: Sequence[str | Effect] | None, alpha: float,
+                max_steps: int) -> Ladder:
+    """Run the ladder started in the extension (``_ce.ladder_start`` or
+    ``_ce.deck_ladder_start``) a rung per call, with a progress bar on a
+    terminal, and name its rungs."""
+    dynamic = _dynamic(experiments)
+    if dynamic:
+        from .dyn_diagnosis import _dyn_diagnosis, refine_mesh
+    with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    for _ in progress(itertools.count(), total=max_steps + 1, desc="improve"):  # on a tty only
+        if _ce.ladder_step():
             break
-        verdict = diag.verdict
-        start = verdict.refit_model or current.model
-        current = _fit(start, experiments, data, free=current.free + verdict.params,
-                       prior=prior, max_iter=max_iter)
-        current = dataclasses.replace(current, nominal=nominal.with_params(
-            {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
-        nominal = current.nominal
-        effect = verdict.effect
-    getattr(rungs, "close", lambda: None)()
+    all_names = model.names()
+    steps = []
+    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
+        if r["elements_per_beam"]:
+            experiments = refine_mesh(experiments, r["elements_per_beam"])
+        fit = _result(Model(model.nbeams, r["start"]), experiments, data,
+                      tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
+                      nominal=Model(model.nbeams, r["nominal"]))
+        fit = dataclasses.replace(fit, refit_start=r["refit_start"])
+        diag = (_dyn_diagnosis(fit, r["diag"], effects, names, alpha, with_mesh) if dynamic
+                else _diagnosis(fit, r["diag"], effects, names, alpha))
+        effect = r["effect"]
+        if effect is not None and effect.isdigit():   # a candidate's number (not a deck's name)
+            effect = effects[int(effect) - 1].name
+        steps.append(LadderStep(k, effect, fit.chi2, fit.dof, fit.chi2_per_dof,
+                                dict(fit.estimates), dict(fit.sigmas), fit, diag,
+                                tuple(all_names[i] for i in r["params"]),
+                                tuple(all_names[i] for i in r["removed"])))
+        if dynamic and diag.mesh is not None:
+            with_mesh = False    # the mesh is judged once (beamid_ladder)
     return Ladder(tuple(steps))

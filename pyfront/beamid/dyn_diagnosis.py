@@ -25,23 +25,19 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from . import _core_dyndiag as _cd
 from . import _core_estimation as _ce
-from .errors import ConvergenceError, InputError
-from .estimation import FLAG_TEXT, FitResult, _named, _prior_arrays, _result, build_problem
-from .estimation import fit as _fit
+from .estimation import FitResult
 from .loads import Release
 from .model import Model
 
 # the static registry, verdict words and result types (diagnosis.py imports
 # this module lazily, so this import is safe)
 from . import diagnosis as _dg
-from .diagnosis import Candidate, Diagnosis, Effect, Ladder, LadderStep, register_effect
-from .progress import progress
+from .diagnosis import Candidate, Diagnosis, Effect, register_effect
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -154,30 +150,17 @@ class DynDiagnosis(Diagnosis):
     not_seen: tuple[str, ...] = ()
 
 
-def _split(cands: Sequence[Any]) -> tuple[list, bool]:
-    names = [c.name if isinstance(c, Effect) else str(c) for c in cands]
-    return [c for c, n in zip(cands, names) if n != "mesh"], "mesh" in names
+#: beamid.diagnose, add_effect and improve serve fits with releases too (one
+#: implementation each; when the ``mesh`` candidate is significant it is the
+#: verdict: refine the mesh before any physical effect is offered); the
+#: names of this module stay for scripts that use them.
+diagnose_dynamic, add_effect_dynamic, improve_dynamic = _dg.diagnose, _dg.add_effect, _dg.improve
 
 
-def diagnose_dynamic(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *,
-                     alpha: float = 0.01, nrefit: int = 3, ambiguity_delta: float = 4.0,
-                     collinear: float = 0.98, nominal: Model | None = None) -> DynDiagnosis:
-    """:func:`beamid.diagnose` for fits with release experiments (see there
-    and the module docstring). When the ``mesh`` candidate is significant it
-    is the verdict: refine the mesh before any physical effect is offered."""
+def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
+                   names: list[tuple[str, ...]], alpha: float, with_mesh: bool) -> DynDiagnosis:
+    """The DynDiagnosis of a fit with releases from the Fortran result arrays."""
     model = fit.model
-    cands = list(default_candidates(fit.experiments) if candidates is None else candidates)
-    if not cands:
-        raise InputError("candidates is empty: name at least one effect")
-    physical, with_mesh = _split(cands)
-    effects, names, blocks = _dg._candidate_blocks(model, physical)
-    prob = build_problem(model, fit.experiments, fit.data)
-    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
-    nominal = _dg._nominal(fit, nominal)
-    raw = _cd.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks,
-                               alpha, int(nrefit), ambiguity_delta, collinear,
-                               nominal.vector(), with_mesh)
     exp_names = list(fit.experiments)
     out: list[Candidate] = []
     for c, eff in enumerate(effects):
@@ -281,129 +264,6 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         lines.append("not seen by these experiments (zero sensitivity on every row, not "
                      "tested): " + ", ".join(not_seen))
     return "\n".join(lines)
-
-
-# --------------------------------------------------------------- add / improve
-
-def add_effect_dynamic(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
-                       nominal: Model | None = None,
-                       starts: Sequence[str] | None = None) -> FitResult:
-    """:func:`beamid.add_effect` for fits with release experiments. The
-    effect ``mesh`` refits at twice the elements per beam."""
-    if _dg._effect(effect).name == "mesh":
-        return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
-                    prior=fit.prior or None, max_iter=max_iter)
-    eff, params, mask = _dg._effect_request(fit, effect, max_iter, starts)
-    model = fit.model
-    nominal = _dg._nominal(fit, nominal)
-    prob = build_problem(model, fit.experiments, fit.data)
-    free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    block = np.array([model.index(n) + 1 for n in params], np.int32)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
-    try:
-        raw = _cd.problem_fit_effect(prob, model.vector(), free_idx, pidx, pmean, psig, block,
-                                     nominal.vector(), mask, int(max_iter))
-    except ConvergenceError as exc:
-        raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
-    start = model.with_params(dict(zip(fit.free + params, raw["log_params"][:, 0])))
-    return _result(start, fit.experiments, fit.data, fit.free + params, prior_map, raw,
-                   nominal=nominal.with_params({n: float(raw["params"][model.index(n)])
-                                                for n in params}))
-
-
-def improve_dynamic(model: Model, experiments, data, free=("EI1", "EI2"), prior=None, *,
-                    candidates=None, alpha: float = 0.01, max_steps: int | None = None,
-                    max_iter: int = 50) -> Ladder:
-    """:func:`beamid.improve` for release experiments: fit, then repeat
-    diagnose and add the verdict's effect (or refine the mesh to the
-    recommended elements per beam) until no candidate is significant. The
-    mesh is tested until it is found adequate, not at every later step.
-
-    Stepwise in both directions: a block reduced to the members the data
-    determine (drag at the elbow or at the tip) stays a candidate of the
-    later rungs with its members still at null, and after every rung the parameters that
-    earlier rungs switched on are tested again (one-sided Wald test at the
-    rung's level alpha / number tested): one the new fit no longer needs,
-    typically the rival member of a block picked while another effect was
-    still missing, goes back to its null value and the rung is refitted
-    without it (``LadderStep.removed``)."""
-    experiments = dict(experiments)
-    current = _fit(model, experiments, data, free=free, prior=prior, max_iter=max_iter)
-    nominal = model
-    cands = list(default_candidates(experiments) if candidates is None else candidates)
-    limit = len(cands) if max_steps is None else int(max_steps)
-    steps = []
-    effect: str | None = None
-    added: list[str] = []
-    params: tuple[str, ...] = ()
-    removed: tuple[str, ...] = ()
-    rungs = progress(range(limit + 1), desc="improve")   # a bar on a terminal only
-    for k in rungs:
-        diag = diagnose_dynamic(current, cands, alpha=alpha, nominal=nominal)
-        steps.append(LadderStep(k, effect, current.chi2, current.dof, current.chi2_per_dof,
-                                dict(current.estimates), dict(current.sigmas), current, diag,
-                                params, removed))
-        if diag.verdict is None or k == limit:
-            break
-        verdict = diag.verdict
-        if diag.mesh is not None and not diag.mesh.significant:
-            # the mesh is judged once: adding a small effect does not change
-            # the discretization error, and its refit at twice the elements
-            # per beam is the costliest test of a step
-            cands = [c for c in cands if _name(c) != "mesh"]
-        removed = ()
-        if isinstance(verdict, MeshCandidate):
-            experiments = refine_mesh(experiments, verdict.recommended)
-            current = _fit(current.model, experiments, data, free=current.free, prior=prior,
-                           max_iter=max_iter)
-            current = dataclasses.replace(current, nominal=nominal)
-            effect = f"mesh ({verdict.recommended} elements per beam)"
-            params = ()
-            cands = [c for c in cands if _name(c) != "mesh"]
-            continue
-        start = verdict.refit_model or current.model
-        current = _fit(start, experiments, data, free=current.free + verdict.params,
-                       prior=prior, max_iter=max_iter)
-        removed = _not_needed(current, added, diag.alpha_each)
-        if removed:
-            back = current.model.replace(**{n: float(model[n]) for n in removed})
-            current = _fit(back, experiments, data,
-                           free=tuple(n for n in current.free if n not in removed),
-                           prior=prior, max_iter=max_iter)
-            added = [n for n in added if n not in removed]
-        added += list(verdict.params)
-        current = dataclasses.replace(current, nominal=nominal.with_params(
-            {n: current.model[n] for n in verdict.params}), refit_start=verdict.refit_start)
-        nominal = current.nominal
-        effect = verdict.effect
-        params = tuple(verdict.params)
-    getattr(rungs, "close", lambda: None)()
-    return Ladder(tuple(steps))
-
-
-def _name(c: str | Effect) -> str:
-    return c.name if isinstance(c, Effect) else str(c)
-
-
-def _not_needed(fit: FitResult, names: Sequence[str], level: float) -> tuple[str, ...]:
-    """Of the parameters ``names`` (switched on by earlier rungs, one-sided:
-    physical values positive), the one whose one-sided Wald test
-    (estimate / sigma) is least significant, when its p-value exceeds
-    ``level``: the fit does not need it (empty otherwise)."""
-    worst, worst_p = None, level
-    for n in names:
-        if n not in fit.estimates:
-            continue
-        est, sig = fit.estimates[n], fit.sigmas[n]
-        if not (sig > 0) or not math.isfinite(sig):
-            p = 1.0
-        elif est <= 0:
-            p = 1.0
-        else:
-            p = 0.5 * _ce.chi2_sf((est / sig) ** 2, 1)
-        if p > worst_p:
-            worst, worst_p = n, p
-    return (worst,) if worst else ()
 
 
 # ------------------------------------------------------------------- compare
@@ -516,7 +376,7 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
         rows = sorted(rows, key=lambda r: r.t)
         t = np.array([r.t for r in rows])
         z = np.array([r.normalized for r in rows])
-        st = _cd.time_structure(t, z)
+        st = _ce.time_structure(t, z)
         series.append(TimeSeries(
             e, q, quantity_unit(q), t, np.array([r.measured for r in rows]),
             np.array([r.sigma for r in rows]), np.array([r.model for r in rows]), z,

@@ -23,9 +23,9 @@ from typing import Any
 
 from . import _core
 from ._deck_common import check_path, load, published as published_groups, run_files
-from .diagnosis import Ladder, compare, diagnose, improve
+from .diagnosis import Ladder, _run_ladder, compare, diagnose
 from .errors import InputError
-from .estimation import fit
+from .estimation import _free_indices, _prior_arrays, fit
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
@@ -112,9 +112,7 @@ def _result(deck: FitDeck) -> Any:
     if deck.task == "identify":
         return identify_deck(deck)
     if deck.task == "improve":
-        return improve(deck.model, deck.experiments, deck.data, free=deck.free,
-                       prior=deck.prior, candidates=deck.candidates, alpha=deck.alpha,
-                       max_iter=deck.max_iter)
+        return improve_deck(deck)
     result = fit(deck.model, deck.experiments, deck.data, free=deck.free, prior=deck.prior,
                  max_iter=deck.max_iter)
     if deck.task == "compare":
@@ -129,11 +127,17 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     """Run an estimation deck; return (report text, files written, result).
 
     The CSV files are written by the Fortran task runners (as beamid-batch,
-    all or none); the report and the figures come from the Python result."""
+    all or none); the report and the figures come from the Python result.
+    Task improve runs its ladder once, a rung at a time (a progress bar on
+    a terminal), as beamid-batch runs it, and the files are written from it."""
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
-    files = run_files(deck)
-    out = _result(deck)
+    if deck.task == "improve":
+        out = _result(deck)
+        files = [Path(p) for p in _ce.deck_ladder_write(str(deck.path))]
+    else:
+        files = run_files(deck)
+        out = _result(deck)
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -145,6 +149,19 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
         if deck.task == "compare" and plots:
             files += _plots(cmp=out, prefix=deck.output_prefix)
     return text, files, out
+
+
+def improve_deck(deck: FitDeck) -> Ladder:
+    """The improve ladder of an estimation deck, run by the Fortran of
+    ``beamid-batch`` on the deck as read there (its problem and candidates),
+    a rung at a time; its files are then written by
+    ``_core_estimation.deck_ladder_write`` (until another ladder starts)."""
+    free_names, _ = _free_indices(deck.model, deck.free)
+    prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
+    _ce.deck_ladder_start(str(deck.path))
+    candidates = deck.candidates
+    return _run_ladder(deck.model, deck.experiments, deck.data, prior_map, candidates,
+                       deck.alpha, len(candidates or ()))
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:

@@ -20,11 +20,12 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
+from . import _core
 from .errors import InputError
 
-#: Measurable quantities; u_tip = x_tip - (L1 + L2), w_tip = y_tip.
-QUANTITIES = ("x_tip", "y_tip", "tip_angle", "wire_force", "x_elbow", "y_elbow",
-              "u_tip", "w_tip", "motor_torque")
+#: Measurable quantities, in code order (the Fortran table, beamid_static_experiments);
+#: u_tip = x_tip - (L1 + L2), w_tip = y_tip.
+QUANTITIES = _core.quantity_labels()
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
 
 
@@ -177,8 +178,6 @@ def read_measurements(path: str | os.PathLike,
     path = Path(path)
     if path.is_dir():
         raise InputError(f"cannot read measurement file {path}: it is a directory")
-    from . import _core
-
     names, t, quantity, value, sigma, lines = _core.read_measurements(str(path))
     data = Measurements(names, t, quantity, value, sigma, source=str(path), lines=lines)
     if experiments is not None:

@@ -1,0 +1,312 @@
+!> The model-improvement workflow on an estimation problem given as arrays
+!! (any mix of static and release experiments, beamid_inverse's layout):
+!! fit, diagnose, and the improve ladder. Both fronts call it: beamid-batch
+!! through beamid_tasks (decks), Python through beamid_api_estimation
+!! (beamid.diagnose, beamid.improve), so both write the same ladder.
+module beamid_ladder
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, fmt_int
+    use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
+                                 diagnose_options_t, diagnosis_t, chi2_sf
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
+                              inverse_diagnose, EXP_RELEASE, EV_NEPB
+    use beamid_dyn_diagnosis, only: dyn_diagnose, mesh_test_t
+    implicit none
+    private
+
+    public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
+    public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
+    public :: ladder_start, ladder_step
+
+    !> An estimation problem: experiments (kind, EV_* values), data rows
+    !! (experiment, t, quantity, value, sigma), a priori information and the
+    !! fit's iteration limit.
+    type :: problem_t
+        integer :: nbeams = 0
+        integer, allocatable :: exp_kind(:), row_exp(:), row_q(:)
+        real(dp), allocatable :: exp_values(:, :), row_t(:), y(:), sigma(:)
+        real(dp) :: tol = 0.0_dp          !< static solver tolerance (0: default)
+        type(prior_t) :: prior
+        integer :: max_iter = 50
+    end type problem_t
+
+    !> The candidates of one diagnosis: effects with their parameter blocks;
+    !! with releases `mesh` is tested apart (with_mesh).
+    type :: cand_set_t
+        character(len=32), allocatable :: names(:)
+        type(candidate_t), allocatable :: cands(:)
+        logical :: with_mesh = .false.
+    end type cand_set_t
+
+    !> One diagnosis: the base fit, the library's report and the probe rows.
+    type :: diag_out_t
+        type(fit_result_t) :: base
+        type(diagnosis_t) :: diag
+        integer, allocatable :: pexp(:), pq(:)
+        real(dp), allocatable :: pt(:)    !< probe row times (0 for static probes)
+        logical :: dynamic = .false.      !< release experiments: beamid_dyn_diagnosis
+        type(mesh_test_t) :: mesh         !< the mesh test (dynamic, when asked)
+        !> the blocks as tested (dyn_diagnose: reduced to the members the
+        !! data determine; static: as given)
+        type(candidate_t), allocatable :: used(:)
+        !> parameters left at null about as good alone as the member tested
+        integer, allocatable :: ambiguous(:)
+    end type diag_out_t
+
+    !> One rung of the improve ladder: the fit, its diagnosis and what the
+    !! rung changed.
+    type :: rung_t
+        character(len=:), allocatable :: effect  !< 'start', the effect, or 'mesh (N ...)'
+        type(fit_result_t) :: fit
+        type(diag_out_t) :: dg
+        real(dp), allocatable :: start(:)    !< where the rung's fit started
+        real(dp), allocatable :: nominal(:)  !< the user's model, added parameters as fitted
+        integer, allocatable :: params(:)    !< parameters the rung switched on
+        integer, allocatable :: removed(:)   !< switched on earlier, back at null here
+        integer :: nepb = 0                  !< elements per beam of the releases (0: as given)
+        integer :: refit_start = 0           !< START_* of the verdict's refit kept
+    end type rung_t
+
+    !> The improve ladder under way (ladder_start, ladder_step): the problem
+    !! (its releases refined by the mesh rungs), the candidates, the rungs
+    !! done and the next rung's fit.
+    type :: ladder_t
+        type(problem_t) :: pb
+        type(cand_set_t) :: cs
+        type(fit_options_t) :: fopts          !< the diagnoses' refits
+        type(diagnose_options_t) :: dopts
+        real(dp), allocatable :: params(:)    !< the user's model
+        real(dp), allocatable :: nominal(:)   !< params, added parameters as fitted
+        integer, allocatable :: added(:)      !< parameters the rungs switched on
+        integer :: max_steps = 0
+        integer :: k = 0                      !< rungs added so far
+        type(rung_t) :: r                     !< the rung whose fit is done
+        type(rung_t), allocatable :: rungs(:) !< rungs(:n): the rungs diagnosed
+        integer :: n = 0
+        logical :: done = .true.              !< no further ladder_step
+    end type ladder_t
+
+contains
+
+    !> Has the problem a release experiment (time histories)?
+    pure logical function problem_dynamic(pb)
+        type(problem_t), intent(in) :: pb
+        problem_dynamic = any(pb%exp_kind == EXP_RELEASE)
+    end function problem_dynamic
+
+    !> Weighted GN/LM fit of params(free) from params0 (inverse_fit, Eq. 39,
+    !! 53-55, 142-148) with the problem's a priori information or `prior`.
+    subroutine problem_fit(pb, params0, free, fo, st, prior)
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: params0(:)
+        integer, intent(in) :: free(:)
+        type(fit_result_t), intent(out) :: fo
+        type(status_t), intent(inout) :: st
+        type(prior_t), intent(in), optional :: prior
+        type(inverse_problem_t) :: problem
+        type(fit_options_t) :: opts
+        type(status_t) :: stat
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
+                                  pb%row_q, pb%tol, problem, stat)
+        if (stat%code == STATUS_OK) then
+            opts%max_iter = pb%max_iter
+            if (present(prior)) then
+                call inverse_fit(problem, pb%y, pb%sigma, params0, free, prior, opts, fo, stat)
+            else
+                call inverse_fit(problem, pb%y, pb%sigma, params0, free, pb%prior, opts, fo, &
+                                 stat)
+            end if
+        end if
+        if (stat%code /= STATUS_OK) st = stat
+    end subroutine problem_fit
+
+    !> Score tests, refits and ranking of the candidates `cs` around the fit
+    !! at params(free) (not refitted): with release experiments
+    !! dyn_diagnose, of static experiments alone inverse_diagnose (every block
+    !! tested as given; dyn_diagnose's block reduction and one-sided columns
+    !! would move the static results). The refits also start from `nominal`,
+    !! the user's model; `fopts` are the refits' options.
+    subroutine problem_diagnose(pb, params, free, nominal, cs, fopts, dopts, dg, st)
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: params(:), nominal(:)
+        integer, intent(in) :: free(:)
+        type(cand_set_t), intent(in) :: cs
+        type(fit_options_t), intent(in) :: fopts
+        type(diagnose_options_t), intent(in) :: dopts
+        type(diag_out_t), intent(out) :: dg
+        type(status_t), intent(inout) :: st
+        type(inverse_problem_t) :: problem
+        type(status_t) :: stat
+        dg%dynamic = problem_dynamic(pb)
+        if (dg%dynamic) then
+            call dyn_diagnose(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
+                              pb%row_q, pb%tol, pb%y, pb%sigma, params, nominal, free, &
+                              pb%prior, cs%cands, fopts, dopts, cs%with_mesh, dg%base, dg%diag, &
+                              dg%mesh, dg%pexp, dg%pt, dg%pq, dg%used, stat, dg%ambiguous)
+        else
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
+                                      pb%row_t, pb%row_q, pb%tol, problem, stat)
+            if (stat%code == STATUS_OK) &
+                call inverse_diagnose(problem, pb%y, pb%sigma, params, nominal, free, pb%prior, &
+                                      cs%cands, fopts, dopts, dg%base, dg%diag, dg%pexp, dg%pq, &
+                                      stat)
+            dg%used = cs%cands
+            allocate (dg%ambiguous(0))
+            if (allocated(dg%pexp)) allocate (dg%pt(size(dg%pexp)), source=0.0_dp)
+        end if
+        if (stat%code /= STATUS_OK) st = stat
+    end subroutine problem_diagnose
+
+    !> The improve ladder (beamid.improve): fit params(free), then diagnose
+    !! and add the verdict's parameters (a block as tested: dyn_diagnose
+    !! tests its other members at the later rungs) until no candidate is
+    !! significant at `alpha` or `max_steps` rungs were added (the diagnoses'
+    !! defaults: 3 refits of 50 iterations, ambiguity 4, collinearity 0.98;
+    !! the refits also start from the user's model with the added parameters
+    !! as fitted). With release experiments a significant mesh test refines
+    !! every release to the recommended elements per beam (the mesh is tested
+    !! until found adequate), and after each rung the parameters earlier
+    !! rungs added are tested again (one-sided Wald test at the rung's level):
+    !! one no longer needed goes back to its value in `params` and the rung
+    !! is refitted without it. ladder_start and ladder_step one rung at a
+    !! time (a front that shows progress steps itself).
+    subroutine improve_ladder(pb, params, free, cs, alpha, max_steps, rungs, st)
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: free(:)
+        type(cand_set_t), intent(in) :: cs
+        real(dp), intent(in) :: alpha
+        integer, intent(in) :: max_steps
+        type(rung_t), allocatable, intent(out) :: rungs(:)
+        type(status_t), intent(inout) :: st
+        type(ladder_t) :: lad
+        call ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
+        do while (.not. lad%done)
+            call ladder_step(lad, st)
+        end do
+        rungs = lad%rungs(:lad%n)
+    end subroutine improve_ladder
+
+    !> Start the ladder of improve_ladder: the fit of params(free) (rung 0,
+    !! diagnosed by the first ladder_step).
+    subroutine ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
+        type(ladder_t), intent(out) :: lad
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: free(:)
+        type(cand_set_t), intent(in) :: cs
+        real(dp), intent(in) :: alpha
+        integer, intent(in) :: max_steps
+        type(status_t), intent(inout) :: st
+        lad%pb = pb
+        lad%cs = cs
+        lad%params = params
+        lad%nominal = params
+        lad%dopts%alpha = alpha
+        lad%fopts%max_iter = 50
+        lad%max_steps = max_steps
+        allocate (lad%added(0), lad%rungs(max_steps + 1))
+        lad%r%effect = 'start'
+        lad%r%start = params
+        lad%r%params = [integer ::]
+        lad%r%removed = [integer ::]
+        call problem_fit(lad%pb, params, free, lad%r%fit, st)
+        lad%done = st%code /= STATUS_OK
+    end subroutine ladder_start
+
+    !> One rung of the ladder: diagnose the rung's fit and keep the rung
+    !! (lad%rungs(lad%n)); unless the ladder ends here (nothing significant,
+    !! max_steps rungs added or a failure: lad%done), refine the mesh or add
+    !! the verdict's parameters, refit, and set back a parameter no longer
+    !! needed (the next rung's fit).
+    subroutine ladder_step(lad, st)
+        type(ladder_t), intent(inout) :: lad
+        type(status_t), intent(inout) :: st
+        real(dp), allocatable :: p(:)
+        integer, allocatable :: now(:)
+        integer :: v, gone, j
+
+        if (lad%done) return
+        lad%done = .true.           ! unless the rung ends with the next fit
+        if (st%code /= STATUS_OK) return
+        associate (r => lad%r, pb => lad%pb, cs => lad%cs)
+            r%nominal = lad%nominal
+            call problem_diagnose(pb, r%fit%params, r%fit%free, lad%nominal, cs, lad%fopts, &
+                                  lad%dopts, r%dg, st)
+            if (st%code /= STATUS_OK) return
+            lad%n = lad%n + 1
+            lad%rungs(lad%n) = r
+            v = r%dg%diag%verdict
+            if ((v == 0 .and. .not. r%dg%mesh%significant) .or. lad%k == lad%max_steps) return
+            lad%k = lad%k + 1
+            if (r%dg%mesh%done .and. .not. r%dg%mesh%significant) cs%with_mesh = .false.
+            now = r%fit%free    ! (a copy: the fit below overwrites r%fit)
+            r%removed = [integer ::]
+            if (r%dg%mesh%significant) then
+                r%nepb = r%dg%mesh%recommended
+                where (pb%exp_kind == EXP_RELEASE) pb%exp_values(EV_NEPB, :) = real(r%nepb, dp)
+                r%effect = 'mesh ('//fmt_int(r%nepb)//' elements per beam)'
+                r%start = r%fit%params
+                r%params = [integer ::]
+                r%refit_start = 0
+                cs%with_mesh = .false.
+                call problem_fit(pb, r%start, now, r%fit, st)
+                lad%done = .false.
+                return
+            end if
+            associate (c => r%dg%diag%cand(v))
+                r%start = r%fit%params
+                if (c%refit_done .and. c%refit_ok) r%start = c%refit%params
+                r%refit_start = c%info%start
+            end associate
+            ! the block as tested, in the candidate's order
+            r%params = pack(cs%cands(v)%params, [(any(r%dg%used(v)%params == &
+                            cs%cands(v)%params(j)), j=1, size(cs%cands(v)%params))])
+            r%effect = trim(cs%names(v))
+            call problem_fit(pb, r%start, [now, r%params], r%fit, st)
+            if (st%code /= STATUS_OK) return
+            if (r%dg%dynamic) then
+                gone = not_needed(r%fit, lad%added, r%dg%diag%alpha_each)
+                if (gone > 0) then
+                    r%removed = [gone]
+                    p = r%fit%params
+                    p(gone) = lad%params(gone)
+                    now = pack(r%fit%free, r%fit%free /= gone)
+                    call problem_fit(pb, p, now, r%fit, st)
+                    if (st%code /= STATUS_OK) return
+                    lad%added = pack(lad%added, lad%added /= gone)
+                end if
+            end if
+            lad%added = [lad%added, r%params]
+            lad%nominal(r%params) = r%fit%params(r%params)
+        end associate
+        lad%done = .false.
+    end subroutine ladder_step
+
+    !> Of the parameters `names` (switched on by earlier rungs; one-sided,
+    !! physical values positive) the one whose one-sided Wald test
+    !! (estimate / sigma) is least significant, when its p-value exceeds
+    !! `level` (0: every one is needed).
+    integer function not_needed(fo, names, level) result(worst)
+        type(fit_result_t), intent(in) :: fo
+        integer, intent(in) :: names(:)
+        real(dp), intent(in) :: level
+        real(dp) :: p, worst_p, est, sig
+        integer :: i, j
+        worst = 0
+        worst_p = level
+        do i = 1, size(names)
+            j = findloc(fo%free, names(i), 1)
+            if (j == 0) cycle
+            est = fo%estimates(j)
+            sig = fo%sigmas(j)
+            p = 1.0_dp
+            if (sig > 0.0_dp .and. sig < huge(1.0_dp) .and. est > 0.0_dp) &
+                p = 0.5_dp*chi2_sf((est/sig)**2, 1)
+            if (p > worst_p) then
+                worst = names(i)
+                worst_p = p
+            end if
+        end do
+    end function not_needed
+end module beamid_ladder

@@ -1,0 +1,91 @@
+"""The improve ladder runs a rung per call into Fortran (beamid_ladder's
+ladder_step): beamid.improve's progress bar moves per rung, and an improve
+deck (beamid improve DECK, beamid.run) runs its ladder once, for the files
+(byte for byte beamid-batch's) and for the Python result."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+import beamid
+from beamid import _core, _core_estimation as _ce, diagnosis
+from beamid.fit_decks import run_fit_deck
+
+DEMO = Path(__file__).resolve().parent.parent / "inputs" / "demo"
+
+
+def _elbow_flex_problem():
+    truth = beamid.pace(axial_coupling=0.0, elbow_flex=0.004)
+    exps = {f"F{f:g}": beamid.TipForce(fy=f) for f in (2.0, 4.0, 6.0, 8.0)}
+    data = beamid.simulate_measurements(truth, exps, ["x_tip", "y_tip", "tip_angle"],
+                                        sigma=1e-4)
+    return beamid.pace(axial_coupling=0.0), exps, data
+
+
+def test_improve_draws_its_bar_a_rung_at_a_time(monkeypatch, capsys):
+    pytest.importorskip("tqdm")
+    from beamid.progress import progress
+
+    steps = []
+    real_step = _ce.ladder_step
+
+    def step() -> bool:
+        done = real_step()
+        steps.append(done)
+        return done
+
+    seen = []
+
+    def drawn(iterable, total=None, desc="", enabled=None):   # as on a terminal
+        seen.append((total, desc))
+        return progress(iterable, total=total, desc=desc, enabled=True)
+
+    monkeypatch.setattr(_ce, "ladder_step", step)
+    monkeypatch.setattr(diagnosis, "progress", drawn)
+    model, exps, data = _elbow_flex_problem()
+    ladder = beamid.improve(model, exps, data, free=("EI1", "EI2"),
+                            candidates=("elbow_flex", "axial_coupling"))
+    # one call per rung diagnosed, the last one ends the ladder
+    assert ladder.effects == ("elbow_flex",)
+    assert steps == [False, True]
+    assert seen == [(3, "improve")]            # at most one rung per candidate + the start
+    assert "improve" in capsys.readouterr().err
+
+
+def test_improve_deck_runs_its_ladder_once_and_writes_the_batch_bytes(tmp_path, batch_exe,
+                                                                     monkeypatch):
+    decks = {}
+    for side in ("batch", "python"):
+        (tmp_path / side).mkdir()
+        for name in ("hidden_effect.nml", "hidden_effect.csv"):
+            shutil.copy(DEMO / name, tmp_path / side / name)
+        decks[side] = tmp_path / side / "hidden_effect.nml"
+    run = subprocess.run([str(batch_exe), str(decks["batch"])], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+
+    calls = []
+    for module, name in ((_ce, "deck_ladder_start"), (_ce, "ladder_start"),
+                         (_core, "run_deck")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name:
+                            calls.append(_name) or _real(*a))
+    _, files, ladder = run_fit_deck(decks["python"], plots=False)
+    assert calls == ["deck_ladder_start"]      # one ladder, no second run for the files
+    names = sorted(p.name for p in (tmp_path / "batch" / "out").iterdir())
+    assert sorted(p.name for p in files) == names and len(names) == 5
+    for name in names:
+        assert (tmp_path / "python" / "out" / name).read_bytes() == \
+            (tmp_path / "batch" / "out" / name).read_bytes(), name
+    # the result is the ladder the files hold
+    rows = (tmp_path / "python" / "out" / "hidden_effect_ladder.csv").read_text().splitlines()
+    assert [r.split(",")[1] for r in rows[1:]] == ["start", *ladder.effects]
+    assert [float(r.split(",")[2]) for r in rows[1:]] == pytest.approx(
+        [s.chi2 for s in ladder.steps], rel=1e-12)
+
+    calls.clear()
+    assert beamid.run(decks["python"]).effects == ladder.effects
+    assert calls == ["deck_ladder_start"]
