@@ -43,6 +43,17 @@ Measured again (24 November 2026, 13:46 UTC, machine otherwise idle, with the
 inexact-Jacobian fit (issue 13) and the diagnosis refits using it): 62.1 s
 (62.5 s before the refits used it) - the 60 s target is MISSED by 3 %. Same
 ladder, chi2/dof 1.004.
+
+Measured again (24 November 2026, 16:49 UTC, load average 0.8-1.7, back to
+back) with large rotary inertia kept on the L D L^T path (its gyroscopic
+terms go into an exact low-rank correction instead of sending every
+factorization after the rotary_inertia rung, at the mesh rung's 16 elements
+per beam, to band LU) and main's rough-model fits (issue 13) merged: 38.8 s
+- the 60 s target is met. main at bbade1b (rough-model fits, no low-rank
+path): 40.5 s, so main meets it through the rough-model fits and the
+low-rank path adds 4 %. Same ladder, chi2/dof 1.004. Under load ~4: 52.5 s
+against main's 60.4 s; before the rough-model fits, the low-rank path alone
+took the run from 67.1 to 56.8 s CPU (f2332d0 against it, load ~4).
 """
 from __future__ import annotations
 

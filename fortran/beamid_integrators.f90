@@ -131,7 +131,29 @@ module beamid_integrators
         !! iteration matrices use M0 = M(q) at the Jacobian's state qjac
         logical :: rot = .false.
         real(dp), allocatable :: qjac(:)
+        !> K or C not symmetric in a few rows only (the gyroscopic terms of a
+        !! mass's rotary inertia, Eq. 132, the motor's torque on the tip
+        !! slopes: one 2 x 2 block per mass): A = A_L + E_R D with A_L the
+        !! symmetric matrix of A's lower half (factored as L D L^T in s1, s2)
+        !! and D the differences of the upper half in the rows R; the solves
+        !! add the Sherman-Morrison-Woodbury correction, so they stay exact
+        integer :: nlr = 0                      !< rows R (0: no correction)
+        integer :: nle = 0                      !< nonzeros of D
+        integer, allocatable :: lr_row(:)       !< R (free indices)
+        integer, allocatable :: le_k(:), le_col(:)   !< a nonzero's row (in R), column
+        real(dp), allocatable :: le_d1(:)       !< its value in the real matrix
+        complex(dp), allocatable :: le_d2(:)    !< in the complex matrix
+        real(dp), allocatable :: lr_w1(:, :)    !< A1_L^-1 E_R (n x nlr)
+        complex(dp), allocatable :: lr_w2(:, :) !< A2_L^-1 E_R
+        complex(dp), allocatable :: lr_c1(:, :), lr_c2(:, :)   !< (I + D W)^-1
     end type radau_t
+
+    !> At most this many rows of the iteration matrices may be unsymmetric
+    !! for the L D L^T path with its low-rank correction (two masses, a
+    !! motor: two rows), and four times as many nonzeros in them
+    integer, parameter :: LR_MAX = 8, LE_MAX = 4*LR_MAX
+    !> largest entry of (I + D W)^-1 the correction accepts (else band LU)
+    real(dp), parameter :: LR_COND = 1.0e6_dp
 
     !> Work arrays of the implicit sensitivity step, allocated once per run
     !! (stage Jacobians, parameter derivatives of the forces, the stage
@@ -967,6 +989,7 @@ contains
         l1 = gam/h
         l2 = mu/h
         it%h = h
+        it%nlr = 0
         ! L D L^T when both matrices are symmetric and their pivots are safe:
         ! real pivots positive (the matrix is then positive definite), complex
         ! pivots with a positive imaginary part (mu^2/h^2 M + mu/h C has one
@@ -986,6 +1009,10 @@ contains
             ! Newton iteration takes the symmetric parts (its residuals are
             ! exact, so the converged stages are the same) and keeps L D L^T
             if (.not. it%sym) it%sym = nearly_symmetric(sys%nc, kl, l1, it%mb, it%cb, it%kb)
+            ! larger but confined to a few rows (rotary inertia whose gyroscopic
+            ! terms grow with the slope rates): the lower half by L D L^T and
+            ! the rest as an exact low-rank correction of the solves
+            if (.not. it%sym) it%sym = skew_rows(sys%nc, kl, l1, l2, it%cb, it%kb, it)
         end if
         if (it%sym) then
             if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
@@ -996,7 +1023,9 @@ contains
             end do
             call ldlt_real(sys%nc, kl, it%s1, it%sym)
             if (it%sym) call ldlt_cplx(sys%nc, kl, it%s2, it%sym)
+            if (it%sym .and. it%nlr > 0) call lr_setup(sys%nc, kl, it, it%sym)
             if (it%sym) return
+            it%nlr = 0
         end if
         ! rows 1..kl of band storage are the factorization's fill-in: skip them
         r = kl + 1
@@ -1059,6 +1088,156 @@ contains
         end do
         ok = .true.
     end function nearly_symmetric
+
+    !> The entries where K or C (band storage, half-bandwidth k) differ from
+    !! their transposes (beyond band_symmetric's round-off), found in the
+    !! upper half: their rows R and the differences l (C(i, j) - C(j, i)) +
+    !! K(i, j) - K(j, i) of the real (l1) and complex (l2) iteration matrix,
+    !! into it. False when more than LR_MAX rows or LE_MAX entries differ.
+    !! Rows and columns of sticking components are pinned: not counted.
+    function skew_rows(n, k, l1, l2, c, kk, it) result(ok)
+        integer, intent(in) :: n, k
+        real(dp), intent(in) :: l1, c(3*k + 1, n), kk(3*k + 1, n)
+        complex(dp), intent(in) :: l2
+        type(radau_t), intent(inout) :: it
+        logical :: ok
+        real(dp) :: tolc, tolk, dc, dk
+        integer :: i, j, pos
+        ok = .false.
+        if (.not. allocated(it%lr_row)) then
+            allocate (it%lr_row(LR_MAX), it%le_k(LE_MAX), it%le_col(LE_MAX), &
+                      it%le_d1(LE_MAX), it%le_d2(LE_MAX))
+        end if
+        tolc = 1.0e-12_dp*maxval(abs(c(2*k + 1, :)))
+        tolk = 1.0e-12_dp*maxval(abs(kk(2*k + 1, :)))
+        it%nlr = 0
+        it%nle = 0
+        do j = 1, n
+            do i = max(1, j - k), j - 1
+                dc = c(2*k + 1 + i - j, j) - c(2*k + 1 + j - i, i)
+                dk = kk(2*k + 1 + i - j, j) - kk(2*k + 1 + j - i, i)
+                if (abs(dc) <= tolc .and. abs(dk) <= tolk) cycle
+                if (it%nst > 0) then
+                    if (any(it%stuck(1:it%nst) == i) .or. any(it%stuck(1:it%nst) == j)) cycle
+                end if
+                pos = findloc(it%lr_row(1:it%nlr), i, 1)
+                if (pos == 0 .and. it%nlr == LR_MAX .or. it%nle == LE_MAX) then
+                    it%nlr = 0
+                    return
+                end if
+                if (pos == 0) then
+                    it%nlr = it%nlr + 1
+                    it%lr_row(it%nlr) = i
+                    pos = it%nlr
+                end if
+                it%nle = it%nle + 1
+                it%le_k(it%nle) = pos
+                it%le_col(it%nle) = j
+                it%le_d1(it%nle) = l1*dc + dk
+                it%le_d2(it%nle) = l2*dc + dk
+            end do
+        end do
+        ok = .true.
+    end function skew_rows
+
+    !> After the L D L^T of the lower halves: W = A_L^-1 E_R and the
+    !! capacitance matrices (I + D W)^-1 of the real and complex iteration
+    !! matrices (Sherman-Morrison-Woodbury). ok false when one is singular.
+    subroutine lr_setup(n, k, it, ok)
+        integer, intent(in) :: n, k
+        type(radau_t), intent(inout) :: it
+        logical, intent(out) :: ok
+        integer :: m, e, r
+        r = it%nlr
+        if (.not. allocated(it%lr_w1)) then
+            allocate (it%lr_w1(n, LR_MAX), it%lr_w2(n, LR_MAX), it%lr_c1(LR_MAX, LR_MAX), &
+                      it%lr_c2(LR_MAX, LR_MAX))
+        end if
+        do m = 1, r
+            it%lr_w1(:, m) = 0.0_dp
+            it%lr_w1(it%lr_row(m), m) = 1.0_dp
+            call ldlt_solve_real(n, k, it%s1, it%lr_w1(:, m))
+            it%lr_w2(:, m) = (0.0_dp, 0.0_dp)
+            it%lr_w2(it%lr_row(m), m) = (1.0_dp, 0.0_dp)
+            call ldlt_solve_cplx(n, k, it%s2, it%lr_w2(:, m))
+        end do
+        it%lr_c1(1:r, 1:r) = (0.0_dp, 0.0_dp)
+        it%lr_c2(1:r, 1:r) = (0.0_dp, 0.0_dp)
+        do m = 1, r
+            it%lr_c1(m, m) = (1.0_dp, 0.0_dp)
+            it%lr_c2(m, m) = (1.0_dp, 0.0_dp)
+        end do
+        do e = 1, it%nle
+            m = it%le_k(e)
+            it%lr_c1(m, 1:r) = it%lr_c1(m, 1:r) + it%le_d1(e)*it%lr_w1(it%le_col(e), 1:r)
+            it%lr_c2(m, 1:r) = it%lr_c2(m, 1:r) + it%le_d2(e)*it%lr_w2(it%le_col(e), 1:r)
+        end do
+        call small_inverse(r, it%lr_c1, ok)
+        if (ok) call small_inverse(r, it%lr_c2, ok)
+        ! a large inverse: A_L is nearly singular where A is not (skew parts
+        ! as large as the symmetric ones); the correction would lose digits
+        if (ok) ok = maxval(abs(it%lr_c1(1:r, 1:r))) < LR_COND .and. &
+                     maxval(abs(it%lr_c2(1:r, 1:r))) < LR_COND
+    end subroutine lr_setup
+
+    !> a(1:r, 1:r) replaced by its inverse (Gauss-Jordan with partial
+    !! pivoting; r is a handful). ok false for a zero or non-finite pivot.
+    pure subroutine small_inverse(r, a, ok)
+        integer, intent(in) :: r
+        complex(dp), intent(inout) :: a(:, :)
+        logical, intent(out) :: ok
+        complex(dp) :: b(r, 2*r), row(2*r)
+        integer :: i, p
+        b = (0.0_dp, 0.0_dp)
+        b(:, 1:r) = a(1:r, 1:r)
+        do i = 1, r
+            b(i, r + i) = (1.0_dp, 0.0_dp)
+        end do
+        ok = .false.
+        do i = 1, r
+            p = i - 1 + maxloc(abs(b(i:r, i)), 1)
+            if (.not. (abs(b(p, i)) > 0.0_dp .and. abs(b(p, i)) < huge(1.0_dp))) return
+            row = b(p, :)
+            b(p, :) = b(i, :)
+            b(i, :) = row/row(i)
+            do p = 1, r
+                if (p /= i) b(p, :) = b(p, :) - b(p, i)*b(i, :)
+            end do
+        end do
+        a(1:r, 1:r) = b(:, r + 1:)
+        ok = .true.
+    end subroutine small_inverse
+
+    !> x = A_L^-1 b on entry, A^-1 b on exit (real iteration matrix):
+    !! x - W (I + D W)^-1 D x.
+    pure subroutine lr_real(it, x)
+        type(radau_t), intent(in) :: it
+        real(dp), intent(inout) :: x(:)
+        real(dp) :: t(it%nlr)
+        integer :: e, r
+        r = it%nlr
+        t = 0.0_dp
+        do e = 1, it%nle
+            t(it%le_k(e)) = t(it%le_k(e)) + it%le_d1(e)*x(it%le_col(e))
+        end do
+        t = real(matmul(it%lr_c1(1:r, 1:r), t), dp)
+        x = x - matmul(it%lr_w1(:, 1:r), t)
+    end subroutine lr_real
+
+    !> lr_real for the complex iteration matrix.
+    pure subroutine lr_cplx(it, x)
+        type(radau_t), intent(in) :: it
+        complex(dp), intent(inout) :: x(:)
+        complex(dp) :: t(it%nlr)
+        integer :: e, r
+        r = it%nlr
+        t = (0.0_dp, 0.0_dp)
+        do e = 1, it%nle
+            t(it%le_k(e)) = t(it%le_k(e)) + it%le_d2(e)*x(it%le_col(e))
+        end do
+        t = matmul(it%lr_c2(1:r, 1:r), t)
+        x = x - matmul(it%lr_w2(:, 1:r), t)
+    end subroutine lr_cplx
 
     !> Pin unknown i (a sticking friction component) in the symmetric
     !! iteration matrices: row and column i zero, diagonal 1 (complex: 1 + i,
@@ -1148,6 +1327,7 @@ contains
         if (it%nst > 0) it%rhs(it%stuck(1:it%nst)) = 0.0_dp
         if (it%sym) then
             call ldlt_solve_real(n, sys%ckl, it%s1, it%rhs)
+            if (it%nlr > 0) call lr_real(it, it%rhs)
         else
             call band_solve(it%lu1, it%rhs)
         end if
@@ -1186,6 +1366,7 @@ contains
         if (it%nst > 0) it%zrhs(it%stuck(1:it%nst)) = (0.0_dp, 0.0_dp)
         if (it%sym) then
             call ldlt_solve_cplx(n, sys%ckl, it%s2, it%zrhs)
+            if (it%nlr > 0) call lr_cplx(it, it%zrhs)
         else
             call zband_solve(it%lu2, it%zrhs)
         end if
@@ -2271,6 +2452,10 @@ contains
             bt2 = transpose(w2(1:n, 1:na))
             call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
             call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt2)
+            do c = 1, merge(na, 0, it%nlr > 0)
+                call lr_real(it, bt1(c, :))
+                call lr_cplx(it, bt2(c, :))
+            end do
             w1(1:n, 1:na) = transpose(bt1)
             w2(1:n, 1:na) = transpose(bt2)
         else
