@@ -17,7 +17,6 @@ module beamid_api_estimation
                                  diagnose_options_t, &
                                  chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
-    use beamid_static_experiments, only: static_bounds
     use beamid_estimation, only: prior_from_covariance
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_problem, deck_candidates
@@ -28,7 +27,7 @@ module beamid_api_estimation
     implicit none
     private
 
-    public :: api_chi2_sf, api_static_bounds
+    public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_problem_predict, api_deck_experiments
     public :: api_problem_diagnose, api_time_structure
@@ -76,19 +75,6 @@ contains
         if (tol_step > 0.0_c_double) opts%tol_step = tol_step
         if (tol_cost > 0.0_c_double) opts%tol_cost = tol_cost
     end subroutine make_options
-
-    !> Lower and upper physical bounds of every parameter.
-    subroutine api_static_bounds(nbeams, nparams, lower, upper)
-        integer(c_int), intent(in) :: nbeams, nparams
-        real(c_double), intent(out) :: lower(nparams), upper(nparams)
-        real(dp), allocatable :: lo(:), up(:)
-        call static_bounds(int(nbeams), lo, up)
-        lower = 0.0_c_double
-        upper = 0.0_c_double
-        if (size(lo) /= nparams) return
-        lower = lo
-        upper = up
-    end subroutine api_static_bounds
 
     !> Residual structure tests of compare (beamid_estimation residual_structure):
     !! out = runs, expected runs, runs z, runs p, slope, trend z, trend p.
