@@ -163,14 +163,16 @@ contains
 
     !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
     !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
-    !! the log arrays hold nlog + 1 entries (entry 1 = start).
+    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest as
+    !! clear_fit left them).
     subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                         log_cost, log_lambda, log_step, log_params)
         type(fit_result_t), intent(in) :: res
         real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
         integer(c_int), intent(out) :: flags(:)
         real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
-        real(c_double), intent(out) :: log_cost(:), log_lambda(:), log_step(:), log_params(:, :)
+        real(c_double), intent(inout) :: log_cost(:), log_lambda(:), log_step(:), &
+                                         log_params(:, :)
         integer :: n, lo
         params = res%params
         sigmas = res%sigmas
@@ -182,10 +184,6 @@ contains
         stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
                  real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
                  real(res%nlog, dp)]
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
         n = min(res%nlog + 1, size(log_cost))
         ! the log runs 0:nlog; its shrink in fit_least_squares reallocates (to 1-based
         ! bounds) only when the fit stopped before max_iter, so index from lbound
