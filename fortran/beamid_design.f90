@@ -21,9 +21,8 @@
 !!
 !! Everything is pure; sizes come from the arguments (no caps).
 module beamid_design
-    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf, ieee_quiet_nan, &
-                                             ieee_is_finite
-    use beamid_kinds, only: dp
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp, infinity, not_a_number
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     implicit none
     private
@@ -37,14 +36,6 @@ module beamid_design
     real(dp), parameter, public :: INFO_RCOND = 1.0e-13_dp
 
 contains
-
-    pure real(dp) function infinity()
-        infinity = ieee_value(1.0_dp, ieee_positive_inf)
-    end function infinity
-
-    pure real(dp) function not_a_number()
-        not_a_number = ieee_value(1.0_dp, ieee_quiet_nan)
-    end function not_a_number
 
     !> info <- info + g g^T / sigma^2 (one more measurement of sigma with
     !! sensitivity row g over the free parameters).

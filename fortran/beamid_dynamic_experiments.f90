@@ -45,7 +45,7 @@ module beamid_dynamic_experiments
                               QTY_MOTOR_TORQUE
     use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, NQUANT
+                                         Q_MOTOR_TORQUE, NQUANT, sorted_values
     implicit none
     private
 
@@ -416,19 +416,9 @@ contains
     pure function distinct_sorted(x) result(out)
         real(dp), intent(in) :: x(:)
         real(dp), allocatable :: out(:)
-        real(dp) :: v(size(x)), t
-        integer :: i, j, n
-        v = x
-        do i = 2, size(v)
-            t = v(i)
-            j = i - 1
-            do while (j >= 1)
-                if (v(j) <= t) exit
-                v(j + 1) = v(j)
-                j = j - 1
-            end do
-            v(j + 1) = t
-        end do
+        real(dp) :: v(size(x))
+        integer :: i, n
+        v = sorted_values(x)
         allocate (out(size(v)))
         n = 0
         do i = 1, size(v)

@@ -19,9 +19,8 @@
 !!   separates them best;
 !! * `chi2_sf`: the chi-square survival function.
 module beamid_estimation
-    use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_positive_inf, ieee_quiet_nan, &
-                                             ieee_is_finite, ieee_is_nan
-    use beamid_kinds, only: dp
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+    use beamid_kinds, only: dp, infinity, not_a_number
     use beamid_status, only: status_t, set_status, clear_status, STATUS_OK, ERR_INPUT, &
                              ERR_NO_CONVERGENCE, ERR_NUMERIC, fmt_int, fmt_real
     use beamid_lapack, only: svd_thin
@@ -269,6 +268,8 @@ module beamid_estimation
         integer :: it0 = 1                 !< first iteration of the current phase
         integer :: level = ROUGH_OFF       !< roughness of the phase being confirmed
         integer :: nstuck = 0              !< damped steps in a row that moved nothing
+        integer, allocatable :: free(:)    !< the problem: free parameters, start, box
+        real(dp), allocatable :: p0(:), lower(:), upper(:)
         real(dp), allocatable :: p(:), pred(:), a(:, :), rr(:)    !< the iterate
         real(dp), allocatable :: pt(:), predt(:), at(:, :), rt(:) !< a trial step
         !> the projected Jacobian, gradient, its scaled SVD, the step
@@ -286,14 +287,6 @@ module beamid_estimation
 contains
 
     ! ----------------------------------------------------------------- helpers
-
-    pure real(dp) function infinity()
-        infinity = ieee_value(1.0_dp, ieee_positive_inf)
-    end function infinity
-
-    pure real(dp) function not_a_number()
-        not_a_number = ieee_value(1.0_dp, ieee_quiet_nan)
-    end function not_a_number
 
     !> Weighted system at `params`: rows (y - f)/sigma then a priori rows;
     !! a = d f / d params(cols) / sigma, prior rows 1/sigma_prior.
@@ -645,6 +638,7 @@ contains
 
         call check_problem(y, sigma, params0, free, lower, upper, prior, stat)
         if (stat%code /= STATUS_OK) return
+        w = gn_state_t(free=free, p0=params0, lower=lower, upper=upper)
         call start_search(model, y, sigma, params0, free, prior, opts, w, res, stat)
         if (stat%code /= STATUS_OK) return
         ! phases: iterate (on the rough model, then steered by rough
@@ -654,7 +648,7 @@ contains
         ! one Gauss-Newton step)
         phases: do
         iterate: do it = w%it0, opts%max_iter
-            call projected_svd(w, free, lower, upper, opts, stat)
+            call projected_svd(w, opts, stat)
             if (stat%code /= STATUS_OK) then
                 model%rough = ROUGH_OFF
                 return
@@ -671,8 +665,7 @@ contains
                 w%stalled = .true.
                 exit
             end if
-            call damped_trials(model, y, sigma, free, lower, upper, prior, opts, w, accepted, &
-                               evaluated)
+            call damped_trials(model, y, sigma, prior, opts, w, accepted, evaluated)
             res%iterations = it
             if (.not. accepted) then
                 ! no damped step lowers the cost: a minimum to working precision
@@ -687,7 +680,7 @@ contains
                 end if
                 exit
             end if
-            call take_step(w, free, it, res)
+            call take_step(w, it, res)
             if (w%lambda == 0.0_dp .and. (w%relstep < opts%tol_step .or. &
                 w%dcost <= opts%tol_cost*w%cost_t .or. w%cost_t <= 1.0e-18_dp*w%mt)) then
                 w%cost = w%cost_t
@@ -705,21 +698,20 @@ contains
             end if
             w%lambda = w%lambda/10.0_dp
             if (w%lambda < w%lam_floor) w%lambda = 0.0_dp
-            call hold_runaways(w, params0, free, lower, opts)
+            call hold_runaways(w, opts)
             if (all(w%held)) exit
         end do iterate
         if (model%rough == ROUGH_OFF) exit phases
         w%level = model%rough
-        call confirm_at_final_point(model, y, sigma, free, lower, upper, prior, opts, w, &
-                                    res%iterations, go_on, stat)
+        call confirm_at_final_point(model, y, sigma, prior, opts, w, res%iterations, go_on, stat)
         if (stat%code /= STATUS_OK) return
         if (.not. go_on) exit phases
         model%rough = w%level - 1
         call restart_phase(w, res)
         end do phases
-        call store_result(w, params0, free, lower, upper, opts, res, stat)
+        call store_result(w, opts, res, stat)
         if (stat%code /= STATUS_OK) return   ! the model failed at every trial step
-        call describe_ending(w, params0, lower, upper, opts, res, stat)
+        call describe_ending(w, opts, res, stat)
     end subroutine fit_least_squares
 
     !> fit_least_squares' first step: the work arrays, the weighted system at
@@ -780,13 +772,12 @@ contains
     !! direction (a^T r) points out of the box is held for this step, a
     !! parameter that ran away for good; w%aa = w%a without their columns and
     !! its scaled SVD (d, s, u, vt).
-    subroutine projected_svd(w, free, lower, upper, opts, st)
+    subroutine projected_svd(w, opts, st)
         type(gn_state_t), intent(inout) :: w
-        integer, intent(in) :: free(:)
-        real(dp), intent(in) :: lower(:), upper(:)
         type(fit_options_t), intent(in) :: opts
         type(status_t), intent(inout) :: st
         integer :: i, k, nbound
+        associate (free => w%free, lower => w%lower, upper => w%upper)
         w%aa = w%a
         w%g = matmul(w%rr, w%a)
         do i = 1, w%n
@@ -812,6 +803,7 @@ contains
             call scaled_svd(w%aa, w%d, w%s, w%u, w%vt, st)
             if (st%code /= STATUS_OK) return
         end do
+        end associate
     end subroutine projected_svd
 
     !> Is iteration `it` at a minimum, before its step (w%pred_gn set)?
@@ -849,11 +841,9 @@ contains
     !! arrays w%pt, w%predt, w%at, w%rt hold it, w%cost_t its cost).
     !! evaluated: some trial could be evaluated; w%failed_trial: the last
     !! could not (its message in w%fail_stat).
-    subroutine damped_trials(model, y, sigma, free, lower, upper, prior, opts, w, accepted, &
-                             evaluated)
+    subroutine damped_trials(model, y, sigma, prior, opts, w, accepted, evaluated)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), lower(:), upper(:)
-        integer, intent(in) :: free(:)
+        real(dp), intent(in) :: y(:), sigma(:)
         type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(gn_state_t), intent(inout) :: w
@@ -867,15 +857,15 @@ contains
         do trial = 1, opts%max_trials
             w%dx = lm_step(w%d, w%s, w%u, w%vt, w%rr, w%lambda, opts%rcond)
             w%pt = w%p
-            w%pt(free) = min(max(w%p(free) + w%dx, lower(free)), upper(free))
-            w%dx = w%pt(free) - w%p(free)
+            w%pt(w%free) = min(max(w%p(w%free) + w%dx, w%lower(w%free)), w%upper(w%free))
+            w%dx = w%pt(w%free) - w%p(w%free)
             call clear_status(trial_stat)
             if (model%plain_trials) then
-                call weighted_system(model, y, sigma, w%pt, free(1:0), prior, w%predt, &
+                call weighted_system(model, y, sigma, w%pt, w%free(1:0), prior, w%predt, &
                                      w%at(:, 1:0), w%rt, trial_stat)
             else
-                call weighted_system(model, y, sigma, w%pt, free, prior, w%predt, w%at, w%rt, &
-                                     trial_stat)
+                call weighted_system(model, y, sigma, w%pt, w%free, prior, w%predt, w%at, &
+                                     w%rt, trial_stat)
             end if
             if (trial_stat%code == STATUS_OK) then
                 evaluated = .true.
@@ -883,7 +873,7 @@ contains
                 w%cost_t = sum(w%rt**2)
                 if (w%cost_t <= w%cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
                     ! the sensitivities at the accepted step
-                    if (model%plain_trials) call weighted_system(model, y, sigma, w%pt, free, &
+                    if (model%plain_trials) call weighted_system(model, y, sigma, w%pt, w%free, &
                                              prior, w%predt, w%at, w%rt, trial_stat)
                     if (trial_stat%code == STATUS_OK) then
                         w%cost_t = sum(w%rt**2)
@@ -902,11 +892,11 @@ contains
     end subroutine damped_trials
 
     !> Move to the accepted trial step and log it as iteration `it`.
-    pure subroutine take_step(w, free, it, res)
+    pure subroutine take_step(w, it, res)
         type(gn_state_t), intent(inout) :: w
-        integer, intent(in) :: free(:), it
+        integer, intent(in) :: it
         type(fit_result_t), intent(inout) :: res
-        w%relstep = maxval(abs(w%dx)/max(abs(w%p(free)), abs(w%pt(free)), tiny(1.0_dp)))
+        w%relstep = maxval(abs(w%dx)/max(abs(w%p(w%free)), abs(w%pt(w%free)), tiny(1.0_dp)))
         w%dcost = w%cost - w%cost_t
         w%pred_step = w%cost - sum((w%rr - matmul(w%aa, w%dx))**2)
         w%poor_step = w%lambda > 0.0_dp .or. w%dcost < 0.25_dp*w%pred_step
@@ -918,7 +908,7 @@ contains
         res%log_cost(it) = w%cost_t
         res%log_lambda(it) = w%lambda
         res%log_step(it) = w%relstep
-        res%log_params(:, it) = w%p(free)
+        res%log_params(:, it) = w%p(w%free)
     end subroutine take_step
 
     !> Count the damped steps that get nowhere (w%nstuck: three is a stall)
@@ -947,15 +937,14 @@ contains
     end subroutine count_stuck_steps
 
     !> A parameter that ran away is held there; the others go on.
-    pure subroutine hold_runaways(w, params0, free, lower, opts)
+    pure subroutine hold_runaways(w, opts)
         type(gn_state_t), intent(inout) :: w
-        real(dp), intent(in) :: params0(:), lower(:)
-        integer, intent(in) :: free(:)
         type(fit_options_t), intent(in) :: opts
-        integer :: i
+        integer :: i, f
         do i = 1, w%n
             if (w%held(i)) cycle
-            if (ran_away(w%p(free(i)), params0(free(i)), lower(free(i)), opts)) then
+            f = w%free(i)
+            if (ran_away(w%p(f), w%p0(f), w%lower(f), opts)) then
                 w%held(i) = .true.
                 w%lambda = 0.0_dp
                 w%nstuck = 0
@@ -972,11 +961,10 @@ contains
     !! degree of freedom (about 1 with noisy data: the same floor): with
     !! (nearly) exact data the rough model's own noise floor is far above
     !! the accurate model's, and the fit goes on to the accurate minimum.
-    subroutine confirm_at_final_point(model, y, sigma, free, lower, upper, prior, opts, w, &
-                                      iterations, go_on, st)
+    subroutine confirm_at_final_point(model, y, sigma, prior, opts, w, iterations, go_on, st)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), lower(:), upper(:)
-        integer, intent(in) :: free(:), iterations
+        real(dp), intent(in) :: y(:), sigma(:)
+        integer, intent(in) :: iterations
         type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(gn_state_t), intent(inout) :: w
@@ -985,7 +973,7 @@ contains
         type(status_t) :: est
         model%rough = ROUGH_OFF
         go_on = .false.
-        call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, est)
+        call weighted_system(model, y, sigma, w%p, w%free, prior, w%pred, w%a, w%rr, est)
         if (est%code /= STATUS_OK) then
             est%message = trim(est%message)//' (the accurate Jacobian at the estimates)'
             st = est
@@ -993,7 +981,7 @@ contains
         end if
         w%cost = sum(w%rr**2)
         if (all(w%held) .or. iterations >= opts%max_iter) return
-        call projected_svd(w, free, lower, upper, opts, est)
+        call projected_svd(w, opts, est)
         if (est%code /= STATUS_OK) then
             st = est
             return
@@ -1026,10 +1014,8 @@ contains
     !! residuals, chi-square, and the covariance, sigmas and flags from the
     !! accurate Jacobian (a held parameter's column left out: the others'
     !! covariance is conditional on it, and it gets an infinite sigma).
-    subroutine store_result(w, params0, free, lower, upper, opts, res, stat)
+    subroutine store_result(w, opts, res, stat)
         type(gn_state_t), intent(inout) :: w
-        real(dp), intent(in) :: params0(:), lower(:), upper(:)
-        integer, intent(in) :: free(:)
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(inout) :: res
         type(status_t), intent(inout) :: stat
@@ -1043,7 +1029,7 @@ contains
         res%log_step = res%log_step(0:res%nlog)
         res%log_params = res%log_params(:, 0:res%nlog)
         res%params = w%p
-        res%estimates = w%p(free)
+        res%estimates = w%p(w%free)
         res%predictions = w%pred
         res%normalized = w%rr(1:m)
         res%chi2 = sum(w%rr(1:m)**2)
@@ -1060,14 +1046,13 @@ contains
             if (stat%code == STATUS_OK) stat = cov_stat
             return
         end if
-        call set_flags(res, params0, lower, upper, undetermined, opts)
+        call set_flags(res, w%p0, w%lower, w%upper, undetermined, opts)
     end subroutine store_result
 
     !> How the fit ended (res%stop) and, unless converged, why (res%note);
     !! still moving at the iteration limit is ERR_NO_CONVERGENCE.
-    subroutine describe_ending(w, params0, lower, upper, opts, res, stat)
+    subroutine describe_ending(w, opts, res, stat)
         type(gn_state_t), intent(in) :: w
-        real(dp), intent(in) :: params0(:), lower(:), upper(:)
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(inout) :: res
         type(status_t), intent(inout) :: stat
@@ -1082,7 +1067,7 @@ contains
             else
                 res%note = 'the others still moving at the iteration limit'
             end if
-            res%note = flag_list(res, params0, lower, upper, opts, w%held)// &
+            res%note = flag_list(res, w%p0, w%lower, w%upper, opts, w%held)// &
                        '; held where found after '//fmt_int(res%iterations)// &
                        ' iterations, '//res%note
             res%converged = .false.
@@ -1097,7 +1082,7 @@ contains
                 res%note = res%note//'the model could not be solved at the smallest trial '// &
                            'step ('//trim(w%fail_stat%message)//'); '
             end if
-            res%note = res%note//flag_list(res, params0, lower, upper, opts, w%held)
+            res%note = res%note//flag_list(res, w%p0, w%lower, w%upper, opts, w%held)
         else if (res%converged) then
             res%stop = STOP_CONVERGED
         else
@@ -1706,8 +1691,11 @@ contains
         !! model, a start of the refits (default: base%params)
         integer :: nc, c, q, nrefit
         integer, allocatable :: order(:)
+        real(dp), allocatable :: start(:)
         type(status_t) :: st
 
+        start = base%params
+        if (present(nominal)) start = nominal
         nc = size(cands)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
@@ -1728,17 +1716,9 @@ contains
             nrefit = nrefit + 1
             associate (cr => diag%cand(c))
                 call clear_status(st)
-                if (present(nominal)) then
-                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, nominal, &
-                                      null_values, lower, upper, prior, fopts, cr%refit, &
-                                      cr%info, st, use=dopts%starts, &
-                                      enough=dopts%first_enough)
-                else
-                    call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, &
-                                      base%params, null_values, lower, upper, prior, fopts, &
-                                      cr%refit, cr%info, st, use=dopts%starts, &
-                                      enough=dopts%first_enough)
-                end if
+                call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, start, &
+                                  null_values, lower, upper, prior, fopts, cr%refit, cr%info, &
+                                  st, use=dopts%starts, enough=dopts%first_enough)
                 if (st%code < 0) then
                     stat = st
                     return

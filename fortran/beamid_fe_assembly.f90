@@ -48,7 +48,7 @@ module beamid_fe_assembly
     public :: fe_work_t, fe_work_init, fe_residual, fe_check_dense
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
-    public :: fe_expand, fe_node_value, fe_spring_energy, fe_spring_dofs
+    public :: fe_expand, fe_node_value, fe_spring_dofs
     public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
 
@@ -478,16 +478,6 @@ contains
             v = v + fe_hinge_energy(flex, qpad(idx))
         end do
     end function spring_energy
-
-    !> Energy of the hinge springs alone (joints and root) at the free vector q:
-    !! sum of (psi+ - psi-)^2 / (2 f); zero for a rigid chain.
-    pure real(dp) function fe_spring_energy(mesh, q) result(v)
-        type(fe_mesh_t), intent(in) :: mesh
-        real(dp), intent(in) :: q(:)
-        real(dp) :: qpad(0:mesh%nfree)
-        call pad_free(q, qpad)
-        v = spring_energy(mesh, qpad)
-    end function fe_spring_energy
 
     !> fpad += spring forces and, if present, kb += spring tangents, on the
     !! padded free vectors (entry 0 collects the clamped rows).

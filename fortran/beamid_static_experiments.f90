@@ -27,7 +27,7 @@ module beamid_static_experiments
 
     public :: static_experiments_t, static_experiments_init, quantity_code, quantity_label
     public :: static_bounds, static_null_values, static_candidates, static_effect_params
-    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT
+    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, sorted_values
 
     !> Quantity codes.
     integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
@@ -305,28 +305,36 @@ contains
 
     pure real(dp) function median_of(x, default)
         real(dp), intent(in) :: x(:), default
-        real(dp) :: y(size(x)), t
-        integer :: i, j, n
+        real(dp) :: y(size(x))
+        integer :: n
         n = size(x)
         if (n == 0) then
             median_of = default
             return
         end if
-        y = x
-        do i = 2, n
-            t = y(i)
-            j = i - 1
-            do while (j >= 1)
-                if (y(j) <= t) exit
-                y(j + 1) = y(j)
-                j = j - 1
-            end do
-            y(j + 1) = t
-        end do
+        y = sorted_values(x)
         if (mod(n, 2) == 1) then
             median_of = y((n + 1)/2)
         else
             median_of = 0.5_dp*(y(n/2) + y(n/2 + 1))
         end if
     end function median_of
+
+    !> x in ascending order (stable insertion sort).
+    pure function sorted_values(x) result(v)
+        real(dp), intent(in) :: x(:)
+        real(dp) :: v(size(x)), t
+        integer :: i, j
+        v = x
+        do i = 2, size(v)
+            t = v(i)
+            j = i - 1
+            do while (j >= 1)
+                if (v(j) <= t) exit
+                v(j + 1) = v(j)
+                j = j - 1
+            end do
+            v(j + 1) = t
+        end do
+    end function sorted_values
 end module beamid_static_experiments

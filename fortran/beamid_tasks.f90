@@ -100,18 +100,35 @@ contains
         if (stat%code == STATUS_OK) written = fl%names
     end subroutine run_task
 
-    !> Output prefix resolved against the deck's directory.
-    function output_prefix(d) result(prefix)
+    !> Output prefix resolved against the deck's directory, and the folder
+    !! that will hold the files starting with it created.
+    subroutine output_prefix(d, prefix, st)
         type(deck_t), intent(in) :: d
-        character(len=:), allocatable :: prefix
-        integer :: slash
+        character(len=:), allocatable, intent(out) :: prefix
+        type(status_t), intent(inout) :: st
+        integer :: slash, exitstat, cmdstat
+        logical :: exists
         if (d%output(1:1) == '/') then
             prefix = d%output
         else
             slash = index(d%path, '/', back=.true.)
             prefix = d%path(:slash)//d%output
         end if
-    end function output_prefix
+        slash = index(prefix, '/', back=.true.)
+        if (slash <= 1) return
+        inquire (file=prefix(:slash - 1)//'/.', exist=exists)
+        if (exists) return
+        if (index(prefix, "'") > 0) then
+            call set_status(st, ERR_OUTPUT, 'output', 'cannot create the folder of '// &
+                            prefix//' (a path with a quote)')
+            return
+        end if
+        call execute_command_line("mkdir -p '"//prefix(:slash - 1)//"' 2>/dev/null", &
+                                  exitstat=exitstat, cmdstat=cmdstat)
+        if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_OUTPUT, 'output', &
+            'cannot create the output folder '//prefix(:slash - 1)// &
+            ' (a file of that name, or no permission)')
+    end subroutine output_prefix
 
     subroutine run_static(d, fl, st)
         type(deck_t), intent(in) :: d
@@ -143,8 +160,7 @@ contains
             if (st%code /= STATUS_OK) return
         end if
 
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         names = [(output_names(i), i=1, NOUT)]
         do j = 1, size(d%wrt)
@@ -193,8 +209,7 @@ contains
         end if
         if (st%code /= STATUS_OK) return
         total = nodes(1, nnode)
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call write_summary(fl, prefix//'_summary.csv', names, [nodes(4, nnode), &
                            nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
@@ -226,8 +241,7 @@ contains
         end if
         call fe_modes_table(mesh, d%fe_rotary_inertia, omega, phi, axial, dofs, st)
         if (st%code /= STATUS_OK) return
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call open_output(fl, prefix//'_modes.csv', 'quantity,value', unit, ios, st)
         if (st%code /= STATUS_OK) return
@@ -290,8 +304,7 @@ contains
             header = header//','//work_name(d%nbeams, i)
         end do
         header = header//',work,numerical,motor_torque'
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call open_output(fl, prefix//'_history.csv', header, unit, ios, st)
         if (st%code /= STATUS_OK) return
@@ -376,8 +389,7 @@ contains
             if (st%code /= STATUS_OK) return
         end if
 
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call write_fit_files(d, fo, prefix, fl, st)
         if (st%code /= STATUS_OK) return
@@ -461,8 +473,7 @@ contains
             params = fits(k)%params
         end do
 
-        prefix = output_prefix(d)
-        call make_parent_folder(prefix, st)
+        call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call open_output(fl, prefix//'_identify.csv', &
                          'stage,parameter,estimate,sigma_before,sigma_after', unit, ios, st)
@@ -869,28 +880,6 @@ contains
             if (text(e + 2:e + 2) == '0') text = text(:e + 1)//text(e + 3:)
         end if
     end function fmt_e
-
-    !> Create the folder that will hold files starting with `prefix`.
-    subroutine make_parent_folder(prefix, st)
-        character(len=*), intent(in) :: prefix
-        type(status_t), intent(inout) :: st
-        integer :: slash, exitstat, cmdstat
-        logical :: exists
-        slash = index(prefix, '/', back=.true.)
-        if (slash <= 1) return
-        inquire (file=prefix(:slash - 1)//'/.', exist=exists)
-        if (exists) return
-        if (index(prefix, "'") > 0) then
-            call set_status(st, ERR_OUTPUT, 'output', 'cannot create the folder of '// &
-                            prefix//' (a path with a quote)')
-            return
-        end if
-        call execute_command_line("mkdir -p '"//prefix(:slash - 1)//"' 2>/dev/null", &
-                                  exitstat=exitstat, cmdstat=cmdstat)
-        if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_OUTPUT, 'output', &
-            'cannot create the output folder '//prefix(:slash - 1)// &
-            ' (a file of that name, or no permission)')
-    end subroutine make_parent_folder
 
     !> Open an output file under its temporary name and write its header line.
     subroutine open_output(fl, name, header, unit, ios, st)

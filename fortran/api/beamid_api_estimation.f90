@@ -17,7 +17,6 @@ module beamid_api_estimation
                                  diagnose_options_t, &
                                  chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
-    use beamid_static_experiments, only: static_bounds
     use beamid_estimation, only: prior_from_covariance
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_problem, deck_candidates
@@ -28,7 +27,7 @@ module beamid_api_estimation
     implicit none
     private
 
-    public :: api_chi2_sf, api_static_bounds
+    public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_problem_predict, api_deck_experiments
     public :: api_problem_diagnose, api_time_structure
@@ -76,19 +75,6 @@ contains
         if (tol_step > 0.0_c_double) opts%tol_step = tol_step
         if (tol_cost > 0.0_c_double) opts%tol_cost = tol_cost
     end subroutine make_options
-
-    !> Lower and upper physical bounds of every parameter.
-    subroutine api_static_bounds(nbeams, nparams, lower, upper)
-        integer(c_int), intent(in) :: nbeams, nparams
-        real(c_double), intent(out) :: lower(nparams), upper(nparams)
-        real(dp), allocatable :: lo(:), up(:)
-        call static_bounds(int(nbeams), lo, up)
-        lower = 0.0_c_double
-        upper = 0.0_c_double
-        if (size(lo) /= nparams) return
-        lower = lo
-        upper = up
-    end subroutine api_static_bounds
 
     !> Residual structure tests of compare (beamid_estimation residual_structure):
     !! out = runs, expected runs, runs z, runs p, slope, trend z, trend p.
@@ -177,14 +163,16 @@ contains
 
     !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
     !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
-    !! the log arrays hold nlog + 1 entries (entry 1 = start).
+    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest as
+    !! clear_fit left them).
     subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                         log_cost, log_lambda, log_step, log_params)
         type(fit_result_t), intent(in) :: res
         real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
         integer(c_int), intent(out) :: flags(:)
         real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
-        real(c_double), intent(out) :: log_cost(:), log_lambda(:), log_step(:), log_params(:, :)
+        real(c_double), intent(inout) :: log_cost(:), log_lambda(:), log_step(:), &
+                                         log_params(:, :)
         integer :: n, lo
         params = res%params
         sigmas = res%sigmas
@@ -196,10 +184,6 @@ contains
         stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
                  real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
                  real(res%nlog, dp)]
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
         n = min(res%nlog + 1, size(log_cost))
         ! the log runs 0:nlog; its shrink in fit_least_squares reallocates (to 1-based
         ! bounds) only when the fit stopped before max_iter, so index from lbound

@@ -12,29 +12,15 @@ module beamid_api_static
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, status_out, fmt_int
     use beamid_model, only: chain_t, chain_from_vector, param_count, param_name
     use beamid_presets, only: preset_params
-    use beamid_arclength, only: static_solution_t, solve_static, static_shape, NOUT, &
+    use beamid_arclength, only: static_solution_t, solve_static, static_shape, &
                                 static_load_from_values, static_options_from_tol
     implicit none
     private
 
-    public :: api_param_count, api_param_names, api_check_params, api_nout
+    public :: api_param_names, api_check_params
     public :: api_static_solve, api_static_shape, api_preset_size, api_preset
 
 contains
-
-    !> Number of named parameters of a chain of nbeams beams.
-    subroutine api_param_count(nbeams, count)
-        integer(c_int), intent(in) :: nbeams
-        integer(c_int), intent(out) :: count
-        count = int(param_count(int(nbeams)), c_int)
-    end subroutine api_param_count
-
-    !> Number of static outputs (x_tip, y_tip, tip_angle, wire_force, x_elbow,
-    !! y_elbow, elbow_angle, root_moment).
-    subroutine api_nout(count)
-        integer(c_int), intent(out) :: count
-        count = int(NOUT, c_int)
-    end subroutine api_nout
 
     !> Parameter names of a chain of nbeams beams, space separated, in the
     !! order of the parameter vector.
@@ -71,7 +57,7 @@ contains
         call status_out(stat, code, message)
     end subroutine api_preset_size
 
-    !> Parameter vector of a preset (nparams from api_param_count).
+    !> Parameter vector of a preset (nparams from api_preset_size).
     subroutine api_preset(name, nparams, params, code, message)
         character(len=*), intent(in) :: name
         integer(c_int), intent(in) :: nparams

@@ -63,10 +63,6 @@ def check_params(nbeams: int, params: np.ndarray) -> None:
     _call(_static.api_check_params, nbeams, _floats(params))
 
 
-def nout() -> int:
-    return int(_static.api_nout())
-
-
 def static_solve(nbeams: int, params: np.ndarray, load_kind: int, load_values: np.ndarray,
                  wrt: np.ndarray, tol: float = 0.0):
     """Arc-length static solve; returns outputs, doutputs (8 x nwrt), unknowns, info."""

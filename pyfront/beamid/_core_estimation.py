@@ -104,12 +104,6 @@ def _pad(values, dtype) -> np.ndarray:
     return np.append(np.asarray(values, dtype=dtype), np.zeros(1, dtype=dtype))
 
 
-def static_bounds(nbeams: int, nparams: int) -> tuple[np.ndarray, np.ndarray]:
-    """Physical lower and upper bounds of every parameter."""
-    lower, upper = _api.api_static_bounds(nbeams, nparams)
-    return np.array(lower), np.array(upper)
-
-
 def chi2_sf(x: float, k: int) -> float:
     """Chi-square survival function (Fortran)."""
     return float(_api.api_chi2_sf(float(x), int(k)))

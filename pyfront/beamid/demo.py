@@ -41,23 +41,16 @@ def demo(out: Path) -> int:
 
     from .fit_decks import read_fit_deck, run_fit_deck
 
-    deck = read_fit_deck(inputs_dir("demo") / "hidden_effect.nml")
-    deck = dataclasses.replace(deck, output=str((out / "hidden_effect").resolve()))
-    print()
-    print("beamid improve inputs/demo/hidden_effect.nml")
-    text, files, _ = run_fit_deck(deck)
-    print(text)
-    written += files
-
-    # the same on time histories: a release measured on a rig with rotary
+    # and the same on time histories: a release measured on a rig with rotary
     # inertia and tip drag (inputs/demo/dynamic_hidden_effect.csv)
-    deck = read_fit_deck(inputs_dir("demo") / "dynamic_hidden_effect.nml")
-    deck = dataclasses.replace(deck, output=str((out / "dynamic_hidden_effect").resolve()))
-    print()
-    print("beamid improve inputs/demo/dynamic_hidden_effect.nml")
-    text, files, _ = run_fit_deck(deck)
-    print(text)
-    written += files
+    for name in ("hidden_effect", "dynamic_hidden_effect"):
+        deck = read_fit_deck(inputs_dir("demo") / f"{name}.nml")
+        deck = dataclasses.replace(deck, output=str((out / name).resolve()))
+        print()
+        print(f"beamid improve inputs/demo/{name}.nml")
+        text, files, _ = run_fit_deck(deck)
+        print(text)
+        written += files
 
     # the dynamic Figures 20-25 (implicit integrator, about a second): the three
     # runs one by one, so that a terminal shows the progress

@@ -168,10 +168,6 @@ def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     return force if force > 0.0 else abs(load.moment)
 
 
-def _two_sided_normal_p(z: float) -> float:
-    return _ce.chi2_sf(z * z, 1)
-
-
 def compare(fit: FitResult) -> Comparison:
     """Per experiment and quantity, measured against model values, normalized
     residuals, chi-square against its expectation, and two tests for
