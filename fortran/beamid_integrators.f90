@@ -671,9 +671,9 @@ contains
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
-        real(dp) :: t, h, hs, theta, sr, cap, d3(3), hcap
-        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall, nev0, skipj
-        logical :: evon, found
+        real(dp) :: t, h, hs, theta, hcap
+        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, nev0, skipj
+        logical :: evon
         m = sys%ncstate
         n = sys%nc
         allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
@@ -721,33 +721,8 @@ contains
                     return
                 end if
                 jev = 0
-                theta = 2.0_dp
-                if (evon) then
-                    do j = 1, 2*es%npt
-                        cap = es%fric((j + 1)/2)
-                        if (cap == 0.0_dp .or. j == skipj) cycle
-                        if (es%fmode(j) /= 0) then
-                            kindj = EVENT_ZERO_VELOCITY
-                            if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
-                            d3 = [sn(n + dyn_fric_dof(es, j)), h*k1(n + dyn_fric_dof(es, j)), &
-                                  h*k1n(n + dyn_fric_dof(es, j))]
-                            call first_root(kindj, es%fmode(j), cap, &
-                                            s(n + dyn_fric_dof(es, j)), d3, .true., sr, found)
-                            if (.not. found) sr = 1.0_dp
-                        else
-                            kindj = EVENT_UNSTICK
-                            if (abs(holdn(j)) <= cap) cycle
-                            ! |hold| - cap changes sign: linear in the step
-                            sr = (cap - abs(hold(j)))/(abs(holdn(j)) - abs(hold(j)))
-                            sr = max(0.0_dp, min(1.0_dp, sr))
-                        end if
-                        if (sr < theta) then
-                            theta = sr
-                            jev = j
-                            kind = kindj
-                        end if
-                    end do
-                end if
+                if (evon) call rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, &
+                                              kind, theta)
                 if (jev == 0) then
                     if (sens) then
                         call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
@@ -853,6 +828,52 @@ contains
             if (associated(opts%progress)) opts%progress(1) = t
         end do
     end subroutine run_rk4
+
+    !> The first friction event along the RK4 step of length h from s (rates
+    !! k1, holding forces hold) to sn (k1n, holdn): component jev (0: none),
+    !! its kind and where, the fraction theta of the step (a sliding
+    !! velocity's root along the step's cubic Hermite interpolant, a sticking
+    !! component's excess force linear in the step). skipj: a chattering
+    !! component left out for this step.
+    subroutine rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, kind, theta)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: s(:), sn(:), k1(:), k1n(:), hold(:), holdn(:), h
+        integer, intent(in) :: skipj
+        integer, intent(out) :: jev, kind
+        real(dp), intent(out) :: theta
+        real(dp) :: sr, cap, d3(3)
+        integer :: j, kindj, n
+        logical :: found
+
+        n = es%nc
+        jev = 0
+        kind = 0
+        theta = 2.0_dp
+        do j = 1, 2*es%npt
+            cap = es%fric((j + 1)/2)
+            if (cap == 0.0_dp .or. j == skipj) cycle
+            if (es%fmode(j) /= 0) then
+                kindj = EVENT_ZERO_VELOCITY
+                if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
+                d3 = [sn(n + dyn_fric_dof(es, j)), h*k1(n + dyn_fric_dof(es, j)), &
+                      h*k1n(n + dyn_fric_dof(es, j))]
+                call first_root(kindj, es%fmode(j), cap, s(n + dyn_fric_dof(es, j)), d3, .true., &
+                                sr, found)
+                if (.not. found) sr = 1.0_dp
+            else
+                kindj = EVENT_UNSTICK
+                if (abs(holdn(j)) <= cap) cycle
+                ! |hold| - cap changes sign: linear in the step
+                sr = (cap - abs(hold(j)))/(abs(holdn(j)) - abs(hold(j)))
+                sr = max(0.0_dp, min(1.0_dp, sr))
+            end if
+            if (sr < theta) then
+                theta = sr
+                jev = j
+                kind = kindj
+            end if
+        end do
+    end subroutine rk_first_event
 
     !> Jacobians and mass matrix at the state y into `it`; allocates the
     !! work arrays of `it` on first use.
