@@ -2330,29 +2330,66 @@ contains
         type(sens_work_t), intent(inout) :: ws    !< work arrays, kept across steps
         type(status_t), intent(inout) :: stat
         integer, parameter :: MAXIT = 40
-        real(dp) :: e(3), xp, ref, err, lsc(3), th
-        integer :: n, m, nw, nb, i, j, k, iter, kl, ku, na, ja, nx
+        real(dp) :: e(3)
+        integer :: n, m, nw, nb, j, iter, na, ja
         logical :: cz(3)
         n = es%n
         m = es%ncstate
-        nx = m - 2*n
         nw = size(sm, 2)
-        kl = es%mesh%kl
-        ku = es%mesh%ku
-        nb = 2*kl + ku + 1
+        nb = 2*es%mesh%kl + es%mesh%ku + 1
         call sens_work_alloc(ws, nb, n, m, nw)
-        associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
-                   cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
-                   fp => ws%fp, ys => ws%ys, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, &
-                   dels => ws%dels, act => ws%act, errold => ws%errold, wq => ws%wq, &
-                   wv => ws%wv)
-            ! the exact stage Jacobians and the parameter derivatives of the
-            ! forces at the converged stages, once per step for all parameters
+        call sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+        call sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        do iter = 1, MAXIT
+            if (na == 0) exit
+            call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            do ja = 1, na
+                ws%w1(:, ja) = ti1(1)*ws%r(:, 1, ja) + ti1(2)*ws%r(:, 2, ja) &
+                               + ti1(3)*ws%r(:, 3, ja)
+                ws%w2(:, ja) = ti2(1)*ws%r(:, 1, ja) + ti2(2)*ws%r(:, 2, ja) &
+                               + ti2(3)*ws%r(:, 3, ja)
+            end do
+            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2)
+            call sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
+        end do
+        if (na > 0) then
+            call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
+                            'the stage sensitivity iteration did not converge in '// &
+                            fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
+            return
+        end if
+        do j = 1, nw
+            if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
+            sm(:, j) = sm(:, j) + ws%dz(:, 3, j)
+            dzp(:, :, j) = ws%dz(:, :, j)
+        end do
+        hp = hh
+    end subroutine radau_sens_step
+
+    !> The exact stage Jacobians (ws%kb, cb, b, p, d and e; cz: a stage
+    !! without velocity coupling, no drag, damping or motor, whose C products
+    !! are skipped), the stage accelerations and the parameter derivatives of
+    !! the forces at the converged stages (ws%cst), once per step for all
+    !! nw parameters.
+    subroutine sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        integer, intent(in) :: nw
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3)
+        type(sens_work_t), intent(inout) :: ws
+        real(dp), intent(out) :: e(3)
+        logical, intent(out) :: cz(3)
+        real(dp) :: xp
+        integer :: n, nx, i, j
+
+        n = es%n
+        nx = es%ncstate - 2*n
+        associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
+                   fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
                 call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                  cb(:, :, i), b(:, i), p(:, i), d(:, i), e(i))
-                ! no velocity coupling (no drag, damping or motor): skip C products
+                                  cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
                 cz(i) = all(cb(:, :, i) == 0.0_dp)
                 acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
@@ -2364,14 +2401,30 @@ contains
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
             end do
-            ! predictors (the previous step's stage polynomial, extrapolated);
-            ! the linear rows q' = v hold from the start (and after every
-            ! correction): the solves skip the products with their residual
-            na = 0
-            do j = 1, nw
+        end associate
+    end subroutine sens_stage_terms
+
+    !> The active columns (ws%act(1:na)) and their predictors (the previous
+    !! step's stage polynomial, extrapolated); the linear rows q' = v hold from
+    !! the start (and after every correction): the solves skip the products
+    !! with their residual.
+    subroutine sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(in) :: it
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: sm(:, :), dzp(:, :, :), hh, hp, dmat(3, 3)
+        type(sens_work_t), intent(inout) :: ws
+        integer, intent(out) :: na
+        real(dp) :: lsc(3)
+        integer :: n, i, j, k
+
+        n = es%n
+        na = 0
+        associate (dz => ws%dz)
+            do j = 1, size(sm, 2)
                 if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
                 na = na + 1
-                act(na) = j
+                ws%act(na) = j
                 if (hp > 0.0_dp) then
                     do i = 1, 3
                         lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
@@ -2388,124 +2441,144 @@ contains
                     dz(n + 1:2*n, i, j) = (dmat(i, 1)*dz(1:n, 1, j) + dmat(i, 2)*dz(1:n, 2, j) &
                                            + dmat(i, 3)*dz(1:n, 3, j))/hh - sm(n + 1:2*n, j)
                 end do
-                errold(j) = huge(1.0_dp)
-            end do
-            do iter = 1, MAXIT
-                if (na == 0) exit
-                ! residuals of the active columns, velocity (and torque) rows
-                ! only, stage by stage: the products of all columns with the
-                ! stage Jacobian in one sweep over its band
-                do i = 1, 3
-                    do ja = 1, na
-                        j = act(ja)
-                        wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
-                        wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
-                    end do
-                    if (cz(i)) then
-                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
-                    else
-                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
-                    end if
-                    if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
-                    do ja = 1, na
-                        j = act(ja)
-                        ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
-                        zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
-                                       + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
-                        if (it%rot) then
-                            call to_mform(es, it, zd, ys(1:n))
-                        else
-                            call to_mform(es, it, zd)
-                        end if
-                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
-                        if (es%rotary) then
-                            fp = 0.0_dp
-                            call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
-                            r(1:n, i, ja) = r(1:n, i, ja) - fp
-                        end if
-                        if (nx > 0) then
-                            xp = sm(m, j) + dz(m, i, j)
-                            r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
-                            r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
-                                              + dot_product(d(:, i), wv(:, ja)) &
-                                              + e(i)*xp + cst(n + 1, i, j) - zd(m)
-                        end if
-                        do k = 1, it%nst
-                            r(it%stuck(k), i, ja) = 0.0_dp
-                        end do
-                    end do
-                end do
-                do ja = 1, na
-                    w1(:, ja) = ti1(1)*r(:, 1, ja) + ti1(2)*r(:, 2, ja) + ti1(3)*r(:, 3, ja)
-                    w2(:, ja) = ti2(1)*r(:, 1, ja) + ti2(2)*r(:, 2, ja) + ti2(3)*r(:, 3, ja)
-                end do
-                call solve_stage_many(es, it, gam/hh, mu/hh, na, w1, w2)
-                ! corrections, convergence column by column
-                k = 0
-                do ja = 1, na
-                    j = act(ja)
-                    ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
-                    ! displacement rows x and the velocity rows lam x (r_q = 0)
-                    do i = 1, 3
-                        dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
-                        dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
-                                             + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
-                        if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
-                        dz(:, i, j) = dz(:, i, j) + dels(:, i)
-                    end do
-                    ! error scale: the tolerance relative to this sensitivity's
-                    ! size (velocity rows as the displacement they cause over the
-                    ! step); the motor torque row on its own scale
-                    ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
-                    sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
-                    sc(n + 1:2*n) = sc(n + 1:2*n)*hh
-                    if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
-                                                    maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
-                    err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
-                    passes = passes + 1
-                    ! converged when the remaining error th/(1 - th) |correction|
-                    ! is below the tolerance (th: the observed contraction; at the
-                    ! first pass the column's last observed one, carried across
-                    ! steps as CVODES carries its rate (the iteration matrices
-                    ! change little from step to step), before any the Newton
-                    ! one). The sensitivities of the seed's release agree with
-                    ! central differences of rtol 1e-11 runs to the same digits
-                    ! as with 1 % of it (the Newton test), at 8 passes per step
-                    ! for 4 parameters instead of 10.
-                    ! Below the tolerance and no longer contracting: the
-                    ! round-off floor of the residuals (tolerances near 1e-12)
-                    if (iter == 1) then
-                        if (ws%thc(j) > 0.0_dp) then
-                            th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
-                        else
-                            th = min(max(thn, 1.0e-3_dp), 0.9_dp)
-                        end if
-                    else
-                        th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
-                        ws%thc(j) = th
-                    end if
-                    if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
-                    if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
-                    errold(j) = err
-                    k = k + 1
-                    act(k) = j
-                end do
-                na = k
-            end do
-            if (na > 0) then
-                call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
-                                'the stage sensitivity iteration did not converge in '// &
-                                fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
-                return
-            end if
-            do j = 1, nw
-                if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
-                sm(:, j) = sm(:, j) + dz(:, 3, j)
-                dzp(:, :, j) = dz(:, :, j)
+                ws%errold(j) = huge(1.0_dp)
             end do
         end associate
-        hp = hh
-    end subroutine radau_sens_step
+    end subroutine sens_predict
+
+    !> The residuals ws%r of the na active columns, velocity (and torque)
+    !! rows only, stage by stage: the products of all columns with the stage
+    !! Jacobian in one sweep over its band.
+    subroutine sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(inout) :: it
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), sm(:, :), e(3)
+        logical, intent(in) :: cz(3)
+        integer, intent(in) :: na
+        type(sens_work_t), intent(inout) :: ws
+        real(dp) :: xp
+        integer :: n, m, nx, kl, ku, i, j, ja, k
+
+        n = es%n
+        m = es%ncstate
+        nx = m - 2*n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
+                   cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
+                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv)
+            do i = 1, 3
+                do ja = 1, na
+                    j = act(ja)
+                    wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
+                    wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                end do
+                if (cz(i)) then
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
+                else
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                end if
+                if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
+                do ja = 1, na
+                    j = act(ja)
+                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
+                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
+                                   + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
+                    if (it%rot) then
+                        call to_mform(es, it, zd, ys(1:n))
+                    else
+                        call to_mform(es, it, zd)
+                    end if
+                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
+                    if (es%rotary) then
+                        fp = 0.0_dp
+                        call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
+                        r(1:n, i, ja) = r(1:n, i, ja) - fp
+                    end if
+                    if (nx > 0) then
+                        xp = sm(m, j) + dz(m, i, j)
+                        r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
+                        r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
+                                          + dot_product(d(:, i), wv(:, ja)) &
+                                          + e(i)*xp + cst(n + 1, i, j) - zd(m)
+                    end if
+                    do k = 1, it%nst
+                        r(it%stuck(k), i, ja) = 0.0_dp
+                    end do
+                end do
+            end do
+        end associate
+    end subroutine sens_residuals
+
+    !> The corrections from the reduced solves (ws%w1, w2) of pass iter and
+    !! convergence column by column: na becomes the number still active.
+    subroutine sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: sm(:, :), hh, gam, tr(3), rtol, thn
+        complex(dp), intent(in) :: mu, tc(3)
+        integer, intent(in) :: iter
+        integer, intent(inout) :: passes, na
+        type(sens_work_t), intent(inout) :: ws
+        real(dp) :: ref, err, th
+        integer :: n, m, nx, i, j, k, ja
+
+        n = es%n
+        m = es%ncstate
+        nx = m - 2*n
+        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, dels => ws%dels, &
+                   act => ws%act, errold => ws%errold)
+            k = 0
+            do ja = 1, na
+                j = act(ja)
+                ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
+                ! displacement rows x and the velocity rows lam x (r_q = 0)
+                do i = 1, 3
+                    dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
+                    dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
+                                         + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
+                    if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
+                    dz(:, i, j) = dz(:, i, j) + dels(:, i)
+                end do
+                ! error scale: the tolerance relative to this sensitivity's
+                ! size (velocity rows as the displacement they cause over the
+                ! step); the motor torque row on its own scale
+                ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
+                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
+                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
+                if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
+                err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
+                passes = passes + 1
+                ! converged when the remaining error th/(1 - th) |correction|
+                ! is below the tolerance (th: the observed contraction; at the
+                ! first pass the column's last observed one, carried across
+                ! steps as CVODES carries its rate (the iteration matrices
+                ! change little from step to step), before any the Newton
+                ! one). The sensitivities of the seed's release agree with
+                ! central differences of rtol 1e-11 runs to the same digits
+                ! as with 1 % of it (the Newton test), at 8 passes per step
+                ! for 4 parameters instead of 10.
+                ! Below the tolerance and no longer contracting: the
+                ! round-off floor of the residuals (tolerances near 1e-12)
+                if (iter == 1) then
+                    if (ws%thc(j) > 0.0_dp) then
+                        th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
+                    else
+                        th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                    end if
+                else
+                    th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
+                    ws%thc(j) = th
+                end if
+                if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
+                if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
+                errold(j) = err
+                k = k + 1
+                act(k) = j
+            end do
+            na = k
+        end associate
+    end subroutine sens_correct
 
     !> Work arrays of radau_sens_step, allocated on the first step.
     subroutine sens_work_alloc(ws, nb, n, m, nw)
