@@ -672,7 +672,7 @@ contains
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
         real(dp) :: t, h, hs, theta, hcap
-        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, nev0, skipj
+        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, skipj
         logical :: evon
         m = sys%ncstate
         n = sys%nc
@@ -782,33 +782,9 @@ contains
                         stats%fevals = stats%fevals + 1
                     end if
                 end if
-                if (kind == EVENT_ZERO_VELOCITY) s(n + dyn_fric_dof(es, jev)) = 0.0_dp
-                if (sens) then
-                    call sens_event_pre(es, pars, s(1:m), kind, jev, hold(jev), sm, fm, dtp, stat)
-                    if (stat%code /= 0) return
-                end if
-                nev0 = stats%events
-                if (kind == EVENT_ZERO_VELOCITY) then
-                    call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
-                else
-                    call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
-                end if
+                call rk_switch(es, s(1:m), t, hs, kind, jev, hold, nstall, skipj, hist, stats, &
+                               stat, pars, sm, fm, dtp)
                 if (stat%code /= 0) return
-                if (stats%events == nev0) then
-                    ! the velocity only touched zero: once is legitimate, again and
-                    ! again (roots ever closer together: a push that the vibration
-                    ! reverses at once, tiny mu) is chatter: the component keeps its
-                    ! mode over the next step and the sign change is handled once,
-                    ! at its start, after it
-                    if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
-                    if (nstall >= 3) skipj = jev
-                else if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) then
-                    nstall = 0
-                end if
-                if (sens) then
-                    call sens_event_post(es, s(1:m), fm, dtp, sm, stat)
-                    if (stat%code /= 0) return
-                end if
                 call rk_rates(es, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
@@ -828,6 +804,54 @@ contains
             if (associated(opts%progress)) opts%progress(1) = t
         end do
     end subroutine run_rk4
+
+    !> The RK4 switch jev of the given kind at t, the end of the partial step
+    !! hs to it: a velocity that reached zero is zero, the friction modes
+    !! change, the sensitivities jump (when pars are given). nstall, skipj:
+    !! chatter control.
+    subroutine rk_switch(es, s, t, hs, kind, jev, hold, nstall, skipj, hist, stats, stat, &
+                         pars, sm, fm, dtp)
+        type(dyn_system_t), intent(inout) :: es
+        real(dp), intent(inout) :: s(:)
+        real(dp), intent(in) :: t, hs
+        integer, intent(in) :: kind, jev
+        real(dp), intent(inout) :: hold(:)
+        integer, intent(inout) :: nstall, skipj
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :), fm(:), dtp(:)
+        integer :: nev0
+
+        if (kind == EVENT_ZERO_VELOCITY) s(es%nc + dyn_fric_dof(es, jev)) = 0.0_dp
+        if (present(pars)) then
+            call sens_event_pre(es, pars, s, kind, jev, hold(jev), sm, fm, dtp, stat)
+            if (stat%code /= 0) return
+        end if
+        nev0 = stats%events
+        if (kind == EVENT_ZERO_VELOCITY) then
+            call apply_switch(es, s, t, kind, 0, hold, hist, stats, stat)
+        else
+            call apply_switch(es, s, t, kind, jev, hold, hist, stats, stat)
+        end if
+        if (stat%code /= 0) return
+        if (stats%events == nev0) then
+            ! the velocity only touched zero: once is legitimate, again and
+            ! again (roots ever closer together: a push that the vibration
+            ! reverses at once, tiny mu) is chatter: the component keeps its
+            ! mode over the next step and the sign change is handled once,
+            ! at its start, after it
+            if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
+            if (nstall >= 3) skipj = jev
+        else if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) then
+            nstall = 0
+        end if
+        if (present(pars)) then
+            call sens_event_post(es, s, fm, dtp, sm, stat)
+            if (stat%code /= 0) return
+        end if
+    end subroutine rk_switch
 
     !> The first friction event along the RK4 step of length h from s (rates
     !! k1, holding forces hold) to sn (k1n, holdn): component jev (0: none),
