@@ -390,24 +390,16 @@ contains
         !! these data hardly tell them apart
         integer, allocatable, intent(out), optional :: ambiguous(:)
         integer, allocatable :: close(:)
-        real(dp), allocatable :: drops(:)
         type(inverse_problem_t) :: prob, probe
         type(null_side_model_t) :: side
         type(cached_model_t) :: cache
-        integer, allocatable :: union(:)
-        type(score_result_t) :: sc, one
-        real(dp) :: dbest
-        integer :: best
         type(fit_options_t) :: fopts, frefit
-        logical, allocatable :: keep(:)
         type(diagnosis_t) :: sub
         type(candidate_t), allocatable :: seen_cands(:), cands(:)
-        logical, allocatable :: open_(:)
-        type(status_t) :: st
-        integer, allocatable :: map(:), sexp(:), sq(:), dexp(:), dq(:), plocal(:)
-        real(dp), allocatable :: pred(:), jac(:, :), ssig(:), dt(:), dsig(:), psig(:)
+        integer, allocatable :: map(:)
+        real(dp), allocatable :: psig(:)
         logical, allocatable :: seen(:)
-        integer :: c, k, j, nc, ns, q
+        integer :: c, nc, ns
         type(diagnose_options_t) :: dsub
 
         allocate (pexp(0), pq(0), pt(0), close(0))
@@ -429,133 +421,30 @@ contains
         call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
                     stat)
         if (stat%code /= STATUS_OK) return
-        ! a block some of whose members are free or switched on (the drag at
-        ! the elbow added by an earlier rung of improve) is tested as its
-        ! members still at their null values (the drag at the tip)
-        cands = cands_in
-        do c = 1, nc
-            j = size(cands(c)%params)
-            if (j < 2) cycle
-            open_ = [(base%params(cands(c)%params(q)) == prob%nulls(cands(c)%params(q)) .and. &
-                      .not. any(base%free == cands(c)%params(q)), q=1, j)]
-            if (any(open_) .and. .not. all(open_)) cands(c)%params = pack(cands(c)%params, open_)
-        end do
+        cands = open_members(cands_in, base, prob%nulls)
         ! one run of the forward sensitivities at the null values for the
         ! free parameters and every candidate parameter to be tested: the
         ! checks below and every score test read it (cached_model_t)
-        union = base%free
-        do c = 1, nc
-            do q = 1, size(cands(c)%params)
-                k = cands(c)%params(q)
-                if (any(union == k)) cycle
-                if (base%params(k) /= prob%nulls(k)) cycle
-                union = [union, k]
-            end do
-        end do
-        call cached_init(side, base%params, union, size(y), cache)
+        call cached_init(side, base%params, tested_union(cands, base, prob%nulls), size(y), &
+                         cache)
         if (cache%stat%code > 0) then
             stat = cache%stat
             return
         end if
-        ! which candidates do the data rows see at all? (a sensitivity the
-        ! model cannot give at the null value, e.g. a locked joint's, is an
-        ! input error of that column alone: not seen either)
-        allocate (seen(nc), pred(size(y)))
-        do c = 1, nc
-            j = size(cands(c)%params)
-            seen(c) = .true.
-            if (j == 0) cycle
-            ! an effect already free or switched on is reported as such
-            if (any([(any(base%free == cands(c)%params(q)), q=1, j)]) .or. &
-                any(base%params(cands(c)%params) /= prob%nulls(cands(c)%params))) cycle
-            if (allocated(jac)) deallocate (jac)
-            allocate (jac(size(y), j))
-            call clear_status(st)
-            call cache%evaluate(base%params, cands(c)%params, pred, jac, st)
-            if (st%code > 0) then
-                stat = st
-                return
-            end if
-            seen(c) = st%code == STATUS_OK .and. any(jac /= 0.0_dp)
-        end do
+        call seen_by_data(cache, cands, base, prob%nulls, size(y), seen, stat)
+        if (stat%code > 0) return
         ns = count(seen)
         map = pack([(c, c=1, nc)], seen)
         seen_cands = cands(map)
-        ! a block of several parameters (one per mass point) whose first-order
-        ! estimates are not all determined: test and refit the parameters the
-        ! data determine (estimate above its sigma), the rest stay at null
-        do k = 1, ns
-            j = size(seen_cands(k)%params)
-            if (j < 2) cycle
-            if (any([(any(base%free == seen_cands(k)%params(q)), q=1, j)]) .or. &
-                any(base%params(seen_cands(k)%params) /= prob%nulls(seen_cands(k)%params))) &
-                cycle
-            call clear_status(st)
-            call score_test(cache, y, sigma, base%params, base%free, prob%lower, prob%upper, &
-                            prior, seen_cands(k)%params, fopts, sc, st)
-            if (st%code > 0) then
-                stat = st
-                return
-            end if
-            if (st%code /= STATUS_OK) cycle
-            ! the best single member: when the whole block lowers the
-            ! chi-square not significantly more (likelihood-ratio level
-            ! NEST_ALPHA), the data need only that member
-            best = 0
-            dbest = -huge(1.0_dp)
-            if (allocated(drops)) deallocate (drops)
-            allocate (drops(j))
-            drops = -huge(1.0_dp)
-            do q = 1, j
-                call clear_status(st)
-                call score_test(cache, y, sigma, base%params, base%free, prob%lower, &
-                                prob%upper, prior, seen_cands(k)%params(q:q), fopts, one, st)
-                if (st%code > 0) then
-                    stat = st
-                    return
-                end if
-                if (st%code /= STATUS_OK) cycle
-                drops(q) = one%drop
-                if (one%drop > dbest) then
-                    dbest = one%drop
-                    best = q
-                end if
-            end do
-            if (best > 0) then
-                if (chi2_sf(max(sc%drop - dbest, 0.0_dp), j - 1) > NEST_ALPHA) then
-                    ! members that would explain the residuals about as well
-                    ! (predicted drops within ambiguity_delta of the best)
-                    close = [close, pack(seen_cands(k)%params, drops > dbest - &
-                                         dopts%ambiguity_delta .and. [(q /= best, q=1, j)])]
-                    seen_cands(k)%params = seen_cands(k)%params(best:best)
-                    cycle
-                end if
-            end if
-            keep = sc%estimate > KEEP_SIGMAS*sc%sigma .and. sc%sigma > 0.0_dp
-            if (count(keep) >= 1 .and. count(keep) < j) &
-                seen_cands(k)%params = pack(seen_cands(k)%params, keep)
-        end do
+        call narrow_blocks(cache, y, sigma, base, prob, prior, fopts, dopts, seen_cands, close, &
+                           stat)
+        if (stat%code > 0) return
         used = cands
         used(map) = seen_cands
         if (present(ambiguous)) ambiguous = close
-        ! probe rows of both families
-        allocate (sexp(0), sq(0), ssig(0))
-        if (prob%has_static) then
-            call probe_rows(prob%st%loads, prob%st%row_quantity, sigma(prob%st_rows), plocal, &
-                            sq, ssig)
-            sexp = prob%st_exp(plocal)
-        end if
-        call dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, dexp, dt, dq, &
-                            dsig)
-        pexp = [sexp, dexp]
-        pq = [sq, dq]
-        pt = [spread(0.0_dp, 1, size(sexp)), dt]
-        psig = [ssig, dsig]
-        call inverse_problem_init(nbeams, exp_kind, exp_values, pexp, pt, pq, tol, probe, stat)
-        if (stat%code /= STATUS_OK) then
-            stat%message = 'probe rows: '//trim(stat%message)
-            return
-        end if
+        call all_probe_rows(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, sigma, &
+                            prob, probe, pexp, pt, pq, psig, stat)
+        if (stat%code /= STATUS_OK) return
         dsub = dopts
         if (prob%has_dynamic) then
             ! every refit integrates the response with its sensitivities many
@@ -580,15 +469,213 @@ contains
             allocate (sub%cand(0), sub%ranking(0), sub%cosine(0, 0))
             sub%alpha_each = dopts%alpha
         end if
-        ! scatter back: not seen ones after the ranked ones
+        call scatter_back(sub, seen, map, diag)
+        if (with_mesh .and. prob%has_dynamic) then
+            call mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
+                           base, prior, prob%lower, prob%upper, frefit, &
+                           dopts%alpha/real(diag%ntested + 1, dp), mesh, stat)
+        end if
+    end subroutine dyn_diagnose
+
+    !> A block some of whose members are free or switched on (the drag at the
+    !! elbow added by an earlier rung of improve) is tested as its members
+    !! still at their null values (the drag at the tip).
+    pure function open_members(cands_in, base, nulls) result(cands)
+        type(candidate_t), intent(in) :: cands_in(:)
+        type(fit_result_t), intent(in) :: base
+        real(dp), intent(in) :: nulls(:)
+        type(candidate_t), allocatable :: cands(:)
+        logical, allocatable :: open_(:)
+        integer :: c, j, q
+
+        cands = cands_in
+        do c = 1, size(cands)
+            j = size(cands(c)%params)
+            if (j < 2) cycle
+            open_ = [(base%params(cands(c)%params(q)) == nulls(cands(c)%params(q)) .and. &
+                      .not. any(base%free == cands(c)%params(q)), q=1, j)]
+            if (any(open_) .and. .not. all(open_)) cands(c)%params = pack(cands(c)%params, open_)
+        end do
+    end function open_members
+
+    !> The free parameters and every candidate parameter still at its null value.
+    pure function tested_union(cands, base, nulls) result(union)
+        type(candidate_t), intent(in) :: cands(:)
+        type(fit_result_t), intent(in) :: base
+        real(dp), intent(in) :: nulls(:)
+        integer, allocatable :: union(:)
+        integer :: c, k, q
+
+        union = base%free
+        do c = 1, size(cands)
+            do q = 1, size(cands(c)%params)
+                k = cands(c)%params(q)
+                if (any(union == k)) cycle
+                if (base%params(k) /= nulls(k)) cycle
+                union = [union, k]
+            end do
+        end do
+    end function tested_union
+
+    !> Which candidates do the data rows see at all? (a sensitivity the model
+    !! cannot give at the null value, e.g. a locked joint's, is an input error
+    !! of that column alone: not seen either). An effect already free or
+    !! switched on counts as seen and is reported as such.
+    subroutine seen_by_data(cache, cands, base, nulls, ny, seen, stat)
+        type(cached_model_t), intent(inout) :: cache
+        type(candidate_t), intent(in) :: cands(:)
+        type(fit_result_t), intent(in) :: base
+        real(dp), intent(in) :: nulls(:)
+        integer, intent(in) :: ny
+        logical, allocatable, intent(out) :: seen(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: pred(:), jac(:, :)
+        type(status_t) :: st
+        integer :: c, j, q
+
+        allocate (seen(size(cands)), pred(ny))
+        do c = 1, size(cands)
+            j = size(cands(c)%params)
+            seen(c) = .true.
+            if (j == 0) cycle
+            if (any([(any(base%free == cands(c)%params(q)), q=1, j)]) .or. &
+                any(base%params(cands(c)%params) /= nulls(cands(c)%params))) cycle
+            if (allocated(jac)) deallocate (jac)
+            allocate (jac(ny, j))
+            call clear_status(st)
+            call cache%evaluate(base%params, cands(c)%params, pred, jac, st)
+            if (st%code > 0) then
+                stat = st
+                return
+            end if
+            seen(c) = st%code == STATUS_OK .and. any(jac /= 0.0_dp)
+        end do
+    end subroutine seen_by_data
+
+    !> A block of several parameters (one per mass point) whose first-order
+    !! estimates are not all determined: test and refit the parameters the
+    !! data determine (estimate above its sigma), the rest stay at null.
+    !! close gains the members about as good as a block's best one.
+    subroutine narrow_blocks(cache, y, sigma, base, prob, prior, fopts, dopts, cands, close, &
+                             stat)
+        type(cached_model_t), intent(inout) :: cache
+        real(dp), intent(in) :: y(:), sigma(:)
+        type(fit_result_t), intent(in) :: base
+        type(inverse_problem_t), intent(in) :: prob
+        type(prior_t), intent(in) :: prior
+        type(fit_options_t), intent(in) :: fopts
+        type(diagnose_options_t), intent(in) :: dopts
+        type(candidate_t), intent(inout) :: cands(:)
+        integer, allocatable, intent(inout) :: close(:)
+        type(status_t), intent(inout) :: stat
+        type(score_result_t) :: sc, one
+        real(dp), allocatable :: drops(:)
+        logical, allocatable :: keep(:)
+        type(status_t) :: st
+        real(dp) :: dbest
+        integer :: best, k, j, q
+
+        do k = 1, size(cands)
+            j = size(cands(k)%params)
+            if (j < 2) cycle
+            if (any([(any(base%free == cands(k)%params(q)), q=1, j)]) .or. &
+                any(base%params(cands(k)%params) /= prob%nulls(cands(k)%params))) &
+                cycle
+            call clear_status(st)
+            call score_test(cache, y, sigma, base%params, base%free, prob%lower, prob%upper, &
+                            prior, cands(k)%params, fopts, sc, st)
+            if (st%code > 0) then
+                stat = st
+                return
+            end if
+            if (st%code /= STATUS_OK) cycle
+            ! the best single member: when the whole block lowers the
+            ! chi-square not significantly more (likelihood-ratio level
+            ! NEST_ALPHA), the data need only that member
+            best = 0
+            dbest = -huge(1.0_dp)
+            if (allocated(drops)) deallocate (drops)
+            allocate (drops(j))
+            drops = -huge(1.0_dp)
+            do q = 1, j
+                call clear_status(st)
+                call score_test(cache, y, sigma, base%params, base%free, prob%lower, &
+                                prob%upper, prior, cands(k)%params(q:q), fopts, one, st)
+                if (st%code > 0) then
+                    stat = st
+                    return
+                end if
+                if (st%code /= STATUS_OK) cycle
+                drops(q) = one%drop
+                if (one%drop > dbest) then
+                    dbest = one%drop
+                    best = q
+                end if
+            end do
+            if (best > 0) then
+                if (chi2_sf(max(sc%drop - dbest, 0.0_dp), j - 1) > NEST_ALPHA) then
+                    ! members that would explain the residuals about as well
+                    ! (predicted drops within ambiguity_delta of the best)
+                    close = [close, pack(cands(k)%params, drops > dbest - &
+                                         dopts%ambiguity_delta .and. [(q /= best, q=1, j)])]
+                    cands(k)%params = cands(k)%params(best:best)
+                    cycle
+                end if
+            end if
+            keep = sc%estimate > KEEP_SIGMAS*sc%sigma .and. sc%sigma > 0.0_dp
+            if (count(keep) >= 1 .and. count(keep) < j) &
+                cands(k)%params = pack(cands(k)%params, keep)
+        end do
+    end subroutine narrow_blocks
+
+    !> The probe rows of both families (static and dynamic) and their problem.
+    subroutine all_probe_rows(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, sigma, &
+                              prob, probe, pexp, pt, pq, psig, stat)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, sigma(:)
+        type(inverse_problem_t), intent(in) :: prob
+        type(inverse_problem_t), intent(out) :: probe
+        integer, allocatable, intent(inout) :: pexp(:), pq(:)
+        real(dp), allocatable, intent(inout) :: pt(:)
+        real(dp), allocatable, intent(out) :: psig(:)
+        type(status_t), intent(inout) :: stat
+        integer, allocatable :: sexp(:), sq(:), dexp(:), dq(:), plocal(:)
+        real(dp), allocatable :: ssig(:), dt(:), dsig(:)
+
+        allocate (sexp(0), sq(0), ssig(0))
+        if (prob%has_static) then
+            call probe_rows(prob%st%loads, prob%st%row_quantity, sigma(prob%st_rows), plocal, &
+                            sq, ssig)
+            sexp = prob%st_exp(plocal)
+        end if
+        call dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, dexp, dt, dq, &
+                            dsig)
+        pexp = [sexp, dexp]
+        pq = [sq, dq]
+        pt = [spread(0.0_dp, 1, size(sexp)), dt]
+        psig = [ssig, dsig]
+        call inverse_problem_init(nbeams, exp_kind, exp_values, pexp, pt, pq, tol, probe, stat)
+        if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)
+    end subroutine all_probe_rows
+
+    !> The diagnosis of the seen candidates (numbered 1..ns, map to the
+    !! given ones) scattered back: not seen ones after the ranked ones.
+    subroutine scatter_back(sub, seen, map, diag)
+        type(diagnosis_t), intent(in) :: sub
+        logical, intent(in) :: seen(:)
+        integer, intent(in) :: map(:)
+        type(diagnosis_t), intent(inout) :: diag
+        integer :: c, k, j, nc
+
+        nc = size(seen)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
         do c = 1, nc
             if (.not. seen(c)) diag%cand(c)%state = CAND_NOT_SEEN
         end do
-        do k = 1, ns
+        do k = 1, size(map)
             diag%cand(map(k)) = sub%cand(k)
-            do j = 1, ns
+            do j = 1, size(map)
                 diag%cosine(map(k), map(j)) = sub%cosine(k, j)
             end do
         end do
@@ -597,12 +684,7 @@ contains
         if (sub%verdict > 0) diag%verdict = map(sub%verdict)
         diag%ntested = sub%ntested
         diag%alpha_each = sub%alpha_each
-        if (with_mesh .and. prob%has_dynamic) then
-            call mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
-                           base, prior, prob%lower, prob%upper, frefit, &
-                           dopts%alpha/real(diag%ntested + 1, dp), mesh, stat)
-        end if
-    end subroutine dyn_diagnose
+    end subroutine scatter_back
 
     !> Tests for structure in time of one series of normalized residuals r
     !! at times t (any order; sorted here):

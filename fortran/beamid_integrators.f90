@@ -170,6 +170,37 @@ module beamid_integrators
         integer, allocatable :: act(:)
     end type sens_work_t
 
+    character(len=*), parameter :: RADAU_WHERE = 'implicit'
+
+    !> What the steps of run_radau share: the tableau, the system with its
+    !! friction modes and factored iteration matrices, the state, the stages
+    !! and the step controller's memory (hh: this step, h: the next one).
+    type :: radau_run_t
+        real(dp) :: a(3, 3) = 0.0_dp, dmat(3, 3) = 0.0_dp, gam = 0.0_dp
+        real(dp) :: ti1(3) = 0.0_dp, tr(3) = 0.0_dp
+        complex(dp) :: mu = (0.0_dp, 0.0_dp), ti2(3) = (0.0_dp, 0.0_dp), &
+                       tc(3) = (0.0_dp, 0.0_dp)
+        type(radau_t) :: it
+        type(dyn_system_t) :: es
+        integer :: n = 0
+        real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), zd(:, :), f0(:), f3(:), &
+                                 e0(:), ev(:), iscal(:), w1(:), dz(:, :), work(:), pw(:, :), &
+                                 ytmp(:), ys(:)
+        complex(dp), allocatable :: w2(:)
+        real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
+        real(dp) :: t = 0.0_dp, h = 0.0_dp, hh = 0.0_dp, hprev = 0.0_dp, hnew = 0.0_dp
+        real(dp) :: tiny_h = 0.0_dp, err = 0.0_dp, theta = 0.0_dp, dnorm = 0.0_dp
+        real(dp) :: sev = 0.0_dp, hpend = 0.0_dp, hcut = 0.0_dp
+        integer :: jev = 0, kev = 0, pend = 0, pkind = 0, nstall = 0
+        logical :: first = .true., reject = .false., clipped = .false., have_prev = .false.
+        logical :: have_f0 = .false., evon = .false., rot_slow = .false.
+        logical :: may_reuse = .false., reused = .false.
+        logical :: sens = .false.                   !< forward sensitivities
+        real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
+        real(dp) :: hsp = 0.0_dp
+        type(sens_work_t) :: sws
+    end type radau_run_t
+
     ! Radau IIA (3 stages) nodes, stiffly accurate weights b = A(3, :),
     ! and the embedded-error coefficients (Hairer-Wanner IV.8).
     real(dp), parameter :: SQ6 = sqrt(6.0_dp)
@@ -640,9 +671,9 @@ contains
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
         real(dp), allocatable :: hold(:), holdn(:)
-        real(dp) :: t, h, hs, theta, sr, cap, d3(3), hcap
-        integer :: m, n, k, nsub, i, j, jev, kind, ios, kindj, nstall, nev0, skipj
-        logical :: evon, found
+        real(dp) :: t, h, hs, theta, hcap
+        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, skipj
+        logical :: evon
         m = sys%ncstate
         n = sys%nc
         allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
@@ -690,33 +721,8 @@ contains
                     return
                 end if
                 jev = 0
-                theta = 2.0_dp
-                if (evon) then
-                    do j = 1, 2*es%npt
-                        cap = es%fric((j + 1)/2)
-                        if (cap == 0.0_dp .or. j == skipj) cycle
-                        if (es%fmode(j) /= 0) then
-                            kindj = EVENT_ZERO_VELOCITY
-                            if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
-                            d3 = [sn(n + dyn_fric_dof(es, j)), h*k1(n + dyn_fric_dof(es, j)), &
-                                  h*k1n(n + dyn_fric_dof(es, j))]
-                            call first_root(kindj, es%fmode(j), cap, &
-                                            s(n + dyn_fric_dof(es, j)), d3, .true., sr, found)
-                            if (.not. found) sr = 1.0_dp
-                        else
-                            kindj = EVENT_UNSTICK
-                            if (abs(holdn(j)) <= cap) cycle
-                            ! |hold| - cap changes sign: linear in the step
-                            sr = (cap - abs(hold(j)))/(abs(holdn(j)) - abs(hold(j)))
-                            sr = max(0.0_dp, min(1.0_dp, sr))
-                        end if
-                        if (sr < theta) then
-                            theta = sr
-                            jev = j
-                            kind = kindj
-                        end if
-                    end do
-                end if
+                if (evon) call rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, &
+                                              kind, theta)
                 if (jev == 0) then
                     if (sens) then
                         call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
@@ -776,33 +782,9 @@ contains
                         stats%fevals = stats%fevals + 1
                     end if
                 end if
-                if (kind == EVENT_ZERO_VELOCITY) s(n + dyn_fric_dof(es, jev)) = 0.0_dp
-                if (sens) then
-                    call sens_event_pre(es, pars, s(1:m), kind, jev, hold(jev), sm, fm, dtp, stat)
-                    if (stat%code /= 0) return
-                end if
-                nev0 = stats%events
-                if (kind == EVENT_ZERO_VELOCITY) then
-                    call apply_switch(es, s(1:m), t, kind, 0, hold, hist, stats, stat)
-                else
-                    call apply_switch(es, s(1:m), t, kind, jev, hold, hist, stats, stat)
-                end if
+                call rk_switch(es, s(1:m), t, hs, kind, jev, hold, nstall, skipj, hist, stats, &
+                               stat, pars, sm, fm, dtp)
                 if (stat%code /= 0) return
-                if (stats%events == nev0) then
-                    ! the velocity only touched zero: once is legitimate, again and
-                    ! again (roots ever closer together: a push that the vibration
-                    ! reverses at once, tiny mu) is chatter: the component keeps its
-                    ! mode over the next step and the sign change is handled once,
-                    ! at its start, after it
-                    if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
-                    if (nstall >= 3) skipj = jev
-                else if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) then
-                    nstall = 0
-                end if
-                if (sens) then
-                    call sens_event_post(es, s(1:m), fm, dtp, sm, stat)
-                    if (stat%code /= 0) return
-                end if
                 call rk_rates(es, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
@@ -822,6 +804,100 @@ contains
             if (associated(opts%progress)) opts%progress(1) = t
         end do
     end subroutine run_rk4
+
+    !> The RK4 switch jev of the given kind at t, the end of the partial step
+    !! hs to it: a velocity that reached zero is zero, the friction modes
+    !! change, the sensitivities jump (when pars are given). nstall, skipj:
+    !! chatter control.
+    subroutine rk_switch(es, s, t, hs, kind, jev, hold, nstall, skipj, hist, stats, stat, &
+                         pars, sm, fm, dtp)
+        type(dyn_system_t), intent(inout) :: es
+        real(dp), intent(inout) :: s(:)
+        real(dp), intent(in) :: t, hs
+        integer, intent(in) :: kind, jev
+        real(dp), intent(inout) :: hold(:)
+        integer, intent(inout) :: nstall, skipj
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :), fm(:), dtp(:)
+        integer :: nev0
+
+        if (kind == EVENT_ZERO_VELOCITY) s(es%nc + dyn_fric_dof(es, jev)) = 0.0_dp
+        if (present(pars)) then
+            call sens_event_pre(es, pars, s, kind, jev, hold(jev), sm, fm, dtp, stat)
+            if (stat%code /= 0) return
+        end if
+        nev0 = stats%events
+        if (kind == EVENT_ZERO_VELOCITY) then
+            call apply_switch(es, s, t, kind, 0, hold, hist, stats, stat)
+        else
+            call apply_switch(es, s, t, kind, jev, hold, hist, stats, stat)
+        end if
+        if (stat%code /= 0) return
+        if (stats%events == nev0) then
+            ! the velocity only touched zero: once is legitimate, again and
+            ! again (roots ever closer together: a push that the vibration
+            ! reverses at once, tiny mu) is chatter: the component keeps its
+            ! mode over the next step and the sign change is handled once,
+            ! at its start, after it
+            if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
+            if (nstall >= 3) skipj = jev
+        else if (hs > 1.0e-14_dp*max(1.0_dp, abs(t))) then
+            nstall = 0
+        end if
+        if (present(pars)) then
+            call sens_event_post(es, s, fm, dtp, sm, stat)
+            if (stat%code /= 0) return
+        end if
+    end subroutine rk_switch
+
+    !> The first friction event along the RK4 step of length h from s (rates
+    !! k1, holding forces hold) to sn (k1n, holdn): component jev (0: none),
+    !! its kind and where, the fraction theta of the step (a sliding
+    !! velocity's root along the step's cubic Hermite interpolant, a sticking
+    !! component's excess force linear in the step). skipj: a chattering
+    !! component left out for this step.
+    subroutine rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, kind, theta)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: s(:), sn(:), k1(:), k1n(:), hold(:), holdn(:), h
+        integer, intent(in) :: skipj
+        integer, intent(out) :: jev, kind
+        real(dp), intent(out) :: theta
+        real(dp) :: sr, cap, d3(3)
+        integer :: j, kindj, n
+        logical :: found
+
+        n = es%nc
+        jev = 0
+        kind = 0
+        theta = 2.0_dp
+        do j = 1, 2*es%npt
+            cap = es%fric((j + 1)/2)
+            if (cap == 0.0_dp .or. j == skipj) cycle
+            if (es%fmode(j) /= 0) then
+                kindj = EVENT_ZERO_VELOCITY
+                if (real(es%fmode(j), dp)*sn(n + dyn_fric_dof(es, j)) > 0.0_dp) cycle
+                d3 = [sn(n + dyn_fric_dof(es, j)), h*k1(n + dyn_fric_dof(es, j)), &
+                      h*k1n(n + dyn_fric_dof(es, j))]
+                call first_root(kindj, es%fmode(j), cap, s(n + dyn_fric_dof(es, j)), d3, .true., &
+                                sr, found)
+                if (.not. found) sr = 1.0_dp
+            else
+                kindj = EVENT_UNSTICK
+                if (abs(holdn(j)) <= cap) cycle
+                ! |hold| - cap changes sign: linear in the step
+                sr = (cap - abs(hold(j)))/(abs(holdn(j)) - abs(hold(j)))
+                sr = max(0.0_dp, min(1.0_dp, sr))
+            end if
+            if (sr < theta) then
+                theta = sr
+                jev = j
+                kind = kindj
+            end if
+        end do
+    end subroutine rk_first_event
 
     !> Jacobians and mass matrix at the state y into `it`; allocates the
     !! work arrays of `it` on first use.
@@ -1560,448 +1636,530 @@ contains
         type(dyn_param_t), intent(in), optional :: pars(:)
         real(dp), intent(inout), optional :: sm(:, :)
         real(dp), intent(inout), optional :: dstates(:, :, :)
-        real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
-        real(dp) :: hsp
-        type(sens_work_t) :: sws
-        logical :: sens
-        character(len=*), parameter :: where = 'implicit'
-        integer, parameter :: NIT = 7
-        real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
-        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp, REUSE_THETA = 1.0e-3_dp
-        type(radau_t) :: it
-        real(dp) :: a(3, 3), dmat(3, 3), gam, t, h, hh, err, theta, dnorm, dold
-        real(dp) :: quot, hnew, hprev, tiny_h, lsc(3), ti1(3), tr(3)
-        complex(dp) :: mu, tm(3, 3), ti(3, 3), ti2(3), tc(3)
-        real(dp), allocatable :: y(:), z(:, :), zprev(:, :), fz(:, :), zd(:, :), f0(:), f3(:), &
-                                 e0(:), ev(:), iscal(:), w1(:), dz(:, :), work(:), pw(:, :), &
-                                 ytmp(:), ys(:)
-        complex(dp), allocatable :: w2(:)
-        integer :: nn, n, kout, i, j, newt, nt
-        logical :: first, reject, converged, clipped, have_prev, have_f0
-        type(status_t) :: inner
-        type(dyn_system_t) :: es
-        real(dp), allocatable :: hold0(:), hst(:, :), acc3(:), rv(:)
-        real(dp) :: sev, hpend, hcut, torq
-        integer :: jev, kev, pend, pkind, nfc, jforce, nstall, nev0
-        logical :: evon, rot_slow, at_end, reused, may_reuse
+        type(radau_run_t) :: r
+        integer :: kout
+        logical :: converged, redo
 
-        call radau_tableau(a, dmat, gam, mu, tm, ti)
-        ti1 = real(ti(1, :), dp)
-        ti2 = ti(2, :)
-        tr = real(tm(:, 1), dp)
-        tc = 2.0_dp*tm(:, 2)
-        nn = sys%ncstate
-        n = sys%nc
-        nt = size(t_out)
-        allocate (y(nn), z(nn, 3), zprev(nn, 3), fz(nn, 3), zd(nn, 3), f0(nn), f3(nn), e0(nn), &
-                  ev(nn), iscal(nn), w1(nn), dz(nn, 3), work(sys%nwork), &
-                  pw(sys%nwork, 3), w2(nn), ytmp(nn), ys(nn), stat=i)
-        if (i /= 0) then
-            call set_status(stat, ERR_INPUT, where, 'cannot allocate the work arrays of '// &
-                            fmt_int(nn)//' states ('//fmt_real(8.0_dp*30.0_dp*real(nn, dp))// &
-                            ' bytes)')
-            return
-        end if
-        y = y0
-        es = sys
-        evon = events_on(es)
-        es%events = evon
-        sens = present(pars)
-        hsp = 0.0_dp
-        if (sens) allocate (fm(nn), dtp(size(pars)), dzp(nn, 3, size(pars)))
-        rot_slow = es%rotary .and. es%modal
-        nfc = 2*es%npt
-        allocate (hold0(nfc), hst(nfc, 3), acc3(n), rv(n), it%stuck(nfc), it%stuckc(nfc))
-        hold0 = 0.0_dp
-        hst = 0.0_dp
-        acc3 = 0.0_dp
-        it%nst = 0
-        if (evon) then
-            call start_modes(es, y, hold0, hist, stats, stat)
-            if (stat%code /= 0) return
-            call set_stuck(es, it)
-        end if
-        pend = 0
-        pkind = 0
-        nstall = 0
-        may_reuse = .false.
-        reused = .false.
-        hpend = 0.0_dp
-        hcut = 0.0_dp
-        work = 0.0_dp
-        t = 0.0_dp
-        h = opts%h0
-        hprev = h
-        first = .true.
-        reject = .false.
-        have_prev = .false.
-        have_f0 = .false.
+        call radau_start(r, sys, y0, opts, hist, stats, stat, pars)
+        if (stat%code /= 0) return
         kout = 1
-        do while (kout <= nt)
-            if (t_out(kout) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) then
-                call record(es, y, work, kout, hist)
-                if (sens) dstates(:, kout, :) = sm
+        do while (kout <= size(t_out))
+            if (t_out(kout) - r%t <= 1.0e-13_dp*max(1.0_dp, abs(r%t))) then
+                call record(r%es, r%y, r%work, kout, hist)
+                if (r%sens) dstates(:, kout, :) = sm
                 if (associated(opts%progress)) opts%progress(1) = t_out(kout)
                 kout = kout + 1
                 cycle
             end if
             if (stats%steps + stats%rejected >= opts%max_steps) then
-                call set_status(stat, ERR_NO_CONVERGENCE, where, 'step limit '// &
-                                fmt_int(opts%max_steps)//' reached at t = '//fmt_real(t))
+                call set_status(stat, ERR_NO_CONVERGENCE, RADAU_WHERE, 'step limit '// &
+                                fmt_int(opts%max_steps)//' reached at t = '//fmt_real(r%t))
                 return
             end if
-            hh = h
-            clipped = .false.
-            if (t + hh >= t_out(kout) - 1.0e-13_dp*max(1.0_dp, abs(t))) then
-                hh = t_out(kout) - t
-                clipped = .true.
-            end if
-            tiny_h = 1.0e-14_dp*max(1.0_dp, abs(t))
-            if (hh < tiny_h) then
-                call set_status(stat, ERR_NO_CONVERGENCE, where, 'step size '// &
-                                fmt_real(hh)//' underflow at t = '//fmt_real(t))
-                return
-            end if
-            ! error weights: displacements as given; velocity errors are measured as
-            ! the displacement they cause over the step (err_v * h), so modes far
-            ! beyond the accuracy of interest (axial, 1e3-1e5 rad/s) are damped
-            ! by the L-stable scheme instead of being resolved.
-            iscal = 1.0_dp/(opts%atol + opts%rtol*abs(y))
-            iscal(n + 1:2*n) = iscal(n + 1:2*n)*hh
-            ! starting values: the last collocation polynomial, extrapolated
-            if (have_prev) then
-                do i = 1, 3
-                    lsc = lagrange(1.0_dp + CNODE(i)*hh/hprev)
-                    z(:, i) = lsc(1)*zprev(:, 1) + lsc(2)*zprev(:, 2) &
-                              + (lsc(3) - 1.0_dp)*zprev(:, 3)
-                end do
-            else
-                z = 0.0_dp
-            end if
-            ! velocities consistent with the predicted displacements, so that the
-            ! linear rows q' = v hold from the start: (D z_q)_i / h = v_n + z_v,i
-            ! (the predicted displacements are as good as the velocities, and the
-            ! solves then never need the product (lam M + C) r)
-            do i = 1, 3
-                z(n + 1:2*n, i) = (dmat(i, 1)*z(1:n, 1) + dmat(i, 2)*z(1:n, 2) &
-                                   + dmat(i, 3)*z(1:n, 3))/hh - y(n + 1:2*n)
-            end do
-            ! sticking friction components stay where they are
-            do j = 1, it%nst
-                z(it%stuck(j), :) = 0.0_dp
-                z(n + it%stuck(j), :) = 0.0_dp
-            end do
-            ! Jacobian at the predicted second stage, both factorizations
-            ! (the assembly gives the stage-2 rates of the first iteration too)
-            ys = y + z(:, 2)
-            reused = may_reuse .and. hh == it%h
-            if (.not. reused) then
-                if (rot_slow) then
-                    call radau_jacobian(es, ys, it)
-                else
-                    call radau_jacobian(es, ys, it, fz(:, 2), pw(:, 2))
-                end if
-                stats%jevals = stats%jevals + 1
-                call radau_factor(es, it, hh, gam, mu, stat)
-                if (stat%code /= 0) return
-                stats%factorizations = stats%factorizations + 1
-            end if
-            ! simplified Newton iteration on the decoupled stage systems
-            converged = .false.
-            dold = 0.0_dp
-            dnorm = 0.0_dp
-            theta = 0.0_dp
-            inner = status_t()
-            do newt = 1, NIT
-                ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
-                do i = 1, 3
-                    if (newt > 1 .or. i /= 2 .or. rot_slow .or. reused) then
-                        ys = y + z(:, i)
-                        call rates_m(es, it, ys, fz(:, i), pw(:, i), inner)
-                        stats%fevals = stats%fevals + 1
-                    end if
-                    zd(:, i) = (dmat(i, 1)*z(:, 1) + dmat(i, 2)*z(:, 2) &
-                                + dmat(i, 3)*z(:, 3))/hh
-                    if (it%rot) then
-                        call to_mform(es, it, zd(:, i), y(1:n) + z(1:n, i))
-                    else
-                        call to_mform(es, it, zd(:, i))
-                    end if
-                end do
-                if (inner%code /= 0) exit
-                f3 = fz(:, 3)
-                fz = fz - zd
-                ! sticking components: the residual of their velocity row is
-                ! minus the constraint force that holds them (M a - F); the
-                ! rows are pinned
-                do j = 1, it%nst
-                    hst(it%stuckc(j), :) = -fz(n + it%stuck(j), :)
-                    fz(it%stuck(j), :) = 0.0_dp
-                    fz(n + it%stuck(j), :) = 0.0_dp
-                end do
-                w1 = ti1(1)*fz(:, 1) + ti1(2)*fz(:, 2) + ti1(3)*fz(:, 3)
-                w2 = ti2(1)*fz(:, 1) + ti2(2)*fz(:, 2) + ti2(3)*fz(:, 3)
-                ! the rows q' = v of the stage system are linear and hold from the
-                ! predictor on (and after every correction): their residual r is
-                ! zero, and the solves skip the product (lam M + C) r
-                call solve_real(es, it, gam/hh, w1, r_zero=.true.)
-                call solve_cplx(es, it, mu/hh, w2, r_zero=.true.)
-                do i = 1, 3
-                    dz(:, i) = tr(i)*w1 + real(tc(i)*w2, dp)
-                end do
-                dnorm = sqrt((wrms(dz(:, 1), iscal) + wrms(dz(:, 2), iscal) + &
-                              wrms(dz(:, 3), iscal))/3.0_dp)
-                if (.not. ieee_is_finite(dnorm)) exit
-                z = z + dz
-                stats%newton = stats%newton + 1
-                if (newt > 1) then
-                    theta = dnorm/dold
-                    if (theta >= 0.99_dp) exit
-                    ! converged: the remaining error theta/(1 - theta) dnorm is small
-                    if (theta/(1.0_dp - theta)*dnorm <= NEWTON_TOL) then
-                        converged = .true.
-                        exit
-                    end if
-                    ! hopeless: it will not get there within NIT iterations
-                    if (theta**(NIT - newt)/(1.0_dp - theta)*dnorm > NEWTON_TOL) exit
-                end if
-                dold = max(dnorm, epsilon(1.0_dp))
-            end do
+            call radau_predict(r, t_out(kout), opts, stats, stat)
+            if (stat%code /= 0) return
+            call radau_newton(r, stats, converged)
             if (.not. converged) then
-                may_reuse = .false.
-                pend = 0
-                stats%rejected = stats%rejected + 1
-                reject = .true.
-                if (ieee_is_finite(dnorm) .and. theta > 0.0_dp .and. theta < 0.99_dp) then
-                    h = 0.5_dp*hh
+                if (ieee_is_finite(r%dnorm) .and. r%theta > 0.0_dp .and. r%theta < 0.99_dp) then
+                    call radau_reject(r, stats, 0.5_dp*r%hh)
                 else
-                    h = 0.25_dp*hh
+                    call radau_reject(r, stats, 0.25_dp*r%hh)
                 end if
                 cycle
             end if
-            ! error estimate (Hairer-Wanner IV.8, Eq. 8.19-8.20), in M-form
-            ! f0: the rates at the step start. After an accepted step they are the
-            ! last iteration's third-stage rates, taken at y - dz3 (the last
-            ! correction, below NEWTON_TOL of the tolerance): the estimate moves
-            ! by at most that much through (gamma/h - J)^-1 J, and a force is saved.
-            if (.not. have_f0) then
-                if (it%rot) then
-                    ! the acceleration a at y (M(q) factored once), f0 = M(q) a
-                    call dyn_crates(es, y, f0, pw(:, 1), torq, stat)
-                    if (stat%code /= 0) return
-                    acc3 = f0(n + 1:2*n)
-                    call to_mform(es, it, f0, y(1:n))
+            call radau_error(r, stats, stat)
+            if (stat%code /= 0) return
+            if (.not. r%err < 1.0_dp) then
+                if (r%first) then
+                    call radau_reject(r, stats, 0.1_dp*r%hh)
                 else
-                    call rates_m(es, it, y, f0, pw(:, 1), stat)
-                    if (stat%code /= 0) return
+                    call radau_reject(r, stats, r%hnew)
                 end if
-                stats%fevals = stats%fevals + 1
-                have_f0 = .true.
+                cycle
             end if
-            e0 = (DD(1)*z(:, 1) + DD(2)*z(:, 2) + DD(3)*z(:, 3))/hh
-            call to_mform(es, it, e0)
-            ev = f0 + e0
-            if (it%rot) then
-                ! f0 holds M(q_n) a_n; the M-form wants M0 a_n
-                rv = 0.0_dp
-                call dyn_rot_mv(es, it%qjac, acc3, rv)
-                call dyn_rot_mv(es, y(1:n), -acc3, rv)
-                ev(n + 1:2*n) = ev(n + 1:2*n) + rv
-            end if
-            do j = 1, it%nst
-                ev(it%stuck(j)) = 0.0_dp
-                ev(n + it%stuck(j)) = 0.0_dp
-            end do
-            call solve_real(es, it, gam/hh, ev)
-            err = max(sqrt(wrms(ev, iscal)), 1.0e-10_dp)
-            if (err >= 1.0_dp .and. (first .or. reject)) then
-                ytmp = y + ev
-                call rates_m(es, it, ytmp, ev, pw(:, 1), stat)
+            call radau_locate(r, hist, stats, stat, redo, pars, sm)
+            if (stat%code /= 0) return
+            if (redo) cycle
+            call radau_accept(r, opts, stats, stat, pars, sm)
+            if (stat%code /= 0) return
+            if (r%jev /= 0) then
+                ! the switch at the step's end
+                call radau_switch(r, hist, stats, stat, .true., pars, sm)
                 if (stat%code /= 0) return
-                ev = ev + e0
-                do j = 1, it%nst
-                    ev(it%stuck(j)) = 0.0_dp
-                    ev(n + it%stuck(j)) = 0.0_dp
-                end do
-                call solve_real(es, it, gam/hh, ev)
-                err = max(sqrt(wrms(ev, iscal)), 1.0e-10_dp)
-                stats%fevals = stats%fevals + 1
-            end if
-            quot = max(FACR, min(FACL, err**0.25_dp/SAFE))
-            hnew = hh/quot
-            if (err < 1.0_dp) then
-                ! friction events: the first root of a sliding component's
-                ! velocity or of a sticking one's excess force along the
-                ! collocation polynomial. Inside the step: redo the step to
-                ! end there (targeted); at the end: switch after accepting.
-                jev = 0
-                if (evon) call radau_events(es, y, z, hold0, hst, jev, kev, sev)
-                if (jev /= 0) then
-                    at_end = (1.0_dp - sev)*hh <= 1.0e-12_dp*max(1.0_dp, abs(t)) .or. &
-                             (pend == jev .and. hh == hpend .and. sev >= 0.5_dp)
-                    if (.not. at_end) then
-                        stats%event_steps = stats%event_steps + 1
-                        if (sev*hh <= tiny_h .and. hh > 1.0e4_dp*tiny_h) then
-                            ! wrong way from the start along this step's polynomial:
-                            ! the step may be too long to resolve a push that a fast
-                            ! (axial) vibration reverses within it. Retry shorter
-                            ! before believing it (small friction coefficients).
-                            may_reuse = .false.
-                            pend = 0
-                            h = hh/16.0_dp
-                            cycle
-                        end if
-                        if (sev*hh <= tiny_h) then
-                            ! pushed the wrong way from the start: switch now
-                            nstall = nstall + 1
-                            if (nstall > 4*es%npt + 4) then
-                                call set_status(stat, ERR_NO_CONVERGENCE, where, &
-                                                'friction switching of component '// &
-                                                fmt_int(jev)//' does not settle at t = '// &
-                                                fmt_real(t))
-                                return
-                            end if
-                            if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
-                            jforce = 0
-                            if (kev == EVENT_UNSTICK) jforce = jev
-                            if (sens) then
-                                call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, &
-                                                    dtp, stat)
-                                if (stat%code /= 0) return
-                            end if
-                            call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
-                            if (stat%code /= 0) return
-                            call set_stuck(es, it)
-                            if (sens) then
-                                call sens_event_post(es, y, fm, dtp, sm, stat)
-                                if (stat%code /= 0) return
-                                hsp = 0.0_dp
-                            end if
-                            have_f0 = .false.
-                            may_reuse = .false.
-                            pend = 0
-                            cycle
-                        end if
-                        if (pend == 0) hcut = h
-                        may_reuse = .false.
-                        h = sev*hh
-                        pend = jev
-                        pkind = kev
-                        hpend = h
-                        cycle
-                    end if
-                else if (pend /= 0 .and. hh == hpend) then
-                    ! the targeted step ended just short of the root, unless the
-                    ! root went away on the shorter step: the switching function
-                    ! at its end is then not small against its change over the
-                    ! step (a root the longer step's polynomial made up, as right
-                    ! after a component started to slide from rest)
-                    if (near_root(es, y, z, hold0, hst, pend, pkind)) then
-                        jev = pend
-                        kev = pkind
-                    else if (pend /= 0) then
-                        h = max(h, hcut)
-                    end if
-                end if
-                ! accept: work by the collocation quadrature on the stages
-                if (es%nwork > 0) then
-                    do i = 1, 3
-                        ys = y + z(:, i)
-                        call dyn_cpower(es, ys, pw(:, i))
-                    end do
-                    do j = 1, es%nwork
-                        work(j) = work(j) + hh*dot_product(pw(j, :), a(3, :))
-                    end do
-                end if
-                if (sens) then
-                    call radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, &
-                                         tc, opts%rtol, theta, sm, dzp, hsp, &
-                                         stats%sens_passes, sws, stat)
-                    if (stat%code /= 0) return
-                end if
-                y = y + z(:, 3)
-                f0 = f3
-                if (it%rot) acc3 = (dmat(3, 1)*z(n + 1:2*n, 1) + dmat(3, 2)*z(n + 1:2*n, 2) &
-                                    + dmat(3, 3)*z(n + 1:2*n, 3))/hh
-                t = t + hh
-                zprev = z
-                hprev = hh
-                have_prev = .true.
-                stats%steps = stats%steps + 1
-                first = .false.
-                if (reject) hnew = min(hnew, hh)
-                reject = .false.
-                ! a step cut short at an output time does not shrink the next one
-                if (clipped) then
-                    h = max(hnew, h)
-                else
-                    h = hnew
-                end if
-                ! small steps with a fast-contracting Newton iteration: keep the
-                ! Jacobian and the factors for the next step, and the step size
-                ! when the controller would change it by less than 20 % upwards
-                ! (RADAU5's THET and QUOT1, QUOT2)
-                may_reuse = theta < REUSE_THETA .and. .not. clipped
-                if (may_reuse .and. hnew >= hh .and. hnew <= 1.2_dp*hh) h = hh
-                if (.not. all(ieee_is_finite(y))) then
-                    call set_status(stat, ERR_NUMERIC, where, 'state became non-finite at t = ' &
-                                    //fmt_real(t))
-                    return
-                end if
-                hold0 = hst(:, 3)
-                if (jev == 0) nstall = 0
-                if (jev /= 0) then
-                    ! the switch: a velocity that reached zero is zero; the
-                    ! right-hand side changes, so the step-start rates are new
-                    if (kev == EVENT_ZERO_VELOCITY) y(n + dyn_fric_dof(es, jev)) = 0.0_dp
-                    jforce = 0
-                    if (kev == EVENT_UNSTICK) jforce = jev
-                    if (sens) then
-                        call sens_event_pre(es, pars, y, kev, jev, hold0(jev), sm, fm, dtp, stat)
-                        if (stat%code /= 0) return
-                    end if
-                    nev0 = stats%events
-                    call apply_switch(es, y, t, kev, jforce, hold0, hist, stats, stat)
-                    if (stat%code /= 0) return
-                    ! a switch that changes no mode (a velocity touching zero): once
-                    ! is legitimate, again and again without a plain step between is
-                    ! no progress (roots ever closer together)
-                    if (stats%events == nev0) then
-                        nstall = nstall + 1
-                        if (nstall > 4*es%npt + 4) then
-                            call set_status(stat, ERR_NO_CONVERGENCE, where, &
-                                            'friction switching of component '// &
-                                            fmt_int(jev)//' does not settle at t = '// &
-                                            fmt_real(t))
-                            return
-                        end if
-                    else
-                        nstall = 0
-                    end if
-                    call set_stuck(es, it)
-                    if (sens) then
-                        call sens_event_post(es, y, fm, dtp, sm, stat)
-                        if (stat%code /= 0) return
-                        hsp = 0.0_dp
-                    end if
-                    have_f0 = .false.
-                    may_reuse = .false.
-                    if (pend /= 0) h = max(h, hcut)
-                    pend = 0
-                end if
-            else
-                may_reuse = .false.
-                pend = 0
-                stats%rejected = stats%rejected + 1
-                reject = .true.
-                if (first) then
-                    h = 0.1_dp*hh
-                else
-                    h = hnew
-                end if
+                if (r%pend /= 0) r%h = max(r%h, r%hcut)
+                r%pend = 0
             end if
         end do
     end subroutine run_radau
+
+    !> run_radau's start: the tableau, the work arrays, the friction modes at
+    !! the release and the step controller's first values.
+    subroutine radau_start(r, sys, y0, opts, hist, stats, stat, pars)
+        type(radau_run_t), intent(inout) :: r
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: y0(:)
+        type(integ_opts_t), intent(in) :: opts
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        complex(dp) :: tm(3, 3), ti(3, 3)
+        integer :: nn, n, i, nfc
+
+        call radau_tableau(r%a, r%dmat, r%gam, r%mu, tm, ti)
+        r%ti1 = real(ti(1, :), dp)
+        r%ti2 = ti(2, :)
+        r%tr = real(tm(:, 1), dp)
+        r%tc = 2.0_dp*tm(:, 2)
+        nn = sys%ncstate
+        n = sys%nc
+        r%n = n
+        allocate (r%y(nn), r%z(nn, 3), r%zprev(nn, 3), r%fz(nn, 3), r%zd(nn, 3), r%f0(nn), &
+                  r%f3(nn), r%e0(nn), r%ev(nn), r%iscal(nn), r%w1(nn), r%dz(nn, 3), &
+                  r%work(sys%nwork), r%pw(sys%nwork, 3), r%w2(nn), r%ytmp(nn), r%ys(nn), stat=i)
+        if (i /= 0) then
+            call set_status(stat, ERR_INPUT, RADAU_WHERE, 'cannot allocate the work arrays of '// &
+                            fmt_int(nn)//' states ('//fmt_real(8.0_dp*30.0_dp*real(nn, dp))// &
+                            ' bytes)')
+            return
+        end if
+        r%y = y0
+        r%es = sys
+        r%evon = events_on(r%es)
+        r%es%events = r%evon
+        r%sens = present(pars)
+        r%hsp = 0.0_dp
+        if (r%sens) allocate (r%fm(nn), r%dtp(size(pars)), r%dzp(nn, 3, size(pars)))
+        r%rot_slow = r%es%rotary .and. r%es%modal
+        nfc = 2*r%es%npt
+        allocate (r%hold0(nfc), r%hst(nfc, 3), r%acc3(n), r%rv(n), r%it%stuck(nfc), &
+                  r%it%stuckc(nfc))
+        r%hold0 = 0.0_dp
+        r%hst = 0.0_dp
+        r%acc3 = 0.0_dp
+        r%it%nst = 0
+        if (r%evon) then
+            call start_modes(r%es, r%y, r%hold0, hist, stats, stat)
+            if (stat%code /= 0) return
+            call set_stuck(r%es, r%it)
+        end if
+        r%pend = 0
+        r%pkind = 0
+        r%nstall = 0
+        r%may_reuse = .false.
+        r%reused = .false.
+        r%hpend = 0.0_dp
+        r%hcut = 0.0_dp
+        r%work = 0.0_dp
+        r%t = 0.0_dp
+        r%h = opts%h0
+        r%hprev = r%h
+        r%first = .true.
+        r%reject = .false.
+        r%have_prev = .false.
+        r%have_f0 = .false.
+    end subroutine radau_start
+
+    !> The next step: its length hh (cut at the output time tnext), the error
+    !! weights, the stage predictor and, unless the last ones are kept, the
+    !! Jacobian and both factorizations.
+    subroutine radau_predict(r, tnext, opts, stats, stat)
+        type(radau_run_t), intent(inout) :: r
+        real(dp), intent(in) :: tnext
+        type(integ_opts_t), intent(in) :: opts
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        real(dp) :: lsc(3)
+        integer :: i, j, n
+
+        n = r%n
+        r%hh = r%h
+        r%clipped = .false.
+        if (r%t + r%hh >= tnext - 1.0e-13_dp*max(1.0_dp, abs(r%t))) then
+            r%hh = tnext - r%t
+            r%clipped = .true.
+        end if
+        r%tiny_h = 1.0e-14_dp*max(1.0_dp, abs(r%t))
+        if (r%hh < r%tiny_h) then
+            call set_status(stat, ERR_NO_CONVERGENCE, RADAU_WHERE, 'step size '// &
+                            fmt_real(r%hh)//' underflow at t = '//fmt_real(r%t))
+            return
+        end if
+        ! error weights: displacements as given; velocity errors are measured as
+        ! the displacement they cause over the step (err_v * h), so modes far
+        ! beyond the accuracy of interest (axial, 1e3-1e5 rad/s) are damped
+        ! by the L-stable scheme instead of being resolved.
+        r%iscal = 1.0_dp/(opts%atol + opts%rtol*abs(r%y))
+        r%iscal(n + 1:2*n) = r%iscal(n + 1:2*n)*r%hh
+        ! starting values: the last collocation polynomial, extrapolated
+        if (r%have_prev) then
+            do i = 1, 3
+                lsc = lagrange(1.0_dp + CNODE(i)*r%hh/r%hprev)
+                r%z(:, i) = lsc(1)*r%zprev(:, 1) + lsc(2)*r%zprev(:, 2) &
+                            + (lsc(3) - 1.0_dp)*r%zprev(:, 3)
+            end do
+        else
+            r%z = 0.0_dp
+        end if
+        ! velocities consistent with the predicted displacements, so that the
+        ! linear rows q' = v hold from the start: (D z_q)_i / h = v_n + z_v,i
+        ! (the predicted displacements are as good as the velocities, and the
+        ! solves then never need the product (lam M + C) r)
+        do i = 1, 3
+            r%z(n + 1:2*n, i) = (r%dmat(i, 1)*r%z(1:n, 1) + r%dmat(i, 2)*r%z(1:n, 2) &
+                                 + r%dmat(i, 3)*r%z(1:n, 3))/r%hh - r%y(n + 1:2*n)
+        end do
+        ! sticking friction components stay where they are
+        do j = 1, r%it%nst
+            r%z(r%it%stuck(j), :) = 0.0_dp
+            r%z(n + r%it%stuck(j), :) = 0.0_dp
+        end do
+        ! Jacobian at the predicted second stage, both factorizations
+        ! (the assembly gives the stage-2 rates of the first iteration too)
+        r%ys = r%y + r%z(:, 2)
+        r%reused = r%may_reuse .and. r%hh == r%it%h
+        if (.not. r%reused) then
+            if (r%rot_slow) then
+                call radau_jacobian(r%es, r%ys, r%it)
+            else
+                call radau_jacobian(r%es, r%ys, r%it, r%fz(:, 2), r%pw(:, 2))
+            end if
+            stats%jevals = stats%jevals + 1
+            call radau_factor(r%es, r%it, r%hh, r%gam, r%mu, stat)
+            if (stat%code /= 0) return
+            stats%factorizations = stats%factorizations + 1
+        end if
+    end subroutine radau_predict
+
+    !> The simplified Newton iteration on the decoupled stage systems; leaves
+    !! the contraction rate in r%theta and the last correction's norm in r%dnorm.
+    subroutine radau_newton(r, stats, converged)
+        type(radau_run_t), intent(inout) :: r
+        type(integ_stats_t), intent(inout) :: stats
+        logical, intent(out) :: converged
+        integer, parameter :: NIT = 7
+        real(dp), parameter :: NEWTON_TOL = 1.0e-2_dp
+        real(dp) :: dold
+        type(status_t) :: inner
+        integer :: newt, i, j, n
+
+        n = r%n
+        converged = .false.
+        dold = 0.0_dp
+        r%dnorm = 0.0_dp
+        r%theta = 0.0_dp
+        inner = status_t()
+        do newt = 1, NIT
+            ! residuals in M-form: G_i = f~(y + z_i) - [I; M0; 1] (D z)_i / h
+            do i = 1, 3
+                if (newt > 1 .or. i /= 2 .or. r%rot_slow .or. r%reused) then
+                    r%ys = r%y + r%z(:, i)
+                    call rates_m(r%es, r%it, r%ys, r%fz(:, i), r%pw(:, i), inner)
+                    stats%fevals = stats%fevals + 1
+                end if
+                r%zd(:, i) = (r%dmat(i, 1)*r%z(:, 1) + r%dmat(i, 2)*r%z(:, 2) &
+                              + r%dmat(i, 3)*r%z(:, 3))/r%hh
+                if (r%it%rot) then
+                    call to_mform(r%es, r%it, r%zd(:, i), r%y(1:n) + r%z(1:n, i))
+                else
+                    call to_mform(r%es, r%it, r%zd(:, i))
+                end if
+            end do
+            if (inner%code /= 0) exit
+            r%f3 = r%fz(:, 3)
+            r%fz = r%fz - r%zd
+            ! sticking components: the residual of their velocity row is
+            ! minus the constraint force that holds them (M a - F); the
+            ! rows are pinned
+            do j = 1, r%it%nst
+                r%hst(r%it%stuckc(j), :) = -r%fz(n + r%it%stuck(j), :)
+                r%fz(r%it%stuck(j), :) = 0.0_dp
+                r%fz(n + r%it%stuck(j), :) = 0.0_dp
+            end do
+            r%w1 = r%ti1(1)*r%fz(:, 1) + r%ti1(2)*r%fz(:, 2) + r%ti1(3)*r%fz(:, 3)
+            r%w2 = r%ti2(1)*r%fz(:, 1) + r%ti2(2)*r%fz(:, 2) + r%ti2(3)*r%fz(:, 3)
+            ! the rows q' = v of the stage system are linear and hold from the
+            ! predictor on (and after every correction): their residual r is
+            ! zero, and the solves skip the product (lam M + C) r
+            call solve_real(r%es, r%it, r%gam/r%hh, r%w1, r_zero=.true.)
+            call solve_cplx(r%es, r%it, r%mu/r%hh, r%w2, r_zero=.true.)
+            do i = 1, 3
+                r%dz(:, i) = r%tr(i)*r%w1 + real(r%tc(i)*r%w2, dp)
+            end do
+            r%dnorm = sqrt((wrms(r%dz(:, 1), r%iscal) + wrms(r%dz(:, 2), r%iscal) + &
+                            wrms(r%dz(:, 3), r%iscal))/3.0_dp)
+            if (.not. ieee_is_finite(r%dnorm)) exit
+            r%z = r%z + r%dz
+            stats%newton = stats%newton + 1
+            if (newt > 1) then
+                r%theta = r%dnorm/dold
+                if (r%theta >= 0.99_dp) exit
+                ! converged: the remaining error theta/(1 - theta) dnorm is small
+                if (r%theta/(1.0_dp - r%theta)*r%dnorm <= NEWTON_TOL) then
+                    converged = .true.
+                    exit
+                end if
+                ! hopeless: it will not get there within NIT iterations
+                if (r%theta**(NIT - newt)/(1.0_dp - r%theta)*r%dnorm > NEWTON_TOL) exit
+            end if
+            dold = max(r%dnorm, epsilon(1.0_dp))
+        end do
+    end subroutine radau_newton
+
+    !> A rejected step: no reuse of the factors, no pending event, retry with
+    !! the step hnext.
+    subroutine radau_reject(r, stats, hnext)
+        type(radau_run_t), intent(inout) :: r
+        type(integ_stats_t), intent(inout) :: stats
+        real(dp), intent(in) :: hnext
+
+        r%may_reuse = .false.
+        r%pend = 0
+        stats%rejected = stats%rejected + 1
+        r%reject = .true.
+        r%h = hnext
+    end subroutine radau_reject
+
+    !> The error estimate (Hairer-Wanner IV.8, Eq. 8.19-8.20), in M-form, into
+    !! r%err, and the step the controller proposes next, r%hnew.
+    subroutine radau_error(r, stats, stat)
+        type(radau_run_t), intent(inout) :: r
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
+        real(dp) :: quot, torq
+        integer :: j, n
+
+        n = r%n
+        ! f0: the rates at the step start. After an accepted step they are the
+        ! last iteration's third-stage rates, taken at y - dz3 (the last
+        ! correction, below NEWTON_TOL of the tolerance): the estimate moves
+        ! by at most that much through (gamma/h - J)^-1 J, and a force is saved.
+        if (.not. r%have_f0) then
+            if (r%it%rot) then
+                ! the acceleration a at y (M(q) factored once), f0 = M(q) a
+                call dyn_crates(r%es, r%y, r%f0, r%pw(:, 1), torq, stat)
+                if (stat%code /= 0) return
+                r%acc3 = r%f0(n + 1:2*n)
+                call to_mform(r%es, r%it, r%f0, r%y(1:n))
+            else
+                call rates_m(r%es, r%it, r%y, r%f0, r%pw(:, 1), stat)
+                if (stat%code /= 0) return
+            end if
+            stats%fevals = stats%fevals + 1
+            r%have_f0 = .true.
+        end if
+        r%e0 = (DD(1)*r%z(:, 1) + DD(2)*r%z(:, 2) + DD(3)*r%z(:, 3))/r%hh
+        call to_mform(r%es, r%it, r%e0)
+        r%ev = r%f0 + r%e0
+        if (r%it%rot) then
+            ! f0 holds M(q_n) a_n; the M-form wants M0 a_n
+            r%rv = 0.0_dp
+            call dyn_rot_mv(r%es, r%it%qjac, r%acc3, r%rv)
+            call dyn_rot_mv(r%es, r%y(1:n), -r%acc3, r%rv)
+            r%ev(n + 1:2*n) = r%ev(n + 1:2*n) + r%rv
+        end if
+        do j = 1, r%it%nst
+            r%ev(r%it%stuck(j)) = 0.0_dp
+            r%ev(n + r%it%stuck(j)) = 0.0_dp
+        end do
+        call solve_real(r%es, r%it, r%gam/r%hh, r%ev)
+        r%err = max(sqrt(wrms(r%ev, r%iscal)), 1.0e-10_dp)
+        if (r%err >= 1.0_dp .and. (r%first .or. r%reject)) then
+            r%ytmp = r%y + r%ev
+            call rates_m(r%es, r%it, r%ytmp, r%ev, r%pw(:, 1), stat)
+            if (stat%code /= 0) return
+            r%ev = r%ev + r%e0
+            do j = 1, r%it%nst
+                r%ev(r%it%stuck(j)) = 0.0_dp
+                r%ev(n + r%it%stuck(j)) = 0.0_dp
+            end do
+            call solve_real(r%es, r%it, r%gam/r%hh, r%ev)
+            r%err = max(sqrt(wrms(r%ev, r%iscal)), 1.0e-10_dp)
+            stats%fevals = stats%fevals + 1
+        end if
+        quot = max(FACR, min(FACL, r%err**0.25_dp/SAFE))
+        r%hnew = r%hh/quot
+    end subroutine radau_error
+
+    !> Friction events on an accurate step: the first root of a sliding
+    !! component's velocity or of a sticking one's excess force along the
+    !! collocation polynomial. Inside the step: redo the step to end there
+    !! (targeted; redo = .true.); at the end: r%jev /= 0, switch after
+    !! accepting.
+    subroutine radau_locate(r, hist, stats, stat, redo, pars, sm)
+        type(radau_run_t), intent(inout) :: r
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        logical, intent(out) :: redo
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        logical :: at_end
+
+        redo = .false.
+        r%jev = 0
+        if (r%evon) call radau_events(r%es, r%y, r%z, r%hold0, r%hst, r%jev, r%kev, r%sev)
+        if (r%jev /= 0) then
+            at_end = (1.0_dp - r%sev)*r%hh <= 1.0e-12_dp*max(1.0_dp, abs(r%t)) .or. &
+                     (r%pend == r%jev .and. r%hh == r%hpend .and. r%sev >= 0.5_dp)
+            if (at_end) return
+            redo = .true.
+            stats%event_steps = stats%event_steps + 1
+            if (r%sev*r%hh <= r%tiny_h .and. r%hh > 1.0e4_dp*r%tiny_h) then
+                ! wrong way from the start along this step's polynomial:
+                ! the step may be too long to resolve a push that a fast
+                ! (axial) vibration reverses within it. Retry shorter
+                ! before believing it (small friction coefficients).
+                r%may_reuse = .false.
+                r%pend = 0
+                r%h = r%hh/16.0_dp
+            else if (r%sev*r%hh <= r%tiny_h) then
+                ! pushed the wrong way from the start: switch now
+                call radau_stall(r, stat)
+                if (stat%code /= 0) return
+                call radau_switch(r, hist, stats, stat, .false., pars, sm)
+                r%pend = 0
+            else
+                if (r%pend == 0) r%hcut = r%h
+                r%may_reuse = .false.
+                r%h = r%sev*r%hh
+                r%pend = r%jev
+                r%pkind = r%kev
+                r%hpend = r%h
+            end if
+        else if (r%pend /= 0 .and. r%hh == r%hpend) then
+            ! the targeted step ended just short of the root, unless the
+            ! root went away on the shorter step: the switching function
+            ! at its end is then not small against its change over the
+            ! step (a root the longer step's polynomial made up, as right
+            ! after a component started to slide from rest)
+            if (near_root(r%es, r%y, r%z, r%hold0, r%hst, r%pend, r%pkind)) then
+                r%jev = r%pend
+                r%kev = r%pkind
+            else
+                r%h = max(r%h, r%hcut)
+            end if
+        end if
+    end subroutine radau_locate
+
+    !> Accept the step: the work by the collocation quadrature on the stages,
+    !! the sensitivities, the new state, and the next step size.
+    subroutine radau_accept(r, opts, stats, stat, pars, sm)
+        type(radau_run_t), intent(inout) :: r
+        type(integ_opts_t), intent(in) :: opts
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        real(dp), parameter :: REUSE_THETA = 1.0e-3_dp
+        integer :: i, j, n
+
+        n = r%n
+        if (r%es%nwork > 0) then
+            do i = 1, 3
+                r%ys = r%y + r%z(:, i)
+                call dyn_cpower(r%es, r%ys, r%pw(:, i))
+            end do
+            do j = 1, r%es%nwork
+                r%work(j) = r%work(j) + r%hh*dot_product(r%pw(j, :), r%a(3, :))
+            end do
+        end if
+        if (r%sens) then
+            call radau_sens_step(r%es, r%it, pars, r%y, r%z, r%hh, r%dmat, r%gam, r%mu, r%ti1, &
+                                 r%ti2, r%tr, r%tc, opts%rtol, r%theta, sm, r%dzp, r%hsp, &
+                                 stats%sens_passes, r%sws, stat)
+            if (stat%code /= 0) return
+        end if
+        r%y = r%y + r%z(:, 3)
+        r%f0 = r%f3
+        if (r%it%rot) r%acc3 = (r%dmat(3, 1)*r%z(n + 1:2*n, 1) + r%dmat(3, 2)*r%z(n + 1:2*n, 2) &
+                                + r%dmat(3, 3)*r%z(n + 1:2*n, 3))/r%hh
+        r%t = r%t + r%hh
+        r%zprev = r%z
+        r%hprev = r%hh
+        r%have_prev = .true.
+        stats%steps = stats%steps + 1
+        r%first = .false.
+        if (r%reject) r%hnew = min(r%hnew, r%hh)
+        r%reject = .false.
+        ! a step cut short at an output time does not shrink the next one
+        if (r%clipped) then
+            r%h = max(r%hnew, r%h)
+        else
+            r%h = r%hnew
+        end if
+        ! small steps with a fast-contracting Newton iteration: keep the
+        ! Jacobian and the factors for the next step, and the step size
+        ! when the controller would change it by less than 20 % upwards
+        ! (RADAU5's THET and QUOT1, QUOT2)
+        r%may_reuse = r%theta < REUSE_THETA .and. .not. r%clipped
+        if (r%may_reuse .and. r%hnew >= r%hh .and. r%hnew <= 1.2_dp*r%hh) r%h = r%hh
+        if (.not. all(ieee_is_finite(r%y))) then
+            call set_status(stat, ERR_NUMERIC, RADAU_WHERE, 'state became non-finite at t = ' &
+                            //fmt_real(r%t))
+            return
+        end if
+        r%hold0 = r%hst(:, 3)
+        if (r%jev == 0) r%nstall = 0
+    end subroutine radau_accept
+
+    !> The friction switch r%jev of kind r%kev at r%t: a velocity that reached
+    !! zero is zero; the right-hand side changes, so the step-start rates are
+    !! new. count_stall: a switch that changes no mode (a velocity touching
+    !! zero) counts towards the stall limit: once is legitimate, again and again
+    !! without a plain step between is no progress (roots ever closer together).
+    subroutine radau_switch(r, hist, stats, stat, count_stall, pars, sm)
+        type(radau_run_t), intent(inout) :: r
+        type(history_t), intent(inout) :: hist
+        type(integ_stats_t), intent(inout) :: stats
+        type(status_t), intent(inout) :: stat
+        logical, intent(in) :: count_stall
+        type(dyn_param_t), intent(in), optional :: pars(:)
+        real(dp), intent(inout), optional :: sm(:, :)
+        integer :: jforce, nev0
+
+        if (r%kev == EVENT_ZERO_VELOCITY) r%y(r%n + dyn_fric_dof(r%es, r%jev)) = 0.0_dp
+        jforce = 0
+        if (r%kev == EVENT_UNSTICK) jforce = r%jev
+        if (r%sens) then
+            call sens_event_pre(r%es, pars, r%y, r%kev, r%jev, r%hold0(r%jev), sm, r%fm, &
+                                r%dtp, stat)
+            if (stat%code /= 0) return
+        end if
+        nev0 = stats%events
+        call apply_switch(r%es, r%y, r%t, r%kev, jforce, r%hold0, hist, stats, stat)
+        if (stat%code /= 0) return
+        if (count_stall) then
+            if (stats%events == nev0) then
+                call radau_stall(r, stat)
+                if (stat%code /= 0) return
+            else
+                r%nstall = 0
+            end if
+        end if
+        call set_stuck(r%es, r%it)
+        if (r%sens) then
+            call sens_event_post(r%es, r%y, r%fm, r%dtp, sm, stat)
+            if (stat%code /= 0) return
+            r%hsp = 0.0_dp
+        end if
+        r%have_f0 = .false.
+        r%may_reuse = .false.
+    end subroutine radau_switch
+
+    !> One more switch without progress; an error past 4 per friction point.
+    subroutine radau_stall(r, stat)
+        type(radau_run_t), intent(inout) :: r
+        type(status_t), intent(inout) :: stat
+
+        r%nstall = r%nstall + 1
+        if (r%nstall > 4*r%es%npt + 4) then
+            call set_status(stat, ERR_NO_CONVERGENCE, RADAU_WHERE, &
+                            'friction switching of component '//fmt_int(r%jev)// &
+                            ' does not settle at t = '//fmt_real(r%t))
+        end if
+    end subroutine radau_stall
 
     ! ---------------------------------------------------------------------
     ! Forward sensitivities S = dy/dp (Eq. 135-140; docs/theory_dynamics.md)
@@ -2196,29 +2354,66 @@ contains
         type(sens_work_t), intent(inout) :: ws    !< work arrays, kept across steps
         type(status_t), intent(inout) :: stat
         integer, parameter :: MAXIT = 40
-        real(dp) :: e(3), xp, ref, err, lsc(3), th
-        integer :: n, m, nw, nb, i, j, k, iter, kl, ku, na, ja, nx
+        real(dp) :: e(3)
+        integer :: n, m, nw, nb, j, iter, na, ja
         logical :: cz(3)
         n = es%n
         m = es%ncstate
-        nx = m - 2*n
         nw = size(sm, 2)
-        kl = es%mesh%kl
-        ku = es%mesh%ku
-        nb = 2*kl + ku + 1
+        nb = 2*es%mesh%kl + es%mesh%ku + 1
         call sens_work_alloc(ws, nb, n, m, nw)
-        associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
-                   cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
-                   fp => ws%fp, ys => ws%ys, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, &
-                   dels => ws%dels, act => ws%act, errold => ws%errold, wq => ws%wq, &
-                   wv => ws%wv)
-            ! the exact stage Jacobians and the parameter derivatives of the
-            ! forces at the converged stages, once per step for all parameters
+        call sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+        call sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        do iter = 1, MAXIT
+            if (na == 0) exit
+            call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            do ja = 1, na
+                ws%w1(:, ja) = ti1(1)*ws%r(:, 1, ja) + ti1(2)*ws%r(:, 2, ja) &
+                               + ti1(3)*ws%r(:, 3, ja)
+                ws%w2(:, ja) = ti2(1)*ws%r(:, 1, ja) + ti2(2)*ws%r(:, 2, ja) &
+                               + ti2(3)*ws%r(:, 3, ja)
+            end do
+            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2)
+            call sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
+        end do
+        if (na > 0) then
+            call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
+                            'the stage sensitivity iteration did not converge in '// &
+                            fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
+            return
+        end if
+        do j = 1, nw
+            if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
+            sm(:, j) = sm(:, j) + ws%dz(:, 3, j)
+            dzp(:, :, j) = ws%dz(:, :, j)
+        end do
+        hp = hh
+    end subroutine radau_sens_step
+
+    !> The exact stage Jacobians (ws%kb, cb, b, p, d and e; cz: a stage
+    !! without velocity coupling, no drag, damping or motor, whose C products
+    !! are skipped), the stage accelerations and the parameter derivatives of
+    !! the forces at the converged stages (ws%cst), once per step for all
+    !! nw parameters.
+    subroutine sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        integer, intent(in) :: nw
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3)
+        type(sens_work_t), intent(inout) :: ws
+        real(dp), intent(out) :: e(3)
+        logical, intent(out) :: cz(3)
+        real(dp) :: xp
+        integer :: n, nx, i, j
+
+        n = es%n
+        nx = es%ncstate - 2*n
+        associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
+                   fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
                 call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                  cb(:, :, i), b(:, i), p(:, i), d(:, i), e(i))
-                ! no velocity coupling (no drag, damping or motor): skip C products
+                                  cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
                 cz(i) = all(cb(:, :, i) == 0.0_dp)
                 acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
@@ -2230,14 +2425,30 @@ contains
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
             end do
-            ! predictors (the previous step's stage polynomial, extrapolated);
-            ! the linear rows q' = v hold from the start (and after every
-            ! correction): the solves skip the products with their residual
-            na = 0
-            do j = 1, nw
+        end associate
+    end subroutine sens_stage_terms
+
+    !> The active columns (ws%act(1:na)) and their predictors (the previous
+    !! step's stage polynomial, extrapolated); the linear rows q' = v hold from
+    !! the start (and after every correction): the solves skip the products
+    !! with their residual.
+    subroutine sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(in) :: it
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: sm(:, :), dzp(:, :, :), hh, hp, dmat(3, 3)
+        type(sens_work_t), intent(inout) :: ws
+        integer, intent(out) :: na
+        real(dp) :: lsc(3)
+        integer :: n, i, j, k
+
+        n = es%n
+        na = 0
+        associate (dz => ws%dz)
+            do j = 1, size(sm, 2)
                 if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
                 na = na + 1
-                act(na) = j
+                ws%act(na) = j
                 if (hp > 0.0_dp) then
                     do i = 1, 3
                         lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
@@ -2254,124 +2465,144 @@ contains
                     dz(n + 1:2*n, i, j) = (dmat(i, 1)*dz(1:n, 1, j) + dmat(i, 2)*dz(1:n, 2, j) &
                                            + dmat(i, 3)*dz(1:n, 3, j))/hh - sm(n + 1:2*n, j)
                 end do
-                errold(j) = huge(1.0_dp)
-            end do
-            do iter = 1, MAXIT
-                if (na == 0) exit
-                ! residuals of the active columns, velocity (and torque) rows
-                ! only, stage by stage: the products of all columns with the
-                ! stage Jacobian in one sweep over its band
-                do i = 1, 3
-                    do ja = 1, na
-                        j = act(ja)
-                        wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
-                        wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
-                    end do
-                    if (cz(i)) then
-                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
-                    else
-                        call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
-                    end if
-                    if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
-                    do ja = 1, na
-                        j = act(ja)
-                        ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
-                        zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
-                                       + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
-                        if (it%rot) then
-                            call to_mform(es, it, zd, ys(1:n))
-                        else
-                            call to_mform(es, it, zd)
-                        end if
-                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
-                        if (es%rotary) then
-                            fp = 0.0_dp
-                            call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
-                            r(1:n, i, ja) = r(1:n, i, ja) - fp
-                        end if
-                        if (nx > 0) then
-                            xp = sm(m, j) + dz(m, i, j)
-                            r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
-                            r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
-                                              + dot_product(d(:, i), wv(:, ja)) &
-                                              + e(i)*xp + cst(n + 1, i, j) - zd(m)
-                        end if
-                        do k = 1, it%nst
-                            r(it%stuck(k), i, ja) = 0.0_dp
-                        end do
-                    end do
-                end do
-                do ja = 1, na
-                    w1(:, ja) = ti1(1)*r(:, 1, ja) + ti1(2)*r(:, 2, ja) + ti1(3)*r(:, 3, ja)
-                    w2(:, ja) = ti2(1)*r(:, 1, ja) + ti2(2)*r(:, 2, ja) + ti2(3)*r(:, 3, ja)
-                end do
-                call solve_stage_many(es, it, gam/hh, mu/hh, na, w1, w2)
-                ! corrections, convergence column by column
-                k = 0
-                do ja = 1, na
-                    j = act(ja)
-                    ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
-                    ! displacement rows x and the velocity rows lam x (r_q = 0)
-                    do i = 1, 3
-                        dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
-                        dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
-                                             + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
-                        if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
-                        dz(:, i, j) = dz(:, i, j) + dels(:, i)
-                    end do
-                    ! error scale: the tolerance relative to this sensitivity's
-                    ! size (velocity rows as the displacement they cause over the
-                    ! step); the motor torque row on its own scale
-                    ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
-                    sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
-                    sc(n + 1:2*n) = sc(n + 1:2*n)*hh
-                    if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
-                                                    maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
-                    err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
-                    passes = passes + 1
-                    ! converged when the remaining error th/(1 - th) |correction|
-                    ! is below the tolerance (th: the observed contraction; at the
-                    ! first pass the column's last observed one, carried across
-                    ! steps as CVODES carries its rate (the iteration matrices
-                    ! change little from step to step), before any the Newton
-                    ! one). The sensitivities of the seed's release agree with
-                    ! central differences of rtol 1e-11 runs to the same digits
-                    ! as with 1 % of it (the Newton test), at 8 passes per step
-                    ! for 4 parameters instead of 10.
-                    ! Below the tolerance and no longer contracting: the
-                    ! round-off floor of the residuals (tolerances near 1e-12)
-                    if (iter == 1) then
-                        if (ws%thc(j) > 0.0_dp) then
-                            th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
-                        else
-                            th = min(max(thn, 1.0e-3_dp), 0.9_dp)
-                        end if
-                    else
-                        th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
-                        ws%thc(j) = th
-                    end if
-                    if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
-                    if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
-                    errold(j) = err
-                    k = k + 1
-                    act(k) = j
-                end do
-                na = k
-            end do
-            if (na > 0) then
-                call set_status(stat, ERR_NO_CONVERGENCE, 'implicit sensitivities', &
-                                'the stage sensitivity iteration did not converge in '// &
-                                fmt_int(MAXIT)//' passes (step '//fmt_real(hh)//' s)')
-                return
-            end if
-            do j = 1, nw
-                if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
-                sm(:, j) = sm(:, j) + dz(:, 3, j)
-                dzp(:, :, j) = dz(:, :, j)
+                ws%errold(j) = huge(1.0_dp)
             end do
         end associate
-        hp = hh
-    end subroutine radau_sens_step
+    end subroutine sens_predict
+
+    !> The residuals ws%r of the na active columns, velocity (and torque)
+    !! rows only, stage by stage: the products of all columns with the stage
+    !! Jacobian in one sweep over its band.
+    subroutine sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(inout) :: it
+        real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), sm(:, :), e(3)
+        logical, intent(in) :: cz(3)
+        integer, intent(in) :: na
+        type(sens_work_t), intent(inout) :: ws
+        real(dp) :: xp
+        integer :: n, m, nx, kl, ku, i, j, ja, k
+
+        n = es%n
+        m = es%ncstate
+        nx = m - 2*n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
+                   cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
+                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv)
+            do i = 1, 3
+                do ja = 1, na
+                    j = act(ja)
+                    wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
+                    wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                end do
+                if (cz(i)) then
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
+                else
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                end if
+                if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
+                do ja = 1, na
+                    j = act(ja)
+                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
+                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
+                                   + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
+                    if (it%rot) then
+                        call to_mform(es, it, zd, ys(1:n))
+                    else
+                        call to_mform(es, it, zd)
+                    end if
+                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
+                    if (es%rotary) then
+                        fp = 0.0_dp
+                        call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
+                        r(1:n, i, ja) = r(1:n, i, ja) - fp
+                    end if
+                    if (nx > 0) then
+                        xp = sm(m, j) + dz(m, i, j)
+                        r(1:n, i, ja) = r(1:n, i, ja) + b(:, i)*xp
+                        r(n + 1, i, ja) = dot_product(p(:, i), wq(:, ja)) &
+                                          + dot_product(d(:, i), wv(:, ja)) &
+                                          + e(i)*xp + cst(n + 1, i, j) - zd(m)
+                    end if
+                    do k = 1, it%nst
+                        r(it%stuck(k), i, ja) = 0.0_dp
+                    end do
+                end do
+            end do
+        end associate
+    end subroutine sens_residuals
+
+    !> The corrections from the reduced solves (ws%w1, w2) of pass iter and
+    !! convergence column by column: na becomes the number still active.
+    subroutine sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
+        type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: sm(:, :), hh, gam, tr(3), rtol, thn
+        complex(dp), intent(in) :: mu, tc(3)
+        integer, intent(in) :: iter
+        integer, intent(inout) :: passes, na
+        type(sens_work_t), intent(inout) :: ws
+        real(dp) :: ref, err, th
+        integer :: n, m, nx, i, j, k, ja
+
+        n = es%n
+        m = es%ncstate
+        nx = m - 2*n
+        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, dels => ws%dels, &
+                   act => ws%act, errold => ws%errold)
+            k = 0
+            do ja = 1, na
+                j = act(ja)
+                ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
+                ! displacement rows x and the velocity rows lam x (r_q = 0)
+                do i = 1, 3
+                    dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
+                    dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
+                                         + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
+                    if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
+                    dz(:, i, j) = dz(:, i, j) + dels(:, i)
+                end do
+                ! error scale: the tolerance relative to this sensitivity's
+                ! size (velocity rows as the displacement they cause over the
+                ! step); the motor torque row on its own scale
+                ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
+                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
+                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
+                if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
+                err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
+                passes = passes + 1
+                ! converged when the remaining error th/(1 - th) |correction|
+                ! is below the tolerance (th: the observed contraction; at the
+                ! first pass the column's last observed one, carried across
+                ! steps as CVODES carries its rate (the iteration matrices
+                ! change little from step to step), before any the Newton
+                ! one). The sensitivities of the seed's release agree with
+                ! central differences of rtol 1e-11 runs to the same digits
+                ! as with 1 % of it (the Newton test), at 8 passes per step
+                ! for 4 parameters instead of 10.
+                ! Below the tolerance and no longer contracting: the
+                ! round-off floor of the residuals (tolerances near 1e-12)
+                if (iter == 1) then
+                    if (ws%thc(j) > 0.0_dp) then
+                        th = min(max(ws%thc(j), 1.0e-4_dp), 0.9_dp)
+                    else
+                        th = min(max(thn, 1.0e-3_dp), 0.9_dp)
+                    end if
+                else
+                    th = min(sqrt(err/max(errold(j), tiny(1.0_dp))), 0.9_dp)
+                    ws%thc(j) = th
+                end if
+                if (th/(1.0_dp - th)*sqrt(err) <= 1.0_dp) cycle
+                if (sqrt(err) <= 1.0_dp .and. err >= 0.8_dp*errold(j)) cycle
+                errold(j) = err
+                k = k + 1
+                act(k) = j
+            end do
+            na = k
+        end associate
+    end subroutine sens_correct
 
     !> Work arrays of radau_sens_step, allocated on the first step.
     subroutine sens_work_alloc(ws, nb, n, m, nw)
