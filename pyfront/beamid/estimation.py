@@ -339,8 +339,6 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     _check_fit_args(data, tol, max_iter)
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
     if jacobian not in ("auto", "exact"):
         raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
     prob = build_problem(model, experiments, data, tol)

@@ -35,6 +35,12 @@ class Shape(NamedTuple):
     moment: np.ndarray
 
 
+def _output(name: str, doc: str) -> property:
+    """A read-only float attribute of a :class:`StaticResult`: output ``name``."""
+    i = OUTPUTS.index(name)
+    return property(lambda self: float(self._outputs[i]), doc=doc)
+
+
 class StaticResult:
     """Converged static solution.
 
@@ -84,35 +90,13 @@ class StaticResult:
         return (f"StaticResult(tip_x={self.tip_x:.6g}, tip_y={self.tip_y:.6g}, "
                 f"tip_angle={self.tip_angle:.6g}, wire_force={self.wire_force:.6g})")
 
-    @property
-    def tip_x(self) -> float:
-        return float(self._outputs[0])
-
-    @property
-    def tip_y(self) -> float:
-        return float(self._outputs[1])
-
-    @property
-    def tip_angle(self) -> float:
-        """Tangent angle at the tip from +x (rad)."""
-        return float(self._outputs[2])
-
-    @property
-    def wire_force(self) -> float:
-        """Wire tension (N); nan without a wire."""
-        return float(self._outputs[3])
-
-    @property
-    def elbow_x(self) -> float:
-        return float(self._outputs[4])
-
-    @property
-    def elbow_y(self) -> float:
-        return float(self._outputs[5])
-
-    @property
-    def root_moment(self) -> float:
-        return float(self._outputs[7])
+    tip_x = _output("tip_x", "Tip x (m).")
+    tip_y = _output("tip_y", "Tip y (m).")
+    tip_angle = _output("tip_angle", "Tangent angle at the tip from +x (rad).")
+    wire_force = _output("wire_force", "Wire tension (N); nan without a wire.")
+    elbow_x = _output("elbow_x", "Elbow x (m).")
+    elbow_y = _output("elbow_y", "Elbow y (m).")
+    root_moment = _output("root_moment", "Bending moment at the root (N m).")
 
     def shape(self, n: int = 101, s: Iterable[float] | None = None) -> Shape:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
