@@ -23,8 +23,6 @@ from .errors import BeamidError, InputError
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)
 EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
 
-ESTIMATION_COMMANDS = ("fit", "compare", "diagnose", "improve")
-
 #: defaults of ``beamid simulate`` without a deck: the dissertation's free
 #: vibration (Chapter IV, Table 8): 8 N release, 8 elements, one period
 SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 4,

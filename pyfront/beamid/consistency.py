@@ -47,7 +47,7 @@ from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from .errors import BeamidError, InputError
+from .errors import BeamidError, InputError, OutputError
 from .estimation import FitResult, fit as _fit
 from ._design_core import chi2_sf_many, mc_summary
 from .progress import progress
@@ -327,13 +327,9 @@ class Consistency:
         return fig
 
 
-class OutputFileError(BeamidError, OSError):
-    """An output file or folder cannot be written (the ``beamid`` command's
-    exit code 4)."""
-
-
-def _output_error(path: Path, exc: OSError) -> OutputFileError:
-    return OutputFileError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
+def _output_error(path: Path, exc: OSError) -> OutputError:
+    """The error of an output file or folder that cannot be written (exit code 4)."""
+    return OutputError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
                            str(path))
 
 

@@ -23,7 +23,7 @@ import f90nml
 from ._deck_common import Published, check_path as _check_path, load as _load
 from ._deck_common import published as _published, run_files
 from .errors import OutputError
-from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, run_fit_deck
+from .fit_decks import FIT_TASKS, FitDeck, _fit_deck, run_fit_deck
 from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
@@ -31,7 +31,6 @@ from .static import solve_static
 __all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
            "history_columns", "FitDeck"]
 
-TASKS = ("static", "fe_static", "fe_modes", "simulate")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
@@ -78,7 +77,7 @@ def read_deck(path: str | os.PathLike):
     :class:`beamid.fit_decks.FitDeck`; the others as :class:`Deck`."""
     path = _check_path(path)
     values = _core.read_deck(str(path))
-    if values["task"] in ESTIMATION_TASKS:
+    if values["task"] in FIT_TASKS:
         return _fit_deck(path, values)
     model = Model(values["nbeams"], values["params"])
     names = model.names()

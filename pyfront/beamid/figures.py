@@ -206,11 +206,9 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
                   dpi: int = 110) -> list[Path]:
     """Draw the named figures (all by default) as ``out/figureNN.png``; the
     runs are computed once (only the gains the figures need) unless given."""
-    import matplotlib
+    from .plotting import agg_pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    agg_pyplot()
     wanted = figure_names(names)
     gains = {0.0} if set(wanted) <= {"figure20", "figure21", "figure22"} else set(GAINS)
     if wanted == ["figure25"]:
@@ -220,11 +218,7 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for name in wanted:
-        ax = FIGURES[name](runs)
-        fig = ax.figure
+        fig = FIGURES[name](runs).figure
         fig.tight_layout()
-        path = out / f"{name}.png"
-        fig.savefig(path, dpi=dpi)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_png(fig, out / f"{name}.png", dpi))
     return written

@@ -32,8 +32,7 @@ from .measurements import Measurements, read_measurements
 from .model import Model
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
-#: the same, under the name decks.py uses
-ESTIMATION_TASKS = FIT_TASKS
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of an identification deck (task ``identify``: one ``&fit``
@@ -74,13 +73,11 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    if values["task"] in FIT_TASKS:
-        # release experiments (issue 13) carry more values than the reader's
-        # (kind, [fx, fy, moment, wire_length]) columns
-        for (n, _, _), (kind, vals) in zip(values["experiments"],
-                                           _ce.deck_experiments(str(path))):
-            if kind == LOAD_RELEASE:
-                experiments[n] = Release.decode(vals)
+    # release experiments (issue 13) carry more values than the reader's
+    # (kind, [fx, fy, moment, wire_length]) columns
+    for (n, _, _), (kind, vals) in zip(values["experiments"], _ce.deck_experiments(str(path))):
+        if kind == LOAD_RELEASE:
+            experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
                          read_measurements(s["data_path"], experiments),
@@ -165,31 +162,20 @@ def improve_deck(deck: FitDeck) -> Ladder:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .plot_fit import plot_compare, plot_ladder
+    from .plotting import agg_pyplot, save_png
 
     written = []
     if ladder is not None:
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = agg_pyplot().subplots(figsize=(6, 4))
         plot_ladder(ladder, ax=ax)
-        p = Path(f"{prefix}_ladder.png")
         fig.tight_layout()
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        written.append(save_png(fig, f"{prefix}_ladder.png"))
         cmp_pairs = [("start", compare(ladder.steps[0].fit)), ("final", compare(ladder.fit))]
     else:
         cmp_pairs = [("", cmp)]
-    for tag, c in cmp_pairs:
-        fig = plot_compare(c)     # one panel per quantity and unit (plot_fit.py)
-        p = Path(f"{prefix}_compare{'_' + tag if tag else ''}.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+    for tag, c in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
+        written.append(save_png(plot_compare(c), f"{prefix}_compare{'_' + tag if tag else ''}.png"))
     return written
 
 
@@ -210,14 +196,10 @@ def identify_deck(deck: FitDeck) -> Any:
 
 
 def _identify_figure(result: Any, prefix: Path) -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    ax = result.plot()
-    png = prefix.with_name(prefix.name + "_identify.png")
-    ax.figure.savefig(png, dpi=100)
-    plt.close(ax.figure)
-    return png
+    from .plotting import agg_pyplot, save_png
+
+    agg_pyplot()
+    return save_png(result.plot().figure, prefix.with_name(prefix.name + "_identify.png"), 100)
 
 
 def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
