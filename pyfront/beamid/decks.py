@@ -24,6 +24,7 @@ from ._deck_common import Published, check_path as _check_path, load as _load
 from ._deck_common import published as _published, run_files
 from .errors import OutputError
 from .fit_decks import FIT_TASKS, FitDeck, _fit_deck, run_fit_deck
+from .dynamics import _point_name
 from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
@@ -61,12 +62,6 @@ class Deck:
         """Output prefix resolved against the deck's folder."""
         out = Path(self.output)
         return out if out.is_absolute() else self.path.parent / out
-
-
-def _point_name(nbeams: int, k: int) -> str:
-    if k == nbeams:
-        return "tip"
-    return "elbow" if k == 1 else f"joint{k}"
 
 
 def read_deck(path: str | os.PathLike):

@@ -39,6 +39,7 @@ import numpy as np
 
 from . import _core_dynamics as _cd
 from .errors import InputError
+from .fe import _model_args
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
            "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
@@ -68,13 +69,6 @@ def work_names(nbeams: int) -> tuple[str, ...]:
     pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
     return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
                  + ["damping", "motor"])
-
-
-def _model_args(model):
-    try:
-        return int(model.nbeams), np.ascontiguousarray(model.vector(), dtype=float)
-    except AttributeError as exc:
-        raise InputError(f"model must be a beamid Model, got {type(model).__name__}") from exc
 
 
 def _release_loads(release) -> np.ndarray:
