@@ -189,9 +189,7 @@ def run(deck: Deck | str | os.PathLike):
         return fe.modes(deck.model, int(deck.fe["elements_per_beam"]),
                         rotary_inertia=bool(deck.fe["rotary_inertia"]))
     if deck.task == "simulate":
-        from .dynamics import simulate
+        from .history import deck_run
 
-        opts = dict(deck.simulate or {})
-        t_out = opts.pop("t_out")
-        return simulate(deck.model, deck.load, t_out, **opts)
+        return deck_run(deck)
     return solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)

@@ -84,11 +84,13 @@ STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_fle
 _STATES = dict(_ce.CANDIDATE_STATES)
 
 
-def _dynamic(experiments) -> bool:
-    """Has the fit a release experiment (beamid.dyn_diagnosis takes over)?"""
-    from .loads import Release
-    return isinstance(experiments, Mapping) and any(
-        isinstance(x, Release) for x in experiments.values())
+def _dynamic(experiments: Any) -> bool:
+    """Has this set of experiments a release (time histories: beamid.dyn_diagnosis
+    takes over)? Public as beamid.dyn_diagnosis.is_dynamic."""
+    try:
+        return any(isinstance(x, Release) for x in dict(experiments).values())
+    except (TypeError, ValueError):
+        return False
 
 
 def _effect(name: str | Effect) -> Effect:

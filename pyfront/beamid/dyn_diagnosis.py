@@ -73,15 +73,9 @@ register_effect(Effect("mesh", "the discretization: the same fit at twice the el
 DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
                       "elbow_flex", "root_flex", "mesh")
 
-_STATES = dict(_ce.CANDIDATE_STATES)
-
-
-def is_dynamic(experiments: Any) -> bool:
-    """Has this set of experiments a release (time histories)?"""
-    try:
-        return any(isinstance(x, Release) for x in dict(experiments).values())
-    except (TypeError, ValueError):
-        return False
+_STATES = _dg._STATES
+#: has this set of experiments a release (time histories)?
+is_dynamic = _dg._dynamic
 
 
 def default_candidates(experiments: Any) -> tuple[str, ...]:
@@ -359,10 +353,7 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
     ``time_structure``): runs of signs, lag-1 autocorrelation, trend of the
     residual amplitude. ``systematic`` when the overall chi-square or a
     series' test is significant at ``alpha`` / (number of tests)."""
-    from .plot_fit import quantity_unit as _unit
-
-    def quantity_unit(q: str) -> str:
-        return "N m" if "torque" in q else _unit(q)
+    from .plot_fit import quantity_unit
 
     series = []
     static_rows = []

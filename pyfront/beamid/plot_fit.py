@@ -24,11 +24,11 @@ def _axes(ax: Any):
 def quantity_unit(quantity: str) -> str:
     """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
     read from its name (beamid.measurements.QUANTITIES: angles are in rad,
-    forces in N, moments in N m, positions and deflections in m)."""
+    forces in N, moments and torques in N m, positions and deflections in m)."""
     q = quantity.lower()
     if "angle" in q:
         return "rad"
-    if "moment" in q:
+    if "moment" in q or "torque" in q:
         return "N m"
     if "force" in q:
         return "N"
