@@ -13,6 +13,19 @@ from .errors import InputError
 from .loads import LOAD_WIRE, Load, RadialWire, TipLoad
 
 
+class OutputPrefix:
+    """The ``output_prefix`` of a deck (``path``: the deck file, ``output``: as given)."""
+
+    path: Path
+    output: str
+
+    @property
+    def output_prefix(self) -> Path:
+        """Output prefix resolved against the deck's folder."""
+        out = Path(self.output)
+        return out if out.is_absolute() else self.path.parent / out
+
+
 @dataclass(frozen=True)
 class Published:
     """Published values a deck reproduces (group &published)."""

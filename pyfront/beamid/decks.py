@@ -20,7 +20,7 @@ from typing import Any
 
 import f90nml
 
-from ._deck_common import Published, check_path as _check_path, load as _load
+from ._deck_common import OutputPrefix, Published, check_path as _check_path, load as _load
 from ._deck_common import published as _published, run_files
 from .errors import OutputError
 from .fit_decks import FIT_TASKS, FitDeck, _fit_deck, run_fit_deck
@@ -41,7 +41,7 @@ _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
 
 
 @dataclass(frozen=True)
-class Deck:
+class Deck(OutputPrefix):
     """A parsed and validated deck."""
 
     path: Path
@@ -56,12 +56,6 @@ class Deck:
     fe: dict = field(default_factory=lambda: dict(FE_DEFAULTS))
     #: task simulate: ``t_out`` (array) and the keyword arguments of beamid.simulate
     simulate: dict | None = None
-
-    @property
-    def output_prefix(self) -> Path:
-        """Output prefix resolved against the deck's folder."""
-        out = Path(self.output)
-        return out if out.is_absolute() else self.path.parent / out
 
 
 def read_deck(path: str | os.PathLike):

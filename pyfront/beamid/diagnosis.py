@@ -495,12 +495,15 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
                      alpha_each=alpha_each, message=message)
 
 
+def _undetermined(fit: FitResult) -> list[str]:
+    """The line naming the fitted parameters the data do not determine (if any)."""
+    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if f != "ok"]
+    return ["fitted parameters not determined by these data: " + ", ".join(flagged)
+            ] if flagged else []
+
+
 def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
-    lines = []
-    undetermined = [n for n, f in fit.flags.items() if f != "ok"]
-    if undetermined:
-        lines.append("fitted parameters not determined by these data: " + ", ".join(
-            f"{n} ({fit.flags[n]})" for n in undetermined))
+    lines = _undetermined(fit)
     if verdict is None:
         p = _ce.chi2_sf(fit.chi2 + fit.chi2_prior, fit.dof) if fit.dof > 0 else math.nan
         tested = [c for c in ranked if c.state == "tested"]

@@ -216,10 +216,7 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         if mesh.max_change_at:
             e, t, q = mesh.max_change_at
             where = f" ({q} at t = {t:g} s in experiment {e})"
-        undetermined = [n for n, f in fit.flags.items() if f != "ok"]
-        if undetermined:
-            lines.append("fitted parameters not determined by these data: " + ", ".join(
-                f"{n} ({fit.flags[n]})" for n in undetermined))
+        lines += _dg._undetermined(fit)
         lines.append(
             f"refine the mesh: at {2 * mesh.elements_per_beam} elements per beam instead of "
             f"{mesh.elements_per_beam} the chi-square drops by {mesh.chi2_drop:.4g} "

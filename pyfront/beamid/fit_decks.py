@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from . import _core
-from ._deck_common import check_path, load, published as published_groups, run_files
+from ._deck_common import OutputPrefix, check_path, load, published as published_groups, run_files
 from .diagnosis import Ladder, _run_ladder, compare, diagnose
 from .errors import InputError
 from .estimation import _free_indices, _prior_arrays, fit
@@ -45,7 +45,7 @@ class Stage:
 
 
 @dataclass(frozen=True)
-class FitDeck:
+class FitDeck(OutputPrefix):
     """A parsed estimation deck."""
 
     path: Path
@@ -61,11 +61,6 @@ class FitDeck:
     max_iter: int = 50
     published: tuple = ()     #: &published groups (beamid.decks.Published)
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
-
-    @property
-    def output_prefix(self) -> Path:
-        out = Path(self.output)
-        return out if out.is_absolute() else self.path.parent / out
 
 
 def _fit_deck(path: Path, values: dict) -> FitDeck:
