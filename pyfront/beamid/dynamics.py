@@ -370,11 +370,7 @@ def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float
     nbeams, params = _model_args(model)
     gain = float(motor_gain)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
-    nx = nstate - 2 * nfree
-    if modes is not None:
-        kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-        return _cd.system_modal(nbeams, params, int(elements_per_beam), gain,
-                                FRICTION_LAWS[friction], friction_velocity, np.array(kept),
-                                q, v, torque_state, nx, nwork)
+    kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
     return _cd.system(nbeams, params, int(elements_per_beam), gain, FRICTION_LAWS[friction],
-                      friction_velocity, q, v, torque_state, nx, nwork)
+                      friction_velocity, q, v, torque_state, nstate - 2 * nfree, nwork,
+                      None if kept is None else np.array(kept))
