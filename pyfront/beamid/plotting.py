@@ -27,11 +27,12 @@ def save_png(fig: Any, path: str | Path, dpi: int = 110) -> Path:
     return Path(path)
 
 
-def _axes(ax):
+def _axes(ax: Any, figsize: tuple[float, float] = (6, 5)) -> Any:
+    """``ax``, or the axes of a new figure of ``figsize`` (inches) when None."""
     if ax is None:
         import matplotlib.pyplot as plt
 
-        _, ax = plt.subplots(figsize=(6, 5))
+        _, ax = plt.subplots(figsize=figsize)
     return ax
 
 
