@@ -471,44 +471,27 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     """
     exps = _check_experiments(experiments)
     _check_quantities(exps, quantities, sigma)
-    if any(isinstance(x, Release) for x in exps.values()):
-        return _simulate_mixed(model, exps, quantities, sigma, t, seed, noise)
-    rows = []
-    for name, load in exps.items():
-        qs = quantities[name] if isinstance(quantities, Mapping) else quantities
-        result = solve_static(model, load)
-        for q in qs:
-            if q not in QUANTITIES:
-                raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
-            s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
-            rows.append((name, 0.0, q, measurement_value(result, q), s))
-    data = Measurements.from_rows(rows, source="<simulated>")
-    if noise:
-        rng = np.random.default_rng(seed)
-        data = data.with_values(data.value + rng.standard_normal(len(data)) * data.sigma)
-    return data
-
-
-def _simulate_mixed(model: Model, exps: dict, quantities, sigma, t, seed, noise) -> Measurements:
-    """simulate_measurements with release experiments (their rows at ``t``)."""
+    mixed = any(isinstance(x, Release) for x in exps.values())
     rows = []
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities
-        qs = [qs] if isinstance(qs, str) else list(qs)
+        times = [0.0]
         if isinstance(x, Release):
             times = t.get(name) if isinstance(t, Mapping) else t
             if times is None:
                 raise InputError(f"t: no measurement times for the release experiment {name!r}")
             times = [float(v) for v in np.atleast_1d(np.asarray(times, float))]
-        else:
-            times = [0.0]
+        elif not mixed:     # static experiments alone: solved here, measured by name
+            result = solve_static(model, x)
         for tk in times:
-            for q in qs:
+            for q in ([qs] if isinstance(qs, str) else qs):
                 s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
-                rows.append((name, tk, q, 0.0, s))
+                rows.append((name, tk, q, measurement_value(result, q) if not mixed else 0.0, s))
     data = Measurements.from_rows(rows, source="<simulated>")
-    prob = build_problem(model, exps, data)
-    values, _ = _ce.problem_predict(prob, model.vector(), np.zeros(0, np.int32))
+    values = data.value
+    if mixed:
+        values, _ = _ce.problem_predict(build_problem(model, exps, data), model.vector(),
+                                        np.zeros(0, np.int32))
     if noise:
         rng = np.random.default_rng(seed)
         values = values + rng.standard_normal(len(data)) * data.sigma
