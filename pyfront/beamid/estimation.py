@@ -350,16 +350,12 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
         prior_map, pidx, pmean, pcov = _carried_prior(model, prior)
-        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean,
-                              np.sqrt(np.diag(pcov)), prior_cov=pcov, max_iter=int(max_iter))
+        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, np.sqrt(np.diag(pcov)),
+                      prior_cov=pcov, max_iter=int(max_iter))
         return _result(model, experiments, data, free_names, prior_map, raw)
     free_names, free_idx = _free_indices(model, free)
     prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    if prob.row_t is not None:
-        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean, psig,
-                              max_iter=int(max_iter))
-    else:
-        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
+    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
 
 
@@ -423,9 +419,7 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     ``wrt`` (rows x len(wrt)), as the fit uses them."""
     prob = build_problem(model, experiments, data)
     idx = np.array([model.index(n) + 1 for n in wrt], np.int32)
-    if prob.row_t is not None:
-        return _ce.problem_predict(prob, model.vector(), idx)
-    return _ce.predict(prob, model.vector(), idx)
+    return _ce.problem_predict(prob, model.vector(), idx)
 
 
 def _check_quantities(exps, quantities, sigma) -> None:
