@@ -215,34 +215,31 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     if not decks:
         raise InputError("identify: give the stage decks in order (static, free, forced)")
     parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
-    if len(parsed) == 1 and parsed[0].task == "identify":
+    prefix = parsed[0].output_prefix
+    staged = [d.path for d in parsed if d.task == "identify"]
+    if len(parsed) == 1 and staged:
         files = run_files(parsed[0])
         result = identify_deck(parsed[0])
-        if plots:
-            files.append(_identify_figure(result, parsed[0].output_prefix))
-        return result.summary() + "\n" + result.final.summary(), files, result
-    staged = [d.path for d in parsed if d.task == "identify"]
-    if staged:
+    elif staged:
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
-    names = []
-    for d in parsed:
-        base = Path(d.output).name or d.path.stem
-        names.append(base if base not in names else f"{base}_{len(names) + 1}")
-    stages = {n: (d.experiments, d.data, d.free, d.prior or None)
-              for n, d in zip(names, parsed)}
-    result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
-                      starts={n: d.model for n, d in zip(names, parsed)})
-    prefix = parsed[0].output_prefix
-    prefix.parent.mkdir(parents=True, exist_ok=True)
-    csv = prefix.with_name(prefix.name + "_identify.csv")
-    lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
-    lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
-              f"{r.sigma_after:.16E}" for r in result.table]
-    tmp = csv.with_name(csv.name + ".tmp")
-    tmp.write_text("\n".join(lines).replace("INF", "inf") + "\n")
-    os.replace(tmp, csv)
-    files = [csv]
+    else:   # one stage a deck; the CSV all or none (decks._write_all)
+        from .decks import _write_all
+
+        names: list[str] = []
+        for d in parsed:
+            base = Path(d.output).name or d.path.stem
+            names.append(base if base not in names else f"{base}_{len(names) + 1}")
+        stages = {n: (d.experiments, d.data, d.free, d.prior or None)
+                  for n, d in zip(names, parsed)}
+        result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
+                          starts={n: d.model for n, d in zip(names, parsed)})
+        lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+        lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
+                  f"{r.sigma_after:.16E}" for r in result.table]
+        text = "\n".join(lines).replace("INF", "inf") + "\n"
+        files = _write_all([(prefix.with_name(prefix.name + "_identify.csv"),
+                             lambda tmp: Path(tmp).write_text(text))])
     if plots:
         files.append(_identify_figure(result, prefix))
     return result.summary() + "\n" + result.final.summary(), files, result
