@@ -38,7 +38,7 @@ from typing import Sequence
 import numpy as np
 
 from . import _core_dynamics as _cd
-from .errors import InputError
+from .errors import InputError, check_memory
 from .fe import _model_args
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
@@ -280,10 +280,9 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
     loads = _release_loads(release)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
-    need = 8 * (nstate + nwork + 8) * t.size  # the history arrays (input validation, issue 16)
-    if need > 4 * 2**30:
-        raise InputError(f"t_out has {t.size} times: the history would need about "
-                         f"{need / 2**30:.1f} GiB of memory (limit 4 GiB)")
+    # the history arrays (input validation, issue 16)
+    check_memory(8 * (nstate + nwork + 8) * t.size, f"t_out has {t.size} times: the history",
+                 ".1f")
     if initial_state is not None:
         initial_state = np.asarray(initial_state, dtype=float)
         if initial_state.shape != (nstate,):

@@ -20,6 +20,18 @@ class InputError(BeamidError, ValueError):
     """A bad deck, file row, parameter name or nonphysical value."""
 
 
+#: memory bound of an array a user asks for (bytes; the deck reader's bound too)
+MAX_BYTES = 4 * 2**30
+
+
+def check_memory(need: float, subject: str, digits: str = ".3g") -> None:
+    """InputError "<subject> would need about N GiB of memory (limit 4 GiB)"
+    when ``need`` bytes exceed :data:`MAX_BYTES` (``digits``: N's format)."""
+    if need > MAX_BYTES:
+        raise InputError(f"{subject} would need about {need / 2**30:{digits}} GiB of memory "
+                         f"(limit {MAX_BYTES / 2**30:.0f} GiB)")
+
+
 class ConvergenceError(BeamidError, RuntimeError):
     """A numerical method did not converge (the message says which and how far)."""
 

@@ -25,7 +25,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import _core
-from .errors import InputError
+from .errors import InputError, check_memory
 
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
@@ -61,16 +61,8 @@ def _mesh_size(nbeams: int, elements_per_beam: int) -> tuple[int, int]:
     nnode = nbeams * int(elements_per_beam) + 1
     # the bound of the deck reader (beamid_deck check_mesh_size): about 40
     # numbers per unknown in the banded solvers
-    need = 8 * 40 * 4 * nnode
-    if need > _MAX_BYTES:
-        raise InputError(f"elements_per_beam = {elements_per_beam}: the mesh would need "
-                           f"about {need / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 40 * 4 * nnode, f"elements_per_beam = {elements_per_beam}: the mesh")
     return nnode, 4 * nnode - 3
-
-
-#: memory bound of a mesh (bytes), as the deck reader's
-_MAX_BYTES = 4 * 2**30
 
 
 def _hinges(model: Any, elements_per_beam: int) -> tuple[tuple[int, ...], bool]:
@@ -342,11 +334,7 @@ def fe_path(model: Any, load0: Any, dload: Any, elements_per_beam: int = 8, *, s
     if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
             or max_points < 1:
         raise InputError(f"max_points = {max_points!r}, expected an integer >= 1")
-    need = 8 * 7 * nnode * int(max_points)
-    if need > _MAX_BYTES:
-        raise InputError(f"max_points = {max_points}: the path would need about "
-                           f"{need / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 7 * nnode * int(max_points), f"max_points = {max_points}: the path")
     npts, lam, nodes, nodes_out = _core.fe_path(
         nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
         float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
@@ -483,11 +471,8 @@ def modes(model: Any, elements_per_beam: int = 4, *, rotary_inertia: bool = Fals
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
-    if 8 * 3 * nfree**2 > _MAX_BYTES:
-        raise InputError(f"elements_per_beam = {elements_per_beam}: the modes (dense "
-                           f"eigenproblem of {nfree} unknowns) would need about "
-                           f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 3 * nfree**2, f"elements_per_beam = {elements_per_beam}: the modes "
+                 f"(dense eigenproblem of {nfree} unknowns)")
     omega, phi, axial, dofs = _core.fe_modes(nbeams, params, int(elements_per_beam),
                                              int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,

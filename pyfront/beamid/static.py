@@ -14,7 +14,7 @@ from typing import Iterable, NamedTuple
 import numpy as np
 
 from . import _core
-from .errors import InputError
+from .errors import InputError, check_memory
 from .loads import Load, RadialWire, TipLoad
 from .model import Model
 
@@ -104,10 +104,7 @@ class StaticResult:
         if s is None:
             if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
                 raise InputError(f"shape n = {n!r}, expected an integer, at least 2 (points)")
-            if 5 * 8 * int(n) > _MAX_BYTES:
-                raise InputError(f"shape n = {n}: the shape would need about "
-                                 f"{5 * 8 * int(n) / 2**30:.2g} GiB of memory (limit "
-                                 f"{_MAX_BYTES / 2**30:.0f} GiB)")
+            check_memory(5 * 8 * int(n), f"shape n = {n}: the shape", ".2g")
             grid = np.linspace(0.0, total, int(n))
         else:
             try:
@@ -123,10 +120,6 @@ class StaticResult:
         x, y, psi, moment = _core.static_shape(self.model.nbeams, self.model.vector(), kind,
                                                values, self.unknowns, grid, self.tol)
         return Shape(grid, x, y, psi, moment)
-
-
-#: memory bound of a result table a user asks for (bytes)
-_MAX_BYTES = 4 * 2**30
 
 
 def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
