@@ -334,30 +334,21 @@ def _output_error(path: Path, exc: OSError) -> OutputError:
 
 
 def _atomic_write(path: Path, text: str) -> None:
-    """Write through a temporary file and rename: never a half-written file."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        if tmp.exists():
-            tmp.unlink()
-        raise _output_error(path, exc) from None
+    """Write a text file all or none (beamid.decks._write_all)."""
+    from .decks import _write_all
+
+    _write_all([(path, lambda tmp: Path(tmp).write_text(text))])
 
 
 def _save_figure(fig, path: Path) -> None:
-    """Save a matplotlib figure through a temporary file, then close it."""
+    """Save a matplotlib figure as PNG all or none (beamid.decks._write_all), then close it."""
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(path.name + ".tmp.png")
+    from .decks import _write_all
+
     try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise _output_error(path, exc) from None
+        _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
     finally:
-        if tmp.exists():
-            tmp.unlink()
         plt.close(fig)
 
 

@@ -42,12 +42,11 @@ class ConvergenceError(BeamidError, RuntimeError):
 ERR_OUTPUT = -4
 
 
-def raise_for_status(code: int, message: str | bytes) -> None:
-    """Raise the exception that matches a Fortran status code (0: no error)."""
+def raise_for_status(code: int, message: str) -> None:
+    """Raise the exception that matches a Fortran status code (0: no error;
+    ``message`` decoded by the caller, beamid._core._text)."""
     if code == 0:
         return
-    if isinstance(message, bytes):
-        message = message.decode("utf-8", "replace")
     text = message.strip() or f"beamid status {code}"
     if code < 0:
         error = InputError(text)
