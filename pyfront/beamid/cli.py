@@ -203,13 +203,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     outputs = [(Path(f"{prefix}_history.csv"), write_csv)]
     if not args.no_plots:
         def write_png(tmp: str) -> None:
-            import matplotlib
+            from .plotting import agg_pyplot, plot_history
 
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            from .plotting import plot_history
-
+            plt = agg_pyplot()
             fig = plot_history(run)
             try:
                 fig.savefig(tmp, dpi=110, format="png")
