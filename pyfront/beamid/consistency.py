@@ -49,7 +49,7 @@ import numpy as np
 
 from .errors import BeamidError, InputError, OutputError
 from .estimation import FitResult, fit as _fit
-from ._design_core import chi2_sf_many, mc_summary
+from ._core_estimation import chi2_sf_many, mc_summary
 from .progress import progress
 
 #: Nominal coverage of +-k sigma for a normal estimate.
