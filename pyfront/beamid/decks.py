@@ -20,10 +20,10 @@ from typing import Any
 
 import f90nml
 
-from ._deck_common import OutputPrefix, Published, check_path as _check_path, load as _load
-from ._deck_common import published as _published, run_files
 from .errors import OutputError
-from .fit_decks import FIT_TASKS, FitDeck, _fit_deck, run_fit_deck
+from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
+from .fit_decks import check_path as _check_path, load as _load, published as _published
+from .fit_decks import run_fit_deck
 from .dynamics import _point_name
 from .loads import Load, RadialWire
 from .model import Model, _core

@@ -22,16 +22,76 @@ from pathlib import Path
 from typing import Any
 
 from . import _core
-from ._deck_common import OutputPrefix, check_path, load, published as published_groups, run_files
 from .diagnosis import Ladder, _run_ladder, compare, diagnose
 from .errors import InputError
 from .estimation import _free_indices, _prior_arrays, fit
 from . import _core_estimation as _ce
-from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
+from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
+
+
+# ---- shared with decks.py (which imports this module, never the other way):
+# the values of the Fortran deck reader as Python objects, the Fortran task runner
+
+class OutputPrefix:
+    """The ``output_prefix`` of a deck (``path``: the deck file, ``output``: as given)."""
+
+    path: Path
+    output: str
+
+    @property
+    def output_prefix(self) -> Path:
+        """Output prefix resolved against the deck's folder."""
+        out = Path(self.output)
+        return out if out.is_absolute() else self.path.parent / out
+
+
+@dataclass(frozen=True)
+class Published:
+    """Published values a deck reproduces (group &published)."""
+
+    table: str
+    row: str
+    values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
+    deviations: tuple[str, ...] = ()
+    note: str = ""
+
+
+def published(values: dict) -> tuple[Published, ...]:
+    """The &published groups as read by the Fortran reader."""
+    return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
+                           deviations=tuple(g["deviations"]), note=g["note"])
+                 for g in values["published"])
+
+
+def load(kind: int, values: list[float]) -> Load:
+    """A load from the reader's (kind, [fx, fy, moment, wire_length])."""
+    if kind == LOAD_WIRE:
+        return RadialWire(values[3])
+    return TipLoad(values[0], values[1], values[2])
+
+
+def check_path(path: Any, what: str = "path") -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
+                         "(str or os.PathLike)")
+    return Path(path)
+
+
+def run_files(deck: Any) -> list[Path]:
+    """Run a deck's task with the runners of ``beamid-batch`` (the same
+    Fortran, so the same bytes) and return the files written (all or none).
+    A deck object runs its file with its ``task`` (so a FitDeck whose task was
+    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``)."""
+    if hasattr(deck, "path"):
+        return [Path(p) for p in _core.run_deck(str(deck.path), deck.task)]
+    return [Path(p) for p in _core.run_deck(str(check_path(deck, "deck")))]
+
+
+# ---- estimation decks
 
 @dataclass(frozen=True)
 class Stage:
@@ -83,7 +143,7 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
-                   max_iter=values["max_iter"], published=published_groups(values),
+                   max_iter=values["max_iter"], published=published(values),
                    stages=stages)
 
 
