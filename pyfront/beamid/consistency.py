@@ -330,7 +330,7 @@ class Consistency:
 def _output_error(path: Path, exc: OSError) -> OutputError:
     """The error of an output file or folder that cannot be written (exit code 4)."""
     return OutputError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
-                           str(path))
+                       str(path))
 
 
 def _atomic_write(path: Path, text: str) -> None:
