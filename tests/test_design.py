@@ -11,7 +11,7 @@ import pytest
 
 import beamid
 from beamid import InputError
-from beamid import _design_core as dc
+from beamid import _core_estimation as dc
 from beamid.design import information
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
 """The only module that calls the compiled extension ``beamid._ext`` for the
-model, the static solvers and the decks (``_core_estimation``,
-``_core_dynamics`` and ``_design_core`` hold the other layers).
+model, the static solvers and the decks (``_core_estimation`` and
+``_core_dynamics`` hold the other layers).
 
 One calling convention: :func:`_call` calls an entry point whose last two
 results are the status (code, message), turns a bad status into

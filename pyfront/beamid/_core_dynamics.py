@@ -61,33 +61,31 @@ def simulate(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain
 
 
 def system(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int, vslip: float,
-           q: np.ndarray, v: np.ndarray, x: float, nx: int, nwork: int) -> dict:
-    """Generalized force, work rates, Jacobians K = -dF/dq, C = -dF/dv, M(q)."""
-    force, power, torque, kmat, cmat, mass, b, p, d, e = _call(
-        _api.api_dyn_system, nbeams, _floats(params), nepb, float(gain), int(law),
-        float(vslip), nx, _floats(q), _floats(v), np.array([x], dtype=float), nwork)
-    return {"force": np.array(force), "power": np.array(power), "torque": float(torque),
-            "K": np.array(kmat), "C": np.array(cmat), "M": np.array(mass),
-            "b": np.array(b), "p": np.array(p), "d": np.array(d), "e": float(e)}
+           q: np.ndarray, v: np.ndarray, x: float, nx: int, nwork: int,
+           modes: np.ndarray | None = None) -> dict:
+    """Generalized force, work rates, Jacobians K = -dF/dq, C = -dF/dv, M(q);
+    with ``modes`` (1-based numbers of the retained linear modes) the
+    projected ones of the truncated modal model (Eq. 127: q, v are then the
+    modal coordinates, and there is no ``torque`` entry)."""
+    head = (nbeams, _floats(params), nepb, float(gain), int(law), float(vslip))
+    tail = (_floats(q), _floats(v), np.array([x], dtype=float), nwork)
+    if modes is None:
+        force, power, torque, *rest = _call(_api.api_dyn_system, *head, nx, *tail)
+        extra = {"torque": float(torque)}
+    else:
+        force, power, *rest = _call(_api.api_dyn_system_modal, *head,
+                                    np.asarray(modes, dtype=np.int32), nx, *tail)
+        extra = {}
+    kmat, cmat, mass, b, p, d, e = rest
+    return {"force": np.array(force), "power": np.array(power), **extra, "K": np.array(kmat),
+            "C": np.array(cmat), "M": np.array(mass), "b": np.array(b), "p": np.array(p),
+            "d": np.array(d), "e": float(e)}
 
 
 def profile(nbeams: int, params: np.ndarray, nepb: int, q: np.ndarray, npts: int):
     """(s, x, y) of the deformed chain at npts points (npts = nel*nsub + 1)."""
     s, x, y = _call(_api.api_dyn_profile, nbeams, _floats(params), nepb, _floats(q), npts)
     return np.array(s), np.array(x), np.array(y)
-
-
-def system_modal(nbeams: int, params: np.ndarray, nepb: int, gain: float, law: int,
-                 vslip: float, modes: np.ndarray, eta: np.ndarray, etad: np.ndarray,
-                 x: float, nx: int, nwork: int) -> dict:
-    """Projected force, Jacobians and mass of a truncated modal model (Eq. 127)."""
-    force, power, kmat, cmat, mass, b, p, d, e = _call(
-        _api.api_dyn_system_modal, nbeams, _floats(params), nepb, float(gain), int(law),
-        float(vslip), np.asarray(modes, dtype=np.int32), nx, _floats(eta), _floats(etad),
-        np.array([x], dtype=float), nwork)
-    return {"force": np.array(force), "power": np.array(power), "K": np.array(kmat),
-            "C": np.array(cmat), "M": np.array(mass), "b": np.array(b), "p": np.array(p),
-            "d": np.array(d), "e": float(e)}
 
 
 def quantity_names() -> tuple[str, ...]:

@@ -1,5 +1,5 @@
-"""The only module that calls the extension for estimation, diagnosis and
-the improve ladder.
+"""The only module that calls the extension for estimation, diagnosis, the
+improve ladder, experiment design and Monte Carlo summaries.
 
 An estimation problem (any mix of static and release experiments) crosses
 the boundary as plain arrays (see ``fortran/api/beamid_api_estimation.f90``):
@@ -23,6 +23,7 @@ from ._core import _call, _path, _text, quantity_labels
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
+_design = _ext.beamid_api_design   # beamid_design: information algebra, MC summaries
 
 #: Quantity codes of the Fortran core (beamid_static_experiments' one table).
 QUANTITY_NAMES = dict(enumerate(quantity_labels(), start=1))
@@ -84,20 +85,6 @@ def problem_predict(prob: Problem, params: np.ndarray,
     return np.array(pred), jac[:, :wrt.size]
 
 
-def problem_fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-                prior_mean: np.ndarray, prior_sigma: np.ndarray,
-                prior_cov: np.ndarray | None = None, max_iter: int = 50) -> dict:
-    """Weighted Gauss-Newton/LM fit of any mix of experiment families; with
-    ``prior_cov`` the a priori information is a full covariance (a previous
-    fit carried forward, Eq. 146-148). Same dict and errors as :func:`fit`."""
-    return fit(prob, params0, free, prior_idx, prior_mean, prior_sigma, max_iter=max_iter,
-               prior_cov=prior_cov)
-
-
-def _msg(message: bytes | str) -> str:
-    return message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-
-
 def _pad(values, dtype) -> np.ndarray:
     """Append one unused entry: the API takes arrays of size n + 1 because
     f2py cannot pass empty arrays."""
@@ -109,16 +96,12 @@ def chi2_sf(x: float, k: int) -> float:
     return float(_api.api_chi2_sf(float(x), int(k)))
 
 
-#: predictions and d/d params(wrt) of the data rows (one binding for every family)
-predict = problem_predict
-
-
 def code_names(table: int) -> dict[int, str]:
     """A code table of beamid_estimation by code: 1 parameter flags, 2 how a
     fit ended, 3 refit starts, 4 candidate states (defined once, in Fortran)."""
     names, code = _api.api_code_names(int(table))
     raise_for_status(int(code), f"no code table {table}")
-    return dict(enumerate(_msg(names).strip().split(";")))
+    return dict(enumerate(_text(names).strip().split(";")))
 
 
 #: Parameter flags (FLAG_*), how a fit ended (STOP_*), the refit start kept
@@ -170,7 +153,7 @@ def _fit_dict(out, n: int) -> dict:
         "log_step": np.array(log_step[:nlog]),
         "log_params": np.array(log_params).reshape(n, -1)[:, :nlog],
         "stop": STOP_NAMES.get(int(info[0]), "stalled"), "start": START_NAMES.get(int(info[1])),
-        "note": _msg(note).strip(), "code": int(code), "message": _msg(message).strip(),
+        "note": _text(note).strip(), "code": int(code), "message": _text(message).strip(),
     }
 
 
@@ -197,11 +180,13 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
         prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
         block: np.ndarray | None = None, nominal: np.ndarray | None = None,
         start_mask: int = 0, prior_cov: np.ndarray | None = None) -> dict:
-    """Weighted Gauss-Newton/LM fit (``block`` empty), or the refit of a fit
-    at ``params0`` with the parameters ``block`` freed as well, from the
-    first-order estimate, from ``nominal`` and by continuation (1-based
-    indices; ``start_mask`` bits 1, 2, 4 choose the first-order, nominal and
-    continuation starts, 0 all); ``prior_cov``: see :func:`problem_fit`.
+    """Weighted Gauss-Newton/LM fit of any mix of experiment families
+    (``block`` empty), or the refit of a fit at ``params0`` with the
+    parameters ``block`` freed as well, from the first-order estimate, from
+    ``nominal`` and by continuation (1-based indices; ``start_mask`` bits 1,
+    2, 4 choose the first-order, nominal and continuation starts, 0 all);
+    with ``prior_cov`` the a priori information is a full covariance (a
+    previous fit carried forward, Eq. 146-148).
     Returns a dict of arrays; a fit that stalls or whose parameter runs away
     comes back with ``stop`` and ``note`` saying so. Raises ConvergenceError
     (with the partial result in ``exc.partial``) when still moving at
@@ -243,7 +228,7 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
     (cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats,
      mesh_params, kept, notes) = out
     nc = starts.size - 1
-    lines = _msg(notes).rstrip().split("\n")
+    lines = _text(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
     return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
             "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
@@ -328,7 +313,7 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
         info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k,
                                                                      nparams)
         nfree = int(info[0])
-        effect = _msg(effect).strip()
+        effect = _text(effect).strip()
         rungs.append({
             "effect": None if effect == "start" else effect,
             "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, nparams, nfree,
@@ -349,3 +334,44 @@ def residual_structure(level: np.ndarray, group: np.ndarray,
     return np.array(_api.api_residual_structure(
         np.ascontiguousarray(level, dtype=float), np.ascontiguousarray(group, dtype=np.int32),
         np.ascontiguousarray(normalized, dtype=float)))
+
+
+# ------------------------------------------- experiment design, Monte Carlo summaries
+
+def information_covariance(info: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """(cov, sigmas, D-criterion det(cov)^(1/(2n)), rank) of an information matrix."""
+    info = np.asfortranarray(info, dtype=float)
+    cov, sig, dcrit, rank = _call(_design.api_information_covariance, info)
+    return np.array(cov), np.array(sig), float(dcrit), int(rank)
+
+
+def information_update(info: np.ndarray, rows: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """info + sum of g g^T / sigma^2 over the columns g of rows (n_free x m)."""
+    rows = np.asfortranarray(rows, dtype=float)
+    return np.array(_design.api_information_update(np.asfortranarray(info, dtype=float), rows,
+                                                np.asarray(sigma, float)))
+
+
+def rank_candidates(info: np.ndarray, rows: np.ndarray, sigma: np.ndarray,
+                    target: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """(criterion now, criterion after each candidate, order best first, 0-based).
+    rows is n_free x n_candidates; target is 1-based (0: D-criterion)."""
+    info = np.asfortranarray(info, dtype=float)
+    rows = np.asfortranarray(rows, dtype=float)
+    base, crit, order = _call(_design.api_rank_candidates, info, rows, np.asarray(sigma, float),
+                              int(target))
+    return float(base), np.array(crit), np.array(order, dtype=int) - 1
+
+
+def mc_summary(est: np.ndarray, sig: np.ndarray, truth: np.ndarray,
+               use: np.ndarray) -> np.ndarray:
+    """Rows: coverage 1, 2, 3 sigma, bias, spread, rms sigma, ratio, z mean,
+    z std, count; one column per parameter."""
+    return np.array(_design.api_mc_summary(
+        np.asfortranarray(est, dtype=float), np.asfortranarray(sig, dtype=float),
+        np.asarray(truth, float), np.asarray(use, np.int32)))
+
+
+def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """P(chi2(k) > x) elementwise."""
+    return np.array(_design.api_chi2_sf_many(np.asarray(x, float), np.asarray(k, np.int32)))

@@ -23,8 +23,6 @@ from .errors import BeamidError, InputError
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)
 EXIT_OK, EXIT_NOT_REPRODUCED, EXIT_INPUT, EXIT_NUMERICAL, EXIT_OUTPUT, EXIT_INTERNAL = range(6)
 
-ESTIMATION_COMMANDS = ("fit", "compare", "diagnose", "improve")
-
 #: defaults of ``beamid simulate`` without a deck: the dissertation's free
 #: vibration (Chapter IV, Table 8): 8 N release, 8 elements, one period
 SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 4,
@@ -205,13 +203,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     outputs = [(Path(f"{prefix}_history.csv"), write_csv)]
     if not args.no_plots:
         def write_png(tmp: str) -> None:
-            import matplotlib
+            from .plotting import agg_pyplot, plot_history
 
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            from .plotting import plot_history
-
+            plt = agg_pyplot()
             fig = plot_history(run)
             try:
                 fig.savefig(tmp, dpi=110, format="png")

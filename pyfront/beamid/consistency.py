@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
-import sys
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -48,27 +47,10 @@ from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from .errors import BeamidError, InputError
+from .errors import BeamidError, InputError, OutputError
 from .estimation import FitResult, fit as _fit
-from ._design_core import chi2_sf_many, mc_summary
-
-def progress(iterable, total=None, desc="", enabled=None):
-    """The shared progress helper (beamid.progress: tqdm on a terminal),
-    imported when a run starts; a local stand-in where it is missing."""
-    try:
-        from .progress import progress as shared
-    except ImportError:  # pragma: no cover - the helper is not on this branch
-        if enabled is None:
-            enabled = sys.stderr.isatty()
-        if not enabled:
-            return iterable
-        try:
-            from tqdm import tqdm
-        except ImportError:
-            return iterable
-        return tqdm(iterable, total=total, desc=desc)
-    return shared(iterable, total=total, desc=desc, enabled=enabled)
-
+from ._core_estimation import chi2_sf_many, mc_summary
+from .progress import progress
 
 #: Nominal coverage of +-k sigma for a normal estimate.
 NOMINAL = {1: 0.6826894921370859, 2: 0.9544997361036416, 3: 0.9973002039367398}
@@ -345,41 +327,28 @@ class Consistency:
         return fig
 
 
-class OutputFileError(BeamidError, OSError):
-    """An output file or folder cannot be written (the ``beamid`` command's
-    exit code 4)."""
-
-
-def _output_error(path: Path, exc: OSError) -> OutputFileError:
-    return OutputFileError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
-                           str(path))
+def _output_error(path: Path, exc: OSError) -> OutputError:
+    """The error of an output file or folder that cannot be written (exit code 4)."""
+    return OutputError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
+                       str(path))
 
 
 def _atomic_write(path: Path, text: str) -> None:
-    """Write through a temporary file and rename: never a half-written file."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        if tmp.exists():
-            tmp.unlink()
-        raise _output_error(path, exc) from None
+    """Write a text file all or none (beamid.decks._write_all)."""
+    from .decks import _write_all
+
+    _write_all([(path, lambda tmp: Path(tmp).write_text(text))])
 
 
 def _save_figure(fig, path: Path) -> None:
-    """Save a matplotlib figure through a temporary file, then close it."""
+    """Save a matplotlib figure as PNG all or none (beamid.decks._write_all), then close it."""
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(path.name + ".tmp.png")
+    from .decks import _write_all
+
     try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise _output_error(path, exc) from None
+        _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
     finally:
-        if tmp.exists():
-            tmp.unlink()
         plt.close(fig)
 
 
@@ -396,12 +365,7 @@ def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec
     if not isinstance(fit, FitResult):
         raise InputError(f"fit must be a beamid.FitResult (beamid.fit), got "
                          f"{type(fit).__name__}")
-    try:
-        seed = int(seed)
-    except (TypeError, ValueError):
-        raise InputError(f"seed = {seed!r}, expected a non-negative integer") from None
-    if seed < 0:
-        raise InputError(f"seed = {seed}, expected a non-negative integer")
+    seed = _integer("seed", seed, 0, "a non-negative integer")
     truth_rows = np.array([r.model for r in fit.residuals], float)
     if truth_rows.shape != (len(fit.data),) or not np.all(np.isfinite(truth_rows)):
         raise InputError("the fit has no finite model value for every data row; a "
@@ -424,13 +388,20 @@ def _local_workers(workers: int | None) -> int:
             return max(1, len(os.sched_getaffinity(0)))
         except AttributeError:  # pragma: no cover - not Linux
             return max(1, os.cpu_count() or 1)
+    return _integer("workers", workers, 1, "a positive integer")
+
+
+def _integer(name: str, value: Any, least: int, expected: str, low: str = "") -> int:
+    """``int(value)``; InputError "name = value, expected ..." when it is no
+    integer or below ``least`` (``low``: the words for that case, default
+    ``expected``)."""
     try:
-        w = int(workers)
+        k = int(value)
     except (TypeError, ValueError):
-        raise InputError(f"workers = {workers!r}, expected a positive integer") from None
-    if w < 1:
-        raise InputError(f"workers = {workers}, expected a positive integer")
-    return w
+        raise InputError(f"{name} = {value!r}, expected {expected}") from None
+    if k < least:
+        raise InputError(f"{name} = {k}, expected {low or expected}")
+    return k
 
 
 def _mp_context():
@@ -557,12 +528,7 @@ def consistency(fit: FitResult, replicates: int = 200, seed: int = 7, client: An
     ``table()``; it does not enter the statistics.
     """
     spec = _spec(fit, seed, options)
-    try:
-        replicates = int(replicates)
-    except (TypeError, ValueError):
-        raise InputError(f"replicates = {replicates!r}, expected an integer >= 2") from None
-    if replicates < 2:
-        raise InputError(f"replicates = {replicates}, expected at least 2")
+    replicates = _integer("replicates", replicates, 2, "an integer >= 2", "at least 2")
     records, runner = _execute(spec, replicates, client, workers, progress_bar)
     records.sort(key=lambda r: r["k"])
     if [r["k"] for r in records] != list(range(replicates)):

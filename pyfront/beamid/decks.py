@@ -20,10 +20,11 @@ from typing import Any
 
 import f90nml
 
-from ._deck_common import Published, check_path as _check_path, load as _load
-from ._deck_common import published as _published, run_files
 from .errors import OutputError
-from .fit_decks import ESTIMATION_TASKS, FitDeck, _fit_deck, run_fit_deck
+from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
+from .fit_decks import check_path as _check_path, load as _load, published as _published
+from .fit_decks import run_fit_deck
+from .dynamics import _point_name
 from .loads import Load, RadialWire
 from .model import Model, _core
 from .static import solve_static
@@ -31,7 +32,6 @@ from .static import solve_static
 __all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
            "history_columns", "FitDeck"]
 
-TASKS = ("static", "fe_static", "fe_modes", "simulate")
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
@@ -41,7 +41,7 @@ _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
 
 
 @dataclass(frozen=True)
-class Deck:
+class Deck(OutputPrefix):
     """A parsed and validated deck."""
 
     path: Path
@@ -57,18 +57,6 @@ class Deck:
     #: task simulate: ``t_out`` (array) and the keyword arguments of beamid.simulate
     simulate: dict | None = None
 
-    @property
-    def output_prefix(self) -> Path:
-        """Output prefix resolved against the deck's folder."""
-        out = Path(self.output)
-        return out if out.is_absolute() else self.path.parent / out
-
-
-def _point_name(nbeams: int, k: int) -> str:
-    if k == nbeams:
-        return "tip"
-    return "elbow" if k == 1 else f"joint{k}"
-
 
 def read_deck(path: str | os.PathLike):
     """Read and validate a deck with the reader of ``beamid-batch``; raise
@@ -78,7 +66,7 @@ def read_deck(path: str | os.PathLike):
     :class:`beamid.fit_decks.FitDeck`; the others as :class:`Deck`."""
     path = _check_path(path)
     values = _core.read_deck(str(path))
-    if values["task"] in ESTIMATION_TASKS:
+    if values["task"] in FIT_TASKS:
         return _fit_deck(path, values)
     model = Model(values["nbeams"], values["params"])
     names = model.names()
@@ -195,9 +183,7 @@ def run(deck: Deck | str | os.PathLike):
         return fe.modes(deck.model, int(deck.fe["elements_per_beam"]),
                         rotary_inertia=bool(deck.fe["rotary_inertia"]))
     if deck.task == "simulate":
-        from .dynamics import simulate
+        from .history import deck_run
 
-        opts = dict(deck.simulate or {})
-        t_out = opts.pop("t_out")
-        return simulate(deck.model, deck.load, t_out, **opts)
+        return deck_run(deck)
     return solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)

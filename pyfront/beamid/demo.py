@@ -71,7 +71,7 @@ def _forms_figure(path: Path, title: str, loads, label) -> Path:
     """Shapes under `loads`, seed form (left) beside the exact elastica (right)."""
     import matplotlib.pyplot as plt
 
-    from .plotting import plot_shapes
+    from .plotting import plot_shapes, save_png
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 6))
     forms = {"seed form (axial_coupling = 0)": 0.0, "exact elastica (axial_coupling = 1)": 1.0}
@@ -81,9 +81,7 @@ def _forms_figure(path: Path, title: str, loads, label) -> Path:
         ax.set_title(form, fontsize=10)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_png(fig, path)
 
 
 def _shown(path: Path) -> Path:

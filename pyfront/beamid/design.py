@@ -35,7 +35,7 @@ from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from . import _design_core as _dc
+from . import _core_estimation as _ce
 from .errors import InputError
 from .estimation import FitResult, predict
 from .loads import Release
@@ -326,7 +326,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
                          + "; ".join(f"{e}/{q}: {why}" for e, q, why in skipped))
     g = np.array([r[3] for r in evaluated], float).T.reshape(len(fit.free), len(evaluated))
     sig = np.array([r[2] for r in evaluated], float)
-    base, crit, order = _dc.rank_candidates(information(fit), g, sig, tindex)
+    base, crit, order = _ce.rank_candidates(information(fit), g, sig, tindex)
     ranking = Ranking(RankedMeasurement((evaluated[i][0], evaluated[i][1]), float(crit[i]))
                       for i in order)
     return Advice(target=target, free=tuple(fit.free), current=base, ranking=ranking,
@@ -346,8 +346,8 @@ def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], f
         sig = np.array([float(r[1]) for r in rows])
         if not np.all(np.isfinite(sig) & (sig > 0)):
             raise InputError(f"predicted_covariance: sigmas {sig.tolist()}, expected > 0")
-        info = _dc.information_update(info, g, sig)
-    cov, sig, _, _ = _dc.information_covariance(info)
+        info = _ce.information_update(info, g, sig)
+    cov, sig, _, _ = _ce.information_covariance(info)
     return cov, sig
 
 

@@ -84,11 +84,13 @@ STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_fle
 _STATES = dict(_ce.CANDIDATE_STATES)
 
 
-def _dynamic(experiments) -> bool:
-    """Has the fit a release experiment (beamid.dyn_diagnosis takes over)?"""
-    from .loads import Release
-    return isinstance(experiments, Mapping) and any(
-        isinstance(x, Release) for x in experiments.values())
+def _dynamic(experiments: Any) -> bool:
+    """Has this set of experiments a release (time histories: beamid.dyn_diagnosis
+    takes over)? Public as beamid.dyn_diagnosis.is_dynamic."""
+    try:
+        return any(isinstance(x, Release) for x in dict(experiments).values())
+    except (TypeError, ValueError):
+        return False
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -493,12 +495,15 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
                      alpha_each=alpha_each, message=message)
 
 
+def _undetermined(fit: FitResult) -> list[str]:
+    """The line naming the fitted parameters the data do not determine (if any)."""
+    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if f != "ok"]
+    return ["fitted parameters not determined by these data: " + ", ".join(flagged)
+            ] if flagged else []
+
+
 def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
-    lines = []
-    undetermined = [n for n, f in fit.flags.items() if f != "ok"]
-    if undetermined:
-        lines.append("fitted parameters not determined by these data: " + ", ".join(
-            f"{n} ({fit.flags[n]})" for n in undetermined))
+    lines = _undetermined(fit)
     if verdict is None:
         p = _ce.chi2_sf(fit.chi2 + fit.chi2_prior, fit.dof) if fit.dof > 0 else math.nan
         tested = [c for c in ranked if c.state == "tested"]

@@ -73,15 +73,9 @@ register_effect(Effect("mesh", "the discretization: the same fit at twice the el
 DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
                       "elbow_flex", "root_flex", "mesh")
 
-_STATES = dict(_ce.CANDIDATE_STATES)
-
-
-def is_dynamic(experiments: Any) -> bool:
-    """Has this set of experiments a release (time histories)?"""
-    try:
-        return any(isinstance(x, Release) for x in dict(experiments).values())
-    except (TypeError, ValueError):
-        return False
+_STATES = _dg._STATES
+#: has this set of experiments a release (time histories)?
+is_dynamic = _dg._dynamic
 
 
 def default_candidates(experiments: Any) -> tuple[str, ...]:
@@ -222,10 +216,7 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         if mesh.max_change_at:
             e, t, q = mesh.max_change_at
             where = f" ({q} at t = {t:g} s in experiment {e})"
-        undetermined = [n for n, f in fit.flags.items() if f != "ok"]
-        if undetermined:
-            lines.append("fitted parameters not determined by these data: " + ", ".join(
-                f"{n} ({fit.flags[n]})" for n in undetermined))
+        lines += _dg._undetermined(fit)
         lines.append(
             f"refine the mesh: at {2 * mesh.elements_per_beam} elements per beam instead of "
             f"{mesh.elements_per_beam} the chi-square drops by {mesh.chi2_drop:.4g} "
@@ -359,10 +350,7 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
     ``time_structure``): runs of signs, lag-1 autocorrelation, trend of the
     residual amplitude. ``systematic`` when the overall chi-square or a
     series' test is significant at ``alpha`` / (number of tests)."""
-    from .plot_fit import quantity_unit as _unit
-
-    def quantity_unit(q: str) -> str:
-        return "N m" if "torque" in q else _unit(q)
+    from .plot_fit import quantity_unit
 
     series = []
     static_rows = []

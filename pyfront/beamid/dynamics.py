@@ -38,7 +38,8 @@ from typing import Sequence
 import numpy as np
 
 from . import _core_dynamics as _cd
-from .errors import InputError
+from .errors import InputError, check_memory
+from .fe import _model_args
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
            "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
@@ -68,13 +69,6 @@ def work_names(nbeams: int) -> tuple[str, ...]:
     pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
     return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
                  + ["damping", "motor"])
-
-
-def _model_args(model):
-    try:
-        return int(model.nbeams), np.ascontiguousarray(model.vector(), dtype=float)
-    except AttributeError as exc:
-        raise InputError(f"model must be a beamid Model, got {type(model).__name__}") from exc
 
 
 def _release_loads(release) -> np.ndarray:
@@ -286,10 +280,9 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
     loads = _release_loads(release)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
-    need = 8 * (nstate + nwork + 8) * t.size  # the history arrays (input validation, issue 16)
-    if need > 4 * 2**30:
-        raise InputError(f"t_out has {t.size} times: the history would need about "
-                         f"{need / 2**30:.1f} GiB of memory (limit 4 GiB)")
+    # the history arrays (input validation, issue 16)
+    check_memory(8 * (nstate + nwork + 8) * t.size, f"t_out has {t.size} times: the history",
+                 ".1f")
     if initial_state is not None:
         initial_state = np.asarray(initial_state, dtype=float)
         if initial_state.shape != (nstate,):
@@ -376,11 +369,7 @@ def dynamic_system(model, q, v, elements_per_beam: int = 2, *, motor_gain: float
     nbeams, params = _model_args(model)
     gain = float(motor_gain)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
-    nx = nstate - 2 * nfree
-    if modes is not None:
-        kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-        return _cd.system_modal(nbeams, params, int(elements_per_beam), gain,
-                                FRICTION_LAWS[friction], friction_velocity, np.array(kept),
-                                q, v, torque_state, nx, nwork)
+    kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
     return _cd.system(nbeams, params, int(elements_per_beam), gain, FRICTION_LAWS[friction],
-                      friction_velocity, q, v, torque_state, nx, nwork)
+                      friction_velocity, q, v, torque_state, nstate - 2 * nfree, nwork,
+                      None if kept is None else np.array(kept))

@@ -20,6 +20,18 @@ class InputError(BeamidError, ValueError):
     """A bad deck, file row, parameter name or nonphysical value."""
 
 
+#: memory bound of an array a user asks for (bytes; the deck reader's bound too)
+MAX_BYTES = 4 * 2**30
+
+
+def check_memory(need: float, subject: str, digits: str = ".3g") -> None:
+    """InputError "<subject> would need about N GiB of memory (limit 4 GiB)"
+    when ``need`` bytes exceed :data:`MAX_BYTES` (``digits``: N's format)."""
+    if need > MAX_BYTES:
+        raise InputError(f"{subject} would need about {need / 2**30:{digits}} GiB of memory "
+                         f"(limit {MAX_BYTES / 2**30:.0f} GiB)")
+
+
 class ConvergenceError(BeamidError, RuntimeError):
     """A numerical method did not converge (the message says which and how far)."""
 
@@ -30,12 +42,11 @@ class ConvergenceError(BeamidError, RuntimeError):
 ERR_OUTPUT = -4
 
 
-def raise_for_status(code: int, message: str | bytes) -> None:
-    """Raise the exception that matches a Fortran status code (0: no error)."""
+def raise_for_status(code: int, message: str) -> None:
+    """Raise the exception that matches a Fortran status code (0: no error;
+    ``message`` decoded by the caller, beamid._core._text)."""
     if code == 0:
         return
-    if isinstance(message, bytes):
-        message = message.decode("utf-8", "replace")
     text = message.strip() or f"beamid status {code}"
     if code < 0:
         error = InputError(text)

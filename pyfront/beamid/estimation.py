@@ -339,8 +339,6 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     _check_fit_args(data, tol, max_iter)
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
     if jacobian not in ("auto", "exact"):
         raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
     prob = build_problem(model, experiments, data, tol)
@@ -352,16 +350,12 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
         prior_map, pidx, pmean, pcov = _carried_prior(model, prior)
-        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean,
-                              np.sqrt(np.diag(pcov)), prior_cov=pcov, max_iter=int(max_iter))
+        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, np.sqrt(np.diag(pcov)),
+                      prior_cov=pcov, max_iter=int(max_iter))
         return _result(model, experiments, data, free_names, prior_map, raw)
     free_names, free_idx = _free_indices(model, free)
     prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    if prob.row_t is not None:
-        raw = _ce.problem_fit(prob, model.vector(), free_idx, pidx, pmean, psig,
-                              max_iter=int(max_iter))
-    else:
-        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
+    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
 
 
@@ -425,9 +419,7 @@ def predict(model: Model, experiments: Experiments, data: Measurements,
     ``wrt`` (rows x len(wrt)), as the fit uses them."""
     prob = build_problem(model, experiments, data)
     idx = np.array([model.index(n) + 1 for n in wrt], np.int32)
-    if prob.row_t is not None:
-        return _ce.problem_predict(prob, model.vector(), idx)
-    return _ce.predict(prob, model.vector(), idx)
+    return _ce.problem_predict(prob, model.vector(), idx)
 
 
 def _check_quantities(exps, quantities, sigma) -> None:
@@ -473,44 +465,27 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     """
     exps = _check_experiments(experiments)
     _check_quantities(exps, quantities, sigma)
-    if any(isinstance(x, Release) for x in exps.values()):
-        return _simulate_mixed(model, exps, quantities, sigma, t, seed, noise)
-    rows = []
-    for name, load in exps.items():
-        qs = quantities[name] if isinstance(quantities, Mapping) else quantities
-        result = solve_static(model, load)
-        for q in qs:
-            if q not in QUANTITIES:
-                raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
-            s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
-            rows.append((name, 0.0, q, measurement_value(result, q), s))
-    data = Measurements.from_rows(rows, source="<simulated>")
-    if noise:
-        rng = np.random.default_rng(seed)
-        data = data.with_values(data.value + rng.standard_normal(len(data)) * data.sigma)
-    return data
-
-
-def _simulate_mixed(model: Model, exps: dict, quantities, sigma, t, seed, noise) -> Measurements:
-    """simulate_measurements with release experiments (their rows at ``t``)."""
+    mixed = any(isinstance(x, Release) for x in exps.values())
     rows = []
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities
-        qs = [qs] if isinstance(qs, str) else list(qs)
+        times = [0.0]
         if isinstance(x, Release):
             times = t.get(name) if isinstance(t, Mapping) else t
             if times is None:
                 raise InputError(f"t: no measurement times for the release experiment {name!r}")
             times = [float(v) for v in np.atleast_1d(np.asarray(times, float))]
-        else:
-            times = [0.0]
+        elif not mixed:     # static experiments alone: solved here, measured by name
+            result = solve_static(model, x)
         for tk in times:
-            for q in qs:
+            for q in ([qs] if isinstance(qs, str) else qs):
                 s = float(sigma[q]) if isinstance(sigma, Mapping) else float(sigma)
-                rows.append((name, tk, q, 0.0, s))
+                rows.append((name, tk, q, measurement_value(result, q) if not mixed else 0.0, s))
     data = Measurements.from_rows(rows, source="<simulated>")
-    prob = build_problem(model, exps, data)
-    values, _ = _ce.problem_predict(prob, model.vector(), np.zeros(0, np.int32))
+    values = data.value
+    if mixed:
+        values, _ = _ce.problem_predict(build_problem(model, exps, data), model.vector(),
+                                        np.zeros(0, np.int32))
     if noise:
         rng = np.random.default_rng(seed)
         values = values + rng.standard_normal(len(data)) * data.sigma

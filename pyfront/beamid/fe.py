@@ -25,7 +25,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import _core
-from .errors import InputError
+from .errors import InputError, check_memory
 
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
@@ -42,8 +42,6 @@ NODE_FIELDS = ("s", "u", "du", "w", "dw")
 OUTBOARD_FIELDS = ("du", "dw")
 #: Tip-moment virtual work: Eq. 78 as printed (what produced Table 11), or exact.
 MOMENT_FORMS = {"eq78": 0, "exact": 1}
-_NODE_DTYPE = np.dtype([(name, np.float64) for name in NODE_FIELDS])
-_OUT_DTYPE = np.dtype([(name, np.float64) for name in OUTBOARD_FIELDS])
 
 
 def _model_args(model: Any) -> tuple[int, np.ndarray]:
@@ -63,16 +61,8 @@ def _mesh_size(nbeams: int, elements_per_beam: int) -> tuple[int, int]:
     nnode = nbeams * int(elements_per_beam) + 1
     # the bound of the deck reader (beamid_deck check_mesh_size): about 40
     # numbers per unknown in the banded solvers
-    need = 8 * 40 * 4 * nnode
-    if need > _MAX_BYTES:
-        raise InputError(f"elements_per_beam = {elements_per_beam}: the mesh would need "
-                           f"about {need / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 40 * 4 * nnode, f"elements_per_beam = {elements_per_beam}: the mesh")
     return nnode, 4 * nnode - 3
-
-
-#: memory bound of a mesh (bytes), as the deck reader's
-_MAX_BYTES = 4 * 2**30
 
 
 def _hinges(model: Any, elements_per_beam: int) -> tuple[tuple[int, ...], bool]:
@@ -137,7 +127,10 @@ def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
 
 
 def _node_tables(start: Any, nnode: int) -> tuple[np.ndarray, np.ndarray]:
-    """Node table and outboard table of a starting shape."""
+    """Node table and outboard table of a starting shape (None: the straight
+    chain at rest, zeros)."""
+    if start is None:
+        return np.zeros((5, nnode), order="F"), np.zeros((2, nnode), order="F")
     table = _node_table(start, nnode)
     return table, _outboard_table(start, table)
 
@@ -164,16 +157,11 @@ def _node_table(start: Any, nnode: int) -> np.ndarray:
     return np.asfortranarray(arr)
 
 
-def _structured(table: np.ndarray) -> np.ndarray:
-    nodes = np.empty(table.shape[1], dtype=_NODE_DTYPE)
-    for i, name in enumerate(NODE_FIELDS):
-        nodes[name] = table[i]
-    return nodes
-
-
-def _structured_out(table: np.ndarray) -> np.ndarray:
-    out = np.empty(table.shape[1], dtype=_OUT_DTYPE)
-    for i, name in enumerate(OUTBOARD_FIELDS):
+def _structured(table: np.ndarray, fields: tuple[str, ...] = NODE_FIELDS) -> np.ndarray:
+    """A structured array (float64 fields ``fields``, one per row of ``table``)
+    over the other axes of ``table``."""
+    out = np.empty(table.shape[1:], dtype=[(name, np.float64) for name in fields])
+    for i, name in enumerate(fields):
         out[name] = table[i]
     return out
 
@@ -286,23 +274,17 @@ def fe_static(model: Any, load: Any, elements_per_beam: int = 8, *, start: Any =
     nnode, _ = _mesh_size(nbeams, elements_per_beam)
     comps = _load_components(load)
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
-    if start is None:
-        guess = np.zeros((5, nnode), dtype=np.float64, order="F")
-        guess_out = np.zeros((2, nnode), dtype=np.float64, order="F")
-        use_guess = 0
-    else:
-        guess, guess_out = _node_tables(start, nnode)
-        use_guess = 1
+    guess, guess_out = _node_tables(start, nnode)
     nodes, nodes_out, energy, reactions, residual, info = _core.fe_static(
-        nbeams, params, int(elements_per_beam), loads, use_guess, int(steps), float(tol), guess,
-        guess_out)
+        nbeams, params, int(elements_per_beam), loads, int(start is not None), int(steps),
+        float(tol), guess, guess_out)
     table = _structured(np.asarray(nodes))
     hinges, root_hinge = _hinges(model, elements_per_beam)
     return FEStatic(nodes=table, tip=_tip(table), energy=float(energy),
                     reactions=np.array(reactions), residual=float(residual),
                     iterations=int(info[0]), steps=int(info[1]),
                     elements_per_beam=int(elements_per_beam), load=comps,
-                    outboard=_structured_out(np.asarray(nodes_out)), hinges=hinges,
+                    outboard=_structured(np.asarray(nodes_out), OUTBOARD_FIELDS), hinges=hinges,
                     root_hinge=root_hinge, negative_eigenvalues=int(info[2]))
 
 
@@ -348,32 +330,18 @@ def fe_path(model: Any, load0: Any, dload: Any, elements_per_beam: int = 8, *, s
     c0 = _load_components(load0) if load0 is not None else np.zeros(3)
     dc = _load_components(dload)
     loads = np.array([*c0, _moment_form(moment_form)], dtype=np.float64)
-    if start is None:
-        guess = np.zeros((5, nnode), order="F")
-        guess_out = np.zeros((2, nnode), order="F")
-    else:
-        guess, guess_out = _node_tables(start, nnode)
+    guess, guess_out = _node_tables(start, nnode)
     if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
             or max_points < 1:
         raise InputError(f"max_points = {max_points!r}, expected an integer >= 1")
-    need = 8 * 7 * nnode * int(max_points)
-    if need > _MAX_BYTES:
-        raise InputError(f"max_points = {max_points}: the path would need about "
-                           f"{need / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 7 * nnode * int(max_points), f"max_points = {max_points}: the path")
     npts, lam, nodes, nodes_out = _core.fe_path(
         nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
         float(lam0), float(ds), float(ds_max), int(direction), float(lam_range[0]),
         float(lam_range[1]), float(tol), int(max_points))
-    npts = int(npts)
-    nodes = np.asarray(nodes)[:, :, :npts]
-    nodes_out = np.asarray(nodes_out)[:, :, :npts]
-    table = np.empty((npts, nnode), dtype=_NODE_DTYPE)
-    for i, name in enumerate(NODE_FIELDS):
-        table[name] = nodes[i].T
-    out = np.empty((npts, nnode), dtype=_OUT_DTYPE)
-    for i, name in enumerate(OUTBOARD_FIELDS):
-        out[name] = nodes_out[i].T
+    npts = int(npts)    # tables (npts, nnode) from (field, nnode, point)
+    table = _structured(np.asarray(nodes)[:, :, :npts].transpose(0, 2, 1))
+    out = _structured(np.asarray(nodes_out)[:, :, :npts].transpose(0, 2, 1), OUTBOARD_FIELDS)
     return FEPath(lam=np.array(lam[:npts]), nodes=table, load0=c0, dload=dc,
                   elements_per_beam=int(elements_per_beam), outboard=out)
 
@@ -395,7 +363,7 @@ def buckling_load(model: Any, elements_per_beam: int = 8) -> FEBuckling:
     pcr, mode, mode_out = _core.fe_buckling(nbeams, params, int(elements_per_beam))
     return FEBuckling(load=float(pcr), nodes=_structured(np.asarray(mode)),
                       elements_per_beam=int(elements_per_beam),
-                      outboard=_structured_out(np.asarray(mode_out)))
+                      outboard=_structured(np.asarray(mode_out), OUTBOARD_FIELDS))
 
 
 @dataclass
@@ -478,7 +446,7 @@ class FEModes:
             else:
                 table[rows[int(comp)], node - 1] = value
         out[:, ~hinge] = table[[2, 4]][:, ~hinge]
-        return _structured(table), _structured_out(out)
+        return _structured(table), _structured(out, OUTBOARD_FIELDS)
 
     def modal_cost(self, shape: Any, velocity: Any = None, t: float | None = None) -> ModalCost:
         """Skelton's modal cost (Eq. 127-129) of the linear free vibration that
@@ -486,12 +454,9 @@ class FEModes:
         (default: the period of the first mode)."""
         nbeams, params = _model_args(self._model)
         nnode, nfree = _mesh_sizes(self._model, self.elements_per_beam)
-        q0, q0_out = _node_tables(shape, nnode)
-        if velocity is None:
-            v0 = np.zeros((5, nnode), order="F")
-            v0_out = np.zeros((2, nnode), order="F")
-        else:
-            v0, v0_out = _node_tables(velocity, nnode)
+        q0 = _node_table(shape, nnode)     # a shape is needed (None: no zeros)
+        q0_out = _outboard_table(shape, q0)
+        v0, v0_out = _node_tables(velocity, nnode)
         span = 2 * np.pi / self.omega[0] if t is None else float(t)
         omega, eta, kin, pot = _core.fe_modal_cost(
             nbeams, params, int(self.elements_per_beam),
@@ -506,11 +471,8 @@ def modes(model: Any, elements_per_beam: int = 4, *, rotary_inertia: bool = Fals
     is off by default, as in the dissertation's tables."""
     nbeams, params = _model_args(model)
     _, nfree = _mesh_sizes(model, elements_per_beam)
-    if 8 * 3 * nfree**2 > _MAX_BYTES:
-        raise InputError(f"elements_per_beam = {elements_per_beam}: the modes (dense "
-                           f"eigenproblem of {nfree} unknowns) would need about "
-                           f"{8 * 3 * nfree**2 / 2**30:.3g} GiB of memory (limit "
-                           f"{_MAX_BYTES / 2**30:.0f} GiB)")
+    check_memory(8 * 3 * nfree**2, f"elements_per_beam = {elements_per_beam}: the modes "
+                 f"(dense eigenproblem of {nfree} unknowns)")
     omega, phi, axial, dofs = _core.fe_modes(nbeams, params, int(elements_per_beam),
                                              int(bool(rotary_inertia)), nfree)
     return FEModes(omega=np.array(omega), phi=np.array(phi), is_axial=np.array(axial) != 0,

@@ -30,6 +30,7 @@ import numpy as np
 from .errors import InputError
 from .loads import TipForce
 from .model import pace
+from .plotting import _axes
 
 __all__ = ["FIGURES", "GAINS", "FIGURE_TIMES", "QUARTER_PERIOD_TIMES", "figure_runs",
            "plot_tip_history", "plot_profiles", "plot_tip_and_torque", "figure20",
@@ -60,19 +61,11 @@ def figure_runs(gains: Iterable[float] = GAINS, t_out: Sequence[float] | None = 
             for g in gains}
 
 
-def _axes(ax):
-    if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots(figsize=(8, 5))
-    return ax
-
-
 def plot_tip_history(runs: Sequence, labels: Sequence[str] | None = None,
                      quantity: str = "tip_w", ax=None):
     """One line per run: ``quantity`` (``tip_w``, ``tip_u``, ``tip_angle``,
     ``energy``, ...) against time. Returns the Axes."""
-    ax = _axes(ax)
+    ax = _axes(ax, (8, 5))
     labels = list(labels) if labels is not None else [None] * len(runs)
     if len(labels) != len(runs):
         raise InputError(f"{len(labels)} labels for {len(runs)} runs")
@@ -92,7 +85,7 @@ def plot_profiles(run, times: Sequence[float] = QUARTER_PERIOD_TIMES, ax=None,
                   points_per_element: int = 8):
     """The deformed arm (x = s + u, y = w) at output times of ``run``, one
     line per time. Returns the Axes."""
-    ax = _axes(ax)
+    ax = _axes(ax, (8, 5))
     for t, (x, y) in zip(times, run.profiles(times, points_per_element=points_per_element)):
         ax.plot(x, y, label=f"t = {t:.2f} s")
     ax.set_xlabel("x (m)")
@@ -107,7 +100,7 @@ def plot_tip_and_torque(run, ax=None):
     """Tip w and u against time on ``ax`` and the motor torque on a twin
     axis at the right (Figure 25). Returns ``ax``; the twin is the Axes
     that shares its x axis (``ax.figure.axes``)."""
-    ax = _axes(ax)
+    ax = _axes(ax, (8, 5))
     ax.plot(run.t, run.tip_w, label="tip w")
     ax.plot(run.t, run.tip_u, label="tip u")
     ax.set_xlabel("time (s)")
@@ -206,11 +199,9 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
                   dpi: int = 110) -> list[Path]:
     """Draw the named figures (all by default) as ``out/figureNN.png``; the
     runs are computed once (only the gains the figures need) unless given."""
-    import matplotlib
+    from .plotting import agg_pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    agg_pyplot()
     wanted = figure_names(names)
     gains = {0.0} if set(wanted) <= {"figure20", "figure21", "figure22"} else set(GAINS)
     if wanted == ["figure25"]:
@@ -220,11 +211,7 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for name in wanted:
-        ax = FIGURES[name](runs)
-        fig = ax.figure
+        fig = FIGURES[name](runs).figure
         fig.tight_layout()
-        path = out / f"{name}.png"
-        fig.savefig(path, dpi=dpi)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_png(fig, out / f"{name}.png", dpi))
     return written

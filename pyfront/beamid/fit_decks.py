@@ -22,18 +22,77 @@ from pathlib import Path
 from typing import Any
 
 from . import _core
-from ._deck_common import check_path, load, published as published_groups, run_files
 from .diagnosis import Ladder, _run_ladder, compare, diagnose
 from .errors import InputError
 from .estimation import _free_indices, _prior_arrays, fit
 from . import _core_estimation as _ce
-from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
+from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
-#: the same, under the name decks.py uses
-ESTIMATION_TASKS = FIT_TASKS
+
+
+# ---- shared with decks.py (which imports this module, never the other way):
+# the values of the Fortran deck reader as Python objects, the Fortran task runner
+
+class OutputPrefix:
+    """The ``output_prefix`` of a deck (``path``: the deck file, ``output``: as given)."""
+
+    path: Path
+    output: str
+
+    @property
+    def output_prefix(self) -> Path:
+        """Output prefix resolved against the deck's folder."""
+        out = Path(self.output)
+        return out if out.is_absolute() else self.path.parent / out
+
+
+@dataclass(frozen=True)
+class Published:
+    """Published values a deck reproduces (group &published)."""
+
+    table: str
+    row: str
+    values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
+    deviations: tuple[str, ...] = ()
+    note: str = ""
+
+
+def published(values: dict) -> tuple[Published, ...]:
+    """The &published groups as read by the Fortran reader."""
+    return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
+                           deviations=tuple(g["deviations"]), note=g["note"])
+                 for g in values["published"])
+
+
+def load(kind: int, values: list[float]) -> Load:
+    """A load from the reader's (kind, [fx, fy, moment, wire_length])."""
+    if kind == LOAD_WIRE:
+        return RadialWire(values[3])
+    return TipLoad(values[0], values[1], values[2])
+
+
+def check_path(path: Any, what: str = "path") -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
+                         "(str or os.PathLike)")
+    return Path(path)
+
+
+def run_files(deck: Any) -> list[Path]:
+    """Run a deck's task with the runners of ``beamid-batch`` (the same
+    Fortran, so the same bytes) and return the files written (all or none).
+    A deck object runs its file with its ``task`` (so a FitDeck whose task was
+    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``)."""
+    if hasattr(deck, "path"):
+        return [Path(p) for p in _core.run_deck(str(deck.path), deck.task)]
+    return [Path(p) for p in _core.run_deck(str(check_path(deck, "deck")))]
+
+
+# ---- estimation decks
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of an identification deck (task ``identify``: one ``&fit``
@@ -46,7 +105,7 @@ class Stage:
 
 
 @dataclass(frozen=True)
-class FitDeck:
+class FitDeck(OutputPrefix):
     """A parsed estimation deck."""
 
     path: Path
@@ -63,24 +122,17 @@ class FitDeck:
     published: tuple = ()     #: &published groups (beamid.decks.Published)
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
 
-    @property
-    def output_prefix(self) -> Path:
-        out = Path(self.output)
-        return out if out.is_absolute() else self.path.parent / out
-
 
 def _fit_deck(path: Path, values: dict) -> FitDeck:
     """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    if values["task"] in FIT_TASKS:
-        # release experiments (issue 13) carry more values than the reader's
-        # (kind, [fx, fy, moment, wire_length]) columns
-        for (n, _, _), (kind, vals) in zip(values["experiments"],
-                                           _ce.deck_experiments(str(path))):
-            if kind == LOAD_RELEASE:
-                experiments[n] = Release.decode(vals)
+    # release experiments (issue 13) carry more values than the reader's
+    # (kind, [fx, fy, moment, wire_length]) columns
+    for (n, _, _), (kind, vals) in zip(values["experiments"], _ce.deck_experiments(str(path))):
+        if kind == LOAD_RELEASE:
+            experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
                          read_measurements(s["data_path"], experiments),
@@ -91,7 +143,7 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
-                   max_iter=values["max_iter"], published=published_groups(values),
+                   max_iter=values["max_iter"], published=published(values),
                    stages=stages)
 
 
@@ -165,31 +217,20 @@ def improve_deck(deck: FitDeck) -> Ladder:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from .plot_fit import plot_compare, plot_ladder
+    from .plotting import agg_pyplot, save_png
 
     written = []
     if ladder is not None:
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = agg_pyplot().subplots(figsize=(6, 4))
         plot_ladder(ladder, ax=ax)
-        p = Path(f"{prefix}_ladder.png")
         fig.tight_layout()
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        written.append(save_png(fig, f"{prefix}_ladder.png"))
         cmp_pairs = [("start", compare(ladder.steps[0].fit)), ("final", compare(ladder.fit))]
     else:
         cmp_pairs = [("", cmp)]
-    for tag, c in cmp_pairs:
-        fig = plot_compare(c)     # one panel per quantity and unit (plot_fit.py)
-        p = Path(f"{prefix}_compare{'_' + tag if tag else ''}.png")
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+    for tag, c in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
+        written.append(save_png(plot_compare(c), f"{prefix}_compare{'_' + tag if tag else ''}.png"))
     return written
 
 
@@ -210,14 +251,10 @@ def identify_deck(deck: FitDeck) -> Any:
 
 
 def _identify_figure(result: Any, prefix: Path) -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    ax = result.plot()
-    png = prefix.with_name(prefix.name + "_identify.png")
-    ax.figure.savefig(png, dpi=100)
-    plt.close(ax.figure)
-    return png
+    from .plotting import agg_pyplot, save_png
+
+    agg_pyplot()
+    return save_png(result.plot().figure, prefix.with_name(prefix.name + "_identify.png"), 100)
 
 
 def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
@@ -238,34 +275,31 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     if not decks:
         raise InputError("identify: give the stage decks in order (static, free, forced)")
     parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
-    if len(parsed) == 1 and parsed[0].task == "identify":
+    prefix = parsed[0].output_prefix
+    staged = [d.path for d in parsed if d.task == "identify"]
+    if len(parsed) == 1 and staged:
         files = run_files(parsed[0])
         result = identify_deck(parsed[0])
-        if plots:
-            files.append(_identify_figure(result, parsed[0].output_prefix))
-        return result.summary() + "\n" + result.final.summary(), files, result
-    staged = [d.path for d in parsed if d.task == "identify"]
-    if staged:
+    elif staged:
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
-    names = []
-    for d in parsed:
-        base = Path(d.output).name or d.path.stem
-        names.append(base if base not in names else f"{base}_{len(names) + 1}")
-    stages = {n: (d.experiments, d.data, d.free, d.prior or None)
-              for n, d in zip(names, parsed)}
-    result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
-                      starts={n: d.model for n, d in zip(names, parsed)})
-    prefix = parsed[0].output_prefix
-    prefix.parent.mkdir(parents=True, exist_ok=True)
-    csv = prefix.with_name(prefix.name + "_identify.csv")
-    lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
-    lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
-              f"{r.sigma_after:.16E}" for r in result.table]
-    tmp = csv.with_name(csv.name + ".tmp")
-    tmp.write_text("\n".join(lines).replace("INF", "inf") + "\n")
-    os.replace(tmp, csv)
-    files = [csv]
+    else:   # one stage a deck; the CSV all or none (decks._write_all)
+        from .decks import _write_all
+
+        names: list[str] = []
+        for d in parsed:
+            base = Path(d.output).name or d.path.stem
+            names.append(base if base not in names else f"{base}_{len(names) + 1}")
+        stages = {n: (d.experiments, d.data, d.free, d.prior or None)
+                  for n, d in zip(names, parsed)}
+        result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
+                          starts={n: d.model for n, d in zip(names, parsed)})
+        lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+        lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
+                  f"{r.sigma_after:.16E}" for r in result.table]
+        text = "\n".join(lines).replace("INF", "inf") + "\n"
+        files = _write_all([(prefix.with_name(prefix.name + "_identify.csv"),
+                             lambda tmp: Path(tmp).write_text(text))])
     if plots:
         files.append(_identify_figure(result, prefix))
     return result.summary() + "\n" + result.final.summary(), files, result

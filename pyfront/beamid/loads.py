@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .dynamics import FRICTION_LAWS as _FRICTION_LAWS, INTEGRATORS as _INTEGRATORS
 from .errors import InputError
 
 LOAD_TIP = 1
@@ -94,9 +95,6 @@ Load = TipLoad | RadialWire
 
 
 LOAD_RELEASE = 3
-#: codes of the integrators and friction laws (as beamid.simulate takes them)
-_INTEGRATORS = {"rk4": 0, "implicit": 1}
-_FRICTION_LAWS = {"sign": 0, "smooth": 1, "sign_literal": 2}
 
 
 @dataclass(frozen=True)

@@ -11,24 +11,17 @@ import numpy as np
 
 from .diagnosis import Comparison, Ladder
 from .errors import InputError
-
-
-def _axes(ax: Any):
-    if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots(figsize=(6.0, 4.0))
-    return ax
+from .plotting import _axes
 
 
 def quantity_unit(quantity: str) -> str:
     """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
     read from its name (beamid.measurements.QUANTITIES: angles are in rad,
-    forces in N, moments in N m, positions and deflections in m)."""
+    forces in N, moments and torques in N m, positions and deflections in m)."""
     q = quantity.lower()
     if "angle" in q:
         return "rad"
-    if "moment" in q:
+    if "moment" in q or "torque" in q:
         return "N m"
     if "force" in q:
         return "N"
@@ -49,7 +42,7 @@ def plot_measured_vs_model(cmp: Comparison, quantity: str | None = None, ax: Any
     if len(units) > 1:
         raise InputError(f"quantities {', '.join(quantities)} have different units "
                          f"({', '.join(sorted(units))}): give quantity= or use plot_compare")
-    ax = _axes(ax)
+    ax = _axes(ax, (6.0, 4.0))
     for q in quantities:
         rows = sorted((r for r in cmp.rows if r.quantity == q), key=lambda r: r.load)
         if not rows:
@@ -69,7 +62,7 @@ def plot_measured_vs_model(cmp: Comparison, quantity: str | None = None, ax: Any
 def plot_normalized_residuals(cmp: Comparison, ax: Any = None):
     """Normalized residuals against load, per quantity, with the +-1 and +-3
     sigma bands (each in the legend)."""
-    ax = _axes(ax)
+    ax = _axes(ax, (6.0, 4.0))
     for q in _quantities(cmp):
         rows = sorted((r for r in cmp.rows if r.quantity == q), key=lambda r: r.load)
         ax.plot([r.load for r in rows], [r.normalized for r in rows], "o-", ms=4, label=q)
@@ -150,7 +143,7 @@ def plot_compare(cmp: Comparison, fig: Any = None):
 def plot_ladder(ladder: Ladder, ax: Any = None):
     """Chi-square per degree of freedom against improvement step (log
     scale), with the effect added at each step and the noise level 1."""
-    ax = _axes(ax)
+    ax = _axes(ax, (6.0, 4.0))
     steps = [s.step for s in ladder.steps]
     chi = [s.chi2_per_dof for s in ladder.steps]
     ax.semilogy(steps, chi, "o-", label="chi2 / dof after each step")

@@ -1,17 +1,38 @@
-"""Matplotlib helpers. Each takes ``ax=None``, draws on that Axes (a new
-figure when None) and returns it; none calls ``plt.show()``."""
+"""Matplotlib helpers. The plots take ``ax=None``, draw on that Axes (a new
+figure when None) and return it; none calls ``plt.show()``."""
 from __future__ import annotations
 
-from typing import Sequence
+from pathlib import Path
+from typing import Any, Sequence
 
 from .static import StaticResult
 
 
-def _axes(ax):
+def agg_pyplot() -> Any:
+    """``matplotlib.pyplot`` on the Agg backend (files only, no window)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_png(fig: Any, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` as a PNG file at ``path``, close it, return the path."""
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path)
+
+
+def _axes(ax: Any, figsize: tuple[float, float] = (6, 5)) -> Any:
+    """``ax``, or the axes of a new figure of ``figsize`` (inches) when None."""
     if ax is None:
         import matplotlib.pyplot as plt
 
-        _, ax = plt.subplots(figsize=(6, 5))
+        _, ax = plt.subplots(figsize=figsize)
     return ax
 
 

@@ -14,7 +14,7 @@ from typing import Iterable, NamedTuple
 import numpy as np
 
 from . import _core
-from .errors import InputError
+from .errors import InputError, check_memory
 from .loads import Load, RadialWire, TipLoad
 from .model import Model
 
@@ -33,6 +33,12 @@ class Shape(NamedTuple):
     y: np.ndarray
     psi: np.ndarray
     moment: np.ndarray
+
+
+def _output(name: str, doc: str) -> property:
+    """A read-only float attribute of a :class:`StaticResult`: output ``name``."""
+    i = OUTPUTS.index(name)
+    return property(lambda self: float(self._outputs[i]), doc=doc)
 
 
 class StaticResult:
@@ -84,35 +90,13 @@ class StaticResult:
         return (f"StaticResult(tip_x={self.tip_x:.6g}, tip_y={self.tip_y:.6g}, "
                 f"tip_angle={self.tip_angle:.6g}, wire_force={self.wire_force:.6g})")
 
-    @property
-    def tip_x(self) -> float:
-        return float(self._outputs[0])
-
-    @property
-    def tip_y(self) -> float:
-        return float(self._outputs[1])
-
-    @property
-    def tip_angle(self) -> float:
-        """Tangent angle at the tip from +x (rad)."""
-        return float(self._outputs[2])
-
-    @property
-    def wire_force(self) -> float:
-        """Wire tension (N); nan without a wire."""
-        return float(self._outputs[3])
-
-    @property
-    def elbow_x(self) -> float:
-        return float(self._outputs[4])
-
-    @property
-    def elbow_y(self) -> float:
-        return float(self._outputs[5])
-
-    @property
-    def root_moment(self) -> float:
-        return float(self._outputs[7])
+    tip_x = _output("tip_x", "Tip x (m).")
+    tip_y = _output("tip_y", "Tip y (m).")
+    tip_angle = _output("tip_angle", "Tangent angle at the tip from +x (rad).")
+    wire_force = _output("wire_force", "Wire tension (N); nan without a wire.")
+    elbow_x = _output("elbow_x", "Elbow x (m).")
+    elbow_y = _output("elbow_y", "Elbow y (m).")
+    root_moment = _output("root_moment", "Bending moment at the root (N m).")
 
     def shape(self, n: int = 101, s: Iterable[float] | None = None) -> Shape:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
@@ -120,10 +104,7 @@ class StaticResult:
         if s is None:
             if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
                 raise InputError(f"shape n = {n!r}, expected an integer, at least 2 (points)")
-            if 5 * 8 * int(n) > _MAX_BYTES:
-                raise InputError(f"shape n = {n}: the shape would need about "
-                                 f"{5 * 8 * int(n) / 2**30:.2g} GiB of memory (limit "
-                                 f"{_MAX_BYTES / 2**30:.0f} GiB)")
+            check_memory(5 * 8 * int(n), f"shape n = {n}: the shape", ".2g")
             grid = np.linspace(0.0, total, int(n))
         else:
             try:
@@ -139,10 +120,6 @@ class StaticResult:
         x, y, psi, moment = _core.static_shape(self.model.nbeams, self.model.vector(), kind,
                                                values, self.unknowns, grid, self.tol)
         return Shape(grid, x, y, psi, moment)
-
-
-#: memory bound of a result table a user asks for (bytes)
-_MAX_BYTES = 4 * 2**30
 
 
 def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),

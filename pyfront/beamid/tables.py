@@ -60,13 +60,8 @@ def inputs_dir(sub: str) -> Path:
     return Path(str(resources.files("beamid") / "data" / "inputs" / sub))
 
 
-def seed_deck_dir() -> Path:
-    """Folder of the bundled published-table decks."""
-    return inputs_dir("seed")
-
-
 def _all_seed_decks() -> list[Deck]:
-    decks = [read_deck(p) for p in sorted(seed_deck_dir().glob("*.nml"))]
+    decks = [read_deck(p) for p in sorted(inputs_dir("seed").glob("*.nml"))]
     return [d for d in decks if d.published]
 
 
