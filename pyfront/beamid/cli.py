@@ -79,13 +79,21 @@ def _run_line(source: str, run) -> str:
 
 # ------------------------------------------------------------- estimation
 
+def _report(result, one_line: bool = False) -> int:
+    """Print the text of a ``(text, files, result)`` run and the files written."""
+    text, files, _ = result
+    print(text)
+    if one_line:
+        print("wrote " + ", ".join(str(f) for f in files))
+    else:
+        _print_files(files)
+    return EXIT_OK
+
+
 def _estimation(deck, plots: bool) -> int:
     from .fit_decks import run_fit_deck
 
-    text, files, _ = run_fit_deck(deck, plots=plots)
-    print(text)
-    _print_files(files)
-    return EXIT_OK
+    return _report(run_fit_deck(deck, plots=plots))
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
@@ -100,10 +108,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     from .fit_decks import run_identify
 
-    text, files, _ = run_identify(list(args.decks), plots=not args.no_plots)
-    print(text)
-    _print_files(files)
-    return EXIT_OK
+    return _report(run_identify(list(args.decks), plots=not args.no_plots))
 
 
 # --------------------------------------------------------------- simulate
@@ -253,71 +258,6 @@ def _table_list() -> str:
         return "2 3 4 ..."
 
 
-def _cmd_consistency(args: argparse.Namespace) -> int:
-    # issue 17 (mc helper): implementation in beamid.consistency
-    from .consistency import run_consistency_deck
-
-    try:
-        text, files, _ = run_consistency_deck(args.deck, replicates=args.replicates,
-                                              seed=args.seed, scheduler=args.scheduler,
-                                              out=args.out, workers=args.workers,
-                                              plots=not args.no_plots)
-    except ImportError as exc:  # Dask missing: a bad request, not a crash
-        raise InputError(str(exc)) from None
-    print(text)
-    print("wrote " + ", ".join(str(f) for f in files))
-    return 0
-
-
-def _cmd_design(args: argparse.Namespace) -> int:
-    # issue 17 (mc helper): implementation in beamid.design
-    from .design import run_design_deck
-
-    text, files, _ = run_design_deck(args.deck, forces=args.force, moments=args.moment,
-                                     wires=args.wire, quantities=args.quantities,
-                                     sigma=args.sigma, target=args.target, out=args.out,
-                                     top=args.top, plots=not args.no_plots,
-                                     times=args.times)
-    print(text)
-    print("wrote " + ", ".join(str(f) for f in files))
-    return 0
-
-
-def _add_mc_parsers(sub) -> None:
-    # issue 17 (mc helper): beamid consistency / beamid design
-    p = sub.add_parser("consistency", help="Monte Carlo check of a fit's sigmas (docs/consistency.md)")
-    p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
-    p.add_argument("--replicates", type=int, default=200, help="noisy data sets (default 200)")
-    p.add_argument("--seed", type=int, default=7, help="seed of the replicates (default 7)")
-    p.add_argument("--scheduler", default=None,
-                   help="Dask scheduler address (tcp://host:8786); local cores if not given")
-    p.add_argument("--workers", type=int, default=None,
-                   help="local processes (default: all cores; 1 = in this process)")
-    p.add_argument("--out", default=None, help="folder for the CSV and PNG (default: the deck's output)")
-    p.add_argument("--no-plots", action="store_true", help="write the CSV only")
-    p.set_defaults(func=_cmd_consistency)
-    p = sub.add_parser("design", help="rank candidate measurements by the sigma they would leave")
-    p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
-    p.add_argument("--force", type=float, nargs="*", default=[], metavar="FY",
-                   help="candidate transverse tip forces (N)")
-    p.add_argument("--moment", type=float, nargs="*", default=[], metavar="M",
-                   help="candidate tip moments (N m)")
-    p.add_argument("--wire", type=float, nargs="*", default=[], metavar="LW",
-                   help="candidate radial wire lengths (m)")
-    p.add_argument("--quantities", nargs="*", default=None,
-                   help="measured quantities (default: x_tip y_tip tip_angle x_elbow y_elbow wire_force)")
-    p.add_argument("--sigma", nargs="*", default=None, metavar="[Q=]SIGMA",
-                   help="one sigma for all, or QUANTITY=SIGMA items (default: the deck's own)")
-    p.add_argument("--target", default=None,
-                   help="parameter whose sigma to minimize (default: D-criterion over all free)")
-    p.add_argument("--top", type=int, default=20, help="rows to print (default 20)")
-    p.add_argument("--out", default=None, help="folder for the CSV and PNG (default: the deck's output)")
-    p.add_argument("--no-plots", action="store_true", help="write the CSV only")
-    p.add_argument("--times", type=float, nargs="*", default=[], metavar="T",
-                   help="measurement times (s) of the deck's release experiments as candidates")
-    p.set_defaults(func=_cmd_design)
-
-
 def _parameter_list() -> str:
     try:
         from .model import pace
@@ -327,9 +267,126 @@ def _parameter_list() -> str:
         return "see docs/static.md"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _cmd_consistency(args: argparse.Namespace) -> int:
+    from .consistency import run_consistency_deck
+
+    try:
+        return _report(run_consistency_deck(
+            args.deck, replicates=args.replicates, seed=args.seed, scheduler=args.scheduler,
+            out=args.out, workers=args.workers, plots=not args.no_plots), one_line=True)
+    except ImportError as exc:  # Dask missing: a bad request, not a crash
+        raise InputError(str(exc)) from None
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    from .design import run_design_deck
+
+    return _report(run_design_deck(
+        args.deck, forces=args.force, moments=args.moment, wires=args.wire,
+        quantities=args.quantities, sigma=args.sigma, target=args.target, out=args.out,
+        top=args.top, plots=not args.no_plots, times=args.times), one_line=True)
+
+
+def _commands() -> list:
+    """Every subcommand: (name, handler, help, description, arguments), an
+    argument (flags separated by spaces, keyword arguments of add_argument)."""
     from .figures import FIGURES
 
+    def no_plots(text: str = "write the CSV file only"):
+        return ("--no-plots", dict(action="store_true", help=text))
+
+    deck = ("deck", dict(help="estimation deck (docs/decks.md, Estimation decks)"))
+    out = ("--out", dict(default="out", help="folder for the PNG files (default: out)"))
+    mc_out = ("--out", dict(default=None, help="folder for the CSV and PNG (default: the "
+                                               "deck's output)"))
+    values = dict(type=float, nargs="*", default=[])
+    estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
+                   "overrides the deck's task (docs/decks.md).",
+                   [deck, no_plots("write CSV files only")]) for name, text in (
+        ("fit", "estimate parameters from a measurement deck (fit only)"),
+        ("compare", "fit, then measured against model with residual tests"),
+        ("diagnose", "fit, then rank the candidate missing effects"),
+        ("improve", "fit, diagnose and add effects until none is significant"))]
+    return [
+        ("run", _cmd_run, "run a namelist deck of any task, as beamid-batch does",
+         "Run a deck (docs/decks.md) with the deck's task: static, fe_static, fe_modes, "
+         "simulate, fit, compare, diagnose or improve; writes the files beamid-batch writes.",
+         [("deck", dict(help="path of the deck")),
+          no_plots("estimation decks: write the CSV files only")]),
+        ("simulate", _cmd_simulate, "release the arm and integrate (dynamics); writes the "
+         "history CSV and its figure",
+         "Release the chain from its static shape under a tip load and follow it "
+         "(docs/dynamics.md). Without a deck: the PACE arm without rotary inertia, released "
+         "from fy = 8 N, 4 elements per beam, 27 outputs over 2.6 s, output prefix "
+         "out/simulate. Flags override the deck.",
+         [("deck", dict(nargs="?", help="a dynamic deck (task 'simulate'), optional")),
+          ("--fx", dict(type=float, help="release load: tip force x (N)")),
+          ("--fy", dict(type=float, help="release load: tip force y (N) (default 8)")),
+          ("--moment", dict(type=float, help="release load: tip moment (N m)")),
+          ("--elements-per-beam -e", dict(dest="elements_per_beam", type=int, help="elements "
+                                          "per beam (default 4: the dissertation's 8-element "
+                                          "arm)")),
+          ("--motor-gain -g", dict(dest="motor_gain", type=float, help="tip motor gain g, T = "
+                                   "-r_motor g dPsi_tip/dt (Eq. 150) (default 0)")),
+          ("--t-end", dict(type=float, help="last output time (s) (default 2.6)")),
+          ("--n-out", dict(type=int, help="number of equally spaced output times from 0 to "
+                                          "--t-end (default 27)")),
+          ("--t-out", dict(help="output times instead, e.g. 0,0.1,0.5 (s)")),
+          ("--integrator", dict(choices=("implicit", "rk4"), help="implicit (Radau IIA, "
+                                "default) or rk4 (fixed step --dt)")),
+          ("--friction", dict(choices=("sign", "smooth", "sign_literal"), help="friction law "
+                              "(default: beamid.simulate's, docs/dynamics.md)")),
+          ("--rtol", dict(type=float, help="implicit tolerance (default: beamid.simulate's)")),
+          ("--dt", dict(type=float, help="RK4 step in s (default 1e-5, the dissertation's)")),
+          ("--set", dict(action="append", metavar="NAME=VALUE", help="a model parameter, "
+                         "e.g. --set mu_tip=0.02 (repeatable); one of: " + _parameter_list())),
+          ("--output -o", dict(help="output prefix (default: the deck's, or out/simulate): "
+                                    "writes PREFIX_history.csv/.png")),
+          no_plots()]),
+        ("reproduce", _cmd_reproduce, "compare with the dissertation's published tables",
+         "Run the bundled decks of the published tables and compare; exit 1 when a value "
+         "is not reproduced.",
+         [("tables", dict(nargs="*", help="tables to check, all if none; one of: "
+                          + _table_list()))]),
+        ("demo", _cmd_demo, "reproduce the tables and draw the demo figures", None, [out]),
+        ("figures", _cmd_figures, "draw the dynamic Figures 20-25 as PNG files", None,
+         [("names", dict(nargs="*", help="figures to draw, all if none; one of: "
+                         + " ".join(n.replace("figure", "") for n in FIGURES))), out]),
+        *estimation,
+        ("identify", _cmd_identify, "run estimation decks as stages (static, free, forced), "
+         "carrying estimates and covariance (docs/workflow.md)", None,
+         [("decks", dict(nargs="+", help="estimation decks, one per stage, in order, or one "
+                         "deck of task 'identify' holding its stages (docs/decks.md)")),
+          no_plots()]),
+        ("consistency", _cmd_consistency, "Monte Carlo check of a fit's sigmas "
+         "(docs/consistency.md)", None,
+         [deck, ("--replicates", dict(type=int, default=200, help="noisy data sets (default "
+                                                                  "200)")),
+          ("--seed", dict(type=int, default=7, help="seed of the replicates (default 7)")),
+          ("--scheduler", dict(default=None, help="Dask scheduler address "
+                               "(tcp://host:8786); local cores if not given")),
+          ("--workers", dict(type=int, default=None, help="local processes (default: all "
+                             "cores; 1 = in this process)")),
+          mc_out, no_plots("write the CSV only")]),
+        ("design", _cmd_design, "rank candidate measurements by the sigma they would leave",
+         None,
+         [deck, ("--force", dict(values, metavar="FY", help="candidate transverse tip forces "
+                                 "(N)")),
+          ("--moment", dict(values, metavar="M", help="candidate tip moments (N m)")),
+          ("--wire", dict(values, metavar="LW", help="candidate radial wire lengths (m)")),
+          ("--quantities", dict(nargs="*", default=None, help="measured quantities (default: "
+                                "x_tip y_tip tip_angle x_elbow y_elbow wire_force)")),
+          ("--sigma", dict(nargs="*", default=None, metavar="[Q=]SIGMA", help="one sigma for "
+                           "all, or QUANTITY=SIGMA items (default: the deck's own)")),
+          ("--target", dict(default=None, help="parameter whose sigma to minimize (default: "
+                            "D-criterion over all free)")),
+          ("--top", dict(type=int, default=20, help="rows to print (default 20)")),
+          mc_out, no_plots("write the CSV only"),
+          ("--times", dict(values, metavar="T", help="measurement times (s) of the deck's "
+                           "release experiments as candidates"))])]
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="beamid",
         description="Large deformation of flexible beam chains and the inverse problem "
@@ -338,83 +395,11 @@ def build_parser() -> argparse.ArgumentParser:
                "3 no convergence, 4 an output file cannot be written, 5 internal error")
     parser.add_argument("--version", action="version", version=f"beamid {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    p = sub.add_parser("run", help="run a namelist deck of any task, as beamid-batch does",
-                       description="Run a deck (docs/decks.md) with the deck's task: static, "
-                                   "fe_static, fe_modes, simulate, fit, compare, diagnose or "
-                                   "improve; writes the files beamid-batch writes.")
-    p.add_argument("deck", help="path of the deck")
-    p.add_argument("--no-plots", action="store_true",
-                   help="estimation decks: write the CSV files only")
-    p.set_defaults(func=_cmd_run)
-
-    p = sub.add_parser("simulate", help="release the arm and integrate (dynamics); "
-                                        "writes the history CSV and its figure",
-                       description="Release the chain from its static shape under a tip "
-                                   "load and follow it (docs/dynamics.md). Without a deck: "
-                                   "the PACE arm without rotary inertia, released from "
-                                   "fy = 8 N, 4 elements per beam, 27 outputs over 2.6 s, "
-                                   "output prefix out/simulate. Flags override the deck.")
-    p.add_argument("deck", nargs="?", help="a dynamic deck (task 'simulate'), optional")
-    p.add_argument("--fx", type=float, help="release load: tip force x (N)")
-    p.add_argument("--fy", type=float, help="release load: tip force y (N) (default 8)")
-    p.add_argument("--moment", type=float, help="release load: tip moment (N m)")
-    p.add_argument("--elements-per-beam", "-e", dest="elements_per_beam", type=int,
-                   help="elements per beam (default 4: the dissertation's 8-element arm)")
-    p.add_argument("--motor-gain", "-g", dest="motor_gain", type=float,
-                   help="tip motor gain g, T = -r_motor g dPsi_tip/dt (Eq. 150) (default 0)")
-    p.add_argument("--t-end", type=float, help="last output time (s) (default 2.6)")
-    p.add_argument("--n-out", type=int, help="number of equally spaced output times "
-                                             "from 0 to --t-end (default 27)")
-    p.add_argument("--t-out", help="output times instead, e.g. 0,0.1,0.5 (s)")
-    p.add_argument("--integrator", choices=("implicit", "rk4"),
-                   help="implicit (Radau IIA, default) or rk4 (fixed step --dt)")
-    p.add_argument("--friction", choices=("sign", "smooth", "sign_literal"),
-                   help="friction law (default: beamid.simulate's, docs/dynamics.md)")
-    p.add_argument("--rtol", type=float, help="implicit tolerance (default: beamid.simulate's)")
-    p.add_argument("--dt", type=float, help="RK4 step in s (default 1e-5, the dissertation's)")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE",
-                   help="a model parameter, e.g. --set mu_tip=0.02 (repeatable); one of: "
-                        f"{_parameter_list()}")
-    p.add_argument("--output", "-o", help="output prefix (default: the deck's, or "
-                                          "out/simulate): writes PREFIX_history.csv/.png")
-    p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
-    p.set_defaults(func=_cmd_simulate)
-
-    p = sub.add_parser("reproduce", help="compare with the dissertation's published tables",
-                       description="Run the bundled decks of the published tables and "
-                                   "compare; exit 1 when a value is not reproduced.")
-    p.add_argument("tables", nargs="*",
-                   help=f"tables to check, all if none; one of: {_table_list()}")
-    p.set_defaults(func=_cmd_reproduce)
-
-    p = sub.add_parser("demo", help="reproduce the tables and draw the demo figures")
-    p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
-    p.set_defaults(func=_cmd_demo)
-
-    names = " ".join(n.replace("figure", "") for n in FIGURES)
-    p = sub.add_parser("figures", help="draw the dynamic Figures 20-25 as PNG files")
-    p.add_argument("names", nargs="*", help=f"figures to draw, all if none; one of: {names}")
-    p.add_argument("--out", default="out", help="folder for the PNG files (default: out)")
-    p.set_defaults(func=_cmd_figures)
-
-    for name, text in (("fit", "estimate parameters from a measurement deck (fit only)"),
-                       ("compare", "fit, then measured against model with residual tests"),
-                       ("diagnose", "fit, then rank the candidate missing effects"),
-                       ("improve", "fit, diagnose and add effects until none is significant")):
-        p = sub.add_parser(name, help=text,
-                           description=f"{text[0].upper()}{text[1:]}. The subcommand "
-                                       "overrides the deck's task (docs/decks.md).")
-        p.add_argument("deck", help="estimation deck (docs/decks.md, Estimation decks)")
-        p.add_argument("--no-plots", action="store_true", help="write CSV files only")
-        p.set_defaults(func=_cmd_estimate)
-    p = sub.add_parser("identify", help="run estimation decks as stages (static, free, "
-                       "forced), carrying estimates and covariance (docs/workflow.md)")
-    p.add_argument("decks", nargs="+", help="estimation decks, one per stage, in order, or one "
-                   "deck of task 'identify' holding its stages (docs/decks.md)")
-    p.add_argument("--no-plots", action="store_true", help="write the CSV file only")
-    p.set_defaults(func=_cmd_identify)
-    _add_mc_parsers(sub)
+    for name, func, text, description, arguments in _commands():
+        p = sub.add_parser(name, help=text, description=description)
+        for flags, options in arguments:
+            p.add_argument(*flags.split(), **options)
+        p.set_defaults(func=func)
     return parser
 
 
