@@ -42,8 +42,9 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from itertools import chain
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -327,12 +328,6 @@ class Consistency:
         return fig
 
 
-def _output_error(path: Path, exc: OSError) -> OutputError:
-    """The error of an output file or folder that cannot be written (exit code 4)."""
-    return OutputError(exc.errno or 0, f"cannot write {path}: {exc.strerror or exc}",
-                       str(path))
-
-
 def _atomic_write(path: Path, text: str) -> None:
     """Write a text file all or none (beamid.decks._write_all)."""
     from .decks import _write_all
@@ -357,14 +352,30 @@ def _output_prefix(deck_path, out, default: Path) -> Path:
     try:
         prefix.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise _output_error(prefix.parent, exc) from None
+        raise OutputError(exc.errno or 0, f"cannot write {prefix.parent}: "
+                          f"{exc.strerror or exc}", str(prefix.parent)) from None
     return prefix
 
 
-def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec:
+def _check_fit(fit: Any) -> None:
+    """InputError unless ``fit`` is a FitResult (consistency and design)."""
     if not isinstance(fit, FitResult):
         raise InputError(f"fit must be a beamid.FitResult (beamid.fit), got "
                          f"{type(fit).__name__}")
+
+
+def _deck_fit(deck: str | os.PathLike):
+    """(deck, its fit) of an estimation deck: what ``beamid consistency`` and
+    ``beamid design`` start from."""
+    from .fit_decks import read_fit_deck
+
+    d = read_fit_deck(deck)
+    return d, _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
+                   max_iter=d.max_iter)
+
+
+def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec:
+    _check_fit(fit)
     seed = _integer("seed", seed, 0, "a non-negative integer")
     truth_rows = np.array([r.model for r in fit.residuals], float)
     if truth_rows.shape != (len(fit.data),) or not np.all(np.isfinite(truth_rows)):
@@ -444,7 +455,7 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
             chunks = _chunks(replicates, 8 * nworkers)
             shared = client.scatter(spec, broadcast=True)
             futures = [client.submit(_run_chunk, shared, ks, pure=False) for ks in chunks]
-            records = list(progress(_flatten(f.result() for f in dask_completed(futures)),
+            records = list(progress(chain.from_iterable(f.result() for f in dask_completed(futures)),
                                     total=replicates, desc=desc, enabled=show))
             return records, f"Dask, {nworkers} workers"
         finally:
@@ -464,15 +475,19 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
         if float(np.median(times)) * (replicates - len(probe)) < SERIAL_BELOW:
             nworkers = 1
     first = len(probe)
-    if nworkers <= 1:
+
+    def serial(runner: str) -> tuple[list[dict], str]:
         it = (_run_one(spec, k) for k in range(first, replicates))
-        rest = list(progress(it, total=replicates - first, desc=desc, enabled=show))
-        return probe + rest, "serial"
+        return probe + list(progress(it, total=replicates - first, desc=desc,
+                                     enabled=show)), runner
+
+    if nworkers <= 1:
+        return serial("serial")
     chunks = [[first + k for k in ks] for ks in _chunks(replicates - first, 8 * nworkers)]
     try:
         with ProcessPoolExecutor(max_workers=nworkers, mp_context=_mp_context()) as pool:
             futures = [pool.submit(_run_chunk, spec, ks) for ks in chunks]
-            records = list(progress(_flatten(f.result() for f in as_completed(futures)),
+            records = list(progress(chain.from_iterable(f.result() for f in as_completed(futures)),
                                     total=replicates - first, desc=desc, enabled=show))
     except BrokenProcessPool:
         # typically a script without the `if __name__ == "__main__":` guard
@@ -481,15 +496,8 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
                       "running in this process instead. In a script, call it under "
                       "`if __name__ == \"__main__\":` (Python's multiprocessing rule) or pass "
                       "workers=1", RuntimeWarning, stacklevel=3)
-        it = (_run_one(spec, k) for k in range(first, replicates))
-        rest = list(progress(it, total=replicates - first, desc=desc, enabled=show))
-        return probe + rest, "serial (local processes failed to start)"
+        return serial("serial (local processes failed to start)")
     return probe + records, f"{nworkers} local processes"
-
-
-def _flatten(lists: Iterable[list[dict]]) -> Iterator[dict]:
-    for chunk in lists:
-        yield from chunk
 
 
 def consistency(fit: FitResult, replicates: int = 200, seed: int = 7, client: Any = None,
@@ -565,12 +573,9 @@ def _summarize(fit: FitResult, spec: _Spec, records: list[dict], runner: str) ->
         flags=tuple(tuple(r["flags"]) for r in records),
         coverage={n: {1: float(stats[0, j]), 2: float(stats[1, j]), 3: float(stats[2, j])}
                   for j, n in enumerate(free)},
-        bias={n: float(stats[3, j]) for j, n in enumerate(free)},
-        spread={n: float(stats[4, j]) for j, n in enumerate(free)},
-        rms_sigma={n: float(stats[5, j]) for j, n in enumerate(free)},
-        spread_ratio={n: float(stats[6, j]) for j, n in enumerate(free)},
-        z_mean={n: float(stats[7, j]) for j, n in enumerate(free)},
-        z_std={n: float(stats[8, j]) for j, n in enumerate(free)},
+        # rows 3-8 of mc_summary, in this order
+        **{key: {n: float(stats[i, j]) for j, n in enumerate(free)} for i, key in enumerate(
+            ("bias", "spread", "rms_sigma", "spread_ratio", "z_mean", "z_std"), start=3)},
         runner=runner, normalized={n: z[:, j].copy() for j, n in enumerate(free)})
 
 
@@ -582,11 +587,7 @@ def run_consistency_deck(deck: str | os.PathLike, replicates: int = 200, seed: i
     Carlo check and write ``<prefix>_consistency.csv`` (every replicate) and
     ``_consistency.png`` (normalized errors against N(0, 1)). The prefix is
     the deck's ``output`` or ``OUT/<deck name>``. Returns (table, files, result)."""
-    from .fit_decks import read_fit_deck
-
-    d = read_fit_deck(deck)
-    base = _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
-                max_iter=d.max_iter)
+    d, base = _deck_fit(deck)
     mc = consistency(base, replicates=replicates, seed=seed, client=scheduler,
                      workers=workers, options={"max_iter": d.max_iter})
     prefix = _output_prefix(deck, out, d.output_prefix)

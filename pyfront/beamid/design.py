@@ -36,6 +36,7 @@ from typing import Any, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
+from .consistency import _atomic_write, _check_fit, _deck_fit, _output_prefix, _save_figure
 from .errors import InputError
 from .estimation import FitResult, predict
 from .loads import Release
@@ -151,8 +152,6 @@ class Advice:
         ax.legend(fontsize=7)
         fig.tight_layout()
         if path is not None:
-            from .consistency import _save_figure
-
             _save_figure(fig, Path(path))
         return ax
 
@@ -299,9 +298,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
     ``((experiment, quantity), predicted)`` best first and is indexable by
     rank and by ``(experiment, quantity)``.
     """
-    if not isinstance(fit, FitResult):
-        raise InputError(f"fit must be a beamid.FitResult (beamid.fit), got "
-                         f"{type(fit).__name__}")
+    _check_fit(fit)
     if not isinstance(candidates, Mapping) or not candidates:
         raise InputError("candidates must be a non-empty dict {name: experiment}, e.g. "
                          "{'M2': beamid.TipMoment(2.0)}")
@@ -397,13 +394,9 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     measurement ``times`` (s; ``--times``), one row per time, measuring by
     default the quantities of the deck's own rows. Returns (text, files,
     advice)."""
-    from .estimation import fit as _fit
-    from .fit_decks import read_fit_deck
     from .loads import RadialWire, TipForce, TipMoment
 
-    d = read_fit_deck(deck)
-    base = _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
-                max_iter=d.max_iter)
+    d, base = _deck_fit(deck)
     cands: dict[str, Any] = {}
     for f in forces:
         cands[f"F{float(f):g}"] = TipForce(fy=float(f))
@@ -429,8 +422,6 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     sig = parse_sigma(sigma, qs, d.data)
     adv = design(base, cands, qs, sigma=sig, target=target,
                  times=[float(t) for t in times] if releases else None)
-    from .consistency import _atomic_write, _output_prefix
-
     prefix = _output_prefix(deck, out, d.output_prefix)
     lines = ["rank,experiment,quantity,sigma,predicted"]
     lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
