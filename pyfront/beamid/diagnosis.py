@@ -352,8 +352,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
     """Candidate ``c`` of a diagnosis from the Fortran result arrays, read by
     the column names the Fortran exports (static and dynamic diagnoses
     alike): ``cls`` the result type (default :class:`Candidate`), ``keep``
-    the block's parameters as tested (default all), ``extra`` the fields a
-    subclass adds."""
+    the mask of the block's parameters tested (default all), ``extra`` the
+    fields a subclass adds (not set on a candidate that was not tested)."""
     cls = cls or Candidate
     cst, pst, starts = raw["cstats"], raw["pstats"], raw["starts"]
 
@@ -367,6 +367,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
     state = _STATES[int(s("state"))]
     if state != "tested":
         return cls(eff.name, params, state)
+    if keep is not None:
+        params = tuple(n for n, k in zip(params, keep) if k)
     refit = bool(s("refit_done")) and bool(s("refit_ok"))
     sep = None
     if s("rival") and s("sep_experiment") > 0:
@@ -457,10 +459,7 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
                                int(nrefit), ambiguity_delta, collinear, nominal.vector(),
                                with_mesh)
-    if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis names the results
-        from .dyn_diagnosis import _dyn_diagnosis
-        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
-    return _diagnosis(fit, raw, effects, names, alpha)
+    return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
 
 
 def _candidate_set(model: Model, experiments, candidates):
@@ -480,16 +479,18 @@ def _candidate_set(model: Model, experiments, candidates):
 
 
 def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
-               alpha: float) -> Diagnosis:
-    """The Diagnosis of a static fit from the Fortran result arrays."""
-    exp_names = list(fit.experiments)
-    out = [_candidate(raw, c, eff, names[c], fit.model, exp_names)
+               alpha: float, with_mesh: bool = False) -> Diagnosis:
+    """The Diagnosis of a fit from the Fortran result arrays (with releases:
+    beamid.dyn_diagnosis names the results, a DynDiagnosis)."""
+    if _dynamic(fit.experiments):
+        from .dyn_diagnosis import _dyn_diagnosis
+        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    out = [_candidate(raw, c, eff, names[c], fit.model, list(fit.experiments))
            for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
-    verdict_index = int(raw["dstats"]["verdict"])
-    verdict = out[verdict_index - 1] if verdict_index > 0 else None
-    rivals = tuple(c for c in ranked if c.rival)
+    verdict = out[int(raw["dstats"]["verdict"]) - 1] if raw["dstats"]["verdict"] > 0 else None
     alpha_each = float(raw["dstats"]["alpha_each"])
+    rivals = tuple(c for c in ranked if c.rival)
     message = _verdict_message(fit, ranked, verdict, rivals, alpha, alpha_each)
     return Diagnosis(fit=fit, candidates=ranked, verdict=verdict, rivals=rivals, alpha=alpha,
                      alpha_each=alpha_each, message=message)
@@ -704,7 +705,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     terminal, and name its rungs."""
     dynamic = _dynamic(experiments)
     if dynamic:
-        from .dyn_diagnosis import _dyn_diagnosis, refine_mesh
+        from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     for _ in progress(itertools.count(), total=max_steps + 1, desc="improve"):  # on a tty only
         if _ce.ladder_step():
@@ -718,8 +719,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                       tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
                       nominal=Model(model.nbeams, r["nominal"]))
         fit = dataclasses.replace(fit, refit_start=r["refit_start"])
-        diag = (_dyn_diagnosis(fit, r["diag"], effects, names, alpha, with_mesh) if dynamic
-                else _diagnosis(fit, r["diag"], effects, names, alpha))
+        diag = _diagnosis(fit, r["diag"], effects, names, alpha, with_mesh)
         effect = r["effect"]
         if effect is not None and effect.isdigit():   # a candidate's number (not a deck's name)
             effect = effects[int(effect) - 1].name

@@ -73,7 +73,6 @@ register_effect(Effect("mesh", "the discretization: the same fit at twice the el
 DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
                       "elbow_flex", "root_flex", "mesh")
 
-_STATES = _dg._STATES
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic
 
@@ -158,24 +157,19 @@ def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
     exp_names = list(fit.experiments)
     out: list[Candidate] = []
     for c, eff in enumerate(effects):
-        keep = raw["kept"][raw["starts"][c]:raw["starts"][c + 1]]
-        if _STATES[int(raw["cstats"]["state"][c])] != "tested":
-            out.append(DynCandidate(eff.name, names[c], _STATES[int(raw["cstats"]["state"][c])]))
-            continue
+        block = slice(raw["starts"][c], raw["starts"][c + 1])
+        keep = raw["kept"][block]
         # the block as tested; the rest at null (not needed or determined)
         left = tuple(n for n, k in zip(names[c], keep)
                      if not k and n not in fit.free and float(model[n]) == 0.0)
-        tested = tuple(n for n, k in zip(names[c], keep) if k)
-        close = raw["ambiguous"][raw["starts"][c]:raw["starts"][c + 1]]
-        alike = tuple(n for n, a in zip(names[c], close) if a)
+        alike = tuple(n for n, a in zip(names[c], raw["ambiguous"][block]) if a)
         sep_t = (float(raw["sep_t"][c]) if raw["cstats"]["rival"][c]
                  and raw["cstats"]["sep_experiment"][c] > 0 else None)
-        out.append(_dg._candidate(raw, c, eff, tested, model, exp_names, cls=DynCandidate,
+        out.append(_dg._candidate(raw, c, eff, names[c], model, exp_names, cls=DynCandidate,
                                   keep=keep, separating_time=sep_t, left_at_null=left,
                                   ambiguous_with=alike))
     ranked = [out[i] for i in raw["ranking"]]
-    verdict_index = int(raw["dstats"]["verdict"])
-    verdict = out[verdict_index - 1] if verdict_index > 0 else None
+    verdict = out[int(raw["dstats"]["verdict"]) - 1] if raw["dstats"]["verdict"] > 0 else None
     alpha_each = float(raw["dstats"]["alpha_each"])
     mesh = None
     m = raw["mstats"]
@@ -202,7 +196,7 @@ def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
             k = sum(1 for c in ranked if c.state == "tested")
             ranked.insert(k, mesh)
     rivals = tuple(c for c in ranked if c.rival) if verdict is not mesh or mesh is None else ()
-    not_seen = tuple(c.effect for c in ranked if c.state == _STATES[4])
+    not_seen = tuple(c.effect for c in ranked if c.state == _dg._STATES[4])
     message = _message(fit, tuple(ranked), verdict, rivals, alpha, alpha_each, mesh, not_seen)
     return DynDiagnosis(fit=fit, candidates=tuple(ranked), verdict=verdict, rivals=rivals,
                         alpha=alpha, alpha_each=alpha_each, message=message, mesh=mesh,

@@ -349,13 +349,12 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         prob.exp_values[_EV_FD, rel] = 2.0
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
-        prior_map, pidx, pmean, pcov = _carried_prior(model, prior)
-        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, np.sqrt(np.diag(pcov)),
-                      prior_cov=pcov, max_iter=int(max_iter))
-        return _result(model, experiments, data, free_names, prior_map, raw)
-    free_names, free_idx = _free_indices(model, free)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter))
+        prior_map, pidx, pmean, psig, pcov = _carried_prior(model, prior)
+    else:
+        free_names, free_idx = _free_indices(model, free)
+        (prior_map, pidx, pmean, psig), pcov = _prior_arrays(model, free_names, prior), None
+    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, prior_cov=pcov,
+                  max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
 
 
@@ -367,8 +366,8 @@ def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, .
 
 
 def _carried_prior(model: Model, prior: "FitResult"):
-    """A previous fit as a priori information: its estimates and full
-    covariance (Eq. 146-148, 164-166)."""
+    """A previous fit as a priori information: (prior by name, indices,
+    estimates, sigmas, full covariance) (Eq. 146-148, 164-166)."""
     cov = np.asarray(prior.cov, float)
     if not np.all(np.isfinite(cov)):
         bad = [n for n in prior.free if not math.isfinite(prior.sigmas[n])]
@@ -378,7 +377,7 @@ def _carried_prior(model: Model, prior: "FitResult"):
     idx = np.array([model.index(n) + 1 for n in names], np.int32)
     mean = np.array([prior.estimates[n] for n in prior.free])
     pmap = {n: (float(m), float(np.sqrt(cov[i, i]))) for i, (n, m) in enumerate(zip(names, mean))}
-    return pmap, idx, mean, cov
+    return pmap, idx, mean, np.sqrt(np.diag(cov)), cov
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
