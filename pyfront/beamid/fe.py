@@ -73,13 +73,16 @@ def _hinges(model: Any, elements_per_beam: int) -> tuple[tuple[int, ...], bool]:
     return nodes, bool(model["root_flex"] > 0.0)
 
 
-def _mesh_sizes(model: Any, elements_per_beam: int) -> tuple[int, int]:
-    """(nnode, nfree) of the model's mesh: nfree grows by 2 per hinged joint
-    and by 1 with a root hinge (api_fe_mesh_sizes)."""
+def _mesh(model: Any, elements_per_beam: int,
+          hinged: bool = False) -> tuple[int, np.ndarray, int, int]:
+    """(nbeams, parameters, nnode, nfree) of the model's mesh, the arguments
+    checked; with ``hinged`` nfree grows by 2 per hinged joint and by 1 with a
+    root hinge (api_fe_mesh_sizes), else it is the locked chain's."""
     nbeams, params = _model_args(model)
-    _mesh_size(nbeams, elements_per_beam)
-    nnode, nfree, _, _ = _core.fe_mesh_sizes(nbeams, params, int(elements_per_beam))
-    return int(nnode), int(nfree)
+    nnode, nfree = _mesh_size(nbeams, elements_per_beam)
+    if hinged:
+        nnode, nfree, _, _ = _core.fe_mesh_sizes(nbeams, params, int(elements_per_beam))
+    return nbeams, params, int(nnode), int(nfree)
 
 
 def _moment_form(form: str) -> int:
@@ -270,8 +273,7 @@ def fe_static(model: Any, load: Any, elements_per_beam: int = 8, *, start: Any =
     or node table of the same mesh) Newton runs at the full load from that
     shape, which selects among several equilibria above the buckling load.
     """
-    nbeams, params = _model_args(model)
-    nnode, _ = _mesh_size(nbeams, elements_per_beam)
+    nbeams, params, nnode, _ = _mesh(model, elements_per_beam)
     comps = _load_components(load)
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
     guess, guess_out = _node_tables(start, nnode)
@@ -325,8 +327,7 @@ def fe_path(model: Any, load0: Any, dload: Any, elements_per_beam: int = 8, *, s
     chain, right for lam0 = 0 and load0 = 0). `ds` is the first arc-length step
     in the (q, lam) space, `direction` the sign of the first change of lam.
     """
-    nbeams, params = _model_args(model)
-    nnode, _ = _mesh_size(nbeams, elements_per_beam)
+    nbeams, params, nnode, _ = _mesh(model, elements_per_beam)
     c0 = _load_components(load0) if load0 is not None else np.zeros(3)
     dc = _load_components(dload)
     loads = np.array([*c0, _moment_form(moment_form)], dtype=np.float64)
@@ -358,8 +359,7 @@ class FEBuckling:
 
 def buckling_load(model: Any, elements_per_beam: int = 8) -> FEBuckling:
     """Critical compressive tip load: least P with K0 phi = P G phi."""
-    nbeams, params = _model_args(model)
-    _mesh_size(nbeams, elements_per_beam)
+    nbeams, params, _, _ = _mesh(model, elements_per_beam)
     pcr, mode, mode_out = _core.fe_buckling(nbeams, params, int(elements_per_beam))
     return FEBuckling(load=float(pcr), nodes=_structured(np.asarray(mode)),
                       elements_per_beam=int(elements_per_beam),
@@ -452,8 +452,7 @@ class FEModes:
         """Skelton's modal cost (Eq. 127-129) of the linear free vibration that
         starts from `shape` (FEStatic or node table) with `velocity` over [0, t]
         (default: the period of the first mode)."""
-        nbeams, params = _model_args(self._model)
-        nnode, nfree = _mesh_sizes(self._model, self.elements_per_beam)
+        nbeams, params, nnode, nfree = _mesh(self._model, self.elements_per_beam, hinged=True)
         q0 = _node_table(shape, nnode)     # a shape is needed (None: no zeros)
         q0_out = _outboard_table(shape, q0)
         v0, v0_out = _node_tables(velocity, nnode)
@@ -469,8 +468,7 @@ def modes(model: Any, elements_per_beam: int = 4, *, rotary_inertia: bool = Fals
     """Linear modes K phi = omega^2 M phi (LAPACK dsygv), split into transverse
     (w) and axial (u) families. Rotary inertia of the end masses (Eq. 130-132)
     is off by default, as in the dissertation's tables."""
-    nbeams, params = _model_args(model)
-    _, nfree = _mesh_sizes(model, elements_per_beam)
+    nbeams, params, _, nfree = _mesh(model, elements_per_beam, hinged=True)
     check_memory(8 * 3 * nfree**2, f"elements_per_beam = {elements_per_beam}: the modes "
                  f"(dense eigenproblem of {nfree} unknowns)")
     omega, phi, axial, dofs = _core.fe_modes(nbeams, params, int(elements_per_beam),
@@ -484,8 +482,7 @@ def axial_modes_linear(model: Any, elements_per_beam: int = 4, *,
                        point_masses: bool = True) -> np.ndarray:
     """Axial frequencies of the linear-u verification model (Eq. 114). Table 7's
     axial column is this model without point masses, from its 2nd frequency."""
-    nbeams, params = _model_args(model)
-    _mesh_size(nbeams, elements_per_beam)
+    nbeams, params, _, _ = _mesh(model, elements_per_beam)
     omega = _core.fe_axial_linear(nbeams, params, int(elements_per_beam),
                                   int(bool(point_masses)))
     return np.array(omega)
@@ -495,8 +492,7 @@ def fe_system(model: Any, q: np.ndarray, load: Any = None, elements_per_beam: in
               rotary_inertia: bool = False, moment_form: str = "eq78") -> dict[str, Any]:
     """Dense energy, internal force, Newton matrix d(NLT - Q)/dq, mass and tip
     load vector at the free unknown vector q (for checks and small studies)."""
-    nbeams, params = _model_args(model)
-    _, nfree = _mesh_sizes(model, elements_per_beam)
+    nbeams, params, _, nfree = _mesh(model, elements_per_beam, hinged=True)
     q = np.ascontiguousarray(q, dtype=np.float64)
     if q.shape != (nfree,):
         raise InputError(f"q has shape {q.shape}, expected ({nfree},)")
