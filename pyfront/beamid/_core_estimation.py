@@ -32,34 +32,23 @@ QUANTITY_CODES = {v: k for k, v in QUANTITY_NAMES.items()}
 
 @dataclass(frozen=True)
 class Problem:
-    """Arrays describing a static estimation problem (0-based nothing: the
-    indices here are already 1-based for Fortran)."""
+    """Arrays describing an estimation problem of any mix of static and
+    release experiments (0-based nothing: the indices here are already
+    1-based for Fortran)."""
 
     nbeams: int
     exp_kind: np.ndarray      # (nexp,) int32
-    exp_values: np.ndarray    # (4, nexp) float
+    exp_values: np.ndarray    # (NEXPVAL, nexp) float, Fortran order
     row_exp: np.ndarray       # (nrow,) int32, 1-based
     row_q: np.ndarray         # (nrow,) int32
     row_value: np.ndarray     # (nrow,)
     row_sigma: np.ndarray     # (nrow,)
+    row_t: np.ndarray         # (nrow,) times of the rows (0 for static experiments)
     tol: float = 0.0
-    #: times of the rows (None: all static, t = 0)
-    row_t: np.ndarray | None = None
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
 NEXPVAL = 12
-
-
-def _mixed_values(prob: Problem) -> np.ndarray:
-    values = np.zeros((NEXPVAL, prob.exp_kind.size))
-    values[:prob.exp_values.shape[0], :] = prob.exp_values
-    return np.asfortranarray(values)
-
-
-def _row_t(prob: Problem) -> np.ndarray:
-    return (np.zeros(prob.row_exp.size) if prob.row_t is None
-            else np.ascontiguousarray(prob.row_t, dtype=float))
 
 
 def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
@@ -78,8 +67,8 @@ def problem_predict(prob: Problem, params: np.ndarray,
     experiments (beamid_inverse; wrt 1-based)."""
     wrt = np.asarray(wrt, dtype=np.int32)
     pred, jac = _call(_api.api_problem_predict,
-                      prob.nbeams, np.asarray(params, float), prob.exp_kind, _mixed_values(prob),
-                      prob.row_exp, _row_t(prob), prob.row_q, _pad(wrt, np.int32),
+                      prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
+                      prob.row_exp, prob.row_t, prob.row_q, _pad(wrt, np.int32),
                       float(prob.tol))
     jac = np.array(jac).reshape(prob.row_exp.size, wrt.size + 1)
     return np.array(pred), jac[:, :wrt.size]
@@ -203,8 +192,8 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
                      prob.nbeams, params0, free, _pad(block, np.int32), nominal,
                      _pad(prior_idx, np.int32), _pad(prior_mean, float),
                      _pad(prior_sigma, float), int(prior_cov is not None),
-                     np.asfortranarray(cov), prob.exp_kind, _mixed_values(prob), prob.row_exp,
-                     _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+                     np.asfortranarray(cov), prob.exp_kind, prob.exp_values, prob.row_exp,
+                     prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
                      float(prob.tol), int(max_iter), int(start_mask))
 
 
@@ -257,8 +246,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
     return _diag_dict(_call(
         _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
         np.asarray(nominal, float), np.asarray(free, np.int32), _pad(prior_idx, np.int32),
-        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob),
-        prob.row_exp, _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma,
+        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, prob.exp_values,
+        prob.row_exp, prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
         float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
 
@@ -272,8 +261,8 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
           np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
-          _pad(prior_sigma, float), prob.exp_kind, _mixed_values(prob), prob.row_exp,
-          _row_t(prob), prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
+          _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
+          prob.row_t, prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
           int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
 
 

@@ -152,9 +152,8 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
                          f"{type(data).__name__}")
     data.check_experiments(exps)
     names = list(exps)
-    dynamic = any(isinstance(x, Release) for x in exps.values())
     kinds = np.zeros(len(names), np.int32)
-    values = np.zeros((_ce.NEXPVAL if dynamic else 4, len(names)))
+    values = np.zeros((_ce.NEXPVAL, len(names)))
     for j, name in enumerate(names):
         kind, v = exps[name].encode()
         kinds[j] = kind
@@ -185,7 +184,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
         row_q=np.array([_ce.QUANTITY_CODES[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
-        tol=float(tol), row_t=np.array(data.t, float) if dynamic else None)
+        row_t=np.array(data.t, float), tol=float(tol))
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -342,7 +341,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if jacobian not in ("auto", "exact"):
         raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
     prob = build_problem(model, experiments, data, tol)
-    if jacobian == "exact" and prob.exp_values.shape[0] > _EV_FD:
+    if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
         # tolerance at every iteration (1, central differences, is kept)
         rel = (prob.exp_kind == LOAD_RELEASE) & (prob.exp_values[_EV_FD] == 0.0)
