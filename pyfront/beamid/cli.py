@@ -299,7 +299,10 @@ def _commands() -> list:
     out = ("--out", dict(default="out", help="folder for the PNG files (default: out)"))
     mc_out = ("--out", dict(default=None, help="folder for the CSV and PNG (default: the "
                                                "deck's output)"))
-    values = dict(type=float, nargs="*", default=[])
+
+    def values(metavar: str, text: str):   # a list of numbers, default a fresh []
+        return dict(type=float, nargs="*", default=[], metavar=metavar, help=text)
+
     estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
                    "overrides the deck's task (docs/decks.md).",
                    [deck, no_plots("write CSV files only")]) for name, text in (
@@ -370,10 +373,9 @@ def _commands() -> list:
           mc_out, no_plots("write the CSV only")]),
         ("design", _cmd_design, "rank candidate measurements by the sigma they would leave",
          None,
-         [deck, ("--force", dict(values, metavar="FY", help="candidate transverse tip forces "
-                                 "(N)")),
-          ("--moment", dict(values, metavar="M", help="candidate tip moments (N m)")),
-          ("--wire", dict(values, metavar="LW", help="candidate radial wire lengths (m)")),
+         [deck, ("--force", values("FY", "candidate transverse tip forces (N)")),
+          ("--moment", values("M", "candidate tip moments (N m)")),
+          ("--wire", values("LW", "candidate radial wire lengths (m)")),
           ("--quantities", dict(nargs="*", default=None, help="measured quantities (default: "
                                 "x_tip y_tip tip_angle x_elbow y_elbow wire_force)")),
           ("--sigma", dict(nargs="*", default=None, metavar="[Q=]SIGMA", help="one sigma for "
@@ -382,8 +384,8 @@ def _commands() -> list:
                             "D-criterion over all free)")),
           ("--top", dict(type=int, default=20, help="rows to print (default 20)")),
           mc_out, no_plots("write the CSV only"),
-          ("--times", dict(values, metavar="T", help="measurement times (s) of the deck's "
-                           "release experiments as candidates"))])]
+          ("--times", values("T", "measurement times (s) of the deck's release "
+                              "experiments as candidates"))])]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -20,6 +20,7 @@ from typing import Any
 
 import f90nml
 
+from . import fe
 from .errors import OutputError
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
@@ -171,15 +172,11 @@ def run(deck: Deck | str | os.PathLike):
         return run_fit_deck(deck, plots=False)[2]
     run_files(deck)
     if deck.task == "fe_static":
-        from . import fe
-
         opts = deck.fe
         return fe.fe_static(deck.model, deck.load, int(opts["elements_per_beam"]),
                             moment_form=str(opts["moment_form"]), steps=int(opts["steps"]),
                             tol=float(opts["tol"]))
     if deck.task == "fe_modes":
-        from . import fe
-
         return fe.modes(deck.model, int(deck.fe["elements_per_beam"]),
                         rotary_inertia=bool(deck.fe["rotary_inertia"]))
     if deck.task == "simulate":

@@ -101,6 +101,7 @@ def _norm(table: str) -> str:
 
 def check_deck(deck: Deck) -> list[Check]:
     """Solve a deck and compare with its published values."""
+    wanted = [q for pub in deck.published for q in pub.values]
     if deck.task == "fit":
         from .estimation import fit
 
@@ -117,15 +118,12 @@ def check_deck(deck: Deck) -> list[Check]:
         # dynamic decks: SERIES@TIME or max_abs_SERIES (beamid.history)
         from .history import deck_quantities
 
-        wanted = [q for pub in deck.published for q in pub.values]
         ours_of = deck_quantities(deck, wanted).__getitem__
     elif deck.task.startswith("fe_"):
         from .fe import evaluate_fe
 
-        wanted = [q for pub in deck.published for q in pub.values]
-        fe_values = evaluate_fe(deck.task, deck.model, deck.load, **deck.fe,
-                                quantities=wanted)
-        ours_of = fe_values.__getitem__
+        ours_of = evaluate_fe(deck.task, deck.model, deck.load, **deck.fe,
+                              quantities=wanted).__getitem__
     else:
         result = solve_static(deck.model, deck.load, tol=deck.tol)
         ours_of = lambda q: _quantity(result, q)  # noqa: E731
