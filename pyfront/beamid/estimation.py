@@ -383,11 +383,10 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
             free: tuple[str, ...], prior: dict, raw: dict,
             nominal: Model | None = None) -> FitResult:
     fitted = Model(start.nbeams, raw["params"])
-    note = _named(start, raw.get("note", "")) if raw.get("stop", "converged") not in (
-        "converged", "evaluated") or raw.get("start") else ""
     stop = raw.get("stop", "converged")
-    if stop == "evaluated":
-        stop = "converged"
+    note = _named(start, raw.get("note", "")) if stop not in ("converged", "evaluated") \
+        or raw.get("start") else ""
+    stop = "converged" if stop == "evaluated" else stop
     est = {n: float(fitted[n]) for n in free}
     sig = {n: float(s) for n, s in zip(free, raw["sigmas"])}
     residuals = [Residual(e, float(t), q, float(v), float(p), float(s), float(r))

@@ -177,9 +177,8 @@ def figure25(runs: Mapping | None = None, ax=None):
 
 
 #: name -> drawing function (runs=None, ax=None) -> Axes
-FIGURES: dict[str, Callable] = {"figure20": figure20, "figure21": figure21,
-                                "figure22": figure22, "figure23": figure23,
-                                "figure24": figure24, "figure25": figure25}
+FIGURES: dict[str, Callable] = {f.__name__: f for f in (figure20, figure21, figure22,
+                                                        figure23, figure24, figure25)}
 
 
 def figure_names(names: Iterable[str] = ()) -> list[str]:
