@@ -35,7 +35,7 @@ module beamid_dyn_diagnosis
                               EV_GAIN
     use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE
+                                         Q_MOTOR_TORQUE, median_of, distinct_sorted
     implicit none
     private
 
@@ -767,58 +767,4 @@ contains
             end if
         end function one_sided_low
     end subroutine time_structure
-
-    pure real(dp) function median_of(x, default)
-        real(dp), intent(in) :: x(:), default
-        real(dp), allocatable :: v(:)
-        integer :: n
-        n = size(x)
-        if (n == 0) then
-            median_of = default
-            return
-        end if
-        v = distinct_sorted_all(x)
-        if (mod(n, 2) == 1) then
-            median_of = v((n + 1)/2)
-        else
-            median_of = 0.5_dp*(v(n/2) + v(n/2 + 1))
-        end if
-    end function median_of
-
-    !> x sorted ascending (duplicates kept).
-    pure function distinct_sorted_all(x) result(v)
-        real(dp), intent(in) :: x(:)
-        real(dp) :: v(size(x)), t
-        integer :: i, j
-        v = x
-        do i = 2, size(v)
-            t = v(i)
-            j = i - 1
-            do while (j >= 1)
-                if (v(j) <= t) exit
-                v(j + 1) = v(j)
-                j = j - 1
-            end do
-            v(j + 1) = t
-        end do
-    end function distinct_sorted_all
-
-    !> The distinct values of x in ascending order.
-    pure function distinct_sorted(x) result(out)
-        real(dp), intent(in) :: x(:)
-        real(dp), allocatable :: out(:)
-        real(dp) :: v(size(x))
-        integer :: i, n
-        v = distinct_sorted_all(x)
-        allocate (out(size(v)))
-        n = 0
-        do i = 1, size(v)
-            if (n > 0) then
-                if (v(i) == out(n)) cycle
-            end if
-            n = n + 1
-            out(n) = v(i)
-        end do
-        out = out(:n)
-    end function distinct_sorted
 end module beamid_dyn_diagnosis

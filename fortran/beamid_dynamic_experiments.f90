@@ -45,7 +45,7 @@ module beamid_dynamic_experiments
                               QTY_MOTOR_TORQUE
     use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, NQUANT, sorted_values
+                                         Q_MOTOR_TORQUE, NQUANT, distinct_sorted
     implicit none
     private
 
@@ -411,23 +411,4 @@ contains
             self%cache(e)%y = y
         end subroutine remember
     end subroutine dynamic_evaluate
-
-    !> The distinct values of x in ascending order.
-    pure function distinct_sorted(x) result(out)
-        real(dp), intent(in) :: x(:)
-        real(dp), allocatable :: out(:)
-        real(dp) :: v(size(x))
-        integer :: i, n
-        v = sorted_values(x)
-        allocate (out(size(v)))
-        n = 0
-        do i = 1, size(v)
-            if (n > 0) then
-                if (v(i) == out(n)) cycle
-            end if
-            n = n + 1
-            out(n) = v(i)
-        end do
-        out = out(:n)
-    end function distinct_sorted
 end module beamid_dynamic_experiments

@@ -27,7 +27,7 @@ module beamid_static_experiments
 
     public :: static_experiments_t, static_experiments_init, quantity_code, quantity_label
     public :: static_bounds, static_null_values, static_candidates, static_effect_params
-    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, sorted_values
+    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, median_of, distinct_sorted
 
     !> Quantity codes.
     integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
@@ -303,6 +303,7 @@ contains
         psig = psig(:n)
     end subroutine probe_rows
 
+    !> The median of x (default when x is empty).
     pure real(dp) function median_of(x, default)
         real(dp), intent(in) :: x(:), default
         real(dp) :: y(size(x))
@@ -337,4 +338,23 @@ contains
             v(j + 1) = t
         end do
     end function sorted_values
+
+    !> The distinct values of x in ascending order.
+    pure function distinct_sorted(x) result(out)
+        real(dp), intent(in) :: x(:)
+        real(dp), allocatable :: out(:)
+        real(dp) :: v(size(x))
+        integer :: i, n
+        v = sorted_values(x)
+        allocate (out(size(v)))
+        n = 0
+        do i = 1, size(v)
+            if (n > 0) then
+                if (v(i) == out(n)) cycle
+            end if
+            n = n + 1
+            out(n) = v(i)
+        end do
+        out = out(:n)
+    end function distinct_sorted
 end module beamid_static_experiments
