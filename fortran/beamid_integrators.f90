@@ -33,7 +33,7 @@ module beamid_integrators
                                DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                           dband_mv, zband_mv, kc_mv, ldlt_solve_real_many, ldlt_solve_cplx_many
+                           band_mv, ldlt_solve, kc_mv, ldlt_solve_real_many, ldlt_solve_cplx_many
     implicit none
     private
 
@@ -42,6 +42,10 @@ module beamid_integrators
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
+    !> The low-rank correction of a solve (lr_real, lr_cplx).
+    interface lr_apply
+        module procedure lr_real, lr_cplx
+    end interface lr_apply
     !> Kinds of friction events: the decision at the start (components at
     !! rest at t = 0), a sliding component's velocity reaching zero (it
     !! reverses or sticks), a sticking component's constraint force reaching
@@ -914,7 +918,8 @@ contains
         nb = 2*sys%ckl + sys%cku + 1
         if (.not. allocated(it%mb)) then
             allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n), &
-                      it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n))
+                      it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n), &
+                      it%s1(sys%ckl + 1, n), it%s2(sys%ckl + 1, n))
             it%lu1%n = n
             it%lu1%kl = sys%ckl
             it%lu1%ku = sys%cku
@@ -1091,7 +1096,6 @@ contains
             if (.not. it%sym) it%sym = skew_rows(sys%nc, kl, l1, l2, it%cb, it%kb, it)
         end if
         if (it%sym) then
-            if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
             call combine_sym(kl, sys%nc, l1, l2, it%mb, it%cb, it%kb, it%a1, it%a2, &
                              it%s1, it%s2)
             do i = 1, it%nst
@@ -1385,33 +1389,9 @@ contains
         real(dp) :: zt
         integer :: n
         logical :: skip
-        n = sys%nc
-        skip = .false.
-        if (present(r_zero)) skip = r_zero
-        if (skip) then
-            it%rhs = w(n + 1:2*n)
-        else
-            call dband_mv(n, sys%ckl, sys%cku, it%a1, w(1:n), it%rhs)
-            it%rhs = it%rhs + w(n + 1:2*n)
-        end if
-        zt = 0.0_dp
-        if (sys%nx > 0) then
-            zt = w(2*n + 1)
-            if (.not. skip) zt = zt - dot_product(it%d, w(1:n))
-            it%rhs = it%rhs + it%b*zt/(lam - it%e)
-        end if
-        if (it%nst > 0) it%rhs(it%stuck(1:it%nst)) = 0.0_dp
-        if (it%sym) then
-            call ldlt_solve_real(n, sys%ckl, it%s1, it%rhs)
-            if (it%nlr > 0) call lr_real(it, it%rhs)
-        else
-            call band_solve(it%lu1, it%rhs)
-        end if
-        w(n + 1:2*n) = lam*it%rhs - w(1:n)
-        if (sys%nx > 0) then
-            w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, it%rhs))/(lam - it%e)
-        end if
-        w(1:n) = it%rhs
+        associate (rhs => it%rhs, ab => it%a1, s => it%s1, lu => it%lu1)
+            include 'beamid_radau_solve.inc'
+        end associate
     end subroutine solve_real
 
     !> Complex counterpart of solve_real (lam = mu/h), same M-form input.
@@ -1424,31 +1404,9 @@ contains
         complex(dp) :: zt
         integer :: n
         logical :: skip
-        n = sys%nc
-        skip = .false.
-        if (present(r_zero)) skip = r_zero
-        if (skip) then
-            it%zrhs = w(n + 1:2*n)
-        else
-            call zband_mv(n, sys%ckl, sys%cku, it%a2, w(1:n), it%zrhs)
-            it%zrhs = it%zrhs + w(n + 1:2*n)
-        end if
-        zt = (0.0_dp, 0.0_dp)
-        if (sys%nx > 0) then
-            zt = w(2*n + 1)
-            if (.not. skip) zt = zt - sum(it%d*w(1:n))
-            it%zrhs = it%zrhs + it%b*zt/(lam - it%e)
-        end if
-        if (it%nst > 0) it%zrhs(it%stuck(1:it%nst)) = (0.0_dp, 0.0_dp)
-        if (it%sym) then
-            call ldlt_solve_cplx(n, sys%ckl, it%s2, it%zrhs)
-            if (it%nlr > 0) call lr_cplx(it, it%zrhs)
-        else
-            call zband_solve(it%lu2, it%zrhs)
-        end if
-        w(n + 1:2*n) = lam*it%zrhs - w(1:n)
-        if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*it%zrhs))/(lam - it%e)
-        w(1:n) = it%zrhs
+        associate (rhs => it%zrhs, ab => it%a2, s => it%s2, lu => it%lu2)
+            include 'beamid_radau_solve.inc'
+        end associate
     end subroutine solve_cplx
 
     !> Rates of y in M-form: (v, M0 M(q)^-1 F, x'). With a constant mass
