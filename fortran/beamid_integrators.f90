@@ -222,24 +222,14 @@ contains
         real(dp), intent(out) :: a(3, 3), dmat(3, 3), gam
         complex(dp), intent(out) :: mu, t(3, 3), ti(3, 3)
         complex(dp) :: lam(3), m(3, 3), det
-        real(dp) :: adj(3, 3), da
         integer :: k, it
         a(1, :) = [(88.0_dp - 7.0_dp*SQ6)/360.0_dp, (296.0_dp - 169.0_dp*SQ6)/1800.0_dp, &
                    (-2.0_dp + 3.0_dp*SQ6)/225.0_dp]
         a(2, :) = [(296.0_dp + 169.0_dp*SQ6)/1800.0_dp, (88.0_dp + 7.0_dp*SQ6)/360.0_dp, &
                    (-2.0_dp - 3.0_dp*SQ6)/225.0_dp]
         a(3, :) = [(16.0_dp - SQ6)/36.0_dp, (16.0_dp + SQ6)/36.0_dp, 1.0_dp/9.0_dp]
-        adj(1, 1) = a(2, 2)*a(3, 3) - a(2, 3)*a(3, 2)
-        adj(1, 2) = a(1, 3)*a(3, 2) - a(1, 2)*a(3, 3)
-        adj(1, 3) = a(1, 2)*a(2, 3) - a(1, 3)*a(2, 2)
-        adj(2, 1) = a(2, 3)*a(3, 1) - a(2, 1)*a(3, 3)
-        adj(2, 2) = a(1, 1)*a(3, 3) - a(1, 3)*a(3, 1)
-        adj(2, 3) = a(1, 3)*a(2, 1) - a(1, 1)*a(2, 3)
-        adj(3, 1) = a(2, 1)*a(3, 2) - a(2, 2)*a(3, 1)
-        adj(3, 2) = a(1, 2)*a(3, 1) - a(1, 1)*a(3, 2)
-        adj(3, 3) = a(1, 1)*a(2, 2) - a(1, 2)*a(2, 1)
-        da = a(1, 1)*adj(1, 1) + a(1, 2)*adj(2, 1) + a(1, 3)*adj(3, 1)
-        dmat = adj/da
+        call cinv3(cmplx(a, 0.0_dp, dp), m)
+        dmat = real(m, dp)
         ! eigenvalues of D: Newton on det(D - lam I) from the known values
         lam = [cmplx(3.6378342527444957_dp, 0.0_dp, dp), &
                cmplx(2.6810828736277521_dp, 3.0504301992474106_dp, dp), &

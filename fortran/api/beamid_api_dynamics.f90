@@ -96,13 +96,6 @@ contains
         type(release_spec_t) :: spec
         type(release_out_t) :: out
         integer :: nowrt(0)
-        states = 0.0_c_double
-        tip = 0.0_c_double
-        torque = 0.0_c_double
-        ledger = 0.0_c_double
-        work = 0.0_c_double
-        events = 0.0_c_double
-        info = 0
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nmodes < 0) then
             call set_status(stat, ERR_INPUT, 'api_dyn_simulate_modal', 'nmodes = '// &
@@ -121,7 +114,7 @@ contains
     end subroutine api_dyn_simulate_modal
 
     !> The outputs both release entries share, after checking the caller's
-    !! state and work sizes against the run's.
+    !! state and work sizes against the run's (zero after a failure).
     subroutine copy_history(out, where, nstate, nwork, states, tip, torque, ledger, work, &
                             info, events, stat)
         type(release_out_t), intent(in) :: out
@@ -131,6 +124,13 @@ contains
         real(c_double), intent(inout) :: work(:, :), events(:, :)
         integer(c_int), intent(inout) :: info(7)
         type(status_t), intent(inout) :: stat
+        states = 0.0_c_double
+        tip = 0.0_c_double
+        torque = 0.0_c_double
+        ledger = 0.0_c_double
+        work = 0.0_c_double
+        events = 0.0_c_double
+        info = 0
         if (stat%code /= STATUS_OK) return
         if (out%nstate /= nstate .or. out%nwork /= nwork) then
             call set_status(stat, ERR_INPUT, where, 'nstate = '//fmt_int(int(nstate))// &
@@ -416,16 +416,9 @@ contains
         type(status_t) :: stat
         type(release_spec_t) :: spec
         type(release_out_t) :: out
-        states = 0.0_c_double
-        tip = 0.0_c_double
-        torque = 0.0_c_double
-        ledger = 0.0_c_double
-        work = 0.0_c_double
-        events = 0.0_c_double
         y = 0.0_c_double
         dy = 0.0_c_double
         ds = 0.0_c_double
-        info = 0
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nq /= NQTY) then
             call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nq = '//fmt_int(int(nq))// &
