@@ -308,7 +308,6 @@ contains
         real(dp), intent(in), optional :: s0(:, :)
         real(dp), allocatable, intent(out), optional :: dstates(:, :, :)
         real(dp), allocatable :: sm(:, :)
-        logical :: sens
         character(len=*), parameter :: where = 'integrate'
         real(dp), allocatable :: yc0(:)
         integer :: nt, k
@@ -346,20 +345,14 @@ contains
             end if
         end if
         allocate (hist%y(sys%nstate, nt), hist%torque(nt), hist%kinetic(nt), &
-                  hist%potential(nt), hist%work(sys%nwork, nt), stat=k)
+                  hist%potential(nt), hist%work(sys%nwork, nt), source=0.0_dp, stat=k)
         if (k /= 0) then
             call set_status(stat, ERR_INPUT, where, fmt_int(nt)//' output times need '// &
                             fmt_real(8.0_dp*real(nt, dp)*real(sys%nstate + sys%nwork + 3, dp))// &
                             ' bytes for the history, which cannot be allocated')
             return
         end if
-        hist%y = 0.0_dp
-        hist%torque = 0.0_dp
-        hist%kinetic = 0.0_dp
-        hist%potential = 0.0_dp
-        hist%work = 0.0_dp
-        sens = present(pars)
-        if (sens) then
+        if (present(pars)) then
             if (sys%modal) then
                 call set_status(stat, ERR_INPUT, where, 'sensitivities are not available '// &
                                 'in the truncated modal model')
@@ -376,8 +369,7 @@ contains
                                 fmt_int(size(pars)))
                 return
             end if
-            allocate (dstates(sys%nstate, nt, size(pars)), sm(sys%nstate, size(pars)))
-            dstates = 0.0_dp
+            allocate (dstates(sys%nstate, nt, size(pars)), source=0.0_dp)
             sm = s0
         end if
         ! integration coordinates: q itself, or the modal coordinates (Eq. 127)
@@ -390,11 +382,7 @@ contains
                                 ', expected a positive step')
                 return
             end if
-            if (sens) then
-                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
-            else
-                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
-            end if
+            call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         case (METHOD_IMPLICIT)
             if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
                 then
@@ -403,11 +391,7 @@ contains
                                 fmt_real(opts%h0)//': expected positive values')
                 return
             end if
-            if (sens) then
-                call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
-            else
-                call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
-            end if
+            call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         case default
             call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
                             ', expected 0 (rk4) or 1 (implicit)')
