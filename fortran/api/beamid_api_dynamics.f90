@@ -14,13 +14,12 @@ module beamid_api_dynamics
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
-    use beamid_fe_assembly, only: fe_band_rows, fe_band_to_dense, fe_node_value, &
+    use beamid_fe_assembly, only: fe_band_to_dense, fe_node_value, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, &
-                               dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
-                               dyn_cforces, dyn_cjacobian, dyn_cmass
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_cforces, &
+                               dyn_cjacobian, dyn_cmass
     implicit none
     private
 
@@ -200,19 +199,6 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        real(dp), allocatable :: kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
-        real(dp), allocatable :: bb(:), pp(:), dd(:), xs(:)
-        real(dp) :: tq, ee
-        force = 0.0_c_double
-        power = 0.0_c_double
-        torque = 0.0_c_double
-        kmat = 0.0_c_double
-        cmat = 0.0_c_double
-        mass = 0.0_c_double
-        b = 0.0_c_double
-        p = 0.0_c_double
-        d = 0.0_c_double
-        e = 0.0_c_double
         call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         if (stat%code == STATUS_OK .and. (sys%n /= nfree .or. sys%nx /= nx .or. &
                                           sys%nwork /= nwork)) then
@@ -221,29 +207,7 @@ contains
                             fmt_int(int(nwork))//', expected '//fmt_int(sys%n)//', '// &
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
-        if (stat%code == STATUS_OK) then
-            allocate (kb(fe_band_rows(sys%mesh), sys%n), cb(fe_band_rows(sys%mesh), sys%n), &
-                      mb(fe_band_rows(sys%mesh), sys%n), a(sys%n, sys%n), f(sys%n), &
-                      pw(sys%nwork), bb(sys%n), pp(sys%n), dd(sys%n), xs(max(1, sys%nx)))
-            xs = 0.0_dp
-            if (sys%nx > 0) xs(1) = x(1)
-            call dyn_forces(sys, real(q, dp), real(v, dp), xs, f, pw, tq)
-            force = f
-            power = pw
-            torque = tq
-            call dyn_jacobian(sys, real(q, dp), real(v, dp), xs, kb, cb, bb, pp, dd, ee)
-            call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, a)
-            kmat = a
-            call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, a)
-            cmat = a
-            call dyn_mass(sys, real(q, dp), mb)
-            call fe_band_to_dense(mb, sys%mesh%kl, sys%mesh%ku, a)
-            mass = a
-            b = bb
-            p = pp
-            d = dd
-            e = ee
-        end if
+        call dense_system(sys, q, v, x, stat, force, power, torque, kmat, cmat, mass, b, p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system
 
@@ -265,19 +229,7 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
-        real(dp), allocatable :: bb(:), pp(:), dd(:)
-        real(dp) :: tq, ee
-        integer :: k, nb
-        force = 0.0_c_double
-        power = 0.0_c_double
-        kmat = 0.0_c_double
-        cmat = 0.0_c_double
-        mass = 0.0_c_double
-        b = 0.0_c_double
-        p = 0.0_c_double
-        d = 0.0_c_double
-        e = 0.0_c_double
+        real(c_double) :: torque
         call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         if (stat%code == STATUS_OK .and. (sys%nx /= nx .or. sys%nwork /= nwork)) then
             call set_status(stat, ERR_INPUT, 'api_dyn_system_modal', 'nx, nwork = '// &
@@ -285,32 +237,59 @@ contains
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
         if (stat%code == STATUS_OK) call dyn_set_modes(sys, int(modes), stat)
-        if (stat%code == STATUS_OK) then
-            k = sys%nc
-            nb = 3*sys%ckl + 1
-            allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
-                      pw(sys%nwork), bb(k), pp(k), dd(k))
-            yc(1:k) = eta
-            yc(k + 1:2*k) = etad
-            if (sys%nx > 0) yc(2*k + 1) = x(1)
-            call dyn_cforces(sys, yc, f, pw, tq)
-            force = f
-            power = pw
-            call dyn_cjacobian(sys, yc, kb, cb, bb, pp, dd, ee)
-            call fe_band_to_dense(kb, sys%ckl, sys%cku, a)
-            kmat = a
-            call fe_band_to_dense(cb, sys%ckl, sys%cku, a)
-            cmat = a
-            call dyn_cmass(sys, yc, mb)
-            call fe_band_to_dense(mb, sys%ckl, sys%cku, a)
-            mass = a
-            b = bb
-            p = pp
-            d = dd
-            e = ee
-        end if
+        call dense_system(sys, eta, etad, x, stat, force, power, torque, kmat, cmat, mass, b, &
+                          p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system_modal
+
+    !> The outputs of api_dyn_system(_modal) at the coordinate state (c, c', x)
+    !! of sys (full or modal; zero after a failure).
+    subroutine dense_system(sys, c, cd, x, stat, force, power, torque, kmat, cmat, mass, b, &
+                            p, d, e)
+        type(dyn_system_t), intent(in) :: sys
+        real(c_double), intent(in) :: c(:), cd(:), x(1)
+        type(status_t), intent(in) :: stat
+        real(c_double), intent(out) :: force(:), power(:), torque, kmat(:, :), cmat(:, :)
+        real(c_double), intent(out) :: mass(:, :), b(:), p(:), d(:), e
+        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
+        real(dp), allocatable :: bb(:), pp(:), dd(:)
+        real(dp) :: tq, ee
+        integer :: k, nb
+        force = 0.0_c_double
+        power = 0.0_c_double
+        torque = 0.0_c_double
+        kmat = 0.0_c_double
+        cmat = 0.0_c_double
+        mass = 0.0_c_double
+        b = 0.0_c_double
+        p = 0.0_c_double
+        d = 0.0_c_double
+        e = 0.0_c_double
+        if (stat%code /= STATUS_OK) return
+        k = sys%nc
+        nb = 2*sys%ckl + sys%cku + 1
+        allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
+                  pw(sys%nwork), bb(k), pp(k), dd(k))
+        yc(1:k) = c
+        yc(k + 1:2*k) = cd
+        if (sys%nx > 0) yc(2*k + 1) = x(1)
+        call dyn_cforces(sys, yc, f, pw, tq)
+        force = f
+        power = pw
+        torque = tq
+        call dyn_cjacobian(sys, yc, kb, cb, bb, pp, dd, ee)
+        call fe_band_to_dense(kb, sys%ckl, sys%cku, a)
+        kmat = a
+        call fe_band_to_dense(cb, sys%ckl, sys%cku, a)
+        cmat = a
+        call dyn_cmass(sys, yc, mb)
+        call fe_band_to_dense(mb, sys%ckl, sys%cku, a)
+        mass = a
+        b = bb
+        p = pp
+        d = dd
+        e = ee
+    end subroutine dense_system
 
     !> Deformed shape x = s + u(s), y = w(s) at nsub points per element
     !! (Hermite interpolation of Eq. 76), npts = nel nsub + 1, plus the arc s.
