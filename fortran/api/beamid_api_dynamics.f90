@@ -8,6 +8,7 @@
 !! 1e-9). Friction laws: 0 sign (Eq. 101; in both integrators its switches
 !! are events, with sticking; elsewhere sign(0) = 0), 1 smooth
 !! v/sqrt(v^2 + vslip^2), 2 literal Fortran SIGN(1, v) (+1 at v = 0, no events).
+!! Outputs of a failed call are zeros: f2py allocates them zeroed.
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -49,9 +50,6 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        nfree = 0
-        nstate = 0
-        nwork = 0
         call make_system(nbeams, nparams, params, nepb, gain, 0_c_int, 1.0_c_double, sys, stat)
         if (stat%code == STATUS_OK) then
             nfree = int(sys%n, c_int)
@@ -113,7 +111,7 @@ contains
     end subroutine api_dyn_simulate_modal
 
     !> The outputs both release entries share, after checking the caller's
-    !! state and work sizes against the run's (zero after a failure).
+    !! state and work sizes against the run's.
     subroutine copy_history(out, where, nstate, nwork, states, tip, torque, ledger, work, &
                             info, events, stat)
         type(release_out_t), intent(in) :: out
@@ -123,13 +121,6 @@ contains
         real(c_double), intent(inout) :: work(:, :), events(:, :)
         integer(c_int), intent(inout) :: info(7)
         type(status_t), intent(inout) :: stat
-        states = 0.0_c_double
-        tip = 0.0_c_double
-        torque = 0.0_c_double
-        ledger = 0.0_c_double
-        work = 0.0_c_double
-        events = 0.0_c_double
-        info = 0
         if (stat%code /= STATUS_OK) return
         if (out%nstate /= nstate .or. out%nwork /= nwork) then
             call set_status(stat, ERR_INPUT, where, 'nstate = '//fmt_int(int(nstate))// &
@@ -172,9 +163,8 @@ contains
     !! force before, after), as many as fit.
     subroutine copy_events(out, events)
         type(release_out_t), intent(in) :: out
-        real(c_double), intent(out) :: events(:, :)
+        real(c_double), intent(inout) :: events(:, :)
         integer :: k
-        events = 0.0_c_double
         do k = 1, min(size(events, 2), out%hist%nevents)
             associate (ev => out%hist%events(k))
                 events(:, k) = [ev%t, real(ev%comp, dp), real(ev%kind, dp), &
@@ -207,7 +197,8 @@ contains
                             fmt_int(int(nwork))//', expected '//fmt_int(sys%n)//', '// &
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
-        call dense_system(sys, q, v, x, stat, force, power, torque, kmat, cmat, mass, b, p, d, e)
+        if (stat%code == STATUS_OK) call dense_system(sys, q, v, x, force, power, torque, kmat, &
+                                                      cmat, mass, b, p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system
 
@@ -237,35 +228,22 @@ contains
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
         if (stat%code == STATUS_OK) call dyn_set_modes(sys, int(modes), stat)
-        call dense_system(sys, eta, etad, x, stat, force, power, torque, kmat, cmat, mass, b, &
-                          p, d, e)
+        if (stat%code == STATUS_OK) call dense_system(sys, eta, etad, x, force, power, torque, &
+                                                      kmat, cmat, mass, b, p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system_modal
 
     !> The outputs of api_dyn_system(_modal) at the coordinate state (c, c', x)
-    !! of sys (full or modal; zero after a failure).
-    subroutine dense_system(sys, c, cd, x, stat, force, power, torque, kmat, cmat, mass, b, &
-                            p, d, e)
+    !! of sys (full or modal).
+    subroutine dense_system(sys, c, cd, x, force, power, torque, kmat, cmat, mass, b, p, d, e)
         type(dyn_system_t), intent(in) :: sys
         real(c_double), intent(in) :: c(:), cd(:), x(1)
-        type(status_t), intent(in) :: stat
         real(c_double), intent(out) :: force(:), power(:), torque, kmat(:, :), cmat(:, :)
         real(c_double), intent(out) :: mass(:, :), b(:), p(:), d(:), e
         real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
         real(dp), allocatable :: bb(:), pp(:), dd(:)
         real(dp) :: tq, ee
         integer :: k, nb
-        force = 0.0_c_double
-        power = 0.0_c_double
-        torque = 0.0_c_double
-        kmat = 0.0_c_double
-        cmat = 0.0_c_double
-        mass = 0.0_c_double
-        b = 0.0_c_double
-        p = 0.0_c_double
-        d = 0.0_c_double
-        e = 0.0_c_double
-        if (stat%code /= STATUS_OK) return
         k = sys%nc
         nb = 2*sys%ckl + sys%cku + 1
         allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
@@ -305,9 +283,6 @@ contains
         real(dp) :: f(4), f1(4), f2(4), zeta, h, nw(4), nu(4)
         real(dp), allocatable :: qd(:)
         integer :: el, j, nsub, i
-        s = 0.0_c_double
-        x = 0.0_c_double
-        y = 0.0_c_double
         call make_system(nbeams, nparams, params, nepb, 0.0_c_double, 0_c_int, 1.0_c_double, &
                          sys, stat)
         if (stat%code == STATUS_OK) then
@@ -395,9 +370,6 @@ contains
         type(status_t) :: stat
         type(release_spec_t) :: spec
         type(release_out_t) :: out
-        y = 0.0_c_double
-        dy = 0.0_c_double
-        ds = 0.0_c_double
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nq /= NQTY) then
             call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nq = '//fmt_int(int(nq))// &
