@@ -240,33 +240,20 @@ contains
         real(c_double), intent(in) :: c(:), cd(:), x(1)
         real(c_double), intent(out) :: force(:), power(:), torque, kmat(:, :), cmat(:, :)
         real(c_double), intent(out) :: mass(:, :), b(:), p(:), d(:), e
-        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
-        real(dp), allocatable :: bb(:), pp(:), dd(:)
-        real(dp) :: tq, ee
+        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :)
         integer :: k, nb
         k = sys%nc
         nb = 2*sys%ckl + sys%cku + 1
-        allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
-                  pw(sys%nwork), bb(k), pp(k), dd(k))
+        allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k))
         yc(1:k) = c
         yc(k + 1:2*k) = cd
         if (sys%nx > 0) yc(2*k + 1) = x(1)
-        call dyn_cforces(sys, yc, f, pw, tq)
-        force = f
-        power = pw
-        torque = tq
-        call dyn_cjacobian(sys, yc, kb, cb, bb, pp, dd, ee)
-        call fe_band_to_dense(kb, sys%ckl, sys%cku, a)
-        kmat = a
-        call fe_band_to_dense(cb, sys%ckl, sys%cku, a)
-        cmat = a
+        call dyn_cforces(sys, yc, force, power, torque)
+        call dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+        call fe_band_to_dense(kb, sys%ckl, sys%cku, kmat)
+        call fe_band_to_dense(cb, sys%ckl, sys%cku, cmat)
         call dyn_cmass(sys, yc, mb)
-        call fe_band_to_dense(mb, sys%ckl, sys%cku, a)
-        mass = a
-        b = bb
-        p = pp
-        d = dd
-        e = ee
+        call fe_band_to_dense(mb, sys%ckl, sys%cku, mass)
     end subroutine dense_system
 
     !> Deformed shape x = s + u(s), y = w(s) at nsub points per element

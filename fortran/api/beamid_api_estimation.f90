@@ -84,9 +84,7 @@ contains
         real(c_double), intent(in) :: level(n), normalized(n)
         integer(c_int), intent(in) :: group(n)
         real(c_double), intent(out) :: out(7)
-        real(dp) :: o(7)
-        call residual_structure(real(level, dp), int(group), real(normalized, dp), o)
-        out = o
+        call residual_structure(real(level, dp), int(group), real(normalized, dp), out)
     end subroutine api_residual_structure
 
     !> The words of a code table of beamid_estimation, one per code from 0
@@ -406,9 +404,7 @@ contains
         integer(c_int), intent(in) :: n
         real(c_double), intent(in) :: t(n), r(n)
         real(c_double), intent(out) :: out(10)
-        real(dp) :: o(10)
-        call time_structure(real(t, dp), real(r, dp), o)
-        out = o
+        call time_structure(real(t, dp), real(r, dp), out)
     end subroutine api_time_structure
 
     !> Diagnose a fit (beamid_ladder problem_diagnose: with release
