@@ -300,9 +300,7 @@ contains
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
         if (stat%code /= STATUS_OK) return
         n = sys%n
-        allocate (y0(sys%nstate), q(n))
-        y0 = 0.0_dp
-        q = 0.0_dp
+        allocate (y0(sys%nstate), q(n), source=0.0_dp)
         load%fx = x%fx
         load%fy = x%fy
         load%moment = x%moment

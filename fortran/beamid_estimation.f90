@@ -1362,8 +1362,7 @@ contains
             logical, allocatable :: un(:)
             real(dp) :: cn
             integer :: rk
-            allocate (dl(nb))
-            dl = 0.0_dp
+            allocate (dl(nb), source=0.0_dp)
             idx = pack([(i, i=1, nb)], active)
             na = size(idx)
             rb = min(mt, na)
@@ -1515,8 +1514,7 @@ contains
         real(dp), allocatable, intent(out) :: target(:), shift(:)
         integer :: j
         target = null_block
-        allocate (shift(nf))
-        shift = 0.0_dp
+        allocate (shift(nf), source=0.0_dp)
         if (.not. allocated(score%estimate)) return
         if (size(score%estimate) == size(null_block)) then
             do j = 1, size(null_block)

@@ -173,8 +173,7 @@ contains
         nodes_out = 0.0_dp
         energy = 0.0_dp
         reactions = 0.0_dp
-        allocate (q(mesh%nfree))
-        q = 0.0_dp
+        allocate (q(mesh%nfree), source=0.0_dp)
         if (from_guess) call fe_q_from_nodes(mesh, guess, q, guess_out)
         call fe_solve_static(mesh, load, q, from_guess, opts, sinfo, stat)
         info = [sinfo%iterations, sinfo%steps, sinfo%negative]

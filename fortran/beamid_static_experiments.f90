@@ -180,8 +180,7 @@ contains
         integer, intent(in) :: nbeams
         real(dp), allocatable, intent(out) :: lower(:), upper(:)
         integer :: i
-        allocate (lower(param_count(nbeams)), upper(param_count(nbeams)))
-        lower = 0.0_dp
+        allocate (lower(param_count(nbeams)), upper(param_count(nbeams)), source=0.0_dp)
         upper = huge(1.0_dp)
         do i = 1, nbeams
             lower(param_index_beam(nbeams, i, IB_C)) = -huge(1.0_dp)
@@ -194,8 +193,7 @@ contains
     pure subroutine static_null_values(nbeams, null_values)
         integer, intent(in) :: nbeams
         real(dp), allocatable, intent(out) :: null_values(:)
-        allocate (null_values(param_count(nbeams)))
-        null_values = 0.0_dp
+        allocate (null_values(param_count(nbeams)), source=0.0_dp)
     end subroutine static_null_values
 
     !> Parameter indices of a static effect ('' or unknown name: empty and

@@ -193,13 +193,11 @@ contains
 
         nnode = d%nbeams*d%fe_elements_per_beam + 1
         allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode), &
-                  stat=ierr)
+                  source=0.0_dp, stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(st, 'fe_static', 'the node tables', 112.0_dp*real(nnode, dp))
             return
         end if
-        guess = 0.0_dp
-        guess_out = 0.0_dp
         call fe_setup(d%nbeams, d%params, d%fe_elements_per_beam, [d%load%fx, d%load%fy, &
                       d%load%moment, real(d%fe_moment_form, dp)], d%fe_steps, d%fe_tol, mesh, &
                       load, opts, st)

@@ -268,7 +268,6 @@ contains
         type(dyn_system_t) :: sys
         type(status_t) :: stat
         real(dp) :: f(4), f1(4), f2(4), zeta, h, nw(4), nu(4)
-        real(dp), allocatable :: qd(:)
         integer :: el, j, nsub, i
         call make_system(nbeams, nparams, params, nepb, 0.0_c_double, 0_c_int, 1.0_c_double, &
                          sys, stat)
@@ -282,22 +281,20 @@ contains
             end if
         end if
         if (stat%code == STATUS_OK) then
-            allocate (qd(sys%n))
-            qd = q
             nsub = (npts - 1)/sys%mesh%nel
             i = 0
             do el = 1, sys%mesh%nel
                 h = sys%mesh%h(el)
                 ! the element's first node contributes its outboard slopes (a hinge's
                 ! second pair; the node's own slopes elsewhere)
-                nw = [fe_node_value(sys%mesh, qd, el, DOF_W), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DW_OUT), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_W), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_DW)]
-                nu = [fe_node_value(sys%mesh, qd, el, DOF_U), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DU_OUT), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_U), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_DU)]
+                nw = [fe_node_value(sys%mesh, q, el, DOF_W), &
+                      fe_node_value(sys%mesh, q, el, DOF_DW_OUT), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_W), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_DW)]
+                nu = [fe_node_value(sys%mesh, q, el, DOF_U), &
+                      fe_node_value(sys%mesh, q, el, DOF_DU_OUT), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_U), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_DU)]
                 do j = 0, nsub
                     if (j == 0 .and. el > 1) cycle
                     zeta = real(j, dp)/real(nsub, dp)
