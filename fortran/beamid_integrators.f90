@@ -1625,9 +1625,9 @@ contains
     end subroutine run_radau
 
     !> run_radau's start: the tableau, the work arrays, the friction modes at
-    !! the release and the step controller's first values.
+    !! the release and the step controller's first values (else the type's defaults).
     subroutine radau_start(r, sys, y0, opts, hist, stats, stat, pars)
-        type(radau_run_t), intent(inout) :: r
+        type(radau_run_t), intent(out) :: r
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:)
         type(integ_opts_t), intent(in) :: opts
@@ -1669,27 +1669,14 @@ contains
         r%hold0 = 0.0_dp
         r%hst = 0.0_dp
         r%acc3 = 0.0_dp
-        r%it%nst = 0
         if (r%evon) then
             call start_modes(r%es, r%y, r%hold0, hist, stats, stat)
             if (stat%code /= 0) return
             call set_stuck(r%es, r%it)
         end if
-        r%pend = 0
-        r%pkind = 0
-        r%nstall = 0
-        r%may_reuse = .false.
-        r%reused = .false.
-        r%hpend = 0.0_dp
-        r%hcut = 0.0_dp
         r%work = 0.0_dp
-        r%t = 0.0_dp
         r%h = opts%h0
         r%hprev = r%h
-        r%first = .true.
-        r%reject = .false.
-        r%have_prev = .false.
-        r%have_f0 = .false.
     end subroutine radau_start
 
     !> The next step: its length hh (cut at the output time tnext), the error
