@@ -39,9 +39,7 @@ module beamid_dyn_diagnosis
     implicit none
     private
 
-    public :: mesh_test_t, dyn_diagnose, mesh_test, dyn_probe_rows, time_structure
-    public :: MESH_ORDER, MESH_TARGET, null_side_model_t, null_side_init
-    public :: cached_model_t
+    public :: mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, null_side_init
 
     !> Parameters whose forward sensitivity does not exist at the null value,
     !! because the effect adds a state or a degree of freedom only when on: the

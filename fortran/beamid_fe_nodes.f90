@@ -28,7 +28,6 @@ module beamid_fe_nodes
     private
 
     public :: fe_mesh_from_params, fe_load_from_values, fe_newton_options, fe_setup
-    public :: fe_q_from_nodes, fe_nodes_from_q
     public :: fe_static_nodes, fe_path_nodes, fe_buckling_nodes, fe_modes_table
     public :: fe_modal_cost_nodes, fe_system_dense
 

@@ -17,7 +17,6 @@ module beamid_fe_static
 
     public :: fe_newton_opts_t, fe_solve_info_t
     public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
-    public :: fe_geometric_stiffness, fe_negative_eigenvalues
 
     !> Controls of the Newton iteration and of the load stepping.
     type :: fe_newton_opts_t
