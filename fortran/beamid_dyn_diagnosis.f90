@@ -30,7 +30,7 @@ module beamid_dyn_diagnosis
     use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, fit_at, fit_least_squares, &
                                  diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
-                                 score_result_t
+                                 score_result_t, sort_desc
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_RELEASE, EV_NEPB, &
                               EV_GAIN
     use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
@@ -702,23 +702,13 @@ contains
         real(dp), allocatable :: ts(:), rs(:), a(:), x(:)
         integer, allocatable :: order(:), signs(:)
         real(dp) :: nan, nn, mean, var, z, xbar, sxx, sxy, den, rbar
-        integer :: n, i, j, k, n1, n2, runs
+        integer :: n, n1, n2, runs
         nan = 0.0_dp
         nan = nan/nan
         out = nan
         n = size(r)
         if (n /= size(t) .or. n < 3) return
-        order = [(i, i=1, n)]
-        do i = 2, n
-            k = order(i)
-            j = i - 1
-            do while (j >= 1)
-                if (t(order(j)) <= t(k)) exit
-                order(j + 1) = order(j)
-                j = j - 1
-            end do
-            order(j + 1) = k
-        end do
+        order = sort_desc(-t)   ! ascending t, stable
         ts = t(order)
         rs = r(order)
         ! runs of signs
