@@ -21,7 +21,7 @@ module beamid_static_experiments
                             param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, LOAD_TIP, LOAD_WIRE
-    use beamid_estimation, only: residual_model_t, candidate_t
+    use beamid_estimation, only: residual_model_t, candidate_t, sort_desc
     implicit none
     private
 
@@ -311,7 +311,7 @@ contains
             median_of = default
             return
         end if
-        y = sorted_values(x)
+        y = x(sort_desc(-x))   ! ascending
         if (mod(n, 2) == 1) then
             median_of = y((n + 1)/2)
         else
@@ -319,31 +319,13 @@ contains
         end if
     end function median_of
 
-    !> x in ascending order (stable insertion sort).
-    pure function sorted_values(x) result(v)
-        real(dp), intent(in) :: x(:)
-        real(dp) :: v(size(x)), t
-        integer :: i, j
-        v = x
-        do i = 2, size(v)
-            t = v(i)
-            j = i - 1
-            do while (j >= 1)
-                if (v(j) <= t) exit
-                v(j + 1) = v(j)
-                j = j - 1
-            end do
-            v(j + 1) = t
-        end do
-    end function sorted_values
-
     !> The distinct values of x in ascending order.
     pure function distinct_sorted(x) result(out)
         real(dp), intent(in) :: x(:)
         real(dp), allocatable :: out(:)
         real(dp) :: v(size(x))
         integer :: i, n
-        v = sorted_values(x)
+        v = x(sort_desc(-x))   ! ascending
         allocate (out(size(v)))
         n = 0
         do i = 1, size(v)
