@@ -220,7 +220,7 @@ contains
         type(release_out_t) :: out
         integer :: q
         if (x%fd) then
-            call release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
+            call central_differences()
             return
         end if
         y = 0.0_dp
@@ -244,36 +244,29 @@ contains
             y(q, :) = out%y(QTY_OF(q), :)
             dy(q, :, :) = out%dy(QTY_OF(q), :, :)
         end do
+    contains
+        !> The response by central differences of whole runs (x%fd).
+        subroutine central_differences()
+            real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
+            real(dp) :: h
+            integer :: j
+            dy = 0.0_dp
+            call release_run(nbeams, params, x, t_out, y, stat)
+            if (stat%code /= STATUS_OK) return
+            allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
+            do j = 1, size(wrt)
+                p = params
+                h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
+                p(wrt(j)) = params(wrt(j)) + h
+                call release_run(nbeams, p, x, t_out, yp, stat)
+                if (stat%code /= STATUS_OK) return
+                p(wrt(j)) = params(wrt(j)) - h
+                call release_run(nbeams, p, x, t_out, ym, stat)
+                if (stat%code /= STATUS_OK) return
+                dy(:, :, j) = (yp - ym)/(2.0_dp*h)
+            end do
+        end subroutine central_differences
     end subroutine release_response
-
-    !> release_response by central differences of whole runs.
-    subroutine release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
-        integer, intent(in) :: nbeams
-        real(dp), intent(in) :: params(:)
-        type(release_exp_t), intent(in) :: x
-        real(dp), intent(in) :: t_out(:)
-        integer, intent(in) :: wrt(:)
-        real(dp), intent(out) :: y(:, :), dy(:, :, :)
-        type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
-        real(dp) :: h
-        integer :: j
-        dy = 0.0_dp
-        call release_run(nbeams, params, x, t_out, y, stat)
-        if (stat%code /= STATUS_OK) return
-        allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
-        do j = 1, size(wrt)
-            p = params
-            h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
-            p(wrt(j)) = params(wrt(j)) + h
-            call release_run(nbeams, p, x, t_out, yp, stat)
-            if (stat%code /= STATUS_OK) return
-            p(wrt(j)) = params(wrt(j)) - h
-            call release_run(nbeams, p, x, t_out, ym, stat)
-            if (stat%code /= STATUS_OK) return
-            dy(:, :, j) = (yp - ym)/(2.0_dp*h)
-        end do
-    end subroutine release_response_fd
 
     !> One run: static equilibrium, release, integration, quantities.
     subroutine release_run(nbeams, params, x, t_out, y, stat)
