@@ -1697,8 +1697,6 @@ contains
         nc = size(cands)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
-        diag%verdict = 0
-        diag%ntested = 0
         call score_candidates(model, y, sigma, base, null_values, lower, upper, prior, cands, &
                               fopts, diag, stat)
         if (stat%code /= STATUS_OK) return
