@@ -297,7 +297,6 @@ contains
         if (.not. any(exp_kind == EXP_RELEASE)) return
         res%done = .true.
         values = exp_values
-        res%nepb = 0
         do e = 1, size(exp_kind)
             if (exp_kind(e) /= EXP_RELEASE) cycle
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))

@@ -205,7 +205,6 @@ contains
         call fe_mass(sys%mesh, q0, .false., sys%mb)
         allocate (sys%fmode(2*sys%npt))
         sys%fmode = 0
-        sys%events = .false.
         if (.not. sys%rotary) then
             sys%mlu%n = sys%n
             sys%mlu%kl = sys%mesh%kl

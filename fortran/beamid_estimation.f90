@@ -1186,7 +1186,6 @@ contains
         res%dof = mt - n
         res%converged = .true.
         res%stop = STOP_EVALUATED
-        res%nlog = 0
         res%log_cost = [sum(rr**2)]
         res%log_lambda = [0.0_dp]
         res%log_step = [0.0_dp]
@@ -1440,8 +1439,6 @@ contains
         end if
         all_free = [base%free, block]
         info%note = ''
-        info%start = START_NONE
-        info%tried = 0
         if (base%dof - nb > 0) rs%noise = real(base%dof - nb, dp) + &
                                           3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
         call first_order_target(score, null_values(block), size(base%free), target, shift)

@@ -181,8 +181,6 @@ contains
         dlam = dlam_max
         dlam_prev = 0.0_dp
         nbisect = 0
-        info%iterations = 0
-        info%steps = 0
         do while (lam < 1.0_dp)
             dlam = min(dlam, 1.0_dp - lam)
             q_try = q
