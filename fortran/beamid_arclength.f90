@@ -1297,8 +1297,7 @@ contains
                    matmul(shot%v_joint(:, 1:NSHOOT, 1), du(1:NSHOOT, :))
 
         nan = ieee_value(1.0_dp, ieee_quiet_nan)
-        allocate (sol%doutputs(NOUT, nw))
-        sol%doutputs = 0.0_dp
+        allocate (sol%doutputs(NOUT, nw), source=0.0_dp)
         sol%outputs(OUT_X_TIP) = shot%z_end(IX)
         sol%outputs(OUT_Y_TIP) = shot%z_end(IY)
         sol%outputs(OUT_TIP_ANGLE) = shot%z_end(IPSI)

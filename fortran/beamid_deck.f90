@@ -400,8 +400,7 @@ contains
         integer, intent(in) :: nbeams
         real(dp), allocatable :: base(:)
         integer :: i
-        allocate (base(param_count(nbeams)))
-        base = 0.0_dp
+        allocate (base(param_count(nbeams)), source=0.0_dp)
         do i = 1, nbeams
             base(param_index_beam(nbeams, i, IB_L)) = ieee_value(1.0_dp, ieee_quiet_nan)
             base(param_index_beam(nbeams, i, IB_EI)) = ieee_value(1.0_dp, ieee_quiet_nan)

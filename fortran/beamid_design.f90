@@ -24,6 +24,7 @@ module beamid_design
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp, infinity, not_a_number
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
+    use beamid_estimation, only: sort_desc
     implicit none
     private
 
@@ -201,7 +202,7 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp) :: work(size(info, 1), size(info, 1)), cov(size(info, 1), size(info, 1))
         real(dp) :: sig(size(info, 1)), dc
-        integer :: n, nc, c, i, j, key, rank
+        integer :: n, nc, c, rank
         n = size(info, 1)
         nc = size(sigma)
         base = infinity()
@@ -241,17 +242,8 @@ contains
             if (stat%code /= STATUS_OK) return
             crit(c) = criterion(sig, dc)
         end do
-        ! stable insertion sort (+Inf last, ties in candidate order)
-        do i = 2, nc
-            key = order(i)
-            j = i - 1
-            do while (j >= 1)
-                if (.not. (crit(order(j)) > crit(key))) exit
-                order(j + 1) = order(j)
-                j = j - 1
-            end do
-            order(j + 1) = key
-        end do
+        ! ascending, stable (+Inf last, ties in candidate order; crit is never NaN)
+        order = sort_desc(-crit)
     contains
         pure real(dp) function criterion(s, dcrit)
             real(dp), intent(in) :: s(:), dcrit

@@ -30,18 +30,16 @@ module beamid_dyn_diagnosis
     use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, fit_at, fit_least_squares, &
                                  diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
-                                 score_result_t
+                                 score_result_t, sort_desc
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_RELEASE, EV_NEPB, &
                               EV_GAIN
     use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE
+                                         Q_MOTOR_TORQUE, median_of, distinct_sorted
     implicit none
     private
 
-    public :: mesh_test_t, dyn_diagnose, mesh_test, dyn_probe_rows, time_structure
-    public :: MESH_ORDER, MESH_TARGET, null_side_model_t, null_side_init
-    public :: cached_model_t
+    public :: mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, null_side_init
 
     !> Parameters whose forward sensitivity does not exist at the null value,
     !! because the effect adds a state or a degree of freedom only when on: the
@@ -299,7 +297,6 @@ contains
         if (.not. any(exp_kind == EXP_RELEASE)) return
         res%done = .true.
         values = exp_values
-        res%nepb = 0
         do e = 1, size(exp_kind)
             if (exp_kind(e) /= EXP_RELEASE) cycle
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
@@ -704,23 +701,13 @@ contains
         real(dp), allocatable :: ts(:), rs(:), a(:), x(:)
         integer, allocatable :: order(:), signs(:)
         real(dp) :: nan, nn, mean, var, z, xbar, sxx, sxy, den, rbar
-        integer :: n, i, j, k, n1, n2, runs
+        integer :: n, n1, n2, runs
         nan = 0.0_dp
         nan = nan/nan
         out = nan
         n = size(r)
         if (n /= size(t) .or. n < 3) return
-        order = [(i, i=1, n)]
-        do i = 2, n
-            k = order(i)
-            j = i - 1
-            do while (j >= 1)
-                if (t(order(j)) <= t(k)) exit
-                order(j + 1) = order(j)
-                j = j - 1
-            end do
-            order(j + 1) = k
-        end do
+        order = sort_desc(-t)   ! ascending t, stable
         ts = t(order)
         rs = r(order)
         ! runs of signs
@@ -767,58 +754,4 @@ contains
             end if
         end function one_sided_low
     end subroutine time_structure
-
-    pure real(dp) function median_of(x, default)
-        real(dp), intent(in) :: x(:), default
-        real(dp), allocatable :: v(:)
-        integer :: n
-        n = size(x)
-        if (n == 0) then
-            median_of = default
-            return
-        end if
-        v = distinct_sorted_all(x)
-        if (mod(n, 2) == 1) then
-            median_of = v((n + 1)/2)
-        else
-            median_of = 0.5_dp*(v(n/2) + v(n/2 + 1))
-        end if
-    end function median_of
-
-    !> x sorted ascending (duplicates kept).
-    pure function distinct_sorted_all(x) result(v)
-        real(dp), intent(in) :: x(:)
-        real(dp) :: v(size(x)), t
-        integer :: i, j
-        v = x
-        do i = 2, size(v)
-            t = v(i)
-            j = i - 1
-            do while (j >= 1)
-                if (v(j) <= t) exit
-                v(j + 1) = v(j)
-                j = j - 1
-            end do
-            v(j + 1) = t
-        end do
-    end function distinct_sorted_all
-
-    !> The distinct values of x in ascending order.
-    pure function distinct_sorted(x) result(out)
-        real(dp), intent(in) :: x(:)
-        real(dp), allocatable :: out(:)
-        real(dp) :: v(size(x))
-        integer :: i, n
-        v = distinct_sorted_all(x)
-        allocate (out(size(v)))
-        n = 0
-        do i = 1, size(v)
-            if (n > 0) then
-                if (v(i) == out(n)) cycle
-            end if
-            n = n + 1
-            out(n) = v(i)
-        end do
-        out = out(:n)
-    end function distinct_sorted
 end module beamid_dyn_diagnosis

@@ -45,7 +45,7 @@ module beamid_dynamic_experiments
                               QTY_MOTOR_TORQUE
     use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, NQUANT, sorted_values
+                                         Q_MOTOR_TORQUE, NQUANT, distinct_sorted
     implicit none
     private
 
@@ -220,7 +220,7 @@ contains
         type(release_out_t) :: out
         integer :: q
         if (x%fd) then
-            call release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
+            call central_differences()
             return
         end if
         y = 0.0_dp
@@ -244,36 +244,29 @@ contains
             y(q, :) = out%y(QTY_OF(q), :)
             dy(q, :, :) = out%dy(QTY_OF(q), :, :)
         end do
+    contains
+        !> The response by central differences of whole runs (x%fd).
+        subroutine central_differences()
+            real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
+            real(dp) :: h
+            integer :: j
+            dy = 0.0_dp
+            call release_run(nbeams, params, x, t_out, y, stat)
+            if (stat%code /= STATUS_OK) return
+            allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
+            do j = 1, size(wrt)
+                p = params
+                h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
+                p(wrt(j)) = params(wrt(j)) + h
+                call release_run(nbeams, p, x, t_out, yp, stat)
+                if (stat%code /= STATUS_OK) return
+                p(wrt(j)) = params(wrt(j)) - h
+                call release_run(nbeams, p, x, t_out, ym, stat)
+                if (stat%code /= STATUS_OK) return
+                dy(:, :, j) = (yp - ym)/(2.0_dp*h)
+            end do
+        end subroutine central_differences
     end subroutine release_response
-
-    !> release_response by central differences of whole runs.
-    subroutine release_response_fd(nbeams, params, x, t_out, wrt, y, dy, stat)
-        integer, intent(in) :: nbeams
-        real(dp), intent(in) :: params(:)
-        type(release_exp_t), intent(in) :: x
-        real(dp), intent(in) :: t_out(:)
-        integer, intent(in) :: wrt(:)
-        real(dp), intent(out) :: y(:, :), dy(:, :, :)
-        type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
-        real(dp) :: h
-        integer :: j
-        dy = 0.0_dp
-        call release_run(nbeams, params, x, t_out, y, stat)
-        if (stat%code /= STATUS_OK) return
-        allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
-        do j = 1, size(wrt)
-            p = params
-            h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
-            p(wrt(j)) = params(wrt(j)) + h
-            call release_run(nbeams, p, x, t_out, yp, stat)
-            if (stat%code /= STATUS_OK) return
-            p(wrt(j)) = params(wrt(j)) - h
-            call release_run(nbeams, p, x, t_out, ym, stat)
-            if (stat%code /= STATUS_OK) return
-            dy(:, :, j) = (yp - ym)/(2.0_dp*h)
-        end do
-    end subroutine release_response_fd
 
     !> One run: static equilibrium, release, integration, quantities.
     subroutine release_run(nbeams, params, x, t_out, y, stat)
@@ -300,9 +293,7 @@ contains
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
         if (stat%code /= STATUS_OK) return
         n = sys%n
-        allocate (y0(sys%nstate), q(n))
-        y0 = 0.0_dp
-        q = 0.0_dp
+        allocate (y0(sys%nstate), q(n), source=0.0_dp)
         load%fx = x%fx
         load%fy = x%fy
         load%moment = x%moment
@@ -411,23 +402,4 @@ contains
             self%cache(e)%y = y
         end subroutine remember
     end subroutine dynamic_evaluate
-
-    !> The distinct values of x in ascending order.
-    pure function distinct_sorted(x) result(out)
-        real(dp), intent(in) :: x(:)
-        real(dp), allocatable :: out(:)
-        real(dp) :: v(size(x))
-        integer :: i, n
-        v = sorted_values(x)
-        allocate (out(size(v)))
-        n = 0
-        do i = 1, size(v)
-            if (n > 0) then
-                if (v(i) == out(n)) cycle
-            end if
-            n = n + 1
-            out(n) = v(i)
-        end do
-        out = out(:n)
-    end function distinct_sorted
 end module beamid_dynamic_experiments

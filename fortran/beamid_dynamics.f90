@@ -196,17 +196,15 @@ contains
         sys%cku = sys%mesh%ku
         sys%law = law
         sys%vslip = vslip
-        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n), stat=k)
+        allocate (q0(sys%n), sys%mb(fe_band_rows(sys%mesh), sys%n), source=0.0_dp, stat=k)
         if (k /= 0) then
             call set_status(stat, ERR_INPUT, where, 'cannot allocate the mass matrix of '// &
                             fmt_int(sys%n)//' unknowns')
             return
         end if
-        q0 = 0.0_dp
         call fe_mass(sys%mesh, q0, .false., sys%mb)
         allocate (sys%fmode(2*sys%npt))
         sys%fmode = 0
-        sys%events = .false.
         if (.not. sys%rotary) then
             sys%mlu%n = sys%n
             sys%mlu%kl = sys%mesh%kl
@@ -935,8 +933,7 @@ contains
         end if
         n = sys%n
         k = sys%nc
-        allocate (mq(n), q0(n), mb(fe_band_rows(sys%mesh), n))
-        q0 = 0.0_dp
+        allocate (mq(n), q0(n), mb(fe_band_rows(sys%mesh), n), source=0.0_dp)
         call fe_mass(sys%mesh, q0, sys%rotary, mb)
         call fe_band_matvec(mb, sys%mesh%kl, sys%mesh%ku, y(1:n), mq)
         yc(1:k) = matmul(mq, sys%phi)

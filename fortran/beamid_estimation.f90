@@ -31,7 +31,7 @@ module beamid_estimation
     public :: score_result_t, candidate_t, diagnose_options_t, candidate_report_t
     public :: diagnosis_t, refit_info_t
     public :: fit_least_squares, fit_at, score_test, diagnose, chi2_sf, residual_structure
-    public :: refit_effect, prior_from_covariance
+    public :: refit_effect, prior_from_covariance, sort_desc
 
     !> Per-parameter flags of a fit (worst first).
     integer, parameter, public :: FLAG_OK = 0           !< determined
@@ -1186,7 +1186,6 @@ contains
         res%dof = mt - n
         res%converged = .true.
         res%stop = STOP_EVALUATED
-        res%nlog = 0
         res%log_cost = [sum(rr**2)]
         res%log_lambda = [0.0_dp]
         res%log_step = [0.0_dp]
@@ -1362,8 +1361,7 @@ contains
             logical, allocatable :: un(:)
             real(dp) :: cn
             integer :: rk
-            allocate (dl(nb))
-            dl = 0.0_dp
+            allocate (dl(nb), source=0.0_dp)
             idx = pack([(i, i=1, nb)], active)
             na = size(idx)
             rb = min(mt, na)
@@ -1441,8 +1439,6 @@ contains
         end if
         all_free = [base%free, block]
         info%note = ''
-        info%start = START_NONE
-        info%tried = 0
         if (base%dof - nb > 0) rs%noise = real(base%dof - nb, dp) + &
                                           3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
         call first_order_target(score, null_values(block), size(base%free), target, shift)
@@ -1515,8 +1511,7 @@ contains
         real(dp), allocatable, intent(out) :: target(:), shift(:)
         integer :: j
         target = null_block
-        allocate (shift(nf))
-        shift = 0.0_dp
+        allocate (shift(nf), source=0.0_dp)
         if (.not. allocated(score%estimate)) return
         if (size(score%estimate) == size(null_block)) then
             do j = 1, size(null_block)
@@ -1699,8 +1694,6 @@ contains
         nc = size(cands)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
-        diag%verdict = 0
-        diag%ntested = 0
         call score_candidates(model, y, sigma, base, null_values, lower, upper, prior, cands, &
                               fopts, diag, stat)
         if (stat%code /= STATUS_OK) return
@@ -1958,36 +1951,27 @@ contains
         real(dp), intent(in) :: level(:), normalized(:)
         integer, intent(in) :: group(:)
         real(dp), intent(out) :: out(7)
-        integer :: n, i, j, k, g, nsign, n1, n2, runs, t
-        integer, allocatable :: order(:), signs(:)
+        integer :: n, i, j, nsign, n1, n2, runs
+        integer, allocatable :: idx(:), signs(:)
         logical, allocatable :: seen(:)
         real(dp) :: mean, var, z, xbar, sxx, sxy, nn
 
         out = not_a_number()
         n = size(normalized)
-        allocate (order(n), signs(n), seen(n))
+        allocate (signs(n), seen(n))
         seen = .false.
         nsign = 0
         do i = 1, n
             if (seen(i)) cycle
-            g = group(i)
-            ! rows of this group in their original order, then a stable sort by level
-            k = 0
-            do j = i, n
-                if (group(j) == g) then
-                    seen(j) = .true.
-                    k = k + 1
-                    order(k) = j
-                end if
-            end do
-            do j = 2, k
-                t = order(j)
-                call insert_sorted(order, j, t)
-            end do
-            do j = 1, k
-                if (normalized(order(j)) /= 0.0_dp) then
+            ! rows of this group in their original order, then a stable sort by
+            ! ascending level (descending -level)
+            idx = pack([(j, j=i, n)], group(i:n) == group(i))
+            seen(idx) = .true.
+            idx = idx(sort_desc(-level(idx)))
+            do j = 1, size(idx)
+                if (normalized(idx(j)) /= 0.0_dp) then
                     nsign = nsign + 1
-                    signs(nsign) = merge(1, 0, normalized(order(j)) > 0.0_dp)
+                    signs(nsign) = merge(1, 0, normalized(idx(j)) > 0.0_dp)
                 end if
             end do
         end do
@@ -2020,22 +2004,6 @@ contains
                 out(7) = chi2_sf(out(6)**2, 1)
             end if
         end if
-
-    contains
-
-        !> Insert order(j) = t into the level-sorted order(1:j-1) (stable).
-        pure subroutine insert_sorted(idx, j, t)
-            integer, intent(inout) :: idx(:)
-            integer, intent(in) :: j, t
-            integer :: m
-            m = j - 1
-            do while (m >= 1)
-                if (level(idx(m)) <= level(t)) exit
-                idx(m + 1) = idx(m)
-                m = m - 1
-            end do
-            idx(m + 1) = t
-        end subroutine insert_sorted
     end subroutine residual_structure
 
     !> Chi-square survival function P(X > x) for k degrees of freedom: the

@@ -675,8 +675,7 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(out) :: kb(:, :)
         real(dp), allocatable :: q(:), f(:)
-        allocate (q(mesh%nfree), f(mesh%nfree))
-        q = 0.0_dp
+        allocate (q(mesh%nfree), f(mesh%nfree), source=0.0_dp)
         call fe_tangent(mesh, q, f, kb)
     end subroutine fe_stiffness_linear
 

@@ -53,13 +53,12 @@ contains
         call fe_check_dense(n, 'fe_modes', stat)
         if (stat%code /= 0) return
         allocate (kb(fe_band_rows(mesh), n), mb(fe_band_rows(mesh), n), m(n, n), w(n), &
-                  q0(n), mphi(n), stat=ierr)
+                  q0(n), mphi(n), source=0.0_dp, stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(stat, 'fe_modes', 'the mode matrices', &
                                  8.0_dp*3.0_dp*real(n, dp)**2)
             return
         end if
-        q0 = 0.0_dp
         call fe_stiffness_linear(mesh, kb)
         call fe_mass(mesh, q0, rotary, mb)
         call band_to_dense(kb, mesh%kl, mesh%ku, phi)
@@ -100,8 +99,7 @@ contains
                             'match nfree = '//fmt_int(n))
             return
         end if
-        allocate (mb(fe_band_rows(mesh), n), mq(n), q0(n))
-        q0 = 0.0_dp
+        allocate (mb(fe_band_rows(mesh), n), mq(n), q0(n), source=0.0_dp)
         call fe_mass(mesh, q0, rotary, mb)
         call band_mv(mb, mesh%kl, mesh%ku, q, mq)
         eta = matmul(mq, phi)
@@ -151,14 +149,12 @@ contains
         call fe_check_dense(n, 'fe_axial_modes_linear', stat)
         if (stat%code /= 0) return
         ! unknown i is u at node i + 1
-        allocate (k(n, n), m(n, n), w(n), stat=ierr)
+        allocate (k(n, n), m(n, n), w(n), source=0.0_dp, stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(stat, 'fe_axial_modes_linear', 'the mode matrices', &
                                  8.0_dp*2.0_dp*real(n, dp)**2)
             return
         end if
-        k = 0.0_dp
-        m = 0.0_dp
         do el = 1, n
             ke = mesh%ea(el)/mesh%h(el)
             me = mesh%rho(el)*mesh%h(el)/6.0_dp

@@ -28,7 +28,6 @@ module beamid_fe_nodes
     private
 
     public :: fe_mesh_from_params, fe_load_from_values, fe_newton_options, fe_setup
-    public :: fe_q_from_nodes, fe_nodes_from_q
     public :: fe_static_nodes, fe_path_nodes, fe_buckling_nodes, fe_modes_table
     public :: fe_modal_cost_nodes, fe_system_dense
 
@@ -173,8 +172,7 @@ contains
         nodes_out = 0.0_dp
         energy = 0.0_dp
         reactions = 0.0_dp
-        allocate (q(mesh%nfree))
-        q = 0.0_dp
+        allocate (q(mesh%nfree), source=0.0_dp)
         if (from_guess) call fe_q_from_nodes(mesh, guess, q, guess_out)
         call fe_solve_static(mesh, load, q, from_guess, opts, sinfo, stat)
         info = [sinfo%iterations, sinfo%steps, sinfo%negative]

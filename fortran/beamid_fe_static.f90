@@ -17,7 +17,6 @@ module beamid_fe_static
 
     public :: fe_newton_opts_t, fe_solve_info_t
     public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
-    public :: fe_geometric_stiffness, fe_negative_eigenvalues
 
     !> Controls of the Newton iteration and of the load stepping.
     type :: fe_newton_opts_t
@@ -182,8 +181,6 @@ contains
         dlam = dlam_max
         dlam_prev = 0.0_dp
         nbisect = 0
-        info%iterations = 0
-        info%steps = 0
         do while (lam < 1.0_dp)
             dlam = min(dlam, 1.0_dp - lam)
             q_try = q

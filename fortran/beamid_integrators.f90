@@ -33,7 +33,7 @@ module beamid_integrators
                                DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
-                           dband_mv, zband_mv, kc_mv, ldlt_solve_real_many, ldlt_solve_cplx_many
+                           band_mv, ldlt_solve, kc_mv, ldlt_solve_real_many, ldlt_solve_cplx_many
     implicit none
     private
 
@@ -42,6 +42,10 @@ module beamid_integrators
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
+    !> The low-rank correction of a solve (lr_real, lr_cplx).
+    interface lr_apply
+        module procedure lr_real, lr_cplx
+    end interface lr_apply
     !> Kinds of friction events: the decision at the start (components at
     !! rest at t = 0), a sliding component's velocity reaching zero (it
     !! reverses or sticks), a sticking component's constraint force reaching
@@ -218,24 +222,14 @@ contains
         real(dp), intent(out) :: a(3, 3), dmat(3, 3), gam
         complex(dp), intent(out) :: mu, t(3, 3), ti(3, 3)
         complex(dp) :: lam(3), m(3, 3), det
-        real(dp) :: adj(3, 3), da
         integer :: k, it
         a(1, :) = [(88.0_dp - 7.0_dp*SQ6)/360.0_dp, (296.0_dp - 169.0_dp*SQ6)/1800.0_dp, &
                    (-2.0_dp + 3.0_dp*SQ6)/225.0_dp]
         a(2, :) = [(296.0_dp + 169.0_dp*SQ6)/1800.0_dp, (88.0_dp + 7.0_dp*SQ6)/360.0_dp, &
                    (-2.0_dp - 3.0_dp*SQ6)/225.0_dp]
         a(3, :) = [(16.0_dp - SQ6)/36.0_dp, (16.0_dp + SQ6)/36.0_dp, 1.0_dp/9.0_dp]
-        adj(1, 1) = a(2, 2)*a(3, 3) - a(2, 3)*a(3, 2)
-        adj(1, 2) = a(1, 3)*a(3, 2) - a(1, 2)*a(3, 3)
-        adj(1, 3) = a(1, 2)*a(2, 3) - a(1, 3)*a(2, 2)
-        adj(2, 1) = a(2, 3)*a(3, 1) - a(2, 1)*a(3, 3)
-        adj(2, 2) = a(1, 1)*a(3, 3) - a(1, 3)*a(3, 1)
-        adj(2, 3) = a(1, 3)*a(2, 1) - a(1, 1)*a(2, 3)
-        adj(3, 1) = a(2, 1)*a(3, 2) - a(2, 2)*a(3, 1)
-        adj(3, 2) = a(1, 2)*a(3, 1) - a(1, 1)*a(3, 2)
-        adj(3, 3) = a(1, 1)*a(2, 2) - a(1, 2)*a(2, 1)
-        da = a(1, 1)*adj(1, 1) + a(1, 2)*adj(2, 1) + a(1, 3)*adj(3, 1)
-        dmat = adj/da
+        call cinv3(cmplx(a, 0.0_dp, dp), m)
+        dmat = real(m, dp)
         ! eigenvalues of D: Newton on det(D - lam I) from the known values
         lam = [cmplx(3.6378342527444957_dp, 0.0_dp, dp), &
                cmplx(2.6810828736277521_dp, 3.0504301992474106_dp, dp), &
@@ -314,7 +308,6 @@ contains
         real(dp), intent(in), optional :: s0(:, :)
         real(dp), allocatable, intent(out), optional :: dstates(:, :, :)
         real(dp), allocatable :: sm(:, :)
-        logical :: sens
         character(len=*), parameter :: where = 'integrate'
         real(dp), allocatable :: yc0(:)
         integer :: nt, k
@@ -352,20 +345,14 @@ contains
             end if
         end if
         allocate (hist%y(sys%nstate, nt), hist%torque(nt), hist%kinetic(nt), &
-                  hist%potential(nt), hist%work(sys%nwork, nt), stat=k)
+                  hist%potential(nt), hist%work(sys%nwork, nt), source=0.0_dp, stat=k)
         if (k /= 0) then
             call set_status(stat, ERR_INPUT, where, fmt_int(nt)//' output times need '// &
                             fmt_real(8.0_dp*real(nt, dp)*real(sys%nstate + sys%nwork + 3, dp))// &
                             ' bytes for the history, which cannot be allocated')
             return
         end if
-        hist%y = 0.0_dp
-        hist%torque = 0.0_dp
-        hist%kinetic = 0.0_dp
-        hist%potential = 0.0_dp
-        hist%work = 0.0_dp
-        sens = present(pars)
-        if (sens) then
+        if (present(pars)) then
             if (sys%modal) then
                 call set_status(stat, ERR_INPUT, where, 'sensitivities are not available '// &
                                 'in the truncated modal model')
@@ -382,8 +369,7 @@ contains
                                 fmt_int(size(pars)))
                 return
             end if
-            allocate (dstates(sys%nstate, nt, size(pars)), sm(sys%nstate, size(pars)))
-            dstates = 0.0_dp
+            allocate (dstates(sys%nstate, nt, size(pars)), source=0.0_dp)
             sm = s0
         end if
         ! integration coordinates: q itself, or the modal coordinates (Eq. 127)
@@ -396,11 +382,7 @@ contains
                                 ', expected a positive step')
                 return
             end if
-            if (sens) then
-                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
-            else
-                call run_rk4(sys, yc0, t_out, opts, hist, stats, stat)
-            end if
+            call run_rk4(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         case (METHOD_IMPLICIT)
             if (.not. (opts%rtol > 0.0_dp .and. opts%atol > 0.0_dp .and. opts%h0 > 0.0_dp)) &
                 then
@@ -409,11 +391,7 @@ contains
                                 fmt_real(opts%h0)//': expected positive values')
                 return
             end if
-            if (sens) then
-                call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
-            else
-                call run_radau(sys, yc0, t_out, opts, hist, stats, stat)
-            end if
+            call run_radau(sys, yc0, t_out, opts, hist, stats, stat, pars, sm, dstates)
         case default
             call set_status(stat, ERR_INPUT, where, 'method = '//fmt_int(opts%method)// &
                             ', expected 0 (rk4) or 1 (implicit)')
@@ -914,7 +892,8 @@ contains
         nb = 2*sys%ckl + sys%cku + 1
         if (.not. allocated(it%mb)) then
             allocate (it%mb(nb, n), it%kb(nb, n), it%cb(nb, n), it%b(n), it%p(n), it%d(n), &
-                      it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n))
+                      it%a1(nb, n), it%a2(nb, n), it%rhs(n), it%tmp(n), it%zrhs(n), &
+                      it%s1(sys%ckl + 1, n), it%s2(sys%ckl + 1, n))
             it%lu1%n = n
             it%lu1%kl = sys%ckl
             it%lu1%ku = sys%cku
@@ -1091,7 +1070,6 @@ contains
             if (.not. it%sym) it%sym = skew_rows(sys%nc, kl, l1, l2, it%cb, it%kb, it)
         end if
         if (it%sym) then
-            if (.not. allocated(it%s1)) allocate (it%s1(kl + 1, sys%nc), it%s2(kl + 1, sys%nc))
             call combine_sym(kl, sys%nc, l1, l2, it%mb, it%cb, it%kb, it%a1, it%a2, &
                              it%s1, it%s2)
             do i = 1, it%nst
@@ -1385,33 +1363,9 @@ contains
         real(dp) :: zt
         integer :: n
         logical :: skip
-        n = sys%nc
-        skip = .false.
-        if (present(r_zero)) skip = r_zero
-        if (skip) then
-            it%rhs = w(n + 1:2*n)
-        else
-            call dband_mv(n, sys%ckl, sys%cku, it%a1, w(1:n), it%rhs)
-            it%rhs = it%rhs + w(n + 1:2*n)
-        end if
-        zt = 0.0_dp
-        if (sys%nx > 0) then
-            zt = w(2*n + 1)
-            if (.not. skip) zt = zt - dot_product(it%d, w(1:n))
-            it%rhs = it%rhs + it%b*zt/(lam - it%e)
-        end if
-        if (it%nst > 0) it%rhs(it%stuck(1:it%nst)) = 0.0_dp
-        if (it%sym) then
-            call ldlt_solve_real(n, sys%ckl, it%s1, it%rhs)
-            if (it%nlr > 0) call lr_real(it, it%rhs)
-        else
-            call band_solve(it%lu1, it%rhs)
-        end if
-        w(n + 1:2*n) = lam*it%rhs - w(1:n)
-        if (sys%nx > 0) then
-            w(2*n + 1) = (zt + dot_product(it%p + lam*it%d, it%rhs))/(lam - it%e)
-        end if
-        w(1:n) = it%rhs
+        associate (rhs => it%rhs, ab => it%a1, s => it%s1, lu => it%lu1)
+            include 'beamid_radau_solve.inc'
+        end associate
     end subroutine solve_real
 
     !> Complex counterpart of solve_real (lam = mu/h), same M-form input.
@@ -1424,31 +1378,9 @@ contains
         complex(dp) :: zt
         integer :: n
         logical :: skip
-        n = sys%nc
-        skip = .false.
-        if (present(r_zero)) skip = r_zero
-        if (skip) then
-            it%zrhs = w(n + 1:2*n)
-        else
-            call zband_mv(n, sys%ckl, sys%cku, it%a2, w(1:n), it%zrhs)
-            it%zrhs = it%zrhs + w(n + 1:2*n)
-        end if
-        zt = (0.0_dp, 0.0_dp)
-        if (sys%nx > 0) then
-            zt = w(2*n + 1)
-            if (.not. skip) zt = zt - sum(it%d*w(1:n))
-            it%zrhs = it%zrhs + it%b*zt/(lam - it%e)
-        end if
-        if (it%nst > 0) it%zrhs(it%stuck(1:it%nst)) = (0.0_dp, 0.0_dp)
-        if (it%sym) then
-            call ldlt_solve_cplx(n, sys%ckl, it%s2, it%zrhs)
-            if (it%nlr > 0) call lr_cplx(it, it%zrhs)
-        else
-            call zband_solve(it%lu2, it%zrhs)
-        end if
-        w(n + 1:2*n) = lam*it%zrhs - w(1:n)
-        if (sys%nx > 0) w(2*n + 1) = (zt + sum((it%p + lam*it%d)*it%zrhs))/(lam - it%e)
-        w(1:n) = it%zrhs
+        associate (rhs => it%zrhs, ab => it%a2, s => it%s2, lu => it%lu2)
+            include 'beamid_radau_solve.inc'
+        end associate
     end subroutine solve_cplx
 
     !> Rates of y in M-form: (v, M0 M(q)^-1 F, x'). With a constant mass
@@ -1693,9 +1625,9 @@ contains
     end subroutine run_radau
 
     !> run_radau's start: the tableau, the work arrays, the friction modes at
-    !! the release and the step controller's first values.
+    !! the release and the step controller's first values (else the type's defaults).
     subroutine radau_start(r, sys, y0, opts, hist, stats, stat, pars)
-        type(radau_run_t), intent(inout) :: r
+        type(radau_run_t), intent(out) :: r
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: y0(:)
         type(integ_opts_t), intent(in) :: opts
@@ -1737,27 +1669,14 @@ contains
         r%hold0 = 0.0_dp
         r%hst = 0.0_dp
         r%acc3 = 0.0_dp
-        r%it%nst = 0
         if (r%evon) then
             call start_modes(r%es, r%y, r%hold0, hist, stats, stat)
             if (stat%code /= 0) return
             call set_stuck(r%es, r%it)
         end if
-        r%pend = 0
-        r%pkind = 0
-        r%nstall = 0
-        r%may_reuse = .false.
-        r%reused = .false.
-        r%hpend = 0.0_dp
-        r%hcut = 0.0_dp
         r%work = 0.0_dp
-        r%t = 0.0_dp
         r%h = opts%h0
         r%hprev = r%h
-        r%first = .true.
-        r%reject = .false.
-        r%have_prev = .false.
-        r%have_f0 = .false.
     end subroutine radau_start
 
     !> The next step: its length hh (cut at the output time tnext), the error

@@ -83,9 +83,7 @@ contains
                             'differ in length')
             return
         end if
-        allocate (smap(size(exp_kind)), dmap(size(exp_kind)))
-        smap = 0
-        dmap = 0
+        allocate (smap(size(exp_kind)), dmap(size(exp_kind)), source=0)
         ns = 0
         nd = 0
         allocate (loads(0), rels(0))

@@ -276,8 +276,7 @@ contains
         integer :: i, e
         logical :: release
         character(len=:), allocatable :: where
-        allocate (row_exp(size(data%experiment)))
-        row_exp = 0
+        allocate (row_exp(size(data%experiment)), source=0)
         call check_experiments(data, names, stat)
         if (stat%code /= STATUS_OK) return
         do i = 1, size(data%experiment)

@@ -26,8 +26,7 @@ contains
         select case (trim(name))
         case ('pace')
             nbeams = 2
-            allocate (params(param_count(nbeams)))
-            params = 0.0_dp
+            allocate (params(param_count(nbeams)), source=0.0_dp)
             call set_beam(params, 1, 0.776_dp, 11.413_dp, 0.532_dp)
             call set_beam(params, 2, 0.714_dp, 11.275_dp, 0.530_dp)
             ! elbow and tip masses with their rotary inertia (Table 1)
@@ -37,8 +36,7 @@ contains
             params(param_index_mass(nbeams, 2, IM_J)) = 15.244e-4_dp
         case ('cantilever')
             nbeams = 1
-            allocate (params(param_count(nbeams)))
-            params = 0.0_dp
+            allocate (params(param_count(nbeams)), source=0.0_dp)
             call set_beam(params, 1, 0.776_dp, 11.413_dp, 0.532_dp)
         case default
             nbeams = 0

@@ -222,8 +222,8 @@ contains
         call dyn_to_physical(sys, yc, y0)
         call dyn_energy(sys, y0(1:n), y0(n + 1:2*n), u, w)
         e0 = u + w
-        allocate (out%y(NQTY, nt), out%dy(NQTY, nt, nw), out%ledger(4, nt), out%tip(3, nt))
-        out%dy = 0.0_dp
+        allocate (out%y(NQTY, nt), out%dy(NQTY, nt, nw), out%ledger(4, nt), out%tip(3, nt), &
+                  source=0.0_dp)
         do k = 1, nt
             associate (y => out%hist%y(:, k))
                 call dyn_tip(sys, y(1:n), u, w, ang)

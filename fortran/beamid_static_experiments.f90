@@ -21,13 +21,13 @@ module beamid_static_experiments
                             param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, LOAD_TIP, LOAD_WIRE
-    use beamid_estimation, only: residual_model_t, candidate_t
+    use beamid_estimation, only: residual_model_t, candidate_t, sort_desc
     implicit none
     private
 
     public :: static_experiments_t, static_experiments_init, quantity_code, quantity_label
     public :: static_bounds, static_null_values, static_candidates, static_effect_params
-    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, sorted_values
+    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, median_of, distinct_sorted
 
     !> Quantity codes.
     integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
@@ -180,8 +180,7 @@ contains
         integer, intent(in) :: nbeams
         real(dp), allocatable, intent(out) :: lower(:), upper(:)
         integer :: i
-        allocate (lower(param_count(nbeams)), upper(param_count(nbeams)))
-        lower = 0.0_dp
+        allocate (lower(param_count(nbeams)), upper(param_count(nbeams)), source=0.0_dp)
         upper = huge(1.0_dp)
         do i = 1, nbeams
             lower(param_index_beam(nbeams, i, IB_C)) = -huge(1.0_dp)
@@ -194,8 +193,7 @@ contains
     pure subroutine static_null_values(nbeams, null_values)
         integer, intent(in) :: nbeams
         real(dp), allocatable, intent(out) :: null_values(:)
-        allocate (null_values(param_count(nbeams)))
-        null_values = 0.0_dp
+        allocate (null_values(param_count(nbeams)), source=0.0_dp)
     end subroutine static_null_values
 
     !> Parameter indices of a static effect ('' or unknown name: empty and
@@ -303,6 +301,7 @@ contains
         psig = psig(:n)
     end subroutine probe_rows
 
+    !> The median of x (default when x is empty).
     pure real(dp) function median_of(x, default)
         real(dp), intent(in) :: x(:), default
         real(dp) :: y(size(x))
@@ -312,7 +311,7 @@ contains
             median_of = default
             return
         end if
-        y = sorted_values(x)
+        y = x(sort_desc(-x))   ! ascending
         if (mod(n, 2) == 1) then
             median_of = y((n + 1)/2)
         else
@@ -320,21 +319,22 @@ contains
         end if
     end function median_of
 
-    !> x in ascending order (stable insertion sort).
-    pure function sorted_values(x) result(v)
+    !> The distinct values of x in ascending order.
+    pure function distinct_sorted(x) result(out)
         real(dp), intent(in) :: x(:)
-        real(dp) :: v(size(x)), t
-        integer :: i, j
-        v = x
-        do i = 2, size(v)
-            t = v(i)
-            j = i - 1
-            do while (j >= 1)
-                if (v(j) <= t) exit
-                v(j + 1) = v(j)
-                j = j - 1
-            end do
-            v(j + 1) = t
+        real(dp), allocatable :: out(:)
+        real(dp) :: v(size(x))
+        integer :: i, n
+        v = x(sort_desc(-x))   ! ascending
+        allocate (out(size(v)))
+        n = 0
+        do i = 1, size(v)
+            if (n > 0) then
+                if (v(i) == out(n)) cycle
+            end if
+            n = n + 1
+            out(n) = v(i)
         end do
-    end function sorted_values
+        out = out(:n)
+    end function distinct_sorted
 end module beamid_static_experiments

@@ -193,13 +193,11 @@ contains
 
         nnode = d%nbeams*d%fe_elements_per_beam + 1
         allocate (nodes(5, nnode), guess(5, nnode), nodes_out(2, nnode), guess_out(2, nnode), &
-                  stat=ierr)
+                  source=0.0_dp, stat=ierr)
         if (ierr /= 0) then
             call set_alloc_error(st, 'fe_static', 'the node tables', 112.0_dp*real(nnode, dp))
             return
         end if
-        guess = 0.0_dp
-        guess_out = 0.0_dp
         call fe_setup(d%nbeams, d%params, d%fe_elements_per_beam, [d%load%fx, d%load%fy, &
                       d%load%moment, real(d%fe_moment_form, dp)], d%fe_steps, d%fe_tol, mesh, &
                       load, opts, st)
@@ -274,7 +272,6 @@ contains
         type(chain_t) :: chain
         type(release_spec_t) :: spec
         type(release_out_t) :: out
-        real(dp), allocatable :: tip(:, :), ledger(:, :), work(:, :), torque(:)
         character(len=:), allocatable :: prefix, header, line
         integer :: unit, ios, k, i, nwork, nowrt(0)
 
@@ -294,10 +291,6 @@ contains
         call release_response(chain, spec, d%sim_t_out, nowrt, out, st)
         if (st%code /= STATUS_OK) return
         nwork = out%nwork
-        tip = out%tip
-        ledger = out%ledger
-        work = out%hist%work
-        torque = out%hist%torque
 
         header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
         do i = 1, nwork
@@ -308,17 +301,19 @@ contains
         if (st%code /= STATUS_OK) return
         call open_output(fl, prefix//'_history.csv', header, unit, ios, st)
         if (st%code /= STATUS_OK) return
-        do k = 1, size(d%sim_t_out)
-            line = fmt_e(d%sim_t_out(k))//','//fmt_e(tip(1, k))//','//fmt_e(tip(2, k))// &
-                   ','//fmt_e(tip(3, k))//','//fmt_e(ledger(3, k))//','//fmt_e(ledger(1, k))// &
-                   ','//fmt_e(ledger(2, k))
-            do i = 1, nwork
-                line = line//','//fmt_e(work(i, k))
+        associate (tip => out%tip, ledger => out%ledger, work => out%hist%work)
+            do k = 1, size(d%sim_t_out)
+                line = fmt_e(d%sim_t_out(k))//','//fmt_e(tip(1, k))//','//fmt_e(tip(2, k))// &
+                       ','//fmt_e(tip(3, k))//','//fmt_e(ledger(3, k))//','// &
+                       fmt_e(ledger(1, k))//','//fmt_e(ledger(2, k))
+                do i = 1, nwork
+                    line = line//','//fmt_e(work(i, k))
+                end do
+                line = line//','//fmt_e(sum(work(:, k)))//','//fmt_e(ledger(4, k))//','// &
+                       fmt_e(out%hist%torque(k))
+                call put(unit, ios, line)
             end do
-            line = line//','//fmt_e(sum(work(:, k)))//','//fmt_e(ledger(4, k))//','// &
-                   fmt_e(torque(k))
-            call put(unit, ios, line)
-        end do
+        end associate
         call close_checked(unit, ios, prefix//'_history.csv', st)
     end subroutine run_simulate
 

@@ -5,6 +5,7 @@
 !! A deck is read twice: api_deck_sizes validates it and returns the array
 !! sizes and the scalars, api_deck_arrays fills the arrays (no state is kept
 !! between the calls). Messages: every problem, one per line.
+!! Outputs of a failed call are zeros: f2py allocates them zeroed.
 module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -65,8 +66,6 @@ contains
         type(status_t) :: stat
         character(len=:), allocatable :: t
         integer :: i
-        sizes = 0
-        reals = 0.0_c_double
         text = ''
         call read_deck(trim(path), d, stat)
         call put_errors(d, stat, code, message)
@@ -146,15 +145,6 @@ contains
         type(deck_t) :: d
         type(status_t) :: stat
         integer :: e
-        params = 0.0_c_double
-        t_out = 0.0_c_double
-        exp_values = 0.0_c_double
-        prior_mean = 0.0_c_double
-        prior_sigma = 0.0_c_double
-        wrt = 0
-        exp_kind = 0
-        free_idx = 0
-        prior_index = 0
         call read_deck(trim(path), d, stat)
         call put_errors(d, stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -208,7 +198,6 @@ contains
         character(len=65536), intent(out) :: message
         type(measurements_t) :: data
         type(status_t) :: stat
-        nrow = 0
         call read_measurements(trim(path), data, stat)
         call status_out(stat, code, message)
         if (stat%code == STATUS_OK) nrow = int(size(data%value), c_int)
@@ -231,12 +220,6 @@ contains
         character(len=:), allocatable :: joined
         character(len=:), allocatable :: seen(:)
         integer :: i, j, k, n
-        t = 0.0_c_double
-        value = 0.0_c_double
-        sigma = 0.0_c_double
-        line = 0
-        quantity = 0
-        exp_index = 0
         names = ''
         call read_measurements(trim(path), data, stat)
         call status_out(stat, code, message)

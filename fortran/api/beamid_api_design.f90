@@ -24,13 +24,7 @@ contains
         integer(c_int), intent(out) :: rank, code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
-        real(dp) :: c(n, n), s(n), dc
-        integer :: r
-        call information_covariance(real(info, dp), c, s, dc, r, stat)
-        cov = c
-        sig = s
-        d_crit = dc
-        rank = int(r, c_int)
+        call information_covariance(real(info, dp), cov, sig, d_crit, rank, stat)
         call status_out(stat, code, message)
     end subroutine api_information_covariance
 
@@ -44,13 +38,8 @@ contains
         integer(c_int), intent(out) :: order(nc), code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
-        real(dp) :: b, cr(nc)
-        integer :: o(nc)
-        call rank_candidates(real(info, dp), real(rows, dp), real(sigma, dp), int(target), b, &
-                             cr, o, stat)
-        base = b
-        crit = cr
-        order = int(o, c_int)
+        call rank_candidates(real(info, dp), real(rows, dp), real(sigma, dp), int(target), base, &
+                             crit, order, stat)
         call status_out(stat, code, message)
     end subroutine api_rank_candidates
 
@@ -60,13 +49,11 @@ contains
         integer(c_int), intent(in) :: n, nc
         real(c_double), intent(in) :: info(n, n), rows(n, nc), sigma(nc)
         real(c_double), intent(out) :: updated(n, n)
-        real(dp) :: work(n, n)
         integer :: c
-        work = info
+        updated = info
         do c = 1, nc
-            call information_add_row(work, real(rows(:, c), dp), real(sigma(c), dp))
+            call information_add_row(updated, real(rows(:, c), dp), real(sigma(c), dp))
         end do
-        updated = work
     end subroutine api_information_update
 
     !> Monte Carlo summary (beamid_design::mc_summary); est and sig are
@@ -77,18 +64,10 @@ contains
         real(c_double), intent(in) :: est(nrep, npar), sig(nrep, npar), truth(npar)
         integer(c_int), intent(in) :: use(nrep)
         real(c_double), intent(out) :: stats(10, npar)
-        real(dp) :: cov(3, npar), bias(npar), spread(npar), msig(npar), ratio(npar)
-        real(dp) :: zm(npar), zs(npar)
         integer :: nused(npar)
-        call mc_summary(real(est, dp), real(sig, dp), real(truth, dp), use /= 0, cov, bias, &
-                        spread, msig, ratio, zm, zs, nused)
-        stats(1:3, :) = cov
-        stats(4, :) = bias
-        stats(5, :) = spread
-        stats(6, :) = msig
-        stats(7, :) = ratio
-        stats(8, :) = zm
-        stats(9, :) = zs
+        call mc_summary(real(est, dp), real(sig, dp), real(truth, dp), use /= 0, stats(1:3, :), &
+                        stats(4, :), stats(5, :), stats(6, :), stats(7, :), stats(8, :), &
+                        stats(9, :), nused)
         stats(10, :) = real(nused, dp)
     end subroutine api_mc_summary
 

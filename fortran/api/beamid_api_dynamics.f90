@@ -8,19 +8,19 @@
 !! 1e-9). Friction laws: 0 sign (Eq. 101; in both integrators its switches
 !! are events, with sticking; elsewhere sign(0) = 0), 1 smooth
 !! v/sqrt(v^2 + vslip^2), 2 literal Fortran SIGN(1, v) (+1 at v = 0, no events).
+!! Outputs of a failed call are zeros: f2py allocates them zeroed.
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
-    use beamid_fe_assembly, only: fe_band_rows, fe_band_to_dense, fe_node_value, &
+    use beamid_fe_assembly, only: fe_band_to_dense, fe_node_value, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, &
-                               dyn_forces, dyn_jacobian, dyn_mass, dyn_set_modes, &
-                               dyn_cforces, dyn_cjacobian, dyn_cmass
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_cforces, &
+                               dyn_cjacobian, dyn_cmass
     implicit none
     private
 
@@ -50,9 +50,6 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        nfree = 0
-        nstate = 0
-        nwork = 0
         call make_system(nbeams, nparams, params, nepb, gain, 0_c_int, 1.0_c_double, sys, stat)
         if (stat%code == STATUS_OK) then
             nfree = int(sys%n, c_int)
@@ -96,13 +93,6 @@ contains
         type(release_spec_t) :: spec
         type(release_out_t) :: out
         integer :: nowrt(0)
-        states = 0.0_c_double
-        tip = 0.0_c_double
-        torque = 0.0_c_double
-        ledger = 0.0_c_double
-        work = 0.0_c_double
-        events = 0.0_c_double
-        info = 0
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nmodes < 0) then
             call set_status(stat, ERR_INPUT, 'api_dyn_simulate_modal', 'nmodes = '// &
@@ -173,9 +163,8 @@ contains
     !! force before, after), as many as fit.
     subroutine copy_events(out, events)
         type(release_out_t), intent(in) :: out
-        real(c_double), intent(out) :: events(:, :)
+        real(c_double), intent(inout) :: events(:, :)
         integer :: k
-        events = 0.0_c_double
         do k = 1, min(size(events, 2), out%hist%nevents)
             associate (ev => out%hist%events(k))
                 events(:, k) = [ev%t, real(ev%comp, dp), real(ev%kind, dp), &
@@ -200,19 +189,6 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        real(dp), allocatable :: kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
-        real(dp), allocatable :: bb(:), pp(:), dd(:), xs(:)
-        real(dp) :: tq, ee
-        force = 0.0_c_double
-        power = 0.0_c_double
-        torque = 0.0_c_double
-        kmat = 0.0_c_double
-        cmat = 0.0_c_double
-        mass = 0.0_c_double
-        b = 0.0_c_double
-        p = 0.0_c_double
-        d = 0.0_c_double
-        e = 0.0_c_double
         call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         if (stat%code == STATUS_OK .and. (sys%n /= nfree .or. sys%nx /= nx .or. &
                                           sys%nwork /= nwork)) then
@@ -221,29 +197,8 @@ contains
                             fmt_int(int(nwork))//', expected '//fmt_int(sys%n)//', '// &
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
-        if (stat%code == STATUS_OK) then
-            allocate (kb(fe_band_rows(sys%mesh), sys%n), cb(fe_band_rows(sys%mesh), sys%n), &
-                      mb(fe_band_rows(sys%mesh), sys%n), a(sys%n, sys%n), f(sys%n), &
-                      pw(sys%nwork), bb(sys%n), pp(sys%n), dd(sys%n), xs(max(1, sys%nx)))
-            xs = 0.0_dp
-            if (sys%nx > 0) xs(1) = x(1)
-            call dyn_forces(sys, real(q, dp), real(v, dp), xs, f, pw, tq)
-            force = f
-            power = pw
-            torque = tq
-            call dyn_jacobian(sys, real(q, dp), real(v, dp), xs, kb, cb, bb, pp, dd, ee)
-            call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, a)
-            kmat = a
-            call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, a)
-            cmat = a
-            call dyn_mass(sys, real(q, dp), mb)
-            call fe_band_to_dense(mb, sys%mesh%kl, sys%mesh%ku, a)
-            mass = a
-            b = bb
-            p = pp
-            d = dd
-            e = ee
-        end if
+        if (stat%code == STATUS_OK) call dense_system(sys, q, v, x, force, power, torque, kmat, &
+                                                      cmat, mass, b, p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system
 
@@ -265,19 +220,7 @@ contains
         character(len=256), intent(out) :: message
         type(dyn_system_t) :: sys
         type(status_t) :: stat
-        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :), a(:, :), f(:), pw(:)
-        real(dp), allocatable :: bb(:), pp(:), dd(:)
-        real(dp) :: tq, ee
-        integer :: k, nb
-        force = 0.0_c_double
-        power = 0.0_c_double
-        kmat = 0.0_c_double
-        cmat = 0.0_c_double
-        mass = 0.0_c_double
-        b = 0.0_c_double
-        p = 0.0_c_double
-        d = 0.0_c_double
-        e = 0.0_c_double
+        real(c_double) :: torque
         call make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         if (stat%code == STATUS_OK .and. (sys%nx /= nx .or. sys%nwork /= nwork)) then
             call set_status(stat, ERR_INPUT, 'api_dyn_system_modal', 'nx, nwork = '// &
@@ -285,32 +228,33 @@ contains
                             fmt_int(sys%nx)//', '//fmt_int(sys%nwork))
         end if
         if (stat%code == STATUS_OK) call dyn_set_modes(sys, int(modes), stat)
-        if (stat%code == STATUS_OK) then
-            k = sys%nc
-            nb = 3*sys%ckl + 1
-            allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k), a(k, k), f(k), &
-                      pw(sys%nwork), bb(k), pp(k), dd(k))
-            yc(1:k) = eta
-            yc(k + 1:2*k) = etad
-            if (sys%nx > 0) yc(2*k + 1) = x(1)
-            call dyn_cforces(sys, yc, f, pw, tq)
-            force = f
-            power = pw
-            call dyn_cjacobian(sys, yc, kb, cb, bb, pp, dd, ee)
-            call fe_band_to_dense(kb, sys%ckl, sys%cku, a)
-            kmat = a
-            call fe_band_to_dense(cb, sys%ckl, sys%cku, a)
-            cmat = a
-            call dyn_cmass(sys, yc, mb)
-            call fe_band_to_dense(mb, sys%ckl, sys%cku, a)
-            mass = a
-            b = bb
-            p = pp
-            d = dd
-            e = ee
-        end if
+        if (stat%code == STATUS_OK) call dense_system(sys, eta, etad, x, force, power, torque, &
+                                                      kmat, cmat, mass, b, p, d, e)
         call status_out(stat, code, message)
     end subroutine api_dyn_system_modal
+
+    !> The outputs of api_dyn_system(_modal) at the coordinate state (c, c', x)
+    !! of sys (full or modal).
+    subroutine dense_system(sys, c, cd, x, force, power, torque, kmat, cmat, mass, b, p, d, e)
+        type(dyn_system_t), intent(in) :: sys
+        real(c_double), intent(in) :: c(:), cd(:), x(1)
+        real(c_double), intent(out) :: force(:), power(:), torque, kmat(:, :), cmat(:, :)
+        real(c_double), intent(out) :: mass(:, :), b(:), p(:), d(:), e
+        real(dp), allocatable :: yc(:), kb(:, :), cb(:, :), mb(:, :)
+        integer :: k, nb
+        k = sys%nc
+        nb = 2*sys%ckl + sys%cku + 1
+        allocate (yc(sys%ncstate), kb(nb, k), cb(nb, k), mb(nb, k))
+        yc(1:k) = c
+        yc(k + 1:2*k) = cd
+        if (sys%nx > 0) yc(2*k + 1) = x(1)
+        call dyn_cforces(sys, yc, force, power, torque)
+        call dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+        call fe_band_to_dense(kb, sys%ckl, sys%cku, kmat)
+        call fe_band_to_dense(cb, sys%ckl, sys%cku, cmat)
+        call dyn_cmass(sys, yc, mb)
+        call fe_band_to_dense(mb, sys%ckl, sys%cku, mass)
+    end subroutine dense_system
 
     !> Deformed shape x = s + u(s), y = w(s) at nsub points per element
     !! (Hermite interpolation of Eq. 76), npts = nel nsub + 1, plus the arc s.
@@ -324,11 +268,7 @@ contains
         type(dyn_system_t) :: sys
         type(status_t) :: stat
         real(dp) :: f(4), f1(4), f2(4), zeta, h, nw(4), nu(4)
-        real(dp), allocatable :: qd(:)
         integer :: el, j, nsub, i
-        s = 0.0_c_double
-        x = 0.0_c_double
-        y = 0.0_c_double
         call make_system(nbeams, nparams, params, nepb, 0.0_c_double, 0_c_int, 1.0_c_double, &
                          sys, stat)
         if (stat%code == STATUS_OK) then
@@ -341,22 +281,20 @@ contains
             end if
         end if
         if (stat%code == STATUS_OK) then
-            allocate (qd(sys%n))
-            qd = q
             nsub = (npts - 1)/sys%mesh%nel
             i = 0
             do el = 1, sys%mesh%nel
                 h = sys%mesh%h(el)
                 ! the element's first node contributes its outboard slopes (a hinge's
                 ! second pair; the node's own slopes elsewhere)
-                nw = [fe_node_value(sys%mesh, qd, el, DOF_W), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DW_OUT), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_W), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_DW)]
-                nu = [fe_node_value(sys%mesh, qd, el, DOF_U), &
-                      fe_node_value(sys%mesh, qd, el, DOF_DU_OUT), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_U), &
-                      fe_node_value(sys%mesh, qd, el + 1, DOF_DU)]
+                nw = [fe_node_value(sys%mesh, q, el, DOF_W), &
+                      fe_node_value(sys%mesh, q, el, DOF_DW_OUT), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_W), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_DW)]
+                nu = [fe_node_value(sys%mesh, q, el, DOF_U), &
+                      fe_node_value(sys%mesh, q, el, DOF_DU_OUT), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_U), &
+                      fe_node_value(sys%mesh, q, el + 1, DOF_DU)]
                 do j = 0, nsub
                     if (j == 0 .and. el > 1) cycle
                     zeta = real(j, dp)/real(nsub, dp)
@@ -416,16 +354,6 @@ contains
         type(status_t) :: stat
         type(release_spec_t) :: spec
         type(release_out_t) :: out
-        states = 0.0_c_double
-        tip = 0.0_c_double
-        torque = 0.0_c_double
-        ledger = 0.0_c_double
-        work = 0.0_c_double
-        events = 0.0_c_double
-        y = 0.0_c_double
-        dy = 0.0_c_double
-        ds = 0.0_c_double
-        info = 0
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. nq /= NQTY) then
             call set_status(stat, ERR_INPUT, 'api_dyn_release', 'nq = '//fmt_int(int(nq))// &

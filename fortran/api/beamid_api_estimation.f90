@@ -7,6 +7,7 @@
 !! (experiment index, t, quantity code, value, sigma), free parameter indices,
 !! a priori index/mean/sigma (Eq. 142-145). Indices are 1-based. Status
 !! codes follow beamid_status; logical results are 0/1 integers.
+!! Outputs of a failed call are zeros: f2py allocates them zeroed.
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -83,9 +84,7 @@ contains
         real(c_double), intent(in) :: level(n), normalized(n)
         integer(c_int), intent(in) :: group(n)
         real(c_double), intent(out) :: out(7)
-        real(dp) :: o(7)
-        call residual_structure(real(level, dp), int(group), real(normalized, dp), o)
-        out = o
+        call residual_structure(real(level, dp), int(group), real(normalized, dp), out)
     end subroutine api_residual_structure
 
     !> The words of a code table of beamid_estimation, one per code from 0
@@ -141,30 +140,10 @@ contains
         p = chi2_sf(real(x, dp), int(k))
     end subroutine api_chi2_sf
 
-    !> The outputs of a fit entry before the fit (zero; params are set by the caller).
-    subroutine clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
-                         log_lambda, log_step, log_params)
-        real(c_double), intent(out) :: sigmas(:), cov(:, :), corr(:, :), predictions(:)
-        real(c_double), intent(out) :: normalized(:), stats(:), log_cost(:), log_lambda(:)
-        real(c_double), intent(out) :: log_step(:), log_params(:, :)
-        integer(c_int), intent(out) :: flags(:)
-        sigmas = 0.0_c_double
-        cov = 0.0_c_double
-        corr = 0.0_c_double
-        flags = 0
-        predictions = 0.0_c_double
-        normalized = 0.0_c_double
-        stats = 0.0_c_double
-        log_cost = 0.0_c_double
-        log_lambda = 0.0_c_double
-        log_step = 0.0_c_double
-        log_params = 0.0_c_double
-    end subroutine clear_fit
-
     !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
     !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
-    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest as
-    !! clear_fit left them).
+    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest zero,
+    !! as f2py allocates them).
     subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
                         log_cost, log_lambda, log_step, log_params)
         type(fit_result_t), intent(in) :: res
@@ -254,9 +233,6 @@ contains
         integer :: n
 
         params = params0
-        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
-                       log_lambda, log_step, log_params)
-        info = 0
         note = ''
         n = int(nprior)
         if (any(block(1:nblock) < 1 .or. block(1:nblock) > nparams)) then
@@ -330,9 +306,6 @@ contains
         type(deck_t) :: d
         type(status_t) :: stat
         integer :: e
-        exp_kind = 0
-        exp_values = 0.0_c_double
-        count = 0
         call read_deck(path, d, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
@@ -366,8 +339,6 @@ contains
         type(inverse_problem_t) :: model
         type(status_t) :: stat
         real(dp) :: p(nrow), j(nrow, nwrt)
-        pred = 0.0_c_double
-        jac = 0.0_c_double
         call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                   int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
                                   model, stat)
@@ -433,9 +404,7 @@ contains
         integer(c_int), intent(in) :: n
         real(c_double), intent(in) :: t(n), r(n)
         real(c_double), intent(out) :: out(10)
-        real(dp) :: o(10)
-        call time_structure(real(t, dp), real(r, dp), o)
-        out = o
+        call time_structure(real(t, dp), real(r, dp), out)
     end subroutine api_time_structure
 
     !> Diagnose a fit (beamid_ladder problem_diagnose: with release
@@ -520,17 +489,7 @@ contains
         character(len=:), allocatable :: text
         integer :: c, k, j, nf, r, u
 
-        cstats = 0.0_c_double
-        pstats = 0.0_c_double
-        refit_params = 0.0_c_double
-        cosine = 0.0_c_double
-        ranking = 0
-        refit_start = 0
-        dstats = 0.0_c_double
-        sep_t = 0.0_c_double
-        mstats = 0.0_c_double
         mesh_params = params
-        kept = 0
         notes = ''
         if (.not. ok) return
         nf = size(dg%base%free)
@@ -701,12 +660,6 @@ contains
         character(len=64), intent(out) :: effect
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        info = 0
-        free_idx = 0
-        added = 0
-        removed = 0
-        start = 0.0_c_double
-        nominal = 0.0_c_double
         effect = ''
         if (.not. rung_ok(k, code, message)) return
         associate (r => lad%rungs(k))
@@ -734,10 +687,6 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        params = 0.0_c_double
-        call clear_fit(sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
-                       log_lambda, log_step, log_params)
-        info = 0
         note = ''
         if (.not. rung_ok(k, code, message)) return
         associate (f => lad%rungs(k)%fit)

@@ -67,7 +67,6 @@ contains
         type(status_t) :: stat
         real(dp), allocatable :: values(:)
         integer :: nb
-        params = 0.0_c_double
         call preset_params(trim(name), nb, values, stat)
         if (stat%code == STATUS_OK .and. size(values) /= nparams) then
             call set_status(stat, ERR_INPUT, 'api_preset', 'wrong parameter count')
