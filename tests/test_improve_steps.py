@@ -89,3 +89,34 @@ def test_improve_deck_runs_its_ladder_once_and_writes_the_batch_bytes(tmp_path, 
     calls.clear()
     assert beamid.run(decks["python"]).effects == ladder.effects
     assert calls == ["deck_ladder_start"]
+
+
+def test_improve_ladders_from_two_threads_take_turns():
+    """The binding holds one ladder at a time: two ladders started from two
+    threads wait for each other (``_ce.LADDER_LOCK``) and each ends as it
+    does alone."""
+    import threading
+
+    model, exps, data = _elbow_flex_problem()
+    truth2 = beamid.pace(axial_coupling=0.0, root_flex=0.003)
+    data2 = beamid.simulate_measurements(truth2, exps, ["x_tip", "y_tip", "tip_angle"],
+                                         sigma=1e-4)
+    cases = [(data, ("elbow_flex", "axial_coupling")), (data2, ("root_flex", "elbow_flex"))]
+    alone = [beamid.improve(model, exps, d, free=("EI1", "EI2"), candidates=c)
+             for d, c in cases]
+    assert [a.effects for a in alone] == [("elbow_flex",), ("root_flex",)]
+    got: dict[int, object] = {}
+
+    def run(k: int) -> None:
+        for _ in range(3):     # several ladders each, so that they overlap
+            got[k] = beamid.improve(model, exps, cases[k][0], free=("EI1", "EI2"),
+                                    candidates=cases[k][1])
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for k in (0, 1):
+        assert got[k].effects == alone[k].effects
+        assert [s.chi2 for s in got[k].steps] == [s.chi2 for s in alone[k].steps]

@@ -14,6 +14,7 @@ attached to the exception as ``exc.partial``.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -250,6 +251,14 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
         prob.row_exp, prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
         float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
+
+
+#: The extension holds one improve ladder at a time (module state of the
+#: binding, beamid_api_estimation): a caller holds this lock from
+#: :func:`ladder_start` / :func:`deck_ladder_start` to its last read
+#: (:func:`ladder_rungs`, :func:`deck_ladder_write`), so ladders run from
+#: several threads take turns instead of overwriting each other.
+LADDER_LOCK = threading.RLock()
 
 
 def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,

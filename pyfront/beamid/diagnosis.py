@@ -691,9 +691,10 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
     free_names, free_idx = _free_indices(model, free)
     prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
-    _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx, pidx,
-                     pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
-    return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+    with _ce.LADDER_LOCK:
+        _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx,
+                         pidx, pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
+        return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
 
 
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,

@@ -185,8 +185,9 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
     if deck.task == "improve":
-        out = _result(deck)
-        files = [Path(p) for p in _ce.deck_ladder_write(str(deck.path))]
+        with _ce.LADDER_LOCK:
+            out = _result(deck)
+            files = [Path(p) for p in _ce.deck_ladder_write(str(deck.path))]
     else:
         files = run_files(deck)
         out = _result(deck)
@@ -210,10 +211,11 @@ def improve_deck(deck: FitDeck) -> Ladder:
     ``_core_estimation.deck_ladder_write`` (until another ladder starts)."""
     free_names, _ = _free_indices(deck.model, deck.free)
     prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
-    _ce.deck_ladder_start(str(deck.path))
     candidates = deck.candidates
-    return _run_ladder(deck.model, deck.experiments, deck.data, prior_map, candidates,
-                       deck.alpha, len(candidates or ()))
+    with _ce.LADDER_LOCK:
+        _ce.deck_ladder_start(str(deck.path))
+        return _run_ladder(deck.model, deck.experiments, deck.data, prior_map, candidates,
+                           deck.alpha, len(candidates or ()))
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
