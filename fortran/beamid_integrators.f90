@@ -28,7 +28,8 @@ module beamid_integrators
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_dforce, &
+                               FRICTION_SIGN, FRICTION_SMOOTH, dyn_param_t, dyn_jacobian, &
+                               dyn_dforce, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
                                DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
@@ -163,6 +164,9 @@ module beamid_integrators
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
         real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> the stage accelerations (D dZ)_i / h of the active columns (velocity
+        !! rows) and their mass products M0 (D dZ)_i / h
+        real(dp), allocatable :: zv(:, :), tm(:, :)
         !> each column's last observed contraction of the pass loop (0: none
         !! yet), carried across steps as CVODES carries its rate estimate
         real(dp), allocatable :: thc(:)
@@ -2405,16 +2409,25 @@ contains
         logical, intent(out) :: cz(3)
         real(dp) :: xp
         integer :: n, nx, i, j
+        logical :: coupled
 
         n = es%n
         nx = es%ncstate - 2*n
+        ! velocity coupling C (dF/dv) only from drag, Kelvin-Voigt damping,
+        ! rotary inertia, the motor without lag or the regularized friction law
+        ! (the sign law's dphi is 0): otherwise C is zero by construction and
+        ! its scan for zeros is skipped
+        coupled = es%eta /= 0.0_dp .or. (es%motor /= 0.0_dp .and. es%nx == 0) .or. es%rotary &
+                  .or. any(es%drag /= 0.0_dp) .or. any(es%inertia /= 0.0_dp) &
+                  .or. (es%law == FRICTION_SMOOTH .and. any(es%fric /= 0.0_dp))
         associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
                    fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
                 call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
                                   cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
-                cz(i) = all(cb(:, :, i) == 0.0_dp)
+                cz(i) = .not. coupled
+                if (coupled) cz(i) = all(cb(:, :, i) == 0.0_dp)
                 acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
@@ -2490,30 +2503,36 @@ contains
         ku = es%mesh%ku
         associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
                    cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
-                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv)
+                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv, &
+                   zv => ws%zv, tm => ws%tm)
             do i = 1, 3
                 do ja = 1, na
                     j = act(ja)
                     wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
                     wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    ! (D dZ)_i / h on the velocity rows
+                    zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
+                                 + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
                 end do
                 if (cz(i)) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
                 else
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
                 end if
+                ! in M-form: M0 (D dZ)_i / h, every column in one sweep over
+                ! the band of the constant M0 (the same sums as to_mform's)
+                if (.not. it%rot) call kc_mv_many(n, es%ckl, es%cku, na, it%mb, zv, tm)
                 if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
                 do ja = 1, na
                     j = act(ja)
-                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
-                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
-                                   + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
                     if (it%rot) then
+                        zd(n + 1:2*n) = zv(:, ja)
                         call to_mform(es, it, zd, ys(1:n))
-                    else
-                        call to_mform(es, it, zd)
+                        tm(:, ja) = zd(n + 1:2*n)
                     end if
-                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
+                    if (nx > 0) zd(m) = (dmat(i, 1)*dz(m, 1, j) + dmat(i, 2)*dz(m, 2, j) &
+                                         + dmat(i, 3)*dz(m, 3, j))/hh
+                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - tm(:, ja)
                     if (es%rotary) then
                         fp = 0.0_dp
                         call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
@@ -2615,7 +2634,7 @@ contains
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
-                  ws%wv(n, nw), ws%thc(nw))
+                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw))
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
     end subroutine sens_work_alloc
