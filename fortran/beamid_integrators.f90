@@ -162,7 +162,7 @@ module beamid_integrators
     type :: sens_work_t
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
-        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
+        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
         !> the stage accelerations (D dZ)_i / h of the active columns (velocity
         !! rows) and their mass products M0 (D dZ)_i / h
@@ -2514,14 +2514,17 @@ contains
                     zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
                                  + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
                 end do
-                if (cz(i)) then
+                ! with M0 (D dZ)_i / h (M-form) in the same sweep over the
+                ! bands when the mass is constant and C is zero
+                tm(:, 1:na) = 0.0_dp
+                if (cz(i) .and. .not. it%rot) then
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, it%mb, zv)
+                else if (cz(i)) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
                 else
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                    if (.not. it%rot) call kc_mv_many(n, kl, ku, na, it%mb, zv, tm)
                 end if
-                ! in M-form: M0 (D dZ)_i / h, every column in one sweep over
-                ! the band of the constant M0 (the same sums as to_mform's)
-                if (.not. it%rot) call kc_mv_many(n, es%ckl, es%cku, na, it%mb, zv, tm)
                 if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
                 do ja = 1, na
                     j = act(ja)
@@ -2562,35 +2565,62 @@ contains
         integer, intent(in) :: iter
         integer, intent(inout) :: passes, na
         type(sens_work_t), intent(inout) :: ws
-        real(dp) :: ref, err, th
-        integer :: n, m, nx, i, j, k, ja
+        real(dp) :: ref, err, th, amax, dq, dv, sr, e(3), cv(3)
+        complex(dp) :: cw(3)
+        integer :: n, m, nx, i, j, k, ja, r
 
         n = es%n
         m = es%ncstate
         nx = m - 2*n
-        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, dels => ws%dels, &
+        ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
+        ! displacement rows x and the velocity rows lam x (r_q = 0)
+        cv = tr*(gam/hh)
+        cw = tc*(mu/hh)
+        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, dels => ws%dels, &
                    act => ws%act, errold => ws%errold)
             k = 0
             do ja = 1, na
                 j = act(ja)
-                ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
-                ! displacement rows x and the velocity rows lam x (r_q = 0)
-                do i = 1, 3
-                    dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
-                    dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
-                                         + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
-                    if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
-                    dz(:, i, j) = dz(:, i, j) + dels(:, i)
+                ! the corrections of the three stages, row by row (one sweep)
+                amax = 0.0_dp
+                do r = 1, n
+                    do i = 1, 3
+                        dq = tr(i)*w1(r, ja) + real(tc(i)*w2(r, ja), dp)
+                        dv = cv(i)*w1(r, ja) + real(cw(i)*w2(r, ja), dp)
+                        dels(r, i) = dq
+                        dels(n + r, i) = dv
+                        dz(r, i, j) = dz(r, i, j) + dq
+                        dz(n + r, i, j) = dz(n + r, i, j) + dv
+                        amax = max(amax, abs(dz(r, i, j)))
+                    end do
                 end do
+                if (nx > 0) then
+                    do i = 1, 3
+                        dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
+                        dz(m, i, j) = dz(m, i, j) + dels(m, i)
+                    end do
+                end if
                 ! error scale: the tolerance relative to this sensitivity's
                 ! size (velocity rows as the displacement they cause over the
-                ! step); the motor torque row on its own scale
-                ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
-                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
-                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
-                if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
-                                                maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
-                err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
+                ! step); the motor torque row on its own scale. The weighted
+                ! mean squares of the three stages' corrections in one sweep
+                ref = max(maxval(abs(sm(1:n, j))), amax, 1.0e-280_dp)
+                e = 0.0_dp
+                do r = 1, n
+                    sr = 1.0_dp/(rtol*(abs(sm(r, j)) + ref))
+                    e = e + (dels(r, :)*sr)**2
+                end do
+                do r = n + 1, 2*n
+                    sr = 1.0_dp/(rtol*(abs(sm(r, j)) + ref))*hh
+                    e = e + (dels(r, :)*sr)**2
+                end do
+                if (nx > 0) then
+                    sr = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                          maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
+                    e = e + (dels(m, :)*sr)**2
+                end if
+                e = e/real(m, dp)
+                err = max(e(1), e(2), e(3))
                 passes = passes + 1
                 ! converged when the remaining error th/(1 - th) |correction|
                 ! is below the tolerance (th: the observed contraction; at the
@@ -2633,7 +2663,7 @@ contains
         allocate (ws%kb(nb, n, 3), ws%cb(nb, n, 3), ws%b(n, 3), ws%p(n, 3), ws%d(n, 3), &
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
-                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
+                  ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
                   ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw))
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
@@ -2646,21 +2676,37 @@ contains
         real(dp), intent(in) :: kb(2*kl + ku + 1, n), x(:, :)
         real(dp), intent(inout) :: y(:, :)
         real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
-        integer :: j, c, i1, i2, k
-        logical :: with_c
-        with_c = present(cb)
+        integer, parameter :: L15 = 15
+        integer :: j, c, i1, i2, k, i0
         k = kl + ku + 1
         y(1:n, 1:na) = 0.0_dp
         do j = 1, n
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
-            do c = 1, na
-                y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(k + i1 - j:k + i2 - j, j)
-            end do
-            if (.not. with_c) cycle
-            do c = 1, na
-                y(i1:i2, c) = y(i1:i2, c) + v(j, c)*cb(k + i1 - j:k + i2 - j, j)
-            end do
+            i0 = k + i1 - j
+            ! the interior columns of a 7 + 7 band (the beam elements' 8
+            ! unknowns) with a constant trip count
+            if (i2 - i1 + 1 == L15) then
+                if (present(cb)) then
+                    do c = 1, na
+                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j) &
+                                                + v(j, c)*cb(i0:i0 + L15 - 1, j)
+                    end do
+                else
+                    do c = 1, na
+                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j)
+                    end do
+                end if
+            else if (present(cb)) then
+                do c = 1, na
+                    y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j) &
+                                  + v(j, c)*cb(i0:i0 + i2 - i1, j)
+                end do
+            else
+                do c = 1, na
+                    y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j)
+                end do
+            end if
         end do
     end subroutine kc_mv_many
 
