@@ -166,7 +166,7 @@ module beamid_integrators
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
         !> the stage accelerations (D dZ)_i / h of the active columns (velocity
         !! rows) and their mass products M0 (D dZ)_i / h
-        real(dp), allocatable :: zv(:, :), tm(:, :)
+        real(dp), allocatable :: zv(:, :), tm(:, :), t3(:, :)
         !> each column's last observed contraction of the pass loop (0: none
         !! yet), carried across steps as CVODES carries its rate estimate
         real(dp), allocatable :: thc(:)
@@ -2432,11 +2432,22 @@ contains
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
-                    t(:, 1) = 0.0_dp
-                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
-                    cst(1:n, i, j) = fp - t(:, 1)
+                    if (allocated(pars(j)%dmb)) then
+                        cst(1:n, i, j) = fp
+                    else
+                        t(:, 1) = 0.0_dp
+                        call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
+                        cst(1:n, i, j) = fp - t(:, 1)
+                    end if
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
+            end do
+            ! a constant dM/dp (densities, point masses: dmb): (dM/dp) a_i of
+            ! the three stages in one sweep over its band
+            do j = 1, nw
+                if (.not. allocated(pars(j)%dmb)) cycle
+                call kc_mv_many(n, es%mesh%kl, es%mesh%ku, 3, pars(j)%dmb, acc, ws%t3)
+                cst(1:n, :, j) = cst(1:n, :, j) - ws%t3
             end do
         end associate
     end subroutine sens_stage_terms
@@ -2664,7 +2675,7 @@ contains
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
-                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw))
+                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3))
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
     end subroutine sens_work_alloc
@@ -2743,7 +2754,18 @@ contains
             w1(it%stuck(c), 1:na) = 0.0_dp
             w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
-        if (it%sym) then
+        if (it%sym .and. na <= 2) then
+            ! one or two columns: the one-column solves (the same operations,
+            ! no transposes; the many-column solve pays off from three on)
+            do c = 1, na
+                call ldlt_solve_real(n, sys%ckl, it%s1, w1(1:n, c))
+                call ldlt_solve_cplx(n, sys%ckl, it%s2, w2(1:n, c))
+                if (it%nlr > 0) then
+                    call lr_real(it, w1(1:n, c))
+                    call lr_cplx(it, w2(1:n, c))
+                end if
+            end do
+        else if (it%sym) then
             bt1 = transpose(w1(1:n, 1:na))
             bt2 = transpose(w2(1:n, 1:na))
             call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
