@@ -2463,11 +2463,16 @@ contains
         real(dp), intent(in) :: sm(:, :), dzp(:, :, :), hh, hp, dmat(3, 3)
         type(sens_work_t), intent(inout) :: ws
         integer, intent(out) :: na
-        real(dp) :: lsc(3)
+        real(dp) :: lsc(3, 3)
         integer :: n, i, j, k
 
         n = es%n
         na = 0
+        if (hp > 0.0_dp) then
+            do i = 1, 3
+                lsc(:, i) = lagrange(1.0_dp + CNODE(i)*hh/hp)
+            end do
+        end if
         associate (dz => ws%dz)
             do j = 1, size(sm, 2)
                 if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
@@ -2475,9 +2480,8 @@ contains
                 ws%act(na) = j
                 if (hp > 0.0_dp) then
                     do i = 1, 3
-                        lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
-                        dz(:, i, j) = lsc(1)*dzp(:, 1, j) + lsc(2)*dzp(:, 2, j) &
-                                      + (lsc(3) - 1.0_dp)*dzp(:, 3, j)
+                        dz(:, i, j) = lsc(1, i)*dzp(:, 1, j) + lsc(2, i)*dzp(:, 2, j) &
+                                      + (lsc(3, i) - 1.0_dp)*dzp(:, 3, j)
                     end do
                 else
                     dz(:, :, j) = 0.0_dp
@@ -2506,6 +2510,7 @@ contains
         type(sens_work_t), intent(inout) :: ws
         real(dp) :: xp
         integer :: n, m, nx, kl, ku, i, j, ja, k
+        logical :: fused
 
         n = es%n
         m = es%ncstate
@@ -2517,18 +2522,18 @@ contains
                    fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv, &
                    zv => ws%zv, tm => ws%tm)
             do i = 1, 3
+                ! with M0 (D dZ)_i / h (M-form) in the same sweep over the
+                ! bands when the mass is constant and C is zero
+                fused = cz(i) .and. .not. it%rot
                 do ja = 1, na
                     j = act(ja)
                     wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
-                    wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    if (.not. cz(i) .or. nx > 0) wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
                     ! (D dZ)_i / h on the velocity rows
                     zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
                                  + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
                 end do
-                ! with M0 (D dZ)_i / h (M-form) in the same sweep over the
-                ! bands when the mass is constant and C is zero
-                tm(:, 1:na) = 0.0_dp
-                if (cz(i) .and. .not. it%rot) then
+                if (fused) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, it%mb, zv)
                 else if (cz(i)) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
@@ -2546,7 +2551,11 @@ contains
                     end if
                     if (nx > 0) zd(m) = (dmat(i, 1)*dz(m, 1, j) + dmat(i, 2)*dz(m, 2, j) &
                                          + dmat(i, 3)*dz(m, 3, j))/hh
-                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - tm(:, ja)
+                    if (fused) then
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja)
+                    else
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - tm(:, ja)
+                    end if
                     if (es%rotary) then
                         fp = 0.0_dp
                         call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
