@@ -2479,9 +2479,13 @@ contains
                 na = na + 1
                 ws%act(na) = j
                 if (hp > 0.0_dp) then
+                    ! displacement (and torque) rows: the velocity rows follow
                     do i = 1, 3
-                        dz(:, i, j) = lsc(1, i)*dzp(:, 1, j) + lsc(2, i)*dzp(:, 2, j) &
-                                      + (lsc(3, i) - 1.0_dp)*dzp(:, 3, j)
+                        dz(1:n, i, j) = lsc(1, i)*dzp(1:n, 1, j) + lsc(2, i)*dzp(1:n, 2, j) &
+                                        + (lsc(3, i) - 1.0_dp)*dzp(1:n, 3, j)
+                        dz(2*n + 1:, i, j) = lsc(1, i)*dzp(2*n + 1:, 1, j) &
+                                             + lsc(2, i)*dzp(2*n + 1:, 2, j) &
+                                             + (lsc(3, i) - 1.0_dp)*dzp(2*n + 1:, 3, j)
                     end do
                 else
                     dz(:, :, j) = 0.0_dp
