@@ -171,6 +171,9 @@ module beamid_integrators
         !! yet), carried across steps as CVODES carries its rate estimate
         real(dp), allocatable :: thc(:)
         complex(dp), allocatable :: w2(:, :)
+        !> the many-column solves' right-hand sides as rows (nw x n)
+        real(dp), allocatable :: bt1(:)
+        complex(dp), allocatable :: bt2(:)
         integer, allocatable :: act(:)
     end type sens_work_t
 
@@ -2377,7 +2380,7 @@ contains
                 ws%w2(:, ja) = ti2(1)*ws%r(:, 1, ja) + ti2(2)*ws%r(:, 2, ja) &
                                + ti2(3)*ws%r(:, 3, ja)
             end do
-            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2)
+            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2, ws%bt1, ws%bt2)
             call sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
         end do
         if (na > 0) then
@@ -2688,7 +2691,8 @@ contains
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
-                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3))
+                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3), &
+                  ws%bt1(nw*n), ws%bt2(nw*n))
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
     end subroutine sens_work_alloc
@@ -2741,7 +2745,7 @@ contains
     !! rows being zero; out, the displacement correction x in w(1:n, c) (the
     !! velocity correction is lam x) and the torque correction in w(n + 1, c).
     !! One routine for both kinds: the blocks are always solved together.
-    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2)
+    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2, bt1, bt2)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
         real(dp), intent(in) :: lam1
@@ -2749,18 +2753,19 @@ contains
         integer, intent(in) :: na
         real(dp), intent(inout) :: w1(:, :)
         complex(dp), intent(inout) :: w2(:, :)
-        real(dp) :: bt1(na, sys%nc), zt1(na)
-        complex(dp) :: bt2(na, sys%nc), zt2(na)
-        integer :: n, c
+        !> work: the right-hand sides as the rows of an na x nc matrix (the
+        !! many-column solves), at least na nc long
+        real(dp), intent(inout) :: bt1(:)
+        complex(dp), intent(inout) :: bt2(:)
+        integer :: n, c, j
         n = sys%nc
         if (na == 0) return
         if (sys%nx > 0) then
             ! the torque row eliminated (Eq. 158 lag): the motor column b
-            zt1 = w1(n + 1, 1:na)
-            zt2 = w2(n + 1, 1:na)
+            ! (w(n + 1, c) keeps the torque row's right-hand side)
             do c = 1, na
-                w1(1:n, c) = w1(1:n, c) + it%b*zt1(c)/(lam1 - it%e)
-                w2(1:n, c) = w2(1:n, c) + it%b*zt2(c)/(lam2 - it%e)
+                w1(1:n, c) = w1(1:n, c) + it%b*w1(n + 1, c)/(lam1 - it%e)
+                w2(1:n, c) = w2(1:n, c) + it%b*w2(n + 1, c)/(lam2 - it%e)
             end do
         end if
         do c = 1, it%nst
@@ -2779,16 +2784,24 @@ contains
                 end if
             end do
         else if (it%sym) then
-            bt1 = transpose(w1(1:n, 1:na))
-            bt2 = transpose(w2(1:n, 1:na))
+            do j = 1, n
+                do c = 1, na
+                    bt1((j - 1)*na + c) = w1(j, c)
+                    bt2((j - 1)*na + c) = w2(j, c)
+                end do
+            end do
             call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
             call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt2)
             do c = 1, merge(na, 0, it%nlr > 0)
-                call lr_real(it, bt1(c, :))
-                call lr_cplx(it, bt2(c, :))
+                call lr_real(it, bt1(c:na*n:na))
+                call lr_cplx(it, bt2(c:na*n:na))
             end do
-            w1(1:n, 1:na) = transpose(bt1)
-            w2(1:n, 1:na) = transpose(bt2)
+            do j = 1, n
+                do c = 1, na
+                    w1(j, c) = bt1((j - 1)*na + c)
+                    w2(j, c) = bt2((j - 1)*na + c)
+                end do
+            end do
         else
             do c = 1, na
                 call band_solve(it%lu1, w1(1:n, c))
@@ -2799,8 +2812,9 @@ contains
         end if
         if (sys%nx > 0) then
             do c = 1, na
-                w1(n + 1, c) = (zt1(c) + dot_product(it%p + lam1*it%d, w1(1:n, c)))/(lam1 - it%e)
-                w2(n + 1, c) = (zt2(c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
+                w1(n + 1, c) = (w1(n + 1, c) + dot_product(it%p + lam1*it%d, w1(1:n, c))) &
+                               /(lam1 - it%e)
+                w2(n + 1, c) = (w2(n + 1, c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
             end do
         end if
     end subroutine solve_stage_many
