@@ -2751,12 +2751,12 @@ contains
         real(dp), intent(in) :: lam1
         complex(dp), intent(in) :: lam2
         integer, intent(in) :: na
-        real(dp), intent(inout) :: w1(:, :)
-        complex(dp), intent(inout) :: w2(:, :)
+        real(dp), intent(inout), contiguous :: w1(:, :)
+        complex(dp), intent(inout), contiguous :: w2(:, :)
         !> work: the right-hand sides as the rows of an na x nc matrix (the
         !! many-column solves), at least na nc long
-        real(dp), intent(inout) :: bt1(:)
-        complex(dp), intent(inout) :: bt2(:)
+        real(dp), intent(inout), contiguous :: bt1(:)
+        complex(dp), intent(inout), contiguous :: bt2(:)
         integer :: n, c, j
         n = sys%nc
         if (na == 0) return
