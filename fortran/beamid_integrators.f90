@@ -175,6 +175,9 @@ module beamid_integrators
         real(dp), allocatable :: bt1(:)
         complex(dp), allocatable :: bt2(:)
         integer, allocatable :: act(:)
+        !> the nonzero columns jr(1, j):jr(2, j) of a parameter's dM/dp (0: not
+        !! yet scanned)
+        integer, allocatable :: jr(:, :)
     end type sens_work_t
 
     character(len=*), parameter :: RADAU_WHERE = 'implicit'
@@ -2449,7 +2452,17 @@ contains
             ! the three stages in one sweep over its band
             do j = 1, nw
                 if (.not. allocated(pars(j)%dmb)) cycle
-                call kc_mv_many(n, es%mesh%kl, es%mesh%ku, 3, pars(j)%dmb, acc, ws%t3)
+                if (ws%jr(1, j) == 0) then
+                    ! its nonzero columns (a density: its beam's unknowns)
+                    ws%jr(:, j) = [n, 1]
+                    do i = 1, n
+                        if (all(pars(j)%dmb(:, i) == 0.0_dp)) cycle
+                        ws%jr(1, j) = min(ws%jr(1, j), i)
+                        ws%jr(2, j) = max(ws%jr(2, j), i)
+                    end do
+                end if
+                call kc_mv_many(n, es%mesh%kl, es%mesh%ku, 3, pars(j)%dmb, acc, ws%t3, &
+                                jr=ws%jr(:, j))
                 cst(1:n, :, j) = cst(1:n, :, j) - ws%t3
             end do
         end associate
@@ -2692,23 +2705,32 @@ contains
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
                   ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3), &
-                  ws%bt1(nw*n), ws%bt2(nw*n))
+                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw))
+        ws%jr = 0
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
     end subroutine sens_work_alloc
 
     !> y(:, c) = K x(:, c) (+ C v(:, c)) for the na columns of x (and v): one
     !! sweep over the band storage of K (and C) serves every column.
-    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v)
+    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v, jr)
         integer, intent(in) :: n, kl, ku, na
         real(dp), intent(in) :: kb(2*kl + ku + 1, n), x(:, :)
         real(dp), intent(inout) :: y(:, :)
         real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
+        !> the columns jr(1):jr(2) hold every nonzero of kb (and cb)
+        integer, intent(in), optional :: jr(2)
         integer, parameter :: L15 = 15
-        integer :: j, c, i1, i2, k, i0
+        integer :: j, c, i1, i2, k, i0, j1, j2
         k = kl + ku + 1
         y(1:n, 1:na) = 0.0_dp
-        do j = 1, n
+        j1 = 1
+        j2 = n
+        if (present(jr)) then
+            j1 = jr(1)
+            j2 = jr(2)
+        end if
+        do j = j1, j2
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
             i0 = k + i1 - j
