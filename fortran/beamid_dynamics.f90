@@ -1395,12 +1395,16 @@ contains
         type(dyn_param_t), intent(in) :: par
         real(dp), intent(in) :: q(:), a(:)
         real(dp), intent(inout) :: y(:)
-        real(dp) :: t(size(a)), a1, a2, s
+        real(dp) :: a1, a2, s
         integer :: k
         select case (par%kind)
         case (DP_RHO, DP_MASS)
-            call fe_band_matvec(par%dmb, sys%mesh%kl, sys%mesh%ku, a, t)
-            y = y + t
+            ! the product's work vector only here (the other kinds take none)
+            block
+                real(dp) :: t(size(a))
+                call fe_band_matvec(par%dmb, sys%mesh%kl, sys%mesh%ku, a, t)
+                y = y + t
+            end block
         case (DP_J)
             k = par%k
             a1 = 1.0_dp + q(sys%idu(k))

@@ -28,7 +28,8 @@ module beamid_integrators
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_dforce, &
+                               FRICTION_SIGN, FRICTION_SMOOTH, dyn_param_t, dyn_jacobian, &
+                               dyn_dforce, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
                                DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
@@ -165,13 +166,22 @@ module beamid_integrators
     type :: sens_work_t
         real(dp), allocatable :: kb(:, :, :), cb(:, :, :), b(:, :), p(:, :), d(:, :)
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
-        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), sc(:), dels(:, :)
+        real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> the stage accelerations (D dZ)_i / h of the active columns (velocity
+        !! rows) and their mass products M0 (D dZ)_i / h
+        real(dp), allocatable :: zv(:, :), tm(:, :), t3(:, :)
         !> each column's last observed contraction of the pass loop (0: none
         !! yet), carried across steps as CVODES carries its rate estimate
         real(dp), allocatable :: thc(:)
         complex(dp), allocatable :: w2(:, :)
+        !> the many-column solves' right-hand sides as rows (nw x n)
+        real(dp), allocatable :: bt1(:)
+        complex(dp), allocatable :: bt2(:)
         integer, allocatable :: act(:)
+        !> the nonzero columns jr(1, j):jr(2, j) of a parameter's dM/dp (0: not
+        !! yet scanned)
+        integer, allocatable :: jr(:, :)
     end type sens_work_t
 
     character(len=*), parameter :: RADAU_WHERE = 'implicit'
@@ -2292,7 +2302,7 @@ contains
                 ws%w2(:, ja) = ti2(1)*ws%r(:, 1, ja) + ti2(2)*ws%r(:, 2, ja) &
                                + ti2(3)*ws%r(:, 3, ja)
             end do
-            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2)
+            call solve_stage_many(es, it, gam/hh, mu/hh, na, ws%w1, ws%w2, ws%bt1, ws%bt2)
             call sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
         end do
         if (na > 0) then
@@ -2324,25 +2334,55 @@ contains
         logical, intent(out) :: cz(3)
         real(dp) :: xp
         integer :: n, nx, i, j
+        logical :: coupled
 
         n = es%n
         nx = es%ncstate - 2*n
+        ! velocity coupling C (dF/dv) only from drag, Kelvin-Voigt damping,
+        ! rotary inertia, the motor without lag or the regularized friction law
+        ! (the sign law's dphi is 0): otherwise C is zero by construction and
+        ! its scan for zeros is skipped
+        coupled = es%eta /= 0.0_dp .or. (es%motor /= 0.0_dp .and. es%nx == 0) .or. es%rotary &
+                  .or. any(es%drag /= 0.0_dp) .or. any(es%inertia /= 0.0_dp) &
+                  .or. (es%law == FRICTION_SMOOTH .and. any(es%fric /= 0.0_dp))
         associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
                    fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
                 call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
                                   cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
-                cz(i) = all(cb(:, :, i) == 0.0_dp)
+                cz(i) = .not. coupled
+                if (coupled) cz(i) = all(cb(:, :, i) == 0.0_dp)
                 acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
-                    t(:, 1) = 0.0_dp
-                    call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
-                    cst(1:n, i, j) = fp - t(:, 1)
+                    if (allocated(pars(j)%dmb)) then
+                        cst(1:n, i, j) = fp
+                    else
+                        t(:, 1) = 0.0_dp
+                        call dyn_dmass_mv(es, pars(j), ys(1:n), acc(:, i), t(:, 1))
+                        cst(1:n, i, j) = fp - t(:, 1)
+                    end if
                     if (nx > 0) cst(n + 1, i, j) = xp
                 end do
+            end do
+            ! a constant dM/dp (densities, point masses: dmb): (dM/dp) a_i of
+            ! the three stages in one sweep over its band
+            do j = 1, nw
+                if (.not. allocated(pars(j)%dmb)) cycle
+                if (ws%jr(1, j) == 0) then
+                    ! its nonzero columns (a density: its beam's unknowns)
+                    ws%jr(:, j) = [n, 1]
+                    do i = 1, n
+                        if (all(pars(j)%dmb(:, i) == 0.0_dp)) cycle
+                        ws%jr(1, j) = min(ws%jr(1, j), i)
+                        ws%jr(2, j) = max(ws%jr(2, j), i)
+                    end do
+                end if
+                call kc_mv_many(n, es%mesh%kl, es%mesh%ku, 3, pars(j)%dmb, acc, ws%t3, &
+                                jr=ws%jr(:, j))
+                cst(1:n, :, j) = cst(1:n, :, j) - ws%t3
             end do
         end associate
     end subroutine sens_stage_terms
@@ -2358,21 +2398,29 @@ contains
         real(dp), intent(in) :: sm(:, :), dzp(:, :, :), hh, hp, dmat(3, 3)
         type(sens_work_t), intent(inout) :: ws
         integer, intent(out) :: na
-        real(dp) :: lsc(3)
+        real(dp) :: lsc(3, 3)
         integer :: n, i, j, k
 
         n = es%n
         na = 0
+        if (hp > 0.0_dp) then
+            do i = 1, 3
+                lsc(:, i) = lagrange(1.0_dp + CNODE(i)*hh/hp)
+            end do
+        end if
         associate (dz => ws%dz)
             do j = 1, size(sm, 2)
                 if (pars(j)%kind == DP_NONE .and. all(sm(:, j) == 0.0_dp)) cycle
                 na = na + 1
                 ws%act(na) = j
                 if (hp > 0.0_dp) then
+                    ! displacement (and torque) rows: the velocity rows follow
                     do i = 1, 3
-                        lsc = lagrange(1.0_dp + CNODE(i)*hh/hp)
-                        dz(:, i, j) = lsc(1)*dzp(:, 1, j) + lsc(2)*dzp(:, 2, j) &
-                                      + (lsc(3) - 1.0_dp)*dzp(:, 3, j)
+                        dz(1:n, i, j) = lsc(1, i)*dzp(1:n, 1, j) + lsc(2, i)*dzp(1:n, 2, j) &
+                                        + (lsc(3, i) - 1.0_dp)*dzp(1:n, 3, j)
+                        dz(2*n + 1:, i, j) = lsc(1, i)*dzp(2*n + 1:, 1, j) &
+                                             + lsc(2, i)*dzp(2*n + 1:, 2, j) &
+                                             + (lsc(3, i) - 1.0_dp)*dzp(2*n + 1:, 3, j)
                     end do
                 else
                     dz(:, :, j) = 0.0_dp
@@ -2401,6 +2449,7 @@ contains
         type(sens_work_t), intent(inout) :: ws
         real(dp) :: xp
         integer :: n, m, nx, kl, ku, i, j, ja, k
+        logical :: fused
 
         n = es%n
         m = es%ncstate
@@ -2409,30 +2458,43 @@ contains
         ku = es%mesh%ku
         associate (kb => ws%kb, cb => ws%cb, b => ws%b, p => ws%p, d => ws%d, acc => ws%acc, &
                    cst => ws%cst, dz => ws%dz, r => ws%r, zd => ws%zd, t => ws%t, &
-                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv)
+                   fp => ws%fp, ys => ws%ys, act => ws%act, wq => ws%wq, wv => ws%wv, &
+                   zv => ws%zv, tm => ws%tm)
             do i = 1, 3
+                ! with M0 (D dZ)_i / h (M-form) in the same sweep over the
+                ! bands when the mass is constant and C is zero
+                fused = cz(i) .and. .not. it%rot
                 do ja = 1, na
                     j = act(ja)
                     wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
-                    wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    if (.not. cz(i) .or. nx > 0) wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
+                    ! (D dZ)_i / h on the velocity rows
+                    zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
+                                 + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
                 end do
-                if (cz(i)) then
+                if (fused) then
+                    call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, it%mb, zv)
+                else if (cz(i)) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t)
                 else
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, cb(:, :, i), wv)
+                    if (.not. it%rot) call kc_mv_many(n, kl, ku, na, it%mb, zv, tm)
                 end if
                 if (it%rot .or. es%rotary) ys(1:n) = y(1:n) + z(1:n, i)
                 do ja = 1, na
                     j = act(ja)
-                    ! (D dZ)_i / h on the velocity (and torque) rows, in M-form
-                    zd(n + 1:m) = (dmat(i, 1)*dz(n + 1:m, 1, j) + dmat(i, 2)*dz(n + 1:m, 2, j) &
-                                   + dmat(i, 3)*dz(n + 1:m, 3, j))/hh
                     if (it%rot) then
+                        zd(n + 1:2*n) = zv(:, ja)
                         call to_mform(es, it, zd, ys(1:n))
-                    else
-                        call to_mform(es, it, zd)
+                        tm(:, ja) = zd(n + 1:2*n)
                     end if
-                    r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - zd(n + 1:2*n)
+                    if (nx > 0) zd(m) = (dmat(i, 1)*dz(m, 1, j) + dmat(i, 2)*dz(m, 2, j) &
+                                         + dmat(i, 3)*dz(m, 3, j))/hh
+                    if (fused) then
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja)
+                    else
+                        r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja) - tm(:, ja)
+                    end if
                     if (es%rotary) then
                         fp = 0.0_dp
                         call dyn_dmass_dq_mv(es, ys(1:n), wq(:, ja), acc(:, i), fp)
@@ -2462,35 +2524,62 @@ contains
         integer, intent(in) :: iter
         integer, intent(inout) :: passes, na
         type(sens_work_t), intent(inout) :: ws
-        real(dp) :: ref, err, th
-        integer :: n, m, nx, i, j, k, ja
+        real(dp) :: ref, err, th, amax, dq, dv, sr, e(3), cv(3)
+        complex(dp) :: cw(3)
+        integer :: n, m, nx, i, j, k, ja, r
 
         n = es%n
         m = es%ncstate
         nx = m - 2*n
-        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, sc => ws%sc, dels => ws%dels, &
+        ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
+        ! displacement rows x and the velocity rows lam x (r_q = 0)
+        cv = tr*(gam/hh)
+        cw = tc*(mu/hh)
+        associate (dz => ws%dz, w1 => ws%w1, w2 => ws%w2, dels => ws%dels, &
                    act => ws%act, errold => ws%errold)
             k = 0
             do ja = 1, na
                 j = act(ja)
-                ! w1, w2 hold (x, y = lam x - r_q) of the reduced solves: the
-                ! displacement rows x and the velocity rows lam x (r_q = 0)
-                do i = 1, 3
-                    dels(1:n, i) = tr(i)*w1(1:n, ja) + real(tc(i)*w2(1:n, ja), dp)
-                    dels(n + 1:2*n, i) = tr(i)*(gam/hh)*w1(1:n, ja) &
-                                         + real(tc(i)*(mu/hh)*w2(1:n, ja), dp)
-                    if (nx > 0) dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
-                    dz(:, i, j) = dz(:, i, j) + dels(:, i)
+                ! the corrections of the three stages, row by row (one sweep)
+                amax = 0.0_dp
+                do r = 1, n
+                    do i = 1, 3
+                        dq = tr(i)*w1(r, ja) + real(tc(i)*w2(r, ja), dp)
+                        dv = cv(i)*w1(r, ja) + real(cw(i)*w2(r, ja), dp)
+                        dels(r, i) = dq
+                        dels(n + r, i) = dv
+                        dz(r, i, j) = dz(r, i, j) + dq
+                        dz(n + r, i, j) = dz(n + r, i, j) + dv
+                        amax = max(amax, abs(dz(r, i, j)))
+                    end do
                 end do
+                if (nx > 0) then
+                    do i = 1, 3
+                        dels(m, i) = tr(i)*w1(n + 1, ja) + real(tc(i)*w2(n + 1, ja), dp)
+                        dz(m, i, j) = dz(m, i, j) + dels(m, i)
+                    end do
+                end if
                 ! error scale: the tolerance relative to this sensitivity's
                 ! size (velocity rows as the displacement they cause over the
-                ! step); the motor torque row on its own scale
-                ref = max(maxval(abs(sm(1:n, j))), maxval(abs(dz(1:n, :, j))), 1.0e-280_dp)
-                sc = 1.0_dp/(rtol*(abs(sm(:, j)) + ref))
-                sc(n + 1:2*n) = sc(n + 1:2*n)*hh
-                if (nx > 0) sc(m) = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
-                                                maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
-                err = max(wrms(dels(:, 1), sc), wrms(dels(:, 2), sc), wrms(dels(:, 3), sc))
+                ! step); the motor torque row on its own scale. The weighted
+                ! mean squares of the three stages' corrections in one sweep
+                ref = max(maxval(abs(sm(1:n, j))), amax, 1.0e-280_dp)
+                e = 0.0_dp
+                do r = 1, n
+                    sr = 1.0_dp/(rtol*(abs(sm(r, j)) + ref))
+                    e = e + (dels(r, :)*sr)**2
+                end do
+                do r = n + 1, 2*n
+                    sr = 1.0_dp/(rtol*(abs(sm(r, j)) + ref))*hh
+                    e = e + (dels(r, :)*sr)**2
+                end do
+                if (nx > 0) then
+                    sr = 1.0_dp/(rtol*(abs(sm(m, j)) + max(abs(sm(m, j)), &
+                                                          maxval(abs(dz(m, :, j))), 1.0e-280_dp)))
+                    e = e + (dels(m, :)*sr)**2
+                end if
+                e = e/real(m, dp)
+                err = max(e(1), e(2), e(3))
                 passes = passes + 1
                 ! converged when the remaining error th/(1 - th) |correction|
                 ! is below the tolerance (th: the observed contraction; at the
@@ -2533,34 +2622,60 @@ contains
         allocate (ws%kb(nb, n, 3), ws%cb(nb, n, 3), ws%b(n, 3), ws%p(n, 3), ws%d(n, 3), &
                   ws%acc(n, 3), ws%cst(nr, 3, nw), ws%dz(m, 3, nw), ws%r(nr, 3, nw), &
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
-                  ws%sc(m), ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
-                  ws%wv(n, nw), ws%thc(nw))
+                  ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
+                  ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3), &
+                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw))
+        ws%jr = 0
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
     end subroutine sens_work_alloc
 
     !> y(:, c) = K x(:, c) (+ C v(:, c)) for the na columns of x (and v): one
     !! sweep over the band storage of K (and C) serves every column.
-    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v)
+    pure subroutine kc_mv_many(n, kl, ku, na, kb, x, y, cb, v, jr)
         integer, intent(in) :: n, kl, ku, na
         real(dp), intent(in) :: kb(2*kl + ku + 1, n), x(:, :)
         real(dp), intent(inout) :: y(:, :)
         real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
-        integer :: j, c, i1, i2, k
-        logical :: with_c
-        with_c = present(cb)
+        !> the columns jr(1):jr(2) hold every nonzero of kb (and cb)
+        integer, intent(in), optional :: jr(2)
+        integer, parameter :: L15 = 15
+        integer :: j, c, i1, i2, k, i0, j1, j2
         k = kl + ku + 1
         y(1:n, 1:na) = 0.0_dp
-        do j = 1, n
+        j1 = 1
+        j2 = n
+        if (present(jr)) then
+            j1 = jr(1)
+            j2 = jr(2)
+        end if
+        do j = j1, j2
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
-            do c = 1, na
-                y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(k + i1 - j:k + i2 - j, j)
-            end do
-            if (.not. with_c) cycle
-            do c = 1, na
-                y(i1:i2, c) = y(i1:i2, c) + v(j, c)*cb(k + i1 - j:k + i2 - j, j)
-            end do
+            i0 = k + i1 - j
+            ! the interior columns of a 7 + 7 band (the beam elements' 8
+            ! unknowns) with a constant trip count
+            if (i2 - i1 + 1 == L15) then
+                if (present(cb)) then
+                    do c = 1, na
+                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j) &
+                                                + v(j, c)*cb(i0:i0 + L15 - 1, j)
+                    end do
+                else
+                    do c = 1, na
+                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j)
+                    end do
+                end if
+            else if (present(cb)) then
+                do c = 1, na
+                    y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j) &
+                                  + v(j, c)*cb(i0:i0 + i2 - i1, j)
+                end do
+            else
+                do c = 1, na
+                    y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j)
+                end do
+            end if
         end do
     end subroutine kc_mv_many
 
@@ -2571,43 +2686,63 @@ contains
     !! rows being zero; out, the displacement correction x in w(1:n, c) (the
     !! velocity correction is lam x) and the torque correction in w(n + 1, c).
     !! One routine for both kinds: the blocks are always solved together.
-    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2)
+    subroutine solve_stage_many(sys, it, lam1, lam2, na, w1, w2, bt1, bt2)
         type(dyn_system_t), intent(in) :: sys
         type(radau_t), intent(inout) :: it
         real(dp), intent(in) :: lam1
         complex(dp), intent(in) :: lam2
         integer, intent(in) :: na
-        real(dp), intent(inout) :: w1(:, :)
-        complex(dp), intent(inout) :: w2(:, :)
-        real(dp) :: bt1(na, sys%nc), zt1(na)
-        complex(dp) :: bt2(na, sys%nc), zt2(na)
-        integer :: n, c
+        real(dp), intent(inout), contiguous :: w1(:, :)
+        complex(dp), intent(inout), contiguous :: w2(:, :)
+        !> work: the right-hand sides as the rows of an na x nc matrix (the
+        !! many-column solves), at least na nc long
+        real(dp), intent(inout), contiguous :: bt1(:)
+        complex(dp), intent(inout), contiguous :: bt2(:)
+        integer :: n, c, j
         n = sys%nc
         if (na == 0) return
         if (sys%nx > 0) then
             ! the torque row eliminated (Eq. 158 lag): the motor column b
-            zt1 = w1(n + 1, 1:na)
-            zt2 = w2(n + 1, 1:na)
+            ! (w(n + 1, c) keeps the torque row's right-hand side)
             do c = 1, na
-                w1(1:n, c) = w1(1:n, c) + it%b*zt1(c)/(lam1 - it%e)
-                w2(1:n, c) = w2(1:n, c) + it%b*zt2(c)/(lam2 - it%e)
+                w1(1:n, c) = w1(1:n, c) + it%b*w1(n + 1, c)/(lam1 - it%e)
+                w2(1:n, c) = w2(1:n, c) + it%b*w2(n + 1, c)/(lam2 - it%e)
             end do
         end if
         do c = 1, it%nst
             w1(it%stuck(c), 1:na) = 0.0_dp
             w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
-        if (it%sym) then
-            bt1 = transpose(w1(1:n, 1:na))
-            bt2 = transpose(w2(1:n, 1:na))
+        if (it%sym .and. na <= 2) then
+            ! one or two columns: the one-column solves (the same operations,
+            ! no transposes; the many-column solve pays off from three on)
+            do c = 1, na
+                call ldlt_solve_real(n, sys%ckl, it%s1, w1(1:n, c))
+                call ldlt_solve_cplx(n, sys%ckl, it%s2, w2(1:n, c))
+                if (it%nlr > 0) then
+                    call lr_real(it, w1(1:n, c))
+                    call lr_cplx(it, w2(1:n, c))
+                end if
+            end do
+        else if (it%sym) then
+            do j = 1, n
+                do c = 1, na
+                    bt1((j - 1)*na + c) = w1(j, c)
+                    bt2((j - 1)*na + c) = w2(j, c)
+                end do
+            end do
             call ldlt_solve_real_many(n, sys%ckl, it%s1, na, bt1)
             call ldlt_solve_cplx_many(n, sys%ckl, it%s2, na, bt2)
             do c = 1, merge(na, 0, it%nlr > 0)
-                call lr_real(it, bt1(c, :))
-                call lr_cplx(it, bt2(c, :))
+                call lr_real(it, bt1(c:na*n:na))
+                call lr_cplx(it, bt2(c:na*n:na))
             end do
-            w1(1:n, 1:na) = transpose(bt1)
-            w2(1:n, 1:na) = transpose(bt2)
+            do j = 1, n
+                do c = 1, na
+                    w1(j, c) = bt1((j - 1)*na + c)
+                    w2(j, c) = bt2((j - 1)*na + c)
+                end do
+            end do
         else
             do c = 1, na
                 call band_solve(it%lu1, w1(1:n, c))
@@ -2618,8 +2753,9 @@ contains
         end if
         if (sys%nx > 0) then
             do c = 1, na
-                w1(n + 1, c) = (zt1(c) + dot_product(it%p + lam1*it%d, w1(1:n, c)))/(lam1 - it%e)
-                w2(n + 1, c) = (zt2(c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
+                w1(n + 1, c) = (w1(n + 1, c) + dot_product(it%p + lam1*it%d, w1(1:n, c))) &
+                               /(lam1 - it%e)
+                w2(n + 1, c) = (w2(n + 1, c) + sum((it%p + lam2*it%d)*w2(1:n, c)))/(lam2 - it%e)
             end do
         end if
     end subroutine solve_stage_many
