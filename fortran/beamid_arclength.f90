@@ -1298,12 +1298,9 @@ contains
 
         nan = ieee_value(1.0_dp, ieee_quiet_nan)
         allocate (sol%doutputs(NOUT, nw), source=0.0_dp)
-        sol%outputs(OUT_X_TIP) = shot%z_end(IX)
-        sol%outputs(OUT_Y_TIP) = shot%z_end(IY)
-        sol%outputs(OUT_TIP_ANGLE) = shot%z_end(IPSI)
-        sol%doutputs(OUT_X_TIP, :) = dz_end(IX, :)
-        sol%doutputs(OUT_Y_TIP, :) = dz_end(IY, :)
-        sol%doutputs(OUT_TIP_ANGLE, :) = dz_end(IPSI, :)
+        ! x, y, angle of the tip and of the elbow: the states IX:IPSI, in order
+        sol%outputs(OUT_X_TIP:OUT_TIP_ANGLE) = shot%z_end(IX:IPSI)
+        sol%doutputs(OUT_X_TIP:OUT_TIP_ANGLE, :) = dz_end(IX:IPSI, :)
         if (prob%nu == 4) then
             sol%outputs(OUT_WIRE_FORCE) = tension
             sol%doutputs(OUT_WIRE_FORCE, :) = du(4, :)
@@ -1312,12 +1309,8 @@ contains
             sol%doutputs(OUT_WIRE_FORCE, :) = nan
         end if
         if (nb >= 2) then
-            sol%outputs(OUT_X_ELBOW) = shot%z_joint(IX, 1)
-            sol%outputs(OUT_Y_ELBOW) = shot%z_joint(IY, 1)
-            sol%outputs(OUT_ELBOW_ANGLE) = shot%z_joint(IPSI, 1)
-            sol%doutputs(OUT_X_ELBOW, :) = dz_elbow(IX, :)
-            sol%doutputs(OUT_Y_ELBOW, :) = dz_elbow(IY, :)
-            sol%doutputs(OUT_ELBOW_ANGLE, :) = dz_elbow(IPSI, :)
+            sol%outputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE) = shot%z_joint(IX:IPSI, 1)
+            sol%doutputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE, :) = dz_elbow(IX:IPSI, :)
         else
             sol%outputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE) = nan
             sol%doutputs(OUT_X_ELBOW:OUT_ELBOW_ANGLE, :) = nan

@@ -39,7 +39,20 @@ module beamid_dyn_diagnosis
     implicit none
     private
 
-    public :: mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, null_side_init
+    public :: problem_t, mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, &
+              null_side_init
+
+    !> An estimation problem: experiments (kind, EV_* values), data rows
+    !! (experiment, t, quantity, value, sigma), a priori information and the
+    !! fit's iteration limit.
+    type :: problem_t
+        integer :: nbeams = 0
+        integer, allocatable :: exp_kind(:), row_exp(:), row_q(:)
+        real(dp), allocatable :: exp_values(:, :), row_t(:), y(:), sigma(:)
+        real(dp) :: tol = 0.0_dp          !< static solver tolerance (0: default)
+        type(prior_t) :: prior
+        integer :: max_iter = 50
+    end type problem_t
 
     !> Parameters whose forward sensitivity does not exist at the null value,
     !! because the effect adds a state or a degree of freedom only when on: the
@@ -277,12 +290,9 @@ contains
 
     !> The mesh test (see the module header): refit `free` from base%params
     !! with every release at twice its elements per beam.
-    subroutine mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
-                         base, prior, lower, upper, fopts, alpha, res, stat)
-        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
+    subroutine mesh_test(pb, base, lower, upper, fopts, alpha, res, stat)
+        type(problem_t), intent(in) :: pb
         type(fit_result_t), intent(in) :: base
-        type(prior_t), intent(in) :: prior
         real(dp), intent(in) :: lower(:), upper(:)
         type(fit_options_t), intent(in) :: fopts
         real(dp), intent(in) :: alpha          !< significance level of the test
@@ -294,31 +304,31 @@ contains
         real(dp), allocatable :: values(:, :), pred(:), jdummy(:, :), change(:)
         real(dp) :: err
         integer :: e, m
-        if (.not. any(exp_kind == EXP_RELEASE)) return
+        if (.not. any(pb%exp_kind == EXP_RELEASE)) return
         res%done = .true.
-        values = exp_values
-        do e = 1, size(exp_kind)
-            if (exp_kind(e) /= EXP_RELEASE) cycle
+        values = pb%exp_values
+        do e = 1, size(pb%exp_kind)
+            if (pb%exp_kind(e) /= EXP_RELEASE) cycle
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
             values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
         end do
-        call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
-                                  stat)
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, values, pb%row_exp, pb%row_t, pb%row_q, &
+                                  pb%tol, fine, stat)
         if (stat%code /= STATUS_OK) return
         ! the change of the predictions at the fitted parameters
-        allocate (pred(size(y)), jdummy(size(y), 0))
+        allocate (pred(size(pb%y)), jdummy(size(pb%y), 0))
         call fine%evaluate(base%params, [integer ::], pred, jdummy, stat)
         if (stat%code /= STATUS_OK) then
             stat%message = trim(stat%message)//' (mesh test at twice the elements per beam)'
             return
         end if
-        change = abs(pred - base%predictions)/sigma
+        change = abs(pred - base%predictions)/pb%sigma
         res%max_row = maxloc(change, 1)
         res%max_change = change(res%max_row)
         ! the refit at the refined mesh: a failed refit is reported, not raised
         call clear_status(st)
-        call fit_least_squares(fine, y, sigma, base%params, base%free, lower, upper, prior, &
-                               fopts, refit, st)
+        call fit_least_squares(fine, pb%y, pb%sigma, base%params, base%free, lower, upper, &
+                               pb%prior, fopts, refit, st)
         if (st%code < 0) then
             stat = st
             return
@@ -329,7 +339,7 @@ contains
             res%params = refit%params
         else
             ! judge by the refined model at the fitted parameters
-            res%chi2 = sum(((y - pred)/sigma)**2) + base%chi2_prior
+            res%chi2 = sum(((pb%y - pred)/pb%sigma)**2) + base%chi2_prior
             res%params = base%params
         end if
         res%drop = base%chi2 + base%chi2_prior - res%chi2
@@ -361,14 +371,11 @@ contains
     !! members whose first-order estimates exceed KEEP_SIGMAS sigma: tip
     !! histories rarely separate the elbow's parameter from the tip's, and a
     !! block with an undetermined member never passes its refit.
-    subroutine dyn_diagnose(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
-                            params0, nominal, free, prior, cands_in, fopts0, dopts, with_mesh, &
+    subroutine dyn_diagnose(pb, params0, nominal, free, cands_in, fopts0, dopts, with_mesh, &
                             base, diag, mesh, pexp, pt, pq, used, stat, ambiguous)
-        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, y(:), sigma(:)
+        type(problem_t), intent(in) :: pb
         real(dp), intent(in) :: params0(:), nominal(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(candidate_t), intent(in) :: cands_in(:)
         type(fit_options_t), intent(in) :: fopts0
         type(diagnose_options_t), intent(in) :: dopts
@@ -403,44 +410,43 @@ contains
         if (present(ambiguous)) allocate (ambiguous(0))
         nc = size(cands_in)
         fopts = fopts0
-        if (any(exp_kind == EXP_RELEASE)) then
+        if (any(pb%exp_kind == EXP_RELEASE)) then
             ! an integrated response carries the integrator's error (rtol
             ! 1e-9 by default): below a relative cost change of COST_FLOOR no
             ! step can be judged, and a refit at that floor is converged
             fopts%tol_cost = max(fopts%tol_cost, COST_FLOOR)
         end if
-        frefit = fopts
-        if (any(exp_kind == EXP_RELEASE)) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
-        call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
-                                  prob, stat)
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
+                                  pb%row_q, pb%tol, prob, stat)
         if (stat%code /= STATUS_OK) return
-        call null_side_init(nbeams, prob, side)
-        call fit_at(side, y, sigma, params0, free, prob%lower, prob%upper, prior, fopts, base, &
-                    stat)
+        frefit = fopts
+        if (prob%has_dynamic) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
+        call null_side_init(pb%nbeams, prob, side)
+        call fit_at(side, pb%y, pb%sigma, params0, free, prob%lower, prob%upper, pb%prior, fopts, &
+                    base, stat)
         if (stat%code /= STATUS_OK) return
         cands = open_members(cands_in, base, prob%nulls)
         ! one run of the forward sensitivities at the null values for the
         ! free parameters and every candidate parameter to be tested: the
         ! checks below and every score test read it (cached_model_t)
-        call cached_init(side, base%params, tested_union(cands, base, prob%nulls), size(y), &
+        call cached_init(side, base%params, tested_union(cands, base, prob%nulls), size(pb%y), &
                          cache)
         if (cache%stat%code > 0) then
             stat = cache%stat
             return
         end if
-        call seen_by_data(cache, cands, base, prob%nulls, size(y), seen, stat)
+        call seen_by_data(cache, cands, base, prob%nulls, size(pb%y), seen, stat)
         if (stat%code > 0) return
         ns = count(seen)
         map = pack([(c, c=1, nc)], seen)
         seen_cands = cands(map)
-        call narrow_blocks(cache, y, sigma, base, prob, prior, fopts, dopts, seen_cands, close, &
-                           stat)
+        call narrow_blocks(cache, pb%y, pb%sigma, base, prob, pb%prior, fopts, dopts, seen_cands, &
+                           close, stat)
         if (stat%code > 0) return
         used = cands
         used(map) = seen_cands
         if (present(ambiguous)) ambiguous = close
-        call all_probe_rows(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, sigma, &
-                            prob, probe, pexp, pt, pq, psig, stat)
+        call all_probe_rows(pb, prob, probe, pexp, pt, pq, psig, stat)
         if (stat%code /= STATUS_OK) return
         dsub = dopts
         if (prob%has_dynamic) then
@@ -459,8 +465,8 @@ contains
             dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
         end if
         if (ns > 0) then
-            call diagnose(cache, y, sigma, base, prob%nulls, prob%lower, prob%upper, prior, &
-                          seen_cands, frefit, dsub, sub, stat, probe, psig, nominal)
+            call diagnose(cache, pb%y, pb%sigma, base, prob%nulls, prob%lower, prob%upper, &
+                          pb%prior, seen_cands, frefit, dsub, sub, stat, probe, psig, nominal)
             if (stat%code /= STATUS_OK) return
         else
             allocate (sub%cand(0), sub%ranking(0), sub%cosine(0, 0))
@@ -468,8 +474,7 @@ contains
         end if
         call scatter_back(sub, seen, map, diag)
         if (with_mesh .and. prob%has_dynamic) then
-            call mesh_test(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, y, sigma, &
-                           base, prior, prob%lower, prob%upper, frefit, &
+            call mesh_test(pb, base, prob%lower, prob%upper, frefit, &
                            dopts%alpha/real(diag%ntested + 1, dp), mesh, stat)
         end if
     end subroutine dyn_diagnose
@@ -626,10 +631,8 @@ contains
     end subroutine narrow_blocks
 
     !> The probe rows of both families (static and dynamic) and their problem.
-    subroutine all_probe_rows(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, sigma, &
-                              prob, probe, pexp, pt, pq, psig, stat)
-        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, sigma(:)
+    subroutine all_probe_rows(pb, prob, probe, pexp, pt, pq, psig, stat)
+        type(problem_t), intent(in) :: pb
         type(inverse_problem_t), intent(in) :: prob
         type(inverse_problem_t), intent(out) :: probe
         integer, allocatable, intent(inout) :: pexp(:), pq(:)
@@ -641,17 +644,18 @@ contains
 
         allocate (sexp(0), sq(0), ssig(0))
         if (prob%has_static) then
-            call probe_rows(prob%st%loads, prob%st%row_quantity, sigma(prob%st_rows), plocal, &
+            call probe_rows(prob%st%loads, prob%st%row_quantity, pb%sigma(prob%st_rows), plocal, &
                             sq, ssig)
             sexp = prob%st_exp(plocal)
         end if
-        call dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, dexp, dt, dq, &
-                            dsig)
+        call dyn_probe_rows(pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, pb%row_q, pb%sigma, &
+                            dexp, dt, dq, dsig)
         pexp = [sexp, dexp]
         pq = [sq, dq]
         pt = [spread(0.0_dp, 1, size(sexp)), dt]
         psig = [ssig, dsig]
-        call inverse_problem_init(nbeams, exp_kind, exp_values, pexp, pt, pq, tol, probe, stat)
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, pb%tol, &
+                                  probe, stat)
         if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)
     end subroutine all_probe_rows
 

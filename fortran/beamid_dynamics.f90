@@ -45,7 +45,7 @@ module beamid_dynamics
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_band_rows, fe_band_add, &
                                   fe_internal_force, fe_tangent, fe_energy, fe_mass, &
                                   fe_band_matvec, fe_expand, DOF_W, DOF_DW, DOF_U, DOF_DU, &
-                                  DOF_DW_OUT, DOF_DU_OUT, fe_load_t, fe_tip_load
+                                  fe_load_t, fe_tip_load, fe_spring_dofs
     use beamid_fe_static, only: fe_residual
     use beamid_lapack, only: solve_banded
     use beamid_band, only: band_lu_t, band_factor, band_solve
@@ -1206,23 +1206,6 @@ contains
         end if
     end subroutine dyn_param_setup
 
-    !> Free indices and compliance of hinge spring j (0: the root).
-    pure subroutine spring_free(mesh, j, idx, flex)
-        type(fe_mesh_t), intent(in) :: mesh
-        integer, intent(in) :: j
-        integer, intent(out) :: idx(4)
-        real(dp), intent(out) :: flex
-        if (j == 0) then
-            idx = [0, 0, mesh%free_of(mesh%node_dof(DOF_DW, 1)), &
-                   mesh%free_of(mesh%node_dof(DOF_DU, 1))]
-            flex = mesh%root_flex
-        else
-            idx = mesh%free_of(mesh%node_dof([DOF_DW, DOF_DU, DOF_DW_OUT, DOF_DU_OUT], &
-                                             mesh%hinge_node(j)))
-            flex = mesh%hinge_flex(j)
-        end if
-    end subroutine spring_free
-
     !> Element unknowns of element el from the free vector q.
     pure function elem_q(mesh, q, el) result(qe)
         type(fe_mesh_t), intent(in) :: mesh
@@ -1268,7 +1251,7 @@ contains
             end do
         case (DP_FLEX)
             ! the spring force (dpsi / f) grad(dpsi): d/df = -force / f
-            call spring_free(sys%mesh, par%spring, idx, flex)
+            call fe_spring_dofs(sys%mesh, par%spring, idx, flex)
             call fe_hinge_force(flex, spring_vals(q, idx), fs)
             do a = 1, 4
                 if (idx(a) /= 0) g(idx(a)) = g(idx(a)) - fs(a)/flex
@@ -1306,7 +1289,7 @@ contains
                                             sys%mesh%wg, elem_q(sys%mesh, q, el))
             end do
         case (DP_FLEX)
-            call spring_free(sys%mesh, par%spring, idx, flex)
+            call fe_spring_dofs(sys%mesh, par%spring, idx, flex)
             dv = -fe_hinge_energy(flex, spring_vals(q, idx))/flex
         end select
     end function dyn_denergy

@@ -490,85 +490,66 @@ contains
 
     ! ------------------------------------------------------------ validation
 
+    !> The first problem with the data, bounds, free parameters and prior, in
+    !! that order, as an ERR_INPUT status of 'fit'.
     subroutine check_problem(y, sigma, params, free, lower, upper, prior, stat)
         real(dp), intent(in) :: y(:), sigma(:), params(:), lower(:), upper(:)
         integer, intent(in) :: free(:)
         type(prior_t), intent(in) :: prior
         type(status_t), intent(inout) :: stat
-        character(len=*), parameter :: where = 'fit'
-        integer :: i, np
+        character(len=:), allocatable :: problem
+        integer :: i, np, k
         np = size(params)
+        problem = ''
         if (size(sigma) /= size(y)) then
-            call set_status(stat, ERR_INPUT, where, 'sigma has '//fmt_int(size(sigma))// &
-                            ' values for '//fmt_int(size(y))//' data rows')
-            return
-        end if
-        if (size(y) == 0) then
-            call set_status(stat, ERR_INPUT, where, 'no data rows')
-            return
+            problem = 'sigma has '//fmt_int(size(sigma))//' values for '//fmt_int(size(y))// &
+                      ' data rows'
+        else if (size(y) == 0) then
+            problem = 'no data rows'
         end if
         do i = 1, size(y)
+            if (len(problem) > 0) exit
             if (.not. ieee_is_finite(y(i))) then
-                call set_status(stat, ERR_INPUT, where, 'data row '//fmt_int(i)// &
-                                ' value = '//fmt_real(y(i))//', expected a finite number')
-                return
-            end if
-            if (.not. (sigma(i) > 0.0_dp .and. ieee_is_finite(sigma(i)))) then
-                call set_status(stat, ERR_INPUT, where, 'data row '//fmt_int(i)// &
-                                ' sigma = '//fmt_real(sigma(i))//', expected sigma > 0')
-                return
+                problem = 'data row '//fmt_int(i)//' value = '//fmt_real(y(i))// &
+                          ', expected a finite number'
+            else if (.not. (sigma(i) > 0.0_dp .and. ieee_is_finite(sigma(i)))) then
+                problem = 'data row '//fmt_int(i)//' sigma = '//fmt_real(sigma(i))// &
+                          ', expected sigma > 0'
             end if
         end do
-        if (size(lower) /= np .or. size(upper) /= np) then
-            call set_status(stat, ERR_INPUT, where, 'bounds do not match the parameter vector')
-            return
-        end if
-        if (size(free) == 0) then
-            call set_status(stat, ERR_INPUT, where, 'no free parameters: name at least one')
-            return
-        end if
+        if (len(problem) == 0 .and. (size(lower) /= np .or. size(upper) /= np)) &
+            problem = 'bounds do not match the parameter vector'
+        if (len(problem) == 0 .and. size(free) == 0) &
+            problem = 'no free parameters: name at least one'
         do i = 1, size(free)
-            if (free(i) < 1 .or. free(i) > np) then
-                call set_status(stat, ERR_INPUT, where, 'free parameter index '// &
-                                fmt_int(free(i))//' outside 1..'//fmt_int(np))
-                return
-            end if
-            if (count(free == free(i)) > 1) then
-                call set_status(stat, ERR_INPUT, where, 'free parameter index '// &
-                                fmt_int(free(i))//' given twice')
-                return
-            end if
-            if (params(free(i)) < lower(free(i)) .or. params(free(i)) > upper(free(i))) then
-                call set_status(stat, ERR_INPUT, where, 'starting value of parameter '// &
-                                fmt_int(free(i))//' = '//fmt_real(params(free(i)))// &
-                                ' is outside its bounds ['//fmt_real(lower(free(i)))//', '// &
-                                fmt_real(upper(free(i)))//']')
-                return
+            if (len(problem) > 0) exit
+            k = free(i)
+            if (k < 1 .or. k > np) then
+                problem = 'free parameter index '//fmt_int(k)//' outside 1..'//fmt_int(np)
+            else if (count(free == k) > 1) then
+                problem = 'free parameter index '//fmt_int(k)//' given twice'
+            else if (params(k) < lower(k) .or. params(k) > upper(k)) then
+                problem = 'starting value of parameter '//fmt_int(k)//' = '// &
+                          fmt_real(params(k))//' is outside its bounds ['// &
+                          fmt_real(lower(k))//', '//fmt_real(upper(k))//']'
             end if
         end do
-        if (size(prior%mean) /= size(prior%index) .or. &
-            size(prior%sigma) /= size(prior%index)) then
-            call set_status(stat, ERR_INPUT, where, 'prior index, mean and sigma differ in size')
-            return
-        end if
+        if (len(problem) == 0 .and. (size(prior%mean) /= size(prior%index) .or. &
+                                     size(prior%sigma) /= size(prior%index))) &
+            problem = 'prior index, mean and sigma differ in size'
         do i = 1, size(prior%index)
-            if (.not. any(free == prior%index(i))) then
-                call set_status(stat, ERR_INPUT, where, 'a priori parameter '// &
-                                fmt_int(prior%index(i))//' is not free')
-                return
-            end if
-            if (.not. (prior%sigma(i) > 0.0_dp .and. ieee_is_finite(prior%sigma(i)))) then
-                call set_status(stat, ERR_INPUT, where, 'a priori sigma of parameter '// &
-                                fmt_int(prior%index(i))//' = '//fmt_real(prior%sigma(i))// &
-                                ', expected sigma > 0')
-                return
-            end if
-            if (.not. ieee_is_finite(prior%mean(i))) then
-                call set_status(stat, ERR_INPUT, where, 'a priori mean of parameter '// &
-                                fmt_int(prior%index(i))//' is not finite')
-                return
+            if (len(problem) > 0) exit
+            k = prior%index(i)
+            if (.not. any(free == k)) then
+                problem = 'a priori parameter '//fmt_int(k)//' is not free'
+            else if (.not. (prior%sigma(i) > 0.0_dp .and. ieee_is_finite(prior%sigma(i)))) then
+                problem = 'a priori sigma of parameter '//fmt_int(k)//' = '// &
+                          fmt_real(prior%sigma(i))//', expected sigma > 0'
+            else if (.not. ieee_is_finite(prior%mean(i))) then
+                problem = 'a priori mean of parameter '//fmt_int(k)//' is not finite'
             end if
         end do
+        if (len(problem) > 0) call set_status(stat, ERR_INPUT, 'fit', problem)
     end subroutine check_problem
 
     ! ----------------------------------------------------------------- fitting

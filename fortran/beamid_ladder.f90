@@ -10,25 +10,13 @@ module beamid_ladder
                                  diagnose_options_t, diagnosis_t, chi2_sf
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
                               inverse_diagnose, EXP_RELEASE, EV_NEPB
-    use beamid_dyn_diagnosis, only: dyn_diagnose, mesh_test_t
+    use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t
     implicit none
     private
 
     public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
     public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
     public :: ladder_start, ladder_step
-
-    !> An estimation problem: experiments (kind, EV_* values), data rows
-    !! (experiment, t, quantity, value, sigma), a priori information and the
-    !! fit's iteration limit.
-    type :: problem_t
-        integer :: nbeams = 0
-        integer, allocatable :: exp_kind(:), row_exp(:), row_q(:)
-        real(dp), allocatable :: exp_values(:, :), row_t(:), y(:), sigma(:)
-        real(dp) :: tol = 0.0_dp          !< static solver tolerance (0: default)
-        type(prior_t) :: prior
-        integer :: max_iter = 50
-    end type problem_t
 
     !> The candidates of one diagnosis: effects with their parameter blocks;
     !! with releases `mesh` is tested apart (with_mesh).
@@ -139,10 +127,9 @@ contains
         type(status_t) :: stat
         dg%dynamic = problem_dynamic(pb)
         if (dg%dynamic) then
-            call dyn_diagnose(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
-                              pb%row_q, pb%tol, pb%y, pb%sigma, params, nominal, free, &
-                              pb%prior, cs%cands, fopts, dopts, cs%with_mesh, dg%base, dg%diag, &
-                              dg%mesh, dg%pexp, dg%pt, dg%pq, dg%used, stat, dg%ambiguous)
+            call dyn_diagnose(pb, params, nominal, free, cs%cands, fopts, dopts, cs%with_mesh, &
+                              dg%base, dg%diag, dg%mesh, dg%pexp, dg%pt, dg%pq, dg%used, stat, &
+                              dg%ambiguous)
         else
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
                                       pb%row_t, pb%row_q, pb%tol, problem, stat)

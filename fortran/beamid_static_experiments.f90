@@ -92,35 +92,31 @@ contains
         type(static_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         integer :: i
+        character(len=:), allocatable :: problem
         if (size(row_exp) /= size(row_quantity)) then
             call set_status(stat, ERR_INPUT, 'static experiments', 'row experiment and '// &
                             'quantity lists differ in length')
             return
         end if
+        problem = ''
         do i = 1, size(row_exp)
             if (row_exp(i) < 1 .or. row_exp(i) > size(loads)) then
-                call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
-                                ' names experiment '//fmt_int(row_exp(i))//', expected 1..'// &
-                                fmt_int(size(loads)))
-                return
+                problem = ' names experiment '//fmt_int(row_exp(i))//', expected 1..'// &
+                          fmt_int(size(loads))
+            else if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
+                problem = ' has quantity code '//fmt_int(row_quantity(i))//', expected 1..'// &
+                          fmt_int(NQUANT)
+            else if (row_quantity(i) == Q_WIRE_FORCE .and. &
+                     loads(row_exp(i))%kind /= LOAD_WIRE) then
+                problem = ': wire_force measured in experiment '//fmt_int(row_exp(i))// &
+                          ', which has no wire'
+            else if (row_quantity(i) == Q_MOTOR_TORQUE) then
+                problem = ': motor_torque measured in the static experiment '// &
+                          fmt_int(row_exp(i))//', which has no motor'
             end if
-            if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
+            if (len(problem) > 0) then
                 call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
-                                ' has quantity code '//fmt_int(row_quantity(i))// &
-                                ', expected 1..'//fmt_int(NQUANT))
-                return
-            end if
-            if (row_quantity(i) == Q_WIRE_FORCE .and. &
-                loads(row_exp(i))%kind /= LOAD_WIRE) then
-                call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
-                                ': wire_force measured in experiment '//fmt_int(row_exp(i))// &
-                                ', which has no wire')
-                return
-            end if
-            if (row_quantity(i) == Q_MOTOR_TORQUE) then
-                call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
-                                ': motor_torque measured in the static experiment '// &
-                                fmt_int(row_exp(i))//', which has no motor')
+                                problem)
                 return
             end if
         end do

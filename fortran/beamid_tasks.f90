@@ -182,12 +182,10 @@ contains
         type(fe_mesh_t) :: mesh
         type(fe_load_t) :: load
         type(fe_newton_opts_t) :: opts
-        integer :: nnode, info(3)
+        integer :: nnode, info(3), ierr
         real(dp), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(dp) :: energy, reactions(3), residual
         character(len=:), allocatable :: prefix
-        integer :: ierr
-        real(dp) :: total
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
@@ -206,12 +204,11 @@ contains
                                  energy, reactions, residual, info, st)
         end if
         if (st%code /= STATUS_OK) return
-        total = nodes(1, nnode)
         call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call write_summary(fl, prefix//'_summary.csv', names, [nodes(4, nnode), &
                            nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
-                           total + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
+                           nodes(1, nnode) + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
         if (st%code /= STATUS_OK) return
         call write_table(fl, prefix//'_nodes.csv', 's,u,du,w,dw', nodes, st)
     end subroutine run_fe_static
@@ -246,15 +243,11 @@ contains
         nw = 0
         nu = 0
         do i = 1, nfree
-            if (axial(i) /= 0) then
-                nu = nu + 1
-                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_u', nu, &
-                    omega(i)
-            else
-                nw = nw + 1
-                if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) 'omega_w', nw, &
-                    omega(i)
-            end if
+            ! the axial and the bending family numbered apart
+            if (axial(i) /= 0) nu = nu + 1
+            if (axial(i) == 0) nw = nw + 1
+            if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) &
+                merge('omega_u', 'omega_w', axial(i) /= 0), merge(nu, nw, axial(i) /= 0), omega(i)
         end do
         call close_checked(unit, ios, prefix//'_modes.csv', st)
     end subroutine run_fe_modes
