@@ -20,7 +20,8 @@ module beamid_static_experiments
                             IB_EI, IB_EA, IB_RHO, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
                             param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
-                                solve_static, LOAD_TIP, LOAD_WIRE
+                                solve_static, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, OUT_Y_TIP, &
+                                OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW
     use beamid_estimation, only: residual_model_t, candidate_t, sort_desc
     implicit none
     private
@@ -42,7 +43,8 @@ module beamid_static_experiments
         'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', 'u_tip', 'w_tip', &
         'motor_torque']
     !> Solver output feeding each static quantity (motor_torque: none).
-    integer, parameter :: QUANTITY_OUTPUT(NQUANT) = [1, 2, 3, 4, 5, 6, 1, 2, 0]
+    integer, parameter :: QUANTITY_OUTPUT(NQUANT) = [OUT_X_TIP, OUT_Y_TIP, OUT_TIP_ANGLE, &
+        OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW, OUT_X_TIP, OUT_Y_TIP, 0]
 
     !> Static candidate effects, in registry order.
     integer, parameter :: NEFFECT = 4
