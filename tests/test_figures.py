@@ -222,3 +222,16 @@ def test_history_figure_panels(runs):
     (t, w), = _lines(motor.axes[0])
     assert_allclose(w, runs[0.2].tip_w)
     plt.close("all")
+
+
+def test_quantity_units_of_every_registered_quantity():
+    """Lengths in m, angles in rad, forces in N, the motor torque in N m (it
+    was labelled m before the units came from one table)."""
+    from beamid.plot_fit import quantity_unit
+
+    got = {q: quantity_unit(q) for q in ("x_tip", "y_tip", "u_tip", "w_tip", "x_elbow",
+                                         "y_elbow", "tip_angle", "wire_force",
+                                         "motor_torque")}
+    assert got == {"x_tip": "m", "y_tip": "m", "u_tip": "m", "w_tip": "m", "x_elbow": "m",
+                   "y_elbow": "m", "tip_angle": "rad", "wire_force": "N",
+                   "motor_torque": "N m"}

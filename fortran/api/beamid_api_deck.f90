@@ -5,7 +5,8 @@
 !! A deck is read twice: api_deck_sizes validates it and returns the array
 !! sizes and the scalars, api_deck_arrays fills the arrays (no state is kept
 !! between the calls). Messages: every problem, one per line.
-!! Outputs of a failed call are zeros: f2py allocates them zeroed.
+!! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
+!! declares output scalars = 0 (characters blank), so no entry zeroes them.
 module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp

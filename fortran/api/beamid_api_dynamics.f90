@@ -8,7 +8,8 @@
 !! 1e-9). Friction laws: 0 sign (Eq. 101; in both integrators its switches
 !! are events, with sticking; elsewhere sign(0) = 0), 1 smooth
 !! v/sqrt(v^2 + vslip^2), 2 literal Fortran SIGN(1, v) (+1 at v = 0, no events).
-!! Outputs of a failed call are zeros: f2py allocates them zeroed.
+!! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
+!! declares output scalars = 0 (characters blank), so no entry zeroes them.
 module beamid_api_dynamics
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp

@@ -7,7 +7,8 @@
 !! (experiment index, t, quantity code, value, sigma), free parameter indices,
 !! a priori index/mean/sigma (Eq. 142-145). Indices are 1-based. Status
 !! codes follow beamid_status; logical results are 0/1 integers.
-!! Outputs of a failed call are zeros: f2py allocates them zeroed.
+!! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
+!! declares output scalars = 0 (characters blank), so no entry zeroes them.
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp

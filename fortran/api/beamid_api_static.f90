@@ -5,7 +5,8 @@
 !! 256-character message: nothing else crosses into Python. Status codes
 !! follow beamid_status (0 ok, < 0 input error, > 0 numerical failure);
 !! array sizes that follow from the arguments are hidden from Python.
-!! Outputs of a failed call are zeros: f2py allocates them zeroed.
+!! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
+!! declares output scalars = 0 (characters blank), so no entry zeroes them.
 module beamid_api_static
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp

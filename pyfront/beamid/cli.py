@@ -17,7 +17,7 @@ import traceback
 from pathlib import Path
 from typing import Sequence
 
-from .decks import _write_all
+from .errors import _write_all
 from .errors import BeamidError, InputError
 
 #: exit codes (the table of docs/decks.md, shared with beamid-batch)

@@ -48,7 +48,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import BeamidError, InputError, OutputError
+from .errors import BeamidError, InputError, OutputError, _write_all
 from .estimation import FitResult, fit as _fit
 from ._core_estimation import chi2_sf_many, mc_summary
 from .progress import progress
@@ -329,17 +329,15 @@ class Consistency:
 
 
 def _atomic_write(path: Path, text: str) -> None:
-    """Write a text file all or none (beamid.decks._write_all)."""
-    from .decks import _write_all
+    """Write a text file all or none (beamid.errors._write_all)."""
 
     _write_all([(path, lambda tmp: Path(tmp).write_text(text))])
 
 
 def _save_figure(fig, path: Path) -> None:
-    """Save a matplotlib figure as PNG all or none (beamid.decks._write_all), then close it."""
+    """Save a matplotlib figure as PNG all or none (beamid.errors._write_all), then close it."""
     import matplotlib.pyplot as plt
 
-    from .decks import _write_all
 
     try:
         _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])

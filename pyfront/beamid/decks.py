@@ -13,7 +13,6 @@ same files; f90nml only writes decks (:func:`write_deck`).
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,7 +20,7 @@ from typing import Any
 import f90nml
 
 from . import fe
-from .errors import OutputError
+from .errors import _write_all
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
 from .fit_decks import run_fit_deck
@@ -122,38 +121,6 @@ def history_columns(nbeams: int) -> tuple[str, ...]:
 
     return ("t", "tip_u", "tip_w", "tip_angle", "energy", "kinetic", "potential",
             *work_names(nbeams), "work", "numerical", "motor_torque")
-
-
-def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
-    """Write every output through a temporary file in its folder and rename
-    them only when all are written: all files or none (exit code 4)."""
-    temps: list[tuple[str, Path]] = []
-    try:
-        for path, write in outputs:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
-                                       suffix=path.suffix)
-            os.close(fd)
-            temps.append((tmp, path))
-            write(tmp)
-            os.chmod(tmp, 0o666 & ~_umask())
-        for tmp, path in temps:
-            os.replace(tmp, path)
-    except BaseException as exc:
-        for tmp, _ in temps:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        if isinstance(exc, OSError):
-            raise OutputError(f"cannot write {exc.filename or path}: "
-                              f"{exc.strerror or exc}") from None
-        raise
-    return [path for _, path in temps]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def run(deck: Deck | str | os.PathLike):

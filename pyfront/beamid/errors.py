@@ -5,6 +5,10 @@ negative codes are input errors, positive codes numerical failures.
 """
 from __future__ import annotations
 
+import os
+import tempfile
+from pathlib import Path
+
 
 class BeamidError(Exception):
     """Base class of every beamid error.
@@ -60,3 +64,36 @@ class OutputError(BeamidError, OSError):
     """An output file or folder cannot be written (exit code 4 of both programs)."""
 
     exit_code = 4
+
+
+def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
+    """The one all-or-none writer of the Python outputs: write every output
+    through a temporary file in its folder and rename them only when all are
+    written: all files or none (OutputError, exit code 4)."""
+    temps: list[tuple[str, Path]] = []
+    try:
+        for path, write in outputs:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                       suffix=path.suffix)
+            os.close(fd)
+            temps.append((tmp, path))
+            write(tmp)
+            os.chmod(tmp, 0o666 & ~_umask())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    except BaseException as exc:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {exc.filename or path}: "
+                              f"{exc.strerror or exc}") from None
+        raise
+    return [path for _, path in temps]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

@@ -23,7 +23,7 @@ from typing import Any
 
 from . import _core
 from .diagnosis import Ladder, _run_ladder, compare, diagnose
-from .errors import InputError
+from .errors import InputError, _write_all
 from .estimation import _free_indices, _prior_arrays, fit
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
@@ -75,6 +75,7 @@ def load(kind: int, values: list[float]) -> Load:
 
 
 def check_path(path: Any, what: str = "path") -> Path:
+    """``path`` as a Path; InputError naming ``what`` unless a str or os.PathLike."""
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
                          "(str or os.PathLike)")
@@ -285,8 +286,7 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     elif staged:
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
-    else:   # one stage a deck; the CSV all or none (decks._write_all)
-        from .decks import _write_all
+    else:   # one stage a deck; the CSV all or none (errors._write_all)
 
         names: list[str] = []
         for d in parsed:

@@ -38,7 +38,11 @@ class Shape(NamedTuple):
 def _output(name: str, doc: str) -> property:
     """A read-only float attribute of a :class:`StaticResult`: output ``name``."""
     i = OUTPUTS.index(name)
-    return property(lambda self: float(self._outputs[i]), doc=doc)
+
+    def get(self: "StaticResult") -> float:
+        return float(self._outputs[i])
+
+    return property(get, doc=doc)
 
 
 class StaticResult:
