@@ -120,3 +120,18 @@ def test_improve_ladders_from_two_threads_take_turns():
     for k in (0, 1):
         assert got[k].effects == alone[k].effects
         assert [s.chi2 for s in got[k].steps] == [s.chi2 for s in alone[k].steps]
+
+
+def test_a_ladder_is_indexed_by_rung_and_by_added_effect():
+    model, exps, data = _elbow_flex_problem()
+    ladder = beamid.improve(model, exps, data, free=("EI1", "EI2"),
+                            candidates=("elbow_flex", "axial_coupling"))
+    assert len(ladder) == 2 and [s.step for s in ladder] == [0, 1]
+    assert ladder[0].effect is None and ladder[-1] is ladder.steps[-1]
+    assert ladder["elbow_flex"] is ladder[1]
+    assert abs(ladder["elbow_flex"].estimates["elbow_flex"] - 0.004) < 3e-4
+    assert ladder[1].chi2 < ladder[0].chi2
+    with pytest.raises(KeyError, match="axial_coupling.*added: elbow_flex"):
+        ladder["axial_coupling"]
+    with pytest.raises(TypeError):
+        ladder[1.0]

@@ -645,7 +645,27 @@ class Ladder:
 
     @property
     def effects(self) -> tuple[str, ...]:
+        """The effects added, rung by rung."""
         return tuple(s.effect for s in self.steps if s.effect)
+
+    def __getitem__(self, key: int | slice | str) -> LadderStep:
+        """A rung by its number (0 is the start) or by the effect it added."""
+        if isinstance(key, str):
+            for s in self.steps:
+                if s.effect == key:
+                    return s
+            raise KeyError(f"{key!r} was not added by this ladder (added: "
+                           f"{', '.join(self.effects) or 'none'})")
+        if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
+            return self.steps[key]  # type: ignore[return-value]
+        raise TypeError(f"a Ladder is indexed by rung (int) or added effect (str), "
+                        f"not {type(key).__name__}")
+
+    def __iter__(self):
+        return iter(self.steps)
+
+    def __len__(self) -> int:
+        return len(self.steps)
 
     def __str__(self) -> str:
         lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"
