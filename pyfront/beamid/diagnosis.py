@@ -215,6 +215,40 @@ def compare(fit: FitResult) -> Comparison:
 
 # ------------------------------------------------------------------ diagnose
 
+class _ByRankAndName:
+    """Indexing shared by the ranked results of this module: by position
+    (int or slice) and by effect name (str); iteration and ``len`` over the
+    items. A subclass names its items (``_items``), what an int counts
+    (``_rank``) and how a missing name is reported (``_missing``)."""
+
+    _rank = "rank"
+
+    def _items(self) -> tuple:
+        raise NotImplementedError
+
+    def _missing(self, key: str) -> str:
+        raise NotImplementedError
+
+    def __getitem__(self, key):
+        items = self._items()
+        if isinstance(key, str):
+            for item in items:
+                if item.effect == key:
+                    return item
+            raise KeyError(self._missing(key))
+        if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
+            return items[key]
+        raise TypeError(f"a {type(self).__name__} is indexed by {self._rank} (int) or "
+                        f"{'effect name' if self._rank == 'rank' else 'added effect'} (str), "
+                        f"not {type(key).__name__}")
+
+    def __iter__(self):
+        return iter(self._items())
+
+    def __len__(self) -> int:
+        return len(self._items())
+
+
 @dataclass(frozen=True)
 class Candidate:
     """One candidate effect in a :class:`Diagnosis`.
@@ -275,7 +309,7 @@ class Candidate:
 
 
 @dataclass(frozen=True)
-class Diagnosis:
+class Diagnosis(_ByRankAndName):
     """Result of :func:`diagnose`: candidates ranked best first.
 
     Indexable by rank (``diagnosis[0]`` is the best candidate, slices give
@@ -291,23 +325,12 @@ class Diagnosis:
     alpha_each: float
     message: str
 
-    def __getitem__(self, key: int | slice | str) -> Candidate:
-        if isinstance(key, str):
-            for c in self.candidates:
-                if c.effect == key:
-                    return c
-            raise KeyError(f"{key!r} is not a candidate of this diagnosis (candidates: "
-                           f"{', '.join(c.effect for c in self.candidates)})")
-        if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
-            return self.candidates[key]  # type: ignore[return-value]
-        raise TypeError(f"a Diagnosis is indexed by rank (int) or effect name (str), "
-                        f"not {type(key).__name__}")
+    def _items(self) -> tuple[Candidate, ...]:
+        return self.candidates
 
-    def __iter__(self):
-        return iter(self.candidates)
-
-    def __len__(self) -> int:
-        return len(self.candidates)
+    def _missing(self, key: str) -> str:
+        return (f"{key!r} is not a candidate of this diagnosis (candidates: "
+                f"{', '.join(c.effect for c in self.candidates)})")
 
     def __contains__(self, effect: object) -> bool:
         return any(c.effect == effect for c in self.candidates)
@@ -633,8 +656,10 @@ class LadderStep(NamedTuple):
 
 
 @dataclass(frozen=True)
-class Ladder:
-    """Result of :func:`improve`."""
+class Ladder(_ByRankAndName):
+    """Result of :func:`improve`: its rungs, indexable by number (``ladder[0]``
+    is the start) and by the effect a rung added (``ladder["drag"]``);
+    iterating gives the rungs in order; ``len`` is their number."""
 
     steps: tuple[LadderStep, ...]
 
@@ -648,24 +673,13 @@ class Ladder:
         """The effects added, rung by rung."""
         return tuple(s.effect for s in self.steps if s.effect)
 
-    def __getitem__(self, key: int | slice | str) -> LadderStep:
-        """A rung by its number (0 is the start) or by the effect it added."""
-        if isinstance(key, str):
-            for s in self.steps:
-                if s.effect == key:
-                    return s
-            raise KeyError(f"{key!r} was not added by this ladder (added: "
-                           f"{', '.join(self.effects) or 'none'})")
-        if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
-            return self.steps[key]  # type: ignore[return-value]
-        raise TypeError(f"a Ladder is indexed by rung (int) or added effect (str), "
-                        f"not {type(key).__name__}")
+    _rank = "rung"     # ladder[k]: rung k (0 is the start); ladder["drag"]: the rung adding it
 
-    def __iter__(self):
-        return iter(self.steps)
+    def _items(self) -> tuple[LadderStep, ...]:
+        return self.steps
 
-    def __len__(self) -> int:
-        return len(self.steps)
+    def _missing(self, key: str) -> str:
+        return f"{key!r} was not added by this ladder (added: {', '.join(self.effects) or 'none'})"
 
     def __str__(self) -> str:
         lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"
