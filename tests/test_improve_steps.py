@@ -128,7 +128,8 @@ def test_a_ladder_is_indexed_by_rung_and_by_added_effect():
                             candidates=("elbow_flex", "axial_coupling"))
     assert len(ladder) == 2 and [s.step for s in ladder] == [0, 1]
     assert ladder[0].effect is None and ladder[-1] is ladder.steps[-1]
-    assert ladder["elbow_flex"] is ladder[1]
+    assert ladder["elbow_flex"] is ladder[1] and "elbow_flex" in ladder
+    assert "axial_coupling" not in ladder
     assert abs(ladder["elbow_flex"].estimates["elbow_flex"] - 0.004) < 3e-4
     assert ladder[1].chi2 < ladder[0].chi2
     with pytest.raises(KeyError, match="axial_coupling.*added: elbow_flex"):

@@ -218,10 +218,11 @@ def compare(fit: FitResult) -> Comparison:
 class _ByRankAndName:
     """Indexing shared by the ranked results of this module: by position
     (int or slice) and by effect name (str); iteration and ``len`` over the
-    items. A subclass names its items (``_items``), what an int counts
-    (``_rank``) and how a missing name is reported (``_missing``)."""
+    items; ``in`` by effect name. A subclass names its items (``_items``),
+    what an int and a str select (``_keys``) and how a missing name is
+    reported (``_missing``)."""
 
-    _rank = "rank"
+    _keys = ("rank", "effect name")
 
     def _items(self) -> tuple:
         raise NotImplementedError
@@ -229,7 +230,7 @@ class _ByRankAndName:
     def _missing(self, key: str) -> str:
         raise NotImplementedError
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: int | slice | str):
         items = self._items()
         if isinstance(key, str):
             for item in items:
@@ -238,15 +239,17 @@ class _ByRankAndName:
             raise KeyError(self._missing(key))
         if isinstance(key, (int, np.integer, slice)) and not isinstance(key, bool):
             return items[key]
-        raise TypeError(f"a {type(self).__name__} is indexed by {self._rank} (int) or "
-                        f"{'effect name' if self._rank == 'rank' else 'added effect'} (str), "
-                        f"not {type(key).__name__}")
+        raise TypeError(f"a {type(self).__name__} is indexed by {self._keys[0]} (int) or "
+                        f"{self._keys[1]} (str), not {type(key).__name__}")
 
     def __iter__(self):
         return iter(self._items())
 
     def __len__(self) -> int:
         return len(self._items())
+
+    def __contains__(self, effect: object) -> bool:
+        return any(item.effect == effect for item in self._items())
 
 
 @dataclass(frozen=True)
@@ -331,9 +334,6 @@ class Diagnosis(_ByRankAndName):
     def _missing(self, key: str) -> str:
         return (f"{key!r} is not a candidate of this diagnosis (candidates: "
                 f"{', '.join(c.effect for c in self.candidates)})")
-
-    def __contains__(self, effect: object) -> bool:
-        return any(c.effect == effect for c in self.candidates)
 
     def __str__(self) -> str:
         lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
@@ -673,7 +673,7 @@ class Ladder(_ByRankAndName):
         """The effects added, rung by rung."""
         return tuple(s.effect for s in self.steps if s.effect)
 
-    _rank = "rung"     # ladder[k]: rung k (0 is the start); ladder["drag"]: the rung adding it
+    _keys = ("rung", "added effect")
 
     def _items(self) -> tuple[LadderStep, ...]:
         return self.steps
