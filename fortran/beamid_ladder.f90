@@ -17,6 +17,7 @@ module beamid_ladder
     public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
     public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
     public :: ladder_start, ladder_step
+    public :: ladder_end_at_fit
 
     !> The candidates of one diagnosis: effects with their parameter blocks;
     !! with releases `mesh` is tested apart (with_mesh).
@@ -269,6 +270,19 @@ contains
         end associate
         lad%done = .false.
     end subroutine ladder_step
+
+    !> End a started ladder at its fit, undiagnosed (a fit or compare deck):
+    !! the fit is the only rung, with no candidates and an empty diagnosis.
+    subroutine ladder_end_at_fit(lad)
+        type(ladder_t), intent(inout) :: lad
+        if (lad%done) return                  ! the fit failed
+        lad%cs = cand_set_t([character(len=32) ::], [candidate_t ::])
+        allocate (lad%r%dg%diag%ranking(0), lad%r%dg%diag%cosine(0, 0))
+        lad%r%nominal = lad%nominal
+        lad%n = 1
+        lad%rungs(1) = lad%r
+        lad%done = .true.
+    end subroutine ladder_end_at_fit
 
     !> Of the parameters `names` (switched on by earlier rungs; one-sided,
     !! physical values positive) the one whose one-sided Wald test

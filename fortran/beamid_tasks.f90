@@ -29,18 +29,17 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
-    use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
-                                 prior_t, candidate_t, diagnose_options_t, FLAG_NAMES, &
-                                 CAND_NAMES, prior_from_covariance
+    use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
+                                 candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_fit, &
-                             problem_diagnose, improve_ladder
+                             ladder_t, ladder_start, ladder_step, ladder_end_at_fit
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
     private
 
-    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates
+    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates, deck_ladder_start
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t
@@ -335,9 +334,10 @@ contains
 
     ! ------------------------------------------------------------ estimation
 
-    !> Estimation decks: fit (and compare: the same files), diagnose, improve
-    !! (beamid_ladder, as beamid.diagnose and beamid.improve). Everything is
-    !! computed first; the files are written after success.
+    !> Estimation decks: fit (and compare: the same files), diagnose, improve,
+    !! all from the deck's ladder (deck_ladder_start: as beamid.fit,
+    !! beamid.diagnose and beamid.improve). `ladder`: its rungs when already
+    !! run (beamid.run steps it to show progress): only the files are written.
     subroutine run_estimation(d, fl, st, ladder)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
@@ -347,36 +347,23 @@ contains
         type(diag_out_t) :: dg
         type(cand_set_t) :: cs
         type(rung_t), allocatable :: rungs(:)
-        type(fit_options_t) :: fopts
-        type(diagnose_options_t) :: dopts
+        type(ladder_t) :: lad
         character(len=:), allocatable :: prefix
         integer :: k, unit, ios
 
-        call deck_candidates(d, cs, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'improve') then
-            if (present(ladder)) then
-                rungs = ladder
-            else
-                call improve_ladder(deck_problem(d), d%params, d%free, cs, d%alpha, &
-                                    size(d%candidates), rungs, st)
-            end if
-            if (st%code /= STATUS_OK) return
-            fo = rungs(size(rungs))%fit
-            dg = rungs(size(rungs))%dg
+        if (present(ladder)) then
+            rungs = ladder
         else
-            call problem_fit(deck_problem(d), d%params, d%free, fo, st)
-            if (st%code /= STATUS_OK) return
+            call deck_ladder_start(d, lad, st)
+            do while (.not. lad%done)
+                call ladder_step(lad, st)
+            end do
+            if (st%code == STATUS_OK) rungs = lad%rungs(:lad%n)
         end if
-        if (d%task == 'diagnose') then
-            ! beamid.diagnose's defaults: 3 refits of 50 iterations
-            fopts%max_iter = 50
-            dopts%alpha = d%alpha
-            call problem_diagnose(deck_problem(d), fo%params, fo%free, d%params, cs, fopts, &
-                                  dopts, dg, st)
-            if (st%code /= STATUS_OK) return
-        end if
-
+        if (st%code == STATUS_OK) call deck_candidates(d, cs, st)
+        if (st%code /= STATUS_OK) return
+        fo = rungs(size(rungs))%fit
+        dg = rungs(size(rungs))%dg
         call output_prefix(d, prefix, st)
         if (st%code /= STATUS_OK) return
         call write_fit_files(d, fo, prefix, fl, st)
@@ -655,6 +642,24 @@ contains
             cs%cands = [cs%cands, one]
         end do
     end subroutine deck_candidates
+
+    !> Start the ladder (beamid_ladder) of an estimation deck's task on the
+    !! deck's problem and candidates: the fit of its free parameters, then
+    !! (ladder_step) for diagnose the fit's diagnosis, for improve up to one
+    !! rung per candidate; a fit or compare deck's ladder ends at its fit,
+    !! undiagnosed. run_estimation steps it to the end; beamid.run steps it
+    !! from Python (its progress shown) and has the files written from it.
+    subroutine deck_ladder_start(d, lad, st)
+        type(deck_t), intent(in) :: d
+        type(ladder_t), intent(out) :: lad
+        type(status_t), intent(inout) :: st
+        type(cand_set_t) :: cs
+        call deck_candidates(d, cs, st)
+        if (st%code == STATUS_OK) call ladder_start(lad, deck_problem(d), d%params, d%free, cs, &
+            d%alpha, merge(size(d%candidates), 0, d%task == 'improve'), st)
+        if (d%task == 'fit' .or. d%task == 'compare') call ladder_end_at_fit(lad)
+        if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
+    end subroutine deck_ladder_start
 
     !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine write_fit_files(d, fo, prefix, fl, st)

@@ -35,6 +35,7 @@ module beamid_api_estimation
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_deck_ladder_start, api_ladder_step, api_deck_ladder_write
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
+    public :: api_deck_task_start, api_deck_task_write
 
     !> The improve ladder of the last api_ladder_start or api_deck_ladder_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
@@ -745,4 +746,49 @@ contains
             fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
         call status_out(stat, code, message)
     end function rung_ok
+
+    !> Start the ladder of the estimation deck at `path` run as `task` (blank:
+    !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:
+    !! the fit, undiagnosed for fit and compare), step it with api_ladder_step
+    !! (diagnose: one rung, improve: a rung per call), read it with
+    !! api_ladder_rung, api_ladder_fit and api_ladder_diag and write its files
+    !! with api_deck_task_write: the deck's fit runs once for both.
+    subroutine api_deck_task_start(path, task, code, message)
+        use beamid_tasks, only: deck_ladder_start
+        character(len=*), intent(in) :: path, task
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        lad%done = .true.
+        lad%n = 0
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+        if (stat%code == STATUS_OK) call deck_ladder_start(d, lad, stat)
+        call status_out(stat, code, message)
+    end subroutine api_deck_task_start
+
+    !> Write the files of the deck at `path` run as `task` (beamid_tasks
+    !! run_task: all or none, the bytes beamid-batch writes) from the ladder
+    !! api_deck_task_start started on it and api_ladder_step ended;
+    !! `written`: the files, one per line.
+    subroutine api_deck_task_write(path, task, written, code, message)
+        use beamid_status, only: put_text
+        character(len=*), intent(in) :: path, task
+        character(len=65536), intent(out) :: written, message
+        integer(c_int), intent(out) :: code
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: files
+        if (.not. lad%done .or. lad%n < 1) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+                            'api_deck_task_start and api_ladder_step first)')
+        else
+            call read_deck(trim(path), d, stat)
+            if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
+            if (stat%code == STATUS_OK) call put_text(files, written)
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_deck_task_write
 end module beamid_api_estimation

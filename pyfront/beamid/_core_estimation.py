@@ -222,7 +222,7 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
     lines += [""] * (nc - len(lines))
     return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
             "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
-            "refit_params": np.array(refit_params).reshape(-1, nc),
+            "refit_params": np.array(refit_params).reshape(-1, nc) if nc else np.zeros((0, 0)),
             "ranking": np.array(ranking, dtype=int) - 1,
             "cosine": np.array(cosine).reshape(nc, nc),
             "dstats": Columns(np.array(dstats), DSTATS),
@@ -373,3 +373,21 @@ def mc_summary(est: np.ndarray, sig: np.ndarray, truth: np.ndarray,
 def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
     """P(chi2(k) > x) elementwise."""
     return np.array(_design.api_chi2_sf_many(np.asarray(x, float), np.asarray(k, np.int32)))
+
+
+# ------------------------------------------- estimation decks: the deck's fit runs once
+
+def deck_task_start(path: str, task: str = "") -> None:
+    """Start the ladder of an estimation deck run as ``task`` (default the
+    deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
+    compare); :func:`ladder_step` diagnoses (diagnose: one rung, improve: a
+    rung per call), :func:`ladder_rungs` reads it, :func:`deck_task_write`
+    writes its files. Hold :data:`LADDER_LOCK` from here to the write."""
+    _call(_api.api_deck_task_start, _path(path), task)
+
+
+def deck_task_write(path: str, task: str = "") -> list[str]:
+    """Write the files of the deck run as ``task`` (all or none, the bytes of
+    beamid-batch) from the ladder :func:`deck_task_start` started on it."""
+    written = _call(_api.api_deck_task_write, _path(path), task)
+    return [line for line in _text(written).split("\n") if line]

@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from . import _core
-from .diagnosis import Ladder, _run_ladder, compare, diagnose
+from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_all
-from .estimation import _free_indices, _prior_arrays, fit
+from .estimation import _free_indices, _prior_arrays, _result as _fit_result
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
@@ -158,40 +158,24 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
     return _fit_deck(path, values)
 
 
-def _result(deck: FitDeck) -> Any:
-    """The result object of the deck's task: FitResult (fit), Comparison
-    (compare), Diagnosis (diagnose), Ladder (improve) or Identification
-    (identify)."""
-    if deck.task == "identify":
-        return identify_deck(deck)
-    if deck.task == "improve":
-        return improve_deck(deck)
-    result = fit(deck.model, deck.experiments, deck.data, free=deck.free, prior=deck.prior,
-                 max_iter=deck.max_iter)
-    if deck.task == "compare":
-        return compare(result)
-    if deck.task == "diagnose":
-        return diagnose(result, deck.candidates, alpha=deck.alpha)
-    return result
-
-
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
                  ) -> tuple[str, list[Path], Any]:
     """Run an estimation deck; return (report text, files written, result).
 
-    The CSV files are written by the Fortran task runners (as beamid-batch,
-    all or none); the report and the figures come from the Python result.
-    Task improve runs its ladder once, a rung at a time (a progress bar on
-    a terminal), as beamid-batch runs it, and the files are written from it."""
+    The deck's fit runs once, for the files and the result: the Fortran of
+    beamid-batch runs it (and the task's diagnosis or improve ladder, a rung
+    at a time, a progress bar on a terminal) on the deck as read there, the
+    result objects are built from it, then the CSV files are written from
+    it by the batch's writers (all or none); the report and the figures come
+    from the result."""
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
-    if deck.task == "improve":
-        with _ce.LADDER_LOCK:
-            out = _result(deck)
-            files = [Path(p) for p in _ce.deck_ladder_write(str(deck.path))]
+    if deck.task == "identify":
+        files, out = run_files(deck), identify_deck(deck)
     else:
-        files = run_files(deck)
-        out = _result(deck)
+        with _ce.LADDER_LOCK:
+            out = _deck_result(deck)
+            files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -205,18 +189,24 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     return text, files, out
 
 
-def improve_deck(deck: FitDeck) -> Ladder:
-    """The improve ladder of an estimation deck, run by the Fortran of
-    ``beamid-batch`` on the deck as read there (its problem and candidates),
-    a rung at a time; its files are then written by
-    ``_core_estimation.deck_ladder_write`` (until another ladder starts)."""
+def _deck_result(deck: FitDeck) -> Any:
+    """The result of the deck's task, FitResult (fit), Comparison (compare),
+    Diagnosis (diagnose) or Ladder (improve), from the ladder the Fortran of
+    ``beamid-batch`` runs on the deck as read there (its problem and
+    candidates; ``_core_estimation.deck_task_start``); the caller holds
+    ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
+    the deck's files from the same ladder."""
     free_names, _ = _free_indices(deck.model, deck.free)
     prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
-    candidates = deck.candidates
-    with _ce.LADDER_LOCK:
-        _ce.deck_ladder_start(str(deck.path))
-        return _run_ladder(deck.model, deck.experiments, deck.data, prior_map, candidates,
-                           deck.alpha, len(candidates or ()))
+    _ce.deck_task_start(str(deck.path), deck.task)
+    if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
+        raw = _ce.ladder_rungs(len(deck.model.names()), [])[0]["fit"]
+        fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map, raw)
+        return fit if deck.task == "fit" else compare(fit)
+    improve = deck.task == "improve"
+    ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
+                         deck.alpha, len(deck.candidates or ()) * improve)
+    return ladder if improve else ladder.steps[0].diagnosis
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
