@@ -15,7 +15,7 @@ module beamid_ladder
     private
 
     public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
-    public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
+    public :: problem_fit, problem_diagnose, problem_dynamic
     public :: ladder_start, ladder_step
     public :: ladder_end_at_fit
 
@@ -156,27 +156,9 @@ contains
     !! until found adequate), and after each rung the parameters earlier
     !! rungs added are tested again (one-sided Wald test at the rung's level):
     !! one no longer needed goes back to its value in `params` and the rung
-    !! is refitted without it. ladder_start and ladder_step one rung at a
-    !! time (a front that shows progress steps itself).
-    subroutine improve_ladder(pb, params, free, cs, alpha, max_steps, rungs, st)
-        type(problem_t), intent(in) :: pb
-        real(dp), intent(in) :: params(:)
-        integer, intent(in) :: free(:)
-        type(cand_set_t), intent(in) :: cs
-        real(dp), intent(in) :: alpha
-        integer, intent(in) :: max_steps
-        type(rung_t), allocatable, intent(out) :: rungs(:)
-        type(status_t), intent(inout) :: st
-        type(ladder_t) :: lad
-        call ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
-        do while (.not. lad%done)
-            call ladder_step(lad, st)
-        end do
-        rungs = lad%rungs(:lad%n)
-    end subroutine improve_ladder
-
-    !> Start the ladder of improve_ladder: the fit of params(free) (rung 0,
-    !! diagnosed by the first ladder_step).
+    !! is refitted without it. ladder_start starts it with the fit of
+    !! params(free) (rung 0, diagnosed by the first ladder_step); ladder_step
+    !! runs a rung per call (a front that shows progress steps itself).
     subroutine ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
         type(ladder_t), intent(out) :: lad
         type(problem_t), intent(in) :: pb

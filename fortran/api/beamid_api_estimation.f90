@@ -21,7 +21,7 @@ module beamid_api_estimation
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_estimation, only: prior_from_covariance
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_problem, deck_candidates
+    use beamid_tasks, only: run_task, deck_ladder_start
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
@@ -33,11 +33,11 @@ module beamid_api_estimation
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_problem_predict, api_deck_experiments
     public :: api_problem_diagnose, api_time_structure
-    public :: api_ladder_start, api_deck_ladder_start, api_ladder_step, api_deck_ladder_write
+    public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
     public :: api_deck_task_start, api_deck_task_write
 
-    !> The improve ladder of the last api_ladder_start or api_deck_ladder_start,
+    !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
     !! and read by api_ladder_rung, api_ladder_fit and api_ladder_diag
     !! (results of a size known only after the run: GUIDE, module arrays of
@@ -553,8 +553,8 @@ contains
         end function b2r
     end subroutine copy_diag
 
-    !> Start the improve ladder (beamid_ladder ladder_start; the ladder of
-    !! improve_ladder, as beamid-batch runs it): fit params0(free_idx); then
+    !> Start the improve ladder (beamid_ladder ladder_start; the ladder
+    !! beamid-batch runs): fit params0(free_idx); then
     !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
     !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
     !! per call, until none is significant at alpha or max_steps rungs were
@@ -587,27 +587,6 @@ contains
         call status_out(stat, code, message)
     end subroutine api_ladder_start
 
-    !> Start the improve ladder of an estimation deck as beamid-batch runs
-    !! it (deck_problem, deck_candidates; candidates named by their effect):
-    !! step it with api_ladder_step, write its files with
-    !! api_deck_ladder_write.
-    subroutine api_deck_ladder_start(path, code, message)
-        character(len=*), intent(in) :: path
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(cand_set_t) :: cs
-        type(status_t) :: stat
-        lad%done = .true.
-        lad%n = 0
-        call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK) call deck_candidates(d, cs, stat)
-        if (stat%code == STATUS_OK) &
-            call ladder_start(lad, deck_problem(d), d%params, d%free, cs, d%alpha, &
-                              size(d%candidates), stat)
-        call status_out(stat, code, message)
-    end subroutine api_deck_ladder_start
-
     !> One rung of the ladder started last (beamid_ladder ladder_step):
     !! nrung rungs are done; done = 1 when the ladder has ended.
     subroutine api_ladder_step(nrung, done, code, message)
@@ -619,31 +598,6 @@ contains
         done = merge(1_c_int, 0_c_int, lad%done)
         call status_out(stat, code, message)
     end subroutine api_ladder_step
-
-    !> Write the files of the deck at `path` (task improve, all or none,
-    !! beamid_tasks run_task: the bytes beamid-batch writes) from the ladder
-    !! api_deck_ladder_start started on it and api_ladder_step ended;
-    !! `written`: the files, one per line.
-    subroutine api_deck_ladder_write(path, written, code, message)
-        character(len=*), intent(in) :: path
-        character(len=65536), intent(out) :: written
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        character(len=:), allocatable :: files
-        written = ''
-        if (.not. lad%done .or. lad%n < 1) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
-                            'api_deck_ladder_start and api_ladder_step first)')
-        else
-            call read_deck(trim(path), d, stat)
-            if (stat%code == STATUS_OK) call deck_set_task(d, 'improve', stat)
-            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
-            if (stat%code == STATUS_OK) written = files
-        end if
-        call status_out(stat, code, message)
-    end subroutine api_deck_ladder_write
 
     !> Rung k of the ladder started last: effect ('start', the number of the
     !! candidate added, or 'mesh (N elements per beam)'), info = [free
@@ -754,7 +708,6 @@ contains
     !! api_ladder_rung, api_ladder_fit and api_ladder_diag and write its files
     !! with api_deck_task_write: the deck's fit runs once for both.
     subroutine api_deck_task_start(path, task, code, message)
-        use beamid_tasks, only: deck_ladder_start
         character(len=*), intent(in) :: path, task
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message

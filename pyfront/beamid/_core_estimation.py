@@ -255,8 +255,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
 
 #: The extension holds one improve ladder at a time (module state of the
 #: binding, beamid_api_estimation): a caller holds this lock from
-#: :func:`ladder_start` / :func:`deck_ladder_start` to its last read
-#: (:func:`ladder_rungs`, :func:`deck_ladder_write`), so ladders run from
+#: :func:`ladder_start` / :func:`deck_task_start` to its last read
+#: (:func:`ladder_rungs`, :func:`deck_task_write`), so ladders run from
 #: several threads take turns instead of overwriting each other.
 LADDER_LOCK = threading.RLock()
 
@@ -275,25 +275,12 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx
           int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
 
 
-def deck_ladder_start(path: str) -> None:
-    """Start the improve ladder of an estimation deck as beamid-batch runs it
-    (the deck's problem and candidates, read by the Fortran reader)."""
-    _call(_api.api_deck_ladder_start, _path(path))
-
-
 def ladder_step() -> bool:
     """Diagnose the ladder's last fit and, unless the ladder ends there, add
     the verdict's effect and refit (one rung); True once the ladder has
     ended."""
     _nrung, done = _call(_api.api_ladder_step)
     return bool(done)
-
-
-def deck_ladder_write(path: str) -> list[str]:
-    """Write the deck's improve files (all or none, the bytes of beamid-batch)
-    from the ladder :func:`deck_ladder_start` started on it; the files."""
-    written = _call(_api.api_deck_ladder_write, _path(path))
-    return [line for line in _text(written).split("\n") if line]
 
 
 def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
