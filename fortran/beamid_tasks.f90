@@ -16,7 +16,7 @@ module beamid_tasks
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, &
                                              ieee_positive_inf
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, set_status, fmt_int, &
+    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
                              set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
     use beamid_deck, only: deck_t, stage_t, copy_measurements
@@ -32,7 +32,7 @@ module beamid_tasks
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
-    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_fit, &
+    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
@@ -40,6 +40,7 @@ module beamid_tasks
     private
 
     public :: run_task, output_prefix, files_t, deck_problem, deck_candidates, deck_ladder_start
+    public :: deck_stage_start
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t
@@ -88,7 +89,7 @@ contains
         case ('fit', 'compare', 'diagnose', 'improve')
             call run_estimation(deck, fl, stat, ladder)
         case ('identify')
-            call run_identify(deck, fl, stat)
+            call run_identify(deck, fl, stat, ladder)
         case ('simulate')
             call run_simulate(deck, fl, stat)
         case default
@@ -389,53 +390,41 @@ contains
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
 
-    !> Task identify: the stages in order (static -> free -> forced), each a
-    !! weighted fit of its free parameters and of every earlier stage's (both
-    !! updated, Eq. 147) from where the previous stage ended, with the
-    !! previous stage's estimates and full covariance as a priori
-    !! information (Eq. 146-148, 164-166; the first stage takes the deck's a
-    !! priori values, Eq. 142-145), as beamid.identify. Files:
-    !! <prefix>_identify.csv (stage, parameter, estimate, sigma before and
-    !! after: what each stage taught) and every stage's fit files
+    !> Task identify: the stages in order (deck_stage_start, as
+    !! beamid.identify); `held`: their fits when already made (beamid.run
+    !! fits them from Python, a stage at a time): only the files are written.
+    !! Files: <prefix>_identify.csv (stage, parameter, estimate, sigma before
+    !! and after: what each stage taught) and every stage's fit files
     !! <prefix>_<stage>_estimates.csv, _covariance.csv and _residuals.csv.
-    subroutine run_identify(d, fl, st)
+    subroutine run_identify(d, fl, st, held)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
+        type(rung_t), intent(in), optional :: held(:)
         type(fit_result_t), allocatable :: fits(:)
-        type(deck_t), allocatable :: ds(:)
-        type(prior_t) :: prior
-        real(dp), allocatable :: params(:), known(:), before(:)
-        integer, allocatable :: free(:)
+        type(deck_t) :: ds
+        type(ladder_t) :: lad
+        real(dp), allocatable :: known(:), before(:)
         character(len=:), allocatable :: prefix, rows
         integer :: k, i, p, ns, unit, ios
 
         ns = size(d%stages)
-        allocate (fits(ns), ds(ns), known(size(d%params)))
+        if (present(held)) then
+            if (size(held) /= ns) call set_status(st, ERR_INPUT, 'identify', 'fits of '// &
+                fmt_int(size(held))//' stages held, the deck has '//fmt_int(ns))
+            if (size(held) /= ns) return
+        end if
+        allocate (fits(0:ns), known(size(d%params)))
         known = ieee_value(1.0_dp, ieee_positive_inf)
-        params = d%params
+        known(d%stages(1)%prior_index) = d%stages(1)%prior_sigma
         rows = ''
         do k = 1, ns
-            call stage_deck(d, d%stages(k), ds(k))
-            free = d%stages(k)%free
-            if (k == 1) then
-                prior = deck_prior(ds(k))
-                do i = 1, size(prior%index)
-                    known(prior%index(i)) = prior%sigma(i)
-                end do
+            if (present(held)) then
+                fits(k) = held(k)%fit
             else
-                associate (prev => fits(k - 1))
-                    do i = 1, size(prev%free)
-                        if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
-                    end do
-                    call prior_from_covariance(prev%free, prev%estimates, prev%cov, prior, st)
-                end associate
-            end if
-            if (st%code == STATUS_OK) call problem_fit(deck_problem(ds(k)), params, free, &
-                                                       fits(k), st, prior)
-            if (st%code /= STATUS_OK) then
-                st%message = "stage '"//d%stages(k)%name//"': "//trim(st%message)
-                return
+                call deck_stage_start(d, k, fits(k - 1), lad, st)
+                if (st%code /= STATUS_OK) return
+                fits(k) = lad%rungs(1)%fit
             end if
             before = known(fits(k)%free)
             do i = 1, size(fits(k)%free)
@@ -445,7 +434,6 @@ contains
                        fmt_e(fits(k)%sigmas(i))//new_line('a')
                 known(p) = fits(k)%sigmas(i)
             end do
-            params = fits(k)%params
         end do
 
         call output_prefix(d, prefix, st)
@@ -457,9 +445,45 @@ contains
         call close_checked(unit, ios, prefix//'_identify.csv', st)
         do k = 1, ns
             if (st%code /= STATUS_OK) return
-            call write_fit_files(ds(k), fits(k), prefix//'_'//d%stages(k)%name, fl, st)
+            call stage_deck(d, d%stages(k), ds)
+            call write_fit_files(ds, fits(k), prefix//'_'//d%stages(k)%name, fl, st)
         end do
     end subroutine run_identify
+
+    !> Start stage k of an identify deck as a ladder ended at its fit
+    !! (beamid_ladder; a weighted fit, as beamid.identify's): the stage's
+    !! data and iteration limit, its free parameters and every earlier
+    !! stage's (both updated, Eq. 147) from where the previous stage's fit
+    !! `prev` ended, with that fit's estimates and full covariance as a priori
+    !! information (Eq. 146-148, 164-166; stage 1 from the deck's model with
+    !! its a priori values, Eq. 142-145).
+    subroutine deck_stage_start(d, k, prev, lad, st)
+        type(deck_t), intent(in) :: d
+        integer, intent(in) :: k
+        type(fit_result_t), intent(in) :: prev
+        type(ladder_t), intent(out) :: lad
+        type(status_t), intent(inout) :: st
+        type(deck_t) :: ds
+        type(problem_t) :: pb
+        integer, allocatable :: free(:)
+        integer :: i
+        call stage_deck(d, d%stages(k), ds)
+        pb = deck_problem(ds)
+        free = d%stages(k)%free
+        if (k == 1) then
+            call ladder_start(lad, pb, d%params, free, cand_set_t(), 0.0_dp, 0, st)
+        else
+            do i = 1, size(prev%free)
+                if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
+            end do
+            call prior_from_covariance(prev%free, prev%estimates, prev%cov, pb%prior, st)
+            if (st%code == STATUS_OK) &
+                call ladder_start(lad, pb, prev%params, free, cand_set_t(), 0.0_dp, 0, st)
+        end if
+        call ladder_end_at_fit(lad)
+        if (st%code /= STATUS_OK) st%message = "stage '"//d%stages(k)%name//"': "// &
+                                               trim(st%message)
+    end subroutine deck_stage_start
 
     !> The deck as its stage's fit deck: the experiments, the stage's data,
     !! rows, free parameters, a priori values and iteration limit (what

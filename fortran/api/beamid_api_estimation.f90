@@ -21,7 +21,7 @@ module beamid_api_estimation
                                  refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_estimation, only: prior_from_covariance
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_ladder_start
+    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
@@ -35,7 +35,7 @@ module beamid_api_estimation
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
-    public :: api_deck_task_start, api_deck_task_write
+    public :: api_deck_task_start, api_deck_task_write, api_deck_stage_start
 
     !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
@@ -43,6 +43,9 @@ module beamid_api_estimation
     !! (results of a size known only after the run: GUIDE, module arrays of
     !! the binding). One ladder at a time.
     type(ladder_t), save :: lad
+    !> The stages of the identify deck fitted last (api_deck_stage_start),
+    !! whose files api_deck_task_write writes.
+    type(rung_t), allocatable, save :: staged(:)
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -739,9 +742,45 @@ contains
         else
             call read_deck(trim(path), d, stat)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
+            if (stat%code == STATUS_OK .and. d%task == 'identify') then
+                call run_task(d, files, stat, staged)
+            else if (stat%code == STATUS_OK) then
+                call run_task(d, files, stat, lad%rungs(:lad%n))
+            end if
             if (stat%code == STATUS_OK) call put_text(files, written)
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write
+
+    !> Fit stage k of the identify deck at `path` (beamid_tasks
+    !! deck_stage_start, as beamid-batch runs it) from stage k - 1 as fitted
+    !! by the call before (k = 1: the deck's start): its fit is the one rung
+    !! of the ladder (api_ladder_rung, api_ladder_fit); once every stage is
+    !! fitted api_deck_task_write(path, 'identify') writes the deck's files.
+    subroutine api_deck_stage_start(path, k, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: k
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        type(fit_result_t) :: none
+        integer :: nstage
+        lad%done = .true.
+        lad%n = 0
+        if (.not. allocated(staged)) allocate (staged(0))
+        staged = staged(:min(size(staged), max(int(k) - 1, 0)))
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) then
+            nstage = 0
+            if (d%task == 'identify') nstage = min(size(d%stages), size(staged) + 1)
+            if (k < 1 .or. k > nstage) call set_status(stat, ERR_INPUT, 'stage', &
+                fmt_int(int(k))//', expected 1..'//fmt_int(nstage)//' (an identify deck, in order)')
+        end if
+        if (stat%code == STATUS_OK .and. k == 1) call deck_stage_start(d, 1, none, lad, stat)
+        if (stat%code == STATUS_OK .and. k > 1) &
+            call deck_stage_start(d, int(k), staged(k - 1)%fit, lad, stat)
+        if (stat%code == STATUS_OK) staged = [staged, lad%rungs(1)]
+        call status_out(stat, code, message)
+    end subroutine api_deck_stage_start
 end module beamid_api_estimation

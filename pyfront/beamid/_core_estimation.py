@@ -378,3 +378,11 @@ def deck_task_write(path: str, task: str = "") -> list[str]:
     beamid-batch) from the ladder :func:`deck_task_start` started on it."""
     written = _call(_api.api_deck_task_write, _path(path), task)
     return [line for line in _text(written).split("\n") if line]
+
+
+def deck_stage_start(path: str, k: int) -> None:
+    """Fit stage ``k`` (1-based) of an identify deck from stage k - 1 as fitted
+    by the call before, as beamid-batch does; the stage's fit is the one rung
+    of :func:`ladder_rungs`; once every stage is fitted
+    ``deck_task_write(path, "identify")`` writes the deck's files."""
+    _call(_api.api_deck_stage_start, _path(path), int(k))

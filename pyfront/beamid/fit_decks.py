@@ -24,7 +24,8 @@ from typing import Any
 from . import _core
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_all
-from .estimation import _free_indices, _prior_arrays, _result as _fit_result
+from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
+                         _result as _fit_result)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
@@ -170,12 +171,9 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     from the result."""
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
-    if deck.task == "identify":
-        files, out = run_files(deck), identify_deck(deck)
-    else:
-        with _ce.LADDER_LOCK:
-            out = _deck_result(deck)
-            files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
+    with _ce.LADDER_LOCK:
+        out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
+        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -230,17 +228,29 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
 def identify_deck(deck: FitDeck) -> Any:
     """:func:`beamid.identify` on the stages of an identification deck (task
     ``identify``): the deck's model is the start, its experiments serve every
-    stage, the first stage takes the deck's a priori values. The numbers of
-    the files ``beamid-batch`` writes for the deck."""
-    from .estimation import identify
-
+    stage, the first stage takes the deck's a priori values. Each stage is
+    fitted by the Fortran of ``beamid-batch`` on the deck as read there
+    (``_core_estimation.deck_stage_start``), so its files can then be written
+    from the same fits (``deck_task_write(path, "identify")``, under
+    ``_core_estimation.LADDER_LOCK`` from the first stage on)."""
     if deck.task != "identify" or not deck.stages:
         raise InputError(f"{deck.path}: task {deck.task!r} is not 'identify' (one &fit group "
                          "per stage)")
+    names, number = deck.model.names(), {s.name: k for k, s in enumerate(deck.stages, 1)}
+
+    def stage_fit(name, start, exps, data, _free, prior, _limit):   # as estimation.fit's
+        carried = _carried_prior(start, prior)[0] if isinstance(prior, FitResult) else None
+        _ce.deck_stage_start(str(deck.path), number[name])
+        r = _ce.ladder_rungs(len(names), [])[0]
+        free = tuple(names[i] for i in r["free"])
+        prior_map = _prior_arrays(start, free, prior)[0] if carried is None else carried
+        return _fit_result(start, exps, data, free, prior_map, r["fit"])
+
     stages = {s.name: (deck.experiments, s.data, s.free) + ((deck.prior,) if k == 0 and
                                                              deck.prior else ())
               for k, s in enumerate(deck.stages)}
-    return identify(deck.model, stages, max_iter={s.name: s.max_iter for s in deck.stages})
+    with _ce.LADDER_LOCK:
+        return _identify(deck.model, stages, 50, None, stage_fit)
 
 
 def _identify_figure(result: Any, prefix: Path) -> Path:
@@ -271,8 +281,7 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     prefix = parsed[0].output_prefix
     staged = [d.path for d in parsed if d.task == "identify"]
     if len(parsed) == 1 and staged:
-        files = run_files(parsed[0])
-        result = identify_deck(parsed[0])
+        _, files, result = run_fit_deck(parsed[0], plots=False)
     elif staged:
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
