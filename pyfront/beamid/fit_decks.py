@@ -68,8 +68,11 @@ def published(values: dict) -> tuple[Published, ...]:
                  for g in values["published"])
 
 
-def load(kind: int, values: list[float]) -> Load:
-    """A load from the reader's (kind, [fx, fy, moment, wire_length])."""
+def load(kind: int, values: list[float]) -> Load | Release:
+    """A load or a release from the reader's (kind, values in beamid_inverse's
+    EV_* layout: fx, fy, moment, wire_length, ...)."""
+    if kind == LOAD_RELEASE:
+        return Release.decode(values)
     if kind == LOAD_WIRE:
         return RadialWire(values[3])
     return TipLoad(values[0], values[1], values[2])
@@ -130,11 +133,6 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    # release experiments (issue 13) carry more values than the reader's
-    # (kind, [fx, fy, moment, wire_length]) columns
-    for (n, _, _), (kind, vals) in zip(values["experiments"], _ce.deck_experiments(str(path))):
-        if kind == LOAD_RELEASE:
-            experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
                          read_measurements(s["data_path"], experiments),
