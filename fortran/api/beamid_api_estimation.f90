@@ -31,7 +31,7 @@ module beamid_api_estimation
 
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
-    public :: api_problem_predict, api_deck_experiments
+    public :: api_problem_predict
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
@@ -298,35 +298,6 @@ contains
             if (allocated(rinfo%note)) note = rinfo%note
         end subroutine add_effect
     end subroutine api_fit_effect
-
-    !> The experiments of an estimation deck in beamid_inverse's layout
-    !! (kind 1 tip, 2 wire, 3 release; exp_values(:, e) EV_*), nexp of them
-    !! (sizes first: call with nexp = 0 to get the count in `count`).
-    subroutine api_deck_experiments(path, nexp, exp_kind, exp_values, count, code, message)
-        character(len=*), intent(in) :: path
-        integer(c_int), intent(in) :: nexp
-        integer(c_int), intent(out) :: exp_kind(nexp + 1), count, code
-        real(c_double), intent(out) :: exp_values(12, nexp + 1)
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        integer :: e
-        call read_deck(path, d, stat)
-        call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
-        count = int(size(d%experiments), c_int)
-        do e = 1, min(int(nexp), size(d%experiments))
-            exp_kind(e) = int(d%experiments(e)%kind, c_int)
-            exp_values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                                  d%experiments(e)%moment, d%experiments(e)%wire_length]
-            if (allocated(d%exp_kind)) then
-                if (d%exp_kind(e) > 0) then
-                    exp_kind(e) = int(d%exp_kind(e), c_int)
-                    exp_values(:, e) = d%exp_values(:, e)
-                end if
-            end if
-        end do
-    end subroutine api_deck_experiments
 
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)

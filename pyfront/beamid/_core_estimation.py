@@ -52,16 +52,6 @@ class Problem:
 NEXPVAL = 12
 
 
-def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
-    """(kind, NEXPVAL values) of every experiment of an estimation deck, in deck
-    order (kind 3: a release, beamid_inverse's EV_* layout)."""
-    raw = str(path).encode()
-    _, _, count = _call(_api.api_deck_experiments, raw, 0)
-    kinds, values, count = _call(_api.api_deck_experiments, raw, int(count))
-    values = np.array(values).reshape(NEXPVAL, -1)
-    return [(int(kinds[e]), values[:, e].copy()) for e in range(int(count))]
-
-
 def problem_predict(prob: Problem, params: np.ndarray,
                     wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Predictions and d/d params(wrt) of any mix of static and release
