@@ -600,7 +600,7 @@ contains
         pb%row_q = d%data%quantity
         pb%y = d%data%value
         pb%sigma = d%data%sigma
-        pb%prior = deck_prior(d)
+        pb%prior = prior_t(d%prior_index, d%prior_mean, d%prior_sigma)
         pb%max_iter = d%max_iter
     end function deck_problem
 
@@ -626,22 +626,6 @@ contains
         end if
     end subroutine deck_experiments
 
-    !> The deck's a priori information (Eq. 142-145).
-    pure function deck_prior(d) result(prior)
-        type(deck_t), intent(in) :: d
-        type(prior_t) :: prior
-        prior%index = d%prior_index
-        prior%mean = d%prior_mean
-        prior%sigma = d%prior_sigma
-    end function deck_prior
-
-    !> Does the deck have a release experiment (time histories)?
-    pure logical function deck_dynamic(d)
-        type(deck_t), intent(in) :: d
-        deck_dynamic = .false.
-        if (allocated(d%exp_kind)) deck_dynamic = any(d%exp_kind == EXP_RELEASE)
-    end function deck_dynamic
-
     !> The deck's candidates: every effect named, with its parameters; in a
     !! deck with releases `mesh` is the mesh test of beamid_dyn_diagnosis
     !! (as beamid.diagnose does), not a candidate without parameters.
@@ -652,7 +636,8 @@ contains
         integer :: c
         logical :: dyn
         type(candidate_t) :: one
-        dyn = deck_dynamic(d)
+        dyn = .false.
+        if (allocated(d%exp_kind)) dyn = any(d%exp_kind == EXP_RELEASE)   ! time histories
         allocate (cs%names(0), cs%cands(0))
         do c = 1, size(d%candidates)
             if (dyn .and. trim(adjustl(d%candidates(c))) == 'mesh') then
