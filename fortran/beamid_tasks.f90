@@ -391,49 +391,44 @@ contains
     end subroutine run_estimation
 
     !> Task identify: the stages in order (deck_stage_start, as
-    !! beamid.identify); `held`: their fits when already made (beamid.run
-    !! fits them from Python, a stage at a time): only the files are written.
-    !! Files: <prefix>_identify.csv (stage, parameter, estimate, sigma before
-    !! and after: what each stage taught) and every stage's fit files
+    !! beamid.identify); `held`: the fits of the first stages when already made
+    !! (beamid.run fits them from Python, a stage at a time). Files:
+    !! <prefix>_identify.csv (stage, parameter, estimate, sigma before and
+    !! after: what each stage taught) and every stage's fit files
     !! <prefix>_<stage>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine run_identify(d, fl, st, held)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         type(rung_t), intent(in), optional :: held(:)
-        type(fit_result_t), allocatable :: fits(:)
+        type(rung_t), allocatable :: done(:)
         type(deck_t) :: ds
         type(ladder_t) :: lad
         real(dp), allocatable :: known(:), before(:)
         character(len=:), allocatable :: prefix, rows
-        integer :: k, i, p, ns, unit, ios
+        integer :: k, i, p, unit, ios
 
-        ns = size(d%stages)
-        if (present(held)) then
-            if (size(held) /= ns) call set_status(st, ERR_INPUT, 'identify', 'fits of '// &
-                fmt_int(size(held))//' stages held, the deck has '//fmt_int(ns))
-            if (size(held) /= ns) return
-        end if
-        allocate (fits(0:ns), known(size(d%params)))
-        known = ieee_value(1.0_dp, ieee_positive_inf)
+        done = [rung_t ::]
+        if (present(held)) done = held
+        do while (size(done) < size(d%stages))
+            call deck_stage_start(d, done, lad, st)
+            if (st%code /= STATUS_OK) return
+            done = [done, lad%rungs(1)]
+        end do
+        allocate (known(size(d%params)), source=ieee_value(1.0_dp, ieee_positive_inf))
         known(d%stages(1)%prior_index) = d%stages(1)%prior_sigma
         rows = ''
-        do k = 1, ns
-            if (present(held)) then
-                fits(k) = held(k)%fit
-            else
-                call deck_stage_start(d, k, fits(k - 1), lad, st)
-                if (st%code /= STATUS_OK) return
-                fits(k) = lad%rungs(1)%fit
-            end if
-            before = known(fits(k)%free)
-            do i = 1, size(fits(k)%free)
-                p = fits(k)%free(i)
-                rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
-                       fmt_e(fits(k)%params(p))//','//fmt_e(before(i))//','// &
-                       fmt_e(fits(k)%sigmas(i))//new_line('a')
-                known(p) = fits(k)%sigmas(i)
-            end do
+        do k = 1, size(d%stages)
+            associate (f => done(k)%fit)
+                before = known(f%free)
+                do i = 1, size(f%free)
+                    p = f%free(i)
+                    rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
+                           fmt_e(f%params(p))//','//fmt_e(before(i))//','//fmt_e(f%sigmas(i))// &
+                           new_line('a')
+                    known(p) = f%sigmas(i)
+                end do
+            end associate
         end do
 
         call output_prefix(d, prefix, st)
@@ -443,42 +438,48 @@ contains
         if (st%code /= STATUS_OK) return
         if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
         call close_checked(unit, ios, prefix//'_identify.csv', st)
-        do k = 1, ns
+        do k = 1, size(d%stages)
             if (st%code /= STATUS_OK) return
             call stage_deck(d, d%stages(k), ds)
-            call write_fit_files(ds, fits(k), prefix//'_'//d%stages(k)%name, fl, st)
+            call write_fit_files(ds, done(k)%fit, prefix//'_'//d%stages(k)%name, fl, st)
         end do
     end subroutine run_identify
 
-    !> Start stage k of an identify deck as a ladder ended at its fit
-    !! (beamid_ladder; a weighted fit, as beamid.identify's): the stage's
-    !! data and iteration limit, its free parameters and every earlier
-    !! stage's (both updated, Eq. 147) from where the previous stage's fit
-    !! `prev` ended, with that fit's estimates and full covariance as a priori
+    !> Start the next stage of an identify deck, k = size(done) + 1, as a ladder
+    !! ended at its fit (beamid_ladder; a weighted fit, as beamid.identify's):
+    !! the stage's data and iteration limit, its free parameters and every
+    !! earlier stage's (both updated, Eq. 147) from where stage k - 1's fit
+    !! (done(k - 1)) ended, with its estimates and full covariance as a priori
     !! information (Eq. 146-148, 164-166; stage 1 from the deck's model with
     !! its a priori values, Eq. 142-145).
-    subroutine deck_stage_start(d, k, prev, lad, st)
+    subroutine deck_stage_start(d, done, lad, st)
         type(deck_t), intent(in) :: d
-        integer, intent(in) :: k
-        type(fit_result_t), intent(in) :: prev
+        type(rung_t), intent(in) :: done(:)
         type(ladder_t), intent(out) :: lad
         type(status_t), intent(inout) :: st
         type(deck_t) :: ds
         type(problem_t) :: pb
         integer, allocatable :: free(:)
-        integer :: i
+        integer :: i, k
+        k = size(done) + 1
+        if (k > size(d%stages)) then
+            call set_status(st, ERR_INPUT, 'identify', 'all '//fmt_int(k - 1)//' stages are fitted')
+            return
+        end if
         call stage_deck(d, d%stages(k), ds)
         pb = deck_problem(ds)
         free = d%stages(k)%free
         if (k == 1) then
             call ladder_start(lad, pb, d%params, free, cand_set_t(), 0.0_dp, 0, st)
         else
-            do i = 1, size(prev%free)
-                if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
-            end do
-            call prior_from_covariance(prev%free, prev%estimates, prev%cov, pb%prior, st)
-            if (st%code == STATUS_OK) &
-                call ladder_start(lad, pb, prev%params, free, cand_set_t(), 0.0_dp, 0, st)
+            associate (prev => done(k - 1)%fit)
+                do i = 1, size(prev%free)
+                    if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
+                end do
+                call prior_from_covariance(prev%free, prev%estimates, prev%cov, pb%prior, st)
+                if (st%code == STATUS_OK) &
+                    call ladder_start(lad, pb, prev%params, free, cand_set_t(), 0.0_dp, 0, st)
+            end associate
         end if
         call ladder_end_at_fit(lad)
         if (st%code /= STATUS_OK) st%message = "stage '"//d%stages(k)%name//"': "// &

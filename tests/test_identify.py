@@ -130,12 +130,12 @@ def test_three_stage_deck_same_numbers_from_both_fronts(tmp_path, batch_exe, mon
                          check=False)
     assert run.returncode == 0, run.stderr
     calls = []
-    for module, name in ((_ce, "deck_stage_start"), (_ce, "fit"), (_core, "run_deck")):
+    for module, name in ((_ce, "deck_task_start"), (_ce, "fit"), (_core, "run_deck")):
         real = getattr(module, name)
         monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name, **k:
                             calls.append(_name) or _real(*a, **k))
     text, files, result = run_identify([_stage_copy(tmp_path / "py")], plots=False)
-    assert calls == ["deck_stage_start"] * 3
+    assert calls == ["deck_task_start"] * 3
     names = sorted(p.name for p in files)
     assert len(names) == 10 and "identify_three_stages_identify.csv" in names
     for name in names:     # every stage's estimates, covariance and residuals too

@@ -35,7 +35,7 @@ module beamid_api_estimation
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
-    public :: api_deck_task_start, api_deck_task_write, api_deck_stage_start
+    public :: api_deck_task_start, api_deck_task_write
 
     !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
@@ -43,7 +43,7 @@ module beamid_api_estimation
     !! (results of a size known only after the run: GUIDE, module arrays of
     !! the binding). One ladder at a time.
     type(ladder_t), save :: lad
-    !> The stages of the identify deck fitted last (api_deck_stage_start),
+    !> The stages of the identify deck fitted last (api_deck_task_start),
     !! whose files api_deck_task_write writes.
     type(rung_t), allocatable, save :: staged(:)
 
@@ -677,21 +677,34 @@ contains
 
     !> Start the ladder of the estimation deck at `path` run as `task` (blank:
     !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:
-    !! the fit, undiagnosed for fit and compare), step it with api_ladder_step
-    !! (diagnose: one rung, improve: a rung per call), read it with
-    !! api_ladder_rung, api_ladder_fit and api_ladder_diag and write its files
-    !! with api_deck_task_write: the deck's fit runs once for both.
-    subroutine api_deck_task_start(path, task, code, message)
+    !! the fit, undiagnosed for fit and compare; of an identify deck the fit of
+    !! `stage` from the stages fitted by the calls before, deck_stage_start),
+    !! step it with api_ladder_step (diagnose: one rung, improve: a rung per
+    !! call), read it with api_ladder_rung, api_ladder_fit and api_ladder_diag
+    !! and write the deck's files with api_deck_task_write: its fits run once.
+    subroutine api_deck_task_start(path, task, stage, code, message)
         character(len=*), intent(in) :: path, task
+        integer(c_int), intent(in) :: stage
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
         lad%done = .true.
         lad%n = 0
+        if (stage <= 1 .or. .not. allocated(staged)) staged = [rung_t ::]
         call read_deck(trim(path), d, stat)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-        if (stat%code == STATUS_OK) call deck_ladder_start(d, lad, stat)
+        if (stat%code == STATUS_OK .and. max(int(stage), 1) /= size(staged) + 1) &
+            call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))//', expected '// &
+                            fmt_int(size(staged) + 1)//' (the stages in order)')
+        if (stat%code == STATUS_OK) then
+            if (d%task == 'identify') then
+                call deck_stage_start(d, staged, lad, stat)
+                if (stat%code == STATUS_OK) staged = [staged, lad%rungs(1)]
+            else
+                call deck_ladder_start(d, lad, stat)
+            end if
+        end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_start
 
@@ -722,36 +735,4 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write
-
-    !> Fit stage k of the identify deck at `path` (beamid_tasks
-    !! deck_stage_start, as beamid-batch runs it) from stage k - 1 as fitted
-    !! by the call before (k = 1: the deck's start): its fit is the one rung
-    !! of the ladder (api_ladder_rung, api_ladder_fit); once every stage is
-    !! fitted api_deck_task_write(path, 'identify') writes the deck's files.
-    subroutine api_deck_stage_start(path, k, code, message)
-        character(len=*), intent(in) :: path
-        integer(c_int), intent(in) :: k
-        integer(c_int), intent(out) :: code
-        character(len=65536), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        type(fit_result_t) :: none
-        integer :: nstage
-        lad%done = .true.
-        lad%n = 0
-        if (.not. allocated(staged)) allocate (staged(0))
-        staged = staged(:min(size(staged), max(int(k) - 1, 0)))
-        call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK) then
-            nstage = 0
-            if (d%task == 'identify') nstage = min(size(d%stages), size(staged) + 1)
-            if (k < 1 .or. k > nstage) call set_status(stat, ERR_INPUT, 'stage', &
-                fmt_int(int(k))//', expected 1..'//fmt_int(nstage)//' (an identify deck, in order)')
-        end if
-        if (stat%code == STATUS_OK .and. k == 1) call deck_stage_start(d, 1, none, lad, stat)
-        if (stat%code == STATUS_OK .and. k > 1) &
-            call deck_stage_start(d, int(k), staged(k - 1)%fit, lad, stat)
-        if (stat%code == STATUS_OK) staged = [staged, lad%rungs(1)]
-        call status_out(stat, code, message)
-    end subroutine api_deck_stage_start
 end module beamid_api_estimation

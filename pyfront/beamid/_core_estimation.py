@@ -354,13 +354,15 @@ def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------- estimation decks: the deck's fit runs once
 
-def deck_task_start(path: str, task: str = "") -> None:
+def deck_task_start(path: str, task: str = "", stage: int = 0) -> None:
     """Start the ladder of an estimation deck run as ``task`` (default the
     deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
-    compare); :func:`ladder_step` diagnoses (diagnose: one rung, improve: a
-    rung per call), :func:`ladder_rungs` reads it, :func:`deck_task_write`
-    writes its files. Hold :data:`LADDER_LOCK` from here to the write."""
-    _call(_api.api_deck_task_start, _path(path), task)
+    compare; of an identify deck the fit of ``stage``, 1-based, from the
+    stages fitted by the calls before); :func:`ladder_step` diagnoses
+    (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
+    reads it, :func:`deck_task_write` writes the deck's files. Hold
+    :data:`LADDER_LOCK` from the first start to the write."""
+    _call(_api.api_deck_task_start, _path(path), task, int(stage))
 
 
 def deck_task_write(path: str, task: str = "") -> list[str]:
@@ -368,11 +370,3 @@ def deck_task_write(path: str, task: str = "") -> list[str]:
     beamid-batch) from the ladder :func:`deck_task_start` started on it."""
     written = _call(_api.api_deck_task_write, _path(path), task)
     return [line for line in _text(written).split("\n") if line]
-
-
-def deck_stage_start(path: str, k: int) -> None:
-    """Fit stage ``k`` (1-based) of an identify deck from stage k - 1 as fitted
-    by the call before, as beamid-batch does; the stage's fit is the one rung
-    of :func:`ladder_rungs`; once every stage is fitted
-    ``deck_task_write(path, "identify")`` writes the deck's files."""
-    _call(_api.api_deck_stage_start, _path(path), int(k))

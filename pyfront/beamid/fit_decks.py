@@ -228,7 +228,7 @@ def identify_deck(deck: FitDeck) -> Any:
     ``identify``): the deck's model is the start, its experiments serve every
     stage, the first stage takes the deck's a priori values. Each stage is
     fitted by the Fortran of ``beamid-batch`` on the deck as read there
-    (``_core_estimation.deck_stage_start``), so its files can then be written
+    (``_core_estimation.deck_task_start``), so its files can then be written
     from the same fits (``deck_task_write(path, "identify")``, under
     ``_core_estimation.LADDER_LOCK`` from the first stage on)."""
     if deck.task != "identify" or not deck.stages:
@@ -238,7 +238,7 @@ def identify_deck(deck: FitDeck) -> Any:
 
     def stage_fit(name, start, exps, data, _free, prior, _limit):   # as estimation.fit's
         carried = _carried_prior(start, prior)[0] if isinstance(prior, FitResult) else None
-        _ce.deck_stage_start(str(deck.path), number[name])
+        _ce.deck_task_start(str(deck.path), "identify", number[name])
         r = _ce.ladder_rungs(len(names), [])[0]
         free = tuple(names[i] for i in r["free"])
         prior_map = _prior_arrays(start, free, prior)[0] if carried is None else carried
