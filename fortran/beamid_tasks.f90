@@ -70,9 +70,9 @@ contains
 
     !> Run the task of a validated deck and write its files, all or none.
     !! `written` lists the files written (newline separated) on success.
-    !! `ladder`: the rungs of the deck's improve ladder when already run
-    !! (ladder_start and ladder_step on deck_problem and deck_candidates, as
-    !! beamid.run steps it to show progress): only the files are written.
+    !! `ladder`: an estimation deck's rungs when already run (deck_ladder_start
+    !! and ladder_step, or an identify deck's stages, deck_stage_start, as
+    !! beamid.run steps them from Python): only the files are written.
     subroutine run_task(deck, written, stat, ladder)
         type(deck_t), intent(in) :: deck
         character(len=:), allocatable, intent(out) :: written
@@ -344,8 +344,6 @@ contains
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         type(rung_t), intent(in), optional :: ladder(:)
-        type(fit_result_t) :: fo
-        type(diag_out_t) :: dg
         type(cand_set_t) :: cs
         type(rung_t), allocatable :: rungs(:)
         type(ladder_t) :: lad
@@ -363,21 +361,15 @@ contains
         end if
         if (st%code == STATUS_OK) call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
-        fo = rungs(size(rungs))%fit
-        dg = rungs(size(rungs))%dg
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
-        call write_fit_files(d, fo, prefix, fl, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'diagnose' .or. d%task == 'improve') then
-            call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
-            if (st%code /= STATUS_OK) return
-        end if
-        if (d%task == 'compare') then
-            call write_compare(d, fo, prefix//'_compare.csv', fl, st)
-            return
-        end if
-        if (d%task /= 'improve') return
+        associate (fo => rungs(size(rungs))%fit, dg => rungs(size(rungs))%dg)
+            call output_prefix(d, prefix, st)
+            if (st%code == STATUS_OK) call write_fit_files(d, fo, prefix, fl, st)
+            if (st%code == STATUS_OK .and. (d%task == 'diagnose' .or. d%task == 'improve')) &
+                call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
+            if (st%code == STATUS_OK .and. d%task == 'compare') &
+                call write_compare(d, fo, prefix//'_compare.csv', fl, st)
+        end associate
+        if (st%code /= STATUS_OK .or. d%task /= 'improve') return
         call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
                          ios, st)
         if (st%code /= STATUS_OK) return
