@@ -16,15 +16,14 @@ module beamid_api_estimation
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
                              set_status, fmt_int
-    use beamid_estimation, only: residual_structure, residual_model_t
+    use beamid_estimation, only: residual_structure, residual_model_t, prior_from_covariance
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
-                                 diagnose_options_t, &
-                                 chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
-                                 refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
-    use beamid_estimation, only: prior_from_covariance
+                                 lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
+                                 score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
+                                 STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_problem, deck_candidates
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -199,11 +198,11 @@ contains
     !! start converging is ERR_NO_CONVERGENCE with the notes (and the best
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
-                              nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
-                              row_q, row_value, row_sigma, tol, max_iter, start_mask, params, &
-                              sigmas, cov, corr, flags, predictions, normalized, stats, &
-                              log_cost, log_lambda, log_step, log_params, info, code, message, &
-                              note)
+                              nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
+                              exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
+                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              predictions, normalized, stats, log_cost, log_lambda, log_step, &
+                              log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
         integer(c_int), intent(in) :: max_iter, start_mask, ncov
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
@@ -229,7 +228,7 @@ contains
         type(fit_options_t) :: opts
         type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
-        type(prior_t) :: pr
+        type(lsq_problem_t) :: lp
         integer :: n
 
         params = params0
@@ -248,17 +247,12 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            if (ncov /= 0) then
-                call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
-                                           reshape(real(prior_cov, dp), [n, n]), pr, stat)
-            else
-                pr = make_prior(prior)
-            end if
+            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
+            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
+                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
         end if
         if (stat%code == STATUS_OK .and. nblock == 0) then
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), model%lower, model%upper, &
-                                   pr, opts, res, stat)
+            call fit_least_squares(model, lp, real(params0, dp), int(free_idx), opts, res, stat)
             if (allocated(res%note)) note = res%note
         else if (stat%code == STATUS_OK .and. model%has_dynamic) then
             call null_side_init(int(nbeams), model, side)
@@ -280,18 +274,14 @@ contains
             class(residual_model_t), intent(inout) :: m
             type(fit_result_t) :: base
             type(score_result_t) :: score
-            real(dp), allocatable :: y(:), sig(:)
             integer :: k
-            y = real(row_value, dp)
-            sig = real(row_sigma, dp)
-            call fit_at(m, y, sig, real(params0, dp), int(free_idx), model%lower, model%upper, &
-                        pr, opts, base, stat)
-            if (stat%code == STATUS_OK) call score_test(m, y, sig, base%params, base%free, &
-                model%lower, model%upper, pr, int(block), opts, score, stat)
+            call fit_at(m, lp, real(params0, dp), int(free_idx), opts, base, stat)
+            if (stat%code == STATUS_OK) call score_test(m, lp, base%params, base%free, &
+                                                        int(block), opts, score, stat)
             if (stat%code /= STATUS_OK) return
-            call refit_effect(m, y, sig, base, int(block), score, real(nominal, dp), &
-                              model%nulls, model%lower, model%upper, pr, opts, res, rinfo, &
-                              stat, use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
+            call refit_effect(m, lp, base, int(block), score, real(nominal, dp), opts, res, &
+                              rinfo, stat, use=[(start_mask == 0 .or. btest(start_mask, k), &
+                                                 k=0, 2)])
             info(2) = int(rinfo%start, c_int)
             if (allocated(rinfo%note)) note = rinfo%note
         end subroutine add_effect
@@ -355,9 +345,7 @@ contains
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
         real(c_double), intent(in) :: prior(:, :)
-        pr%index = nint(prior(1, :))
-        pr%mean = real(prior(2, :), dp)
-        pr%sigma = real(prior(3, :), dp)
+        pr = prior_t(nint(prior(1, :)), real(prior(2, :), dp), real(prior(3, :), dp))
     end function make_prior
 
     !> The problem of beamid_ladder from a binding's arrays.
