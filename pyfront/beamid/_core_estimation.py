@@ -186,9 +186,9 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
     cov = np.zeros(0) if prior_cov is None else np.ravel(prior_cov, order="F").astype(float)
     return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
                      prob.nbeams, params0, free, block, nominal,
-                     _prior(prior_idx, prior_mean, prior_sigma), cov, prob.exp_kind, prob.exp_values, prob.row_exp,
-                     prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
-                     float(prob.tol), int(max_iter), int(start_mask))
+                     _prior(prior_idx, prior_mean, prior_sigma), cov, prob.exp_kind,
+                     prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+                     prob.row_sigma, float(prob.tol), int(max_iter), int(start_mask))
 
 
 def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
@@ -262,9 +262,10 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx
     rungs (the extension holds one ladder at a time)."""
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
-          np.asarray(free, np.int32), _prior(prior_idx, prior_mean, prior_sigma), prob.exp_kind, prob.exp_values, prob.row_exp,
-          prob.row_t, prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-          int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
+          np.asarray(free, np.int32), _prior(prior_idx, prior_mean, prior_sigma),
+          prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+          prob.row_sigma, float(prob.tol), int(max_iter), starts, flat, int(bool(with_mesh)),
+          float(alpha), int(max_steps))
 
 
 def deck_ladder_start(path: str) -> None:
