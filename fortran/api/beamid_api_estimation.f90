@@ -83,6 +83,7 @@ contains
     !! out = runs, expected runs, runs z, runs p, slope, trend z, trend p.
     subroutine api_residual_structure(n, level, group, normalized, out)
         integer(c_int), intent(in) :: n
+        !f2py intent(hide) n
         real(c_double), intent(in) :: level(n), normalized(n)
         integer(c_int), intent(in) :: group(n)
         real(c_double), intent(out) :: out(7)
@@ -204,6 +205,7 @@ contains
                               predictions, normalized, stats, log_cost, log_lambda, log_step, &
                               log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
+        !f2py intent(hide) nparams, nfree, nblock, nprior, ncov, nexp, nrow
         integer(c_int), intent(in) :: max_iter, start_mask, ncov
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
@@ -324,6 +326,7 @@ contains
                                    row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
                                    message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
+        !f2py intent(hide) nparams, nexp, nrow, nwrt
         real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
@@ -388,6 +391,7 @@ contains
     !! (beamid_dyn_diagnosis time_structure; out layout there).
     subroutine api_time_structure(n, t, r, out)
         integer(c_int), intent(in) :: n
+        !f2py intent(hide) n
         real(c_double), intent(in) :: t(n), r(n)
         real(c_double), intent(out) :: out(10)
         call time_structure(real(t, dp), real(r, dp), out)
@@ -408,6 +412,7 @@ contains
                                     refit_params, ranking, cosine, dstats, refit_start, sep_t, &
                                     mstats, mesh_params, kept, notes, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
@@ -546,6 +551,7 @@ contains
                                 row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                 cand_params, with_mesh, alpha, max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
+        !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
