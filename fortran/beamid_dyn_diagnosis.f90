@@ -27,12 +27,12 @@ module beamid_dyn_diagnosis
     use beamid_status, only: status_t, clear_status, STATUS_OK
     use beamid_model, only: param_index_global, param_index_joint_flex, IG_TAU_MOTOR, &
                             IG_ROOT_FLEX, param_index_mass, IM_J
-    use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, candidate_t, &
-                                 diagnose_options_t, diagnosis_t, fit_at, fit_least_squares, &
-                                 diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
-                                 score_result_t, sort_desc
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_RELEASE, EV_NEPB, &
-                              EV_GAIN
+    use beamid_estimation, only: residual_model_t, fit_options_t, fit_result_t, prior_t, &
+                                 candidate_t, diagnose_options_t, diagnosis_t, fit_at, &
+                                 fit_least_squares, diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
+                                 score_result_t, sort_desc, lsq_problem_t
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
+                              EV_NEPB, EV_GAIN
     use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
                                          Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
                                          Q_MOTOR_TORQUE, median_of, distinct_sorted
@@ -290,10 +290,10 @@ contains
 
     !> The mesh test (see the module header): refit `free` from base%params
     !! with every release at twice its elements per beam.
-    subroutine mesh_test(pb, base, lower, upper, fopts, alpha, res, stat)
+    subroutine mesh_test(pb, lp, base, fopts, alpha, res, stat)
         type(problem_t), intent(in) :: pb
+        type(lsq_problem_t), intent(in) :: lp   !< pb's data on its model's bounds
         type(fit_result_t), intent(in) :: base
-        real(dp), intent(in) :: lower(:), upper(:)
         type(fit_options_t), intent(in) :: fopts
         real(dp), intent(in) :: alpha          !< significance level of the test
         type(mesh_test_t), intent(out) :: res
@@ -327,8 +327,7 @@ contains
         res%max_change = change(res%max_row)
         ! the refit at the refined mesh: a failed refit is reported, not raised
         call clear_status(st)
-        call fit_least_squares(fine, pb%y, pb%sigma, base%params, base%free, lower, upper, &
-                               pb%prior, fopts, refit, st)
+        call fit_least_squares(fine, lp, base%params, base%free, fopts, refit, st)
         if (st%code < 0) then
             stat = st
             return
@@ -395,6 +394,7 @@ contains
         integer, allocatable, intent(out), optional :: ambiguous(:)
         integer, allocatable :: close(:)
         type(inverse_problem_t) :: prob, probe
+        type(lsq_problem_t) :: lp
         type(null_side_model_t) :: side
         type(cached_model_t) :: cache
         type(fit_options_t) :: fopts, frefit
@@ -422,8 +422,8 @@ contains
         frefit = fopts
         if (prob%has_dynamic) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
         call null_side_init(pb%nbeams, prob, side)
-        call fit_at(side, pb%y, pb%sigma, params0, free, prob%lower, prob%upper, pb%prior, fopts, &
-                    base, stat)
+        lp = inverse_lsq(prob, pb%y, pb%sigma, pb%prior)
+        call fit_at(side, lp, params0, free, fopts, base, stat)
         if (stat%code /= STATUS_OK) return
         cands = open_members(cands_in, base, prob%nulls)
         ! one run of the forward sensitivities at the null values for the
@@ -440,8 +440,7 @@ contains
         ns = count(seen)
         map = pack([(c, c=1, nc)], seen)
         seen_cands = cands(map)
-        call narrow_blocks(cache, pb%y, pb%sigma, base, prob, pb%prior, fopts, dopts, seen_cands, &
-                           close, stat)
+        call narrow_blocks(cache, lp, base, fopts, dopts, seen_cands, close, stat)
         if (stat%code > 0) return
         used = cands
         used(map) = seen_cands
@@ -465,8 +464,8 @@ contains
             dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
         end if
         if (ns > 0) then
-            call diagnose(cache, pb%y, pb%sigma, base, prob%nulls, prob%lower, prob%upper, &
-                          pb%prior, seen_cands, frefit, dsub, sub, stat, probe, psig, nominal)
+            call diagnose(cache, lp, base, seen_cands, frefit, dsub, sub, stat, probe, psig, &
+                          nominal)
             if (stat%code /= STATUS_OK) return
         else
             allocate (sub%cand(0), sub%ranking(0), sub%cosine(0, 0))
@@ -474,8 +473,8 @@ contains
         end if
         call scatter_back(sub, seen, map, diag)
         if (with_mesh .and. prob%has_dynamic) then
-            call mesh_test(pb, base, prob%lower, prob%upper, frefit, &
-                           dopts%alpha/real(diag%ntested + 1, dp), mesh, stat)
+            call mesh_test(pb, lp, base, frefit, dopts%alpha/real(diag%ntested + 1, dp), mesh, &
+                           stat)
         end if
     end subroutine dyn_diagnose
 
@@ -558,13 +557,10 @@ contains
     !! estimates are not all determined: test and refit the parameters the
     !! data determine (estimate above its sigma), the rest stay at null.
     !! close gains the members about as good as a block's best one.
-    subroutine narrow_blocks(cache, y, sigma, base, prob, prior, fopts, dopts, cands, close, &
-                             stat)
+    subroutine narrow_blocks(cache, lp, base, fopts, dopts, cands, close, stat)
         type(cached_model_t), intent(inout) :: cache
-        real(dp), intent(in) :: y(:), sigma(:)
+        type(lsq_problem_t), intent(in) :: lp
         type(fit_result_t), intent(in) :: base
-        type(inverse_problem_t), intent(in) :: prob
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: fopts
         type(diagnose_options_t), intent(in) :: dopts
         type(candidate_t), intent(inout) :: cands(:)
@@ -581,11 +577,10 @@ contains
             j = size(cands(k)%params)
             if (j < 2) cycle
             if (any([(any(base%free == cands(k)%params(q)), q=1, j)]) .or. &
-                any(base%params(cands(k)%params) /= prob%nulls(cands(k)%params))) &
+                any(base%params(cands(k)%params) /= lp%nulls(cands(k)%params))) &
                 cycle
             call clear_status(st)
-            call score_test(cache, y, sigma, base%params, base%free, prob%lower, prob%upper, &
-                            prior, cands(k)%params, fopts, sc, st)
+            call score_test(cache, lp, base%params, base%free, cands(k)%params, fopts, sc, st)
             if (st%code > 0) then
                 stat = st
                 return
@@ -601,8 +596,8 @@ contains
             drops = -huge(1.0_dp)
             do q = 1, j
                 call clear_status(st)
-                call score_test(cache, y, sigma, base%params, base%free, prob%lower, &
-                                prob%upper, prior, cands(k)%params(q:q), fopts, one, st)
+                call score_test(cache, lp, base%params, base%free, cands(k)%params(q:q), fopts, &
+                                one, st)
                 if (st%code > 0) then
                     stat = st
                     return

@@ -27,7 +27,7 @@ module beamid_estimation
     implicit none
     private
 
-    public :: residual_model_t, prior_t, fit_options_t, fit_result_t
+    public :: residual_model_t, prior_t, lsq_problem_t, fit_options_t, fit_result_t
     public :: score_result_t, candidate_t, diagnose_options_t, candidate_report_t
     public :: diagnosis_t, refit_info_t
     public :: fit_least_squares, fit_at, score_test, diagnose, chi2_sf, residual_structure
@@ -133,6 +133,17 @@ module beamid_estimation
         real(dp), allocatable :: mean(:), sigma(:)
         real(dp), allocatable :: whiten(:, :)
     end type prior_t
+
+    !> What every fit, score test, refit and diagnosis of one data set
+    !! shares: the data rows y and their sigmas, the box lower <= p <= upper,
+    !! the null values of the parameters (every effect switched off) and the
+    !! a priori information. Built once by the caller; the model is passed
+    !! beside it, since the same data are fitted through wrappers of a model
+    !! (one-sided columns at the null, cached sensitivities, a finer mesh).
+    type :: lsq_problem_t
+        real(dp), allocatable :: y(:), sigma(:), lower(:), upper(:), nulls(:)
+        type(prior_t) :: prior
+    end type lsq_problem_t
 
     type :: fit_options_t
         integer :: max_iter = 50          !< Gauss-Newton iterations
@@ -290,16 +301,16 @@ contains
 
     !> Weighted system at `params`: rows (y - f)/sigma then a priori rows;
     !! a = d f / d params(cols) / sigma, prior rows 1/sigma_prior.
-    subroutine weighted_system(model, y, sigma, params, cols, prior, pred, a, r, stat)
+    subroutine weighted_system(model, lp, params, cols, pred, a, r, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), params(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params(:)
         integer, intent(in) :: cols(:)
-        type(prior_t), intent(in) :: prior
         real(dp), intent(out) :: pred(:), a(:, :), r(:)
         type(status_t), intent(inout) :: stat
         integer :: m, i, j
         real(dp), allocatable :: jac(:, :)
-        m = size(y)
+        m = size(lp%y)
         allocate (jac(m, size(cols)))
         call model%evaluate(params, cols, pred, jac, stat)
         if (stat%code /= STATUS_OK) return
@@ -309,23 +320,23 @@ contains
             return
         end if
         do j = 1, size(cols)
-            a(1:m, j) = jac(:, j)/sigma
+            a(1:m, j) = jac(:, j)/lp%sigma
         end do
-        r(1:m) = (y - pred)/sigma
+        r(1:m) = (lp%y - pred)/lp%sigma
         a(m + 1:, :) = 0.0_dp
-        if (allocated(prior%whiten)) then
-            r(m + 1:) = matmul(prior%whiten, prior%mean - params(prior%index))
-            do i = 1, size(prior%index)
+        if (allocated(lp%prior%whiten)) then
+            r(m + 1:) = matmul(lp%prior%whiten, lp%prior%mean - params(lp%prior%index))
+            do i = 1, size(lp%prior%index)
                 do j = 1, size(cols)
-                    if (cols(j) == prior%index(i)) a(m + 1:, j) = prior%whiten(:, i)
+                    if (cols(j) == lp%prior%index(i)) a(m + 1:, j) = lp%prior%whiten(:, i)
                 end do
             end do
             return
         end if
-        do i = 1, size(prior%index)
-            r(m + i) = (prior%mean(i) - params(prior%index(i)))/prior%sigma(i)
+        do i = 1, size(lp%prior%index)
+            r(m + i) = (lp%prior%mean(i) - params(lp%prior%index(i)))/lp%prior%sigma(i)
             do j = 1, size(cols)
-                if (cols(j) == prior%index(i)) a(m + i, j) = 1.0_dp/prior%sigma(i)
+                if (cols(j) == lp%prior%index(i)) a(m + i, j) = 1.0_dp/lp%prior%sigma(i)
             end do
         end do
     end subroutine weighted_system
@@ -492,13 +503,15 @@ contains
 
     !> The first problem with the data, bounds, free parameters and prior, in
     !! that order, as an ERR_INPUT status of 'fit'.
-    subroutine check_problem(y, sigma, params, free, lower, upper, prior, stat)
-        real(dp), intent(in) :: y(:), sigma(:), params(:), lower(:), upper(:)
+    subroutine check_problem(lp, params, free, stat)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(status_t), intent(inout) :: stat
         character(len=:), allocatable :: problem
         integer :: i, np, k
+        associate (y => lp%y, sigma => lp%sigma, lower => lp%lower, upper => lp%upper, &
+                   prior => lp%prior)
         np = size(params)
         problem = ''
         if (size(sigma) /= size(y)) then
@@ -550,6 +563,7 @@ contains
             end if
         end do
         if (len(problem) > 0) call set_status(stat, ERR_INPUT, 'fit', problem)
+        end associate
     end subroutine check_problem
 
     ! ----------------------------------------------------------------- fitting
@@ -604,12 +618,11 @@ contains
     !! the estimates are the minimum of the accurate model to the same
     !! criterion. The covariance, sigmas, flags and condition number always
     !! come from the accurate Jacobian. Static models never use rough mode.
-    subroutine fit_least_squares(model, y, sigma, params0, free, lower, upper, prior, opts, &
-                                 res, stat)
+    subroutine fit_least_squares(model, lp, params0, free, opts, res, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), params0(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params0(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
@@ -617,10 +630,10 @@ contains
         integer :: it
         logical :: go_on, accepted, evaluated
 
-        call check_problem(y, sigma, params0, free, lower, upper, prior, stat)
+        call check_problem(lp, params0, free, stat)
         if (stat%code /= STATUS_OK) return
-        w = gn_state_t(free=free, p0=params0, lower=lower, upper=upper)
-        call start_search(model, y, sigma, params0, free, prior, opts, w, res, stat)
+        w = gn_state_t(free=free, p0=params0, lower=lp%lower, upper=lp%upper)
+        call start_search(model, lp, params0, free, opts, w, res, stat)
         if (stat%code /= STATUS_OK) return
         ! phases: iterate (on the rough model, then steered by rough
         ! Jacobians, when the model offers them), confirm at the final point
@@ -646,7 +659,7 @@ contains
                 w%stalled = .true.
                 exit
             end if
-            call damped_trials(model, y, sigma, prior, opts, w, accepted, evaluated)
+            call damped_trials(model, lp, opts, w, accepted, evaluated)
             res%iterations = it
             if (.not. accepted) then
                 ! no damped step lowers the cost: a minimum to working precision
@@ -684,7 +697,7 @@ contains
         end do iterate
         if (model%rough == ROUGH_OFF) exit phases
         w%level = model%rough
-        call confirm_at_final_point(model, y, sigma, prior, opts, w, res%iterations, go_on, stat)
+        call confirm_at_final_point(model, lp, opts, w, res%iterations, go_on, stat)
         if (stat%code /= STATUS_OK) return
         if (.not. go_on) exit phases
         model%rough = w%level - 1
@@ -698,19 +711,19 @@ contains
     !> fit_least_squares' first step: the work arrays, the weighted system at
     !! the start (on the rough model when the model has one, at the user's
     !! tolerance when that cannot be solved) and the log's entry 0.
-    subroutine start_search(model, y, sigma, params0, free, prior, opts, w, res, stat)
+    subroutine start_search(model, lp, params0, free, opts, w, res, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), params0(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params0(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(gn_state_t), intent(inout) :: w
         type(fit_result_t), intent(inout) :: res
         type(status_t), intent(inout) :: stat
         integer :: m, n, mt, r
-        m = size(y)
+        m = size(lp%y)
         n = size(free)
-        mt = m + size(prior%index)
+        mt = m + size(lp%prior%index)
         r = min(mt, n)
         w%m = m
         w%n = n
@@ -725,12 +738,12 @@ contains
         ! (confirm_at_final_point makes each phase's end point accurate)
         model%rough = ROUGH_OFF
         if (model%rough_jacobian_ok) model%rough = ROUGH_ALL
-        call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, stat)
+        call weighted_system(model, lp, w%p, free, w%pred, w%a, w%rr, stat)
         if (stat%code /= STATUS_OK .and. model%rough == ROUGH_ALL) then
             ! not solvable at the rough tolerance: start at the user's
             call clear_status(stat)
             model%rough = ROUGH_JACOBIAN
-            call weighted_system(model, y, sigma, w%p, free, prior, w%pred, w%a, w%rr, stat)
+            call weighted_system(model, lp, w%p, free, w%pred, w%a, w%rr, stat)
         end if
         if (stat%code /= STATUS_OK) then
             model%rough = ROUGH_OFF
@@ -822,10 +835,9 @@ contains
     !! arrays w%pt, w%predt, w%at, w%rt hold it, w%cost_t its cost).
     !! evaluated: some trial could be evaluated; w%failed_trial: the last
     !! could not (its message in w%fail_stat).
-    subroutine damped_trials(model, y, sigma, prior, opts, w, accepted, evaluated)
+    subroutine damped_trials(model, lp, opts, w, accepted, evaluated)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:)
-        type(prior_t), intent(in) :: prior
+        type(lsq_problem_t), intent(in) :: lp
         type(fit_options_t), intent(in) :: opts
         type(gn_state_t), intent(inout) :: w
         logical, intent(out) :: accepted, evaluated
@@ -842,11 +854,10 @@ contains
             w%dx = w%pt(w%free) - w%p(w%free)
             call clear_status(trial_stat)
             if (model%plain_trials) then
-                call weighted_system(model, y, sigma, w%pt, w%free(1:0), prior, w%predt, &
-                                     w%at(:, 1:0), w%rt, trial_stat)
-            else
-                call weighted_system(model, y, sigma, w%pt, w%free, prior, w%predt, w%at, &
+                call weighted_system(model, lp, w%pt, w%free(1:0), w%predt, w%at(:, 1:0), &
                                      w%rt, trial_stat)
+            else
+                call weighted_system(model, lp, w%pt, w%free, w%predt, w%at, w%rt, trial_stat)
             end if
             if (trial_stat%code == STATUS_OK) then
                 evaluated = .true.
@@ -854,8 +865,8 @@ contains
                 w%cost_t = sum(w%rt**2)
                 if (w%cost_t <= w%cost*(1.0_dp + 8.0_dp*epsilon(1.0_dp)) + tiny(1.0_dp)) then
                     ! the sensitivities at the accepted step
-                    if (model%plain_trials) call weighted_system(model, y, sigma, w%pt, w%free, &
-                                             prior, w%predt, w%at, w%rt, trial_stat)
+                    if (model%plain_trials) call weighted_system(model, lp, w%pt, w%free, &
+                                                                 w%predt, w%at, w%rt, trial_stat)
                     if (trial_stat%code == STATUS_OK) then
                         w%cost_t = sum(w%rt**2)
                         accepted = .true.
@@ -942,11 +953,10 @@ contains
     !! degree of freedom (about 1 with noisy data: the same floor): with
     !! (nearly) exact data the rough model's own noise floor is far above
     !! the accurate model's, and the fit goes on to the accurate minimum.
-    subroutine confirm_at_final_point(model, y, sigma, prior, opts, w, iterations, go_on, st)
+    subroutine confirm_at_final_point(model, lp, opts, w, iterations, go_on, st)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:)
+        type(lsq_problem_t), intent(in) :: lp
         integer, intent(in) :: iterations
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(gn_state_t), intent(inout) :: w
         logical, intent(out) :: go_on
@@ -954,7 +964,7 @@ contains
         type(status_t) :: est
         model%rough = ROUGH_OFF
         go_on = .false.
-        call weighted_system(model, y, sigma, w%p, w%free, prior, w%pred, w%a, w%rr, est)
+        call weighted_system(model, lp, w%p, w%free, w%pred, w%a, w%rr, est)
         if (est%code /= STATUS_OK) then
             est%message = trim(est%message)//' (the accurate Jacobian at the estimates)'
             st = est
@@ -1138,24 +1148,24 @@ contains
     !> The fit result at given parameter values (estimates found earlier),
     !! without iterating: residuals, chi-square, covariance and flags
     !! (res%stop = STOP_EVALUATED, res%converged = .true.).
-    subroutine fit_at(model, y, sigma, params, free, lower, upper, prior, opts, res, stat)
+    subroutine fit_at(model, lp, params, free, opts, res, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), params(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
         integer :: m, n, mt
         real(dp), allocatable :: pred(:), a(:, :), rr(:)
         logical, allocatable :: undetermined(:)
-        call check_problem(y, sigma, params, free, lower, upper, prior, stat)
+        call check_problem(lp, params, free, stat)
         if (stat%code /= STATUS_OK) return
-        m = size(y)
+        m = size(lp%y)
         n = size(free)
-        mt = m + size(prior%index)
+        mt = m + size(lp%prior%index)
         allocate (pred(m), a(mt, n), rr(mt))
-        call weighted_system(model, y, sigma, params, free, prior, pred, a, rr, stat)
+        call weighted_system(model, lp, params, free, pred, a, rr, stat)
         if (stat%code /= STATUS_OK) return
         res%free = free
         res%params = params
@@ -1175,7 +1185,7 @@ contains
         call covariance(a, opts, res%cov, res%sigmas, res%corr, res%cond, res%rank, &
                         undetermined, stat)
         if (stat%code /= STATUS_OK) return
-        call set_flags(res, params, lower, upper, undetermined, opts)
+        call set_flags(res, params, lp%lower, lp%upper, undetermined, opts)
     end subroutine fit_at
 
     subroutine set_flags(res, params0, lower, upper, undetermined, opts)
@@ -1223,12 +1233,11 @@ contains
     !! removed one at a time (active set) and the drop is that of the rest.
     !! p-value: chi-square with the number of kept parameters, halved for a
     !! single one-sided parameter (chi-bar-square mixture).
-    subroutine score_test(model, y, sigma, params, free, lower, upper, prior, block, opts, &
-                          res, stat)
+    subroutine score_test(model, lp, params, free, block, opts, res, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), params(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params(:)
         integer, intent(in) :: free(:), block(:)
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(score_result_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
@@ -1239,8 +1248,8 @@ contains
         real(dp) :: viol, worst_viol
         logical, allocatable :: und(:)
 
-        m = size(y)
-        mt = m + size(prior%index)
+        m = size(lp%y)
+        mt = m + size(lp%prior%index)
         nf = size(free)
         nb = size(block)
         res%params = block
@@ -1253,7 +1262,7 @@ contains
         res%direction = 0.0_dp
         cols = [free, block]
         allocate (pred(m), a(mt, nf + nb), rr(mt))
-        call weighted_system(model, y, sigma, params, cols, prior, pred, a, rr, stat)
+        call weighted_system(model, lp, params, cols, pred, a, rr, stat)
         if (stat%code /= STATUS_OK) return
         ab = a(:, nf + 1:)
         ! project the block's columns off the span of the free columns
@@ -1276,8 +1285,8 @@ contains
         allocate (side(nb))
         do j = 1, nb
             side(j) = 0
-            if (params(block(j)) <= lower(block(j))) side(j) = 1
-            if (params(block(j)) >= upper(block(j))) side(j) = -1
+            if (params(block(j)) <= lp%lower(block(j))) side(j) = 1
+            if (params(block(j)) >= lp%upper(block(j))) side(j) = -1
         end do
         allocate (cov(nb, nb), sig(nb), corr(nb, nb), und(nb))
         call solve_block(res%active, delta, stat)
@@ -1290,8 +1299,8 @@ contains
             ! estimate overshoots when the base fit is far off, and the
             ! refit starts clipped to the bound
             if (ieee_is_finite(sig(j)) .and. side(j) == 0) then
-                if (params(block(j)) + delta(j) > upper(block(j)) + 3.0_dp*sig(j) .or. &
-                    params(block(j)) + delta(j) < lower(block(j)) - 3.0_dp*sig(j)) &
+                if (params(block(j)) + delta(j) > lp%upper(block(j)) + 3.0_dp*sig(j) .or. &
+                    params(block(j)) + delta(j) < lp%lower(block(j)) - 3.0_dp*sig(j)) &
                     res%physical = .false.
             end if
         end do
@@ -1383,14 +1392,14 @@ contains
     !! none converges, `res` is the lowest-cost attempt (flagged) and the
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
-    subroutine refit_effect(model, y, sigma, base, block, score, nominal, null_values, lower, &
-                            upper, prior, opts, res, info, stat, ncont, use, enough)
+    subroutine refit_effect(model, lp, base, block, score, nominal, opts, res, info, stat, &
+                            ncont, use, enough)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), nominal(:), null_values(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: nominal(:)
         type(fit_result_t), intent(in) :: base
         integer, intent(in) :: block(:)
         type(score_result_t), intent(in) :: score
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         type(fit_result_t), intent(out) :: res
         type(refit_info_t), intent(out) :: info
@@ -1422,7 +1431,7 @@ contains
         info%note = ''
         if (base%dof - nb > 0) rs%noise = real(base%dof - nb, dp) + &
                                           3.0_dp*sqrt(2.0_dp*real(base%dof - nb, dp))
-        call first_order_target(score, null_values(block), size(base%free), target, shift)
+        call first_order_target(score, lp%nulls(block), size(base%free), target, shift)
 
         ! 1. the first-order start, halved while the model cannot be solved there
         t = 1.0_dp
@@ -1430,11 +1439,10 @@ contains
             do half = 0, 4
                 start = base%params
                 start(base%free) = base%params(base%free) + t*shift
-                start(block) = null_values(block) + t*(target - null_values(block))
-                call into_box(start, all_free, lower, upper, base%params)
+                start(block) = lp%nulls(block) + t*(target - lp%nulls(block))
+                call into_box(start, all_free, lp%lower, lp%upper, base%params)
                 call clear_status(st)
-                call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
-                                       opts, trial, st)
+                call fit_least_squares(model, lp, start, all_free, opts, trial, st)
                 if (allocated(trial%params) .or. st%code <= 0 .or. half == 4) exit
                 t = 0.5_dp*t
             end do
@@ -1446,27 +1454,25 @@ contains
         if (try(2) .and. .not. refit_done(rs)) then
             start = base%params
             start(base%free) = nominal(base%free)
-            start(block) = null_values(block)
-            call into_box(start, all_free, lower, upper, base%params)
+            start(block) = lp%nulls(block)
+            call into_box(start, all_free, lp%lower, lp%upper, base%params)
             same = try(1) .and. all(start == base%params) .and. all(shift == 0.0_dp) .and. &
-                   all(target == null_values(block))
+                   all(target == lp%nulls(block))
             if (.not. same) then
                 call clear_status(st)
-                call fit_least_squares(model, y, sigma, start, all_free, lower, upper, prior, &
-                                       opts, trial, st)
+                call fit_least_squares(model, lp, start, all_free, opts, trial, st)
                 call consider_refit(START_NOMINAL, trial, st, rs, res, info, stat)
                 if (stat%code /= STATUS_OK) return
             end if
         end if
 
         ! 3. continuation in the effect's strength from its null value
-        if (try(3) .and. .not. refit_done(rs) .and. any(target /= null_values(block))) then
-            call continue_in_strength(model, y, sigma, base, block, target, null_values, &
-                                      all_free, lower, upper, prior, opts, nsteps, p, kk, why)
+        if (try(3) .and. .not. refit_done(rs) .and. any(target /= lp%nulls(block))) then
+            call continue_in_strength(model, lp, base, block, target, all_free, opts, nsteps, &
+                                      p, kk, why)
             if (kk > 0) then
                 call clear_status(st)
-                call fit_least_squares(model, y, sigma, p, all_free, lower, upper, prior, &
-                                       opts, trial, st)
+                call fit_least_squares(model, lp, p, all_free, opts, trial, st)
                 call consider_refit(START_CONTINUATION, trial, st, rs, res, info, stat)
                 if (stat%code /= STATUS_OK) return
             else
@@ -1507,13 +1513,13 @@ contains
     !> Refit start 3: the block stepped from its null value to `target` in
     !! nsteps steps, base%free fitted at each; p: the last point fitted
     !! (kk steps done; 0: the first failed, `why` says how).
-    subroutine continue_in_strength(model, y, sigma, base, block, target, null_values, &
-                                    all_free, lower, upper, prior, opts, nsteps, p, kk, why)
+    subroutine continue_in_strength(model, lp, base, block, target, all_free, opts, nsteps, p, &
+                                    kk, why)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), target(:), null_values(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: target(:)
         type(fit_result_t), intent(in) :: base
         integer, intent(in) :: block(:), all_free(:), nsteps
-        type(prior_t), intent(in) :: prior
         type(fit_options_t), intent(in) :: opts
         real(dp), allocatable, intent(out) :: p(:)
         integer, intent(out) :: kk
@@ -1527,12 +1533,11 @@ contains
         why = ''
         do k = 1, nsteps
             start = p
-            start(block) = null_values(block) + real(k, dp)/real(nsteps, dp)* &
-                           (target - null_values(block))
-            call into_box(start, all_free, lower, upper, base%params)
+            start(block) = lp%nulls(block) + real(k, dp)/real(nsteps, dp)* &
+                           (target - lp%nulls(block))
+            call into_box(start, all_free, lp%lower, lp%upper, base%params)
             call clear_status(st)
-            call fit_least_squares(model, y, sigma, start, base%free, lower, upper, prior, &
-                                   opts, fixed, st)
+            call fit_least_squares(model, lp, start, base%free, opts, fixed, st)
             if (st%code /= STATUS_OK) then
                 why = trim(st%message)
                 exit
@@ -1650,12 +1655,11 @@ contains
     !! is present, the probe row whose predictions
     !! differ most between the verdict's and a rival's refits (in units of
     !! probe_sigma) is reported as the measurement that would separate them.
-    subroutine diagnose(model, y, sigma, base, null_values, lower, upper, prior, cands, &
-                        fopts, dopts, diag, stat, probe, probe_sigma, nominal)
+    subroutine diagnose(model, lp, base, cands, fopts, dopts, diag, stat, probe, probe_sigma, &
+                        nominal)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), null_values(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
         type(fit_result_t), intent(in) :: base
-        type(prior_t), intent(in) :: prior
         type(candidate_t), intent(in) :: cands(:)
         type(fit_options_t), intent(in) :: fopts
         type(diagnose_options_t), intent(in) :: dopts
@@ -1675,8 +1679,7 @@ contains
         nc = size(cands)
         allocate (diag%cand(nc), diag%cosine(nc, nc))
         diag%cosine = 0.0_dp
-        call score_candidates(model, y, sigma, base, null_values, lower, upper, prior, cands, &
-                              fopts, diag, stat)
+        call score_candidates(model, lp, base, cands, fopts, diag, stat)
         if (stat%code /= STATUS_OK) return
         diag%alpha_each = dopts%alpha/real(max(diag%ntested, 1), dp)
         call direction_cosines(diag)
@@ -1690,15 +1693,15 @@ contains
             nrefit = nrefit + 1
             associate (cr => diag%cand(c))
                 call clear_status(st)
-                call refit_effect(model, y, sigma, base, cands(c)%params, cr%score, start, &
-                                  null_values, lower, upper, prior, fopts, cr%refit, cr%info, &
-                                  st, use=dopts%starts, enough=dopts%first_enough)
+                call refit_effect(model, lp, base, cands(c)%params, cr%score, start, fopts, &
+                                  cr%refit, cr%info, st, use=dopts%starts, &
+                                  enough=dopts%first_enough)
                 if (st%code < 0) then
                     stat = st
                     return
                 end if
-                call judge_refit(cr, st%code == STATUS_OK, base, cands(c)%params, null_values, &
-                                 lower, upper, diag%alpha_each)
+                call judge_refit(cr, st%code == STATUS_OK, base, cands(c)%params, lp, &
+                                 diag%alpha_each)
             end associate
         end do
         call rank_candidates(diag, cands)
@@ -1711,12 +1714,10 @@ contains
 
     !> Diagnosis step 1: the state of every candidate, and the score test of
     !! those whose parameters are all at their null values and not free.
-    subroutine score_candidates(model, y, sigma, base, null_values, lower, upper, prior, &
-                                cands, fopts, diag, stat)
+    subroutine score_candidates(model, lp, base, cands, fopts, diag, stat)
         class(residual_model_t), intent(inout) :: model
-        real(dp), intent(in) :: y(:), sigma(:), null_values(:), lower(:), upper(:)
+        type(lsq_problem_t), intent(in) :: lp
         type(fit_result_t), intent(in) :: base
-        type(prior_t), intent(in) :: prior
         type(candidate_t), intent(in) :: cands(:)
         type(fit_options_t), intent(in) :: fopts
         type(diagnosis_t), intent(inout) :: diag
@@ -1729,12 +1730,12 @@ contains
                 else if (any([(any(base%free == cands(c)%params(k)), &
                                k=1, size(cands(c)%params))])) then
                     cr%state = CAND_FREE
-                else if (any(base%params(cands(c)%params) /= null_values(cands(c)%params))) then
+                else if (any(base%params(cands(c)%params) /= lp%nulls(cands(c)%params))) then
                     cr%state = CAND_ACTIVE
                 else
                     cr%state = CAND_TESTED
-                    call score_test(model, y, sigma, base%params, base%free, lower, upper, &
-                                    prior, cands(c)%params, fopts, cr%score, stat)
+                    call score_test(model, lp, base%params, base%free, cands(c)%params, fopts, &
+                                    cr%score, stat)
                     if (stat%code /= STATUS_OK) then
                         stat%message = trim(stat%message)//' (score test of '// &
                                        cands(c)%name//')'
@@ -1790,12 +1791,13 @@ contains
 
     !> Diagnosis step 4: the likelihood-ratio test of a refit (`ok`: it
     !! converged) and whether it is an acceptable explanation.
-    pure subroutine judge_refit(cr, ok, base, block, null_values, lower, upper, alpha_each)
+    pure subroutine judge_refit(cr, ok, base, block, lp, alpha_each)
         type(candidate_report_t), intent(inout) :: cr
         logical, intent(in) :: ok
         type(fit_result_t), intent(in) :: base
         integer, intent(in) :: block(:)
-        real(dp), intent(in) :: null_values(:), lower(:), upper(:), alpha_each
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: alpha_each
         integer :: k
         cr%refit_done = .true.
         cr%refit_ok = ok
@@ -1807,7 +1809,7 @@ contains
         cr%lr_drop = (base%chi2 + base%chi2_prior) - (cr%refit%chi2 + cr%refit%chi2_prior)
         cr%lr_p = chi2_sf(max(cr%lr_drop, 0.0_dp), size(block))
         if (size(block) == 1 .and. any(cr%score%active .and. &
-            (base%params(block) <= lower(block) .or. base%params(block) >= upper(block)))) &
+            (base%params(block) <= lp%lower(block) .or. base%params(block) >= lp%upper(block)))) &
             cr%lr_p = 0.5_dp*cr%lr_p
         cr%significant = cr%lr_p < alpha_each
         k = size(base%free)
@@ -1817,7 +1819,7 @@ contains
         cr%acceptable = cr%significant .and. &
                         all(cr%refit%flags(k + 1:) /= FLAG_UNDETERMINED) .and. &
                         all(cr%refit%flags(k + 1:) /= FLAG_RUNAWAY) .and. &
-                        any(cr%refit%params(block) /= null_values(block))
+                        any(cr%refit%params(block) /= lp%nulls(block))
     end subroutine judge_refit
 
     !> Diagnosis step 5: final ranking in tiers: acceptable refits, other

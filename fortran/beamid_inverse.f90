@@ -16,9 +16,9 @@ module beamid_inverse
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_estimation, only: residual_model_t, prior_t, fit_options_t, fit_result_t, &
-                                 candidate_t, diagnose_options_t, diagnosis_t, &
-                                 fit_least_squares, fit_at, diagnose
+    use beamid_estimation, only: residual_model_t, prior_t, lsq_problem_t, fit_options_t, &
+                                 fit_result_t, candidate_t, diagnose_options_t, diagnosis_t, &
+                                 fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          quantity_label, static_bounds, static_null_values, &
                                          probe_rows
@@ -27,7 +27,7 @@ module beamid_inverse
     implicit none
     private
 
-    public :: inverse_problem_t, inverse_problem_init, inverse_fit, inverse_diagnose
+    public :: inverse_problem_t, inverse_problem_init, inverse_lsq, inverse_diagnose
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
@@ -211,19 +211,15 @@ contains
         end if
     end subroutine inverse_evaluate
 
-    !> Weighted Gauss-Newton / LM fit of params(free) from params0 (Eq. 39,
-    !! 53-55, 142-148) within the model's physical bounds.
-    subroutine inverse_fit(self, y, sigma, params0, free, prior, opts, res, stat)
-        type(inverse_problem_t), intent(inout) :: self
-        real(dp), intent(in) :: y(:), sigma(:), params0(:)
-        integer, intent(in) :: free(:)
+    !> The least-squares problem of data rows y (sigma) and a priori
+    !! information `prior` on this model: within its physical bounds, its
+    !! effects switched off at its null values (Eq. 39, 53-55, 142-148).
+    pure type(lsq_problem_t) function inverse_lsq(self, y, sigma, prior) result(lp)
+        type(inverse_problem_t), intent(in) :: self
+        real(dp), intent(in) :: y(:), sigma(:)
         type(prior_t), intent(in) :: prior
-        type(fit_options_t), intent(in) :: opts
-        type(fit_result_t), intent(out) :: res
-        type(status_t), intent(inout) :: stat
-        call fit_least_squares(self, y, sigma, params0, free, self%lower, self%upper, prior, &
-                               opts, res, stat)
-    end subroutine inverse_fit
+        lp = lsq_problem_t(y, sigma, self%lower, self%upper, self%nulls, prior)
+    end function inverse_lsq
 
     !> The diagnosis of a fitted model (the orchestration both fronts call):
     !! the base fit evaluated at params0 (the estimates, not refitted), score
@@ -233,12 +229,12 @@ contains
     !! probe rows that separate rivals: every static experiment and every
     !! quantity it can measure (probe_rows). pexp, pq: experiment number and
     !! quantity of each probe row (diag%cand(c)%separating_row indexes them).
-    subroutine inverse_diagnose(self, y, sigma, params0, nominal, free, prior, cands, fopts, &
-                                dopts, base, diag, pexp, pq, stat)
+    subroutine inverse_diagnose(self, lp, params0, nominal, free, cands, fopts, dopts, base, &
+                                diag, pexp, pq, stat)
         type(inverse_problem_t), intent(inout) :: self
-        real(dp), intent(in) :: y(:), sigma(:), params0(:), nominal(:)
+        type(lsq_problem_t), intent(in) :: lp
+        real(dp), intent(in) :: params0(:), nominal(:)
         integer, intent(in) :: free(:)
-        type(prior_t), intent(in) :: prior
         type(candidate_t), intent(in) :: cands(:)
         type(fit_options_t), intent(in) :: fopts
         type(diagnose_options_t), intent(in) :: dopts
@@ -250,21 +246,18 @@ contains
         real(dp), allocatable :: psig(:)
         integer, allocatable :: plocal(:)
         allocate (pexp(0), pq(0))
-        call fit_at(self, y, sigma, params0, free, self%lower, self%upper, prior, fopts, base, &
-                    stat)
+        call fit_at(self, lp, params0, free, fopts, base, stat)
         if (stat%code /= STATUS_OK) return
         if (self%has_static) then
-            call probe_rows(self%st%loads, self%st%row_quantity, sigma(self%st_rows), plocal, &
+            call probe_rows(self%st%loads, self%st%row_quantity, lp%sigma(self%st_rows), plocal, &
                             pq, psig)
             call static_experiments_init(self%st%nbeams, self%st%loads, plocal, pq, self%tol, &
                                          probe, stat)
             if (stat%code /= STATUS_OK) return
             pexp = self%st_exp(plocal)
-            call diagnose(self, y, sigma, base, self%nulls, self%lower, self%upper, prior, &
-                          cands, fopts, dopts, diag, stat, probe, psig, nominal)
+            call diagnose(self, lp, base, cands, fopts, dopts, diag, stat, probe, psig, nominal)
         else
-            call diagnose(self, y, sigma, base, self%nulls, self%lower, self%upper, prior, &
-                          cands, fopts, dopts, diag, stat, nominal=nominal)
+            call diagnose(self, lp, base, cands, fopts, dopts, diag, stat, nominal=nominal)
         end if
     end subroutine inverse_diagnose
 end module beamid_inverse

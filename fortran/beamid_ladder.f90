@@ -7,8 +7,9 @@ module beamid_ladder
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, fmt_int
     use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
-                                 diagnose_options_t, diagnosis_t, chi2_sf
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_fit, &
+                                 diagnose_options_t, diagnosis_t, chi2_sf, lsq_problem_t, &
+                                 fit_least_squares
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, &
                               inverse_diagnose, EXP_RELEASE, EV_NEPB
     use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t
     implicit none
@@ -83,8 +84,8 @@ contains
         problem_dynamic = any(pb%exp_kind == EXP_RELEASE)
     end function problem_dynamic
 
-    !> Weighted GN/LM fit of params(free) from params0 (inverse_fit, Eq. 39,
-    !! 53-55, 142-148) with the problem's a priori information or `prior`.
+    !> Weighted GN/LM fit of params(free) from params0 (Eq. 39, 53-55,
+    !! 142-148) with the problem's a priori information or `prior`.
     subroutine problem_fit(pb, params0, free, fo, st, prior)
         type(problem_t), intent(in) :: pb
         real(dp), intent(in) :: params0(:)
@@ -94,17 +95,15 @@ contains
         type(prior_t), intent(in), optional :: prior
         type(inverse_problem_t) :: problem
         type(fit_options_t) :: opts
+        type(lsq_problem_t) :: lp
         type(status_t) :: stat
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, problem, stat)
         if (stat%code == STATUS_OK) then
             opts%max_iter = pb%max_iter
-            if (present(prior)) then
-                call inverse_fit(problem, pb%y, pb%sigma, params0, free, prior, opts, fo, stat)
-            else
-                call inverse_fit(problem, pb%y, pb%sigma, params0, free, pb%prior, opts, fo, &
-                                 stat)
-            end if
+            lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)
+            if (present(prior)) lp%prior = prior
+            call fit_least_squares(problem, lp, params0, free, opts, fo, stat)
         end if
         if (stat%code /= STATUS_OK) st = stat
     end subroutine problem_fit
@@ -135,9 +134,9 @@ contains
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
                                       pb%row_t, pb%row_q, pb%tol, problem, stat)
             if (stat%code == STATUS_OK) &
-                call inverse_diagnose(problem, pb%y, pb%sigma, params, nominal, free, pb%prior, &
-                                      cs%cands, fopts, dopts, dg%base, dg%diag, dg%pexp, dg%pq, &
-                                      stat)
+                call inverse_diagnose(problem, inverse_lsq(problem, pb%y, pb%sigma, pb%prior), &
+                                      params, nominal, free, cs%cands, fopts, dopts, dg%base, &
+                                      dg%diag, dg%pexp, dg%pq, stat)
             dg%used = cs%cands
             allocate (dg%ambiguous(0))
             if (allocated(dg%pexp)) allocate (dg%pt(size(dg%pexp)), source=0.0_dp)

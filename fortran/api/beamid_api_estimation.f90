@@ -5,7 +5,9 @@
 !! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
 !! values per experiment, beamid_inverse's EV_* layout), data rows
 !! (experiment index, t, quantity code, value, sigma), free parameter indices,
-!! a priori index/mean/sigma (Eq. 142-145). Indices are 1-based. Status
+!! a priori information as prior(3, nprior), a column [parameter index, mean,
+!! sigma] per parameter (Eq. 142-145). Indices are 1-based. Sizes are
+!! implied by the arrays (f2py fills them in); no array carries padding. Status
 !! codes follow beamid_status; logical results are 0/1 integers.
 !! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
 !! declares output scalars = 0 (characters blank), so no entry zeroes them.
@@ -14,15 +16,14 @@ module beamid_api_estimation
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
                              set_status, fmt_int
-    use beamid_estimation, only: residual_structure, residual_model_t
+    use beamid_estimation, only: residual_structure, residual_model_t, prior_from_covariance
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
-                                 diagnose_options_t, &
-                                 chi2_sf, fit_at, score_test, score_result_t, refit_effect, &
-                                 refit_info_t, FLAG_NAMES, STOP_NAMES, START_NAMES, CAND_NAMES
-    use beamid_estimation, only: prior_from_covariance
+                                 lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
+                                 score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
+                                 STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -86,6 +87,7 @@ contains
     !! out = runs, expected runs, runs z, runs p, slope, trend z, trend p.
     subroutine api_residual_structure(n, level, group, normalized, out)
         integer(c_int), intent(in) :: n
+        !f2py intent(hide) n
         real(c_double), intent(in) :: level(n), normalized(n)
         integer(c_int), intent(in) :: group(n)
         real(c_double), intent(out) :: out(7)
@@ -181,9 +183,9 @@ contains
 
     !> The one fit entry (beamid.fit, beamid.add_effect) on any mix of
     !! experiment families (beamid_inverse layout). A priori information is
-    !! independent (use_cov = 0: mean, sigma) or a full covariance prior_cov
-    !! of the prior parameters (use_cov = 1: a previous fit carried forward,
-    !! Eq. 146-148, 164-166).
+    !! independent (prior_cov empty: prior's means and sigmas) or a full
+    !! covariance of the prior parameters (prior_cov: nprior*nprior values,
+    !! column by column; a previous fit carried forward, Eq. 146-148, 164-166).
     !! nblock = 0: weighted Gauss-Newton / LM fit of free_idx from params0
     !! (Eq. 39, 53-55, 142-145); info(1) = how it ended (STOP_*), note = what
     !! happened when it did not converge (flagged parameters).
@@ -201,19 +203,17 @@ contains
     !! start converging is ERR_NO_CONVERGENCE with the notes (and the best
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
-                              nominal, nprior, prior_idx, prior_mean, prior_sigma, use_cov, &
-                              prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
-                              row_q, row_value, row_sigma, tol, max_iter, start_mask, params, &
-                              sigmas, cov, corr, flags, predictions, normalized, stats, &
-                              log_cost, log_lambda, log_step, log_params, info, code, message, &
-                              note)
+                              nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
+                              exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
+                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              predictions, normalized, stats, log_cost, log_lambda, log_step, &
+                              log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
-        integer(c_int), intent(in) :: max_iter, start_mask, use_cov
+        !f2py intent(hide) nparams, nfree, nblock, nprior, ncov, nexp, nrow
+        integer(c_int), intent(in) :: max_iter, start_mask, ncov
         real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        integer(c_int), intent(in) :: free_idx(nfree), block(nblock + 1)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        real(c_double), intent(in) :: prior_cov(nprior + 1, nprior + 1)
-        integer(c_int), intent(in) :: prior_idx(nprior + 1)
+        integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
+        real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
@@ -234,15 +234,18 @@ contains
         type(fit_options_t) :: opts
         type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
-        type(prior_t) :: prior
+        type(lsq_problem_t) :: lp
         integer :: n
 
         params = params0
         note = ''
         n = int(nprior)
-        if (any(block(1:nblock) < 1 .or. block(1:nblock) > nparams)) then
+        if (any(block < 1 .or. block > nparams)) then
             call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
                             'outside 1..nparams')
+        else if (ncov /= 0 .and. ncov /= nprior * nprior) then
+            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
+                            ' values, expected nprior**2 = '//fmt_int(n * n))
         else
             call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                       int(row_exp), real(row_t, dp), int(row_q), &
@@ -250,17 +253,12 @@ contains
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            if (use_cov /= 0) then
-                call prior_from_covariance(int(prior_idx(1:n)), real(prior_mean(1:n), dp), &
-                                           real(prior_cov(1:n, 1:n), dp), prior, stat)
-            else
-                call make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-            end if
+            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
+            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
+                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
         end if
         if (stat%code == STATUS_OK .and. nblock == 0) then
-            call fit_least_squares(model, real(row_value, dp), real(row_sigma, dp), &
-                                   real(params0, dp), int(free_idx), model%lower, model%upper, &
-                                   prior, opts, res, stat)
+            call fit_least_squares(model, lp, real(params0, dp), int(free_idx), opts, res, stat)
             if (allocated(res%note)) note = res%note
         else if (stat%code == STATUS_OK .and. model%has_dynamic) then
             call null_side_init(int(nbeams), model, side)
@@ -282,18 +280,14 @@ contains
             class(residual_model_t), intent(inout) :: m
             type(fit_result_t) :: base
             type(score_result_t) :: score
-            real(dp), allocatable :: y(:), sig(:)
             integer :: k
-            y = real(row_value, dp)
-            sig = real(row_sigma, dp)
-            call fit_at(m, y, sig, real(params0, dp), int(free_idx), model%lower, model%upper, &
-                        prior, opts, base, stat)
-            if (stat%code == STATUS_OK) call score_test(m, y, sig, base%params, base%free, &
-                model%lower, model%upper, prior, int(block(1:nblock)), opts, score, stat)
+            call fit_at(m, lp, real(params0, dp), int(free_idx), opts, base, stat)
+            if (stat%code == STATUS_OK) call score_test(m, lp, base%params, base%free, &
+                                                        int(block), opts, score, stat)
             if (stat%code /= STATUS_OK) return
-            call refit_effect(m, y, sig, base, int(block(1:nblock)), score, real(nominal, dp), &
-                              model%nulls, model%lower, model%upper, prior, opts, res, rinfo, &
-                              stat, use=[(start_mask == 0 .or. btest(start_mask, k), k=0, 2)])
+            call refit_effect(m, lp, base, int(block), score, real(nominal, dp), opts, res, &
+                              rinfo, stat, use=[(start_mask == 0 .or. btest(start_mask, k), &
+                                                 k=0, 2)])
             info(2) = int(rinfo%start, c_int)
             if (allocated(rinfo%note)) note = rinfo%note
         end subroutine add_effect
@@ -302,14 +296,15 @@ contains
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
     !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
-    !! params(wrt(1:nwrt)) (wrt carries one unused trailing entry: nwrt may be 0).
+    !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
                                    row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
                                    message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
+        !f2py intent(hide) nparams, nexp, nrow, nwrt
         real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
-        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt + 1)
-        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt + 1)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
+        real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(inverse_problem_t) :: model
@@ -318,33 +313,26 @@ contains
         call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                   int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
                                   model, stat)
-        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt(1:nwrt)), p, &
-                                                        j, stat)
+        if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         pred = p
-        jac(:, 1:nwrt) = j
+        jac = j
     end subroutine api_problem_predict
 
-    subroutine make_prior(nprior, prior_idx, prior_mean, prior_sigma, prior)
-        integer(c_int), intent(in) :: nprior
-        integer(c_int), intent(in) :: prior_idx(:)
-        real(c_double), intent(in) :: prior_mean(:), prior_sigma(:)
-        type(prior_t), intent(out) :: prior
-        prior%index = int(prior_idx(1:nprior))
-        prior%mean = real(prior_mean(1:nprior), dp)
-        prior%sigma = real(prior_sigma(1:nprior), dp)
-    end subroutine make_prior
+    !> Independent a priori information from the binding's columns [index, mean, sigma].
+    pure type(prior_t) function make_prior(prior) result(pr)
+        real(c_double), intent(in) :: prior(:, :)
+        pr = prior_t(nint(prior(1, :)), real(prior(2, :), dp), real(prior(3, :), dp))
+    end function make_prior
 
-    !> The problem of beamid_ladder from a binding's arrays (a priori arrays
-    !! with their unused trailing entry).
+    !> The problem of beamid_ladder from a binding's arrays.
     subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
-                            row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, &
-                            max_iter, pb)
-        integer(c_int), intent(in) :: nbeams, nprior, max_iter
-        integer(c_int), intent(in) :: exp_kind(:), row_exp(:), row_q(:), prior_idx(:)
+                            row_sigma, tol, prior, max_iter, pb)
+        integer(c_int), intent(in) :: nbeams, max_iter
+        integer(c_int), intent(in) :: exp_kind(:), row_exp(:), row_q(:)
         real(c_double), intent(in) :: exp_values(:, :), row_t(:), row_value(:), row_sigma(:)
-        real(c_double), intent(in) :: tol, prior_mean(:), prior_sigma(:)
+        real(c_double), intent(in) :: tol, prior(:, :)
         type(problem_t), intent(out) :: pb
         pb%nbeams = int(nbeams)
         pb%exp_kind = int(exp_kind)
@@ -355,7 +343,7 @@ contains
         pb%y = real(row_value, dp)
         pb%sigma = real(row_sigma, dp)
         pb%tol = real(tol, dp)
-        call make_prior(nprior, prior_idx, prior_mean, prior_sigma, pb%prior)
+        pb%prior = make_prior(prior)
         if (max_iter > 0) pb%max_iter = int(max_iter)
     end subroutine make_problem
 
@@ -378,6 +366,7 @@ contains
     !! (beamid_dyn_diagnosis time_structure; out layout there).
     subroutine api_time_structure(n, t, r, out)
         integer(c_int), intent(in) :: n
+        !f2py intent(hide) n
         real(c_double), intent(in) :: t(n), r(n)
         real(c_double), intent(out) :: out(10)
         call time_structure(real(t, dp), real(r, dp), out)
@@ -391,29 +380,28 @@ contains
     !! leading ones refitted (from the first-order estimate, from the user's
     !! starting values `nominal` and by continuation). Outputs: copy_diag.
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
-                                    nprior, prior_idx, prior_mean, prior_sigma, nexp, exp_kind, &
-                                    exp_values, nrow, row_exp, row_t, row_q, row_value, &
-                                    row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
-                                    cand_params, alpha, nrefit, ambiguity_delta, collinear, &
-                                    with_mesh, cstats, pstats, refit_params, ranking, cosine, &
-                                    dstats, refit_start, sep_t, mstats, mesh_params, kept, &
-                                    notes, code, message)
+                                    nprior, prior, nexp, exp_kind, exp_values, nrow, row_exp, &
+                                    row_t, row_q, row_value, row_sigma, tol, max_iter, ncand, &
+                                    cand_start, ncandp, cand_params, alpha, nrefit, &
+                                    ambiguity_delta, collinear, with_mesh, cstats, pstats, &
+                                    refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                                    mstats, mesh_params, kept, notes, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams), nominal(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
+        real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
+        integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
         real(c_double), intent(in) :: alpha, ambiguity_delta, collinear
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp)
         real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
         integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
         real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
         real(c_double), intent(out) :: mesh_params(nparams)
-        integer(c_int), intent(out) :: kept(ncandp + 1)
+        integer(c_int), intent(out) :: kept(ncandp)
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -425,7 +413,7 @@ contains
         type(cand_set_t) :: cs
 
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
-                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, 0, pb)
+                          row_sigma, tol, prior, 0, pb)
         cs = make_cands(cand_start, cand_params, with_mesh)
         if (max_iter > 0) opts%max_iter = int(max_iter)
         dopts%alpha = alpha
@@ -533,28 +521,26 @@ contains
     !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
     !! per call, until none is significant at alpha or max_steps rungs were
     !! added.
-    subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior_idx, &
-                                prior_mean, prior_sigma, nexp, exp_kind, exp_values, nrow, &
-                                row_exp, row_t, row_q, row_value, row_sigma, tol, max_iter, &
-                                ncand, cand_start, ncandp, cand_params, with_mesh, alpha, &
-                                max_steps, code, message)
+    subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
+                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, row_value, &
+                                row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                cand_params, with_mesh, alpha, max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
-        real(c_double), intent(in) :: params0(nparams)
-        real(c_double), intent(in) :: prior_mean(nprior + 1), prior_sigma(nprior + 1)
-        integer(c_int), intent(in) :: free_idx(nfree), prior_idx(nprior + 1)
+        !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
+        real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
+        integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
-        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp + 1)
+        integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
         real(c_double), intent(in) :: alpha
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         type(problem_t) :: pb
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
-                          row_sigma, tol, nprior, prior_idx, prior_mean, prior_sigma, max_iter, &
-                          pb)
+                          row_sigma, tol, prior, max_iter, pb)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
                           int(max_steps), stat)
@@ -579,13 +565,13 @@ contains
     !! start the verdict's refit kept (START_*), data rows, the fits' iteration
     !! limit], the free parameters free_idx (an
     !! argument named `free` would shadow C's free() in f2py's wrapper), those
-    !! the rung switched on and those it set back (index lists ended by 0),
+    !! the rung switched on and those it set back (index lists, zeros after),
     !! where its fit started and the nominal model of its refits.
     subroutine api_ladder_rung(k, nparams, info, free_idx, added, removed, start, nominal, effect, &
                                code, message)
         integer(c_int), intent(in) :: k, nparams
-        integer(c_int), intent(out) :: info(5), free_idx(nparams + 1), added(nparams + 1)
-        integer(c_int), intent(out) :: removed(nparams + 1)
+        integer(c_int), intent(out) :: info(5), free_idx(nparams), added(nparams)
+        integer(c_int), intent(out) :: removed(nparams)
         real(c_double), intent(out) :: start(nparams), nominal(nparams)
         character(len=64), intent(out) :: effect
         integer(c_int), intent(out) :: code
@@ -634,12 +620,12 @@ contains
                                cosine, dstats, refit_start, sep_t, mstats, mesh_params, kept, &
                                notes, code, message)
         integer(c_int), intent(in) :: k, nparams, ncand, ncandp
-        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp + 1)
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp)
         real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
         integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
         real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
         real(c_double), intent(out) :: mesh_params(nparams)
-        integer(c_int), intent(out) :: kept(ncandp + 1)
+        integer(c_int), intent(out) :: kept(ncandp)
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message

@@ -59,16 +59,14 @@ def problem_predict(prob: Problem, params: np.ndarray,
     wrt = np.asarray(wrt, dtype=np.int32)
     pred, jac = _call(_api.api_problem_predict,
                       prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
-                      prob.row_exp, prob.row_t, prob.row_q, _pad(wrt, np.int32),
-                      float(prob.tol))
-    jac = np.array(jac).reshape(prob.row_exp.size, wrt.size + 1)
-    return np.array(pred), jac[:, :wrt.size]
+                      prob.row_exp, prob.row_t, prob.row_q, wrt, float(prob.tol))
+    return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
-def _pad(values, dtype) -> np.ndarray:
-    """Append one unused entry: the API takes arrays of size n + 1 because
-    f2py cannot pass empty arrays."""
-    return np.append(np.asarray(values, dtype=dtype), np.zeros(1, dtype=dtype))
+def _prior(index, mean, sigma) -> np.ndarray:
+    """A priori information as the binding takes it: a column [1-based
+    parameter index, mean, sigma] per parameter."""
+    return np.asfortranarray(np.array([index, mean, sigma], float).reshape(3, -1))
 
 
 def chi2_sf(x: float, k: int) -> float:
@@ -175,17 +173,12 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
     block = np.zeros(0, np.int32) if block is None else np.asarray(block, np.int32)
     params0 = np.asarray(params0, float)
     nominal = params0 if nominal is None else np.asarray(nominal, float)
-    n = len(prior_idx)
-    cov = np.zeros((n + 1, n + 1))
-    if prior_cov is not None:
-        cov[:n, :n] = prior_cov
+    cov = np.zeros(0) if prior_cov is None else np.ravel(prior_cov, order="F").astype(float)
     return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
-                     prob.nbeams, params0, free, _pad(block, np.int32), nominal,
-                     _pad(prior_idx, np.int32), _pad(prior_mean, float),
-                     _pad(prior_sigma, float), int(prior_cov is not None),
-                     np.asfortranarray(cov), prob.exp_kind, prob.exp_values, prob.row_exp,
-                     prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
-                     float(prob.tol), int(max_iter), int(start_mask))
+                     prob.nbeams, params0, free, block, nominal,
+                     _prior(prior_idx, prior_mean, prior_sigma), cov, prob.exp_kind,
+                     prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+                     prob.row_sigma, float(prob.tol), int(max_iter), int(start_mask))
 
 
 def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
@@ -197,10 +190,10 @@ def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
 
 
 def _blocks(blocks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate blocks as (starts, flat parameter list + 1 unused entry)."""
+    """Candidate blocks as (starts, flat parameter list)."""
     starts = np.cumsum([1] + [len(b) for b in blocks]).astype(np.int32)
     flat = [np.asarray(b, np.int32) for b in blocks]
-    return starts, _pad(np.concatenate(flat) if flat else np.zeros(0), np.int32)
+    return starts, (np.concatenate(flat) if flat else np.zeros(0)).astype(np.int32)
 
 
 def _diag_dict(out, starts: np.ndarray) -> dict:
@@ -211,7 +204,7 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
     lines = _text(notes).rstrip().split("\n")
     lines += [""] * (nc - len(lines))
     return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
-            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1)[:, :-1], PSTATS),
+            "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1), PSTATS),
             "refit_params": np.array(refit_params).reshape(-1, nc) if nc else np.zeros((0, 0)),
             "ranking": np.array(ranking, dtype=int) - 1,
             "cosine": np.array(cosine).reshape(nc, nc),
@@ -219,8 +212,8 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
             "starts": starts - 1, "refit_start": [START_NAMES.get(int(k)) for k in refit_start],
             "sep_t": np.array(sep_t), "mstats": Columns(np.array(mstats), MSTATS),
             "mesh_params": np.array(mesh_params),
-            "kept": np.array(kept, dtype=int)[:-1] == 1,
-            "ambiguous": np.array(kept, dtype=int)[:-1] == 2,
+            "kept": np.array(kept, dtype=int) == 1,
+            "ambiguous": np.array(kept, dtype=int) == 2,
             "notes": [line.strip() for line in lines[:nc]]}
 
 
@@ -236,8 +229,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
     starts, flat = _blocks(blocks)
     return _diag_dict(_call(
         _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
-        np.asarray(nominal, float), np.asarray(free, np.int32), _pad(prior_idx, np.int32),
-        _pad(prior_mean, float), _pad(prior_sigma, float), prob.exp_kind, prob.exp_values,
+        np.asarray(nominal, float), np.asarray(free, np.int32),
+        _prior(prior_idx, prior_mean, prior_sigma), prob.exp_kind, prob.exp_values,
         prob.row_exp, prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
         float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
@@ -259,10 +252,10 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx
     rungs (the extension holds one ladder at a time)."""
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
-          np.asarray(free, np.int32), _pad(prior_idx, np.int32), _pad(prior_mean, float),
-          _pad(prior_sigma, float), prob.exp_kind, prob.exp_values, prob.row_exp,
-          prob.row_t, prob.row_q, prob.row_value, prob.row_sigma, float(prob.tol),
-          int(max_iter), starts, flat, int(bool(with_mesh)), float(alpha), int(max_steps))
+          np.asarray(free, np.int32), _prior(prior_idx, prior_mean, prior_sigma),
+          prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+          prob.row_sigma, float(prob.tol), int(max_iter), starts, flat, int(bool(with_mesh)),
+          float(alpha), int(max_steps))
 
 
 def ladder_step() -> bool:
@@ -294,7 +287,7 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
             "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, nparams, nfree,
                              int(info[3]), int(info[4])),
             "diag": _diag_dict(_call(_api.api_ladder_diag, k, nparams, starts.size - 1,
-                                     flat.size - 1), starts),
+                                     flat.size), starts),
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
