@@ -476,6 +476,7 @@ contains
         call ladder_end_at_fit(lad)
         if (st%code /= STATUS_OK) st%message = "stage '"//d%stages(k)%name//"': "// &
                                                trim(st%message)
+        if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
     end subroutine deck_stage_start
 
     !> The deck as its stage's fit deck: the experiments, the stage's data,
