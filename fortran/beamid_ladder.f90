@@ -16,8 +16,9 @@ module beamid_ladder
     private
 
     public :: problem_t, cand_set_t, diag_out_t, rung_t, ladder_t
-    public :: problem_fit, problem_diagnose, improve_ladder, problem_dynamic
+    public :: problem_fit, problem_diagnose, problem_dynamic
     public :: ladder_start, ladder_step
+    public :: ladder_end_at_fit
 
     !> The candidates of one diagnosis: effects with their parameter blocks;
     !! with releases `mesh` is tested apart (with_mesh).
@@ -154,27 +155,9 @@ contains
     !! until found adequate), and after each rung the parameters earlier
     !! rungs added are tested again (one-sided Wald test at the rung's level):
     !! one no longer needed goes back to its value in `params` and the rung
-    !! is refitted without it. ladder_start and ladder_step one rung at a
-    !! time (a front that shows progress steps itself).
-    subroutine improve_ladder(pb, params, free, cs, alpha, max_steps, rungs, st)
-        type(problem_t), intent(in) :: pb
-        real(dp), intent(in) :: params(:)
-        integer, intent(in) :: free(:)
-        type(cand_set_t), intent(in) :: cs
-        real(dp), intent(in) :: alpha
-        integer, intent(in) :: max_steps
-        type(rung_t), allocatable, intent(out) :: rungs(:)
-        type(status_t), intent(inout) :: st
-        type(ladder_t) :: lad
-        call ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
-        do while (.not. lad%done)
-            call ladder_step(lad, st)
-        end do
-        rungs = lad%rungs(:lad%n)
-    end subroutine improve_ladder
-
-    !> Start the ladder of improve_ladder: the fit of params(free) (rung 0,
-    !! diagnosed by the first ladder_step).
+    !! is refitted without it. ladder_start starts it with the fit of
+    !! params(free) (rung 0, diagnosed by the first ladder_step); ladder_step
+    !! runs a rung per call (a front that shows progress steps itself).
     subroutine ladder_start(lad, pb, params, free, cs, alpha, max_steps, st)
         type(ladder_t), intent(out) :: lad
         type(problem_t), intent(in) :: pb
@@ -268,6 +251,19 @@ contains
         end associate
         lad%done = .false.
     end subroutine ladder_step
+
+    !> End a started ladder at its fit, undiagnosed (a fit or compare deck):
+    !! the fit is the only rung, with no candidates and an empty diagnosis.
+    subroutine ladder_end_at_fit(lad)
+        type(ladder_t), intent(inout) :: lad
+        if (lad%done) return                  ! the fit failed
+        lad%cs = cand_set_t([character(len=32) ::], [candidate_t ::])
+        allocate (lad%r%dg%diag%ranking(0), lad%r%dg%diag%cosine(0, 0))
+        lad%r%nominal = lad%nominal
+        lad%n = 1
+        lad%rungs(1) = lad%r
+        lad%done = .true.
+    end subroutine ladder_end_at_fit
 
     !> Of the parameters `names` (switched on by earlier rungs; one-sided,
     !! physical values positive) the one whose one-sided Wald test

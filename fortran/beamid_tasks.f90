@@ -16,7 +16,7 @@ module beamid_tasks
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, &
                                              ieee_positive_inf
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, set_status, fmt_int, &
+    use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
                              set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
     use beamid_deck, only: deck_t, stage_t, copy_measurements
@@ -29,18 +29,18 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
-    use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, fit_options_t, &
-                                 prior_t, candidate_t, diagnose_options_t, FLAG_NAMES, &
-                                 CAND_NAMES, prior_from_covariance
+    use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
+                                 candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
-    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_fit, &
-                             problem_diagnose, improve_ladder
+    use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
+                             ladder_t, ladder_start, ladder_step, ladder_end_at_fit
     use beamid_static_experiments, only: static_effect_params, quantity_label
     use beamid_measurements, only: fmt_g
     implicit none
     private
 
-    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates
+    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates, deck_ladder_start
+    public :: deck_stage_start, deck_experiments
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t
@@ -70,9 +70,9 @@ contains
 
     !> Run the task of a validated deck and write its files, all or none.
     !! `written` lists the files written (newline separated) on success.
-    !! `ladder`: the rungs of the deck's improve ladder when already run
-    !! (ladder_start and ladder_step on deck_problem and deck_candidates, as
-    !! beamid.run steps it to show progress): only the files are written.
+    !! `ladder`: an estimation deck's rungs when already run (deck_ladder_start
+    !! and ladder_step, or an identify deck's stages, deck_stage_start, as
+    !! beamid.run steps them from Python): only the files are written.
     subroutine run_task(deck, written, stat, ladder)
         type(deck_t), intent(in) :: deck
         character(len=:), allocatable, intent(out) :: written
@@ -89,7 +89,7 @@ contains
         case ('fit', 'compare', 'diagnose', 'improve')
             call run_estimation(deck, fl, stat, ladder)
         case ('identify')
-            call run_identify(deck, fl, stat)
+            call run_identify(deck, fl, stat, ladder)
         case ('simulate')
             call run_simulate(deck, fl, stat)
         case default
@@ -335,61 +335,41 @@ contains
 
     ! ------------------------------------------------------------ estimation
 
-    !> Estimation decks: fit (and compare: the same files), diagnose, improve
-    !! (beamid_ladder, as beamid.diagnose and beamid.improve). Everything is
-    !! computed first; the files are written after success.
+    !> Estimation decks: fit (and compare: the same files), diagnose, improve,
+    !! all from the deck's ladder (deck_ladder_start: as beamid.fit,
+    !! beamid.diagnose and beamid.improve). `ladder`: its rungs when already
+    !! run (beamid.run steps it to show progress): only the files are written.
     subroutine run_estimation(d, fl, st, ladder)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         type(rung_t), intent(in), optional :: ladder(:)
-        type(fit_result_t) :: fo
-        type(diag_out_t) :: dg
         type(cand_set_t) :: cs
         type(rung_t), allocatable :: rungs(:)
-        type(fit_options_t) :: fopts
-        type(diagnose_options_t) :: dopts
+        type(ladder_t) :: lad
         character(len=:), allocatable :: prefix
         integer :: k, unit, ios
 
-        call deck_candidates(d, cs, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'improve') then
-            if (present(ladder)) then
-                rungs = ladder
-            else
-                call improve_ladder(deck_problem(d), d%params, d%free, cs, d%alpha, &
-                                    size(d%candidates), rungs, st)
-            end if
-            if (st%code /= STATUS_OK) return
-            fo = rungs(size(rungs))%fit
-            dg = rungs(size(rungs))%dg
+        if (present(ladder)) then
+            rungs = ladder
         else
-            call problem_fit(deck_problem(d), d%params, d%free, fo, st)
-            if (st%code /= STATUS_OK) return
+            call deck_ladder_start(d, lad, st)
+            do while (.not. lad%done)
+                call ladder_step(lad, st)
+            end do
+            if (st%code == STATUS_OK) rungs = lad%rungs(:lad%n)
         end if
-        if (d%task == 'diagnose') then
-            ! beamid.diagnose's defaults: 3 refits of 50 iterations
-            fopts%max_iter = 50
-            dopts%alpha = d%alpha
-            call problem_diagnose(deck_problem(d), fo%params, fo%free, d%params, cs, fopts, &
-                                  dopts, dg, st)
-            if (st%code /= STATUS_OK) return
-        end if
-
-        call output_prefix(d, prefix, st)
+        if (st%code == STATUS_OK) call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
-        call write_fit_files(d, fo, prefix, fl, st)
-        if (st%code /= STATUS_OK) return
-        if (d%task == 'diagnose' .or. d%task == 'improve') then
-            call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
-            if (st%code /= STATUS_OK) return
-        end if
-        if (d%task == 'compare') then
-            call write_compare(d, fo, prefix//'_compare.csv', fl, st)
-            return
-        end if
-        if (d%task /= 'improve') return
+        associate (fo => rungs(size(rungs))%fit, dg => rungs(size(rungs))%dg)
+            call output_prefix(d, prefix, st)
+            if (st%code == STATUS_OK) call write_fit_files(d, fo, prefix, fl, st)
+            if (st%code == STATUS_OK .and. (d%task == 'diagnose' .or. d%task == 'improve')) &
+                call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
+            if (st%code == STATUS_OK .and. d%task == 'compare') &
+                call write_compare(d, fo, prefix//'_compare.csv', fl, st)
+        end associate
+        if (st%code /= STATUS_OK .or. d%task /= 'improve') return
         call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
                          ios, st)
         if (st%code /= STATUS_OK) return
@@ -402,63 +382,45 @@ contains
         call close_checked(unit, ios, prefix//'_ladder.csv', st)
     end subroutine run_estimation
 
-    !> Task identify: the stages in order (static -> free -> forced), each a
-    !! weighted fit of its free parameters and of every earlier stage's (both
-    !! updated, Eq. 147) from where the previous stage ended, with the
-    !! previous stage's estimates and full covariance as a priori
-    !! information (Eq. 146-148, 164-166; the first stage takes the deck's a
-    !! priori values, Eq. 142-145), as beamid.identify. Files:
+    !> Task identify: the stages in order (deck_stage_start, as
+    !! beamid.identify); `held`: the fits of the first stages when already made
+    !! (beamid.run fits them from Python, a stage at a time). Files:
     !! <prefix>_identify.csv (stage, parameter, estimate, sigma before and
     !! after: what each stage taught) and every stage's fit files
     !! <prefix>_<stage>_estimates.csv, _covariance.csv and _residuals.csv.
-    subroutine run_identify(d, fl, st)
+    subroutine run_identify(d, fl, st, held)
         type(deck_t), intent(in) :: d
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
-        type(fit_result_t), allocatable :: fits(:)
-        type(deck_t), allocatable :: ds(:)
-        type(prior_t) :: prior
-        real(dp), allocatable :: params(:), known(:), before(:)
-        integer, allocatable :: free(:)
+        type(rung_t), intent(in), optional :: held(:)
+        type(rung_t), allocatable :: done(:)
+        type(deck_t) :: ds
+        type(ladder_t) :: lad
+        real(dp), allocatable :: known(:), before(:)
         character(len=:), allocatable :: prefix, rows
-        integer :: k, i, p, ns, unit, ios
+        integer :: k, i, p, unit, ios
 
-        ns = size(d%stages)
-        allocate (fits(ns), ds(ns), known(size(d%params)))
-        known = ieee_value(1.0_dp, ieee_positive_inf)
-        params = d%params
+        done = [rung_t ::]
+        if (present(held)) done = held
+        do while (size(done) < size(d%stages))
+            call deck_stage_start(d, done, lad, st)
+            if (st%code /= STATUS_OK) return
+            done = [done, lad%rungs(1)]
+        end do
+        allocate (known(size(d%params)), source=ieee_value(1.0_dp, ieee_positive_inf))
+        known(d%stages(1)%prior_index) = d%stages(1)%prior_sigma
         rows = ''
-        do k = 1, ns
-            call stage_deck(d, d%stages(k), ds(k))
-            free = d%stages(k)%free
-            if (k == 1) then
-                prior = deck_prior(ds(k))
-                do i = 1, size(prior%index)
-                    known(prior%index(i)) = prior%sigma(i)
+        do k = 1, size(d%stages)
+            associate (f => done(k)%fit)
+                before = known(f%free)
+                do i = 1, size(f%free)
+                    p = f%free(i)
+                    rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
+                           fmt_e(f%params(p))//','//fmt_e(before(i))//','//fmt_e(f%sigmas(i))// &
+                           new_line('a')
+                    known(p) = f%sigmas(i)
                 end do
-            else
-                associate (prev => fits(k - 1))
-                    do i = 1, size(prev%free)
-                        if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
-                    end do
-                    call prior_from_covariance(prev%free, prev%estimates, prev%cov, prior, st)
-                end associate
-            end if
-            if (st%code == STATUS_OK) call problem_fit(deck_problem(ds(k)), params, free, &
-                                                       fits(k), st, prior)
-            if (st%code /= STATUS_OK) then
-                st%message = "stage '"//d%stages(k)%name//"': "//trim(st%message)
-                return
-            end if
-            before = known(fits(k)%free)
-            do i = 1, size(fits(k)%free)
-                p = fits(k)%free(i)
-                rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
-                       fmt_e(fits(k)%params(p))//','//fmt_e(before(i))//','// &
-                       fmt_e(fits(k)%sigmas(i))//new_line('a')
-                known(p) = fits(k)%sigmas(i)
-            end do
-            params = fits(k)%params
+            end associate
         end do
 
         call output_prefix(d, prefix, st)
@@ -468,11 +430,54 @@ contains
         if (st%code /= STATUS_OK) return
         if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
         call close_checked(unit, ios, prefix//'_identify.csv', st)
-        do k = 1, ns
+        do k = 1, size(d%stages)
             if (st%code /= STATUS_OK) return
-            call write_fit_files(ds(k), fits(k), prefix//'_'//d%stages(k)%name, fl, st)
+            call stage_deck(d, d%stages(k), ds)
+            call write_fit_files(ds, done(k)%fit, prefix//'_'//d%stages(k)%name, fl, st)
         end do
     end subroutine run_identify
+
+    !> Start the next stage of an identify deck, k = size(done) + 1, as a ladder
+    !! ended at its fit (beamid_ladder; a weighted fit, as beamid.identify's):
+    !! the stage's data and iteration limit, its free parameters and every
+    !! earlier stage's (both updated, Eq. 147) from where stage k - 1's fit
+    !! (done(k - 1)) ended, with its estimates and full covariance as a priori
+    !! information (Eq. 146-148, 164-166; stage 1 from the deck's model with
+    !! its a priori values, Eq. 142-145).
+    subroutine deck_stage_start(d, done, lad, st)
+        type(deck_t), intent(in) :: d
+        type(rung_t), intent(in) :: done(:)
+        type(ladder_t), intent(out) :: lad
+        type(status_t), intent(inout) :: st
+        type(deck_t) :: ds
+        type(problem_t) :: pb
+        integer, allocatable :: free(:)
+        integer :: i, k
+        k = size(done) + 1
+        if (k > size(d%stages)) then
+            call set_status(st, ERR_INPUT, 'identify', 'all '//fmt_int(k - 1)//' stages are fitted')
+            return
+        end if
+        call stage_deck(d, d%stages(k), ds)
+        pb = deck_problem(ds)
+        free = d%stages(k)%free
+        if (k == 1) then
+            call ladder_start(lad, pb, d%params, free, cand_set_t(), 0.0_dp, 0, st)
+        else
+            associate (prev => done(k - 1)%fit)
+                do i = 1, size(prev%free)
+                    if (.not. any(free == prev%free(i))) free = [free, prev%free(i)]
+                end do
+                call prior_from_covariance(prev%free, prev%estimates, prev%cov, pb%prior, st)
+                if (st%code == STATUS_OK) &
+                    call ladder_start(lad, pb, prev%params, free, cand_set_t(), 0.0_dp, 0, st)
+            end associate
+        end if
+        call ladder_end_at_fit(lad)
+        if (st%code /= STATUS_OK) st%message = "stage '"//d%stages(k)%name//"': "// &
+                                               trim(st%message)
+        if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
+    end subroutine deck_stage_start
 
     !> The deck as its stage's fit deck: the experiments, the stage's data,
     !! rows, free parameters, a priori values and iteration limit (what
@@ -589,7 +594,7 @@ contains
         pb%row_q = d%data%quantity
         pb%y = d%data%value
         pb%sigma = d%data%sigma
-        pb%prior = deck_prior(d)
+        pb%prior = prior_t(d%prior_index, d%prior_mean, d%prior_sigma)
         pb%max_iter = d%max_iter
     end function deck_problem
 
@@ -615,22 +620,6 @@ contains
         end if
     end subroutine deck_experiments
 
-    !> The deck's a priori information (Eq. 142-145).
-    pure function deck_prior(d) result(prior)
-        type(deck_t), intent(in) :: d
-        type(prior_t) :: prior
-        prior%index = d%prior_index
-        prior%mean = d%prior_mean
-        prior%sigma = d%prior_sigma
-    end function deck_prior
-
-    !> Does the deck have a release experiment (time histories)?
-    pure logical function deck_dynamic(d)
-        type(deck_t), intent(in) :: d
-        deck_dynamic = .false.
-        if (allocated(d%exp_kind)) deck_dynamic = any(d%exp_kind == EXP_RELEASE)
-    end function deck_dynamic
-
     !> The deck's candidates: every effect named, with its parameters; in a
     !! deck with releases `mesh` is the mesh test of beamid_dyn_diagnosis
     !! (as beamid.diagnose does), not a candidate without parameters.
@@ -641,7 +630,8 @@ contains
         integer :: c
         logical :: dyn
         type(candidate_t) :: one
-        dyn = deck_dynamic(d)
+        dyn = .false.
+        if (allocated(d%exp_kind)) dyn = any(d%exp_kind == EXP_RELEASE)   ! time histories
         allocate (cs%names(0), cs%cands(0))
         do c = 1, size(d%candidates)
             if (dyn .and. trim(adjustl(d%candidates(c))) == 'mesh') then
@@ -655,6 +645,24 @@ contains
             cs%cands = [cs%cands, one]
         end do
     end subroutine deck_candidates
+
+    !> Start the ladder (beamid_ladder) of an estimation deck's task on the
+    !! deck's problem and candidates: the fit of its free parameters, then
+    !! (ladder_step) for diagnose the fit's diagnosis, for improve up to one
+    !! rung per candidate; a fit or compare deck's ladder ends at its fit,
+    !! undiagnosed. run_estimation steps it to the end; beamid.run steps it
+    !! from Python (its progress shown) and has the files written from it.
+    subroutine deck_ladder_start(d, lad, st)
+        type(deck_t), intent(in) :: d
+        type(ladder_t), intent(out) :: lad
+        type(status_t), intent(inout) :: st
+        type(cand_set_t) :: cs
+        call deck_candidates(d, cs, st)
+        if (st%code == STATUS_OK) call ladder_start(lad, deck_problem(d), d%params, d%free, cs, &
+            d%alpha, merge(size(d%candidates), 0, d%task == 'improve'), st)
+        if (d%task == 'fit' .or. d%task == 'compare') call ladder_end_at_fit(lad)
+        if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
+    end subroutine deck_ladder_start
 
     !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
     subroutine write_fit_files(d, fo, prefix, fl, st)

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beamid import ConvergenceError, InputError
+import beamid
+from beamid import ConvergenceError, InputError, _core, _core_estimation as _ce
 from beamid.fit_decks import read_fit_deck, run_fit_deck
 
 DEMO = Path(__file__).resolve().parent.parent / "inputs" / "demo"
@@ -69,6 +70,42 @@ def test_batch_and_python_write_the_same_numbers(task, tmp_path, batch_exe):
     assert sorted(p.name for p in files) == names
     for name in names:
         _same_table(tmp_path / "batch" / "out" / name, tmp_path / "python" / "out" / name)
+
+
+@pytest.mark.parametrize("task", ["fit", "compare", "diagnose"])
+def test_deck_fit_runs_once_for_files_and_result(task, tmp_path, batch_exe, monkeypatch):
+    """The deck's fit (and diagnosis) runs once, in the Fortran of beamid-batch
+    on the deck (deck_task_start), for both the files, byte for byte the
+    batch's, and the result: no second run of the deck, no fit or diagnosis
+    through the API. The result has the numbers of the API's own fit."""
+    bdeck, pdeck = _deck(tmp_path / "batch", task), _deck(tmp_path / "python", task)
+    assert _batch(batch_exe, bdeck).returncode == 0
+    calls = []
+    for module, name in ((_ce, "deck_task_start"), (_ce, "fit"), (_ce, "problem_diagnose"),
+                         (_ce, "ladder_start"), (_core, "run_deck")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name, **k:
+                            calls.append(_name) or _real(*a, **k))
+    _, files, out = run_fit_deck(pdeck, plots=False)
+    assert calls == ["deck_task_start"]
+    names = sorted(p.name for p in (tmp_path / "batch" / "out").iterdir())
+    assert sorted(p.name for p in files) == names
+    for name in names:
+        assert (tmp_path / "python" / "out" / name).read_bytes() == \
+            (tmp_path / "batch" / "out" / name).read_bytes(), name
+    monkeypatch.undo()
+    deck = read_fit_deck(pdeck)
+    fit = out if task == "fit" else out.fit
+    direct = beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free,
+                        prior=deck.prior, max_iter=deck.max_iter)
+    assert (fit.estimates, fit.sigmas, fit.chi2, fit.iterations) == \
+        (direct.estimates, direct.sigmas, direct.chi2, direct.iterations)
+    assert np.array_equal(fit.cov, direct.cov) and fit.summary() == direct.summary()
+    if task == "compare":
+        assert str(out) == str(beamid.compare(direct))
+    if task == "diagnose":
+        assert str(out) == str(beamid.diagnose(direct, deck.candidates, alpha=deck.alpha))
+        assert out.candidates[0].effect == "axial_coupling"
 
 
 def test_batch_improve_finds_the_hidden_effects(tmp_path, batch_exe):

@@ -114,20 +114,28 @@ def _stage_copy(folder):
     return folder / STAGE_FILES[0]
 
 
-def test_three_stage_deck_same_numbers_from_both_fronts(tmp_path, batch_exe):
+def test_three_stage_deck_same_numbers_from_both_fronts(tmp_path, batch_exe, monkeypatch):
     """The bundled three-stage deck (static -> free -> forced, Eq. 146-148,
     164-166) through beamid-batch and through `beamid identify DECK` (the
     same Fortran runner) writes the same bytes, and beamid.identify on the
-    deck's stages gives the same numbers."""
+    deck's stages gives the same numbers; every stage is fitted once, for
+    the files and the result."""
     import subprocess
 
+    from beamid import _core, _core_estimation as _ce
     from beamid.fit_decks import run_identify
 
     batch_deck = _stage_copy(tmp_path / "batch")
     run = subprocess.run([str(batch_exe), str(batch_deck)], capture_output=True, text=True,
                          check=False)
     assert run.returncode == 0, run.stderr
+    calls = []
+    for module, name in ((_ce, "deck_task_start"), (_ce, "fit"), (_core, "run_deck")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name, **k:
+                            calls.append(_name) or _real(*a, **k))
     text, files, result = run_identify([_stage_copy(tmp_path / "py")], plots=False)
+    assert calls == ["deck_task_start"] * 3
     names = sorted(p.name for p in files)
     assert len(names) == 10 and "identify_three_stages_identify.csv" in names
     for name in names:     # every stage's estimates, covariance and residuals too

@@ -68,13 +68,13 @@ def test_improve_deck_runs_its_ladder_once_and_writes_the_batch_bytes(tmp_path, 
     assert run.returncode == 0, run.stderr
 
     calls = []
-    for module, name in ((_ce, "deck_ladder_start"), (_ce, "ladder_start"),
+    for module, name in ((_ce, "deck_task_start"), (_ce, "ladder_start"),
                          (_core, "run_deck")):
         real = getattr(module, name)
         monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name:
                             calls.append(_name) or _real(*a))
     _, files, ladder = run_fit_deck(decks["python"], plots=False)
-    assert calls == ["deck_ladder_start"]      # one ladder, no second run for the files
+    assert calls == ["deck_task_start"]      # one ladder, no second run for the files
     names = sorted(p.name for p in (tmp_path / "batch" / "out").iterdir())
     assert sorted(p.name for p in files) == names and len(names) == 5
     for name in names:
@@ -88,7 +88,7 @@ def test_improve_deck_runs_its_ladder_once_and_writes_the_batch_bytes(tmp_path, 
 
     calls.clear()
     assert beamid.run(decks["python"]).effects == ladder.effects
-    assert calls == ["deck_ladder_start"]
+    assert calls == ["deck_task_start"]
 
 
 def test_improve_ladders_from_two_threads_take_turns():

@@ -13,7 +13,7 @@ module beamid_api_deck
     use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
                              exit_code
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task
+    use beamid_tasks, only: run_task, deck_experiments
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_static_experiments, only: quantity_label, NQUANT
     implicit none
@@ -130,14 +130,15 @@ contains
     end function ndata
 
     !> The arrays of a deck (sizes from api_deck_sizes): parameters, wrt and
-    !! free parameter indices (1-based), output times, experiments (kind,
-    !! fx, fy, moment, wire_length), priors.
+    !! free parameter indices (1-based), output times, experiments (kind 1
+    !! tip, 2 wire, 3 release and 12 values in beamid_inverse's EV_* layout:
+    !! fx, fy, moment, wire_length, ...; beamid_tasks deck_experiments), priors.
     subroutine api_deck_arrays(path, nparams, nwrt, nt, nexp_, nfree, nprior, params, wrt, &
                                t_out, exp_kind, exp_values, free_idx, prior_index, prior_mean, &
                                prior_sigma, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
-        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(4, nexp_)
+        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(12, nexp_)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
         integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
         integer(c_int), intent(out) :: prior_index(nprior)
@@ -145,7 +146,8 @@ contains
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
-        integer :: e
+        integer, allocatable :: kinds(:)
+        real(dp), allocatable :: values(:, :)
         call read_deck(trim(path), d, stat)
         call put_errors(d, stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -157,11 +159,11 @@ contains
         params = d%params
         if (nwrt > 0) wrt = int(d%wrt(:nwrt), c_int)
         if (nt > 0) t_out = d%sim_t_out(:nt)
-        do e = 1, nexp_
-            exp_kind(e) = int(d%experiments(e)%kind, c_int)
-            exp_values(:, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                                d%experiments(e)%moment, d%experiments(e)%wire_length]
-        end do
+        if (nexp_ > 0) then
+            call deck_experiments(d, kinds, values)
+            exp_kind = int(kinds, c_int)
+            exp_values = values
+        end if
         if (nfree > 0) free_idx = int(d%free(:nfree), c_int)
         if (nprior > 0) then
             prior_index = int(d%prior_index(:nprior), c_int)

@@ -22,7 +22,7 @@ module beamid_api_estimation
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_problem, deck_candidates
+    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
@@ -32,17 +32,21 @@ module beamid_api_estimation
 
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
-    public :: api_problem_predict, api_deck_experiments
+    public :: api_problem_predict
     public :: api_problem_diagnose, api_time_structure
-    public :: api_ladder_start, api_deck_ladder_start, api_ladder_step, api_deck_ladder_write
+    public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
+    public :: api_deck_task_start, api_deck_task_write
 
-    !> The improve ladder of the last api_ladder_start or api_deck_ladder_start,
+    !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
     !! and read by api_ladder_rung, api_ladder_fit and api_ladder_diag
     !! (results of a size known only after the run: GUIDE, module arrays of
     !! the binding). One ladder at a time.
     type(ladder_t), save :: lad
+    !> The stages of the identify deck fitted last (api_deck_task_start),
+    !! whose files api_deck_task_write writes.
+    type(rung_t), allocatable, save :: staged(:)
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -289,35 +293,6 @@ contains
         end subroutine add_effect
     end subroutine api_fit_effect
 
-    !> The experiments of an estimation deck in beamid_inverse's layout
-    !! (kind 1 tip, 2 wire, 3 release; exp_values(:, e) EV_*), the first nexp
-    !! of them (sizes first: call with nexp = 0 to get the count in `count`).
-    subroutine api_deck_experiments(path, nexp, exp_kind, exp_values, count, code, message)
-        character(len=*), intent(in) :: path
-        integer(c_int), intent(in) :: nexp
-        integer(c_int), intent(out) :: exp_kind(nexp), count, code
-        real(c_double), intent(out) :: exp_values(12, nexp)
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        integer :: e
-        call read_deck(path, d, stat)
-        call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK .or. .not. allocated(d%experiments)) return
-        count = int(size(d%experiments), c_int)
-        do e = 1, min(int(nexp), size(d%experiments))
-            exp_kind(e) = int(d%experiments(e)%kind, c_int)
-            exp_values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                                  d%experiments(e)%moment, d%experiments(e)%wire_length]
-            if (allocated(d%exp_kind)) then
-                if (d%exp_kind(e) > 0) then
-                    exp_kind(e) = int(d%exp_kind(e), c_int)
-                    exp_values(:, e) = d%exp_values(:, e)
-                end if
-            end if
-        end do
-    end subroutine api_deck_experiments
-
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
     !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
@@ -540,8 +515,8 @@ contains
         end function b2r
     end subroutine copy_diag
 
-    !> Start the improve ladder (beamid_ladder ladder_start; the ladder of
-    !! improve_ladder, as beamid-batch runs it): fit params0(free_idx); then
+    !> Start the improve ladder (beamid_ladder ladder_start; the ladder
+    !! beamid-batch runs): fit params0(free_idx); then
     !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
     !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
     !! per call, until none is significant at alpha or max_steps rungs were
@@ -572,27 +547,6 @@ contains
         call status_out(stat, code, message)
     end subroutine api_ladder_start
 
-    !> Start the improve ladder of an estimation deck as beamid-batch runs
-    !! it (deck_problem, deck_candidates; candidates named by their effect):
-    !! step it with api_ladder_step, write its files with
-    !! api_deck_ladder_write.
-    subroutine api_deck_ladder_start(path, code, message)
-        character(len=*), intent(in) :: path
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(cand_set_t) :: cs
-        type(status_t) :: stat
-        lad%done = .true.
-        lad%n = 0
-        call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK) call deck_candidates(d, cs, stat)
-        if (stat%code == STATUS_OK) &
-            call ladder_start(lad, deck_problem(d), d%params, d%free, cs, d%alpha, &
-                              size(d%candidates), stat)
-        call status_out(stat, code, message)
-    end subroutine api_deck_ladder_start
-
     !> One rung of the ladder started last (beamid_ladder ladder_step):
     !! nrung rungs are done; done = 1 when the ladder has ended.
     subroutine api_ladder_step(nrung, done, code, message)
@@ -604,31 +558,6 @@ contains
         done = merge(1_c_int, 0_c_int, lad%done)
         call status_out(stat, code, message)
     end subroutine api_ladder_step
-
-    !> Write the files of the deck at `path` (task improve, all or none,
-    !! beamid_tasks run_task: the bytes beamid-batch writes) from the ladder
-    !! api_deck_ladder_start started on it and api_ladder_step ended;
-    !! `written`: the files, one per line.
-    subroutine api_deck_ladder_write(path, written, code, message)
-        character(len=*), intent(in) :: path
-        character(len=65536), intent(out) :: written
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        character(len=:), allocatable :: files
-        written = ''
-        if (.not. lad%done .or. lad%n < 1) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
-                            'api_deck_ladder_start and api_ladder_step first)')
-        else
-            call read_deck(trim(path), d, stat)
-            if (stat%code == STATUS_OK) call deck_set_task(d, 'improve', stat)
-            if (stat%code == STATUS_OK) call run_task(d, files, stat, lad%rungs(:lad%n))
-            if (stat%code == STATUS_OK) written = files
-        end if
-        call status_out(stat, code, message)
-    end subroutine api_deck_ladder_write
 
     !> Rung k of the ladder started last: effect ('start', the number of the
     !! candidate added, or 'mesh (N elements per beam)'), info = [free
@@ -731,4 +660,65 @@ contains
             fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
         call status_out(stat, code, message)
     end function rung_ok
+
+    !> Start the ladder of the estimation deck at `path` run as `task` (blank:
+    !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:
+    !! the fit, undiagnosed for fit and compare; of an identify deck the fit of
+    !! `stage` from the stages fitted by the calls before, deck_stage_start),
+    !! step it with api_ladder_step (diagnose: one rung, improve: a rung per
+    !! call), read it with api_ladder_rung, api_ladder_fit and api_ladder_diag
+    !! and write the deck's files with api_deck_task_write: its fits run once.
+    subroutine api_deck_task_start(path, task, stage, code, message)
+        character(len=*), intent(in) :: path, task
+        integer(c_int), intent(in) :: stage
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        lad%done = .true.
+        lad%n = 0
+        if (stage <= 1 .or. .not. allocated(staged)) staged = [rung_t ::]
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+        if (stat%code == STATUS_OK .and. max(int(stage), 1) /= size(staged) + 1) &
+            call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))//', expected '// &
+                            fmt_int(size(staged) + 1)//' (the stages in order)')
+        if (stat%code == STATUS_OK) then
+            if (d%task == 'identify') then
+                call deck_stage_start(d, staged, lad, stat)
+                if (stat%code == STATUS_OK) staged = [staged, lad%rungs(1)]
+            else
+                call deck_ladder_start(d, lad, stat)
+            end if
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_deck_task_start
+
+    !> Write the files of the deck at `path` run as `task` (beamid_tasks
+    !! run_task: all or none, the bytes beamid-batch writes) from the ladder
+    !! api_deck_task_start started on it and api_ladder_step ended;
+    !! `written`: the files, one per line.
+    subroutine api_deck_task_write(path, task, written, code, message)
+        use beamid_status, only: put_text
+        character(len=*), intent(in) :: path, task
+        character(len=65536), intent(out) :: written, message
+        integer(c_int), intent(out) :: code
+        type(deck_t) :: d
+        type(status_t) :: stat
+        character(len=:), allocatable :: files
+        if (.not. lad%done .or. lad%n < 1) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+                            'api_deck_task_start and api_ladder_step first)')
+        else
+            call read_deck(trim(path), d, stat)
+            if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+            if (stat%code == STATUS_OK .and. d%task == 'identify') then
+                call run_task(d, files, stat, staged)
+            else if (stat%code == STATUS_OK) then
+                call run_task(d, files, stat, lad%rungs(:lad%n))
+            end if
+            if (stat%code == STATUS_OK) call put_text(files, written)
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_deck_task_write
 end module beamid_api_estimation

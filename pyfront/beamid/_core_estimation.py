@@ -52,16 +52,6 @@ class Problem:
 NEXPVAL = 12
 
 
-def deck_experiments(path: str) -> list[tuple[int, np.ndarray]]:
-    """(kind, NEXPVAL values) of every experiment of an estimation deck, in deck
-    order (kind 3: a release, beamid_inverse's EV_* layout)."""
-    raw = str(path).encode()
-    _, _, count = _call(_api.api_deck_experiments, raw, 0)
-    kinds, values, count = _call(_api.api_deck_experiments, raw, int(count))
-    values = np.array(values).reshape(NEXPVAL, -1)
-    return [(int(kinds[e]), values[:, e].copy()) for e in range(int(count))]
-
-
 def problem_predict(prob: Problem, params: np.ndarray,
                     wrt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Predictions and d/d params(wrt) of any mix of static and release
@@ -215,7 +205,7 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
     lines += [""] * (nc - len(lines))
     return {"cstats": Columns(np.array(cstats).reshape(len(CSTATS), nc), CSTATS),
             "pstats": Columns(np.array(pstats).reshape(len(PSTATS), -1), PSTATS),
-            "refit_params": np.array(refit_params).reshape(-1, nc),
+            "refit_params": np.array(refit_params).reshape(-1, nc) if nc else np.zeros((0, 0)),
             "ranking": np.array(ranking, dtype=int) - 1,
             "cosine": np.array(cosine).reshape(nc, nc),
             "dstats": Columns(np.array(dstats), DSTATS),
@@ -248,8 +238,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
 
 #: The extension holds one improve ladder at a time (module state of the
 #: binding, beamid_api_estimation): a caller holds this lock from
-#: :func:`ladder_start` / :func:`deck_ladder_start` to its last read
-#: (:func:`ladder_rungs`, :func:`deck_ladder_write`), so ladders run from
+#: :func:`ladder_start` / :func:`deck_task_start` to its last read
+#: (:func:`ladder_rungs`, :func:`deck_task_write`), so ladders run from
 #: several threads take turns instead of overwriting each other.
 LADDER_LOCK = threading.RLock()
 
@@ -268,25 +258,12 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx
           float(alpha), int(max_steps))
 
 
-def deck_ladder_start(path: str) -> None:
-    """Start the improve ladder of an estimation deck as beamid-batch runs it
-    (the deck's problem and candidates, read by the Fortran reader)."""
-    _call(_api.api_deck_ladder_start, _path(path))
-
-
 def ladder_step() -> bool:
     """Diagnose the ladder's last fit and, unless the ladder ends there, add
     the verdict's effect and refit (one rung); True once the ladder has
     ended."""
     _nrung, done = _call(_api.api_ladder_step)
     return bool(done)
-
-
-def deck_ladder_write(path: str) -> list[str]:
-    """Write the deck's improve files (all or none, the bytes of beamid-batch)
-    from the ladder :func:`deck_ladder_start` started on it; the files."""
-    written = _call(_api.api_deck_ladder_write, _path(path))
-    return [line for line in _text(written).split("\n") if line]
 
 
 def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
@@ -366,3 +343,23 @@ def mc_summary(est: np.ndarray, sig: np.ndarray, truth: np.ndarray,
 def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
     """P(chi2(k) > x) elementwise."""
     return np.array(_design.api_chi2_sf_many(np.asarray(x, float), np.asarray(k, np.int32)))
+
+
+# ------------------------------------------- estimation decks: the deck's fit runs once
+
+def deck_task_start(path: str, task: str = "", stage: int = 0) -> None:
+    """Start the ladder of an estimation deck run as ``task`` (default the
+    deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
+    compare; of an identify deck the fit of ``stage``, 1-based, from the
+    stages fitted by the calls before); :func:`ladder_step` diagnoses
+    (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
+    reads it, :func:`deck_task_write` writes the deck's files. Hold
+    :data:`LADDER_LOCK` from the first start to the write."""
+    _call(_api.api_deck_task_start, _path(path), task, int(stage))
+
+
+def deck_task_write(path: str, task: str = "") -> list[str]:
+    """Write the files of the deck run as ``task`` (all or none, the bytes of
+    beamid-batch) from the ladder :func:`deck_task_start` started on it."""
+    written = _call(_api.api_deck_task_write, _path(path), task)
+    return [line for line in _text(written).split("\n") if line]

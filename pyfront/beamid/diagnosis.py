@@ -736,7 +736,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                 candidates: Sequence[str | Effect] | None, alpha: float,
                 max_steps: int) -> Ladder:
     """Run the ladder started in the extension (``_ce.ladder_start`` or
-    ``_ce.deck_ladder_start``) a rung per call, with a progress bar on a
+    ``_ce.deck_task_start``) a rung per call, with a progress bar on a
     terminal, and name its rungs."""
     dynamic = _dynamic(experiments)
     if dynamic:

@@ -558,6 +558,14 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
     ``max_iter``: one limit for every stage or ``{stage: limit}`` (50 for a
     stage not named).
     """
+    return _identify(model, stages, max_iter, starts, lambda _, m, e, d, free, prior, limit:
+                     fit(m, e, d, free=free, prior=prior, max_iter=limit))
+
+
+def _identify(model: Model, stages, max_iter, starts, stage_fit) -> Identification:
+    """:func:`identify` with stage ``name``'s fit made by ``stage_fit(name,
+    start model, experiments, data, free, prior, max_iter)`` (as :func:`fit`
+    with a dict prior or the previous stage's FitResult)."""
     items = list(stages.items()) if isinstance(stages, Mapping) else [
         (f"stage{k + 1}", s) for k, s in enumerate(stages)]
     if not items:
@@ -577,7 +585,7 @@ def identify(model: Model, stages: Mapping[str, tuple] | Sequence[tuple], *,
             carried = {n: current[n] for n in (previous.free if previous else ())}
             current = starts[name].replace(**carried) if carried else starts[name]
         limit = max_iter.get(name, 50) if isinstance(max_iter, Mapping) else max_iter
-        fit_k = fit(current, exps, data, free=free, prior=prior, max_iter=limit)
+        fit_k = stage_fit(name, current, exps, data, free, prior, limit)
         for p in fit_k.free:
             before = known.get(p, math.inf)
             if isinstance(prior, Mapping) and p in fit_k.prior:

@@ -22,9 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from . import _core
-from .diagnosis import Ladder, _run_ladder, compare, diagnose
+from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_all
-from .estimation import _free_indices, _prior_arrays, fit
+from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
+                         _result as _fit_result)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
@@ -67,8 +68,11 @@ def published(values: dict) -> tuple[Published, ...]:
                  for g in values["published"])
 
 
-def load(kind: int, values: list[float]) -> Load:
-    """A load from the reader's (kind, [fx, fy, moment, wire_length])."""
+def load(kind: int, values: list[float]) -> Load | Release:
+    """A load or a release from the reader's (kind, values in beamid_inverse's
+    EV_* layout: fx, fy, moment, wire_length, ...)."""
+    if kind == LOAD_RELEASE:
+        return Release.decode(values)
     if kind == LOAD_WIRE:
         return RadialWire(values[3])
     return TipLoad(values[0], values[1], values[2])
@@ -129,11 +133,6 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    # release experiments (issue 13) carry more values than the reader's
-    # (kind, [fx, fy, moment, wire_length]) columns
-    for (n, _, _), (kind, vals) in zip(values["experiments"], _ce.deck_experiments(str(path))):
-        if kind == LOAD_RELEASE:
-            experiments[n] = Release.decode(vals)
     data = read_measurements(values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
                          read_measurements(s["data_path"], experiments),
@@ -158,40 +157,21 @@ def read_fit_deck(path: str | os.PathLike) -> FitDeck:
     return _fit_deck(path, values)
 
 
-def _result(deck: FitDeck) -> Any:
-    """The result object of the deck's task: FitResult (fit), Comparison
-    (compare), Diagnosis (diagnose), Ladder (improve) or Identification
-    (identify)."""
-    if deck.task == "identify":
-        return identify_deck(deck)
-    if deck.task == "improve":
-        return improve_deck(deck)
-    result = fit(deck.model, deck.experiments, deck.data, free=deck.free, prior=deck.prior,
-                 max_iter=deck.max_iter)
-    if deck.task == "compare":
-        return compare(result)
-    if deck.task == "diagnose":
-        return diagnose(result, deck.candidates, alpha=deck.alpha)
-    return result
-
-
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
                  ) -> tuple[str, list[Path], Any]:
     """Run an estimation deck; return (report text, files written, result).
 
-    The CSV files are written by the Fortran task runners (as beamid-batch,
-    all or none); the report and the figures come from the Python result.
-    Task improve runs its ladder once, a rung at a time (a progress bar on
-    a terminal), as beamid-batch runs it, and the files are written from it."""
+    The deck's fit runs once, for the files and the result: the Fortran of
+    beamid-batch runs it (and the task's diagnosis or improve ladder, a rung
+    at a time, a progress bar on a terminal) on the deck as read there, the
+    result objects are built from it, then the CSV files are written from
+    it by the batch's writers (all or none); the report and the figures come
+    from the result."""
     if not isinstance(deck, FitDeck):
         deck = read_fit_deck(deck)
-    if deck.task == "improve":
-        with _ce.LADDER_LOCK:
-            out = _result(deck)
-            files = [Path(p) for p in _ce.deck_ladder_write(str(deck.path))]
-    else:
-        files = run_files(deck)
-        out = _result(deck)
+    with _ce.LADDER_LOCK:
+        out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
+        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -205,18 +185,24 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     return text, files, out
 
 
-def improve_deck(deck: FitDeck) -> Ladder:
-    """The improve ladder of an estimation deck, run by the Fortran of
-    ``beamid-batch`` on the deck as read there (its problem and candidates),
-    a rung at a time; its files are then written by
-    ``_core_estimation.deck_ladder_write`` (until another ladder starts)."""
+def _deck_result(deck: FitDeck) -> Any:
+    """The result of the deck's task, FitResult (fit), Comparison (compare),
+    Diagnosis (diagnose) or Ladder (improve), from the ladder the Fortran of
+    ``beamid-batch`` runs on the deck as read there (its problem and
+    candidates; ``_core_estimation.deck_task_start``); the caller holds
+    ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
+    the deck's files from the same ladder."""
     free_names, _ = _free_indices(deck.model, deck.free)
     prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
-    candidates = deck.candidates
-    with _ce.LADDER_LOCK:
-        _ce.deck_ladder_start(str(deck.path))
-        return _run_ladder(deck.model, deck.experiments, deck.data, prior_map, candidates,
-                           deck.alpha, len(candidates or ()))
+    _ce.deck_task_start(str(deck.path), deck.task)
+    if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
+        raw = _ce.ladder_rungs(len(deck.model.names()), [])[0]["fit"]
+        fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map, raw)
+        return fit if deck.task == "fit" else compare(fit)
+    improve = deck.task == "improve"
+    ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
+                         deck.alpha, len(deck.candidates or ()) * improve)
+    return ladder if improve else ladder.steps[0].diagnosis
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
@@ -240,17 +226,29 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
 def identify_deck(deck: FitDeck) -> Any:
     """:func:`beamid.identify` on the stages of an identification deck (task
     ``identify``): the deck's model is the start, its experiments serve every
-    stage, the first stage takes the deck's a priori values. The numbers of
-    the files ``beamid-batch`` writes for the deck."""
-    from .estimation import identify
-
+    stage, the first stage takes the deck's a priori values. Each stage is
+    fitted by the Fortran of ``beamid-batch`` on the deck as read there
+    (``_core_estimation.deck_task_start``), so its files can then be written
+    from the same fits (``deck_task_write(path, "identify")``, under
+    ``_core_estimation.LADDER_LOCK`` from the first stage on)."""
     if deck.task != "identify" or not deck.stages:
         raise InputError(f"{deck.path}: task {deck.task!r} is not 'identify' (one &fit group "
                          "per stage)")
+    names, number = deck.model.names(), {s.name: k for k, s in enumerate(deck.stages, 1)}
+
+    def stage_fit(name, start, exps, data, _free, prior, _limit):   # as estimation.fit's
+        carried = _carried_prior(start, prior)[0] if isinstance(prior, FitResult) else None
+        _ce.deck_task_start(str(deck.path), "identify", number[name])
+        r = _ce.ladder_rungs(len(names), [])[0]
+        free = tuple(names[i] for i in r["free"])
+        prior_map = _prior_arrays(start, free, prior)[0] if carried is None else carried
+        return _fit_result(start, exps, data, free, prior_map, r["fit"])
+
     stages = {s.name: (deck.experiments, s.data, s.free) + ((deck.prior,) if k == 0 and
                                                              deck.prior else ())
               for k, s in enumerate(deck.stages)}
-    return identify(deck.model, stages, max_iter={s.name: s.max_iter for s in deck.stages})
+    with _ce.LADDER_LOCK:
+        return _identify(deck.model, stages, 50, None, stage_fit)
 
 
 def _identify_figure(result: Any, prefix: Path) -> Path:
@@ -281,8 +279,7 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     prefix = parsed[0].output_prefix
     staged = [d.path for d in parsed if d.task == "identify"]
     if len(parsed) == 1 and staged:
-        files = run_files(parsed[0])
-        result = identify_deck(parsed[0])
+        _, files, result = run_fit_deck(parsed[0], plots=False)
     elif staged:
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
