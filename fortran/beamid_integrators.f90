@@ -2639,7 +2639,6 @@ contains
         real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
         !> the columns jr(1):jr(2) hold every nonzero of kb (and cb)
         integer, intent(in), optional :: jr(2)
-        integer, parameter :: L15 = 15
         integer :: j, c, i1, i2, k, i0, j1, j2
         k = kl + ku + 1
         y(1:n, 1:na) = 0.0_dp
@@ -2653,20 +2652,7 @@ contains
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
             i0 = k + i1 - j
-            ! the interior columns of a 7 + 7 band (the beam elements' 8
-            ! unknowns) with a constant trip count
-            if (i2 - i1 + 1 == L15) then
-                if (present(cb)) then
-                    do c = 1, na
-                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j) &
-                                                + v(j, c)*cb(i0:i0 + L15 - 1, j)
-                    end do
-                else
-                    do c = 1, na
-                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j)
-                    end do
-                end if
-            else if (present(cb)) then
+            if (present(cb)) then
                 do c = 1, na
                     y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j) &
                                   + v(j, c)*cb(i0:i0 + i2 - i1, j)
