@@ -2699,18 +2699,7 @@ contains
             w1(it%stuck(c), 1:na) = 0.0_dp
             w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
-        if (it%sym .and. na <= 2) then
-            ! one or two columns: the one-column solves (the same operations,
-            ! no transposes; the many-column solve pays off from three on)
-            do c = 1, na
-                call ldlt_solve_real(n, sys%ckl, it%s1, w1(1:n, c))
-                call ldlt_solve_cplx(n, sys%ckl, it%s2, w2(1:n, c))
-                if (it%nlr > 0) then
-                    call lr_real(it, w1(1:n, c))
-                    call lr_cplx(it, w2(1:n, c))
-                end if
-            end do
-        else if (it%sym) then
+        if (it%sym) then
             do j = 1, n
                 do c = 1, na
                     bt1((j - 1)*na + c) = w1(j, c)
