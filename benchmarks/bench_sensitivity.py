@@ -58,12 +58,12 @@ def main() -> None:
                   flush=True)
             if not ok and integrator == "implicit":
                 print("      why: per step, three stage Jacobians for the exact derivative of "
-                      "the Radau step (about 0.55 plain runs) and about 6 passes of the stage "
-                      "iteration for the four parameters (the densities' predictor starts 1e5 "
-                      "tolerances off: two passes each); each pass one sweep over the stage "
-                      "Jacobians and the mass matrix for all columns (about 0.45 plain runs in "
-                      "all), one real and one complex solve (about 0.45) and its vector work "
-                      "(about 0.5), against about two Newton iterations of the plain step",
+                      "the Radau step (about 0.5 plain runs) and about 6 passes of the stage "
+                      "iteration for the four parameters (the densities' predictor starts "
+                      "1e5-1e6 tolerances off: two passes each); each pass one sweep over the "
+                      "stage Jacobians and the mass matrix for all columns (about 0.4 plain "
+                      "runs in all), one real and one complex solve (about 0.4) and its vector "
+                      "work (about 0.5), against about two Newton iterations of the plain step",
                       flush=True)
             assert np.array_equal(plain.tip_w, sens.tip_w) or integrator == "implicit"
 

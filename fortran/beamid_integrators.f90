@@ -2639,7 +2639,6 @@ contains
         real(dp), intent(in), optional :: cb(2*kl + ku + 1, n), v(:, :)
         !> the columns jr(1):jr(2) hold every nonzero of kb (and cb)
         integer, intent(in), optional :: jr(2)
-        integer, parameter :: L15 = 15
         integer :: j, c, i1, i2, k, i0, j1, j2
         k = kl + ku + 1
         y(1:n, 1:na) = 0.0_dp
@@ -2653,20 +2652,7 @@ contains
             i1 = max(1, j - ku)
             i2 = min(n, j + kl)
             i0 = k + i1 - j
-            ! the interior columns of a 7 + 7 band (the beam elements' 8
-            ! unknowns) with a constant trip count
-            if (i2 - i1 + 1 == L15) then
-                if (present(cb)) then
-                    do c = 1, na
-                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j) &
-                                                + v(j, c)*cb(i0:i0 + L15 - 1, j)
-                    end do
-                else
-                    do c = 1, na
-                        y(i1:i1 + L15 - 1, c) = y(i1:i1 + L15 - 1, c) + x(j, c)*kb(i0:i0 + L15 - 1, j)
-                    end do
-                end if
-            else if (present(cb)) then
+            if (present(cb)) then
                 do c = 1, na
                     y(i1:i2, c) = y(i1:i2, c) + x(j, c)*kb(i0:i0 + i2 - i1, j) &
                                   + v(j, c)*cb(i0:i0 + i2 - i1, j)
@@ -2713,18 +2699,7 @@ contains
             w1(it%stuck(c), 1:na) = 0.0_dp
             w2(it%stuck(c), 1:na) = (0.0_dp, 0.0_dp)
         end do
-        if (it%sym .and. na <= 2) then
-            ! one or two columns: the one-column solves (the same operations,
-            ! no transposes; the many-column solve pays off from three on)
-            do c = 1, na
-                call ldlt_solve_real(n, sys%ckl, it%s1, w1(1:n, c))
-                call ldlt_solve_cplx(n, sys%ckl, it%s2, w2(1:n, c))
-                if (it%nlr > 0) then
-                    call lr_real(it, w1(1:n, c))
-                    call lr_cplx(it, w2(1:n, c))
-                end if
-            end do
-        else if (it%sym) then
+        if (it%sym) then
             do j = 1, n
                 do c = 1, na
                     bt1((j - 1)*na + c) = w1(j, c)
