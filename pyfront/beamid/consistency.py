@@ -48,7 +48,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import BeamidError, InputError, OutputError, _write_all
+from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
 from .estimation import FitResult, fit as _fit
 from ._core_estimation import chi2_sf_many, mc_summary
 from .progress import progress
@@ -281,19 +281,16 @@ class Consistency:
                         f"{self.normalized[nm][k]:.17g}", self.flags[k][j] or ""]
             row.append('"' + self.messages[k].replace('"', "'") + '"')
             lines.append(",".join(row))
-        _atomic_write(path, "\n".join(lines) + "\n")
+        _write_text(path, "\n".join(lines) + "\n")
         return path
 
     def plot(self, path: str | os.PathLike | None = None, ax: Any = None):
         """Histograms of the normalized errors (est - truth) / sigma of every
         parameter against the N(0, 1) density, and of the chi-square against
         chi-square(dof). Writes a PNG when ``path`` is given; returns the figure."""
-        import matplotlib
+        from .plotting import agg_pyplot
 
-        if path is not None:
-            matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
+        plt = agg_pyplot(path is not None, force=False)
         panels = len(self.free) + (1 if self.dof > 0 else 0)
         fig, axes = plt.subplots(1, panels, figsize=(3.6 * panels, 3.4), squeeze=False)
         grid = np.linspace(-4.0, 4.0, 201)
@@ -326,12 +323,6 @@ class Consistency:
         if path is not None:
             _save_figure(fig, Path(path))
         return fig
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    """Write a text file all or none (beamid.errors._write_all)."""
-
-    _write_all([(path, lambda tmp: Path(tmp).write_text(text))])
 
 
 def _save_figure(fig, path: Path) -> None:

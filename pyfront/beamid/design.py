@@ -36,8 +36,8 @@ from typing import Any, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
-from .consistency import _atomic_write, _check_fit, _deck_fit, _output_prefix, _save_figure
-from .errors import InputError
+from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
+from .errors import InputError, _write_text
 from .estimation import FitResult, predict
 from .loads import Release
 from .measurements import QUANTITIES, Measurements
@@ -114,12 +114,9 @@ class Advice:
     def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
         """Horizontal bars of the predicted criterion of the best ``top``
         candidates, with the current value; writes a PNG when ``path`` is given."""
-        import matplotlib
+        from .plotting import agg_pyplot
 
-        if path is not None:
-            matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
+        plt = agg_pyplot(path is not None, force=False)
         entries = list(self.ranking[:top])[::-1]
         if ax is None:
             fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(entries) + 1.4))
@@ -426,10 +423,8 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     lines = ["rank,experiment,quantity,sigma,predicted"]
     lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
               for i, ((e, q), v) in enumerate(adv.ranking)]
-    csv = Path(f"{prefix}_design.csv")
-    _atomic_write(csv, f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
-                  + "\n".join(lines) + "\n")
-    files = [csv]
+    files = _write_text(Path(f"{prefix}_design.csv"), f"# beamid design: {adv.criterion}, "
+                        f"now {adv.current:.17g}\n" + "\n".join(lines) + "\n")
     if plots:
         png = Path(f"{prefix}_design.png")
         adv.plot(png, top=min(top, 15))

@@ -23,7 +23,7 @@ from typing import Any
 
 from . import _core
 from .diagnosis import Ladder, _run_ladder, compare
-from .errors import InputError, _write_all
+from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
                          _result as _fit_result)
 from . import _core_estimation as _ce
@@ -284,7 +284,6 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
     else:   # one stage a deck; the CSV all or none (errors._write_all)
-
         names: list[str] = []
         for d in parsed:
             base = Path(d.output).name or d.path.stem
@@ -297,8 +296,7 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
                   f"{r.sigma_after:.16E}" for r in result.table]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
-        files = _write_all([(prefix.with_name(prefix.name + "_identify.csv"),
-                             lambda tmp: Path(tmp).write_text(text))])
+        files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
         files.append(_identify_figure(result, prefix))
     return result.summary() + "\n" + result.final.summary(), files, result
