@@ -477,9 +477,9 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
-    raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+    raw = _ce.problem_diagnose(prob, model.vector(), free_idx,
+                               _prior_arrays(model, fit.free, fit.prior)[1], blocks, alpha,
                                int(nrefit), ambiguity_delta, collinear, nominal.vector(),
                                with_mesh)
     return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
@@ -623,9 +623,9 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     block = np.array([model.index(n) + 1 for n in params], np.int32)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    prior_map, ptable = _prior_arrays(model, fit.free, fit.prior)
     try:
-        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter),
+        raw = _ce.fit(prob, model.vector(), free_idx, ptable, max_iter=int(max_iter),
                       block=block, nominal=nominal.vector(), start_mask=mask)
     except ConvergenceError as exc:
         raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
@@ -724,10 +724,10 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
     free_names, free_idx = _free_indices(model, free)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    prior_map, ptable = _prior_arrays(model, free_names, prior)
     with _ce.LADDER_LOCK:
         _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx,
-                         pidx, pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
+                         ptable, blocks, with_mesh, alpha, limit, int(max_iter))
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
 
 

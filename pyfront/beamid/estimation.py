@@ -203,10 +203,8 @@ def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], n
 
 def _prior_arrays(model: Model, free: tuple[str, ...],
                   prior: Mapping[str, tuple[float, float]] | None):
-    prior = dict(prior or {})
-    idx, mean, sig = [], [], []
-    out = {}
-    for name, spec in prior.items():
+    out, rows = {}, []
+    for name, spec in dict(prior or {}).items():
         canonical = model.names()[model.index(name)]
         if canonical not in free:
             raise InputError(f"prior names {name!r}, which is not free (free: "
@@ -218,11 +216,9 @@ def _prior_arrays(model: Model, free: tuple[str, ...],
         if not (math.isfinite(m) and math.isfinite(s) and s > 0.0):
             raise InputError(f"prior[{name!r}] = ({m:g}, {s:g}), expected a finite mean and "
                              "sigma > 0")
-        idx.append(model.index(canonical) + 1)
-        mean.append(m)
-        sig.append(s)
+        rows.append((model.index(canonical) + 1, m, s))
         out[canonical] = (m, s)
-    return out, np.array(idx, np.int32), np.array(mean), np.array(sig)
+    return out, _ce.prior_table(rows)
 
 
 def _named(model: Model, text: str) -> str:
@@ -348,12 +344,11 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         prob.exp_values[_EV_FD, rel] = 2.0
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
-        prior_map, pidx, pmean, psig, pcov = _carried_prior(model, prior)
+        prior_map, ptable, pcov = _carried_prior(model, prior)
     else:
         free_names, free_idx = _free_indices(model, free)
-        (prior_map, pidx, pmean, psig), pcov = _prior_arrays(model, free_names, prior), None
-    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, prior_cov=pcov,
-                  max_iter=int(max_iter))
+        (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
+    raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
 
 
@@ -365,18 +360,17 @@ def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, .
 
 
 def _carried_prior(model: Model, prior: "FitResult"):
-    """A previous fit as a priori information: (prior by name, indices,
-    estimates, sigmas, full covariance) (Eq. 146-148, 164-166)."""
+    """A previous fit as a priori information: (prior by name, its
+    prior_table, full covariance) (Eq. 146-148, 164-166)."""
     cov = np.asarray(prior.cov, float)
     if not np.all(np.isfinite(cov)):
         bad = [n for n in prior.free if not math.isfinite(prior.sigmas[n])]
         raise InputError(f"prior: the previous fit did not determine {', '.join(bad) or 'all'}"
                          " (infinite sigma): its covariance cannot be carried forward")
     names = tuple(model.names()[model.index(n)] for n in prior.free)
-    idx = np.array([model.index(n) + 1 for n in names], np.int32)
-    mean = np.array([prior.estimates[n] for n in prior.free])
-    pmap = {n: (float(m), float(np.sqrt(cov[i, i]))) for i, (n, m) in enumerate(zip(names, mean))}
-    return pmap, idx, mean, np.sqrt(np.diag(cov)), cov
+    rows = [(model.index(n) + 1, float(prior.estimates[f]), float(np.sqrt(cov[i, i])))
+            for i, (n, f) in enumerate(zip(names, prior.free))]
+    return {n: (m, s) for n, (_, m, s) in zip(names, rows)}, _ce.prior_table(rows), cov
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
