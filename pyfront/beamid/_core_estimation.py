@@ -164,11 +164,11 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
         max_iter: int = 50, block: np.ndarray | None = None, nominal: np.ndarray | None = None,
         start_mask: int = 0, prior_cov: np.ndarray | None = None) -> dict:
     """Weighted Gauss-Newton/LM fit of any mix of experiment families
-    (``block`` empty; ``prior`` a :func:`prior_table`), or the refit of a fit at ``params0`` with the
+    (``block`` empty), or the refit of a fit at ``params0`` with the
     parameters ``block`` freed as well, from the first-order estimate, from
     ``nominal`` and by continuation (1-based indices; ``start_mask`` bits 1,
     2, 4 choose the first-order, nominal and continuation starts, 0 all);
-    with ``prior_cov`` the a priori information is a full covariance (a
+    ``prior`` a :func:`prior_table`, with ``prior_cov`` a full covariance (a
     previous fit carried forward, Eq. 146-148).
     Returns a dict of arrays; a fit that stalls or whose parameter runs away
     comes back with ``stop`` and ``note`` saying so. Raises ConvergenceError

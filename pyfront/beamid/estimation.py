@@ -155,30 +155,27 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     kinds = np.zeros(len(names), np.int32)
     values = np.zeros((_ce.NEXPVAL, len(names)))
     for j, name in enumerate(names):
-        kind, v = exps[name].encode()
-        kinds[j] = kind
+        kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
-    for i in range(len(data)):
-        x = exps[data.experiment[i]]
+    for i, (e, q) in enumerate(zip(data.experiment, data.quantity)):
+        x = exps[e]
         if isinstance(x, Release):
-            if data.quantity[i] == "wire_force":
+            if q == "wire_force":
                 raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                                 f"experiment {data.experiment[i]!r} is a release (no wire)")
-            if data.quantity[i] == "motor_torque" and not x.has_motor:
+                                 f"experiment {e!r} is a release (no wire)")
+            if q == "motor_torque" and not x.has_motor:
                 raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                                 f"experiment {data.experiment[i]!r} has no motor "
-                                 "(motor_gain = 0)")
+                                 f"experiment {e!r} has no motor (motor_gain = 0)")
             continue
-        if data.quantity[i] == "motor_torque":
+        if q == "motor_torque":
             raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                             f"experiment {data.experiment[i]!r} is static (no motor)")
+                             f"experiment {e!r} is static (no motor)")
         if data.t[i] != 0.0:
             raise InputError(f"{data._where(i)}: field t = {data.t[i]:g}, expected 0 for "
-                             f"the static experiment {data.experiment[i]!r}")
-        if data.quantity[i] == "wire_force" and not isinstance(exps[data.experiment[i]],
-                                                                RadialWire):
+                             f"the static experiment {e!r}")
+        if q == "wire_force" and not isinstance(x, RadialWire):
             raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                             f"experiment {data.experiment[i]!r} has no wire")
+                             f"experiment {e!r} has no wire")
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
