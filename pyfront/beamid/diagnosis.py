@@ -526,7 +526,10 @@ def _undetermined(fit: FitResult) -> list[str]:
             ] if flagged else []
 
 
-def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
+def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each,
+                     notes: Sequence[str] = ()) -> str:
+    """The verdict in words; ``notes`` (lines on the verdict's parameters)
+    stand after the rivals, before what would separate them."""
     lines = _undetermined(fit)
     if verdict is None:
         p = _ce.chi2_sf(fit.chi2 + fit.chi2_prior, fit.dof) if fit.dof > 0 else math.nan
@@ -574,11 +577,13 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each)
         lines.append(f"ambiguous: {verdict.effect} and {names} explain the residuals about "
                      f"as well (chi-square drops " + ", ".join(
                          f"{c.effect} {c.chi2_drop:.3g}" for c in (verdict, *rivals)) + ")")
-        for r in rivals:
-            if r.separating:
-                e, q, k = r.separating
-                lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q} in "
-                             f"experiment {e} (their refits differ there by {k:.3g} sigma)")
+    lines += notes
+    for r in rivals:
+        if r.separating:
+            (e, q, k), t = r.separating, getattr(r, "separating_time", None)
+            when = f" at t = {t:g} s" if t is not None else ""
+            lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q}{when} in "
+                         f"experiment {e} (their refits differ there by {k:.3g} sigma)")
     return "\n".join(lines)
 
 
