@@ -24,7 +24,7 @@ import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -362,13 +362,6 @@ class Diagnosis(_ByRankAndName):
         return "\n".join(lines)
 
 
-def _candidate_blocks(model: Model, candidates: Iterable[str | Effect]):
-    effects = [_effect(c) for c in candidates]
-    names = [e.params(model) for e in effects]
-    blocks = [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names]
-    return effects, names, blocks
-
-
 def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: Model,
                exp_names: list[str], cls: type | None = None, keep: np.ndarray | None = None,
                **extra: Any) -> Candidate:
@@ -498,7 +491,10 @@ def _candidate_set(model: Model, experiments, candidates):
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
-    return (any(mesh), *_candidate_blocks(model, [c for c, m in zip(cands, mesh) if not m]))
+    effects = [_effect(c) for c, m in zip(cands, mesh) if not m]
+    names = [e.params(model) for e in effects]
+    return (any(mesh), effects, names,
+            [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names])
 
 
 def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
