@@ -66,10 +66,9 @@ class Ranking(list):
 
     def rank(self, key: tuple[str, str]) -> int:
         """0-based rank of a candidate measurement."""
-        for i, entry in enumerate(self):
-            if entry.key == tuple(key):
-                return i
-        raise KeyError(f"no candidate measurement {key!r}")
+        if tuple(key) not in self.keys():
+            raise KeyError(f"no candidate measurement {key!r}")
+        return self.keys().index(tuple(key))
 
     def keys(self) -> list[tuple[str, str]]:
         return [e.key for e in self]
@@ -362,9 +361,7 @@ def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Me
             out[q.strip()] = _sigma_of({q.strip(): v.strip()}, q.strip())
         else:
             default = _sigma_of(item, "all quantities")
-    for q in quantities:
-        if q in out:
-            continue
+    for q in (q for q in quantities if q not in out):
         if default is not None:
             out[q] = default
             continue

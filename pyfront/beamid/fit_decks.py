@@ -251,13 +251,6 @@ def identify_deck(deck: FitDeck) -> Any:
         return _identify(deck.model, stages, 50, None, stage_fit)
 
 
-def _identify_figure(result: Any, prefix: Path) -> Path:
-    from .plotting import agg_pyplot, save_png
-
-    agg_pyplot()
-    return save_png(result.plot().figure, prefix.with_name(prefix.name + "_identify.png"), 100)
-
-
 def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
     """``beamid identify DECK [DECK ...]``: each estimation deck is a stage
     (static -> free -> forced), run in order by :func:`beamid.identify`
@@ -298,5 +291,9 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
         files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
-        files.append(_identify_figure(result, prefix))
+        from .plotting import agg_pyplot, save_png
+
+        agg_pyplot()
+        files.append(save_png(result.plot().figure,
+                              prefix.with_name(prefix.name + "_identify.png"), 100))
     return result.summary() + "\n" + result.final.summary(), files, result
