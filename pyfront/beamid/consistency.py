@@ -319,21 +319,20 @@ class Consistency:
             ax_.set_title("chi-square of the replicates", fontsize=9)
             ax_.set_xlabel("chi2")
             ax_.legend(fontsize=7)
-        fig.tight_layout()
-        if path is not None:
-            _save_figure(fig, Path(path))
+        _save_figure(fig, path)
         return fig
 
 
-def _save_figure(fig, path: Path) -> None:
-    """Save a matplotlib figure as PNG all or none (beamid.errors._write_all), then close it."""
+def _save_figure(fig, path: str | os.PathLike | None) -> None:
+    """Lay the figure out; at ``path`` (if given) save it as PNG all or none, then close it."""
     import matplotlib.pyplot as plt
 
-
-    try:
-        _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
-    finally:
-        plt.close(fig)
+    fig.tight_layout()
+    if path is not None:
+        try:
+            _write_all([(Path(path), lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
+        finally:
+            plt.close(fig)
 
 
 def _output_prefix(deck_path, out, default: Path) -> Path:

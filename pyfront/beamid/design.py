@@ -146,9 +146,7 @@ class Advice:
         ax.set_xlabel(self.criterion)
         ax.set_title("which measurement next (best at the top)", fontsize=9)
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        if path is not None:
-            _save_figure(fig, Path(path))
+        _save_figure(fig, path)
         return ax
 
 
