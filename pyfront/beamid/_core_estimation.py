@@ -47,6 +47,12 @@ class Problem:
     row_t: np.ndarray         # (nrow,) times of the rows (0 for static experiments)
     tol: float = 0.0
 
+    def rows(self) -> tuple:
+        """The experiments, the rows and the tolerance in the order the fit,
+        diagnose and ladder entries take them."""
+        return (self.exp_kind, self.exp_values, self.row_exp, self.row_t, self.row_q,
+                self.row_value, self.row_sigma, float(self.tol))
+
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
 NEXPVAL = 12
@@ -63,10 +69,10 @@ def problem_predict(prob: Problem, params: np.ndarray,
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
-def _prior(index, mean, sigma) -> np.ndarray:
+def prior_table(rows) -> np.ndarray:
     """A priori information as the binding takes it: a column [1-based
-    parameter index, mean, sigma] per parameter."""
-    return np.asfortranarray(np.array([index, mean, sigma], float).reshape(3, -1))
+    parameter index, mean, sigma] per parameter (``rows``: those triples)."""
+    return np.asfortranarray(np.array(rows, float).T.reshape(3, -1))
 
 
 def chi2_sf(x: float, k: int) -> float:
@@ -154,16 +160,15 @@ def _fit_call(entry, n: int, refit: bool, *args) -> dict:
     return result
 
 
-def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-        prior_mean: np.ndarray, prior_sigma: np.ndarray, max_iter: int = 50,
-        block: np.ndarray | None = None, nominal: np.ndarray | None = None,
+def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
+        max_iter: int = 50, block: np.ndarray | None = None, nominal: np.ndarray | None = None,
         start_mask: int = 0, prior_cov: np.ndarray | None = None) -> dict:
     """Weighted Gauss-Newton/LM fit of any mix of experiment families
     (``block`` empty), or the refit of a fit at ``params0`` with the
     parameters ``block`` freed as well, from the first-order estimate, from
     ``nominal`` and by continuation (1-based indices; ``start_mask`` bits 1,
     2, 4 choose the first-order, nominal and continuation starts, 0 all);
-    with ``prior_cov`` the a priori information is a full covariance (a
+    ``prior`` a :func:`prior_table`, with ``prior_cov`` a full covariance (a
     previous fit carried forward, Eq. 146-148).
     Returns a dict of arrays; a fit that stalls or whose parameter runs away
     comes back with ``stop`` and ``note`` saying so. Raises ConvergenceError
@@ -175,10 +180,8 @@ def fit(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndar
     nominal = params0 if nominal is None else np.asarray(nominal, float)
     cov = np.zeros(0) if prior_cov is None else np.ravel(prior_cov, order="F").astype(float)
     return _fit_call(_api.api_fit_effect, free.size + block.size, bool(block.size),
-                     prob.nbeams, params0, free, block, nominal,
-                     _prior(prior_idx, prior_mean, prior_sigma), cov, prob.exp_kind,
-                     prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
-                     prob.row_sigma, float(prob.tol), int(max_iter), int(start_mask))
+                     prob.nbeams, params0, free, block, nominal, prior, cov, *prob.rows(),
+                     int(max_iter), int(start_mask))
 
 
 def time_structure(t: np.ndarray, normalized: np.ndarray) -> np.ndarray:
@@ -217,8 +220,7 @@ def _diag_dict(out, starts: np.ndarray) -> dict:
             "notes": [line.strip() for line in lines[:nc]]}
 
 
-def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
-                     prior_idx: np.ndarray, prior_mean: np.ndarray, prior_sigma: np.ndarray,
+def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
                      blocks: list[np.ndarray], alpha: float, nrefit: int,
                      ambiguity_delta: float, collinear: float, nominal: np.ndarray,
                      with_mesh: bool = False, max_iter: int = 50) -> dict:
@@ -229,10 +231,8 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
     starts, flat = _blocks(blocks)
     return _diag_dict(_call(
         _api.api_problem_diagnose, prob.nbeams, np.asarray(params0, float),
-        np.asarray(nominal, float), np.asarray(free, np.int32),
-        _prior(prior_idx, prior_mean, prior_sigma), prob.exp_kind, prob.exp_values,
-        prob.row_exp, prob.row_t, prob.row_q, prob.row_value, prob.row_sigma,
-        float(prob.tol), int(max_iter), starts, flat, float(alpha), int(nrefit),
+        np.asarray(nominal, float), np.asarray(free, np.int32), prior, *prob.rows(),
+        int(max_iter), starts, flat, float(alpha), int(nrefit),
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
 
 
@@ -244,18 +244,16 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray,
 LADDER_LOCK = threading.RLock()
 
 
-def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior_idx: np.ndarray,
-                 prior_mean: np.ndarray, prior_sigma: np.ndarray, blocks: list[np.ndarray],
-                 with_mesh: bool, alpha: float, max_steps: int, max_iter: int = 50) -> None:
+def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
+                 blocks: list[np.ndarray], with_mesh: bool, alpha: float, max_steps: int,
+                 max_iter: int = 50) -> None:
     """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
     runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
     rungs (the extension holds one ladder at a time)."""
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
-          np.asarray(free, np.int32), _prior(prior_idx, prior_mean, prior_sigma),
-          prob.exp_kind, prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
-          prob.row_sigma, float(prob.tol), int(max_iter), starts, flat, int(bool(with_mesh)),
-          float(alpha), int(max_steps))
+          np.asarray(free, np.int32), prior, *prob.rows(), int(max_iter), starts, flat,
+          int(bool(with_mesh)), float(alpha), int(max_steps))
 
 
 def ladder_step() -> bool:

@@ -29,12 +29,6 @@ SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 
                      "output": "out/simulate"}
 
 
-def _version() -> str:
-    from . import __version__
-
-    return __version__
-
-
 def _print_files(files) -> None:
     for f in files:
         print(f"wrote {f}")
@@ -44,12 +38,12 @@ def _print_files(files) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .decks import read_deck, run
-    from .fit_decks import FitDeck
+    from .fit_decks import FitDeck, run_fit_deck
     from .static import StaticResult
 
     deck = read_deck(args.deck)
     if isinstance(deck, FitDeck):         # estimation decks: the deck's own task
-        return _estimation(deck, plots=not args.no_plots)
+        return _report(run_fit_deck(deck, plots=not args.no_plots))
     started = time.time()
     result = run(deck)
     prefix = deck.output_prefix
@@ -90,19 +84,12 @@ def _report(result, one_line: bool = False) -> int:
     return EXIT_OK
 
 
-def _estimation(deck, plots: bool) -> int:
-    from .fit_decks import run_fit_deck
-
-    return _report(run_fit_deck(deck, plots=plots))
-
-
 def _cmd_estimate(args: argparse.Namespace) -> int:
-    from .fit_decks import read_fit_deck
+    from .fit_decks import read_fit_deck, run_fit_deck
 
-    deck = read_fit_deck(args.deck)
     # the subcommand overrides the deck's task (docs/decks.md): `beamid fit` fits only
-    deck = dataclasses.replace(deck, task=args.command)
-    return _estimation(deck, plots=not args.no_plots)
+    deck = dataclasses.replace(read_fit_deck(args.deck), task=args.command)
+    return _report(run_fit_deck(deck, plots=not args.no_plots))
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
@@ -389,13 +376,15 @@ def _commands() -> list:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     parser = argparse.ArgumentParser(
         prog="beamid",
         description="Large deformation of flexible beam chains and the inverse problem "
                     "(after McVay 1996).",
         epilog="exit codes: 0 ok, 1 a published value not reproduced, 2 bad input, "
                "3 no convergence, 4 an output file cannot be written, 5 internal error")
-    parser.add_argument("--version", action="version", version=f"beamid {_version()}")
+    parser.add_argument("--version", action="version", version=f"beamid {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, func, text, description, arguments in _commands():
         p = sub.add_parser(name, help=text, description=description)

@@ -48,7 +48,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import BeamidError, InputError, OutputError, _write_all
+from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
 from .estimation import FitResult, fit as _fit
 from ._core_estimation import chi2_sf_many, mc_summary
 from .progress import progress
@@ -281,19 +281,16 @@ class Consistency:
                         f"{self.normalized[nm][k]:.17g}", self.flags[k][j] or ""]
             row.append('"' + self.messages[k].replace('"', "'") + '"')
             lines.append(",".join(row))
-        _atomic_write(path, "\n".join(lines) + "\n")
+        _write_text(path, "\n".join(lines) + "\n")
         return path
 
     def plot(self, path: str | os.PathLike | None = None, ax: Any = None):
         """Histograms of the normalized errors (est - truth) / sigma of every
         parameter against the N(0, 1) density, and of the chi-square against
         chi-square(dof). Writes a PNG when ``path`` is given; returns the figure."""
-        import matplotlib
+        from .plotting import agg_pyplot
 
-        if path is not None:
-            matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
+        plt = agg_pyplot(path is not None, force=False)
         panels = len(self.free) + (1 if self.dof > 0 else 0)
         fig, axes = plt.subplots(1, panels, figsize=(3.6 * panels, 3.4), squeeze=False)
         grid = np.linspace(-4.0, 4.0, 201)
@@ -322,27 +319,20 @@ class Consistency:
             ax_.set_title("chi-square of the replicates", fontsize=9)
             ax_.set_xlabel("chi2")
             ax_.legend(fontsize=7)
-        fig.tight_layout()
-        if path is not None:
-            _save_figure(fig, Path(path))
+        _save_figure(fig, path)
         return fig
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    """Write a text file all or none (beamid.errors._write_all)."""
-
-    _write_all([(path, lambda tmp: Path(tmp).write_text(text))])
-
-
-def _save_figure(fig, path: Path) -> None:
-    """Save a matplotlib figure as PNG all or none (beamid.errors._write_all), then close it."""
+def _save_figure(fig, path: str | os.PathLike | None) -> None:
+    """Lay the figure out; at ``path`` (if given) save it as PNG all or none, then close it."""
     import matplotlib.pyplot as plt
 
-
-    try:
-        _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
-    finally:
-        plt.close(fig)
+    fig.tight_layout()
+    if path is not None:
+        try:
+            _write_all([(Path(path), lambda tmp: fig.savefig(tmp, dpi=110, format="png"))])
+        finally:
+            plt.close(fig)
 
 
 def _output_prefix(deck_path, out, default: Path) -> Path:

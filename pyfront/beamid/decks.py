@@ -20,7 +20,7 @@ from typing import Any
 import f90nml
 
 from . import fe
-from .errors import _write_all
+from .errors import _write_text
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
 from .fit_decks import run_fit_deck
@@ -110,7 +110,7 @@ def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     groups["static"] = static
     nml = f90nml.Namelist(groups)
     nml.float_format = ".17g"
-    _write_all([(Path(path), lambda tmp: Path(tmp).write_text(str(nml) + "\n"))])
+    _write_text(path, str(nml) + "\n")
 
 
 def history_columns(nbeams: int) -> tuple[str, ...]:

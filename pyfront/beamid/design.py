@@ -36,8 +36,8 @@ from typing import Any, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
-from .consistency import _atomic_write, _check_fit, _deck_fit, _output_prefix, _save_figure
-from .errors import InputError
+from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
+from .errors import InputError, _write_text
 from .estimation import FitResult, predict
 from .loads import Release
 from .measurements import QUANTITIES, Measurements
@@ -66,10 +66,9 @@ class Ranking(list):
 
     def rank(self, key: tuple[str, str]) -> int:
         """0-based rank of a candidate measurement."""
-        for i, entry in enumerate(self):
-            if entry.key == tuple(key):
-                return i
-        raise KeyError(f"no candidate measurement {key!r}")
+        if tuple(key) not in self.keys():
+            raise KeyError(f"no candidate measurement {key!r}")
+        return self.keys().index(tuple(key))
 
     def keys(self) -> list[tuple[str, str]]:
         return [e.key for e in self]
@@ -114,12 +113,9 @@ class Advice:
     def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
         """Horizontal bars of the predicted criterion of the best ``top``
         candidates, with the current value; writes a PNG when ``path`` is given."""
-        import matplotlib
+        from .plotting import agg_pyplot
 
-        if path is not None:
-            matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
+        plt = agg_pyplot(path is not None, force=False)
         entries = list(self.ranking[:top])[::-1]
         if ax is None:
             fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(entries) + 1.4))
@@ -150,9 +146,7 @@ class Advice:
         ax.set_xlabel(self.criterion)
         ax.set_title("which measurement next (best at the top)", fontsize=9)
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        if path is not None:
-            _save_figure(fig, Path(path))
+        _save_figure(fig, path)
         return ax
 
 
@@ -365,9 +359,7 @@ def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Me
             out[q.strip()] = _sigma_of({q.strip(): v.strip()}, q.strip())
         else:
             default = _sigma_of(item, "all quantities")
-    for q in quantities:
-        if q in out:
-            continue
+    for q in (q for q in quantities if q not in out):
         if default is not None:
             out[q] = default
             continue
@@ -426,10 +418,8 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     lines = ["rank,experiment,quantity,sigma,predicted"]
     lines += [f"{i + 1},{e},{q},{adv.sigma[(e, q)]:.17g},{v:.17g}"
               for i, ((e, q), v) in enumerate(adv.ranking)]
-    csv = Path(f"{prefix}_design.csv")
-    _atomic_write(csv, f"# beamid design: {adv.criterion}, now {adv.current:.17g}\n"
-                  + "\n".join(lines) + "\n")
-    files = [csv]
+    files = _write_text(Path(f"{prefix}_design.csv"), f"# beamid design: {adv.criterion}, "
+                        f"now {adv.current:.17g}\n" + "\n".join(lines) + "\n")
     if plots:
         png = Path(f"{prefix}_design.png")
         adv.plot(png, top=min(top, 15))

@@ -24,7 +24,7 @@ import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -362,13 +362,6 @@ class Diagnosis(_ByRankAndName):
         return "\n".join(lines)
 
 
-def _candidate_blocks(model: Model, candidates: Iterable[str | Effect]):
-    effects = [_effect(c) for c in candidates]
-    names = [e.params(model) for e in effects]
-    blocks = [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names]
-    return effects, names, blocks
-
-
 def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: Model,
                exp_names: list[str], cls: type | None = None, keep: np.ndarray | None = None,
                **extra: Any) -> Candidate:
@@ -477,9 +470,9 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
-    _, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
     nominal = _nominal(fit, nominal)
-    raw = _ce.problem_diagnose(prob, model.vector(), free_idx, pidx, pmean, psig, blocks, alpha,
+    raw = _ce.problem_diagnose(prob, model.vector(), free_idx,
+                               _prior_arrays(model, fit.free, fit.prior)[1], blocks, alpha,
                                int(nrefit), ambiguity_delta, collinear, nominal.vector(),
                                with_mesh)
     return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
@@ -498,7 +491,10 @@ def _candidate_set(model: Model, experiments, candidates):
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
-    return (any(mesh), *_candidate_blocks(model, [c for c, m in zip(cands, mesh) if not m]))
+    effects = [_effect(c) for c, m in zip(cands, mesh) if not m]
+    names = [e.params(model) for e in effects]
+    return (any(mesh), effects, names,
+            [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names])
 
 
 def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tuple[str, ...]],
@@ -526,7 +522,10 @@ def _undetermined(fit: FitResult) -> list[str]:
             ] if flagged else []
 
 
-def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each) -> str:
+def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each,
+                     notes: Sequence[str] = ()) -> str:
+    """The verdict in words; ``notes`` (lines on the verdict's parameters)
+    stand after the rivals, before what would separate them."""
     lines = _undetermined(fit)
     if verdict is None:
         p = _ce.chi2_sf(fit.chi2 + fit.chi2_prior, fit.dof) if fit.dof > 0 else math.nan
@@ -574,11 +573,13 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each)
         lines.append(f"ambiguous: {verdict.effect} and {names} explain the residuals about "
                      f"as well (chi-square drops " + ", ".join(
                          f"{c.effect} {c.chi2_drop:.3g}" for c in (verdict, *rivals)) + ")")
-        for r in rivals:
-            if r.separating:
-                e, q, k = r.separating
-                lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q} in "
-                             f"experiment {e} (their refits differ there by {k:.3g} sigma)")
+    lines += notes
+    for r in rivals:
+        if r.separating:
+            (e, q, k), t = r.separating, getattr(r, "separating_time", None)
+            when = f" at t = {t:g} s" if t is not None else ""
+            lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q}{when} in "
+                         f"experiment {e} (their refits differ there by {k:.3g} sigma)")
     return "\n".join(lines)
 
 
@@ -623,9 +624,9 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     prob = build_problem(model, fit.experiments, fit.data)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
     block = np.array([model.index(n) + 1 for n in params], np.int32)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, fit.free, fit.prior)
+    prior_map, ptable = _prior_arrays(model, fit.free, fit.prior)
     try:
-        raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, max_iter=int(max_iter),
+        raw = _ce.fit(prob, model.vector(), free_idx, ptable, max_iter=int(max_iter),
                       block=block, nominal=nominal.vector(), start_mask=mask)
     except ConvergenceError as exc:
         raise ConvergenceError(_named(model, f"add_effect({eff.name!r}): {exc}")) from None
@@ -724,10 +725,10 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
     free_names, free_idx = _free_indices(model, free)
-    prior_map, pidx, pmean, psig = _prior_arrays(model, free_names, prior)
+    prior_map, ptable = _prior_arrays(model, free_names, prior)
     with _ce.LADDER_LOCK:
         _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx,
-                         pidx, pmean, psig, blocks, with_mesh, alpha, limit, int(max_iter))
+                         ptable, blocks, with_mesh, alpha, limit, int(max_iter))
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
 
 

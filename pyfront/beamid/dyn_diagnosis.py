@@ -218,28 +218,19 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
             f"sigma{where}; use {mesh.recommended} elements per beam (discretization error "
             f"below 0.3 sigma) before any physical effect is offered")
     else:
-        plain = tuple(dataclasses.replace(r, separating=None) for r in rivals)
-        text = _dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh), verdict,
-                                    plain, alpha, alpha_each)
-        lines.append(text)
+        notes = []
         alike = getattr(verdict, "ambiguous_with", ()) if verdict is not None else ()
         if alike:
-            lines.append(f"  ambiguous: {' or '.join(verdict.params + alike)} of "
+            notes.append(f"  ambiguous: {' or '.join(verdict.params + alike)} of "
                          f"{verdict.effect} (these data hardly tell them apart; "
                          f"{', '.join(verdict.params)} explains them a little better now, "
                          "and improve tests the others again once more effects are in)")
         rest = tuple(n for n in getattr(verdict, "left_at_null", ()) if n not in alike)
         if verdict is not None and rest:
-            lines.append(f"  {', '.join(rest)} of {verdict.effect} left at "
+            notes.append(f"  {', '.join(rest)} of {verdict.effect} left at "
                          "the null value: these data do not need or determine it")
-        for r in rivals:
-            if r.separating:
-                e, q, k = r.separating
-                t = getattr(r, "separating_time", None)
-                when = f" at t = {t:g} s" if t is not None else ""
-                lines.append(f"  to separate {verdict.effect} from {r.effect}: measure {q}"
-                             f"{when} in experiment {e} (their refits differ there by "
-                             f"{k:.3g} sigma)")
+        lines.append(_dg._verdict_message(fit, tuple(c for c in ranked if c is not mesh),
+                                          verdict, rivals, alpha, alpha_each, notes))
         if mesh is not None and mesh.state == "tested":
             lines.append(f"mesh: twice the elements per beam ({2 * mesh.elements_per_beam}) do "
                          f"not fit significantly better (chi-square drop "

@@ -293,6 +293,8 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     wrt_list = _wrt_indices(nbeams, params.size, wrt)
     d: dict = {}
     dstates: dict = {}
+    common = (nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
+              FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0)
     if wrt_list:
         if kept is not None:
             raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
@@ -300,9 +302,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
             raise InputError("wrt= (sensitivities) starts from the release: drop "
                              "initial_state=")
         (states, tip, torque, ledger, work, info, evs, yq, dy, ds) = _cd.release(
-            nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
-            FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
-            t, nstate, nwork, np.array([i for _, i in wrt_list]))
+            *common, t, nstate, nwork, np.array([i for _, i in wrt_list]))
         qnames = _cd.quantity_names()
         for iq, qn in enumerate(qnames):
             d[qn] = {name: dy[iq, :, j] for j, (name, _) in enumerate(wrt_list)}
@@ -311,14 +311,9 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         dstates = {name: ds[:, :, j] for j, (name, _) in enumerate(wrt_list)}
     else:
         states, tip, torque, ledger, work, info, evs = _cd.simulate(
-            nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
-            FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0,
-            initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
-    names = work_names(nbeams)
-    led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2]}
-    for i, name in enumerate(names):
-        led[name] = work[i]
-    led["numerical"] = ledger[3]
+            *common, initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
+    led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2],
+           **dict(zip(work_names(nbeams), work)), "numerical": ledger[3]}
     return Run(t=t, tip_u=tip[0], tip_w=tip[1], tip_angle=tip[2], energy=ledger[2],
                work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
                integrator=integrator, friction=friction,

@@ -93,6 +93,11 @@ def _write_all(outputs: list[tuple[Path, object]]) -> list[Path]:
     return [path for _, path in temps]
 
 
+def _write_text(path: Path, text: str) -> list[Path]:
+    """Write one text file all or none (:func:`_write_all`)."""
+    return _write_all([(Path(path), lambda tmp: Path(tmp).write_text(text))])
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

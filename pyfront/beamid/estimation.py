@@ -155,30 +155,27 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     kinds = np.zeros(len(names), np.int32)
     values = np.zeros((_ce.NEXPVAL, len(names)))
     for j, name in enumerate(names):
-        kind, v = exps[name].encode()
-        kinds[j] = kind
+        kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
-    for i in range(len(data)):
-        x = exps[data.experiment[i]]
+    for i, (e, q) in enumerate(zip(data.experiment, data.quantity)):
+        x = exps[e]
         if isinstance(x, Release):
-            if data.quantity[i] == "wire_force":
+            if q == "wire_force":
                 raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                                 f"experiment {data.experiment[i]!r} is a release (no wire)")
-            if data.quantity[i] == "motor_torque" and not x.has_motor:
+                                 f"experiment {e!r} is a release (no wire)")
+            if q == "motor_torque" and not x.has_motor:
                 raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                                 f"experiment {data.experiment[i]!r} has no motor "
-                                 "(motor_gain = 0)")
+                                 f"experiment {e!r} has no motor (motor_gain = 0)")
             continue
-        if data.quantity[i] == "motor_torque":
+        if q == "motor_torque":
             raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                             f"experiment {data.experiment[i]!r} is static (no motor)")
+                             f"experiment {e!r} is static (no motor)")
         if data.t[i] != 0.0:
             raise InputError(f"{data._where(i)}: field t = {data.t[i]:g}, expected 0 for "
-                             f"the static experiment {data.experiment[i]!r}")
-        if data.quantity[i] == "wire_force" and not isinstance(exps[data.experiment[i]],
-                                                                RadialWire):
+                             f"the static experiment {e!r}")
+        if q == "wire_force" and not isinstance(x, RadialWire):
             raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                             f"experiment {data.experiment[i]!r} has no wire")
+                             f"experiment {e!r} has no wire")
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -203,10 +200,8 @@ def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], n
 
 def _prior_arrays(model: Model, free: tuple[str, ...],
                   prior: Mapping[str, tuple[float, float]] | None):
-    prior = dict(prior or {})
-    idx, mean, sig = [], [], []
-    out = {}
-    for name, spec in prior.items():
+    out, rows = {}, []
+    for name, spec in dict(prior or {}).items():
         canonical = model.names()[model.index(name)]
         if canonical not in free:
             raise InputError(f"prior names {name!r}, which is not free (free: "
@@ -218,11 +213,9 @@ def _prior_arrays(model: Model, free: tuple[str, ...],
         if not (math.isfinite(m) and math.isfinite(s) and s > 0.0):
             raise InputError(f"prior[{name!r}] = ({m:g}, {s:g}), expected a finite mean and "
                              "sigma > 0")
-        idx.append(model.index(canonical) + 1)
-        mean.append(m)
-        sig.append(s)
+        rows.append((model.index(canonical) + 1, m, s))
         out[canonical] = (m, s)
-    return out, np.array(idx, np.int32), np.array(mean), np.array(sig)
+    return out, _ce.prior_table(rows)
 
 
 def _named(model: Model, text: str) -> str:
@@ -348,12 +341,11 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         prob.exp_values[_EV_FD, rel] = 2.0
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
-        prior_map, pidx, pmean, psig, pcov = _carried_prior(model, prior)
+        prior_map, ptable, pcov = _carried_prior(model, prior)
     else:
         free_names, free_idx = _free_indices(model, free)
-        (prior_map, pidx, pmean, psig), pcov = _prior_arrays(model, free_names, prior), None
-    raw = _ce.fit(prob, model.vector(), free_idx, pidx, pmean, psig, prior_cov=pcov,
-                  max_iter=int(max_iter))
+        (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
+    raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
     return _result(model, experiments, data, free_names, prior_map, raw)
 
 
@@ -365,18 +357,17 @@ def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, .
 
 
 def _carried_prior(model: Model, prior: "FitResult"):
-    """A previous fit as a priori information: (prior by name, indices,
-    estimates, sigmas, full covariance) (Eq. 146-148, 164-166)."""
+    """A previous fit as a priori information: (prior by name, its
+    prior_table, full covariance) (Eq. 146-148, 164-166)."""
     cov = np.asarray(prior.cov, float)
     if not np.all(np.isfinite(cov)):
         bad = [n for n in prior.free if not math.isfinite(prior.sigmas[n])]
         raise InputError(f"prior: the previous fit did not determine {', '.join(bad) or 'all'}"
                          " (infinite sigma): its covariance cannot be carried forward")
     names = tuple(model.names()[model.index(n)] for n in prior.free)
-    idx = np.array([model.index(n) + 1 for n in names], np.int32)
-    mean = np.array([prior.estimates[n] for n in prior.free])
-    pmap = {n: (float(m), float(np.sqrt(cov[i, i]))) for i, (n, m) in enumerate(zip(names, mean))}
-    return pmap, idx, mean, np.sqrt(np.diag(cov)), cov
+    rows = [(model.index(n) + 1, float(prior.estimates[f]), float(np.sqrt(cov[i, i])))
+            for i, (n, f) in enumerate(zip(names, prior.free))]
+    return {n: (m, s) for n, (_, m, s) in zip(names, rows)}, _ce.prior_table(rows), cov
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,

@@ -123,18 +123,26 @@ def _runs(runs: Mapping | None, gains: Iterable[float]) -> dict:
     return runs
 
 
+def _tip_figure(runs, gains: Sequence[float], quantity: str, title: str, ax):
+    """``quantity`` of the runs of ``gains`` against time (labelled by gain
+    when several), titled."""
+    runs = _runs(runs, gains)
+    ax = plot_tip_history([runs[float(g)] for g in gains], [f"g = {g:g}" for g in gains]
+                          if len(gains) > 1 else None, quantity=quantity, ax=ax)
+    ax.set_title(title)
+    return ax
+
+
 def figure20(runs: Mapping | None = None, ax=None):
     """Figure 20: tip transverse deflection over a period (friction)."""
-    ax = plot_tip_history([_runs(runs, [0.0])[0.0]], quantity="tip_w", ax=ax)
-    ax.set_title("Figure 20. Tip transverse deflection over a period")
-    return ax
+    return _tip_figure(runs, [0.0], "tip_w", "Figure 20. Tip transverse deflection over a "
+                       "period", ax)
 
 
 def figure21(runs: Mapping | None = None, ax=None):
     """Figure 21: tip longitudinal deflection over a period (friction)."""
-    ax = plot_tip_history([_runs(runs, [0.0])[0.0]], quantity="tip_u", ax=ax)
-    ax.set_title("Figure 21. Tip longitudinal deflection over a period")
-    return ax
+    return _tip_figure(runs, [0.0], "tip_u", "Figure 21. Tip longitudinal deflection over a "
+                       "period", ax)
 
 
 def figure22(runs: Mapping | None = None, ax=None):
@@ -144,26 +152,16 @@ def figure22(runs: Mapping | None = None, ax=None):
     return ax
 
 
-def _gain_figure(runs, quantity: str, title: str, ax):
-    runs = _runs(runs, GAINS)
-    ax = plot_tip_history([runs[float(g)] for g in GAINS], [f"g = {g:g}" for g in GAINS],
-                          quantity=quantity, ax=ax)
-    ax.set_title(title)
-    return ax
-
-
 def figure23(runs: Mapping | None = None, ax=None):
     """Figure 23: effect of the gain values on the tip transverse displacement."""
-    return _gain_figure(runs, "tip_w",
-                        "Figure 23. Effect of gain values on tip transverse displacements",
-                        ax)
+    return _tip_figure(runs, GAINS, "tip_w", "Figure 23. Effect of gain values on tip "
+                       "transverse displacements", ax)
 
 
 def figure24(runs: Mapping | None = None, ax=None):
     """Figure 24: effect of the gain values on the tip longitudinal displacement."""
-    return _gain_figure(runs, "tip_u",
-                        "Figure 24. Effect of gain values on tip longitudinal displacements",
-                        ax)
+    return _tip_figure(runs, GAINS, "tip_u", "Figure 24. Effect of gain values on tip "
+                       "longitudinal displacements", ax)
 
 
 def figure25(runs: Mapping | None = None, ax=None):

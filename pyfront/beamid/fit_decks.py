@@ -23,7 +23,7 @@ from typing import Any
 
 from . import _core
 from .diagnosis import Ladder, _run_ladder, compare
-from .errors import InputError, _write_all
+from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
                          _result as _fit_result)
 from . import _core_estimation as _ce
@@ -251,13 +251,6 @@ def identify_deck(deck: FitDeck) -> Any:
         return _identify(deck.model, stages, 50, None, stage_fit)
 
 
-def _identify_figure(result: Any, prefix: Path) -> Path:
-    from .plotting import agg_pyplot, save_png
-
-    agg_pyplot()
-    return save_png(result.plot().figure, prefix.with_name(prefix.name + "_identify.png"), 100)
-
-
 def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]:
     """``beamid identify DECK [DECK ...]``: each estimation deck is a stage
     (static -> free -> forced), run in order by :func:`beamid.identify`
@@ -284,7 +277,6 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         raise InputError(f"identify: {staged[0]} holds its own stages (task 'identify'): "
                          "give it alone")
     else:   # one stage a deck; the CSV all or none (errors._write_all)
-
         names: list[str] = []
         for d in parsed:
             base = Path(d.output).name or d.path.stem
@@ -297,8 +289,11 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
                   f"{r.sigma_after:.16E}" for r in result.table]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
-        files = _write_all([(prefix.with_name(prefix.name + "_identify.csv"),
-                             lambda tmp: Path(tmp).write_text(text))])
+        files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
-        files.append(_identify_figure(result, prefix))
+        from .plotting import agg_pyplot, save_png
+
+        agg_pyplot()
+        files.append(save_png(result.plot().figure,
+                              prefix.with_name(prefix.name + "_identify.png"), 100))
     return result.summary() + "\n" + result.final.summary(), files, result

@@ -8,11 +8,13 @@ from typing import Any, Sequence
 from .static import StaticResult
 
 
-def agg_pyplot() -> Any:
-    """``matplotlib.pyplot`` on the Agg backend (files only, no window)."""
+def agg_pyplot(agg: bool = True, force: bool = True) -> Any:
+    """``matplotlib.pyplot`` on the Agg backend (files only, no window; with
+    ``agg`` False, as it is; ``force``: as matplotlib.use's)."""
     import matplotlib
 
-    matplotlib.use("Agg")
+    if agg:
+        matplotlib.use("Agg", force=force)
     import matplotlib.pyplot as plt
 
     return plt

@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import Iterable, NamedTuple
 
 import numpy as np
@@ -45,6 +46,7 @@ def _output(name: str, doc: str) -> property:
     return property(get, doc=doc)
 
 
+@dataclass(eq=False, repr=False, slots=True)
 class StaticResult:
     """Converged static solution.
 
@@ -53,22 +55,16 @@ class StaticResult:
     ``x_tip``, ``y_tip``, ``x_elbow``, ``y_elbow``).
     """
 
-    __slots__ = ("model", "load", "wrt", "_outputs", "_doutputs", "unknowns",
-                 "newton_iterations", "load_steps", "tol", "_d")
-
-    def __init__(self, model: Model, load: Load, wrt: tuple[str, ...], outputs: np.ndarray,
-                 doutputs: np.ndarray, unknowns: np.ndarray, newton_iterations: int = 0,
-                 load_steps: int = 0, tol: float = 0.0):
-        self.model = model
-        self.load = load
-        self.wrt = wrt
-        self._outputs = outputs
-        self._doutputs = doutputs
-        self.unknowns = unknowns
-        self.newton_iterations = newton_iterations
-        self.load_steps = load_steps
-        self.tol = tol
-        self._d: dict[str, dict[str, float]] | None = None
+    model: Model
+    load: Load
+    wrt: tuple[str, ...]
+    _outputs: np.ndarray
+    _doutputs: np.ndarray
+    unknowns: np.ndarray
+    newton_iterations: int = 0
+    load_steps: int = 0
+    tol: float = 0.0
+    _d: dict[str, dict[str, float]] | None = field(default=None, init=False)
 
     @property
     def outputs(self) -> dict[str, float]:

@@ -127,13 +127,9 @@ def check_deck(deck: Deck) -> list[Check]:
     else:
         result = solve_static(deck.model, deck.load, tol=deck.tol)
         ours_of = lambda q: _quantity(result, q)  # noqa: E731
-    checks = []
-    for pub in deck.published:
-        for quantity, (value, digits) in pub.values.items():
-            ours = ours_of(quantity)
-            checks.append(Check(pub.table, pub.row, quantity, value, ours, digits,
-                                quantity in pub.deviations))
-    return checks
+    return [Check(pub.table, pub.row, quantity, value, ours_of(quantity), digits,
+                  quantity in pub.deviations)
+            for pub in deck.published for quantity, (value, digits) in pub.values.items()]
 
 
 def _quantity(result, quantity: str) -> float:
