@@ -314,6 +314,8 @@ contains
             dchi(RED_U) = d*g1 - b*g2
             sde = stiff_e*de
             sdchi = stiff_chi*dchi
+            ! unrolled: the pairs stay in registers (stack arrays stored per entry and
+            ! read back in pairs stall the store forwarding; 8 % of this routine)
             !GCC$ unroll 6
             do j = 1, RED_NDOF
                 !GCC$ unroll 6
