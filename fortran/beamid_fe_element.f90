@@ -314,7 +314,11 @@ contains
             dchi(RED_U) = d*g1 - b*g2
             sde = stiff_e*de
             sdchi = stiff_chi*dchi
+            ! unrolled: the pairs stay in registers (stack arrays stored per entry and
+            ! read back in pairs stall the store forwarding; 8 % of this routine)
+            !GCC$ unroll 6
             do j = 1, RED_NDOF
+                !GCC$ unroll 6
                 do i = 1, j + mod(j, 2), 2
                     k_red(i, j) = k_red(i, j) + sde(i)*de(j) + sdchi(i)*dchi(j)
                     k_red(i + 1, j) = k_red(i + 1, j) + sde(i + 1)*de(j) + sdchi(i + 1)*dchi(j)
