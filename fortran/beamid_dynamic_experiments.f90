@@ -216,7 +216,6 @@ contains
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
-        type(release_spec_t) :: spec
         type(release_out_t) :: out
         integer :: q
         if (x%fd) then
@@ -227,17 +226,9 @@ contains
         dy = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
-        spec%elements_per_beam = x%nepb
-        spec%load%fx = x%fx
-        spec%load%fy = x%fy
-        spec%load%moment = x%moment
-        spec%motor_gain = x%gain
-        spec%integrator = x%method
-        spec%rtol = x%rtol
-        spec%dt = x%dt
-        spec%friction = x%law
-        spec%friction_velocity = x%vslip
-        call sens_response(chain, spec, t_out, wrt, out, stat)
+        call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, &
+            x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
+            friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
         if (stat%code /= STATUS_OK) return
         do q = 1, NQUANT
             if (QTY_OF(q) == 0) cycle

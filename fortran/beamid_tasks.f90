@@ -254,25 +254,17 @@ contains
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         type(chain_t) :: chain
-        type(release_spec_t) :: spec
         type(release_out_t) :: out
         character(len=:), allocatable :: header, line
         integer :: unit, ios, k, i, nwork, nowrt(0)
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
-        spec%elements_per_beam = d%sim_elements_per_beam
-        spec%load%fx = d%load%fx
-        spec%load%fy = d%load%fy
-        spec%load%moment = d%load%moment
-        spec%motor_gain = d%sim_motor_gain
-        spec%integrator = d%sim_integrator
-        spec%friction = d%sim_friction
-        spec%friction_velocity = d%sim_friction_velocity
-        spec%dt = d%sim_dt
-        spec%rtol = d%sim_rtol
-        spec%atol = d%sim_atol
-        call release_response(chain, spec, d%sim_t_out, nowrt, out, st)
+        call release_response(chain, release_spec_t(elements_per_beam=d%sim_elements_per_beam, &
+            load=fe_load_t(d%load%fx, d%load%fy, d%load%moment), motor_gain=d%sim_motor_gain, &
+            integrator=d%sim_integrator, rtol=d%sim_rtol, atol=d%sim_atol, dt=d%sim_dt, &
+            friction=d%sim_friction, friction_velocity=d%sim_friction_velocity), d%sim_t_out, &
+            nowrt, out, st)
         if (st%code /= STATUS_OK) return
         nwork = out%nwork
 
