@@ -53,6 +53,10 @@ module beamid_deck
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
+    !> The words of integrator and friction (codes: read_choice's callers).
+    character(len=*), parameter :: INTEGRATORS(2) = [character(len=8) :: 'implicit', 'rk4']
+    character(len=*), parameter :: FRICTION_LAWS(3) = [character(len=12) :: 'sign', 'smooth', &
+                                                       'sign_literal']
 
     !> One stage of an identification deck (task identify: one &fit group
     !! per stage, in order; beamid_tasks carries each stage's estimates and
@@ -641,28 +645,14 @@ contains
         ev(EV_GAIN) = max(x, 0.0_dp)
         text = 'implicit'
         call nml_str(f, g, 'integrator', text, given, errors)
-        select case (trim(text))
-        case ('implicit')
-            ev(EV_METHOD) = 1.0_dp
-        case ('rk4')
-            ev(EV_METHOD) = 0.0_dp
-        case default
-            call add_error(errors, label//": integrator = '"//trim(text)// &
-                           "', expected 'implicit' or 'rk4'")
-        end select
+        i = 0
+        call read_choice(text, INTEGRATORS, [1, 0], "'", label//': integrator', i, errors)
+        ev(EV_METHOD) = real(i, dp)
         text = 'sign'
         call nml_str(f, g, 'friction', text, given, errors)
-        select case (trim(text))
-        case ('sign')
-            ev(EV_LAW) = 0.0_dp
-        case ('smooth')
-            ev(EV_LAW) = 1.0_dp
-        case ('sign_literal')
-            ev(EV_LAW) = 2.0_dp
-        case default
-            call add_error(errors, label//": friction = '"//trim(text)// &
-                           "', expected 'sign', 'smooth' or 'sign_literal'")
-        end select
+        i = 0
+        call read_choice(text, FRICTION_LAWS, [0, 1, 2], "'", label//': friction', i, errors)
+        ev(EV_LAW) = real(i, dp)
         x = 0.0_dp
         call nml_real(f, g, 'rtol', x, given, errors)
         if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': rtol = '// &
@@ -743,15 +733,8 @@ contains
                 call check_mesh_size(where, deck%nbeams, epb, deck%task == 'fe_modes', 1, &
                                      errors)
             end if
-            select case (trim(moment_form))
-            case ('eq78')
-                deck%fe_moment_form = 0
-            case ('exact')
-                deck%fe_moment_form = 1
-            case default
-                call add_error(errors, where//"moment_form = '"//trim(moment_form)// &
-                               "', expected 'eq78' or 'exact'")
-            end select
+            call read_choice(moment_form, [character(len=5) :: 'eq78', 'exact'], [0, 1], "'", &
+                             where//'moment_form', deck%fe_moment_form, errors)
             if (steps < 0) call add_error(errors, where//'steps = '//fmt_int(steps)// &
                                           ', expected 0 (default) or a positive count')
             if (tol < 0.0_dp) call add_error(errors, where//'tol = '//fmt_g(tol)// &
@@ -761,6 +744,27 @@ contains
             deck%fe_tol = tol
         end associate
     end subroutine read_fe_group
+
+    !> code = codes(i) when text is words(i); else an error '<key> = <q>text<q>,
+    !! expected <q>words(1)<q>, ... or <q>words(n)<q>' (key: the group's label
+    !! and the key) and code unchanged.
+    subroutine read_choice(text, words, codes, q, key, code, errors)
+        character(len=*), intent(in) :: text, words(:), q, key
+        integer, intent(in) :: codes(:)
+        integer, intent(inout) :: code
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: list
+        integer :: i
+        i = findloc(words, trim(text), 1)
+        if (i > 0) code = codes(i)
+        if (i > 0) return
+        list = ' or '//q//trim(words(size(words)))//q
+        do i = size(words) - 1, 1, -1
+            list = q//trim(words(i))//q//list
+            if (i > 1) list = ', '//list
+        end do
+        call add_error(errors, key//' = '//q//trim(text)//q//', expected '//list)
+    end subroutine read_choice
 
     !> Memory bound of a mesh: nbeams*epb elements, 4 unknowns per node; the
     !! banded solvers keep about 40 numbers per unknown, the modes (dense
@@ -926,28 +930,12 @@ contains
                 call check_mesh_size(where, deck%nbeams, epb, .false., &
                                      max(1, size(deck%sim_t_out)), errors)
             end if
-            select case (trim(integrator))
-            case ('rk4')
-                deck%sim_integrator = 0
-            case ('implicit')
-                deck%sim_integrator = 1
-            case default
-                call add_error(errors, where//'integrator = "'//trim(integrator)// &
-                               '", expected "implicit" or "rk4"')
-            end select
-            select case (trim(friction))
-            case ('')
-                deck%sim_friction = 0   ! the sign law (events) for both integrators
-            case ('sign')
-                deck%sim_friction = 0
-            case ('smooth')
-                deck%sim_friction = 1
-            case ('sign_literal')
-                deck%sim_friction = 2
-            case default
-                call add_error(errors, where//'friction = "'//trim(friction)// &
-                               '", expected "sign", "smooth" or "sign_literal"')
-            end select
+            call read_choice(integrator, INTEGRATORS, [1, 0], '"', where//'integrator', &
+                             deck%sim_integrator, errors)
+            ! '': the sign law (events) for both integrators
+            if (len_trim(friction) == 0) friction = 'sign'
+            call read_choice(friction, FRICTION_LAWS, [0, 1, 2], '"', where//'friction', &
+                             deck%sim_friction, errors)
             do i = 1, size(names) - 1
                 if (values(i) < 0.0_dp) call add_error(errors, where//trim(names(i))//' = '// &
                     fmt_g(values(i))//', expected 0 (default) or a positive number')
