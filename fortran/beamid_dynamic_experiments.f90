@@ -133,7 +133,8 @@ contains
         end if
     end function check_dynamic_row
 
-    !> Set up and validate the experiments and rows.
+    !> Set up and validate the experiments and rows (the list lengths and
+    !! experiment numbers as inverse_problem_init checked them).
     subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_quantity, self, stat)
         integer, intent(in) :: nbeams
         type(release_exp_t), intent(in) :: exps(:)
@@ -144,11 +145,6 @@ contains
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
         integer :: i
-        if (size(row_exp) /= size(row_quantity) .or. size(row_exp) /= size(row_t)) then
-            call set_status(stat, ERR_INPUT, where, 'row experiment, t and quantity lists '// &
-                            'differ in length')
-            return
-        end if
         do i = 1, size(exps)
             if (exps(i)%nepb < 1) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
@@ -163,12 +159,6 @@ contains
             end if
         end do
         do i = 1, size(row_exp)
-            if (row_exp(i) < 1 .or. row_exp(i) > size(exps)) then
-                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' names '// &
-                                'experiment '//fmt_int(row_exp(i))//', expected 1..'// &
-                                fmt_int(size(exps)))
-                return
-            end if
             why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_quantity(i))
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)

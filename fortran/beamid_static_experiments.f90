@@ -84,7 +84,8 @@ contains
         end if
     end function quantity_label
 
-    !> Set up and validate the experiments and rows.
+    !> Set up and validate the experiments and rows (the list lengths and
+    !! experiment numbers as inverse_problem_init checked them).
     pure subroutine static_experiments_init(nbeams, loads, row_exp, row_quantity, tol, &
                                             self, stat)
         integer, intent(in) :: nbeams
@@ -95,17 +96,9 @@ contains
         type(status_t), intent(inout) :: stat
         integer :: i
         character(len=:), allocatable :: problem
-        if (size(row_exp) /= size(row_quantity)) then
-            call set_status(stat, ERR_INPUT, 'static experiments', 'row experiment and '// &
-                            'quantity lists differ in length')
-            return
-        end if
         problem = ''
         do i = 1, size(row_exp)
-            if (row_exp(i) < 1 .or. row_exp(i) > size(loads)) then
-                problem = ' names experiment '//fmt_int(row_exp(i))//', expected 1..'// &
-                          fmt_int(size(loads))
-            else if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
+            if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
                 problem = ' has quantity code '//fmt_int(row_quantity(i))//', expected 1..'// &
                           fmt_int(NQUANT)
             else if (row_quantity(i) == Q_WIRE_FORCE .and. &
