@@ -580,13 +580,8 @@ contains
         last = 0
         if (present(stations)) then
             nst = size(stations)
-            first = nst + 1
-            do j = 1, nst
-                if (stations(j) > s0 .or. (i == 1 .and. stations(j) >= s0)) then
-                    first = j
-                    exit
-                end if
-            end do
+            first = findloc(stations > s0 .or. (i == 1 .and. stations >= s0), .true., 1)
+            if (first == 0) first = nst + 1
             last = first - 1
             do j = first, nst
                 if (stations(j) <= s0 + ch%length(i) .or. i == ch%nbeams) last = j

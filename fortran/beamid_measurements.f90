@@ -207,7 +207,7 @@ contains
         type(measurements_t), intent(in) :: data
         type(status_t), intent(inout) :: stat
         character(len=:), allocatable :: where
-        integer :: i, k, first
+        integer :: i, first
         do i = 1, size(data%t)
             where = path//', line '//fmt_int(data%line(i))
             if (.not. data%sigma(i) > 0.0_dp) then
@@ -220,14 +220,8 @@ contains
                                 ', expected t >= 0')
                 return
             end if
-            first = 0
-            do k = 1, i - 1
-                if (data%experiment(k) == data%experiment(i) .and. data%t(k) == data%t(i) .and. &
-                    data%quantity(k) == data%quantity(i)) then
-                    first = k
-                    exit
-                end if
-            end do
+            first = findloc(data%experiment(:i - 1) == data%experiment(i) .and. data%t(:i - 1) &
+                            == data%t(i) .and. data%quantity(:i - 1) == data%quantity(i), .true., 1)
             if (first > 0) then
                 call set_status(stat, ERR_INPUT, where, 'duplicate row: experiment '// &
                                 quote(trim(data%experiment(i)))//', t = '//fmt_g(data%t(i))// &
