@@ -437,8 +437,10 @@ contains
             IG_R_MOTOR, IG_TAU_MOTOR]
         character(len=*), parameter :: named_keys(9) = [character(len=10) :: 'm_elbow', &
             'j_elbow', 'mu_elbow', 'c_elbow', 'elbow_flex', 'm_tip', 'j_tip', 'mu_tip', 'c_tip']
-        real(dp), allocatable :: values(:), params(:)
-        integer :: k, i, n, im, idx, nerr
+        integer, parameter :: named_which(9) = [IM_M, IM_J, IM_MU, IM_C, 0, IM_M, IM_J, IM_MU, &
+                                                IM_C]   ! the elbow's (5: its flex), the tip's
+        real(dp), allocatable :: params(:)
+        integer :: k, i, im, idx, nerr
         logical :: given
         real(dp) :: x
         type(chain_t) :: chain
@@ -458,35 +460,17 @@ contains
                                     'axial_coupling root_flex eta r_motor tau_motor m_elbow '// &
                                     'j_elbow mu_elbow c_elbow elbow_flex m_tip j_tip mu_tip '// &
                                     'c_tip ', errors)
-                allocate (values(nbeams))
                 do k = 1, size(beam_keys)
-                    do i = 1, nbeams
-                        values(i) = params(param_index_beam(nbeams, i, beam_which(k)))
-                    end do
-                    call nml_reals(f, g, trim(beam_keys(k)), values, n, errors, 'one per beam')
-                    do i = 1, nbeams
-                        params(param_index_beam(nbeams, i, beam_which(k))) = values(i)
-                    end do
+                    call read_list(trim(beam_keys(k)), [(param_index_beam(nbeams, i, &
+                                   beam_which(k)), i = 1, nbeams)], 'one per beam')
                 end do
                 do k = 1, size(mass_keys)
-                    do i = 1, nbeams
-                        values(i) = params(param_index_mass(nbeams, i, mass_which(k)))
-                    end do
-                    call nml_reals(f, g, trim(mass_keys(k)), values, n, errors, &
+                    call read_list(trim(mass_keys(k)), [(param_index_mass(nbeams, i, &
+                                   mass_which(k)), i = 1, nbeams)], &
                                    'one per mass point: the joints, then the tip')
-                    do i = 1, nbeams
-                        params(param_index_mass(nbeams, i, mass_which(k))) = values(i)
-                    end do
                 end do
-                deallocate (values)
-                allocate (values(nbeams - 1))
-                do i = 1, nbeams - 1
-                    values(i) = params(param_index_joint_flex(nbeams, i))
-                end do
-                call nml_reals(f, g, 'joint_flex', values, n, errors, 'one per joint')
-                do i = 1, nbeams - 1
-                    params(param_index_joint_flex(nbeams, i)) = values(i)
-                end do
+                call read_list('joint_flex', [(param_index_joint_flex(nbeams, i), &
+                                               i = 1, nbeams - 1)], 'one per joint')
                 do k = 1, size(global_keys)
                     idx = param_index_global(nbeams, global_which(k))
                     call nml_real(f, g, trim(global_keys(k)), params(idx), given, errors)
@@ -500,26 +484,11 @@ contains
                                        ' is given but the chain has one beam (no elbow)')
                         cycle
                     end if
-                    select case (k)
-                    case (1)
-                        idx = param_index_mass(nbeams, 1, IM_M)
-                    case (2)
-                        idx = param_index_mass(nbeams, 1, IM_J)
-                    case (3)
-                        idx = param_index_mass(nbeams, 1, IM_MU)
-                    case (4)
-                        idx = param_index_mass(nbeams, 1, IM_C)
-                    case (5)
+                    if (k == 5) then
                         idx = param_index_joint_flex(nbeams, 1)
-                    case (6)
-                        idx = param_index_mass(nbeams, nbeams, IM_M)
-                    case (7)
-                        idx = param_index_mass(nbeams, nbeams, IM_J)
-                    case (8)
-                        idx = param_index_mass(nbeams, nbeams, IM_MU)
-                    case default
-                        idx = param_index_mass(nbeams, nbeams, IM_C)
-                    end select
+                    else
+                        idx = param_index_mass(nbeams, merge(1, nbeams, k < 5), named_which(k))
+                    end if
                     params(idx) = x
                 end do
             end associate
@@ -535,6 +504,17 @@ contains
         call chain_from_vector(nbeams, params, chain, st)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//': &'//trim(st%message))
         deck%model_ok = st%code == STATUS_OK
+    contains
+        !> A list of &model (key, one value per parameter ix, what it holds).
+        subroutine read_list(key, ix, what)
+            character(len=*), intent(in) :: key, what
+            integer, intent(in) :: ix(:)
+            real(dp) :: values(size(ix))
+            integer :: n
+            values = params(ix)
+            call nml_reals(f, f%groups(im), key, values, n, errors, what)
+            params(ix) = values
+        end subroutine read_list
     end subroutine read_model
 
     pure integer function count_lines_alloc(errors)
