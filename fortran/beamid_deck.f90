@@ -26,7 +26,7 @@ module beamid_deck
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, NEFFECT
+    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, KNOWN_EFFECTS
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
@@ -1183,10 +1183,7 @@ contains
                 call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &
-                                   "' is not a known effect, expected one of: "// &
-                                   'axial_coupling, material_cubic, elbow_flex, '// &
-                                   'root_flex, friction, drag, rotary_inertia, '// &
-                                   'kelvin_voigt, motor_lag, mesh')
+                                   "' is not a known effect, expected one of: "//KNOWN_EFFECTS)
                     st%code = STATUS_OK
                 end if
             end do
