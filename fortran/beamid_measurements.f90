@@ -269,7 +269,7 @@ contains
         logical, intent(in), optional :: is_release(:), has_motor(:)
         integer :: i, e
         logical :: release
-        character(len=:), allocatable :: where
+        character(len=:), allocatable :: where, x, why
         allocate (row_exp(size(data%experiment)), source=0)
         call check_experiments(data, names, stat)
         if (stat%code /= STATUS_OK) return
@@ -280,38 +280,24 @@ contains
             end do
             release = .false.
             if (present(is_release)) release = is_release(row_exp(i))
-            if (data%quantity(i) == Q_MOTOR_TORQUE) then
-                if (.not. release) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
-                                    ', but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' is static (no motor)')
-                    return
-                end if
-                if (.not. has_motor(row_exp(i))) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
-                                    ', but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' has no motor (motor_gain = 0)')
-                    return
-                end if
+            x = ', but experiment '//quote(trim(data%experiment(i)))
+            why = ''
+            if (data%quantity(i) == Q_MOTOR_TORQUE .and. .not. release) then
+                why = "field quantity = 'motor_torque'"//x//' is static (no motor)'
+            else if (data%quantity(i) == Q_MOTOR_TORQUE) then
+                if (.not. has_motor(row_exp(i))) why = "field quantity = 'motor_torque'"//x// &
+                                                       ' has no motor (motor_gain = 0)'
+            else if (release .and. data%quantity(i) == Q_WIRE_FORCE) then
+                why = "field quantity = 'wire_force'"//x//' is a release (no wire)'
+            else if (.not. release .and. data%t(i) /= 0.0_dp) then
+                why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the static experiment '// &
+                      quote(trim(data%experiment(i)))
+            else if (.not. release .and. data%quantity(i) == Q_WIRE_FORCE) then
+                if (.not. is_wire(row_exp(i))) why = "field quantity = 'wire_force'"//x// &
+                                                     ' has no wire'
             end if
-            if (release) then
-                if (data%quantity(i) == Q_WIRE_FORCE) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', "// &
-                                    'but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' is a release (no wire)')
-                    return
-                end if
-                cycle
-            end if
-            if (data%t(i) /= 0.0_dp) then
-                call set_status(stat, ERR_INPUT, where, 'field t = '//fmt_g(data%t(i))// &
-                                ', expected 0 for the static experiment '// &
-                                quote(trim(data%experiment(i))))
-                return
-            end if
-            if (data%quantity(i) == Q_WIRE_FORCE .and. .not. is_wire(row_exp(i))) then
-                call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', but "// &
-                                'experiment '//quote(trim(data%experiment(i)))//' has no wire')
+            if (len(why) > 0) then
+                call set_status(stat, ERR_INPUT, where, why)
                 return
             end if
         end do
