@@ -913,11 +913,7 @@ contains
         integer, intent(in) :: kind
         real(dp), intent(in) :: values(4)
         type(static_load_t) :: load
-        load%kind = kind
-        load%fx = values(1)
-        load%fy = values(2)
-        load%moment = values(3)
-        load%wire_length = values(4)
+        load = static_load_t(kind, values(1), values(2), values(3), values(4))
     end function static_load_from_values
 
     !> Default options with the integration tolerance tol (tol <= 0: default).

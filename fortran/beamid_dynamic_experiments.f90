@@ -259,7 +259,6 @@ contains
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(dyn_system_t) :: sys
-        type(fe_load_t) :: load
         type(fe_newton_opts_t) :: nopts
         type(fe_solve_info_t) :: sinfo
         type(integ_opts_t) :: opts
@@ -275,10 +274,8 @@ contains
         if (stat%code /= STATUS_OK) return
         n = sys%n
         allocate (y0(sys%nstate), q(n), source=0.0_dp)
-        load%fx = x%fx
-        load%fy = x%fy
-        load%moment = x%moment
-        call fe_solve_static(sys%mesh, load, q, .false., nopts, sinfo, stat)
+        call fe_solve_static(sys%mesh, fe_load_t(x%fx, x%fy, x%moment), q, .false., nopts, &
+                             sinfo, stat)
         if (stat%code /= STATUS_OK) return
         y0(1:n) = q
         opts%method = x%method
