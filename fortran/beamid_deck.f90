@@ -36,7 +36,7 @@ module beamid_deck
     implicit none
     private
 
-    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, copy_measurements
+    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, take_stage
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
@@ -1021,15 +1021,7 @@ contains
                     ": &fit stage = '"//stages(k)%name//"' names two stages")
             end do
         end do
-        ! the deck's own fit is its first (only) stage
-        deck%free = stages(1)%free
-        deck%prior_index = stages(1)%prior_index
-        deck%prior_mean = stages(1)%prior_mean
-        deck%prior_sigma = stages(1)%prior_sigma
-        deck%max_iter = stages(1)%max_iter
-        if (allocated(stages(1)%data_path)) deck%data_path = stages(1)%data_path
-        call copy_measurements(stages(1)%data, deck%data)
-        if (allocated(stages(1)%row_exp)) deck%row_exp = stages(1)%row_exp
+        call take_stage(deck, stages(1))   ! the deck's own fit is its first (only) stage
         if (deck%task /= 'identify') return
         call move_alloc(stages, deck%stages)   ! not copied: see copy_measurements
         associate (stages => deck%stages)
@@ -1048,6 +1040,21 @@ contains
         end do
         end associate
     end subroutine read_fit_groups
+
+    !> The fit of a stage as the deck's: its data, rows, free parameters, a
+    !! priori values and iteration limit.
+    subroutine take_stage(deck, stage)
+        type(deck_t), intent(inout) :: deck
+        type(stage_t), intent(in) :: stage
+        deck%free = stage%free
+        deck%prior_index = stage%prior_index
+        deck%prior_mean = stage%prior_mean
+        deck%prior_sigma = stage%prior_sigma
+        deck%max_iter = stage%max_iter
+        if (allocated(stage%data_path)) deck%data_path = stage%data_path
+        call copy_measurements(stage%data, deck%data)
+        if (allocated(stage%row_exp)) deck%row_exp = stage%row_exp
+    end subroutine take_stage
 
     !> dst = src for measurements. (gfortran 12's intrinsic assignment of a
     !! derived type with a deferred-length character array component, as

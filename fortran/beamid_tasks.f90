@@ -19,7 +19,7 @@ module beamid_tasks
     use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
                              set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
-    use beamid_deck, only: deck_t, stage_t, copy_measurements
+    use beamid_deck, only: deck_t, stage_t, take_stage
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
@@ -459,7 +459,7 @@ contains
     !> The deck as its stage's fit deck: the experiments, the stage's data,
     !! rows, free parameters, a priori values and iteration limit (what
     !! deck_problem and write_fit_files read; not a copy of the whole deck,
-    !! see copy_measurements).
+    !! see beamid_deck copy_measurements).
     subroutine stage_deck(d, stage, ds)
         type(deck_t), intent(in) :: d
         type(stage_t), intent(in) :: stage
@@ -472,14 +472,7 @@ contains
         ds%experiments = d%experiments
         if (allocated(d%exp_kind)) ds%exp_kind = d%exp_kind
         if (allocated(d%exp_values)) ds%exp_values = d%exp_values
-        call copy_measurements(stage%data, ds%data)
-        ds%row_exp = stage%row_exp
-        ds%free = stage%free
-        ds%prior_index = stage%prior_index
-        ds%prior_mean = stage%prior_mean
-        ds%prior_sigma = stage%prior_sigma
-        ds%max_iter = stage%max_iter
-        ds%data_path = stage%data_path
+        call take_stage(ds, stage)
     end subroutine stage_deck
 
     !> A solver message '... (experiment k)' names the experiment and the deck
@@ -563,15 +556,10 @@ contains
     function deck_problem(d) result(pb)
         type(deck_t), intent(in) :: d
         type(problem_t) :: pb
-        pb%nbeams = d%nbeams
+        pb = problem_t(nbeams=d%nbeams, row_exp=d%row_exp, row_t=d%data%t, row_q=d%data%quantity, &
+                       y=d%data%value, sigma=d%data%sigma, max_iter=d%max_iter, &
+                       prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
-        pb%row_exp = d%row_exp
-        pb%row_t = d%data%t
-        pb%row_q = d%data%quantity
-        pb%y = d%data%value
-        pb%sigma = d%data%sigma
-        pb%prior = prior_t(d%prior_index, d%prior_mean, d%prior_sigma)
-        pb%max_iter = d%max_iter
     end function deck_problem
 
     !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
