@@ -785,10 +785,8 @@ contains
             tol = 0.0_dp
             call nml_int(f, g, 'shape_points', n, given, errors)
             call nml_real(f, g, 'tol', tol, given, errors)
-            deallocate (deck%wrt)
-            allocate (deck%wrt(size(wrt)))
+            deck%wrt = [(param_lookup(deck%nbeams, wrt(i)%s), i = 1, size(wrt))]
             do i = 1, size(wrt)
-                deck%wrt(i) = param_lookup(deck%nbeams, wrt(i)%s)
                 if (deck%wrt(i) == 0) call add_error(errors, where//"wrt = '"//wrt(i)%s// &
                     "' is not a parameter name (e.g. EI1, C2, elbow_flex)")
             end do
@@ -1163,13 +1161,11 @@ contains
                            'must have equal lengths (got '//fmt_int(np)//', '// &
                            fmt_int(size(prior_means))//', '//fmt_int(size(prior_sigmas))//')')
         else
-            deallocate (stage%prior_index, stage%prior_mean, stage%prior_sigma)
-            allocate (stage%prior_index(np), stage%prior_mean(np), stage%prior_sigma(np))
+            stage%prior_index = [(param_lookup(deck%nbeams, prior_names(i)%s), i = 1, np)]
+            stage%prior_mean = prior_means
+            stage%prior_sigma = prior_sigmas
             do i = 1, np
-                kk = param_lookup(deck%nbeams, prior_names(i)%s)
-                stage%prior_index(i) = kk
-                stage%prior_mean(i) = prior_means(i)
-                stage%prior_sigma(i) = prior_sigmas(i)
+                kk = stage%prior_index(i)
                 if (kk == 0) then
                     call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
                                    "' is not a parameter name")
