@@ -103,10 +103,8 @@ contains
             lines(i) = line
         end do
         close (unit)
-        if (ios > 0) then
-            call set_status(stat, ERR_IO, 'cannot read measurement file '//path, 'read error')
-            return
-        end if
+        if (ios > 0) call set_status(stat, ERR_IO, 'cannot read measurement file '//path, &
+                                     'read error')
     end subroutine read_lines
 
     !> Pass 1: the syntax of every line (as read_measurements in Python): the
@@ -158,12 +156,10 @@ contains
         end do
         if (.not. header_seen) then
             call set_status(stat, ERR_INPUT, path, 'no header line '//HEADER//' found')
-            return
-        end if
-        if (nrow == 0) then
+        else if (nrow == 0) then
             call set_status(stat, ERR_INPUT, path, 'no measurement rows after the header')
-            return
         end if
+        if (stat%code /= STATUS_OK) return
         data%experiment = data%experiment(:nrow)
         data%t = data%t(:nrow)
         data%quantity = data%quantity(:nrow)
