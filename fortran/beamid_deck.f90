@@ -403,14 +403,11 @@ contains
     pure function structure_base(nbeams) result(base)
         integer, intent(in) :: nbeams
         real(dp), allocatable :: base(:)
-        integer :: i
+        integer, parameter :: structure(4) = [IB_L, IB_EI, IB_EA, IB_RHO]
+        integer :: i, k
         allocate (base(param_count(nbeams)), source=0.0_dp)
-        do i = 1, nbeams
-            base(param_index_beam(nbeams, i, IB_L)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_EI)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_EA)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_RHO)) = ieee_value(1.0_dp, ieee_quiet_nan)
-        end do
+        base([((param_index_beam(nbeams, i, structure(k)), k = 1, 4), i = 1, nbeams)]) = &
+            ieee_value(1.0_dp, ieee_quiet_nan)
         base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
         base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
     end function structure_base
