@@ -176,9 +176,7 @@ contains
         integer :: i
         allocate (lower(param_count(nbeams)), upper(param_count(nbeams)), source=0.0_dp)
         upper = huge(1.0_dp)
-        do i = 1, nbeams
-            lower(param_index_beam(nbeams, i, IB_C)) = -huge(1.0_dp)
-        end do
+        lower([(param_index_beam(nbeams, i, IB_C), i = 1, nbeams)]) = -huge(1.0_dp)
         upper(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
     end subroutine static_bounds
 
