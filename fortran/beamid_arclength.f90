@@ -580,13 +580,8 @@ contains
         last = 0
         if (present(stations)) then
             nst = size(stations)
-            first = nst + 1
-            do j = 1, nst
-                if (stations(j) > s0 .or. (i == 1 .and. stations(j) >= s0)) then
-                    first = j
-                    exit
-                end if
-            end do
+            first = findloc(stations > s0 .or. (i == 1 .and. stations >= s0), .true., 1)
+            if (first == 0) first = nst + 1
             last = first - 1
             do j = first, nst
                 if (stations(j) <= s0 + ch%length(i) .or. i == ch%nbeams) last = j
@@ -918,11 +913,7 @@ contains
         integer, intent(in) :: kind
         real(dp), intent(in) :: values(4)
         type(static_load_t) :: load
-        load%kind = kind
-        load%fx = values(1)
-        load%fy = values(2)
-        load%moment = values(3)
-        load%wire_length = values(4)
+        load = static_load_t(kind, values(1), values(2), values(3), values(4))
     end function static_load_from_values
 
     !> Default options with the integration tolerance tol (tol <= 0: default).

@@ -26,7 +26,7 @@ module beamid_deck
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, NEFFECT
+    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, KNOWN_EFFECTS
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
@@ -36,7 +36,7 @@ module beamid_deck
     implicit none
     private
 
-    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, copy_measurements
+    public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, take_stage
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
@@ -53,6 +53,10 @@ module beamid_deck
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
+    !> The words of integrator and friction (codes: read_choice's callers).
+    character(len=*), parameter :: INTEGRATORS(2) = [character(len=8) :: 'implicit', 'rk4']
+    character(len=*), parameter :: FRICTION_LAWS(3) = [character(len=12) :: 'sign', 'smooth', &
+                                                       'sign_literal']
 
     !> One stage of an identification deck (task identify: one &fit group
     !! per stage, in order; beamid_tasks carries each stage's estimates and
@@ -399,14 +403,11 @@ contains
     pure function structure_base(nbeams) result(base)
         integer, intent(in) :: nbeams
         real(dp), allocatable :: base(:)
-        integer :: i
+        integer, parameter :: structure(4) = [IB_L, IB_EI, IB_EA, IB_RHO]
+        integer :: i, k
         allocate (base(param_count(nbeams)), source=0.0_dp)
-        do i = 1, nbeams
-            base(param_index_beam(nbeams, i, IB_L)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_EI)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_EA)) = ieee_value(1.0_dp, ieee_quiet_nan)
-            base(param_index_beam(nbeams, i, IB_RHO)) = ieee_value(1.0_dp, ieee_quiet_nan)
-        end do
+        base([((param_index_beam(nbeams, i, structure(k)), k = 1, 4), i = 1, nbeams)]) = &
+            ieee_value(1.0_dp, ieee_quiet_nan)
         base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
         base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
     end function structure_base
@@ -433,8 +434,10 @@ contains
             IG_R_MOTOR, IG_TAU_MOTOR]
         character(len=*), parameter :: named_keys(9) = [character(len=10) :: 'm_elbow', &
             'j_elbow', 'mu_elbow', 'c_elbow', 'elbow_flex', 'm_tip', 'j_tip', 'mu_tip', 'c_tip']
-        real(dp), allocatable :: values(:), params(:)
-        integer :: k, i, n, im, idx, nerr
+        integer, parameter :: named_which(9) = [IM_M, IM_J, IM_MU, IM_C, 0, IM_M, IM_J, IM_MU, &
+                                                IM_C]   ! the elbow's (5: its flex), the tip's
+        real(dp), allocatable :: params(:)
+        integer :: k, i, im, idx, nerr
         logical :: given
         real(dp) :: x
         type(chain_t) :: chain
@@ -454,35 +457,17 @@ contains
                                     'axial_coupling root_flex eta r_motor tau_motor m_elbow '// &
                                     'j_elbow mu_elbow c_elbow elbow_flex m_tip j_tip mu_tip '// &
                                     'c_tip ', errors)
-                allocate (values(nbeams))
                 do k = 1, size(beam_keys)
-                    do i = 1, nbeams
-                        values(i) = params(param_index_beam(nbeams, i, beam_which(k)))
-                    end do
-                    call nml_reals(f, g, trim(beam_keys(k)), values, n, errors, 'one per beam')
-                    do i = 1, nbeams
-                        params(param_index_beam(nbeams, i, beam_which(k))) = values(i)
-                    end do
+                    call read_list(trim(beam_keys(k)), [(param_index_beam(nbeams, i, &
+                                   beam_which(k)), i = 1, nbeams)], 'one per beam')
                 end do
                 do k = 1, size(mass_keys)
-                    do i = 1, nbeams
-                        values(i) = params(param_index_mass(nbeams, i, mass_which(k)))
-                    end do
-                    call nml_reals(f, g, trim(mass_keys(k)), values, n, errors, &
+                    call read_list(trim(mass_keys(k)), [(param_index_mass(nbeams, i, &
+                                   mass_which(k)), i = 1, nbeams)], &
                                    'one per mass point: the joints, then the tip')
-                    do i = 1, nbeams
-                        params(param_index_mass(nbeams, i, mass_which(k))) = values(i)
-                    end do
                 end do
-                deallocate (values)
-                allocate (values(nbeams - 1))
-                do i = 1, nbeams - 1
-                    values(i) = params(param_index_joint_flex(nbeams, i))
-                end do
-                call nml_reals(f, g, 'joint_flex', values, n, errors, 'one per joint')
-                do i = 1, nbeams - 1
-                    params(param_index_joint_flex(nbeams, i)) = values(i)
-                end do
+                call read_list('joint_flex', [(param_index_joint_flex(nbeams, i), &
+                                               i = 1, nbeams - 1)], 'one per joint')
                 do k = 1, size(global_keys)
                     idx = param_index_global(nbeams, global_which(k))
                     call nml_real(f, g, trim(global_keys(k)), params(idx), given, errors)
@@ -496,26 +481,11 @@ contains
                                        ' is given but the chain has one beam (no elbow)')
                         cycle
                     end if
-                    select case (k)
-                    case (1)
-                        idx = param_index_mass(nbeams, 1, IM_M)
-                    case (2)
-                        idx = param_index_mass(nbeams, 1, IM_J)
-                    case (3)
-                        idx = param_index_mass(nbeams, 1, IM_MU)
-                    case (4)
-                        idx = param_index_mass(nbeams, 1, IM_C)
-                    case (5)
+                    if (k == 5) then
                         idx = param_index_joint_flex(nbeams, 1)
-                    case (6)
-                        idx = param_index_mass(nbeams, nbeams, IM_M)
-                    case (7)
-                        idx = param_index_mass(nbeams, nbeams, IM_J)
-                    case (8)
-                        idx = param_index_mass(nbeams, nbeams, IM_MU)
-                    case default
-                        idx = param_index_mass(nbeams, nbeams, IM_C)
-                    end select
+                    else
+                        idx = param_index_mass(nbeams, merge(1, nbeams, k < 5), named_which(k))
+                    end if
                     params(idx) = x
                 end do
             end associate
@@ -531,6 +501,17 @@ contains
         call chain_from_vector(nbeams, params, chain, st)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//': &'//trim(st%message))
         deck%model_ok = st%code == STATUS_OK
+    contains
+        !> A list of &model (key, one value per parameter ix, what it holds).
+        subroutine read_list(key, ix, what)
+            character(len=*), intent(in) :: key, what
+            integer, intent(in) :: ix(:)
+            real(dp) :: values(size(ix))
+            integer :: n
+            values = params(ix)
+            call nml_reals(f, f%groups(im), key, values, n, errors, what)
+            params(ix) = values
+        end subroutine read_list
     end subroutine read_model
 
     pure integer function count_lines_alloc(errors)
@@ -641,28 +622,14 @@ contains
         ev(EV_GAIN) = max(x, 0.0_dp)
         text = 'implicit'
         call nml_str(f, g, 'integrator', text, given, errors)
-        select case (trim(text))
-        case ('implicit')
-            ev(EV_METHOD) = 1.0_dp
-        case ('rk4')
-            ev(EV_METHOD) = 0.0_dp
-        case default
-            call add_error(errors, label//": integrator = '"//trim(text)// &
-                           "', expected 'implicit' or 'rk4'")
-        end select
+        i = 0
+        call read_choice(text, INTEGRATORS, [1, 0], "'", label//': integrator', i, errors)
+        ev(EV_METHOD) = real(i, dp)
         text = 'sign'
         call nml_str(f, g, 'friction', text, given, errors)
-        select case (trim(text))
-        case ('sign')
-            ev(EV_LAW) = 0.0_dp
-        case ('smooth')
-            ev(EV_LAW) = 1.0_dp
-        case ('sign_literal')
-            ev(EV_LAW) = 2.0_dp
-        case default
-            call add_error(errors, label//": friction = '"//trim(text)// &
-                           "', expected 'sign', 'smooth' or 'sign_literal'")
-        end select
+        i = 0
+        call read_choice(text, FRICTION_LAWS, [0, 1, 2], "'", label//': friction', i, errors)
+        ev(EV_LAW) = real(i, dp)
         x = 0.0_dp
         call nml_real(f, g, 'rtol', x, given, errors)
         if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': rtol = '// &
@@ -743,15 +710,8 @@ contains
                 call check_mesh_size(where, deck%nbeams, epb, deck%task == 'fe_modes', 1, &
                                      errors)
             end if
-            select case (trim(moment_form))
-            case ('eq78')
-                deck%fe_moment_form = 0
-            case ('exact')
-                deck%fe_moment_form = 1
-            case default
-                call add_error(errors, where//"moment_form = '"//trim(moment_form)// &
-                               "', expected 'eq78' or 'exact'")
-            end select
+            call read_choice(moment_form, [character(len=5) :: 'eq78', 'exact'], [0, 1], "'", &
+                             where//'moment_form', deck%fe_moment_form, errors)
             if (steps < 0) call add_error(errors, where//'steps = '//fmt_int(steps)// &
                                           ', expected 0 (default) or a positive count')
             if (tol < 0.0_dp) call add_error(errors, where//'tol = '//fmt_g(tol)// &
@@ -761,6 +721,27 @@ contains
             deck%fe_tol = tol
         end associate
     end subroutine read_fe_group
+
+    !> code = codes(i) when text is words(i); else an error '<key> = <q>text<q>,
+    !! expected <q>words(1)<q>, ... or <q>words(n)<q>' (key: the group's label
+    !! and the key) and code unchanged.
+    subroutine read_choice(text, words, codes, q, key, code, errors)
+        character(len=*), intent(in) :: text, words(:), q, key
+        integer, intent(in) :: codes(:)
+        integer, intent(inout) :: code
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=:), allocatable :: list
+        integer :: i
+        i = findloc(words, trim(text), 1)
+        if (i > 0) code = codes(i)
+        if (i > 0) return
+        list = ' or '//q//trim(words(size(words)))//q
+        do i = size(words) - 1, 1, -1
+            list = q//trim(words(i))//q//list
+            if (i > 1) list = ', '//list
+        end do
+        call add_error(errors, key//' = '//q//trim(text)//q//', expected '//list)
+    end subroutine read_choice
 
     !> Memory bound of a mesh: nbeams*epb elements, 4 unknowns per node; the
     !! banded solvers keep about 40 numbers per unknown, the modes (dense
@@ -801,10 +782,8 @@ contains
             tol = 0.0_dp
             call nml_int(f, g, 'shape_points', n, given, errors)
             call nml_real(f, g, 'tol', tol, given, errors)
-            deallocate (deck%wrt)
-            allocate (deck%wrt(size(wrt)))
+            deck%wrt = [(param_lookup(deck%nbeams, wrt(i)%s), i = 1, size(wrt))]
             do i = 1, size(wrt)
-                deck%wrt(i) = param_lookup(deck%nbeams, wrt(i)%s)
                 if (deck%wrt(i) == 0) call add_error(errors, where//"wrt = '"//wrt(i)%s// &
                     "' is not a parameter name (e.g. EI1, C2, elbow_flex)")
             end do
@@ -926,28 +905,12 @@ contains
                 call check_mesh_size(where, deck%nbeams, epb, .false., &
                                      max(1, size(deck%sim_t_out)), errors)
             end if
-            select case (trim(integrator))
-            case ('rk4')
-                deck%sim_integrator = 0
-            case ('implicit')
-                deck%sim_integrator = 1
-            case default
-                call add_error(errors, where//'integrator = "'//trim(integrator)// &
-                               '", expected "implicit" or "rk4"')
-            end select
-            select case (trim(friction))
-            case ('')
-                deck%sim_friction = 0   ! the sign law (events) for both integrators
-            case ('sign')
-                deck%sim_friction = 0
-            case ('smooth')
-                deck%sim_friction = 1
-            case ('sign_literal')
-                deck%sim_friction = 2
-            case default
-                call add_error(errors, where//'friction = "'//trim(friction)// &
-                               '", expected "sign", "smooth" or "sign_literal"')
-            end select
+            call read_choice(integrator, INTEGRATORS, [1, 0], '"', where//'integrator', &
+                             deck%sim_integrator, errors)
+            ! '': the sign law (events) for both integrators
+            if (len_trim(friction) == 0) friction = 'sign'
+            call read_choice(friction, FRICTION_LAWS, [0, 1, 2], '"', where//'friction', &
+                             deck%sim_friction, errors)
             do i = 1, size(names) - 1
                 if (values(i) < 0.0_dp) call add_error(errors, where//trim(names(i))//' = '// &
                     fmt_g(values(i))//', expected 0 (default) or a positive number')
@@ -1053,15 +1016,7 @@ contains
                     ": &fit stage = '"//stages(k)%name//"' names two stages")
             end do
         end do
-        ! the deck's own fit is its first (only) stage
-        deck%free = stages(1)%free
-        deck%prior_index = stages(1)%prior_index
-        deck%prior_mean = stages(1)%prior_mean
-        deck%prior_sigma = stages(1)%prior_sigma
-        deck%max_iter = stages(1)%max_iter
-        if (allocated(stages(1)%data_path)) deck%data_path = stages(1)%data_path
-        call copy_measurements(stages(1)%data, deck%data)
-        if (allocated(stages(1)%row_exp)) deck%row_exp = stages(1)%row_exp
+        call take_stage(deck, stages(1))   ! the deck's own fit is its first (only) stage
         if (deck%task /= 'identify') return
         call move_alloc(stages, deck%stages)   ! not copied: see copy_measurements
         associate (stages => deck%stages)
@@ -1080,6 +1035,21 @@ contains
         end do
         end associate
     end subroutine read_fit_groups
+
+    !> The fit of a stage as the deck's: its data, rows, free parameters, a
+    !! priori values and iteration limit.
+    subroutine take_stage(deck, stage)
+        type(deck_t), intent(inout) :: deck
+        type(stage_t), intent(in) :: stage
+        deck%free = stage%free
+        deck%prior_index = stage%prior_index
+        deck%prior_mean = stage%prior_mean
+        deck%prior_sigma = stage%prior_sigma
+        deck%max_iter = stage%max_iter
+        if (allocated(stage%data_path)) deck%data_path = stage%data_path
+        call copy_measurements(stage%data, deck%data)
+        if (allocated(stage%row_exp)) deck%row_exp = stage%row_exp
+    end subroutine take_stage
 
     !> dst = src for measurements. (gfortran 12's intrinsic assignment of a
     !! derived type with a deferred-length character array component, as
@@ -1188,13 +1158,11 @@ contains
                            'must have equal lengths (got '//fmt_int(np)//', '// &
                            fmt_int(size(prior_means))//', '//fmt_int(size(prior_sigmas))//')')
         else
-            deallocate (stage%prior_index, stage%prior_mean, stage%prior_sigma)
-            allocate (stage%prior_index(np), stage%prior_mean(np), stage%prior_sigma(np))
+            stage%prior_index = [(param_lookup(deck%nbeams, prior_names(i)%s), i = 1, np)]
+            stage%prior_mean = prior_means
+            stage%prior_sigma = prior_sigmas
             do i = 1, np
-                kk = param_lookup(deck%nbeams, prior_names(i)%s)
-                stage%prior_index(i) = kk
-                stage%prior_mean(i) = prior_means(i)
-                stage%prior_sigma(i) = prior_sigmas(i)
+                kk = stage%prior_index(i)
                 if (kk == 0) then
                     call add_error(errors, where//"prior_names = '"//prior_names(i)%s// &
                                    "' is not a parameter name")
@@ -1215,10 +1183,7 @@ contains
                 call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &
-                                   "' is not a known effect, expected one of: "// &
-                                   'axial_coupling, material_cubic, elbow_flex, '// &
-                                   'root_flex, friction, drag, rotary_inertia, '// &
-                                   'kelvin_voigt, motor_lag, mesh')
+                                   "' is not a known effect, expected one of: "//KNOWN_EFFECTS)
                     st%code = STATUS_OK
                 end if
             end do

@@ -133,7 +133,8 @@ contains
         end if
     end function check_dynamic_row
 
-    !> Set up and validate the experiments and rows.
+    !> Set up and validate the experiments and rows (the list lengths and
+    !! experiment numbers as inverse_problem_init checked them).
     subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_quantity, self, stat)
         integer, intent(in) :: nbeams
         type(release_exp_t), intent(in) :: exps(:)
@@ -144,11 +145,6 @@ contains
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
         integer :: i
-        if (size(row_exp) /= size(row_quantity) .or. size(row_exp) /= size(row_t)) then
-            call set_status(stat, ERR_INPUT, where, 'row experiment, t and quantity lists '// &
-                            'differ in length')
-            return
-        end if
         do i = 1, size(exps)
             if (exps(i)%nepb < 1) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
@@ -163,12 +159,6 @@ contains
             end if
         end do
         do i = 1, size(row_exp)
-            if (row_exp(i) < 1 .or. row_exp(i) > size(exps)) then
-                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' names '// &
-                                'experiment '//fmt_int(row_exp(i))//', expected 1..'// &
-                                fmt_int(size(exps)))
-                return
-            end if
             why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_quantity(i))
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
@@ -216,7 +206,6 @@ contains
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
-        type(release_spec_t) :: spec
         type(release_out_t) :: out
         integer :: q
         if (x%fd) then
@@ -227,17 +216,9 @@ contains
         dy = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
-        spec%elements_per_beam = x%nepb
-        spec%load%fx = x%fx
-        spec%load%fy = x%fy
-        spec%load%moment = x%moment
-        spec%motor_gain = x%gain
-        spec%integrator = x%method
-        spec%rtol = x%rtol
-        spec%dt = x%dt
-        spec%friction = x%law
-        spec%friction_velocity = x%vslip
-        call sens_response(chain, spec, t_out, wrt, out, stat)
+        call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, &
+            x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
+            friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
         if (stat%code /= STATUS_OK) return
         do q = 1, NQUANT
             if (QTY_OF(q) == 0) cycle
@@ -278,7 +259,6 @@ contains
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(dyn_system_t) :: sys
-        type(fe_load_t) :: load
         type(fe_newton_opts_t) :: nopts
         type(fe_solve_info_t) :: sinfo
         type(integ_opts_t) :: opts
@@ -294,10 +274,8 @@ contains
         if (stat%code /= STATUS_OK) return
         n = sys%n
         allocate (y0(sys%nstate), q(n), source=0.0_dp)
-        load%fx = x%fx
-        load%fy = x%fy
-        load%moment = x%moment
-        call fe_solve_static(sys%mesh, load, q, .false., nopts, sinfo, stat)
+        call fe_solve_static(sys%mesh, fe_load_t(x%fx, x%fy, x%moment), q, .false., nopts, &
+                             sinfo, stat)
         if (stat%code /= STATUS_OK) return
         y0(1:n) = q
         opts%method = x%method

@@ -58,10 +58,7 @@ contains
         real(dp), intent(in) :: values(4)
         type(fe_load_t), intent(out) :: load
         type(status_t), intent(inout) :: stat
-        load%fx = values(1)
-        load%fy = values(2)
-        load%moment = values(3)
-        load%moment_form = nint(values(4))
+        load = fe_load_t(values(1), values(2), values(3), nint(values(4)))
         if (load%moment_form /= FE_MOMENT_EQ78 .and. load%moment_form /= FE_MOMENT_EXACT) then
             call set_status(stat, ERR_INPUT, 'beamid_api_fe', 'moment_form = '// &
                             fmt_int(load%moment_form)//', expected 0 (Eq. 78) or 1 (exact)')
@@ -211,10 +208,7 @@ contains
                             fmt_int(maxpts)//', expected at least 1')
             return
         end if
-        dl = load0
-        dl%fx = dload(1)
-        dl%fy = dload(2)
-        dl%moment = dload(3)
+        dl = fe_load_t(dload(1), dload(2), dload(3), load0%moment_form)
         allocate (q(mesh%nfree), qout(mesh%nfree, maxpts))
         call fe_q_from_nodes(mesh, guess, q, guess_out)
         call fe_path(mesh, load0, dl, q, lam0, ds, ds_max, direction, lam_min, lam_max, &

@@ -59,20 +59,14 @@ contains
         type(fe_load_t), intent(in) :: load
         real(dp), intent(in) :: lam
         type(fe_load_t) :: out
-        out = load
-        out%fx = lam*load%fx
-        out%fy = lam*load%fy
-        out%moment = lam*load%moment
+        out = fe_load_t(lam*load%fx, lam*load%fy, lam*load%moment, load%moment_form)
     end function scaled
 
     !> Sum of two loads (the moment form of `a` is kept).
     pure function added(a, b) result(out)
         type(fe_load_t), intent(in) :: a, b
         type(fe_load_t) :: out
-        out = a
-        out%fx = a%fx + b%fx
-        out%fy = a%fy + b%fy
-        out%moment = a%moment + b%moment
+        out = fe_load_t(a%fx + b%fx, a%fy + b%fy, a%moment + b%moment, a%moment_form)
     end function added
 
     !> Newton's method (Eq. 85) at a fixed load from the starting shape q.

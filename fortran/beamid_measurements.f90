@@ -103,10 +103,8 @@ contains
             lines(i) = line
         end do
         close (unit)
-        if (ios > 0) then
-            call set_status(stat, ERR_IO, 'cannot read measurement file '//path, 'read error')
-            return
-        end if
+        if (ios > 0) call set_status(stat, ERR_IO, 'cannot read measurement file '//path, &
+                                     'read error')
     end subroutine read_lines
 
     !> Pass 1: the syntax of every line (as read_measurements in Python): the
@@ -158,12 +156,10 @@ contains
         end do
         if (.not. header_seen) then
             call set_status(stat, ERR_INPUT, path, 'no header line '//HEADER//' found')
-            return
-        end if
-        if (nrow == 0) then
+        else if (nrow == 0) then
             call set_status(stat, ERR_INPUT, path, 'no measurement rows after the header')
-            return
         end if
+        if (stat%code /= STATUS_OK) return
         data%experiment = data%experiment(:nrow)
         data%t = data%t(:nrow)
         data%quantity = data%quantity(:nrow)
@@ -207,7 +203,7 @@ contains
         type(measurements_t), intent(in) :: data
         type(status_t), intent(inout) :: stat
         character(len=:), allocatable :: where
-        integer :: i, k, first
+        integer :: i, first
         do i = 1, size(data%t)
             where = path//', line '//fmt_int(data%line(i))
             if (.not. data%sigma(i) > 0.0_dp) then
@@ -220,14 +216,8 @@ contains
                                 ', expected t >= 0')
                 return
             end if
-            first = 0
-            do k = 1, i - 1
-                if (data%experiment(k) == data%experiment(i) .and. data%t(k) == data%t(i) .and. &
-                    data%quantity(k) == data%quantity(i)) then
-                    first = k
-                    exit
-                end if
-            end do
+            first = findloc(data%experiment(:i - 1) == data%experiment(i) .and. data%t(:i - 1) &
+                            == data%t(i) .and. data%quantity(:i - 1) == data%quantity(i), .true., 1)
             if (first > 0) then
                 call set_status(stat, ERR_INPUT, where, 'duplicate row: experiment '// &
                                 quote(trim(data%experiment(i)))//', t = '//fmt_g(data%t(i))// &
@@ -275,7 +265,7 @@ contains
         logical, intent(in), optional :: is_release(:), has_motor(:)
         integer :: i, e
         logical :: release
-        character(len=:), allocatable :: where
+        character(len=:), allocatable :: where, x, why
         allocate (row_exp(size(data%experiment)), source=0)
         call check_experiments(data, names, stat)
         if (stat%code /= STATUS_OK) return
@@ -286,38 +276,24 @@ contains
             end do
             release = .false.
             if (present(is_release)) release = is_release(row_exp(i))
-            if (data%quantity(i) == Q_MOTOR_TORQUE) then
-                if (.not. release) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
-                                    ', but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' is static (no motor)')
-                    return
-                end if
-                if (.not. has_motor(row_exp(i))) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'motor_torque'"// &
-                                    ', but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' has no motor (motor_gain = 0)')
-                    return
-                end if
+            x = ', but experiment '//quote(trim(data%experiment(i)))
+            why = ''
+            if (data%quantity(i) == Q_MOTOR_TORQUE .and. .not. release) then
+                why = "field quantity = 'motor_torque'"//x//' is static (no motor)'
+            else if (data%quantity(i) == Q_MOTOR_TORQUE) then
+                if (.not. has_motor(row_exp(i))) why = "field quantity = 'motor_torque'"//x// &
+                                                       ' has no motor (motor_gain = 0)'
+            else if (release .and. data%quantity(i) == Q_WIRE_FORCE) then
+                why = "field quantity = 'wire_force'"//x//' is a release (no wire)'
+            else if (.not. release .and. data%t(i) /= 0.0_dp) then
+                why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the static experiment '// &
+                      quote(trim(data%experiment(i)))
+            else if (.not. release .and. data%quantity(i) == Q_WIRE_FORCE) then
+                if (.not. is_wire(row_exp(i))) why = "field quantity = 'wire_force'"//x// &
+                                                     ' has no wire'
             end if
-            if (release) then
-                if (data%quantity(i) == Q_WIRE_FORCE) then
-                    call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', "// &
-                                    'but experiment '//quote(trim(data%experiment(i)))// &
-                                    ' is a release (no wire)')
-                    return
-                end if
-                cycle
-            end if
-            if (data%t(i) /= 0.0_dp) then
-                call set_status(stat, ERR_INPUT, where, 'field t = '//fmt_g(data%t(i))// &
-                                ', expected 0 for the static experiment '// &
-                                quote(trim(data%experiment(i))))
-                return
-            end if
-            if (data%quantity(i) == Q_WIRE_FORCE .and. .not. is_wire(row_exp(i))) then
-                call set_status(stat, ERR_INPUT, where, "field quantity = 'wire_force', but "// &
-                                'experiment '//quote(trim(data%experiment(i)))//' has no wire')
+            if (len(why) > 0) then
+                call set_status(stat, ERR_INPUT, where, why)
                 return
             end if
         end do

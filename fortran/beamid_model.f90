@@ -156,30 +156,21 @@ contains
         end if
 
         chain%nbeams = nbeams
-        allocate (chain%length(nbeams), chain%ei(nbeams), chain%ea(nbeams), &
-                  chain%rho(nbeams), chain%cubic(nbeams))
-        allocate (chain%mass(nbeams), chain%inertia(nbeams), chain%friction(nbeams), &
-                  chain%drag(nbeams), chain%joint_flex(nbeams - 1))
-        do i = 1, nbeams
-            chain%length(i) = params(param_index_beam(nbeams, i, IB_L))
-            chain%ei(i) = params(param_index_beam(nbeams, i, IB_EI))
-            chain%ea(i) = params(param_index_beam(nbeams, i, IB_EA))
-            chain%rho(i) = params(param_index_beam(nbeams, i, IB_RHO))
-            chain%cubic(i) = params(param_index_beam(nbeams, i, IB_C))
-            chain%mass(i) = params(param_index_mass(nbeams, i, IM_M))
-            chain%inertia(i) = params(param_index_mass(nbeams, i, IM_J))
-            chain%friction(i) = params(param_index_mass(nbeams, i, IM_MU))
-            chain%drag(i) = params(param_index_mass(nbeams, i, IM_C))
-        end do
-        do i = 1, nbeams - 1
-            chain%joint_flex(i) = params(param_index_joint_flex(nbeams, i))
-        end do
+        chain%length = params([(param_index_beam(nbeams, i, IB_L), i = 1, nbeams)])
+        chain%ei = params([(param_index_beam(nbeams, i, IB_EI), i = 1, nbeams)])
+        chain%ea = params([(param_index_beam(nbeams, i, IB_EA), i = 1, nbeams)])
+        chain%rho = params([(param_index_beam(nbeams, i, IB_RHO), i = 1, nbeams)])
+        chain%cubic = params([(param_index_beam(nbeams, i, IB_C), i = 1, nbeams)])
+        chain%mass = params([(param_index_mass(nbeams, i, IM_M), i = 1, nbeams)])
+        chain%inertia = params([(param_index_mass(nbeams, i, IM_J), i = 1, nbeams)])
+        chain%friction = params([(param_index_mass(nbeams, i, IM_MU), i = 1, nbeams)])
+        chain%drag = params([(param_index_mass(nbeams, i, IM_C), i = 1, nbeams)])
+        chain%joint_flex = params([(param_index_joint_flex(nbeams, i), i = 1, nbeams - 1)])
         chain%axial_coupling = params(param_index_global(nbeams, IG_AXIAL_COUPLING))
         chain%root_flex = params(param_index_global(nbeams, IG_ROOT_FLEX))
         chain%eta = params(param_index_global(nbeams, IG_ETA))
         chain%r_motor = params(param_index_global(nbeams, IG_R_MOTOR))
         chain%tau_motor = params(param_index_global(nbeams, IG_TAU_MOTOR))
-
     end subroutine chain_from_vector
 
     !> Empty when `value` is legal for parameter `index`; otherwise a message

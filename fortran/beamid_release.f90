@@ -190,17 +190,11 @@ contains
             ! static equilibrium, the Newton tangent); zero velocity sensitivity
             if (nw > 0) call dyn_static_sens(sys, spec%load, q, pars, s0(1:n, :), stat)
             if (stat%code /= STATUS_OK) return
-            ! the released shape's sensitivity (implicit function theorem on the
-            ! static equilibrium, the Newton tangent); zero velocity sensitivity
         end if
         opts%method = spec%integrator
         if (spec%dt > 0.0_dp) opts%dt = spec%dt
         if (spec%rtol > 0.0_dp) opts%rtol = spec%rtol
-        if (spec%atol > 0.0_dp) then
-            opts%atol = spec%atol
-        else
-            opts%atol = opts%rtol
-        end if
+        opts%atol = merge(spec%atol, opts%rtol, spec%atol > 0.0_dp)
         if (spec%h0 > 0.0_dp) opts%h0 = spec%h0
         opts%progress => spec%progress
         if (spec%dt < 0.0_dp .or. spec%rtol < 0.0_dp .or. spec%atol < 0.0_dp) then
@@ -228,9 +222,8 @@ contains
             associate (y => out%hist%y(:, k))
                 call dyn_tip(sys, y(1:n), u, w, ang)
                 out%tip(:, k) = [u, w, ang]
-                out%ledger(1, k) = out%hist%kinetic(k)
-                out%ledger(2, k) = out%hist%potential(k)
-                out%ledger(3, k) = out%hist%kinetic(k) + out%hist%potential(k)
+                out%ledger(1:3, k) = [out%hist%kinetic(k), out%hist%potential(k), &
+                                      out%hist%kinetic(k) + out%hist%potential(k)]
                 out%ledger(4, k) = out%ledger(3, k) - e0 - sum(out%hist%work(:, k))
                 out%y(QTY_U_TIP, k) = u
                 out%y(QTY_W_TIP, k) = w

@@ -22,13 +22,13 @@ module beamid_static_experiments
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, OUT_Y_TIP, &
                                 OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW
-    use beamid_estimation, only: residual_model_t, candidate_t, sort_desc
+    use beamid_estimation, only: residual_model_t, sort_desc
     implicit none
     private
 
     public :: static_experiments_t, static_experiments_init, quantity_code, quantity_label
-    public :: static_bounds, static_null_values, static_candidates, static_effect_params
-    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, median_of, distinct_sorted
+    public :: static_bounds, static_null_values, static_effect_params
+    public :: probe_rows, NQUANT, EFFECT_NAMES, NEFFECT, KNOWN_EFFECTS, median_of, distinct_sorted
 
     !> Quantity codes.
     integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
@@ -50,6 +50,9 @@ module beamid_static_experiments
     integer, parameter :: NEFFECT = 4
     character(len=*), parameter :: EFFECT_NAMES(NEFFECT) = [character(len=14) :: &
         'axial_coupling', 'material_cubic', 'elbow_flex', 'root_flex']
+    !> Every effect name static_effect_params knows (for messages).
+    character(len=*), parameter :: KNOWN_EFFECTS = 'axial_coupling, material_cubic, '// &
+        'elbow_flex, root_flex, friction, drag, rotary_inertia, kelvin_voigt, motor_lag, mesh'
 
     !> Static experiments and the data rows they predict.
     type, extends(residual_model_t) :: static_experiments_t
@@ -84,7 +87,8 @@ contains
         end if
     end function quantity_label
 
-    !> Set up and validate the experiments and rows.
+    !> Set up and validate the experiments and rows (the list lengths and
+    !! experiment numbers as inverse_problem_init checked them).
     pure subroutine static_experiments_init(nbeams, loads, row_exp, row_quantity, tol, &
                                             self, stat)
         integer, intent(in) :: nbeams
@@ -95,17 +99,9 @@ contains
         type(status_t), intent(inout) :: stat
         integer :: i
         character(len=:), allocatable :: problem
-        if (size(row_exp) /= size(row_quantity)) then
-            call set_status(stat, ERR_INPUT, 'static experiments', 'row experiment and '// &
-                            'quantity lists differ in length')
-            return
-        end if
         problem = ''
         do i = 1, size(row_exp)
-            if (row_exp(i) < 1 .or. row_exp(i) > size(loads)) then
-                problem = ' names experiment '//fmt_int(row_exp(i))//', expected 1..'// &
-                          fmt_int(size(loads))
-            else if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
+            if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
                 problem = ' has quantity code '//fmt_int(row_quantity(i))//', expected 1..'// &
                           fmt_int(NQUANT)
             else if (row_quantity(i) == Q_WIRE_FORCE .and. &
@@ -180,9 +176,7 @@ contains
         integer :: i
         allocate (lower(param_count(nbeams)), upper(param_count(nbeams)), source=0.0_dp)
         upper = huge(1.0_dp)
-        do i = 1, nbeams
-            lower(param_index_beam(nbeams, i, IB_C)) = -huge(1.0_dp)
-        end do
+        lower([(param_index_beam(nbeams, i, IB_C), i = 1, nbeams)]) = -huge(1.0_dp)
         upper(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
     end subroutine static_bounds
 
@@ -232,34 +226,9 @@ contains
         case default
             allocate (params(0))
             call set_status(stat, ERR_INPUT, 'effects', 'unknown effect "'//trim(name)// &
-                            '", expected one of axial_coupling, material_cubic, '// &
-                            'elbow_flex, root_flex, friction, drag, rotary_inertia, '// &
-                            'kelvin_voigt, motor_lag, mesh')
+                            '", expected one of '//KNOWN_EFFECTS)
         end select
     end subroutine static_effect_params
-
-    !> The static candidates named in `names` (all of them when empty).
-    pure subroutine static_candidates(nbeams, names, cands, stat)
-        integer, intent(in) :: nbeams
-        character(len=*), intent(in) :: names(:)
-        type(candidate_t), allocatable, intent(out) :: cands(:)
-        type(status_t), intent(inout) :: stat
-        integer :: i
-        if (size(names) == 0) then
-            allocate (cands(NEFFECT))
-            do i = 1, NEFFECT
-                cands(i)%name = trim(EFFECT_NAMES(i))
-                call static_effect_params(nbeams, EFFECT_NAMES(i), cands(i)%params, stat)
-            end do
-        else
-            allocate (cands(size(names)))
-            do i = 1, size(names)
-                cands(i)%name = trim(adjustl(names(i)))
-                call static_effect_params(nbeams, names(i), cands(i)%params, stat)
-                if (stat%code /= STATUS_OK) return
-            end do
-        end if
-    end subroutine static_candidates
 
     !> Probe rows for separating rival explanations: every experiment and
     !! every quantity it can measure (wire_force only with a wire), with the

@@ -19,7 +19,7 @@ module beamid_tasks
     use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
                              set_alloc_error
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
-    use beamid_deck, only: deck_t, stage_t, copy_measurements
+    use beamid_deck, only: deck_t, stage_t, take_stage
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
@@ -39,12 +39,16 @@ module beamid_tasks
     implicit none
     private
 
-    public :: run_task, output_prefix, files_t, deck_problem, deck_candidates, deck_ladder_start
+    public :: run_task, files_t, deck_problem, deck_candidates, deck_ladder_start
     public :: deck_stage_start, deck_experiments
 
-    !> The files of one run: final names, newline separated, in write order.
+    !> The files of one run: final names, newline separated, in write order;
+    !! each is `prefix` (the deck's output resolved against its directory)
+    !! and a suffix; `last` is the one open. The prefix's folder is made at
+    !! the first open, after the computation succeeded.
     type :: files_t
-        character(len=:), allocatable :: names
+        character(len=:), allocatable :: names, prefix, last
+        logical :: folder_ok = .false.
     end type files_t
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
@@ -79,8 +83,12 @@ contains
         type(status_t), intent(inout) :: stat
         type(rung_t), intent(in), optional :: ladder(:)
         type(files_t) :: fl
+        integer :: slash
         fl%names = ''
         written = ''
+        fl%prefix = deck%output
+        slash = index(deck%path, '/', back=.true.)
+        if (index(deck%output, '/') /= 1) fl%prefix = deck%path(:slash)//deck%output
         select case (deck%task)
         case ('fe_static')
             call run_fe_static(deck, fl, stat)
@@ -100,20 +108,12 @@ contains
         if (stat%code == STATUS_OK) written = fl%names
     end subroutine run_task
 
-    !> Output prefix resolved against the deck's directory, and the folder
-    !! that will hold the files starting with it created.
-    subroutine output_prefix(d, prefix, st)
-        type(deck_t), intent(in) :: d
-        character(len=:), allocatable, intent(out) :: prefix
+    !> The folder that will hold the files starting with `prefix` created.
+    subroutine make_folder(prefix, st)
+        character(len=*), intent(in) :: prefix
         type(status_t), intent(inout) :: st
         integer :: slash, exitstat, cmdstat
         logical :: exists
-        if (d%output(1:1) == '/') then
-            prefix = d%output
-        else
-            slash = index(d%path, '/', back=.true.)
-            prefix = d%path(:slash)//d%output
-        end if
         slash = index(prefix, '/', back=.true.)
         if (slash <= 1) return
         inquire (file=prefix(:slash - 1)//'/.', exist=exists)
@@ -128,7 +128,7 @@ contains
         if (cmdstat /= 0 .or. exitstat /= 0) call set_status(st, ERR_OUTPUT, 'output', &
             'cannot create the output folder '//prefix(:slash - 1)// &
             ' (a file of that name, or no permission)')
-    end subroutine output_prefix
+    end subroutine make_folder
 
     subroutine run_static(d, fl, st)
         type(deck_t), intent(in) :: d
@@ -138,7 +138,6 @@ contains
         type(static_options_t) :: opts
         type(static_solution_t) :: sol
         real(dp), allocatable :: s(:), x(:), y(:), psi(:), moment(:)
-        character(len=:), allocatable :: prefix
         character(len=64), allocatable :: names(:)
         integer :: i, j, n, ierr
 
@@ -160,17 +159,15 @@ contains
             if (st%code /= STATUS_OK) return
         end if
 
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
         names = [(output_names(i), i=1, NOUT)]
         do j = 1, size(d%wrt)
             names = [character(len=64) :: names, ('d('//trim(output_names(i))//')/d('// &
                      param_name(d%nbeams, d%wrt(j))//')', i=1, NOUT)]
         end do
-        call write_summary(fl, prefix//'_summary.csv', names, [sol%outputs, sol%doutputs], &
+        call write_summary(fl, '_summary.csv', names, [sol%outputs, sol%doutputs], &
                            [sol%newton_iterations, sol%load_steps], st)
         if (st%code /= STATUS_OK .or. n < 2) return
-        call write_table(fl, prefix//'_shape.csv', 's,x,y,psi,moment', &
+        call write_table(fl, '_shape.csv', 's,x,y,psi,moment', &
                          transpose(reshape([s, x, y, psi, moment], [n, 5])), st)
     end subroutine run_static
 
@@ -185,7 +182,6 @@ contains
         integer :: nnode, info(3), ierr
         real(dp), allocatable :: nodes(:, :), guess(:, :), nodes_out(:, :), guess_out(:, :)
         real(dp) :: energy, reactions(3), residual
-        character(len=:), allocatable :: prefix
         character(len=*), parameter :: names(8) = [character(len=8) :: 'w_tip', 'dw_tip', &
             'u_tip', 'du_tip', 'du_root', 'energy', 'x_tip', 'y_tip']
 
@@ -204,13 +200,11 @@ contains
                                  energy, reactions, residual, info, st)
         end if
         if (st%code /= STATUS_OK) return
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
-        call write_summary(fl, prefix//'_summary.csv', names, [nodes(4, nnode), &
+        call write_summary(fl, '_summary.csv', names, [nodes(4, nnode), &
                            nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
                            nodes(1, nnode) + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
         if (st%code /= STATUS_OK) return
-        call write_table(fl, prefix//'_nodes.csv', 's,u,du,w,dw', nodes, st)
+        call write_table(fl, '_nodes.csv', 's,u,du,w,dw', nodes, st)
     end subroutine run_fe_static
 
     !> Finite element linear modes: frequencies by family (Tables 9, 10).
@@ -222,7 +216,6 @@ contains
         integer :: nfree
         real(dp), allocatable :: omega(:), phi(:, :)
         integer, allocatable :: axial(:), dofs(:, :)
-        character(len=:), allocatable :: prefix
         integer :: unit, ios, i, nw, nu, ierr
 
         ! four unknowns per node (six at a hinge); the clamp (Eq. 103) fixes u, w, w'
@@ -236,9 +229,7 @@ contains
         end if
         call fe_modes_table(mesh, d%fe_rotary_inertia, omega, phi, axial, dofs, st)
         if (st%code /= STATUS_OK) return
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_modes.csv', 'quantity,value', unit, ios, st)
+        call open_output(fl, '_modes.csv', 'quantity,value', unit, ios, st)
         if (st%code /= STATUS_OK) return
         nw = 0
         nu = 0
@@ -249,7 +240,7 @@ contains
             if (ios == 0) write (unit, '(a,i0,",",es24.16e3)', iostat=ios) &
                 merge('omega_u', 'omega_w', axial(i) /= 0), merge(nu, nw, axial(i) /= 0), omega(i)
         end do
-        call close_checked(unit, ios, prefix//'_modes.csv', st)
+        call close_checked(fl, unit, ios, st)
     end subroutine run_fe_modes
 
     ! -------------------------------------------------------------- dynamics
@@ -263,25 +254,17 @@ contains
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         type(chain_t) :: chain
-        type(release_spec_t) :: spec
         type(release_out_t) :: out
-        character(len=:), allocatable :: prefix, header, line
+        character(len=:), allocatable :: header, line
         integer :: unit, ios, k, i, nwork, nowrt(0)
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
-        spec%elements_per_beam = d%sim_elements_per_beam
-        spec%load%fx = d%load%fx
-        spec%load%fy = d%load%fy
-        spec%load%moment = d%load%moment
-        spec%motor_gain = d%sim_motor_gain
-        spec%integrator = d%sim_integrator
-        spec%friction = d%sim_friction
-        spec%friction_velocity = d%sim_friction_velocity
-        spec%dt = d%sim_dt
-        spec%rtol = d%sim_rtol
-        spec%atol = d%sim_atol
-        call release_response(chain, spec, d%sim_t_out, nowrt, out, st)
+        call release_response(chain, release_spec_t(elements_per_beam=d%sim_elements_per_beam, &
+            load=fe_load_t(d%load%fx, d%load%fy, d%load%moment), motor_gain=d%sim_motor_gain, &
+            integrator=d%sim_integrator, rtol=d%sim_rtol, atol=d%sim_atol, dt=d%sim_dt, &
+            friction=d%sim_friction, friction_velocity=d%sim_friction_velocity), d%sim_t_out, &
+            nowrt, out, st)
         if (st%code /= STATUS_OK) return
         nwork = out%nwork
 
@@ -290,9 +273,7 @@ contains
             header = header//','//work_name(d%nbeams, i)
         end do
         header = header//',work,numerical,motor_torque'
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_history.csv', header, unit, ios, st)
+        call open_output(fl, '_history.csv', header, unit, ios, st)
         if (st%code /= STATUS_OK) return
         associate (tip => out%tip, ledger => out%ledger, work => out%hist%work)
             do k = 1, size(d%sim_t_out)
@@ -307,7 +288,7 @@ contains
                 call put(unit, ios, line)
             end do
         end associate
-        call close_checked(unit, ios, prefix//'_history.csv', st)
+        call close_checked(fl, unit, ios, st)
     end subroutine run_simulate
 
     !> Name of work line i of the ledger (beamid.dynamics.work_names):
@@ -347,7 +328,6 @@ contains
         type(cand_set_t) :: cs
         type(rung_t), allocatable :: rungs(:)
         type(ladder_t) :: lad
-        character(len=:), allocatable :: prefix
         integer :: k, unit, ios
 
         if (present(ladder)) then
@@ -362,15 +342,14 @@ contains
         if (st%code == STATUS_OK) call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
         associate (fo => rungs(size(rungs))%fit, dg => rungs(size(rungs))%dg)
-            call output_prefix(d, prefix, st)
-            if (st%code == STATUS_OK) call write_fit_files(d, fo, prefix, fl, st)
+            call write_fit_files(d, fo, '', fl, st)
             if (st%code == STATUS_OK .and. (d%task == 'diagnose' .or. d%task == 'improve')) &
-                call write_ranking(d, fo, dg, cs, prefix//'_ranking.csv', fl, st)
+                call write_ranking(d, fo, dg, cs, fl, st)
             if (st%code == STATUS_OK .and. d%task == 'compare') &
-                call write_compare(d, fo, prefix//'_compare.csv', fl, st)
+                call write_compare(d, fo, fl, st)
         end associate
         if (st%code /= STATUS_OK .or. d%task /= 'improve') return
-        call open_output(fl, prefix//'_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
+        call open_output(fl, '_ladder.csv', 'step,effect,chi2,dof,chi2_per_dof', unit, &
                          ios, st)
         if (st%code /= STATUS_OK) return
         do k = 1, size(rungs)
@@ -379,7 +358,7 @@ contains
                          ','//fmt_int(f%dof)//','//fmt_e(chi2_per_dof(f)))
             end associate
         end do
-        call close_checked(unit, ios, prefix//'_ladder.csv', st)
+        call close_checked(fl, unit, ios, st)
     end subroutine run_estimation
 
     !> Task identify: the stages in order (deck_stage_start, as
@@ -397,7 +376,7 @@ contains
         type(deck_t) :: ds
         type(ladder_t) :: lad
         real(dp), allocatable :: known(:), before(:)
-        character(len=:), allocatable :: prefix, rows
+        character(len=:), allocatable :: rows
         integer :: k, i, p, unit, ios
 
         done = [rung_t ::]
@@ -423,17 +402,15 @@ contains
             end associate
         end do
 
-        call output_prefix(d, prefix, st)
-        if (st%code /= STATUS_OK) return
-        call open_output(fl, prefix//'_identify.csv', &
+        call open_output(fl, '_identify.csv', &
                          'stage,parameter,estimate,sigma_before,sigma_after', unit, ios, st)
         if (st%code /= STATUS_OK) return
         if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
-        call close_checked(unit, ios, prefix//'_identify.csv', st)
+        call close_checked(fl, unit, ios, st)
         do k = 1, size(d%stages)
             if (st%code /= STATUS_OK) return
             call stage_deck(d, d%stages(k), ds)
-            call write_fit_files(ds, done(k)%fit, prefix//'_'//d%stages(k)%name, fl, st)
+            call write_fit_files(ds, done(k)%fit, '_'//d%stages(k)%name, fl, st)
         end do
     end subroutine run_identify
 
@@ -482,7 +459,7 @@ contains
     !> The deck as its stage's fit deck: the experiments, the stage's data,
     !! rows, free parameters, a priori values and iteration limit (what
     !! deck_problem and write_fit_files read; not a copy of the whole deck,
-    !! see copy_measurements).
+    !! see beamid_deck copy_measurements).
     subroutine stage_deck(d, stage, ds)
         type(deck_t), intent(in) :: d
         type(stage_t), intent(in) :: stage
@@ -495,14 +472,7 @@ contains
         ds%experiments = d%experiments
         if (allocated(d%exp_kind)) ds%exp_kind = d%exp_kind
         if (allocated(d%exp_values)) ds%exp_values = d%exp_values
-        call copy_measurements(stage%data, ds%data)
-        ds%row_exp = stage%row_exp
-        ds%free = stage%free
-        ds%prior_index = stage%prior_index
-        ds%prior_mean = stage%prior_mean
-        ds%prior_sigma = stage%prior_sigma
-        ds%max_iter = stage%max_iter
-        ds%data_path = stage%data_path
+        call take_stage(ds, stage)
     end subroutine stage_deck
 
     !> A solver message '... (experiment k)' names the experiment and the deck
@@ -524,10 +494,9 @@ contains
     !! the residual structure tests (beamid_estimation residual_structure) with
     !! the load level of beamid.diagnosis.load_level: the force magnitude, else
     !! the moment magnitude, else for a wire the pull-in (total length - Lw).
-    subroutine write_compare(d, fo, name, fl, st)
+    subroutine write_compare(d, fo, fl, st)
         type(deck_t), intent(in) :: d
         type(fit_result_t), intent(in) :: fo
-        character(len=*), intent(in) :: name
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         real(dp), allocatable :: level(:), per_exp(:)
@@ -558,7 +527,7 @@ contains
         p = ieee_value(1.0_dp, ieee_quiet_nan)
         if (fo%dof > 0) p = chi2_sf(fo%chi2 + fo%chi2_prior, fo%dof)
         systematic = (p < 0.01_dp) .or. (out(4) < 0.01_dp) .or. (out(7) < 0.01_dp)
-        call open_output(fl, name, 'quantity,value', unit, ios, st)
+        call open_output(fl, '_compare.csv', 'quantity,value', unit, ios, st)
         if (st%code /= STATUS_OK) return
         call put(unit, ios, 'chi2,'//fmt_e(fo%chi2))
         call put(unit, ios, 'dof,'//fmt_int(nint(dof)))
@@ -572,7 +541,7 @@ contains
         do e = 1, size(d%experiments)
             call put(unit, ios, 'chi2['//trim(d%exp_names(e))//'],'//fmt_e(per_exp(e)))
         end do
-        call close_checked(unit, ios, name, st)
+        call close_checked(fl, unit, ios, st)
     end subroutine write_compare
 
     !> (chi2 + chi2_prior) / dof, NaN without degrees of freedom.
@@ -587,15 +556,10 @@ contains
     function deck_problem(d) result(pb)
         type(deck_t), intent(in) :: d
         type(problem_t) :: pb
-        pb%nbeams = d%nbeams
+        pb = problem_t(nbeams=d%nbeams, row_exp=d%row_exp, row_t=d%data%t, row_q=d%data%quantity, &
+                       y=d%data%value, sigma=d%data%sigma, max_iter=d%max_iter, &
+                       prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
-        pb%row_exp = d%row_exp
-        pb%row_t = d%data%t
-        pb%row_q = d%data%quantity
-        pb%y = d%data%value
-        pb%sigma = d%data%sigma
-        pb%prior = prior_t(d%prior_index, d%prior_mean, d%prior_sigma)
-        pb%max_iter = d%max_iter
     end function deck_problem
 
     !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
@@ -664,17 +628,17 @@ contains
         if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
     end subroutine deck_ladder_start
 
-    !> <prefix>_estimates.csv, _covariance.csv and _residuals.csv.
-    subroutine write_fit_files(d, fo, prefix, fl, st)
+    !> <prefix><part>_estimates.csv, _covariance.csv and _residuals.csv.
+    subroutine write_fit_files(d, fo, part, fl, st)
         type(deck_t), intent(in) :: d
         type(fit_result_t), intent(in) :: fo
-        character(len=*), intent(in) :: prefix
+        character(len=*), intent(in) :: part
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         character(len=:), allocatable :: line
         integer :: unit, ios, i, j, r
 
-        call open_output(fl, prefix//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
+        call open_output(fl, part//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)
             call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
@@ -686,14 +650,14 @@ contains
         call put(unit, ios, 'dof,'//fmt_int(fo%dof)//',,')
         call put(unit, ios, 'iterations,'//fmt_int(fo%iterations)//',,')
         call put(unit, ios, 'condition_number,'//fmt_e(fo%cond)//',,')
-        call close_checked(unit, ios, prefix//'_estimates.csv', st)
+        call close_checked(fl, unit, ios, st)
         if (st%code /= STATUS_OK) return
 
         line = 'name'
         do i = 1, size(fo%free)
             line = line//','//param_name(d%nbeams, fo%free(i))
         end do
-        call open_output(fl, prefix//'_covariance.csv', line, unit, ios, st)
+        call open_output(fl, part//'_covariance.csv', line, unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)
             line = param_name(d%nbeams, fo%free(i))
@@ -702,10 +666,10 @@ contains
             end do
             call put(unit, ios, line)
         end do
-        call close_checked(unit, ios, prefix//'_covariance.csv', st)
+        call close_checked(fl, unit, ios, st)
         if (st%code /= STATUS_OK) return
 
-        call open_output(fl, prefix//'_residuals.csv', &
+        call open_output(fl, part//'_residuals.csv', &
                          'experiment,t,quantity,measured,model,sigma,normalized', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do r = 1, size(d%row_exp)
@@ -714,19 +678,18 @@ contains
                      fmt_e(fo%predictions(r))//','//fmt_e(d%data%sigma(r))//','// &
                      fmt_e(fo%normalized(r)))
         end do
-        call close_checked(unit, ios, prefix//'_residuals.csv', st)
+        call close_checked(fl, unit, ios, st)
     end subroutine write_fit_files
 
     !> <prefix>_ranking.csv: candidates best first, one row per parameter
     !! (columns as beamid.fit_decks.write_ranking). The drop, p-value,
     !! estimate and sigma are the refit's when one was made, else the score
     !! test's (first order).
-    subroutine write_ranking(d, fo, dg, cs, name, fl, st)
+    subroutine write_ranking(d, fo, dg, cs, fl, st)
         type(deck_t), intent(in) :: d
         type(fit_result_t), intent(in) :: fo
         type(diag_out_t), intent(in) :: dg
         type(cand_set_t), intent(in) :: cs
-        character(len=*), intent(in) :: name
         type(files_t), intent(inout) :: fl
         type(status_t), intent(inout) :: st
         real(dp) :: nan, score_drop, score_p, lr_drop, lr_p, drop, p, est, sig
@@ -736,9 +699,9 @@ contains
         character(len=:), allocatable :: pname, flags
 
         nan = ieee_value(1.0_dp, ieee_quiet_nan)
-        call open_output(fl, name, 'rank,effect,state,parameter,score_drop,score_p,refit_drop,'// &
-                         'refit_p,chi2_drop,p_value,estimate,sigma,physical,identifiable,'// &
-                         'significant,acceptable,rival', unit, ios, st)
+        call open_output(fl, '_ranking.csv', 'rank,effect,state,parameter,score_drop,'// &
+                         'score_p,refit_drop,refit_p,chi2_drop,p_value,estimate,sigma,'// &
+                         'physical,identifiable,significant,acceptable,rival', unit, ios, st)
         if (st%code /= STATUS_OK) return
         ! the mesh test ranks first when significant, else after the tested
         ! candidates (beamid.dyn_diagnosis.diagnose_dynamic)
@@ -810,41 +773,41 @@ contains
                 end do
             end associate
         end do
-        call close_checked(unit, ios, name, st)
+        call close_checked(fl, unit, ios, st)
     end subroutine write_ranking
 
-    !> <name>: 'quantity,value' rows (names, values), then the solver's Newton
+    !> <prefix><suffix>: 'quantity,value' rows (names, values), then the solver's Newton
     !! iterations and load steps (counts).
-    subroutine write_summary(fl, name, names, values, counts, st)
+    subroutine write_summary(fl, suffix, names, values, counts, st)
         type(files_t), intent(inout) :: fl
-        character(len=*), intent(in) :: name, names(:)
+        character(len=*), intent(in) :: suffix, names(:)
         real(dp), intent(in) :: values(:)
         integer, intent(in) :: counts(2)
         type(status_t), intent(inout) :: st
         integer :: unit, ios, i
-        call open_output(fl, name, 'quantity,value', unit, ios, st)
+        call open_output(fl, suffix, 'quantity,value', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(values)
             if (ios == 0) write (unit, '(a,",",es24.16e3)', iostat=ios) trim(names(i)), values(i)
         end do
         if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'newton_iterations', counts(1)
         if (ios == 0) write (unit, '(a,",",i0)', iostat=ios) 'load_steps', counts(2)
-        call close_checked(unit, ios, name, st)
+        call close_checked(fl, unit, ios, st)
     end subroutine write_summary
 
-    !> <name>: the header, then one row per column of `table`.
-    subroutine write_table(fl, name, header, table, st)
+    !> <prefix><suffix>: the header, then one row per column of `table`.
+    subroutine write_table(fl, suffix, header, table, st)
         type(files_t), intent(inout) :: fl
-        character(len=*), intent(in) :: name, header
+        character(len=*), intent(in) :: suffix, header
         real(dp), intent(in) :: table(:, :)
         type(status_t), intent(inout) :: st
         integer :: unit, ios, i
-        call open_output(fl, name, header, unit, ios, st)
+        call open_output(fl, suffix, header, unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(table, 2)
             if (ios == 0) write (unit, '(*(es24.16e3,:,","))', iostat=ios) table(:, i)
         end do
-        call close_checked(unit, ios, name, st)
+        call close_checked(fl, unit, ios, st)
     end subroutine write_table
 
     !> A logical as '0' or '1'.
@@ -877,32 +840,37 @@ contains
         end if
     end function fmt_e
 
-    !> Open an output file under its temporary name and write its header line.
-    subroutine open_output(fl, name, header, unit, ios, st)
+    !> Open output file <prefix><suffix> under its temporary name (its folder
+    !! made first) and write its header line.
+    subroutine open_output(fl, suffix, header, unit, ios, st)
         type(files_t), intent(inout) :: fl
-        character(len=*), intent(in) :: name, header
+        character(len=*), intent(in) :: suffix, header
         integer, intent(out) :: unit, ios
         type(status_t), intent(inout) :: st
         character(len=512) :: msg
-        open (newunit=unit, file=name//TMP_SUFFIX, status='replace', action='write', &
+        if (.not. fl%folder_ok) call make_folder(fl%prefix, st)
+        fl%folder_ok = st%code == STATUS_OK
+        if (.not. fl%folder_ok) return
+        fl%last = fl%prefix//suffix
+        open (newunit=unit, file=fl%last//TMP_SUFFIX, status='replace', action='write', &
               iostat=ios, iomsg=msg)
         if (ios /= 0) then
-            call set_status(st, ERR_OUTPUT, 'output', 'cannot write '//name//': '//trim(msg))
+            call set_status(st, ERR_OUTPUT, 'output', 'cannot write '//fl%last//': '//trim(msg))
             return
         end if
-        fl%names = fl%names//name//new_line('a')
+        fl%names = fl%names//fl%last//new_line('a')
         write (unit, '(a)', iostat=ios) header
     end subroutine open_output
 
-    !> Close a written file; a failed write is an error naming the file.
-    subroutine close_checked(unit, ios, name, st)
+    !> Close the file opened last; a failed write is an error naming the file.
+    subroutine close_checked(fl, unit, ios, st)
+        type(files_t), intent(in) :: fl
         integer, intent(in) :: unit, ios
-        character(len=*), intent(in) :: name
         type(status_t), intent(inout) :: st
         integer :: ios_close
         close (unit, iostat=ios_close)
         if (ios /= 0 .or. ios_close /= 0) call set_status(st, ERR_OUTPUT, 'output', &
-            'writing '//name//' failed (disk full or no permission)')
+            'writing '//fl%last//' failed (disk full or no permission)')
     end subroutine close_checked
 
     !> All or nothing: rename every temporary file to its final name when the

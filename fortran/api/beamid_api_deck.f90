@@ -73,7 +73,7 @@ contains
         if (stat%code /= STATUS_OK) return
         sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
                      nexp(d), nsize_i(d%free), nsize_i(d%prior_index), ncand(d), &
-                     ndata(d), merge(1, 0, d%has_load), d%shape_points, &
+                     nsize_r(d%data%value), merge(1, 0, d%has_load), d%shape_points, &
                      d%fe_elements_per_beam, d%fe_moment_form, merge(1, 0, d%fe_rotary_inertia), &
                      merge(1, 0, d%fe_point_masses), d%fe_steps, d%sim_elements_per_beam, &
                      d%sim_integrator, d%sim_friction, d%max_iter, d%load%kind], c_int)
@@ -122,12 +122,6 @@ contains
         ncand = 0
         if (allocated(d%candidates)) ncand = size(d%candidates)
     end function ncand
-
-    pure integer function ndata(d)
-        type(deck_t), intent(in) :: d
-        ndata = 0
-        if (allocated(d%data%value)) ndata = size(d%data%value)
-    end function ndata
 
     !> The arrays of a deck (sizes from api_deck_sizes): parameters, wrt and
     !! free parameter indices (1-based), output times, experiments (kind 1

@@ -16,7 +16,7 @@ module beamid_api_dynamics
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_element, only: fe_hermite
-    use beamid_fe_assembly, only: fe_band_to_dense, fe_node_value, &
+    use beamid_fe_assembly, only: fe_band_to_dense, fe_node_value, fe_load_t, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
@@ -100,7 +100,7 @@ contains
                             fmt_int(int(nmodes))//', expected >= 0')
         end if
         if (stat%code == STATUS_OK) then
-            call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            spec = release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0)
             spec%modes = int(modes(1:max(0, nmodes)))
             if (use_init /= 0) spec%y_init = real(y_init, dp)
             spec%progress => progress
@@ -141,24 +141,14 @@ contains
     end subroutine copy_history
 
     !> The release spec of the binding's scalar arguments.
-    subroutine release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+    type(release_spec_t) function release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, &
+                                               atol, h0) result(spec)
         integer(c_int), intent(in) :: nepb, method, law
         real(c_double), intent(in) :: loads(4), gain, vslip, dt, rtol, atol, h0
-        type(release_spec_t), intent(out) :: spec
-        spec%elements_per_beam = int(nepb)
-        spec%load%fx = loads(1)
-        spec%load%fy = loads(2)
-        spec%load%moment = loads(3)
-        spec%load%moment_form = nint(loads(4))
-        spec%motor_gain = gain
-        spec%integrator = int(method)
-        spec%friction = int(law)
-        spec%friction_velocity = vslip
-        spec%dt = dt
-        spec%rtol = rtol
-        spec%atol = atol
-        spec%h0 = h0
-    end subroutine release_spec
+        spec = release_spec_t(elements_per_beam=int(nepb), load=fe_load_t(loads(1), loads(2), &
+            loads(3), nint(loads(4))), motor_gain=gain, integrator=int(method), rtol=rtol, &
+            atol=atol, dt=dt, h0=h0, friction=int(law), friction_velocity=vslip)
+    end function release_spec
 
     !> Event records as columns (time, component, kind, mode before, after,
     !! force before, after), as many as fit.
@@ -361,7 +351,7 @@ contains
                             ', expected '//fmt_int(NQTY))
         end if
         if (stat%code == STATUS_OK) then
-            call release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0, spec)
+            spec = release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0)
             spec%progress => progress
             call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
         end if

@@ -334,16 +334,10 @@ contains
         real(c_double), intent(in) :: exp_values(:, :), row_t(:), row_value(:), row_sigma(:)
         real(c_double), intent(in) :: tol, prior(:, :)
         type(problem_t), intent(out) :: pb
-        pb%nbeams = int(nbeams)
-        pb%exp_kind = int(exp_kind)
-        pb%exp_values = real(exp_values, dp)
-        pb%row_exp = int(row_exp)
-        pb%row_t = real(row_t, dp)
-        pb%row_q = int(row_q)
-        pb%y = real(row_value, dp)
-        pb%sigma = real(row_sigma, dp)
-        pb%tol = real(tol, dp)
-        pb%prior = make_prior(prior)
+        pb = problem_t(nbeams=int(nbeams), exp_kind=int(exp_kind), row_exp=int(row_exp), &
+                       row_q=int(row_q), exp_values=real(exp_values, dp), row_t=real(row_t, dp), &
+                       y=real(row_value, dp), sigma=real(row_sigma, dp), tol=real(tol, dp), &
+                       prior=make_prior(prior))
         if (max_iter > 0) pb%max_iter = int(max_iter)
     end subroutine make_problem
 
