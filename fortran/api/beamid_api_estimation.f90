@@ -577,7 +577,7 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         effect = ''
-        if (.not. rung_ok(k, code, message)) return
+        if (.not. rung_ok(k, nparams, code, message)) return
         associate (r => lad%rungs(k))
             info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
             free_idx(:size(r%fit%free)) = r%fit%free
@@ -603,9 +603,18 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
+        type(status_t) :: stat
         note = ''
-        if (.not. rung_ok(k, code, message)) return
+        if (.not. rung_ok(k, nparams, code, message)) return
         associate (f => lad%rungs(k)%fit)
+            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
+                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
+                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
+                    ' of the ladder started last)')
+                call status_out(stat, code, message)
+                return
+            end if
             info(1) = int(f%stop, c_int)
             if (allocated(f%note)) note = f%note
             if (allocated(f%note)) message = f%note
@@ -631,15 +640,18 @@ contains
         character(len=256), intent(out) :: message
         type(diag_out_t) :: none
         type(status_t) :: stat
-        if (rung_ok(k, code, message)) then
-            if (size(lad%cs%cands) == ncand .and. size(lad%rungs(k)%fit%params) == nparams) then
+        if (rung_ok(k, nparams, code, message)) then
+            if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
                 call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
                                pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
                                mstats, mesh_params, kept, notes)
                 return
             end if
-            call set_status(stat, ERR_INPUT, 'ladder', 'ncand or nparams differ from the '// &
-                            'ladder started last')
+            call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
+                            ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
+                            fmt_int(size(lad%cs%cands))//' candidates of '// &
+                            fmt_int(cand_params_size(lad%cs))//' parameters (the ladder '// &
+                            'started last)')
             call status_out(stat, code, message)
         end if
         call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
@@ -647,19 +659,37 @@ contains
                        mesh_params, kept, notes)
     end subroutine api_ladder_diag
 
-    !> Is k a rung of the ladder started last? (else ERR_INPUT naming k)
-    logical function rung_ok(k, code, message)
-        integer(c_int), intent(in) :: k
+    !> Is k a rung of the ladder started last, of nparams parameters? (else
+    !! ERR_INPUT naming k or nparams)
+    logical function rung_ok(k, nparams, code, message)
+        integer(c_int), intent(in) :: k, nparams
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         integer :: n
         n = lad%n
         rung_ok = k >= 1 .and. k <= n
-        if (.not. rung_ok) call set_status(stat, ERR_INPUT, 'ladder', 'rung '// &
-            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
+        if (.not. rung_ok) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
+                            ', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
+        else if (nparams /= size(lad%rungs(k)%start)) then
+            rung_ok = .false.
+            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
+                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
+                            ' (the parameters of the ladder started last)')
+        end if
         call status_out(stat, code, message)
     end function rung_ok
+
+    !> The parameters of all candidates of cs (ncandp of api_ladder_diag).
+    pure integer function cand_params_size(cs)
+        type(cand_set_t), intent(in) :: cs
+        integer :: c
+        cand_params_size = 0
+        do c = 1, size(cs%cands)
+            cand_params_size = cand_params_size + size(cs%cands(c)%params)
+        end do
+    end function cand_params_size
 
     !> Start the ladder of the estimation deck at `path` run as `task` (blank:
     !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:

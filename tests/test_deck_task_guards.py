@@ -1,0 +1,76 @@
+"""The binding's held ladder and identify stages (beamid_api_estimation:
+api_deck_task_start / api_ladder_step / api_ladder_rung, _fit, _diag /
+api_deck_task_write) refuse what does not match what they hold, with an
+InputError naming the input, its value and what was expected, instead of
+writing or returning garbage; a deck's failure is named as beamid-batch
+names it."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import beamid
+from beamid import ConvergenceError, InputError, _core_estimation as _ce
+from beamid._core import _call
+from beamid.diagnosis import _candidate_set
+from beamid.estimation import build_problem
+from beamid.fit_decks import read_fit_deck, run_fit_deck
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO, SEED = ROOT / "inputs" / "demo", ROOT / "inputs" / "seed"
+STAGES = ("identify_three_stages.nml", "table05_data.csv", "table16_data.csv",
+          "table23_data.csv")
+
+
+def _copy(folder: Path, source: Path, *names: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copy(source / name, folder / name)
+    return folder / names[0]
+
+
+def _demo(folder: Path, task: str = "fit") -> Path:
+    deck = _copy(folder, DEMO, "hidden_effect.nml", "hidden_effect.csv")
+    deck.write_text(deck.read_text().replace("task = 'improve'", f"task = '{task}'"))
+    return deck
+
+
+def test_ladder_reads_check_the_sizes_of_the_held_ladder(tmp_path):
+    """api_ladder_rung, _fit and _diag with sizes other than the held
+    ladder's raise instead of returning garbage or writing out of bounds."""
+    demo = _demo(tmp_path, "diagnose")
+    deck = read_fit_deck(demo)
+    nparams = len(deck.model.names())
+    _, _, _, blocks = _candidate_set(deck.model, deck.experiments, deck.candidates)
+    starts, flat = _ce._blocks(blocks)
+    with _ce.LADDER_LOCK:
+        _ce.deck_task_start(str(demo))
+        assert _ce.ladder_step()
+        info = _call(_ce._api.api_ladder_rung, 1, nparams)[0]
+        nfree, nrow, max_iter = int(info[0]), int(info[3]), int(info[4])
+        for bad in (nparams + 33, nparams - 4):
+            with pytest.raises(InputError) as err:
+                _call(_ce._api.api_ladder_rung, 1, bad)
+            assert str(err.value) == (f"ladder: nparams = {bad}, expected {nparams} (the "
+                                      "parameters of the ladder started last)")
+            with pytest.raises(InputError, match=f"nparams = {bad}, expected {nparams}"):
+                _ce._fit_call(_ce._api.api_ladder_fit, nfree, False, 1, bad, nfree, nrow,
+                              max_iter)
+            with pytest.raises(InputError, match=f"nparams = {bad}, expected {nparams}"):
+                _call(_ce._api.api_ladder_diag, 1, bad, starts.size - 1, flat.size)
+        with pytest.raises(InputError) as err:
+            _ce._fit_call(_ce._api.api_ladder_fit, nfree + 1, False, 1, nparams, nfree + 1,
+                          nrow, max_iter)
+        assert str(err.value) == (f"ladder: nfree = {nfree + 1}, nrow = {nrow}, expected "
+                                  f"{nfree} and {nrow} (rung 1 of the ladder started last)")
+        with pytest.raises(InputError) as err:
+            _call(_ce._api.api_ladder_diag, 1, nparams, starts.size - 1, flat.size + 1)
+        assert str(err.value) == (f"ladder: ncand = {starts.size - 1}, ncandp = "
+                                  f"{flat.size + 1}, expected {starts.size - 1} candidates of "
+                                  f"{flat.size} parameters (the ladder started last)")
+        # the right sizes still read
+        assert _ce.ladder_rungs(nparams, blocks)[0]["fit"]["params"].size == nparams
