@@ -40,7 +40,7 @@ module beamid_tasks
     private
 
     public :: run_task, output_prefix, files_t, deck_problem, deck_candidates, deck_ladder_start
-    public :: deck_stage_start, deck_experiments
+    public :: deck_stage_start, deck_experiments, name_experiment
 
     !> The files of one run: final names, newline separated, in write order.
     type :: files_t

@@ -39,6 +39,31 @@ def _demo(folder: Path, task: str = "fit") -> Path:
     return deck
 
 
+def test_a_deck_ladders_failure_names_the_experiment_as_the_batch(tmp_path, batch_exe):
+    """A solver failure inside a dynamic deck's diagnosis (RK4 at dt = 1e-5 s
+    is stable at 4 elements per beam, not at the mesh test's 8) reaches
+    Python named as beamid-batch names it: "(experiment 'free' of DECK)",
+    not "(experiment 1)", and whole (the message is not cut to 256)."""
+    deck = _copy(tmp_path, DEMO, "dynamic_hidden_effect.nml")
+    rows = (DEMO / "dynamic_hidden_effect.csv").read_text().splitlines()
+    (tmp_path / "dynamic_hidden_effect.csv").write_text(   # t <= 0.1 s: a short run
+        "\n".join(rows[:3] + [r for r in rows[3:] if float(r.split(",")[1]) <= 0.1]) + "\n")
+    deck.write_text(deck.read_text().replace("task = 'improve'", "task = 'diagnose'")
+                    .replace("elements_per_beam = 4 /",
+                             "elements_per_beam = 4, integrator = 'rk4', dt = 1e-5 /")
+                    .replace("'drag', 'rotary_inertia', 'kelvin_voigt', 'motor_lag', 'mesh'",
+                             "'mesh'"))
+    run = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 3, run.stderr
+    with pytest.raises(ConvergenceError) as err:
+        run_fit_deck(deck, plots=False)
+    message = str(err.value)
+    assert f"(experiment 'free' of {deck})" in message and "(experiment 1)" not in message
+    assert message.endswith("(mesh test at twice the elements per beam)")
+    assert run.stderr.strip() == f"beamid-batch: error: {message}"
+
+
 def test_ladder_reads_check_the_sizes_of_the_held_ladder(tmp_path):
     """api_ladder_rung, _fit and _diag with sizes other than the held
     ladder's raise instead of returning garbage or writing out of bounds."""

@@ -22,7 +22,7 @@ module beamid_api_estimation
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start
+    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
@@ -47,6 +47,12 @@ module beamid_api_estimation
     !> The stages of the identify deck fitted last (api_deck_task_start),
     !! whose files api_deck_task_write writes.
     type(rung_t), allocatable, save :: staged(:)
+    !> The deck (task as run) whose ladder or stages lad and staged hold
+    !! (api_deck_task_start): api_deck_task_write writes only its files and
+    !! api_ladder_step names its experiments in a failure; from_deck is false
+    !! once api_ladder_start started a ladder on a problem instead.
+    type(deck_t), save :: held
+    logical, save :: from_deck = .false.
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -539,6 +545,7 @@ contains
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         type(problem_t) :: pb
+        from_deck = .false.
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
@@ -548,12 +555,15 @@ contains
     end subroutine api_ladder_start
 
     !> One rung of the ladder started last (beamid_ladder ladder_step):
-    !! nrung rungs are done; done = 1 when the ladder has ended.
+    !! nrung rungs are done; done = 1 when the ladder has ended. A failure of
+    !! a deck's ladder names the experiment and the deck, as beamid-batch.
     subroutine api_ladder_step(nrung, done, code, message)
         integer(c_int), intent(out) :: nrung, done, code
-        character(len=256), intent(out) :: message
+        character(len=65536), intent(out) :: message
         type(status_t) :: stat
         call ladder_step(lad, stat)
+        if (stat%code /= STATUS_OK .and. from_deck .and. allocated(held%exp_names)) &
+            call name_experiment(held, stat)
         nrung = int(lad%n, c_int)
         done = merge(1_c_int, 0_c_int, lad%done)
         call status_out(stat, code, message)
@@ -707,6 +717,7 @@ contains
         type(status_t) :: stat
         lad%done = .true.
         lad%n = 0
+        from_deck = .false.
         if (stage <= 1 .or. .not. allocated(staged)) staged = [rung_t ::]
         call read_deck(trim(path), d, stat)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
@@ -721,6 +732,8 @@ contains
                 call deck_ladder_start(d, lad, stat)
             end if
         end if
+        if (stat%code == STATUS_OK) held = d
+        from_deck = stat%code == STATUS_OK
         call status_out(stat, code, message)
     end subroutine api_deck_task_start
 
