@@ -674,6 +674,12 @@ contains
         character(len=:), allocatable :: line
         integer :: unit, ios, i, j, r
 
+        if (size(fo%predictions) /= size(d%row_exp)) then   ! a fit of another deck's rows
+            call set_status(st, ERR_INPUT, 'fit', 'predictions of '// &
+                            fmt_int(size(fo%predictions))//' rows, expected '// &
+                            fmt_int(size(d%row_exp))//' (the data rows of '//d%path//')')
+            return
+        end if
         call open_output(fl, prefix//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)

@@ -64,6 +64,50 @@ def test_a_deck_ladders_failure_names_the_experiment_as_the_batch(tmp_path, batc
     assert run.stderr.strip() == f"beamid-batch: error: {message}"
 
 
+def test_deck_task_write_refuses_another_deck(tmp_path):
+    """The held fit of one deck is not written under another deck's name."""
+    demo = _demo(tmp_path / "demo")
+    other = _copy(tmp_path / "t5", SEED, "table05_fit.nml", "table05_data.csv")
+    with _ce.LADDER_LOCK:
+        _ce.deck_task_start(str(demo))
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_write(str(other))
+        with pytest.raises(InputError, match=r"run as 'diagnose', expected '.*' run as 'fit'"):
+            _ce.deck_task_write(str(demo), "diagnose")
+    assert str(err.value) == (f"path: '{other}' run as 'fit', expected '{demo}' run as "
+                              "'fit' (the deck api_deck_task_start started last)")
+    assert not (tmp_path / "t5" / "out").exists() or not any((tmp_path / "t5" / "out").iterdir())
+
+
+def test_deck_task_write_refuses_a_problems_ladder(tmp_path):
+    """A ladder beamid.improve started on a problem is not written as a deck's."""
+    demo = _demo(tmp_path, "improve")
+    deck = read_fit_deck(demo)
+    with _ce.LADDER_LOCK:
+        _ce.deck_task_start(str(demo))
+        beamid.improve(deck.model, deck.experiments, deck.data, free=deck.free, max_steps=0)
+        with pytest.raises(InputError, match="ladder: no ended ladder of a deck"):
+            _ce.deck_task_write(str(demo))
+    assert not (tmp_path / "out").exists()
+
+
+def test_fit_files_refuse_predictions_of_other_rows(tmp_path):
+    """The deck's data changed between the fit and the write (fewer rows):
+    no residuals file with predictions read past their end."""
+    demo = _demo(tmp_path)
+    with _ce.LADDER_LOCK:
+        _ce.deck_task_start(str(demo))
+        csv = tmp_path / "hidden_effect.csv"
+        lines = csv.read_text().splitlines()
+        csv.write_text("\n".join(lines[:-1]) + "\n")
+        nrow = len(read_fit_deck(demo).data.value)
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_write(str(demo))
+    assert str(err.value) == (f"fit: predictions of {nrow + 1} rows, expected {nrow} "
+                              f"(the data rows of {demo})")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
 def test_ladder_reads_check_the_sizes_of_the_held_ladder(tmp_path):
     """api_ladder_rung, _fit and _diag with sizes other than the held
     ladder's raise instead of returning garbage or writing out of bounds."""
@@ -99,3 +143,32 @@ def test_ladder_reads_check_the_sizes_of_the_held_ladder(tmp_path):
                                   f"{flat.size} parameters (the ladder started last)")
         # the right sizes still read
         assert _ce.ladder_rungs(nparams, blocks)[0]["fit"]["params"].size == nparams
+
+
+def test_identify_stages_in_order_and_all_before_the_write(tmp_path):
+    """The identify stages start in order on one deck, not past the last,
+    and the files are written only from all of them: the binding never
+    fits a stage itself (so `run once` cannot silently become `twice`)."""
+    deck = str(_copy(tmp_path, SEED, *STAGES))
+    with _ce.LADDER_LOCK:
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_start(deck, "identify", 2)
+        assert str(err.value) == "stage: 2, expected 1 (the stages in order)"
+        with pytest.raises(InputError, match="^ladder: no ended ladder of a deck"):
+            _ce.deck_task_write(deck)       # the failed start holds nothing
+        _ce.deck_task_start(deck, "identify", 1)
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_write(deck)
+        assert str(err.value) == ("identify: 1 of 3 stages fitted, expected all "
+                                  "(api_deck_task_start each stage first)")
+        with pytest.raises(InputError, match=r"^stage: 3, expected 2 \(the stages in order\)"):
+            _ce.deck_task_start(deck, "identify", 3)
+        for stage in (1, 2, 3):
+            _ce.deck_task_start(deck, "identify", stage)
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_start(deck, "identify", 4)
+        assert str(err.value) == "identify: all 3 stages are fitted"
+        for stage in (1, 2, 3):     # the failed start dropped the ladder: fit them again
+            _ce.deck_task_start(deck, "identify", stage)
+        written = _ce.deck_task_write(deck)
+    assert len(written) == 10 and all(Path(p).exists() for p in written)

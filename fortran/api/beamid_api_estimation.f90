@@ -715,12 +715,13 @@ contains
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
+        call read_deck(trim(path), d, stat)
+        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+        ! the stages held go on only on the deck that fitted them
+        if (stage <= 1 .or. .not. allocated(staged) .or. .not. is_held(d)) staged = [rung_t ::]
         lad%done = .true.
         lad%n = 0
         from_deck = .false.
-        if (stage <= 1 .or. .not. allocated(staged)) staged = [rung_t ::]
-        call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         if (stat%code == STATUS_OK .and. max(int(stage), 1) /= size(staged) + 1) &
             call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))//', expected '// &
                             fmt_int(size(staged) + 1)//' (the stages in order)')
@@ -737,6 +738,13 @@ contains
         call status_out(stat, code, message)
     end subroutine api_deck_task_start
 
+    !> Is d (read, its task set) the deck api_deck_task_start started last?
+    logical function is_held(d)
+        type(deck_t), intent(in) :: d
+        is_held = from_deck .and. allocated(held%path) .and. allocated(held%task)
+        if (is_held) is_held = d%path == held%path .and. d%task == held%task
+    end function is_held
+
     !> Write the files of the deck at `path` run as `task` (beamid_tasks
     !! run_task: all or none, the bytes beamid-batch writes) from the ladder
     !! api_deck_task_start started on it and api_ladder_step ended;
@@ -749,13 +757,22 @@ contains
         type(deck_t) :: d
         type(status_t) :: stat
         character(len=:), allocatable :: files
-        if (.not. lad%done .or. lad%n < 1) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+        if (.not. lad%done .or. lad%n < 1 .or. .not. from_deck) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
         else
             call read_deck(trim(path), d, stat)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-            if (stat%code == STATUS_OK .and. d%task == 'identify') then
+            if (stat%code == STATUS_OK .and. .not. is_held(d)) then
+                call set_status(stat, ERR_INPUT, 'path', "'"//d%path//"' run as '"//d%task// &
+                                "', expected '"//held%path//"' run as '"//held%task// &
+                                "' (the deck api_deck_task_start started last)")
+            else if (stat%code == STATUS_OK .and. d%task == 'identify' .and. &
+                     size(staged) /= size(d%stages)) then
+                call set_status(stat, ERR_INPUT, 'identify', fmt_int(size(staged))//' of '// &
+                                fmt_int(size(d%stages))//' stages fitted, expected all '// &
+                                '(api_deck_task_start each stage first)')
+            else if (stat%code == STATUS_OK .and. d%task == 'identify') then
                 call run_task(d, files, stat, staged)
             else if (stat%code == STATUS_OK) then
                 call run_task(d, files, stat, lad%rungs(:lad%n))
