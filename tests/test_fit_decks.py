@@ -61,3 +61,31 @@ def test_bad_estimation_decks(tmp_path, demo):
     bad.write_text(text.replace("&experiment name = 'M3', kind = 'tip', moment = 3.0 /", ""))
     with pytest.raises(InputError, match="field experiment = 'M3' is not defined"):
         read_fit_deck(bad)
+
+
+def test_a_fit_deck_runs_as_its_file_reads(demo):
+    """The Fortran runs the deck file (its fit once, for the files and the
+    result): a FitDeck with a field other than task replaced raises instead
+    of labelling the file's fit with the replaced field (EI2 with EI1's
+    sigma); a replaced task runs."""
+    import dataclasses
+
+    deck = read_fit_deck(demo)
+    swapped = dataclasses.replace(deck, task="fit", free=("EI2", "EI1"))
+    with pytest.raises(InputError) as err:
+        run_fit_deck(swapped, plots=False)
+    assert str(err.value) == (
+        f"run_fit_deck: free = ('EI2', 'EI1'), expected ('EI1', 'EI2') (as {demo} reads: a "
+        "FitDeck runs as its file reads, only task may be replaced; write the change into "
+        "the deck file)")
+    other = dataclasses.replace(deck, data=dataclasses.replace(deck.data,
+                                                               value=deck.data.value * 1.01),
+                                alpha=0.05)
+    with pytest.raises(InputError, match=r"^run_fit_deck: data differs; alpha = 0\.05, "
+                                         r"expected 0\.01 \(as "):
+        run_fit_deck(other, plots=False)
+    assert not (demo.parent / "out").exists()
+    fit = run_fit_deck(dataclasses.replace(deck, task="fit"), plots=False)[2]
+    direct = beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free)
+    assert fit.free == deck.free == ("EI1", "EI2")
+    assert (fit.estimates, fit.sigmas) == (direct.estimates, direct.sigmas)
