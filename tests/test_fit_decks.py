@@ -89,3 +89,18 @@ def test_a_fit_deck_runs_as_its_file_reads(demo):
     direct = beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free)
     assert fit.free == deck.free == ("EI1", "EI2")
     assert (fit.estimates, fit.sigmas) == (direct.estimates, direct.sigmas)
+
+
+@pytest.mark.parametrize("task", ["diagnose", "improve"])
+def test_deck_progress_bar_says_its_task(task, demo, monkeypatch):
+    """A diagnose deck is one diagnosis: no bar (as before the fit ran
+    once); an improve deck's bar is labelled improve, drawn on a tty only."""
+    import beamid.diagnosis as diagnosis
+
+    bars = []
+    real = diagnosis.progress
+    monkeypatch.setattr(diagnosis, "progress", lambda it, total=None, desc="", enabled=None:
+                        bars.append((desc, enabled)) or real(it, total, desc, enabled))
+    deck = read_fit_deck(demo)
+    run_fit_deck(type(deck)(**{**deck.__dict__, "task": task}), plots=False)
+    assert bars == [("diagnose", False)] if task == "diagnose" else bars == [("improve", None)]

@@ -246,7 +246,7 @@ def _deck_result(deck: FitDeck) -> Any:
     prior_map = _prior_arrays(deck.model, _free_indices(deck.model, deck.free)[0], deck.prior)[0]
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
-                         deck.alpha, len(deck.candidates or ()) * improve)
+                         deck.alpha, len(deck.candidates or ()) * improve, deck.task)
     return ladder if improve else ladder.steps[0].diagnosis
 
 
