@@ -172,3 +172,14 @@ def test_identify_stages_in_order_and_all_before_the_write(tmp_path):
             _ce.deck_task_start(deck, "identify", stage)
         written = _ce.deck_task_write(deck)
     assert len(written) == 10 and all(Path(p).exists() for p in written)
+
+
+def test_a_full_prior_covariance_of_the_wrong_size():
+    deck = read_fit_deck(DEMO / "hidden_effect.nml")
+    names = deck.model.names()
+    prior = _ce.prior_table([(names.index("EI1") + 1, 11.0, 1.0),
+                             (names.index("EI2") + 1, 11.0, 1.0)])
+    with pytest.raises(InputError) as err:
+        _ce.fit(build_problem(deck.model, deck.experiments, deck.data), deck.model.vector(),
+                np.array([names.index("EI1") + 1]), prior, prior_cov=np.ones(3))
+    assert str(err.value) == "prior: prior_cov has 3 values, expected nprior**2 = 4"
