@@ -76,8 +76,8 @@ def test_a_fit_deck_runs_as_its_file_reads(demo):
         run_fit_deck(swapped, plots=False)
     assert str(err.value) == (
         f"run_fit_deck: free = ('EI2', 'EI1'), expected ('EI1', 'EI2') (as {demo} reads: a "
-        "FitDeck runs as its file reads, only task may be replaced; write the change into "
-        "the deck file)")
+        "FitDeck runs as its file reads, only task and output may be replaced; write the "
+        "change into the deck file)")
     other = dataclasses.replace(deck, data=dataclasses.replace(deck.data,
                                                                value=deck.data.value * 1.01),
                                 alpha=0.05)
@@ -104,3 +104,20 @@ def test_deck_progress_bar_says_its_task(task, demo, monkeypatch):
     deck = read_fit_deck(demo)
     run_fit_deck(type(deck)(**{**deck.__dict__, "task": task}), plots=False)
     assert bars == [("diagnose", False)] if task == "diagnose" else bars == [("improve", None)]
+
+
+def test_a_fit_deck_with_another_output_writes_there(demo, tmp_path):
+    """`beamid demo` replaces its decks' output: the files go there (the
+    bytes of the deck's own run), none next to the deck file."""
+    import dataclasses
+
+    deck = read_fit_deck(demo)
+    own = run_fit_deck(dataclasses.replace(deck, task="compare"), plots=False)[1]
+    moved = dataclasses.replace(deck, task="compare", output=str(tmp_path / "elsewhere" / "x"))
+    files = run_fit_deck(moved, plots=False)[1]
+    assert [p.parent for p in files] == [tmp_path / "elsewhere"] * 4
+    assert sorted(p.name.replace("x_", "hidden_effect_") for p in files) == \
+        sorted(p.name for p in own)
+    for a in own:
+        b = tmp_path / "elsewhere" / a.name.replace("hidden_effect_", "x_")
+        assert b.read_bytes() == a.read_bytes(), a.name

@@ -748,10 +748,11 @@ contains
     !> Write the files of the deck at `path` run as `task` (beamid_tasks
     !! run_task: all or none, the bytes beamid-batch writes) from the ladder
     !! api_deck_task_start started on it and api_ladder_step ended;
-    !! `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, written, code, message)
+    !! `output`: the output prefix (blank: the deck's; beamid demo writes its
+    !! decks' files elsewhere); `written`: the files, one per line.
+    subroutine api_deck_task_write(path, task, output, written, code, message)
         use beamid_status, only: put_text
-        character(len=*), intent(in) :: path, task
+        character(len=*), intent(in) :: path, task, output
         character(len=65536), intent(out) :: written, message
         integer(c_int), intent(out) :: code
         type(deck_t) :: d
@@ -763,6 +764,7 @@ contains
         else
             call read_deck(trim(path), d, stat)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+            if (len_trim(output) > 0) d%output = trim(output)
             if (stat%code == STATUS_OK .and. .not. is_held(d)) then
                 call set_status(stat, ERR_INPUT, 'path', "'"//d%path//"' run as '"//d%task// &
                                 "', expected '"//held%path//"' run as '"//held%task// &

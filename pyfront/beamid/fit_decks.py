@@ -171,17 +171,17 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     it by the batch's writers (all or none); the report and the figures come
     from the result.
 
-    A :class:`FitDeck` runs as its file reads: only its ``task`` may be
-    replaced (``dataclasses.replace(deck, task="diagnose")``); a FitDeck
-    differing from its file in any other field raises InputError naming the
-    fields (write them into the deck file instead)."""
+    A :class:`FitDeck` runs as its file reads: only its ``task`` and
+    ``output`` may be replaced (``dataclasses.replace(deck, task="diagnose")``);
+    a FitDeck differing from its file in any other field raises InputError
+    naming the fields (write them into the deck file instead)."""
     if isinstance(deck, FitDeck):
         _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
+        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task, deck.output)]
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -213,18 +213,19 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _check_as_read(deck: FitDeck) -> None:
-    """InputError unless ``deck`` is its file as read, but for ``task``: the
-    Fortran runs the deck file (its fit once, for the files and the result)."""
+    """InputError unless ``deck`` is its file as read, but for ``task`` and
+    ``output``: the Fortran runs the deck file (its fit once, for the files
+    and the result)."""
     read = read_fit_deck(deck.path)
-    differ = [f.name for f in dataclasses.fields(FitDeck)
-              if f.name != "task" and not _same(getattr(deck, f.name), getattr(read, f.name))]
+    differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
+              and not _same(getattr(deck, f.name), getattr(read, f.name))]
     if differ:
         shown = "; ".join(f"{n} = {getattr(deck, n)!r}, expected {getattr(read, n)!r}"
                           if len(repr(getattr(deck, n))) < 80 else f"{n} differs"
                           for n in differ)
         raise InputError(f"run_fit_deck: {shown} (as {deck.path} reads: a FitDeck runs as "
-                         "its file reads, only task may be replaced; write the change into "
-                         "the deck file)")
+                         "its file reads, only task and output may be replaced; write the change "
+                         "into the deck file)")
 
 
 def _deck_result(deck: FitDeck) -> Any:
