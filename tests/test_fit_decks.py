@@ -85,6 +85,10 @@ def test_a_fit_deck_runs_as_its_file_reads(demo):
                                          r"expected 0\.01 \(as "):
         run_fit_deck(other, plots=False)
     assert not (demo.parent / "out").exists()
+    from beamid.fit_decks import _same      # NaN fields (a value not given) compare equal
+    assert _same({"a": (float("nan"), np.array([1.0, np.nan]))},
+                 {"a": (float("nan"), np.array([1.0, np.nan]))})
+    assert not _same((1.0, "EI1"), (1.0, "EI2")) and not _same(np.zeros(2), np.zeros(3))
     fit = run_fit_deck(dataclasses.replace(deck, task="fit"), plots=False)[2]
     direct = beamid.fit(deck.model, deck.experiments, deck.data, free=deck.free)
     assert fit.free == deck.free == ("EI1", "EI2")
