@@ -40,7 +40,7 @@ module beamid_tasks
     private
 
     public :: run_task, files_t, deck_problem, deck_candidates, deck_ladder_start
-    public :: deck_stage_start, deck_experiments
+    public :: deck_stage_start, deck_experiments, name_experiment
 
     !> The files of one run: final names, newline separated, in write order;
     !! each is `prefix` (the deck's output resolved against its directory)
@@ -638,6 +638,12 @@ contains
         character(len=:), allocatable :: line
         integer :: unit, ios, i, j, r
 
+        if (size(fo%predictions) /= size(d%row_exp)) then   ! a fit of another deck's rows
+            call set_status(st, ERR_INPUT, 'fit', 'predictions of '// &
+                            fmt_int(size(fo%predictions))//' rows, expected '// &
+                            fmt_int(size(d%row_exp))//' (the data rows of '//d%path//')')
+            return
+        end if
         call open_output(fl, part//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)

@@ -297,3 +297,21 @@ def test_model_api():
     assert_allclose(c["EA1"], 12 * 2.0 / 0.00315976**2)
     r = beamid.solve_static(c, beamid.TipForce(fy=0.001))
     assert math.isnan(r.elbow_x)
+
+
+def test_static_result_keeps_its_constructor_keywords():
+    """StaticResult (public, in beamid.__all__) takes outputs= and doutputs=
+    as before it became a slotted dataclass (whose fields are private)."""
+    model = beamid.pace()
+    solved = beamid.solve_static(model, beamid.TipForce(0.0, 3.0), wrt=("EI1",))
+    made = beamid.StaticResult(model=model, load=solved.load, wrt=solved.wrt,
+                               outputs=solved._outputs, doutputs=solved._doutputs,
+                               unknowns=solved.unknowns, newton_iterations=2, load_steps=1,
+                               tol=solved.tol)
+    assert np.array_equal(list(made.outputs.values()), list(solved.outputs.values()),
+                          equal_nan=True)
+    assert made.d["tip_y"] == solved.d["tip_y"]
+    assert (made.newton_iterations, made.load_steps, made.tol) == (2, 1, solved.tol)
+    assert made.shape(5).x.tolist() == solved.shape(5).x.tolist()
+    with pytest.raises(TypeError, match="_outputs"):
+        beamid.StaticResult(model, solved.load, (), _outputs=solved._outputs)

@@ -22,7 +22,7 @@ module beamid_api_estimation
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start
+    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
@@ -47,6 +47,12 @@ module beamid_api_estimation
     !> The stages of the identify deck fitted last (api_deck_task_start),
     !! whose files api_deck_task_write writes.
     type(rung_t), allocatable, save :: staged(:)
+    !> The deck (task as run) whose ladder or stages lad and staged hold
+    !! (api_deck_task_start): api_deck_task_write writes only its files and
+    !! api_ladder_step names its experiments in a failure; from_deck is false
+    !! once api_ladder_start started a ladder on a problem instead.
+    type(deck_t), save :: held
+    logical, save :: from_deck = .false.
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -533,6 +539,7 @@ contains
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         type(problem_t) :: pb
+        from_deck = .false.
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
@@ -542,12 +549,15 @@ contains
     end subroutine api_ladder_start
 
     !> One rung of the ladder started last (beamid_ladder ladder_step):
-    !! nrung rungs are done; done = 1 when the ladder has ended.
+    !! nrung rungs are done; done = 1 when the ladder has ended. A failure of
+    !! a deck's ladder names the experiment and the deck, as beamid-batch.
     subroutine api_ladder_step(nrung, done, code, message)
         integer(c_int), intent(out) :: nrung, done, code
-        character(len=256), intent(out) :: message
+        character(len=65536), intent(out) :: message
         type(status_t) :: stat
         call ladder_step(lad, stat)
+        if (stat%code /= STATUS_OK .and. from_deck .and. allocated(held%exp_names)) &
+            call name_experiment(held, stat)
         nrung = int(lad%n, c_int)
         done = merge(1_c_int, 0_c_int, lad%done)
         call status_out(stat, code, message)
@@ -571,7 +581,7 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         effect = ''
-        if (.not. rung_ok(k, code, message)) return
+        if (.not. rung_ok(k, nparams, code, message)) return
         associate (r => lad%rungs(k))
             info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
             free_idx(:size(r%fit%free)) = r%fit%free
@@ -597,9 +607,18 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
+        type(status_t) :: stat
         note = ''
-        if (.not. rung_ok(k, code, message)) return
+        if (.not. rung_ok(k, nparams, code, message)) return
         associate (f => lad%rungs(k)%fit)
+            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
+                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
+                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
+                    ' of the ladder started last)')
+                call status_out(stat, code, message)
+                return
+            end if
             info(1) = int(f%stop, c_int)
             if (allocated(f%note)) note = f%note
             if (allocated(f%note)) message = f%note
@@ -625,15 +644,18 @@ contains
         character(len=256), intent(out) :: message
         type(diag_out_t) :: none
         type(status_t) :: stat
-        if (rung_ok(k, code, message)) then
-            if (size(lad%cs%cands) == ncand .and. size(lad%rungs(k)%fit%params) == nparams) then
+        if (rung_ok(k, nparams, code, message)) then
+            if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
                 call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
                                pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
                                mstats, mesh_params, kept, notes)
                 return
             end if
-            call set_status(stat, ERR_INPUT, 'ladder', 'ncand or nparams differ from the '// &
-                            'ladder started last')
+            call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
+                            ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
+                            fmt_int(size(lad%cs%cands))//' candidates of '// &
+                            fmt_int(cand_params_size(lad%cs))//' parameters (the ladder '// &
+                            'started last)')
             call status_out(stat, code, message)
         end if
         call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
@@ -641,19 +663,37 @@ contains
                        mesh_params, kept, notes)
     end subroutine api_ladder_diag
 
-    !> Is k a rung of the ladder started last? (else ERR_INPUT naming k)
-    logical function rung_ok(k, code, message)
-        integer(c_int), intent(in) :: k
+    !> Is k a rung of the ladder started last, of nparams parameters? (else
+    !! ERR_INPUT naming k or nparams)
+    logical function rung_ok(k, nparams, code, message)
+        integer(c_int), intent(in) :: k, nparams
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
         integer :: n
         n = lad%n
         rung_ok = k >= 1 .and. k <= n
-        if (.not. rung_ok) call set_status(stat, ERR_INPUT, 'ladder', 'rung '// &
-            fmt_int(int(k))//', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
+        if (.not. rung_ok) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
+                            ', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
+        else if (nparams /= size(lad%rungs(k)%start)) then
+            rung_ok = .false.
+            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
+                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
+                            ' (the parameters of the ladder started last)')
+        end if
         call status_out(stat, code, message)
     end function rung_ok
+
+    !> The parameters of all candidates of cs (ncandp of api_ladder_diag).
+    pure integer function cand_params_size(cs)
+        type(cand_set_t), intent(in) :: cs
+        integer :: c
+        cand_params_size = 0
+        do c = 1, size(cs%cands)
+            cand_params_size = cand_params_size + size(cs%cands(c)%params)
+        end do
+    end function cand_params_size
 
     !> Start the ladder of the estimation deck at `path` run as `task` (blank:
     !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:
@@ -669,11 +709,13 @@ contains
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
-        lad%done = .true.
-        lad%n = 0
-        if (stage <= 1 .or. .not. allocated(staged)) staged = [rung_t ::]
         call read_deck(trim(path), d, stat)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
+        ! the stages held go on only on the deck that fitted them
+        if (stage <= 1 .or. .not. allocated(staged) .or. .not. is_held(d)) staged = [rung_t ::]
+        lad%done = .true.
+        lad%n = 0
+        from_deck = .false.
         if (stat%code == STATUS_OK .and. max(int(stage), 1) /= size(staged) + 1) &
             call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))//', expected '// &
                             fmt_int(size(staged) + 1)//' (the stages in order)')
@@ -685,28 +727,48 @@ contains
                 call deck_ladder_start(d, lad, stat)
             end if
         end if
+        if (stat%code == STATUS_OK) held = d
+        from_deck = stat%code == STATUS_OK
         call status_out(stat, code, message)
     end subroutine api_deck_task_start
+
+    !> Is d (read, its task set) the deck api_deck_task_start started last?
+    logical function is_held(d)
+        type(deck_t), intent(in) :: d
+        is_held = from_deck .and. allocated(held%path) .and. allocated(held%task)
+        if (is_held) is_held = d%path == held%path .and. d%task == held%task
+    end function is_held
 
     !> Write the files of the deck at `path` run as `task` (beamid_tasks
     !! run_task: all or none, the bytes beamid-batch writes) from the ladder
     !! api_deck_task_start started on it and api_ladder_step ended;
-    !! `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, written, code, message)
+    !! `output`: the output prefix (blank: the deck's; beamid demo writes its
+    !! decks' files elsewhere); `written`: the files, one per line.
+    subroutine api_deck_task_write(path, task, output, written, code, message)
         use beamid_status, only: put_text
-        character(len=*), intent(in) :: path, task
+        character(len=*), intent(in) :: path, task, output
         character(len=65536), intent(out) :: written, message
         integer(c_int), intent(out) :: code
         type(deck_t) :: d
         type(status_t) :: stat
         character(len=:), allocatable :: files
-        if (.not. lad%done .or. lad%n < 1) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder (run '// &
+        if (.not. lad%done .or. lad%n < 1 .or. .not. from_deck) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
         else
             call read_deck(trim(path), d, stat)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-            if (stat%code == STATUS_OK .and. d%task == 'identify') then
+            if (len_trim(output) > 0) d%output = trim(output)
+            if (stat%code == STATUS_OK .and. .not. is_held(d)) then
+                call set_status(stat, ERR_INPUT, 'path', "'"//d%path//"' run as '"//d%task// &
+                                "', expected '"//held%path//"' run as '"//held%task// &
+                                "' (the deck api_deck_task_start started last)")
+            else if (stat%code == STATUS_OK .and. d%task == 'identify' .and. &
+                     size(staged) /= size(d%stages)) then
+                call set_status(stat, ERR_INPUT, 'identify', fmt_int(size(staged))//' of '// &
+                                fmt_int(size(d%stages))//' stages fitted, expected all '// &
+                                '(api_deck_task_start each stage first)')
+            else if (stat%code == STATUS_OK .and. d%task == 'identify') then
                 call run_task(d, files, stat, staged)
             else if (stat%code == STATUS_OK) then
                 call run_task(d, files, stat, lad%rungs(:lad%n))

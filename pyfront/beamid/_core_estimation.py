@@ -356,8 +356,10 @@ def deck_task_start(path: str, task: str = "", stage: int = 0) -> None:
     _call(_api.api_deck_task_start, _path(path), task, int(stage))
 
 
-def deck_task_write(path: str, task: str = "") -> list[str]:
+def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     """Write the files of the deck run as ``task`` (all or none, the bytes of
-    beamid-batch) from the ladder :func:`deck_task_start` started on it."""
-    written = _call(_api.api_deck_task_write, _path(path), task)
+    beamid-batch) from the ladder :func:`deck_task_start` started on it, to
+    the output prefix ``output`` (default the deck's, resolved against the
+    deck's folder as the deck's own)."""
+    written = _call(_api.api_deck_task_write, _path(path), task, output)
     return [line for line in _text(written).split("\n") if line]

@@ -735,15 +735,17 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                 prior_map: Mapping[str, tuple[float, float]],
                 candidates: Sequence[str | Effect] | None, alpha: float,
-                max_steps: int) -> Ladder:
+                max_steps: int, desc: str = "improve") -> Ladder:
     """Run the ladder started in the extension (``_ce.ladder_start`` or
-    ``_ce.deck_task_start``) a rung per call, with a progress bar on a
-    terminal, and name its rungs."""
+    ``_ce.deck_task_start``) a rung per call, with a progress bar labelled
+    ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
+    call), and name its rungs."""
     dynamic = _dynamic(experiments)
     if dynamic:
         from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
-    for _ in progress(itertools.count(), total=max_steps + 1, desc="improve"):  # on a tty only
+    for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
+                      enabled=None if max_steps else False):
         if _ce.ladder_step():
             break
     all_names = model.names()

@@ -16,10 +16,13 @@ the Fortran reader of ``beamid-batch`` too (:func:`beamid.read_deck`).
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from . import _core
 from .diagnosis import Ladder, _run_ladder, compare
@@ -166,12 +169,19 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     at a time, a progress bar on a terminal) on the deck as read there, the
     result objects are built from it, then the CSV files are written from
     it by the batch's writers (all or none); the report and the figures come
-    from the result."""
-    if not isinstance(deck, FitDeck):
+    from the result.
+
+    A :class:`FitDeck` runs as its file reads: only its ``task`` and
+    ``output`` may be replaced (``dataclasses.replace(deck, task="diagnose")``);
+    a FitDeck differing from its file in any other field raises InputError
+    naming the fields (write them into the deck file instead)."""
+    if isinstance(deck, FitDeck):
+        _check_as_read(deck)
+    else:
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task)]
+        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task, deck.output)]
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
@@ -185,6 +195,41 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     return text, files, out
 
 
+def _same(a: Any, b: Any) -> bool:
+    """a equals b, field by field, numpy arrays element by element (NaN equal)."""
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        return type(a) is type(b) and all(_same(getattr(a, f.name), getattr(b, f.name))
+                                          for f in dataclasses.fields(a))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return False
+        return bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc" and b.dtype.kind in "fc"))
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(map(_same, a, b))
+    if isinstance(a, float) and isinstance(b, float) and a != a:
+        return b != b
+    return bool(a == b)
+
+
+def _check_as_read(deck: FitDeck) -> None:
+    """InputError unless ``deck`` is its file as read, but for ``task`` and
+    ``output``: the Fortran runs the deck file (its fit once, for the files
+    and the result)."""
+    read = read_fit_deck(deck.path)
+    differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
+              and not _same(getattr(deck, f.name), getattr(read, f.name))]
+    if differ:
+        shown = "; ".join(f"{n} = {getattr(deck, n)!r}, expected {getattr(read, n)!r}"
+                          if len(repr(getattr(deck, n))) < 80 else f"{n} differs"
+                          for n in differ)
+        raise InputError(f"run_fit_deck: {shown} (as {deck.path} reads: a FitDeck runs as "
+                         "its file reads, only task and output may be replaced; write the change "
+                         "into the deck file)")
+
+
 def _deck_result(deck: FitDeck) -> Any:
     """The result of the deck's task, FitResult (fit), Comparison (compare),
     Diagnosis (diagnose) or Ladder (improve), from the ladder the Fortran of
@@ -192,16 +237,19 @@ def _deck_result(deck: FitDeck) -> Any:
     candidates; ``_core_estimation.deck_task_start``); the caller holds
     ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
     the deck's files from the same ladder."""
-    free_names, _ = _free_indices(deck.model, deck.free)
-    prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
     _ce.deck_task_start(str(deck.path), deck.task)
+    names = deck.model.names()
     if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
-        raw = _ce.ladder_rungs(len(deck.model.names()), [])[0]["fit"]
-        fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map, raw)
+        rung = _ce.ladder_rungs(len(names), [])[0]
+        free_names = tuple(names[i] for i in rung["free"])   # the fit's own, as _run_ladder
+        prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
+        fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map,
+                          rung["fit"])
         return fit if deck.task == "fit" else compare(fit)
+    prior_map = _prior_arrays(deck.model, _free_indices(deck.model, deck.free)[0], deck.prior)[0]
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
-                         deck.alpha, len(deck.candidates or ()) * improve)
+                         deck.alpha, len(deck.candidates or ()) * improve, deck.task)
     return ladder if improve else ladder.steps[0].diagnosis
 
 

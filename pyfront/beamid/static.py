@@ -46,7 +46,7 @@ def _output(name: str, doc: str) -> property:
     return property(get, doc=doc)
 
 
-@dataclass(eq=False, repr=False, slots=True)
+@dataclass(eq=False, repr=False, slots=True, init=False)
 class StaticResult:
     """Converged static solution.
 
@@ -65,6 +65,15 @@ class StaticResult:
     load_steps: int = 0
     tol: float = 0.0
     _d: dict[str, dict[str, float]] | None = field(default=None, init=False)
+
+    def __init__(self, model: Model, load: Load, wrt: tuple[str, ...], outputs: np.ndarray,
+                 doutputs: np.ndarray, unknowns: np.ndarray, newton_iterations: int = 0,
+                 load_steps: int = 0, tol: float = 0.0) -> None:
+        # the public keywords outputs/doutputs (the fields are private: the
+        # properties outputs and d read them)
+        self.model, self.load, self.wrt, self.unknowns = model, load, wrt, unknowns
+        self._outputs, self._doutputs, self._d = outputs, doutputs, None
+        self.newton_iterations, self.load_steps, self.tol = newton_iterations, load_steps, tol
 
     @property
     def outputs(self) -> dict[str, float]:
