@@ -256,8 +256,12 @@ contains
     !! the fit is the only rung, with no candidates and an empty diagnosis.
     subroutine ladder_end_at_fit(lad)
         type(ladder_t), intent(inout) :: lad
+        type(cand_set_t) :: none
         if (lad%done) return                  ! the fit failed
-        lad%cs = cand_set_t([character(len=32) ::], [candidate_t ::])
+        ! no candidates, allocated empty (gfortran 12 leaves the components of
+        ! a structure constructor from empty array constructors unallocated)
+        allocate (none%names(0), none%cands(0))
+        lad%cs = none
         allocate (lad%r%dg%diag%ranking(0), lad%r%dg%diag%cosine(0, 0))
         lad%r%nominal = lad%nominal
         lad%n = 1
