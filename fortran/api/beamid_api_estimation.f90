@@ -456,7 +456,8 @@ contains
         mesh_params = params
         notes = ''
         if (.not. ok) return
-        nf = size(dg%base%free)
+        nf = 0       ! a rung that ended at its fit (fit, compare decks): not diagnosed
+        if (allocated(dg%base%free)) nf = size(dg%base%free)
         text = ''
         k = 0
         do c = 1, size(cs%cands)
@@ -763,13 +764,15 @@ contains
                 call set_status(stat, ERR_INPUT, 'path', "'"//d%path//"' run as '"//d%task// &
                                 "', expected '"//held%path//"' run as '"//held%task// &
                                 "' (the deck api_deck_task_start started last)")
-            else if (stat%code == STATUS_OK .and. d%task == 'identify' .and. &
-                     size(staged) /= size(d%stages)) then
-                call set_status(stat, ERR_INPUT, 'identify', fmt_int(size(staged))//' of '// &
-                                fmt_int(size(d%stages))//' stages fitted, expected all '// &
-                                '(api_deck_task_start each stage first)')
             else if (stat%code == STATUS_OK .and. d%task == 'identify') then
-                call run_task(d, files, stat, staged)
+                ! (no short-circuit in Fortran: the sizes only of an identify deck)
+                if (size(staged) /= size(d%stages)) then
+                    call set_status(stat, ERR_INPUT, 'identify', fmt_int(size(staged))// &
+                                    ' of '//fmt_int(size(d%stages))//' stages fitted, '// &
+                                    'expected all (api_deck_task_start each stage first)')
+                else
+                    call run_task(d, files, stat, staged)
+                end if
             else if (stat%code == STATUS_OK) then
                 call run_task(d, files, stat, lad%rungs(:lad%n))
             end if
