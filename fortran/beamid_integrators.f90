@@ -28,7 +28,7 @@ module beamid_integrators
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN, FRICTION_SMOOTH, dyn_param_t, dyn_jacobian, &
+                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_velocity_coupled, &
                                dyn_dforce, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
                                DP_NONE
@@ -2344,17 +2344,21 @@ contains
         ! rotary inertia, the motor without lag or the regularized friction law
         ! (the sign law's dphi is 0): otherwise C is zero by construction and
         ! its scan for zeros is skipped
-        coupled = es%eta /= 0.0_dp .or. (es%motor /= 0.0_dp .and. es%nx == 0) .or. es%rotary &
-                  .or. any(es%drag /= 0.0_dp) .or. any(es%inertia /= 0.0_dp) &
-                  .or. (es%law == FRICTION_SMOOTH .and. any(es%fric /= 0.0_dp))
+        coupled = dyn_velocity_coupled(es)
         associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
                    fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
-                call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                  cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
-                cz(i) = .not. coupled
-                if (coupled) cz(i) = all(cb(:, :, i) == 0.0_dp)
+                if (coupled) then
+                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                                      cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
+                    cz(i) = all(cb(:, :, i) == 0.0_dp)
+                else
+                    ! C is zero by construction: neither assembled nor scanned
+                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                                      b=ws%b(:, i), p=ws%p(:, i), d=ws%d(:, i), e=e(i))
+                    cz(i) = .true.
+                end if
                 acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
                              + dmat(i, 3)*z(n + 1:2*n, 3))/hh
                 do j = 1, nw
