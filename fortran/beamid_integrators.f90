@@ -168,6 +168,9 @@ module beamid_integrators
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
         real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> passes after the first (sens_update): the displacement corrections
+        !! of the active columns (n x na x 3) and K0 - K(Y_i) of the stages
+        real(dp), allocatable :: dlq(:, :, :), kd(:, :, :)
         !> the stage accelerations (D dZ)_i / h of the active columns (velocity
         !! rows) and their mass products M0 (D dZ)_i / h
         real(dp), allocatable :: zv(:, :), tm(:, :), t3(:, :)
@@ -2287,7 +2290,7 @@ contains
         integer, parameter :: MAXIT = 40
         real(dp) :: e(3)
         integer :: n, m, nw, nb, j, iter, na, ja
-        logical :: cz(3)
+        logical :: cz(3), update
         n = es%n
         m = es%ncstate
         nw = size(sm, 2)
@@ -2295,9 +2298,16 @@ contains
         call sens_work_alloc(ws, nb, n, m, nw)
         call sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
         call sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        ! constant mass, no velocity coupling, no motor lag: the residuals after
+        ! a correction from those of the pass before (sens_update)
+        update = m == 2*n .and. .not. (it%rot .or. es%rotary .or. dyn_velocity_coupled(es))
         do iter = 1, MAXIT
             if (na == 0) exit
-            call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            if (update .and. iter > 1) then
+                call sens_update(es, it, na, iter == 2, ws)
+            else
+                call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            end if
             do ja = 1, na
                 ws%w1(:, ja) = ti1(1)*ws%r(:, 1, ja) + ti1(2)*ws%r(:, 2, ja) &
                                + ti1(3)*ws%r(:, 3, ja)
@@ -2521,6 +2531,41 @@ contains
         end associate
     end subroutine sens_residuals
 
+    !> The residuals of the na active columns after their last correction
+    !! dZ (displacement rows ws%dlq; the velocity rows follow), without the
+    !! mass products: the reduced solves invert lam^2 M + K0 exactly (K0 the
+    !! iteration matrix's Jacobian it%kb), so the mass term M (D dZ_v)_i / h of
+    !! the correction equals r_i - K0 dZ_q,i and the new residual, r_i minus
+    !! the correction's K(Y_i) dZ_q,i and mass term, is (K0 - K(Y_i)) dZ_q,i.
+    !! Constant mass, C = 0 and no motor lag only (radau_sens_step). first:
+    !! the stage differences K0 - K(Y_i) are formed (once per step).
+    subroutine sens_update(es, it, na, first, ws)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(in) :: it
+        integer, intent(in) :: na
+        logical, intent(in) :: first
+        type(sens_work_t), intent(inout) :: ws
+        integer :: n, kl, ku, i, ja, k, nb
+        n = es%n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        if (first) then
+            do i = 1, 3
+                ws%kd(kl + 1:nb, :, i) = it%kb(kl + 1:nb, :) - ws%kb(kl + 1:nb, :, i)
+            end do
+        end if
+        do i = 1, 3
+            call kc_mv_many(n, kl, ku, na, ws%kd(:, :, i), ws%dlq(:, :, i), ws%t)
+            do ja = 1, na
+                ws%r(1:n, i, ja) = ws%t(:, ja)
+                do k = 1, it%nst
+                    ws%r(it%stuck(k), i, ja) = 0.0_dp
+                end do
+            end do
+        end do
+    end subroutine sens_update
+
     !> The corrections from the reduced solves (ws%w1, w2) of pass iter and
     !! convergence column by column: na becomes the number still active.
     subroutine sens_correct(es, sm, hh, gam, mu, tr, tc, rtol, thn, iter, passes, ws, na)
@@ -2613,6 +2658,9 @@ contains
                 errold(j) = err
                 k = k + 1
                 act(k) = j
+                do i = 1, 3
+                    ws%dlq(:, k, i) = dels(1:n, i)
+                end do
             end do
             na = k
         end associate
@@ -2630,7 +2678,7 @@ contains
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
                   ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3), &
-                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw))
+                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw), ws%dlq(n, nw, 3), ws%kd(nb, n, 3))
         ws%jr = 0
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
