@@ -2347,8 +2347,11 @@ contains
         real(dp) :: xp
         integer :: n, nx, i, j
         logical :: coupled
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         nx = es%ncstate - 2*n
         ! velocity coupling C (dF/dv) only from drag, Kelvin-Voigt damping,
         ! rotary inertia, the motor without lag or the regularized friction law
@@ -2369,8 +2372,8 @@ contains
                                       b=ws%b(:, i), p=ws%p(:, i), d=ws%d(:, i), e=e(i))
                     cz(i) = .true.
                 end if
-                acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
-                             + dmat(i, 3)*z(n + 1:2*n, 3))/hh
+                acc(:, i) = dh(i, 1)*z(n + 1:2*n, 1) + dh(i, 2)*z(n + 1:2*n, 2) &
+                             + dh(i, 3)*z(n + 1:2*n, 3)
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
                     if (allocated(pars(j)%dmb)) then
@@ -2416,8 +2419,11 @@ contains
         integer, intent(out) :: na
         real(dp) :: lsc(3, 3)
         integer :: n, i, j, k
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         na = 0
         if (hp > 0.0_dp) then
             do i = 1, 3
@@ -2445,8 +2451,8 @@ contains
                     dz(it%stuck(k), :, j) = 0.0_dp
                 end do
                 do i = 1, 3
-                    dz(n + 1:2*n, i, j) = (dmat(i, 1)*dz(1:n, 1, j) + dmat(i, 2)*dz(1:n, 2, j) &
-                                           + dmat(i, 3)*dz(1:n, 3, j))/hh - sm(n + 1:2*n, j)
+                    dz(n + 1:2*n, i, j) = dh(i, 1)*dz(1:n, 1, j) + dh(i, 2)*dz(1:n, 2, j) &
+                                           + dh(i, 3)*dz(1:n, 3, j) - sm(n + 1:2*n, j)
                 end do
                 ws%errold(j) = huge(1.0_dp)
             end do
@@ -2466,8 +2472,11 @@ contains
         real(dp) :: xp
         integer :: n, m, nx, kl, ku, i, j, ja, k
         logical :: fused
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         m = es%ncstate
         nx = m - 2*n
         kl = es%mesh%kl
@@ -2485,8 +2494,8 @@ contains
                     wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
                     if (.not. cz(i) .or. nx > 0) wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
                     ! (D dZ)_i / h on the velocity rows
-                    zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
-                                 + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
+                    zv(:, ja) = dh(i, 1)*dz(n + 1:2*n, 1, j) + dh(i, 2)*dz(n + 1:2*n, 2, j) &
+                                 + dh(i, 3)*dz(n + 1:2*n, 3, j)
                 end do
                 if (fused) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, it%mb, zv)
@@ -2504,8 +2513,8 @@ contains
                         call to_mform(es, it, zd, ys(1:n))
                         tm(:, ja) = zd(n + 1:2*n)
                     end if
-                    if (nx > 0) zd(m) = (dmat(i, 1)*dz(m, 1, j) + dmat(i, 2)*dz(m, 2, j) &
-                                         + dmat(i, 3)*dz(m, 3, j))/hh
+                    if (nx > 0) zd(m) = dh(i, 1)*dz(m, 1, j) + dh(i, 2)*dz(m, 2, j) &
+                                         + dh(i, 3)*dz(m, 3, j)
                     if (fused) then
                         r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja)
                     else
