@@ -693,10 +693,12 @@ contains
         integer :: k, aa, bb, kl, ku, idx(2)
         kl = sys%mesh%kl
         ku = sys%mesh%ku
-        call fe_tangent(sys%mesh, q, f, kb)
         if (present(force)) then
+            call fe_tangent(sys%mesh, q, f, kb)
             force = -f
             call add_effects(sys, q, v, x, force, power, torque)
+        else
+            call fe_tangent(sys%mesh, q, kb=kb)
         end if
         b = 0.0_dp
         p = 0.0_dp
