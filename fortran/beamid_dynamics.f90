@@ -54,6 +54,7 @@ module beamid_dynamics
     private
 
     public :: dyn_system_t, dyn_setup, dyn_forces, dyn_power, dyn_jacobian, dyn_rates, dyn_energy
+    public :: dyn_velocity_coupled
     public :: dyn_mass, dyn_tip, dyn_nwork, dyn_psidot, dyn_torque
     public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
     public :: dyn_set_modes, dyn_to_physical, dyn_to_coords, dyn_cforces, dyn_cpower
@@ -680,28 +681,75 @@ contains
     pure subroutine dyn_jacobian(sys, q, v, x, kb, cb, b, p, d, e, force, power, torque)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: q(:), v(:), x(:)
-        real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
+        real(dp), intent(out) :: kb(:, :), b(:), p(:), d(:), e
+        !> C = dF/dv; may be absent when dyn_velocity_coupled(sys) is false
+        !! (C is zero by construction; nothing is written)
+        real(dp), intent(out), optional :: cb(:, :)
         !> F, work rates and torque at the same state (as dyn_forces; the three
         !! together or none): the tangent assembly has the internal force anyway
         real(dp), intent(out), optional :: force(:), power(:)
         real(dp), intent(out), optional :: torque
-        real(dp), allocatable :: f(:), qf(:), vf(:)
-        real(dp) :: phi, dphi, jm, psid, wd, ud, wq, uq, t, g, fd(FE_NDOF), pw
-        real(dp) :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF), a(2), dpsi_dq(2)
-        integer :: k, c, i, el, aa, bb, ia, ib, kl, ku, idx(2), edx(FE_NDOF)
+        real(dp) :: f(sys%n), t, g, a(2), dpsi_dq(2)
+        integer :: k, aa, bb, kl, ku, idx(2)
         kl = sys%mesh%kl
         ku = sys%mesh%ku
-        allocate (f(sys%n))
-        call fe_tangent(sys%mesh, q, f, kb)
         if (present(force)) then
+            call fe_tangent(sys%mesh, q, f, kb)
             force = -f
             call add_effects(sys, q, v, x, force, power, torque)
+        else
+            call fe_tangent(sys%mesh, q, kb=kb)
         end if
-        cb = 0.0_dp
         b = 0.0_dp
         p = 0.0_dp
         d = 0.0_dp
         e = 0.0_dp
+        ! without cb (not dyn_velocity_coupled) the friction, drag, rotary
+        ! inertia and damping terms are zero or absent: only the motor's
+        if (present(cb)) call velocity_terms(sys, q, v, kb, cb)
+        if (sys%motor /= 0.0_dp) then
+            k = sys%npt
+            idx = [sys%idw(k), sys%idu(k)]
+            a = [1.0_dp + q(sys%idu(k)), -q(sys%idw(k))]
+            dpsi_dq = [-v(sys%idu(k)), v(sys%idw(k))]   ! dPsidot/d(w', u')
+            t = motor_torque(sys, q, v, x)
+            g = sys%motor
+            ! F += T a: -d(T a)/dq through a, da/d(w', u') = [[0, 1], [-1, 0]]
+            call fe_band_add(kb, kl, ku, idx(1), idx(2), -t)
+            call fe_band_add(kb, kl, ku, idx(2), idx(1), t)
+            if (sys%nx == 0) then
+                ! T = -g Psidot: dT/dq = -g dpsi_dq, dT/dv = -g a
+                do bb = 1, 2
+                    do aa = 1, 2
+                        call fe_band_add(kb, kl, ku, idx(aa), idx(bb), g*a(aa)*dpsi_dq(bb))
+                        if (present(cb)) call fe_band_add(cb, kl, ku, idx(aa), idx(bb), &
+                                                          g*a(aa)*a(bb))
+                    end do
+                end do
+            else
+                b(idx) = a
+                p(idx) = -g*dpsi_dq/sys%tau
+                d(idx) = -g*a/sys%tau
+                e = -1.0_dp/sys%tau
+            end if
+        end if
+    end subroutine dyn_jacobian
+
+    !> The Jacobian terms of friction, drag, rotary inertia and Kelvin-Voigt
+    !! damping (dyn_jacobian): C = dF/dv into cb (zeroed first), their
+    !! dF/dq parts added to kb.
+    pure subroutine velocity_terms(sys, q, v, kb, cb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), v(:)
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp), intent(out) :: cb(:, :)
+        real(dp), allocatable :: qf(:), vf(:)
+        real(dp) :: phi, dphi, jm, psid, wd, ud, wq, uq, fd(FE_NDOF), pw
+        real(dp) :: kd(FE_NDOF, FE_NDOF), cd(FE_NDOF, FE_NDOF)
+        integer :: k, c, i, el, aa, bb, ia, ib, kl, ku, edx(FE_NDOF)
+        kl = sys%mesh%kl
+        ku = sys%mesh%ku
+        cb = 0.0_dp
         do k = 1, sys%npt
             do c = 1, 2
                 if (c == 1) then
@@ -753,32 +801,18 @@ contains
                 end do
             end do
         end if
-        if (sys%motor /= 0.0_dp) then
-            k = sys%npt
-            idx = [sys%idw(k), sys%idu(k)]
-            a = [1.0_dp + q(sys%idu(k)), -q(sys%idw(k))]
-            dpsi_dq = [-v(sys%idu(k)), v(sys%idw(k))]   ! dPsidot/d(w', u')
-            t = motor_torque(sys, q, v, x)
-            g = sys%motor
-            ! F += T a: -d(T a)/dq through a, da/d(w', u') = [[0, 1], [-1, 0]]
-            call fe_band_add(kb, kl, ku, idx(1), idx(2), -t)
-            call fe_band_add(kb, kl, ku, idx(2), idx(1), t)
-            if (sys%nx == 0) then
-                ! T = -g Psidot: dT/dq = -g dpsi_dq, dT/dv = -g a
-                do bb = 1, 2
-                    do aa = 1, 2
-                        call fe_band_add(kb, kl, ku, idx(aa), idx(bb), g*a(aa)*dpsi_dq(bb))
-                        call fe_band_add(cb, kl, ku, idx(aa), idx(bb), g*a(aa)*a(bb))
-                    end do
-                end do
-            else
-                b(idx) = a
-                p(idx) = -g*dpsi_dq/sys%tau
-                d(idx) = -g*a/sys%tau
-                e = -1.0_dp/sys%tau
-            end if
-        end if
-    end subroutine dyn_jacobian
+    end subroutine velocity_terms
+
+    !> Whether the forces depend on the velocities through more than the
+    !! sign law's constant friction (C = dF/dv nonzero somewhere): drag,
+    !! Kelvin-Voigt damping, rotary inertia, the motor without lag or the
+    !! regularized friction law. Otherwise C is zero by construction.
+    pure logical function dyn_velocity_coupled(sys) result(coupled)
+        type(dyn_system_t), intent(in) :: sys
+        coupled = sys%eta /= 0.0_dp .or. (sys%motor /= 0.0_dp .and. sys%nx == 0) .or. sys%rotary &
+                  .or. any(sys%drag /= 0.0_dp) .or. any(sys%inertia /= 0.0_dp) &
+                  .or. (sys%law == FRICTION_SMOOTH .and. any(sys%fric /= 0.0_dp))
+    end function dyn_velocity_coupled
 
     !> Kinetic energy v^T M(q) v / 2 (Eq. 119, with Eq. 130) and strain energy (Eq. 87).
     pure subroutine dyn_energy(sys, q, v, kinetic, potential)

@@ -578,41 +578,52 @@ contains
     end subroutine fe_reactions
 
     !> Internal force f and tangent stiffness K_T = dNLT/dq (band storage,
-    !! fe_band_rows(mesh) x nfree) at the free vector q.
+    !! fe_band_rows(mesh) x nfree) at the free vector q; without f the
+    !! stiffness alone (the element kernels skip the force).
     pure subroutine fe_tangent(mesh, q, f, kb, work)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
-        real(dp), intent(out) :: f(:), kb(:, :)
+        real(dp), intent(out), optional :: f(:)
+        real(dp), intent(out) :: kb(:, :)
         type(fe_work_t), intent(inout), optional :: work
         if (present(work)) then
-            call tangent(mesh, q, f, kb, work%qpad, work%fpad)
+            call tangent(mesh, q, kb, work%qpad, work%fpad, f)
         else
             block
                 real(dp) :: qpad(0:mesh%nfree), fpad(0:mesh%nfree)
-                call tangent(mesh, q, f, kb, qpad, fpad)
+                call tangent(mesh, q, kb, qpad, fpad, f)
             end block
         end if
     end subroutine fe_tangent
 
     !> fe_tangent on the padded work vectors qpad, fpad (0:nfree).
-    pure subroutine tangent(mesh, q, f, kb, qpad, fpad)
+    pure subroutine tangent(mesh, q, kb, qpad, fpad, f)
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:)
-        real(dp), intent(out) :: f(:), kb(:, :), qpad(0:), fpad(0:)
+        real(dp), intent(out) :: kb(:, :), qpad(0:), fpad(0:)
+        real(dp), intent(out), optional :: f(:)
         real(dp) :: qe(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
         integer :: el, ib, b, j, diag, first, row
         call pad_free(q, qpad)
         fpad = 0.0_dp
+        fe = 0.0_dp
         kb = 0.0_dp
         ! row of the diagonal in band storage: A(i, j) is kb(diag + i - j, j)
         diag = mesh%kl + mesh%ku + 1
         do el = 1, mesh%nel
             ib = mesh%beam(el)
             call element_vector(mesh, qpad, el, qe)
-            call fe_element_tangent_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
-                                              mesh%gauss_d2(:, :, ib), mesh%gauss_wh(:, ib), &
-                                              mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
-                                              qe, fe, ke)
+            if (present(f)) then
+                call fe_element_tangent_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
+                                                  mesh%gauss_d2(:, :, ib), &
+                                                  mesh%gauss_wh(:, ib), mesh%ea(el), &
+                                                  mesh%ei(el), mesh%cubic(el), qe, ke, fe)
+            else
+                call fe_element_tangent_tabulated(size(mesh%xg), mesh%gauss_d1(:, :, ib), &
+                                                  mesh%gauss_d2(:, :, ib), &
+                                                  mesh%gauss_wh(:, ib), mesh%ea(el), &
+                                                  mesh%ei(el), mesh%cubic(el), qe, ke)
+            end if
             first = mesh%el_first_free(el)
             if (first > 0) then
                 ! free unknowns first..first+7: column first+b-1 of A receives
@@ -631,7 +642,7 @@ contains
             call band_scatter(kb, mesh%kl, mesh%ku, mesh%el_free(:, el), ke)
         end do
         call add_springs(mesh, qpad, fpad, kb)
-        f = fpad(1:)
+        if (present(f)) f = fpad(1:)
     end subroutine tangent
 
     !> Out-of-balance force b(q) = NLT(q) - Q(q) of Eq. 84 and, optionally, its
@@ -661,10 +672,10 @@ contains
         type(fe_work_t), intent(inout) :: work
         real(dp), intent(out), optional :: jb(:, :)
         if (present(jb)) then
-            call tangent(mesh, q, r, jb, work%qpad, work%fpad)
+            call tangent(mesh, q, jb, work%qpad, work%fpad, r)
             call fe_tip_load_jacobian(mesh, q, load, -1.0_dp, jb)
         else
-            call tangent(mesh, q, r, work%kb, work%qpad, work%fpad)
+            call tangent(mesh, q, work%kb, work%qpad, work%fpad, r)
         end if
         call fe_tip_load(mesh, q, load, work%qv)
         r = r - work%qv

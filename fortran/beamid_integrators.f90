@@ -28,7 +28,7 @@ module beamid_integrators
                                dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN, FRICTION_SMOOTH, dyn_param_t, dyn_jacobian, &
+                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_velocity_coupled, &
                                dyn_dforce, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
                                DP_NONE
@@ -168,6 +168,9 @@ module beamid_integrators
         real(dp), allocatable :: acc(:, :), cst(:, :, :), dz(:, :, :), r(:, :, :)
         real(dp), allocatable :: zd(:), t(:, :), fp(:), ys(:), w1(:, :), dels(:, :)
         real(dp), allocatable :: errold(:), wq(:, :), wv(:, :)
+        !> passes after the first (sens_update): the displacement corrections
+        !! of the active columns (n x na x 3) and K0 - K(Y_i) of the stages
+        real(dp), allocatable :: dlq(:, :, :), kd(:, :, :)
         !> the stage accelerations (D dZ)_i / h of the active columns (velocity
         !! rows) and their mass products M0 (D dZ)_i / h
         real(dp), allocatable :: zv(:, :), tm(:, :), t3(:, :)
@@ -2287,7 +2290,7 @@ contains
         integer, parameter :: MAXIT = 40
         real(dp) :: e(3)
         integer :: n, m, nw, nb, j, iter, na, ja
-        logical :: cz(3)
+        logical :: cz(3), update
         n = es%n
         m = es%ncstate
         nw = size(sm, 2)
@@ -2295,9 +2298,16 @@ contains
         call sens_work_alloc(ws, nb, n, m, nw)
         call sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
         call sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
+        ! constant mass, no velocity coupling, no motor lag: the residuals after
+        ! a correction from those of the pass before (sens_update)
+        update = m == 2*n .and. .not. (it%rot .or. es%rotary .or. dyn_velocity_coupled(es))
         do iter = 1, MAXIT
             if (na == 0) exit
-            call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            if (update .and. iter > 1) then
+                call sens_update(es, it, na, iter == 2, ws)
+            else
+                call sens_residuals(es, it, y, z, hh, dmat, sm, e, cz, na, ws)
+            end if
             do ja = 1, na
                 ws%w1(:, ja) = ti1(1)*ws%r(:, 1, ja) + ti1(2)*ws%r(:, 2, ja) &
                                + ti1(3)*ws%r(:, 3, ja)
@@ -2337,26 +2347,33 @@ contains
         real(dp) :: xp
         integer :: n, nx, i, j
         logical :: coupled
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         nx = es%ncstate - 2*n
         ! velocity coupling C (dF/dv) only from drag, Kelvin-Voigt damping,
         ! rotary inertia, the motor without lag or the regularized friction law
         ! (the sign law's dphi is 0): otherwise C is zero by construction and
         ! its scan for zeros is skipped
-        coupled = es%eta /= 0.0_dp .or. (es%motor /= 0.0_dp .and. es%nx == 0) .or. es%rotary &
-                  .or. any(es%drag /= 0.0_dp) .or. any(es%inertia /= 0.0_dp) &
-                  .or. (es%law == FRICTION_SMOOTH .and. any(es%fric /= 0.0_dp))
+        coupled = dyn_velocity_coupled(es)
         associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
                    fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
-                call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                  cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
-                cz(i) = .not. coupled
-                if (coupled) cz(i) = all(cb(:, :, i) == 0.0_dp)
-                acc(:, i) = (dmat(i, 1)*z(n + 1:2*n, 1) + dmat(i, 2)*z(n + 1:2*n, 2) &
-                             + dmat(i, 3)*z(n + 1:2*n, 3))/hh
+                if (coupled) then
+                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                                      cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
+                    cz(i) = all(cb(:, :, i) == 0.0_dp)
+                else
+                    ! C is zero by construction: neither assembled nor scanned
+                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
+                                      b=ws%b(:, i), p=ws%p(:, i), d=ws%d(:, i), e=e(i))
+                    cz(i) = .true.
+                end if
+                acc(:, i) = dh(i, 1)*z(n + 1:2*n, 1) + dh(i, 2)*z(n + 1:2*n, 2) &
+                             + dh(i, 3)*z(n + 1:2*n, 3)
                 do j = 1, nw
                     call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
                     if (allocated(pars(j)%dmb)) then
@@ -2402,8 +2419,11 @@ contains
         integer, intent(out) :: na
         real(dp) :: lsc(3, 3)
         integer :: n, i, j, k
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         na = 0
         if (hp > 0.0_dp) then
             do i = 1, 3
@@ -2431,8 +2451,8 @@ contains
                     dz(it%stuck(k), :, j) = 0.0_dp
                 end do
                 do i = 1, 3
-                    dz(n + 1:2*n, i, j) = (dmat(i, 1)*dz(1:n, 1, j) + dmat(i, 2)*dz(1:n, 2, j) &
-                                           + dmat(i, 3)*dz(1:n, 3, j))/hh - sm(n + 1:2*n, j)
+                    dz(n + 1:2*n, i, j) = dh(i, 1)*dz(1:n, 1, j) + dh(i, 2)*dz(1:n, 2, j) &
+                                           + dh(i, 3)*dz(1:n, 3, j) - sm(n + 1:2*n, j)
                 end do
                 ws%errold(j) = huge(1.0_dp)
             end do
@@ -2452,8 +2472,11 @@ contains
         real(dp) :: xp
         integer :: n, m, nx, kl, ku, i, j, ja, k
         logical :: fused
+        !> D / h: the stage derivatives (D Z)_i / h as products
+        real(dp) :: dh(3, 3)
 
         n = es%n
+        dh = dmat/hh
         m = es%ncstate
         nx = m - 2*n
         kl = es%mesh%kl
@@ -2471,8 +2494,8 @@ contains
                     wq(:, ja) = sm(1:n, j) + dz(1:n, i, j)
                     if (.not. cz(i) .or. nx > 0) wv(:, ja) = sm(n + 1:2*n, j) + dz(n + 1:2*n, i, j)
                     ! (D dZ)_i / h on the velocity rows
-                    zv(:, ja) = (dmat(i, 1)*dz(n + 1:2*n, 1, j) + dmat(i, 2)*dz(n + 1:2*n, 2, j) &
-                                 + dmat(i, 3)*dz(n + 1:2*n, 3, j))/hh
+                    zv(:, ja) = dh(i, 1)*dz(n + 1:2*n, 1, j) + dh(i, 2)*dz(n + 1:2*n, 2, j) &
+                                 + dh(i, 3)*dz(n + 1:2*n, 3, j)
                 end do
                 if (fused) then
                     call kc_mv_many(n, kl, ku, na, kb(:, :, i), wq, t, it%mb, zv)
@@ -2490,8 +2513,8 @@ contains
                         call to_mform(es, it, zd, ys(1:n))
                         tm(:, ja) = zd(n + 1:2*n)
                     end if
-                    if (nx > 0) zd(m) = (dmat(i, 1)*dz(m, 1, j) + dmat(i, 2)*dz(m, 2, j) &
-                                         + dmat(i, 3)*dz(m, 3, j))/hh
+                    if (nx > 0) zd(m) = dh(i, 1)*dz(m, 1, j) + dh(i, 2)*dz(m, 2, j) &
+                                         + dh(i, 3)*dz(m, 3, j)
                     if (fused) then
                         r(1:n, i, ja) = cst(1:n, i, j) - t(:, ja)
                     else
@@ -2516,6 +2539,41 @@ contains
             end do
         end associate
     end subroutine sens_residuals
+
+    !> The residuals of the na active columns after their last correction
+    !! dZ (displacement rows ws%dlq; the velocity rows follow), without the
+    !! mass products: the reduced solves invert lam^2 M + K0 exactly (K0 the
+    !! iteration matrix's Jacobian it%kb), so the mass term M (D dZ_v)_i / h of
+    !! the correction equals r_i - K0 dZ_q,i and the new residual, r_i minus
+    !! the correction's K(Y_i) dZ_q,i and mass term, is (K0 - K(Y_i)) dZ_q,i.
+    !! Constant mass, C = 0 and no motor lag only (radau_sens_step). first:
+    !! the stage differences K0 - K(Y_i) are formed (once per step).
+    subroutine sens_update(es, it, na, first, ws)
+        type(dyn_system_t), intent(in) :: es
+        type(radau_t), intent(in) :: it
+        integer, intent(in) :: na
+        logical, intent(in) :: first
+        type(sens_work_t), intent(inout) :: ws
+        integer :: n, kl, ku, i, ja, k, nb
+        n = es%n
+        kl = es%mesh%kl
+        ku = es%mesh%ku
+        nb = 2*kl + ku + 1
+        if (first) then
+            do i = 1, 3
+                ws%kd(kl + 1:nb, :, i) = it%kb(kl + 1:nb, :) - ws%kb(kl + 1:nb, :, i)
+            end do
+        end if
+        do i = 1, 3
+            call kc_mv_many(n, kl, ku, na, ws%kd(:, :, i), ws%dlq(:, :, i), ws%t)
+            do ja = 1, na
+                ws%r(1:n, i, ja) = ws%t(:, ja)
+                do k = 1, it%nst
+                    ws%r(it%stuck(k), i, ja) = 0.0_dp
+                end do
+            end do
+        end do
+    end subroutine sens_update
 
     !> The corrections from the reduced solves (ws%w1, w2) of pass iter and
     !! convergence column by column: na becomes the number still active.
@@ -2609,6 +2667,9 @@ contains
                 errold(j) = err
                 k = k + 1
                 act(k) = j
+                do i = 1, 3
+                    ws%dlq(:, k, i) = dels(1:n, i)
+                end do
             end do
             na = k
         end associate
@@ -2626,7 +2687,7 @@ contains
                   ws%zd(m), ws%t(n, nw), ws%fp(n), ws%ys(m), ws%w1(nr, nw), ws%w2(nr, nw), &
                   ws%dels(m, 3), ws%errold(nw), ws%act(nw), ws%wq(n, nw), &
                   ws%wv(n, nw), ws%thc(nw), ws%zv(n, nw), ws%tm(n, nw), ws%t3(n, 3), &
-                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw))
+                  ws%bt1(nw*n), ws%bt2(nw*n), ws%jr(2, nw), ws%dlq(n, nw, 3), ws%kd(nb, n, 3))
         ws%jr = 0
         ws%zd = 0.0_dp
         ws%thc = 0.0_dp
