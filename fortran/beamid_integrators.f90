@@ -663,6 +663,8 @@ contains
         logical :: sens
         type(dyn_system_t) :: es
         real(dp), allocatable :: s(:), k1(:), k2(:), k3(:), k4(:), sn(:), k1n(:)
+        !> the L D L^T factors of the constant mass matrix, for the sensitivities
+        real(dp), allocatable :: mldl(:, :)
         real(dp), allocatable :: hold(:), holdn(:)
         real(dp) :: t, h, hs, theta, hcap
         integer :: m, n, k, nsub, i, jev, kind, ios, nstall, skipj
@@ -682,6 +684,7 @@ contains
         es%events = evon
         sens = present(pars)
         if (sens) allocate (fm(m), dtp(size(pars)))
+        if (sens .and. .not. (es%rotary .or. es%modal)) call mass_ldlt(es, mldl)
         s = 0.0_dp
         s(1:m) = y0
         t = 0.0_dp
@@ -718,7 +721,7 @@ contains
                                               kind, theta)
                 if (jev == 0) then
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat, mldl)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -763,7 +766,7 @@ contains
                 if (hs > 0.0_dp) then
                     call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
                     if (sens) then
-                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, hs, sm, stat)
+                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, hs, sm, stat, mldl)
                         if (stat%code /= 0) return
                     end if
                     s = sn
@@ -2105,23 +2108,42 @@ contains
     !! + x'_p), the variational equations of Eq. 135. dl: the changes of the
     !! sticking components' constraint forces. with_p = .false.: the
     !! directional derivative along s alone (no parameter terms).
-    subroutine sens_rates(es, pars, y, f, s, ds, dl, stat, with_p)
+    subroutine sens_rates(es, pars, y, f, s, ds, dl, stat, with_p, mldl)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
         real(dp), intent(in) :: y(:), f(:), s(:, :)
         real(dp), intent(out) :: ds(:, :), dl(:, :)
         type(status_t), intent(inout) :: stat
         logical, intent(in) :: with_p
-        real(dp), allocatable :: kb(:, :), cb(:, :), b(:), p(:), d(:), r(:, :), t(:), fp(:)
+        !> L D L^T factors of the constant mass matrix (absent or unallocated:
+        !! its band LU es%mlu)
+        real(dp), allocatable, intent(in), optional :: mldl(:, :)
+        real(dp), allocatable :: kb(:, :), cb(:, :), r(:, :), bt(:)
+        real(dp) :: b(es%n), p(es%n), d(es%n), t(es%n), fp(es%n)
         type(band_lu_t) :: lu
         real(dp) :: e, xp
-        integer :: n, nb, j, kl, ku
+        integer :: n, nb, j, kl, ku, nw, i
+        logical :: coupled, ldl
+        ldl = .false.
+        if (present(mldl)) ldl = allocated(mldl)
         n = es%n
         kl = es%mesh%kl
         ku = es%mesh%ku
         nb = 2*kl + ku + 1
-        allocate (kb(nb, n), cb(nb, n), b(n), p(n), d(n), r(n, size(s, 2)), t(n), fp(n))
-        call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
+        nw = size(s, 2)
+        coupled = dyn_velocity_coupled(es)
+        allocate (kb(nb, n), r(n, nw))
+        if (coupled) then
+            allocate (cb(nb, n))
+            call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
+            do j = 1, nw
+                call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), r(:, j))
+            end do
+        else
+            ! C is zero by construction: K S for every column in one sweep
+            call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, b=b, p=p, d=d, e=e)
+            call kc_mv_many(n, kl, ku, nw, kb, s(1:n, :), r)
+        end if
         if (es%rotary) then
             lu%n = n
             lu%kl = kl
@@ -2133,9 +2155,8 @@ contains
         end if
         dl = 0.0_dp
         ! the right-hand sides of all parameters, then one multi-column solve
-        do j = 1, size(s, 2)
-            call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), t)
-            r(:, j) = -t
+        do j = 1, nw
+            r(:, j) = -r(:, j)
             if (es%nx > 0) r(:, j) = r(:, j) + b*s(2*n + 1, j)
             t = 0.0_dp
             call dyn_dmass_dq_mv(es, y(1:n), s(1:n, j), f(n + 1:2*n), t)
@@ -2153,10 +2174,25 @@ contains
         end do
         if (es%rotary) then
             call band_solve(lu, r)
+        else if (ldl) then
+            ! the constant M by its L D L^T factors, all columns in one solve
+            ! (the right-hand sides as the rows of an nw x n matrix)
+            allocate (bt(nw*n))
+            do i = 1, n
+                do j = 1, nw
+                    bt((i - 1)*nw + j) = r(i, j)
+                end do
+            end do
+            call ldlt_solve_real_many(n, kl, mldl, nw, bt)
+            do i = 1, n
+                do j = 1, nw
+                    r(i, j) = bt((i - 1)*nw + j)
+                end do
+            end do
         else
             call band_solve(es%mlu, r)
         end if
-        do j = 1, size(s, 2)
+        do j = 1, nw
             if (es%events) then
                 if (es%rotary) then
                     call dyn_constrain(es, lu, r(:, j), dl(:, j), stat)
@@ -2168,17 +2204,42 @@ contains
         end do
     end subroutine sens_rates
 
+    !> mldl: the L D L^T factors (beamid_band's storage, kl + 1 rows) of the
+    !! constant mass matrix when it is symmetric to round-off (the consistent
+    !! mass of Eq. 92-97 with the point masses on its diagonal is) and positive
+    !! definite, its lower half taken; left unallocated otherwise.
+    subroutine mass_ldlt(sys, mldl)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), allocatable, intent(out) :: mldl(:, :)
+        integer :: i, j, kl
+        logical :: ok
+        kl = sys%mesh%kl
+        if (kl /= sys%mesh%ku .or. .not. allocated(sys%mb)) return
+        if (.not. band_symmetric(sys%n, kl, sys%mb)) return
+        allocate (mldl(kl + 1, sys%n))
+        do j = 1, sys%n
+            do i = j, min(sys%n, j + kl)
+                mldl(1 + i - j, j) = sys%mb(2*kl + 1 + i - j, j)
+            end do
+        end do
+        call ldlt_real(sys%n, kl, mldl, ok)
+        if (.not. ok) deallocate (mldl)
+    end subroutine mass_ldlt
+
     !> The RK4 step of the sensitivities (the variational equations on the
     !! same step, the derivative of the discrete map): from S at the state s
     !! over h, with the rates k1..k4 of the state's own step (rk_step: its
     !! stage states s + h/2 k1, s + h/2 k2, s + h k3 are those the variational
     !! equations need, so their rates are not evaluated again).
-    subroutine rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat)
+    subroutine rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat, mldl)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
         real(dp), intent(in) :: s(:), k1(:), k2(:), k3(:), k4(:), h
         real(dp), intent(inout) :: sm(:, :)
         type(status_t), intent(inout) :: stat
+        !> L D L^T factors of the constant mass matrix (mass_ldlt; unallocated:
+        !! its band LU)
+        real(dp), allocatable, intent(in) :: mldl(:, :)
         real(dp), allocatable :: y(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
         real(dp), allocatable :: dl(:, :)
         integer :: m, nw
@@ -2186,16 +2247,16 @@ contains
         nw = size(sm, 2)
         allocate (y(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
                   dl(2*es%npt, nw))
-        call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true.)
+        call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true., mldl)
         y = s(1:m) + 0.5_dp*h*k1(1:m)
         st = sm + 0.5_dp*h*d1
-        call sens_rates(es, pars, y, k2(1:m), st, d2, dl, stat, .true.)
+        call sens_rates(es, pars, y, k2(1:m), st, d2, dl, stat, .true., mldl)
         y = s(1:m) + 0.5_dp*h*k2(1:m)
         st = sm + 0.5_dp*h*d2
-        call sens_rates(es, pars, y, k3(1:m), st, d3, dl, stat, .true.)
+        call sens_rates(es, pars, y, k3(1:m), st, d3, dl, stat, .true., mldl)
         y = s(1:m) + h*k3(1:m)
         st = sm + h*d3
-        call sens_rates(es, pars, y, k4(1:m), st, d4, dl, stat, .true.)
+        call sens_rates(es, pars, y, k4(1:m), st, d4, dl, stat, .true., mldl)
         sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
     end subroutine rk_sens_step
 
