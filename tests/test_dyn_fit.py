@@ -111,6 +111,29 @@ def test_reject_rows_the_experiment_cannot_produce(rows, words):
     assert words in str(err.value)
 
 
+@pytest.mark.parametrize("row, words", [
+    ("F3,0.5,y_tip,0.3,1e-3", "line 2: field t = 0.5, expected 0 for the static experiment 'F3'"),
+    ("free,0.5,motor_torque,0,1e-3",
+     "line 2: field quantity = 'motor_torque', but experiment 'free' has no motor"),
+    ("F3,0,motor_torque,0,1e-3", "line 2: field quantity = 'motor_torque', but experiment 'F3' "
+     "is static"),
+])
+def test_read_measurements_with_experiments_rejects_rows_they_cannot_produce(tmp_path, row,
+                                                                            words):
+    """Given the experiments, read_measurements refuses what fit refuses, with the
+    same message, naming the file and the line (issue 13)."""
+    path = tmp_path / "d.csv"
+    path.write_text("experiment,t,quantity,value,sigma\n" + row + "\n")
+    exps = {"F3": beamid.TipForce(fy=3.0), "free": FREE}
+    with pytest.raises(beamid.InputError) as err:
+        beamid.read_measurements(path, exps)
+    assert str(path) in str(err.value) and words in str(err.value)
+    data = beamid.read_measurements(path)     # without them: the experiments are unknown
+    with pytest.raises(beamid.InputError) as again:
+        beamid.fit(TRUTH, exps, data, free=("EI1",))
+    assert str(again.value) == str(err.value)
+
+
 def test_read_measurements_rejects_bad_times(tmp_path):
     path = tmp_path / "dyn.csv"
     path.write_text("experiment,t,quantity,value,sigma\nfree,-0.1,w_tip,0.5,1e-3\n")

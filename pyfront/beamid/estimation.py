@@ -157,25 +157,6 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for j, name in enumerate(names):
         kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
-    for i, (e, q) in enumerate(zip(data.experiment, data.quantity)):
-        x = exps[e]
-        if isinstance(x, Release):
-            if q == "wire_force":
-                raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                                 f"experiment {e!r} is a release (no wire)")
-            if q == "motor_torque" and not x.has_motor:
-                raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                                 f"experiment {e!r} has no motor (motor_gain = 0)")
-            continue
-        if q == "motor_torque":
-            raise InputError(f"{data._where(i)}: field quantity = 'motor_torque', but "
-                             f"experiment {e!r} is static (no motor)")
-        if data.t[i] != 0.0:
-            raise InputError(f"{data._where(i)}: field t = {data.t[i]:g}, expected 0 for "
-                             f"the static experiment {e!r}")
-        if q == "wire_force" and not isinstance(x, RadialWire):
-            raise InputError(f"{data._where(i)}: field quantity = 'wire_force', but "
-                             f"experiment {e!r} has no wire")
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),

@@ -22,6 +22,7 @@ import numpy as np
 
 from . import _core
 from .errors import InputError
+from .loads import RadialWire, Release, TipLoad
 
 #: Measurable quantities, in code order (the Fortran table, beamid_static_experiments);
 #: u_tip = x_tip - (L1 + L2), w_tip = y_tip.
@@ -135,12 +136,34 @@ class Measurements:
                             tuple(self.lines) + tuple(other.lines))
 
     def check_experiments(self, experiments: Mapping[str, object]) -> None:
-        """Raise InputError for a row whose experiment is not defined."""
+        """Raise InputError, naming the row, for a row the experiments cannot
+        predict: an experiment that is not defined; and where the experiment
+        is one of beamid's (TipForce, TipMoment, RadialWire, Release): a
+        static experiment's row at t != 0, motor_torque of a static experiment
+        or of a release without a motor, wire_force of a release or of a load
+        without a wire. The same rules and messages as beamid-batch's reader
+        of estimation decks (beamid_measurements::check_static_rows)."""
         for i, name in enumerate(self.experiment):
             if name not in experiments:
                 known = ", ".join(experiments) or "none"
                 raise InputError(f"{self._where(i)}: field experiment = {name!r} is not "
                                  f"defined (experiments: {known})")
+        for i, (e, q) in enumerate(zip(self.experiment, self.quantity)):
+            x = experiments[e]
+            but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
+            if isinstance(x, Release):
+                if q == "wire_force":
+                    raise InputError(f"{but} is a release (no wire)")
+                if q == "motor_torque" and not x.has_motor:
+                    raise InputError(f"{but} has no motor (motor_gain = 0)")
+            elif isinstance(x, (TipLoad, RadialWire)):
+                if q == "motor_torque":
+                    raise InputError(f"{but} is static (no motor)")
+                if self.t[i] != 0.0:
+                    raise InputError(f"{self._where(i)}: field t = {self.t[i]:g}, expected 0 "
+                                     f"for the static experiment {e!r}")
+                if q == "wire_force" and not isinstance(x, RadialWire):
+                    raise InputError(f"{but} has no wire")
 
     def write(self, path: str | os.PathLike, comment: str = "") -> None:
         """Write the table as CSV (readable by read_measurements and beamid-batch)."""
@@ -161,15 +184,19 @@ def read_measurements(path: str | os.PathLike,
         CSV file: ``#`` comments and blank lines, then the header
         ``experiment,t,quantity,value,sigma``, then one row per measurement.
     experiments:
-        Optional mapping of the defined experiment names (e.g. a dict of
-        loads); a row naming another experiment is an error.
+        Optional mapping of the defined experiment names to their experiments
+        (a dict of loads and releases, as ``fit`` takes): a row naming another
+        experiment is an error, and so is a row the experiment cannot produce
+        (``Measurements.check_experiments``: a static experiment's row at
+        t != 0, motor_torque without a motor, wire_force without a wire).
 
     Raises
     ------
     InputError
         Missing file or header, wrong field count, unknown quantity,
-        non-numeric or non-finite value, sigma <= 0, duplicate row, undefined
-        experiment: the message names the file, the line and the field; a
+        non-numeric or non-finite value or t, t < 0, sigma <= 0, duplicate row,
+        undefined experiment, a row its experiment cannot produce: the message
+        names the file, the line and the field; a
         path that is not a str or os.PathLike names the argument.
     """
     if not isinstance(path, (str, os.PathLike)):
