@@ -2414,10 +2414,7 @@ contains
         n = es%n
         dh = dmat/hh
         nx = es%ncstate - 2*n
-        ! velocity coupling C (dF/dv) only from drag, Kelvin-Voigt damping,
-        ! rotary inertia, the motor without lag or the regularized friction law
-        ! (the sign law's dphi is 0): otherwise C is zero by construction and
-        ! its scan for zeros is skipped
+        ! without velocity coupling C = dF/dv is zero by construction
         coupled = dyn_velocity_coupled(es)
         associate (kb => ws%kb, cb => ws%cb, acc => ws%acc, cst => ws%cst, t => ws%t, &
                    fp => ws%fp, ys => ws%ys)
