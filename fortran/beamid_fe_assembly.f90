@@ -606,7 +606,6 @@ contains
         integer :: el, ib, b, j, diag, first, row
         call pad_free(q, qpad)
         fpad = 0.0_dp
-        fe = 0.0_dp
         kb = 0.0_dp
         ! row of the diagonal in band storage: A(i, j) is kb(diag + i - j, j)
         diag = mesh%kl + mesh%ku + 1
@@ -628,7 +627,8 @@ contains
             if (first > 0) then
                 ! free unknowns first..first+7: column first+b-1 of A receives
                 ! ke(:, b) in the consecutive band rows diag+1-b .. diag+8-b
-                fpad(first:first + FE_NDOF - 1) = fpad(first:first + FE_NDOF - 1) + fe
+                if (present(f)) fpad(first:first + FE_NDOF - 1) = &
+                    fpad(first:first + FE_NDOF - 1) + fe
                 do b = 1, FE_NDOF
                     row = diag + 1 - b
                     j = first + b - 1
@@ -636,9 +636,11 @@ contains
                 end do
                 cycle
             end if
-            do b = 1, FE_NDOF
-                fpad(mesh%el_free(b, el)) = fpad(mesh%el_free(b, el)) + fe(b)
-            end do
+            if (present(f)) then
+                do b = 1, FE_NDOF
+                    fpad(mesh%el_free(b, el)) = fpad(mesh%el_free(b, el)) + fe(b)
+                end do
+            end if
             call band_scatter(kb, mesh%kl, mesh%ku, mesh%el_free(:, el), ke)
         end do
         call add_springs(mesh, qpad, fpad, kb)
