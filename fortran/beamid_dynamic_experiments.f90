@@ -83,11 +83,12 @@ module beamid_dynamic_experiments
     !! floor (0.1 sigma), at a twentieth of the cost of a run (7 ms, 1e-9: 135 ms).
     real(dp), parameter :: ROUGH_RTOL = 1.0e-6_dp
 
-    !> The last plain run of an experiment: its parameters and response.
+    !> The last plain run of an experiment: its parameters, output times and
+    !! response (and the response's rates when they were asked).
     type :: plain_cache_t
         logical :: valid = .false.
-        real(dp), allocatable :: params(:)
-        real(dp), allocatable :: y(:, :)
+        real(dp), allocatable :: params(:), times(:)
+        real(dp), allocatable :: y(:, :), rate(:, :)
     end type plain_cache_t
 
     !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
@@ -103,6 +104,14 @@ module beamid_dynamic_experiments
         integer, allocatable :: row_exp(:), row_quantity(:)
         real(dp), allocatable :: row_t(:)
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
+        !> the model time at each experiment's record zero (its clock offset
+        !! t0, set by beamid_inverse before evaluate): row i is predicted at
+        !! model time max(0, row_t(i) + shift(row_exp(i))) (before the
+        !! release the chain is at rest in its static shape)
+        real(dp), allocatable :: shift(:)
+        !> evaluate also returns d prediction / d t of every row in row_rate
+        logical :: want_rates = .false.
+        real(dp), allocatable :: row_rate(:)
     contains
         procedure :: evaluate => dynamic_evaluate
     end type dynamic_experiments_t
@@ -171,6 +180,7 @@ contains
         self%row_t = row_t
         self%row_quantity = row_quantity
         allocate (self%cache(size(exps)))
+        allocate (self%shift(size(exps)), self%row_rate(size(row_exp)), source=0.0_dp)
         self%rough_jacobian_ok = .false.
         do i = 1, size(exps)
             if (.not. any(row_exp == i)) cycle
@@ -197,7 +207,7 @@ contains
     !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)), from
     !! the forward sensitivities of beamid_release (or central differences
     !! when x%fd).
-    subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat)
+    subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat, rate)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
@@ -205,11 +215,14 @@ contains
         integer, intent(in) :: wrt(:)
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
+        !> d y(q, k) / d t (the integrated state's rates: release_out_t%rate)
+        real(dp), intent(out), optional :: rate(:, :)
         type(chain_t) :: chain
         type(release_out_t) :: out
         integer :: q
         if (x%fd) then
             call central_differences()
+            if (present(rate) .and. stat%code == STATUS_OK) call plain_rates()
             return
         end if
         y = 0.0_dp
@@ -218,14 +231,32 @@ contains
         if (stat%code /= STATUS_OK) return
         call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, &
             x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
-            friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
+            friction=x%law, friction_velocity=x%vslip, rates=present(rate)), t_out, wrt, out, &
+            stat)
         if (stat%code /= STATUS_OK) return
+        if (present(rate)) rate = 0.0_dp
         do q = 1, NQUANT
             if (QTY_OF(q) == 0) cycle
             y(q, :) = out%y(QTY_OF(q), :)
             dy(q, :, :) = out%dy(QTY_OF(q), :, :)
+            if (present(rate)) rate(q, :) = out%rate(QTY_OF(q), :)
         end do
     contains
+        !> The rates of a central-difference release: one forward run more.
+        subroutine plain_rates()
+            call chain_from_vector(nbeams, params, chain, stat)
+            if (stat%code /= STATUS_OK) return
+            call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, &
+                load=fe_load_t(x%fx, x%fy, x%moment), motor_gain=x%gain, integrator=x%method, &
+                rtol=x%rtol, dt=x%dt, friction=x%law, friction_velocity=x%vslip, rates=.true.), &
+                t_out, wrt(1:0), out, stat)
+            if (stat%code /= STATUS_OK) return
+            rate = 0.0_dp
+            do q = 1, NQUANT
+                if (QTY_OF(q) /= 0) rate(q, :) = out%rate(QTY_OF(q), :)
+            end do
+        end subroutine plain_rates
+
         !> The response by central differences of whole runs (x%fd).
         subroutine central_differences()
             real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
@@ -313,26 +344,45 @@ contains
         real(dp), intent(out) :: predictions(:)
         real(dp), intent(out) :: jacobian(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: times(:), y(:, :), dy(:, :, :)
+        real(dp), allocatable :: times(:), y(:, :), dy(:, :, :), rate(:, :), tm(:)
         type(release_exp_t) :: rough
         integer :: e, i, k
+        logical :: rates
         predictions = 0.0_dp
         jacobian = 0.0_dp
         if (.not. allocated(self%cache)) allocate (self%cache(size(self%exps)))
+        if (.not. allocated(self%shift)) allocate (self%shift(size(self%exps)), source=0.0_dp)
+        if (.not. allocated(self%row_rate)) allocate (self%row_rate(size(self%row_exp)))
+        self%row_rate = 0.0_dp
+        rates = self%want_rates
+        ! the model time of every row: its record time plus its record's offset
+        tm = max(0.0_dp, self%row_t + self%shift(self%row_exp))
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
-            times = distinct_sorted(pack(self%row_t, self%row_exp == e))
-            allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)))
+            times = distinct_sorted(pack(tm, self%row_exp == e))
+            allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)), &
+                      rate(NQUANT, size(times)), source=0.0_dp)
             if (self%rough == ROUGH_ALL .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
                 rough = self%exps(e)
                 rough%rtol = rough_tolerance(rough)
-                call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat)
+                if (rates) then
+                    call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat, &
+                                          rate)
+                else
+                    call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat)
+                end if
             else if (self%rough == ROUGH_JACOBIAN .and. size(wrt) > 0 .and. &
                      rough_tolerance(self%exps(e)) > 0.0_dp) then
-                call rough_response(e, times, y, dy)
+                call rough_response(e, times, y, dy, rate)
             else
-                call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, stat)
-                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, y)
+                if (rates) then
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, &
+                                          stat, rate)
+                else
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, &
+                                          stat)
+                end if
+                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, times, y, rate)
             end if
             if (stat%code /= STATUS_OK) then
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
@@ -340,31 +390,45 @@ contains
             end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
-                k = findloc(times, self%row_t(i), 1)
+                k = findloc(times, tm(i), 1)
                 predictions(i) = y(self%row_quantity(i), k)
                 jacobian(i, :) = dy(self%row_quantity(i), k, :)
+                ! before the release (model time clipped at 0) the chain rests
+                if (self%row_t(i) + self%shift(e) > 0.0_dp) &
+                    self%row_rate(i) = rate(self%row_quantity(i), k)
             end do
-            deallocate (y, dy)
+            deallocate (y, dy, rate)
         end do
     contains
         !> Predictions at the experiment's own tolerance (the cached plain
         !! run or a new one), sensitivities at its rough tolerance.
-        subroutine rough_response(e, times, y, dy)
+        subroutine rough_response(e, times, y, dy, rate)
             integer, intent(in) :: e
             real(dp), intent(in) :: times(:)
-            real(dp), intent(out) :: y(:, :), dy(:, :, :)
+            real(dp), intent(out) :: y(:, :), dy(:, :, :), rate(:, :)
             real(dp), allocatable :: yr(:, :), none(:, :, :)
             logical :: cached
             cached = self%cache(e)%valid
-            if (cached) cached = all(self%cache(e)%params == params)
+            if (cached) cached = size(self%cache(e)%times) == size(times) .and. &
+                                 size(self%cache(e)%params) == size(params)
+            if (cached) cached = all(self%cache(e)%params == params) .and. &
+                                 all(self%cache(e)%times == times) .and. &
+                                 (allocated(self%cache(e)%rate) .or. .not. rates)
+            rate = 0.0_dp
             if (cached) then
                 y = self%cache(e)%y
+                if (rates) rate = self%cache(e)%rate
             else
                 allocate (none(NQUANT, size(times), 0))
-                call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), y, &
-                                      none, stat)
+                if (rates) then
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                                          y, none, stat, rate)
+                else
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                                          y, none, stat)
+                end if
                 if (stat%code /= STATUS_OK) return
-                call remember(e, y)
+                call remember(e, times, y, rate)
             end if
             rough = self%exps(e)
             rough%rtol = rough_tolerance(rough)
@@ -372,12 +436,18 @@ contains
             call release_response(self%nbeams, params, rough, times, wrt, yr, dy, stat)
         end subroutine rough_response
 
-        subroutine remember(e, y)
+        subroutine remember(e, times, y, rate)
             integer, intent(in) :: e
-            real(dp), intent(in) :: y(:, :)
+            real(dp), intent(in) :: times(:), y(:, :), rate(:, :)
             self%cache(e)%valid = .true.
             self%cache(e)%params = params
+            self%cache(e)%times = times
             self%cache(e)%y = y
+            if (rates) then
+                self%cache(e)%rate = rate
+            else if (allocated(self%cache(e)%rate)) then
+                deallocate (self%cache(e)%rate)
+            end if
         end subroutine remember
     end subroutine dynamic_evaluate
 end module beamid_dynamic_experiments

@@ -12,6 +12,18 @@
 !! column of NEXPVAL values (layout EV_*); rows as (experiment, t,
 !! quantity). Static rows need t = 0; duplicate (experiment, t, quantity)
 !! rows are rejected, naming the row.
+!!
+!! The measurement chain (issue 29): an experiment's value column may ask
+!! for nuisance parameters, fitted with the physics as extra columns: a
+!! clock offset t0 of a release's record (EV_T0 = 1: row i is the model at
+!! time t_i + t0, so t0 is the model time at the record's zero; column
+!! s h'(t_i + t0), the integrated state's rate), and per channel (experiment,
+!! quantity) a bias b and a scale s (bit q of EV_BIAS, EV_SCALE: the row
+!! reads s h + b; columns 1 and h). They follow the model's parameters in
+!! the parameter vector, in the order of chain_layout: per experiment its
+!! t0, its biases by quantity code, its scales by quantity code. Null values
+!! t0 = 0, b = 0, s = 1 (the perfect chain), so the score test and refits of
+!! beamid_estimation treat them as effects.
 module beamid_inverse
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
@@ -21,13 +33,14 @@ module beamid_inverse
                                  fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          quantity_label, static_bounds, static_null_values, &
-                                         probe_rows
+                                         probe_rows, NQUANT
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
     implicit none
     private
 
     public :: inverse_problem_t, inverse_problem_init, inverse_lsq, inverse_diagnose
+    public :: chain_layout
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
@@ -38,7 +51,13 @@ module beamid_inverse
     !! (EV_FD = 1: central-difference sensitivities, the benchmark baseline;
     !! 2: forward sensitivities at the experiment's tolerance at every fit
     !! iteration, no rough Jacobian: fit(..., jacobian="exact"))
-    integer, parameter, public :: NEXPVAL = 12
+    !> The measurement chain of an experiment: EV_T0 (1: its record has a
+    !! clock offset, releases only), EV_BIAS and EV_SCALE (bit q - 1 set: the
+    !! channel of quantity code q has a bias, a scale).
+    integer, parameter, public :: EV_T0 = 13, EV_BIAS = 14, EV_SCALE = 15
+    integer, parameter, public :: NEXPVAL = 15
+    !> Kinds of the nuisance parameters (chain_layout).
+    integer, parameter, public :: NU_T0 = 1, NU_BIAS = 2, NU_SCALE = 3
 
     type, extends(residual_model_t) :: inverse_problem_t
         integer :: nrow = 0
@@ -51,6 +70,14 @@ module beamid_inverse
         !> physical bounds and null (switched-off) values of every parameter:
         !! they belong to the model, whatever the experiments
         real(dp), allocatable :: lower(:), upper(:), nulls(:)
+        !> the model's parameter count; the nuisance parameters follow it
+        integer :: np = 0
+        !> nuisance parameters (chain_layout): kind NU_*, experiment, quantity
+        integer, allocatable :: nu_kind(:), nu_exp(:), nu_q(:)
+        !> per data row the index in the parameter vector of its record's
+        !! clock offset, its channel's bias and scale (0: none)
+        integer, allocatable :: row_t0(:), row_bias(:), row_scale(:)
+        integer, allocatable :: dy_exp(:) !< release number of each experiment (0: static)
     contains
         procedure :: evaluate => inverse_evaluate
     end type inverse_problem_t
@@ -155,6 +182,8 @@ contains
         self%tol = tol
         call static_bounds(nbeams, self%lower, self%upper)
         call static_null_values(nbeams, self%nulls)
+        call chain_init(stat)
+        if (stat%code /= STATUS_OK) return
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
                                      row_quantity(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then
@@ -168,7 +197,50 @@ contains
         ! releases on the implicit integrator can steer the fit with rough
         ! sensitivities (beamid_dynamic_experiments, ROUGH_RTOL)
         self%rough_jacobian_ok = self%dy%rough_jacobian_ok
+        self%dy%want_rates = any(self%nu_kind == NU_T0)
+        self%dy_exp = dmap
     contains
+        !> The nuisance parameters of the measurement chain, checked against
+        !! the experiments and rows: their layout, bounds, null values and
+        !! the rows each one acts on.
+        subroutine chain_init(stat)
+            type(status_t), intent(inout) :: stat
+            integer :: k, i, e
+            self%np = size(self%lower)
+            call chain_layout(exp_kind, exp_values, self%nu_kind, self%nu_exp, self%nu_q, stat)
+            if (stat%code /= STATUS_OK) return
+            do k = 1, size(self%nu_kind)
+                if (self%nu_kind(k) == NU_T0) cycle
+                if (any(row_exp == self%nu_exp(k) .and. row_quantity == self%nu_q(k))) cycle
+                call set_status(stat, ERR_INPUT, where, 'experiment '// &
+                                fmt_int(self%nu_exp(k))//': a '// &
+                                trim(merge('bias ', 'scale', self%nu_kind(k) == NU_BIAS))// &
+                                ' of quantity '//quantity_label(self%nu_q(k))// &
+                                ', but the experiment has no rows of that quantity')
+                return
+            end do
+            self%lower = [self%lower, (-huge(1.0_dp), k=1, size(self%nu_kind))]
+            self%upper = [self%upper, (huge(1.0_dp), k=1, size(self%nu_kind))]
+            self%nulls = [self%nulls, (merge(1.0_dp, 0.0_dp, self%nu_kind(k) == NU_SCALE), &
+                                       k=1, size(self%nu_kind))]
+            allocate (self%row_t0(size(row_exp)), self%row_bias(size(row_exp)), &
+                      self%row_scale(size(row_exp)), source=0)
+            do k = 1, size(self%nu_kind)
+                e = self%nu_exp(k)
+                do i = 1, size(row_exp)
+                    if (row_exp(i) /= e) cycle
+                    select case (self%nu_kind(k))
+                    case (NU_T0)
+                        self%row_t0(i) = self%np + k
+                    case (NU_BIAS)
+                        if (row_quantity(i) == self%nu_q(k)) self%row_bias(i) = self%np + k
+                    case (NU_SCALE)
+                        if (row_quantity(i) == self%nu_q(k)) self%row_scale(i) = self%np + k
+                    end select
+                end do
+            end do
+        end subroutine chain_init
+
         !> A family's message names its own row k: name the data row.
         subroutine renumber(rows)
             integer, intent(in) :: rows(:)
@@ -182,7 +254,69 @@ contains
         end subroutine renumber
     end subroutine inverse_problem_init
 
-    !> Each family's rows, scattered back in data order.
+    !> The nuisance parameters the experiments' value columns ask for (EV_T0,
+    !! EV_BIAS, EV_SCALE), in parameter order: per experiment its clock
+    !! offset, its biases by quantity code, its scales by quantity code. kinds
+    !! NU_*, exps the experiment, qs the quantity code (0 for t0). A clock
+    !! offset on a static experiment, or a flag or mask out of range, is an
+    !! input error naming the experiment.
+    subroutine chain_layout(exp_kind, exp_values, kinds, exps, qs, stat)
+        integer, intent(in) :: exp_kind(:)
+        real(dp), intent(in) :: exp_values(:, :)
+        integer, allocatable, intent(out) :: kinds(:), exps(:), qs(:)
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'measurement chain'
+        integer :: e, q, t0, mask(2), m
+        allocate (kinds(0), exps(0), qs(0))
+        if (size(exp_values, 1) < NEXPVAL) return
+        do e = 1, size(exp_kind)
+            do m = 1, 2
+                associate (v => exp_values(EV_BIAS + m - 1, e))
+                    if (.not. (v >= 0.0_dp .and. v <= real(2**NQUANT - 1, dp)) .or. &
+                        v /= aint(v)) then
+                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                        ': '//trim(merge('bias ', 'scale', m == 1))// &
+                                        ' channel mask = '//fmt_real(v)//', expected an '// &
+                                        'integer in 0..'//fmt_int(2**NQUANT - 1))
+                        return
+                    end if
+                end associate
+            end do
+            mask = nint(exp_values([EV_BIAS, EV_SCALE], e))
+            t0 = -1
+            if (exp_values(EV_T0, e) == 0.0_dp .or. exp_values(EV_T0, e) == 1.0_dp) &
+                t0 = nint(exp_values(EV_T0, e))
+            if (t0 /= 0 .and. t0 /= 1) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                ': time offset flag = '//fmt_real(exp_values(EV_T0, e))// &
+                                ', expected 0 or 1')
+                return
+            end if
+            if (t0 == 1 .and. exp_kind(e) /= EXP_RELEASE) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                ': a time offset asked for a static experiment (only a '// &
+                                'release has a record in time)')
+                return
+            end if
+            if (t0 == 1) call push(NU_T0, 0)
+            do m = 1, 2
+                do q = 1, NQUANT
+                    if (btest(mask(m), q - 1)) call push(NU_BIAS + m - 1, q)
+                end do
+            end do
+        end do
+    contains
+        subroutine push(kind, q)
+            integer, intent(in) :: kind, q
+            kinds = [kinds, kind]
+            exps = [exps, e]
+            qs = [qs, q]
+        end subroutine push
+    end subroutine chain_layout
+
+    !> Each family's rows, scattered back in data order, then the
+    !! measurement chain: row i reads s h_i(p, t_i + t0) + b, with columns
+    !! s dh/dp, s dh/dt (t0), 1 (b) and h (s).
     subroutine inverse_evaluate(self, params, wrt, predictions, jacobian, stat)
         class(inverse_problem_t), intent(inout) :: self
         real(dp), intent(in) :: params(:)
@@ -190,25 +324,68 @@ contains
         real(dp), intent(out) :: predictions(:)
         real(dp), intent(out) :: jacobian(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: p(:), j(:, :)
+        real(dp), allocatable :: p(:), j(:, :), scale(:)
+        integer, allocatable :: pw(:), pcol(:)
+        integer :: np, c, i, k
+        np = self%np
         predictions = 0.0_dp
         jacobian = 0.0_dp
+        if (np == 0) np = size(params)     ! built without inverse_problem_init
+        if (allocated(self%nu_kind)) then
+            if (size(params) /= np + size(self%nu_kind)) then
+                call set_status(stat, ERR_INPUT, 'parameters', fmt_int(size(params))// &
+                                ' values, expected '//fmt_int(np)//' model parameters and '// &
+                                fmt_int(size(self%nu_kind))//' of the measurement chain')
+                return
+            end if
+        end if
+        ! the model's columns asked for, and where they go
+        pcol = pack([(c, c=1, size(wrt))], wrt <= np)
+        pw = wrt(pcol)
         if (size(self%st_rows) > 0) then
-            allocate (p(size(self%st_rows)), j(size(self%st_rows), size(wrt)))
-            call self%st%evaluate(params, wrt, p, j, stat)
+            allocate (p(size(self%st_rows)), j(size(self%st_rows), size(pw)))
+            call self%st%evaluate(params(1:np), pw, p, j, stat)
             if (stat%code /= STATUS_OK) return
             predictions(self%st_rows) = p
-            jacobian(self%st_rows, :) = j
+            jacobian(self%st_rows, pcol) = j
             deallocate (p, j)
         end if
         if (size(self%dy_rows) > 0) then
-            allocate (p(size(self%dy_rows)), j(size(self%dy_rows), size(wrt)))
+            allocate (p(size(self%dy_rows)), j(size(self%dy_rows), size(pw)))
             self%dy%rough = self%rough   ! the fit's mode reaches the releases
-            call self%dy%evaluate(params, wrt, p, j, stat)
+            do k = 1, size(self%nu_kind)
+                if (self%nu_kind(k) == NU_T0) self%dy%shift(self%dy_exp(self%nu_exp(k))) = &
+                    params(np + k)
+            end do
+            call self%dy%evaluate(params(1:np), pw, p, j, stat)
             if (stat%code /= STATUS_OK) return
             predictions(self%dy_rows) = p
-            jacobian(self%dy_rows, :) = j
+            jacobian(self%dy_rows, pcol) = j
         end if
+        if (.not. allocated(self%nu_kind)) return
+        if (size(self%nu_kind) == 0) return
+        allocate (scale(size(predictions)), source=1.0_dp)
+        where (self%row_scale > 0) scale = params(max(self%row_scale, 1))
+        do c = 1, size(wrt)
+            if (wrt(c) <= np) then
+                jacobian(:, c) = scale*jacobian(:, c)
+                cycle
+            end if
+            k = wrt(c) - np
+            select case (self%nu_kind(k))
+            case (NU_T0)
+                do i = 1, size(self%dy_rows)
+                    if (self%row_t0(self%dy_rows(i)) == wrt(c)) jacobian(self%dy_rows(i), c) = &
+                        scale(self%dy_rows(i))*self%dy%row_rate(i)
+                end do
+            case (NU_BIAS)
+                where (self%row_bias == wrt(c)) jacobian(:, c) = 1.0_dp
+            case (NU_SCALE)
+                where (self%row_scale == wrt(c)) jacobian(:, c) = predictions
+            end select
+        end do
+        predictions = scale*predictions
+        where (self%row_bias > 0) predictions = predictions + params(max(self%row_bias, 1))
     end subroutine inverse_evaluate
 
     !> The least-squares problem of data rows y (sigma) and a priori

@@ -2,7 +2,7 @@
 !! ladder (beamid_estimation, beamid_ladder) on the problems of
 !! beamid_inverse, any mix of static and release experiments.
 !!
-!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
+!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 15
 !! values per experiment, beamid_inverse's EV_* layout), data rows
 !! (experiment index, t, quantity code, value, sigma), free parameter indices,
 !! a priori information as prior(3, nprior), a column [parameter index, mean,
@@ -23,7 +23,7 @@ module beamid_api_estimation
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -32,7 +32,7 @@ module beamid_api_estimation
 
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
-    public :: api_problem_predict
+    public :: api_problem_predict, api_chain_layout
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
@@ -221,7 +221,7 @@ contains
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
         real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
@@ -301,14 +301,14 @@ contains
 
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
-    !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
+    !! in the EV_* layout, 15 rows) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
                                    row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
                                    message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
+        real(c_double), intent(in) :: params(nparams), exp_values(15, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
@@ -325,6 +325,35 @@ contains
         pred = p
         jac = j
     end subroutine api_problem_predict
+
+    !> The nuisance parameters of the measurement chain the experiments'
+    !! value columns ask for (beamid_inverse chain_layout), in parameter
+    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale),
+    !! experiment (1-based) and quantity code (0 for a clock offset); the
+    !! first n of each (at most nexp (1 + 2 NQUANT)) are filled.
+    subroutine api_chain_layout(nexp, exp_kind, exp_values, n, kinds, exps, qs, code, message)
+        integer(c_int), intent(in) :: nexp
+        !f2py intent(hide) nexp
+        integer(c_int), intent(in) :: exp_kind(nexp)
+        real(c_double), intent(in) :: exp_values(15, nexp)
+        integer(c_int), intent(out) :: n
+        integer(c_int), intent(out) :: kinds(19*nexp), exps(19*nexp), qs(19*nexp)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        integer, allocatable :: k(:), e(:), q(:)
+        n = 0
+        kinds = 0
+        exps = 0
+        qs = 0
+        call chain_layout(int(exp_kind), real(exp_values, dp), k, e, q, stat)
+        call status_out(stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        n = int(size(k), c_int)
+        kinds(1:n) = int(k, c_int)
+        exps(1:n) = int(e, c_int)
+        qs(1:n) = int(q, c_int)
+    end subroutine api_chain_layout
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
@@ -391,7 +420,7 @@ contains
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
@@ -531,7 +560,7 @@ contains
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)

@@ -55,7 +55,7 @@ class Problem:
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
-NEXPVAL = 12
+NEXPVAL = 15
 
 
 def problem_predict(prob: Problem, params: np.ndarray,

@@ -32,6 +32,7 @@ from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
 from .estimation import _free_indices, _named, _prior_arrays, _result
+from .chain import split_ladder_fit as _split_ladder_fit
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
@@ -53,6 +54,10 @@ class Effect:
     description: str
     params: Callable[[Model], tuple[str, ...]]
     kinds: tuple[str, ...] = ("static",)
+    #: what kind of cause it is: "physics" (an effect of the model) or
+    #: "measurement chain" (a flaw of the record: beamid.chain's nuisance
+    #: parameters, whose names come from the fit's experiments and data)
+    cause: str = "physics"
 
 
 EFFECTS: dict[str, Effect] = {}
@@ -288,6 +293,8 @@ class Candidate:
     refit_start: str | None = None
     #: what each refit start gave (why the refit failed, when it did)
     refit_note: str = ""
+    #: "physics" or "measurement chain" (Effect.cause)
+    cause: str = "physics"
 
     @property
     def refit_failed(self) -> bool:
@@ -382,7 +389,7 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
 
     state = _STATES[int(s("state"))]
     if state != "tested":
-        return cls(eff.name, params, state)
+        return cls(eff.name, params, state, cause=eff.cause)
     if keep is not None:
         params = tuple(n for n, k in zip(params, keep) if k)
     refit = bool(s("refit_done")) and bool(s("refit_ok"))
@@ -390,7 +397,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
     if s("rival") and s("sep_experiment") > 0:
         sep = (exp_names[int(s("sep_experiment")) - 1],
                _ce.QUANTITY_NAMES[int(s("sep_quantity"))], s("separation"))
-    null = {n: float(model[n]) for n in params}
+    chain_values = raw.get("chain_values", {})
+    null = {n: float(chain_values[n]) if n in chain_values else float(model[n]) for n in params}
     each = list(enumerate(params))
     return cls(
         effect=eff.name, params=params, state=state, score_drop=s("score_drop"),
@@ -407,7 +415,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
         refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
         significant=bool(s("significant")), acceptable=bool(s("acceptable")),
         rival=bool(s("rival")), separating=sep, refit_tried=bool(s("refit_done")),
-        refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c]), **extra)
+        refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c]),
+        cause=eff.cause, **extra)
 
 
 def _effect_request(fit: FitResult, effect: str | Effect, max_iter: int,
@@ -468,13 +477,17 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
         raise InputError(f"nrefit = {nrefit}, expected >= 0")
     model = fit.model
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
-    prob = build_problem(model, fit.experiments, fit.data)
+    from .chain import diagnosis_extension
+    ext = diagnosis_extension(fit, effects, names, blocks)
+    prob = build_problem(model, fit.experiments, fit.data, chain=ext.spec)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    free_idx = np.concatenate([free_idx, ext.free]).astype(np.int32)
     nominal = _nominal(fit, nominal)
-    raw = _ce.problem_diagnose(prob, model.vector(), free_idx,
+    raw = _ce.problem_diagnose(prob, np.concatenate([model.vector(), ext.values]), free_idx,
                                _prior_arrays(model, fit.free, fit.prior)[1], blocks, alpha,
-                               int(nrefit), ambiguity_delta, collinear, nominal.vector(),
-                               with_mesh)
+                               int(nrefit), ambiguity_delta, collinear,
+                               np.concatenate([nominal.vector(), ext.values]), with_mesh)
+    ext.trim(raw, model.vector().size)
     return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
 
 
@@ -492,7 +505,9 @@ def _candidate_set(model: Model, experiments, candidates):
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
     effects = [_effect(c) for c, m in zip(cands, mesh) if not m]
-    names = [e.params(model) for e in effects]
+    # the measurement chain's candidates are named and placed by
+    # beamid.chain.diagnosis_extension (their parameters follow the model's)
+    names = [e.params(model) if e.cause == "physics" else () for e in effects]
     return (any(mesh), effects, names,
             [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names])
 
@@ -562,7 +577,9 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each,
         return "\n".join(lines)
     est = ", ".join(f"{n} = {verdict.estimate[n]:.5g} +- {verdict.sigma[n]:.2g}"
                     for n in verdict.params)
-    lines.append(f"missing effect: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
+    what = ("measurement chain, not physics" if verdict.cause == "measurement chain"
+            else "missing effect")
+    lines.append(f"{what}: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
                  f"p = {verdict.p_value:.2g}; {est})")
     for c in ranked:
         if c.refit_failed and c.score_p < alpha_each:
@@ -618,6 +635,9 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
+    if _effect(effect).cause == "measurement chain":
+        from .chain import add_chain_effect   # a refit with the chain's parameters added
+        return add_chain_effect(fit, _effect(effect).name, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)
@@ -726,10 +746,20 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
+    ext = _chain_extension(model, experiments, data, effects, names, blocks)
     with _ce.LADDER_LOCK:
-        _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx,
+        _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
+                         np.concatenate([model.vector(), ext.values]), free_idx,
                          ptable, blocks, with_mesh, alpha, limit, int(max_iter))
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+
+
+def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
+                     effects: list[Effect], names: list, blocks: list):
+    """The measurement chain's candidates of a ladder (beamid.chain.extension):
+    their names and blocks filled in, the nuisance parameters returned."""
+    from .chain import extension
+    return extension(model, dict(experiments), data, None, effects, names, blocks)
 
 
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
@@ -744,19 +774,26 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     if dynamic:
         from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    ext = _chain_extension(model, experiments, data, effects, names, blocks)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
         if _ce.ladder_step():
             break
-    all_names = model.names()
+    npar = model.vector().size
+    all_names = model.names() + tuple(ext.names)
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
             experiments = refine_mesh(experiments, r["elements_per_beam"])
-        fit = _result(Model(model.nbeams, r["start"]), experiments, data,
-                      tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
-                      nominal=Model(model.nbeams, r["nominal"]))
+        raw, phys, sub = _split_ladder_fit(r["fit"], r["free"], npar, ext.spec,
+                                           list(experiments))
+        fit = _result(Model(model.nbeams, r["start"][:npar]), experiments, data,
+                      tuple(all_names[i] for i in phys), prior_map, raw,
+                      nominal=Model(model.nbeams, r["nominal"][:npar]), chain=sub or None)
         fit = dataclasses.replace(fit, refit_start=r["refit_start"])
+        if ext.names:
+            ext.trim(r["diag"], npar)
+            r["diag"]["chain_values"] = dict(zip(ext.names, r["fit"]["params"][npar:]))
         diag = _diagnosis(fit, r["diag"], effects, names, alpha, with_mesh)
         effect = r["effect"]
         if effect is not None and effect.isdigit():   # a candidate's number (not a deck's name)

@@ -38,6 +38,7 @@ from .model import Model
 # this module lazily, so this import is safe)
 from . import diagnosis as _dg
 from .diagnosis import Candidate, Diagnosis, Effect, register_effect
+from . import chain as _chain
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -66,12 +67,15 @@ register_effect(Effect("motor_lag", "first-order lag of the tip motor's torque",
                        lambda m: ("tau_motor",), kinds=("dynamic",)))
 for _name in ("elbow_flex", "root_flex"):
     register_effect(dataclasses.replace(_dg.EFFECTS[_name], kinds=("static", "dynamic")))
+_chain.register_candidates()
 register_effect(Effect("mesh", "the discretization: the same fit at twice the elements per "
                        "beam", lambda m: (), kinds=("dynamic",)))
 
-#: Candidate effects tried for release experiments, in order.
+#: Candidate effects tried for release experiments, in order (the
+#: measurement chain's candidates of beamid.chain among them).
 DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
-                      "elbow_flex", "root_flex", "mesh")
+                      "elbow_flex", "root_flex", "clock_offset", "channel_bias",
+                      "channel_scale", "mesh")
 
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic
@@ -160,8 +164,10 @@ def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
         block = slice(raw["starts"][c], raw["starts"][c + 1])
         keep = raw["kept"][block]
         # the block as tested; the rest at null (not needed or determined)
+        values = raw.get("chain_values", {})
         left = tuple(n for n, k in zip(names[c], keep)
-                     if not k and n not in fit.free and float(model[n]) == 0.0)
+                     if not k and n not in fit.free and n not in values
+                     and float(model[n]) == 0.0)
         alike = tuple(n for n, a in zip(names[c], raw["ambiguous"][block]) if a)
         sep_t = (float(raw["sep_t"][c]) if raw["cstats"]["rival"][c]
                  and raw["cstats"]["sep_experiment"][c] > 0 else None)

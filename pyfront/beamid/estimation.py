@@ -26,6 +26,7 @@ from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
+from .chain import ChainSpec, parse_nuisance
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -104,6 +105,15 @@ class FitResult:
     #: for a refit with an effect added: the start it kept ("first-order
     #: estimate", "nominal model" or "continuation")
     refit_start: str | None = None
+    #: the measurement chain's nuisance parameters fitted with the physics
+    #: (``nuisance=`` of :func:`fit`; beamid.chain): estimates and sigmas by
+    #: name (``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``);
+    #: ``cov`` above is the physics block of ``full_cov`` (free parameters,
+    #: then these), so the physics sigmas account for them
+    nuisance: dict[str, float] = field(default_factory=dict)
+    nuisance_sigmas: dict[str, float] = field(default_factory=dict)
+    full_cov: np.ndarray | None = field(default=None, repr=False)
+    chain: "ChainSpec | None" = field(default=None, repr=False)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -121,6 +131,10 @@ class FitResult:
         for name in self.free:
             lines.append(f"{name:<16}{self.estimates[name]:>14.6g}{self.sigmas[name]:>12.3g}  "
                          f"{self.flags[name]}")
+        if self.nuisance:
+            lines.append("measurement chain:")
+            for name, v in self.nuisance.items():
+                lines.append(f"{name:<16}{v:>14.6g}{self.nuisance_sigmas[name]:>12.3g}")
         lines.append(f"chi2 = {self.chi2:.4g} (+ a priori {self.chi2_prior:.3g}), dof = "
                      f"{self.dof}, chi2/dof = {self.chi2_per_dof:.3g}, "
                      f"{self.iterations} iterations, condition number {self.cond:.3g}")
@@ -144,8 +158,10 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
 
 
 def build_problem(model: Model, experiments: Experiments, data: Measurements,
-                  tol: float = 0.0) -> _ce.Problem:
-    """Arrays for the Fortran core; checks that every row can be predicted."""
+                  tol: float = 0.0, chain: ChainSpec | None = None) -> _ce.Problem:
+    """Arrays for the Fortran core; checks that every row can be predicted.
+    ``chain``: the nuisance parameters of the measurement chain (their
+    values follow the model's in the parameter vector, ChainSpec.order)."""
     exps = _check_experiments(experiments)
     if not isinstance(data, Measurements):
         raise InputError(f"data must be beamid.Measurements (read_measurements), got "
@@ -157,6 +173,8 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for j, name in enumerate(names):
         kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
+    if chain:
+        chain.encode(names, values)
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -258,7 +276,8 @@ def _check_fit_args(data, tol, max_iter) -> None:
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
-        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto") -> FitResult:
+        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
+        nuisance: Mapping | None = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -301,6 +320,17 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         Jacobian"). ``"exact"``: sensitivities at the release's own
         tolerance at every iteration. Static experiments are the same
         either way.
+    nuisance:
+        The measurement chain's nuisance parameters fitted with the physics
+        (docs/workflow_dynamic.md, "The measurement chain"):
+        ``{"time_offset": [experiment, ...], "bias": [(experiment,
+        quantity), ...], "scale": [...]}`` (a dict instead of a list gives
+        start values). A release's clock offset t0 is the model time at its
+        record's zero (the row at record time t is the model at t + t0);
+        a channel's bias b and scale s make a row read s h + b. Their
+        estimates and sigmas are ``result.nuisance`` and
+        ``result.nuisance_sigmas``; ``result.cov`` (the physics block of
+        ``result.full_cov``) accounts for them.
 
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
@@ -314,7 +344,8 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if jacobian not in ("auto", "exact"):
         raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
-    prob = build_problem(model, experiments, data, tol)
+    chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
+    prob = build_problem(model, experiments, data, tol, chain)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
         # tolerance at every iteration (1, central differences, is kept)
@@ -326,8 +357,22 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     else:
         free_names, free_idx = _free_indices(model, free)
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
-    raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-    return _result(model, experiments, data, free_names, prior_map, raw)
+    exp_names = list(_check_experiments(experiments))
+    params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
+    raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
+    return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+
+
+def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
+                free_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The parameter vector and free indices with the chain's nuisance
+    parameters after the model's (all of them free)."""
+    params0 = model.vector()
+    if not chain:
+        return params0, free_idx
+    starts = chain.starts(exp_names)
+    extra = np.arange(params0.size + 1, params0.size + starts.size + 1, dtype=np.int32)
+    return np.concatenate([params0, starts]), np.concatenate([free_idx, extra]).astype(np.int32)
 
 
 def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
@@ -353,7 +398,22 @@ def _carried_prior(model: Model, prior: "FitResult"):
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
             free: tuple[str, ...], prior: dict, raw: dict,
-            nominal: Model | None = None) -> FitResult:
+            nominal: Model | None = None, chain: ChainSpec | None = None) -> FitResult:
+    npar = start.vector().size
+    nf = len(free)
+    full_cov = None
+    nuis, nuis_sig = {}, {}
+    if chain:
+        exp_names = list(experiments)
+        names = chain.names(exp_names)
+        extra = np.asarray(raw["params"][npar:], float)
+        nuis = {n: float(v) for n, v in zip(names, extra)}
+        nuis_sig = {n: float(v) for n, v in zip(names, raw["sigmas"][nf:])}
+        chain = chain.with_values(exp_names, extra)
+        full_cov = raw["cov"]
+        raw = dict(raw, params=raw["params"][:npar], sigmas=raw["sigmas"][:nf],
+                   cov=raw["cov"][:nf, :nf], corr=raw["corr"][:nf, :nf], flags=raw["flags"][:nf],
+                   log_params=raw["log_params"][:nf])
     fitted = Model(start.nbeams, raw["params"])
     stop = raw.get("stop", "converged")
     note = _named(start, raw.get("note", "")) if stop not in ("converged", "evaluated") \
@@ -379,7 +439,8 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
         warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"],
                            stop, note if stop != "converged" else ""),
         stop=stop, note=note, nominal=nominal if nominal is not None else start,
-        refit_start=raw.get("start"))
+        refit_start=raw.get("start"), nuisance=nuis, nuisance_sigmas=nuis_sig,
+        full_cov=full_cov, chain=chain if chain else None)
 
 
 def predict(model: Model, experiments: Experiments, data: Measurements,

@@ -1,0 +1,342 @@
+"""The measurement chain: nuisance parameters fitted with the physics (issue 29).
+
+A record's clock offset ``t0`` (a release's data row at record time t is
+the model at time t + t0: t0 is the model time at the logger's zero, 0.015
+when the logger started 15 ms after the release), and per channel
+(experiment, quantity) a bias ``b`` and a scale ``s`` (the row reads
+s h + b). They are extra columns of the one Gauss-Newton fit (Fortran,
+``beamid_inverse``): the t0 column is s dh/dt from the integrated state's
+rates, the bias column 1, the scale column h; the covariance of the physics
+parameters is the matching block of the full inverse, so it accounts for
+them.
+
+>>> import beamid
+>>> spec = parse_nuisance({"time_offset": ["free"], "bias": [("free", "w_tip")]},
+...                       {"free": beamid.Release(fy=8.0)}, None)
+>>> spec.names()
+('t0[free]', 'bias[free:w_tip]')
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import _core_estimation as _ce
+from ._core import _call
+from .errors import InputError
+from .loads import Release
+from .measurements import QUANTITIES
+
+#: keys of the ``nuisance`` argument of :func:`beamid.fit`
+NUISANCE_KINDS = ("time_offset", "bias", "scale")
+#: rows of beamid_inverse's experiment value column (0-based): EV_T0, EV_BIAS, EV_SCALE
+_EV_T0, _EV_BIAS, _EV_SCALE = 12, 13, 14
+#: null (perfect chain) value by kind
+NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0}
+_KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale"}
+
+
+@dataclass(frozen=True)
+class ChainSpec:
+    """The nuisance parameters of a fit: ``t0`` {experiment: start},
+    ``bias`` and ``scale`` {(experiment, quantity): start}."""
+
+    t0: dict[str, float] = field(default_factory=dict)
+    bias: dict[tuple[str, str], float] = field(default_factory=dict)
+    scale: dict[tuple[str, str], float] = field(default_factory=dict)
+
+    def __bool__(self) -> bool:
+        return bool(self.t0 or self.bias or self.scale)
+
+    def order(self, experiments: list[str]) -> list[tuple[str, str, str]]:
+        """(kind, experiment, quantity) in the parameter order of the Fortran
+        core (chain_layout): per experiment its t0, its biases, its scales,
+        each by quantity code."""
+        out = []
+        for e in experiments:
+            if e in self.t0:
+                out.append(("time_offset", e, ""))
+            for kind, table in (("bias", self.bias), ("scale", self.scale)):
+                for q in QUANTITIES:
+                    if (e, q) in table:
+                        out.append((kind, e, q))
+        return out
+
+    def names(self, experiments: list[str] | None = None) -> tuple[str, ...]:
+        exps = experiments if experiments is not None else list(dict.fromkeys(
+            list(self.t0) + [e for e, _ in self.bias] + [e for e, _ in self.scale]))
+        return tuple(param_name(k, e, q) for k, e, q in self.order(exps))
+
+    def starts(self, experiments: list[str]) -> np.ndarray:
+        table = {"time_offset": self.t0, "bias": self.bias, "scale": self.scale}
+        return np.array([table[k][e] if k == "time_offset" else table[k][(e, q)]
+                         for k, e, q in self.order(experiments)], float)
+
+    def encode(self, experiments: list[str], values: np.ndarray) -> None:
+        """Set the EV_T0, EV_BIAS, EV_SCALE rows of ``values`` (NEXPVAL x nexp)."""
+        for j, e in enumerate(experiments):
+            values[_EV_T0, j] = 1.0 if e in self.t0 else 0.0
+            for row, table in ((_EV_BIAS, self.bias), (_EV_SCALE, self.scale)):
+                values[row, j] = float(sum(1 << (_ce.QUANTITY_CODES[q] - 1)
+                                           for (x, q) in table if x == e))
+
+    def with_values(self, experiments: list[str], values: np.ndarray) -> "ChainSpec":
+        """The same parameters started at ``values`` (in :meth:`order`)."""
+        t0, bias, scale = {}, {}, {}
+        for (k, e, q), v in zip(self.order(experiments), values):
+            if k == "time_offset":
+                t0[e] = float(v)
+            else:
+                (bias if k == "bias" else scale)[(e, q)] = float(v)
+        return ChainSpec(t0, bias, scale)
+
+    def merged(self, other: "ChainSpec") -> "ChainSpec":
+        """This spec with ``other``'s parameters added (its own values kept)."""
+        return ChainSpec({**other.t0, **self.t0}, {**other.bias, **self.bias},
+                         {**other.scale, **self.scale})
+
+
+def param_name(kind: str, experiment: str, quantity: str) -> str:
+    """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
+    if kind == "time_offset":
+        return f"t0[{experiment}]"
+    return f"{kind}[{experiment}:{quantity}]"
+
+
+def _channels(data) -> set[tuple[str, str]]:
+    return set(zip(data.experiment, data.quantity)) if data is not None else set()
+
+
+def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> ChainSpec:
+    """Check and normalize the ``nuisance`` argument of :func:`beamid.fit`.
+
+    ``{"time_offset": [experiment, ...], "bias": [(experiment, quantity),
+    ...], "scale": [...]}``; each list may be a dict giving the start value
+    (``{"free": 0.01}``, ``{("free", "w_tip"): 1e-3}``); a bare quantity
+    name in ``bias``/``scale`` means that quantity in every experiment that
+    measures it.
+    """
+    if nuisance is None:
+        return ChainSpec()
+    if isinstance(nuisance, ChainSpec):
+        return nuisance
+    if not isinstance(nuisance, Mapping):
+        raise InputError(f"nuisance = {nuisance!r}, expected a dict with keys "
+                         f"{', '.join(NUISANCE_KINDS)}")
+    exps = dict(experiments)
+    channels = _channels(data)
+    out: dict[str, dict] = {"time_offset": {}, "bias": {}, "scale": {}}
+    for kind, items in nuisance.items():
+        if kind not in NUISANCE_KINDS:
+            raise InputError(f"nuisance: unknown kind {kind!r}, expected one of "
+                             f"{', '.join(NUISANCE_KINDS)}")
+        if isinstance(items, (str, tuple)):
+            items = [items]
+        pairs = list(items.items()) if isinstance(items, Mapping) else \
+            [(it, NULLS[kind]) for it in items]
+        for item, start in pairs:
+            try:
+                start = float(start)
+            except (TypeError, ValueError):
+                start = math.nan
+            if not math.isfinite(start) or (kind == "scale" and start <= 0.0):
+                raise InputError(f"nuisance[{kind!r}][{item!r}]: start value {start!r}, "
+                                 "expected a finite number" + (" > 0" if kind == "scale"
+                                                               else ""))
+            if kind == "time_offset":
+                if item not in exps:
+                    raise InputError(f"nuisance['time_offset']: no experiment {item!r} "
+                                     f"(experiments: {', '.join(exps)})")
+                if not isinstance(exps[item], Release):
+                    raise InputError(f"nuisance['time_offset']: experiment {item!r} is "
+                                     "static; a time offset needs a record in time (a "
+                                     "beamid.Release)")
+                out[kind][item] = start
+                continue
+            if isinstance(item, str):
+                if item not in QUANTITIES:
+                    raise InputError(f"nuisance[{kind!r}]: {item!r} is neither a quantity "
+                                     f"nor an (experiment, quantity) pair")
+                found = sorted(c for c in channels if c[1] == item)
+                if data is not None and not found:
+                    raise InputError(f"nuisance[{kind!r}]: no experiment measures {item!r}")
+                for c in found:
+                    out[kind][c] = start
+                continue
+            if not (isinstance(item, tuple) and len(item) == 2):
+                raise InputError(f"nuisance[{kind!r}]: {item!r}, expected an (experiment, "
+                                 "quantity) pair or a quantity name")
+            e, q = str(item[0]), str(item[1])
+            if e not in exps:
+                raise InputError(f"nuisance[{kind!r}]: no experiment {e!r} (experiments: "
+                                 f"{', '.join(exps)})")
+            if q not in QUANTITIES:
+                raise InputError(f"nuisance[{kind!r}]: {q!r} is not a quantity, expected one "
+                                 f"of {', '.join(QUANTITIES)}")
+            if data is not None and (e, q) not in channels:
+                have = sorted(q2 for e2, q2 in channels if e2 == e)
+                raise InputError(f"nuisance[{kind!r}]: channel ({e!r}, {q!r}) does not exist: "
+                                 f"experiment {e!r} has no rows of {q!r} (it measures "
+                                 f"{', '.join(have) or 'nothing'})")
+            out[kind][(e, q)] = start
+    return ChainSpec(out["time_offset"], out["bias"], out["scale"])
+
+
+def layout(prob: "_ce.Problem", names: list[str]) -> list[tuple[str, str, str]]:
+    """(kind, experiment, quantity) of the nuisance parameters of a problem,
+    as the Fortran core orders them (api_chain_layout: one source)."""
+    n, kinds, exps, qs = _call(_ce._api.api_chain_layout, prob.exp_kind, prob.exp_values)
+    return [(_KIND_CODE[int(k)], names[int(e) - 1], _ce.QUANTITY_NAMES.get(int(q), ""))
+            for k, e, q in zip(kinds[:n], exps[:n], qs[:n])]
+
+
+# ------------------------------------------------- the chain among the candidates
+
+#: the measurement chain's candidates of beamid.diagnose (time histories)
+CHAIN_CANDIDATES = ("clock_offset", "channel_bias", "channel_scale")
+_CANDIDATE_KIND = {"clock_offset": "time_offset", "channel_bias": "bias",
+                   "channel_scale": "scale"}
+
+
+def register_candidates() -> None:
+    """Put the chain's candidates in beamid.diagnosis' registry (called by
+    beamid.dyn_diagnosis, which every ``import beamid`` loads)."""
+    from .diagnosis import Effect, register_effect
+    for name, text in (("clock_offset", "a clock offset t0 of a release's record (the "
+                        "logger's zero is not the release)"),
+                       ("channel_bias", "a bias b of a channel (experiment, quantity): a "
+                        "camera's origin, a gauge's zero drift"),
+                       ("channel_scale", "a scale s of a channel: a gauge factor, an "
+                        "accelerometer's sensitivity")):
+        register_effect(Effect(name, text, lambda m: (), kinds=("dynamic",),
+                               cause="measurement chain"))
+
+
+@dataclass
+class DiagnosisExtension:
+    """The nuisance parameters of a diagnosis: the fit's own (free, at their
+    estimates) and the chain candidates' (held at their null values), with
+    the values, the free indices (1-based) the problem needs and the
+    parameter names of the candidates' blocks."""
+
+    spec: ChainSpec
+    values: np.ndarray
+    free: np.ndarray
+    names: dict[str, float]
+
+    def trim(self, raw: dict, npar: int) -> None:
+        """Keep the model's part of the refit parameter vectors, and record
+        the chain's values by name (for the candidates' null values)."""
+        raw["refit_params"] = np.asarray(raw["refit_params"])[:npar]
+        raw["mesh_params"] = np.asarray(raw["mesh_params"])[:npar]
+        raw["chain_values"] = dict(self.names)
+
+
+def diagnosis_extension(fit, effects: list, names: list, blocks: list) -> DiagnosisExtension:
+    """Add the chain's candidates to a diagnosis of ``fit``: fills in the
+    ``names`` and ``blocks`` of the effects whose cause is the measurement
+    chain (in place), and returns the nuisance parameters of the problem."""
+    return extension(fit.model, fit.experiments, fit.data, fit.chain, effects, names, blocks)
+
+
+def extension(model, experiments, data, own: ChainSpec | None, effects: list, names: list,
+              blocks: list) -> DiagnosisExtension:
+    """:func:`diagnosis_extension` of a problem (model, experiments, data)
+    whose fit has the chain ``own`` (None: none); the ladder of
+    :func:`beamid.improve` starts from it too."""
+    exps = list(experiments)
+    wanted = {_CANDIDATE_KIND[e.name] for e in effects if e.name in _CANDIDATE_KIND}
+    own, cand = _candidates(experiments, data, own, wanted)
+    spec = own.merged(cand)
+    order = spec.order(exps)
+    npar = model.vector().size
+    index = {param_name(k, e, q): npar + 1 + i for i, (k, e, q) in enumerate(order)}
+    values = spec.starts(exps)
+    for c, eff in enumerate(effects):
+        kind = _CANDIDATE_KIND.get(eff.name)
+        if kind is None:
+            continue
+        table = {"time_offset": cand.t0, "bias": cand.bias, "scale": cand.scale}[kind]
+        ns = tuple(param_name(k, e, q) for k, e, q in order
+                   if k == kind and ((e in table) if kind == "time_offset" else ((e, q) in table)))
+        names[c] = ns
+        blocks[c] = np.array([index[n] for n in ns], np.int32)
+    free = np.array([index[n] for n in own.names(exps)], np.int32)
+    return DiagnosisExtension(spec, values, free,
+                              {param_name(k, e, q): float(v) for (k, e, q), v in
+                               zip(order, values)})
+
+
+def candidate_spec(fit, kinds: set[str]) -> tuple[ChainSpec, ChainSpec]:
+    """(the fit's own chain, the candidates' parameters of ``kinds`` at their
+    null values): a clock offset per release, a bias and a scale per release
+    channel, those the fit has already left out."""
+    return _candidates(fit.experiments, fit.data, fit.chain, kinds)
+
+
+def _candidates(experiments, data, own: ChainSpec | None,
+                kinds: set[str]) -> tuple[ChainSpec, ChainSpec]:
+    exps = list(experiments)
+    own = own or ChainSpec()
+    if not kinds:
+        return own, ChainSpec()
+    if not hasattr(data, "experiment"):
+        raise InputError(f"data = {type(data).__name__}, expected beamid.Measurements "
+                         "(beamid.read_measurements)")
+    rel = [e for e, x in experiments.items() if isinstance(x, Release)]
+    channels = sorted({(e, q) for e, q in zip(data.experiment, data.quantity)
+                       if e in rel}, key=lambda c: (exps.index(c[0]), QUANTITIES.index(c[1])))
+    cand = ChainSpec(
+        {e: 0.0 for e in rel if e not in own.t0} if "time_offset" in kinds else {},
+        {c: 0.0 for c in channels if c not in own.bias} if "bias" in kinds else {},
+        {c: 1.0 for c in channels if c not in own.scale} if "scale" in kinds else {})
+    return own, cand
+
+
+def add_chain_effect(fit, name: str, *, max_iter: int = 50):
+    """:func:`beamid.add_effect` for a measurement-chain candidate: the fit
+    again with the candidate's nuisance parameters (every release's clock
+    offset, every release channel's bias or scale) fitted too."""
+    import dataclasses
+    from .estimation import fit as _fit
+    own, cand = candidate_spec(fit, {_CANDIDATE_KIND[name]})
+    if not cand:
+        raise InputError(f"effect {name!r}: no parameter left to add (the fit has every "
+                         f"{_CANDIDATE_KIND[name].replace('_', ' ')} already, or no release)")
+    out = _fit(fit.model, fit.experiments, fit.data, free=fit.free, prior=fit.prior or None,
+               max_iter=max_iter, nuisance=own.merged(cand))
+    return dataclasses.replace(out, nominal=fit.nominal)
+
+
+def split_ladder_fit(raw: dict, free0, npar: int, spec: ChainSpec,
+                     exps: list[str]) -> tuple[dict, list[int], ChainSpec]:
+    """A ladder rung's fit (free parameters in the ladder's order, the
+    parameter vector with every chain parameter) as beamid.estimation's
+    ``_result`` takes it: (the dict with the model's free parameters first,
+    then the chain's free ones, and the vector cut to the model's and those;
+    the model's free indices, 0-based; the free chain parameters at their
+    estimates)."""
+    free0 = [int(i) for i in free0]
+    phys = [i for i in free0 if i < npar]
+    chain = sorted(i for i in free0 if i >= npar)
+    perm = np.array([free0.index(i) for i in phys + chain], int)
+    params = np.asarray(raw["params"], float)
+    order = spec.order(exps)
+    sub = ChainSpec()
+    for i in chain:
+        k, e, q = order[i - npar]
+        if k == "time_offset":
+            sub.t0[e] = float(params[i])
+        else:
+            (sub.bias if k == "bias" else sub.scale)[(e, q)] = float(params[i])
+    out = dict(raw, params=np.concatenate([params[:npar], params[chain]]))
+    if perm.size:
+        out.update(sigmas=np.asarray(raw["sigmas"])[perm],
+                   cov=np.asarray(raw["cov"])[np.ix_(perm, perm)],
+                   corr=np.asarray(raw["corr"])[np.ix_(perm, perm)],
+                   flags=np.asarray(raw["flags"])[perm],
+                   log_params=np.asarray(raw["log_params"])[perm])
+    return out, phys, sub

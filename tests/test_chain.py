@@ -1,0 +1,147 @@
+"""The measurement chain (issue 29): a record's clock offset, a channel's bias
+and scale fitted with the physics as extra columns."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import beamid
+from beamid import _core_estimation as _ce
+from beamid.chain import ChainSpec, layout, parse_nuisance
+from beamid.estimation import build_problem
+
+BASE = beamid.pace().replace(J_elbow=0.0, J_tip=0.0)
+
+
+def _release(nepb=2, **kw):
+    return beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=nepb, **kw)
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A short record of tip u and w (rows at 0.1 .. 0.5 s)."""
+    exps = {"free": _release()}
+    times = [0.1, 0.2, 0.3, 0.4, 0.5]
+    data = beamid.simulate_measurements(BASE, exps, ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    return exps, data
+
+
+def test_layout_is_the_fortran_order(small):
+    exps, data = small
+    spec = parse_nuisance({"scale": [("free", "w_tip")], "bias": ["u_tip", "w_tip"],
+                           "time_offset": ["free"]}, exps, data)
+    prob = build_problem(BASE, exps, data, chain=spec)
+    assert [(k, e, q) for k, e, q in layout(prob, ["free"])] == spec.order(["free"])
+    assert spec.names(["free"]) == ("t0[free]", "bias[free:u_tip]", "bias[free:w_tip]",
+                                    "scale[free:w_tip]")
+
+
+def test_chain_columns_match_central_differences(small):
+    """The hand-coded columns of t0 (s dh/dt from the state's rates), bias (1)
+    and scale (h), and the physics column scaled by s, against central
+    differences of the predictions."""
+    exps, data = small
+    spec = parse_nuisance({"time_offset": {"free": 0.012}, "bias": {("free", "w_tip"): 2e-3},
+                           "scale": {("free", "w_tip"): 1.03, ("free", "u_tip"): 0.97}},
+                          exps, data)
+    prob = build_problem(BASE, exps, data, chain=spec)
+    p0 = np.concatenate([BASE.vector(), spec.starts(["free"])])
+    npar = BASE.vector().size
+    rho2 = BASE.index("rho2") + 1
+    wrt = np.array([rho2] + list(range(npar + 1, p0.size + 1)), np.int32)
+    pred, jac = _ce.problem_predict(prob, p0, wrt)
+    steps = [1e-5, 1e-6, 1e-6, 1e-6, 1e-6]
+    for c, (k, h) in enumerate(zip(wrt, steps)):
+        pp, pm = p0.copy(), p0.copy()
+        pp[k - 1] += h
+        pm[k - 1] -= h
+        fd = (_ce.problem_predict(prob, pp, np.zeros(0, np.int32))[0]
+              - _ce.problem_predict(prob, pm, np.zeros(0, np.int32))[0]) / (2 * h)
+        scale = np.max(np.abs(fd))
+        assert scale > 0.0
+        assert np.max(np.abs(jac[:, c] - fd)) < 2e-4 * scale, (c, jac[:, c], fd)
+    # the chain acts as documented: s h(t + t0) + b on w, s h(t + t0) on u
+    plain = build_problem(BASE, exps, data)
+    shifted = data.__class__.from_rows(
+        [(e, t + 0.012, q, 0.0, s) for e, t, q, s in zip(data.experiment, data.t,
+                                                          data.quantity, data.sigma)])
+    h, _ = _ce.problem_predict(build_problem(BASE, exps, shifted), BASE.vector(),
+                               np.zeros(0, np.int32))
+    is_w = np.array([q == "w_tip" for q in data.quantity])
+    expect = np.where(is_w, 1.03 * h + 2e-3, 0.97 * h)
+    assert np.max(np.abs(pred - expect)) < 1e-12
+    assert plain.exp_values.shape == (_ce.NEXPVAL, 1)
+
+
+def _offset_record(t0=0.015, sigma=1e-3, seed=29, rate=500.0, duration=1.3):
+    """Tip u and w sampled at ``rate`` over ``duration``, the logger's zero
+    t0 after the release; truth at rtol 1e-11 (tighter than the fit's)."""
+    times = np.round(np.arange(1, int(round(duration * rate)) + 1) / rate, 6)
+    fine = {"free": _release(4, rtol=1e-11)}
+    exact = beamid.simulate_measurements(BASE, fine, ["u_tip", "w_tip"], sigma=sigma,
+                                         t=times + t0)
+    rng = np.random.default_rng(seed)
+    rows = [(e, round(t - t0, 6), q, v + sigma * rng.standard_normal(), s)
+            for e, t, q, v, s in zip(exact.experiment, exact.t, exact.quantity, exact.value,
+                                     exact.sigma)]
+    return beamid.Measurements.from_rows(rows)
+
+
+def test_time_offset_recovers_15_ms_and_rho2():
+    data = _offset_record(rate=100.0)    # 260 rows: the doc's 500 Hz record is slower
+    exps = {"free": _release(4)}
+    start = BASE.replace(rho2=0.5)
+    plain = beamid.fit(start, exps, data, free=("rho2",))
+    fit = beamid.fit(start, exps, data, free=("rho2",), nuisance={"time_offset": ["free"]})
+    assert plain.chi2_per_dof > 5.0                        # the offset wrecks the plain fit
+    assert fit.chi2_per_dof < 1.3
+    t0, s0 = fit.nuisance["t0[free]"], fit.nuisance_sigmas["t0[free]"]
+    assert abs(t0 - 0.015) < 3 * s0 and s0 < 1e-3
+    assert abs(fit.estimates["rho2"] - 0.530) < 2 * fit.sigmas["rho2"]
+    # the physics covariance is the block of the full inverse
+    assert fit.full_cov.shape == (2, 2)
+    assert fit.cov[0, 0] == pytest.approx(fit.full_cov[0, 0])
+    assert "t0[free]" in fit.summary()
+
+
+def test_bias_and_scale_recovered():
+    exps = {"free": _release(2)}
+    times = np.round(np.arange(1, 66) * 0.02, 6)
+    data0 = beamid.simulate_measurements(BASE, {"free": _release(2, rtol=1e-11)},
+                                         ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    rng = np.random.default_rng(3)
+    w = np.array([q == "w_tip" for q in data0.quantity])
+    values = np.where(w, data0.value + 0.004, 1.05 * data0.value) \
+        + 1e-3 * rng.standard_normal(len(data0))
+    data = data0.with_values(values)
+    fit = beamid.fit(BASE, exps, data, free=("rho2",),
+                     nuisance={"bias": [("free", "w_tip")], "scale": [("free", "u_tip")]})
+    b, sb = fit.nuisance["bias[free:w_tip]"], fit.nuisance_sigmas["bias[free:w_tip]"]
+    s, ss = fit.nuisance["scale[free:u_tip]"], fit.nuisance_sigmas["scale[free:u_tip]"]
+    assert abs(b - 0.004) < 3 * sb and sb < 5e-4
+    assert abs(s - 1.05) < 3 * ss and ss < 0.01
+    assert abs(fit.estimates["rho2"] - 0.530) < 3 * fit.sigmas["rho2"]
+    assert fit.chi2_per_dof < 1.3
+
+
+def test_bad_nuisance_input(small):
+    exps, data = small
+    with pytest.raises(beamid.InputError, match=r"channel \('free', 'y_elbow'\) does not exist"):
+        beamid.fit(BASE, exps, data, free=("rho2",), nuisance={"bias": [("free", "y_elbow")]})
+    with pytest.raises(beamid.InputError, match="no experiment 'nope'"):
+        beamid.fit(BASE, exps, data, free=("rho2",), nuisance={"time_offset": ["nope"]})
+    with pytest.raises(beamid.InputError, match="unknown kind 'offset'"):
+        beamid.fit(BASE, exps, data, free=("rho2",), nuisance={"offset": ["free"]})
+    static = {"F3": beamid.TipForce(fy=3.0)}
+    sdata = beamid.simulate_measurements(BASE, static, ["y_tip"], sigma=1e-3)
+    with pytest.raises(beamid.InputError, match="static; a time offset needs a record"):
+        beamid.fit(BASE, static, sdata, free=("EI1",), nuisance={"time_offset": ["F3"]})
+
+
+def test_fortran_refuses_a_static_time_offset():
+    """The core checks what it is given (decks reach it without Python)."""
+    static = {"F3": beamid.TipForce(fy=3.0)}
+    sdata = beamid.simulate_measurements(BASE, static, ["y_tip"], sigma=1e-3)
+    prob = build_problem(BASE, static, sdata, chain=ChainSpec(t0={"F3": 0.0}))
+    with pytest.raises(beamid.InputError, match="time offset asked for a static experiment"):
+        _ce.problem_predict(prob, np.append(BASE.vector(), 0.0), np.zeros(0, np.int32))
