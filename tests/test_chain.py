@@ -145,3 +145,101 @@ def test_fortran_refuses_a_static_time_offset():
     prob = build_problem(BASE, static, sdata, chain=ChainSpec(t0={"F3": 0.0}))
     with pytest.raises(beamid.InputError, match="time offset asked for a static experiment"):
         _ce.problem_predict(prob, np.append(BASE.vector(), 0.0), np.zeros(0, np.int32))
+
+
+RIG_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "clock_offset",
+                  "channel_bias", "channel_scale")
+
+
+def test_diagnose_blames_the_clock_not_the_physics():
+    """The 15 ms example (at 100 Hz): the verdict is the clock offset, a
+    cause of the measurement chain, and its refit gives rho2 within its
+    sigma of the truth."""
+    data = _offset_record(rate=100.0)
+    exps = {"free": _release(4)}
+    plain = beamid.fit(BASE.replace(rho2=0.5), exps, data, free=("rho2",))
+    d = beamid.diagnose(plain)
+    assert d.verdict is not None and d.verdict.effect == "clock_offset"
+    assert d.verdict.cause == "measurement chain" and d["drag"].cause == "physics"
+    assert d.message.startswith("measurement chain, not physics: clock_offset")
+    t0 = d.verdict.estimate["t0[free]"]
+    assert abs(t0 - 0.015) < 3 * d.verdict.sigma["t0[free]"]
+    refit = beamid.add_effect(plain, "clock_offset")
+    assert abs(refit.estimates["rho2"] - 0.530) < 2 * refit.sigmas["rho2"]
+    assert d.verdict.refit_model["rho2"] == pytest.approx(refit.estimates["rho2"], abs=1e-4)
+    with pytest.raises(beamid.InputError, match="no parameter left to add"):
+        beamid.add_effect(refit, "clock_offset")
+
+
+def test_improve_finds_offset_bias_and_the_physical_effect():
+    """Hidden effects: the tip mass's rotary inertia (physics), a 5 ms clock
+    offset and a 4 mm bias of w (the chain), data at a tighter tolerance
+    with sigma 1 mm from a fixed seed. The ladder ends with all three,
+    each named as what it is, and nothing more significant."""
+    truth = BASE.replace(J_tip=0.01)
+    times = np.round(np.arange(1, 131) / 100.0, 6)
+    fine = {"free": _release(2, rtol=1e-11)}
+    exact = beamid.simulate_measurements(truth, fine, ["u_tip", "w_tip"], sigma=1e-3,
+                                         t=times + 0.005)
+    rng = np.random.default_rng(7)
+    w = np.array([q == "w_tip" for q in exact.quantity])
+    vals = exact.value + 1e-3 * rng.standard_normal(len(exact)) + np.where(w, 4e-3, 0.0)
+    data = beamid.Measurements.from_rows(
+        [(e, round(t - 0.005, 6), q, v, s)
+         for e, t, q, v, s in zip(exact.experiment, exact.t, exact.quantity, vals, exact.sigma)])
+    lad = beamid.improve(BASE, {"free": _release(2)}, data, free=("rho2",),
+                         candidates=RIG_CANDIDATES)
+    fit = lad.fit
+    assert set(lad.effects) >= {"clock_offset", "channel_bias", "rotary_inertia"}
+    assert set(fit.nuisance) == {"t0[free]", "bias[free:w_tip]"}
+    assert abs(fit.nuisance["t0[free]"] - 0.005) < 3 * fit.nuisance_sigmas["t0[free]"]
+    assert abs(fit.nuisance["bias[free:w_tip]"] - 0.004) < \
+        3 * fit.nuisance_sigmas["bias[free:w_tip]"]
+    assert abs(fit.estimates["J_tip"] - 0.01) < 3 * fit.sigmas["J_tip"]
+    assert abs(fit.estimates["rho2"] - 0.530) < 3 * fit.sigmas["rho2"]
+    assert lad.steps[-1].diagnosis.verdict is None
+    assert "J_tip" in fit.free and "eta" not in fit.free
+
+
+def test_null_data_claim_nothing():
+    """The right model, data at a tighter tolerance with honest noise: no
+    chain parameter and no effect is claimed."""
+    times = np.round(np.arange(1, 66) * 0.02, 6)
+    exact = beamid.simulate_measurements(BASE, {"free": _release(2, rtol=1e-11)},
+                                         ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    rng = np.random.default_rng(11)
+    data = exact.with_values(exact.value + 1e-3 * rng.standard_normal(len(exact)))
+    fit = beamid.fit(BASE.replace(rho2=0.5), {"free": _release(2)}, data, free=("rho2",))
+    d = beamid.diagnose(fit, RIG_CANDIDATES)
+    assert d.verdict is None
+    assert not any(c.significant for c in d)
+    assert d.message.startswith("residuals not explained by any known effect")
+
+
+def test_coverage_of_t0_and_bias_sigmas():
+    """Monte Carlo: over 60 noise draws the estimates of t0 and a bias fall
+    within 1 and 2 of their sigmas as often as a normal law says (within
+    the binomial spread of 60 draws)."""
+    times = np.round(np.arange(1, 31) * 0.04, 6)
+    exps = {"free": _release(2)}
+    exact = beamid.simulate_measurements(BASE, exps, ["u_tip", "w_tip"], sigma=1e-3,
+                                         t=times + 0.01)
+    w = np.array([q == "w_tip" for q in exact.quantity])
+    base_rows = [(e, round(t - 0.01, 6), q, s) for e, t, q, s in
+                 zip(exact.experiment, exact.t, exact.quantity, exact.sigma)]
+    rng = np.random.default_rng(2029)
+    z = []
+    for _ in range(60):
+        v = exact.value + np.where(w, 2e-3, 0.0) + 1e-3 * rng.standard_normal(len(exact))
+        data = beamid.Measurements.from_rows([(e, t, q, vk, s) for (e, t, q, s), vk
+                                              in zip(base_rows, v)])
+        fit = beamid.fit(BASE, exps, data, free=("rho2",),
+                         nuisance={"time_offset": ["free"], "bias": [("free", "w_tip")]})
+        z.append([(fit.nuisance["t0[free]"] - 0.01) / fit.nuisance_sigmas["t0[free]"],
+                  (fit.nuisance["bias[free:w_tip]"] - 2e-3)
+                  / fit.nuisance_sigmas["bias[free:w_tip]"]])
+    z = np.abs(np.array(z))
+    one, two = np.mean(z < 1.0, axis=0), np.mean(z < 2.0, axis=0)
+    assert np.all(np.abs(one - 0.683) < 0.13), one     # 2.2 binomial sigmas at n = 60
+    assert np.all(two > 0.88), two
+    assert np.all(np.abs(np.mean(z ** 2, axis=0) - 1.0) < 0.45)
