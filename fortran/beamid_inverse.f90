@@ -36,6 +36,7 @@ module beamid_inverse
                                          probe_rows, NQUANT
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
+    use beamid_chain_fit, only: chain_rows_t
     implicit none
     private
 
@@ -55,7 +56,12 @@ module beamid_inverse
     !! clock offset, releases only), EV_BIAS and EV_SCALE (bit q - 1 set: the
     !! channel of quantity code q has a bias, a scale).
     integer, parameter, public :: EV_T0 = 13, EV_BIAS = 14, EV_SCALE = 15
-    integer, parameter, public :: NEXPVAL = 15
+    !> The rows' treatment (beamid_chain_fit): EV_LOSS the loss of the
+    !! experiment's rows (0 linear, 1 Huber, 2 Cauchy), EV_BURNIN a time
+    !! before which its rows are predicted but not fitted (0: none), EV_SIGEST
+    !! the channels (bit q - 1) whose sigma is estimated from the residuals.
+    integer, parameter, public :: EV_LOSS = 16, EV_BURNIN = 17, EV_SIGEST = 18
+    integer, parameter, public :: NEXPVAL = 18
     !> Kinds of the nuisance parameters (chain_layout).
     integer, parameter, public :: NU_T0 = 1, NU_BIAS = 2, NU_SCALE = 3
 
@@ -78,6 +84,7 @@ module beamid_inverse
         !! clock offset, its channel's bias and scale (0: none)
         integer, allocatable :: row_t0(:), row_bias(:), row_scale(:)
         integer, allocatable :: dy_exp(:) !< release number of each experiment (0: static)
+        type(chain_rows_t) :: rows        !< each row's loss, burn-in, estimated sigma
     contains
         procedure :: evaluate => inverse_evaluate
     end type inverse_problem_t
@@ -184,6 +191,8 @@ contains
         call static_null_values(nbeams, self%nulls)
         call chain_init(stat)
         if (stat%code /= STATUS_OK) return
+        call rows_init(stat)
+        if (stat%code /= STATUS_OK) return
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
                                      row_quantity(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then
@@ -200,6 +209,67 @@ contains
         self%dy%want_rates = any(self%nu_kind == NU_T0)
         self%dy_exp = dmap
     contains
+        !> Each row's loss, burn-in and estimated sigma (EV_LOSS, EV_BURNIN,
+        !! EV_SIGEST), checked: a loss code 0..2, a burn-in time >= 0 on a
+        !! release only, a channel mask whose channels have rows.
+        subroutine rows_init(stat)
+            type(status_t), intent(inout) :: stat
+            integer :: e, q, nchan, i
+            real(dp) :: v
+            allocate (self%rows%loss(size(row_exp)), self%rows%channel(size(row_exp)), source=0)
+            allocate (self%rows%fitted(size(row_exp)), source=.true.)
+            if (size(exp_values, 1) < NEXPVAL) return
+            nchan = 0
+            do e = 1, size(exp_kind)
+                v = exp_values(EV_LOSS, e)
+                if (.not. (v == 0.0_dp .or. v == 1.0_dp .or. v == 2.0_dp)) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': loss code = '//fmt_real(v)//', expected 0 (linear), '// &
+                                    '1 (huber) or 2 (cauchy)')
+                    return
+                end if
+                v = exp_values(EV_BURNIN, e)
+                if (.not. (v >= 0.0_dp .and. v < huge(1.0_dp))) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': burn-in = '//fmt_real(v)//', expected a time >= 0')
+                    return
+                end if
+                if (v > 0.0_dp .and. exp_kind(e) /= EXP_RELEASE) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': a burn-in asked for a static experiment (only a '// &
+                                    'release has a record in time)')
+                    return
+                end if
+                v = exp_values(EV_SIGEST, e)
+                if (.not. (v >= 0.0_dp .and. v <= real(2**NQUANT - 1, dp)) .or. v /= aint(v)) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': sigma channel mask = '//fmt_real(v)//', expected an '// &
+                                    'integer in 0..'//fmt_int(2**NQUANT - 1))
+                    return
+                end if
+                where (row_exp == e) self%rows%loss = nint(exp_values(EV_LOSS, e))
+                where (row_exp == e .and. row_t < exp_values(EV_BURNIN, e)) &
+                    self%rows%fitted = .false.
+                do q = 1, NQUANT
+                    if (.not. btest(nint(v), q - 1)) cycle
+                    if (.not. any(row_exp == e .and. row_quantity == q)) then
+                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                        ': sigma of quantity '//quantity_label(q)// &
+                                        ' to be estimated, but the experiment has no rows '// &
+                                        'of that quantity')
+                        return
+                    end if
+                    nchan = nchan + 1
+                    where (row_exp == e .and. row_quantity == q) self%rows%channel = nchan
+                end do
+            end do
+            do i = 1, size(row_exp)
+                if (self%rows%fitted(i)) return
+            end do
+            if (size(row_exp) > 0) call set_status(stat, ERR_INPUT, where, 'the burn-in '// &
+                                                   'leaves no row to fit')
+        end subroutine rows_init
+
         !> The nuisance parameters of the measurement chain, checked against
         !! the experiments and rows: their layout, bounds, null values and
         !! the rows each one acts on.

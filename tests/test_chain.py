@@ -243,3 +243,86 @@ def test_coverage_of_t0_and_bias_sigmas():
     assert np.all(np.abs(one - 0.683) < 0.13), one     # 2.2 binomial sigmas at n = 60
     assert np.all(two > 0.88), two
     assert np.all(np.abs(np.mean(z ** 2, axis=0) - 1.0) < 0.45)
+
+
+@pytest.fixture(scope="module")
+def gross():
+    """65 times of tip u and w (sigma 1 mm, fixed seed) with three gross
+    errors of 40-60 sigma."""
+    times = np.round(np.arange(1, 66) * 0.02, 6)
+    exact = beamid.simulate_measurements(BASE, {"free": _release(2, rtol=1e-11)},
+                                         ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    rng = np.random.default_rng(5)
+    clean = exact.value + 1e-3 * rng.standard_normal(len(exact))
+    v = clean.copy()
+    v[[10, 51, 90]] += [0.05, -0.04, 0.06]
+    return exact.with_values(clean), exact.with_values(v)
+
+
+@pytest.mark.parametrize("loss", ["huber", "cauchy"])
+def test_robust_loss_finds_the_gross_errors(gross, loss):
+    clean, data = gross
+    exps = {"free": _release(2)}
+    start = BASE.replace(rho2=0.5)
+    ref = beamid.fit(start, exps, clean, free=("rho2",))
+    plain = beamid.fit(start, exps, data, free=("rho2",))
+    fit = beamid.fit(start, exps, data, free=("rho2",), loss=loss)
+    assert plain.chi2_per_dof > 30 and plain.gross_errors == ()
+    assert fit.gross_errors == (10, 51, 90) and fit.loss == loss
+    assert fit.dof == ref.dof - 3 and fit.chi2_per_dof < 1.2
+    # the robust estimate stays within half a sigma of the clean data's
+    assert abs(fit.estimates["rho2"] - ref.estimates["rho2"]) < 0.5 * ref.sigmas["rho2"]
+    assert abs(plain.estimates["rho2"] - ref.estimates["rho2"]) > 1.0 * ref.sigmas["rho2"]
+    assert fit.weights[[10, 51, 90]].max() < 0.1 and np.median(fit.weights) > 0.9
+    cmp = beamid.compare(fit)
+    assert int(np.sum(cmp["free", "u_tip"].flagged)) == 2
+    assert int(np.sum(cmp["free", "w_tip"].flagged)) == 1
+    assert "gross errors (|normalized residual| > 3.5): free u_tip t = 0.12 s" in str(cmp)
+    assert not cmp.systematic
+
+
+def test_unknown_sigma_estimated_per_channel(gross):
+    clean, _ = gross
+    exps = {"free": _release(2)}
+    ones = beamid.Measurements.from_rows(
+        [(e, t, q, v, 1.0) for e, t, q, v in zip(clean.experiment, clean.t, clean.quantity,
+                                                 clean.value)])
+    stated = beamid.fit(BASE, exps, clean, free=("rho2",))
+    fit = beamid.fit(BASE, exps, ones, free=("rho2",), estimate_sigma=True)
+    assert set(fit.sigma_estimates) == {"free:u_tip", "free:w_tip"}
+    for s, sd in fit.sigma_estimates.values():
+        assert abs(s - 1e-3) < 3 * sd and sd == pytest.approx(s / np.sqrt(2 * 64.5), rel=0.02)
+    assert fit.dof == stated.dof - 2
+    assert abs(fit.estimates["rho2"] - stated.estimates["rho2"]) < 0.2 * stated.sigmas["rho2"]
+    assert fit.sigmas["rho2"] == pytest.approx(stated.sigmas["rho2"], rel=0.25)   # noise of s
+    assert fit.flags["rho2"] == "ok"
+    assert "sigma of free:u_tip estimated from the residuals" in fit.summary()
+
+
+def test_burn_in_rows_shown_not_fitted(gross):
+    clean, _ = gross
+    exps = {"free": _release(2)}
+    bad = clean.with_values(np.where(clean.t < 0.1, clean.value + 0.05, clean.value))
+    fit = beamid.fit(BASE, exps, bad, free=("rho2",), burn_in=0.1)
+    ref = beamid.fit(BASE, exps, clean, free=("rho2",))
+    assert int(np.sum(~fit.fitted_rows)) == 8              # t = 0.02 .. 0.08, u and w
+    assert fit.dof == ref.dof - 8
+    assert abs(fit.estimates["rho2"] - ref.estimates["rho2"]) < 0.5 * ref.sigmas["rho2"]
+    assert len(fit.residuals) == len(bad)                   # shown
+    assert min(abs(r.normalized) for r, u in zip(fit.residuals, fit.fitted_rows) if not u) > 20
+
+
+def test_bad_row_treatment_input(small):
+    exps, data = small
+    with pytest.raises(beamid.InputError, match="loss = 'l1', expected one of linear, huber"):
+        beamid.fit(BASE, exps, data, free=("rho2",), loss="l1")
+    with pytest.raises(beamid.InputError, match="estimate_sigma: channel"):
+        beamid.fit(BASE, exps, data, free=("rho2",), estimate_sigma=[("free", "y_elbow")])
+    with pytest.raises(beamid.InputError, match="burn_in"):
+        beamid.fit(BASE, exps, data, free=("rho2",), burn_in=-1.0)
+    static = {"F3": beamid.TipForce(fy=3.0)}
+    sdata = beamid.simulate_measurements(BASE, static, ["y_tip"], sigma=1e-3)
+    with pytest.raises(beamid.InputError, match="burn_in: experiment 'F3' is static"):
+        beamid.fit(BASE, static, sdata, free=("EI1",), burn_in={"F3": 0.1})
+    with pytest.raises(beamid.InputError, match="burn-in leaves no row"):
+        beamid.fit(BASE, exps, data, free=("rho2",), burn_in=10.0)

@@ -2,7 +2,7 @@
 !! ladder (beamid_estimation, beamid_ladder) on the problems of
 !! beamid_inverse, any mix of static and release experiments.
 !!
-!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 15
+!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 18
 !! values per experiment, beamid_inverse's EV_* layout), data rows
 !! (experiment index, t, quantity code, value, sigma), free parameter indices,
 !! a priori information as prior(3, nprior), a column [parameter index, mean,
@@ -25,6 +25,7 @@ module beamid_api_estimation
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
+    use beamid_chain_fit, only: chain_fit
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
     implicit none
@@ -32,7 +33,7 @@ module beamid_api_estimation
 
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
-    public :: api_problem_predict, api_chain_layout
+    public :: api_problem_predict, api_chain_layout, api_fit_chain
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
@@ -221,7 +222,7 @@ contains
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
         real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
@@ -299,16 +300,91 @@ contains
         end subroutine add_effect
     end subroutine api_fit_effect
 
+    !> The fit with the measurement chain's row treatments (beamid_chain_fit:
+    !! the experiments' losses, burn-in and estimated sigmas, EV_LOSS,
+    !! EV_BURNIN, EV_SIGEST), results as api_fit_effect's (no effect block)
+    !! and per row: the last weight, the sigma it was judged with, that
+    !! sigma's standard deviation (0 where given) and 1 for a gross error.
+    subroutine api_fit_chain(nbeams, nparams, params0, nfree, free_idx, nprior, prior, ncov, &
+                             prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
+                             row_q, row_value, row_sigma, tol, max_iter, params, sigmas, cov, &
+                             corr, flags, predictions, normalized, stats, log_cost, log_lambda, &
+                             log_step, log_params, info, weights, sigma_used, sigma_sd, &
+                             flagged, code, message, note)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, ncov
+        !f2py intent(hide) nparams, nfree, nprior, ncov, nexp, nrow
+        integer(c_int), intent(in) :: max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        integer(c_int), intent(in) :: free_idx(nfree)
+        real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree)
+        real(c_double), intent(out) :: cov(nfree, nfree), corr(nfree, nfree)
+        real(c_double), intent(out) :: predictions(nrow), normalized(nrow), stats(8)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1)
+        real(c_double), intent(out) :: log_params(nfree, max_iter + 1)
+        real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
+        integer(c_int), intent(out) :: flagged(nrow)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: res
+        type(lsq_problem_t) :: lp
+        real(dp) :: w(nrow), su(nrow), sd(nrow)
+        logical :: fl(nrow)
+        integer :: n
+        params = params0
+        note = ''
+        n = int(nprior)
+        if (ncov /= 0 .and. ncov /= nprior*nprior) then
+            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
+                            ' values, expected nprior**2 = '//fmt_int(n*n))
+        else
+            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                      int(row_exp), real(row_t, dp), int(row_q), &
+                                      real(tol, dp), model, stat)
+        end if
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
+            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
+                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
+        end if
+        if (stat%code == STATUS_OK) then
+            call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
+                           w, su, sd, fl, stat)
+            if (allocated(res%note)) note = res%note
+        end if
+        call status_out(stat, code, message)
+        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
+        if (.not. allocated(res%params)) return
+        info(1) = int(res%stop, c_int)
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+        weights = w
+        sigma_used = su
+        sigma_sd = sd
+        flagged = merge(1_c_int, 0_c_int, fl)
+    end subroutine api_fit_chain
+
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
-    !! in the EV_* layout, 15 rows) and their derivatives w.r.t.
+    !! in the EV_* layout, 18 rows) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
                                    row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
                                    message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(15, nexp), row_t(nrow), tol
+        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
@@ -335,7 +411,7 @@ contains
         integer(c_int), intent(in) :: nexp
         !f2py intent(hide) nexp
         integer(c_int), intent(in) :: exp_kind(nexp)
-        real(c_double), intent(in) :: exp_values(15, nexp)
+        real(c_double), intent(in) :: exp_values(18, nexp)
         integer(c_int), intent(out) :: n
         integer(c_int), intent(out) :: kinds(19*nexp), exps(19*nexp), qs(19*nexp)
         integer(c_int), intent(out) :: code
@@ -420,7 +496,7 @@ contains
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
@@ -560,7 +636,7 @@ contains
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
-        real(c_double), intent(in) :: exp_values(15, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)

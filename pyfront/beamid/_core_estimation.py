@@ -55,7 +55,7 @@ class Problem:
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
-NEXPVAL = 15
+NEXPVAL = 18
 
 
 def problem_predict(prob: Problem, params: np.ndarray,
@@ -363,3 +363,24 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     deck's folder as the deck's own)."""
     written = _call(_api.api_deck_task_write, _path(path), task, output)
     return [line for line in _text(written).split("\n") if line]
+
+
+def fit_chain(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
+              max_iter: int = 50, prior_cov: np.ndarray | None = None) -> dict:
+    """:func:`fit` with the rows' treatment of the measurement chain (losses,
+    burn-in, estimated sigmas: beamid_chain_fit); the dict gains per row
+    ``weights``, ``sigma_used``, ``sigma_sd`` and ``flagged`` (gross errors)."""
+    free = np.asarray(free, dtype=np.int32)
+    cov = np.zeros(0) if prior_cov is None else np.ravel(prior_cov, order="F").astype(float)
+    extra = {}
+
+    def entry(*args):
+        out = _api.api_fit_chain(*args)
+        extra.update(weights=np.array(out[13]), sigma_used=np.array(out[14]),
+                     sigma_sd=np.array(out[15]), flagged=np.array(out[16], dtype=bool))
+        return out[:13] + out[17:]
+
+    result = _fit_call(entry, free.size, False, prob.nbeams, np.asarray(params0, float), free,
+                       prior, cov, *prob.rows(), int(max_iter))
+    result.update(extra)
+    return result

@@ -99,6 +99,83 @@ class ChainSpec:
                          {**other.scale, **self.scale})
 
 
+#: rows of the experiment value column: EV_LOSS, EV_BURNIN, EV_SIGEST (0-based)
+_EV_LOSS, _EV_BURNIN, _EV_SIGEST = 15, 16, 17
+#: the losses of :func:`beamid.fit` and their Fortran codes (beamid_chain_fit)
+LOSSES = {"linear": 0, "huber": 1, "cauchy": 2}
+
+
+@dataclass(frozen=True)
+class RowTreatment:
+    """How the fit treats the rows: ``loss`` (linear, huber, cauchy), the
+    ``burn_in`` time of each release (rows before it predicted, not
+    fitted) and the channels whose sigma is estimated from the residuals."""
+
+    loss: str = "linear"
+    burn_in: dict[str, float] = field(default_factory=dict)
+    estimate: tuple[tuple[str, str], ...] = ()
+
+    def __bool__(self) -> bool:
+        return self.loss != "linear" or bool(self.burn_in) or bool(self.estimate)
+
+    def encode(self, experiments: list[str], values: np.ndarray) -> None:
+        for j, e in enumerate(experiments):
+            values[_EV_LOSS, j] = float(LOSSES[self.loss])
+            values[_EV_BURNIN, j] = float(self.burn_in.get(e, 0.0))
+            values[_EV_SIGEST, j] = float(sum(1 << (_ce.QUANTITY_CODES[q] - 1)
+                                              for (x, q) in self.estimate if x == e))
+
+
+def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mapping[str, Any],
+               data) -> RowTreatment:
+    """Check the ``loss``, ``burn_in`` and ``estimate_sigma`` arguments of
+    :func:`beamid.fit`."""
+    if not isinstance(loss, str) or loss not in LOSSES:
+        raise InputError(f"loss = {loss!r}, expected one of {', '.join(LOSSES)}")
+    exps = dict(experiments)
+    rel = [e for e, x in exps.items() if isinstance(x, Release)]
+    burn: dict[str, float] = {}
+    if burn_in is not None:
+        table = burn_in if isinstance(burn_in, Mapping) else {e: burn_in for e in rel}
+        if not isinstance(burn_in, Mapping) and not rel:
+            raise InputError("burn_in: the experiments have no release (no record in time)")
+        for e, t in table.items():
+            if e not in exps:
+                raise InputError(f"burn_in: no experiment {e!r} (experiments: "
+                                 f"{', '.join(exps)})")
+            if not isinstance(exps[e], Release):
+                raise InputError(f"burn_in: experiment {e!r} is static; a burn-in needs a "
+                                 "record in time (a beamid.Release)")
+            try:
+                t = float(t)
+            except (TypeError, ValueError):
+                t = math.nan
+            if not (math.isfinite(t) and t >= 0.0):
+                raise InputError(f"burn_in[{e!r}] = {t!r}, expected a time >= 0 (s)")
+            burn[e] = t
+    channels = sorted(_channels(data))
+    if estimate_sigma is None or estimate_sigma is False:
+        est: list[tuple[str, str]] = []
+    elif estimate_sigma is True:
+        est = channels
+    else:
+        items = [estimate_sigma] if isinstance(estimate_sigma, (str, tuple)) else \
+            list(estimate_sigma)
+        est = []
+        for item in items:
+            if isinstance(item, str):
+                found = [c for c in channels if c[1] == item]
+                if not found:
+                    raise InputError(f"estimate_sigma: no experiment measures {item!r}")
+                est += found
+            elif isinstance(item, tuple) and len(item) == 2 and tuple(item) in channels:
+                est.append((str(item[0]), str(item[1])))
+            else:
+                raise InputError(f"estimate_sigma: channel {item!r} does not exist (channels: "
+                                 + ", ".join(f"({e!r}, {q!r})" for e, q in channels) + ")")
+    return RowTreatment(loss, burn, tuple(dict.fromkeys(est)))
+
+
 def param_name(kind: str, experiment: str, quantity: str) -> str:
     """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
     if kind == "time_offset":

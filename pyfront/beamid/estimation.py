@@ -14,6 +14,7 @@ priori pseudo-measurements, SVD covariance) run in Fortran
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
-from .chain import ChainSpec, parse_nuisance
+from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -114,6 +115,17 @@ class FitResult:
     nuisance_sigmas: dict[str, float] = field(default_factory=dict)
     full_cov: np.ndarray | None = field(default=None, repr=False)
     chain: "ChainSpec | None" = field(default=None, repr=False)
+    #: the rows' treatment (``loss``, ``burn_in``, ``estimate_sigma`` of
+    #: :func:`fit`): the loss; per row the last IRLS weight (0: burn-in),
+    #: whether it was fitted, and the rows flagged as gross errors
+    #: (standardized residual beyond 3.5: not in chi2 and dof)
+    loss: str = "linear"
+    weights: np.ndarray | None = field(default=None, repr=False)
+    fitted_rows: np.ndarray | None = field(default=None, repr=False)
+    gross_errors: tuple[int, ...] = ()
+    #: the sigmas estimated from the residuals, by channel "experiment:quantity":
+    #: (sigma, its standard deviation)
+    sigma_estimates: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -131,6 +143,11 @@ class FitResult:
         for name in self.free:
             lines.append(f"{name:<16}{self.estimates[name]:>14.6g}{self.sigmas[name]:>12.3g}  "
                          f"{self.flags[name]}")
+        for name, (v, sd) in self.sigma_estimates.items():
+            lines.append(f"sigma of {name} estimated from the residuals: {v:.4g} +- {sd:.2g}")
+        if self.gross_errors:
+            lines.append(f"gross errors (|normalized residual| > 3.5, not in chi2): rows "
+                         + ", ".join(str(i) for i in self.gross_errors))
         if self.nuisance:
             lines.append("measurement chain:")
             for name, v in self.nuisance.items():
@@ -158,7 +175,8 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
 
 
 def build_problem(model: Model, experiments: Experiments, data: Measurements,
-                  tol: float = 0.0, chain: ChainSpec | None = None) -> _ce.Problem:
+                  tol: float = 0.0, chain: ChainSpec | None = None,
+                  rows: RowTreatment | None = None) -> _ce.Problem:
     """Arrays for the Fortran core; checks that every row can be predicted.
     ``chain``: the nuisance parameters of the measurement chain (their
     values follow the model's in the parameter vector, ChainSpec.order)."""
@@ -175,6 +193,8 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         values[:v.size, j] = v
     if chain:
         chain.encode(names, values)
+    if rows:
+        rows.encode(names, values)
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -277,7 +297,9 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
         max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
-        nuisance: Mapping | None = None) -> FitResult:
+        nuisance: Mapping | None = None, loss: str = "linear",
+        burn_in: "float | Mapping[str, float] | None" = None,
+        estimate_sigma: "bool | Sequence | None" = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -331,6 +353,19 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         estimates and sigmas are ``result.nuisance`` and
         ``result.nuisance_sigmas``; ``result.cov`` (the physics block of
         ``result.full_cov``) accounts for them.
+    loss:
+        ``"linear"`` (least squares), ``"huber"`` or ``"cauchy"``: a robust
+        loss by iteratively reweighted least squares (the covariance from
+        the reweighted Jacobian); rows whose standardized residual passes
+        3.5 are ``result.gross_errors`` (left out of chi2 and dof).
+    burn_in:
+        A time (s) for every release, or ``{experiment: time}``: rows
+        before it are predicted and shown, not fitted.
+    estimate_sigma:
+        ``True`` (every channel), quantity names or (experiment, quantity)
+        pairs: their sigma is estimated from the residuals (the data's
+        sigmas are only its start), one degree of freedom each;
+        ``result.sigma_estimates`` holds each with its uncertainty.
 
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
@@ -345,7 +380,8 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if jacobian not in ("auto", "exact"):
         raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
     chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
-    prob = build_problem(model, experiments, data, tol, chain)
+    rows = parse_rows(loss, burn_in, estimate_sigma, _check_experiments(experiments), data)
+    prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
         # tolerance at every iteration (1, central differences, is kept)
@@ -359,8 +395,25 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
     exp_names = list(_check_experiments(experiments))
     params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
-    raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-    return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+    if not rows:
+        raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
+        return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+    raw = _ce.fit_chain(prob, params0, free_idx, ptable, prior_cov=pcov,
+                        max_iter=int(max_iter))
+    out = _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+    sig = raw["sigma_used"]
+    residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
+    est = {}
+    for e, q in rows.estimate:
+        k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
+                 if x == e and y == q)
+        est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
+    return dataclasses.replace(
+        out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
+        fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
+                              zip(data.experiment, data.t)], bool),
+        gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
+        sigma_estimates=est)
 
 
 def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
