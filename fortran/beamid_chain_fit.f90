@@ -11,11 +11,12 @@
 !!   pass fits with sigma / sqrt(w); the passes end when no weight moves by
 !!   more than TOL_WEIGHT. The covariance is the last pass's, that of the
 !!   reweighted Jacobian.
-!! * Unknown sigma: a channel marked for it gets sigma^2 = sum w r_raw^2 /
+!! * Unknown sigma: a channel marked for it gets sigma^2 = sum r_raw^2 /
 !!   (n_c - k_c), r_raw = y - h over its fitted rows, k_c the sum of their
 !!   leverages h_ii = a_i^T C a_i (a_i the weighted row of the Jacobian, C
 !!   the covariance: the k free parameters' share of the channel), refitted
 !!   until the sigmas settle; its own sigma is sigma / sqrt(2 (n_c - k_c)).
+!!   Under a robust loss the rows beyond GROSS_Z are left out of the sum.
 !! * Burn-in rows (t before a given time) get weight 0: predicted, shown, not
 !!   fitted.
 !! The chi-square and degrees of freedom reported count the fitted rows
@@ -124,11 +125,14 @@ contains
                 end if
                 deallocate (pred, jac)
                 do c = 1, nchan
-                    associate (in_c => rows%channel == c .and. rows%fitted)
+                    ! under a robust loss the rows beyond GROSS_Z (at the last
+                    ! sigma) are gross errors, not noise: left out of the sum
+                    associate (in_c => rows%channel == c .and. rows%fitted .and. &
+                               (rows%loss == LOSS_LINEAR .or. abs(r) <= GROSS_Z))
                         nc = real(count(in_c), dp)
                         kc = sum(lev, mask=in_c)
                         if (nc - kc <= 0.5_dp) cycle
-                        ss = sum(weights*(lp%y - res%predictions)**2, mask=in_c)
+                        ss = sum((lp%y - res%predictions)**2, mask=in_c)
                         where (rows%channel == c) snew = sqrt(ss/(nc - kc))
                         where (rows%channel == c) sigma_sd = snew/sqrt(2.0_dp*(nc - kc))
                     end associate
