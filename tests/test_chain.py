@@ -148,7 +148,7 @@ def test_fortran_refuses_a_static_time_offset():
 
 
 RIG_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "clock_offset",
-                  "channel_bias", "channel_scale")
+                  "channel_bias", "channel_scale", "gross_errors", "noise")
 
 
 def test_diagnose_blames_the_clock_not_the_physics():
@@ -171,11 +171,13 @@ def test_diagnose_blames_the_clock_not_the_physics():
         beamid.add_effect(refit, "clock_offset")
 
 
-def test_improve_finds_offset_bias_and_the_physical_effect():
+def test_four_hidden_flaws_found_and_named():
     """Hidden effects: the tip mass's rotary inertia (physics), a 5 ms clock
-    offset and a 4 mm bias of w (the chain), data at a tighter tolerance
-    with sigma 1 mm from a fixed seed. The ladder ends with all three,
-    each named as what it is, and nothing more significant."""
+    offset, a 4 mm bias of w and three gross errors (the chain), data at a
+    tighter tolerance with sigma 1 mm from a fixed seed. diagnose names the
+    gross errors first (exactly the three rows); without them the ladder
+    ends with the other three, each named as what it is, and nothing more
+    significant."""
     truth = BASE.replace(J_tip=0.01)
     times = np.round(np.arange(1, 131) / 100.0, 6)
     fine = {"free": _release(2, rtol=1e-11)}
@@ -184,11 +186,19 @@ def test_improve_finds_offset_bias_and_the_physical_effect():
     rng = np.random.default_rng(7)
     w = np.array([q == "w_tip" for q in exact.quantity])
     vals = exact.value + 1e-3 * rng.standard_normal(len(exact)) + np.where(w, 4e-3, 0.0)
+    vals[[31, 120, 207]] += [0.03, -0.035, 0.04]
     data = beamid.Measurements.from_rows(
         [(e, round(t - 0.005, 6), q, v, s)
          for e, t, q, v, s in zip(exact.experiment, exact.t, exact.quantity, vals, exact.sigma)])
-    lad = beamid.improve(BASE, {"free": _release(2)}, data, free=("rho2",),
-                         candidates=RIG_CANDIDATES)
+    exps = {"free": _release(2)}
+    d = beamid.diagnose(beamid.fit(BASE, exps, data, free=("rho2",)), RIG_CANDIDATES)
+    assert d.verdict.effect == "gross_errors" and d.verdict.cause == "measurement chain"
+    assert d.verdict.params == ("row 31", "row 120", "row 207")
+    assert d.message.startswith("measurement chain, not physics: gross_errors")
+    clean = beamid.add_effect(d.fit, "gross_errors")
+    assert len(clean.data) == len(data) - 3
+    assert clean.note.startswith("gross errors left out: rows 31 (free w_tip t = 0.16)")
+    lad = beamid.improve(BASE, exps, clean.data, free=("rho2",), candidates=RIG_CANDIDATES)
     fit = lad.fit
     assert set(lad.effects) >= {"clock_offset", "channel_bias", "rotary_inertia"}
     assert set(fit.nuisance) == {"t0[free]", "bias[free:w_tip]"}
@@ -326,3 +336,23 @@ def test_bad_row_treatment_input(small):
         beamid.fit(BASE, static, sdata, free=("EI1",), burn_in={"F3": 0.1})
     with pytest.raises(beamid.InputError, match="burn-in leaves no row"):
         beamid.fit(BASE, exps, data, free=("rho2",), burn_in=10.0)
+
+
+def test_noise_larger_than_stated():
+    """The right model, noise 1.5 times the stated sigma: the verdict is the
+    measurement chain's noise, and its refit estimates the sigmas."""
+    times = np.round(np.arange(1, 66) * 0.02, 6)
+    exact = beamid.simulate_measurements(BASE, {"free": _release(2, rtol=1e-11)},
+                                         ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    rng = np.random.default_rng(12)
+    data = exact.with_values(exact.value + 1.5e-3 * rng.standard_normal(len(exact)))
+    fit = beamid.fit(BASE, {"free": _release(2)}, data, free=("rho2",))
+    d = beamid.diagnose(fit, RIG_CANDIDATES)
+    assert d.verdict is not None and d.verdict.effect == "noise"
+    f = d.verdict.estimate["sigma factor"]
+    assert abs(f - 1.5) < 3 * d.verdict.sigma["sigma factor"]
+    assert "the stated sigmas are too small by a factor" in d.message
+    refit = beamid.add_effect(fit, "noise")
+    for s, sd in refit.sigma_estimates.values():
+        assert abs(s - 1.5e-3) < 3 * sd
+    assert beamid.diagnose(refit, RIG_CANDIDATES).verdict is None

@@ -475,9 +475,13 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
         raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
     if int(nrefit) < 0:
         raise InputError(f"nrefit = {nrefit}, expected >= 0")
+    from .chain import diagnosis_extension, judged_fit, ROW_CANDIDATES
+    user_fit, fit = fit, judged_fit(fit)     # the rows it judges (fitted, not gross errors)
     model = fit.model
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
-    from .chain import diagnosis_extension
+    rows = [e for e in effects if e.name in ROW_CANDIDATES]
+    keep = [k for k, e in enumerate(effects) if e.name not in ROW_CANDIDATES]
+    effects, names, blocks = ([x[k] for k in keep] for x in (effects, names, blocks))
     ext = diagnosis_extension(fit, effects, names, blocks)
     prob = build_problem(model, fit.experiments, fit.data, chain=ext.spec)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
@@ -488,7 +492,57 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
                                int(nrefit), ambiguity_delta, collinear,
                                np.concatenate([nominal.vector(), ext.values]), with_mesh)
     ext.trim(raw, model.vector().size)
-    return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    diag = _diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    if rows:
+        diag = _with_row_candidates(diag, rows)
+    return dataclasses.replace(diag, fit=user_fit) if user_fit is not fit else diag
+
+
+def _with_row_candidates(diag: Diagnosis, rows: list[Effect]) -> Diagnosis:
+    """The diagnosis with the measurement chain's row candidates
+    (beamid.chain.row_candidates) ranked in: gross errors are the verdict
+    when their refit drops the chi-square most; noise larger than stated
+    when nothing else is significant and the residuals are white."""
+    from .chain import row_candidates
+    dynamic = _dynamic(diag.fit.experiments)
+    cls = type(diag.candidates[0]) if diag.candidates else Candidate
+    if dynamic:
+        from .dyn_diagnosis import DynCandidate
+        cls = DynCandidate
+    extra = row_candidates(diag.fit, rows, diag.alpha_each, cls)
+    verdict = diag.verdict
+    for c in extra:
+        if c.effect == "gross_errors" and c.significant and (
+                verdict is None or c.chi2_drop > verdict.chi2_drop):
+            verdict = c
+    noise = next((c for c in extra if c.effect == "noise"), None)
+    white = False
+    if noise is not None and noise.significant and verdict is None:
+        cmp = compare(diag.fit)
+        series = getattr(cmp, "series", ())
+        level = diag.alpha / max(1, 3 * len(series))
+        white = bool(series) and not any(s.p_min < level for s in series
+                                         if not math.isnan(s.p_min))
+        if white:
+            verdict = noise
+    ranked = list(diag.candidates)
+    for c in extra:
+        pos = next((k for k, r in enumerate(ranked) if r.state != "tested"
+                    or not (r.chi2_drop >= c.chi2_drop)), len(ranked))
+        ranked.insert(0 if c is verdict else pos, c)
+    if verdict is diag.verdict:
+        return dataclasses.replace(diag, candidates=tuple(ranked))
+    message = _verdict_message(diag.fit, tuple(ranked), verdict, (), diag.alpha,
+                               diag.alpha_each)
+    if verdict is noise:
+        f = noise.estimate["sigma factor"]
+        message += (f"\n  white residuals with chi2/dof = {f * f:.3g}: the stated sigmas are "
+                    f"too small by a factor {f:.3g}; fit with estimate_sigma=True")
+    elif verdict is not None:
+        message += ("\n  the refit with a Huber loss flags these rows as gross errors "
+                    "(fit with loss='huber')")
+    return dataclasses.replace(diag, candidates=tuple(ranked), verdict=verdict, rivals=(),
+                               message=message)
 
 
 def _candidate_set(model: Model, experiments, candidates):
@@ -635,9 +689,10 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
-    if _effect(effect).cause == "measurement chain":
-        from .chain import add_chain_effect   # a refit with the chain's parameters added
+    from .chain import add_chain_effect, judged_fit
+    if _effect(effect).cause == "measurement chain":   # a refit with the chain's parameters
         return add_chain_effect(fit, _effect(effect).name, max_iter=max_iter)
+    fit = judged_fit(fit)    # the rows the fit judges: fitted, not gross errors
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)
@@ -757,8 +812,13 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
 def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
                      effects: list[Effect], names: list, blocks: list):
     """The measurement chain's candidates of a ladder (beamid.chain.extension):
-    their names and blocks filled in, the nuisance parameters returned."""
-    from .chain import extension
+    their names and blocks filled in, the nuisance parameters returned. The
+    row candidates (gross errors, noise) are diagnose's only: dropped here
+    (in place)."""
+    from .chain import extension, ROW_CANDIDATES
+    keep = [k for k, e in enumerate(effects) if e.name not in ROW_CANDIDATES]
+    for x in (effects, names, blocks):
+        x[:] = [x[k] for k in keep]
     return extension(model, dict(experiments), data, None, effects, names, blocks)
 
 

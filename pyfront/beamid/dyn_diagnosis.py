@@ -71,6 +71,7 @@ register_effect(Effect("motor_lag", "first-order lag of the tip motor's torque",
 for _name in ("elbow_flex", "root_flex"):
     register_effect(dataclasses.replace(_dg.EFFECTS[_name], kinds=("static", "dynamic")))
 _chain.register_candidates()
+_chain.register_row_candidates()
 register_effect(Effect("mesh", "the discretization: the same fit at twice the elements per "
                        "beam", lambda m: (), kinds=("dynamic",)))
 
@@ -78,7 +79,7 @@ register_effect(Effect("mesh", "the discretization: the same fit at twice the el
 #: measurement chain's candidates of beamid.chain among them).
 DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
                       "elbow_flex", "root_flex", "clock_offset", "channel_bias",
-                      "channel_scale", "mesh")
+                      "channel_scale", "gross_errors", "noise", "mesh")
 
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic

@@ -126,6 +126,8 @@ class FitResult:
     #: the sigmas estimated from the residuals, by channel "experiment:quantity":
     #: (sigma, its standard deviation)
     sigma_estimates: dict[str, tuple[float, float]] = field(default_factory=dict)
+    #: the rows' treatment asked for (beamid.chain.RowTreatment; None: plain)
+    treatment: "RowTreatment | None" = field(default=None, repr=False)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -413,7 +415,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
                               zip(data.experiment, data.t)], bool),
         gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
-        sigma_estimates=est)
+        sigma_estimates=est, treatment=rows)
 
 
 def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
