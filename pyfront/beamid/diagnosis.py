@@ -527,8 +527,11 @@ def _with_row_candidates(diag: Diagnosis, rows: list[Effect]) -> Diagnosis:
             verdict = noise
     ranked = list(diag.candidates)
     for c in extra:
+        # gross errors by their chi-square drop; noise (chi2 - dof, no refit:
+        # not comparable) after the tested candidates unless it is the verdict
         pos = next((k for k, r in enumerate(ranked) if r.state != "tested"
-                    or not (r.chi2_drop >= c.chi2_drop)), len(ranked))
+                    or (c.effect != "noise" and not (r.chi2_drop >= c.chi2_drop))),
+                   len(ranked))
         ranked.insert(0 if c is verdict else pos, c)
     if verdict is diag.verdict:
         return dataclasses.replace(diag, candidates=tuple(ranked))
