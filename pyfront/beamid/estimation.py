@@ -507,8 +507,10 @@ class Identification:
             ax.bar(np.arange(len(names)) + k * width, vals, width, label=stage)
         ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names)
         ax.set_yscale("log")
-        ax.set_ylabel("sigma / estimate after the stage")
-        ax.legend()
+        ax.set_xlabel("parameter")
+        ax.set_ylabel("sigma / estimate after the stage (-)")
+        ax.set_title("what each stage taught: relative sigma after it")
+        ax.legend(title="stage")
         return ax
 
 
