@@ -127,9 +127,82 @@ def run_python(block: Block, page: Page) -> None:
 
 PY_PAGES = [p for p in DOCS if any(b.lang in ("python", "pycon") for b in blocks(p))]
 
+# ---------------------------------------------------------------- figures
+
+#: Every image the docs show (docs/img/NAME), the page whose example draws it,
+#: the file that example writes, and what its title and axis labels say
+#: (substrings; "title" is the figure's suptitle or its first Axes' title).
+#: ``python tests/test_docs.py --write-images`` runs the pages and copies the
+#: files into docs/img, so the images are the examples' own.
+DOC_IMAGES = {
+    "workflow_compare_start.png": ("workflow.md", "compare_start.png", dict(
+        title="start: measured vs model: chi2 = 4.392e+04, dof 13, chi2/dof = 3378",
+        xlabel="experiment", ylabel="x_tip (m)")),
+    "workflow_ladder.png": ("workflow.md", "ladder.png", dict(
+        title="error against step", xlabel="improvement step", ylabel="chi2 / dof")),
+    "workflow_compare_final.png": ("workflow.md", "compare_final.png", dict(
+        title="final fit (step 2: axial_coupling, elbow_flex added): measured vs model: "
+              "chi2 = 14.55, dof 11", xlabel="experiment",
+        ylabel="tip_angle (rad)")),
+    "workflow_identify.png": ("workflow.md", "identify.png", dict(
+        title="relative sigma after", xlabel="parameter",
+        ylabel="sigma / estimate after the stage (-)")),
+    "workflow_identify_free.png": ("workflow.md", "identify_free.png", dict(
+        title="free stage: measured vs model: chi2 = 10.78", xlabel="t (s)",
+        ylabel="w_tip (m)")),
+    "consistency_table05.png": ("consistency.md", "table05_mc.png", dict(
+        title="EI1: sigma/spread", xlabel="(EI1 - truth) / sigma (-)",
+        ylabel="probability density")),
+    "design_table05.png": ("consistency.md", "table05_design.png", dict(
+        title="which measurement next", xlabel="predicted sigma of EI2 (N m^2)", ylabel="")),
+}
+
+IMAGE_LINK = re.compile(r"!\[[^\]]*\]\((img/[^)\s]+)\)")
+
+
+def figure_texts(fig) -> dict:
+    """The title and axis labels a reader sees on a figure: ``title`` (the
+    suptitle, else the first Axes' title), every Axes' titles, x and y labels."""
+    sup = fig._suptitle.get_text() if getattr(fig, "_suptitle", None) else ""
+    axes = [a for a in fig.axes if a.get_visible()]
+    titles = [a.get_title() for a in axes]
+    return {"title": sup or next((t for t in titles if t), ""), "titles": titles,
+            "xlabels": [a.get_xlabel() for a in axes], "ylabels": [a.get_ylabel() for a in axes]}
+
+
+def check_figure(texts: dict, want: dict, name: str) -> None:
+    assert texts["title"], f"{name}: no title"
+    assert want["title"] in texts["title"], f"{name}: title {texts['title']!r}"
+    assert want["xlabel"] in texts["xlabels"], f"{name}: x labels {texts['xlabels']}"
+    if want["ylabel"]:
+        assert want["ylabel"] in texts["ylabels"], f"{name}: y labels {texts['ylabels']}"
+
+
+@pytest.fixture
+def saved_figures(monkeypatch) -> dict:
+    """``{file name: figure_texts}`` of every figure saved while the test runs."""
+    import matplotlib.figure
+
+    saved: dict = {}
+    savefig = matplotlib.figure.Figure.savefig
+
+    def recording(fig, fname, *args, **kwargs):
+        name = Path(str(fname)).name
+        # files written all or none go through ".NAME.<random>.png" first
+        name = re.sub(r"^\.(.+\.png)\.[^.]*\.png$", r"\1", name)
+        saved[name] = figure_texts(fig)
+        return savefig(fig, fname, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", recording)
+    return saved
+
+
+def doc_image_links() -> list[tuple[Path, str]]:
+    return [(page, m.group(1)) for page in DOCS for m in IMAGE_LINK.finditer(page.read_text())]
+
 
 @pytest.mark.parametrize("path", PY_PAGES, ids=[p.name for p in PY_PAGES])
-def test_python_examples_run(path, tmp_path, monkeypatch):
+def test_python_examples_run(path, tmp_path, monkeypatch, saved_figures):
     # the blocks of a page build on each other, as a reader types them in order,
     # from the top of a checkout (paths like inputs/demo/... are relative to it);
     # what they write lands in tmp_path
@@ -139,6 +212,52 @@ def test_python_examples_run(path, tmp_path, monkeypatch):
     for block in blocks(path):
         if block.lang in ("python", "pycon"):
             run_python(block, page)
+    # the images the docs show are this page's figures: written, titled, labelled
+    for image, (page_name, written, want) in DOC_IMAGES.items():
+        if page_name == path.name:
+            assert (tmp_path / written).is_file(), f"{path.name} did not write {written}"
+            check_figure(saved_figures[written], want, f"{path.name}: {written} ({image})")
+
+
+def test_every_image_the_docs_show_is_made_by_an_example():
+    links = doc_image_links()
+    assert links, "no images found in the docs"
+    for page, link in links:
+        name = Path(link).name
+        assert (ROOT / "docs" / link).is_file(), f"{page.name} shows {link}, which is missing"
+        assert name in DOC_IMAGES, f"{page.name} shows {link}: no example makes it (DOC_IMAGES)"
+        assert DOC_IMAGES[name][0] == page.name, f"{link} is shown on {page.name}"
+    shown = {Path(link).name for _, link in links}
+    assert set(DOC_IMAGES) == shown
+    assert {p.name for p in (ROOT / "docs" / "img").glob("*.png")} == shown, \
+        "docs/img holds images no page shows"
+
+
+def write_doc_images() -> None:
+    """Run the pages that draw the docs' images and copy what they write into
+    docs/img (``python tests/test_docs.py --write-images``)."""
+    import tempfile
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    for page_name in sorted({page for page, _, _ in DOC_IMAGES.values()}):
+        path = ROOT / "docs" / page_name
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "inputs").symlink_to(ROOT / "inputs")
+            cwd = os.getcwd()
+            os.chdir(tmp)
+            try:
+                page = Page(path)
+                for block in blocks(path):
+                    if block.lang in ("python", "pycon"):
+                        run_python(block, page)
+            finally:
+                os.chdir(cwd)
+            for image, (p, written, _) in DOC_IMAGES.items():
+                if p == page_name:
+                    shutil.copy(Path(tmp) / written, ROOT / "docs" / "img" / image)
+                    print(f"wrote docs/img/{image}")
 
 
 @pytest.mark.parametrize("module", [beamid, beamid.model, beamid.static, beamid.progress])
@@ -304,3 +423,7 @@ def test_deck_examples_run(block, tmp_path, batch_exe):
     done = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True,
                           cwd=tmp_path)
     assert done.returncode == 0, done.stderr
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--write-images"]:
+    write_doc_images()

@@ -496,7 +496,7 @@ class Identification:
         """Bar chart of sigma / estimate per stage and parameter (log scale)."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(6.4, 3.6))
+            _, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
         names = list(dict.fromkeys(r.parameter for r in self.table))
         stages = list(self.stages)
         width = 0.8 / max(len(stages), 1)

@@ -254,7 +254,7 @@ def _deck_result(deck: FitDeck) -> Any:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    from .plot_fit import plot_compare, plot_ladder
+    from .plot_fit import ladder_titles, plot_compare, plot_ladder
     from .plotting import agg_pyplot, save_png
 
     written = []
@@ -263,24 +263,15 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
         plot_ladder(ladder, ax=ax)
         fig.tight_layout()
         written.append(save_png(fig, f"{prefix}_ladder.png"))
-        cmp_pairs = [("start", compare(ladder.steps[0].fit), "start (step 0, no effect added)"),
-                     ("final", compare(ladder.fit), _final_title(ladder))]
+        titles = ladder_titles(ladder)
+        cmp_pairs = [("start", compare(ladder.steps[0].fit), titles[0]),
+                     ("final", compare(ladder.fit), titles[1])]
     else:
         cmp_pairs = [("", cmp, None)]
     for tag, c, title in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
         written.append(save_png(plot_compare(c, title=title),
                                 f"{prefix}_compare{'_' + tag if tag else ''}.png"))
     return written
-
-
-def _final_title(ladder) -> str:
-    """Which fit the final compare figure of a ladder shows: its step and effects."""
-    last = len(ladder.steps) - 1
-    if last == 0:
-        return "final fit = start (no effect added)"
-    from .plot_fit import ladder_labels
-
-    return f"final fit (step {last}: + {', '.join(ladder_labels(ladder)[1:])})"
 
 
 def identify_deck(deck: FitDeck) -> Any:

@@ -176,6 +176,17 @@ def ladder_labels(ladder: Ladder) -> list[str]:
     return labels
 
 
+def ladder_titles(ladder: Ladder) -> tuple[str, str]:
+    """Titles of a ladder's two compare figures: which fit each shows, the
+    start and the final one (its step and the parameters its effects added)."""
+    last = len(ladder.steps) - 1
+    if last == 0:
+        return "start (step 0, no effect added)", "final fit = start (no effect added)"
+    added = [p for p in ladder.fit.free if p not in ladder.steps[0].fit.free]
+    return ("start (step 0, no effect added)",
+            f"final fit (step {last}: {', '.join(added)} added)")
+
+
 def plot_ladder(ladder: Ladder, ax: Any = None):
     """Chi-square per degree of freedom against improvement step (log
     scale), with what each step did (:func:`ladder_labels`) and the noise
@@ -184,9 +195,12 @@ def plot_ladder(ladder: Ladder, ax: Any = None):
     steps = [s.step for s in ladder.steps]
     chi = [s.chi2_per_dof for s in ladder.steps]
     ax.semilogy(steps, chi, "o-", label="chi2 / dof after each step")
-    for s, text in zip(ladder.steps, ladder_labels(ladder)):
+    last = len(ladder.steps) - 1
+    for k, (s, text) in enumerate(zip(ladder.steps, ladder_labels(ladder))):
+        right = k == last and k > 0      # the last label to the left: it stays inside
         ax.annotate(text, (s.step, s.chi2_per_dof), textcoords="offset points",
-                    xytext=(5, 5), fontsize=8)
+                    xytext=(-5, 6) if right else (5, 5), ha="right" if right else "left",
+                    fontsize=8)
     ax.axhline(1.0, color="grey", ls="--", lw=0.8, label="noise level (chi2/dof = 1)")
     ax.set_xticks(steps)
     ax.set_xlabel("improvement step")
