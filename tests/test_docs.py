@@ -160,41 +160,12 @@ DOC_IMAGES = {
 IMAGE_LINK = re.compile(r"!\[[^\]]*\]\((img/[^)\s]+)\)")
 
 
-def figure_texts(fig) -> dict:
-    """The title and axis labels a reader sees on a figure: ``title`` (the
-    suptitle, else the first Axes' title), every Axes' titles, x and y labels."""
-    sup = fig._suptitle.get_text() if getattr(fig, "_suptitle", None) else ""
-    axes = [a for a in fig.axes if a.get_visible()]
-    titles = [a.get_title() for a in axes]
-    return {"title": sup or next((t for t in titles if t), ""), "titles": titles,
-            "xlabels": [a.get_xlabel() for a in axes], "ylabels": [a.get_ylabel() for a in axes]}
-
-
 def check_figure(texts: dict, want: dict, name: str) -> None:
     assert texts["title"], f"{name}: no title"
     assert want["title"] in texts["title"], f"{name}: title {texts['title']!r}"
     assert want["xlabel"] in texts["xlabels"], f"{name}: x labels {texts['xlabels']}"
     if want["ylabel"]:
         assert want["ylabel"] in texts["ylabels"], f"{name}: y labels {texts['ylabels']}"
-
-
-@pytest.fixture
-def saved_figures(monkeypatch) -> dict:
-    """``{file name: figure_texts}`` of every figure saved while the test runs."""
-    import matplotlib.figure
-
-    saved: dict = {}
-    savefig = matplotlib.figure.Figure.savefig
-
-    def recording(fig, fname, *args, **kwargs):
-        name = Path(str(fname)).name
-        # files written all or none go through ".NAME.<random>.png" first
-        name = re.sub(r"^\.(.+\.png)\.[^.]*\.png$", r"\1", name)
-        saved[name] = figure_texts(fig)
-        return savefig(fig, fname, *args, **kwargs)
-
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", recording)
-    return saved
 
 
 def doc_image_links() -> list[tuple[Path, str]]:
