@@ -228,3 +228,16 @@ def test_time_comparison_title():
     assert fig._suptitle.get_text().startswith("free: measured vs model: chi2 = ")
     assert [a.get_xlabel() for a in fig.axes] == ["", "t (s)"]
     assert fig.axes[0].get_ylabel() == "w_tip (m)"
+
+
+def test_demo_forms_figure(tmp_path, saved_figures):
+    from beamid.demo import _forms_figure
+
+    _forms_figure(tmp_path / "forms.png", "tip forces", [beamid.TipForce(fy=4.0)],
+                  lambda r, i: f"fy = {4.0 * (i + 1):g} N")
+    texts = saved_figures["forms.png"]
+    _labelled(texts, "forms.png")
+    assert texts["title"] == "tip forces"
+    assert texts["titles"] == ["seed form (axial_coupling = 0)",
+                               "exact elastica (axial_coupling = 1)"]
+    assert texts["xlabels"] == ["x (m)", "x (m)"]
