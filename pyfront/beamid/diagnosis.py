@@ -16,7 +16,10 @@ first-order estimate; the leading candidates are confirmed by refits
 drives :func:`improve`.
 
 Candidate effects live in a registry (:data:`EFFECTS`); new experiment
-families (dynamics) add theirs with :func:`register_effect`.
+families (dynamics) add theirs with :func:`register_effect`, and the release
+family its comparison, diagnosis wording, default candidates and mesh
+refinement with :func:`register_release_family` (``beamid.dyn_diagnosis``
+builds on this module, so this module does not import it).
 """
 from __future__ import annotations
 
@@ -91,6 +94,24 @@ def _dynamic(experiments: Any) -> bool:
         return any(isinstance(x, Release) for x in dict(experiments).values())
     except (TypeError, ValueError):
         return False
+
+
+#: What fits with release experiments need from beamid.dyn_diagnosis, which
+#: builds on this module's types and fills this in when it is imported (the
+#: package imports it): ``compare`` (fit -> TimeComparison), ``diagnosis``
+#: (the DynDiagnosis from the Fortran arrays), ``default_candidates``
+#: (experiments -> candidate names) and ``refine_mesh``.
+_RELEASE_FAMILY: dict[str, Callable[..., Any]] = {}
+
+
+def register_release_family(*, compare: Callable[..., Any], diagnosis: Callable[..., Any],
+                            default_candidates: Callable[..., Any],
+                            refine_mesh: Callable[..., Any]) -> None:
+    """Install the functions of the release family (beamid.dyn_diagnosis)
+    that compare, diagnose, add_effect and improve call on fits with
+    releases."""
+    _RELEASE_FAMILY.update(compare=compare, diagnosis=diagnosis,
+                           default_candidates=default_candidates, refine_mesh=refine_mesh)
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -179,8 +200,7 @@ def compare(fit: FitResult) -> Comparison:
     if not isinstance(fit, FitResult):
         raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
     if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import compare_dynamic
-        return compare_dynamic(fit)  # type: ignore[return-value]
+        return _RELEASE_FAMILY["compare"](fit)
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)
@@ -485,8 +505,7 @@ def _candidate_set(model: Model, experiments, candidates):
     mesh test, not a block."""
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
-        from .dyn_diagnosis import default_candidates
-        candidates = default_candidates(experiments)
+        candidates = _RELEASE_FAMILY["default_candidates"](experiments)
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
@@ -502,8 +521,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
     """The Diagnosis of a fit from the Fortran result arrays (with releases:
     beamid.dyn_diagnosis names the results, a DynDiagnosis)."""
     if _dynamic(fit.experiments):
-        from .dyn_diagnosis import _dyn_diagnosis
-        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+        return _RELEASE_FAMILY["diagnosis"](fit, raw, effects, names, alpha, with_mesh)
     out = [_candidate(raw, c, eff, names[c], fit.model, list(fit.experiments))
            for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
@@ -615,7 +633,8 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     elements per beam.
     """
     if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
-        from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
+        # the same fit at twice the elements per beam
+        refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
@@ -741,8 +760,6 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
     call), and name its rungs."""
     dynamic = _dynamic(experiments)
-    if dynamic:
-        from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
@@ -752,7 +769,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
-            experiments = refine_mesh(experiments, r["elements_per_beam"])
+            experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
         fit = _result(Model(model.nbeams, r["start"]), experiments, data,
                       tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
                       nominal=Model(model.nbeams, r["nominal"]))

@@ -32,10 +32,11 @@ import numpy as np
 from . import _core_estimation as _ce
 from .estimation import FitResult
 from .loads import Release
+from .measurements import quantity_unit
 from .model import Model
 
-# the static registry, verdict words and result types (diagnosis.py imports
-# this module lazily, so this import is safe)
+# the static registry, verdict words and result types (diagnosis.py does not
+# import this module: this module installs its functions there at the end)
 from . import diagnosis as _dg
 from .diagnosis import Candidate, Diagnosis, Effect, register_effect
 
@@ -335,8 +336,6 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
     ``time_structure``): runs of signs, lag-1 autocorrelation, trend of the
     residual amplitude. ``systematic`` when the overall chi-square or a
     series' test is significant at ``alpha`` / (number of tests)."""
-    from .plot_fit import quantity_unit
-
     series = []
     static_rows = []
     groups: dict[tuple[str, str], list] = {}
@@ -399,3 +398,9 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         bottom.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+# compare, diagnose, add_effect and improve in beamid.diagnosis call these on
+# fits with releases
+_dg.register_release_family(compare=compare_dynamic, diagnosis=_dyn_diagnosis,
+                            default_candidates=default_candidates, refine_mesh=refine_mesh)

@@ -10,22 +10,10 @@ from typing import Any
 import numpy as np
 
 from .diagnosis import Comparison, Ladder
+from .dyn_diagnosis import plot_time_comparison
 from .errors import InputError
+from .measurements import quantity_unit  # noqa: F401 - the plots' unit rule, kept here too
 from .plotting import _axes
-
-
-def quantity_unit(quantity: str) -> str:
-    """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
-    read from its name (beamid.measurements.QUANTITIES: angles are in rad,
-    forces in N, moments and torques in N m, positions and deflections in m)."""
-    q = quantity.lower()
-    if "angle" in q:
-        return "rad"
-    if "moment" in q or "torque" in q:
-        return "N m"
-    if "force" in q:
-        return "N"
-    return "m"
 
 
 def _quantities(cmp: Comparison) -> list[str]:
@@ -93,7 +81,6 @@ def plot_compare(cmp: Comparison, fig: Any = None):
 
     Every line has a legend entry. Returns the figure (``fig`` when given)."""
     if hasattr(cmp, "series"):     # time histories (beamid.dyn_diagnosis)
-        from .dyn_diagnosis import plot_time_comparison
         return plot_time_comparison(cmp, fig=fig)
     import matplotlib.pyplot as plt
 

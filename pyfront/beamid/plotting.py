@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
+
 from .static import StaticResult
 
 
@@ -67,7 +69,6 @@ def plot_history(run, fig=None):
     error ``numerical``) and, when the motor acts, its torque (N m, its own
     panel). Returns the figure (``fig`` when given, else a new one)."""
     import matplotlib.pyplot as plt
-    import numpy as np
 
     torque = np.asarray(run.motor_torque, dtype=float)
     panels = 4 if np.any(torque != 0.0) else 3
