@@ -15,8 +15,10 @@ first-order estimate; the leading candidates are confirmed by refits
 (likelihood ratio). This module names the results, words the verdict, and
 drives :func:`improve`.
 
-Candidate effects live in a registry (:data:`EFFECTS`); new experiment
-families (dynamics) add theirs with :func:`register_effect`, and the release
+Candidate effects live in a registry (:data:`EFFECTS`): the built-in ones
+are the core's table (Fortran ``beamid_effects``: names, parameters, null
+values, bounds, the families that see them, the default candidates), user
+blocks are added with :func:`register_effect`, and the release
 family its comparison, diagnosis wording, default candidates and mesh
 refinement with :func:`register_release_family` (``beamid.dyn_diagnosis``
 builds on this module, so this module does not import it).
@@ -48,14 +50,23 @@ class Effect:
     """A physical effect a model can switch on.
 
     ``params(model)`` names the parameters that switch it on; at their null
-    values (all 0 for the static effects) the effect is off. ``kinds`` says
-    which experiment families can see it.
+    value ``null_value`` (0 for every built-in effect) the effect is off, and
+    physical values lie within ``lower`` and ``upper``. ``kinds`` says which
+    experiment families can see it (``static``, ``dynamic``).
     """
 
     name: str
     description: str
     params: Callable[[Model], tuple[str, ...]]
     kinds: tuple[str, ...] = ("static",)
+    null_value: float = 0.0
+    lower: float = 0.0
+    upper: float = math.inf
+
+    @property
+    def one_sided(self) -> bool:
+        """The null value is the lower bound: tests look at one side only."""
+        return self.null_value <= self.lower
 
 
 EFFECTS: dict[str, Effect] = {}
@@ -66,23 +77,23 @@ def register_effect(effect: Effect) -> None:
     EFFECTS[effect.name] = effect
 
 
-register_effect(Effect(
-    "axial_coupling",
-    "exact elastica: the axial force times curvature term that the seed's shear-only "
-    "Eq. 9 omits (axial_coupling from 0 towards 1)",
-    lambda m: ("axial_coupling",)))
-register_effect(Effect(
-    "material_cubic", "cubic moment-curvature law M = EI k + C k^3 (Eq. 16)",
-    lambda m: tuple(f"C{i + 1}" for i in range(m.nbeams))))
-register_effect(Effect(
-    "elbow_flex", "rotational compliance of the elbow joint (rad per N m)",
-    lambda m: ("elbow_flex",) if m.nbeams >= 2 else ()))
-register_effect(Effect(
-    "root_flex", "rotational compliance of the shoulder clamp (rad per N m)",
-    lambda m: ("root_flex",)))
+def _core_params(name: str) -> Callable[[Model], tuple[str, ...]]:
+    """The parameters of the core's effect ``name`` in a model."""
+    def params(model: Model) -> tuple[str, ...]:
+        names = model.names()
+        return tuple(names[i] for i in _ce.effect_table(model.nbeams)[name].params)
+    return params
+
+
+# the built-in effects: the core's table (names, descriptions and families do
+# not depend on the number of beams; the parameters do)
+for _row in _ce.effect_table(1).values():
+    register_effect(Effect(_row.name, _row.description, _core_params(_row.name),
+                           kinds=_row.kinds, null_value=_row.null_value, lower=_row.lower,
+                           upper=_row.upper))
 
 #: Candidate effects tried for static experiments, in order.
-STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
+STATIC_CANDIDATES = _ce.default_effects("static")
 
 _STATES = dict(_ce.CANDIDATE_STATES)
 

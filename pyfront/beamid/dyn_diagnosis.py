@@ -38,7 +38,7 @@ from .model import Model
 # the static registry, verdict words and result types (diagnosis.py does not
 # import this module: this module installs its functions there at the end)
 from . import diagnosis as _dg
-from .diagnosis import Candidate, Diagnosis, Effect, register_effect
+from .diagnosis import Candidate, Diagnosis, Effect
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -46,33 +46,12 @@ __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_d
            "plot_time_comparison"]
 
 
-def _points(prefix: str):
-    """Parameters of one kind at every mass point (elbow, joints, tip)."""
-    def names(m: Model) -> tuple[str, ...]:
-        out = [n for n in m.names() if n.startswith(prefix + "_") and
-               (n.endswith("_elbow") or n.endswith("_tip") or "_joint" in n)]
-        return tuple(out)
-    return names
+# the candidate effects of a release (their parameters, null values, bounds
+# and families) are the core's table (beamid_effects), registered with the
+# static ones by beamid.diagnosis
 
-
-register_effect(Effect("friction", "Coulomb friction at the masses (Eq. 101-102)",
-                       _points("mu"), kinds=("dynamic",)))
-register_effect(Effect("drag", "viscous air drag -c v at the masses", _points("c"),
-                       kinds=("dynamic",)))
-register_effect(Effect("rotary_inertia", "rotary inertia of the end masses (Eq. 130-132)",
-                       _points("J"), kinds=("dynamic",)))
-register_effect(Effect("kelvin_voigt", "Kelvin-Voigt structural damping eta EI dchi/dt",
-                       lambda m: ("eta",), kinds=("dynamic",)))
-register_effect(Effect("motor_lag", "first-order lag of the tip motor's torque",
-                       lambda m: ("tau_motor",), kinds=("dynamic",)))
-for _name in ("elbow_flex", "root_flex"):
-    register_effect(dataclasses.replace(_dg.EFFECTS[_name], kinds=("static", "dynamic")))
-register_effect(Effect("mesh", "the discretization: the same fit at twice the elements per "
-                       "beam", lambda m: (), kinds=("dynamic",)))
-
-#: Candidate effects tried for release experiments, in order.
-DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
-                      "elbow_flex", "root_flex", "mesh")
+#: Candidate effects tried for release experiments, in order (the core's table).
+DYNAMIC_CANDIDATES = _ce.default_effects("dynamic")
 
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic
