@@ -12,7 +12,7 @@
 !! the certified estimates, s^2 = RSS / (n - p), the data unweighted.
 module nist_strd_data
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK
+    use beamid_status, only: status_t, set_status, STATUS_OK, ERR_NUMERIC
     use beamid_estimation, only: residual_model_t
     implicit none
     private
@@ -26,6 +26,11 @@ module nist_strd_data
     !! MODEL_RATIONAL_33: y = (b1 + b2 x + b3 x^2 + b4 x^3)
     !!                        / (1 + b5 x + b6 x^2 + b7 x^3)        (Thurber)
     integer, parameter :: MODEL_EXP_RISE = 1, MODEL_RATIONAL_12 = 2, MODEL_RATIONAL_33 = 3
+    !> A denominator outside these magnitudes is not evaluated (its square
+    !! enters the Jacobian).
+    real(dp), parameter :: TINY_DEN = 1.0e-150_dp, HUGE_DEN = 1.0e150_dp
+    !> Predictions beyond this are not evaluated (nist_evaluate).
+    real(dp), parameter :: HUGE_PRED = 1.0e100_dp
 
     !> One certified problem.
     type :: nist_problem_t
@@ -66,6 +71,10 @@ contains
         associate (x => self%x)
             select case (self%model)
             case (MODEL_EXP_RISE)
+                if (any(-b(2)*x > log(huge(1.0_dp)))) then
+                    call fail('exp(-b2 x) overflows')
+                    return
+                end if
                 e = exp(-b(2)*x)
                 predictions = b(1)*(1.0_dp - e)
                 full(:, 1) = 1.0_dp - e
@@ -73,6 +82,10 @@ contains
             case (MODEL_RATIONAL_12)
                 num = x**2 + x*b(2)
                 den = x**2 + x*b(3) + b(4)
+                if (.not. all(abs(den) > TINY_DEN .and. abs(den) < HUGE_DEN)) then
+                    call fail('the denominator vanishes or overflows')
+                    return
+                end if
                 predictions = b(1)*num/den
                 full(:, 1) = num/den
                 full(:, 2) = b(1)*x/den
@@ -81,6 +94,10 @@ contains
             case (MODEL_RATIONAL_33)
                 num = b(1) + x*(b(2) + x*(b(3) + x*b(4)))
                 den = 1.0_dp + x*(b(5) + x*(b(6) + x*b(7)))
+                if (.not. all(abs(den) > TINY_DEN .and. abs(den) < HUGE_DEN)) then
+                    call fail('the denominator vanishes or overflows')
+                    return
+                end if
                 predictions = num/den
                 do j = 1, 4
                     full(:, j) = x**(j - 1)/den
@@ -90,9 +107,26 @@ contains
                 end do
             end select
         end associate
+        ! far-off trial steps (BoxBOD from start 1) predict values whose
+        ! squared residuals would overflow in the fit's cost sum, which the
+        ! checking build traps: such a point is said not to be evaluable
+        if (.not. all(abs(predictions) < HUGE_PRED)) then
+            call fail('predictions beyond 1e100')
+            return
+        end if
         do j = 1, size(wrt)
             jacobian(:, j) = full(:, wrt(j))
         end do
+    contains
+        !> The model cannot be evaluated at these parameters (a trial step
+        !! of the fit: it is damped), said as a status, not with an
+        !! overflow (the checking build traps those).
+        subroutine fail(why)
+            character(len=*), intent(in) :: why
+            predictions = 0.0_dp
+            jacobian = 0.0_dp
+            call set_status(stat, ERR_NUMERIC, 'nist model', why)
+        end subroutine fail
     end subroutine nist_evaluate
 
     !> Misra1a, BoxBOD, MGH09 and Thurber, in that order.
