@@ -12,8 +12,9 @@ mu_tip, Eq. 101-102), ``drag`` (c_elbow, c_tip), ``rotary_inertia``
 (tau_motor), ``elbow_flex``, ``root_flex`` (all one-sided: null value 0,
 physical values positive), and ``mesh``: the same fit at twice the elements
 per beam. An effect whose sensitivity is zero on every data row (a motor lag
-without a motor; the joint compliances, which the finite element dynamics
-does not model) is listed as "not seen by these experiments", not tested.
+without a motor) is listed as "not seen by these experiments", not tested.
+The candidates, their parameters, null values and bounds are the core's
+effects table (Fortran ``beamid_effects``).
 
 The statistics run in Fortran (``beamid_dyn_diagnosis``): score tests from
 the forward sensitivities at the null values, refits, ranking, the probe
