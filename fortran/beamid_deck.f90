@@ -26,7 +26,7 @@ module beamid_deck
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, KNOWN_EFFECTS
+    use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
@@ -993,7 +993,7 @@ contains
         has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
 
         ! ---- &fit: one group, or for task identify one per stage, in order
-        deck%candidates = EFFECT_NAMES
+        deck%candidates = default_effects(FAMILY_STATIC)
         nf = nml_count(f, 'fit')
         if (nf == 0) then
             call add_error(errors, f%path//': group &fit is missing (data, free)')
@@ -1180,10 +1180,11 @@ contains
             allocate (deck%candidates(size(candidates)))
             do i = 1, size(candidates)
                 deck%candidates(i) = candidates(i)%s
-                call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
+                call effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &
-                                   "' is not a known effect, expected one of: "//KNOWN_EFFECTS)
+                                   "' is not a known effect, expected one of: "// &
+                                   known_effects())
                     st%code = STATUS_OK
                 end if
             end do

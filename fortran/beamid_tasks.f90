@@ -34,7 +34,8 @@ module beamid_tasks
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
-    use beamid_static_experiments, only: static_effect_params, quantity_label
+    use beamid_static_experiments, only: quantity_label
+    use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
     private
@@ -603,7 +604,7 @@ contains
                 cycle
             end if
             one%name = trim(d%candidates(c))
-            call static_effect_params(d%nbeams, d%candidates(c), one%params, st)
+            call effect_params(d%nbeams, d%candidates(c), one%params, st)
             if (st%code /= STATUS_OK) return
             cs%names = [character(len=32) :: cs%names, d%candidates(c)]
             cs%cands = [cs%cands, one]

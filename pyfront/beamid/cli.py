@@ -336,8 +336,8 @@ def _commands() -> list:
         ("reproduce", _cmd_reproduce, "compare with the dissertation's published tables",
          "Run the bundled decks of the published tables and compare; exit 1 when a value "
          "is not reproduced.",
-         [("tables", dict(nargs="*", help="tables to check, all if none; one of: "
-                          + _table_list()))]),
+         [("tables", dict(nargs="*", help="tables to check, all if none; one of: ",
+                          help_list=_table_list))]),
         ("demo", _cmd_demo, "reproduce the tables and draw the demo figures", None, [out]),
         ("figures", _cmd_figures, "draw the dynamic Figures 20-25 as PNG files", None,
          [("names", dict(nargs="*", help="figures to draw, all if none; one of: "
@@ -375,10 +375,25 @@ def _commands() -> list:
                               "experiments as candidates"))])]
 
 
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose arguments' help may end in a list computed
+    only when that help is printed (an argument's ``help_list``): the table
+    names of ``reproduce`` come from reading every seed deck, which
+    ``beamid --help`` and every other subcommand must not pay for."""
+
+    def format_help(self) -> str:
+        for action in self._actions:
+            fill = getattr(action, "help_list", None)
+            if fill is not None:
+                action.help = f"{action.help}{fill()}"
+                action.help_list = None
+        return super().format_help()
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="beamid",
         description="Large deformation of flexible beam chains and the inverse problem "
                     "(after McVay 1996).",
@@ -389,7 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, text, description, arguments in _commands():
         p = sub.add_parser(name, help=text, description=description)
         for flags, options in arguments:
-            p.add_argument(*flags.split(), **options)
+            options = dict(options)
+            fill = options.pop("help_list", None)
+            p.add_argument(*flags.split(), **options).help_list = fill
         p.set_defaults(func=func)
     return parser
 

@@ -51,6 +51,8 @@ import numpy as np
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
 from .estimation import FitResult, fit as _fit
 from ._core_estimation import chi2_sf_many, mc_summary
+from .fit_decks import read_fit_deck
+from .plotting import agg_pyplot
 from .progress import progress
 
 #: Nominal coverage of +-k sigma for a normal estimate.
@@ -288,8 +290,6 @@ class Consistency:
         """Histograms of the normalized errors (est - truth) / sigma of every
         parameter against the N(0, 1) density, and of the chi-square against
         chi-square(dof). Writes a PNG when ``path`` is given; returns the figure."""
-        from .plotting import agg_pyplot
-
         plt = agg_pyplot(path is not None, force=False)
         panels = len(self.free) + (1 if self.dof > 0 else 0)
         fig, axes = plt.subplots(1, panels, figsize=(3.6 * panels, 3.4), squeeze=False)
@@ -357,8 +357,6 @@ def _check_fit(fit: Any) -> None:
 def _deck_fit(deck: str | os.PathLike):
     """(deck, its fit) of an estimation deck: what ``beamid consistency`` and
     ``beamid design`` start from."""
-    from .fit_decks import read_fit_deck
-
     d = read_fit_deck(deck)
     return d, _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
                    max_iter=d.max_iter)

@@ -24,9 +24,10 @@ from .errors import _write_text
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
 from .fit_decks import run_fit_deck
-from .dynamics import _point_name
+from .dynamics import _point_name, work_names
 from .loads import Load, RadialWire
 from .model import Model, _core
+from .history import deck_run
 from .static import solve_static
 
 __all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
@@ -117,8 +118,6 @@ def history_columns(nbeams: int) -> tuple[str, ...]:
     """Columns of ``<output>_history.csv`` (task simulate), as beamid-batch
     writes them: time, tip, energies, each work line, their sum, the
     numerical line E - E0 - work, the motor torque."""
-    from .dynamics import work_names
-
     return ("t", "tip_u", "tip_w", "tip_angle", "energy", "kinetic", "potential",
             *work_names(nbeams), "work", "numerical", "motor_torque")
 
@@ -147,7 +146,5 @@ def run(deck: Deck | str | os.PathLike):
         return fe.modes(deck.model, int(deck.fe["elements_per_beam"]),
                         rotary_inertia=bool(deck.fe["rotary_inertia"]))
     if deck.task == "simulate":
-        from .history import deck_run
-
         return deck_run(deck)
     return solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)

@@ -39,8 +39,10 @@ from . import _core_estimation as _ce
 from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
 from .errors import InputError, _write_text
 from .estimation import FitResult, predict
-from .loads import Release
+from .loads import RadialWire, Release, TipForce, TipMoment
 from .measurements import QUANTITIES, Measurements
+from .plot_fit import parameter_unit
+from .plotting import agg_pyplot
 
 
 class RankedMeasurement(NamedTuple):
@@ -97,8 +99,6 @@ class Advice:
         """The criterion with its unit, for an axis."""
         if not self.target:
             return f"{self.criterion} (geometric mean of the sigmas, mixed units)"
-        from .plot_fit import parameter_unit
-
         return f"{self.criterion} ({parameter_unit(self.target)})"
 
     def gain(self, key: tuple[str, str]) -> float:
@@ -122,8 +122,6 @@ class Advice:
     def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
         """Horizontal bars of the predicted criterion of the best ``top``
         candidates, with the current value; writes a PNG when ``path`` is given."""
-        from .plotting import agg_pyplot
-
         plt = agg_pyplot(path is not None, force=False)
         entries = list(self.ranking[:top])[::-1]
         if ax is None:
@@ -413,8 +411,6 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     measurement ``times`` (s; ``--times``), one row per time, measuring by
     default the quantities of the deck's own rows. Returns (text, files,
     advice)."""
-    from .loads import RadialWire, TipForce, TipMoment
-
     d, base = _deck_fit(deck)
     cands: dict[str, Any] = {}
     for f in forces:

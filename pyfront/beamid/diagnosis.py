@@ -15,8 +15,13 @@ first-order estimate; the leading candidates are confirmed by refits
 (likelihood ratio). This module names the results, words the verdict, and
 drives :func:`improve`.
 
-Candidate effects live in a registry (:data:`EFFECTS`); new experiment
-families (dynamics) add theirs with :func:`register_effect`.
+Candidate effects live in a registry (:data:`EFFECTS`): the built-in ones
+are the core's table (Fortran ``beamid_effects``: names, parameters, null
+values, bounds, the families that see them, the default candidates), user
+blocks are added with :func:`register_effect`, and the release
+family its comparison, diagnosis wording, default candidates and mesh
+refinement with :func:`register_release_family` (``beamid.dyn_diagnosis``
+builds on this module, so this module does not import it).
 """
 from __future__ import annotations
 
@@ -45,14 +50,23 @@ class Effect:
     """A physical effect a model can switch on.
 
     ``params(model)`` names the parameters that switch it on; at their null
-    values (all 0 for the static effects) the effect is off. ``kinds`` says
-    which experiment families can see it.
+    value ``null_value`` (0 for every built-in effect) the effect is off, and
+    physical values lie within ``lower`` and ``upper``. ``kinds`` says which
+    experiment families can see it (``static``, ``dynamic``).
     """
 
     name: str
     description: str
     params: Callable[[Model], tuple[str, ...]]
     kinds: tuple[str, ...] = ("static",)
+    null_value: float = 0.0
+    lower: float = 0.0
+    upper: float = math.inf
+
+    @property
+    def one_sided(self) -> bool:
+        """The null value is the lower bound: tests look at one side only."""
+        return self.null_value <= self.lower
 
 
 EFFECTS: dict[str, Effect] = {}
@@ -63,23 +77,23 @@ def register_effect(effect: Effect) -> None:
     EFFECTS[effect.name] = effect
 
 
-register_effect(Effect(
-    "axial_coupling",
-    "exact elastica: the axial force times curvature term that the seed's shear-only "
-    "Eq. 9 omits (axial_coupling from 0 towards 1)",
-    lambda m: ("axial_coupling",)))
-register_effect(Effect(
-    "material_cubic", "cubic moment-curvature law M = EI k + C k^3 (Eq. 16)",
-    lambda m: tuple(f"C{i + 1}" for i in range(m.nbeams))))
-register_effect(Effect(
-    "elbow_flex", "rotational compliance of the elbow joint (rad per N m)",
-    lambda m: ("elbow_flex",) if m.nbeams >= 2 else ()))
-register_effect(Effect(
-    "root_flex", "rotational compliance of the shoulder clamp (rad per N m)",
-    lambda m: ("root_flex",)))
+def _core_params(name: str) -> Callable[[Model], tuple[str, ...]]:
+    """The parameters of the core's effect ``name`` in a model."""
+    def params(model: Model) -> tuple[str, ...]:
+        names = model.names()
+        return tuple(names[i] for i in _ce.effect_table(model.nbeams)[name].params)
+    return params
+
+
+# the built-in effects: the core's table (names, descriptions and families do
+# not depend on the number of beams; the parameters do)
+for _row in _ce.effect_table(1).values():
+    register_effect(Effect(_row.name, _row.description, _core_params(_row.name),
+                           kinds=_row.kinds, null_value=_row.null_value, lower=_row.lower,
+                           upper=_row.upper))
 
 #: Candidate effects tried for static experiments, in order.
-STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
+STATIC_CANDIDATES = _ce.default_effects("static")
 
 _STATES = dict(_ce.CANDIDATE_STATES)
 
@@ -91,6 +105,24 @@ def _dynamic(experiments: Any) -> bool:
         return any(isinstance(x, Release) for x in dict(experiments).values())
     except (TypeError, ValueError):
         return False
+
+
+#: What fits with release experiments need from beamid.dyn_diagnosis, which
+#: builds on this module's types and fills this in when it is imported (the
+#: package imports it): ``compare`` (fit -> TimeComparison), ``diagnosis``
+#: (the DynDiagnosis from the Fortran arrays), ``default_candidates``
+#: (experiments -> candidate names) and ``refine_mesh``.
+_RELEASE_FAMILY: dict[str, Callable[..., Any]] = {}
+
+
+def register_release_family(*, compare: Callable[..., Any], diagnosis: Callable[..., Any],
+                            default_candidates: Callable[..., Any],
+                            refine_mesh: Callable[..., Any]) -> None:
+    """Install the functions of the release family (beamid.dyn_diagnosis)
+    that compare, diagnose, add_effect and improve call on fits with
+    releases."""
+    _RELEASE_FAMILY.update(compare=compare, diagnosis=diagnosis,
+                           default_candidates=default_candidates, refine_mesh=refine_mesh)
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -179,8 +211,7 @@ def compare(fit: FitResult) -> Comparison:
     if not isinstance(fit, FitResult):
         raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
     if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import compare_dynamic
-        return compare_dynamic(fit)  # type: ignore[return-value]
+        return _RELEASE_FAMILY["compare"](fit)
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)
@@ -485,8 +516,7 @@ def _candidate_set(model: Model, experiments, candidates):
     mesh test, not a block."""
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
-        from .dyn_diagnosis import default_candidates
-        candidates = default_candidates(experiments)
+        candidates = _RELEASE_FAMILY["default_candidates"](experiments)
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
@@ -502,8 +532,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
     """The Diagnosis of a fit from the Fortran result arrays (with releases:
     beamid.dyn_diagnosis names the results, a DynDiagnosis)."""
     if _dynamic(fit.experiments):
-        from .dyn_diagnosis import _dyn_diagnosis
-        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+        return _RELEASE_FAMILY["diagnosis"](fit, raw, effects, names, alpha, with_mesh)
     out = [_candidate(raw, c, eff, names[c], fit.model, list(fit.experiments))
            for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
@@ -615,7 +644,8 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     elements per beam.
     """
     if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
-        from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
+        # the same fit at twice the elements per beam
+        refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
@@ -741,8 +771,6 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
     call), and name its rungs."""
     dynamic = _dynamic(experiments)
-    if dynamic:
-        from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
@@ -752,7 +780,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
-            experiments = refine_mesh(experiments, r["elements_per_beam"])
+            experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
         fit = _result(Model(model.nbeams, r["start"]), experiments, data,
                       tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
                       nominal=Model(model.nbeams, r["nominal"]))

@@ -39,7 +39,7 @@ import numpy as np
 
 from . import _core_dynamics as _cd
 from .errors import InputError, check_memory
-from .fe import _model_args
+from .fe import _model_args, modes as fe_modes
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
            "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
@@ -192,7 +192,6 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         if modes != "transverse":
             raise InputError(f"modes = {modes!r}, expected an integer, 'transverse' or a "
                              "sequence of mode numbers")
-        from .fe import modes as fe_modes
         rotary = any(v != 0.0 for k, v in model.params.items() if k.startswith("J_"))
         md = fe_modes(model, nepb, rotary_inertia=rotary)
         return tuple(int(i) + 1 for i in np.flatnonzero(~md.is_axial))

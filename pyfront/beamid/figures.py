@@ -27,10 +27,11 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from .dynamics import simulate
 from .errors import InputError
 from .loads import TipForce
 from .model import pace
-from .plotting import _axes
+from .plotting import _axes, agg_pyplot, save_png
 
 __all__ = ["FIGURES", "GAINS", "FIGURE_TIMES", "QUARTER_PERIOD_TIMES", "figure_runs",
            "plot_tip_history", "plot_profiles", "plot_tip_and_torque", "figure20",
@@ -51,8 +52,6 @@ _LABELS = {"tip_w": "tip transverse deflection w (m)",
 def figure_runs(gains: Iterable[float] = GAINS, t_out: Sequence[float] | None = None,
                 integrator: str = "implicit", elements_per_beam: int = 4) -> dict:
     """The runs behind Figures 20-25, one per motor gain: ``{gain: Run}``."""
-    from .dynamics import simulate
-
     model = pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
     times = FIGURE_TIMES if t_out is None else np.asarray(t_out, dtype=float)
     return {float(g): simulate(model, TipForce(fy=8.0), times,
@@ -206,8 +205,6 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
                   dpi: int = 110) -> list[Path]:
     """Draw the named figures (all by default) as ``out/figureNN.png``; the
     runs are computed once (only the gains the figures need) unless given."""
-    from .plotting import agg_pyplot, save_png
-
     agg_pyplot()
     wanted = figure_names(names)
     gains = {0.0} if set(wanted) <= {"figure20", "figure21", "figure22"} else set(GAINS)

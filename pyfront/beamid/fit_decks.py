@@ -28,11 +28,13 @@ from . import _core
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
-                         _result as _fit_result)
+                         _result as _fit_result, identify)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
+from .plot_fit import ladder_titles, plot_compare, plot_ladder
+from .plotting import agg_pyplot, save_png
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
 
@@ -254,9 +256,6 @@ def _deck_result(deck: FitDeck) -> Any:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    from .plot_fit import ladder_titles, plot_compare, plot_ladder
-    from .plotting import agg_pyplot, save_png
-
     written = []
     if ladder is not None:
         fig, ax = agg_pyplot().subplots(figsize=(6, 4))
@@ -315,8 +314,6 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     written by the Fortran runner of ``beamid-batch`` (the same bytes:
     ``_identify.csv`` and every stage's ``_<stage>_estimates.csv``,
     ``_covariance.csv``, ``_residuals.csv``)."""
-    from .estimation import identify
-
     if not decks:
         raise InputError("identify: give the stage decks in order (static, free, forced)")
     parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
@@ -342,8 +339,6 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
         files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
-        from .plotting import agg_pyplot, save_png
-
         agg_pyplot()
         files.append(save_png(result.plot().figure,
                               prefix.with_name(prefix.name + "_identify.png"), 100))

@@ -27,6 +27,20 @@ from .loads import RadialWire, Release, TipLoad
 #: Measurable quantities, in code order (the Fortran table, beamid_static_experiments);
 #: u_tip = x_tip - (L1 + L2), w_tip = y_tip.
 QUANTITIES = _core.quantity_labels()
+
+
+def quantity_unit(quantity: str) -> str:
+    """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
+    read from its name (:data:`QUANTITIES`: angles are in rad, forces in N,
+    moments and torques in N m, positions and deflections in m)."""
+    q = quantity.lower()
+    if "angle" in q:
+        return "rad"
+    if "moment" in q or "torque" in q:
+        return "N m"
+    if "force" in q:
+        return "N"
+    return "m"
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
 
 

@@ -5,35 +5,22 @@ the axes; none calls ``plt.show()``.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
 
 from .diagnosis import Comparison, Ladder
+from .dyn_diagnosis import plot_time_comparison
 from .errors import InputError
+from .measurements import quantity_unit  # noqa: F401 - the plots' unit rule, kept here too
 from .plotting import _axes
-
-
-def quantity_unit(quantity: str) -> str:
-    """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
-    read from its name (beamid.measurements.QUANTITIES: angles are in rad,
-    forces in N, moments and torques in N m, positions and deflections in m)."""
-    q = quantity.lower()
-    if "angle" in q:
-        return "rad"
-    if "moment" in q or "torque" in q:
-        return "N m"
-    if "force" in q:
-        return "N"
-    return "m"
 
 
 def parameter_unit(name: str) -> str:
     """The unit of a model parameter (``EI1`` -> ``N m^2``), "-" when it has
     none (friction coefficients, ``axial_coupling``); units as docs/static.md
     and docs/dynamics.md give them (M = EI k + C k^3, T = -r g Psidot)."""
-    import re
-
     stem = re.sub(r"\d+$", "", name)
     if stem.endswith("_flex"):
         return "rad/(N m)"
@@ -111,7 +98,6 @@ def plot_compare(cmp: Comparison, fig: Any = None, title: str | None = None):
     "final fit") goes before the chi-square in the figure's title. Returns the
     figure (``fig`` when given)."""
     if hasattr(cmp, "series"):     # time histories (beamid.dyn_diagnosis)
-        from .dyn_diagnosis import plot_time_comparison
         return plot_time_comparison(cmp, fig=fig, title=title)
     import matplotlib.pyplot as plt
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
+
 from .static import StaticResult
 
 
@@ -80,8 +82,6 @@ def run_effects(run) -> str:
     coefficients and law (or "no friction"), drag, Kelvin-Voigt damping, the
     motor (with its gain's torque ratio), e.g. ``"friction (sign law) mu_elbow
     0.01, mu_tip 0.02"`` or ``"no friction"``."""
-    import numpy as np
-
     model = getattr(run, "_model", None)
     p = dict(getattr(model, "params", {}) or {})
     mu = {k: v for k, v in p.items() if k.startswith("mu_") and v}
@@ -104,7 +104,6 @@ def plot_history(run, fig=None):
     error ``numerical``) and, when the motor acts, its torque (N m, its own
     panel). Returns the figure (``fig`` when given, else a new one)."""
     import matplotlib.pyplot as plt
-    import numpy as np
 
     torque = np.asarray(run.motor_torque, dtype=float)
     panels = 4 if np.any(torque != 0.0) else 3

@@ -18,6 +18,9 @@ from typing import Iterable
 
 from .decks import Deck, read_deck
 from .errors import InputError
+from .estimation import fit
+from .fe import evaluate_fe
+from .history import deck_quantities
 from .progress import progress
 from .static import measurement_value, solve_static
 
@@ -103,8 +106,6 @@ def check_deck(deck: Deck) -> list[Check]:
     """Solve a deck and compare with its published values."""
     wanted = [q for pub in deck.published for q in pub.values]
     if deck.task == "fit":
-        from .estimation import fit
-
         result = fit(deck.model, deck.experiments, deck.data, free=deck.free,
                      prior=deck.prior, max_iter=deck.max_iter)
         # published quantities of a fit deck: parameter estimates, iterations,
@@ -116,12 +117,8 @@ def check_deck(deck: Deck) -> list[Check]:
         ours_of = values.__getitem__
     elif deck.task == "simulate":
         # dynamic decks: SERIES@TIME or max_abs_SERIES (beamid.history)
-        from .history import deck_quantities
-
         ours_of = deck_quantities(deck, wanted).__getitem__
     elif deck.task.startswith("fe_"):
-        from .fe import evaluate_fe
-
         ours_of = evaluate_fe(deck.task, deck.model, deck.load, **deck.fe,
                               quantities=wanted).__getitem__
     else:
