@@ -62,12 +62,18 @@ class Published:
     values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
     deviations: tuple[str, ...] = ()
     note: str = ""
+    #: the class of the deviations ("formulation", "random draws",
+    #: "unexplained"; "" for none given) and the heading of docs/deviations.md
+    #: that explains them
+    kind: str = ""
+    section: str = ""
 
 
 def published(values: dict) -> tuple[Published, ...]:
     """The &published groups as read by the Fortran reader."""
     return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
-                           deviations=tuple(g["deviations"]), note=g["note"])
+                           deviations=tuple(g["deviations"]), note=g["note"],
+                           kind=g.get("kind", ""), section=g.get("section", ""))
                  for g in values["published"])
 
 
@@ -175,24 +181,34 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     ``output`` may be replaced (``dataclasses.replace(deck, task="diagnose")``);
     a FitDeck differing from its file in any other field raises InputError
     naming the fields (write them into the deck file instead)."""
+    text, files, out, _, figures = _run_fit_deck(deck, plots)
+    return text, files + figures, out
+
+
+def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
+                  ) -> tuple[str, list[Path], Any, str, list[Path]]:
+    """:func:`run_fit_deck` as (text, CSV files, result, the summary line
+    beamid-batch prints, figures written)."""
     if isinstance(deck, FitDeck):
         _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task, deck.output)]
+        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+    files = [Path(p) for p in written]
+    figures: list[Path] = []
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
-            files += _plots(ladder=out, prefix=deck.output_prefix)
+            figures += _plots(ladder=out, prefix=deck.output_prefix)
     elif deck.task == "fit":
         text = out.summary()
     else:
         text = out.fit.summary() + "\n" + str(out) if hasattr(out, "fit") else str(out)
         if deck.task == "compare" and plots:
-            files += _plots(cmp=out, prefix=deck.output_prefix)
-    return text, files, out
+            figures += _plots(cmp=out, prefix=deck.output_prefix)
+    return text, files, out, summary, figures
 
 
 def _same(a: Any, b: Any) -> bool:
