@@ -503,6 +503,7 @@ contains
                     p = f%free(i)
                     rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
                            fmt_e(f%params(p))//','//fmt_e(before(i))//','//fmt_e(f%sigmas(i))// &
+                           ','//trim(FLAG_NAMES(min(max(f%flags(i), 0), ubound(FLAG_NAMES, 1))))// &
                            new_line('a')
                     known(p) = f%sigmas(i)
                 end do
@@ -511,11 +512,12 @@ contains
 
         fl%summary = 'identify, '//fmt_int(size(d%stages))//' stages ('
         do k = 1, size(d%stages)
-            fl%summary = fl%summary//d%stages(k)%name//merge(', ', ') ', k < size(d%stages))
+            if (k > 1) fl%summary = fl%summary//', '
+            fl%summary = fl%summary//d%stages(k)%name
         end do
-        fl%summary = fl%summary//'the last fit '//fit_line(d, done(size(done))%fit)
+        fl%summary = fl%summary//'); the last fit '//fit_line(d, done(size(done))%fit)
         call open_output(fl, '_identify.csv', &
-                         'stage,parameter,estimate,sigma_before,sigma_after', unit, ios, st)
+                         'stage,parameter,estimate,sigma_before,sigma_after,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
         call close_checked(fl, unit, ios, st)

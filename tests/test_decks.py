@@ -184,8 +184,8 @@ def test_cli_run_and_reproduce(tmp_path, capsys):
     assert (tmp_path / "out" / "case_summary.csv").is_file()
     assert cli_main(["reproduce", "2"]) == 0
     out = capsys.readouterr().out
-    assert "146.315" in out and "DEVIATION (documented)" in out
-    assert "17 reproduced, 1 documented deviations, 0 failed" in out
+    assert "146.315" in out and "deviation: unexplained" in out
+    assert "17 reproduced, 1 documented deviations (1 unexplained), 0 failed" in out
 
 
 def test_cli_reproduce_unknown_table():

@@ -49,7 +49,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
-from .estimation import FitResult, fit as _fit
+from .estimation import FitResult, fit as _fit, flag_is_problem
 from ._core_estimation import chi2_sf_many, mc_summary
 from .progress import progress
 
@@ -128,10 +128,10 @@ def _run_one(spec: _Spec, k: int) -> dict:
     if not res.converged:
         rec["status"] = NOT_CONVERGED
         rec["message"] = "; ".join(res.warnings) or "the fit stalled"
-    elif any(f != "ok" for f in rec["flags"]):
+    elif any(flag_is_problem(f) for f in rec["flags"]):
         rec["status"] = FLAGGED
         rec["message"] = "; ".join(f"{nm}: {f}" for nm, f in zip(spec.free, rec["flags"])
-                                   if f != "ok")
+                                   if flag_is_problem(f))
     else:
         rec["status"] = OK
     return rec

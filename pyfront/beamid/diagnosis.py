@@ -30,7 +30,8 @@ import numpy as np
 
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
-from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
+from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
+                         flag_is_problem)
 from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
@@ -351,9 +352,9 @@ class Diagnosis(_ByRankAndName):
                 notes.append("not separable from the free parameters")
             if c.refit_failed:
                 notes.append("refit failed: no start converged")
-            if c.refit and c.refit_flags and any(v != "ok" for v in c.refit_flags.values()):
+            if c.refit and c.refit_flags and any(map(flag_is_problem, c.refit_flags.values())):
                 notes.append("; ".join(f"{n}: {v}" for n, v in c.refit_flags.items()
-                                       if v != "ok"))
+                                       if flag_is_problem(v)))
             lines.append(f"{k:<5}{c.effect:<16}{c.score_drop:>11.4g}{c.score_p:>10.2g}"
                          f"{(c.lr_drop if c.refit else math.nan):>11.4g}"
                          f"{(c.lr_p if c.refit else math.nan):>10.2g}  {est}"
@@ -517,7 +518,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
 
 def _undetermined(fit: FitResult) -> list[str]:
     """The line naming the fitted parameters the data do not determine (if any)."""
-    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if f != "ok"]
+    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if flag_is_problem(f)]
     return ["fitted parameters not determined by these data: " + ", ".join(flagged)
             ] if flagged else []
 

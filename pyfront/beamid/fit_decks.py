@@ -349,9 +349,9 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
                   for n, d in zip(names, parsed)}
         result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
                           starts={n: d.model for n, d in zip(names, parsed)})
-        lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+        lines = ["stage,parameter,estimate,sigma_before,sigma_after,flag"]
         lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
-                  f"{r.sigma_after:.16E}" for r in result.table]
+                  f"{r.sigma_after:.16E},{r.flag}" for r in result.table]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
         files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
