@@ -43,7 +43,7 @@ module beamid_estimation
     !! of |estimate| (but below 100 %): determined, poorly
     !! priority when several apply: undetermined, runaway, at bound, correlated, weak
     !> A determined estimate whose sigma exceeds this fraction of its value is
-    !! flagged FLAG_WEAK ("weak"): docs/workflow.md, "Flags".
+    !! flagged FLAG_WEAK ("weak"): docs/workflow.md, section 1 (the flags).
     real(dp), parameter, public :: WEAK_RELATIVE_SIGMA = 0.2_dp
 
     !> How a fit ended (fit_result_t%stop).

@@ -132,7 +132,6 @@ contains
         text = trim(adjustl(buffer))
         if (text(1:1) == '.') text = '0'//text
         if (text(1:min(2, len(text))) == '-.') text = '-0'//text(2:)
-        if (text == '-0.'//repeat('0', d)) text = text(2:)
     end function fixed
 
     !> x in at most six significant digits, no trailing zeros (as Python's

@@ -145,7 +145,6 @@ def test_simulate_deck_with_overrides(tmp_path, capsys):
     (["simulate", "--t-out", "0,soon"], "--t-out"),
     (["simulate", "--set", "mu_tip"], "NAME=VALUE"),
     (["simulate", "--set", "EI9=1"], "EI9"),
-    (["simulate", "--t-end", "-1"], "--t-end"),
     (["simulate", "--t-out", "0,1", "--n-out", "3"], "--t-out"),
     (["figures", "19"], "unknown figure"),
 ])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import math
 import os
 import sys
@@ -267,6 +268,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------ parser
 
+@functools.lru_cache(maxsize=None)
 def _table_list() -> str:
     try:
         from .tables import table_names
@@ -276,6 +278,7 @@ def _table_list() -> str:
         return "2 3 4 ..."
 
 
+@functools.lru_cache(maxsize=None)
 def _parameter_list() -> str:
     try:
         from .model import pace

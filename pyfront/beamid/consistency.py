@@ -217,6 +217,14 @@ class Consistency:
         n = int(np.isfinite(self.normalized[name]).sum())
         return math.sqrt(NOMINAL[k] * (1.0 - NOMINAL[k]) / n) if n else math.nan
 
+    def __str__(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        return (f"<Consistency: {self.replicates} replicates (seed {self.seed}), "
+                f"{int(self.used.sum())} converged, {self.flagged} flagged, {self.failed} "
+                f"failed; free {', '.join(self.free)}; print() shows the table>")
+
     def table(self) -> str:
         """Coverage, bias and spread ratio per parameter, chi-square summary,
         failures."""

@@ -96,6 +96,14 @@ class Advice:
         """current / predicted for a candidate (how many times smaller)."""
         return self.current / self.ranking[key].predicted
 
+    def __str__(self) -> str:
+        return self.table(20)
+
+    def __repr__(self) -> str:
+        best = f"{self.ranking[0].key[0]}/{self.ranking[0].key[1]}" if self.ranking else "none"
+        return (f"<Advice: {self.criterion} now {self.current:.4g}, {len(self.ranking)} "
+                f"candidate measurements, best {best}; print() shows the table>")
+
     def table(self, top: int | None = None) -> str:
         """The ranking as text (best first)."""
         head = f"{'rank':<6}{'experiment':<14}{'quantity':<12}{'sigma':>10}{'predicted':>13}{'gain':>8}"

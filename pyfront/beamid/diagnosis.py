@@ -158,6 +158,11 @@ class Comparison:
                      else "no systematic structure: residuals look like noise")
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        return (f"<Comparison of {len(self.rows)} rows: chi2 {self.chi2:.4g} for {self.dof} "
+                f"dof, p = {self.p_value:.3g}, "
+                f"{'systematic structure' if self.systematic else 'no systematic structure'}>")
+
 
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
@@ -335,6 +340,11 @@ class Diagnosis(_ByRankAndName):
     def _missing(self, key: str) -> str:
         return (f"{key!r} is not a candidate of this diagnosis (candidates: "
                 f"{', '.join(c.effect for c in self.candidates)})")
+
+    def __repr__(self) -> str:
+        best = self.verdict.effect if self.verdict is not None else "none"
+        return (f"<{type(self).__name__} of {len(self.candidates)} candidates: verdict "
+                f"{best}; print() shows the table>")
 
     def __str__(self) -> str:
         lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
@@ -656,6 +666,10 @@ class LadderStep(NamedTuple):
     #: needs (set back to their null values: a rival member of the block)
     removed: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        return (f"<LadderStep {self.step}: {self.effect or '(start)'}, chi2 {self.chi2:.5g} "
+                f"for {self.dof} dof>")
+
 
 @dataclass(frozen=True)
 class Ladder(_ByRankAndName):
@@ -682,6 +696,11 @@ class Ladder(_ByRankAndName):
 
     def _missing(self, key: str) -> str:
         return f"{key!r} was not added by this ladder (added: {', '.join(self.effects) or 'none'})"
+
+    def __repr__(self) -> str:
+        return (f"<Ladder of {len(self.steps)} rungs: added {', '.join(self.effects) or 'none'}"
+                f"; final chi2 {self.fit.chi2:.5g} for {self.fit.dof} dof; print() shows the "
+                "table>")
 
     def __str__(self) -> str:
         lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"

@@ -30,11 +30,10 @@ from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
 FLAG_TEXT = dict(_ce.FLAG_NAMES)
-#: the flag of a determined estimate whose sigma exceeds WEAK_RELATIVE_SIGMA
-#: of its value (the Fortran's FLAG_WEAK); not a problem of the fit
+#: the flag of a determined estimate whose sigma exceeds 20 % of its value
+#: (FLAG_WEAK, its threshold WEAK_RELATIVE_SIGMA in beamid_estimation.f90, the
+#: one place it is set); not a problem of the fit
 WEAK = "weak"
-#: the threshold of "weak": sigma / |estimate| (beamid_estimation's WEAK_RELATIVE_SIGMA)
-WEAK_RELATIVE_SIGMA = 0.2
 
 
 def flag_is_problem(flag: str) -> bool:
@@ -137,6 +136,16 @@ class FitResult:
                      f"{self.iterations} iterations, condition number {self.cond:.3g}")
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        est = ", ".join(f"{n} = {self.estimates[n]:.6g} +- {self.sigmas[n]:.3g} "
+                        f"({self.flags[n]})" for n in self.free[:6])
+        more = f", ... ({len(self.free)} free)" if len(self.free) > 6 else ""
+        return (f"<FitResult {self.stop} after {self.iterations} iterations: {est}{more}; "
+                f"chi2 {self.chi2:.4g} for {self.dof} dof>")
 
 
 # ----------------------------------------------------------------- building blocks
