@@ -178,8 +178,9 @@ contains
         errors = ''
         call nml_read_file(path, f, errors, stat)
         if (stat%code /= STATUS_OK) return
-        ! a file with no group at all (a CSV given as a deck) is said in one line
-        if (.not. (len(errors) > 0 .and. size(f%groups) == 0)) call read_all(f, deck, errors)
+        ! a CSV given as a deck (no group, one error said) is said in one line
+        if (size(f%groups) > 0 .or. index(errors, ': a measurement CSV file (') == 0) &
+            call read_all(f, deck, errors)
         if (len(errors) > 0) then
             deck%errors = errors(:len(errors) - 1)
             call set_status(stat, ERR_DECK, 'deck', first_line(errors))

@@ -115,16 +115,11 @@ contains
         n = len(text)
         i = 1
         line = 1
-        ! no group at all: say what the file is in one line (not one error per line)
-        if (scan(text, '&$') == 0 .and. len_trim(text) > 0) then
-            if (index(text, 'experiment,t,quantity') > 0) then
-                call add_error(errors, file%path//': a measurement CSV file (experiment,t,'// &
-                               'quantity,value,sigma), not a deck: name it in a deck''s &fit '// &
-                               "group, data = '"//file%path//"' (docs/decks.md)")
-            else
-                call add_error(errors, file%path//': not a namelist deck (no &group ... / '// &
-                               'in it; docs/decks.md)')
-            end if
+        ! a measurement CSV (no group, its header): said in one line, not one error per line
+        if (scan(text, '&$') == 0 .and. index(text, 'experiment,t,quantity') > 0) then
+            call add_error(errors, file%path//': a measurement CSV file (experiment,t,'// &
+                           'quantity,value,sigma), not a deck: name it in a deck''s &fit '// &
+                           "group, data = '"//file%path//"' (docs/decks.md)")
             return
         end if
         do while (i <= n)

@@ -245,7 +245,8 @@ def test_docs_deck_examples_run_in_both(tmp_path, batch_exe, index):
     deck.write_text(_doc_decks()[index])
     proc = _batch(batch_exe, deck)
     assert proc.returncode == 0, proc.stderr
-    written = [Path(p) for p in proc.stdout.split()]
+    written = [Path(line.split(" ", 1)[1]) for line in proc.stdout.splitlines()
+               if line.startswith("wrote ")]
     assert written and all(p.exists() for p in written)
     first = {p: p.read_bytes() for p in written}
     beamid.run(deck)

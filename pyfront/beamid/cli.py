@@ -4,6 +4,12 @@ Exit codes, the same as ``beamid-batch``'s (docs/decks.md): 0 ok, 1 a published
 value not reproduced (``reproduce``, ``demo``), 2 bad input (a bad deck, CSV or
 value, a missing or unreadable input file, an unknown name), 3 a numerical
 failure (no convergence), 4 an output file cannot be written, 5 an internal error.
+
+A bad command-line option (unknown or mistyped, a value that is not a number,
+NaN or infinity, a negative count, a missing value) is bad input: exit code 2,
+the subcommand's usage and one line naming the option (with a suggestion for a
+mistyped one); tests/test_cli_options.py sweeps every option of every
+subcommand.
 """
 from __future__ import annotations
 
