@@ -96,7 +96,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(summary)
             _print_files([*files, *figures])
         return EXIT_OK
-    summary, files = run_deck_report(str(deck.path))
+    summary, files = run_deck_report(str(args.deck))   # the path as given, as the batch
     if not args.quiet:
         print(summary)
         _print_files(files)
