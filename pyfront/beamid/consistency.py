@@ -312,7 +312,8 @@ class Consistency:
             c = self.coverage[nm]
             ax_.set_title(f"{nm}: sigma/spread {self.spread_ratio[nm]:.2f}, "
                           f"<1s {c[1]:.2f}", fontsize=9)
-            ax_.set_xlabel(f"({nm} - truth) / sigma")
+            ax_.set_xlabel(f"({nm} - truth) / sigma (-)")
+            ax_.set_ylabel("probability density")
             ax_.legend(fontsize=7)
         if self.dof > 0:
             ax_ = axes[0][-1]
@@ -325,7 +326,8 @@ class Consistency:
             pdf = np.exp((k - 1.0) * np.log(x) - x / 2.0 - k * math.log(2.0) - math.lgamma(k))
             ax_.plot(x, pdf, "k-", lw=1.0, label=f"chi2({self.dof})")
             ax_.set_title("chi-square of the replicates", fontsize=9)
-            ax_.set_xlabel("chi2")
+            ax_.set_xlabel("chi2 (-)")
+            ax_.set_ylabel("probability density")
             ax_.legend(fontsize=7)
         _save_figure(fig, path)
         return fig

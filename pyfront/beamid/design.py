@@ -92,6 +92,15 @@ class Advice:
         return (f"predicted sigma of {self.target}" if self.target else
                 "D-criterion det(cov)^(1/(2n))")
 
+    @property
+    def criterion_label(self) -> str:
+        """The criterion with its unit, for an axis."""
+        if not self.target:
+            return f"{self.criterion} (geometric mean of the sigmas, mixed units)"
+        from .plot_fit import parameter_unit
+
+        return f"{self.criterion} ({parameter_unit(self.target)})"
+
     def gain(self, key: tuple[str, str]) -> float:
         """current / predicted for a candidate (how many times smaller)."""
         return self.current / self.ranking[key].predicted
@@ -143,19 +152,37 @@ class Advice:
             ax.axvline(self.current, color="tab:red", ls="--", lw=1.0,
                        label=f"now {self.current:.3g}")
         ax.set_xscale("log")
-        from matplotlib.ticker import NullFormatter
+        from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
-        ax.xaxis.set_minor_formatter(NullFormatter())
         lo = float(np.nanmin(vals)) if vals.size else 1.0
         hi = max(float(np.nanmax(vals)) if vals.size else 1.0,
                  self.current if math.isfinite(self.current) else 0.0)
         if math.isfinite(lo) and math.isfinite(hi) and lo > 0:
             ax.set_xlim(lo / 1.6, hi * 1.3)
-        ax.set_xlabel(self.criterion)
+            # labelled ticks at 1, 2, 5 (or every digit) of each decade: a log
+            # axis over less than a decade otherwise shows one label
+            ticks = _log_ticks(lo / 1.6, hi * 1.3)
+            ax.xaxis.set_major_locator(FixedLocator(ticks))
+            ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+            ax.xaxis.set_minor_locator(NullLocator())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(self.criterion_label)
         ax.set_title("which measurement next (best at the top)", fontsize=9)
         ax.legend(fontsize=7)
         _save_figure(fig, path)
         return ax
+
+
+def _log_ticks(lo: float, hi: float) -> list[float]:
+    """Tick values of a log axis over [lo, hi]: 1, 2, 5 times the powers of
+    ten inside, or every digit when that leaves fewer than three."""
+    decades = range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1)
+    for mults in ((1, 2, 5), tuple(range(1, 10))):
+        ticks = [m * 10.0 ** k for k in decades for m in mults]
+        ticks = [float(f"{t:.6g}") for t in ticks if lo <= t <= hi]
+        if len(ticks) >= 3:
+            return ticks
+    return ticks
 
 
 def information(fit: FitResult) -> np.ndarray:

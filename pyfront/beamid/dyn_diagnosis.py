@@ -324,9 +324,9 @@ class TimeComparison:
                      "no systematic structure: residuals look like noise")
         return "\n".join(lines)
 
-    def plot(self, path=None, fig=None):
+    def plot(self, path=None, fig=None, title: str | None = None):
         """The figure of :func:`plot_time_comparison`; saved as PNG at ``path``."""
-        fig = plot_time_comparison(self, fig=fig)
+        fig = plot_time_comparison(self, fig=fig, title=title)
         if path is not None:
             fig.savefig(path, dpi=110)
         return fig
@@ -370,11 +370,12 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
                           math.sqrt(2.0 * max(dof, 0)), p, systematic)
 
 
-def plot_time_comparison(cmp: TimeComparison, fig=None):
+def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None):
     """One column per (experiment, quantity): on top measured values with
     their error bars and the model over time (unit on the axis), below the
-    normalized residuals with their +-1 error bars and the +-2 sigma band.
-    Returns the figure."""
+    normalized residuals with their +-1 error bars and the +-2 sigma band;
+    the figure's title gives ``title`` (e.g. which fit) and the overall
+    chi-square. Returns the figure."""
     import matplotlib.pyplot as plt
 
     n = max(len(cmp.series), 1)
@@ -401,5 +402,9 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
                          fontsize=8)
         bottom.legend(fontsize=7)
+    fig.suptitle((f"{title}: " if title else "")
+                 + f"measured vs model: chi2 = {cmp.chi2:.4g}, dof {cmp.dof}"
+                 + (f", chi2/dof = {cmp.chi2 / cmp.dof:.4g}" if cmp.dof > 0 else "")
+                 + (" (systematic residuals)" if cmp.systematic else ""), fontsize=11)
     fig.tight_layout()
     return fig

@@ -524,7 +524,7 @@ class Identification:
         """Bar chart of sigma / estimate per stage and parameter (log scale)."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(6.4, 3.6))
+            _, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
         names = list(dict.fromkeys(r.parameter for r in self.table))
         stages = list(self.stages)
         width = 0.8 / max(len(stages), 1)
@@ -535,8 +535,10 @@ class Identification:
             ax.bar(np.arange(len(names)) + k * width, vals, width, label=stage)
         ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names)
         ax.set_yscale("log")
-        ax.set_ylabel("sigma / estimate after the stage")
-        ax.legend()
+        ax.set_xlabel("parameter")
+        ax.set_ylabel("sigma / estimate after the stage (-)")
+        ax.set_title("what each stage taught: relative sigma after it")
+        ax.legend(title="stage")
         return ax
 
 

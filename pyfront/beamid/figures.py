@@ -123,26 +123,36 @@ def _runs(runs: Mapping | None, gains: Iterable[float]) -> dict:
     return runs
 
 
+def _span(run) -> str:
+    """The time span of a run's output in words: "over a period (2.6 s)" for
+    the dissertation's span, else "over 0-0.8 s"."""
+    t0, t1 = float(run.t[0]), float(run.t[-1])
+    if abs(t0) < 1e-12 and abs(t1 - FIGURE_TIMES[-1]) < 1e-9:
+        return f"over a period ({t1:g} s)"
+    return f"over {t0:g}-{t1:g} s"
+
+
 def _tip_figure(runs, gains: Sequence[float], quantity: str, title: str, ax):
     """``quantity`` of the runs of ``gains`` against time (labelled by gain
-    when several), titled."""
+    when several), titled with ``title`` and the runs' time span."""
     runs = _runs(runs, gains)
-    ax = plot_tip_history([runs[float(g)] for g in gains], [f"g = {g:g}" for g in gains]
+    shown = [runs[float(g)] for g in gains]
+    ax = plot_tip_history(shown, [f"g = {g:g}" for g in gains]
                           if len(gains) > 1 else None, quantity=quantity, ax=ax)
-    ax.set_title(title)
+    ax.set_title(f"{title} {_span(shown[0])}")
     return ax
 
 
 def figure20(runs: Mapping | None = None, ax=None):
-    """Figure 20: tip transverse deflection over a period (friction)."""
-    return _tip_figure(runs, [0.0], "tip_w", "Figure 20. Tip transverse deflection over a "
-                       "period", ax)
+    """Figure 20: tip transverse deflection over a period (friction); the
+    title gives the span of the runs drawn."""
+    return _tip_figure(runs, [0.0], "tip_w", "Figure 20. Tip transverse deflection", ax)
 
 
 def figure21(runs: Mapping | None = None, ax=None):
-    """Figure 21: tip longitudinal deflection over a period (friction)."""
-    return _tip_figure(runs, [0.0], "tip_u", "Figure 21. Tip longitudinal deflection over a "
-                       "period", ax)
+    """Figure 21: tip longitudinal deflection over a period (friction); the
+    title gives the span of the runs drawn."""
+    return _tip_figure(runs, [0.0], "tip_u", "Figure 21. Tip longitudinal deflection", ax)
 
 
 def figure22(runs: Mapping | None = None, ax=None):
@@ -155,13 +165,13 @@ def figure22(runs: Mapping | None = None, ax=None):
 def figure23(runs: Mapping | None = None, ax=None):
     """Figure 23: effect of the gain values on the tip transverse displacement."""
     return _tip_figure(runs, GAINS, "tip_w", "Figure 23. Effect of gain values on tip "
-                       "transverse displacements", ax)
+                       "transverse displacements,", ax)
 
 
 def figure24(runs: Mapping | None = None, ax=None):
     """Figure 24: effect of the gain values on the tip longitudinal displacement."""
     return _tip_figure(runs, GAINS, "tip_u", "Figure 24. Effect of gain values on tip "
-                       "longitudinal displacements", ax)
+                       "longitudinal displacements,", ax)
 
 
 def figure25(runs: Mapping | None = None, ax=None):

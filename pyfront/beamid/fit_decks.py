@@ -270,7 +270,7 @@ def _deck_result(deck: FitDeck) -> Any:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    from .plot_fit import plot_compare, plot_ladder
+    from .plot_fit import ladder_titles, plot_compare, plot_ladder
     from .plotting import agg_pyplot, save_png
 
     written = []
@@ -279,11 +279,14 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
         plot_ladder(ladder, ax=ax)
         fig.tight_layout()
         written.append(save_png(fig, f"{prefix}_ladder.png"))
-        cmp_pairs = [("start", compare(ladder.steps[0].fit)), ("final", compare(ladder.fit))]
+        titles = ladder_titles(ladder)
+        cmp_pairs = [("start", compare(ladder.steps[0].fit), titles[0]),
+                     ("final", compare(ladder.fit), titles[1])]
     else:
-        cmp_pairs = [("", cmp)]
-    for tag, c in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
-        written.append(save_png(plot_compare(c), f"{prefix}_compare{'_' + tag if tag else ''}.png"))
+        cmp_pairs = [("", cmp, None)]
+    for tag, c, title in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
+        written.append(save_png(plot_compare(c, title=title),
+                                f"{prefix}_compare{'_' + tag if tag else ''}.png"))
     return written
 
 
