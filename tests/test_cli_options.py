@@ -68,6 +68,8 @@ def _cases() -> list[tuple[str, list[str], str]]:
             if not a.option_strings and a.nargs in (None, "+", "?") and a.dest in ("deck",
                                                                                   "decks"):
                 cases.append((name, [name, "not_there.nml"], "not_there.nml"))
+            elif not a.option_strings and a.nargs == "*":   # names: tables, figures
+                cases.append((name, [name, "bogus"], "bogus"))
     return cases
 
 
