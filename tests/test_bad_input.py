@@ -396,8 +396,9 @@ def test_batch_says_what_it_wrote(tmp_path, batch_exe):
     deck.write_text(STATIC)
     proc = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True)
     assert proc.returncode == 0
-    assert proc.stdout.split() == [str(tmp_path / "out/s_summary.csv"),
-                                   str(tmp_path / "out/s_shape.csv")]
+    assert proc.stdout.splitlines()[1:] == [f"wrote {tmp_path / 'out/s_summary.csv'}",
+                                            f"wrote {tmp_path / 'out/s_shape.csv'}"]
+    assert proc.stdout.startswith(f"{deck}: tip (")
     quiet = subprocess.run([str(batch_exe), "--quiet", str(deck)], capture_output=True,
                            text=True)
     assert quiet.returncode == 0 and quiet.stdout == ""

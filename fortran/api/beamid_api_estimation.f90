@@ -809,14 +809,17 @@ contains
     !! api_deck_task_start started on it and api_ladder_step ended;
     !! `output`: the output prefix (blank: the deck's; beamid demo writes its
     !! decks' files elsewhere); `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, output, written, code, message)
+    subroutine api_deck_task_write(path, task, output, written, summary, code, message)
         use beamid_status, only: put_text
         character(len=*), intent(in) :: path, task, output
         character(len=65536), intent(out) :: written, message
+        !> the summary line beamid-batch prints (run_task)
+        character(len=4096), intent(out) :: summary
         integer(c_int), intent(out) :: code
         type(deck_t) :: d
         type(status_t) :: stat
-        character(len=:), allocatable :: files
+        character(len=:), allocatable :: files, line
+        summary = ''
         if (.not. lad%done .or. lad%n < 1 .or. .not. from_deck) then
             call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
@@ -835,12 +838,13 @@ contains
                                     ' of '//fmt_int(size(d%stages))//' stages fitted, '// &
                                     'expected all (api_deck_task_start each stage first)')
                 else
-                    call run_task(d, files, stat, staged)
+                    call run_task(d, files, stat, staged, line)
                 end if
             else if (stat%code == STATUS_OK) then
-                call run_task(d, files, stat, lad%rungs(:lad%n))
+                call run_task(d, files, stat, lad%rungs(:lad%n), line)
             end if
             if (stat%code == STATUS_OK) call put_text(files, written)
+            if (stat%code == STATUS_OK) summary = line
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write

@@ -409,5 +409,12 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     beamid-batch) from the ladder :func:`deck_task_start` started on it, to
     the output prefix ``output`` (default the deck's, resolved against the
     deck's folder as the deck's own)."""
-    written = _call(_api.api_deck_task_write, _path(path), task, output)
-    return [line for line in _text(written).split("\n") if line]
+    return deck_task_write_report(path, task, output)[1]
+
+
+def deck_task_write_report(path: str, task: str = "", output: str = ""
+                           ) -> tuple[str, list[str]]:
+    """:func:`deck_task_write` and the summary line beamid-batch prints
+    before the files: ``(summary, files)``."""
+    written, summary = _call(_api.api_deck_task_write, _path(path), task, output)
+    return _text(summary), [line for line in _text(written).split("\n") if line]

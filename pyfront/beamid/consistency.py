@@ -49,7 +49,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
-from .estimation import FitResult, fit as _fit
+from .estimation import FitResult, fit as _fit, flag_is_problem
 from ._core_estimation import chi2_sf_many, mc_summary
 from .fit_decks import read_fit_deck
 from .plotting import agg_pyplot
@@ -130,10 +130,10 @@ def _run_one(spec: _Spec, k: int) -> dict:
     if not res.converged:
         rec["status"] = NOT_CONVERGED
         rec["message"] = "; ".join(res.warnings) or "the fit stalled"
-    elif any(f != "ok" for f in rec["flags"]):
+    elif any(flag_is_problem(f) for f in rec["flags"]):
         rec["status"] = FLAGGED
         rec["message"] = "; ".join(f"{nm}: {f}" for nm, f in zip(spec.free, rec["flags"])
-                                   if f != "ok")
+                                   if flag_is_problem(f))
     else:
         rec["status"] = OK
     return rec
@@ -218,6 +218,14 @@ class Consistency:
         """Monte Carlo standard error of ``coverage[name][k]`` at the nominal value."""
         n = int(np.isfinite(self.normalized[name]).sum())
         return math.sqrt(NOMINAL[k] * (1.0 - NOMINAL[k]) / n) if n else math.nan
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        return (f"<Consistency: {self.replicates} replicates (seed {self.seed}), "
+                f"{int(self.used.sum())} converged, {self.flagged} flagged, {self.failed} "
+                f"failed; free {', '.join(self.free)}; print() shows the table>")
 
     def table(self) -> str:
         """Coverage, bias and spread ratio per parameter, chi-square summary,

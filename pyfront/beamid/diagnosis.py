@@ -35,7 +35,8 @@ import numpy as np
 
 from . import _core_estimation as _ce
 from .errors import ConvergenceError, InputError
-from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
+from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
+                         flag_is_problem)
 from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
@@ -188,6 +189,11 @@ class Comparison:
         lines.append("systematic structure: the model misses something" if self.systematic
                      else "no systematic structure: residuals look like noise")
         return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"<Comparison of {len(self.rows)} rows: chi2 {self.chi2:.4g} for {self.dof} "
+                f"dof, p = {self.p_value:.3g}, "
+                f"{'systematic structure' if self.systematic else 'no systematic structure'}>")
 
 
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
@@ -366,6 +372,11 @@ class Diagnosis(_ByRankAndName):
         return (f"{key!r} is not a candidate of this diagnosis (candidates: "
                 f"{', '.join(c.effect for c in self.candidates)})")
 
+    def __repr__(self) -> str:
+        best = self.verdict.effect if self.verdict is not None else "none"
+        return (f"<{type(self).__name__} of {len(self.candidates)} candidates: verdict "
+                f"{best}; print() shows the table>")
+
     def __str__(self) -> str:
         lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
                  f"{'refit p':>10}  estimate (sigma)"]
@@ -382,9 +393,9 @@ class Diagnosis(_ByRankAndName):
                 notes.append("not separable from the free parameters")
             if c.refit_failed:
                 notes.append("refit failed: no start converged")
-            if c.refit and c.refit_flags and any(v != "ok" for v in c.refit_flags.values()):
+            if c.refit and c.refit_flags and any(map(flag_is_problem, c.refit_flags.values())):
                 notes.append("; ".join(f"{n}: {v}" for n, v in c.refit_flags.items()
-                                       if v != "ok"))
+                                       if flag_is_problem(v)))
             lines.append(f"{k:<5}{c.effect:<16}{c.score_drop:>11.4g}{c.score_p:>10.2g}"
                          f"{(c.lr_drop if c.refit else math.nan):>11.4g}"
                          f"{(c.lr_p if c.refit else math.nan):>10.2g}  {est}"
@@ -546,7 +557,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
 
 def _undetermined(fit: FitResult) -> list[str]:
     """The line naming the fitted parameters the data do not determine (if any)."""
-    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if f != "ok"]
+    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if flag_is_problem(f)]
     return ["fitted parameters not determined by these data: " + ", ".join(flagged)
             ] if flagged else []
 
@@ -685,6 +696,10 @@ class LadderStep(NamedTuple):
     #: needs (set back to their null values: a rival member of the block)
     removed: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        return (f"<LadderStep {self.step}: {self.effect or '(start)'}, chi2 {self.chi2:.5g} "
+                f"for {self.dof} dof>")
+
 
 @dataclass(frozen=True)
 class Ladder(_ByRankAndName):
@@ -711,6 +726,11 @@ class Ladder(_ByRankAndName):
 
     def _missing(self, key: str) -> str:
         return f"{key!r} was not added by this ladder (added: {', '.join(self.effects) or 'none'})"
+
+    def __repr__(self) -> str:
+        return (f"<Ladder of {len(self.steps)} rungs: added {', '.join(self.effects) or 'none'}"
+                f"; final chi2 {self.fit.chi2:.5g} for {self.fit.dof} dof; print() shows the "
+                "table>")
 
     def __str__(self) -> str:
         lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"

@@ -282,6 +282,10 @@ class TimeComparison:
     def __len__(self) -> int:
         return len(self.series)
 
+    def __repr__(self) -> str:
+        return (f"<TimeComparison of {len(self.series)} series: chi2 {self.chi2:.4g} for "
+                f"{self.dof} dof, p = {self.p_value:.3g}; print() shows the table>")
+
     def __str__(self) -> str:
         lines = [f"{'experiment':<12}{'quantity':<13}{'rows':>5}{'chi2':>10}{'expected':>9}"
                  f"{'runs':>6}{'exp.':>7}{'runs p':>9}{'lag-1 r':>9}{'r p':>9}"

@@ -30,6 +30,16 @@ from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
 FLAG_TEXT = dict(_ce.FLAG_NAMES)
+#: the flag of a determined estimate whose sigma exceeds 20 % of its value
+#: (FLAG_WEAK, its threshold WEAK_RELATIVE_SIGMA in beamid_estimation.f90, the
+#: one place it is set); not a problem of the fit
+WEAK = "weak"
+
+
+def flag_is_problem(flag: str) -> bool:
+    """A flag that says the fit cannot be trusted for that parameter (not
+    "ok", not "weak": a weak estimate is determined, only poorly)."""
+    return flag not in ("ok", WEAK)
 #: row of a release's value column that selects its Jacobian (beamid_inverse
 #: EV_FD, 0-based): 0 forward sensitivities, 1 central differences, 2 exact
 _EV_FD = 11
@@ -126,6 +136,16 @@ class FitResult:
                      f"{self.iterations} iterations, condition number {self.cond:.3g}")
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        est = ", ".join(f"{n} = {self.estimates[n]:.6g} +- {self.sigmas[n]:.3g} "
+                        f"({self.flags[n]})" for n in self.free[:6])
+        more = f", ... ({len(self.free)} free)" if len(self.free) > 6 else ""
+        return (f"<FitResult {self.stop} after {self.iterations} iterations: {est}{more}; "
+                f"chi2 {self.chi2:.4g} for {self.dof} dof>")
 
 
 # ----------------------------------------------------------------- building blocks
@@ -229,7 +249,7 @@ def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: 
     elif cond > 1e6:
         out.append(f"ill-conditioned problem (condition number {cond:.3g})")
     for i, name in enumerate(free):
-        if flags[i] != 0:
+        if flag_is_problem(FLAG_TEXT.get(int(flags[i]), "flagged")):
             out.append(f"{name}: {FLAG_TEXT.get(int(flags[i]), 'flagged')}")
     for i in range(len(free)):
         for j in range(i + 1, len(free)):
@@ -469,6 +489,7 @@ class StageSigma(NamedTuple):
     estimate: float
     sigma_before: float   # a priori (math.inf: not estimated before)
     sigma_after: float
+    flag: str = ""        # the stage fit's flag of the parameter ("ok", "weak", ...)
 
 
 @dataclass(frozen=True)
@@ -486,11 +507,18 @@ class Identification:
     def summary(self) -> str:
         w = max([10] + [len(r.stage) + 2 for r in self.table])
         lines = [f"{'stage':<{w}}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
-                 f"{'sigma after':>13}"]
+                 f"{'sigma after':>13}  flag"]
         for r in self.table:
             lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.4g}"
-                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
+                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}  {r.flag}")
         return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        return (f"<Identification: {len(self.stages)} stages ({', '.join(self.stages)}); "
+                f"print() shows the table>")
 
     def plot(self, ax=None):
         """Bar chart of sigma / estimate per stage and parameter (log scale)."""
@@ -564,7 +592,8 @@ def _identify(model: Model, stages, max_iter, starts, stage_fit) -> Identificati
             before = known.get(p, math.inf)
             if isinstance(prior, Mapping) and p in fit_k.prior:
                 before = fit_k.prior[p][1]
-            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p]))
+            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p],
+                                    fit_k.flags.get(p, "")))
             known[p] = fit_k.sigmas[p]
         fits[name] = fit_k
         current, previous = fit_k.model, fit_k

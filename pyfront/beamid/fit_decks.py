@@ -64,12 +64,18 @@ class Published:
     values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
     deviations: tuple[str, ...] = ()
     note: str = ""
+    #: the class of the deviations ("formulation", "random draws",
+    #: "unexplained"; "" for none given) and the heading of docs/deviations.md
+    #: that explains them
+    kind: str = ""
+    section: str = ""
 
 
 def published(values: dict) -> tuple[Published, ...]:
     """The &published groups as read by the Fortran reader."""
     return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
-                           deviations=tuple(g["deviations"]), note=g["note"])
+                           deviations=tuple(g["deviations"]), note=g["note"],
+                           kind=g.get("kind", ""), section=g.get("section", ""))
                  for g in values["published"])
 
 
@@ -177,24 +183,34 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     ``output`` may be replaced (``dataclasses.replace(deck, task="diagnose")``);
     a FitDeck differing from its file in any other field raises InputError
     naming the fields (write them into the deck file instead)."""
+    text, files, out, _, figures = _run_fit_deck(deck, plots)
+    return text, files + figures, out
+
+
+def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
+                  ) -> tuple[str, list[Path], Any, str, list[Path]]:
+    """:func:`run_fit_deck` as (text, CSV files, result, the summary line
+    beamid-batch prints, figures written)."""
     if isinstance(deck, FitDeck):
         _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task, deck.output)]
+        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+    files = [Path(p) for p in written]
+    figures: list[Path] = []
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
-            files += _plots(ladder=out, prefix=deck.output_prefix)
+            figures += _plots(ladder=out, prefix=deck.output_prefix)
     elif deck.task == "fit":
         text = out.summary()
     else:
         text = out.fit.summary() + "\n" + str(out) if hasattr(out, "fit") else str(out)
         if deck.task == "compare" and plots:
-            files += _plots(cmp=out, prefix=deck.output_prefix)
-    return text, files, out
+            figures += _plots(cmp=out, prefix=deck.output_prefix)
+    return text, files, out, summary, figures
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -333,9 +349,9 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
                   for n, d in zip(names, parsed)}
         result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
                           starts={n: d.model for n, d in zip(names, parsed)})
-        lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+        lines = ["stage,parameter,estimate,sigma_before,sigma_after,flag"]
         lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
-                  f"{r.sigma_after:.16E}" for r in result.table]
+                  f"{r.sigma_after:.16E},{r.flag}" for r in result.table]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
         files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
