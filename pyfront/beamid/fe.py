@@ -105,7 +105,7 @@ def _load_components(load: Any) -> np.ndarray:
         "(expected TipForce, TipMoment, their sum, or a list of them)")
 
 
-def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
+def _outboard_table(start: Any, table: np.ndarray, name: str = "start") -> np.ndarray:
     """(2, nnode) outboard slopes (u'+, w'+) of `start` (a result with an
     `outboard` table, or a pair (nodes, outboard)); else rows u', w' of table."""
     out = getattr(start, "outboard", None)
@@ -113,14 +113,14 @@ def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
         out = start[1]
     if out is None:
         return np.asfortranarray(table[[2, 4]])
-    arr = _numbers(out, "outboard slopes", "a structured table (du, dw) or a (2, nnode) "
-                   "array", OUTBOARD_FIELDS)
+    arr = _numbers(out, f"{name}: outboard slopes", "a structured table (du, dw) or a "
+                   "(2, nnode) array", OUTBOARD_FIELDS)
     nnode = table.shape[1]
     if arr.shape == (nnode, 2) and arr.shape != (2, nnode):
         arr = arr.T
     if arr.shape != (2, nnode) or not np.all(np.isfinite(arr)):
-        raise InputError(f"outboard slopes have shape {arr.shape}, expected finite "
-                           f"(2, {nnode})")
+        raise InputError(f"{name}: outboard slopes have shape {arr.shape}, expected finite "
+                         f"(2, {nnode})")
     return np.asfortranarray(arr)
 
 
@@ -137,32 +137,33 @@ def _numbers(value: Any, name: str, expected: str, fields: tuple[str, ...]) -> n
         _check.fail(name, value, expected)
 
 
-def _node_tables(start: Any, nnode: int) -> tuple[np.ndarray, np.ndarray]:
+def _node_tables(start: Any, nnode: int,
+                 name: str = "start") -> tuple[np.ndarray, np.ndarray]:
     """Node table and outboard table of a starting shape (None: the straight
     chain at rest, zeros)."""
     if start is None:
         return np.zeros((5, nnode), order="F"), np.zeros((2, nnode), order="F")
-    table = _node_table(start, nnode)
-    return table, _outboard_table(start, table)
+    table = _node_table(start, nnode, name)
+    return table, _outboard_table(start, table, name)
 
 
-def _node_table(start: Any, nnode: int) -> np.ndarray:
+def _node_table(start: Any, nnode: int, name: str = "start") -> np.ndarray:
     """A (5, nnode) Fortran-ordered table from a result, structured nodes or an array."""
     if isinstance(start, tuple) and len(start) == 2:
         start = start[0]
     if isinstance(start, (FEStatic, FEBuckling)):
         start = start.nodes
-    arr = _numbers(start, "starting shape", "an FEStatic, FEBuckling, a structured node "
+    arr = _numbers(start, name, "an FEStatic, FEBuckling, a structured node "
                    "table or a (5, nnode) array", NODE_FIELDS)
     # a (nnode, 5) array is taken node by node, unless it is already (5, nnode)
     # (nnode = 5: two beams of two elements; structured input is stacked above)
     if arr.shape == (nnode, 5) and arr.shape != (5, nnode):
         arr = arr.T
     if arr.shape != (5, nnode):
-        raise InputError(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
-                           "or a result of the same mesh")
+        raise InputError(f"{name} (a shape) has shape {arr.shape}, expected (5, {nnode}) "
+                         "or a result of the same mesh")
     if not np.all(np.isfinite(arr)):
-        raise InputError("starting shape is not finite")
+        raise InputError(f"{name} (a shape) is not finite")
     return np.asfortranarray(arr)
 
 
@@ -470,9 +471,9 @@ class FEModes:
         (default: the period of the first mode)."""
         nbeams, params, nnode, nfree = _mesh(self._model, self.elements_per_beam, hinged=True)
         t = _check.real("t", t, above=0.0, none=True)
-        q0 = _node_table(shape, nnode)     # a shape is needed (None: no zeros)
-        q0_out = _outboard_table(shape, q0)
-        v0, v0_out = _node_tables(velocity, nnode)
+        q0 = _node_table(shape, nnode, "shape")     # a shape is needed (None: no zeros)
+        q0_out = _outboard_table(shape, q0, "shape")
+        v0, v0_out = _node_tables(velocity, nnode, "velocity")
         span = 2 * np.pi / self.omega[0] if t is None else float(t)
         omega, eta, kin, pot = _core.fe_modal_cost(
             nbeams, params, int(self.elements_per_beam),
