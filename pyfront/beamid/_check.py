@@ -68,17 +68,19 @@ def _is_real(value: Any) -> bool:
 
 
 def count(name: str, value: Any, *, min: int = 0, max: int = MAX_COUNT,
-          none: bool = False) -> int | None:
+          none: bool = False, expected: str = "") -> int | None:
     """An integer in [min, max] (default max: the binding's largest, 2**31 - 1);
-    ``none``: None passes (returned as None)."""
+    ``none``: None passes (returned as None); ``expected`` words the refusal
+    below ``min`` or of a non-integer (default "an integer >= min")."""
     if value is None and none:
         return None
+    words = expected or (f"an integer >= {min}" if max == MAX_COUNT else
+                         f"an integer from {min} to {max}")
     if not is_int(value):
-        fail(name, value, f"an integer >= {min}" + (" (or None)" if none else ""))
+        fail(name, value, words + (" (or None)" if none else ""))
     k = int(value)
     if k < min:
-        fail(name, value, f"an integer >= {min}" if max == MAX_COUNT else
-             f"an integer from {min} to {max}")
+        fail(name, value, words)
     if k > max:
         fail(name, value, f"an integer from {min} to {max}" +
              (" (larger does not fit the Fortran core's integers)" if max == MAX_COUNT else ""))

@@ -111,7 +111,8 @@ class StaticResult:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
         total = self.model.total_length
         if s is None:
-            n = _check.count("shape n", n, min=2)
+            n = _check.count("shape n", n, min=2,
+                             expected="an integer, at least 2 (points)")
             check_memory(5 * 8 * int(n), f"shape n = {n}: the shape", ".2g")
             grid = np.linspace(0.0, total, int(n))
         else:
