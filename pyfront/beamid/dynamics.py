@@ -204,8 +204,8 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         return tuple(range(1, int(modes) + 1))
     try:
         nums = [int(m) for m in modes]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"modes = {modes!r}, expected integers") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"modes = {_check.show(modes)}, expected integers") from exc
     if any(float(m) != int(m) for m in modes):
         raise InputError(f"modes = {modes!r}, expected integer mode numbers")
     bad = [m for m in nums if not 1 <= m <= nfree]
