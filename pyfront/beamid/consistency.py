@@ -403,20 +403,7 @@ def _local_workers(workers: int | None) -> int:
             return max(1, len(os.sched_getaffinity(0)))
         except AttributeError:  # pragma: no cover - not Linux
             return max(1, os.cpu_count() or 1)
-    return _integer("workers", workers, 1, "a positive integer")
-
-
-def _integer(name: str, value: Any, least: int, expected: str, low: str = "") -> int:
-    """``int(value)``; InputError "name = value, expected ..." when it is no
-    integer or below ``least`` (``low``: the words for that case, default
-    ``expected``)."""
-    try:
-        k = int(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} = {value!r}, expected {expected}") from None
-    if k < least:
-        raise InputError(f"{name} = {k}, expected {low or expected}")
-    return k
+    return _check.count("workers", workers, min=1)
 
 
 def _mp_context():

@@ -53,10 +53,7 @@ def _model_args(model: Any) -> tuple[int, np.ndarray]:
 
 
 def _mesh_size(nbeams: int, elements_per_beam: int) -> tuple[int, int]:
-    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam, (int, np.integer)):
-        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer >= 1")
-    if elements_per_beam < 1:
-        raise InputError(f"elements_per_beam = {elements_per_beam}, expected at least 1")
+    elements_per_beam = _check.count("elements_per_beam", elements_per_beam, min=1)
     nnode = nbeams * int(elements_per_beam) + 1
     # the bound of the deck reader (beamid_deck check_mesh_size): about 40
     # numbers per unknown in the banded solvers
@@ -445,9 +442,8 @@ class FEModes:
 
     def _tables(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.omega)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= n:
-            raise InputError(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
-                               "ascending frequency)")
+        i = _check.count("mode i", i, min=1, max=n, expected=f"a mode number 1..{n} (1-based, "
+                         "ascending frequency)")
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
         out = np.zeros((2, nnode))

@@ -83,10 +83,9 @@ def load(kind: int, values: list[float]) -> Load | Release:
 
 def check_path(path: Any, what: str = "path") -> Path:
     """``path`` as a Path; InputError naming ``what`` unless a str or os.PathLike."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
-                         "(str or os.PathLike)")
-    return Path(path)
+    from . import _check
+
+    return _check.path(f"read_deck: {what}", path)
 
 
 def run_files(deck: Any) -> list[Path]:

@@ -1,7 +1,6 @@
 """Static load cases: fixed-direction tip force, tip moment, both, radial wire."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -222,10 +221,7 @@ def read_measurements(path: str | os.PathLike,
         names the file, the line and the field; a
         path that is not a str or os.PathLike names the argument.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_measurements: path = {path!r}, expected a file path "
-                         "(str or os.PathLike)")
-    path = Path(path)
+    path = _check.path("read_measurements: path", path)
     if path.is_dir():
         raise InputError(f"cannot read measurement file {path}: it is a directory")
     names, t, quantity, value, sigma, lines = _core.read_measurements(str(path))
