@@ -402,12 +402,7 @@ def _check_quantities(exps, quantities, sigma) -> None:
                 raise InputError(f"sigma has no entry for quantity {q!r}")
     values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]
     for v in values:
-        try:
-            ok = float(v) > 0.0 and np.isfinite(float(v))
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InputError(f"sigma = {v!r}, expected a finite standard deviation > 0")
+        _check.real("sigma", v, above=0.0, expected="a finite standard deviation > 0")
 
 
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
