@@ -38,7 +38,6 @@ import sys
 import tempfile
 import time
 import traceback
-import typing
 from pathlib import Path
 
 import numpy as np
@@ -49,15 +48,13 @@ import beamid  # noqa: E402
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-
 #: examples per callable (drawn after the fixed grid of CORE values)
 PROFILES = {"default": 6, "long": 150}
 
-#: callables of beamid.__all__ not fuzzed, with the reason
-SKIP = {
-    # exception classes are raised, not called (found by their base class)
-}
+#: names of beamid.__all__ left out by hand, each with its reason: none today
+#: (exception classes, aliases and result records are found by introspection
+#: and listed in the report's "skipped" with theirs)
+SKIP: dict[str, str] = {}
 
 
 class _Opaque:
