@@ -19,7 +19,7 @@ from typing import Any
 
 import f90nml
 
-from . import fe
+from . import _check, fe
 from .errors import _write_text
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
@@ -83,6 +83,8 @@ def read_deck(path: str | os.PathLike):
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     """Write a deck that reads back to the same model, load and options."""
+    _check.instance("deck", deck, Deck, "a beamid.Deck (beamid.read_deck)")
+    path = _check.path("path", path)
     model = deck.model
     nb = model.nbeams
     p = model.params

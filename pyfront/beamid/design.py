@@ -37,6 +37,7 @@ import numpy as np
 
 from . import _core_estimation as _ce
 from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
+from . import _check
 from .errors import InputError, _write_text
 from .estimation import FitResult, predict
 from .fit_decks import read_fit_deck
@@ -104,6 +105,9 @@ class Advice:
 
     def gain(self, key: tuple[str, str]) -> float:
         """current / predicted for a candidate (how many times smaller)."""
+        if not isinstance(key, tuple) or tuple(key) not in self.ranking.keys():
+            _check.fail("key", key, "an (experiment, quantity) of the ranking, e.g. "
+                        f"{self.ranking.keys()[:1]}")
         return self.current / self.ranking[key].predicted
 
     def __str__(self) -> str:
@@ -116,6 +120,7 @@ class Advice:
 
     def table(self, top: int | None = None) -> str:
         """The ranking as text (best first)."""
+        top = _check.count("top", top, min=0, none=True)
         head = f"{'rank':<6}{'experiment':<14}{'quantity':<12}{'sigma':>10}{'predicted':>13}{'gain':>8}"
         lines = [f"{self.criterion}: now {self.current:.4g} "
                  f"(free: {', '.join(self.free)})", head, "-" * len(head)]
@@ -131,6 +136,9 @@ class Advice:
     def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
         """Horizontal bars of the predicted criterion of the best ``top``
         candidates, with the current value; writes a PNG when ``path`` is given."""
+        path = _check.path("path", path, none=True)
+        top = _check.count("top", top, min=1)
+        _check.axes("ax", ax)
         plt = agg_pyplot(path is not None, force=False)
         entries = list(self.ranking[:top])[::-1]
         if ax is None:
@@ -236,7 +244,7 @@ def _release_times(candidates: Mapping[str, Any], times) -> tuple[dict, dict]:
         else:
             loads[name] = value
             continue
-        ts = np.atleast_1d(np.asarray(ts, float))
+        ts = _check.reals(f"times of {name!r}", ts, scalar=True)
         if ts.size == 0 or not np.all(np.isfinite(ts) & (ts > 0.0)):
             raise InputError(f"candidate {name!r}: measurement times {ts.tolist()}, expected "
                              "finite times > 0 s (after the release)")
@@ -249,9 +257,7 @@ def _rows(experiments: dict, quantities, sigma, rtimes: Mapping[str, list] | Non
     rows = []
     for name in experiments:
         qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
-        if isinstance(qs, str):
-            qs = (qs,)
-        for q in qs:
+        for q in _check.names("quantities", qs):
             if q not in QUANTITIES:
                 raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
             for t in (rtimes or {}).get(name, [0.0]):
@@ -337,7 +343,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
             raise InputError(f"candidate {name!r} = {load!r} differs from the fit's "
                              f"experiment of that name ({exps[name]!r}); rename it")
         exps[name] = load
-    if target is None:
+    if _check.text("target", target, none=True) is None:
         tindex = 0
     else:
         if target not in fit.free:

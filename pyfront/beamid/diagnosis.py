@@ -33,7 +33,7 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from . import _core_estimation as _ce
+from . import _check, _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
                          flag_is_problem)
@@ -69,12 +69,22 @@ class Effect:
         """The null value is the lower bound: tests look at one side only."""
         return self.null_value <= self.lower
 
+    def __post_init__(self) -> None:
+        _check.text("Effect: name", self.name)
+        _check.text("Effect: description", self.description, empty=True)
+        if not callable(self.params):
+            _check.fail("Effect: params", self.params, "a function of the model that names "
+                        "the effect's parameters")
+        object.__setattr__(self, "kinds", _check.names("Effect: kinds", self.kinds,
+                                                       allowed=("static", "dynamic")))
+
 
 EFFECTS: dict[str, Effect] = {}
 
 
 def register_effect(effect: Effect) -> None:
     """Add (or replace) a candidate effect in the registry."""
+    _check.instance("effect", effect, Effect, "a beamid.Effect")
     EFFECTS[effect.name] = effect
 
 
@@ -464,11 +474,10 @@ def _effect_request(fit: FitResult, effect: str | Effect, max_iter: int,
     already = [p for p in params if p in fit.free]
     if already:
         raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    _check.count("max_iter", max_iter, min=1)
     names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
     mask = 0
-    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+    for name in _check.names("starts", starts, none=True) or ():
         if name not in names:
             raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
         mask |= 1 << names.index(name)
@@ -504,10 +513,11 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     """
     if not isinstance(fit, FitResult):
         raise InputError(f"diagnose needs a FitResult from beamid.fit, got {type(fit).__name__}")
-    if not 0.0 < alpha < 1.0:
-        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
-    if int(nrefit) < 0:
-        raise InputError(f"nrefit = {nrefit}, expected >= 0")
+    _check.real("alpha", alpha, above=0.0, below=1.0,
+                expected="a significance level in (0, 1)")
+    nrefit = _check.count("nrefit", nrefit, min=0)
+    ambiguity_delta = _check.real("ambiguity_delta", ambiguity_delta, min=0.0)
+    collinear = _check.real("collinear", collinear, min=0.0, max=1.0)
     model = fit.model
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
@@ -528,7 +538,17 @@ def _candidate_set(model: Model, experiments, candidates):
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
         candidates = _RELEASE_FAMILY["default_candidates"](experiments)
+    if isinstance(candidates, (str, Effect)):
+        candidates = [candidates]
+    elif candidates is not None:
+        if isinstance(candidates, (bytes, Mapping)) or not hasattr(candidates, "__iter__"):
+            _check.fail("candidates", candidates, "effect names or beamid.Effect objects")
+        candidates = list(candidates)
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    for c in cands:
+        if not isinstance(c, (str, Effect)):
+            _check.fail("candidates", candidates, f"effect names or beamid.Effect ("
+                        f"{_check.show(c)} is neither)")
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
@@ -654,6 +674,7 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     fits with release experiments the effect ``mesh`` refits at twice the
     elements per beam.
     """
+    _check.instance("fit", fit, FitResult, "a beamid.FitResult (beamid.fit)")
     if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
         # the same fit at twice the elements per beam
         refine_mesh = _RELEASE_FAMILY["refine_mesh"]
@@ -768,12 +789,14 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     A significant ``mesh`` candidate refines every release to the
     recommended elements per beam; the mesh is tested until found adequate.
     """
-    if not 0.0 < alpha < 1.0:
-        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
+    _check.real("alpha", alpha, above=0.0, below=1.0,
+                expected="a significance level in (0, 1)")
+    max_iter = _check.count("max_iter", max_iter, min=1)
+    max_steps = _check.count("max_steps", max_steps, min=0, none=True)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
-    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
+    limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
     with _ce.LADDER_LOCK:

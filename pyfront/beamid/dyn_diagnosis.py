@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from . import _core_estimation as _ce
+from . import _check, _core_estimation as _ce
+from .errors import _write_all
 from .estimation import FitResult
 from .loads import Release
 from .measurements import quantity_unit
@@ -307,9 +308,17 @@ class TimeComparison:
 
     def plot(self, path=None, fig=None, title: str | None = None):
         """The figure of :func:`plot_time_comparison`; saved as PNG at ``path``."""
+        path = _check.path("path", path, none=True)
+        if fig is not None:
+            from matplotlib.figure import Figure
+
+            _check.instance("fig", fig, Figure, "None or a matplotlib Figure")
         fig = plot_time_comparison(self, fig=fig, title=title)
         if path is not None:
-            fig.savefig(path, dpi=110)
+            kinds = fig.canvas.get_supported_filetypes()
+            if path.suffix.lstrip(".").lower() not in kinds:
+                _check.fail("path", path, "a file name ending in ." + ", .".join(kinds))
+            _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110))])
         return fig
 
 

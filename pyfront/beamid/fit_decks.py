@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _core
+from . import _check, _core
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
@@ -91,10 +91,7 @@ def load(kind: int, values: list[float]) -> Load | Release:
 
 def check_path(path: Any, what: str = "path") -> Path:
     """``path`` as a Path; InputError naming ``what`` unless a str or os.PathLike."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
-                         "(str or os.PathLike)")
-    return Path(path)
+    return _check.path(f"read_deck: {what}", path)
 
 
 def run_files(deck: Any) -> list[Path]:

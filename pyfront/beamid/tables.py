@@ -26,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Iterable
 
+from . import _check
 from .decks import Deck, read_deck
 from .errors import InputError
 from .estimation import fit
@@ -124,6 +125,15 @@ def seed_decks(tables: Iterable[str] = ()) -> list[Deck]:
     """The bundled decks, optionally only those of the named tables
     (``"2"``, ``"table2"``, ``"Table 2"`` and ``"circle"`` all work); an
     unknown table name is an :class:`InputError` listing the valid names."""
+    if isinstance(tables, (str, int)) and not isinstance(tables, bool):
+        tables = (tables,)
+    if isinstance(tables, (bytes, dict)) or not hasattr(tables, "__iter__"):
+        _check.fail("tables", tables, "table names ('2', 'circle', ...)")
+    tables = list(tables)
+    for t in tables:
+        if isinstance(t, bool) or not isinstance(t, (str, int)):
+            _check.fail("tables", tables, f"table names ('2', 'circle', ...), not "
+                        f"{_check.show(t)}")
     tables = [str(t) for t in tables]
     decks = _all_seed_decks()
     if not tables:
@@ -185,6 +195,8 @@ def reproduce(tables: Iterable[str] = (), progress_bar: bool | None = None) -> l
     ``progress_bar``: a bar over the decks on standard error (None: only
     when it is a terminal, :func:`beamid.progress.progress`)."""
     checks: list[Check] = []
+    if progress_bar is not None:
+        _check.flag("progress_bar", progress_bar)
     decks = seed_decks(tables)
     for deck in progress(decks, total=len(decks), desc="reproduce", enabled=progress_bar):
         checks.extend(check_deck(deck))
