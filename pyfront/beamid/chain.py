@@ -18,13 +18,13 @@ them.
 """
 from __future__ import annotations
 
-import math
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
-from . import _core_estimation as _ce
+from . import _check, _core_estimation as _ce
 from ._core import _call
 from .errors import InputError
 from .loads import Release
@@ -130,8 +130,8 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
                data) -> RowTreatment:
     """Check the ``loss``, ``burn_in`` and ``estimate_sigma`` arguments of
     :func:`beamid.fit`."""
-    if not isinstance(loss, str) or loss not in LOSSES:
-        raise InputError(f"loss = {loss!r}, expected one of {', '.join(LOSSES)}")
+    if not isinstance(loss, str) or loss not in LOSSES:   # the words test_chain names
+        _check.fail("loss", loss, f"one of {', '.join(LOSSES)}")
     exps = dict(experiments)
     rel = [e for e, x in exps.items() if isinstance(x, Release)]
     burn: dict[str, float] = {}
@@ -139,6 +139,7 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
         table = burn_in if isinstance(burn_in, Mapping) else {e: burn_in for e in rel}
         if not isinstance(burn_in, Mapping) and not rel:
             raise InputError("burn_in: the experiments have no release (no record in time)")
+        table = _check.mapping("burn_in", table)
         for e, t in table.items():
             if e not in exps:
                 raise InputError(f"burn_in: no experiment {e!r} (experiments: "
@@ -146,19 +147,17 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
             if not isinstance(exps[e], Release):
                 raise InputError(f"burn_in: experiment {e!r} is static; a burn-in needs a "
                                  "record in time (a beamid.Release)")
-            try:
-                t = float(t)
-            except (TypeError, ValueError):
-                t = math.nan
-            if not (math.isfinite(t) and t >= 0.0):
-                raise InputError(f"burn_in[{e!r}] = {t!r}, expected a time >= 0 (s)")
-            burn[e] = t
+            burn[e] = _check.real(f"burn_in[{e!r}]", t, min=0.0,
+                                  expected="a time >= 0 (s)")
     channels = sorted(_channels(data))
     if estimate_sigma is None or estimate_sigma is False:
         est: list[tuple[str, str]] = []
     elif estimate_sigma is True:
         est = channels
     else:
+        if not isinstance(estimate_sigma, (str, tuple, list)):
+            _check.fail("estimate_sigma", estimate_sigma, "True, False, None, a quantity "
+                        "name, an (experiment, quantity) pair or a list of them")
         items = [estimate_sigma] if isinstance(estimate_sigma, (str, tuple)) else \
             list(estimate_sigma)
         est = []
@@ -168,7 +167,7 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
                 if not found:
                     raise InputError(f"estimate_sigma: no experiment measures {item!r}")
                 est += found
-            elif isinstance(item, tuple) and len(item) == 2 and tuple(item) in channels:
+            elif isinstance(item, tuple) and len(item) == 2 and item in channels:
                 est.append((str(item[0]), str(item[1])))
             else:
                 raise InputError(f"estimate_sigma: channel {item!r} does not exist (channels: "
@@ -200,9 +199,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
         return ChainSpec()
     if isinstance(nuisance, ChainSpec):
         return nuisance
-    if not isinstance(nuisance, Mapping):
-        raise InputError(f"nuisance = {nuisance!r}, expected a dict with keys "
-                         f"{', '.join(NUISANCE_KINDS)}")
+    nuisance = _check.mapping("nuisance", nuisance)
     exps = dict(experiments)
     channels = _channels(data)
     out: dict[str, dict] = {"time_offset": {}, "bias": {}, "scale": {}}
@@ -212,17 +209,20 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                              f"{', '.join(NUISANCE_KINDS)}")
         if isinstance(items, (str, tuple)):
             items = [items]
+        if not isinstance(items, (Mapping, list)):
+            _check.fail(f"nuisance[{kind!r}]", items, "a list of experiments or channels, or "
+                        "a dict of them to their start values")
         pairs = list(items.items()) if isinstance(items, Mapping) else \
             [(it, NULLS[kind]) for it in items]
         for item, start in pairs:
-            try:
-                start = float(start)
-            except (TypeError, ValueError):
-                start = math.nan
-            if not math.isfinite(start) or (kind == "scale" and start <= 0.0):
-                raise InputError(f"nuisance[{kind!r}][{item!r}]: start value {start!r}, "
-                                 "expected a finite number" + (" > 0" if kind == "scale"
-                                                               else ""))
+            start = _check.real(f"nuisance[{kind!r}][{_check.show(item)}]", start,
+                                above=0.0 if kind == "scale" else None,
+                                expected="a finite number" + (" > 0" if kind == "scale"
+                                                              else ""))
+            if not isinstance(item, str if kind == "time_offset" else (str, tuple)):
+                _check.fail(f"nuisance[{kind!r}]", item, "an experiment name" if kind ==
+                            "time_offset" else "an (experiment, quantity) pair or a "
+                            "quantity name")
             if kind == "time_offset":
                 if item not in exps:
                     raise InputError(f"nuisance['time_offset']: no experiment {item!r} "
@@ -278,18 +278,22 @@ _CANDIDATE_KIND = {"clock_offset": "time_offset", "channel_bias": "bias",
                    "channel_scale": "scale"}
 
 
-def register_candidates() -> None:
-    """Put the chain's candidates in beamid.diagnosis' registry (called by
-    beamid.dyn_diagnosis, which every ``import beamid`` loads)."""
-    from .diagnosis import Effect, register_effect
-    for name, text in (("clock_offset", "a clock offset t0 of a release's record (the "
-                        "logger's zero is not the release)"),
-                       ("channel_bias", "a bias b of a channel (experiment, quantity): a "
-                        "camera's origin, a gauge's zero drift"),
-                       ("channel_scale", "a scale s of a channel: a gauge factor, an "
-                        "accelerometer's sensitivity")):
-        register_effect(Effect(name, text, lambda m: (), kinds=("dynamic",),
-                               cause="measurement chain"))
+#: the chain's candidate effects (name, description), in the order they are
+#: tried; beamid.diagnosis registers them (cause "measurement chain", release
+#: fits only) and beamid.dyn_diagnosis puts them among the release's
+#: default candidates, before the mesh
+CANDIDATE_EFFECTS = (
+    ("clock_offset", "a clock offset t0 of a release's record (the logger's zero is not "
+     "the release)"),
+    ("channel_bias", "a bias b of a channel (experiment, quantity): a camera's origin, a "
+     "gauge's zero drift"),
+    ("channel_scale", "a scale s of a channel: a gauge factor, an accelerometer's "
+     "sensitivity"),
+    ("gross_errors", "a few rows far off (a lost marker, a spike): the refit with a Huber "
+     "loss"),
+    ("noise", "noise larger than stated: white residuals with chi2/dof above 1 (the refit "
+     "estimates the sigmas)"),
+)
 
 
 @dataclass
@@ -373,41 +377,6 @@ def _candidates(experiments, data, own: ChainSpec | None,
     return own, cand
 
 
-def add_chain_effect(fit, name: str, *, max_iter: int = 50):
-    """:func:`beamid.add_effect` for a measurement-chain candidate: the fit
-    again with the candidate's nuisance parameters (every release's clock
-    offset, every release channel's bias or scale) fitted too, with a Huber
-    loss (``gross_errors``), or with the sigmas estimated (``noise``); what
-    the fit already had is kept."""
-    import dataclasses
-    from .estimation import fit as _fit
-    rows = fit.treatment or RowTreatment()
-    own = fit.chain or ChainSpec()
-    if name == "gross_errors":
-        found = gross_rows(fit, 0.01)
-        if not found.size:
-            raise InputError("effect 'gross_errors': no row of this fit is a gross error "
-                             "(beyond the Bonferroni level 0.01 / n on the bulk's scale)")
-        return without_rows(fit, found)
-    elif name == "noise":
-        channels = tuple(sorted(_channels(fit.data)))
-        if set(channels) <= set(rows.estimate):
-            raise InputError("effect 'noise': the fit estimates every sigma already")
-        rows = dataclasses.replace(rows, estimate=channels)
-        spec = own
-    else:
-        own, cand = candidate_spec(fit, {_CANDIDATE_KIND[name]})
-        if not cand:
-            raise InputError(f"effect {name!r}: no parameter left to add (the fit has every "
-                             f"{_CANDIDATE_KIND[name].replace('_', ' ')} already, or no "
-                             "release)")
-        spec = own.merged(cand)
-    out = _fit(fit.model, fit.experiments, fit.data, free=fit.free, prior=fit.prior or None,
-               max_iter=max_iter, nuisance=spec, loss=rows.loss, burn_in=rows.burn_in or None,
-               estimate_sigma=list(rows.estimate) or None)
-    return dataclasses.replace(out, nominal=fit.nominal)
-
-
 def split_ladder_fit(raw: dict, free0, npar: int, spec: ChainSpec,
                      exps: list[str]) -> tuple[dict, list[int], ChainSpec]:
     """A ladder rung's fit (free parameters in the ladder's order, the
@@ -449,21 +418,10 @@ ROW_CANDIDATES = ("gross_errors", "noise")
 GROSS_SHARE = 0.02
 
 
-def register_row_candidates() -> None:
-    from .diagnosis import Effect, register_effect
-    register_effect(Effect("gross_errors", "a few rows far off (a lost marker, a spike): "
-                           "the refit with a Huber loss", lambda m: (), kinds=("dynamic",),
-                           cause="measurement chain"))
-    register_effect(Effect("noise", "noise larger than stated: white residuals with "
-                           "chi2/dof above 1 (the refit estimates the sigmas)",
-                           lambda m: (), kinds=("dynamic",), cause="measurement chain"))
-
-
 def judged_fit(fit):
     """The fit restricted to the rows it judges (fitted, not gross errors),
     as a plain fit on those rows: what the score tests and refits of a
     diagnosis see. The fit itself when it judges every row."""
-    import dataclasses
     keep = np.ones(len(fit.residuals), bool)
     if fit.fitted_rows is not None:
         keep &= np.asarray(fit.fitted_rows, bool)
@@ -495,68 +453,3 @@ def gross_rows(fit, alpha: float) -> np.ndarray:
     p_row = _ce.chi2_sf_many((z / scale) ** 2, np.ones(n, np.int32))
     rows = np.flatnonzero(p_row < alpha / n)
     return rows if rows.size <= max(3, int(GROSS_SHARE * n)) else np.zeros(0, int)
-
-
-def without_rows(fit, rows):
-    """The fit again without ``rows`` (gross errors): a plain fit of the
-    other rows, from the fit's estimates, with its chain; its note names the
-    rows left out (by their number in ``fit.data``)."""
-    import dataclasses
-    from .estimation import fit as _fit
-    drop = set(int(i) for i in rows)
-    idx = [i for i in range(len(fit.data)) if i not in drop]
-    data = fit.data.__class__.from_rows(
-        [(fit.data.experiment[i], float(fit.data.t[i]), fit.data.quantity[i],
-          float(fit.data.value[i]), float(fit.residuals[i].sigma)) for i in idx],
-        source=fit.data.source)
-    rows_t = fit.treatment or RowTreatment()
-    out = _fit(fit.model, fit.experiments, data, free=fit.free, prior=fit.prior or None,
-               nuisance=fit.chain, burn_in=rows_t.burn_in or None)
-    gone = ", ".join(f"{i} ({fit.data.experiment[i]} {fit.data.quantity[i]} t = "
-                     f"{float(fit.data.t[i]):g})" for i in sorted(drop))
-    return dataclasses.replace(out, nominal=fit.nominal,
-                               note=(out.note + "; " if out.note else "")
-                               + f"gross errors left out: rows {gone}")
-
-
-def row_candidates(fit, effects, alpha_each: float, cls):
-    """The gross-error and noise candidates asked for in ``effects`` of the
-    (judged) fit ``fit``: a list of ``cls`` (beamid.Candidate) objects."""
-    from .estimation import fit as _fit
-    names = {e.name for e in effects}
-    out = []
-    z = np.array([r.normalized for r in fit.residuals])
-    n = z.size
-    if "gross_errors" in names and n > 0:
-        rows = gross_rows(fit, alpha_each)
-        if rows.size:
-            refit = without_rows(fit, rows)
-            drop = float(fit.chi2 - refit.chi2)
-            p = _ce.chi2_sf(max(drop, 0.0), int(rows.size))
-            params = tuple(f"row {i}" for i in rows)
-            off = {f"row {i}": float(fit.residuals[i].measured - fit.residuals[i].model)
-                   for i in rows}
-            sig = {f"row {i}": float(fit.residuals[i].sigma) for i in rows}
-            significant = p < alpha_each
-            out.append(cls("gross_errors", params, "tested",
-                           score_drop=float(np.sum(z[rows] ** 2)),
-                           score_p=_ce.chi2_sf(float(np.sum(z[rows] ** 2)), int(rows.size)),
-                           first_order=off, first_order_sigma=sig, refit=True,
-                           refit_tried=True, lr_drop=drop, lr_p=p, refit_estimate=off,
-                           refit_sigma=sig, refit_model=refit.model,
-                           significant=significant, acceptable=significant,
-                           cause="measurement chain"))
-        else:
-            out.append(cls("gross_errors", (), "tested", score_drop=0.0, score_p=1.0,
-                           cause="measurement chain"))
-    if "noise" in names and fit.dof > 0:
-        chi2 = fit.chi2 + fit.chi2_prior
-        p = _ce.chi2_sf(chi2, fit.dof)
-        factor = math.sqrt(chi2 / fit.dof)
-        est = {"sigma factor": factor}
-        sd = {"sigma factor": factor / math.sqrt(2.0 * fit.dof)}
-        out.append(cls("noise", ("sigma factor",), "tested", score_drop=float(chi2 - fit.dof),
-                       score_p=p, first_order=est, first_order_sigma=sd,
-                       significant=p < alpha_each, acceptable=p < alpha_each,
-                       cause="measurement chain"))
-    return out
