@@ -126,6 +126,9 @@ def test_import_beamid_registers_the_dynamic_candidates():
 def _help(argv, monkeypatch, capsys) -> tuple[str, int]:
     calls = []
     real = beamid.tables._all_seed_decks
+    # the help's table list is cached once computed: an earlier test that
+    # printed it (the command-line sweep) must not hide the read
+    beamid.cli._table_list.cache_clear()
     monkeypatch.setattr(beamid.tables, "_all_seed_decks",
                         lambda: calls.append(1) or real())
     with pytest.raises(SystemExit) as exc:
