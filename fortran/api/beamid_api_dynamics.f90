@@ -21,15 +21,41 @@ module beamid_api_dynamics
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_cforces, &
-                               dyn_cjacobian, dyn_cmass
+                               dyn_cjacobian, dyn_cmass, dyn_nwork, dyn_work_name
     implicit none
     private
 
     public :: api_dyn_sizes, api_dyn_simulate_modal, api_dyn_system
     public :: api_dyn_profile, api_dyn_system_modal
     public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
+    public :: api_work_names
 
 contains
+
+    !> Names of the work lines of the ledger of a chain of nbeams beams (no
+    !! forcing), space separated, in the order of the work vector (as
+    !! api_param_names for the parameters).
+    subroutine api_work_names(nbeams, names, code, message)
+        integer(c_int), intent(in) :: nbeams
+        character(len=4096), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=:), allocatable :: joined
+        type(status_t) :: stat
+        integer :: i
+        joined = ''
+        names = ''
+        if (nbeams < 1 .or. dyn_nwork(int(nbeams))*24 > len(names)) then
+            call set_status(stat, ERR_INPUT, 'api_work_names', 'cannot name the work '// &
+                            'lines of '//fmt_int(int(nbeams))//' beams')
+        else
+            do i = 1, dyn_nwork(int(nbeams))
+                joined = joined//dyn_work_name(int(nbeams), i)//' '
+            end do
+            names = joined
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_work_names
 
     subroutine make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, law
@@ -239,8 +265,9 @@ contains
         yc(1:k) = c
         yc(k + 1:2*k) = cd
         if (sys%nx > 0) yc(2*k + 1) = x(1)
-        call dyn_cforces(sys, yc, force, power, torque)
-        call dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+        ! the chain's own forces: no forcing in time is set up here (t = 0)
+        call dyn_cforces(sys, 0.0_dp, yc, force, power, torque)
+        call dyn_cjacobian(sys, 0.0_dp, yc, kb, cb, b, p, d, e)
         call fe_band_to_dense(kb, sys%ckl, sys%cku, kmat)
         call fe_band_to_dense(cb, sys%ckl, sys%cku, cmat)
         call dyn_cmass(sys, yc, mb)
@@ -364,5 +391,6 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_dyn_release
+
 
 end module beamid_api_dynamics

@@ -15,6 +15,11 @@ from .progress import watch
 _api = _ext.beamid_api_dynamics
 
 
+def work_names(nbeams: int) -> tuple[str, ...]:
+    """Names of the ledger's work lines of a chain of ``nbeams`` beams, in order."""
+    return tuple(_text(_call(_api.api_work_names, nbeams)).split())
+
+
 def sizes(nbeams: int, params: np.ndarray, nepb: int, gain: float) -> tuple[int, int, int]:
     """(nfree, nstate, nwork) of the dynamic system."""
     nfree, nstate, nwork = _call(_api.api_dyn_sizes, nbeams, _floats(params), nepb, float(gain))

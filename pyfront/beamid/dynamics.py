@@ -65,10 +65,10 @@ def _point_name(nbeams: int, k: int) -> str:
 
 
 def work_names(nbeams: int) -> tuple[str, ...]:
-    """Names of the work lines of the ledger, in the Fortran order."""
-    pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
-    return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
-                 + ["damping", "motor"])
+    """Names of the work lines of the ledger of a chain of ``nbeams`` beams, in the
+    order of the work vector (read from the core, as the parameter names):
+    friction and drag per mass point, damping, motor."""
+    return _cd.work_names(nbeams)
 
 
 def _release_loads(release) -> np.ndarray:
