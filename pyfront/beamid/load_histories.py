@@ -1,0 +1,218 @@
+"""Load histories of a dynamic experiment (issue 28): a scalar history g(t) --
+a table, a half-sine impulse, a step or a linear chirp -- applied at the tip as
+a force component, a torque, or the open-loop torque of the Chapter V motor.
+
+Give them to :func:`beamid.simulate` as ``loads={"tip_fy": HalfSine(...)}`` (a
+mapping from target to history) or a sequence of ``(target, history)`` pairs
+(the same target twice adds up). Targets:
+
+- ``"tip_fx"``, ``"tip_fy"``: a force (N) on the tip in the fixed x or y direction;
+- ``"tip_torque"``: a torque (N m, counter-clockwise) on the tip's angle psi
+  (generalized force tau grad psi, the exact moment of the static tip load);
+- ``"motor_open"``: the open-loop torque of the tip motor, acting as the Chapter V
+  motor does, T [(1 + u') dw' - w' du'] (Eq. 151-152), beside its feedback law.
+
+Each history is one forcing of the core (``beamid_loads``), with its own work
+line in the ledger (named by its target: ``tip_fy``, ``tip_fy_2``, ...) and its
+parameters for sensitivities (``wrt=``): ``<name>_amplitude`` (a table's scale)
+and, for the half-sine, ``<name>_duration``. Every history is right-continuous,
+and the integrators step onto its breakpoints (a table's rows, a pulse's start
+and end).
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .errors import InputError
+
+#: Target names and their codes in the core (beamid_loads TARGET_*).
+TARGETS = {"tip_fx": 1, "tip_fy": 2, "tip_torque": 3, "motor_open": 4}
+#: History kinds and their codes (beamid_loads HIST_*).
+_KIND = {"table": 1, "half_sine": 2, "step": 3, "chirp": 4}
+
+
+def _num(name: str, value, positive: bool = False, nonneg: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} = {value!r}, expected a number") from None
+    if not math.isfinite(v):
+        raise InputError(f"{name} = {v}, expected a finite number")
+    if positive and not v > 0:
+        raise InputError(f"{name} = {v}, expected a positive number")
+    if nonneg and v < 0:
+        raise InputError(f"{name} = {v}, expected a number >= 0")
+    return v
+
+
+@dataclass(frozen=True)
+class HalfSine:
+    """``peak sin(pi (t - start)/duration)`` for start <= t < start + duration,
+    else 0: an impact hammer's pulse (N or N m)."""
+    peak: float
+    duration: float
+    start: float = 0.0
+
+    def __post_init__(self):
+        _num("HalfSine peak", self.peak)
+        _num("HalfSine duration", self.duration, positive=True)
+        _num("HalfSine start", self.start)
+
+    def column(self) -> list[float]:
+        return [_KIND["half_sine"], self.peak, self.start, self.duration, 0.0, 0.0]
+
+
+@dataclass(frozen=True)
+class Step:
+    """``amplitude`` for t >= start, else 0."""
+    amplitude: float
+    start: float = 0.0
+
+    def __post_init__(self):
+        _num("Step amplitude", self.amplitude)
+        _num("Step start", self.start)
+
+    def column(self) -> list[float]:
+        return [_KIND["step"], self.amplitude, self.start, 0.0, 0.0, 0.0]
+
+
+@dataclass(frozen=True)
+class Chirp:
+    """A linear sweep ``amplitude sin(2 pi (f0 s + (f1 - f0) s^2 / (2 duration)))``,
+    s = t - start, for 0 <= s < duration, else 0 (frequencies in Hz)."""
+    amplitude: float
+    f0: float
+    f1: float
+    duration: float
+    start: float = 0.0
+
+    def __post_init__(self):
+        _num("Chirp amplitude", self.amplitude)
+        _num("Chirp f0", self.f0, nonneg=True)
+        _num("Chirp f1", self.f1, nonneg=True)
+        _num("Chirp duration", self.duration, positive=True)
+        _num("Chirp start", self.start)
+
+    def column(self) -> list[float]:
+        return [_KIND["chirp"], self.amplitude, self.start, self.duration, self.f0, self.f1]
+
+
+@dataclass(frozen=True)
+class Table:
+    """Piecewise linear through the rows (t_i, scale v_i); the first value
+    before the first row, the last after the last row. Times must increase."""
+    times: tuple
+    values: tuple
+    scale: float = 1.0
+    source: str = "table"
+
+    def __post_init__(self):
+        t = np.asarray(self.times, dtype=float).ravel()
+        v = np.asarray(self.values, dtype=float).ravel()
+        object.__setattr__(self, "times", tuple(t))
+        object.__setattr__(self, "values", tuple(v))
+        _num("Table scale", self.scale)
+        if t.size == 0 or t.size != v.size:
+            raise InputError(f"{self.source}: {t.size} times and {v.size} values, expected "
+                             "the same number (at least one row)")
+        for i in range(t.size):
+            if not (math.isfinite(t[i]) and math.isfinite(v[i])):
+                raise InputError(f"{self.source}: row {i + 1}: t = {t[i]}, value = {v[i]}, "
+                                 "expected finite numbers")
+            if i and not t[i] > t[i - 1]:
+                raise InputError(f"{self.source}: row {i + 1}: t = {t[i]} is not after row "
+                                 f"{i}'s t = {t[i - 1]} (times must increase)")
+
+    @classmethod
+    def from_csv(cls, path: str | Path, column: str, time: str = "t",
+                 scale: float = 1.0) -> "Table":
+        """The rows of a CSV file with a header: ``time`` and ``column``. A bad
+        entry is named by file, line and field."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+        rows = list(csv.reader(text.splitlines()))
+        if not rows:
+            raise InputError(f"{path}: empty, expected a header with {time!r} and {column!r}")
+        head = [h.strip() for h in rows[0]]
+        for name in (time, column):
+            if name not in head:
+                raise InputError(f"{path}: line 1: no column {name!r} (header: "
+                                 f"{', '.join(head)})")
+        it, iv = head.index(time), head.index(column)
+        ts, vs = [], []
+        for ln, row in enumerate(rows[1:], start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            for idx, name, out in ((it, time, ts), (iv, column, vs)):
+                try:
+                    out.append(float(row[idx]))
+                except (ValueError, IndexError):
+                    raise InputError(f"{path}: line {ln}: field {name!r} = "
+                                     f"{row[idx] if idx < len(row) else ''!r}, expected a "
+                                     "number") from None
+            if len(ts) > 1 and not ts[-1] > ts[-2]:
+                raise InputError(f"{path}: line {ln}: field {time!r} = {ts[-1]} is not after "
+                                 f"the previous row's {ts[-2]} (times must increase)")
+        return cls(tuple(ts), tuple(vs), scale, source=str(path))
+
+    def column(self) -> list[float]:
+        return [_KIND["table"], self.scale, 0.0, 0.0, 0.0, 0.0]
+
+
+History = HalfSine | Step | Chirp | Table
+
+
+def _pairs(loads) -> list[tuple[str, History]]:
+    if isinstance(loads, Mapping):
+        items = list(loads.items())
+    elif isinstance(loads, Sequence) and not isinstance(loads, str):
+        items = list(loads)
+    else:
+        raise InputError(f"loads = {loads!r}, expected a mapping target -> history or a "
+                         "sequence of (target, history) pairs")
+    out = []
+    for item in items:
+        if not (isinstance(item, tuple) and len(item) == 2):
+            raise InputError(f"loads: {item!r}, expected a (target, history) pair")
+        target, hist = item
+        if target not in TARGETS:
+            raise InputError(f"loads: target {target!r}, expected one of "
+                             f"{', '.join(TARGETS)}")
+        if not isinstance(hist, (HalfSine, Step, Chirp, Table)):
+            raise InputError(f"loads[{target!r}] = {hist!r}, expected a HalfSine, Step, "
+                             "Chirp or Table")
+        out.append((target, hist))
+    return out
+
+
+def columns(loads) -> tuple[np.ndarray, np.ndarray]:
+    """The core's layout of ``loads``: spec (9, nld) and table rows (2, ntab)."""
+    pairs = _pairs(loads)
+    spec = np.zeros((9, max(1, len(pairs))), order="F")
+    rows: list[tuple[float, float]] = []
+    for j, (target, hist) in enumerate(pairs):
+        kind, amp, start, dur, f0, f1 = hist.column()
+        first, count = 0, 0
+        if isinstance(hist, Table):
+            first, count = len(rows) + 1, len(hist.times)
+            rows.extend(zip(hist.times, hist.values))
+        spec[:, j] = [TARGETS[target], kind, amp, start, dur, f0, f1, first, count]
+    tab = np.zeros((2, max(1, len(rows))), order="F")
+    if rows:
+        tab[:, :] = np.array(rows, dtype=float).T
+    return spec[:, :len(pairs)] if pairs else spec[:, :0], tab
+
+
+def highest_chirp(loads) -> float:
+    """The highest frequency (Hz) any chirp of ``loads`` reaches (0 without one)."""
+    return max((max(h.f0, h.f1) for _, h in _pairs(loads) if isinstance(h, Chirp)),
+               default=0.0)
