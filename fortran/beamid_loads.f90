@@ -37,10 +37,13 @@ module beamid_loads
     public :: history_value, history_dvalue, history_nparams, history_breaks
     public :: HIST_TABLE, HIST_HALF_SINE, HIST_STEP, HIST_CHIRP
     public :: TARGET_FX, TARGET_FY, TARGET_TORQUE, TARGET_MOTOR, TARGET_NAMES, HIST_NAMES
+    public :: TARGET_HUB
     public :: HIST_PARAM_NAMES, LD_NSPEC, histories_from_columns, history_check
 
     integer, parameter :: HIST_TABLE = 1, HIST_HALF_SINE = 2, HIST_STEP = 3, HIST_CHIRP = 4
     integer, parameter :: TARGET_FX = 1, TARGET_FY = 2, TARGET_TORQUE = 3, TARGET_MOTOR = 4
+    !> the hub's spin-up law (beamid_hub), not a tip history
+    integer, parameter :: TARGET_HUB = 5
     !> names of the targets (work lines) and history kinds, by code
     character(len=*), parameter :: TARGET_NAMES(4) = [character(len=11) :: 'tip_fx', &
                                                       'tip_fy', 'tip_torque', 'motor_open']
@@ -278,19 +281,37 @@ contains
     !> The histories of columns spec(LD_NSPEC, :) and table rows tab(2, :)
     !! (t, value), named by their targets (tip_fy, tip_fy_2, ...). The tip
     !! indices are set by the caller (release_response).
-    subroutine histories_from_columns(spec, tab, hists, stat)
+    !! A column with target TARGET_HUB is the hub's spin-up law (amplitude
+    !! w_s, duration T): returned in hub(1:2) = [w_s, T], has_hub.
+    subroutine histories_from_columns(spec, tab, hists, stat, hub, has_hub)
         real(dp), intent(in) :: spec(:, :), tab(:, :)
         type(tip_history_t), allocatable, intent(out) :: hists(:)
         type(status_t), intent(inout) :: stat
-        integer :: l, tg, kd, r0, nr, same
-        allocate (hists(size(spec, 2)))
+        real(dp), intent(out), optional :: hub(2)
+        logical, intent(out), optional :: has_hub
+        integer :: l, tg, kd, r0, nr, same, nh, m
+        nh = count(nint(spec(1, :)) == TARGET_HUB)
+        if (present(has_hub)) has_hub = nh > 0
+        if (present(hub)) hub = 0.0_dp
+        if (nh > 1) then
+            call set_status(stat, ERR_INPUT, 'load histories', fmt_int(nh)// &
+                            ' hub laws given, expected at most one')
+            return
+        end if
+        allocate (hists(size(spec, 2) - nh))
+        m = 0
         do l = 1, size(spec, 2)
             tg = nint(spec(1, l))
             kd = nint(spec(2, l))
+            if (tg == TARGET_HUB) then
+                if (present(hub)) hub = [spec(3, l), spec(5, l)]
+                cycle
+            end if
+            m = m + 1
             if (tg < 1 .or. tg > size(TARGET_NAMES)) then
                 call set_status(stat, ERR_INPUT, 'load histories', 'history '//fmt_int(l)// &
-                                ': target = '//fmt_int(tg)//', expected 1..4 (tip_fx, '// &
-                                'tip_fy, tip_torque, motor_open)')
+                                ': target = '//fmt_int(tg)//', expected 1..5 (tip_fx, '// &
+                                'tip_fy, tip_torque, motor_open, hub)')
                 return
             end if
             if (kd < 1 .or. kd > size(HIST_NAMES)) then
@@ -299,13 +320,13 @@ contains
                                 'half_sine, step, chirp)')
                 return
             end if
-            hists(l)%target = tg
-            hists(l)%hist%kind = kd
-            hists(l)%hist%amplitude = spec(3, l)
-            hists(l)%hist%t0 = spec(4, l)
-            hists(l)%hist%duration = spec(5, l)
-            hists(l)%hist%f0 = spec(6, l)
-            hists(l)%hist%f1 = spec(7, l)
+            hists(m)%target = tg
+            hists(m)%hist%kind = kd
+            hists(m)%hist%amplitude = spec(3, l)
+            hists(m)%hist%t0 = spec(4, l)
+            hists(m)%hist%duration = spec(5, l)
+            hists(m)%hist%f0 = spec(6, l)
+            hists(m)%hist%f1 = spec(7, l)
             if (kd == HIST_TABLE) then
                 r0 = nint(spec(8, l))
                 nr = nint(spec(9, l))
@@ -316,12 +337,12 @@ contains
                                     fmt_int(size(tab, 2))//' rows given')
                     return
                 end if
-                hists(l)%hist%times = tab(1, r0:r0 + nr - 1)
-                hists(l)%hist%values = tab(2, r0:r0 + nr - 1)
+                hists(m)%hist%times = tab(1, r0:r0 + nr - 1)
+                hists(m)%hist%values = tab(2, r0:r0 + nr - 1)
             end if
-            same = count(hists(1:l - 1)%target == tg)
-            hists(l)%name = trim(TARGET_NAMES(tg))
-            if (same > 0) hists(l)%name = trim(TARGET_NAMES(tg))//'_'//fmt_int(same + 1)
+            same = count(hists(1:m - 1)%target == tg)
+            hists(m)%name = trim(TARGET_NAMES(tg))
+            if (same > 0) hists(m)%name = trim(TARGET_NAMES(tg))//'_'//fmt_int(same + 1)
         end do
     end subroutine histories_from_columns
 

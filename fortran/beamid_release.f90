@@ -24,6 +24,7 @@ module beamid_release
                                FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
                                dyn_static_sens, dyn_output_sens, dyn_add_forcing, DP_FORCING
     use beamid_loads, only: tip_history_t, history_check
+    use beamid_hub, only: hub_forcing_t, hub_setup
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT
     implicit none
@@ -72,6 +73,10 @@ module beamid_release
         !! indices are set here); their parameters follow the release load's
         !! components in wrt, history by history
         type(tip_history_t), allocatable :: histories(:)
+        !> a prescribed hub rotation (beamid_hub: the spin-up law to w_s in T),
+        !! after the histories (its parameter w_s follows theirs in wrt)
+        logical :: hub = .false.
+        real(dp) :: hub_ws = 0.0_dp, hub_period = 0.0_dp
     end type release_spec_t
 
     !> The response at the output times.
@@ -141,6 +146,7 @@ contains
         integer :: k, n, nt, nw, j, l, nhp, base, ip
         logical :: modal
         type(tip_history_t) :: th
+        type(hub_forcing_t) :: hub
 
         nt = size(t_out)
         nw = size(wrt)
@@ -173,6 +179,12 @@ contains
                 call dyn_add_forcing(sys, th)
                 nhp = nhp + th%nparams()
             end do
+        end if
+        if (spec%hub) then
+            call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
+            if (stat%code /= STATUS_OK) return
+            call dyn_add_forcing(sys, hub)
+            nhp = nhp + hub%nparams()
         end if
         base = param_count(chain%nbeams) + NLOAD
         do j = 1, nw

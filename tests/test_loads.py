@@ -168,3 +168,57 @@ def test_bad_histories():
         warnings.simplefilter("error")
         beamid.simulate(model, None, t, elements_per_beam=2,
                         loads={"tip_fy": beamid.Chirp(0.1, 0.0, 100.0, 0.01)})
+
+
+# ------------------------------------------------------------ hub rotation
+
+
+@pytest.mark.parametrize("ws,T,t_end", [(10.0, 5.0, 7.0), (40.0, 3.0, 5.0)])
+def test_steady_spin_matches_the_spinning_cantilever(ws, T, t_end):
+    # after a smooth spin-up the uniform cantilever spins steadily: the root axial
+    # force is rho A w_s^2 L^2 / 2 and the tip stretch rho A w_s^2 L^3 / (3 EA)
+    # (the bar's u(s) = rho A w^2 (L^2 s - s^3/3)/(2 EA), cubic: the element
+    # holds it exactly); w_s = 40 rad/s is above the first bending frequency
+    # (27 rad/s) and the spin-up stays bounded, as the geometrically nonlinear
+    # element stiffens the arm (a linear model diverges: Kane, Ryan and
+    # Banerjee 1987)
+    model = beamid.cantilever()
+    p = model.params
+    t = np.linspace(0.0, t_end, int(t_end * 40) + 1)
+    run = beamid.simulate(model, None, t, elements_per_beam=4, rtol=1e-10,
+                          loads={"hub": beamid.SpinUp(ws, T)})
+    late = t > T + 0.5
+    n0 = p["rho1"] * ws**2 * p["L1"]**2 / 2
+    stretch = p["rho1"] * ws**2 * p["L1"]**3 / (3 * p["EA1"])
+    # the first free unknown is the root's u' (the axial strain at the clamp)
+    assert p["EA1"] * run.states[0][late].mean() == pytest.approx(n0, rel=2e-5)
+    assert run.tip_u[late].mean() == pytest.approx(stretch, rel=5e-4)
+    assert np.max(np.abs(run.tip_w)) < 0.03
+    assert np.max(np.abs(run.tip_w[late])) < 1e-4
+    # the relative energy ledger closes with the hub's work line
+    assert abs(run.ledger["numerical"][-1]) < 1e-7 * run.ledger["hub"][-1]
+    assert run.ledger["hub"][-1] == pytest.approx(run.energy[-1], rel=1e-6)
+
+
+def test_hub_speed_sensitivity_matches_central_differences():
+    t = np.linspace(0.0, 1.5, 16)
+
+    def run(ws, wrt=None):
+        return beamid.simulate(beamid.cantilever(), None, t, elements_per_beam=4,
+                               rtol=1e-12, wrt=wrt, loads={"hub": beamid.SpinUp(ws, 1.0)})
+
+    an = run(20.0, ("hub_speed",))
+    for q in ("tip_w", "tip_u"):
+        fd = (getattr(run(20.0 + 1e-4), q) - getattr(run(20.0 - 1e-4), q)) / 2e-4
+        assert np.max(np.abs(an.d[q]["hub_speed"] - fd)) < 1e-6 * np.max(np.abs(fd)), q
+
+
+def test_hub_law_bad_input():
+    with pytest.raises(beamid.InputError, match=r"SpinUp T = 0.0, expected a positive"):
+        beamid.SpinUp(10.0, 0.0)
+    with pytest.raises(beamid.InputError, match=r"needs a clamped root .* no rotary inertia"):
+        beamid.simulate(beamid.pace(), None, [0.0, 0.1], loads={"hub": beamid.SpinUp(1.0, 1.0)})
+    with pytest.raises(beamid.InputError, match=r"loads\['hub'\] = .*expected a SpinUp"):
+        beamid.simulate(beamid.cantilever(), None, [0.0, 0.1], loads={"hub": beamid.Step(1.0)})
+    law = beamid.SpinUp(6.0, 15.0)
+    assert law.angle([0.0, 15.0, 20.0]) == pytest.approx([0.0, 45.0, 75.0])

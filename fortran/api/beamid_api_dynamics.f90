@@ -407,12 +407,15 @@ contains
         type(tip_history_t), allocatable :: hists(:)
         type(status_t) :: stat
         character(len=:), allocatable :: jw, jp
+        real(dp) :: hub(2)
+        logical :: has_hub
         integer :: l, i
         works = ''
         pnames = ''
         jw = ''
         jp = ''
-        call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), hists, stat)
+        call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), hists, stat, hub, &
+                                    has_hub)
         if (stat%code == STATUS_OK) then
             do l = 1, size(hists)
                 jw = jw//hists(l)%work_name()//' '
@@ -420,6 +423,11 @@ contains
                     jp = jp//hists(l)%param_name(i)//' '
                 end do
             end do
+            ! the hub after the histories (release_response's order)
+            if (has_hub) then
+                jw = jw//'hub '
+                jp = jp//'hub_speed '
+            end if
             if (len(jw) > len(works) .or. len(jp) > len(pnames)) then
                 call set_status(stat, ERR_INPUT, 'api_dyn_load_names', 'too many histories ('// &
                                 fmt_int(int(nld))//') to name')
@@ -459,6 +467,7 @@ contains
         type(status_t) :: stat
         type(release_spec_t) :: spec
         type(release_out_t) :: out
+        real(dp) :: hub(2)
         call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
         if (stat%code == STATUS_OK .and. (nq /= NQTY .or. nmodes < 0)) then
             call set_status(stat, ERR_INPUT, 'api_dyn_forced', 'nq = '//fmt_int(int(nq))// &
@@ -471,7 +480,9 @@ contains
             if (use_init /= 0) spec%y_init = real(y_init, dp)
             spec%progress => progress
             call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), &
-                                        spec%histories, stat)
+                                        spec%histories, stat, hub, spec%hub)
+            spec%hub_ws = hub(1)
+            spec%hub_period = hub(2)
         end if
         if (stat%code == STATUS_OK) &
             call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)

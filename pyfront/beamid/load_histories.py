@@ -32,9 +32,9 @@ import numpy as np
 from .errors import InputError
 
 #: Target names and their codes in the core (beamid_loads TARGET_*).
-TARGETS = {"tip_fx": 1, "tip_fy": 2, "tip_torque": 3, "motor_open": 4}
+TARGETS = {"tip_fx": 1, "tip_fy": 2, "tip_torque": 3, "motor_open": 4, "hub": 5}
 #: History kinds and their codes (beamid_loads HIST_*).
-_KIND = {"table": 1, "half_sine": 2, "step": 3, "chirp": 4}
+_KIND = {"table": 1, "half_sine": 2, "step": 3, "chirp": 4, "spin_up": 5}
 
 
 def _num(name: str, value, positive: bool = False, nonneg: bool = False) -> float:
@@ -168,7 +168,30 @@ class Table:
         return [_KIND["table"], self.scale, 0.0, 0.0, 0.0, 0.0]
 
 
-History = HalfSine | Step | Chirp | Table
+@dataclass(frozen=True)
+class SpinUp:
+    """The prescribed hub rotation of the spin-up law (target ``"hub"``):
+    theta(t) = (w_s/T) [t^2/2 + (T/(2 pi))^2 (cos(2 pi t/T) - 1)] for t <= T, then
+    w_s (t - T/2); the arm's equations in the hub frame (docs/loads.md)."""
+    w_s: float
+    T: float
+
+    def __post_init__(self):
+        _num("SpinUp w_s", self.w_s)
+        _num("SpinUp T", self.T, positive=True)
+
+    def column(self) -> list[float]:
+        return [_KIND["spin_up"], self.w_s, 0.0, self.T, 0.0, 0.0]
+
+    def angle(self, t) -> np.ndarray:
+        """theta(t) (rad)."""
+        t = np.asarray(t, dtype=float)
+        ws, T = self.w_s, self.T
+        up = ws / T * (t**2 / 2 + (T / (2 * np.pi))**2 * (np.cos(2 * np.pi * t / T) - 1))
+        return np.where(t <= T, up, ws * (t - T / 2))
+
+
+History = HalfSine | Step | Chirp | Table | SpinUp
 
 
 def _pairs(loads) -> list[tuple[str, History]]:
@@ -187,7 +210,10 @@ def _pairs(loads) -> list[tuple[str, History]]:
         if target not in TARGETS:
             raise InputError(f"loads: target {target!r}, expected one of "
                              f"{', '.join(TARGETS)}")
-        if not isinstance(hist, (HalfSine, Step, Chirp, Table)):
+        if target == "hub":
+            if not isinstance(hist, SpinUp):
+                raise InputError(f"loads['hub'] = {hist!r}, expected a SpinUp")
+        elif not isinstance(hist, (HalfSine, Step, Chirp, Table)):
             raise InputError(f"loads[{target!r}] = {hist!r}, expected a HalfSine, Step, "
                              "Chirp or Table")
         out.append((target, hist))
