@@ -25,7 +25,7 @@
 module beamid_hub
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp, pi
-    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_real
+    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_real, fmt_int
     use beamid_band, only: band_add, band_scatter
     use beamid_forcing, only: forcing_t
     use beamid_fe_element, only: FE_NDOF, FE_U, FE_W, fe_element_mass
@@ -41,6 +41,10 @@ module beamid_hub
         type(fe_mesh_t) :: mesh
         real(dp), allocatable :: me(:, :, :)   !< element mass matrices (8, 8, nel)
         real(dp), allocatable :: xfull(:)      !< X on all unknowns (u = s, u' = 1)
+        !> the hub angle as a table instead of the law: knots, angles (rad) and
+        !! the natural cubic spline's second derivatives (ws is then the
+        !! angles' scale)
+        real(dp), allocatable :: tt(:), th(:), m2(:)
     contains
         procedure :: apply => hub_apply
         procedure :: jacobian => hub_jacobian
@@ -50,6 +54,7 @@ module beamid_hub
         procedure :: param_name => hub_param_name
         procedure :: dforce => hub_dforce
         procedure :: breakpoints => hub_breakpoints
+        procedure :: rate => hub_rate_of
     end type hub_forcing_t
 
 contains
@@ -70,16 +75,104 @@ contains
         end if
     end subroutine hub_rate
 
-    !> The hub forcing of sys under the spin-up law (w_s, T); `label` names
-    !! the input in messages.
-    subroutine hub_setup(sys, ws, period, label, hub, stat)
+    !> Omega, Omega' of this hub at t: the spin-up law, or the table's spline
+    !! (linear beyond its ends), both times the scale ws for a table.
+    pure subroutine hub_rate_of(self, t, om, omd)
+        class(hub_forcing_t), intent(in) :: self
+        real(dp), intent(in) :: t
+        real(dp), intent(out) :: om, omd
+        real(dp) :: h, a, b
+        integer :: n, lo, hi, mid
+        if (.not. allocated(self%tt)) then
+            call hub_rate(self%ws, self%period, t, om, omd)
+            return
+        end if
+        n = size(self%tt)
+        if (t <= self%tt(1) .or. t >= self%tt(n)) then
+            lo = merge(1, n - 1, t <= self%tt(1))
+            h = self%tt(lo + 1) - self%tt(lo)
+            ! the end slopes of the natural spline (zero curvature there)
+            if (lo == 1) then
+                om = (self%th(2) - self%th(1))/h - h*(2.0_dp*self%m2(1) + self%m2(2))/6.0_dp
+            else
+                om = (self%th(n) - self%th(n - 1))/h + h*(self%m2(n - 1) + 2.0_dp*self%m2(n))/6.0_dp
+            end if
+            om = self%ws*om
+            omd = 0.0_dp
+            return
+        end if
+        lo = 1
+        hi = n
+        do while (hi - lo > 1)
+            mid = (lo + hi)/2
+            if (self%tt(mid) <= t) then
+                lo = mid
+            else
+                hi = mid
+            end if
+        end do
+        h = self%tt(hi) - self%tt(lo)
+        a = (self%tt(hi) - t)/h
+        b = (t - self%tt(lo))/h
+        om = (self%th(hi) - self%th(lo))/h + h*(-(3.0_dp*a*a - 1.0_dp)*self%m2(lo) &
+                                                 + (3.0_dp*b*b - 1.0_dp)*self%m2(hi))/6.0_dp
+        omd = a*self%m2(lo) + b*self%m2(hi)
+        om = self%ws*om
+        omd = self%ws*omd
+    end subroutine hub_rate_of
+
+    !> Natural cubic spline second derivatives through (t, y) (t increasing).
+    pure function spline_m2(t, y) result(m2)
+        real(dp), intent(in) :: t(:), y(:)
+        real(dp) :: m2(size(t)), c(size(t)), d(size(t)), w
+        integer :: n, i
+        n = size(t)
+        m2 = 0.0_dp
+        if (n < 3) return
+        ! tridiagonal (Thomas) for the interior knots, m2(1) = m2(n) = 0
+        c = 0.0_dp
+        d = 0.0_dp
+        do i = 2, n - 1
+            w = 2.0_dp*(t(i + 1) - t(i - 1)) - (t(i) - t(i - 1))*c(i - 1)
+            c(i) = (t(i + 1) - t(i))/w
+            d(i) = (6.0_dp*((y(i + 1) - y(i))/(t(i + 1) - t(i)) - (y(i) - y(i - 1))/ &
+                            (t(i) - t(i - 1))) - (t(i) - t(i - 1))*d(i - 1))/w
+        end do
+        do i = n - 1, 2, -1
+            m2(i) = d(i) - c(i)*m2(i + 1)
+        end do
+    end function spline_m2
+
+    !> The hub forcing of sys under the spin-up law (w_s, T), or with
+    !! `times`, `angles` the hub angle as a table (a natural cubic spline,
+    !! scaled by ws); `label` names the input in messages.
+    subroutine hub_setup(sys, ws, period, label, hub, stat, times, angles)
         type(dyn_system_t), intent(in) :: sys
         real(dp), intent(in) :: ws, period
         character(len=*), intent(in) :: label
         type(hub_forcing_t), intent(out) :: hub
         type(status_t), intent(inout) :: stat
-        integer :: el, nd
-        if (.not. (period > 0.0_dp .and. ieee_is_finite(period))) then
+        real(dp), intent(in), optional :: times(:), angles(:)
+        integer :: el, nd, i
+        if (present(times)) then
+            if (size(times) < 2 .or. size(times) /= size(angles)) then
+                call set_status(stat, ERR_INPUT, label, 'the hub angle table needs at '// &
+                                'least 2 rows of (t, angle)')
+                return
+            end if
+            do i = 2, size(times)
+                if (.not. times(i) > times(i - 1)) then
+                    call set_status(stat, ERR_INPUT, label, 'row '//fmt_int(i)//': t = '// &
+                                    fmt_real(times(i))//' is not after row '// &
+                                    fmt_int(i - 1)//"'s t = "//fmt_real(times(i - 1))// &
+                                    ' (times must increase)')
+                    return
+                end if
+            end do
+            hub%tt = times
+            hub%th = angles
+            hub%m2 = spline_m2(times, angles)
+        else if (.not. (period > 0.0_dp .and. ieee_is_finite(period))) then
             call set_status(stat, ERR_INPUT, label, 'T = '//fmt_real(period)// &
                             ' s, expected a positive spin-up time')
             return
@@ -164,7 +257,7 @@ contains
         real(dp), intent(inout) :: f(:)
         real(dp), intent(out) :: power
         real(dp) :: om, omd, fh(size(q))
-        call hub_rate(self%ws, self%period, t, om, omd)
+        call self%rate(t, om, omd)
         power = 0.0_dp
         if (om == 0.0_dp .and. omd == 0.0_dp) return
         fh = 0.0_dp
@@ -182,7 +275,7 @@ contains
         real(dp), intent(inout), optional :: cb(:, :)
         real(dp) :: om, omd, pm(FE_NDOF, FE_NDOF), m
         integer :: el, j, nd, iu, iw
-        call hub_rate(self%ws, self%period, t, om, omd)
+        call self%rate(t, om, omd)
         if (om == 0.0_dp .and. omd == 0.0_dp) return
         associate (mesh => self%mesh)
             do el = 1, mesh%nel
@@ -232,7 +325,7 @@ contains
         class(hub_forcing_t), intent(in) :: self
         integer, intent(in) :: i
         character(len=:), allocatable :: name
-        name = 'hub_speed'
+        name = merge('hub_scale', 'hub_speed', allocated(self%tt))
     end function hub_param_name
 
     !> dF/dw_s: Omega and Omega' are proportional to w_s.
@@ -243,7 +336,7 @@ contains
         real(dp), intent(inout) :: fp(:)
         real(dp) :: om, omd
         if (self%ws == 0.0_dp) return
-        call hub_rate(self%ws, self%period, t, om, omd)
+        call self%rate(t, om, omd)
         call hub_force(self, 2.0_dp*om*om/self%ws, -omd/self%ws, -2.0_dp*om/self%ws, q, v, fp)
     end subroutine hub_dforce
 
@@ -251,7 +344,11 @@ contains
         class(hub_forcing_t), intent(in) :: self
         real(dp), intent(in) :: t0, t1
         real(dp), allocatable :: tb(:)
-        tb = pack([self%period], [self%period > t0 .and. self%period <= t1])
+        if (allocated(self%tt)) then
+            tb = pack(self%tt, self%tt > t0 .and. self%tt <= t1)
+        else
+            tb = pack([self%period], [self%period > t0 .and. self%period <= t1])
+        end if
     end function hub_breakpoints
 
 end module beamid_hub

@@ -283,12 +283,15 @@ contains
     !! indices are set by the caller (release_response).
     !! A column with target TARGET_HUB is the hub's spin-up law (amplitude
     !! w_s, duration T): returned in hub(1:2) = [w_s, T], has_hub.
-    subroutine histories_from_columns(spec, tab, hists, stat, hub, has_hub)
+    !! A hub column of kind HIST_TABLE gives the hub angle as a table: its rows
+    !! in hub_tab (2, rows), its scale in hub(1).
+    subroutine histories_from_columns(spec, tab, hists, stat, hub, has_hub, hub_tab)
         real(dp), intent(in) :: spec(:, :), tab(:, :)
         type(tip_history_t), allocatable, intent(out) :: hists(:)
         type(status_t), intent(inout) :: stat
         real(dp), intent(out), optional :: hub(2)
         logical, intent(out), optional :: has_hub
+        real(dp), allocatable, intent(out), optional :: hub_tab(:, :)
         integer :: l, tg, kd, r0, nr, same, nh, m
         nh = count(nint(spec(1, :)) == TARGET_HUB)
         if (present(has_hub)) has_hub = nh > 0
@@ -305,6 +308,17 @@ contains
             kd = nint(spec(2, l))
             if (tg == TARGET_HUB) then
                 if (present(hub)) hub = [spec(3, l), spec(5, l)]
+                if (kd == HIST_TABLE .and. present(hub_tab)) then
+                    r0 = nint(spec(8, l))
+                    nr = nint(spec(9, l))
+                    if (r0 < 1 .or. nr < 1 .or. r0 + nr - 1 > size(tab, 2)) then
+                        call set_status(stat, ERR_INPUT, 'load histories', 'hub table rows '// &
+                                        fmt_int(r0)//'..'//fmt_int(r0 + nr - 1)// &
+                                        ' outside the '//fmt_int(size(tab, 2))//' rows given')
+                        return
+                    end if
+                    hub_tab = tab(:, r0:r0 + nr - 1)
+                end if
                 cycle
             end if
             m = m + 1

@@ -77,6 +77,8 @@ module beamid_release
         !! after the histories (its parameter w_s follows theirs in wrt)
         logical :: hub = .false.
         real(dp) :: hub_ws = 0.0_dp, hub_period = 0.0_dp
+        !> the hub angle as a table instead (rows (t, angle), scaled by hub_ws)
+        real(dp), allocatable :: hub_table(:, :)
     end type release_spec_t
 
     !> The response at the output times.
@@ -181,7 +183,12 @@ contains
             end do
         end if
         if (spec%hub) then
-            call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
+            if (allocated(spec%hub_table)) then
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub angle table', hub, &
+                               stat, spec%hub_table(1, :), spec%hub_table(2, :))
+            else
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
+            end if
             if (stat%code /= STATUS_OK) return
             call dyn_add_forcing(sys, hub)
             nhp = nhp + hub%nparams()

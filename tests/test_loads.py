@@ -222,3 +222,32 @@ def test_hub_law_bad_input():
         beamid.simulate(beamid.cantilever(), None, [0.0, 0.1], loads={"hub": beamid.Step(1.0)})
     law = beamid.SpinUp(6.0, 15.0)
     assert law.angle([0.0, 15.0, 20.0]) == pytest.approx([0.0, 45.0, 75.0])
+
+
+def test_hub_angle_table_follows_the_law_it_samples():
+    # the spin-up law sampled every 0.05 s, as a table of the hub angle (a
+    # natural cubic spline): the same spin-up to the spline's accuracy
+    model = beamid.cantilever()
+    law = beamid.SpinUp(10.0, 5.0)
+    knots = np.linspace(0.0, 8.0, 161)
+    table = beamid.Table(knots, law.angle(knots))
+    t = np.linspace(0.0, 7.0, 281)
+    a = beamid.simulate(model, None, t, elements_per_beam=4, rtol=1e-10, loads={"hub": law})
+    b = beamid.simulate(model, None, t, elements_per_beam=4, rtol=1e-10, loads={"hub": table})
+    assert np.max(np.abs(a.tip_w - b.tip_w)) < 1e-6
+    assert np.max(np.abs(a.tip_w)) == pytest.approx(0.00478194, rel=1e-5)
+    late = t > 5.5
+    assert b.tip_u[late].mean() == pytest.approx(6.0409e-7, rel=1e-4)
+    assert abs(b.ledger["numerical"][-1]) < 1e-7 * b.ledger["hub"][-1]
+    # its scale's sensitivity against central differences
+    short = t[:41]
+
+    def run(scale, wrt=None):
+        return beamid.simulate(model, None, short, elements_per_beam=4, rtol=1e-12, wrt=wrt,
+                               loads={"hub": beamid.Table(knots, law.angle(knots), scale)})
+
+    an = run(1.0, ("hub_scale",)).d["tip_w"]["hub_scale"]
+    fd = (run(1.0 + 1e-6).tip_w - run(1.0 - 1e-6).tip_w) / 2e-6
+    assert np.max(np.abs(an - fd)) < 1e-6 * np.max(np.abs(fd))
+    with pytest.raises(beamid.InputError, match=r"hub angle table needs at least 2 rows"):
+        beamid.simulate(model, None, short, loads={"hub": beamid.Table([0.0], [0.0])})

@@ -426,7 +426,11 @@ contains
             ! the hub after the histories (release_response's order)
             if (has_hub) then
                 jw = jw//'hub '
-                jp = jp//'hub_speed '
+                if (any(nint(ld_spec(1, :)) == 5 .and. nint(ld_spec(2, :)) == 1)) then
+                    jp = jp//'hub_scale '
+                else
+                    jp = jp//'hub_speed '
+                end if
             end if
             if (len(jw) > len(works) .or. len(jp) > len(pnames)) then
                 call set_status(stat, ERR_INPUT, 'api_dyn_load_names', 'too many histories ('// &
@@ -480,7 +484,8 @@ contains
             if (use_init /= 0) spec%y_init = real(y_init, dp)
             spec%progress => progress
             call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), &
-                                        spec%histories, stat, hub, spec%hub)
+                                        spec%histories, stat, hub, spec%hub, &
+                                        spec%hub_table)
             spec%hub_ws = hub(1)
             spec%hub_period = hub(2)
         end if

@@ -10,7 +10,10 @@ mapping from target to history) or a sequence of ``(target, history)`` pairs
 - ``"tip_torque"``: a torque (N m, counter-clockwise) on the tip's angle psi
   (generalized force tau grad psi, the exact moment of the static tip load);
 - ``"motor_open"``: the open-loop torque of the tip motor, acting as the Chapter V
-  motor does, T [(1 + u') dw' - w' du'] (Eq. 151-152), beside its feedback law.
+  motor does, T [(1 + u') dw' - w' du'] (Eq. 151-152), beside its feedback law;
+- ``"hub"``: a prescribed hub rotation, a :class:`SpinUp` law or a :class:`Table` of
+  the hub angle (rad; a natural cubic spline through the rows, so that the hub rate
+  and its derivative are continuous; parameter ``hub_scale``).
 
 Each history is one forcing of the core (``beamid_loads``), with its own work
 line in the ledger (named by its target: ``tip_fy``, ``tip_fy_2``, ...) and its
@@ -211,8 +214,11 @@ def _pairs(loads) -> list[tuple[str, History]]:
             raise InputError(f"loads: target {target!r}, expected one of "
                              f"{', '.join(TARGETS)}")
         if target == "hub":
-            if not isinstance(hist, SpinUp):
-                raise InputError(f"loads['hub'] = {hist!r}, expected a SpinUp")
+            if not isinstance(hist, (SpinUp, Table)):
+                raise InputError(f"loads['hub'] = {hist!r}, expected a SpinUp or a Table "
+                                 "of the hub angle (rad)")
+            if isinstance(hist, Table) and len(hist.times) < 2:
+                raise InputError(f"{hist.source}: the hub angle table needs at least 2 rows")
         elif not isinstance(hist, (HalfSine, Step, Chirp, Table)):
             raise InputError(f"loads[{target!r}] = {hist!r}, expected a HalfSine, Step, "
                              "Chirp or Table")
