@@ -251,3 +251,32 @@ def test_hub_angle_table_follows_the_law_it_samples():
     assert np.max(np.abs(an - fd)) < 1e-6 * np.max(np.abs(fd))
     with pytest.raises(beamid.InputError, match=r"hub angle table needs at least 2 rows"):
         beamid.simulate(model, None, short, loads={"hub": beamid.Table([0.0], [0.0])})
+
+
+# ------------------------------------------------------------ beamid simulate --loads
+
+
+def test_cli_simulate_with_a_loads_csv(tmp_path, monkeypatch, capsys):
+    from beamid.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "hammer.csv").write_text("t,tip_fy\n0,0\n0.0005,20\n0.001,0\n")
+    assert main(["simulate", "--loads", "hammer.csv", "--fy", "0", "--t-end", "0.2",
+                 "--n-out", "5", "--no-plots", "-o", "out/hammer"]) == 0
+    table = np.genfromtxt(tmp_path / "out/hammer_history.csv", delimiter=",", names=True)
+    assert "tip_fy" in table.dtype.names
+    # the same run through the API: a triangle of 20 N peak over 1 ms
+    run = beamid.simulate(beamid.pace(J_elbow=0.0, J_tip=0.0), None,
+                          np.linspace(0.0, 0.2, 5), elements_per_beam=4,
+                          loads={"tip_fy": beamid.Table([0, 0.0005, 0.001], [0, 20, 0])})
+    assert table["tip_w"] == pytest.approx(run.tip_w, rel=1e-12, abs=1e-15)
+    assert table["tip_fy"][-1] == pytest.approx(run.ledger["tip_fy"][-1], rel=1e-12)
+    assert table["tip_w"][-1] == pytest.approx(0.0013048, rel=1e-4)
+    (tmp_path / "bad.csv").write_text("t,tip_fy\n0,0\n0.001,20\n0.0005,0\n")
+    capsys.readouterr()
+    assert main(["simulate", "--loads", "bad.csv", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.csv: line 4: field 't' = 0.0005 is not after the previous row's 0.001" in err
+    (tmp_path / "bad.csv").write_text("t,tip_fz\n0,0\n")
+    assert main(["simulate", "--loads", "bad.csv", "--no-plots"]) == 2
+    assert "column 'tip_fz' is not a target" in capsys.readouterr().err

@@ -226,6 +226,30 @@ def _pairs(loads) -> list[tuple[str, History]]:
     return out
 
 
+def read_loads_csv(path: str | Path) -> list[tuple[str, Table]]:
+    """The load histories of a CSV file with a header: a column ``t`` and one
+    column per target (``tip_fx``, ``tip_fy``, ``tip_torque``, ``motor_open``,
+    ``hub``), each a :class:`Table` (``beamid simulate --loads``). A bad entry is
+    named by file, line and field."""
+    path = Path(path)
+    try:
+        head = path.read_text().splitlines()[:1]
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    names = [h.strip() for h in head[0].split(",")] if head else []
+    if "t" not in names:
+        raise InputError(f"{path}: line 1: no column 't' (header: {', '.join(names)})")
+    targets = [n for n in names if n != "t"]
+    for n in targets:
+        if n not in TARGETS:
+            raise InputError(f"{path}: line 1: column {n!r} is not a target; expected t and "
+                             f"some of {', '.join(TARGETS)}")
+    if not targets:
+        raise InputError(f"{path}: line 1: no load column (expected some of "
+                         f"{', '.join(TARGETS)})")
+    return [(n, Table.from_csv(path, n)) for n in targets]
+
+
 def columns(loads) -> tuple[np.ndarray, np.ndarray]:
     """The core's layout of ``loads``: spec (9, nld) and table rows (2, ntab)."""
     pairs = _pairs(loads)
