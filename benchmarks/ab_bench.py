@@ -8,8 +8,9 @@ DIR holds a copy of the other build's package under the name ``beamid_old``
 main figures (bench_dynamics (a), (b), (c); bench_sensitivity's plain and
 four-sensitivity runs; a bench_dynfit-sized fit of a release) are timed
 alternately old, new, old, new, ... ``--rounds`` times; the best of each side and
-the ratio new/old are printed, with the largest difference of the results (the
-same numbers are expected: 0).
+the ratio new/old are printed, for the wall clock and for the process's CPU time
+(steadier when other jobs share the cores), with the largest difference of the
+results (the same numbers are expected: 0).
 """
 from __future__ import annotations
 
@@ -50,17 +51,20 @@ def main() -> None:
     co, cn = cases(old), cases(new)
     print(f"old: {old._ext.__file__}\nnew: {new._ext.__file__}")
     for name in co:
-        to, tn, diff = [], [], 0.0
+        to, tn, co_, cn_, diff = [], [], [], [], 0.0
         for _ in range(args.rounds):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             a = co[name]()
             to.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
+            co_.append(time.process_time() - c0)
+            t0, c0 = time.perf_counter(), time.process_time()
             b = cn[name]()
             tn.append(time.perf_counter() - t0)
+            cn_.append(time.process_time() - c0)
             diff = max(diff, float(np.max(np.abs(np.asarray(a) - np.asarray(b)))))
-        print(f"{name:26s} old {min(to):8.4f} s  new {min(tn):8.4f} s  "
-              f"new/old {min(tn) / min(to):6.3f}  max|diff| {diff:.1e}", flush=True)
+        print(f"{name:26s} wall old {min(to):8.4f} new {min(tn):8.4f} new/old "
+              f"{min(tn) / min(to):6.3f} | cpu old {min(co_):8.4f} new {min(cn_):8.4f} "
+              f"new/old {min(cn_) / min(co_):6.3f} | max|diff| {diff:.1e}", flush=True)
 
 
 if __name__ == "__main__":
