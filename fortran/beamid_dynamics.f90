@@ -618,10 +618,21 @@ contains
             power(2*npt + 2) = torque*dyn_psidot(sys, q, v, npt)
         end if
         ! the forcings in time, each with its own work line
-        do k = 1, sys%nloads
-            call sys%loads(k)%f%apply(t, q, v, f, power(2*npt + 2 + k))
-        end do
+        if (sys%nloads > 0) call add_loads(sys, t, q, v, f, power(2*npt + 3:))
     end subroutine add_effects
+
+    !> The forcings' forces and work rates (add_effects; kept apart so that the
+    !! chain's own effects compile as before).
+    pure subroutine add_loads(sys, t, q, v, f, power)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: f(:)
+        real(dp), intent(inout) :: power(:)
+        integer :: k
+        do k = 1, sys%nloads
+            call sys%loads(k)%f%apply(t, q, v, f, power(k))
+        end do
+    end subroutine add_loads
 
     !> Mass matrix M(q) in band storage (rotary inertia of Eq. 132 included).
     pure subroutine dyn_mass(sys, q, mb)
@@ -752,10 +763,20 @@ contains
                 e = -1.0_dp/sys%tau
             end if
         end if
-        do k = 1, sys%nloads
-            call sys%loads(k)%f%jacobian(t, q, v, kl, ku, kb, cb)
-        end do
+        if (sys%nloads > 0) call loads_jacobian(sys, t, q, v, kb, cb)
     end subroutine dyn_jacobian
+
+    !> The forcings' Jacobians (dyn_jacobian).
+    pure subroutine loads_jacobian(sys, t, q, v, kb, cb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp), intent(inout), optional :: cb(:, :)
+        integer :: k
+        do k = 1, sys%nloads
+            call sys%loads(k)%f%jacobian(t, q, v, sys%mesh%kl, sys%mesh%ku, kb, cb)
+        end do
+    end subroutine loads_jacobian
 
     !> The Jacobian terms of friction, drag, rotary inertia and Kelvin-Voigt
     !! damping (dyn_jacobian): C = dF/dv into cb (zeroed first), their
