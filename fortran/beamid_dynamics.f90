@@ -64,7 +64,7 @@ module beamid_dynamics
     public :: dyn_param_t, dyn_param_setup, dyn_dforce, dyn_dmass_mv, dyn_dmass_dq_mv
     public :: dyn_static_sens, dyn_output_sens, dyn_constrain, dyn_denergy, dyn_dnlt
     public :: DP_NONE, DP_LOAD, DP_FORCING, dyn_param_dcap
-    public :: dyn_eval, dyn_add_forcing, dyn_work_name, dyn_breakpoints
+    public :: dyn_eval, dyn_add_forcing, dyn_work_name, dyn_breakpoints, dyn_dbreak
 
     !> Kinds of parameter derivatives (dyn_param_t): what a parameter acts on.
     integer, parameter :: DP_NONE = 0, DP_EI = 1, DP_EA = 2, DP_CUBIC = 3, DP_RHO = 4, &
@@ -1710,6 +1710,16 @@ contains
             name = name//'joint'//fmt_int(k)
         end if
     end function dyn_work_name
+
+    !> d tb/dp of breakpoint tb for parameter par (a forcing's parameter that
+    !! moves a jump of its force; 0 otherwise).
+    pure real(dp) function dyn_dbreak(sys, par, tb) result(d)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: tb
+        d = 0.0_dp
+        if (par%kind == DP_FORCING) d = sys%loads(par%k)%f%dbreak(par%ip, tb)
+    end function dyn_dbreak
 
     !> The forcings' breakpoints in (t0, t1], ascending, without repeats:
     !! the times an integrator steps onto.

@@ -41,6 +41,9 @@ module beamid_forcing
         procedure :: dforce => forcing_no_dforce
         !> times in (t0, t1] where F_l is not smooth, ascending
         procedure :: breakpoints => forcing_no_breaks
+        !> d tb / dp_i of breakpoint tb where F_l jumps (0: p_i does not move
+        !! it): the state sensitivities then jump by (f- - f+) d tb/dp_i
+        procedure :: dbreak => forcing_no_dbreak
     end type forcing_t
 
     !> One entry of a list of forcings (a polymorphic component).
@@ -101,6 +104,13 @@ contains
         real(dp), intent(in) :: t, q(:), v(:)
         real(dp), intent(inout) :: fp(:)
     end subroutine forcing_no_dforce
+
+    pure real(dp) function forcing_no_dbreak(self, i, tb) result(d)
+        class(forcing_t), intent(in) :: self
+        integer, intent(in) :: i
+        real(dp), intent(in) :: tb
+        d = 0.0_dp
+    end function forcing_no_dbreak
 
     pure function forcing_no_breaks(self, t0, t1) result(tb)
         class(forcing_t), intent(in) :: self

@@ -29,7 +29,7 @@ module beamid_integrators
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
                                FRICTION_SIGN, dyn_param_t, dyn_velocity_coupled, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
-                               dyn_breakpoints, &
+                               dyn_breakpoints, dyn_dbreak, &
                                DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
@@ -827,12 +827,16 @@ contains
                     i = 0
                 end do
                 if (.not. atbreak) exit seg
-                ! at the breakpoint: the rates after it
+                ! at the breakpoint: the rates after it (k1 holds those before:
+                ! the left limit), and the sensitivities' jump where a
+                ! parameter moves it
                 t = tend
-                ib = ib + 1
+                if (sens) fm = k1(1:m)
                 call rk_rates(es, t, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
+                if (sens) call sens_break(es, pars, bk(ib), fm, k1(1:m), sm)
+                ib = ib + 1
                 if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit seg
             end do seg
             if (.not. all(ieee_is_finite(s))) then
@@ -2094,8 +2098,15 @@ contains
                                 + r%dmat(3, 3)*r%z(n + 1:2*n, 3))/r%hh
         r%t = r%t + r%hh
         if (r%atbreak) then
-            ! on the breakpoint: the rates after it are new
+            ! on the breakpoint: the rates after it are new; the sensitivities
+            ! jump where a parameter moves it
             r%t = r%bk(r%ib)
+            if (r%sens) then
+                call dyn_eval(r%es, nearest(r%t, -1.0_dp), r%y, stat, rates=r%ytmp)
+                call dyn_eval(r%es, r%t, r%y, stat, rates=r%ev)
+                if (stat%code /= 0) return
+                call sens_break(r%es, pars, r%t, r%ytmp, r%ev, sm)
+            end if
             r%ib = r%ib + 1
             r%have_f0 = .false.
         end if
@@ -2352,6 +2363,22 @@ contains
         call sens_rates(es, pars, te, y, k4(1:m), st, d4, dl, stat, .true., mldl)
         sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
     end subroutine rk_sens_step
+
+    !> At a breakpoint tb of the forcings: S+ = S- + (f- - f+) d tb/dp for each
+    !! parameter that moves it (a step's start: the jump of its force), the
+    !! rates f- before and f+ after it.
+    subroutine sens_break(es, pars, tb, fm, fp, sm)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: tb, fm(:), fp(:)
+        real(dp), intent(inout) :: sm(:, :)
+        real(dp) :: d
+        integer :: j
+        do j = 1, size(pars)
+            d = dyn_dbreak(es, pars(j), tb)
+            if (d /= 0.0_dp) sm(:, j) = sm(:, j) + (fm - fp)*d
+        end do
+    end subroutine sens_break
 
     !> Before a friction switch at the state y (modes still the old ones):
     !! the rates f- and dt*/dp = -(g_y S- + g_p)/(g_y f-) of the switching

@@ -81,6 +81,7 @@ module beamid_loads
         procedure :: param_name => tip_param_name
         procedure :: dforce => tip_dforce
         procedure :: breakpoints => tip_breakpoints
+        procedure :: dbreak => tip_dbreak
     end type tip_history_t
 
 contains
@@ -108,11 +109,12 @@ contains
         end if
     end function history_dvalue
 
-    !> Number of parameters of a history (amplitude; the half-sine's duration).
+    !> Number of parameters of a history (amplitude; the half-sine's duration;
+    !! the step's start, where it jumps).
     pure integer function history_nparams(h) result(np)
         type(load_history_t), intent(in) :: h
         np = 1
-        if (h%kind == HIST_HALF_SINE) np = 2
+        if (h%kind == HIST_HALF_SINE .or. h%kind == HIST_STEP) np = 2
     end function history_nparams
 
     !> The times where g is not smooth, in (t0, t1].
@@ -254,8 +256,21 @@ contains
         class(tip_history_t), intent(in) :: self
         integer, intent(in) :: i
         character(len=:), allocatable :: name
-        name = self%work_name()//'_'//trim(HIST_PARAM_NAMES(i))
+        if (self%hist%kind == HIST_STEP .and. i == 2) then
+            name = self%work_name()//'_start'
+        else
+            name = self%work_name()//'_'//trim(HIST_PARAM_NAMES(i))
+        end if
     end function tip_param_name
+
+    !> The step's start moves its jump: d tb/d start = 1 there.
+    pure real(dp) function tip_dbreak(self, i, tb) result(d)
+        class(tip_history_t), intent(in) :: self
+        integer, intent(in) :: i
+        real(dp), intent(in) :: tb
+        d = 0.0_dp
+        if (self%hist%kind == HIST_STEP .and. i == 2 .and. tb == self%hist%t0) d = 1.0_dp
+    end function tip_dbreak
 
     pure subroutine tip_dforce(self, i, t, q, v, fp)
         class(tip_history_t), intent(in) :: self

@@ -280,3 +280,22 @@ def test_cli_simulate_with_a_loads_csv(tmp_path, monkeypatch, capsys):
     (tmp_path / "bad.csv").write_text("t,tip_fz\n0,0\n")
     assert main(["simulate", "--loads", "bad.csv", "--no-plots"]) == 2
     assert "column 'tip_fz' is not a target" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("integrator,kw", [("implicit", {"rtol": 1e-12}), ("rk4", {"dt": 1e-6})])
+def test_step_start_sensitivity_takes_the_jump_condition(integrator, kw):
+    # a step's start moves the time where the force jumps: the state
+    # sensitivities jump there by (f- - f+) d t0/d start (the only term: the
+    # force's own derivative is zero away from the jump)
+    t = np.linspace(0.0, 0.02, 11)
+
+    def run(start, wrt=None):
+        return beamid.simulate(beamid.cantilever(), None, t, elements_per_beam=4,
+                               integrator=integrator, wrt=wrt,
+                               loads={"tip_fy": beamid.Step(2.0, start=start)}, **kw)
+
+    an = run(0.0033, ("tip_fy_start",)).d["tip_w"]["tip_fy_start"]
+    fd = (run(0.0033 + 1e-7).tip_w - run(0.0033 - 1e-7).tip_w) / 2e-7
+    assert np.max(np.abs(an)) == pytest.approx(0.41192818, rel=1e-6)
+    assert np.max(np.abs(an - fd)) < 1e-8
+    assert np.all(an[t < 0.0033] == 0.0)
