@@ -77,6 +77,13 @@ class Effect:
                         "the effect's parameters")
         object.__setattr__(self, "kinds", _check.names("Effect: kinds", self.kinds,
                                                        allowed=("static", "dynamic")))
+        lower = _check.real("Effect: lower", self.lower, finite=False)
+        upper = _check.real("Effect: upper", self.upper, finite=False, above=lower,
+                            expected=f"a number above lower = {lower:g}")
+        null = _check.real("Effect: null_value", self.null_value, min=lower, max=upper,
+                           expected=f"a finite number within [{lower:g}, {upper:g}]")
+        for field_name, value in (("lower", lower), ("upper", upper), ("null_value", null)):
+            object.__setattr__(self, field_name, value)
 
 
 EFFECTS: dict[str, Effect] = {}
