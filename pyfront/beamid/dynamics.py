@@ -38,10 +38,10 @@ from typing import Sequence
 
 import numpy as np
 
-from . import _core_dynamics as _cd
+from . import _check, _core_dynamics as _cd
 from . import load_histories as _lh
 from .errors import InputError, check_memory
-from .fe import _model_args, modes as _fe_modes
+from .fe import _mesh_size, _model_args, modes as fe_modes
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
            "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
@@ -79,7 +79,7 @@ def _warn_chirp(model, nepb: int, loads) -> None:
     top = _lh.highest_chirp(loads)
     if top <= 0:
         return
-    fmax = float(np.max(_fe_modes(model, nepb).omega)) / (2 * np.pi)
+    fmax = float(np.max(fe_modes(model, nepb).omega)) / (2 * np.pi)
     if top > fmax:
         warnings.warn(f"loads: a chirp reaches {top:g} Hz, above the highest frequency "
                       f"of the mesh ({fmax:.6g} Hz at elements_per_beam = {nepb}): the "
@@ -90,10 +90,8 @@ def _release_loads(release) -> np.ndarray:
     if release is None:
         return np.zeros(4)
     if all(hasattr(release, a) for a in ("fx", "fy", "moment")):
-        vals = np.array([float(release.fx), float(release.fy), float(release.moment), 0.0])
-        if not np.all(np.isfinite(vals)):
-            raise InputError(f"release load {vals[:3]} is not finite")
-        return vals
+        return np.array([*(_check.real(f"release {a}", getattr(release, a))
+                            for a in ("fx", "fy", "moment")), 0.0])
     raise InputError(f"release must be a TipForce, TipMoment or their sum, got "
                      f"{type(release).__name__}")
 
@@ -183,11 +181,12 @@ class Run:
     def profiles(self, times: Sequence[float] | float, points_per_element: int = 8):
         """Beam shapes at the given output times: a list of (x, y) arrays
         (x = s + u, y = w). Each time must be one of ``run.t``."""
-        times = np.atleast_1d(np.asarray(times, dtype=float))
+        times = _check.reals("times", times, scalar=True)
         nbeams, params = _model_args(self._model)
         nel = nbeams * self.elements_per_beam
-        if int(points_per_element) < 1:
-            raise InputError(f"points_per_element = {points_per_element}, expected >= 1")
+        points_per_element = _check.count("points_per_element", points_per_element, min=1)
+        check_memory(8 * 3 * nel * points_per_element,
+                     f"points_per_element = {points_per_element}: the profiles", ".2g")
         npts = nel * int(points_per_element) + 1
         out = []
         for tt in times:
@@ -207,7 +206,6 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         if modes != "transverse":
             raise InputError(f"modes = {modes!r}, expected an integer, 'transverse' or a "
                              "sequence of mode numbers")
-        from .fe import modes as fe_modes
         rotary = any(v != 0.0 for k, v in model.params.items() if k.startswith("J_"))
         md = fe_modes(model, nepb, rotary_inertia=rotary)
         return tuple(int(i) + 1 for i in np.flatnonzero(~md.is_axial))
@@ -220,8 +218,8 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         return tuple(range(1, int(modes) + 1))
     try:
         nums = [int(m) for m in modes]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"modes = {modes!r}, expected integers") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"modes = {_check.show(modes)}, expected integers") from exc
     if any(float(m) != int(m) for m in modes):
         raise InputError(f"modes = {modes!r}, expected integer mode numbers")
     bad = [m for m in nums if not 1 <= m <= nfree]
@@ -281,37 +279,26 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
     """
     histories = loads
     nbeams, params = _model_args(model)
-    if integrator not in INTEGRATORS:
-        raise InputError(f"integrator = {integrator!r}, expected one of {sorted(INTEGRATORS)}")
+    _check.choice("integrator", integrator, INTEGRATORS)
     if friction is None:
         friction = DEFAULT_FRICTION
-    if friction not in FRICTION_LAWS:
-        raise InputError(f"friction = {friction!r}, expected one of {sorted(FRICTION_LAWS)}")
-    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam,
-                                                               (int, np.integer)):
-        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer")
+    _check.choice("friction", friction, FRICTION_LAWS)
+    _mesh_size(nbeams, elements_per_beam)
     if t_out is None:
         raise InputError("t_out is required (ascending output times in s)")
-    t = np.ascontiguousarray(np.atleast_1d(np.asarray(t_out, dtype=float)))
-    if t.ndim != 1 or t.size == 0:
-        raise InputError("t_out must be a non-empty 1-d sequence of times")
-    for name, value in (("dt", dt), ("rtol", rtol), ("atol", atol), ("h0", h0),
-                        ("friction_velocity", friction_velocity)):
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} = {value!r}, expected a positive number")
-    gain = float(motor_gain)
-    if not np.isfinite(gain) or gain < 0:
-        raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
+    t = np.ascontiguousarray(_check.reals("t_out", t_out, scalar=True, min_size=1))
+    dt, rtol, atol, h0, friction_velocity = (
+        _check.real(name, value, above=0.0, none=True, expected="a positive number")
+        for name, value in (("dt", dt), ("rtol", rtol), ("atol", atol), ("h0", h0),
+                            ("friction_velocity", friction_velocity)))
+    gain = _check.real("motor_gain", motor_gain, min=0.0)
     loads = _release_loads(release)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
     # the history arrays (input validation, issue 16)
     check_memory(8 * (nstate + nwork + 8) * t.size, f"t_out has {t.size} times: the history",
                  ".1f")
     if initial_state is not None:
-        initial_state = np.asarray(initial_state, dtype=float)
-        if initial_state.shape != (nstate,):
-            raise InputError(f"initial_state has shape {initial_state.shape}, "
-                             f"expected ({nstate},)")
+        initial_state = _check.reals("initial_state", initial_state, shape=(nstate,))
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
     lspec = ltab = None
@@ -384,10 +371,9 @@ def _wrt_indices(nbeams: int, nparams: int, wrt,
                  extra: Sequence[str] = ()) -> list[tuple[str, int]]:
     """(name, 1-based Fortran index) of each requested sensitivity; ``extra``:
     the load histories' parameter names, after the release load's."""
+    wrt = _check.names("wrt", wrt, none=True)
     if wrt is None:
         return []
-    if isinstance(wrt, str):
-        wrt = (wrt,)
     names = _cd.wrt_names(nbeams, nparams) + tuple(extra)
     index = {n: i + 1 for i, n in enumerate(names)}
     for comp in ("fx", "fy", "moment"):
