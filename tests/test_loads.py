@@ -148,7 +148,7 @@ def test_bad_histories():
     model = beamid.cantilever()
     t = [0.0, 0.01]
     with pytest.raises(beamid.InputError, match=r"HalfSine duration = 0.0, expected a "
-                                                r"positive number"):
+                                                r"finite number > 0"):
         beamid.HalfSine(1.0, 0.0)
     with pytest.raises(beamid.InputError, match=r"load history 1 \(tip_fy\): starts at "
                                                 r"t = 0.2\d*E-1 s, after the experiment \(last "

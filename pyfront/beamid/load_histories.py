@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from . import _check
 from .errors import InputError
 
 #: Target names and their codes in the core (beamid_loads TARGET_*).
@@ -41,17 +42,10 @@ _KIND = {"table": 1, "half_sine": 2, "step": 3, "chirp": 4, "spin_up": 5}
 
 
 def _num(name: str, value, positive: bool = False, nonneg: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} = {value!r}, expected a number") from None
-    if not math.isfinite(v):
-        raise InputError(f"{name} = {v}, expected a finite number")
-    if positive and not v > 0:
-        raise InputError(f"{name} = {v}, expected a positive number")
-    if nonneg and v < 0:
-        raise InputError(f"{name} = {v}, expected a number >= 0")
-    return v
+    """A finite number (> 0 with ``positive``, >= 0 with ``nonneg``), else an
+    InputError naming ``name`` (the package's one checker)."""
+    return _check.real(name, value, above=0.0 if positive else None,
+                       min=0.0 if nonneg else None)
 
 
 @dataclass(frozen=True)
@@ -116,8 +110,8 @@ class Table:
     source: str = "table"
 
     def __post_init__(self):
-        t = np.asarray(self.times, dtype=float).ravel()
-        v = np.asarray(self.values, dtype=float).ravel()
+        t = _check.reals(f"{self.source}: times", self.times, scalar=True)
+        v = _check.reals(f"{self.source}: values", self.values, scalar=True)
         object.__setattr__(self, "times", tuple(t))
         object.__setattr__(self, "values", tuple(v))
         _num("Table scale", self.scale)
@@ -137,7 +131,9 @@ class Table:
                  scale: float = 1.0) -> "Table":
         """The rows of a CSV file with a header: ``time`` and ``column``. A bad
         entry is named by file, line and field."""
-        path = Path(path)
+        path = _check.path("Table.from_csv: path", path)
+        column = _check.text("Table.from_csv: column", column)
+        time = _check.text("Table.from_csv: time", time)
         try:
             text = path.read_text()
         except OSError as exc:
@@ -187,11 +183,13 @@ class SpinUp:
         return [_KIND["spin_up"], self.w_s, 0.0, self.T, 0.0, 0.0]
 
     def angle(self, t) -> np.ndarray:
-        """theta(t) (rad)."""
-        t = np.asarray(t, dtype=float)
+        """theta(t) (rad); a number for a number, an array for a sequence."""
+        one = _check._is_real(t)
+        t = _check.reals("SpinUp.angle: t", t, scalar=True)
         ws, T = self.w_s, self.T
         up = ws / T * (t**2 / 2 + (T / (2 * np.pi))**2 * (np.cos(2 * np.pi * t / T) - 1))
-        return np.where(t <= T, up, ws * (t - T / 2))
+        theta = np.where(t <= T, up, ws * (t - T / 2))
+        return float(theta[0]) if one else theta
 
 
 History = HalfSine | Step | Chirp | Table | SpinUp
