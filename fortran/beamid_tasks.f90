@@ -29,6 +29,7 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
+    use beamid_dynamics, only: dyn_work_name
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
@@ -360,7 +361,7 @@ contains
 
         header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
         do i = 1, nwork
-            header = header//','//work_name(d%nbeams, i)
+            header = header//','//dyn_work_name(d%nbeams, i)
         end do
         header = header//',work,numerical,motor_torque'
         call open_output(fl, '_history.csv', header, unit, ios, st)
@@ -387,28 +388,6 @@ contains
             fixed(out%ledger(3, k) - out%ledger(3, 1), 8)//' N m'
     end subroutine run_simulate
 
-    !> Name of work line i of the ledger (beamid.dynamics.work_names):
-    !! friction_<point>, drag_<point> per mass point, damping, motor.
-    function work_name(nbeams, i) result(name)
-        integer, intent(in) :: nbeams, i
-        character(len=:), allocatable :: name
-        integer :: k
-        if (i > 2*nbeams) then
-            name = merge('damping', 'motor  ', i == 2*nbeams + 1)
-            name = trim(name)
-            return
-        end if
-        k = mod(i - 1, nbeams) + 1
-        name = merge('friction_', 'drag_    ', i <= nbeams)
-        name = trim(name)
-        if (k == nbeams) then
-            name = name//'tip'
-        else if (k == 1) then
-            name = name//'elbow'
-        else
-            name = name//'joint'//fmt_int(k)
-        end if
-    end function work_name
 
     ! ------------------------------------------------------------ estimation
 

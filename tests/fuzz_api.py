@@ -146,6 +146,8 @@ class Env:
             "&load\n  kind = 'tip'\n  fy = 2.0\n/\n&static\n  shape_points = 5\n/\n")
         self.csv_path = work / "data.csv"
         self.data.write(self.csv_path)
+        self.loads_csv = work / "loads.csv"
+        self.loads_csv.write_text("t,tip_fy\n0.0,0.0\n0.01,1.0\n")
         self.deck = beamid.read_deck(self.deck_path)
         self.fe = beamid.fe_static(self.model, self.load, 4)
         self.effect = beamid.Effect("fuzz_effect", "a registered effect of the fuzz",
@@ -167,6 +169,8 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "params": lambda m: ("root_flex",), "rows": [("F2", 0.0, "y_tip", 0.1, 1e-3)],
         "other": beamid.Measurements.from_rows([("F9", 0.0, "y_tip", 0.1, 1e-3)]),
         "key": ("M1", "y_tip"), "shape": env.fe, "target": "EI1",
+        "peak": 1.0, "duration": 0.01, "amplitude": 1.0, "f0": 1.0, "f1": 2.0,
+        "w_s": 1.0, "T": 1.0,
     }
     override = {
         "read_measurements.path": env.csv_path,
@@ -204,6 +208,10 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "profiles.points_per_element": 2,
         "plot.top": 3,
         "Measurements.value": [0.1],
+        "Table.times": [0.0, 0.01],
+        "Table.values": [0.0, 1.0],
+        "from_csv.path": env.loads_csv,
+        "from_csv.column": "tip_fy",
     }
     return valid, override
 

@@ -208,6 +208,10 @@ def simulate_command(args: argparse.Namespace):
             opts[name] = value
     if args.integrator is not None and args.friction is None and args.deck is not None:
         opts.pop("friction", None)     # the new integrator's default law
+    if getattr(args, "loads", None) is not None:
+        from .load_histories import read_loads_csv
+
+        opts["loads"] = read_loads_csv(args.loads)
     if args.output is not None:
         prefix = Path(args.output)
     return source, model, load, t_out, opts, prefix
@@ -223,7 +227,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     source, model, load, t_out, opts, prefix = simulate_command(args)
     run = simulate(model, load, t_out, **opts)
     # the columns of the history file beamid-batch writes for a dynamic deck
-    columns = history_columns(model.nbeams)
+    columns = history_columns(model.nbeams, run)
     header = ",".join(columns)
     table = np.column_stack([run.t if c == "t" else series(run, c) for c in columns])
 
@@ -372,6 +376,9 @@ def _commands() -> list:
                               "(default: beamid.simulate's, docs/dynamics.md)")),
           ("--rtol", dict(type=POSITIVE, help="implicit tolerance (default: beamid.simulate's)")),
           ("--dt", dict(type=POSITIVE, help="RK4 step in s (default 1e-5, the dissertation's)")),
+          ("--loads", dict(metavar="CSV", help="load histories (docs/loads.md): a CSV with a "
+                           "column t and one column per target (tip_fx, tip_fy, tip_torque, "
+                           "motor_open, hub), each a table acting from t = 0")),
           ("--set", dict(action="append", metavar="NAME=VALUE", help="a model parameter, "
                          "e.g. --set mu_tip=0.02 (repeatable); one of: " + _parameter_list())),
           ("--output -o", dict(help="output prefix (default: the deck's, or out/simulate): "

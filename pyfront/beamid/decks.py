@@ -116,12 +116,17 @@ def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     _write_text(path, str(nml) + "\n")
 
 
-def history_columns(nbeams: int) -> tuple[str, ...]:
+def history_columns(nbeams: int, run=None) -> tuple[str, ...]:
     """Columns of ``<output>_history.csv`` (task simulate), as beamid-batch
     writes them: time, tip, energies, each work line, their sum, the
-    numerical line E - E0 - work, the motor torque."""
+    numerical line E - E0 - work, the motor torque. With ``run``, the work
+    lines of its load histories follow the chain's (docs/loads.md)."""
+    base = work_names(nbeams)
+    extra = () if run is None else tuple(
+        k for k in run.ledger if k not in base and k not in ("kinetic", "potential", "total",
+                                                              "numerical"))
     return ("t", "tip_u", "tip_w", "tip_angle", "energy", "kinetic", "potential",
-            *work_names(nbeams), "work", "numerical", "motor_torque")
+            *base, *extra, "work", "numerical", "motor_torque")
 
 
 def run(deck: Deck | str | os.PathLike):

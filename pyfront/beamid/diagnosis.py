@@ -83,9 +83,13 @@ class Effect:
                         "the effect's parameters")
         object.__setattr__(self, "kinds", _check.names("Effect: kinds", self.kinds,
                                                        allowed=("static", "dynamic")))
-        for bound in ("null_value", "lower", "upper"):    # one_sided compares them
-            object.__setattr__(self, bound, _check.real(f"Effect: {bound}", getattr(self, bound),
-                                                        finite=bound == "null_value"))
+        lower = _check.real("Effect: lower", self.lower, finite=False)
+        upper = _check.real("Effect: upper", self.upper, finite=False, above=lower,
+                            expected=f"a number above lower = {lower:g}")
+        null = _check.real("Effect: null_value", self.null_value, min=lower, max=upper,
+                           expected=f"a finite number within [{lower:g}, {upper:g}]")
+        for field_name, value in (("lower", lower), ("upper", upper), ("null_value", null)):
+            object.__setattr__(self, field_name, value)
         object.__setattr__(self, "cause", _check.choice("Effect: cause", self.cause,
                                                         ("physics", "measurement chain")))
 

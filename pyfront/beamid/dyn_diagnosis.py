@@ -400,6 +400,7 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
     normalized residuals with their +-1 error bars and the +-2 sigma band;
     the figure's title gives ``title`` (e.g. which fit) and the overall
     chi-square. Returns the figure."""
+    title = _check.text("title", title, empty=True, none=True)
     import matplotlib.pyplot as plt
 
     title = _check.text("title", title, empty=True, none=True)

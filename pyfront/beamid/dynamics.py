@@ -32,12 +32,14 @@ the full one: ``k`` lowest modes, ``"transverse"`` or mode numbers
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
 from . import _check, _core_dynamics as _cd
+from . import load_histories as _lh
 from .errors import InputError, check_memory
 from .fe import _mesh_size, _model_args, modes as fe_modes
 
@@ -65,10 +67,23 @@ def _point_name(nbeams: int, k: int) -> str:
 
 
 def work_names(nbeams: int) -> tuple[str, ...]:
-    """Names of the work lines of the ledger, in the Fortran order."""
-    pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
-    return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
-                 + ["damping", "motor"])
+    """Names of the work lines of the ledger of a chain of ``nbeams`` beams, in the
+    order of the work vector (read from the core, as the parameter names):
+    friction and drag per mass point, damping, motor."""
+    return _cd.work_names(nbeams)
+
+
+def _warn_chirp(model, nepb: int, loads) -> None:
+    """Warn when a chirp sweeps above the mesh's highest frequency (the
+    model cannot respond there)."""
+    top = _lh.highest_chirp(loads)
+    if top <= 0:
+        return
+    fmax = float(np.max(fe_modes(model, nepb).omega)) / (2 * np.pi)
+    if top > fmax:
+        warnings.warn(f"loads: a chirp reaches {top:g} Hz, above the highest frequency "
+                      f"of the mesh ({fmax:.6g} Hz at elements_per_beam = {nepb}): the "
+                      "response there is the mesh's, not the arm's", stacklevel=3)
 
 
 def _release_loads(release) -> np.ndarray:
@@ -221,7 +236,8 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
              atol: float | None = None, h0: float | None = None,
              initial_state: np.ndarray | None = None,
              modes: int | str | Sequence[int] | None = None,
-             wrt: Sequence[str] | str | None = None) -> Run:
+             wrt: Sequence[str] | str | None = None,
+             loads=None) -> Run:
     """Release the chain from rest at the static shape under ``release`` and
     integrate M q'' + NLT(q) = Q(q, q') (Eq. 98-107) to the times ``t_out``.
 
@@ -253,7 +269,15 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         sensitivities (Eq. 135-140; docs/dynamics.md) come back in ``run.d``,
         e.g. ``run.d["tip_w"]["rho1"]``. Full model only; the released shape's
         sensitivity comes from the static equilibrium.
+    loads: load histories acting from t = 0 (docs/loads.md): a mapping from
+        target (``"tip_fx"``, ``"tip_fy"``, ``"tip_torque"``, ``"motor_open"``) to a
+        :class:`beamid.HalfSine`, :class:`beamid.Step`, :class:`beamid.Chirp` or
+        :class:`beamid.Table`, or a sequence of (target, history) pairs. Each
+        adds a work line to the ledger and its parameters to ``wrt``
+        (``tip_fy_amplitude``, ``tip_fy_duration``, ...). With ``release=None``
+        the arm starts at rest, undeformed.
     """
+    histories = loads
     nbeams, params = _model_args(model)
     _check.choice("integrator", integrator, INTEGRATORS)
     if friction is None:
@@ -277,12 +301,37 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         initial_state = _check.reals("initial_state", initial_state, shape=(nstate,))
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-    wrt_list = _wrt_indices(nbeams, params.size, wrt)
+    lspec = ltab = None
+    lwork: tuple[str, ...] = ()
+    lpars: tuple[str, ...] = ()
+    if histories is not None:
+        lspec, ltab = _lh.columns(histories)
+        lwork, lpars = _cd.load_names(lspec, ltab)
+        nwork += len(lwork)
+        _warn_chirp(model, int(elements_per_beam), histories)
+    wrt_list = _wrt_indices(nbeams, params.size, wrt, lpars)
     d: dict = {}
     dstates: dict = {}
     common = (nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
               FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0)
-    if wrt_list:
+    if lspec is not None:
+        if wrt_list and kept is not None:
+            raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
+        if wrt_list and initial_state is not None:
+            raise InputError("wrt= (sensitivities) starts from the release: drop "
+                             "initial_state=")
+        (states, tip, torque, ledger, work, info, evs, yq, dy, ds) = _cd.forced(
+            *common, initial_state, t, nstate, nwork,
+            None if kept is None else np.array(kept),
+            np.array([i for _, i in wrt_list], dtype=np.int32), lspec, ltab)
+        if wrt_list:
+            qnames = _cd.quantity_names()
+            for iq, qn in enumerate(qnames):
+                d[qn] = {name: dy[iq, :, j] for j, (name, _) in enumerate(wrt_list)}
+            for alias, qn in _QUANTITY_ALIASES.items():
+                d[alias] = d[qn]
+            dstates = {name: ds[:, :, j] for j, (name, _) in enumerate(wrt_list)}
+    elif wrt_list:
         if kept is not None:
             raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
         if initial_state is not None:
@@ -300,7 +349,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         states, tip, torque, ledger, work, info, evs = _cd.simulate(
             *common, initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
     led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2],
-           **dict(zip(work_names(nbeams), work)), "numerical": ledger[3]}
+           **dict(zip(work_names(nbeams) + lwork, work)), "numerical": ledger[3]}
     return Run(t=t, tip_u=tip[0], tip_w=tip[1], tip_angle=tip[2], energy=ledger[2],
                work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
                integrator=integrator, friction=friction,
@@ -318,12 +367,14 @@ SENSITIVITY_QUANTITIES = ("u_tip", "w_tip", "x_tip", "y_tip", "tip_angle", "x_el
 _QUANTITY_ALIASES = {"tip_u": "u_tip", "tip_w": "w_tip"}
 
 
-def _wrt_indices(nbeams: int, nparams: int, wrt) -> list[tuple[str, int]]:
-    """(name, 1-based Fortran index) of each requested sensitivity."""
+def _wrt_indices(nbeams: int, nparams: int, wrt,
+                 extra: Sequence[str] = ()) -> list[tuple[str, int]]:
+    """(name, 1-based Fortran index) of each requested sensitivity; ``extra``:
+    the load histories' parameter names, after the release load's."""
     wrt = _check.names("wrt", wrt, none=True)
     if wrt is None:
         return []
-    names = _cd.wrt_names(nbeams, nparams)
+    names = _cd.wrt_names(nbeams, nparams) + tuple(extra)
     index = {n: i + 1 for i, n in enumerate(names)}
     for comp in ("fx", "fy", "moment"):
         index[comp] = index[f"load_{comp}"]

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from . import _check
 from .diagnosis import Comparison, Ladder
 from .dyn_diagnosis import plot_time_comparison
 from .errors import InputError
@@ -97,6 +98,7 @@ def plot_compare(cmp: Comparison, fig: Any = None, title: str | None = None):
     Every line has a legend entry; ``title`` (e.g. which fit: "start" or
     "final fit") goes before the chi-square in the figure's title. Returns the
     figure (``fig`` when given)."""
+    title = _check.text("title", title, empty=True, none=True)
     if hasattr(cmp, "series"):     # time histories (beamid.dyn_diagnosis)
         return plot_time_comparison(cmp, fig=fig, title=title)
     import matplotlib.pyplot as plt
