@@ -311,7 +311,7 @@ contains
             do k = 1, nt
                 ! at t = 0 the chain is at rest: every rate is 0 there
                 if (t_out(k) <= 0.0_dp) cycle
-                call quantity_rates(sys, out%hist%y(:, k), out%rate(:, k), stat)
+                call quantity_rates(sys, t_out(k), out%hist%y(:, k), out%rate(:, k), stat)
                 if (stat%code /= STATUS_OK) return
             end do
         end if
@@ -321,8 +321,9 @@ contains
     !! the positions' from the velocities in y, the tip angle's by the chain
     !! rule of atan2(w', 1 + u'), the motor torque's from the state's rate
     !! (dyn_rates: the acceleration M^-1 F, or the lag's T'). Energy: 0.
-    subroutine quantity_rates(sys, y, rate, stat)
+    subroutine quantity_rates(sys, t, y, rate, stat)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time (s): the load histories'
         real(dp), intent(in) :: y(:)
         real(dp), intent(out) :: rate(:)
         type(status_t), intent(inout) :: stat
@@ -345,7 +346,7 @@ contains
         end associate
         if (sys%motor == 0.0_dp) return
         allocate (yd(size(y)), power(sys%nwork))
-        call dyn_rates(sys, y, yd, power, torque, stat)
+        call dyn_rates(sys, t, y, yd, power, torque, stat)
         if (stat%code /= STATUS_OK) return
         if (sys%nx > 0) then
             rate(QTY_MOTOR_TORQUE) = yd(2*n + 1)
