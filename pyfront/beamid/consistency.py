@@ -107,8 +107,9 @@ def _run_one(spec: _Spec, k: int) -> dict:
            "flags": ("",) * n}
     try:
         data, prior = _replicate_inputs(spec, k)
+        # a replicate is one fit (no mesh check, no more starts) unless asked
         res = _fit(spec.start, spec.experiments, data, free=spec.free, prior=prior,
-                   **spec.options)
+                   **{"starts": 0, "mesh": False, **spec.options})
     except BeamidError as exc:
         rec["status"] = NOT_CONVERGED if not isinstance(exc, InputError) else ERROR
         rec["message"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

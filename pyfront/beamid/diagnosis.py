@@ -617,7 +617,7 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
         from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
-                    prior=fit.prior or None, max_iter=max_iter)
+                    prior=fit.prior or None, max_iter=max_iter, starts=0, mesh=False)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)

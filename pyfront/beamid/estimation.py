@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
-from typing import Iterable, Mapping, NamedTuple, Sequence
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
 from . import _core_estimation as _ce
+from . import robust as _robust
 from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
@@ -104,6 +106,13 @@ class FitResult:
     #: for a refit with an effect added: the start it kept ("first-order
     #: estimate", "nominal model" or "continuation")
     refit_start: str | None = None
+    #: the mesh check (fits with releases that ended far above their degrees
+    #: of freedom or stalled; beamid.robust.MeshCheck), None when not made
+    mesh_check: "Any" = field(default=None, repr=False)
+    #: where every start ended (beamid.robust.StartEnd; empty: one start)
+    starts: tuple = field(default=(), repr=False)
+    #: the start whose end point this is ("given start" or "random start k")
+    start_won: str = "given start"
 
     @property
     def chi2_per_dof(self) -> float:
@@ -258,7 +267,10 @@ def _check_fit_args(data, tol, max_iter) -> None:
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
-        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto") -> FitResult:
+        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
+        starts: int | None = None, start_spread: float = _robust.SPREAD,
+        start_seed: int = _robust.SEED, workers: int | None = 1, client: Any = None,
+        mesh: bool = True) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -302,6 +314,26 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         tolerance at every iteration. Static experiments are the same
         either way.
 
+    starts:
+        More fits from random starts around ``model`` (each free parameter
+        times U(1 - start_spread, 1 + start_spread), start k from
+        ``SeedSequence(start_seed, spawn_key=(k,))``); the best end point is
+        the result, ``result.starts`` says where every start ended and
+        ``result.start_won`` which won (docs/workflow_dynamic.md, "Reaching
+        the best fit"). ``None`` (default): 4 more starts when a fit with
+        releases ends far above its degrees of freedom (p < 0.001) or
+        stalls and the mesh check does not name the mesh; 0: never.
+    workers, client:
+        Where the starts run, as in :func:`beamid.consistency`: ``workers``
+        local processes (1: this process; None: the cores, when the starts
+        are long enough to pay for the processes) or a Dask ``client``.
+    mesh:
+        Check the mesh of a fit with releases that ends far above its
+        degrees of freedom or stalls (``result.mesh_check``; one plain run at
+        twice the elements per beam, and a refit there when a prediction
+        moves by more than a sigma): when the discretization is the likely
+        cause, a warning names the elements per beam that would do.
+
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
     are fitted; a fit whose damped steps stop lowering the cost stalls.
@@ -326,8 +358,32 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     else:
         free_names, free_idx = _free_indices(model, free)
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
+    _robust.check_start_args(starts, start_spread, start_seed)
+    t0 = time.perf_counter()
     raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-    return _result(model, experiments, data, free_names, prior_map, raw)
+    result = _result(model, experiments, data, free_names, prior_map, raw)
+    seconds = time.perf_counter() - t0
+    far = _robust.needs_check(result)
+    if mesh and far:
+        check = _robust.mesh_check(result, prior=prior, options={
+            "max_iter": max_iter, "tol": tol, "jacobian": jacobian})
+        if check is not None:
+            result = replace(result, mesh_check=check,
+                             warnings=result.warnings + (check.message,) if check.likely_cause
+                             else result.warnings)
+    nstarts = starts
+    if starts is None:
+        likely = result.mesh_check is not None and result.mesh_check.likely_cause
+        nstarts = _robust.AUTO_STARTS if far and not likely else 0
+    if nstarts:
+        why = ("ended far above its degrees of freedom" if result.stop != "stalled" else
+               "stalled") if starts is None else "asked for"
+        result = _robust.several_starts(
+            result, int(nstarts), spread=float(start_spread), seed=int(start_seed),
+            workers=workers, client=client, first_seconds=seconds, why=why,
+            options={"max_iter": max_iter, "tol": tol, "jacobian": jacobian},
+            free=free, prior=prior)
+    return result
 
 
 def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
