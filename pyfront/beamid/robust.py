@@ -31,7 +31,6 @@ always ``k`` more.
 from __future__ import annotations
 
 import math
-import time
 import warnings
 from dataclasses import dataclass, replace
 from typing import Any, NamedTuple, Sequence
@@ -273,7 +272,6 @@ def several_starts(first: Any, nstarts: int, *, spread: float = SPREAD, seed: in
     spec = _StartSpec(given, dict(first.experiments), first.data, free, fit_free,
                       first.prior or None if prior is None else prior, dict(options or {}), float(spread), int(seed),
                       scale)
-    t0 = time.perf_counter()
     results, runner = _execute(spec, int(nstarts), client, workers, first_seconds)
     results.sort(key=lambda r: r[0])
     if [r[0] for r in results] != list(range(1, int(nstarts) + 1)):
@@ -299,17 +297,20 @@ def several_starts(first: Any, nstarts: int, *, spread: float = SPREAD, seed: in
     failed = [e for e in ends if e.state == FAILED]
     same = [e for e in ends if e.state == SAME]
     text = (f"{nstarts + 1} starts ({why + '; ' if why else ''}spread {spread:g}, seed {seed}, "
-            f"{runner}, {time.perf_counter() - t0:.1f} s): {ends[kbest].label} won "
-            f"(chi2 {cbest:.4g})")
+            f"{runner}): {ends[kbest].label} won (chi2 {cbest:.4g})")
     if kbest != 0:
         c0 = first.chi2 + first.chi2_prior
         if c0 - cbest >= tol:
             text += (f"; the given start's fit ended at chi2 {c0:.4g}, {c0 - cbest:.3g} higher: "
                      "it was a local minimum")
     text += f"; {len(same)} more reached the same minimum (within {tol:.2g})"
-    if local:
-        text += (f"; {len(local)} ended in local minima, {min(e.above_best for e in local):.3g}"
-                 f" to {max(e.above_best for e in local):.3g} higher")
+    lo, hi = (min(e.above_best for e in local), max(e.above_best for e in local)) if local \
+        else (0.0, 0.0)
+    if len(local) == 1:
+        text += f"; 1 ended in a local minimum, {lo:.3g} higher"
+    elif local:
+        text += f"; {len(local)} ended in local minima, {lo:.3g} to {hi:.3g} higher"
+
     if failed:
         text += f"; {len(failed)} failed"
     note = best.note + ("; " if best.note else "") + text
