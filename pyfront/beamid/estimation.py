@@ -113,6 +113,8 @@ class FitResult:
     starts: tuple = field(default=(), repr=False)
     #: the start whose end point this is ("given start" or "random start k")
     start_won: str = "given start"
+    #: the fits that led here when the record was grown (one line per window)
+    path: tuple[str, ...] = field(default=(), repr=False)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -270,7 +272,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
         starts: int | None = None, start_spread: float = _robust.SPREAD,
         start_seed: int = _robust.SEED, workers: int | None = 1, client: Any = None,
-        mesh: bool = True) -> FitResult:
+        mesh: bool = True, grow: bool | None = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -327,6 +329,13 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         Where the starts run, as in :func:`beamid.consistency`: ``workers``
         local processes (1: this process; None: the cores, when the starts
         are long enough to pay for the processes) or a Dask ``client``.
+    grow:
+        Grow the record: fit the releases' rows up to a window of about a
+        second first, then twice that, ... up to the whole record, each from
+        the last window's estimates (``result.path`` lists the windows), so
+        the phase is caught before the whole record is fitted. ``None``
+        (default): on records longer than 4 s; True: on records of 2 s and
+        more; False: never.
     mesh:
         Check the mesh of a fit with releases that ends far above its
         degrees of freedom or stalls (``result.mesh_check``; one plain run at
@@ -360,13 +369,18 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
     _robust.check_start_args(starts, start_spread, start_seed)
     t0 = time.perf_counter()
-    raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-    result = _result(model, experiments, data, free_names, prior_map, raw)
+    options = {"max_iter": max_iter, "tol": tol, "jacobian": jacobian}
+    if _robust.should_grow(grow, experiments, data):
+        result, path = _robust.grown_fit(model, experiments, data, free, prior, options)
+        result = replace(result, nominal=model, path=path)
+    else:
+        raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov,
+                      max_iter=int(max_iter))
+        result = _result(model, experiments, data, free_names, prior_map, raw)
     seconds = time.perf_counter() - t0
     far = _robust.needs_check(result)
     if mesh and far:
-        check = _robust.mesh_check(result, prior=prior, options={
-            "max_iter": max_iter, "tol": tol, "jacobian": jacobian})
+        check = _robust.mesh_check(result, prior=prior, options=options)
         if check is not None:
             result = replace(result, mesh_check=check,
                              warnings=result.warnings + (check.message,) if check.likely_cause
@@ -381,8 +395,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         result = _robust.several_starts(
             result, int(nstarts), spread=float(start_spread), seed=int(start_seed),
             workers=workers, client=client, first_seconds=seconds, why=why,
-            options={"max_iter": max_iter, "tol": tol, "jacobian": jacobian},
-            free=free, prior=prior)
+            options=options, free=free, prior=prior)
     return result
 
 

@@ -336,3 +336,68 @@ def check_start_args(starts: Any, spread: Any, seed: Any) -> None:
         raise InputError(f"start_spread = {spread!r}, expected a number in (0, 1)")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"start_seed = {seed!r}, expected an integer >= 0")
+
+
+# ------------------------------------------------------------------ growing the record
+
+#: The first window of a grown record (s): the record's end halved until the
+#: next halving would fall below this (about half a period of the PACE arm,
+#: where Table 16's half cycle converges in a few iterations).
+GROW_FIRST = 1.0
+#: ``grow=None`` grows records longer than this (s).
+GROW_ABOVE = 4.0
+
+
+def release_end(experiments: Any, data: Any) -> float:
+    """The last measured time of a release (0 without releases)."""
+    rel = {n for n, x in dict(experiments).items() if isinstance(x, Release)}
+    times = [float(t) for e, t in zip(data.experiment, data.t) if e in rel]
+    return max(times, default=0.0)
+
+
+def grow_windows(end: float, first: float = GROW_FIRST) -> list[float]:
+    """The windows of a grown record ending at ``end``: end / 2^m, ..., end / 2,
+    end, the first the shortest at or above ``first`` (just [end] when end
+    is shorter than twice ``first``)."""
+    windows = [float(end)]
+    while windows[0] / 2.0 >= first:
+        windows.insert(0, windows[0] / 2.0)
+    return windows
+
+
+def record_up_to(experiments: Any, data: Any, end: float) -> Any:
+    """The data rows of the releases measured at t <= end, and every static row."""
+    from .measurements import Measurements
+    rel = {n for n, x in dict(experiments).items() if isinstance(x, Release)}
+    rows = [r for r in data.rows() if r[0] not in rel or r[1] <= end * (1.0 + 1e-12)]
+    return Measurements.from_rows(rows, source=f"{data.source} (t <= {end:g} s)")
+
+
+def should_grow(grow: bool | None, experiments: Any, data: Any) -> bool:
+    """grow=True: always (when a release is measured past 2 GROW_FIRST);
+    None: when its record is longer than GROW_ABOVE; False: never."""
+    if grow is False:
+        return False
+    end = release_end(experiments, data)
+    return end >= 2.0 * GROW_FIRST and (grow is True or end > GROW_ABOVE)
+
+
+def grown_fit(model: Any, experiments: Any, data: Any, free: Any, prior: Any,
+              options: dict, first: float = GROW_FIRST) -> tuple[Any, tuple[str, ...]]:
+    """Fit the record's early part, then extend it (each window twice the
+    last, from the last window's estimates) up to the whole record.
+    Returns the fit of the whole record (its start: the last window's
+    estimates) and the path, one line per window."""
+    from .estimation import fit as _fit
+    windows = grow_windows(release_end(experiments, data), first)
+    path = []
+    current = model
+    res = None
+    for k, end in enumerate(windows):
+        part = data if k == len(windows) - 1 else record_up_to(experiments, data, end)
+        res = _fit(current, experiments, part, free=free, prior=prior, starts=0, mesh=False,
+                   grow=False, **options)
+        path.append(f"t <= {end:g} s: {len(part)} rows, {res.iterations} iterations, "
+                    f"{res.stop}, chi2 {res.chi2:.6g} for {res.dof} dof")
+        current = res.model
+    return res, tuple(path)
