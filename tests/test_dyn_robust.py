@@ -122,6 +122,12 @@ def test_fit_names_the_mesh_on_data_from_a_finer_mesh(rig16):
     assert check.drop > 1000 and check.refit_chi2 < 100       # 68 at 8 elements per beam
     assert fit.starts == ()                    # more starts cannot help a coarse mesh
     assert any("refit with elements_per_beam=16" in w for w in fit.warnings)
+    # at the recommended mesh the data from the finer mesh are recovered
+    fine = {"free": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=16)}
+    refit = beamid.fit(fit.model, fine, rig16, free=FREE)
+    assert refit.converged and refit.mesh_check is None and refit.chi2 / refit.dof <= 1.5
+    for n in FREE:
+        assert abs(refit.estimates[n] - TRUTH[n]) < 3 * refit.sigmas[n], n
 
 
 def test_mesh_check_clears_the_mesh_when_the_model_lacks_an_effect():
