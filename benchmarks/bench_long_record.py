@@ -15,6 +15,13 @@ per simulated second at 10 s within 2 times the one at 2.6 s; the iterations
 bounded); every parameter within 3 sigma of the truth. A missed target is
 reported as missed with the measured figures. ``--quick`` skips the 30 s
 record (the full run's 30 s fit takes several minutes of CPU).
+
+Measured (28 November 2026, shared 2-core machine under load, --quick, CPU s):
+1 s 1.06 (8 iterations), 2.6 s 3.23 (6), 5 s 28.8 (3 windows, 11 in the last),
+10 s 75.0 (4 windows, 15 in the last); all converged, chi-square at or below the
+truth's, farthest parameter 2.55 sigma (rho2 at 5 s). Cost per simulated second at
+10 s / at 2.6 s: 6.0 - the target (<= 2) is MISSED: the iterations on the longest
+window are not bounded. The 30 s record was not run in this session.
 """
 from __future__ import annotations
 
@@ -54,14 +61,14 @@ def main() -> None:
     lengths = [1.0, 2.6, 5.0, 10.0] + ([] if "--quick" in sys.argv else [30.0])
     print("Table 16's fit against record length (500 Hz, sigma 1e-4 m, 4 elements per beam)")
     print(f"{'T (s)':>6}{'rows':>7}{'data (s)':>10}{'fit (s)':>9}{'fit/s':>7}{'iter':>6}"
-          f"{'windows':>8}  {'stop':<10}{'chi2':>10}{'chi2 true':>11}{'max |off|':>11}")
+          f"{'windows':>8}  {'stop':<10}{'chi2':>10}{'chi2 true':>11}  max |off| (sigma)")
     out = []
     for duration in lengths:
         r = one(duration)
         out.append(r)
         print(f"{r['T']:>6g}{r['rows']:>7}{r['sim']:>10.2f}{r['fit']:>9.2f}"
               f"{r['fit'] / r['T']:>7.2f}{r['iterations']:>6}{r['windows']:>8}  {r['stop']:<10}"
-              f"{r['chi2']:>10.1f}{r['chi2_true']:>11.1f}{r['off']:>9.2f} s", flush=True)
+              f"{r['chi2']:>10.1f}{r['chi2_true']:>11.1f}{r['off']:>12.2f}", flush=True)
     by = {r["T"]: r for r in out}
     growth = (by[10.0]["fit"] / 10.0) / (by[2.6]["fit"] / 2.6)
     print(f"  cost per simulated second at 10 s / at 2.6 s: {growth:.2f} "

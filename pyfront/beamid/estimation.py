@@ -320,7 +320,9 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         More fits from random starts around ``model`` (each free parameter
         times U(1 - start_spread, 1 + start_spread), start k from
         ``SeedSequence(start_seed, spawn_key=(k,))``); the best end point is
-        the result, ``result.starts`` says where every start ended and
+        the result (the given start's unless another went lower by more than
+        0.05, the noise floor's scale), ``result.starts`` says where every
+        start ended and
         ``result.start_won`` which won (docs/workflow_dynamic.md, "Reaching
         the best fit"). ``None`` (default): 4 more starts when a fit with
         releases ends far above its degrees of freedom (p < 0.001) or

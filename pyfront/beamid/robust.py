@@ -16,7 +16,8 @@ Two checks that :func:`beamid.fit` makes on fits with
   start ``k`` from ``SeedSequence(seed, spawn_key=(k,))``), run on the
   runners of :func:`beamid.consistency` (this process, local processes or a
   Dask cluster; the same starts on any runner). The best end point is the
-  result (:attr:`beamid.FitResult.start_won` names its start, ``start`` is
+  result, the given start's unless another start went lower by more than
+  :func:`same_chi2` (:attr:`beamid.FitResult.start_won` names its start, ``start`` is
   its starting model and ``log`` its path); every start's end is in
   :attr:`beamid.FitResult.starts`. A fit counts as converged only at a
   point that no other start lowered by more than :func:`same_chi2`; a start
@@ -281,6 +282,10 @@ def several_starts(first: Any, nstarts: int, *, spread: float = SPREAD, seed: in
     kbest, best = min(done, key=lambda kf: kf[1].chi2 + kf[1].chi2_prior)
     cbest = best.chi2 + best.chi2_prior
     tol = same_chi2(cbest)
+    if first.chi2 + first.chi2_prior - cbest < tol:
+        # the given start's end is the same minimum: it stays the result (a
+        # start that went lower within the noise floor is no better)
+        kbest, best = 0, first
     ends = []
     for k, f, err in fits:
         label = "given start" if k == 0 else f"random start {k}"
