@@ -28,6 +28,13 @@ Two checks that :func:`beamid.fit` makes on fits with
 when a fit with releases ends far above its degrees of freedom or stalls and
 the mesh check does not name the mesh; ``starts=0`` never, ``starts=k``
 always ``k`` more.
+
+A third aid is for long records: ``fit(..., grow=None)`` fits a release
+record longer than :data:`GROW_ABOVE` seconds window by window (the end
+halved until the next halving falls below :data:`GROW_FIRST`, then doubled up
+to the whole record, each window from the last one's estimates), so the
+phase of the response is caught before the whole record is fitted
+(:func:`grown_fit`; ``result.path`` lists the windows).
 """
 from __future__ import annotations
 
