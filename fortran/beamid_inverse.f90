@@ -20,8 +20,8 @@ module beamid_inverse
                                  fit_result_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         quantity_label, static_bounds, static_null_values, &
-                                         probe_rows
+                                         quantity_label, probe_rows
+    use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
     implicit none
@@ -153,8 +153,8 @@ contains
         self%plain_trials = nd > 0
         self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
         self%tol = tol
-        call static_bounds(nbeams, self%lower, self%upper)
-        call static_null_values(nbeams, self%nulls)
+        call effect_bounds(nbeams, self%lower, self%upper)
+        call effect_null_values(nbeams, self%nulls)
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
                                      row_quantity(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then

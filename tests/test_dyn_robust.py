@@ -98,7 +98,10 @@ def test_start_arguments_are_checked(table16):
     deck, exps, ref = table16
     for kw, text in (({"starts": -1}, "starts = -1"), ({"starts": True}, "starts = True"),
                      ({"start_spread": 1.5}, "start_spread = 1.5"),
-                     ({"start_seed": -2}, "start_seed = -2")):
+                     ({"start_seed": -2}, "start_seed = -2"),
+                     ({"starts": 2**31}, "expected an integer from 0 to 1000"),
+                     ({"workers": 0}, "workers = 0"), ({"client": "no host"}, "client = "),
+                     ({"mesh": None}, "mesh = None"), ({"grow": "yes"}, "grow = 'yes'")):
         with pytest.raises(beamid.InputError, match=text):
             beamid.fit(ref.model, exps, deck.data, free=FREE, **kw)
 

@@ -18,6 +18,7 @@ from .tables import reproduce
 from .measurements import Measurements, read_measurements
 from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
+from .load_histories import Chirp, HalfSine, SpinUp, Step, Table
 from .dynamics import FrictionEvent
 from .dynamics import SENSITIVITY_QUANTITIES
 # the dynamics name also under an explicit alias
@@ -27,6 +28,7 @@ from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compa
 from . import dyn_diagnosis as _dyn_diagnosis  # registers the dynamic candidates
 from .dyn_diagnosis import DYNAMIC_CANDIDATES, TimeComparison
 from .consistency import Consistency, consistency
+from . import robust as _robust  # fills in fit's checks of its own end (issue 30)
 from .design import Advice, design
 
 __all__ = [
@@ -38,6 +40,7 @@ __all__ = [
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
     "identify", "Identification",
     "simulate", "simulate_dynamics", "Run", "FrictionEvent", "SENSITIVITY_QUANTITIES",
+    "HalfSine", "Step", "Chirp", "Table", "SpinUp",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",

@@ -35,19 +35,31 @@ halved until the next halving falls below :data:`GROW_FIRST`, then doubled up
 to the whole record, each window from the last one's estimates), so the
 phase of the response is caught before the whole record is fitted
 (:func:`grown_fit`; ``result.path`` lists the windows).
+
+This module builds on :func:`beamid.estimation.fit` (each start, window and
+mesh refit is a plain fit) and registers :func:`checked_fit` with it when
+imported (``import beamid`` does), so estimation does not import it.
 """
 from __future__ import annotations
 
 import math
+import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
-from typing import Any, NamedTuple, Sequence
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
 from . import _core_estimation as _ce
-from .errors import BeamidError, InputError
+from . import estimation as _est
+from .consistency import SERIAL_BELOW, _chunks, _dask_client, _local_workers, _mp_context
+from .dyn_diagnosis import refine_mesh
+from .errors import BeamidError
+from .estimation import START_SEED, START_SPREAD, build_problem, fit as _fit
 from .loads import Release
+from .measurements import Measurements
 
 #: A fit ends "far above its degrees of freedom" when the chi-square's
 #: p-value (data and a priori rows) is below this.
@@ -59,9 +71,9 @@ MESH_LIKELY = 1.0
 #: of freedom or stalls (and the mesh is not the likely cause).
 AUTO_STARTS = 4
 #: Default spread of the starts: each free parameter times U(1 - s, 1 + s).
-SPREAD = 0.4
+SPREAD = START_SPREAD
 #: Default seed of the starts.
-SEED = 30
+SEED = START_SEED
 
 #: the states of a start
 BEST, SAME, LOCAL, FAILED = "best", "same minimum", "local minimum", "failed"
@@ -126,8 +138,6 @@ def mesh_check(fit: Any, *, prior: Any = None, options: dict | None = None) -> M
     chi-square significantly (p < FAR_P at one degree of freedom) and by at
     least half its excess over the degrees of freedom. ``prior`` and
     ``options``: as given to the fit (``prior`` default: the fit's)."""
-    from .dyn_diagnosis import refine_mesh
-    from .estimation import build_problem, fit as _fit
     prob = build_problem(fit.model, fit.experiments, fit.data)
     pred = np.array([r.model for r in fit.residuals], float)
     out = _ce.mesh_check(prob, fit.model.vector(), pred)
@@ -209,7 +219,6 @@ def random_start(spec: _StartSpec, k: int):
 
 def _run_start(spec: _StartSpec, k: int) -> tuple[int, Any, str]:
     """(k, FitResult or None, error message) of random start k."""
-    from .estimation import fit as _fit
     start = random_start(spec, k)
     try:
         res = _fit(start, spec.experiments, spec.data, free=spec.fit_free, prior=spec.prior,
@@ -226,9 +235,6 @@ def _run_starts(spec: _StartSpec, ks: Sequence[int]) -> list[tuple[int, Any, str
 def _execute(spec: _StartSpec, nstarts: int, client: Any, workers: int | None,
              first_seconds: float) -> tuple[list, str]:
     """Run random starts 1..nstarts on the consistency runners."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from concurrent.futures.process import BrokenProcessPool
-    from .consistency import SERIAL_BELOW, _chunks, _dask_client, _local_workers, _mp_context
     ks = list(range(1, nstarts + 1))
     if client is not None:
         client, owned = _dask_client(client)
@@ -334,22 +340,6 @@ def several_starts(first: Any, nstarts: int, *, spread: float = SPREAD, seed: in
                                              else ()))
 
 
-def check_start_args(starts: Any, spread: Any, seed: Any) -> None:
-    """Argument checks of fit's several-starts keywords."""
-    if starts is not None and (isinstance(starts, bool) or
-                               not isinstance(starts, (int, np.integer)) or starts < 0):
-        raise InputError(f"starts = {starts!r}, expected None (automatic), 0 or a positive "
-                         "integer")
-    try:
-        ok = 0.0 < float(spread) < 1.0
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InputError(f"start_spread = {spread!r}, expected a number in (0, 1)")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"start_seed = {seed!r}, expected an integer >= 0")
-
-
 # ------------------------------------------------------------------ growing the record
 
 #: The first window of a grown record (s): the record's end halved until the
@@ -379,7 +369,6 @@ def grow_windows(end: float, first: float = GROW_FIRST) -> list[float]:
 
 def record_up_to(experiments: Any, data: Any, end: float) -> Any:
     """The data rows of the releases measured at t <= end, and every static row."""
-    from .measurements import Measurements
     rel = {n for n, x in dict(experiments).items() if isinstance(x, Release)}
     rows = [r for r in data.rows() if r[0] not in rel or r[1] <= end * (1.0 + 1e-12)]
     return Measurements.from_rows(rows, source=f"{data.source} (t <= {end:g} s)")
@@ -400,7 +389,6 @@ def grown_fit(model: Any, experiments: Any, data: Any, free: Any, prior: Any,
     last, from the last window's estimates) up to the whole record.
     Returns the fit of the whole record (its start: the last window's
     estimates) and the path, one line per window."""
-    from .estimation import fit as _fit
     windows = grow_windows(release_end(experiments, data), first)
     path = []
     current = model
@@ -413,3 +401,42 @@ def grown_fit(model: Any, experiments: Any, data: Any, free: Any, prior: Any,
                     f"{res.stop}, chi2 {res.chi2:.6g} for {res.dof} dof")
         current = res.model
     return res, tuple(path)
+
+
+# ------------------------------------------------------------------ fit's own end
+
+def checked_fit(plain: Callable[[], Any], model: Any, experiments: Any, data: Any, free: Any,
+                prior: Any, options: dict, *, starts: int | None, spread: float, seed: int,
+                workers: int | None, client: Any, mesh: bool, grow: bool | None) -> Any:
+    """What :func:`beamid.fit` does with its checked arguments: the plain fit
+    (``plain()``) or the grown record, then the mesh check and the several
+    starts (the module docstring)."""
+    t0 = time.perf_counter()
+    if should_grow(grow, experiments, data):
+        result, path = grown_fit(model, experiments, data, free, prior, options)
+        result = replace(result, nominal=model, path=path)
+    else:
+        result = plain()
+    seconds = time.perf_counter() - t0
+    far = needs_check(result)
+    if mesh and far:
+        check = mesh_check(result, prior=prior, options=options)
+        if check is not None:
+            result = replace(result, mesh_check=check,
+                             warnings=result.warnings + (check.message,) if check.likely_cause
+                             else result.warnings)
+    nstarts = starts
+    if starts is None:
+        likely = result.mesh_check is not None and result.mesh_check.likely_cause
+        nstarts = AUTO_STARTS if far and not likely else 0
+    if nstarts:
+        why = ("ended far above its degrees of freedom" if result.stop != "stalled" else
+               "stalled") if starts is None else "asked for"
+        result = several_starts(
+            result, int(nstarts), spread=float(spread), seed=int(seed), workers=workers,
+            client=client, first_seconds=seconds, why=why, options=options, free=free,
+            prior=prior)
+    return result
+
+
+_est._ROBUST.update(fit=checked_fit)
