@@ -26,6 +26,7 @@ module beamid_api_estimation
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
+    use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -40,6 +41,7 @@ module beamid_api_estimation
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
     public :: api_deck_task_start, api_deck_task_write
+    public :: api_mesh_check
 
     !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
@@ -953,4 +955,31 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write
+
+    !> The mesh check of a finished fit (beamid_dyn_diagnosis mesh_check):
+    !! the data rows' predictions at `params` with every release at twice its
+    !! elements per beam against the fit's `pred`. out = [done (1/0), elements
+    !! per beam now, recommended, largest |change| / sigma, its data row
+    !! (1-based), chi-square of the refined model at params].
+    subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+                              row_exp, row_t, row_q, row_value, row_sigma, pred, tol, out, &
+                              code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
+        !f2py intent(hide) nparams, nexp, nrow
+        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: row_value(nrow), row_sigma(nrow), pred(nrow), tol
+        real(c_double), intent(out) :: out(6)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(mesh_test_t) :: res
+        type(status_t) :: stat
+        call mesh_check(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
+                        real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
+                        real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat)
+        call status_out(stat, code, message)
+        out = [merge(1.0_dp, 0.0_dp, res%done), real(res%nepb, dp), real(res%recommended, dp), &
+               res%max_change, real(res%max_row, dp), res%chi2]
+    end subroutine api_mesh_check
+
 end module beamid_api_estimation

@@ -439,3 +439,17 @@ def fit_chain(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.nd
                        prior, cov, *prob.rows(), int(max_iter))
     result.update(extra)
     return result
+
+
+def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
+    """The mesh check of a fit (beamid_dyn_diagnosis mesh_check): the data
+    rows' predictions at ``params`` with every release at twice its elements
+    per beam against the fit's ``pred``. Returns done (0 without releases),
+    nepb, recommended, max_change (sigma units), row (0-based) and chi2 (of
+    the refined model at params)."""
+    out = _call(_api.api_mesh_check, prob.nbeams, np.asarray(params, float), prob.exp_kind,
+                prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+                prob.row_sigma, np.asarray(pred, float), float(prob.tol))
+    out = np.asarray(out, float)
+    return {"done": int(out[0]), "nepb": int(out[1]), "recommended": int(out[2]),
+            "max_change": float(out[3]), "row": int(out[4]) - 1, "chi2": float(out[5])}

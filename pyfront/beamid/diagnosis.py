@@ -768,7 +768,7 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         # the same fit at twice the elements per beam
         refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
-                    prior=fit.prior or None, max_iter=max_iter)
+                    prior=fit.prior or None, max_iter=max_iter, starts=0, mesh=False)
     if _effect(effect).cause == "measurement chain":   # a refit with the chain's parameters
         return _chain_refit.add_chain_effect(fit, _effect(effect).name, max_iter=max_iter)
     fit = _chain.judged_fit(fit)    # the rows the fit judges: fitted, not gross errors

@@ -18,7 +18,7 @@ import dataclasses
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -47,6 +47,17 @@ def flag_is_problem(flag: str) -> bool:
 _EV_FD = 11
 
 Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
+
+#: Defaults of fit's several starts (beamid.robust): the spread (each free
+#: parameter times U(1 - s, 1 + s)) and the seed; at most MAX_STARTS more.
+START_SPREAD = 0.4
+START_SEED = 30
+MAX_STARTS = 1000
+#: The checks fit makes on its own end (issue 30: the mesh check, several
+#: starts, growing a long record). beamid.robust builds on this module's fit
+#: and fills this in when it is imported (the package imports it), so this
+#: module does not import it: ``fit`` (plain fit -> checked FitResult).
+_ROBUST: dict[str, Callable[..., Any]] = {}
 
 
 class Residual(NamedTuple):
@@ -138,6 +149,15 @@ class FitResult:
     sigma_estimates: dict[str, tuple[float, float]] = field(default_factory=dict)
     #: the rows' treatment asked for (beamid.chain.RowTreatment; None: plain)
     treatment: "RowTreatment | None" = field(default=None, repr=False)
+    #: the mesh check (fits with releases that ended far above their degrees
+    #: of freedom or stalled; beamid.robust.MeshCheck), None when not made
+    mesh_check: "Any" = field(default=None, repr=False)
+    #: where every start ended (beamid.robust.StartEnd; empty: one start)
+    starts: tuple = field(default=(), repr=False)
+    #: the start whose end point this is ("given start" or "random start k")
+    start_won: str = "given start"
+    #: the fits that led here when the record was grown (one line per window)
+    path: tuple[str, ...] = field(default=(), repr=False)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -313,7 +333,10 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
         nuisance: Mapping | None = None, loss: str = "linear",
         burn_in: "float | Mapping[str, float] | None" = None,
-        estimate_sigma: "bool | Sequence | None" = None) -> FitResult:
+        estimate_sigma: "bool | Sequence | None" = None,
+        starts: int | None = None, start_spread: float = START_SPREAD,
+        start_seed: int = START_SEED, workers: int | None = 1, client: Any = None,
+        mesh: bool = True, grow: bool | None = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -381,6 +404,35 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         sigmas are only its start), one degree of freedom each;
         ``result.sigma_estimates`` holds each with its uncertainty.
 
+    starts:
+        More fits from random starts around ``model`` (each free parameter
+        times U(1 - start_spread, 1 + start_spread), start k from
+        ``SeedSequence(start_seed, spawn_key=(k,))``); the best end point is
+        the result (the given start's unless another went lower by more than
+        0.05, the noise floor's scale), ``result.starts`` says where every
+        start ended and
+        ``result.start_won`` which won (docs/workflow_dynamic.md, "Reaching
+        the best fit"). ``None`` (default): 4 more starts when a fit with
+        releases ends far above its degrees of freedom (p < 0.001) or
+        stalls and the mesh check does not name the mesh; 0: never.
+    workers, client:
+        Where the starts run, as in :func:`beamid.consistency`: ``workers``
+        local processes (1: this process; None: the cores, when the starts
+        are long enough to pay for the processes) or a Dask ``client``.
+    grow:
+        Grow the record: fit the releases' rows up to a window of about a
+        second first, then twice that, ... up to the whole record, each from
+        the last window's estimates (``result.path`` lists the windows), so
+        the phase is caught before the whole record is fitted. ``None``
+        (default): on records longer than 4 s; True: on records of 2 s and
+        more; False: never.
+    mesh:
+        Check the mesh of a fit with releases that ends far above its
+        degrees of freedom or stalls (``result.mesh_check``; one plain run at
+        twice the elements per beam, and a refit there when a prediction
+        moves by more than a sigma): when the discretization is the likely
+        cause, a warning names the elements per beam that would do.
+
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
     are fitted; a fit whose damped steps stop lowering the cost stalls.
@@ -406,27 +458,43 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     else:
         free_names, free_idx = _free_indices(model, free)
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
+    starts, start_spread, start_seed, workers, client, mesh, grow = _check_robust_args(
+        starts, start_spread, start_seed, workers, client, mesh, grow)
     exp_names = list(_check_experiments(experiments))
     params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
-    if not rows:
-        raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-        return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
-    raw = _ce.fit_chain(prob, params0, free_idx, ptable, prior_cov=pcov,
-                        max_iter=int(max_iter))
-    out = _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
-    sig = raw["sigma_used"]
-    residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
-    est = {}
-    for e, q in rows.estimate:
-        k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
-                 if x == e and y == q)
-        est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
-    return dataclasses.replace(
-        out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
-        fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
-                              zip(data.experiment, data.t)], bool),
-        gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
-        sigma_estimates=est, treatment=rows)
+
+    def plain() -> FitResult:
+        if not rows:
+            raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov,
+                          max_iter=int(max_iter))
+            return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+        raw = _ce.fit_chain(prob, params0, free_idx, ptable, prior_cov=pcov,
+                            max_iter=int(max_iter))
+        out = _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+        sig = raw["sigma_used"]
+        residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
+        est = {}
+        for e, q in rows.estimate:
+            k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
+                     if x == e and y == q)
+            est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
+        return dataclasses.replace(
+            out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
+            fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
+                                  zip(data.experiment, data.t)], bool),
+            gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
+            sigma_estimates=est, treatment=rows)
+
+    checked = _ROBUST.get("fit")
+    # the measurement chain's fits (nuisance parameters, a loss, burn-in,
+    # estimated sigmas) are one start without the mesh check: the several
+    # starts and the mesh check refit through fit without the chain's keywords
+    if checked is None or chain or rows:
+        return plain()
+    return checked(plain, model, experiments, data, free, prior,
+                   {"max_iter": max_iter, "tol": tol, "jacobian": jacobian},
+                   starts=starts, spread=start_spread, seed=start_seed, workers=workers,
+                   client=client, mesh=mesh, grow=grow)
 
 
 def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
@@ -439,6 +507,24 @@ def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
     starts = chain.starts(exp_names)
     extra = np.arange(params0.size + 1, params0.size + starts.size + 1, dtype=np.int32)
     return np.concatenate([params0, starts]), np.concatenate([free_idx, extra]).astype(np.int32)
+
+
+def _check_robust_args(starts, spread, seed, workers, client, mesh, grow) -> tuple:
+    """Argument checks of fit's keywords for its own end (issue 30): the
+    several starts, where they run, the mesh check and growing the record."""
+    starts = _check.count("starts", starts, min=0, max=MAX_STARTS, none=True,
+                          expected="None (automatic), 0 or a positive integer")
+    spread = _check.real("start_spread", spread, above=0.0, below=1.0,
+                         expected="a number in (0, 1)")
+    seed = _check.count("start_seed", seed, min=0, max=2**128, expected="an integer >= 0")
+    workers = _check.count("workers", workers, min=1, none=True,
+                           expected="None (the cores) or an integer >= 1")
+    client = _check.dask_client("client", client)
+    mesh = _check.flag("mesh", mesh)
+    if grow is not None and not isinstance(grow, (bool, np.bool_)):
+        _check.fail("grow", grow, "None (automatic), True or False")
+    grow = None if grow is None else bool(grow)
+    return starts, spread, seed, workers, client, mesh, grow
 
 
 def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
