@@ -966,7 +966,7 @@ contains
                               code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
         !f2py intent(hide) nparams, nexp, nrow
-        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow)
+        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         real(c_double), intent(in) :: row_value(nrow), row_sigma(nrow), pred(nrow), tol
         real(c_double), intent(out) :: out(6)

@@ -46,7 +46,7 @@ def add_chain_effect(fit, name: str, *, max_iter: int = 50):
         spec = own.merged(cand)
     out = _fit(fit.model, fit.experiments, fit.data, free=fit.free, prior=fit.prior or None,
                max_iter=max_iter, nuisance=spec, loss=rows.loss, burn_in=rows.burn_in or None,
-               estimate_sigma=list(rows.estimate) or None)
+               estimate_sigma=list(rows.estimate) or None, starts=0, mesh=False)
     return dataclasses.replace(out, nominal=fit.nominal)
 
 
@@ -62,7 +62,7 @@ def without_rows(fit, rows):
         source=fit.data.source)
     rows_t = fit.treatment or RowTreatment()
     out = _fit(fit.model, fit.experiments, data, free=fit.free, prior=fit.prior or None,
-               nuisance=fit.chain, burn_in=rows_t.burn_in or None)
+               nuisance=fit.chain, burn_in=rows_t.burn_in or None, starts=0, mesh=False)
     gone = ", ".join(f"{i} ({fit.data.experiment[i]} {fit.data.quantity[i]} t = "
                      f"{float(fit.data.t[i]):g})" for i in sorted(drop))
     return dataclasses.replace(out, nominal=fit.nominal,
