@@ -184,7 +184,11 @@ def simulate_command(args: argparse.Namespace):
         prefix = Path(SIMULATE_DEFAULTS["output"])
         source = "beamid simulate"
     if args.set:
-        model = model.replace(**dict(_parameter(p) for p in args.set))
+        values = dict(_parameter(p) for p in args.set)
+        try:
+            model = model.replace(**values)
+        except InputError as exc:
+            raise InputError(f"--set {' '.join(args.set)}: {exc}") from None
     if (args.fx, args.fy, args.moment) != (None, None, None):
         base = load if isinstance(load, TipLoad) else TipLoad()
         load = TipForce(fx=base.fx if args.fx is None else args.fx,
@@ -411,7 +415,7 @@ def _commands() -> list:
          "Fit the deck, refit it to noisy replicates of its fitted data and compare the "
          "spread of the estimates with the fit's sigmas (docs/consistency.md); writes "
          "<prefix>_consistency.csv and its figure.",
-         [deck, ("--replicates", dict(type=_count(1), default=200, help="noisy data sets (default "
+         [deck, ("--replicates", dict(type=_count(2), default=200, help="noisy data sets (default "
                                                                   "200)")),
           ("--seed", dict(type=_count(0), default=7, help="seed of the replicates (default 7)")),
           ("--scheduler", dict(default=None, help="Dask scheduler address "
@@ -501,6 +505,17 @@ def _subparser(parser: argparse.ArgumentParser, name: str) -> "_Parser":
     return action.choices[name]
 
 
+def _in_option_words(message: str, parser: argparse.ArgumentParser, command: str) -> str:
+    """An API refusal in the command line's words: a message that starts with
+    a keyword the subcommand's option feeds (``elements_per_beam = ...``)
+    names the option instead (``--elements-per-beam = ...``)."""
+    for action in _subparser(parser, command)._actions:
+        if action.option_strings and message.startswith(f"{action.dest} = "):
+            longest = max(action.option_strings, key=len)
+            return longest + message[len(action.dest):]
+    return message
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``beamid`` console command; returns the exit code
     (module docstring). Argument errors exit 2 through argparse."""
@@ -522,7 +537,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # the error's own exit code (beamid_status's table: 2 bad input, 3 numerical
         # failure, 4 an output that cannot be written); a BeamidError that is an
         # OSError is an unwritable output
-        print(f"beamid: error: {exc}", file=sys.stderr)
+        print(f"beamid: error: {_in_option_words(str(exc), parser, args.command)}",
+              file=sys.stderr)
         code = getattr(exc, "exit_code", EXIT_INPUT)
         return EXIT_OUTPUT if isinstance(exc, OSError) else int(code)
     except OSError as exc:   # an output path that is a directory, a full disk, ...

@@ -178,6 +178,14 @@ class Run:
         """E(t) - E(0) (Table 13's Delta Energy)."""
         return self.energy - self.energy[0]
 
+    def __repr__(self) -> str:
+        # a summary, not every array (the arrays are the fields)
+        end = f"{self.t[-1]:g} s" if self.t.size else "no times"
+        tip = f"; tip w at the end {self.tip_w[-1]:.7g} m" if self.tip_w.size else ""
+        sens = f"; sensitivities to {', '.join(self.dstates)}" if self.dstates else ""
+        return (f"<Run: {self.t.size} output times to {end} ({self.integrator}, friction "
+                f"{self.friction}), {self.elements_per_beam} elements per beam{tip}{sens}>")
+
     def profiles(self, times: Sequence[float] | float, points_per_element: int = 8):
         """Beam shapes at the given output times: a list of (x, y) arrays
         (x = s + u, y = w). Each time must be one of ``run.t``."""

@@ -59,6 +59,14 @@ class Measurements:
     source: str = "<python>"
     lines: tuple[int, ...] = field(default=())
 
+    def __repr__(self) -> str:
+        # a summary, not every row (``rows()`` and the fields hold them)
+        exps = list(dict.fromkeys(self.experiment))
+        qs = list(dict.fromkeys(self.quantity))
+        return (f"<Measurements: {len(self.experiment)} rows from {self.source}; "
+                f"experiments {', '.join(exps[:6])}{' ...' if len(exps) > 6 else ''}; "
+                f"quantities {', '.join(qs[:6])}{' ...' if len(qs) > 6 else ''}>")
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "experiment",
                            _check.names("measurements: experiment", self.experiment))

@@ -96,8 +96,9 @@ class StaticResult:
         return np.array(self._doutputs)
 
     def __repr__(self) -> str:
+        wire = "" if math.isnan(self.wire_force) else f", wire_force={self.wire_force:.6g}"
         return (f"StaticResult(tip_x={self.tip_x:.6g}, tip_y={self.tip_y:.6g}, "
-                f"tip_angle={self.tip_angle:.6g}, wire_force={self.wire_force:.6g})")
+                f"tip_angle={self.tip_angle:.6g}{wire})")
 
     tip_x = _output("tip_x", "Tip x (m).")
     tip_y = _output("tip_y", "Tip y (m).")
