@@ -1065,6 +1065,7 @@ contains
         end if
         if (allocated(src%t)) dst%t = src%t
         if (allocated(src%quantity)) dst%quantity = src%quantity
+        if (allocated(src%obs)) dst%obs = src%obs
         if (allocated(src%value)) dst%value = src%value
         if (allocated(src%sigma)) dst%sigma = src%sigma
         if (allocated(src%line)) dst%line = src%line

@@ -6,9 +6,11 @@
 !! Eq. 159 when its gain is positive. A data row is (experiment, t, quantity,
 !! value, sigma); t = 0 measures the static shape before the release.
 !!
-!! Quantities use the one registry of beamid_static_experiments (u_tip w_tip
+!! Observations come from the one table of beamid_observations (u_tip w_tip
 !! x_tip y_tip tip_angle x_elbow y_elbow, plus motor_torque, which only a
-!! release with a motor produces; wire_force is static only).
+!! release with a motor produces; wire_force is static only); each row
+!! holds its observation and `observe` computes it and its sensitivities
+!! from a release's response.
 !!
 !! The sensitivity columns (Eq. 135-140, 161-162) are the hand-coded forward
 !! sensitivities of beamid_release (release_response: the released shape by
@@ -42,15 +44,17 @@ module beamid_dynamic_experiments
     use beamid_release, only: release_spec_t, release_out_t, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
-                              QTY_MOTOR_TORQUE
-    use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
-                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, NQUANT, distinct_sorted
+                              QTY_MOTOR_TORQUE, NQTY
+    use beamid_static_experiments, only: distinct_sorted
+    use beamid_observations, only: observation_t, observation_why_not, same_observation, &
+                                   FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
+                                   K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
+                                   K_W_TIP, K_MOTOR_TORQUE, kind_label
     implicit none
     private
 
     public :: release_exp_t, dynamic_experiments_t, dynamic_experiments_init
-    public :: release_response, check_dynamic_row
+    public :: release_response, check_dynamic_row, observe
 
     !> One release experiment: load, mesh, motor and integrator controls
     !! (0 for rtol, dt: the integrator's defaults).
@@ -90,17 +94,21 @@ module beamid_dynamic_experiments
         real(dp), allocatable :: y(:, :)
     end type plain_cache_t
 
-    !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
-    !! quantity code of the estimation registry (0: wire_force, none).
-    integer, parameter :: QTY_OF(NQUANT) = [QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, 0, &
-                                            QTY_X_ELBOW, QTY_Y_ELBOW, QTY_U_TIP, QTY_W_TIP, &
-                                            QTY_MOTOR_TORQUE]
+    !> A list of observations.
+    type :: obs_list_t
+        type(observation_t), allocatable :: o(:)
+    end type obs_list_t
 
     !> Release experiments and the data rows they predict.
     type, extends(residual_model_t) :: dynamic_experiments_t
         integer :: nbeams = 0
         type(release_exp_t), allocatable :: exps(:)
-        integer, allocatable :: row_exp(:), row_quantity(:)
+        integer, allocatable :: row_exp(:)
+        type(observation_t), allocatable :: row_obs(:) !< observation of each row
+        !> the distinct observations of each experiment's rows, and the
+        !! index of each row's observation in its experiment's list
+        type(obs_list_t), allocatable :: eobs(:)
+        integer, allocatable :: row_oi(:)
         real(dp), allocatable :: row_t(:)
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
     contains
@@ -109,42 +117,55 @@ module beamid_dynamic_experiments
 
 contains
 
-    !> Why a row (t, quantity) cannot belong to release experiment `x`
-    !! ('' when it can): t negative or not finite, wire_force, motor_torque
-    !! without a motor.
-    pure function check_dynamic_row(x, t, q) result(why)
+    !> Why a row (t, observation) cannot belong to release experiment `x`
+    !! ('' when it can): t negative or not finite, an observation a release
+    !! cannot make (wire_force), motor_torque without a motor, a station off
+    !! the chain.
+    pure function check_dynamic_row(x, t, o, nbeams) result(why)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t
-        integer, intent(in) :: q
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: nbeams
         character(len=:), allocatable :: why
+        character(len=:), allocatable :: detail
+        integer :: reason
         why = ''
         if (.not. ieee_is_finite(t)) then
             why = 'field t is not finite'
         else if (t < 0.0_dp) then
             why = 'field t = '//fmt_real(t)//', expected t >= 0 (0: the static shape '// &
                   'before the release)'
-        else if (q < 1 .or. q > NQUANT) then
-            why = 'quantity code '//fmt_int(q)//', expected 1..'//fmt_int(NQUANT)
-        else if (q == Q_WIRE_FORCE) then
-            why = "field quantity = 'wire_force', but a release experiment has no wire"
-        else if (q == Q_MOTOR_TORQUE .and. .not. x%gain > 0.0_dp) then
-            why = "field quantity = 'motor_torque', but the experiment has no motor "// &
-                  '(motor_gain = 0)'
+        else
+            reason = observation_why_not(o, FAM_RELEASE, .false., x%gain > 0.0_dp, nbeams, &
+                                         [real(dp) ::])
+            detail = why_detail(o, reason, FAM_RELEASE, nbeams, [real(dp) ::])
+            select case (reason)
+            case (WHY_OK)
+            case (WHY_WIRE)
+                why = "field quantity = '"//kind_label(o%kind)//"', but a release experiment "// &
+                      'has no wire'
+            case (WHY_MOTOR)
+                why = "field quantity = '"//kind_label(o%kind)//"', but the experiment has no "// &
+                      'motor (motor_gain = 0)'
+            case default
+                why = "field quantity = '"//kind_label(o%kind)//"': "//detail
+            end select
         end if
     end function check_dynamic_row
 
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).
-    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_quantity, self, stat)
+    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
         integer, intent(in) :: nbeams
         type(release_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:), row_quantity(:)
+        integer, intent(in) :: row_exp(:)
+        type(observation_t), intent(in) :: row_obs(:)
         real(dp), intent(in) :: row_t(:)
         type(dynamic_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
-        integer :: i
+        integer :: i, e
         do i = 1, size(exps)
             if (exps(i)%nepb < 1) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
@@ -159,7 +180,7 @@ contains
             end if
         end do
         do i = 1, size(row_exp)
-            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_quantity(i))
+            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_obs(i), nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
@@ -169,7 +190,21 @@ contains
         self%exps = exps
         self%row_exp = row_exp
         self%row_t = row_t
-        self%row_quantity = row_quantity
+        self%row_obs = row_obs
+        allocate (self%eobs(size(exps)), self%row_oi(size(row_exp)))
+        do i = 1, size(exps)
+            allocate (self%eobs(i)%o(0))
+        end do
+        do i = 1, size(row_exp)
+            e = row_exp(i)
+            self%row_oi(i) = 0
+            if (size(self%eobs(e)%o) > 0) &
+                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, row_obs(i)), .true., 1)
+            if (self%row_oi(i) == 0) then
+                self%eobs(e)%o = [self%eobs(e)%o, row_obs(i)]
+                self%row_oi(i) = size(self%eobs(e)%o)
+            end if
+        end do
         allocate (self%cache(size(exps)))
         self%rough_jacobian_ok = .false.
         do i = 1, size(exps)
@@ -192,22 +227,22 @@ contains
         if (own < ROUGH_RTOL) rough_tolerance = ROUGH_RTOL
     end function rough_tolerance
 
-    !> The response of one release at the ascending times t_out: y(q, k) for
-    !! every quantity code q (the registry of beamid_static_experiments;
-    !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)), from
-    !! the forward sensitivities of beamid_release (or central differences
-    !! when x%fd).
-    subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat)
+    !> The response of one release at the ascending times t_out: y(i, k)
+    !! for every observation obs(i) and dy(i, k, j) = d y(i, k) / d
+    !! params(wrt(j)), from the forward sensitivities of beamid_release (or
+    !! central differences when x%fd).
+    subroutine release_response(nbeams, params, x, t_out, wrt, obs, y, dy, stat)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t_out(:)
         integer, intent(in) :: wrt(:)
+        type(observation_t), intent(in) :: obs(:)
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(release_out_t) :: out
-        integer :: q
+        integer :: i, k
         if (x%fd) then
             call central_differences()
             return
@@ -220,10 +255,10 @@ contains
             x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
             friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
         if (stat%code /= STATUS_OK) return
-        do q = 1, NQUANT
-            if (QTY_OF(q) == 0) cycle
-            y(q, :) = out%y(QTY_OF(q), :)
-            dy(q, :, :) = out%dy(QTY_OF(q), :, :)
+        do k = 1, size(t_out)
+            do i = 1, size(obs)
+                call observe(out, obs(i), k, y(i, k), dy(i, k, :))
+            end do
         end do
     contains
         !> The response by central differences of whole runs (x%fd).
@@ -232,29 +267,66 @@ contains
             real(dp) :: h
             integer :: j
             dy = 0.0_dp
-            call release_run(nbeams, params, x, t_out, y, stat)
+            call release_run(nbeams, params, x, t_out, obs, y, stat)
             if (stat%code /= STATUS_OK) return
             allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
             do j = 1, size(wrt)
                 p = params
                 h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
                 p(wrt(j)) = params(wrt(j)) + h
-                call release_run(nbeams, p, x, t_out, yp, stat)
+                call release_run(nbeams, p, x, t_out, obs, yp, stat)
                 if (stat%code /= STATUS_OK) return
                 p(wrt(j)) = params(wrt(j)) - h
-                call release_run(nbeams, p, x, t_out, ym, stat)
+                call release_run(nbeams, p, x, t_out, obs, ym, stat)
                 if (stat%code /= STATUS_OK) return
                 dy(:, :, j) = (yp - ym)/(2.0_dp*h)
             end do
         end subroutine central_differences
     end subroutine release_response
 
-    !> One run: static equilibrium, release, integration, quantities.
-    subroutine release_run(nbeams, params, x, t_out, y, stat)
+    !> The release family's observe: the value of observation o at output
+    !! time k of the response `out` and its derivatives d/d params(wrt)
+    !! (grad empty: no derivatives, out%dy need not be there).
+    subroutine observe(out, o, k, value, grad)
+        type(release_out_t), intent(in) :: out
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: k
+        real(dp), intent(out) :: value, grad(:)
+        integer :: row
+        value = 0.0_dp
+        grad = 0.0_dp
+        select case (o%kind)
+        case (K_X_TIP)
+            row = QTY_X_TIP
+        case (K_Y_TIP)
+            row = QTY_Y_TIP
+        case (K_TIP_ANGLE)
+            row = QTY_TIP_ANGLE
+        case (K_X_ELBOW)
+            row = QTY_X_ELBOW
+        case (K_Y_ELBOW)
+            row = QTY_Y_ELBOW
+        case (K_U_TIP)
+            row = QTY_U_TIP
+        case (K_W_TIP)
+            row = QTY_W_TIP
+        case (K_MOTOR_TORQUE)
+            row = QTY_MOTOR_TORQUE
+        case default
+            return
+        end select
+        value = out%y(row, k)
+        if (size(grad) > 0) grad = out%dy(row, k, :)
+    end subroutine observe
+
+    !> One run: static equilibrium, release, integration, observations
+    !! (no sensitivities: the central differences of x%fd).
+    subroutine release_run(nbeams, params, x, t_out, obs, y, stat)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t_out(:)
+        type(observation_t), intent(in) :: obs(:)
         real(dp), intent(out) :: y(:, :)
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
@@ -263,10 +335,10 @@ contains
         type(fe_solve_info_t) :: sinfo
         type(integ_opts_t) :: opts
         type(integ_stats_t) :: stats
-        type(history_t) :: hist
+        type(release_out_t) :: out
         real(dp), allocatable :: y0(:), q(:)
-        real(dp) :: u, w, ang, ltot
-        integer :: k, n
+        real(dp) :: u, w, ang, ltot, none(0)
+        integer :: k, n, i
         y = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
@@ -282,21 +354,27 @@ contains
         if (x%dt > 0.0_dp) opts%dt = x%dt
         if (x%rtol > 0.0_dp) opts%rtol = x%rtol
         opts%atol = opts%rtol
-        call integrate(sys, y0, t_out, opts, hist, stats, stat)
+        call integrate(sys, y0, t_out, opts, out%hist, stats, stat)
         if (stat%code /= STATUS_OK) return
         ltot = sum(chain%length)
+        allocate (out%y(NQTY, size(t_out)), source=0.0_dp)
         do k = 1, size(t_out)
-            call dyn_tip(sys, hist%y(1:n, k), u, w, ang)
-            y(Q_U_TIP, k) = u
-            y(Q_W_TIP, k) = w
-            y(Q_X_TIP, k) = ltot + u
-            y(Q_Y_TIP, k) = w
-            y(Q_TIP_ANGLE, k) = ang
-            if (sys%npt >= 2) then
-                y(Q_X_ELBOW, k) = chain%length(1) + hist%y(sys%iu(1), k)
-                y(Q_Y_ELBOW, k) = hist%y(sys%iw(1), k)
-            end if
-            y(Q_MOTOR_TORQUE, k) = hist%torque(k)
+            associate (hy => out%hist%y(:, k))
+                call dyn_tip(sys, hy(1:n), u, w, ang)
+                out%y(QTY_U_TIP, k) = u
+                out%y(QTY_W_TIP, k) = w
+                out%y(QTY_X_TIP, k) = ltot + u
+                out%y(QTY_Y_TIP, k) = w
+                out%y(QTY_TIP_ANGLE, k) = ang
+                if (sys%npt >= 2) then
+                    out%y(QTY_X_ELBOW, k) = chain%length(1) + hy(sys%iu(1))
+                    out%y(QTY_Y_ELBOW, k) = hy(sys%iw(1))
+                end if
+                out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
+            end associate
+            do i = 1, size(obs)
+                call observe(out, obs(i), k, y(i, k), none)
+            end do
         end do
     end subroutine release_run
 
@@ -315,23 +393,26 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: times(:), y(:, :), dy(:, :, :)
         type(release_exp_t) :: rough
-        integer :: e, i, k
+        integer :: e, i, k, nobs
         predictions = 0.0_dp
         jacobian = 0.0_dp
         if (.not. allocated(self%cache)) allocate (self%cache(size(self%exps)))
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
             times = distinct_sorted(pack(self%row_t, self%row_exp == e))
-            allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)))
+            nobs = size(self%eobs(e)%o)
+            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt)))
             if (self%rough == ROUGH_ALL .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
                 rough = self%exps(e)
                 rough%rtol = rough_tolerance(rough)
-                call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat)
+                call release_response(self%nbeams, params, rough, times, wrt, self%eobs(e)%o, y, &
+                                      dy, stat)
             else if (self%rough == ROUGH_JACOBIAN .and. size(wrt) > 0 .and. &
                      rough_tolerance(self%exps(e)) > 0.0_dp) then
                 call rough_response(e, times, y, dy)
             else
-                call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, stat)
+                call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                                      self%eobs(e)%o, y, dy, stat)
                 if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, y)
             end if
             if (stat%code /= STATUS_OK) then
@@ -341,8 +422,8 @@ contains
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
                 k = findloc(times, self%row_t(i), 1)
-                predictions(i) = y(self%row_quantity(i), k)
-                jacobian(i, :) = dy(self%row_quantity(i), k, :)
+                predictions(i) = y(self%row_oi(i), k)
+                jacobian(i, :) = dy(self%row_oi(i), k, :)
             end do
             deallocate (y, dy)
         end do
@@ -360,16 +441,17 @@ contains
             if (cached) then
                 y = self%cache(e)%y
             else
-                allocate (none(NQUANT, size(times), 0))
-                call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), y, &
-                                      none, stat)
+                allocate (none(size(self%eobs(e)%o), size(times), 0))
+                call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                                      self%eobs(e)%o, y, none, stat)
                 if (stat%code /= STATUS_OK) return
                 call remember(e, y)
             end if
             rough = self%exps(e)
             rough%rtol = rough_tolerance(rough)
-            allocate (yr(NQUANT, size(times)))
-            call release_response(self%nbeams, params, rough, times, wrt, yr, dy, stat)
+            allocate (yr(size(self%eobs(e)%o), size(times)))
+            call release_response(self%nbeams, params, rough, times, wrt, self%eobs(e)%o, yr, &
+                                  dy, stat)
         end subroutine rough_response
 
         subroutine remember(e, y)

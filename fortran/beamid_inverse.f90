@@ -10,8 +10,10 @@
 !!
 !! Experiments cross as a kind (EXP_TIP, EXP_WIRE, EXP_RELEASE) and a
 !! column of NEXPVAL values (layout EV_*); rows as (experiment, t,
-!! quantity). Static rows need t = 0; duplicate (experiment, t, quantity)
-!! rows are rejected, naming the row.
+!! observation), the observation an index into the problem's observation
+!! list (beamid_observations: a kind and its locus; without a list, the
+!! index is the kind code). Static rows need t = 0; duplicate (experiment,
+!! t, observation) rows are rejected, naming the row.
 module beamid_inverse
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
@@ -20,8 +22,9 @@ module beamid_inverse
                                  fit_result_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         quantity_label, static_bounds, static_null_values, &
-                                         probe_rows
+                                         static_bounds, static_null_values, probe_rows
+    use beamid_observations, only: observation_t, obs_label, same_observation, &
+                                   default_observations
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
     implicit none
@@ -48,6 +51,7 @@ module beamid_inverse
         integer, allocatable :: st_rows(:), dy_rows(:) !< data rows of each family
         integer, allocatable :: st_exp(:)  !< experiment number of each static experiment
         real(dp) :: tol = 0.0_dp           !< static solver tolerance (0: default)
+        type(observation_t), allocatable :: obs(:)  !< the observation of each row
         !> physical bounds and null (switched-off) values of every parameter:
         !! they belong to the model, whatever the experiments
         real(dp), allocatable :: lower(:), upper(:), nulls(:)
@@ -59,13 +63,17 @@ contains
 
     !> Build the problem: a constructor per family (static_experiments_init,
     !! dynamic_experiments_init) on the rows of its experiments.
+    !! row_quantity(i) indexes obs, the problem's observation list (absent:
+    !! the kind codes, beamid_observations default_observations).
     subroutine inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, &
-                                    row_quantity, tol, self, stat)
+                                    row_quantity, tol, self, stat, obs)
         integer, intent(in) :: nbeams
         integer, intent(in) :: exp_kind(:), row_exp(:), row_quantity(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol
         type(inverse_problem_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
+        type(observation_t), intent(in), optional :: obs(:)
+        type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
         type(static_load_t), allocatable :: loads(:)
         type(release_exp_t), allocatable :: rels(:)
@@ -83,6 +91,19 @@ contains
                             'differ in length')
             return
         end if
+        if (present(obs)) then
+            list = obs
+        else
+            list = default_observations()
+        end if
+        do i = 1, size(row_quantity)
+            if (row_quantity(i) < 1 .or. row_quantity(i) > size(list)) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' has observation '// &
+                                fmt_int(row_quantity(i))//', expected 1..'//fmt_int(size(list)))
+                return
+            end if
+        end do
+        robs = list(row_quantity)
         allocate (smap(size(exp_kind)), dmap(size(exp_kind)), source=0)
         ns = 0
         nd = 0
@@ -134,11 +155,11 @@ contains
             end if
             do j = 1, i - 1
                 if (row_exp(j) == row_exp(i) .and. row_t(j) == row_t(i) .and. &
-                    row_quantity(j) == row_quantity(i)) then
+                    same_observation(robs(j), robs(i))) then
                     call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)// &
                                     ' repeats row '//fmt_int(j)//' (experiment '// &
                                     fmt_int(row_exp(i))//', t = '//fmt_real(row_t(i))// &
-                                    ', quantity '//quantity_label(row_quantity(i))//')')
+                                    ', quantity '//obs_label(robs(i))//')')
                     return
                 end if
             end do
@@ -153,16 +174,17 @@ contains
         self%plain_trials = nd > 0
         self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
         self%tol = tol
+        self%obs = robs
         call static_bounds(nbeams, self%lower, self%upper)
         call static_null_values(nbeams, self%nulls)
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
-                                     row_quantity(self%st_rows), tol, self%st, stat)
+                                     robs(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then
             call renumber(self%st_rows)
             return
         end if
         call dynamic_experiments_init(nbeams, rels, dmap(row_exp(self%dy_rows)), &
-                                      row_t(self%dy_rows), row_quantity(self%dy_rows), &
+                                      row_t(self%dy_rows), robs(self%dy_rows), &
                                       self%dy, stat)
         if (stat%code /= STATUS_OK) call renumber(self%dy_rows)
         ! releases on the implicit integrator can steer the fit with rough
@@ -245,14 +267,16 @@ contains
         type(static_experiments_t) :: probe
         real(dp), allocatable :: psig(:)
         integer, allocatable :: plocal(:)
+        integer :: i
         allocate (pexp(0), pq(0))
         call fit_at(self, lp, params0, free, fopts, base, stat)
         if (stat%code /= STATUS_OK) return
         if (self%has_static) then
-            call probe_rows(self%st%loads, self%st%row_quantity, lp%sigma(self%st_rows), plocal, &
-                            pq, psig)
-            call static_experiments_init(self%st%nbeams, self%st%loads, plocal, pq, self%tol, &
-                                         probe, stat)
+            call probe_rows(self%st%loads, self%st%row_obs%kind, lp%sigma(self%st_rows), &
+                            plocal, pq, psig)
+            call static_experiments_init(self%st%nbeams, self%st%loads, plocal, &
+                                         [(observation_t(kind=pq(i)), i=1, size(pq))], &
+                                         self%tol, probe, stat)
             if (stat%code /= STATUS_OK) return
             pexp = self%st_exp(plocal)
             call diagnose(self, lp, base, cands, fopts, dopts, diag, stat, probe, psig, nominal)

@@ -4,7 +4,9 @@
 !!
 !! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
 !! values per experiment, beamid_inverse's EV_* layout), data rows
-!! (experiment index, t, quantity code, value, sigma), free parameter indices,
+!! (experiment index, t, observation, value, sigma; the observation an
+!! index into the observation list obs_kind, obs_beam, obs_s of
+!! beamid_observations' kind codes and station loci), free parameter indices,
 !! a priori information as prior(3, nprior), a column [parameter index, mean,
 !! sigma] per parameter (Eq. 142-145). Indices are 1-based. Sizes are
 !! implied by the arrays (f2py fills them in); no array carries padding. Status
@@ -24,6 +26,7 @@ module beamid_api_estimation
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
+    use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -210,8 +213,8 @@ contains
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                               nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
-                              exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
-                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              exp_values, nrow, row_exp, row_t, row_q, nobs, obs_kind, &
+                              obs_beam, obs_s, row_value, row_sigma, tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
                               predictions, normalized, stats, log_cost, log_lambda, log_step, &
                               log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
@@ -221,6 +224,10 @@ contains
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
         real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
@@ -255,7 +262,8 @@ contains
         else
             call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                       int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat)
+                                      real(tol, dp), model, stat, &
+                                      make_obs(obs_kind, obs_beam, obs_s))
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
@@ -304,12 +312,16 @@ contains
     !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
-                                   row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
-                                   message)
+                                   row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, &
+                                   nwrt, wrt, tol, pred, jac, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
         real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -318,7 +330,7 @@ contains
         real(dp) :: p(nrow), j(nrow, nwrt)
         call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                   int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat)
+                                  model, stat, make_obs(obs_kind, obs_beam, obs_s))
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -331,6 +343,17 @@ contains
         real(c_double), intent(in) :: prior(:, :)
         pr = prior_t(nint(prior(1, :)), real(prior(2, :), dp), real(prior(3, :), dp))
     end function make_prior
+
+    !> The problem's observation list from the binding's arrays (kind code,
+    !! beam and arc length s of each entry; beamid_observations).
+    pure function make_obs(kind, beam, s) result(obs)
+        integer(c_int), intent(in) :: kind(:), beam(:)
+        real(c_double), intent(in) :: s(:)
+        type(observation_t) :: obs(size(kind))
+        integer :: i
+        obs = [(observation_t(kind=int(kind(i)), beam=int(beam(i)), s=real(s(i), dp)), &
+                i=1, size(kind))]
+    end function make_obs
 
     !> The problem of beamid_ladder from a binding's arrays.
     subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
@@ -381,7 +404,8 @@ contains
     !! starting values `nominal` and by continuation). Outputs: copy_diag.
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
                                     nprior, prior, nexp, exp_kind, exp_values, nrow, row_exp, &
-                                    row_t, row_q, row_value, row_sigma, tol, max_iter, ncand, &
+                                    row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
+                                    row_sigma, tol, max_iter, ncand, &
                                     cand_start, ncandp, cand_params, alpha, nrefit, &
                                     ambiguity_delta, collinear, with_mesh, cstats, pstats, &
                                     refit_params, ranking, cosine, dstats, refit_start, sep_t, &
@@ -391,6 +415,10 @@ contains
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
@@ -414,6 +442,7 @@ contains
 
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, 0, pb)
+        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         cs = make_cands(cand_start, cand_params, with_mesh)
         if (max_iter > 0) opts%max_iter = int(max_iter)
         dopts%alpha = alpha
@@ -523,14 +552,18 @@ contains
     !! per call, until none is significant at alpha or max_steps rungs were
     !! added.
     subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
-                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, row_value, &
-                                row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, nobs, &
+                                obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                 cand_params, with_mesh, alpha, max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
@@ -543,6 +576,7 @@ contains
         from_deck = .false.
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
+        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
                           int(max_steps), stat)

@@ -22,6 +22,7 @@ from typing import Iterable, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
+from . import observations
 from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
@@ -157,12 +158,20 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for j, name in enumerate(names):
         kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
+    # the problem's observation list: each distinct name once, parsed by the core
+    labels: dict[str, int] = {}
+    for q in data.quantity:
+        labels.setdefault(q, len(labels) + 1)
+    obs = [observations.parse(q) for q in labels]
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
-        row_q=np.array([_ce.QUANTITY_CODES[q] for q in data.quantity], np.int32),
+        row_q=np.array([labels[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
-        row_t=np.array(data.t, float), tol=float(tol))
+        row_t=np.array(data.t, float), tol=float(tol),
+        obs_kind=np.array([o.code for o in obs], np.int32),
+        obs_beam=np.array([o.beam for o in obs], np.int32),
+        obs_s=np.array([o.s for o in obs], float))
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:

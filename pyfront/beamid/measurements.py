@@ -20,14 +20,20 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from . import _core
+from . import _core, observations
 from .errors import InputError
 from .loads import RadialWire, Release, TipLoad
 
-#: Measurable quantities, in code order (the Fortran table, beamid_static_experiments);
-#: u_tip = x_tip - (L1 + L2), w_tip = y_tip.
+#: Observation kinds, in code order (the Fortran table, beamid_observations);
+#: u_tip = x_tip - (L1 + L2), w_tip = y_tip. A station kind is written
+#: ``kind@beam:s`` (beamid.observations).
 QUANTITIES = _core.quantity_labels()
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
+
+
+def _canonical(name: str) -> str:
+    """The core's name of an observation (x@2:0.7140 and x@2:0.714 are one)."""
+    return name if name in QUANTITIES else observations.parse(name).label
 
 
 @dataclass(frozen=True)
@@ -63,8 +69,14 @@ class Measurements:
         for i in range(n):
             where = self._where(i)
             if self.quantity[i] not in QUANTITIES:
-                raise InputError(f"{where}: field quantity = {self.quantity[i]!r}, expected "
-                                 f"one of {', '.join(QUANTITIES)}")
+                try:
+                    observations.parse(self.quantity[i])
+                except InputError as exc:
+                    if "unknown observation kind" in str(exc):
+                        raise InputError(f"{where}: field quantity = {self.quantity[i]!r}, "
+                                         f"expected one of {', '.join(QUANTITIES)}") from None
+                    raise InputError(f"{where}: field quantity = {self.quantity[i]!r}: "
+                                     f"{str(exc).split(': ', 1)[-1]}") from None
             for name in ("t", "value", "sigma"):
                 v = float(getattr(self, name)[i])
                 if not math.isfinite(v):
@@ -74,7 +86,7 @@ class Measurements:
                                  "sigma > 0 (the standard deviation of the row)")
             if self.t[i] < 0.0:
                 raise InputError(f"{where}: field t = {self.t[i]:g}, expected t >= 0")
-            key = (self.experiment[i], float(self.t[i]), self.quantity[i])
+            key = (self.experiment[i], float(self.t[i]), _canonical(self.quantity[i]))
             if key in seen:
                 raise InputError(f"{where}: duplicate row: experiment {key[0]!r}, t = "
                                  f"{key[1]:g}, quantity {key[2]!r} already given "
@@ -152,17 +164,26 @@ class Measurements:
             x = experiments[e]
             but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
             if isinstance(x, Release):
-                if q == "wire_force":
+                why = observations.can_measure(q, "release", has_motor=x.has_motor)
+                if why == "family" and q == "wire_force":
                     raise InputError(f"{but} is a release (no wire)")
-                if q == "motor_torque" and not x.has_motor:
+                if why == "family":
+                    raise InputError(f"{but} is a release (only a static experiment "
+                                     f"measures {observations.parse(q).kind})")
+                if why == "motor":
                     raise InputError(f"{but} has no motor (motor_gain = 0)")
             elif isinstance(x, (TipLoad, RadialWire)):
-                if q == "motor_torque":
+                why = observations.can_measure(q, "static",
+                                               has_wire=isinstance(x, RadialWire))
+                if why == "family" and q == "motor_torque":
                     raise InputError(f"{but} is static (no motor)")
+                if why == "family":
+                    raise InputError(f"{but} is static (only a release experiment measures "
+                                     f"{observations.parse(q).kind})")
                 if self.t[i] != 0.0:
                     raise InputError(f"{self._where(i)}: field t = {self.t[i]:g}, expected 0 "
                                      f"for the static experiment {e!r}")
-                if q == "wire_force" and not isinstance(x, RadialWire):
+                if why == "wire":
                     raise InputError(f"{but} has no wire")
 
     def write(self, path: str | os.PathLike, comment: str = "") -> None:

@@ -9,15 +9,21 @@ from typing import Any
 
 import numpy as np
 
+from . import observations
 from .diagnosis import Comparison, Ladder
 from .errors import InputError
 from .plotting import _axes
 
 
 def quantity_unit(quantity: str) -> str:
-    """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
-    read from its name (beamid.measurements.QUANTITIES: angles are in rad,
-    forces in N, moments and torques in N m, positions and deflections in m)."""
+    """The unit of a measured quantity (``m``, ``rad``, ``N``, ``N m``, ...):
+    the core's observation table (beamid.observations); a name that is no
+    observation is read by its words (angle: rad, moment or torque: N m,
+    force: N, else m)."""
+    try:
+        return observations.unit(quantity)
+    except InputError:
+        pass
     q = quantity.lower()
     if "angle" in q:
         return "rad"
