@@ -37,9 +37,12 @@ module beamid_dynamic_experiments
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN, dyn_param_t, &
+                               dyn_param_setup
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
-                                  METHOD_IMPLICIT, METHOD_RK4
+                                  METHOD_IMPLICIT, METHOD_RK4, integ_rate_sens
+    use beamid_fe_element, only: fe_hermite, FE_U, FE_W
+    use beamid_model, only: param_count, param_index_beam, IB_EI, IB_C
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
     use beamid_release, only: release_spec_t, release_out_t, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
@@ -49,7 +52,9 @@ module beamid_dynamic_experiments
     use beamid_observations, only: observation_t, observation_why_not, same_observation, &
                                    FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
-                                   K_W_TIP, K_MOTOR_TORQUE, kind_label
+                                   K_W_TIP, K_MOTOR_TORQUE, kind_label, KINDS, LOCUS_STATION, &
+                                   K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
+                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS
     implicit none
     private
 
@@ -242,6 +247,10 @@ contains
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(release_out_t) :: out
+        type(dyn_system_t) :: sys
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: a(:), da(:, :)
+        logical :: accel
         integer :: i, k
         if (x%fd) then
             call central_differences()
@@ -255,9 +264,20 @@ contains
             x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
             friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
         if (stat%code /= STATUS_OK) return
+        call station_setup(chain, x, wrt, obs, size(wrt) > 0, sys, pars, accel, stat)
+        if (stat%code /= STATUS_OK) return
+        allocate (a(sys%nstate), da(sys%nstate, size(wrt)))
         do k = 1, size(t_out)
+            if (accel) call integ_rate_sens(sys, pars, out%hist%y(:, k), out%dstates(:, k, :), &
+                                            a, da, stat)
+            if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                call observe(out, obs(i), k, y(i, k), dy(i, k, :))
+                if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                    call observe_station(sys, chain, obs(i), wrt, out%hist%y(:, k), &
+                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :))
+                else
+                    call observe(out, obs(i), k, y(i, k), dy(i, k, :))
+                end if
             end do
         end do
     contains
@@ -336,8 +356,10 @@ contains
         type(integ_opts_t) :: opts
         type(integ_stats_t) :: stats
         type(release_out_t) :: out
-        real(dp), allocatable :: y0(:), q(:)
-        real(dp) :: u, w, ang, ltot, none(0)
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: y0(:), q(:), a(:)
+        real(dp) :: u, w, ang, ltot, none(0), nos(0, 0), noda(0, 0)
+        logical :: accel
         integer :: k, n, i
         y = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
@@ -358,6 +380,8 @@ contains
         if (stat%code /= STATUS_OK) return
         ltot = sum(chain%length)
         allocate (out%y(NQTY, size(t_out)), source=0.0_dp)
+        allocate (pars(0), a(sys%nstate))
+        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
         do k = 1, size(t_out)
             associate (hy => out%hist%y(:, k))
                 call dyn_tip(sys, hy(1:n), u, w, ang)
@@ -372,11 +396,174 @@ contains
                 end if
                 out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
             end associate
+            if (accel) call integ_rate_sens(sys, pars, out%hist%y(:, k), nos, a, noda, stat)
+            if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                call observe(out, obs(i), k, y(i, k), none)
+                if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                    call observe_station(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
+                                         nos, a, noda, y(i, k), none)
+                else
+                    call observe(out, obs(i), k, y(i, k), none)
+                end if
             end do
         end do
     end subroutine release_run
+
+    !> What station observations need besides the response: the system (its
+    !! mesh) and, for accelerations, the parameters' derivative kinds
+    !! (accel: some observation is an acceleration).
+    subroutine station_setup(chain, x, wrt, obs, with_pars, sys, pars, accel, stat)
+        type(chain_t), intent(in) :: chain
+        type(release_exp_t), intent(in) :: x
+        integer, intent(in) :: wrt(:)
+        type(observation_t), intent(in) :: obs(:)
+        logical, intent(in) :: with_pars
+        type(dyn_system_t), intent(out) :: sys
+        type(dyn_param_t), allocatable, intent(out) :: pars(:)
+        logical, intent(out) :: accel
+        type(status_t), intent(inout) :: stat
+        integer :: i, j
+        allocate (pars(0))
+        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
+        if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION, i=1, size(obs))])) return
+        call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+        if (stat%code /= STATUS_OK .or. .not. (accel .and. with_pars)) return
+        deallocate (pars)
+        allocate (pars(size(wrt)))
+        do j = 1, size(wrt)
+            call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), wrt(j), &
+                                 pars(j), stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+    end subroutine station_setup
+
+    !> The release family's observe at a station (beam b, arc length s from
+    !! its root) from the full state y and its sensitivities sy (nstate x
+    !! size(wrt)), interpolated with the element's Hermite functions (Eq.
+    !! 76): position x = S + u, y = w (S the undeformed arc position), the
+    !! tangent angle psi = atan2(w', 1 + u'), the curvature kappa = chi /
+    !! ((1 + u')^2 + w'^2)^(3/2) with chi = w''(1 + u') - w' u'' (Eq. 72),
+    !! the moment EI chi + C chi^3, the gauge strain e + kappa t/2 (e the
+    !! Green axial strain, Eq. 70; t the strip thickness; the gauge on the
+    !! clockwise side, stretched by a counter-clockwise bend), and the
+    !! velocity and acceleration of the material point along the tangent t =
+    !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates
+    !! f of the state, da their sensitivities). Lengths carry no derivative
+    !! here (the release family has none, beamid_release).
+    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: y(:), sy(:, :), a(:), da(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: f(4), f1(4), f2(4), h, zeta, u, w, u1, w1, u2, w2, r2, chi, kap, e, p1
+        real(dp) :: vu, vw, ca, sb
+        real(dp), dimension(size(grad)) :: du, dw, du1, dw1, du2, dw2, dr2, dchi, dkap, dvu, &
+                                           dvw, dau
+        real(dp) :: qe(8), ve(8), ae(8)
+        real(dp) :: dqe(8, size(grad)), dve(8, size(grad)), dae(8, size(grad))
+        integer :: el, first, nel_b, j, m, n, idx
+        n = sys%n
+        value = 0.0_dp
+        grad = 0.0_dp
+        first = findloc(sys%mesh%beam, o%beam, 1)
+        nel_b = count(sys%mesh%beam == o%beam)
+        if (first == 0) return
+        h = sys%mesh%h(first)
+        idx = min(max(int(o%s/h), 0), nel_b - 1)
+        el = first + idx
+        zeta = min(max(o%s/h - real(idx, dp), 0.0_dp), 1.0_dp)
+        call fe_hermite(zeta, h, f, f1, f2)
+        qe = 0.0_dp
+        ve = 0.0_dp
+        ae = 0.0_dp
+        dqe = 0.0_dp
+        dve = 0.0_dp
+        dae = 0.0_dp
+        do m = 1, 8
+            j = sys%mesh%el_free(m, el)
+            if (j == 0) cycle
+            qe(m) = y(j)
+            ve(m) = y(n + j)
+            if (size(a) >= 2*n) ae(m) = a(n + j)
+            if (size(grad) > 0) then
+                dqe(m, :) = sy(j, :)
+                dve(m, :) = sy(n + j, :)
+                if (size(da, 1) >= 2*n) dae(m, :) = da(n + j, :)
+            end if
+        end do
+        u = dot_product(f, qe(FE_U))
+        w = dot_product(f, qe(FE_W))
+        u1 = dot_product(f1, qe(FE_U))
+        w1 = dot_product(f1, qe(FE_W))
+        u2 = dot_product(f2, qe(FE_U))
+        w2 = dot_product(f2, qe(FE_W))
+        du = matmul(f, dqe(FE_U, :))
+        dw = matmul(f, dqe(FE_W, :))
+        du1 = matmul(f1, dqe(FE_U, :))
+        dw1 = matmul(f1, dqe(FE_W, :))
+        du2 = matmul(f2, dqe(FE_U, :))
+        dw2 = matmul(f2, dqe(FE_W, :))
+        p1 = 1.0_dp + u1
+        r2 = p1*p1 + w1*w1
+        dr2 = 2.0_dp*(p1*du1 + w1*dw1)
+        chi = w2*p1 - w1*u2
+        dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
+        kap = chi/r2**1.5_dp
+        dkap = dchi/r2**1.5_dp - 1.5_dp*chi/r2**2.5_dp*dr2
+        select case (o%kind)
+        case (K_X)
+            value = sum(chain%length(1:o%beam - 1)) + o%s + u
+            grad = du
+        case (K_Y)
+            value = w
+            grad = dw
+        case (K_PSI)
+            value = atan2(w1, p1)
+            grad = (p1*dw1 - w1*du1)/r2
+        case (K_CURVATURE)
+            value = kap
+            grad = dkap
+        case (K_MOMENT)
+            associate (ei => chain%ei(o%beam), c => chain%cubic(o%beam))
+                value = ei*chi + c*chi**3
+                grad = (ei + 3.0_dp*c*chi*chi)*dchi
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_EI)) &
+                        grad(j) = grad(j) + chi
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_C)) &
+                        grad(j) = grad(j) + chi**3
+                end do
+            end associate
+        case (K_STRAIN)
+            e = u1 + 0.5_dp*(u1*u1 + w1*w1)
+            value = e + 0.5_dp*STRIP_THICKNESS*kap
+            grad = p1*du1 + w1*dw1 + 0.5_dp*STRIP_THICKNESS*dkap
+        case (K_VEL_T, K_VEL_N, K_ACCEL_T, K_ACCEL_N)
+            if (o%kind == K_VEL_T .or. o%kind == K_VEL_N) then
+                vu = dot_product(f, ve(FE_U))
+                vw = dot_product(f, ve(FE_W))
+                dvu = matmul(f, dve(FE_U, :))
+                dvw = matmul(f, dve(FE_W, :))
+            else
+                vu = dot_product(f, ae(FE_U))
+                vw = dot_product(f, ae(FE_W))
+                dvu = matmul(f, dae(FE_U, :))
+                dvw = matmul(f, dae(FE_W, :))
+            end if
+            if (o%kind == K_VEL_T .or. o%kind == K_ACCEL_T) then
+                ca = p1*vu + w1*vw
+                dau = du1*vu + p1*dvu + dw1*vw + w1*dvw
+            else
+                ca = -w1*vu + p1*vw
+                dau = -dw1*vu - w1*dvu + du1*vw + p1*dvw
+            end if
+            sb = sqrt(r2)
+            value = ca/sb
+            grad = dau/sb - 0.5_dp*ca/(sb*r2)*dr2
+        end select
+    end subroutine observe_station
 
     !> Predictions and sensitivities of the rows: one response per experiment
     !! that has rows, at the distinct times of its rows. A release with a

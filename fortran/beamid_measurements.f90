@@ -264,7 +264,8 @@ contains
     !> Rows of static experiments: t must be 0, and wire_force needs a wire
     !! (the checks of beamid.estimation.build_problem). `row_exp` gives each
     !! row's experiment index into names/is_wire.
-    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor)
+    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor, &
+                                      lengths)
         type(measurements_t), intent(in) :: data
         character(len=*), intent(in) :: names(:)
         logical, intent(in) :: is_wire(:)
@@ -273,7 +274,10 @@ contains
         !> release experiments (issue 13): any t >= 0, no wire_force, and
         !! motor_torque only with a motor (has_motor)
         logical, intent(in), optional :: is_release(:), has_motor(:)
-        integer :: i, e, reason
+        !> the model's beam lengths: stations are checked against them
+        real(dp), intent(in), optional :: lengths(:)
+        real(dp), allocatable :: len_b(:)
+        integer :: i, e, reason, nb
         logical :: release, motor, wire
         character(len=:), allocatable :: where, x, why, q, detail
         allocate (row_exp(size(data%experiment)), source=0)
@@ -293,10 +297,19 @@ contains
             wire = .false.
             if (release .and. present(has_motor)) motor = has_motor(row_exp(i))
             if (.not. release) wire = is_wire(row_exp(i))
+            nb = huge(1)
+            allocate (len_b(0))
+            if (present(lengths)) then
+                if (size(lengths) > 0) then
+                    nb = size(lengths)
+                    len_b = lengths
+                end if
+            end if
             reason = observation_why_not(data%obs(i), merge(FAM_RELEASE, FAM_STATIC, release), &
-                                         wire, motor, huge(1), [real(dp) ::])
+                                         wire, motor, nb, len_b)
             detail = why_detail(data%obs(i), reason, merge(FAM_RELEASE, FAM_STATIC, release), &
-                                huge(1), [real(dp) ::])
+                                nb, len_b)
+            deallocate (len_b)
             if (.not. release .and. data%t(i) /= 0.0_dp .and. &
                 (reason == WHY_OK .or. reason == WHY_WIRE)) then
                 why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the static experiment '// &

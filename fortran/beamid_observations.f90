@@ -44,6 +44,13 @@ module beamid_observations
     integer, parameter, public :: K_X_TIP = 1, K_Y_TIP = 2, K_TIP_ANGLE = 3, K_WIRE_FORCE = 4, &
                                   K_X_ELBOW = 5, K_Y_ELBOW = 6, K_U_TIP = 7, K_W_TIP = 8, &
                                   K_MOTOR_TORQUE = 9
+    !> Station kinds (LOCUS_STATION: beam b, arc length s from its root).
+    integer, parameter, public :: K_X = 10, K_Y = 11, K_PSI = 12, K_CURVATURE = 13, &
+                                  K_MOMENT = 14, K_STRAIN = 15, K_VEL_T = 16, K_VEL_N = 17, &
+                                  K_ACCEL_T = 18, K_ACCEL_N = 19
+    !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
+    !! observation sits t/2 from the neutral axis.
+    real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
 
     !> One row of the table.
     type :: obs_kind_t
@@ -61,7 +68,7 @@ module beamid_observations
         character(len=72) :: about = ''
     end type obs_kind_t
 
-    integer, parameter :: NKIND = 9
+    integer, parameter :: NKIND = 19
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
     type(obs_kind_t), parameter :: KINDS(NKIND) = [ &
         obs_kind_t('x_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 1, 0, K_U_TIP, &
@@ -81,7 +88,27 @@ module beamid_observations
         obs_kind_t('w_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 2, K_Y_TIP, &
                    'y_tip (the transverse tip deflection)'), &
         obs_kind_t('motor_torque', 'N m', FAM_RELEASE, LOCUS_NONE, NEED_MOTOR, 1.0e-2_dp, 0, &
-                   6, 0, 'torque of the tip motor (Eq. 159)')]
+                   6, 0, 'torque of the tip motor (Eq. 159)'), &
+        obs_kind_t('x', 'm', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'x of the station (a camera marker)'), &
+        obs_kind_t('y', 'm', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'y of the station'), &
+        obs_kind_t('psi', 'rad', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'tangent angle, counter-clockwise from +x'), &
+        obs_kind_t('curvature', '1/m', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, &
+                   0, 0, 'curvature dpsi/ds, positive counter-clockwise'), &
+        obs_kind_t('moment', 'N m', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
+                   'bending moment EI chi + C chi^3'), &
+        obs_kind_t('strain', '1', BOTH, LOCUS_STATION, NEED_NONE, 1.0e-6_dp, 0, 0, 0, &
+                   'gauge surface strain on the clockwise side: e + kappa t/2'), &
+        obs_kind_t('vel_t', 'm/s', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'velocity along the local tangent'), &
+        obs_kind_t('vel_n', 'm/s', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'velocity along the local normal (tangent turned +90 degrees)'), &
+        obs_kind_t('accel_t', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'acceleration along the local tangent (an accelerometer)'), &
+        obs_kind_t('accel_n', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'acceleration along the local normal')]
 
     !> An observation: a kind and its locus.
     type :: observation_t
@@ -245,7 +272,7 @@ contains
             else if (o%beam < 1) then
                 why = 'beam '//fmt_int(o%beam)//' of "'//t//'", expected a beam >= 1'
             else if (o%s < 0.0_dp) then
-                why = 'arc length s = '//fmt_real(o%s)//' of "'//t//'", expected 0 <= s <= L'
+                why = 'arc length s = '//fmt_short(o%s)//' of "'//t//'", expected 0 <= s <= L'
             end if
         case (LOCUS_MODE)
             read (locus, *, iostat=ios) o%mode

@@ -22,12 +22,15 @@ module beamid_static_experiments
                             IB_EI, IB_EA, IB_RHO, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
                             param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
-                                solve_static, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, OUT_Y_TIP, &
+                                solve_static, static_stations, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, &
+                                OUT_Y_TIP, &
                                 OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW
     use beamid_observations, only: observation_t, obs_label, observation_why_not, probe_kinds, &
                                    KINDS, FAM_STATIC, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_WIRE_FORCE, K_X_ELBOW, &
-                                   K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE
+                                   K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE, LOCUS_STATION, &
+                                   K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
+                                   STRIP_THICKNESS
     use beamid_estimation, only: residual_model_t, sort_desc
     implicit none
     private
@@ -118,7 +121,9 @@ contains
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(static_solution_t) :: sol
-        integer :: e, i, nb
+        integer :: e, i, k, nb
+        integer, allocatable :: st(:)
+        real(dp), allocatable :: z(:, :), dz(:, :, :)
         predictions = 0.0_dp
         jacobian = 0.0_dp
         nb = self%nbeams
@@ -131,8 +136,27 @@ contains
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
                 return
             end if
+            ! the station rows of this experiment: one more shot for all
+            st = pack([(i, i=1, size(self%row_exp))], self%row_exp == e .and. &
+                      [(KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION, &
+                        i=1, size(self%row_exp))])
+            if (size(st) > 0) then
+                allocate (z(6, size(st)), dz(6, size(st), size(wrt)))
+                call static_stations(chain, self%loads(e), sol, wrt, self%opts, &
+                                     self%row_obs(st)%beam, self%row_obs(st)%s, z, dz, stat)
+                if (stat%code /= STATUS_OK) then
+                    stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
+                    return
+                end if
+                do k = 1, size(st)
+                    call observe_station(chain, self%row_obs(st(k)), wrt, z(:, k), dz(:, k, :), &
+                                         predictions(st(k)), jacobian(st(k), :))
+                end do
+                deallocate (z, dz)
+            end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
+                if (KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION) cycle
                 call observe(chain, sol, self%row_obs(i), wrt, predictions(i), jacobian(i, :))
             end do
         end do
@@ -177,6 +201,52 @@ contains
             end do
         end if
     end subroutine observe
+
+    !> The static family's observe at a station from the arc-length state
+    !! z = (x, y, psi, k, Q, N) there and its sensitivities dz (6 x
+    !! size(wrt)): x, y, psi; curvature k; moment EI k + C k^3; gauge strain
+    !! k t/2 on the clockwise side (the arc-length model is inextensible:
+    !! no axial strain; t the strip thickness).
+    pure subroutine observe_station(chain, o, wrt, z, dz, value, grad)
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: z(:), dz(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        integer :: j
+        real(dp) :: k
+        value = 0.0_dp
+        grad = 0.0_dp
+        k = z(4)
+        select case (o%kind)
+        case (K_X)
+            value = z(1)
+            grad = dz(1, :)
+        case (K_Y)
+            value = z(2)
+            grad = dz(2, :)
+        case (K_PSI)
+            value = z(3)
+            grad = dz(3, :)
+        case (K_CURVATURE)
+            value = k
+            grad = dz(4, :)
+        case (K_MOMENT)
+            associate (ei => chain%ei(o%beam), c => chain%cubic(o%beam))
+                value = ei*k + c*k**3
+                grad = (ei + 3.0_dp*c*k*k)*dz(4, :)
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_EI)) &
+                        grad(j) = grad(j) + k
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_C)) &
+                        grad(j) = grad(j) + k**3
+                end do
+            end associate
+        case (K_STRAIN)
+            value = 0.5_dp*STRIP_THICKNESS*k
+            grad = 0.5_dp*STRIP_THICKNESS*dz(4, :)
+        end select
+    end subroutine observe_station
 
     !> Physical bounds of every parameter: lengths, stiffnesses and densities
     !! positive (lower bound 0, never reached: the solver rejects it), the

@@ -163,6 +163,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for q in data.quantity:
         labels.setdefault(q, len(labels) + 1)
     obs = [observations.parse(q) for q in labels]
+    _check_stations(model, data, dict(zip(labels, obs)))
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -172,6 +173,23 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         obs_kind=np.array([o.code for o in obs], np.int32),
         obs_beam=np.array([o.beam for o in obs], np.int32),
         obs_s=np.array([o.s for o in obs], float))
+
+
+def _check_stations(model: Model, data: Measurements, parsed: dict) -> None:
+    """InputError naming the row for a station on a beam the model does not
+    have or beyond its beam's length (0 <= s <= L_b)."""
+    for i, q in enumerate(data.quantity):
+        o = parsed[q]
+        if observations.kinds()[o.kind].locus != "station":
+            continue
+        where = data._where(i)
+        if not 1 <= o.beam <= model.nbeams:
+            raise InputError(f"{where}: field quantity = {q!r}: beam {o.beam} does not exist, "
+                             f"expected 1..{model.nbeams}")
+        length = float(model[f"L{o.beam}"])
+        if o.s > length * (1.0 + 1e-12):
+            raise InputError(f"{where}: field quantity = {q!r}: station s = {o.s:g} is beyond "
+                             f"beam {o.beam}, expected 0 <= s <= {length:g} (L{o.beam})")
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
