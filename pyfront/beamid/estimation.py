@@ -432,8 +432,12 @@ def _check_quantities(exps, quantities, sigma) -> None:
     for qs in lists:
         for q in ([qs] if isinstance(qs, str) else qs):
             if q not in QUANTITIES:
-                raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
-                                 f"{', '.join(QUANTITIES)}")
+                try:
+                    observations.parse(q)
+                except InputError:
+                    raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
+                                     f"{', '.join(QUANTITIES)} (a station kind as "
+                                     "kind@beam:s)") from None
             if isinstance(sigma, Mapping) and q not in sigma:
                 raise InputError(f"sigma has no entry for quantity {q!r}")
     values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]

@@ -114,6 +114,31 @@ class Measurements:
                    value=np.array([float(r[3]) for r in rows]),
                    sigma=np.array([float(r[4]) for r in rows]), source=source)
 
+    @classmethod
+    def from_frame(cls, frame, source: str = "<DataFrame>") -> "Measurements":
+        """Build from a pandas DataFrame with the columns experiment, t,
+        quantity, value, sigma (the long format; pandas itself is not
+        imported here)."""
+        cols = [str(c) for c in getattr(frame, "columns", ())]
+        missing = [h for h in HEADER if h not in cols]
+        if missing:
+            raise InputError(f"{source}: columns {cols}, expected {', '.join(HEADER)} "
+                             f"(missing {', '.join(missing)})")
+        return cls(experiment=tuple(str(e) for e in frame["experiment"]),
+                   t=np.asarray(frame["t"], float), quantity=tuple(str(q) for q in frame["quantity"]),
+                   value=np.asarray(frame["value"], float), sigma=np.asarray(frame["sigma"], float),
+                   source=source)
+
+    def to_frame(self):
+        """The table as a pandas DataFrame (pandas must be installed)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InputError("to_frame needs pandas: pip install pandas") from None
+        return pd.DataFrame({"experiment": list(self.experiment), "t": self.t,
+                             "quantity": list(self.quantity), "value": self.value,
+                             "sigma": self.sigma})
+
     def rows(self) -> list[tuple[str, float, str, float, float]]:
         """The rows as tuples."""
         return [(e, float(t), q, float(v), float(s)) for e, t, q, v, s in
@@ -220,6 +245,11 @@ def read_measurements(path: str | os.PathLike,
         names the file, the line and the field; a
         path that is not a str or os.PathLike names the argument.
     """
+    if type(path).__name__ == "DataFrame" and hasattr(path, "columns"):
+        data = Measurements.from_frame(path)
+        if experiments is not None:
+            data.check_experiments(experiments)
+        return data
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"read_measurements: path = {path!r}, expected a file path "
                          "(str or os.PathLike)")
