@@ -54,7 +54,8 @@ module beamid_dynamic_experiments
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
                                    K_W_TIP, K_MOTOR_TORQUE, kind_label, KINDS, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
-                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS
+                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS, &
+                                   K_ELBOW_ROTATION, K_ROOT_ROTATION
     implicit none
     private
 
@@ -272,7 +273,10 @@ contains
                                             a, da, stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), wrt, out%hist%y(:, k), &
+                                         out%dstates(:, k, :), y(i, k), dy(i, k, :))
+                else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), wrt, out%hist%y(:, k), &
                                          out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :))
                 else
@@ -399,7 +403,10 @@ contains
             if (accel) call integ_rate_sens(sys, pars, out%hist%y(:, k), nos, a, noda, stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
+                                         nos, y(i, k), none)
+                else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
                                          nos, a, noda, y(i, k), none)
                 else
@@ -425,7 +432,9 @@ contains
         integer :: i, j
         allocate (pars(0))
         accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
-        if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION, i=1, size(obs))])) return
+        if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
+                        obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
+                        i=1, size(obs))])) return
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
         if (stat%code /= STATUS_OK .or. .not. (accel .and. with_pars)) return
         deallocate (pars)
@@ -436,6 +445,31 @@ contains
             if (stat%code /= STATUS_OK) return
         end do
     end subroutine station_setup
+
+    !> The encoders of a release: psi at the clamp (root_rotation), psi
+    !! after the elbow minus psi before it (elbow_rotation), from the slopes
+    !! either side of the joint (observe_station at s = 0 of beam 2 and s =
+    !! L1 of beam 1): zero unless the joint is compliant.
+    pure subroutine observe_encoder(sys, chain, o, wrt, y, sy, value, grad)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: y(:), sy(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: v1, g1(size(grad)), none(0), nod(0, 0)
+        if (o%kind == K_ROOT_ROTATION) then
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=1, s=0.0_dp), wrt, &
+                                 y, sy, none, nod, value, grad)
+        else
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=2, s=0.0_dp), wrt, &
+                                 y, sy, none, nod, value, grad)
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=1, &
+                                 s=chain%length(1)), wrt, y, sy, none, nod, v1, g1)
+            value = value - v1
+            grad = grad - g1
+        end if
+    end subroutine observe_encoder
 
     !> The release family's observe at a station (beam b, arc length s from
     !! its root) from the full state y and its sensitivities sy (nstate x

@@ -48,6 +48,8 @@ module beamid_observations
     integer, parameter, public :: K_X = 10, K_Y = 11, K_PSI = 12, K_CURVATURE = 13, &
                                   K_MOMENT = 14, K_STRAIN = 15, K_VEL_T = 16, K_VEL_N = 17, &
                                   K_ACCEL_T = 18, K_ACCEL_N = 19
+    !> Encoders: the relative rotation at the elbow and at the root.
+    integer, parameter, public :: K_ELBOW_ROTATION = 20, K_ROOT_ROTATION = 21
     !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
     !! observation sits t/2 from the neutral axis.
     real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
@@ -68,7 +70,7 @@ module beamid_observations
         character(len=72) :: about = ''
     end type obs_kind_t
 
-    integer, parameter :: NKIND = 19
+    integer, parameter :: NKIND = 21
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
     type(obs_kind_t), parameter :: KINDS(NKIND) = [ &
         obs_kind_t('x_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 1, 0, K_U_TIP, &
@@ -108,7 +110,11 @@ module beamid_observations
         obs_kind_t('accel_t', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
                    0, 'acceleration along the local tangent (an accelerometer)'), &
         obs_kind_t('accel_n', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'acceleration along the local normal')]
+                   0, 'acceleration along the local normal'), &
+        obs_kind_t('elbow_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'encoder at the elbow: psi after it minus psi before it'), &
+        obs_kind_t('root_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'encoder at the root: psi of the arm at the clamp')]
 
     !> An observation: a kind and its locus.
     type :: observation_t
@@ -308,6 +314,8 @@ contains
             why = WHY_WIRE
         else if (k%needs == NEED_MOTOR .and. .not. has_motor) then
             why = WHY_MOTOR
+        else if (o%kind == K_ELBOW_ROTATION .and. nbeams < 2) then
+            why = WHY_BEAM
         else if (k%locus == LOCUS_STATION) then
             if (o%beam < 1 .or. o%beam > nbeams) then
                 why = WHY_BEAM
@@ -336,7 +344,12 @@ contains
                 detail = 'only a static experiment measures '//kind_label(o%kind)
             end if
         case (WHY_BEAM)
-            detail = 'beam '//fmt_int(o%beam)//' does not exist, expected 1..'//fmt_int(nbeams)
+            if (o%kind == K_ELBOW_ROTATION) then
+                detail = 'a chain of '//fmt_int(nbeams)//' beam has no elbow'
+            else
+                detail = 'beam '//fmt_int(o%beam)//' does not exist, expected 1..'// &
+                         fmt_int(nbeams)
+            end if
         case (WHY_STATION)
             if (size(lengths) >= o%beam .and. o%beam >= 1) then
                 detail = 'station s = '//fmt_short(o%s)//' is beyond beam '//fmt_int(o%beam)// &

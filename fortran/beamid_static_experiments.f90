@@ -30,7 +30,7 @@ module beamid_static_experiments
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_WIRE_FORCE, K_X_ELBOW, &
                                    K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
-                                   STRIP_THICKNESS
+                                   STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION
     use beamid_estimation, only: residual_model_t, sort_desc
     implicit none
     private
@@ -154,9 +154,39 @@ contains
                 end do
                 deallocate (z, dz)
             end if
+            ! encoders: psi at the clamp, and across the elbow
+            st = pack([(i, i=1, size(self%row_exp))], self%row_exp == e .and. &
+                      (self%row_obs%kind == K_ROOT_ROTATION .or. &
+                       self%row_obs%kind == K_ELBOW_ROTATION))
+            if (size(st) > 0) then
+                allocate (z(6, 3), dz(6, 3, size(wrt)))
+                call static_stations(chain, self%loads(e), sol, wrt, self%opts, &
+                                     [1, 1, min(2, nb)], [0.0_dp, chain%length(1), 0.0_dp], &
+                                     z, dz, stat)
+                if (stat%code /= STATUS_OK) then
+                    stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
+                    return
+                end if
+                do k = 1, size(st)
+                    if (self%row_obs(st(k))%kind == K_ROOT_ROTATION) then
+                        predictions(st(k)) = z(3, 1)
+                        jacobian(st(k), :) = dz(3, 1, :)
+                    else
+                        ! psi after the joint minus psi before it; the station
+                        ! before it is a material point, the joint moves with L1
+                        predictions(st(k)) = z(3, 3) - z(3, 2)
+                        jacobian(st(k), :) = dz(3, 3, :) - dz(3, 2, :)
+                        where (wrt == param_index_beam(nb, 1, IB_L)) &
+                            jacobian(st(k), :) = jacobian(st(k), :) - z(4, 2)
+                    end if
+                end do
+                deallocate (z, dz)
+            end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
                 if (KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION) cycle
+                if (self%row_obs(i)%kind == K_ROOT_ROTATION .or. &
+                    self%row_obs(i)%kind == K_ELBOW_ROTATION) cycle
                 call observe(chain, sol, self%row_obs(i), wrt, predictions(i), jacobian(i, :))
             end do
         end do

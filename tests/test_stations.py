@@ -113,3 +113,39 @@ def test_acceleration_of_a_static_experiment_is_refused():
     with pytest.raises(beamid.InputError, match="d.csv, row 1: field quantity = "
                        "'accel_n@2:0.5', but experiment 'F8' is static"):
         beamid.estimation.predict(STATIC, STATIC_EXPS, data)
+
+
+def test_encoders_read_the_joint_rotations():
+    """elbow_rotation and root_rotation: zero at a locked joint, the
+    compliance times the moment at a compliant one (static and release
+    alike), with sensitivities against central differences."""
+    qs = ("elbow_rotation", "root_rotation", "psi@1:0", "moment@1:0")
+    exps = {"F8": beamid.TipForce(fy=8.0),
+            "free": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, rtol=1e-12)}
+    rows = [("F8", 0.0, q, 0.0, 1e-3) for q in qs] + \
+        [("free", t, q, 0.0, 1e-3) for t in (0.0, 0.2) for q in qs]
+    data = beamid.Measurements.from_rows(rows, source="<test>")
+    locked, _ = beamid.estimation.predict(beamid.pace(), exps, data)
+    assert np.all(locked.reshape(3, 4)[:, :3] == 0.0)
+    model = beamid.pace().replace(elbow_flex=0.02, root_flex=0.02, C1=2.0)
+    wrt = ("EI1", "elbow_flex", "root_flex")
+    p, jac = beamid.estimation.predict(model, exps, data, wrt)
+    p = p.reshape(3, 4)
+    np.testing.assert_allclose(p[:, 1], p[:, 2], rtol=0, atol=1e-14)   # psi at the clamp
+    assert p[0, 1] == pytest.approx(0.02 * p[0, 3], rel=1e-9)          # f_root M(0), static
+    assert p[0, 0] == pytest.approx(0.08056, abs=1e-5)                 # f M(L1), static
+    np.testing.assert_allclose(p[1, :2], p[0, :2], rtol=1e-3)          # the FE at t = 0
+    for j, name in enumerate(wrt):
+        h = 1e-6 * max(abs(model[name]), 1e-2)
+        yp, _ = beamid.estimation.predict(model.replace(**{name: model[name] + h}), exps, data)
+        ym, _ = beamid.estimation.predict(model.replace(**{name: model[name] - h}), exps, data)
+        fd = (yp - ym) / (2 * h)
+        np.testing.assert_allclose(jac[:, j], fd, atol=1e-4 * np.max(np.abs(fd)), err_msg=name)
+
+
+def test_elbow_encoder_needs_an_elbow():
+    one = beamid.cantilever()
+    data = beamid.Measurements.from_rows([("F", 0.0, "elbow_rotation", 0.0, 1e-3)],
+                                         source="d.csv")
+    with pytest.raises(beamid.InputError, match="has no elbow"):
+        beamid.estimation.predict(one, {"F": beamid.TipForce(fy=1.0)}, data)
