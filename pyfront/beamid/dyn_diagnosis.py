@@ -366,9 +366,43 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
                           math.sqrt(2.0 * max(dof, 0)), p, systematic)
 
 
+#: markers per panel of a time comparison: a denser record is thinned
+MAX_MARKERS = 150
+#: points of the model's curve over a release
+DENSE_POINTS = 400
+
+
+def _dense_model(cmp: TimeComparison) -> dict:
+    """The fitted model over each release on a dense time grid (the curve
+    between the measurement times): {(experiment, quantity): (t, y)}; a
+    series whose prediction fails keeps its values at the sample times."""
+    from .estimation import predict
+    from .measurements import Measurements
+
+    out: dict = {}
+    by_exp: dict[str, list] = {}
+    for s in cmp.series:
+        by_exp.setdefault(s.experiment, []).append(s)
+    for e, series in by_exp.items():
+        tmax = max(float(np.max(s.t)) for s in series)
+        grid = np.union1d(np.linspace(0.0, tmax, DENSE_POINTS),
+                          np.concatenate([s.t for s in series]))
+        rows = [(e, t, s.quantity, 0.0, 1.0) for s in series for t in grid]
+        try:
+            pred, _ = predict(cmp.fit.model, {e: cmp.fit.experiments[e]},
+                              Measurements.from_rows(rows, source="<dense>"))
+        except Exception:   # noqa: BLE001 - the figure falls back to the samples
+            continue
+        for k, s in enumerate(series):
+            out[(e, s.quantity)] = (grid, pred[k * grid.size:(k + 1) * grid.size])
+    return out
+
+
 def plot_time_comparison(cmp: TimeComparison, fig=None):
     """One column per (experiment, quantity): on top measured values with
-    their error bars and the model over time (unit on the axis), below the
+    their error bars (every k-th of a record denser than MAX_MARKERS) and
+    the model as a continuous curve over time (dense output between the
+    measurement times; unit on the axis), below the
     normalized residuals with their +-1 error bars and the +-2 sigma band.
     Returns the figure."""
     import matplotlib.pyplot as plt
@@ -377,11 +411,17 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
     if fig is None:
         fig = plt.figure(figsize=(4.2 * n, 5.6))
     axes = fig.subplots(2, n, squeeze=False, sharex="col")
+    dense = _dense_model(cmp)
     for k, s in enumerate(cmp.series):
         top, bottom = axes[0, k], axes[1, k]
-        top.plot(s.t, s.model, "-", color="C0", label="model")
-        top.errorbar(s.t, s.measured, yerr=s.sigma, fmt="o", ms=3, color="C1", capsize=2,
-                     elinewidth=1.0, label="measured +- sigma")
+        tm, ym = dense.get((s.experiment, s.quantity), (s.t, s.model))
+        top.plot(tm, ym, "-", color="C0", label="model")
+        # a dense record: every k-th sample, so that the model stays visible
+        step = max(1, int(math.ceil(len(s.t) / MAX_MARKERS)))
+        sl = slice(None, None, step)
+        label = "measured +- sigma" + (f" (every {step}th)" if step > 1 else "")
+        top.errorbar(s.t[sl], s.measured[sl], yerr=s.sigma[sl], fmt="o", ms=3, color="C1",
+                     capsize=2, elinewidth=1.0, label=label)
         top.set_title(f"{s.experiment}: {s.quantity}")
         top.set_ylabel(f"{s.quantity} ({s.unit})")
         top.legend(fontsize=7)
@@ -389,9 +429,9 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         bottom.axhline(0.0, color="0.5", lw=0.8, label="zero")
         # in sigma units the error bar is +-1: visible where sigma is not
         # beside the motion's amplitude
-        bottom.errorbar(s.t, s.normalized, yerr=np.ones_like(s.normalized), fmt="o-", ms=3,
-                        color="C3", capsize=2, elinewidth=1.0,
-                        label="normalized residual +- 1 sigma")
+        bottom.errorbar(s.t[sl], s.normalized[sl], yerr=np.ones_like(s.normalized[sl]),
+                        fmt="o-" if step == 1 else "o", ms=3, color="C3", capsize=2,
+                        elinewidth=1.0, label="normalized residual +- 1 sigma")
         bottom.set_xlabel("t (s)")
         bottom.set_ylabel("(measured - model) / sigma")
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
