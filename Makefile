@@ -75,10 +75,12 @@ check-build: setup
 	ln -s "$(CURDIR)"/$(CHECK_DIR)/_ext.*.so $(CHECK_SITE)/beamid/
 
 # The Fortran kernel tests and the tests that go through Fortran, against the
-# checking build (floating-point traps armed in the Fortran test programs too).
+# checking build (floating-point traps armed in the Fortran test programs too);
+# the API fuzz (tests/test_fuzz_api.py) with its long profile.
 test-check: check-build
 	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/meson test -C $(CHECK_DIR) -q --print-errorlogs
 	PATH="$(CURDIR)/$(CHECK_DIR):$$PATH" BEAMID_BATCH="$(CURDIR)/$(CHECK_DIR)/beamid-batch" \
+	  BEAMID_FUZZ_PROFILE=long \
 	  PYTHONPATH="$(CURDIR)/$(CHECK_SITE):$$($(VPY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')" \
 	  $(VPY) -S -m pytest -q -p no:cacheprovider tests
 

@@ -26,7 +26,7 @@ module beamid_deck
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_static_experiments, only: static_effect_params, EFFECT_NAMES, KNOWN_EFFECTS
+    use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
@@ -37,6 +37,7 @@ module beamid_deck
     private
 
     public :: deck_t, read_deck, param_lookup, KNOWN_GROUPS, deck_set_task, take_stage
+    public :: FRICTION_LAWS
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
@@ -53,6 +54,8 @@ module beamid_deck
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
     character(len=*), parameter :: REPEATABLE = ' experiment published '
+    !> The classes of a documented deviation (&published kind), '' for none.
+    character(len=*), parameter :: DEVIATION_KINDS = '||formulation|random draws|unexplained|'
     !> The words of integrator and friction (codes: read_choice's callers).
     character(len=*), parameter :: INTEGRATORS(2) = [character(len=8) :: 'implicit', 'rk4']
     character(len=*), parameter :: FRICTION_LAWS(3) = [character(len=12) :: 'sign', 'smooth', &
@@ -81,8 +84,9 @@ module beamid_deck
         !> The model was read without errors (checks that need it run then).
         logical :: model_ok = .false.
         !> The &published groups, one line per item (tab separated): 'P table
-        !! row note' opens a group, then 'Q quantity value digits' per value and
-        !! 'D name' per documented deviation (read by beamid reproduce).
+        !! row note' opens a group, then 'K kind section' when the group has a
+        !! kind, 'Q quantity value digits' per value and 'D name' per
+        !! documented deviation (read by beamid reproduce).
         character(len=:), allocatable :: published
         character(len=:), allocatable :: task       !< 'static'
         character(len=:), allocatable :: output     !< output prefix, relative to the deck
@@ -174,7 +178,9 @@ contains
         errors = ''
         call nml_read_file(path, f, errors, stat)
         if (stat%code /= STATUS_OK) return
-        call read_all(f, deck, errors)
+        ! a CSV given as a deck (no group, one error said) is said in one line
+        if (size(f%groups) > 0 .or. index(errors, ': a measurement CSV file (') == 0) &
+            call read_all(f, deck, errors)
         if (len(errors) > 0) then
             deck%errors = errors(:len(errors) - 1)
             call set_status(stat, ERR_DECK, 'deck', first_line(errors))
@@ -311,12 +317,15 @@ contains
 
     !> One &published group: table, row, note, and equally long quantity,
     !! value and digits lists; deviation names quantities whose difference is
-    !! documented. Appended to `text` in the format of deck_t%published.
+    !! documented, `kind` its class ('formulation', 'random draws' or
+    !! 'unexplained'; beamid reproduce says 'last digit' by itself) and
+    !! `section` the heading of docs/deviations.md that explains it.
+    !! Appended to `text` in the format of deck_t%published.
     subroutine read_published(f, g, text, errors)
         type(nml_file_t), intent(in) :: f
         type(nml_group_t), intent(in) :: g
         character(len=:), allocatable, intent(inout) :: text, errors
-        character(len=:), allocatable :: table, row, note, where
+        character(len=:), allocatable :: table, row, note, where, kind, section
         type(nml_text_t), allocatable :: quantity(:), deviation(:)
         real(dp), allocatable :: value(:)
         integer, allocatable :: digits(:)
@@ -326,10 +335,18 @@ contains
         logical :: given
         nerr = count_lines_alloc(errors)
         where = f%path//', line '//fmt_int(g%line)//': &published '
-        call nml_check_keys(f, g, ' table row quantity value digits deviation note ', errors)
+        call nml_check_keys(f, g, ' table row quantity value digits deviation note kind '// &
+                            'section ', errors)
         table = ''
         row = ''
         note = ''
+        kind = ''
+        section = ''
+        call nml_str(f, g, 'kind', kind, given, errors)
+        call nml_str(f, g, 'section', section, given, errors)
+        if (index(DEVIATION_KINDS, '|'//kind//'|') == 0) call add_error(errors, where// &
+            "kind = '"//kind//"', expected 'formulation', 'random draws' or 'unexplained' "// &
+            '(the class of its deviations, docs/deviations.md)')
         call nml_str(f, g, 'table', table, given, errors)
         call nml_str(f, g, 'row', row, given, errors)
         call nml_str(f, g, 'note', note, given, errors)
@@ -351,6 +368,7 @@ contains
         end if
         if (count_lines_alloc(errors) > nerr) return
         text = text//'P'//TAB//untab(table)//TAB//untab(row)//TAB//untab(note)//new_line('a')
+        if (len(kind) > 0) text = text//'K'//TAB//untab(kind)//TAB//untab(section)//new_line('a')
         do i = 1, size(quantity)
             write (buffer, '(es25.17e3)') value(i)
             text = text//'Q'//TAB//untab(quantity(i)%s)//TAB//trim(adjustl(buffer))//TAB// &
@@ -993,7 +1011,7 @@ contains
         has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
 
         ! ---- &fit: one group, or for task identify one per stage, in order
-        deck%candidates = EFFECT_NAMES
+        deck%candidates = default_effects(FAMILY_STATIC)
         nf = nml_count(f, 'fit')
         if (nf == 0) then
             call add_error(errors, f%path//': group &fit is missing (data, free)')
@@ -1181,10 +1199,11 @@ contains
             allocate (deck%candidates(size(candidates)))
             do i = 1, size(candidates)
                 deck%candidates(i) = candidates(i)%s
-                call static_effect_params(deck%nbeams, deck%candidates(i), block, st)
+                call effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &
-                                   "' is not a known effect, expected one of: "//KNOWN_EFFECTS)
+                                   "' is not a known effect, expected one of: "// &
+                                   known_effects())
                     st%code = STATUS_OK
                 end if
             end do

@@ -269,8 +269,8 @@ contains
         if (stat%code /= STATUS_OK) return
         allocate (a(sys%nstate), da(sys%nstate, size(wrt)))
         do k = 1, size(t_out)
-            if (accel) call integ_rate_sens(sys, pars, out%hist%y(:, k), out%dstates(:, k, :), &
-                                            a, da, stat)
+            if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), &
+                                            out%dstates(:, k, :), a, da, stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
                 if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
@@ -400,7 +400,8 @@ contains
                 end if
                 out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
             end associate
-            if (accel) call integ_rate_sens(sys, pars, out%hist%y(:, k), nos, a, noda, stat)
+            if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), nos, a, noda, &
+                                            stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
                 if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then

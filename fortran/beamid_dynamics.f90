@@ -50,6 +50,7 @@ module beamid_dynamics
     use beamid_lapack, only: solve_banded
     use beamid_band, only: band_lu_t, band_factor, band_solve
     use beamid_fe_modes, only: fe_modes
+    use beamid_forcing, only: forcing_t, forcing_slot_t
     implicit none
     private
 
@@ -62,19 +63,23 @@ module beamid_dynamics
     public :: dyn_hold, dyn_switch, dyn_rot_mv, dyn_fric_dof
     public :: dyn_param_t, dyn_param_setup, dyn_dforce, dyn_dmass_mv, dyn_dmass_dq_mv
     public :: dyn_static_sens, dyn_output_sens, dyn_constrain, dyn_denergy, dyn_dnlt
-    public :: DP_NONE, DP_LOAD, dyn_param_dcap
+    public :: DP_NONE, DP_LOAD, DP_FORCING, dyn_param_dcap
+    public :: dyn_eval, dyn_add_forcing, dyn_work_name, dyn_breakpoints, dyn_dbreak
 
     !> Kinds of parameter derivatives (dyn_param_t): what a parameter acts on.
     integer, parameter :: DP_NONE = 0, DP_EI = 1, DP_EA = 2, DP_CUBIC = 3, DP_RHO = 4, &
                           DP_MASS = 5, DP_J = 6, DP_MU = 7, DP_DRAG = 8, DP_ETA = 9, &
-                          DP_R = 10, DP_TAU = 11, DP_FLEX = 12, DP_LOAD = 13
+                          DP_R = 10, DP_TAU = 11, DP_FLEX = 12, DP_LOAD = 13, &
+                          DP_FORCING = 14
 
     !> One parameter of a sensitivity: its kind (DP_*), the beam, mass point,
     !! joint or load component it belongs to, the constant dM/dp (density,
     !! point mass), d(mu m g)/dp (friction cap) and the spring (0: root).
+    !! DP_FORCING: parameter ip of forcing k (sys%loads(k)).
     type :: dyn_param_t
         integer :: kind = DP_NONE
         integer :: k = 0
+        integer :: ip = 0
         integer :: spring = -1
         real(dp) :: dcap = 0.0_dp
         real(dp), allocatable :: dmb(:, :)
@@ -92,7 +97,10 @@ module beamid_dynamics
         integer :: nx = 0           !< extra states: 1 with a motor lag, else 0
         integer :: nstate = 0       !< 2 n + nx
         integer :: npt = 0          !< mass points (joints and tip)
-        integer :: nwork = 0        !< work lines (2 npt + 2)
+        integer :: nwork = 0        !< work lines (2 npt + 2 + nloads)
+        !> forcings in time (beamid_forcing): work line 2 npt + 2 + l is load l's
+        integer :: nloads = 0
+        type(forcing_slot_t), allocatable :: loads(:)
         integer, allocatable :: iw(:), iu(:), idw(:), idu(:)   !< free indices per point
         real(dp), allocatable :: fric(:)    !< mu m g per point (N)
         real(dp), allocatable :: drag(:)    !< c per point (N s/m)
@@ -348,13 +356,14 @@ contains
 
     !> Constraint forces `hold` of the sticking friction components at the
     !! state y (full model; dyn_rates with the current modes).
-    subroutine dyn_hold(sys, y, hold, stat)
+    subroutine dyn_hold(sys, t, y, hold, stat)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: y(:)
         real(dp), intent(out) :: hold(:)
         type(status_t), intent(inout) :: stat
         real(dp) :: dy(size(y)), power(sys%nwork), torque
-        call dyn_rates(sys, y, dy, power, torque, stat, hold)
+        call dyn_rates(sys, t, y, dy, power, torque, stat, hold)
     end subroutine dyn_hold
 
     !> Friction switching at a state where friction components are at rest
@@ -365,8 +374,9 @@ contains
     !! -sign(hold)), and the forces are recomputed. `force_release` (0: none)
     !! is a component that leaves the stick now (its |hold| reached mu N).
     !! On return `hold` are the constraint forces of the components that stay.
-    subroutine dyn_switch(sys, y, force_release, hold, stat)
+    subroutine dyn_switch(sys, t, y, force_release, hold, stat)
         type(dyn_system_t), intent(inout) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: y(:)
         integer, intent(in) :: force_release
         real(dp), intent(out) :: hold(:)
@@ -380,7 +390,7 @@ contains
             if (y(sys%n + dyn_fric_dof(sys, j)) == 0.0_dp) sys%fmode(j) = 0
         end do
         if (force_release > 0) then
-            call dyn_hold(sys, y, hsave, stat)
+            call dyn_hold(sys, t, y, hsave, stat)
             if (stat%code /= 0) return
             if (hsave(force_release) >= 0.0_dp) then
                 sys%fmode(force_release) = -1
@@ -389,7 +399,7 @@ contains
             end if
         end if
         do pass = 1, 2*sys%npt + 1
-            call dyn_hold(sys, y, hold, stat)
+            call dyn_hold(sys, t, y, hold, stat)
             if (stat%code /= 0) return
             jmax = 0
             emax = 0.0_dp
@@ -521,31 +531,34 @@ contains
 
     !> Generalized force F(q, v, T) (everything but M q''), the work rates of
     !! the effects (`power`, nwork lines) and the motor torque.
-    pure subroutine dyn_forces(sys, q, v, x, f, power, torque)
+    pure subroutine dyn_forces(sys, t, q, v, x, f, power, torque)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: f(:), power(:), torque
         call fe_internal_force(sys%mesh, q, f)
         f = -f
-        call add_effects(sys, q, v, x, f, power, torque)
+        call add_effects(sys, t, q, v, x, f, power, torque)
     end subroutine dyn_forces
 
     !> Work rates of the effects alone (no internal force): what the
     !! collocation quadrature of the ledger needs on converged stages.
-    pure subroutine dyn_power(sys, q, v, x, power)
+    pure subroutine dyn_power(sys, t, q, v, x, power)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: power(:)
         real(dp) :: f(size(q)), torque
         f = 0.0_dp
-        call add_effects(sys, q, v, x, f, power, torque)
+        call add_effects(sys, t, q, v, x, f, power, torque)
     end subroutine dyn_power
 
     !> Add the nonconservative and velocity-dependent forces of the effects to
     !! f; their work rates and the motor torque (Eq. 101-102, 121-122, 130-132,
     !! 150-156).
-    pure subroutine add_effects(sys, q, v, x, f, power, torque)
+    pure subroutine add_effects(sys, t, q, v, x, f, power, torque)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(inout) :: f(:)
         real(dp), intent(out) :: power(:), torque
@@ -604,7 +617,22 @@ contains
             f(sys%idu(npt)) = f(sys%idu(npt)) - torque*q(sys%idw(npt))
             power(2*npt + 2) = torque*dyn_psidot(sys, q, v, npt)
         end if
+        ! the forcings in time, each with its own work line
+        if (sys%nloads > 0) call add_loads(sys, t, q, v, f, power(2*npt + 3:))
     end subroutine add_effects
+
+    !> The forcings' forces and work rates (add_effects; kept apart so that the
+    !! chain's own effects compile as before).
+    pure subroutine add_loads(sys, t, q, v, f, power)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: f(:)
+        real(dp), intent(inout) :: power(:)
+        integer :: k
+        do k = 1, sys%nloads
+            call sys%loads(k)%f%apply(t, q, v, f, power(k))
+        end do
+    end subroutine add_loads
 
     !> Mass matrix M(q) in band storage (rotary inertia of Eq. 132 included).
     pure subroutine dyn_mass(sys, q, mb)
@@ -636,8 +664,9 @@ contains
     !! and the motor torque. x' = (-r g Psidot_tip - T)/tau with a motor lag.
     !! With friction events on, sticking components (fmode = 0) get zero
     !! acceleration by their constraint forces, returned in `hold`.
-    subroutine dyn_rates(sys, y, dy, power, torque, stat, hold)
+    subroutine dyn_rates(sys, t, y, dy, power, torque, stat, hold)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: y(:)
         real(dp), intent(out) :: dy(:), power(:), torque
         type(status_t), intent(inout) :: stat
@@ -646,7 +675,7 @@ contains
         real(dp) :: hl(2*sys%npt)
         integer :: n, ios
         n = sys%n
-        call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, torque)
+        call dyn_forces(sys, t, y(1:n), y(n + 1:2*n), y(2*n + 1:), dy(n + 1:2*n), power, torque)
         dy(1:n) = y(n + 1:2*n)
         hl = 0.0_dp
         if (sys%rotary) then
@@ -678,8 +707,9 @@ contains
     !> Jacobians of the generalized force: kb = -dF/dq and cb = -dF/dv (band
     !! storage), and for a motor lag the couplings b = dF/dT (dense n-vector),
     !! p = dT'/dq, d = dT'/dv, e = dT'/dT.
-    pure subroutine dyn_jacobian(sys, q, v, x, kb, cb, b, p, d, e, force, power, torque)
+    pure subroutine dyn_jacobian(sys, t, q, v, x, kb, cb, b, p, d, e, force, power, torque)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: kb(:, :), b(:), p(:), d(:), e
         !> C = dF/dv; may be absent when dyn_velocity_coupled(sys) is false
@@ -689,14 +719,14 @@ contains
         !! together or none): the tangent assembly has the internal force anyway
         real(dp), intent(out), optional :: force(:), power(:)
         real(dp), intent(out), optional :: torque
-        real(dp) :: f(sys%n), t, g, a(2), dpsi_dq(2)
+        real(dp) :: f(sys%n), tq, g, a(2), dpsi_dq(2)
         integer :: k, aa, bb, kl, ku, idx(2)
         kl = sys%mesh%kl
         ku = sys%mesh%ku
         if (present(force)) then
             call fe_tangent(sys%mesh, q, f, kb)
             force = -f
-            call add_effects(sys, q, v, x, force, power, torque)
+            call add_effects(sys, t, q, v, x, force, power, torque)
         else
             call fe_tangent(sys%mesh, q, kb=kb)
         end if
@@ -712,11 +742,11 @@ contains
             idx = [sys%idw(k), sys%idu(k)]
             a = [1.0_dp + q(sys%idu(k)), -q(sys%idw(k))]
             dpsi_dq = [-v(sys%idu(k)), v(sys%idw(k))]   ! dPsidot/d(w', u')
-            t = motor_torque(sys, q, v, x)
+            tq = motor_torque(sys, q, v, x)
             g = sys%motor
             ! F += T a: -d(T a)/dq through a, da/d(w', u') = [[0, 1], [-1, 0]]
-            call fe_band_add(kb, kl, ku, idx(1), idx(2), -t)
-            call fe_band_add(kb, kl, ku, idx(2), idx(1), t)
+            call fe_band_add(kb, kl, ku, idx(1), idx(2), -tq)
+            call fe_band_add(kb, kl, ku, idx(2), idx(1), tq)
             if (sys%nx == 0) then
                 ! T = -g Psidot: dT/dq = -g dpsi_dq, dT/dv = -g a
                 do bb = 1, 2
@@ -733,7 +763,20 @@ contains
                 e = -1.0_dp/sys%tau
             end if
         end if
+        if (sys%nloads > 0) call loads_jacobian(sys, t, q, v, kb, cb)
     end subroutine dyn_jacobian
+
+    !> The forcings' Jacobians (dyn_jacobian).
+    pure subroutine loads_jacobian(sys, t, q, v, kb, cb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp), intent(inout), optional :: cb(:, :)
+        integer :: k
+        do k = 1, sys%nloads
+            call sys%loads(k)%f%jacobian(t, q, v, sys%mesh%kl, sys%mesh%ku, kb, cb)
+        end do
+    end subroutine loads_jacobian
 
     !> The Jacobian terms of friction, drag, rotary inertia and Kelvin-Voigt
     !! damping (dyn_jacobian): C = dF/dv into cb (zeroed first), their
@@ -809,9 +852,14 @@ contains
     !! regularized friction law. Otherwise C is zero by construction.
     pure logical function dyn_velocity_coupled(sys) result(coupled)
         type(dyn_system_t), intent(in) :: sys
+        integer :: l
         coupled = sys%eta /= 0.0_dp .or. (sys%motor /= 0.0_dp .and. sys%nx == 0) .or. sys%rotary &
                   .or. any(sys%drag /= 0.0_dp) .or. any(sys%inertia /= 0.0_dp) &
                   .or. (sys%law == FRICTION_SMOOTH .and. any(sys%fric /= 0.0_dp))
+        if (coupled) return
+        do l = 1, sys%nloads
+            coupled = coupled .or. sys%loads(l)%f%velocity_coupled()
+        end do
     end function dyn_velocity_coupled
 
     !> Kinetic energy v^T M(q) v / 2 (Eq. 119, with Eq. 130) and strain energy (Eq. 87).
@@ -979,40 +1027,42 @@ contains
     !> Generalized force in coordinates (F, or Phi^T F(Phi eta, Phi eta') in
     !! the modal model, Eq. 127), work rates and motor torque at the
     !! coordinate state yc.
-    pure subroutine dyn_cforces(sys, yc, f, power, torque)
+    pure subroutine dyn_cforces(sys, t, yc, f, power, torque)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: f(:), power(:), torque
         real(dp), allocatable :: y(:), fp(:)
         integer :: n, k
         k = sys%nc
         if (.not. sys%modal) then
-            call dyn_forces(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), f, power, torque)
+            call dyn_forces(sys, t, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), f, power, torque)
             return
         end if
         n = sys%n
         allocate (y(sys%nstate), fp(n))
         call dyn_to_physical(sys, yc, y)
-        call dyn_forces(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, power, torque)
+        call dyn_forces(sys, t, y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, power, torque)
         f = matmul(fp, sys%phi)
     end subroutine dyn_cforces
 
     !> Work rates of the effects at the coordinate state yc.
-    pure subroutine dyn_cpower(sys, yc, power)
+    pure subroutine dyn_cpower(sys, t, yc, power)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: power(:)
         real(dp), allocatable :: y(:)
         integer :: n, k
         k = sys%nc
         if (.not. sys%modal) then
-            call dyn_power(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), power)
+            call dyn_power(sys, t, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), power)
             return
         end if
         n = sys%n
         allocate (y(sys%nstate))
         call dyn_to_physical(sys, yc, y)
-        call dyn_power(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), power)
+        call dyn_power(sys, t, y(1:n), y(n + 1:2*n), y(2*n + 1:), power)
     end subroutine dyn_cpower
 
     !> Motor-lag rate x' = (-r g Psidot_tip - T) / tau at the coordinate state
@@ -1052,8 +1102,9 @@ contains
     !> Jacobians in coordinates: K~ = Phi^T K Phi, C~ = Phi^T C Phi and the
     !! motor-lag couplings Phi^T b, Phi^T p, Phi^T d (dyn_jacobian in the full
     !! model).
-    pure subroutine dyn_cjacobian(sys, yc, kb, cb, b, p, d, e, force, power, torque)
+    pure subroutine dyn_cjacobian(sys, t, yc, kb, cb, b, p, d, e, force, power, torque)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
         !> dyn_cforces at the same state, from the same assembly (optional)
@@ -1063,7 +1114,7 @@ contains
         integer :: n, k, nb
         k = sys%nc
         if (.not. sys%modal) then
-            call dyn_jacobian(sys, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, d, e, &
+            call dyn_jacobian(sys, t, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, d, e, &
                               force, power, torque)
             return
         end if
@@ -1072,11 +1123,11 @@ contains
         allocate (y(sys%nstate), kp(nb, n), cp(nb, n), bp(n), pp(n), dp_(n), fp(n))
         call dyn_to_physical(sys, yc, y)
         if (present(force)) then
-            call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e, &
+            call dyn_jacobian(sys, t, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e, &
                               fp, power, torque)
             force = matmul(fp, sys%phi)
         else
-            call dyn_jacobian(sys, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e)
+            call dyn_jacobian(sys, t, y(1:n), y(n + 1:2*n), y(2*n + 1:), kp, cp, bp, pp, dp_, e)
         end if
         call project_band(sys, kp, kb)
         call project_band(sys, cp, cb)
@@ -1086,8 +1137,9 @@ contains
     end subroutine dyn_cjacobian
 
     !> Rates of the coordinate state: (c', M~^-1 F~, x').
-    subroutine dyn_crates(sys, yc, dy, power, torque, stat, hold)
+    subroutine dyn_crates(sys, t, yc, dy, power, torque, stat, hold)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         real(dp), intent(in) :: yc(:)
         real(dp), intent(out) :: dy(:), power(:), torque
         type(status_t), intent(inout) :: stat
@@ -1096,12 +1148,12 @@ contains
         type(band_lu_t) :: lu
         integer :: k
         if (.not. sys%modal) then
-            call dyn_rates(sys, yc, dy, power, torque, stat, hold)
+            call dyn_rates(sys, t, yc, dy, power, torque, stat, hold)
             return
         end if
         if (present(hold)) hold = 0.0_dp
         k = sys%nc
-        call dyn_cforces(sys, yc, dy(k + 1:2*k), power, torque)
+        call dyn_cforces(sys, t, yc, dy(k + 1:2*k), power, torque)
         dy(1:k) = yc(k + 1:2*k)
         if (sys%rotary) then
             lu%n = k
@@ -1332,8 +1384,9 @@ contains
     !! fp = dF/dp, and of the motor-lag rate, xp = dx'/dp (Eq. 138, 140 and
     !! their counterparts for every effect). The mass matrix term is separate
     !! (dyn_dmass_mv).
-    pure subroutine dyn_dforce(sys, par, q, v, x, fp, xp)
+    pure subroutine dyn_dforce(sys, t, par, q, v, x, fp, xp)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t           !< time (s): the forcings'
         type(dyn_param_t), intent(in) :: par
         real(dp), intent(in) :: q(:), v(:), x(:)
         real(dp), intent(out) :: fp(:), xp
@@ -1403,6 +1456,8 @@ contains
         case (DP_TAU)
             xd = (-sys%motor*dyn_psidot(sys, q, v, npt) - x(1))/sys%tau
             xp = -xd/sys%tau
+        case (DP_FORCING)
+            call sys%loads(k)%f%dforce(par%ip, t, q, v, fp)
         end select
     end subroutine dyn_dforce
 
@@ -1548,5 +1603,159 @@ contains
         dcap = 0.0_dp
         if ((par%kind == DP_MU .or. par%kind == DP_MASS) .and. par%k == point) dcap = par%dcap
     end function dyn_param_dcap
+
+    ! ------------------------------------------------------------ time
+
+    !> The one evaluation entry of the integrators: everything they need of
+    !! the model at time t and coordinate state yc (time enters the model only
+    !! here, through the forcings). What is computed follows the outputs
+    !! given, in this order of precedence:
+    !! - `par` with `fp`, `xp`: dF/dp and dx'/dp of one parameter (full model);
+    !! - `kb` (with `b`, `p`, `d`, `e`; `cb` unless not dyn_velocity_coupled in
+    !!   the full model): the Jacobians, and with `force` also F, `power`,
+    !!   `torque` from the same assembly (dyn_cjacobian);
+    !! - `rates`: (c', M~^-1 F~, x'), `power`, `torque`, `hold` (dyn_crates);
+    !! - `force`: F~, `power`, `torque` (dyn_cforces);
+    !! - `power` alone: the work rates (dyn_cpower).
+    !! `xrate` (with `kb` or `force`): the motor-lag rate x'.
+    subroutine dyn_eval(sys, t, yc, stat, rates, hold, force, power, torque, xrate, &
+                        kb, cb, b, p, d, e, par, fp, xp)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time (s)
+        real(dp), intent(in) :: yc(:)      !< coordinate state (c, c', x)
+        type(status_t), intent(inout) :: stat
+        real(dp), intent(out), optional :: rates(:), hold(:), force(:), power(:), torque
+        real(dp), intent(out), optional :: xrate
+        real(dp), intent(out), optional :: kb(:, :), cb(:, :), b(:), p(:), d(:), e
+        type(dyn_param_t), intent(in), optional :: par
+        real(dp), intent(out), optional :: fp(:), xp
+        real(dp) :: tq, pw(sys%nwork)
+        integer :: k
+        k = sys%nc
+        if (present(par)) then
+            call dyn_dforce(sys, t, par, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), fp, xp)
+        else if (present(kb)) then
+            if (sys%modal) then
+                call dyn_cjacobian(sys, t, yc, kb, cb, b, p, d, e, force, power, torque)
+            else
+                call dyn_jacobian(sys, t, yc(1:k), yc(k + 1:2*k), yc(2*k + 1:), kb, cb, b, p, &
+                                  d, e, force, power, torque)
+            end if
+            if (present(xrate)) xrate = dyn_cxrate(sys, yc)
+        else if (present(rates)) then
+            if (present(power)) then
+                call dyn_crates(sys, t, yc, rates, power, tq, stat, hold)
+            else
+                call dyn_crates(sys, t, yc, rates, pw, tq, stat, hold)
+            end if
+            if (present(torque)) torque = tq
+        else if (present(force)) then
+            if (present(power)) then
+                call dyn_cforces(sys, t, yc, force, power, tq)
+            else
+                call dyn_cforces(sys, t, yc, force, pw, tq)
+            end if
+            if (present(torque)) torque = tq
+            if (present(xrate)) xrate = dyn_cxrate(sys, yc)
+        else if (present(power)) then
+            call dyn_cpower(sys, t, yc, power)
+        end if
+    end subroutine dyn_eval
+
+    !> Append a forcing to the system: its force enters every evaluation, its
+    !! work a new ledger line (the last).
+    subroutine dyn_add_forcing(sys, f)
+        type(dyn_system_t), intent(inout) :: sys
+        class(forcing_t), intent(in) :: f
+        type(forcing_slot_t), allocatable :: grown(:)
+        integer :: l
+        allocate (grown(sys%nloads + 1))
+        do l = 1, sys%nloads
+            call move_alloc(sys%loads(l)%f, grown(l)%f)
+        end do
+        allocate (grown(sys%nloads + 1)%f, source=f)
+        call move_alloc(grown, sys%loads)
+        sys%nloads = sys%nloads + 1
+        sys%nwork = sys%nwork + 1
+    end subroutine dyn_add_forcing
+
+    !> Name of work line i of the ledger: friction_<point>, drag_<point> per
+    !! mass point, damping, motor (the chain's lines, nbeams beams), then the
+    !! forcings' own names (with `sys`).
+    pure function dyn_work_name(nbeams, i, sys) result(name)
+        integer, intent(in) :: nbeams, i
+        type(dyn_system_t), intent(in), optional :: sys
+        character(len=:), allocatable :: name
+        integer :: k
+        if (i > 2*nbeams + 2) then
+            name = 'load'//fmt_int(i - 2*nbeams - 2)
+            if (present(sys)) then
+                if (i - 2*nbeams - 2 <= sys%nloads) name = sys%loads(i - 2*nbeams - 2)%f%work_name()
+            end if
+            return
+        end if
+        if (i > 2*nbeams) then
+            name = merge('damping', 'motor  ', i == 2*nbeams + 1)
+            name = trim(name)
+            return
+        end if
+        k = mod(i - 1, nbeams) + 1
+        name = merge('friction_', 'drag_    ', i <= nbeams)
+        name = trim(name)
+        if (k == nbeams) then
+            name = name//'tip'
+        else if (k == 1) then
+            name = name//'elbow'
+        else
+            name = name//'joint'//fmt_int(k)
+        end if
+    end function dyn_work_name
+
+    !> d tb/dp of breakpoint tb for parameter par (a forcing's parameter that
+    !! moves a jump of its force; 0 otherwise).
+    pure real(dp) function dyn_dbreak(sys, par, tb) result(d)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: par
+        real(dp), intent(in) :: tb
+        d = 0.0_dp
+        if (par%kind == DP_FORCING) d = sys%loads(par%k)%f%dbreak(par%ip, tb)
+    end function dyn_dbreak
+
+    !> The forcings' breakpoints in (t0, t1], ascending, without repeats:
+    !! the times an integrator steps onto.
+    pure function dyn_breakpoints(sys, t0, t1) result(tb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t0, t1
+        real(dp), allocatable :: tb(:)
+        real(dp), allocatable :: tt(:), one(:)
+        real(dp) :: x
+        integer :: l, i, j, n
+        allocate (tt(0))
+        do l = 1, sys%nloads
+            one = sys%loads(l)%f%breakpoints(t0, t1)
+            tt = [tt, pack(one, one > t0 .and. one <= t1)]
+        end do
+        ! insertion sort (few entries), then drop repeats
+        do i = 2, size(tt)
+            x = tt(i)
+            j = i - 1
+            do while (j >= 1)
+                if (tt(j) <= x) exit
+                tt(j + 1) = tt(j)
+                j = j - 1
+            end do
+            tt(j + 1) = x
+        end do
+        allocate (tb(size(tt)))
+        n = 0
+        do i = 1, size(tt)
+            if (n > 0) then
+                if (tt(i) == tb(n)) cycle
+            end if
+            n = n + 1
+            tb(n) = tt(i)
+        end do
+        tb = tb(1:n)
+    end function dyn_breakpoints
 
 end module beamid_dynamics

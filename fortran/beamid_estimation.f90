@@ -39,7 +39,12 @@ module beamid_estimation
     integer, parameter, public :: FLAG_RUNAWAY = 2      !< moved by more than runaway_factor
     integer, parameter, public :: FLAG_CORRELATED = 3   !< |correlation| above corr_limit
     integer, parameter, public :: FLAG_AT_BOUND = 4     !< estimate sits on a bound
-    !! priority when several apply: undetermined, runaway, at bound, correlated
+    integer, parameter, public :: FLAG_WEAK = 5         !< sigma above WEAK_RELATIVE_SIGMA
+    !! of |estimate| (but below 100 %): determined, poorly
+    !! priority when several apply: undetermined, runaway, at bound, correlated, weak
+    !> A determined estimate whose sigma exceeds this fraction of its value is
+    !! flagged FLAG_WEAK ("weak"): docs/workflow.md, section 1 (the flags).
+    real(dp), parameter, public :: WEAK_RELATIVE_SIGMA = 0.2_dp
 
     !> How a fit ended (fit_result_t%stop).
     integer, parameter, public :: STOP_CONVERGED = 0 !< a minimum to the tolerances
@@ -69,9 +74,9 @@ module beamid_estimation
 
     !> The words for the codes above, exported to Python (api_code_names):
     !! flags, how a fit ended, refit starts, candidate states.
-    character(len=*), parameter, public :: FLAG_NAMES(0:4) = [character(len=43) :: 'ok', &
+    character(len=*), parameter, public :: FLAG_NAMES(0:5) = [character(len=43) :: 'ok', &
         'not determined by these data', 'ran away from its start', &
-        'correlation near +-1 with another parameter', 'at a physical bound']
+        'correlation near +-1 with another parameter', 'at a physical bound', 'weak']
     character(len=*), parameter, public :: STOP_NAMES(0:4) = [character(len=15) :: &
         'converged', 'stalled', 'runaway', 'iteration limit', 'evaluated']
     character(len=*), parameter, public :: START_NAMES(0:3) = [character(len=20) :: &
@@ -1201,6 +1206,7 @@ contains
             k = res%free(i)
             x = res%estimates(i)
             x0 = params0(k)
+            if (res%sigmas(i) > WEAK_RELATIVE_SIGMA*abs(x)) res%flags(i) = FLAG_WEAK
             do j = 1, n
                 if (j /= i .and. .not. ieee_is_nan(res%corr(i, j))) then
                     if (abs(res%corr(i, j)) > opts%corr_limit) res%flags(i) = FLAG_CORRELATED

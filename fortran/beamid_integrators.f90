@@ -24,14 +24,13 @@ module beamid_integrators
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
                              ERR_NUMERIC, fmt_int, fmt_real
-    use beamid_dynamics, only: dyn_system_t, dyn_cforces, dyn_cpower, dyn_cxrate, &
-                               dyn_cjacobian, dyn_crates, dyn_cmass, dyn_to_physical, &
+    use beamid_dynamics, only: dyn_system_t, dyn_eval, dyn_cmass, dyn_to_physical, &
                                dyn_to_coords, dyn_energy, dyn_torque, &
                                dyn_switch, dyn_fric_dof, dyn_rot_mv, dyn_mass, &
-                               FRICTION_SIGN, dyn_param_t, dyn_jacobian, dyn_velocity_coupled, &
-                               dyn_dforce, &
+                               FRICTION_SIGN, dyn_param_t, dyn_velocity_coupled, &
                                dyn_dmass_mv, dyn_dmass_dq_mv, dyn_constrain, dyn_param_dcap, &
-                               DP_NONE, dyn_rates
+                               dyn_breakpoints, dyn_dbreak, &
+                               DP_NONE
     use beamid_band, only: band_lu_t, zband_lu_t, band_factor, band_solve, zband_factor, &
                            zband_solve, ldlt_real, ldlt_cplx, ldlt_solve_real, ldlt_solve_cplx, &
                            band_mv, ldlt_solve, kc_mv, ldlt_solve_real_many, ldlt_solve_cplx_many
@@ -215,6 +214,13 @@ module beamid_integrators
         logical :: first = .true., reject = .false., clipped = .false., have_prev = .false.
         logical :: have_f0 = .false., evon = .false., rot_slow = .false.
         logical :: may_reuse = .false., reused = .false.
+        !> the stage times of the step (the third at the left limit of a
+        !! breakpoint it lands on), the forcings' breakpoints, the next one's
+        !! index, and whether the step is cut at one
+        real(dp) :: ts(3) = 0.0_dp
+        real(dp), allocatable :: bk(:)
+        integer :: ib = 1
+        logical :: atbreak = .false.
         logical :: sens = .false.                   !< forward sensitivities
         real(dp), allocatable :: fm(:), dtp(:), dzp(:, :, :)
         real(dp) :: hsp = 0.0_dp
@@ -433,30 +439,36 @@ contains
 
     !> Rates of the RK4 state (y, work); `hold`: constraint forces of the
     !! sticking friction components.
-    subroutine rk_rates(sys, s, ds, stat, hold)
+    subroutine rk_rates(sys, t, s, ds, stat, hold)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time (s)
         real(dp), intent(in) :: s(:)
         real(dp), intent(out) :: ds(:)
         type(status_t), intent(inout) :: stat
         real(dp), intent(out), optional :: hold(:)
-        real(dp) :: torque
         integer :: m
         m = sys%ncstate
-        call dyn_crates(sys, s(1:m), ds(1:m), ds(m + 1:), torque, stat, hold)
+        call dyn_eval(sys, t, s(1:m), stat, rates=ds(1:m), power=ds(m + 1:), hold=hold)
     end subroutine rk_rates
 
     !> One classical RK4 step of size h from s, whose rates are k1.
-    subroutine rk_step(sys, s, k1, h, k2, k3, k4, snew, stat)
+    subroutine rk_step(sys, t, s, k1, h, k2, k3, k4, snew, stat, t_end)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time of s (s)
         real(dp), intent(in) :: s(:), k1(:), h
         real(dp), intent(inout) :: k2(:), k3(:), k4(:), snew(:)
         type(status_t), intent(inout) :: stat
+        !> time of the last stage (default t + h; the left limit of a breakpoint)
+        real(dp), intent(in), optional :: t_end
+        real(dp) :: te
+        te = t + h
+        if (present(t_end)) te = t_end
         snew = s + 0.5_dp*h*k1
-        call rk_rates(sys, snew, k2, stat)
+        call rk_rates(sys, t + 0.5_dp*h, snew, k2, stat)
         snew = s + 0.5_dp*h*k2
-        call rk_rates(sys, snew, k3, stat)
+        call rk_rates(sys, t + 0.5_dp*h, snew, k3, stat)
         snew = s + h*k3
-        call rk_rates(sys, snew, k4, stat)
+        call rk_rates(sys, te, snew, k4, stat)
         snew = s + (h/6.0_dp)*(k1 + 2.0_dp*(k2 + k3) + k4)
     end subroutine rk_step
 
@@ -508,7 +520,7 @@ contains
                 fb(j) = -cap*before(j)
             end if
         end do
-        call dyn_switch(es, y, jforce, hold, stat)
+        call dyn_switch(es, t, y, jforce, hold, stat)
         if (stat%code /= 0) return
         do j = 1, size(es%fmode)
             if (es%fric((j + 1)/2) == 0.0_dp) cycle
@@ -667,9 +679,11 @@ contains
         !> the L D L^T factors of the constant mass matrix, for the sensitivities
         real(dp), allocatable :: mldl(:, :)
         real(dp), allocatable :: hold(:), holdn(:)
-        real(dp) :: t, h, hs, theta, hcap
-        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, skipj
-        logical :: evon
+        real(dp) :: t, h, hs, theta, hcap, tend, te
+        integer :: m, n, k, nsub, i, jev, kind, ios, nstall, skipj, ib
+        logical :: evon, atbreak
+        !> the forcings' breakpoints (none without forcings)
+        real(dp), allocatable :: bk(:)
         m = sys%ncstate
         n = sys%nc
         allocate (s(m + sys%nwork), k1(m + sys%nwork), k2(m + sys%nwork), &
@@ -694,101 +708,138 @@ contains
             call start_modes(es, s(1:m), hold, hist, stats, stat)
             if (stat%code /= 0) return
         end if
-        call rk_rates(es, s, k1, stat, hold)
+        call rk_rates(es, t, s, k1, stat, hold)
         stats%fevals = stats%fevals + 1
         if (stat%code /= 0) return
         nstall = 0
         skipj = 0
         hcap = opts%dt
+        bk = dyn_breakpoints(es, 0.0_dp, t_out(size(t_out)))
+        ib = 1
         do k = 1, size(t_out)
-            nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
-            i = 0
-            do while (i < nsub)
-                h = (t_out(k) - t)/real(nsub - i, dp)
-                if (hcap < opts%dt) h = min(h, hcap)
-                call rk_step(es, s, k1, h, k2, k3, k4, sn, stat)
-                ! a state past RK_DIVERGED (or NaN) has left the stability region:
-                ! stop before its rates overflow (a trapping build would abort)
-                if (stat%code == 0 .and. .not. maxval(abs(sn(1:m))) < RK_DIVERGED) &
-                    call set_status(stat, ERR_NUMERIC, 'rk4', 'the state diverged (beyond '// &
-                                    fmt_real(RK_DIVERGED)//') at t = '//fmt_real(t + h)// &
-                                    ' (dt = '//fmt_real(opts%dt)//' is beyond the stability limit?)')
-                if (stat%code == 0) call rk_rates(es, sn, k1n, stat, holdn)
-                stats%fevals = stats%fevals + 4
-                stats%steps = stats%steps + 1
-                if (stat%code /= 0) return
-                jev = 0
-                if (evon) call rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, &
-                                              kind, theta)
-                if (jev == 0) then
-                    if (sens) then
-                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat, mldl)
-                        if (stat%code /= 0) return
-                    end if
-                    s = sn
-                    k1 = k1n
-                    hold = holdn
-                    t = t + h
-                    i = i + 1
-                    nstall = 0
-                    skipj = 0
-                    if (hcap < opts%dt) then
-                        ! past the unresolved start: equal steps of dt again
-                        hcap = opts%dt
-                        if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
-                        nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
-                        i = 0
-                    end if
-                    cycle
-                end if
-                ! redo the step to the event, switch there
-                hs = theta*h
-                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t)) .and. &
-                    h > 1.0e-10_dp*max(1.0_dp, abs(t))) then
-                    ! wrong way from the start along the step's cubic: the step may
-                    ! be too long to resolve a push that a fast (axial) vibration
-                    ! reverses within it (small friction coefficients). Retry with
-                    ! a shorter step before believing it.
-                    hcap = h/16.0_dp
-                    stats%event_steps = stats%event_steps + 1
-                    cycle
-                end if
-                ! no progress: a switch at the step start, or (below) a switch that
-                ! changes no mode; a plain step or a switch that changes one resets
-                if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
-                if (nstall > 4*es%npt + 4) then
-                    call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
-                                    'component '//fmt_int(jev)//' does not settle at t = '// &
-                                    fmt_real(t)//' (kind '//fmt_int(kind)//', mode '// &
-                                    fmt_int(es%fmode(jev))//'): is dt = '// &
-                                    fmt_real(opts%dt)//' beyond the stability limit?')
-                    return
-                end if
-                if (hs > 0.0_dp) then
-                    call rk_step(es, s, k1, hs, k2, k3, k4, sn, stat)
-                    if (sens) then
-                        call rk_sens_step(es, pars, s, k1, k2, k3, k4, hs, sm, stat, mldl)
-                        if (stat%code /= 0) return
-                    end if
-                    s = sn
-                    stats%fevals = stats%fevals + 3
-                    stats%event_steps = stats%event_steps + 1
-                    t = t + hs
-                    if (kind == EVENT_UNSTICK) then
-                        call rk_rates(es, s, k1n, stat, hold)
-                        stats%fevals = stats%fevals + 1
+            ! step onto the forcings' breakpoints before t_out(k): segments
+            ! [t, tend], the last step of each ending at the left limit of a
+            ! breakpoint, the next segment starting from the rates after it
+            seg: do
+                tend = t_out(k)
+                atbreak = .false.
+                do while (ib <= size(bk))
+                    if (bk(ib) > t + 1.0e-13_dp*max(1.0_dp, abs(t))) exit
+                    ib = ib + 1
+                end do
+                if (ib <= size(bk)) then
+                    if (bk(ib) <= t_out(k) + 1.0e-13_dp*max(1.0_dp, abs(t_out(k)))) then
+                        tend = min(bk(ib), t_out(k))
+                        atbreak = .true.
                     end if
                 end if
-                call rk_switch(es, s(1:m), t, hs, kind, jev, hold, nstall, skipj, hist, stats, &
-                               stat, pars, sm, fm, dtp)
-                if (stat%code /= 0) return
-                call rk_rates(es, s, k1, stat, hold)
+                nsub = ceiling((tend - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+                i = 0
+                do while (i < nsub)
+                    h = (tend - t)/real(nsub - i, dp)
+                    if (hcap < opts%dt) h = min(h, hcap)
+                    ! the last step onto a breakpoint ends at its left limit
+                    te = t + h
+                    if (atbreak) then
+                        if (abs(tend - te) <= 1.0e-13_dp*max(1.0_dp, abs(tend))) &
+                            te = nearest(tend, -1.0_dp)
+                    end if
+                    call rk_step(es, t, s, k1, h, k2, k3, k4, sn, stat, te)
+                    ! a state past RK_DIVERGED (or NaN) has left the stability region:
+                    ! stop before its rates overflow (a trapping build would abort)
+                    if (stat%code == 0 .and. .not. maxval(abs(sn(1:m))) < RK_DIVERGED) &
+                        call set_status(stat, ERR_NUMERIC, 'rk4', 'the state diverged (beyond '// &
+                                        fmt_real(RK_DIVERGED)//') at t = '//fmt_real(t + h)// &
+                                        ' (dt = '//fmt_real(opts%dt)//' is beyond the stability limit?)')
+                    if (stat%code == 0) call rk_rates(es, te, sn, k1n, stat, holdn)
+                    stats%fevals = stats%fevals + 4
+                    stats%steps = stats%steps + 1
+                    if (stat%code /= 0) return
+                    jev = 0
+                    if (evon) call rk_first_event(es, s, sn, k1, k1n, hold, holdn, h, skipj, jev, &
+                                                  kind, theta)
+                    if (jev == 0) then
+                        if (sens) then
+                            call rk_sens_step(es, pars, t, s, k1, k2, k3, k4, h, sm, stat, mldl, te)
+                            if (stat%code /= 0) return
+                        end if
+                        s = sn
+                        k1 = k1n
+                        hold = holdn
+                        t = t + h
+                        i = i + 1
+                        nstall = 0
+                        skipj = 0
+                        if (hcap < opts%dt) then
+                            ! past the unresolved start: equal steps of dt again
+                            hcap = opts%dt
+                            if (tend - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
+                            nsub = ceiling((tend - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+                            i = 0
+                        end if
+                        cycle
+                    end if
+                    ! redo the step to the event, switch there
+                    hs = theta*h
+                    if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t)) .and. &
+                        h > 1.0e-10_dp*max(1.0_dp, abs(t))) then
+                        ! wrong way from the start along the step's cubic: the step may
+                        ! be too long to resolve a push that a fast (axial) vibration
+                        ! reverses within it (small friction coefficients). Retry with
+                        ! a shorter step before believing it.
+                        hcap = h/16.0_dp
+                        stats%event_steps = stats%event_steps + 1
+                        cycle
+                    end if
+                    ! no progress: a switch at the step start, or (below) a switch that
+                    ! changes no mode; a plain step or a switch that changes one resets
+                    if (hs <= 1.0e-14_dp*max(1.0_dp, abs(t))) nstall = nstall + 1
+                    if (nstall > 4*es%npt + 4) then
+                        call set_status(stat, ERR_NO_CONVERGENCE, 'rk4', 'friction switching of '// &
+                                        'component '//fmt_int(jev)//' does not settle at t = '// &
+                                        fmt_real(t)//' (kind '//fmt_int(kind)//', mode '// &
+                                        fmt_int(es%fmode(jev))//'): is dt = '// &
+                                        fmt_real(opts%dt)//' beyond the stability limit?')
+                        return
+                    end if
+                    if (hs > 0.0_dp) then
+                        call rk_step(es, t, s, k1, hs, k2, k3, k4, sn, stat)
+                        if (sens) then
+                            call rk_sens_step(es, pars, t, s, k1, k2, k3, k4, hs, sm, stat, mldl)
+                            if (stat%code /= 0) return
+                        end if
+                        s = sn
+                        stats%fevals = stats%fevals + 3
+                        stats%event_steps = stats%event_steps + 1
+                        t = t + hs
+                        if (kind == EVENT_UNSTICK) then
+                            call rk_rates(es, t, s, k1n, stat, hold)
+                            stats%fevals = stats%fevals + 1
+                        end if
+                    end if
+                    call rk_switch(es, s(1:m), t, hs, kind, jev, hold, nstall, skipj, hist, stats, &
+                                   stat, pars, sm, fm, dtp)
+                    if (stat%code /= 0) return
+                    call rk_rates(es, t, s, k1, stat, hold)
+                    stats%fevals = stats%fevals + 1
+                    if (stat%code /= 0) return
+                    if (tend - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
+                    nsub = ceiling((tend - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
+                    i = 0
+                end do
+                if (.not. atbreak) exit seg
+                ! at the breakpoint: the rates after it (k1 holds those before:
+                ! the left limit), and the sensitivities' jump where a
+                ! parameter moves it
+                t = tend
+                if (sens) fm = k1(1:m)
+                call rk_rates(es, t, s, k1, stat, hold)
                 stats%fevals = stats%fevals + 1
                 if (stat%code /= 0) return
-                if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit
-                nsub = ceiling((t_out(k) - t)/opts%dt*(1.0_dp - 1.0e-12_dp))
-                i = 0
-            end do
+                if (sens) call sens_break(es, pars, bk(ib), fm, k1(1:m), sm)
+                ib = ib + 1
+                if (t_out(k) - t <= 1.0e-13_dp*max(1.0_dp, abs(t))) exit seg
+            end do seg
             if (.not. all(ieee_is_finite(s))) then
                 call set_status(stat, ERR_NUMERIC, 'rk4', 'the state became non-finite'// &
                                 ' before t = '//fmt_real(t_out(k))//' (dt = '// &
@@ -823,7 +874,7 @@ contains
 
         if (kind == EVENT_ZERO_VELOCITY) s(es%nc + dyn_fric_dof(es, jev)) = 0.0_dp
         if (present(pars)) then
-            call sens_event_pre(es, pars, s, kind, jev, hold(jev), sm, fm, dtp, stat)
+            call sens_event_pre(es, pars, t, s, kind, jev, hold(jev), sm, fm, dtp, stat)
             if (stat%code /= 0) return
         end if
         nev0 = stats%events
@@ -845,7 +896,7 @@ contains
             nstall = 0
         end if
         if (present(pars)) then
-            call sens_event_post(es, s, fm, dtp, sm, stat)
+            call sens_event_post(es, t, s, fm, dtp, sm, stat)
             if (stat%code /= 0) return
         end if
     end subroutine rk_switch
@@ -898,14 +949,16 @@ contains
 
     !> Jacobians and mass matrix at the state y into `it`; allocates the
     !! work arrays of `it` on first use.
-    subroutine radau_jacobian(sys, y, it, dy, power)
+    subroutine radau_jacobian(sys, t, y, it, dy, power)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time of y (s)
         real(dp), intent(in) :: y(:)
         type(radau_t), intent(inout) :: it
         !> the M-form rates at y and their work rates, from the same assembly
         !! (constant mass matrix only: rates_m otherwise)
         real(dp), intent(out), optional :: dy(:), power(:)
         real(dp) :: torque
+        type(status_t) :: nostat
         integer :: n, nb
         n = sys%nc
         nb = 2*sys%ckl + sys%cku + 1
@@ -942,12 +995,17 @@ contains
         end if
         it%have_mass = .true.
         if (present(dy)) then
-            call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e, &
-                               dy(n + 1:2*n), power, torque)
+            if (sys%nx > 0) then
+                call dyn_eval(sys, t, y, nostat, kb=it%kb, cb=it%cb, b=it%b, p=it%p, d=it%d, &
+                              e=it%e, force=dy(n + 1:2*n), power=power, torque=torque, &
+                              xrate=dy(2*n + 1))
+            else
+                call dyn_eval(sys, t, y, nostat, kb=it%kb, cb=it%cb, b=it%b, p=it%p, d=it%d, &
+                              e=it%e, force=dy(n + 1:2*n), power=power, torque=torque)
+            end if
             dy(1:n) = y(n + 1:2*n)
-            if (sys%nx > 0) dy(2*n + 1) = dyn_cxrate(sys, y)
         else
-            call dyn_cjacobian(sys, y, it%kb, it%cb, it%b, it%p, it%d, it%e)
+            call dyn_eval(sys, t, y, nostat, kb=it%kb, cb=it%cb, b=it%b, p=it%p, d=it%d, e=it%e)
         end if
     end subroutine radau_jacobian
 
@@ -1408,23 +1466,27 @@ contains
     !! residuals are written F - M(q) a (to_mform at the stage's q): rates_m
     !! then returns F. In modal coordinates with rotary inertia M(q) is
     !! factored at y.
-    subroutine rates_m(sys, it, y, dy, power, stat)
+    subroutine rates_m(sys, t, it, y, dy, power, stat)
         type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time of y (s)
         type(radau_t), intent(inout) :: it
         real(dp), intent(in) :: y(:)
         real(dp), intent(out) :: dy(:), power(:)
         type(status_t), intent(inout) :: stat
-        real(dp) :: torque
         integer :: n
         n = sys%nc
         if (sys%rotary .and. .not. it%rot) then
-            call dyn_crates(sys, y, dy, power, torque, stat)
+            call dyn_eval(sys, t, y, stat, rates=dy, power=power)
             it%tmp = dy(n + 1:2*n)
             call rows_mv(it%m_start, it%m_col, it%m_val, it%tmp, dy(n + 1:2*n))
         else
-            call dyn_cforces(sys, y, dy(n + 1:2*n), power, torque)
+            if (sys%nx > 0) then
+                call dyn_eval(sys, t, y, stat, force=dy(n + 1:2*n), power=power, &
+                              xrate=dy(2*n + 1))
+            else
+                call dyn_eval(sys, t, y, stat, force=dy(n + 1:2*n), power=power)
+            end if
             dy(1:n) = y(n + 1:2*n)
-            if (sys%nx > 0) dy(2*n + 1) = dyn_cxrate(sys, y)
         end if
     end subroutine rates_m
 
@@ -1589,10 +1651,12 @@ contains
         real(dp), intent(inout), optional :: dstates(:, :, :)
         type(radau_run_t) :: r
         integer :: kout
-        logical :: converged, redo
+        logical :: converged, redo, brk
+        real(dp) :: tnext
 
         call radau_start(r, sys, y0, opts, hist, stats, stat, pars)
         if (stat%code /= 0) return
+        r%bk = dyn_breakpoints(r%es, 0.0_dp, t_out(size(t_out)))
         kout = 1
         do while (kout <= size(t_out))
             if (t_out(kout) - r%t <= 1.0e-13_dp*max(1.0_dp, abs(r%t))) then
@@ -1607,7 +1671,20 @@ contains
                                 fmt_int(opts%max_steps)//' reached at t = '//fmt_real(r%t))
                 return
             end if
-            call radau_predict(r, t_out(kout), opts, stats, stat)
+            ! the next stop: the output time or a breakpoint before it
+            do while (r%ib <= size(r%bk))
+                if (r%bk(r%ib) > r%t + 1.0e-13_dp*max(1.0_dp, abs(r%t))) exit
+                r%ib = r%ib + 1
+            end do
+            tnext = t_out(kout)
+            brk = .false.
+            if (r%ib <= size(r%bk)) then
+                if (r%bk(r%ib) <= tnext + 1.0e-13_dp*max(1.0_dp, abs(tnext))) then
+                    tnext = r%bk(r%ib)
+                    brk = .true.
+                end if
+            end if
+            call radau_predict(r, tnext, opts, stats, stat, brk)
             if (stat%code /= 0) return
             call radau_newton(r, stats, converged)
             if (.not. converged) then
@@ -1701,9 +1778,11 @@ contains
     !> The next step: its length hh (cut at the output time tnext), the error
     !! weights, the stage predictor and, unless the last ones are kept, the
     !! Jacobian and both factorizations.
-    subroutine radau_predict(r, tnext, opts, stats, stat)
+    subroutine radau_predict(r, tnext, opts, stats, stat, brk)
         type(radau_run_t), intent(inout) :: r
         real(dp), intent(in) :: tnext
+        !> tnext is a breakpoint of the forcings (default no)
+        logical, intent(in), optional :: brk
         type(integ_opts_t), intent(in) :: opts
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
@@ -1717,6 +1796,10 @@ contains
             r%hh = tnext - r%t
             r%clipped = .true.
         end if
+        r%ts = r%t + CNODE*r%hh
+        r%atbreak = .false.
+        if (present(brk)) r%atbreak = brk .and. r%clipped
+        if (r%atbreak) r%ts(3) = nearest(tnext, -1.0_dp)
         r%tiny_h = 1.0e-14_dp*max(1.0_dp, abs(r%t))
         if (r%hh < r%tiny_h) then
             call set_status(stat, ERR_NO_CONVERGENCE, RADAU_WHERE, 'step size '// &
@@ -1758,9 +1841,9 @@ contains
         r%reused = r%may_reuse .and. r%hh == r%it%h
         if (.not. r%reused) then
             if (r%rot_slow) then
-                call radau_jacobian(r%es, r%ys, r%it)
+                call radau_jacobian(r%es, r%ts(2), r%ys, r%it)
             else
-                call radau_jacobian(r%es, r%ys, r%it, r%fz(:, 2), r%pw(:, 2))
+                call radau_jacobian(r%es, r%ts(2), r%ys, r%it, r%fz(:, 2), r%pw(:, 2))
             end if
             stats%jevals = stats%jevals + 1
             call radau_factor(r%es, r%it, r%hh, r%gam, r%mu, stat)
@@ -1792,7 +1875,8 @@ contains
             do i = 1, 3
                 if (newt > 1 .or. i /= 2 .or. r%rot_slow .or. r%reused) then
                     r%ys = r%y + r%z(:, i)
-                    call rates_m(r%es, r%it, r%ys, r%fz(:, i), r%pw(:, i), inner)
+                    call rates_m(r%es, r%ts(i), r%it, r%ys, r%fz(:, i), r%pw(:, i), &
+                                 inner)
                     stats%fevals = stats%fevals + 1
                 end if
                 r%zd(:, i) = (r%dmat(i, 1)*r%z(:, 1) + r%dmat(i, 2)*r%z(:, 2) &
@@ -1865,7 +1949,7 @@ contains
         type(integ_stats_t), intent(inout) :: stats
         type(status_t), intent(inout) :: stat
         real(dp), parameter :: SAFE = 0.8_dp, FACL = 5.0_dp, FACR = 0.125_dp
-        real(dp) :: quot, torq
+        real(dp) :: quot
         integer :: j, n
 
         n = r%n
@@ -1876,12 +1960,12 @@ contains
         if (.not. r%have_f0) then
             if (r%it%rot) then
                 ! the acceleration a at y (M(q) factored once), f0 = M(q) a
-                call dyn_crates(r%es, r%y, r%f0, r%pw(:, 1), torq, stat)
+                call dyn_eval(r%es, r%t, r%y, stat, rates=r%f0, power=r%pw(:, 1))
                 if (stat%code /= 0) return
                 r%acc3 = r%f0(n + 1:2*n)
                 call to_mform(r%es, r%it, r%f0, r%y(1:n))
             else
-                call rates_m(r%es, r%it, r%y, r%f0, r%pw(:, 1), stat)
+                call rates_m(r%es, r%t, r%it, r%y, r%f0, r%pw(:, 1), stat)
                 if (stat%code /= 0) return
             end if
             stats%fevals = stats%fevals + 1
@@ -1905,7 +1989,7 @@ contains
         r%err = max(sqrt(wrms(r%ev, r%iscal)), 1.0e-10_dp)
         if (r%err >= 1.0_dp .and. (r%first .or. r%reject)) then
             r%ytmp = r%y + r%ev
-            call rates_m(r%es, r%it, r%ytmp, r%ev, r%pw(:, 1), stat)
+            call rates_m(r%es, r%t, r%it, r%ytmp, r%ev, r%pw(:, 1), stat)
             if (stat%code /= 0) return
             r%ev = r%ev + r%e0
             do j = 1, r%it%nst
@@ -1997,14 +2081,14 @@ contains
         if (r%es%nwork > 0) then
             do i = 1, 3
                 r%ys = r%y + r%z(:, i)
-                call dyn_cpower(r%es, r%ys, r%pw(:, i))
+                call dyn_eval(r%es, r%ts(i), r%ys, stat, power=r%pw(:, i))
             end do
             do j = 1, r%es%nwork
                 r%work(j) = r%work(j) + r%hh*dot_product(r%pw(j, :), r%a(3, :))
             end do
         end if
         if (r%sens) then
-            call radau_sens_step(r%es, r%it, pars, r%y, r%z, r%hh, r%dmat, r%gam, r%mu, r%ti1, &
+            call radau_sens_step(r%es, r%it, pars, r%ts, r%y, r%z, r%hh, r%dmat, r%gam, r%mu, r%ti1, &
                                  r%ti2, r%tr, r%tc, opts%rtol, r%theta, sm, r%dzp, r%hsp, &
                                  stats%sens_passes, r%sws, stat)
             if (stat%code /= 0) return
@@ -2014,6 +2098,19 @@ contains
         if (r%it%rot) r%acc3 = (r%dmat(3, 1)*r%z(n + 1:2*n, 1) + r%dmat(3, 2)*r%z(n + 1:2*n, 2) &
                                 + r%dmat(3, 3)*r%z(n + 1:2*n, 3))/r%hh
         r%t = r%t + r%hh
+        if (r%atbreak) then
+            ! on the breakpoint: the rates after it are new; the sensitivities
+            ! jump where a parameter moves it
+            r%t = r%bk(r%ib)
+            if (r%sens) then
+                call dyn_eval(r%es, nearest(r%t, -1.0_dp), r%y, stat, rates=r%ytmp)
+                call dyn_eval(r%es, r%t, r%y, stat, rates=r%ev)
+                if (stat%code /= 0) return
+                call sens_break(r%es, pars, r%t, r%ytmp, r%ev, sm)
+            end if
+            r%ib = r%ib + 1
+            r%have_f0 = .false.
+        end if
         r%zprev = r%z
         r%hprev = r%hh
         r%have_prev = .true.
@@ -2061,7 +2158,7 @@ contains
         jforce = 0
         if (r%kev == EVENT_UNSTICK) jforce = r%jev
         if (r%sens) then
-            call sens_event_pre(r%es, pars, r%y, r%kev, r%jev, r%hold0(r%jev), sm, r%fm, &
+            call sens_event_pre(r%es, pars, r%t, r%y, r%kev, r%jev, r%hold0(r%jev), sm, r%fm, &
                                 r%dtp, stat)
             if (stat%code /= 0) return
         end if
@@ -2078,7 +2175,7 @@ contains
         end if
         call set_stuck(r%es, r%it)
         if (r%sens) then
-            call sens_event_post(r%es, r%y, r%fm, r%dtp, sm, stat)
+            call sens_event_post(r%es, r%t, r%y, r%fm, r%dtp, sm, stat)
             if (stat%code /= 0) return
             r%hsp = 0.0_dp
         end if
@@ -2108,19 +2205,19 @@ contains
     !! pars (the variational equations of Eq. 135): what an acceleration
     !! observation needs (beamid_dynamic_experiments). The friction law of
     !! sys as set up (no sticking constraints).
-    subroutine integ_rate_sens(sys, pars, y, s, f, df, stat)
+    subroutine integ_rate_sens(sys, pars, t, y, s, f, df, stat)
         type(dyn_system_t), intent(in) :: sys
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: t          !< time of y (s): the loads in time
         real(dp), intent(in) :: y(:), s(:, :)
         real(dp), intent(out) :: f(:), df(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp) :: power(sys%nwork), torque
         real(dp), allocatable :: dl(:, :)
         df = 0.0_dp
-        call dyn_rates(sys, y, f, power, torque, stat)
+        call dyn_eval(sys, t, y, stat, rates=f)
         if (stat%code /= 0 .or. size(s, 2) == 0) return
         allocate (dl(2*sys%npt, size(s, 2)))
-        call sens_rates(sys, pars, y, f, s, df, dl, stat, .true.)
+        call sens_rates(sys, pars, t, y, f, s, df, dl, stat, .true.)
     end subroutine integ_rate_sens
 
     !> Rates of the sensitivities in rate form at the state y with rates f
@@ -2129,9 +2226,10 @@ contains
     !! + x'_p), the variational equations of Eq. 135. dl: the changes of the
     !! sticking components' constraint forces. with_p = .false.: the
     !! directional derivative along s alone (no parameter terms).
-    subroutine sens_rates(es, pars, y, f, s, ds, dl, stat, with_p, mldl)
+    subroutine sens_rates(es, pars, tn, y, f, s, ds, dl, stat, with_p, mldl)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: tn         !< time of y (s)
         real(dp), intent(in) :: y(:), f(:), s(:, :)
         real(dp), intent(out) :: ds(:, :), dl(:, :)
         type(status_t), intent(inout) :: stat
@@ -2156,13 +2254,13 @@ contains
         allocate (kb(nb, n), r(n, nw))
         if (coupled) then
             allocate (cb(nb, n))
-            call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, cb, b, p, d, e)
+            call dyn_eval(es, tn, y, stat, kb=kb, cb=cb, b=b, p=p, d=d, e=e)
             do j = 1, nw
                 call kc_mv(n, kl, ku, kb, cb, s(1:n, j), s(n + 1:2*n, j), r(:, j))
             end do
         else
             ! C is zero by construction: K S for every column in one sweep
-            call dyn_jacobian(es, y(1:n), y(n + 1:2*n), y(2*n + 1:), kb, b=b, p=p, d=d, e=e)
+            call dyn_eval(es, tn, y, stat, kb=kb, b=b, p=p, d=d, e=e)
             call kc_mv_many(n, kl, ku, nw, kb, s(1:n, :), r)
         end if
         if (es%rotary) then
@@ -2184,7 +2282,7 @@ contains
             r(:, j) = r(:, j) - t
             xp = 0.0_dp
             if (with_p) then
-                call dyn_dforce(es, pars(j), y(1:n), y(n + 1:2*n), y(2*n + 1:), fp, xp)
+                call dyn_eval(es, tn, y, stat, par=pars(j), fp=fp, xp=xp)
                 t = 0.0_dp
                 call dyn_dmass_mv(es, pars(j), y(1:n), f(n + 1:2*n), t)
                 r(:, j) = r(:, j) + fp - t
@@ -2252,53 +2350,76 @@ contains
     !! over h, with the rates k1..k4 of the state's own step (rk_step: its
     !! stage states s + h/2 k1, s + h/2 k2, s + h k3 are those the variational
     !! equations need, so their rates are not evaluated again).
-    subroutine rk_sens_step(es, pars, s, k1, k2, k3, k4, h, sm, stat, mldl)
+    subroutine rk_sens_step(es, pars, t, s, k1, k2, k3, k4, h, sm, stat, mldl, t_end)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: t          !< time of s (s)
         real(dp), intent(in) :: s(:), k1(:), k2(:), k3(:), k4(:), h
         real(dp), intent(inout) :: sm(:, :)
         type(status_t), intent(inout) :: stat
         !> L D L^T factors of the constant mass matrix (mass_ldlt; unallocated:
         !! its band LU)
         real(dp), allocatable, intent(in) :: mldl(:, :)
+        !> time of the last stage (default t + h; rk_step's)
+        real(dp), intent(in), optional :: t_end
         real(dp), allocatable :: y(:), st(:, :), d1(:, :), d2(:, :), d3(:, :), d4(:, :)
         real(dp), allocatable :: dl(:, :)
+        real(dp) :: te
         integer :: m, nw
+        te = t + h
+        if (present(t_end)) te = t_end
         m = es%ncstate
         nw = size(sm, 2)
         allocate (y(m), st(m, nw), d1(m, nw), d2(m, nw), d3(m, nw), d4(m, nw), &
                   dl(2*es%npt, nw))
-        call sens_rates(es, pars, s(1:m), k1(1:m), sm, d1, dl, stat, .true., mldl)
+        call sens_rates(es, pars, t, s(1:m), k1(1:m), sm, d1, dl, stat, .true., mldl)
         y = s(1:m) + 0.5_dp*h*k1(1:m)
         st = sm + 0.5_dp*h*d1
-        call sens_rates(es, pars, y, k2(1:m), st, d2, dl, stat, .true., mldl)
+        call sens_rates(es, pars, t + 0.5_dp*h, y, k2(1:m), st, d2, dl, stat, .true., mldl)
         y = s(1:m) + 0.5_dp*h*k2(1:m)
         st = sm + 0.5_dp*h*d2
-        call sens_rates(es, pars, y, k3(1:m), st, d3, dl, stat, .true., mldl)
+        call sens_rates(es, pars, t + 0.5_dp*h, y, k3(1:m), st, d3, dl, stat, .true., mldl)
         y = s(1:m) + h*k3(1:m)
         st = sm + h*d3
-        call sens_rates(es, pars, y, k4(1:m), st, d4, dl, stat, .true., mldl)
+        call sens_rates(es, pars, te, y, k4(1:m), st, d4, dl, stat, .true., mldl)
         sm = sm + (h/6.0_dp)*(d1 + 2.0_dp*(d2 + d3) + d4)
     end subroutine rk_sens_step
+
+    !> At a breakpoint tb of the forcings: S+ = S- + (f- - f+) d tb/dp for each
+    !! parameter that moves it (a step's start: the jump of its force), the
+    !! rates f- before and f+ after it.
+    subroutine sens_break(es, pars, tb, fm, fp, sm)
+        type(dyn_system_t), intent(in) :: es
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: tb, fm(:), fp(:)
+        real(dp), intent(inout) :: sm(:, :)
+        real(dp) :: d
+        integer :: j
+        do j = 1, size(pars)
+            d = dyn_dbreak(es, pars(j), tb)
+            if (d /= 0.0_dp) sm(:, j) = sm(:, j) + (fm - fp)*d
+        end do
+    end subroutine sens_break
 
     !> Before a friction switch at the state y (modes still the old ones):
     !! the rates f- and dt*/dp = -(g_y S- + g_p)/(g_y f-) of the switching
     !! function g: the velocity of component jev (EVENT_ZERO_VELOCITY) or
     !! mu N - |constraint force| (EVENT_UNSTICK, holdj its constraint force).
-    subroutine sens_event_pre(es, pars, y, kind, jev, holdj, sm, fm, dtp, stat)
+    subroutine sens_event_pre(es, pars, t, y, kind, jev, holdj, sm, fm, dtp, stat)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: t          !< time of the switch (s)
         real(dp), intent(in) :: y(:), holdj, sm(:, :)
         integer, intent(in) :: kind, jev
         real(dp), intent(out) :: fm(:), dtp(:)
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: ds(:, :), dl(:, :), d1(:, :), dl1(:, :), pw(:)
-        real(dp) :: torque, den, sg
+        real(dp) :: den, sg
         integer :: i, j, nw
         nw = size(sm, 2)
         allocate (ds(size(y), nw), dl(2*es%npt, nw), d1(size(y), 1), dl1(2*es%npt, 1), &
                   pw(es%nwork))
-        call dyn_crates(es, y, fm, pw, torque, stat)
+        call dyn_eval(es, t, y, stat, rates=fm, power=pw)
         if (stat%code /= 0) return
         i = es%n + dyn_fric_dof(es, jev)
         dtp = 0.0_dp
@@ -2307,8 +2428,9 @@ contains
             if (den /= 0.0_dp) dtp = -sm(i, :)/den
         else
             sg = sign(1.0_dp, holdj)
-            call sens_rates(es, pars, y, fm, sm, ds, dl, stat, .true.)
-            call sens_rates(es, pars, y, fm, reshape(fm, [size(fm), 1]), d1, dl1, stat, .false.)
+            call sens_rates(es, pars, t, y, fm, sm, ds, dl, stat, .true.)
+            call sens_rates(es, pars, t, y, fm, reshape(fm, [size(fm), 1]), d1, dl1, stat, &
+                            .false.)
             den = -sg*dl1(jev, 1)
             if (den /= 0.0_dp) then
                 do j = 1, nw
@@ -2320,16 +2442,16 @@ contains
 
     !> After the switch: S+ = S- + (f- - f+) dt*/dp, and zero velocity
     !! sensitivity for the sticking components.
-    subroutine sens_event_post(es, y, fm, dtp, sm, stat)
+    subroutine sens_event_post(es, t, y, fm, dtp, sm, stat)
         type(dyn_system_t), intent(in) :: es
+        real(dp), intent(in) :: t          !< time of the switch (s)
         real(dp), intent(in) :: y(:), fm(:), dtp(:)
         real(dp), intent(inout) :: sm(:, :)
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: fp(:), pw(:)
-        real(dp) :: torque
         integer :: j
         allocate (fp(size(y)), pw(es%nwork))
-        call dyn_crates(es, y, fp, pw, torque, stat)
+        call dyn_eval(es, t, y, stat, rates=fp, power=pw)
         if (stat%code /= 0) return
         do j = 1, size(sm, 2)
             sm(:, j) = sm(:, j) + (fm - fp)*dtp(j)
@@ -2353,11 +2475,12 @@ contains
     !! block, the stage Jacobians and f_p assembled once per step, no C
     !! products without velocity coupling); a column leaves the pass loop
     !! when it has converged.
-    subroutine radau_sens_step(es, it, pars, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
+    subroutine radau_sens_step(es, it, pars, t, y, z, hh, dmat, gam, mu, ti1, ti2, tr, tc, &
                                rtol, thn, sm, dzp, hp, passes, ws, stat)
         type(dyn_system_t), intent(in) :: es
         type(radau_t), intent(inout) :: it
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: t(3)       !< the stage times (s)
         real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3), gam, ti1(3), tr(3), rtol
         !> the contraction of the step's Newton iteration (same matrices)
         real(dp), intent(in) :: thn
@@ -2378,7 +2501,7 @@ contains
         nw = size(sm, 2)
         nb = 2*es%mesh%kl + es%mesh%ku + 1
         call sens_work_alloc(ws, nb, n, m, nw)
-        call sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+        call sens_stage_terms(es, pars, t, nw, y, z, hh, dmat, ws, e, cz)
         call sens_predict(es, it, pars, sm, dzp, hh, hp, dmat, ws, na)
         ! constant mass, no velocity coupling, no motor lag: the residuals after
         ! a correction from those of the pass before (sens_update)
@@ -2418,19 +2541,21 @@ contains
     !! are skipped), the stage accelerations and the parameter derivatives of
     !! the forces at the converged stages (ws%cst), once per step for all
     !! nw parameters.
-    subroutine sens_stage_terms(es, pars, nw, y, z, hh, dmat, ws, e, cz)
+    subroutine sens_stage_terms(es, pars, tn, nw, y, z, hh, dmat, ws, e, cz)
         type(dyn_system_t), intent(in) :: es
         type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: tn(3)      !< the stage times (s)
         integer, intent(in) :: nw
         real(dp), intent(in) :: y(:), z(:, :), hh, dmat(3, 3)
         type(sens_work_t), intent(inout) :: ws
         real(dp), intent(out) :: e(3)
         logical, intent(out) :: cz(3)
-        real(dp) :: xp
+        real(dp) :: xp, ti
         integer :: n, nx, i, j
         logical :: coupled
         !> D / h: the stage derivatives (D Z)_i / h as products
         real(dp) :: dh(3, 3)
+        type(status_t) :: nostat
 
         n = es%n
         dh = dmat/hh
@@ -2441,20 +2566,21 @@ contains
                    fp => ws%fp, ys => ws%ys)
             do i = 1, 3
                 ys = y + z(:, i)
+                ti = tn(i)
                 if (coupled) then
-                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                      cb(:, :, i), ws%b(:, i), ws%p(:, i), ws%d(:, i), e(i))
+                    call dyn_eval(es, ti, ys, nostat, kb=kb(:, :, i), cb=cb(:, :, i), &
+                                  b=ws%b(:, i), p=ws%p(:, i), d=ws%d(:, i), e=e(i))
                     cz(i) = all(cb(:, :, i) == 0.0_dp)
                 else
                     ! C is zero by construction: neither assembled nor scanned
-                    call dyn_jacobian(es, ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), kb(:, :, i), &
-                                      b=ws%b(:, i), p=ws%p(:, i), d=ws%d(:, i), e=e(i))
+                    call dyn_eval(es, ti, ys, nostat, kb=kb(:, :, i), b=ws%b(:, i), &
+                                  p=ws%p(:, i), d=ws%d(:, i), e=e(i))
                     cz(i) = .true.
                 end if
                 acc(:, i) = dh(i, 1)*z(n + 1:2*n, 1) + dh(i, 2)*z(n + 1:2*n, 2) &
                              + dh(i, 3)*z(n + 1:2*n, 3)
                 do j = 1, nw
-                    call dyn_dforce(es, pars(j), ys(1:n), ys(n + 1:2*n), ys(2*n + 1:), fp, xp)
+                    call dyn_eval(es, ti, ys, nostat, par=pars(j), fp=fp, xp=xp)
                     if (allocated(pars(j)%dmb)) then
                         cst(1:n, i, j) = fp
                     else

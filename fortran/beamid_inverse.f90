@@ -22,9 +22,10 @@ module beamid_inverse
                                  fit_result_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         static_bounds, static_null_values, probe_rows
+                                         probe_rows
     use beamid_observations, only: observation_t, obs_label, same_observation, &
                                    default_observations
+    use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
     implicit none
@@ -175,8 +176,8 @@ contains
         self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
         self%tol = tol
         self%obs = robs
-        call static_bounds(nbeams, self%lower, self%upper)
-        call static_null_values(nbeams, self%nulls)
+        call effect_bounds(nbeams, self%lower, self%upper)
+        call effect_null_values(nbeams, self%nulls)
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
                                      robs(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then

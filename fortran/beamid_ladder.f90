@@ -5,7 +5,7 @@
 !! (beamid.diagnose, beamid.improve), so both write the same ladder.
 module beamid_ladder
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, fmt_int
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, fmt_int, set_status
     use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, chi2_sf, lsq_problem_t, &
                                  fit_least_squares
@@ -173,8 +173,16 @@ contains
         lad%nominal = params
         lad%dopts%alpha = alpha
         lad%fopts%max_iter = 50
+        if (max_steps < 0) then
+            call set_status(st, ERR_INPUT, 'improve', 'max_steps = '//fmt_int(max_steps)// &
+                            ', expected a number of rungs >= 0')
+            lad%done = .true.
+            return
+        end if
         lad%max_steps = max_steps
-        allocate (lad%added(0), lad%rungs(max_steps + 1))
+        ! the rungs grow as they are added (ladder_step): max_steps is a limit,
+        ! not a size (a huge limit must not allocate)
+        allocate (lad%added(0), lad%rungs(1))
         lad%r%effect = 'start'
         lad%r%start = params
         lad%r%params = [integer ::]
@@ -204,6 +212,7 @@ contains
                                   lad%dopts, r%dg, st)
             if (st%code /= STATUS_OK) return
             lad%n = lad%n + 1
+            if (lad%n > size(lad%rungs)) lad%rungs = [lad%rungs, r]
             lad%rungs(lad%n) = r
             v = r%dg%diag%verdict
             if ((v == 0 .and. .not. r%dg%mesh%significant) .or. lad%k == lad%max_steps) return

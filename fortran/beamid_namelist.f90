@@ -115,6 +115,13 @@ contains
         n = len(text)
         i = 1
         line = 1
+        ! a measurement CSV (no group, its header): said in one line, not one error per line
+        if (scan(text, '&$') == 0 .and. index(text, 'experiment,t,quantity') > 0) then
+            call add_error(errors, file%path//': a measurement CSV file (experiment,t,'// &
+                           'quantity,value,sigma), not a deck: name it in a deck''s &fit '// &
+                           "group, data = '"//file%path//"' (docs/decks.md)")
+            return
+        end if
         do while (i <= n)
             call skip_blank(text, i, line, skipped)
             if (skipped) cycle

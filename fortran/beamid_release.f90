@@ -22,7 +22,9 @@ module beamid_release
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_to_coords, &
                                dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, &
                                FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
-                               dyn_static_sens, dyn_output_sens
+                               dyn_static_sens, dyn_output_sens, dyn_add_forcing, DP_FORCING
+    use beamid_loads, only: tip_history_t, history_check
+    use beamid_hub, only: hub_forcing_t, hub_setup
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT
     implicit none
@@ -67,6 +69,16 @@ module beamid_release
         real(dp), allocatable :: y_init(:)
         !> progress(1) follows the output times reached (integ_opts_t%progress)
         real(dp), pointer :: progress(:) => null()
+        !> load histories at the tip from t = 0 (beamid_loads; their tip
+        !! indices are set here); their parameters follow the release load's
+        !! components in wrt, history by history
+        type(tip_history_t), allocatable :: histories(:)
+        !> a prescribed hub rotation (beamid_hub: the spin-up law to w_s in T),
+        !! after the histories (its parameter w_s follows theirs in wrt)
+        logical :: hub = .false.
+        real(dp) :: hub_ws = 0.0_dp, hub_period = 0.0_dp
+        !> the hub angle as a table instead (rows (t, angle), scaled by hub_ws)
+        real(dp), allocatable :: hub_table(:, :)
     end type release_spec_t
 
     !> The response at the output times.
@@ -133,8 +145,10 @@ contains
         type(dyn_param_t), allocatable :: pars(:)
         real(dp), allocatable :: y0(:), q(:), yc(:), s0(:, :)
         real(dp) :: e0, u, w, ang
-        integer :: k, n, nt, nw, j
+        integer :: k, n, nt, nw, j, l, nhp, base, ip
         logical :: modal
+        type(tip_history_t) :: th
+        type(hub_forcing_t) :: hub
 
         nt = size(t_out)
         nw = size(wrt)
@@ -152,12 +166,40 @@ contains
             call dyn_set_modes(sys, spec%modes, stat)
             if (stat%code /= STATUS_OK) return
         end if
+        ! the load histories: one forcing each, acting at the tip
+        nhp = 0
+        if (allocated(spec%histories)) then
+            do l = 1, size(spec%histories)
+                th = spec%histories(l)
+                call history_check(th%hist, 'load history '//fmt_int(l)//' ('// &
+                                   th%work_name()//')', t_out(max(1, nt)), stat)
+                if (stat%code /= STATUS_OK) return
+                th%iw = sys%iw(sys%npt)
+                th%iu = sys%iu(sys%npt)
+                th%idw = sys%idw(sys%npt)
+                th%idu = sys%idu(sys%npt)
+                call dyn_add_forcing(sys, th)
+                nhp = nhp + th%nparams()
+            end do
+        end if
+        if (spec%hub) then
+            if (allocated(spec%hub_table)) then
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub angle table', hub, &
+                               stat, spec%hub_table(1, :), spec%hub_table(2, :))
+            else
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
+            end if
+            if (stat%code /= STATUS_OK) return
+            call dyn_add_forcing(sys, hub)
+            nhp = nhp + hub%nparams()
+        end if
+        base = param_count(chain%nbeams) + NLOAD
         do j = 1, nw
-            if (wrt(j) < 1 .or. wrt(j) > param_count(chain%nbeams) + NLOAD) then
+            if (wrt(j) < 1 .or. wrt(j) > base + nhp) then
                 call set_status(stat, ERR_INPUT, where, 'wrt('//fmt_int(j)//') = '// &
-                                fmt_int(wrt(j))//', expected 1..'// &
-                                fmt_int(param_count(chain%nbeams) + NLOAD)// &
-                                ' (a parameter index, then fx, fy, moment of the load)')
+                                fmt_int(wrt(j))//', expected 1..'//fmt_int(base + nhp)// &
+                                ' (a parameter index, then fx, fy, moment of the load, '// &
+                                'then the load histories'' parameters)')
                 return
             end if
         end do
@@ -167,6 +209,18 @@ contains
         out%nwork = sys%nwork
         allocate (y0(sys%nstate), q(n), s0(sys%nstate, nw), pars(nw))
         do j = 1, nw
+            if (wrt(j) > base) then
+                ! parameter ip of history l (DP_FORCING)
+                ip = wrt(j) - base
+                do l = 1, sys%nloads
+                    if (ip <= sys%loads(l)%f%nparams()) exit
+                    ip = ip - sys%loads(l)%f%nparams()
+                end do
+                pars(j)%kind = DP_FORCING
+                pars(j)%k = l
+                pars(j)%ip = ip
+                cycle
+            end if
             call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), &
                                  wrt(j), pars(j), stat)
             if (stat%code /= STATUS_OK) return

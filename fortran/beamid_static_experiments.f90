@@ -11,16 +11,12 @@
 !! y_tip; each row holds its observation (kind and locus) and `observe`
 !! computes it and its sensitivities from a static solution.
 !!
-!! The module also holds the static candidate effects for `diagnose`
-!! (axial_coupling, material_cubic, elbow_flex, root_flex), the physical
-!! bounds of every parameter and their null values.
+!! The candidate effects, the physical bounds of every parameter and their
+!! null values are the table of beamid_effects.
 module beamid_static_experiments
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_count, param_index_beam, &
-                            param_index_joint_flex, param_index_global, PER_BEAM, IB_L, IB_C, &
-                            IB_EI, IB_EA, IB_RHO, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
-                            param_index_mass, IM_MU, IM_C, IM_J, IG_ETA, IG_TAU_MOTOR
+    use beamid_model, only: chain_t, chain_from_vector, param_index_beam, IB_L, IB_C, IB_EI
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, static_stations, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, &
                                 OUT_Y_TIP, &
@@ -36,16 +32,7 @@ module beamid_static_experiments
     private
 
     public :: static_experiments_t, static_experiments_init, observe
-    public :: static_bounds, static_null_values, static_effect_params
-    public :: probe_rows, EFFECT_NAMES, NEFFECT, KNOWN_EFFECTS, median_of, distinct_sorted
-
-    !> Static candidate effects, in registry order.
-    integer, parameter :: NEFFECT = 4
-    character(len=*), parameter :: EFFECT_NAMES(NEFFECT) = [character(len=14) :: &
-        'axial_coupling', 'material_cubic', 'elbow_flex', 'root_flex']
-    !> Every effect name static_effect_params knows (for messages).
-    character(len=*), parameter :: KNOWN_EFFECTS = 'axial_coupling, material_cubic, '// &
-        'elbow_flex, root_flex, friction, drag, rotary_inertia, kelvin_voigt, motor_lag, mesh'
+    public :: probe_rows, median_of, distinct_sorted
 
     !> Static experiments and the data rows they predict.
     type, extends(residual_model_t) :: static_experiments_t
@@ -277,69 +264,6 @@ contains
             grad = 0.5_dp*STRIP_THICKNESS*dz(4, :)
         end select
     end subroutine observe_station
-
-    !> Physical bounds of every parameter: lengths, stiffnesses and densities
-    !! positive (lower bound 0, never reached: the solver rejects it), the
-    !! cubic coefficients free, axial_coupling in [0, 1], everything else >= 0.
-    pure subroutine static_bounds(nbeams, lower, upper)
-        integer, intent(in) :: nbeams
-        real(dp), allocatable, intent(out) :: lower(:), upper(:)
-        integer :: i
-        allocate (lower(param_count(nbeams)), upper(param_count(nbeams)), source=0.0_dp)
-        upper = huge(1.0_dp)
-        lower([(param_index_beam(nbeams, i, IB_C), i = 1, nbeams)]) = -huge(1.0_dp)
-        upper(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
-    end subroutine static_bounds
-
-    !> Null (switched-off) values: C = 0, flex = 0, axial_coupling = 0 (the
-    !! seed's shear-only form of Eq. 9); NaN-free placeholders elsewhere.
-    pure subroutine static_null_values(nbeams, null_values)
-        integer, intent(in) :: nbeams
-        real(dp), allocatable, intent(out) :: null_values(:)
-        allocate (null_values(param_count(nbeams)), source=0.0_dp)
-    end subroutine static_null_values
-
-    !> Parameter indices of a static effect ('' or unknown name: empty and
-    !! ERR_INPUT).
-    pure subroutine static_effect_params(nbeams, name, params, stat)
-        integer, intent(in) :: nbeams
-        character(len=*), intent(in) :: name
-        integer, allocatable, intent(out) :: params(:)
-        type(status_t), intent(inout) :: stat
-        integer :: i
-        select case (trim(adjustl(name)))
-        case ('axial_coupling')
-            params = [param_index_global(nbeams, IG_AXIAL_COUPLING)]
-        case ('material_cubic')
-            params = [(param_index_beam(nbeams, i, IB_C), i=1, nbeams)]
-        case ('elbow_flex')
-            if (nbeams >= 2) then
-                params = [param_index_joint_flex(nbeams, 1)]
-            else
-                allocate (params(0))
-            end if
-        case ('root_flex')
-            params = [param_index_global(nbeams, IG_ROOT_FLEX)]
-        ! the candidates of release experiments (beamid_dyn_diagnosis): per
-        ! mass point (elbow, joints, tip), or global; `mesh` has no parameter
-        case ('friction')
-            params = [(param_index_mass(nbeams, i, IM_MU), i=1, nbeams)]
-        case ('drag')
-            params = [(param_index_mass(nbeams, i, IM_C), i=1, nbeams)]
-        case ('rotary_inertia')
-            params = [(param_index_mass(nbeams, i, IM_J), i=1, nbeams)]
-        case ('kelvin_voigt')
-            params = [param_index_global(nbeams, IG_ETA)]
-        case ('motor_lag')
-            params = [param_index_global(nbeams, IG_TAU_MOTOR)]
-        case ('mesh')
-            allocate (params(0))
-        case default
-            allocate (params(0))
-            call set_status(stat, ERR_INPUT, 'effects', 'unknown effect "'//trim(name)// &
-                            '", expected one of '//KNOWN_EFFECTS)
-        end select
-    end subroutine static_effect_params
 
     !> Probe rows for separating rival explanations: every experiment and
     !! every kind of the static probe list (beamid_observations: x_tip y_tip

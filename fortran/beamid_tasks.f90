@@ -14,12 +14,12 @@
 module beamid_tasks
     use, intrinsic :: iso_c_binding, only: c_int, c_double, c_char, c_null_char
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, &
-                                             ieee_positive_inf
+                                             ieee_positive_inf, ieee_is_finite
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
-                             set_alloc_error
+                             set_alloc_error, fmt_real
     use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
-    use beamid_deck, only: deck_t, stage_t, take_stage
+    use beamid_deck, only: deck_t, stage_t, take_stage, FRICTION_LAWS
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
     use beamid_fe_assembly, only: fe_mesh_t, fe_load_t
@@ -29,13 +29,15 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
+    use beamid_dynamics, only: dyn_work_name
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
-                                 candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance
+                                 candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
+                                 STOP_NAMES, FLAG_OK
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
-    use beamid_static_experiments, only: static_effect_params
     use beamid_observations, only: obs_label, obs_groups
+    use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
     private
@@ -50,6 +52,9 @@ module beamid_tasks
     type :: files_t
         character(len=:), allocatable :: names, prefix, last
         logical :: folder_ok = .false.
+        !> One line saying what the run found (printed by both programs
+        !! before the files; run_task's `summary`)
+        character(len=:), allocatable :: summary
     end type files_t
 
     character(len=*), parameter :: output_names(NOUT) = [character(len=11) :: &
@@ -78,15 +83,20 @@ contains
     !! `ladder`: an estimation deck's rungs when already run (deck_ladder_start
     !! and ladder_step, or an identify deck's stages, deck_stage_start, as
     !! beamid.run steps them from Python): only the files are written.
-    subroutine run_task(deck, written, stat, ladder)
+    subroutine run_task(deck, written, stat, ladder, summary)
         type(deck_t), intent(in) :: deck
         character(len=:), allocatable, intent(out) :: written
         type(status_t), intent(inout) :: stat
         type(rung_t), intent(in), optional :: ladder(:)
+        !> one line: the deck's path and what the run found (the same line from
+        !! beamid-batch and beamid run, before the files written)
+        character(len=:), allocatable, intent(out), optional :: summary
         type(files_t) :: fl
         integer :: slash
         fl%names = ''
+        fl%summary = ''
         written = ''
+        if (present(summary)) summary = ''
         fl%prefix = deck%output
         slash = index(deck%path, '/', back=.true.)
         if (index(deck%output, '/') /= 1) fl%prefix = deck%path(:slash)//deck%output
@@ -107,7 +117,77 @@ contains
         if (stat%code /= STATUS_OK .and. allocated(deck%exp_names)) call name_experiment(deck, stat)
         call finish_files(fl, stat)
         if (stat%code == STATUS_OK) written = fl%names
+        if (stat%code == STATUS_OK .and. present(summary)) summary = deck%path//': '//fl%summary
     end subroutine run_task
+
+    !> x with `d` decimals and a leading zero (Python's f'{x:.{d}f}').
+    function fixed(x, d) result(text)
+        real(dp), intent(in) :: x
+        integer, intent(in) :: d
+        character(len=:), allocatable :: text
+        character(len=64) :: buffer
+        if (.not. ieee_is_finite(x)) then
+            text = fmt_real(x)
+            return
+        end if
+        write (buffer, '(f0.'//fmt_int(d)//')') x
+        text = trim(adjustl(buffer))
+        if (text(1:1) == '.') text = '0'//text
+        if (text(1:min(2, len(text))) == '-.') text = '-0'//text(2:)
+    end function fixed
+
+    !> x in at most six significant digits, no trailing zeros (as Python's
+    !! f'{x:g}', but for the exponent's form: 1.97321e-020).
+    function short(x) result(text)
+        real(dp), intent(in) :: x
+        character(len=:), allocatable :: text
+        character(len=32) :: buffer
+        integer :: d, e
+        if (.not. ieee_is_finite(x) .or. x == 0.0_dp) then
+            text = merge('0  ', fmt_real(x), x == 0.0_dp)
+            text = trim(text)
+            return
+        end if
+        if (abs(x) < 1.0e-3_dp .or. abs(x) >= 1.0e7_dp) then
+            ! mantissa of six digits without trailing zeros, then the exponent
+            write (buffer, '(es0.5e0)') x
+            e = index(buffer, 'E')
+            text = trim(adjustl(buffer(:e - 1)))
+            do while (text(len(text):len(text)) == '0')
+                text = text(:len(text) - 1)
+            end do
+            if (text(len(text):len(text)) == '.') text = text(:len(text) - 1)
+            text = text//'e'//trim(adjustl(buffer(e + 1:)))
+            return
+        end if
+        d = max(0, 5 - floor(log10(abs(x))))
+        text = fixed(x, d)
+        if (index(text, '.') > 0) then
+            do while (text(len(text):len(text)) == '0')
+                text = text(:len(text) - 1)
+            end do
+            if (text(len(text):len(text)) == '.') text = text(:len(text) - 1)
+        end if
+    end function short
+
+    !> The summary of a fit: how it ended, chi-square, flagged parameters.
+    function fit_line(d, f) result(text)
+        type(deck_t), intent(in) :: d
+        type(fit_result_t), intent(in) :: f
+        character(len=:), allocatable :: text, flagged
+        integer :: i
+        text = trim(STOP_NAMES(min(max(f%stop, 0), ubound(STOP_NAMES, 1))))//' after '// &
+               fmt_int(f%iterations)//' iterations, chi2 '//short(f%chi2)//' for '// &
+               fmt_int(f%dof)//' dof'
+        flagged = ''
+        do i = 1, size(f%free)
+            if (f%flags(i) == FLAG_OK) cycle
+            if (len(flagged) > 0) flagged = flagged//', '
+            flagged = flagged//param_name(d%nbeams, f%free(i))//' '// &
+                      trim(FLAG_NAMES(min(max(f%flags(i), 0), ubound(FLAG_NAMES, 1))))
+        end do
+        if (len(flagged) > 0) text = text//'; flagged: '//flagged
+    end function fit_line
 
     !> The folder that will hold the files starting with `prefix` created.
     subroutine make_folder(prefix, st)
@@ -165,6 +245,10 @@ contains
             names = [character(len=64) :: names, ('d('//trim(output_names(i))//')/d('// &
                      param_name(d%nbeams, d%wrt(j))//')', i=1, NOUT)]
         end do
+        fl%summary = 'tip ('//fixed(sol%outputs(1), 6)//', '//fixed(sol%outputs(2), 6)// &
+                     ') m, angle '//fixed(sol%outputs(3), 6)//' rad'
+        if (d%load%kind == LOAD_WIRE) fl%summary = fl%summary//', wire force '// &
+            fixed(sol%outputs(4), 4)//' N'
         call write_summary(fl, '_summary.csv', names, [sol%outputs, sol%doutputs], &
                            [sol%newton_iterations, sol%load_steps], st)
         if (st%code /= STATUS_OK .or. n < 2) return
@@ -201,6 +285,9 @@ contains
                                  energy, reactions, residual, info, st)
         end if
         if (st%code /= STATUS_OK) return
+        fl%summary = 'fe_static, '//fmt_int(d%nbeams*d%fe_elements_per_beam)// &
+            ' elements: tip w '//fixed(nodes(4, nnode), 6)//' m, u '//fixed(nodes(2, nnode), 6)// &
+            ' m, energy '//fixed(energy, 6)//' N m'
         call write_summary(fl, '_summary.csv', names, [nodes(4, nnode), &
                            nodes(5, nnode), nodes(2, nnode), nodes(3, nnode), nodes(3, 1), energy, &
                            nodes(1, nnode) + nodes(2, nnode), nodes(4, nnode)], info(1:2), st)
@@ -242,6 +329,9 @@ contains
                 merge('omega_u', 'omega_w', axial(i) /= 0), merge(nu, nw, axial(i) /= 0), omega(i)
         end do
         call close_checked(fl, unit, ios, st)
+        fl%summary = 'fe_modes, '//fmt_int(d%nbeams*d%fe_elements_per_beam)//' elements: '// &
+            fmt_int(nw)//' transverse and '//fmt_int(nu)//' axial frequencies, the lowest '// &
+            short(minval(omega))//' rad/s'
     end subroutine run_fe_modes
 
     ! -------------------------------------------------------------- dynamics
@@ -271,7 +361,7 @@ contains
 
         header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
         do i = 1, nwork
-            header = header//','//work_name(d%nbeams, i)
+            header = header//','//dyn_work_name(d%nbeams, i)
         end do
         header = header//',work,numerical,motor_torque'
         call open_output(fl, '_history.csv', header, unit, ios, st)
@@ -290,30 +380,14 @@ contains
             end do
         end associate
         call close_checked(fl, unit, ios, st)
+        k = size(d%sim_t_out)
+        fl%summary = fmt_int(k)//' output times to '//short(d%sim_t_out(k))//' s ('// &
+            trim(merge('rk4     ', 'implicit', d%sim_integrator == 0))//', friction '// &
+            trim(FRICTION_LAWS(d%sim_friction + 1))//'); tip w at the end '// &
+            fixed(out%tip(2, k), 7)//' m, energy change '// &
+            fixed(out%ledger(3, k) - out%ledger(3, 1), 8)//' N m'
     end subroutine run_simulate
 
-    !> Name of work line i of the ledger (beamid.dynamics.work_names):
-    !! friction_<point>, drag_<point> per mass point, damping, motor.
-    function work_name(nbeams, i) result(name)
-        integer, intent(in) :: nbeams, i
-        character(len=:), allocatable :: name
-        integer :: k
-        if (i > 2*nbeams) then
-            name = merge('damping', 'motor  ', i == 2*nbeams + 1)
-            name = trim(name)
-            return
-        end if
-        k = mod(i - 1, nbeams) + 1
-        name = merge('friction_', 'drag_    ', i <= nbeams)
-        name = trim(name)
-        if (k == nbeams) then
-            name = name//'tip'
-        else if (k == 1) then
-            name = name//'elbow'
-        else
-            name = name//'joint'//fmt_int(k)
-        end if
-    end function work_name
 
     ! ------------------------------------------------------------ estimation
 
@@ -343,6 +417,17 @@ contains
         if (st%code == STATUS_OK) call deck_candidates(d, cs, st)
         if (st%code /= STATUS_OK) return
         associate (fo => rungs(size(rungs))%fit, dg => rungs(size(rungs))%dg)
+            fl%summary = d%task//', '//fit_line(d, fo)
+            if (d%task == 'improve') then
+                fl%summary = ''
+                do k = 2, size(rungs)
+                    if (len(fl%summary) > 0) fl%summary = fl%summary//', '
+                    fl%summary = fl%summary//rungs(k)%effect
+                end do
+                if (len(fl%summary) == 0) fl%summary = 'none'
+                fl%summary = 'improve, effects added: '//fl%summary//'; the last fit '// &
+                             fit_line(d, fo)
+            end if
             call write_fit_files(d, fo, '', fl, st)
             if (st%code == STATUS_OK .and. (d%task == 'diagnose' .or. d%task == 'improve')) &
                 call write_ranking(d, fo, dg, cs, fl, st)
@@ -397,14 +482,21 @@ contains
                     p = f%free(i)
                     rows = rows//d%stages(k)%name//','//param_name(d%nbeams, p)//','// &
                            fmt_e(f%params(p))//','//fmt_e(before(i))//','//fmt_e(f%sigmas(i))// &
+                           ','//trim(FLAG_NAMES(min(max(f%flags(i), 0), ubound(FLAG_NAMES, 1))))// &
                            new_line('a')
                     known(p) = f%sigmas(i)
                 end do
             end associate
         end do
 
+        fl%summary = 'identify, '//fmt_int(size(d%stages))//' stages ('
+        do k = 1, size(d%stages)
+            if (k > 1) fl%summary = fl%summary//', '
+            fl%summary = fl%summary//d%stages(k)%name
+        end do
+        fl%summary = fl%summary//'); the last fit '//fit_line(d, done(size(done))%fit)
         call open_output(fl, '_identify.csv', &
-                         'stage,parameter,estimate,sigma_before,sigma_after', unit, ios, st)
+                         'stage,parameter,estimate,sigma_before,sigma_after,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         if (len(rows) > 0) call put(unit, ios, rows(:len(rows) - 1))
         call close_checked(fl, unit, ios, st)
@@ -607,7 +699,7 @@ contains
                 cycle
             end if
             one%name = trim(d%candidates(c))
-            call static_effect_params(d%nbeams, d%candidates(c), one%params, st)
+            call effect_params(d%nbeams, d%candidates(c), one%params, st)
             if (st%code /= STATUS_OK) return
             cs%names = [character(len=32) :: cs%names, d%candidates(c)]
             cs%cands = [cs%cands, one]
@@ -653,7 +745,7 @@ contains
         do i = 1, size(fo%free)
             call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
                      fmt_e(fo%params(fo%free(i)))//','//fmt_e(fo%sigmas(i))//','// &
-                     trim(FLAG_NAMES(min(max(fo%flags(i), 0), 4))))
+                     trim(FLAG_NAMES(min(max(fo%flags(i), 0), ubound(FLAG_NAMES, 1)))))
         end do
         call put(unit, ios, 'chi2,'//fmt_e(fo%chi2)//',,')
         call put(unit, ios, 'chi2_prior,'//fmt_e(fo%chi2_prior)//',,')

@@ -396,8 +396,9 @@ def test_batch_says_what_it_wrote(tmp_path, batch_exe):
     deck.write_text(STATIC)
     proc = subprocess.run([str(batch_exe), str(deck)], capture_output=True, text=True)
     assert proc.returncode == 0
-    assert proc.stdout.split() == [str(tmp_path / "out/s_summary.csv"),
-                                   str(tmp_path / "out/s_shape.csv")]
+    assert proc.stdout.splitlines()[1:] == [f"wrote {tmp_path / 'out/s_summary.csv'}",
+                                            f"wrote {tmp_path / 'out/s_shape.csv'}"]
+    assert proc.stdout.startswith(f"{deck}: tip (")
     quiet = subprocess.run([str(batch_exe), "--quiet", str(deck)], capture_output=True,
                            text=True)
     assert quiet.returncode == 0 and quiet.stdout == ""
@@ -480,6 +481,27 @@ API_CASES = {
         beamid.pace(), EXPS, ["y_tip"], sigma=0.0), ["sigma"]),
     "simulate_quantities_str": (lambda r: beamid.simulate_measurements(
         beamid.pace(), EXPS, "y_tip"), ["quantities"]),
+    # issue 32: a segfault and seven bare ValueError/TypeError, each now an
+    # InputError that names the argument and shows the value
+    "improve_max_steps_negative": (lambda r: beamid.improve(beamid.pace(), EXPS, _data(),
+                                                            max_steps=-1),
+                                   ["max_steps = -1", "integer >= 0"]),
+    "fe_static_start_str": (lambda r: beamid.fe_static(beamid.pace(), beamid.TipForce(fy=8.0),
+                                                       4, start="abc"), ["start = 'abc'"]),
+    "fit_free_none": (lambda r: beamid.fit(beamid.pace(), EXPS, _data(), free=None),
+                      ["free = None", "names"]),
+    "model_values_str": (lambda r: beamid.Model(1, "abcdefghijklm"),
+                         ["values = 'abcdefghijklm'", "numbers"]),
+    "from_rows_value_str": (lambda r: beamid.Measurements.from_rows(
+        [("F2", 0, "y_tip", "abc", 0.1)]), ["row 1", "value = 'abc'", "number"]),
+    "simulate_motor_gain_str": (lambda r: beamid.simulate(
+        beamid.pace(), beamid.TipForce(fy=1.0), [0.0, 0.01], motor_gain="high"),
+        ["motor_gain = 'high'", ">= 0"]),
+    "simulate_t_out_str": (lambda r: beamid.simulate(
+        beamid.pace(), beamid.TipForce(fy=1.0), t_out=["a", "b"]),
+        ["t_out = ['a', 'b']", "numbers"]),
+    "solve_static_tol_str": (lambda r: beamid.solve_static(
+        beamid.pace(), beamid.TipForce(fy=1.0), tol="fine"), ["tol = 'fine'", "tolerance"]),
 }
 
 EXPS = {"F2": beamid.TipForce(fy=2.0), "F4": beamid.TipForce(fy=4.0)}

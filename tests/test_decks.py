@@ -184,8 +184,8 @@ def test_cli_run_and_reproduce(tmp_path, capsys):
     assert (tmp_path / "out" / "case_summary.csv").is_file()
     assert cli_main(["reproduce", "2"]) == 0
     out = capsys.readouterr().out
-    assert "146.315" in out and "DEVIATION (documented)" in out
-    assert "17 reproduced, 1 documented deviations, 0 failed" in out
+    assert "146.315" in out and "deviation: unexplained" in out
+    assert "17 reproduced, 1 documented deviations (1 unexplained), 0 failed" in out
 
 
 def test_cli_reproduce_unknown_table():
@@ -245,7 +245,8 @@ def test_docs_deck_examples_run_in_both(tmp_path, batch_exe, index):
     deck.write_text(_doc_decks()[index])
     proc = _batch(batch_exe, deck)
     assert proc.returncode == 0, proc.stderr
-    written = [Path(p) for p in proc.stdout.split()]
+    written = [Path(line.split(" ", 1)[1]) for line in proc.stdout.splitlines()
+               if line.startswith("wrote ")]
     assert written and all(p.exists() for p in written)
     first = {p: p.read_bytes() for p in written}
     beamid.run(deck)

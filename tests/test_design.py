@@ -200,10 +200,12 @@ def test_cli_design_prints_ranks_and_draws(tmp_path, capsys):
     assert rows[1] == "rank,experiment,quantity,sigma,predicted"
     assert rows[2].startswith("1,") and len(rows) == 2 + 3   # M3/tip_angle, Lw1.4 x 2
     assert (tmp_path / "table05_fit_design.png").read_bytes()[:4] == b"\x89PNG"
-    # a quantity the deck never measured needs a sigma: exit 2 naming it
+    # a quantity the deck never measured gets the default sigma, said in a line
     code = main(["design", deck, "--moment", "3", "--quantities", "tip_angle",
                  "--out", str(tmp_path)])
-    assert code == 2 and "--sigma tip_angle=VALUE" in capsys.readouterr().err
+    assert code == 0
+    assert ("sigma of tip_angle: 0.001 rad (default: the deck has no tip_angle rows; set it "
+            "with --sigma tip_angle=VALUE)") in capsys.readouterr().out
 
 
 def test_predicted_covariance_of_two_added_rows(table5_fit, advice):
@@ -298,5 +300,59 @@ def test_cli_design_on_a_release_deck(tmp_path, capsys):
     labels = {r.split(",")[2] for r in rows[2:]}
     assert labels == {f"{q}@{t}" for q in ("w_tip", "u_tip") for t in ("0.8", "1.6", "2.4")}
     assert "predicted sigma of mu_elbow" in out
-    assert main(["design", deck, "--out", str(tmp_path / "x"), "--no-plots"]) == 2
-    assert "give --times" in capsys.readouterr().err
+    # without --times: the deck's own measurement times, said in a line
+    assert main(["design", deck, "--out", str(tmp_path / "x"), "--no-plots"]) == 0
+    assert ("measurement times: 0.1 0.2 0.3 0.4 0.5 0.6 s (the deck's own; set them with "
+            "--times)") in capsys.readouterr().out
+
+
+# ------------------------------------------- defaults on the bundled decks (issue 31)
+
+#: a representative subset of the bundled estimation decks (the whole set, 14
+#: decks, takes about 15 s): static with and without a quantity's rows, a
+#: dynamic release deck, a three-stage identify deck
+BUNDLED = [("seed", "table03_fit.nml"), ("seed", "table05_fit.nml"),
+           ("seed", "table19_fit.nml"), ("seed", "identify_three_stages.nml"),
+           ("demo", "hidden_effect.nml")]
+
+
+@pytest.mark.parametrize("folder, name", BUNDLED)
+def test_cli_design_runs_on_a_bundled_deck_without_options(folder, name, tmp_path, capsys):
+    from beamid.cli import main
+    from beamid.tables import inputs_dir
+
+    deck = inputs_dir(folder) / name
+    assert main(["design", str(deck), "--out", str(tmp_path), "--no-plots"]) == 0
+    out = capsys.readouterr().out
+    rows = (tmp_path / f"{deck.stem}_design.csv").read_text().splitlines()
+    assert rows[1] == "rank,experiment,quantity,sigma,predicted" and len(rows) > 3
+    assert all(float(r.split(",")[3]) > 0 for r in rows[2:])
+    if name in ("table05_fit.nml", "hidden_effect.nml"):    # no x_elbow rows: the default
+        assert "sigma of x_elbow: 0.001 m (default" in out
+    if name in ("table19_fit.nml", "identify_three_stages.nml"):
+        assert "(the deck's own; set them with --times)" in out
+
+
+def test_cli_design_argument_errors_come_first_in_the_command_lines_words(
+        monkeypatch, capsys):
+    import sys
+
+    from beamid.cli import main
+
+    mc = sys.modules["beamid.consistency"]     # (beamid.consistency is the function)
+    from beamid.tables import inputs_dir
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the deck's fit ran before the arguments were checked")
+
+    monkeypatch.setattr(mc, "_fit", no_fit)
+    deck = str(inputs_dir("seed") / "table05_fit.nml")
+    for argv, words in (
+            (["--target", "foo"], "--target foo: not a free parameter of"),
+            (["--sigma", "x_tip=abc"], "--sigma x_tip=abc: 'abc' is not a sigma"),
+            (["--sigma", "bogus=1"], "--sigma bogus=1: unknown quantity 'bogus'"),
+            (["--quantities", "tip_x"], "--quantities tip_x: unknown quantity")):
+        assert main(["design", deck, *argv, "--no-plots"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("beamid: error: ") and words in err, err
+        assert "None" not in err and len(err.splitlines()) == 1

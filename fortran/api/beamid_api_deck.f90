@@ -172,20 +172,24 @@ contains
     !! files written, one per line, in `written`. A non-blank `task` replaces
     !! the deck's (`beamid fit|compare|diagnose|improve DECK`): an estimation
     !! task for an estimation deck only.
-    subroutine api_run_deck(path, task, written, code, message)
+    subroutine api_run_deck(path, task, written, summary, code, message)
         character(len=*), intent(in) :: path, task
         character(len=65536), intent(out) :: written
+        !> the summary line beamid-batch prints (run_task)
+        character(len=4096), intent(out) :: summary
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
-        character(len=:), allocatable :: files
+        character(len=:), allocatable :: files, line
         written = ''
+        summary = ''
         call read_deck(trim(path), d, stat)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         if (stat%code == STATUS_OK) then
-            call run_task(d, files, stat)
+            call run_task(d, files, stat, summary=line)
             if (stat%code == STATUS_OK) call put_text(files, written)
+            if (stat%code == STATUS_OK) summary = line
         end if
         call put_errors(d, stat, code, message)
     end subroutine api_run_deck

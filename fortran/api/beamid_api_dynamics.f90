@@ -18,18 +18,46 @@ module beamid_api_dynamics
     use beamid_fe_element, only: fe_hermite
     use beamid_fe_assembly, only: fe_band_to_dense, fe_node_value, fe_load_t, &
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
+    ! ld_spec columns have beamid_loads LD_NSPEC = 9 entries (a literal for f2py)
+    use beamid_loads, only: tip_history_t, histories_from_columns
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_cforces, &
-                               dyn_cjacobian, dyn_cmass
+                               dyn_cjacobian, dyn_cmass, dyn_nwork, dyn_work_name
     implicit none
     private
 
     public :: api_dyn_sizes, api_dyn_simulate_modal, api_dyn_system
     public :: api_dyn_profile, api_dyn_system_modal
     public :: api_dyn_release, api_dyn_quantity_name, api_dyn_wrt_name
+    public :: api_work_names, api_dyn_load_names, api_dyn_forced
 
 contains
+
+    !> Names of the work lines of the ledger of a chain of nbeams beams (no
+    !! forcing), space separated, in the order of the work vector (as
+    !! api_param_names for the parameters).
+    subroutine api_work_names(nbeams, names, code, message)
+        integer(c_int), intent(in) :: nbeams
+        character(len=4096), intent(out) :: names
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=:), allocatable :: joined
+        type(status_t) :: stat
+        integer :: i
+        joined = ''
+        names = ''
+        if (nbeams < 1 .or. dyn_nwork(int(nbeams))*24 > len(names)) then
+            call set_status(stat, ERR_INPUT, 'api_work_names', 'cannot name the work '// &
+                            'lines of '//fmt_int(int(nbeams))//' beams')
+        else
+            do i = 1, dyn_nwork(int(nbeams))
+                joined = joined//dyn_work_name(int(nbeams), i)//' '
+            end do
+            names = joined
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_work_names
 
     subroutine make_system(nbeams, nparams, params, nepb, gain, law, vslip, sys, stat)
         integer(c_int), intent(in) :: nbeams, nparams, nepb, law
@@ -239,8 +267,9 @@ contains
         yc(1:k) = c
         yc(k + 1:2*k) = cd
         if (sys%nx > 0) yc(2*k + 1) = x(1)
-        call dyn_cforces(sys, yc, force, power, torque)
-        call dyn_cjacobian(sys, yc, kb, cb, b, p, d, e)
+        ! the chain's own forces: no forcing in time is set up here (t = 0)
+        call dyn_cforces(sys, 0.0_dp, yc, force, power, torque)
+        call dyn_cjacobian(sys, 0.0_dp, yc, kb, cb, b, p, d, e)
         call fe_band_to_dense(kb, sys%ckl, sys%cku, kmat)
         call fe_band_to_dense(cb, sys%ckl, sys%cku, cmat)
         call dyn_cmass(sys, yc, mb)
@@ -364,5 +393,112 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_dyn_release
+
+    !> Work-line names and parameter names of the load histories of columns
+    !! ld_spec (LD_NSPEC x nld, beamid_loads) with table rows ld_tab, space
+    !! separated (the ledger's lines after the chain's; the wrt names after
+    !! the release load's).
+    subroutine api_dyn_load_names(nld, ld_spec, ntab, ld_tab, works, pnames, code, message)
+        integer(c_int), intent(in) :: nld, ntab
+        real(c_double), intent(in) :: ld_spec(9, nld), ld_tab(2, ntab)
+        character(len=4096), intent(out) :: works, pnames
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(tip_history_t), allocatable :: hists(:)
+        type(status_t) :: stat
+        character(len=:), allocatable :: jw, jp
+        real(dp) :: hub(2)
+        logical :: has_hub
+        integer :: l, i
+        works = ''
+        pnames = ''
+        jw = ''
+        jp = ''
+        call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), hists, stat, hub, &
+                                    has_hub)
+        if (stat%code == STATUS_OK) then
+            do l = 1, size(hists)
+                jw = jw//hists(l)%work_name()//' '
+                do i = 1, hists(l)%nparams()
+                    jp = jp//hists(l)%param_name(i)//' '
+                end do
+            end do
+            ! the hub after the histories (release_response's order)
+            if (has_hub) then
+                jw = jw//'hub '
+                if (any(nint(ld_spec(1, :)) == 5 .and. nint(ld_spec(2, :)) == 1)) then
+                    jp = jp//'hub_scale '
+                else
+                    jp = jp//'hub_speed '
+                end if
+            end if
+            if (len(jw) > len(works) .or. len(jp) > len(pnames)) then
+                call set_status(stat, ERR_INPUT, 'api_dyn_load_names', 'too many histories ('// &
+                                fmt_int(int(nld))//') to name')
+            else
+                works = jw
+                pnames = jp
+            end if
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_dyn_load_names
+
+    !> A dynamic experiment with load histories (beamid_loads): the release
+    !! under `loads` (or from y_init when use_init /= 0), the histories of
+    !! ld_spec/ld_tab acting at the tip from t = 0, sensitivities with respect
+    !! to wrt (parameters, the release load's fx, fy, moment, then the
+    !! histories' parameters; full model only), the truncated modal model with
+    !! nmodes > 0. Outputs as api_dyn_release.
+    subroutine api_dyn_forced(nbeams, nparams, params, nepb, loads, gain, method, law, vslip, &
+                              dt, rtol, atol, h0, use_init, nstate, y_init, nt, t_out, nwork, &
+                              nmodes, modes, nwrt, wrt, nq, maxev, nld, ld_spec, ntab, ld_tab, &
+                              states, tip, torque, ledger, work, info, events, y, dy, ds, &
+                              progress, code, message)
+        !f2py threadsafe
+        integer(c_int), intent(in) :: nbeams, nparams, nepb, method, law, use_init, nstate
+        integer(c_int), intent(in) :: nt, nwork, nmodes, modes(nmodes), nwrt, wrt(nwrt), nq
+        integer(c_int), intent(in) :: maxev, nld, ntab
+        real(c_double), intent(in) :: params(nparams), loads(4), gain, vslip, dt, rtol
+        real(c_double), intent(in) :: atol, h0, y_init(nstate), t_out(nt)
+        real(c_double), intent(in) :: ld_spec(9, nld), ld_tab(2, ntab)
+        real(c_double), intent(out) :: states(nstate, nt), tip(3, nt), torque(nt)
+        real(c_double), intent(out) :: ledger(4, nt), work(nwork, nt), events(7, maxev)
+        real(c_double), intent(out) :: y(nq, nt), dy(nq, nt, nwrt), ds(nstate, nt, nwrt)
+        real(c_double), intent(inout), target :: progress(1)
+        integer(c_int), intent(out) :: info(7), code
+        character(len=256), intent(out) :: message
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        type(release_spec_t) :: spec
+        type(release_out_t) :: out
+        real(dp) :: hub(2)
+        call chain_from_vector(int(nbeams), real(params, dp), chain, stat)
+        if (stat%code == STATUS_OK .and. (nq /= NQTY .or. nmodes < 0)) then
+            call set_status(stat, ERR_INPUT, 'api_dyn_forced', 'nq = '//fmt_int(int(nq))// &
+                            ', nmodes = '//fmt_int(int(nmodes))//', expected '// &
+                            fmt_int(NQTY)//' and >= 0')
+        end if
+        if (stat%code == STATUS_OK) then
+            spec = release_spec(nepb, loads, gain, method, law, vslip, dt, rtol, atol, h0)
+            spec%modes = int(modes(1:max(0, nmodes)))
+            if (use_init /= 0) spec%y_init = real(y_init, dp)
+            spec%progress => progress
+            call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), &
+                                        spec%histories, stat, hub, spec%hub, &
+                                        spec%hub_table)
+            spec%hub_ws = hub(1)
+            spec%hub_period = hub(2)
+        end if
+        if (stat%code == STATUS_OK) &
+            call release_response(chain, spec, real(t_out, dp), int(wrt), out, stat)
+        call copy_history(out, 'api_dyn_forced', nstate, nwork, states, tip, torque, &
+                          ledger, work, info, events, stat)
+        if (stat%code == STATUS_OK) then
+            y = out%y
+            dy = out%dy
+            ds = out%dstates
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_dyn_forced
 
 end module beamid_api_dynamics

@@ -17,7 +17,7 @@ module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
-                             set_status, fmt_int
+                             set_status, fmt_int, put_text
     use beamid_estimation, only: residual_structure, residual_model_t, prior_from_covariance
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
@@ -28,6 +28,7 @@ module beamid_api_estimation
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
     use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
+    use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
     implicit none
@@ -35,6 +36,7 @@ module beamid_api_estimation
 
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
+    public :: api_effect_sizes, api_effect_table
     public :: api_problem_predict
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
@@ -147,6 +149,68 @@ contains
             end do
         end function joined
     end subroutine api_code_names
+
+    !> Sizes of the effects table (api_effect_table) for a chain of nbeams
+    !! beams: the number of effects and of their parameter indices in all.
+    subroutine api_effect_sizes(nbeams, neffect, nindex)
+        integer(c_int), intent(in) :: nbeams
+        integer(c_int), intent(out) :: neffect, nindex
+        integer :: i
+        type(status_t) :: st
+        integer, allocatable :: p(:)
+        neffect = int(NEFFECTS, c_int)
+        nindex = 0
+        do i = 1, NEFFECTS
+            call effect_params(max(int(nbeams), 1), EFFECTS(i)%name, p, st)
+            nindex = nindex + int(size(p), c_int)
+        end do
+    end subroutine api_effect_sizes
+
+    !> The effects table of beamid_effects for a chain of nbeams beams (the
+    !! one definition the Python Effect list reads): `text` holds the family
+    !! names on its first line, then per effect its name and description,
+    !! separated by a tab; ranks(f, e) is effect e's place among family f's
+    !! default candidates (0: f cannot see it); values(:, e) its null value,
+    !! lower and upper bound; its parameter indices (1-based) are
+    !! indices(starts(e):starts(e + 1) - 1). Sizes: api_effect_sizes.
+    subroutine api_effect_table(nbeams, neffect, nindex, text, ranks, values, starts, &
+                                indices, code, message)
+        integer(c_int), intent(in) :: nbeams, neffect, nindex
+        character(len=4096), intent(out) :: text
+        integer(c_int), intent(out) :: ranks(2, neffect), starts(neffect + 1), indices(nindex)
+        real(c_double), intent(out) :: values(3, neffect)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=:), allocatable :: t
+        integer, allocatable :: p(:)
+        type(status_t) :: st
+        integer :: i, k
+        integer(c_int) :: ne, ni
+        call api_effect_sizes(nbeams, ne, ni)
+        if (nbeams < 1 .or. neffect /= ne .or. nindex /= ni) then
+            call set_status(st, ERR_INPUT, 'effects', 'nbeams = '//fmt_int(int(nbeams))// &
+                            ', neffect = '//fmt_int(int(neffect))//', nindex = '// &
+                            fmt_int(int(nindex))//', expected nbeams >= 1 and the sizes '// &
+                            'of api_effect_sizes')
+            call status_out(st, code, message)
+            return
+        end if
+        t = trim(FAMILY_NAMES(1))//achar(9)//trim(FAMILY_NAMES(2))
+        k = 1
+        do i = 1, NEFFECTS
+            t = t//new_line('a')//trim(EFFECTS(i)%name)//achar(9)//trim(EFFECTS(i)%description)
+            ranks(:, i) = int(EFFECTS(i)%rank, c_int)
+            values(:, i) = real([EFFECTS(i)%null_value, EFFECTS(i)%lower, EFFECTS(i)%upper], &
+                                c_double)
+            call effect_params(int(nbeams), EFFECTS(i)%name, p, st)
+            starts(i) = int(k, c_int)
+            indices(k:k + size(p) - 1) = int(p, c_int)
+            k = k + size(p)
+        end do
+        starts(NEFFECTS + 1) = int(k, c_int)
+        call put_text(t, text)
+        call status_out(st, code, message)
+    end subroutine api_effect_table
 
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)
@@ -779,14 +843,17 @@ contains
     !! api_deck_task_start started on it and api_ladder_step ended;
     !! `output`: the output prefix (blank: the deck's; beamid demo writes its
     !! decks' files elsewhere); `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, output, written, code, message)
+    subroutine api_deck_task_write(path, task, output, written, summary, code, message)
         use beamid_status, only: put_text
         character(len=*), intent(in) :: path, task, output
         character(len=65536), intent(out) :: written, message
+        !> the summary line beamid-batch prints (run_task)
+        character(len=4096), intent(out) :: summary
         integer(c_int), intent(out) :: code
         type(deck_t) :: d
         type(status_t) :: stat
-        character(len=:), allocatable :: files
+        character(len=:), allocatable :: files, line
+        summary = ''
         if (.not. lad%done .or. lad%n < 1 .or. .not. from_deck) then
             call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
@@ -805,12 +872,13 @@ contains
                                     ' of '//fmt_int(size(d%stages))//' stages fitted, '// &
                                     'expected all (api_deck_task_start each stage first)')
                 else
-                    call run_task(d, files, stat, staged)
+                    call run_task(d, files, stat, staged, line)
                 end if
             else if (stat%code == STATUS_OK) then
-                call run_task(d, files, stat, lad%rungs(:lad%n))
+                call run_task(d, files, stat, lad%rungs(:lad%n), line)
             end if
             if (stat%code == STATUS_OK) call put_text(files, written)
+            if (stat%code == STATUS_OK) summary = line
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write

@@ -1,8 +1,10 @@
 !> beamid-batch DECK: run a namelist deck without Python (docs/decks.md).
 !!
 !! Reads and validates the deck (beamid_deck), runs its task (beamid_tasks:
-!! static, fe_static, fe_modes, fit, compare, diagnose, improve, simulate) and
-!! prints the files it wrote (unless --quiet). Exit codes (beamid_status
+!! static, fe_static, fe_modes, fit, compare, diagnose, improve, identify,
+!! simulate) and prints what `beamid run DECK` prints: one summary line (the
+!! deck's path and what the run found) and 'wrote PATH' per file written
+!! (nothing with --quiet). Exit codes (beamid_status
 !! exit_code): 0 success, 2 bad input, 3 numerical failure, 4 an output file
 !! cannot be written, 5 internal error; every problem found goes to standard
 !! error, one per line, naming the deck, the group and the variable.
@@ -14,11 +16,11 @@ program beamid_batch
     implicit none
 
     character(len=*), parameter :: VERSION = '0.1.0'
-    character(len=:), allocatable :: arg, path, written
+    character(len=:), allocatable :: arg, path, written, summary
     type(deck_t) :: deck
     type(status_t) :: stat
     logical :: quiet
-    integer :: i, n
+    integer :: i, n, start, nl
 
     quiet = .false.
     path = ''
@@ -50,7 +52,7 @@ program beamid_batch
     end if
 
     call read_deck(path, deck, stat)
-    if (stat%code == STATUS_OK) call run_task(deck, written, stat)
+    if (stat%code == STATUS_OK) call run_task(deck, written, stat, summary=summary)
     if (stat%code /= STATUS_OK) then
         if (allocated(deck%errors)) then
             if (len(deck%errors) > 0) then
@@ -61,7 +63,15 @@ program beamid_batch
         call report(trim(stat%message))
         stop exit_code(stat%code), quiet=.true.
     end if
-    if (.not. quiet .and. len(written) > 0) write (output_unit, '(a)', advance='no') written
+    if (quiet) stop
+    write (output_unit, '(a)') summary
+    start = 1
+    do while (start <= len(written))
+        nl = index(written(start:), new_line('a'))
+        if (nl == 0) nl = len(written) - start + 2
+        write (output_unit, '(a)') 'wrote '//written(start:start + nl - 2)
+        start = start + nl
+    end do
 
 contains
 
@@ -84,11 +94,12 @@ contains
         write (unit, '(a)') 'Runs a beamid namelist deck (docs/decks.md): static decks write '// &
             '<output>_summary.csv and <output>_shape.csv next to the deck;'
         write (unit, '(a)') 'fe decks _summary.csv and _nodes.csv or _modes.csv; estimation '// &
-            'decks (fit, compare, diagnose, improve) _estimates.csv,'
+            'decks (fit, compare, diagnose, improve, identify) _estimates.csv,'
         write (unit, '(a)') '_covariance.csv, _residuals.csv, _ranking.csv (diagnose, improve), '// &
             '_compare.csv (compare) and _ladder.csv (improve);'
-        write (unit, '(a)') 'dynamic decks (task simulate) _history.csv. Prints the files '// &
-            'written (--quiet: nothing).'
+        write (unit, '(a)') '_identify.csv (identify); dynamic decks (task simulate) '// &
+            '_history.csv. Prints a summary line and the files written'
+        write (unit, '(a)') '(as beamid run DECK; --quiet: nothing).'
         write (unit, '(a)') 'Exit codes: 0 ok, 2 bad input, 3 numerical failure, 4 output '// &
             'not written, 5 internal error.'
     end subroutine usage

@@ -20,6 +20,7 @@ from .channels import Sensor, read_channels
 from . import observations
 from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
+from .load_histories import Chirp, HalfSine, SpinUp, Step, Table
 from .dynamics import FrictionEvent
 from .dynamics import SENSITIVITY_QUANTITIES
 # the dynamics name also under an explicit alias
@@ -41,6 +42,7 @@ __all__ = [
     "Sensor", "read_channels", "observations",
     "identify", "Identification",
     "simulate", "simulate_dynamics", "Run", "FrictionEvent", "SENSITIVITY_QUANTITIES",
+    "HalfSine", "Step", "Chirp", "Table", "SpinUp",
     "fe_static", "fe_path", "buckling_load", "modes", "axial_modes_linear",
     "compare", "diagnose", "add_effect", "improve", "register_effect", "Effect",
     "Comparison", "Diagnosis", "Ladder",

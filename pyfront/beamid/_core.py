@@ -189,13 +189,15 @@ def read_deck(path: str) -> dict:
 
 def _published_groups(lines: list[str]) -> list[dict]:
     """The &published groups from the reader's lines ('P table row note',
-    'Q quantity value digits', 'D deviation'; tab separated)."""
+    'K kind section', 'Q quantity value digits', 'D deviation'; tab separated)."""
     groups: list[dict] = []
     for line in lines:
         kind, *fields = line.split("\t")
         if kind == "P":
             groups.append({"table": fields[0], "row": fields[1], "note": fields[2],
-                           "values": {}, "deviations": []})
+                           "values": {}, "deviations": [], "kind": "", "section": ""})
+        elif kind == "K":        # the class of the group's deviations, its docs section
+            groups[-1]["kind"], groups[-1]["section"] = fields[0], fields[1]
         elif kind == "Q":
             groups[-1]["values"][fields[0]] = (float(fields[1]), int(fields[2]))
         elif kind == "D":
@@ -206,8 +208,14 @@ def _published_groups(lines: list[str]) -> list[dict]:
 def run_deck(path: str, task: str = "") -> list[str]:
     """Run a deck's task (or `task`, an estimation task for an estimation
     deck) as beamid-batch does (beamid_tasks); the files written."""
-    written = _call(_deck_api.api_run_deck, _path(path), task)
-    return [line for line in _text(written).split("\n") if line]
+    return run_deck_report(path, task)[1]
+
+
+def run_deck_report(path: str, task: str = "") -> tuple[str, list[str]]:
+    """:func:`run_deck` and the summary line beamid-batch prints before the
+    files: ``(summary, files)``."""
+    written, summary = _call(_deck_api.api_run_deck, _path(path), task)
+    return _text(summary), [line for line in _text(written).split("\n") if line]
 
 
 @lru_cache(maxsize=None)

@@ -15,6 +15,11 @@ from .progress import watch
 _api = _ext.beamid_api_dynamics
 
 
+def work_names(nbeams: int) -> tuple[str, ...]:
+    """Names of the ledger's work lines of a chain of ``nbeams`` beams, in order."""
+    return tuple(_text(_call(_api.api_work_names, nbeams)).split())
+
+
 def sizes(nbeams: int, params: np.ndarray, nepb: int, gain: float) -> tuple[int, int, int]:
     """(nfree, nstate, nwork) of the dynamic system."""
     nfree, nstate, nwork = _call(_api.api_dyn_sizes, nbeams, _floats(params), nepb, float(gain))
@@ -100,6 +105,37 @@ def wrt_names(nbeams: int, nparams: int) -> tuple[str, ...]:
     _, nload = _api.api_dyn_wrt_name(nbeams, 1)
     return tuple(_text(_api.api_dyn_wrt_name(nbeams, k)[0])
                  for k in range(1, nparams + nload + 1))
+
+
+def load_names(spec: np.ndarray, tab: np.ndarray) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Work-line names and parameter names of the load histories of the columns
+    ``spec`` (9, nld) and table rows ``tab`` (2, ntab) (Fortran beamid_loads)."""
+    works, pnames = _call(_api.api_dyn_load_names, np.asfortranarray(spec, dtype=float),
+                          np.asfortranarray(tab, dtype=float))
+    return tuple(_text(works).split()), tuple(_text(pnames).split())
+
+
+def forced(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,
+           method: int, law: int, vslip: float, dt: float, rtol: float, atol: float,
+           h0: float, y_init: np.ndarray | None, t_out: np.ndarray, nstate: int, nwork: int,
+           modes: np.ndarray | None, wrt: np.ndarray, spec: np.ndarray, tab: np.ndarray,
+           maxev: int = 4096):
+    """A dynamic experiment with load histories (``spec``, ``tab``: beamid_loads
+    columns): (states, tip, torque, ledger, work, info, events, y, dy, ds), as
+    :func:`release`; ``wrt`` may be empty."""
+    nq = len(quantity_names())
+    use_init = 0 if y_init is None else 1
+    y = np.zeros(nstate) if y_init is None else _floats(y_init)
+    mode_arr = np.zeros(0, dtype=np.int32) if modes is None else np.asarray(modes, np.int32)
+    w = np.ascontiguousarray(wrt, dtype=np.int32)
+    t_out = np.ascontiguousarray(t_out, dtype=float)
+    return _with_room_for_events(
+        lambda room, slot: _call(
+            _api.api_dyn_forced, nbeams, _floats(params), nepb, _floats(loads), float(gain),
+            int(method), int(law), float(vslip), float(dt), float(rtol), float(atol),
+            float(h0), use_init, y, t_out, nwork, mode_arr, w, nq, int(room),
+            np.asfortranarray(spec, dtype=float), np.asfortranarray(tab, dtype=float), slot),
+        t_out[-1] if t_out.size else 0.0, maxev)
 
 
 def release(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, gain: float,

@@ -14,6 +14,7 @@ attached to the exception as ``exc.partial``.
 """
 from __future__ import annotations
 
+import functools
 import threading
 from dataclasses import dataclass
 
@@ -100,6 +101,53 @@ def code_names(table: int) -> dict[int, str]:
     names, code = _api.api_code_names(int(table))
     raise_for_status(int(code), f"no code table {table}")
     return dict(enumerate(_text(names).strip().split(";")))
+
+
+@dataclass(frozen=True)
+class EffectRow:
+    """One effect of the core's table (beamid_effects) for a chain of a
+    given number of beams: ``kinds`` the families that can see it,
+    ``ranks`` its place among each family's default candidates (by family
+    name; 0: not a default), ``params`` its parameter indices (0-based)."""
+
+    name: str
+    description: str
+    kinds: tuple[str, ...]
+    ranks: dict
+    null_value: float
+    lower: float
+    upper: float
+    params: tuple[int, ...]
+
+
+@functools.lru_cache(maxsize=None)
+def effect_table(nbeams: int) -> dict[str, EffectRow]:
+    """The effects table of the core for a chain of ``nbeams`` beams, by name
+    in the core's order (api_effect_table; bounds of +-huge come back as
+    +-inf)."""
+    neffect, nindex = _api.api_effect_sizes(int(nbeams))
+    text, ranks, values, starts, indices = _call(_api.api_effect_table, int(nbeams), neffect,
+                                                 nindex)
+    lines = _text(text).rstrip("\n").split("\n")
+    families = lines[0].split("\t")
+    big = np.finfo(float).max
+    out = {}
+    for e, line in enumerate(lines[1:]):
+        name, description = line.split("\t")
+        null, lower, upper = (float(v) if abs(v) < big else float(np.sign(v) * np.inf)
+                              for v in values[:, e])
+        out[name] = EffectRow(
+            name, description, tuple(f for f, r in zip(families, ranks[:, e]) if r > 0),
+            {f: int(r) for f, r in zip(families, ranks[:, e])}, null, lower, upper,
+            tuple(int(i) - 1 for i in indices[starts[e] - 1:starts[e + 1] - 1]))
+    return out
+
+
+def default_effects(kind: str) -> tuple[str, ...]:
+    """The default candidates of a family (``static`` or ``dynamic``), in
+    their order (the core's table)."""
+    rows = [r for r in effect_table(1).values() if r.ranks[kind] > 0]
+    return tuple(r.name for r in sorted(rows, key=lambda r: r.ranks[kind]))
 
 
 #: Parameter flags (FLAG_*), how a fit ended (STOP_*), the refit start kept
@@ -375,5 +423,12 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     beamid-batch) from the ladder :func:`deck_task_start` started on it, to
     the output prefix ``output`` (default the deck's, resolved against the
     deck's folder as the deck's own)."""
-    written = _call(_api.api_deck_task_write, _path(path), task, output)
-    return [line for line in _text(written).split("\n") if line]
+    return deck_task_write_report(path, task, output)[1]
+
+
+def deck_task_write_report(path: str, task: str = "", output: str = ""
+                           ) -> tuple[str, list[str]]:
+    """:func:`deck_task_write` and the summary line beamid-batch prints
+    before the files: ``(summary, files)``."""
+    written, summary = _call(_api.api_deck_task_write, _path(path), task, output)
+    return _text(summary), [line for line in _text(written).split("\n") if line]

@@ -24,7 +24,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from . import observations
+from . import _check, observations
 from .errors import InputError
 from .measurements import Measurements
 
@@ -46,17 +46,16 @@ class Sensor:
     sigma: float | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name.strip():
-            raise InputError(f"Sensor: name = {self.name!r}, expected a channel name")
+        _check.text("Sensor: name", self.name)
+        if not self.name.strip():
+            _check.fail("Sensor: name", self.name, "a channel name")
+        _check.text(f"Sensor {self.name!r}: observation", self.observation)
         try:
             observations.parse(self.observation)
         except InputError as exc:
             raise InputError(f"Sensor {self.name!r}: observation = {self.observation!r}: "
                              f"{str(exc).split(': ', 1)[-1]}") from None
-        if self.sigma is not None and not (isinstance(self.sigma, (int, float))
-                                           and math.isfinite(self.sigma) and self.sigma > 0):
-            raise InputError(f"Sensor {self.name!r}: sigma = {self.sigma!r}, expected a "
-                             "number > 0")
+        _check.real(f"Sensor {self.name!r}: sigma", self.sigma, above=0.0, none=True)
 
 
 def _is_frame(x: Any) -> bool:
@@ -67,7 +66,14 @@ def as_frame_columns(frame: Any) -> tuple[list[str], list[np.ndarray]]:
     """The column names and columns of a pandas DataFrame (pandas itself is
     not imported: any object with ``columns`` and ``[name]`` will do)."""
     names = [str(c) for c in frame.columns]
-    return names, [np.asarray(frame[c], dtype=float) for c in frame.columns]
+    columns = []
+    for c in frame.columns:
+        try:
+            columns.append(np.asarray(frame[c], dtype=float))
+        except (TypeError, ValueError):
+            raise InputError(f"<DataFrame>: column {c!r} holds {_check.show(list(frame[c]))}, "
+                             "expected numbers") from None
+    return names, columns
 
 
 def _read_wide(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
@@ -127,13 +133,18 @@ def read_channels(source: str | os.PathLike | Any, experiment: str, *,
         Naming the file, line and field: a header matching no sensor and no
         observation, a non-numeric or missing value, a channel without sigma.
     """
-    if not isinstance(experiment, str) or not experiment:
-        raise InputError(f"read_channels: experiment = {experiment!r}, expected an "
-                         "experiment name")
+    experiment = _check.text("read_channels: experiment", experiment)
+    t_offset = _check.real("read_channels: t_offset", t_offset)
+    if isinstance(sigma, Mapping):
+        sigma = _check.mapping("read_channels: sigma", sigma)
+    else:
+        sigma = _check.real("read_channels: sigma", sigma, above=0.0, none=True,
+                            expected="a number > 0, a mapping channel -> sigma or None")
+    if isinstance(sensors, (str, bytes, Sensor)) or not isinstance(sensors, Sequence):
+        _check.fail("read_channels: sensors", sensors, "a sequence of beamid.Sensor")
     table = {}
     for s in sensors:
-        if not isinstance(s, Sensor):
-            raise InputError(f"read_channels: sensors holds {s!r}, expected beamid.Sensor")
+        _check.instance("read_channels: sensors[]", s, Sensor, "beamid.Sensor")
         table[s.name] = s
     if _is_frame(source):
         where = "<DataFrame>"
@@ -142,9 +153,8 @@ def read_channels(source: str | os.PathLike | Any, experiment: str, *,
         first_line = 0
     else:
         if not isinstance(source, (str, os.PathLike)):
-            raise InputError(f"read_channels: source = {source!r}, expected a file path or "
-                             "a pandas DataFrame")
-        path = Path(source)
+            _check.fail("read_channels: source", source, "a file path or a pandas DataFrame")
+        path = _check.path("read_channels: source", source)
         where = str(path)
         header, rows, lines = _read_wide(path)
         first_line, lines = lines[0], lines[1:]
@@ -183,7 +193,7 @@ def read_channels(source: str | os.PathLike | Any, experiment: str, *,
             raise InputError(f"{hw}: channel {name!r} has no sigma: give sigma= or a "
                              "Sensor with one")
         quantities.append(q)
-        sigmas.append(float(sig))
+        sigmas.append(_check.real(f"{hw}: sigma of channel {name!r}", sig, above=0.0))
     t = columns[0] + float(t_offset)
     exps, ts, qs, vs, ss, ls = [], [], [], [], [], []
     for i in range(t.size):

@@ -4,11 +4,18 @@ Exit codes, the same as ``beamid-batch``'s (docs/decks.md): 0 ok, 1 a published
 value not reproduced (``reproduce``, ``demo``), 2 bad input (a bad deck, CSV or
 value, a missing or unreadable input file, an unknown name), 3 a numerical
 failure (no convergence), 4 an output file cannot be written, 5 an internal error.
+
+A bad command-line option (unknown or mistyped, a value that is not a number,
+NaN or infinity, a negative count, a missing value) is bad input: exit code 2,
+the subcommand's usage and one line naming the option (with a suggestion for a
+mistyped one); tests/test_cli_options.py sweeps every option of every
+subcommand.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import math
 import os
 import sys
@@ -29,6 +36,43 @@ SIMULATE_DEFAULTS = {"fy": 8.0, "t_end": 2.6, "n_out": 27, "elements_per_beam": 
                      "output": "out/simulate"}
 
 
+def _number(low: float = -math.inf, strict: bool = False, what: str = "a number"):
+    """An argparse type: a finite float (> low when strict, >= low otherwise);
+    argparse's error names the option ("argument --fy: ...")."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number, expected {what}") \
+                from None
+        if not math.isfinite(value) or value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(f"{text!r}, expected {what}")
+        return value
+    parse.__name__ = "number"
+    return parse
+
+
+def _count(low: int = 1, what: str | None = None):
+    """An argparse type: an integer >= low."""
+    what = what or f"an integer >= {low}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer, expected {what}") \
+                from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"{text!r}, expected {what}")
+        return value
+    parse.__name__ = "count"
+    return parse
+
+
+FINITE = _number(what="a finite number")
+POSITIVE = _number(0.0, strict=True, what="a finite number > 0")
+
+
 def _print_files(files) -> None:
     for f in files:
         print(f"wrote {f}")
@@ -37,31 +81,25 @@ def _print_files(files) -> None:
 # --------------------------------------------------------------------- run
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .decks import read_deck, run
-    from .fit_decks import FitDeck, run_fit_deck
-    from .static import StaticResult
+    """``beamid run DECK``: what ``beamid-batch DECK`` prints (the summary line
+    of the Fortran run, then 'wrote PATH' per file), an estimation deck's
+    table first and its figures' files after; ``--quiet``: nothing."""
+    from ._core import run_deck_report
+    from .decks import read_deck
+    from .fit_decks import FitDeck, _run_fit_deck
 
     deck = read_deck(args.deck)
     if isinstance(deck, FitDeck):         # estimation decks: the deck's own task
-        return _report(run_fit_deck(deck, plots=not args.no_plots))
-    started = time.time()
-    result = run(deck)
-    prefix = deck.output_prefix
-    if isinstance(result, StaticResult):
-        print(f"{args.deck}: tip ({result.tip_x:.6f}, {result.tip_y:.6f}) m, angle "
-              f"{result.tip_angle:.6f} rad, wire force {result.wire_force:.4f} N")
-        files = [f"{prefix}_summary.csv"]
-        if deck.shape_points >= 2:
-            files.append(f"{prefix}_shape.csv")
-    elif deck.task == "simulate":
-        print(_run_line(str(args.deck), result))
-        files = [f"{prefix}_history.csv"]
-    else:
-        print(f"{args.deck}: task {deck.task} done")
-        # the files of this run (not older ones of the same prefix)
-        files = sorted(str(p) for p in prefix.parent.glob(prefix.name + "_*.csv")
-                       if p.stat().st_mtime >= started - 1.0)
-    _print_files(files)
+        text, files, _, summary, figures = _run_fit_deck(deck, plots=not args.no_plots)
+        if not args.quiet:
+            print(text)
+            print(summary)
+            _print_files([*files, *figures])
+        return EXIT_OK
+    summary, files = run_deck_report(str(args.deck))   # the path as given, as the batch
+    if not args.quiet:
+        print(summary)
+        _print_files(files)
     return EXIT_OK
 
 
@@ -170,6 +208,10 @@ def simulate_command(args: argparse.Namespace):
             opts[name] = value
     if args.integrator is not None and args.friction is None and args.deck is not None:
         opts.pop("friction", None)     # the new integrator's default law
+    if getattr(args, "loads", None) is not None:
+        from .load_histories import read_loads_csv
+
+        opts["loads"] = read_loads_csv(args.loads)
     if args.output is not None:
         prefix = Path(args.output)
     return source, model, load, t_out, opts, prefix
@@ -185,7 +227,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     source, model, load, t_out, opts, prefix = simulate_command(args)
     run = simulate(model, load, t_out, **opts)
     # the columns of the history file beamid-batch writes for a dynamic deck
-    columns = history_columns(model.nbeams)
+    columns = history_columns(model.nbeams, run)
     header = ",".join(columns)
     table = np.column_stack([run.t if c == "t" else series(run, c) for c in columns])
 
@@ -236,6 +278,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------ parser
 
+@functools.lru_cache(maxsize=None)
 def _table_list() -> str:
     try:
         from .tables import table_names
@@ -245,6 +288,7 @@ def _table_list() -> str:
         return "2 3 4 ..."
 
 
+@functools.lru_cache(maxsize=None)
 def _parameter_list() -> str:
     try:
         from .model import pace
@@ -287,8 +331,8 @@ def _commands() -> list:
     mc_out = ("--out", dict(default=None, help="folder for the CSV and PNG (default: the "
                                                "deck's output)"))
 
-    def values(metavar: str, text: str):   # a list of numbers, default a fresh []
-        return dict(type=float, nargs="*", default=[], metavar=metavar, help=text)
+    def values(metavar: str, text: str, kind=FINITE):   # numbers, default a fresh []
+        return dict(type=kind, nargs="*", default=[], metavar=metavar, help=text)
 
     estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
                    "overrides the deck's task (docs/decks.md).",
@@ -300,8 +344,12 @@ def _commands() -> list:
     return [
         ("run", _cmd_run, "run a namelist deck of any task, as beamid-batch does",
          "Run a deck (docs/decks.md) with the deck's task: static, fe_static, fe_modes, "
-         "simulate, fit, compare, diagnose or improve; writes the files beamid-batch writes.",
+         "simulate, fit, compare, diagnose, improve or identify; writes the files "
+         "beamid-batch writes and prints what it prints (a summary line and the files), "
+         "estimation decks their table first.",
          [("deck", dict(help="path of the deck")),
+          ("--quiet -q", dict(action="store_true", help="print nothing (as beamid-batch "
+                                                          "--quiet)")),
           no_plots("estimation decks: write the CSV files only")]),
         ("simulate", _cmd_simulate, "release the arm and integrate (dynamics); writes the "
          "history CSV and its figure",
@@ -310,24 +358,27 @@ def _commands() -> list:
          "from fy = 8 N, 4 elements per beam, 27 outputs over 2.6 s, output prefix "
          "out/simulate. Flags override the deck.",
          [("deck", dict(nargs="?", help="a dynamic deck (task 'simulate'), optional")),
-          ("--fx", dict(type=float, help="release load: tip force x (N)")),
-          ("--fy", dict(type=float, help="release load: tip force y (N) (default 8)")),
-          ("--moment", dict(type=float, help="release load: tip moment (N m)")),
-          ("--elements-per-beam -e", dict(dest="elements_per_beam", type=int, help="elements "
+          ("--fx", dict(type=FINITE, help="release load: tip force x (N)")),
+          ("--fy", dict(type=FINITE, help="release load: tip force y (N) (default 8)")),
+          ("--moment", dict(type=FINITE, help="release load: tip moment (N m)")),
+          ("--elements-per-beam -e", dict(dest="elements_per_beam", type=_count(1), help="elements "
                                           "per beam (default 4: the dissertation's 8-element "
                                           "arm)")),
-          ("--motor-gain -g", dict(dest="motor_gain", type=float, help="tip motor gain g, T = "
+          ("--motor-gain -g", dict(dest="motor_gain", type=FINITE, help="tip motor gain g, T = "
                                    "-r_motor g dPsi_tip/dt (Eq. 150) (default 0)")),
-          ("--t-end", dict(type=float, help="last output time (s) (default 2.6)")),
-          ("--n-out", dict(type=int, help="number of equally spaced output times from 0 to "
+          ("--t-end", dict(type=POSITIVE, help="last output time (s) (default 2.6)")),
+          ("--n-out", dict(type=_count(2), help="number of equally spaced output times from 0 to "
                                           "--t-end (default 27)")),
           ("--t-out", dict(help="output times instead, e.g. 0,0.1,0.5 (s)")),
           ("--integrator", dict(choices=("implicit", "rk4"), help="implicit (Radau IIA, "
                                 "default) or rk4 (fixed step --dt)")),
           ("--friction", dict(choices=("sign", "smooth", "sign_literal"), help="friction law "
                               "(default: beamid.simulate's, docs/dynamics.md)")),
-          ("--rtol", dict(type=float, help="implicit tolerance (default: beamid.simulate's)")),
-          ("--dt", dict(type=float, help="RK4 step in s (default 1e-5, the dissertation's)")),
+          ("--rtol", dict(type=POSITIVE, help="implicit tolerance (default: beamid.simulate's)")),
+          ("--dt", dict(type=POSITIVE, help="RK4 step in s (default 1e-5, the dissertation's)")),
+          ("--loads", dict(metavar="CSV", help="load histories (docs/loads.md): a CSV with a "
+                           "column t and one column per target (tip_fx, tip_fy, tip_torque, "
+                           "motor_open, hub), each a table acting from t = 0")),
           ("--set", dict(action="append", metavar="NAME=VALUE", help="a model parameter, "
                          "e.g. --set mu_tip=0.02 (repeatable); one of: " + _parameter_list())),
           ("--output -o", dict(help="output prefix (default: the deck's, or out/simulate): "
@@ -336,49 +387,98 @@ def _commands() -> list:
         ("reproduce", _cmd_reproduce, "compare with the dissertation's published tables",
          "Run the bundled decks of the published tables and compare; exit 1 when a value "
          "is not reproduced.",
-         [("tables", dict(nargs="*", help="tables to check, all if none; one of: "
-                          + _table_list()))]),
-        ("demo", _cmd_demo, "reproduce the tables and draw the demo figures", None, [out]),
-        ("figures", _cmd_figures, "draw the dynamic Figures 20-25 as PNG files", None,
+         [("tables", dict(nargs="*", help="tables to check, all if none; one of: ",
+                          help_list=_table_list))]),
+        ("demo", _cmd_demo, "reproduce the tables and draw the demo figures",
+         "Reproduce the published tables (as `beamid reproduce`), find the hidden effects of "
+         "the demo decks (inputs/demo) and draw the demo figures into --out.", [out]),
+        ("figures", _cmd_figures, "draw the dynamic Figures 20-25 as PNG files",
+         "Simulate and draw the dissertation's dynamic Figures 20-25 (docs/dynamics.md) as "
+         "PNG files in --out.",
          [("names", dict(nargs="*", help="figures to draw, all if none; one of: "
                          + " ".join(n.replace("figure", "") for n in FIGURES))), out]),
         *estimation,
         ("identify", _cmd_identify, "run estimation decks as stages (static, free, forced), "
-         "carrying estimates and covariance (docs/workflow.md)", None,
+         "carrying estimates and covariance (docs/workflow.md)",
+         "Fit estimation decks in order, each stage starting from the last one's estimates "
+         "with its covariance as a priori information (Eq. 146-148, 164-166; "
+         "docs/workflow.md); writes <output>_identify.csv and its figure.",
          [("decks", dict(nargs="+", help="estimation decks, one per stage, in order, or one "
                          "deck of task 'identify' holding its stages (docs/decks.md)")),
           no_plots()]),
         ("consistency", _cmd_consistency, "Monte Carlo check of a fit's sigmas "
-         "(docs/consistency.md)", None,
-         [deck, ("--replicates", dict(type=int, default=200, help="noisy data sets (default "
+         "(docs/consistency.md)",
+         "Fit the deck, refit it to noisy replicates of its fitted data and compare the "
+         "spread of the estimates with the fit's sigmas (docs/consistency.md); writes "
+         "<prefix>_consistency.csv and its figure.",
+         [deck, ("--replicates", dict(type=_count(1), default=200, help="noisy data sets (default "
                                                                   "200)")),
-          ("--seed", dict(type=int, default=7, help="seed of the replicates (default 7)")),
+          ("--seed", dict(type=_count(0), default=7, help="seed of the replicates (default 7)")),
           ("--scheduler", dict(default=None, help="Dask scheduler address "
                                "(tcp://host:8786); local cores if not given")),
-          ("--workers", dict(type=int, default=None, help="local processes (default: all "
+          ("--workers", dict(type=_count(1), default=None, help="local processes (default: all "
                              "cores; 1 = in this process)")),
           mc_out, no_plots("write the CSV only")]),
         ("design", _cmd_design, "rank candidate measurements by the sigma they would leave",
-         None,
+         "Fit the deck and rank candidate measurements (tip forces, moments, wires, the "
+         "deck's own experiments and release times) by the sigma they would leave "
+         "(docs/consistency.md); sigmas default to the deck's own rows of a quantity, else to "
+         "a printed default; writes <prefix>_design.csv and its figure.",
          [deck, ("--force", values("FY", "candidate transverse tip forces (N)")),
           ("--moment", values("M", "candidate tip moments (N m)")),
-          ("--wire", values("LW", "candidate radial wire lengths (m)")),
+          ("--wire", values("LW", "candidate radial wire lengths (m)", POSITIVE)),
           ("--quantities", dict(nargs="*", default=None, help="measured quantities (default: "
                                 "x_tip y_tip tip_angle x_elbow y_elbow wire_force)")),
           ("--sigma", dict(nargs="*", default=None, metavar="[Q=]SIGMA", help="one sigma for "
                            "all, or QUANTITY=SIGMA items (default: the deck's own)")),
           ("--target", dict(default=None, help="parameter whose sigma to minimize (default: "
                             "D-criterion over all free)")),
-          ("--top", dict(type=int, default=20, help="rows to print (default 20)")),
+          ("--top", dict(type=_count(1), default=20, help="rows to print (default 20)")),
           mc_out, no_plots("write the CSV only"),
           ("--times", values("T", "measurement times (s) of the deck's release "
-                              "experiments as candidates"))])]
+                              "experiments as candidates (default: the deck's own)", POSITIVE))])]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one error line that names the option, a suggestion for
+    a mistyped option or subcommand, and the subcommand's own usage; an
+    argument's help may end in a list computed only when that help is printed
+    (an argument's ``help_list``): the table names of ``reproduce`` come from
+    reading every seed deck, which ``beamid --help`` and every other
+    subcommand must not pay for."""
+
+    def format_help(self) -> str:
+        for action in self._actions:
+            fill = getattr(action, "help_list", None)
+            if fill is not None:
+                action.help = f"{action.help}{fill()}"
+                action.help_list = None
+        return super().format_help()
+
+    def error(self, message: str):   # type: ignore[override]
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message}\n")
+
+    def unknown(self, extra: Sequence[str]):
+        """The error for arguments this (sub)parser does not take."""
+        import difflib
+
+        options = [o for a in self._actions for o in a.option_strings]
+        opts = [x for x in extra if x.startswith("-")]
+        if not opts:
+            self.error(f"unexpected argument {' '.join(extra)}")
+        word = opts[0].split("=", 1)[0]
+        close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]}?)" if close else f" (options: {' '.join(options)})"
+        self.error(f"unknown option {word}{hint}")
+
+
 
 
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="beamid",
         description="Large deformation of flexible beam chains and the inverse problem "
                     "(after McVay 1996).",
@@ -389,15 +489,25 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, text, description, arguments in _commands():
         p = sub.add_parser(name, help=text, description=description)
         for flags, options in arguments:
-            p.add_argument(*flags.split(), **options)
+            options = dict(options)
+            fill = options.pop("help_list", None)
+            p.add_argument(*flags.split(), **options).help_list = fill
         p.set_defaults(func=func)
     return parser
+
+
+def _subparser(parser: argparse.ArgumentParser, name: str) -> "_Parser":
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices[name]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``beamid`` console command; returns the exit code
     (module docstring). Argument errors exit 2 through argparse."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:      # an option the subcommand does not take: its usage, a suggestion
+        _subparser(parser, args.command).unknown(extra)
     try:
         return int(args.func(args))
     except BrokenPipeError:

@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import re
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -48,9 +49,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from . import _check
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
-from .estimation import FitResult, fit as _fit
+from .estimation import FitResult, fit as _fit, flag_is_problem
 from ._core_estimation import chi2_sf_many, mc_summary
+from .fit_decks import read_fit_deck
+from .plotting import agg_pyplot
 from .progress import progress
 
 #: Nominal coverage of +-k sigma for a normal estimate.
@@ -128,10 +132,10 @@ def _run_one(spec: _Spec, k: int) -> dict:
     if not res.converged:
         rec["status"] = NOT_CONVERGED
         rec["message"] = "; ".join(res.warnings) or "the fit stalled"
-    elif any(f != "ok" for f in rec["flags"]):
+    elif any(flag_is_problem(f) for f in rec["flags"]):
         rec["status"] = FLAGGED
         rec["message"] = "; ".join(f"{nm}: {f}" for nm, f in zip(spec.free, rec["flags"])
-                                   if f != "ok")
+                                   if flag_is_problem(f))
     else:
         rec["status"] = OK
     return rec
@@ -206,6 +210,8 @@ class Consistency:
         above +k (each 0.0228 for k = 2 when the errors are normal): a
         one-sided excess means the sigma is right in size but the errors are
         skewed (a parameter that enters the model nonlinearly)."""
+        _check.choice("name", name, self.free)
+        k = _check.real("k", k, above=0.0)
         z = self.normalized[name]
         z = z[np.isfinite(z)]
         if not z.size:
@@ -214,8 +220,19 @@ class Consistency:
 
     def coverage_error(self, name: str, k: int) -> float:
         """Monte Carlo standard error of ``coverage[name][k]`` at the nominal value."""
+        _check.choice("name", name, self.free)
+        if not _check.is_int(k) or k not in NOMINAL:
+            _check.fail("k", k, "1, 2 or 3 (sigmas)")
         n = int(np.isfinite(self.normalized[name]).sum())
         return math.sqrt(NOMINAL[k] * (1.0 - NOMINAL[k]) / n) if n else math.nan
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        return (f"<Consistency: {self.replicates} replicates (seed {self.seed}), "
+                f"{int(self.used.sum())} converged, {self.flagged} flagged, {self.failed} "
+                f"failed; free {', '.join(self.free)}; print() shows the table>")
 
     def table(self) -> str:
         """Coverage, bias and spread ratio per parameter, chi-square summary,
@@ -265,7 +282,7 @@ class Consistency:
         """Every replicate: status, chi-square, p-value, iterations, and per
         parameter estimate, sigma, normalized error and flag (written to a
         temporary file and renamed, so no half-written file is left)."""
-        path = Path(path)
+        path = _check.path("path", path)
         cols = ["replicate", "status", "iterations", "chi2", "chi2_prior", "dof", "chi2_p"]
         for nm in self.free:
             cols += [f"{nm}", f"sigma_{nm}", f"z_{nm}", f"flag_{nm}"]
@@ -288,8 +305,8 @@ class Consistency:
         """Histograms of the normalized errors (est - truth) / sigma of every
         parameter against the N(0, 1) density, and of the chi-square against
         chi-square(dof). Writes a PNG when ``path`` is given; returns the figure."""
-        from .plotting import agg_pyplot
-
+        path = _check.path("path", path, none=True)
+        _check.axes("ax", ax)
         plt = agg_pyplot(path is not None, force=False)
         panels = len(self.free) + (1 if self.dof > 0 else 0)
         fig, axes = plt.subplots(1, panels, figsize=(3.6 * panels, 3.4), squeeze=False)
@@ -304,7 +321,8 @@ class Consistency:
             c = self.coverage[nm]
             ax_.set_title(f"{nm}: sigma/spread {self.spread_ratio[nm]:.2f}, "
                           f"<1s {c[1]:.2f}", fontsize=9)
-            ax_.set_xlabel(f"({nm} - truth) / sigma")
+            ax_.set_xlabel(f"({nm} - truth) / sigma (-)")
+            ax_.set_ylabel("probability density")
             ax_.legend(fontsize=7)
         if self.dof > 0:
             ax_ = axes[0][-1]
@@ -317,7 +335,8 @@ class Consistency:
             pdf = np.exp((k - 1.0) * np.log(x) - x / 2.0 - k * math.log(2.0) - math.lgamma(k))
             ax_.plot(x, pdf, "k-", lw=1.0, label=f"chi2({self.dof})")
             ax_.set_title("chi-square of the replicates", fontsize=9)
-            ax_.set_xlabel("chi2")
+            ax_.set_xlabel("chi2 (-)")
+            ax_.set_ylabel("probability density")
             ax_.legend(fontsize=7)
         _save_figure(fig, path)
         return fig
@@ -355,8 +374,6 @@ def _check_fit(fit: Any) -> None:
 def _deck_fit(deck: str | os.PathLike):
     """(deck, its fit) of an estimation deck: what ``beamid consistency`` and
     ``beamid design`` start from."""
-    from .fit_decks import read_fit_deck
-
     d = read_fit_deck(deck)
     return d, _fit(d.model, d.experiments, d.data, free=d.free, prior=d.prior,
                    max_iter=d.max_iter)
@@ -364,7 +381,10 @@ def _deck_fit(deck: str | os.PathLike):
 
 def _spec(fit: FitResult, seed: int, options: Mapping[str, Any] | None) -> _Spec:
     _check_fit(fit)
-    seed = _integer("seed", seed, 0, "a non-negative integer")
+    seed = _check.count("seed", seed, min=0, max=2**128)
+    options = _check.mapping("options", options, none=True)
+    for key in options or {}:
+        _check.choice("options: keyword", key, _FIT_OPTIONS)
     truth_rows = np.array([r.model for r in fit.residuals], float)
     if truth_rows.shape != (len(fit.data),) or not np.all(np.isfinite(truth_rows)):
         raise InputError("the fit has no finite model value for every data row; a "
@@ -381,26 +401,17 @@ def _chunks(n: int, parts: int) -> list[list[int]]:
     return [list(range(a, b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
+#: keywords of beamid.fit that ``options`` may pass to every refit
+_FIT_OPTIONS = ("max_iter", "tol", "jacobian")
+
+
 def _local_workers(workers: int | None) -> int:
     if workers is None:
         try:
             return max(1, len(os.sched_getaffinity(0)))
         except AttributeError:  # pragma: no cover - not Linux
             return max(1, os.cpu_count() or 1)
-    return _integer("workers", workers, 1, "a positive integer")
-
-
-def _integer(name: str, value: Any, least: int, expected: str, low: str = "") -> int:
-    """``int(value)``; InputError "name = value, expected ..." when it is no
-    integer or below ``least`` (``low``: the words for that case, default
-    ``expected``)."""
-    try:
-        k = int(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} = {value!r}, expected {expected}") from None
-    if k < least:
-        raise InputError(f"{name} = {k}, expected {low or expected}")
-    return k
+    return _check.count("workers", workers, min=1)
 
 
 def _mp_context():
@@ -421,9 +432,12 @@ def _dask_client(client: Any):
     except ImportError:
         raise ImportError(DASK_HINT) from None
     if isinstance(client, str):
+        if not re.fullmatch(r"([a-z]+://)?[^\s:/]+:\d+/?", client):
+            _check.fail("client", client, "a dask.distributed.Client or a scheduler address "
+                        "such as 'tcp://host:8786'")
         try:
             return distributed.Client(client, timeout="30s"), True
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"cannot connect to the Dask scheduler {client!r}: {exc}") from None
     if not isinstance(client, distributed.Client):
         raise InputError(f"client = {client!r}, expected a dask.distributed.Client or a "
@@ -524,7 +538,13 @@ def consistency(fit: FitResult, replicates: int = 200, seed: int = 7, client: An
     ``table()``; it does not enter the statistics.
     """
     spec = _spec(fit, seed, options)
-    replicates = _integer("replicates", replicates, 2, "an integer >= 2", "at least 2")
+    replicates = _check.count("replicates", replicates, min=2)
+    # the per-replicate arrays of the result
+    _check.memory(8 * (4 * len(spec.free) + 8) * replicates,
+                  f"replicates = {replicates}: the results")
+    workers = _check.count("workers", workers, min=1, none=True)
+    if progress_bar is not None:
+        _check.flag("progress_bar", progress_bar)
     records, runner = _execute(spec, replicates, client, workers, progress_bar)
     records.sort(key=lambda r: r["k"])
     if [r["k"] for r in records] != list(range(replicates)):

@@ -19,14 +19,15 @@ from typing import Any
 
 import f90nml
 
-from . import fe
+from . import _check, fe
 from .errors import _write_text
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
 from .fit_decks import run_fit_deck
-from .dynamics import _point_name
+from .dynamics import _point_name, work_names
 from .loads import Load, RadialWire
 from .model import Model, _core
+from .history import deck_run
 from .static import solve_static
 
 __all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
@@ -82,6 +83,8 @@ def read_deck(path: str | os.PathLike):
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     """Write a deck that reads back to the same model, load and options."""
+    _check.instance("deck", deck, Deck, "a beamid.Deck (beamid.read_deck)")
+    path = _check.path("path", path)
     model = deck.model
     nb = model.nbeams
     p = model.params
@@ -113,14 +116,17 @@ def write_deck(deck: Deck, path: str | os.PathLike) -> None:
     _write_text(path, str(nml) + "\n")
 
 
-def history_columns(nbeams: int) -> tuple[str, ...]:
+def history_columns(nbeams: int, run=None) -> tuple[str, ...]:
     """Columns of ``<output>_history.csv`` (task simulate), as beamid-batch
     writes them: time, tip, energies, each work line, their sum, the
-    numerical line E - E0 - work, the motor torque."""
-    from .dynamics import work_names
-
+    numerical line E - E0 - work, the motor torque. With ``run``, the work
+    lines of its load histories follow the chain's (docs/loads.md)."""
+    base = work_names(nbeams)
+    extra = () if run is None else tuple(
+        k for k in run.ledger if k not in base and k not in ("kinetic", "potential", "total",
+                                                              "numerical"))
     return ("t", "tip_u", "tip_w", "tip_angle", "energy", "kinetic", "potential",
-            *work_names(nbeams), "work", "numerical", "motor_torque")
+            *base, *extra, "work", "numerical", "motor_torque")
 
 
 def run(deck: Deck | str | os.PathLike):
@@ -147,7 +153,5 @@ def run(deck: Deck | str | os.PathLike):
         return fe.modes(deck.model, int(deck.fe["elements_per_beam"]),
                         rotary_inertia=bool(deck.fe["rotary_inertia"]))
     if deck.task == "simulate":
-        from .history import deck_run
-
         return deck_run(deck)
     return solve_static(deck.model, deck.load, wrt=deck.wrt, tol=deck.tol)

@@ -5,10 +5,15 @@ whose measurements hide the physics the starting model lacks, and redraw the
 dynamic Figures 20-25 (beamid.figures)."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+from .figures import GAINS, figure_runs, write_figures
+from .fit_decks import read_fit_deck, run_fit_deck
 from .loads import RadialWire, TipForce
 from .model import pace
+from .plotting import plot_shapes, save_png
+from .progress import progress
 from .tables import format_checks, inputs_dir, reproduce
 from .static import solve_static
 
@@ -37,10 +42,6 @@ def demo(out: Path) -> int:
         lambda r, i: f"F = {forces[i]:g} N, tip y = {r.tip_y:.4f} m"))
 
     # the main job: find the hidden effects in inputs/demo/hidden_effect.csv
-    import dataclasses
-
-    from .fit_decks import read_fit_deck, run_fit_deck
-
     # and the same on time histories: a release measured on a rig with rotary
     # inertia and tip drag (inputs/demo/dynamic_hidden_effect.csv)
     for name in ("hidden_effect", "dynamic_hidden_effect"):
@@ -54,9 +55,6 @@ def demo(out: Path) -> int:
 
     # the dynamic Figures 20-25 (implicit integrator, about a second): the three
     # runs one by one, so that a terminal shows the progress
-    from .figures import GAINS, figure_runs, write_figures
-    from .progress import progress
-
     runs = {}
     for gain in progress(GAINS, desc="figures 20-25"):
         runs.update(figure_runs([gain]))
@@ -70,8 +68,6 @@ def demo(out: Path) -> int:
 def _forms_figure(path: Path, title: str, loads, label) -> Path:
     """Shapes under `loads`, seed form (left) beside the exact elastica (right)."""
     import matplotlib.pyplot as plt
-
-    from .plotting import plot_shapes, save_png
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 6))
     forms = {"seed form (axial_coupling = 0)": 0.0, "exact elastica (axial_coupling = 1)": 1.0}

@@ -38,10 +38,14 @@ import numpy as np
 from . import _core_estimation as _ce
 from . import observations
 from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
+from . import _check
 from .errors import InputError, _write_text
 from .estimation import FitResult, predict
-from .loads import Release
+from .fit_decks import read_fit_deck
+from .loads import RadialWire, Release, TipForce, TipMoment
 from .measurements import QUANTITIES, Measurements
+from .plot_fit import parameter_unit
+from .plotting import agg_pyplot
 
 
 class RankedMeasurement(NamedTuple):
@@ -93,12 +97,31 @@ class Advice:
         return (f"predicted sigma of {self.target}" if self.target else
                 "D-criterion det(cov)^(1/(2n))")
 
+    @property
+    def criterion_label(self) -> str:
+        """The criterion with its unit, for an axis."""
+        if not self.target:
+            return f"{self.criterion} (geometric mean of the sigmas, mixed units)"
+        return f"{self.criterion} ({parameter_unit(self.target)})"
+
     def gain(self, key: tuple[str, str]) -> float:
         """current / predicted for a candidate (how many times smaller)."""
+        if not isinstance(key, tuple) or tuple(key) not in self.ranking.keys():
+            _check.fail("key", key, "an (experiment, quantity) of the ranking, e.g. "
+                        f"{self.ranking.keys()[:1]}")
         return self.current / self.ranking[key].predicted
+
+    def __str__(self) -> str:
+        return self.table(20)
+
+    def __repr__(self) -> str:
+        best = f"{self.ranking[0].key[0]}/{self.ranking[0].key[1]}" if self.ranking else "none"
+        return (f"<Advice: {self.criterion} now {self.current:.4g}, {len(self.ranking)} "
+                f"candidate measurements, best {best}; print() shows the table>")
 
     def table(self, top: int | None = None) -> str:
         """The ranking as text (best first)."""
+        top = _check.count("top", top, min=0, none=True)
         head = f"{'rank':<6}{'experiment':<14}{'quantity':<12}{'sigma':>10}{'predicted':>13}{'gain':>8}"
         lines = [f"{self.criterion}: now {self.current:.4g} "
                  f"(free: {', '.join(self.free)})", head, "-" * len(head)]
@@ -114,8 +137,9 @@ class Advice:
     def plot(self, path: str | os.PathLike | None = None, top: int = 15, ax: Any = None):
         """Horizontal bars of the predicted criterion of the best ``top``
         candidates, with the current value; writes a PNG when ``path`` is given."""
-        from .plotting import agg_pyplot
-
+        path = _check.path("path", path, none=True)
+        top = _check.count("top", top, min=1)
+        _check.axes("ax", ax)
         plt = agg_pyplot(path is not None, force=False)
         entries = list(self.ranking[:top])[::-1]
         if ax is None:
@@ -136,19 +160,37 @@ class Advice:
             ax.axvline(self.current, color="tab:red", ls="--", lw=1.0,
                        label=f"now {self.current:.3g}")
         ax.set_xscale("log")
-        from matplotlib.ticker import NullFormatter
+        from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
-        ax.xaxis.set_minor_formatter(NullFormatter())
         lo = float(np.nanmin(vals)) if vals.size else 1.0
         hi = max(float(np.nanmax(vals)) if vals.size else 1.0,
                  self.current if math.isfinite(self.current) else 0.0)
         if math.isfinite(lo) and math.isfinite(hi) and lo > 0:
             ax.set_xlim(lo / 1.6, hi * 1.3)
-        ax.set_xlabel(self.criterion)
+            # labelled ticks at 1, 2, 5 (or every digit) of each decade: a log
+            # axis over less than a decade otherwise shows one label
+            ticks = _log_ticks(lo / 1.6, hi * 1.3)
+            ax.xaxis.set_major_locator(FixedLocator(ticks))
+            ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+            ax.xaxis.set_minor_locator(NullLocator())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(self.criterion_label)
         ax.set_title("which measurement next (best at the top)", fontsize=9)
         ax.legend(fontsize=7)
         _save_figure(fig, path)
         return ax
+
+
+def _log_ticks(lo: float, hi: float) -> list[float]:
+    """Tick values of a log axis over [lo, hi]: 1, 2, 5 times the powers of
+    ten inside, or every digit when that leaves fewer than three."""
+    decades = range(math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1)
+    for mults in ((1, 2, 5), tuple(range(1, 10))):
+        ticks = [m * 10.0 ** k for k in decades for m in mults]
+        ticks = [float(f"{t:.6g}") for t in ticks if lo <= t <= hi]
+        if len(ticks) >= 3:
+            return ticks
+    return ticks
 
 
 def information(fit: FitResult) -> np.ndarray:
@@ -203,7 +245,7 @@ def _release_times(candidates: Mapping[str, Any], times) -> tuple[dict, dict]:
         else:
             loads[name] = value
             continue
-        ts = np.atleast_1d(np.asarray(ts, float))
+        ts = _check.reals(f"times of {name!r}", ts, scalar=True)
         if ts.size == 0 or not np.all(np.isfinite(ts) & (ts > 0.0)):
             raise InputError(f"candidate {name!r}: measurement times {ts.tolist()}, expected "
                              "finite times > 0 s (after the release)")
@@ -216,9 +258,7 @@ def _rows(experiments: dict, quantities, sigma, rtimes: Mapping[str, list] | Non
     rows = []
     for name in experiments:
         qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
-        if isinstance(qs, str):
-            qs = (qs,)
-        for q in qs:
+        for q in _check.names("quantities", qs):
             if q not in QUANTITIES:
                 raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
             for t in (rtimes or {}).get(name, [0.0]):
@@ -304,7 +344,7 @@ def design(fit: FitResult, candidates: Mapping[str, Any],
             raise InputError(f"candidate {name!r} = {load!r} differs from the fit's "
                              f"experiment of that name ({exps[name]!r}); rename it")
         exps[name] = load
-    if target is None:
+    if _check.text("target", target, none=True) is None:
         tindex = 0
     else:
         if target not in fit.free:
@@ -351,28 +391,55 @@ DEFAULT_QUANTITIES = tuple(sorted(observations.probe_kinds("static"),
                                   key=lambda q: observations.kinds()[q].needs != "none"))
 
 
-def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements
-                ) -> dict[str, float]:
+#: sigma of a candidate quantity the deck has no rows of (``beamid design``
+#: without ``--sigma``): 1 mm, 1 mrad, 0.1 N, 0.01 N m (the measurement
+#: sigmas of the dissertation's tests, docs/deviations.md); printed when used
+DEFAULT_SIGMA = {"x_tip": 1e-3, "y_tip": 1e-3, "x_elbow": 1e-3, "y_elbow": 1e-3,
+                 "u_tip": 1e-3, "w_tip": 1e-3, "tip_angle": 1e-3, "wire_force": 0.1,
+                 "motor_torque": 0.01}
+_UNIT = {"tip_angle": "rad", "wire_force": "N", "motor_torque": "N m"}
+
+
+def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements,
+                notes: list[str] | None = None) -> dict[str, float]:
     """Sigmas of the command line: ``1e-3`` (every quantity) or
     ``QUANTITY=SIGMA`` items; a quantity without one takes the median sigma of
-    the deck's rows of that quantity, else it is an InputError."""
+    the deck's rows of that quantity, else :data:`DEFAULT_SIGMA` (said in
+    ``notes`` when a list is given). Errors name ``--sigma``."""
     out: dict[str, float] = {}
     default = None
     for item in items or ():
-        if "=" in item:
-            q, _, v = item.partition("=")
-            out[q.strip()] = _sigma_of({q.strip(): v.strip()}, q.strip())
+        q, eq, v = (str(item).partition("=")[0].strip(), "=" in str(item),
+                    str(item).partition("=")[2].strip())
+        if eq:
+            if q not in QUANTITIES:
+                raise InputError(f"--sigma {item}: unknown quantity {q!r}, expected one of "
+                                 f"{', '.join(QUANTITIES)}")
         else:
-            default = _sigma_of(item, "all quantities")
+            v = str(item)
+        try:
+            value = float(v)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0.0):
+            raise InputError(f"--sigma {item}: {v!r} is not a sigma, expected a finite number "
+                             "> 0 (QUANTITY=SIGMA or one SIGMA for all)")
+        if eq:
+            out[q] = value
+        else:
+            default = value
     for q in (q for q in quantities if q not in out):
         if default is not None:
             out[q] = default
             continue
         own = [s for s, qq in zip(data.sigma, data.quantity) if qq == q]
-        if not own:
-            raise InputError(f"no sigma for quantity {q!r}: the deck's data have no {q} rows; "
-                             f"give --sigma {q}=VALUE (or one --sigma for all)")
-        out[q] = float(np.median(own))
+        if own:
+            out[q] = float(np.median(own))
+            continue
+        out[q] = DEFAULT_SIGMA[q]
+        if notes is not None:
+            notes.append(f"sigma of {q}: {DEFAULT_SIGMA[q]:g} {_UNIT.get(q, 'm')} (default: the "
+                         f"deck has no {q} rows; set it with --sigma {q}=VALUE)")
     return out
 
 
@@ -391,8 +458,26 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
     measurement ``times`` (s; ``--times``), one row per time, measuring by
     default the quantities of the deck's own rows. Returns (text, files,
     advice)."""
-    from .loads import RadialWire, TipForce, TipMoment
-
+    # the command line's errors first, in its words (before the deck's fit runs)
+    d = read_fit_deck(deck)
+    if target is not None and target not in d.free:
+        raise InputError(f"--target {target}: not a free parameter of {deck} (free: "
+                         f"{', '.join(d.free)}); leave --target out to rank by the "
+                         "D-criterion over all free parameters")
+    for q in quantities or ():
+        if q not in QUANTITIES:
+            raise InputError(f"--quantities {q}: unknown quantity, expected one of "
+                             f"{', '.join(QUANTITIES)}")
+    for flag, vals, low in (("--force", forces, -math.inf), ("--moment", moments, -math.inf),
+                            ("--wire", wires, 0.0), ("--times", times, 0.0)):
+        for v in vals:
+            if not (math.isfinite(float(v)) and float(v) > low):
+                raise InputError(f"--{flag.lstrip('-')} {v:g}: expected a finite number"
+                                 + (" > 0" if low == 0.0 else ""))
+    if not isinstance(top, int) or top < 1:
+        raise InputError(f"--top {top}: expected a count >= 1")
+    notes: list[str] = []
+    parse_sigma(sigma, list(quantities or ()), d.data, None)    # its errors, before the fit
     d, base = _deck_fit(deck)
     cands: dict[str, Any] = {}
     for f in forces:
@@ -408,15 +493,23 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
         cands = dict(base.experiments)
     releases = [n for n, x in cands.items() if isinstance(x, Release)]
     if releases and not times:
-        raise InputError(f"{deck}: the release experiment {releases[0]!r} is a candidate at "
-                         "measurement times: give --times T [T ...] (s after the release)")
+        # the deck's own measurement times of its releases (printed)
+        tables = [d.data, *(st.data for st in d.stages)]    # identify decks: every stage's
+        times = sorted({float(t) for m in tables for e, t in zip(m.experiment, m.t)
+                        if e in releases and t > 0.0})
+        if not times:
+            raise InputError(f"{deck}: the release experiment {releases[0]!r} is a candidate "
+                             "at measurement times: give --times T [T ...] (s after the "
+                             "release)")
+        notes.append("measurement times: " + " ".join(f"{t:g}" for t in times) + " s (the "
+                     "deck's own; set them with --times)")
     if quantities:
         qs = tuple(quantities)
     elif releases:
         qs = tuple(dict.fromkeys(d.data.quantity))    # the deck's own quantities
     else:
         qs = DEFAULT_QUANTITIES
-    sig = parse_sigma(sigma, qs, d.data)
+    sig = parse_sigma(sigma, qs, d.data, notes)
     adv = design(base, cands, qs, sigma=sig, target=target,
                  times=[float(t) for t in times] if releases else None)
     prefix = _output_prefix(deck, out, d.output_prefix)
@@ -429,4 +522,5 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
         png = Path(f"{prefix}_design.png")
         adv.plot(png, top=min(top, 15))
         files.append(png)
-    return f"{base.summary()}\n\n{adv.table(top)}", files, adv
+    text = f"{base.summary()}\n\n" + "".join(n + "\n" for n in notes) + adv.table(top)
+    return text, files, adv

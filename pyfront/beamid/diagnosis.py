@@ -15,8 +15,13 @@ first-order estimate; the leading candidates are confirmed by refits
 (likelihood ratio). This module names the results, words the verdict, and
 drives :func:`improve`.
 
-Candidate effects live in a registry (:data:`EFFECTS`); new experiment
-families (dynamics) add theirs with :func:`register_effect`.
+Candidate effects live in a registry (:data:`EFFECTS`): the built-in ones
+are the core's table (Fortran ``beamid_effects``: names, parameters, null
+values, bounds, the families that see them, the default candidates), user
+blocks are added with :func:`register_effect`, and the release
+family its comparison, diagnosis wording, default candidates and mesh
+refinement with :func:`register_release_family` (``beamid.dyn_diagnosis``
+builds on this module, so this module does not import it).
 """
 from __future__ import annotations
 
@@ -28,9 +33,10 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from . import _core_estimation as _ce
+from . import _check, _core_estimation as _ce
 from .errors import ConvergenceError, InputError
-from .estimation import FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit
+from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
+                         flag_is_problem)
 from .estimation import _free_indices, _named, _prior_arrays, _result
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
@@ -45,14 +51,39 @@ class Effect:
     """A physical effect a model can switch on.
 
     ``params(model)`` names the parameters that switch it on; at their null
-    values (all 0 for the static effects) the effect is off. ``kinds`` says
-    which experiment families can see it.
+    value ``null_value`` (0 for every built-in effect) the effect is off, and
+    physical values lie within ``lower`` and ``upper``. ``kinds`` says which
+    experiment families can see it (``static``, ``dynamic``).
     """
 
     name: str
     description: str
     params: Callable[[Model], tuple[str, ...]]
     kinds: tuple[str, ...] = ("static",)
+    null_value: float = 0.0
+    lower: float = 0.0
+    upper: float = math.inf
+
+    @property
+    def one_sided(self) -> bool:
+        """The null value is the lower bound: tests look at one side only."""
+        return self.null_value <= self.lower
+
+    def __post_init__(self) -> None:
+        _check.text("Effect: name", self.name)
+        _check.text("Effect: description", self.description, empty=True)
+        if not callable(self.params):
+            _check.fail("Effect: params", self.params, "a function of the model that names "
+                        "the effect's parameters")
+        object.__setattr__(self, "kinds", _check.names("Effect: kinds", self.kinds,
+                                                       allowed=("static", "dynamic")))
+        lower = _check.real("Effect: lower", self.lower, finite=False)
+        upper = _check.real("Effect: upper", self.upper, finite=False, above=lower,
+                            expected=f"a number above lower = {lower:g}")
+        null = _check.real("Effect: null_value", self.null_value, min=lower, max=upper,
+                           expected=f"a finite number within [{lower:g}, {upper:g}]")
+        for field_name, value in (("lower", lower), ("upper", upper), ("null_value", null)):
+            object.__setattr__(self, field_name, value)
 
 
 EFFECTS: dict[str, Effect] = {}
@@ -60,26 +91,27 @@ EFFECTS: dict[str, Effect] = {}
 
 def register_effect(effect: Effect) -> None:
     """Add (or replace) a candidate effect in the registry."""
+    _check.instance("effect", effect, Effect, "a beamid.Effect")
     EFFECTS[effect.name] = effect
 
 
-register_effect(Effect(
-    "axial_coupling",
-    "exact elastica: the axial force times curvature term that the seed's shear-only "
-    "Eq. 9 omits (axial_coupling from 0 towards 1)",
-    lambda m: ("axial_coupling",)))
-register_effect(Effect(
-    "material_cubic", "cubic moment-curvature law M = EI k + C k^3 (Eq. 16)",
-    lambda m: tuple(f"C{i + 1}" for i in range(m.nbeams))))
-register_effect(Effect(
-    "elbow_flex", "rotational compliance of the elbow joint (rad per N m)",
-    lambda m: ("elbow_flex",) if m.nbeams >= 2 else ()))
-register_effect(Effect(
-    "root_flex", "rotational compliance of the shoulder clamp (rad per N m)",
-    lambda m: ("root_flex",)))
+def _core_params(name: str) -> Callable[[Model], tuple[str, ...]]:
+    """The parameters of the core's effect ``name`` in a model."""
+    def params(model: Model) -> tuple[str, ...]:
+        names = model.names()
+        return tuple(names[i] for i in _ce.effect_table(model.nbeams)[name].params)
+    return params
+
+
+# the built-in effects: the core's table (names, descriptions and families do
+# not depend on the number of beams; the parameters do)
+for _row in _ce.effect_table(1).values():
+    register_effect(Effect(_row.name, _row.description, _core_params(_row.name),
+                           kinds=_row.kinds, null_value=_row.null_value, lower=_row.lower,
+                           upper=_row.upper))
 
 #: Candidate effects tried for static experiments, in order.
-STATIC_CANDIDATES = ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
+STATIC_CANDIDATES = _ce.default_effects("static")
 
 _STATES = dict(_ce.CANDIDATE_STATES)
 
@@ -91,6 +123,24 @@ def _dynamic(experiments: Any) -> bool:
         return any(isinstance(x, Release) for x in dict(experiments).values())
     except (TypeError, ValueError):
         return False
+
+
+#: What fits with release experiments need from beamid.dyn_diagnosis, which
+#: builds on this module's types and fills this in when it is imported (the
+#: package imports it): ``compare`` (fit -> TimeComparison), ``diagnosis``
+#: (the DynDiagnosis from the Fortran arrays), ``default_candidates``
+#: (experiments -> candidate names) and ``refine_mesh``.
+_RELEASE_FAMILY: dict[str, Callable[..., Any]] = {}
+
+
+def register_release_family(*, compare: Callable[..., Any], diagnosis: Callable[..., Any],
+                            default_candidates: Callable[..., Any],
+                            refine_mesh: Callable[..., Any]) -> None:
+    """Install the functions of the release family (beamid.dyn_diagnosis)
+    that compare, diagnose, add_effect and improve call on fits with
+    releases."""
+    _RELEASE_FAMILY.update(compare=compare, diagnosis=diagnosis,
+                           default_candidates=default_candidates, refine_mesh=refine_mesh)
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -157,6 +207,11 @@ class Comparison:
                      else "no systematic structure: residuals look like noise")
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        return (f"<Comparison of {len(self.rows)} rows: chi2 {self.chi2:.4g} for {self.dof} "
+                f"dof, p = {self.p_value:.3g}, "
+                f"{'systematic structure' if self.systematic else 'no systematic structure'}>")
+
 
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
@@ -179,8 +234,7 @@ def compare(fit: FitResult) -> Comparison:
     if not isinstance(fit, FitResult):
         raise InputError(f"compare: fit = {fit!r}, expected a beamid.FitResult (beamid.fit)")
     if _dynamic(fit.experiments):   # time histories: beamid.dyn_diagnosis
-        from .dyn_diagnosis import compare_dynamic
-        return compare_dynamic(fit)  # type: ignore[return-value]
+        return _RELEASE_FAMILY["compare"](fit)
     levels = {name: load_level(load, fit.model) for name, load in fit.experiments.items()}
     rows = tuple(CompareRow(r.experiment, r.quantity, levels[r.experiment], r.measured,
                             r.model, r.sigma, r.normalized) for r in fit.residuals)
@@ -335,6 +389,11 @@ class Diagnosis(_ByRankAndName):
         return (f"{key!r} is not a candidate of this diagnosis (candidates: "
                 f"{', '.join(c.effect for c in self.candidates)})")
 
+    def __repr__(self) -> str:
+        best = self.verdict.effect if self.verdict is not None else "none"
+        return (f"<{type(self).__name__} of {len(self.candidates)} candidates: verdict "
+                f"{best}; print() shows the table>")
+
     def __str__(self) -> str:
         lines = [f"{'rank':<5}{'effect':<16}{'score drop':>11}{'score p':>10}{'refit drop':>11}"
                  f"{'refit p':>10}  estimate (sigma)"]
@@ -351,9 +410,9 @@ class Diagnosis(_ByRankAndName):
                 notes.append("not separable from the free parameters")
             if c.refit_failed:
                 notes.append("refit failed: no start converged")
-            if c.refit and c.refit_flags and any(v != "ok" for v in c.refit_flags.values()):
+            if c.refit and c.refit_flags and any(map(flag_is_problem, c.refit_flags.values())):
                 notes.append("; ".join(f"{n}: {v}" for n, v in c.refit_flags.items()
-                                       if v != "ok"))
+                                       if flag_is_problem(v)))
             lines.append(f"{k:<5}{c.effect:<16}{c.score_drop:>11.4g}{c.score_p:>10.2g}"
                          f"{(c.lr_drop if c.refit else math.nan):>11.4g}"
                          f"{(c.lr_p if c.refit else math.nan):>10.2g}  {est}"
@@ -422,11 +481,10 @@ def _effect_request(fit: FitResult, effect: str | Effect, max_iter: int,
     already = [p for p in params if p in fit.free]
     if already:
         raise InputError(f"effect {eff.name!r}: {', '.join(already)} already free")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    _check.count("max_iter", max_iter, min=1)
     names = [n for k, n in sorted(_ce.START_NAMES.items()) if n]
     mask = 0
-    for name in (() if starts is None else ((starts,) if isinstance(starts, str) else starts)):
+    for name in _check.names("starts", starts, none=True) or ():
         if name not in names:
             raise InputError(f"starts names {name!r}, expected some of {', '.join(names)}")
         mask |= 1 << names.index(name)
@@ -462,10 +520,11 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     """
     if not isinstance(fit, FitResult):
         raise InputError(f"diagnose needs a FitResult from beamid.fit, got {type(fit).__name__}")
-    if not 0.0 < alpha < 1.0:
-        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
-    if int(nrefit) < 0:
-        raise InputError(f"nrefit = {nrefit}, expected >= 0")
+    _check.real("alpha", alpha, above=0.0, below=1.0,
+                expected="a significance level in (0, 1)")
+    nrefit = _check.count("nrefit", nrefit, min=0)
+    ambiguity_delta = _check.real("ambiguity_delta", ambiguity_delta, min=0.0)
+    collinear = _check.real("collinear", collinear, min=0.0, max=1.0)
     model = fit.model
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
     prob = build_problem(model, fit.experiments, fit.data)
@@ -485,9 +544,18 @@ def _candidate_set(model: Model, experiments, candidates):
     mesh test, not a block."""
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
-        from .dyn_diagnosis import default_candidates
-        candidates = default_candidates(experiments)
+        candidates = _RELEASE_FAMILY["default_candidates"](experiments)
+    if isinstance(candidates, (str, Effect)):
+        candidates = [candidates]
+    elif candidates is not None:
+        if isinstance(candidates, (bytes, Mapping)) or not hasattr(candidates, "__iter__"):
+            _check.fail("candidates", candidates, "effect names or beamid.Effect objects")
+        candidates = list(candidates)
     cands = list(STATIC_CANDIDATES if candidates is None else candidates)
+    for c in cands:
+        if not isinstance(c, (str, Effect)):
+            _check.fail("candidates", candidates, f"effect names or beamid.Effect ("
+                        f"{_check.show(c)} is neither)")
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
@@ -502,8 +570,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
     """The Diagnosis of a fit from the Fortran result arrays (with releases:
     beamid.dyn_diagnosis names the results, a DynDiagnosis)."""
     if _dynamic(fit.experiments):
-        from .dyn_diagnosis import _dyn_diagnosis
-        return _dyn_diagnosis(fit, raw, effects, names, alpha, with_mesh)
+        return _RELEASE_FAMILY["diagnosis"](fit, raw, effects, names, alpha, with_mesh)
     out = [_candidate(raw, c, eff, names[c], fit.model, list(fit.experiments))
            for c, eff in enumerate(effects)]
     ranked = tuple(out[i] for i in raw["ranking"])
@@ -517,7 +584,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
 
 def _undetermined(fit: FitResult) -> list[str]:
     """The line naming the fitted parameters the data do not determine (if any)."""
-    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if f != "ok"]
+    flagged = [f"{n} ({f})" for n, f in fit.flags.items() if flag_is_problem(f)]
     return ["fitted parameters not determined by these data: " + ", ".join(flagged)
             ] if flagged else []
 
@@ -614,8 +681,10 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     fits with release experiments the effect ``mesh`` refits at twice the
     elements per beam.
     """
+    _check.instance("fit", fit, FitResult, "a beamid.FitResult (beamid.fit)")
     if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
-        from .dyn_diagnosis import refine_mesh   # the same fit at twice the elements per beam
+        # the same fit at twice the elements per beam
+        refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                     prior=fit.prior or None, max_iter=max_iter)
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
@@ -655,6 +724,10 @@ class LadderStep(NamedTuple):
     #: needs (set back to their null values: a rival member of the block)
     removed: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        return (f"<LadderStep {self.step}: {self.effect or '(start)'}, chi2 {self.chi2:.5g} "
+                f"for {self.dof} dof>")
+
 
 @dataclass(frozen=True)
 class Ladder(_ByRankAndName):
@@ -681,6 +754,11 @@ class Ladder(_ByRankAndName):
 
     def _missing(self, key: str) -> str:
         return f"{key!r} was not added by this ladder (added: {', '.join(self.effects) or 'none'})"
+
+    def __repr__(self) -> str:
+        return (f"<Ladder of {len(self.steps)} rungs: added {', '.join(self.effects) or 'none'}"
+                f"; final chi2 {self.fit.chi2:.5g} for {self.fit.dof} dof; print() shows the "
+                "table>")
 
     def __str__(self) -> str:
         lines = [f"{'step':<6}{'effect added':<18}{'chi2':>12}{'dof':>5}{'chi2/dof':>11}"
@@ -718,12 +796,14 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     A significant ``mesh`` candidate refines every release to the
     recommended elements per beam; the mesh is tested until found adequate.
     """
-    if not 0.0 < alpha < 1.0:
-        raise InputError(f"alpha = {alpha}, expected a significance level in (0, 1)")
-    if int(max_iter) < 1:
-        raise InputError(f"max_iter = {max_iter}, expected at least 1")
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
+    _check.real("alpha", alpha, above=0.0, below=1.0,
+                expected="a significance level in (0, 1)")
+    max_iter = _check.count("max_iter", max_iter, min=1)
+    max_steps = _check.count("max_steps", max_steps, min=0, none=True)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
-    limit = len(effects) + with_mesh if max_steps is None else int(max_steps)
+    limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
     with _ce.LADDER_LOCK:
@@ -741,8 +821,6 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
     call), and name its rungs."""
     dynamic = _dynamic(experiments)
-    if dynamic:
-        from .dyn_diagnosis import refine_mesh
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
@@ -752,7 +830,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
-            experiments = refine_mesh(experiments, r["elements_per_beam"])
+            experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
         fit = _result(Model(model.nbeams, r["start"]), experiments, data,
                       tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
                       nominal=Model(model.nbeams, r["nominal"]))

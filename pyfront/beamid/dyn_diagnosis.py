@@ -12,8 +12,9 @@ mu_tip, Eq. 101-102), ``drag`` (c_elbow, c_tip), ``rotary_inertia``
 (tau_motor), ``elbow_flex``, ``root_flex`` (all one-sided: null value 0,
 physical values positive), and ``mesh``: the same fit at twice the elements
 per beam. An effect whose sensitivity is zero on every data row (a motor lag
-without a motor; the joint compliances, which the finite element dynamics
-does not model) is listed as "not seen by these experiments", not tested.
+without a motor) is listed as "not seen by these experiments", not tested.
+The candidates, their parameters, null values and bounds are the core's
+effects table (Fortran ``beamid_effects``).
 
 The statistics run in Fortran (``beamid_dyn_diagnosis``): score tests from
 the forward sensitivities at the null values, refits, ranking, the probe
@@ -29,15 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from . import _core_estimation as _ce
-from .estimation import FitResult
+from . import _check, _core_estimation as _ce
+from .errors import _write_all
+from .estimation import FitResult, predict
 from .loads import Release
+from .measurements import Measurements, quantity_unit
 from .model import Model
 
-# the static registry, verdict words and result types (diagnosis.py imports
-# this module lazily, so this import is safe)
+# the static registry, verdict words and result types (diagnosis.py does not
+# import this module: this module installs its functions there at the end)
 from . import diagnosis as _dg
-from .diagnosis import Candidate, Diagnosis, Effect, register_effect
+from .diagnosis import Candidate, Diagnosis, Effect
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -45,33 +48,12 @@ __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_d
            "plot_time_comparison"]
 
 
-def _points(prefix: str):
-    """Parameters of one kind at every mass point (elbow, joints, tip)."""
-    def names(m: Model) -> tuple[str, ...]:
-        out = [n for n in m.names() if n.startswith(prefix + "_") and
-               (n.endswith("_elbow") or n.endswith("_tip") or "_joint" in n)]
-        return tuple(out)
-    return names
+# the candidate effects of a release (their parameters, null values, bounds
+# and families) are the core's table (beamid_effects), registered with the
+# static ones by beamid.diagnosis
 
-
-register_effect(Effect("friction", "Coulomb friction at the masses (Eq. 101-102)",
-                       _points("mu"), kinds=("dynamic",)))
-register_effect(Effect("drag", "viscous air drag -c v at the masses", _points("c"),
-                       kinds=("dynamic",)))
-register_effect(Effect("rotary_inertia", "rotary inertia of the end masses (Eq. 130-132)",
-                       _points("J"), kinds=("dynamic",)))
-register_effect(Effect("kelvin_voigt", "Kelvin-Voigt structural damping eta EI dchi/dt",
-                       lambda m: ("eta",), kinds=("dynamic",)))
-register_effect(Effect("motor_lag", "first-order lag of the tip motor's torque",
-                       lambda m: ("tau_motor",), kinds=("dynamic",)))
-for _name in ("elbow_flex", "root_flex"):
-    register_effect(dataclasses.replace(_dg.EFFECTS[_name], kinds=("static", "dynamic")))
-register_effect(Effect("mesh", "the discretization: the same fit at twice the elements per "
-                       "beam", lambda m: (), kinds=("dynamic",)))
-
-#: Candidate effects tried for release experiments, in order.
-DYNAMIC_CANDIDATES = ("friction", "drag", "rotary_inertia", "kelvin_voigt", "motor_lag",
-                      "elbow_flex", "root_flex", "mesh")
+#: Candidate effects tried for release experiments, in order (the core's table).
+DYNAMIC_CANDIDATES = _ce.default_effects("dynamic")
 
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic
@@ -301,6 +283,10 @@ class TimeComparison:
     def __len__(self) -> int:
         return len(self.series)
 
+    def __repr__(self) -> str:
+        return (f"<TimeComparison of {len(self.series)} series: chi2 {self.chi2:.4g} for "
+                f"{self.dof} dof, p = {self.p_value:.3g}; print() shows the table>")
+
     def __str__(self) -> str:
         lines = [f"{'experiment':<12}{'quantity':<13}{'rows':>5}{'chi2':>10}{'expected':>9}"
                  f"{'runs':>6}{'exp.':>7}{'runs p':>9}{'lag-1 r':>9}{'r p':>9}"
@@ -320,11 +306,19 @@ class TimeComparison:
                      "no systematic structure: residuals look like noise")
         return "\n".join(lines)
 
-    def plot(self, path=None, fig=None):
+    def plot(self, path=None, fig=None, title: str | None = None):
         """The figure of :func:`plot_time_comparison`; saved as PNG at ``path``."""
-        fig = plot_time_comparison(self, fig=fig)
+        path = _check.path("path", path, none=True)
+        if fig is not None:
+            from matplotlib.figure import Figure
+
+            _check.instance("fig", fig, Figure, "None or a matplotlib Figure")
+        fig = plot_time_comparison(self, fig=fig, title=title)
         if path is not None:
-            fig.savefig(path, dpi=110)
+            kinds = fig.canvas.get_supported_filetypes()
+            if path.suffix.lstrip(".").lower() not in kinds:
+                _check.fail("path", path, "a file name ending in ." + ", .".join(kinds))
+            _write_all([(path, lambda tmp: fig.savefig(tmp, dpi=110))])
         return fig
 
 
@@ -335,8 +329,6 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
     ``time_structure``): runs of signs, lag-1 autocorrelation, trend of the
     residual amplitude. ``systematic`` when the overall chi-square or a
     series' test is significant at ``alpha`` / (number of tests)."""
-    from .plot_fit import quantity_unit
-
     series = []
     static_rows = []
     groups: dict[tuple[str, str], list] = {}
@@ -376,9 +368,6 @@ def _dense_model(cmp: TimeComparison) -> dict:
     """The fitted model over each release on a dense time grid (the curve
     between the measurement times): {(experiment, quantity): (t, y)}; a
     series whose prediction fails keeps its values at the sample times."""
-    from .estimation import predict
-    from .measurements import Measurements
-
     out: dict = {}
     by_exp: dict[str, list] = {}
     for s in cmp.series:
@@ -398,13 +387,15 @@ def _dense_model(cmp: TimeComparison) -> dict:
     return out
 
 
-def plot_time_comparison(cmp: TimeComparison, fig=None):
+def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None):
     """One column per (experiment, quantity): on top measured values with
     their error bars (every k-th of a record denser than MAX_MARKERS) and
     the model as a continuous curve over time (dense output between the
-    measurement times; unit on the axis), below the
-    normalized residuals with their +-1 error bars and the +-2 sigma band.
-    Returns the figure."""
+    measurement times; unit on the axis), below the normalized residuals
+    with their +-1 error bars and the +-2 sigma band; the figure's title
+    gives ``title`` (e.g. which fit) and the overall chi-square. Returns
+    the figure."""
+    title = _check.text("title", title, empty=True, none=True)
     import matplotlib.pyplot as plt
 
     n = max(len(cmp.series), 1)
@@ -437,5 +428,15 @@ def plot_time_comparison(cmp: TimeComparison, fig=None):
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
                          fontsize=8)
         bottom.legend(fontsize=7)
+    fig.suptitle((f"{title}: " if title else "")
+                 + f"measured vs model: chi2 = {cmp.chi2:.4g}, dof {cmp.dof}"
+                 + (f", chi2/dof = {cmp.chi2 / cmp.dof:.4g}" if cmp.dof > 0 else "")
+                 + (" (systematic residuals)" if cmp.systematic else ""), fontsize=11)
     fig.tight_layout()
     return fig
+
+
+# compare, diagnose, add_effect and improve in beamid.diagnosis call these on
+# fits with releases
+_dg.register_release_family(compare=compare_dynamic, diagnosis=_dyn_diagnosis,
+                            default_candidates=default_candidates, refine_mesh=refine_mesh)

@@ -32,14 +32,16 @@ the full one: ``k`` lowest modes, ``"transverse"`` or mode numbers
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
-from . import _core_dynamics as _cd
+from . import _check, _core_dynamics as _cd
+from . import load_histories as _lh
 from .errors import InputError, check_memory
-from .fe import _model_args
+from .fe import _mesh_size, _model_args, modes as fe_modes
 
 __all__ = ["Run", "FrictionEvent", "simulate", "SENSITIVITY_QUANTITIES", "FRICTION_LAWS",
            "INTEGRATORS", "DEFAULT_RTOL", "DEFAULT_FRICTION", "DEFAULT_DT", "DEFAULT_FRICTION_VELOCITY", "work_names", "dynamic_system"]
@@ -65,20 +67,31 @@ def _point_name(nbeams: int, k: int) -> str:
 
 
 def work_names(nbeams: int) -> tuple[str, ...]:
-    """Names of the work lines of the ledger, in the Fortran order."""
-    pts = [_point_name(nbeams, k) for k in range(1, nbeams + 1)]
-    return tuple([f"friction_{p}" for p in pts] + [f"drag_{p}" for p in pts]
-                 + ["damping", "motor"])
+    """Names of the work lines of the ledger of a chain of ``nbeams`` beams, in the
+    order of the work vector (read from the core, as the parameter names):
+    friction and drag per mass point, damping, motor."""
+    return _cd.work_names(nbeams)
+
+
+def _warn_chirp(model, nepb: int, loads) -> None:
+    """Warn when a chirp sweeps above the mesh's highest frequency (the
+    model cannot respond there)."""
+    top = _lh.highest_chirp(loads)
+    if top <= 0:
+        return
+    fmax = float(np.max(fe_modes(model, nepb).omega)) / (2 * np.pi)
+    if top > fmax:
+        warnings.warn(f"loads: a chirp reaches {top:g} Hz, above the highest frequency "
+                      f"of the mesh ({fmax:.6g} Hz at elements_per_beam = {nepb}): the "
+                      "response there is the mesh's, not the arm's", stacklevel=3)
 
 
 def _release_loads(release) -> np.ndarray:
     if release is None:
         return np.zeros(4)
     if all(hasattr(release, a) for a in ("fx", "fy", "moment")):
-        vals = np.array([float(release.fx), float(release.fy), float(release.moment), 0.0])
-        if not np.all(np.isfinite(vals)):
-            raise InputError(f"release load {vals[:3]} is not finite")
-        return vals
+        return np.array([*(_check.real(f"release {a}", getattr(release, a))
+                            for a in ("fx", "fy", "moment")), 0.0])
     raise InputError(f"release must be a TipForce, TipMoment or their sum, got "
                      f"{type(release).__name__}")
 
@@ -168,11 +181,12 @@ class Run:
     def profiles(self, times: Sequence[float] | float, points_per_element: int = 8):
         """Beam shapes at the given output times: a list of (x, y) arrays
         (x = s + u, y = w). Each time must be one of ``run.t``."""
-        times = np.atleast_1d(np.asarray(times, dtype=float))
+        times = _check.reals("times", times, scalar=True)
         nbeams, params = _model_args(self._model)
         nel = nbeams * self.elements_per_beam
-        if int(points_per_element) < 1:
-            raise InputError(f"points_per_element = {points_per_element}, expected >= 1")
+        points_per_element = _check.count("points_per_element", points_per_element, min=1)
+        check_memory(8 * 3 * nel * points_per_element,
+                     f"points_per_element = {points_per_element}: the profiles", ".2g")
         npts = nel * int(points_per_element) + 1
         out = []
         for tt in times:
@@ -192,7 +206,6 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         if modes != "transverse":
             raise InputError(f"modes = {modes!r}, expected an integer, 'transverse' or a "
                              "sequence of mode numbers")
-        from .fe import modes as fe_modes
         rotary = any(v != 0.0 for k, v in model.params.items() if k.startswith("J_"))
         md = fe_modes(model, nepb, rotary_inertia=rotary)
         return tuple(int(i) + 1 for i in np.flatnonzero(~md.is_axial))
@@ -205,8 +218,8 @@ def _mode_numbers(model, nepb: int, nfree: int, modes) -> tuple[int, ...] | None
         return tuple(range(1, int(modes) + 1))
     try:
         nums = [int(m) for m in modes]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"modes = {modes!r}, expected integers") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"modes = {_check.show(modes)}, expected integers") from exc
     if any(float(m) != int(m) for m in modes):
         raise InputError(f"modes = {modes!r}, expected integer mode numbers")
     bad = [m for m in nums if not 1 <= m <= nfree]
@@ -223,7 +236,8 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
              atol: float | None = None, h0: float | None = None,
              initial_state: np.ndarray | None = None,
              modes: int | str | Sequence[int] | None = None,
-             wrt: Sequence[str] | str | None = None) -> Run:
+             wrt: Sequence[str] | str | None = None,
+             loads=None) -> Run:
     """Release the chain from rest at the static shape under ``release`` and
     integrate M q'' + NLT(q) = Q(q, q') (Eq. 98-107) to the times ``t_out``.
 
@@ -255,47 +269,69 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         sensitivities (Eq. 135-140; docs/dynamics.md) come back in ``run.d``,
         e.g. ``run.d["tip_w"]["rho1"]``. Full model only; the released shape's
         sensitivity comes from the static equilibrium.
+    loads: load histories acting from t = 0 (docs/loads.md): a mapping from
+        target (``"tip_fx"``, ``"tip_fy"``, ``"tip_torque"``, ``"motor_open"``) to a
+        :class:`beamid.HalfSine`, :class:`beamid.Step`, :class:`beamid.Chirp` or
+        :class:`beamid.Table`, or a sequence of (target, history) pairs. Each
+        adds a work line to the ledger and its parameters to ``wrt``
+        (``tip_fy_amplitude``, ``tip_fy_duration``, ...). With ``release=None``
+        the arm starts at rest, undeformed.
     """
+    histories = loads
     nbeams, params = _model_args(model)
-    if integrator not in INTEGRATORS:
-        raise InputError(f"integrator = {integrator!r}, expected one of {sorted(INTEGRATORS)}")
+    _check.choice("integrator", integrator, INTEGRATORS)
     if friction is None:
         friction = DEFAULT_FRICTION
-    if friction not in FRICTION_LAWS:
-        raise InputError(f"friction = {friction!r}, expected one of {sorted(FRICTION_LAWS)}")
-    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam,
-                                                               (int, np.integer)):
-        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer")
+    _check.choice("friction", friction, FRICTION_LAWS)
+    _mesh_size(nbeams, elements_per_beam)
     if t_out is None:
         raise InputError("t_out is required (ascending output times in s)")
-    t = np.ascontiguousarray(np.atleast_1d(np.asarray(t_out, dtype=float)))
-    if t.ndim != 1 or t.size == 0:
-        raise InputError("t_out must be a non-empty 1-d sequence of times")
-    for name, value in (("dt", dt), ("rtol", rtol), ("atol", atol), ("h0", h0),
-                        ("friction_velocity", friction_velocity)):
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} = {value!r}, expected a positive number")
-    gain = float(motor_gain)
-    if not np.isfinite(gain) or gain < 0:
-        raise InputError(f"motor_gain = {motor_gain!r}, expected a finite number >= 0")
+    t = np.ascontiguousarray(_check.reals("t_out", t_out, scalar=True, min_size=1))
+    dt, rtol, atol, h0, friction_velocity = (
+        _check.real(name, value, above=0.0, none=True, expected="a positive number")
+        for name, value in (("dt", dt), ("rtol", rtol), ("atol", atol), ("h0", h0),
+                            ("friction_velocity", friction_velocity)))
+    gain = _check.real("motor_gain", motor_gain, min=0.0)
     loads = _release_loads(release)
     nfree, nstate, nwork = _cd.sizes(nbeams, params, int(elements_per_beam), gain)
     # the history arrays (input validation, issue 16)
     check_memory(8 * (nstate + nwork + 8) * t.size, f"t_out has {t.size} times: the history",
                  ".1f")
     if initial_state is not None:
-        initial_state = np.asarray(initial_state, dtype=float)
-        if initial_state.shape != (nstate,):
-            raise InputError(f"initial_state has shape {initial_state.shape}, "
-                             f"expected ({nstate},)")
+        initial_state = _check.reals("initial_state", initial_state, shape=(nstate,))
     vslip = DEFAULT_FRICTION_VELOCITY if friction_velocity is None else friction_velocity
     kept = _mode_numbers(model, int(elements_per_beam), nfree, modes)
-    wrt_list = _wrt_indices(nbeams, params.size, wrt)
+    lspec = ltab = None
+    lwork: tuple[str, ...] = ()
+    lpars: tuple[str, ...] = ()
+    if histories is not None:
+        lspec, ltab = _lh.columns(histories)
+        lwork, lpars = _cd.load_names(lspec, ltab)
+        nwork += len(lwork)
+        _warn_chirp(model, int(elements_per_beam), histories)
+    wrt_list = _wrt_indices(nbeams, params.size, wrt, lpars)
     d: dict = {}
     dstates: dict = {}
     common = (nbeams, params, int(elements_per_beam), loads, gain, INTEGRATORS[integrator],
               FRICTION_LAWS[friction], vslip, dt or 0.0, rtol or 0.0, atol or 0.0, h0 or 0.0)
-    if wrt_list:
+    if lspec is not None:
+        if wrt_list and kept is not None:
+            raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
+        if wrt_list and initial_state is not None:
+            raise InputError("wrt= (sensitivities) starts from the release: drop "
+                             "initial_state=")
+        (states, tip, torque, ledger, work, info, evs, yq, dy, ds) = _cd.forced(
+            *common, initial_state, t, nstate, nwork,
+            None if kept is None else np.array(kept),
+            np.array([i for _, i in wrt_list], dtype=np.int32), lspec, ltab)
+        if wrt_list:
+            qnames = _cd.quantity_names()
+            for iq, qn in enumerate(qnames):
+                d[qn] = {name: dy[iq, :, j] for j, (name, _) in enumerate(wrt_list)}
+            for alias, qn in _QUANTITY_ALIASES.items():
+                d[alias] = d[qn]
+            dstates = {name: ds[:, :, j] for j, (name, _) in enumerate(wrt_list)}
+    elif wrt_list:
         if kept is not None:
             raise InputError("wrt= (sensitivities) needs the full model: drop modes=")
         if initial_state is not None:
@@ -313,7 +349,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
         states, tip, torque, ledger, work, info, evs = _cd.simulate(
             *common, initial_state, t, nstate, nwork, None if kept is None else np.array(kept))
     led = {"kinetic": ledger[0], "potential": ledger[1], "total": ledger[2],
-           **dict(zip(work_names(nbeams), work)), "numerical": ledger[3]}
+           **dict(zip(work_names(nbeams) + lwork, work)), "numerical": ledger[3]}
     return Run(t=t, tip_u=tip[0], tip_w=tip[1], tip_angle=tip[2], energy=ledger[2],
                work=work.sum(axis=0), motor_torque=torque, ledger=led, states=states,
                integrator=integrator, friction=friction,
@@ -330,13 +366,14 @@ SENSITIVITY_QUANTITIES = _cd.quantity_names()
 _QUANTITY_ALIASES = {"tip_u": "u_tip", "tip_w": "w_tip"}
 
 
-def _wrt_indices(nbeams: int, nparams: int, wrt) -> list[tuple[str, int]]:
-    """(name, 1-based Fortran index) of each requested sensitivity."""
+def _wrt_indices(nbeams: int, nparams: int, wrt,
+                 extra: Sequence[str] = ()) -> list[tuple[str, int]]:
+    """(name, 1-based Fortran index) of each requested sensitivity; ``extra``:
+    the load histories' parameter names, after the release load's."""
+    wrt = _check.names("wrt", wrt, none=True)
     if wrt is None:
         return []
-    if isinstance(wrt, str):
-        wrt = (wrt,)
-    names = _cd.wrt_names(nbeams, nparams)
+    names = _cd.wrt_names(nbeams, nparams) + tuple(extra)
     index = {n: i + 1 for i, n in enumerate(names)}
     for comp in ("fx", "fy", "moment"):
         index[comp] = index[f"load_{comp}"]

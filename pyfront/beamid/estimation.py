@@ -21,7 +21,7 @@ from typing import Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from . import _core_estimation as _ce
+from . import _check, _core_estimation as _ce
 from . import observations
 from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
@@ -31,6 +31,16 @@ from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
 FLAG_TEXT = dict(_ce.FLAG_NAMES)
+#: the flag of a determined estimate whose sigma exceeds 20 % of its value
+#: (FLAG_WEAK, its threshold WEAK_RELATIVE_SIGMA in beamid_estimation.f90, the
+#: one place it is set); not a problem of the fit
+WEAK = "weak"
+
+
+def flag_is_problem(flag: str) -> bool:
+    """A flag that says the fit cannot be trusted for that parameter (not
+    "ok", not "weak": a weak estimate is determined, only poorly)."""
+    return flag not in ("ok", WEAK)
 #: row of a release's value column that selects its Jacobian (beamid_inverse
 #: EV_FD, 0-based): 0 forward sensitivities, 1 central differences, 2 exact
 _EV_FD = 11
@@ -128,6 +138,16 @@ class FitResult:
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        est = ", ".join(f"{n} = {self.estimates[n]:.6g} +- {self.sigmas[n]:.3g} "
+                        f"({self.flags[n]})" for n in self.free[:6])
+        more = f", ... ({len(self.free)} free)" if len(self.free) > 6 else ""
+        return (f"<FitResult {self.stop} after {self.iterations} iterations: {est}{more}; "
+                f"chi2 {self.chi2:.4g} for {self.dof} dof>")
+
 
 # ----------------------------------------------------------------- building blocks
 
@@ -193,9 +213,7 @@ def _check_stations(model: Model, data: Measurements, parsed: dict) -> None:
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
-    if isinstance(free, str):
-        free = (free,)
-    names = tuple(str(f) for f in free)
+    names = _check.names("free", free)
     if not names:
         raise InputError("free is empty: name the parameters to estimate, e.g. "
                          "free=('EI1', 'EI2')")
@@ -209,7 +227,7 @@ def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], n
 def _prior_arrays(model: Model, free: tuple[str, ...],
                   prior: Mapping[str, tuple[float, float]] | None):
     out, rows = {}, []
-    for name, spec in dict(prior or {}).items():
+    for name, spec in (_check.mapping("prior", prior, none=True) or {}).items():
         canonical = model.names()[model.index(name)]
         if canonical not in free:
             raise InputError(f"prior names {name!r}, which is not free (free: "
@@ -256,7 +274,7 @@ def _warnings(free: tuple[str, ...], flags: np.ndarray, corr: np.ndarray, cond: 
     elif cond > 1e6:
         out.append(f"ill-conditioned problem (condition number {cond:.3g})")
     for i, name in enumerate(free):
-        if flags[i] != 0:
+        if flag_is_problem(FLAG_TEXT.get(int(flags[i]), "flagged")):
             out.append(f"{name}: {FLAG_TEXT.get(int(flags[i]), 'flagged')}")
     for i in range(len(free)):
         for j in range(i + 1, len(free)):
@@ -272,14 +290,8 @@ def _check_fit_args(data, tol, max_iter) -> None:
     if not isinstance(data, Measurements):
         raise InputError(f"data = {type(data).__name__}, expected beamid.Measurements "
                          "(beamid.read_measurements)")
-    try:
-        ok = float(tol) >= 0.0 and np.isfinite(float(tol))
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InputError(f"tol = {tol!r}, expected 0 (default) or a positive tolerance")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise InputError(f"max_iter = {max_iter!r}, expected an integer >= 1")
+    _check.real("tol", tol, min=0.0, expected="0 (default) or a positive tolerance")
+    _check.count("max_iter", max_iter, min=1)
 
 
 def fit(model: Model, experiments: Experiments, data: Measurements,
@@ -339,8 +351,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     _check_fit_args(data, tol, max_iter)
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
-    if jacobian not in ("auto", "exact"):
-        raise InputError(f"jacobian = {jacobian!r}, expected 'auto' or 'exact'")
+    _check.choice("jacobian", jacobian, ("auto", "exact"))
     prob = build_problem(model, experiments, data, tol)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
@@ -360,7 +371,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
 def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
     """The free parameters of a fit carrying ``prior`` forward: the ones
     asked for, then the previous fit's (Eq. 147: both are updated)."""
-    names = (free,) if isinstance(free, str) else tuple(free)
+    names = _check.names("free", free)
     return names + tuple(n for n in prior.free if n not in names)
 
 
@@ -442,12 +453,7 @@ def _check_quantities(exps, quantities, sigma) -> None:
                 raise InputError(f"sigma has no entry for quantity {q!r}")
     values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]
     for v in values:
-        try:
-            ok = float(v) > 0.0 and np.isfinite(float(v))
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InputError(f"sigma = {v!r}, expected a finite standard deviation > 0")
+        _check.real("sigma", v, above=0.0, expected="a finite standard deviation > 0")
 
 
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
@@ -463,8 +469,14 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     the :class:`beamid.Release` experiments (one sequence for all, or
     ``{experiment: times}``); static experiments are measured at t = 0.
     """
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     exps = _check_experiments(experiments)
     _check_quantities(exps, quantities, sigma)
+    seed = _check.count("seed", seed, min=0, max=2**128, none=True)
+    noise = _check.flag("noise", noise)
+    if isinstance(t, Mapping):
+        t = {str(k): v for k, v in t.items()}
     mixed = any(isinstance(x, Release) for x in exps.values())
     rows = []
     for name, x in exps.items():
@@ -474,7 +486,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
             times = t.get(name) if isinstance(t, Mapping) else t
             if times is None:
                 raise InputError(f"t: no measurement times for the release experiment {name!r}")
-            times = [float(v) for v in np.atleast_1d(np.asarray(times, float))]
+            times = [float(v) for v in _check.reals("t", times, scalar=True, min=0.0)]
         elif not mixed:     # static experiments alone: solved here, measured by name
             result = solve_static(model, x)
         for tk in times:
@@ -500,6 +512,7 @@ class StageSigma(NamedTuple):
     estimate: float
     sigma_before: float   # a priori (math.inf: not estimated before)
     sigma_after: float
+    flag: str = ""        # the stage fit's flag of the parameter ("ok", "weak", ...)
 
 
 @dataclass(frozen=True)
@@ -517,17 +530,24 @@ class Identification:
     def summary(self) -> str:
         w = max([10] + [len(r.stage) + 2 for r in self.table])
         lines = [f"{'stage':<{w}}{'parameter':<12}{'estimate':>12}{'sigma before':>14}"
-                 f"{'sigma after':>13}"]
+                 f"{'sigma after':>13}  flag"]
         for r in self.table:
             lines.append(f"{r.stage:<{w}}{r.parameter:<12}{r.estimate:>12.4g}"
-                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}")
+                         f"{r.sigma_before:>14.3g}{r.sigma_after:>13.3g}  {r.flag}")
         return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def __repr__(self) -> str:
+        return (f"<Identification: {len(self.stages)} stages ({', '.join(self.stages)}); "
+                f"print() shows the table>")
 
     def plot(self, ax=None):
         """Bar chart of sigma / estimate per stage and parameter (log scale)."""
         import matplotlib.pyplot as plt
-        if ax is None:
-            _, ax = plt.subplots(figsize=(6.4, 3.6))
+        if _check.axes("ax", ax) is None:
+            _, ax = plt.subplots(figsize=(6.4, 3.8), layout="constrained")
         names = list(dict.fromkeys(r.parameter for r in self.table))
         stages = list(self.stages)
         width = 0.8 / max(len(stages), 1)
@@ -538,8 +558,10 @@ class Identification:
             ax.bar(np.arange(len(names)) + k * width, vals, width, label=stage)
         ax.set_xticks(np.arange(len(names)) + 0.4 - width / 2, names)
         ax.set_yscale("log")
-        ax.set_ylabel("sigma / estimate after the stage")
-        ax.legend()
+        ax.set_xlabel("parameter")
+        ax.set_ylabel("sigma / estimate after the stage (-)")
+        ax.set_title("what each stage taught: relative sigma after it")
+        ax.legend(title="stage")
         return ax
 
 
@@ -569,8 +591,19 @@ def _identify(model: Model, stages, max_iter, starts, stage_fit) -> Identificati
     """:func:`identify` with stage ``name``'s fit made by ``stage_fit(name,
     start model, experiments, data, free, prior, max_iter)`` (as :func:`fit`
     with a dict prior or the previous stage's FitResult)."""
+    if isinstance(stages, (str, bytes)) or not isinstance(stages, (Mapping, Sequence)):
+        _check.fail("stages", stages, "{name: (experiments, data, free)} or a list of such "
+                    "triples")
     items = list(stages.items()) if isinstance(stages, Mapping) else [
         (f"stage{k + 1}", s) for k, s in enumerate(stages)]
+    starts = _check.mapping("starts", starts, none=True)
+    for name, start in (starts or {}).items():
+        _check.instance(f"starts[{name!r}]", start, Model, "a beamid.Model")
+    if isinstance(max_iter, Mapping):
+        for name, limit in max_iter.items():
+            _check.count(f"max_iter[{name!r}]", limit, min=1)
+    else:
+        _check.count("max_iter", max_iter, min=1)
     if not items:
         raise InputError("stages is empty: give {name: (experiments, data, free)}")
     fits: dict[str, FitResult] = {}
@@ -588,12 +621,14 @@ def _identify(model: Model, stages, max_iter, starts, stage_fit) -> Identificati
             carried = {n: current[n] for n in (previous.free if previous else ())}
             current = starts[name].replace(**carried) if carried else starts[name]
         limit = max_iter.get(name, 50) if isinstance(max_iter, Mapping) else max_iter
+        free = _check.names(f"stage {name!r}: free", free)
         fit_k = stage_fit(name, current, exps, data, free, prior, limit)
         for p in fit_k.free:
             before = known.get(p, math.inf)
             if isinstance(prior, Mapping) and p in fit_k.prior:
                 before = fit_k.prior[p][1]
-            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p]))
+            table.append(StageSigma(name, p, fit_k.estimates[p], before, fit_k.sigmas[p],
+                                    fit_k.flags.get(p, "")))
             known[p] = fit_k.sigmas[p]
         fits[name] = fit_k
         current, previous = fit_k.model, fit_k

@@ -24,8 +24,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import _core
+from . import _check, _core
 from .errors import InputError, check_memory
+from .model import Model
 
 __all__ = [
     "FEStatic", "FEPath", "FEBuckling", "FEModes", "ModalCost",
@@ -45,19 +46,13 @@ MOMENT_FORMS = {"eq78": 0, "exact": 1}
 
 
 def _model_args(model: Any) -> tuple[int, np.ndarray]:
-    try:
-        nbeams = int(model.nbeams)
-        params = np.ascontiguousarray(model.vector(), dtype=np.float64)
-    except AttributeError as exc:
-        raise InputError(f"model must be a beamid Model, got {type(model).__name__}") from exc
-    return nbeams, params
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a beamid Model, got {type(model).__name__}")
+    return model.nbeams, np.ascontiguousarray(model.vector(), dtype=np.float64)
 
 
 def _mesh_size(nbeams: int, elements_per_beam: int) -> tuple[int, int]:
-    if isinstance(elements_per_beam, bool) or not isinstance(elements_per_beam, (int, np.integer)):
-        raise InputError(f"elements_per_beam = {elements_per_beam!r}, expected an integer >= 1")
-    if elements_per_beam < 1:
-        raise InputError(f"elements_per_beam = {elements_per_beam}, expected at least 1")
+    elements_per_beam = _check.count("elements_per_beam", elements_per_beam, min=1)
     nnode = nbeams * int(elements_per_beam) + 1
     # the bound of the deck reader (beamid_deck check_mesh_size): about 40
     # numbers per unknown in the banded solvers
@@ -86,9 +81,7 @@ def _mesh(model: Any, elements_per_beam: int,
 
 
 def _moment_form(form: str) -> int:
-    if form not in MOMENT_FORMS:
-        raise InputError(f"moment_form = {form!r}, expected one of {sorted(MOMENT_FORMS)}")
-    return MOMENT_FORMS[form]
+    return MOMENT_FORMS[_check.choice("moment_form", form, MOMENT_FORMS)]
 
 
 def _load_components(load: Any) -> np.ndarray:
@@ -108,7 +101,7 @@ def _load_components(load: Any) -> np.ndarray:
         "(expected TipForce, TipMoment, their sum, or a list of them)")
 
 
-def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
+def _outboard_table(start: Any, table: np.ndarray, name: str = "start") -> np.ndarray:
     """(2, nnode) outboard slopes (u'+, w'+) of `start` (a result with an
     `outboard` table, or a pair (nodes, outboard)); else rows u', w' of table."""
     out = getattr(start, "outboard", None)
@@ -116,47 +109,57 @@ def _outboard_table(start: Any, table: np.ndarray) -> np.ndarray:
         out = start[1]
     if out is None:
         return np.asfortranarray(table[[2, 4]])
-    arr = np.asarray(out)
-    if arr.dtype.names is not None:
-        arr = np.stack([arr[name] for name in OUTBOARD_FIELDS])
-    arr = np.asarray(arr, dtype=np.float64)
+    arr = _numbers(out, f"{name}: outboard slopes", "a structured table (du, dw) or a "
+                   "(2, nnode) array", OUTBOARD_FIELDS)
     nnode = table.shape[1]
     if arr.shape == (nnode, 2) and arr.shape != (2, nnode):
         arr = arr.T
     if arr.shape != (2, nnode) or not np.all(np.isfinite(arr)):
-        raise InputError(f"outboard slopes have shape {arr.shape}, expected finite "
-                           f"(2, {nnode})")
+        raise InputError(f"{name}: outboard slopes have shape {arr.shape}, expected finite "
+                         f"(2, {nnode})")
     return np.asfortranarray(arr)
 
 
-def _node_tables(start: Any, nnode: int) -> tuple[np.ndarray, np.ndarray]:
+def _numbers(value: Any, name: str, expected: str, fields: tuple[str, ...]) -> np.ndarray:
+    """A float array from a structured table (its ``fields``) or an array of numbers."""
+    if isinstance(value, (str, bytes)):
+        _check.fail(name, value, expected)
+    try:
+        arr = np.asarray(value)
+        if arr.dtype.names is not None:
+            arr = np.stack([arr[field] for field in fields])
+        return np.asarray(arr, dtype=np.float64)
+    except (TypeError, ValueError, KeyError, OverflowError):
+        _check.fail(name, value, expected)
+
+
+def _node_tables(start: Any, nnode: int,
+                 name: str = "start") -> tuple[np.ndarray, np.ndarray]:
     """Node table and outboard table of a starting shape (None: the straight
     chain at rest, zeros)."""
     if start is None:
         return np.zeros((5, nnode), order="F"), np.zeros((2, nnode), order="F")
-    table = _node_table(start, nnode)
-    return table, _outboard_table(start, table)
+    table = _node_table(start, nnode, name)
+    return table, _outboard_table(start, table, name)
 
 
-def _node_table(start: Any, nnode: int) -> np.ndarray:
+def _node_table(start: Any, nnode: int, name: str = "start") -> np.ndarray:
     """A (5, nnode) Fortran-ordered table from a result, structured nodes or an array."""
     if isinstance(start, tuple) and len(start) == 2:
         start = start[0]
     if isinstance(start, (FEStatic, FEBuckling)):
         start = start.nodes
-    arr = np.asarray(start)
-    if arr.dtype.names is not None:
-        arr = np.stack([arr[name] for name in NODE_FIELDS])
-    arr = np.asarray(arr, dtype=np.float64)
+    arr = _numbers(start, name, "an FEStatic, FEBuckling, a structured node "
+                   "table or a (5, nnode) array", NODE_FIELDS)
     # a (nnode, 5) array is taken node by node, unless it is already (5, nnode)
     # (nnode = 5: two beams of two elements; structured input is stacked above)
     if arr.shape == (nnode, 5) and arr.shape != (5, nnode):
         arr = arr.T
     if arr.shape != (5, nnode):
-        raise InputError(f"starting shape has shape {arr.shape}, expected (5, {nnode}) "
-                           "or a result of the same mesh")
+        raise InputError(f"{name} (a shape) has shape {arr.shape}, expected (5, {nnode}) "
+                         "or a result of the same mesh")
     if not np.all(np.isfinite(arr)):
-        raise InputError("starting shape is not finite")
+        raise InputError(f"{name} (a shape) is not finite")
     return np.asfortranarray(arr)
 
 
@@ -277,6 +280,8 @@ def fe_static(model: Any, load: Any, elements_per_beam: int = 8, *, start: Any =
     comps = _load_components(load)
     loads = np.array([*comps, _moment_form(moment_form)], dtype=np.float64)
     guess, guess_out = _node_tables(start, nnode)
+    steps = _check.count("steps", steps, min=0)
+    tol = _check.real("tol", tol, min=0.0)
     nodes, nodes_out, energy, reactions, residual, info = _core.fe_static(
         nbeams, params, int(elements_per_beam), loads, int(start is not None), int(steps),
         float(tol), guess, guess_out)
@@ -313,7 +318,7 @@ class FEPath:
 
     def crossings(self, value: float) -> list[int]:
         """Indices i with lam[i] and lam[i+1] on either side of `value`."""
-        s = self.lam - value
+        s = self.lam - _check.real("value", value)
         return [i for i in range(len(s) - 1) if s[i] == 0 or s[i] * s[i + 1] < 0]
 
 
@@ -332,9 +337,16 @@ def fe_path(model: Any, load0: Any, dload: Any, elements_per_beam: int = 8, *, s
     dc = _load_components(dload)
     loads = np.array([*c0, _moment_form(moment_form)], dtype=np.float64)
     guess, guess_out = _node_tables(start, nnode)
-    if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) \
-            or max_points < 1:
-        raise InputError(f"max_points = {max_points!r}, expected an integer >= 1")
+    max_points = _check.count("max_points", max_points, min=1)
+    lam0 = _check.real("lam0", lam0)
+    ds = _check.real("ds", ds, above=0.0)
+    ds_max = _check.real("ds_max", ds_max, above=0.0)
+    if not _check.is_int(direction) or int(direction) not in (1, -1):
+        _check.fail("direction", direction, "1 or -1 (the sign of the first change of lam)")
+    lam_range = _check.reals("lam_range", lam_range, shape=(2,))
+    if not lam_range[0] < lam_range[1]:
+        _check.fail("lam_range", lam_range, "(lam_min, lam_max) with lam_min < lam_max")
+    tol = _check.real("tol", tol, min=0.0)
     check_memory(8 * 7 * nnode * int(max_points), f"max_points = {max_points}: the path")
     npts, lam, nodes, nodes_out = _core.fe_path(
         nbeams, params, int(elements_per_beam), loads, dc, guess, guess_out,
@@ -387,6 +399,7 @@ class ModalCost:
 
     def select(self, fraction: float = 0.999) -> list[int]:
         """Smallest set of modes (1-based, ascending) holding `fraction` of the cost."""
+        fraction = _check.real("fraction", fraction, above=0.0, max=1.0)
         order = np.argsort(-self.cost, kind="stable")
         share = np.cumsum(self.cost[order]) / np.sum(self.cost)
         count = int(np.searchsorted(share, fraction) + 1)
@@ -428,9 +441,8 @@ class FEModes:
 
     def _tables(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.omega)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= n:
-            raise InputError(f"mode i = {i!r}, expected a mode number 1..{n} (1-based, "
-                               "ascending frequency)")
+        i = _check.count("mode i", i, min=1, max=n, expected=f"a mode number 1..{n} (1-based, "
+                         "ascending frequency)")
         nnode = int(self.dofs[:, 0].max())
         table = np.zeros((5, nnode))
         out = np.zeros((2, nnode))
@@ -453,9 +465,10 @@ class FEModes:
         starts from `shape` (FEStatic or node table) with `velocity` over [0, t]
         (default: the period of the first mode)."""
         nbeams, params, nnode, nfree = _mesh(self._model, self.elements_per_beam, hinged=True)
-        q0 = _node_table(shape, nnode)     # a shape is needed (None: no zeros)
-        q0_out = _outboard_table(shape, q0)
-        v0, v0_out = _node_tables(velocity, nnode)
+        t = _check.real("t", t, above=0.0, none=True)
+        q0 = _node_table(shape, nnode, "shape")     # a shape is needed (None: no zeros)
+        q0_out = _outboard_table(shape, q0, "shape")
+        v0, v0_out = _node_tables(velocity, nnode, "velocity")
         span = 2 * np.pi / self.omega[0] if t is None else float(t)
         omega, eta, kin, pot = _core.fe_modal_cost(
             nbeams, params, int(self.elements_per_beam),
@@ -469,6 +482,7 @@ def modes(model: Any, elements_per_beam: int = 4, *, rotary_inertia: bool = Fals
     (w) and axial (u) families. Rotary inertia of the end masses (Eq. 130-132)
     is off by default, as in the dissertation's tables."""
     nbeams, params, _, nfree = _mesh(model, elements_per_beam, hinged=True)
+    rotary_inertia = _check.flag("rotary_inertia", rotary_inertia)
     check_memory(8 * 3 * nfree**2, f"elements_per_beam = {elements_per_beam}: the modes "
                  f"(dense eigenproblem of {nfree} unknowns)")
     omega, phi, axial, dofs = _core.fe_modes(nbeams, params, int(elements_per_beam),
@@ -483,6 +497,7 @@ def axial_modes_linear(model: Any, elements_per_beam: int = 4, *,
     """Axial frequencies of the linear-u verification model (Eq. 114). Table 7's
     axial column is this model without point masses, from its 2nd frequency."""
     nbeams, params, _, _ = _mesh(model, elements_per_beam)
+    point_masses = _check.flag("point_masses", point_masses)
     omega = _core.fe_axial_linear(nbeams, params, int(elements_per_beam),
                                   int(bool(point_masses)))
     return np.array(omega)

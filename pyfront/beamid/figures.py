@@ -27,10 +27,11 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from .dynamics import simulate
 from .errors import InputError
 from .loads import TipForce
 from .model import pace
-from .plotting import _axes
+from .plotting import _axes, agg_pyplot, save_png
 
 __all__ = ["FIGURES", "GAINS", "FIGURE_TIMES", "QUARTER_PERIOD_TIMES", "figure_runs",
            "plot_tip_history", "plot_profiles", "plot_tip_and_torque", "figure20",
@@ -51,8 +52,6 @@ _LABELS = {"tip_w": "tip transverse deflection w (m)",
 def figure_runs(gains: Iterable[float] = GAINS, t_out: Sequence[float] | None = None,
                 integrator: str = "implicit", elements_per_beam: int = 4) -> dict:
     """The runs behind Figures 20-25, one per motor gain: ``{gain: Run}``."""
-    from .dynamics import simulate
-
     model = pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
     times = FIGURE_TIMES if t_out is None else np.asarray(t_out, dtype=float)
     return {float(g): simulate(model, TipForce(fy=8.0), times,
@@ -123,26 +122,36 @@ def _runs(runs: Mapping | None, gains: Iterable[float]) -> dict:
     return runs
 
 
+def _span(run) -> str:
+    """The time span of a run's output in words: "over a period (2.6 s)" for
+    the dissertation's span, else "over 0-0.8 s"."""
+    t0, t1 = float(run.t[0]), float(run.t[-1])
+    if abs(t0) < 1e-12 and abs(t1 - FIGURE_TIMES[-1]) < 1e-9:
+        return f"over a period ({t1:g} s)"
+    return f"over {t0:g}-{t1:g} s"
+
+
 def _tip_figure(runs, gains: Sequence[float], quantity: str, title: str, ax):
     """``quantity`` of the runs of ``gains`` against time (labelled by gain
-    when several), titled."""
+    when several), titled with ``title`` and the runs' time span."""
     runs = _runs(runs, gains)
-    ax = plot_tip_history([runs[float(g)] for g in gains], [f"g = {g:g}" for g in gains]
+    shown = [runs[float(g)] for g in gains]
+    ax = plot_tip_history(shown, [f"g = {g:g}" for g in gains]
                           if len(gains) > 1 else None, quantity=quantity, ax=ax)
-    ax.set_title(title)
+    ax.set_title(f"{title} {_span(shown[0])}")
     return ax
 
 
 def figure20(runs: Mapping | None = None, ax=None):
-    """Figure 20: tip transverse deflection over a period (friction)."""
-    return _tip_figure(runs, [0.0], "tip_w", "Figure 20. Tip transverse deflection over a "
-                       "period", ax)
+    """Figure 20: tip transverse deflection over a period (friction); the
+    title gives the span of the runs drawn."""
+    return _tip_figure(runs, [0.0], "tip_w", "Figure 20. Tip transverse deflection", ax)
 
 
 def figure21(runs: Mapping | None = None, ax=None):
-    """Figure 21: tip longitudinal deflection over a period (friction)."""
-    return _tip_figure(runs, [0.0], "tip_u", "Figure 21. Tip longitudinal deflection over a "
-                       "period", ax)
+    """Figure 21: tip longitudinal deflection over a period (friction); the
+    title gives the span of the runs drawn."""
+    return _tip_figure(runs, [0.0], "tip_u", "Figure 21. Tip longitudinal deflection", ax)
 
 
 def figure22(runs: Mapping | None = None, ax=None):
@@ -155,13 +164,13 @@ def figure22(runs: Mapping | None = None, ax=None):
 def figure23(runs: Mapping | None = None, ax=None):
     """Figure 23: effect of the gain values on the tip transverse displacement."""
     return _tip_figure(runs, GAINS, "tip_w", "Figure 23. Effect of gain values on tip "
-                       "transverse displacements", ax)
+                       "transverse displacements,", ax)
 
 
 def figure24(runs: Mapping | None = None, ax=None):
     """Figure 24: effect of the gain values on the tip longitudinal displacement."""
     return _tip_figure(runs, GAINS, "tip_u", "Figure 24. Effect of gain values on tip "
-                       "longitudinal displacements", ax)
+                       "longitudinal displacements,", ax)
 
 
 def figure25(runs: Mapping | None = None, ax=None):
@@ -196,8 +205,6 @@ def write_figures(out: str | Path, names: Iterable[str] = (), runs: Mapping | No
                   dpi: int = 110) -> list[Path]:
     """Draw the named figures (all by default) as ``out/figureNN.png``; the
     runs are computed once (only the gains the figures need) unless given."""
-    from .plotting import agg_pyplot, save_png
-
     agg_pyplot()
     wanted = figure_names(names)
     gains = {0.0} if set(wanted) <= {"figure20", "figure21", "figure22"} else set(GAINS)

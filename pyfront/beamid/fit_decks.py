@@ -24,15 +24,17 @@ from typing import Any
 
 import numpy as np
 
-from . import _core
+from . import _check, _core
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
-                         _result as _fit_result)
+                         _result as _fit_result, identify)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
+from .plot_fit import ladder_titles, plot_compare, plot_ladder
+from .plotting import agg_pyplot, save_png
 
 FIT_TASKS = ("fit", "compare", "diagnose", "improve", "identify")
 
@@ -62,12 +64,18 @@ class Published:
     values: dict[str, tuple[float, int]]  # quantity -> (value, decimal digits)
     deviations: tuple[str, ...] = ()
     note: str = ""
+    #: the class of the deviations ("formulation", "random draws",
+    #: "unexplained"; "" for none given) and the heading of docs/deviations.md
+    #: that explains them
+    kind: str = ""
+    section: str = ""
 
 
 def published(values: dict) -> tuple[Published, ...]:
     """The &published groups as read by the Fortran reader."""
     return tuple(Published(table=g["table"], row=g["row"], values=g["values"],
-                           deviations=tuple(g["deviations"]), note=g["note"])
+                           deviations=tuple(g["deviations"]), note=g["note"],
+                           kind=g.get("kind", ""), section=g.get("section", ""))
                  for g in values["published"])
 
 
@@ -83,10 +91,7 @@ def load(kind: int, values: list[float]) -> Load | Release:
 
 def check_path(path: Any, what: str = "path") -> Path:
     """``path`` as a Path; InputError naming ``what`` unless a str or os.PathLike."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_deck: {what} = {path!r}, expected a deck file path "
-                         "(str or os.PathLike)")
-    return Path(path)
+    return _check.path(f"read_deck: {what}", path)
 
 
 def run_files(deck: Any) -> list[Path]:
@@ -175,24 +180,34 @@ def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     ``output`` may be replaced (``dataclasses.replace(deck, task="diagnose")``);
     a FitDeck differing from its file in any other field raises InputError
     naming the fields (write them into the deck file instead)."""
+    text, files, out, _, figures = _run_fit_deck(deck, plots)
+    return text, files + figures, out
+
+
+def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
+                  ) -> tuple[str, list[Path], Any, str, list[Path]]:
+    """:func:`run_fit_deck` as (text, CSV files, result, the summary line
+    beamid-batch prints, figures written)."""
     if isinstance(deck, FitDeck):
         _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        files = [Path(p) for p in _ce.deck_task_write(str(deck.path), deck.task, deck.output)]
+        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+    files = [Path(p) for p in written]
+    figures: list[Path] = []
     if isinstance(out, Ladder):
         text = str(out)
         if plots:
-            files += _plots(ladder=out, prefix=deck.output_prefix)
+            figures += _plots(ladder=out, prefix=deck.output_prefix)
     elif deck.task == "fit":
         text = out.summary()
     else:
         text = out.fit.summary() + "\n" + str(out) if hasattr(out, "fit") else str(out)
         if deck.task == "compare" and plots:
-            files += _plots(cmp=out, prefix=deck.output_prefix)
-    return text, files, out
+            figures += _plots(cmp=out, prefix=deck.output_prefix)
+    return text, files, out, summary, figures
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -254,20 +269,20 @@ def _deck_result(deck: FitDeck) -> Any:
 
 
 def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
-    from .plot_fit import plot_compare, plot_ladder
-    from .plotting import agg_pyplot, save_png
-
     written = []
     if ladder is not None:
         fig, ax = agg_pyplot().subplots(figsize=(6, 4))
         plot_ladder(ladder, ax=ax)
         fig.tight_layout()
         written.append(save_png(fig, f"{prefix}_ladder.png"))
-        cmp_pairs = [("start", compare(ladder.steps[0].fit)), ("final", compare(ladder.fit))]
+        titles = ladder_titles(ladder)
+        cmp_pairs = [("start", compare(ladder.steps[0].fit), titles[0]),
+                     ("final", compare(ladder.fit), titles[1])]
     else:
-        cmp_pairs = [("", cmp)]
-    for tag, c in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
-        written.append(save_png(plot_compare(c), f"{prefix}_compare{'_' + tag if tag else ''}.png"))
+        cmp_pairs = [("", cmp, None)]
+    for tag, c, title in cmp_pairs:      # one panel per quantity and unit (plot_fit.py)
+        written.append(save_png(plot_compare(c, title=title),
+                                f"{prefix}_compare{'_' + tag if tag else ''}.png"))
     return written
 
 
@@ -312,8 +327,6 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
     written by the Fortran runner of ``beamid-batch`` (the same bytes:
     ``_identify.csv`` and every stage's ``_<stage>_estimates.csv``,
     ``_covariance.csv``, ``_residuals.csv``)."""
-    from .estimation import identify
-
     if not decks:
         raise InputError("identify: give the stage decks in order (static, free, forced)")
     parsed = [d if isinstance(d, FitDeck) else read_fit_deck(d) for d in decks]
@@ -333,14 +346,12 @@ def run_identify(decks: list, plots: bool = True) -> tuple[str, list[Path], Any]
                   for n, d in zip(names, parsed)}
         result = identify(parsed[0].model, stages, max_iter=parsed[0].max_iter,
                           starts={n: d.model for n, d in zip(names, parsed)})
-        lines = ["stage,parameter,estimate,sigma_before,sigma_after"]
+        lines = ["stage,parameter,estimate,sigma_before,sigma_after,flag"]
         lines += [f"{r.stage},{r.parameter},{r.estimate:.16E},{r.sigma_before:.16E},"
-                  f"{r.sigma_after:.16E}" for r in result.table]
+                  f"{r.sigma_after:.16E},{r.flag}" for r in result.table]
         text = "\n".join(lines).replace("INF", "inf") + "\n"
         files = _write_text(prefix.with_name(prefix.name + "_identify.csv"), text)
     if plots:
-        from .plotting import agg_pyplot, save_png
-
         agg_pyplot()
         files.append(save_png(result.plot().figure,
                               prefix.with_name(prefix.name + "_identify.png"), 100))

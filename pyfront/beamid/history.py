@@ -26,6 +26,7 @@ from typing import Iterable
 
 import numpy as np
 
+from .dynamics import simulate
 from .errors import InputError
 
 __all__ = ["SERIES", "series", "run_quantity", "deck_run", "deck_quantities"]
@@ -69,8 +70,6 @@ def run_quantity(run, quantity: str) -> float:
 
 def deck_run(deck):
     """Run a dynamic deck (task simulate) without writing files."""
-    from .dynamics import simulate
-
     if deck.task != "simulate" or not deck.simulate:
         raise InputError(f"{deck.path}: task {deck.task!r} is not a dynamic deck")
     opts = dict(deck.simulate)

@@ -1,12 +1,12 @@
 """Static load cases: fixed-direction tip force, tip moment, both, radial wire."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .dynamics import FRICTION_LAWS as _FRICTION_LAWS, INTEGRATORS as _INTEGRATORS
+from . import _check
 from .errors import InputError
 
 LOAD_TIP = 1
@@ -14,13 +14,7 @@ LOAD_WIRE = 2
 
 
 def _finite(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} = {value!r}, expected a number") from None
-    if not math.isfinite(v):
-        raise InputError(f"{name} = {v}, expected a finite number")
-    return v
+    return _check.real(name, value)
 
 
 @dataclass(frozen=True)
@@ -49,6 +43,7 @@ class TipLoad:
         return TipLoad(self.fx + other.fx, self.fy + other.fy, self.moment + other.moment)
 
     def scaled(self, factor: float) -> "TipLoad":
+        factor = _check.real("factor", factor)
         return TipLoad(self.fx * factor, self.fy * factor, self.moment * factor)
 
     def describe(self) -> str:
@@ -123,27 +118,18 @@ class Release:
         if not isinstance(self.load, TipLoad):
             raise InputError(f"Release: load = {self.load!r}, expected a TipForce / TipMoment "
                              "(the static load held before the release)")
-        nepb = self.elements_per_beam
-        if isinstance(nepb, bool) or not isinstance(nepb, (int, np.integer)) or nepb < 1:
-            raise InputError(f"Release: elements_per_beam = {nepb!r}, expected an integer >= 1")
-        gain = _finite("motor_gain", self.motor_gain)
-        if gain < 0.0:
-            raise InputError(f"Release: motor_gain = {gain:g}, expected >= 0")
+        nepb = _check.count("Release: elements_per_beam", self.elements_per_beam, min=1)
+        # the bound of the mesh (beamid.fe) for one beam; the chain's is checked by the fit
+        _check.memory(8 * 40 * 4 * (nepb + 1), f"Release: elements_per_beam = {nepb}: the mesh")
+        object.__setattr__(self, "elements_per_beam", nepb)
+        gain = _check.real("Release: motor_gain", self.motor_gain, min=0.0)
         object.__setattr__(self, "motor_gain", gain)
-        if self.integrator not in _INTEGRATORS:
-            raise InputError(f"Release: integrator = {self.integrator!r}, expected one of "
-                             f"{sorted(_INTEGRATORS)}")
+        _check.choice("Release: integrator", self.integrator, _INTEGRATORS)
         friction = "sign" if self.friction is None else self.friction
-        if friction not in _FRICTION_LAWS:
-            raise InputError(f"Release: friction = {self.friction!r}, expected one of "
-                             f"{sorted(_FRICTION_LAWS)}")
+        _check.choice("Release: friction", friction, _FRICTION_LAWS)
         for name in ("rtol", "dt"):
-            v = getattr(self, name)
-            if v is not None:
-                v = _finite(name, v)
-                if v <= 0.0:
-                    raise InputError(f"Release: {name} = {v:g}, expected a positive number")
-                object.__setattr__(self, name, v)
+            v = _check.real(f"Release: {name}", getattr(self, name), above=0.0, none=True)
+            object.__setattr__(self, name, v)
         encoded = np.array([self.load.fx, self.load.fy, self.load.moment, 0.0,
                             float(nepb), gain, float(_INTEGRATORS[self.integrator]),
                             float(_FRICTION_LAWS[friction]), self.rtol or 0.0, self.dt or 0.0,
@@ -158,7 +144,11 @@ class Release:
     @classmethod
     def decode(cls, values) -> "Release":
         """The Release of the values in beamid_inverse's EV_* layout (a deck's)."""
-        v = [float(x) for x in values]
+        v = [float(x) for x in _check.reals("values", values, min_size=10)]
+        codes = {6: "integrator", 7: "friction"}
+        for k, what in codes.items():
+            if v[k] not in (0.0, 1.0, 2.0)[: 2 if k == 6 else 3]:
+                _check.fail(f"values[{k}]", v[k], f"a code of the {what}")
         integrators = {c: n for n, c in _INTEGRATORS.items()}
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
         return cls(TipLoad(v[0], v[1], v[2]), elements_per_beam=int(round(v[4])),

@@ -15,19 +15,37 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from . import _core, observations
-from .errors import InputError
+from . import _check, _core, observations
+from .errors import InputError, _write_text
 from .loads import RadialWire, Release, TipLoad
 
 #: Observation kinds, in code order (the Fortran table, beamid_observations);
 #: u_tip = x_tip - (L1 + L2), w_tip = y_tip. A station kind is written
 #: ``kind@beam:s`` (beamid.observations).
 QUANTITIES = _core.quantity_labels()
+
+
+def quantity_unit(quantity: str) -> str:
+    """The unit of a measured quantity (``m``, ``rad``, ``N``, ``N m``, ...):
+    the core's observation table (beamid.observations); a name that is no
+    observation is read by its words (angle: rad, moment or torque: N m,
+    force: N, else m)."""
+    try:
+        return observations.unit(quantity)
+    except InputError:
+        pass
+    q = quantity.lower()
+    if "angle" in q:
+        return "rad"
+    if "moment" in q or "torque" in q:
+        return "N m"
+    if "force" in q:
+        return "N"
+    return "m"
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
 
 
@@ -53,13 +71,24 @@ class Measurements:
     lines: tuple[int, ...] = field(default=())
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "experiment",
+                           _check.names("measurements: experiment", self.experiment))
+        object.__setattr__(self, "quantity",
+                           _check.names("measurements: quantity", self.quantity))
+        _check.text("measurements: source", self.source)
         n = len(self.experiment)
         for name in ("t", "value", "sigma"):
-            arr = np.array(getattr(self, name), dtype=float)
+            # non-finite entries are named by row below
+            arr = _check.reals(f"measurements: {name}", getattr(self, name), finite=False)
             if arr.shape != (n,):
                 raise InputError(f"measurements: {name} has {arr.size} entries for {n} rows")
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+        lines = self.lines
+        if isinstance(lines, (str, bytes)) or not isinstance(lines, (tuple, list)) or \
+                not all(_check.is_int(k) and k >= 0 for k in lines):
+            _check.fail("measurements: lines", lines, "a tuple of source line numbers >= 0")
+        object.__setattr__(self, "lines", tuple(int(k) for k in lines))
         if len(self.quantity) != n:
             raise InputError(f"measurements: quantity has {len(self.quantity)} entries for "
                              f"{n} rows")
@@ -103,11 +132,19 @@ class Measurements:
     @classmethod
     def from_rows(cls, rows: Iterable[Sequence], source: str = "<python>") -> "Measurements":
         """Build from ``(experiment, t, quantity, value, sigma)`` tuples."""
+        _check.text("source", source)
+        if isinstance(rows, (str, bytes, Mapping)) or not isinstance(rows, Iterable):
+            _check.fail("rows", rows, "an iterable of (experiment, t, quantity, value, sigma)")
         rows = list(rows)
         for k, row in enumerate(rows, start=1):
-            if len(row) != 5:
+            if isinstance(row, (str, bytes)) or not isinstance(row, Sequence) or len(row) != 5:
                 raise InputError(f"{source}, row {k}: expected 5 fields "
-                                 f"({','.join(HEADER)}), got {len(row)}")
+                                 f"({','.join(HEADER)}), got {_check.show(row)}")
+            for j in (0, 2):
+                _check.text(f"{source}, row {k}: field {HEADER[j]}", row[j])
+            for j in (1, 3, 4):    # NaN and infinities are named by Measurements
+                _check.real(f"{source}, row {k}: field {HEADER[j]}", row[j], finite=False,
+                            expected="a number")
         return cls(experiment=tuple(str(r[0]) for r in rows),
                    t=np.array([float(r[1]) for r in rows]),
                    quantity=tuple(str(r[2]) for r in rows),
@@ -119,15 +156,24 @@ class Measurements:
         """Build from a pandas DataFrame with the columns experiment, t,
         quantity, value, sigma (the long format; pandas itself is not
         imported here)."""
-        cols = [str(c) for c in getattr(frame, "columns", ())]
+        source = _check.text("from_frame: source", source)
+        try:
+            cols = [str(c) for c in getattr(frame, "columns", ())]
+        except TypeError:
+            _check.fail("from_frame: frame", frame, "a pandas DataFrame")
         missing = [h for h in HEADER if h not in cols]
         if missing:
             raise InputError(f"{source}: columns {cols}, expected {', '.join(HEADER)} "
                              f"(missing {', '.join(missing)})")
-        return cls(experiment=tuple(str(e) for e in frame["experiment"]),
-                   t=np.asarray(frame["t"], float), quantity=tuple(str(q) for q in frame["quantity"]),
-                   value=np.asarray(frame["value"], float), sigma=np.asarray(frame["sigma"], float),
-                   source=source)
+        try:
+            return cls(experiment=tuple(str(e) for e in frame["experiment"]),
+                       t=np.asarray(frame["t"], float),
+                       quantity=tuple(str(q) for q in frame["quantity"]),
+                       value=np.asarray(frame["value"], float),
+                       sigma=np.asarray(frame["sigma"], float), source=source)
+        except (TypeError, ValueError, KeyError) as exc:
+            raise InputError(f"{source}: the columns t, value and sigma must hold numbers "
+                             f"({exc})") from None
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas must be installed)."""
@@ -146,7 +192,8 @@ class Measurements:
 
     def with_values(self, value: Sequence[float]) -> "Measurements":
         """Same rows with new values (e.g. noisy copies)."""
-        return Measurements(self.experiment, self.t, self.quantity, np.asarray(value, float),
+        value = _check.reals("value", value, finite=False)   # NaN: named by row
+        return Measurements(self.experiment, self.t, self.quantity, value,
                             self.sigma, self.source, self.lines)
 
     def merge(self, other: "Measurements") -> "Measurements":
@@ -180,6 +227,7 @@ class Measurements:
         or of a release without a motor, wire_force of a release or of a load
         without a wire. The same rules and messages as beamid-batch's reader
         of estimation decks (beamid_measurements::check_static_rows)."""
+        experiments = _check.mapping("experiments", experiments)
         for i, name in enumerate(self.experiment):
             if name not in experiments:
                 known = ", ".join(experiments) or "none"
@@ -213,9 +261,11 @@ class Measurements:
 
     def write(self, path: str | os.PathLike, comment: str = "") -> None:
         """Write the table as CSV (readable by read_measurements and beamid-batch)."""
+        path = _check.path("path", path)
+        comment = _check.text("comment", comment, empty=True)
         lines = [f"# {c}" for c in comment.splitlines()] + [",".join(HEADER)]
         lines += [f"{e},{t:.17g},{q},{v:.17g},{s:.17g}" for e, t, q, v, s in self.rows()]
-        Path(path).write_text("\n".join(lines) + "\n")
+        _write_text(path, "\n".join(lines) + "\n")
 
 
 def read_measurements(path: str | os.PathLike,
@@ -250,10 +300,7 @@ def read_measurements(path: str | os.PathLike,
         if experiments is not None:
             data.check_experiments(experiments)
         return data
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"read_measurements: path = {path!r}, expected a file path "
-                         "(str or os.PathLike)")
-    path = Path(path)
+    path = _check.path("read_measurements: path", path)
     if path.is_dir():
         raise InputError(f"cannot read measurement file {path}: it is a directory")
     names, t, quantity, value, sigma, lines = _core.read_measurements(str(path))

@@ -15,7 +15,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from . import _core
+from . import _check, _core
 from .errors import InputError
 
 #: Strip thickness of the PACE beams (Section 4.1.4): EA = 12 EI / t^2.
@@ -49,12 +49,9 @@ class Model:
     __slots__ = ("_nbeams", "_values", "_index", "_wrt_cache")
 
     def __init__(self, nbeams: int, values: Iterable[float]):
-        if isinstance(nbeams, bool) or not isinstance(nbeams, (int, np.integer)) \
-                or not 1 <= nbeams <= MAX_BEAMS:
-            raise InputError(f"nbeams = {nbeams!r}, expected an integer from 1 to {MAX_BEAMS}")
-        nbeams = int(nbeams)
-        vec = np.array(list(values) if not isinstance(values, np.ndarray) else values,
-                       dtype=float)
+        nbeams = _check.count("nbeams", nbeams, min=1, max=MAX_BEAMS)
+        # NaN and infinities are named per parameter by the core's check below
+        vec = _check.reals("values", values, finite=False)
         names = _core.param_names(nbeams)
         if vec.shape != (len(names),):
             raise InputError(f"parameter vector has {vec.size} values, expected "
@@ -90,6 +87,7 @@ class Model:
     def indices(self, names: tuple[str, ...]) -> np.ndarray:
         """1-based positions of named parameters as the Fortran core takes them
         (InputError for an unknown name); remembered per tuple of names."""
+        names = _check.names("names", names)
         found = self._wrt_cache.get(names)
         if found is None:
             found = np.array([self.index(n) + 1 for n in names], dtype=np.int32)
@@ -122,13 +120,10 @@ class Model:
     def with_params(self, overrides: Mapping[str, float]) -> "Model":
         """A copy with the parameters in ``overrides`` changed (validated)."""
         vec = np.array(self._values)
-        for name, value in overrides.items():
-            try:
-                vec[self.index(name)] = float(value)
-            except (TypeError, ValueError) as exc:
-                if isinstance(exc, InputError):
-                    raise
-                raise InputError(f"{name} = {value!r}, expected a number") from None
+        for name, value in _check.mapping("overrides", overrides).items():
+            # NaN is named by the core's parameter check (Model)
+            vec[self.index(name)] = _check.real(name, value, finite=False,
+                                                expected="a number")
         return Model(self._nbeams, vec)
 
     def __repr__(self) -> str:
@@ -165,5 +160,6 @@ def cantilever(L: float = 0.776, EI: float = 11.413, C: float = 0.0, *,
     """
     nbeams, values = _core.preset("cantilever")
     base = Model(nbeams, values)
+    EI = _check.real("EI", EI, finite=False, expected="a number")
     ea = 12.0 * EI / PACE_THICKNESS**2 if EA is None else EA
     return base.with_params({"L1": L, "EI1": EI, "C1": C, "EA1": ea, "rho1": rho, **overrides})

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
-from . import _core
+from . import _check, _core
 from .errors import InputError, raise_for_status
 
 __all__ = ["Kind", "Observation", "kinds", "parse", "unit", "can_measure", "probe_kinds"]
@@ -65,13 +65,16 @@ def kinds() -> dict[str, Kind]:
     return out
 
 
-@lru_cache(maxsize=4096)
 def parse(name: str) -> Observation:
     """Parse an observation name (the core's parser); InputError saying what
     is wrong (unknown kind, malformed station)."""
     if not isinstance(name, str):
-        raise InputError(f"observation {name!r}: expected a name such as 'x_tip' or "
-                         "'strain@1:0.05'")
+        _check.fail("observation", name, "a name such as 'x_tip' or 'strain@1:0.05'")
+    return _parse(name)
+
+
+@lru_cache(maxsize=4096)
+def _parse(name: str) -> Observation:
     kind, beam, s, mode, label, code, message = _core._deck_api.api_observation_parse(name)
     if code != 0:
         raise_for_status(int(code), _core._text(message))
@@ -88,6 +91,7 @@ def can_measure(name: str, family: str, *, has_wire: bool = False,
                 has_motor: bool = False) -> str:
     """'' when an experiment of ``family`` ("static" or "release") can make
     observation ``name``, else the reason: "family", "wire" or "motor"."""
+    family = _check.choice("family", family, ("static", "release"))
     k = kinds()[parse(name).kind]
     if family not in k.families:
         return "family"
@@ -100,6 +104,7 @@ def can_measure(name: str, family: str, *, has_wire: bool = False,
 
 def probe_kinds(family: str) -> tuple[str, ...]:
     """The kinds of a family's probe list, in probe order."""
+    family = _check.choice("family", family, ("static", "release"))
     attr = "probe_static" if family == "static" else "probe_release"
     ks = [k for k in kinds().values() if getattr(k, attr) > 0]
     return tuple(k.name for k in sorted(ks, key=lambda k: getattr(k, attr)))

@@ -5,33 +5,31 @@ the axes; none calls ``plt.show()``.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
 
-from . import observations
+from . import _check
 from .diagnosis import Comparison, Ladder
+from .dyn_diagnosis import plot_time_comparison
 from .errors import InputError
+from .measurements import quantity_unit  # noqa: F401 - the plots' unit rule, kept here too
 from .plotting import _axes
 
 
-def quantity_unit(quantity: str) -> str:
-    """The unit of a measured quantity (``m``, ``rad``, ``N``, ``N m``, ...):
-    the core's observation table (beamid.observations); a name that is no
-    observation is read by its words (angle: rad, moment or torque: N m,
-    force: N, else m)."""
-    try:
-        return observations.unit(quantity)
-    except InputError:
-        pass
-    q = quantity.lower()
-    if "angle" in q:
-        return "rad"
-    if "moment" in q or "torque" in q:
-        return "N m"
-    if "force" in q:
-        return "N"
-    return "m"
+def parameter_unit(name: str) -> str:
+    """The unit of a model parameter (``EI1`` -> ``N m^2``), "-" when it has
+    none (friction coefficients, ``axial_coupling``); units as docs/static.md
+    and docs/dynamics.md give them (M = EI k + C k^3, T = -r g Psidot)."""
+    stem = re.sub(r"\d+$", "", name)
+    if stem.endswith("_flex"):
+        return "rad/(N m)"
+    for prefix, unit in (("m_", "kg"), ("J_", "kg m^2"), ("mu_", "-"), ("c_", "N s/m")):
+        if stem.startswith(prefix):
+            return unit
+    return {"L": "m", "EI": "N m^2", "EA": "N", "rho": "kg/m", "C": "N m^4", "eta": "s",
+            "r_motor": "N m s", "tau_motor": "s", "axial_coupling": "-"}.get(stem, "-")
 
 
 def _quantities(cmp: Comparison) -> list[str]:
@@ -87,7 +85,7 @@ def _sigma_bands(ax: Any) -> None:
     ax.axhline(0.0, color="black", lw=0.6, label="model (0)")
 
 
-def plot_compare(cmp: Comparison, fig: Any = None):
+def plot_compare(cmp: Comparison, fig: Any = None, title: str | None = None):
     """The compare figure: one column per measured quantity, each panel in
     that quantity's unit, experiments along x (in the order of the data).
 
@@ -97,10 +95,12 @@ def plot_compare(cmp: Comparison, fig: Any = None):
     - bottom panel: normalized residuals of every quantity (dimensionless)
       with the +-1 and +-3 sigma bands.
 
-    Every line has a legend entry. Returns the figure (``fig`` when given)."""
+    Every line has a legend entry; ``title`` (e.g. which fit: "start" or
+    "final fit") goes before the chi-square in the figure's title. Returns the
+    figure (``fig`` when given)."""
+    title = _check.text("title", title, empty=True, none=True)
     if hasattr(cmp, "series"):     # time histories (beamid.dyn_diagnosis)
-        from .dyn_diagnosis import plot_time_comparison
-        return plot_time_comparison(cmp, fig=fig)
+        return plot_time_comparison(cmp, fig=fig, title=title)
     import matplotlib.pyplot as plt
 
     quantities = _quantities(cmp)
@@ -140,22 +140,55 @@ def plot_compare(cmp: Comparison, fig: Any = None):
     bottom.set_ylabel("(measured - model) / sigma (-)")
     bottom.grid(True, alpha=0.3)
     bottom.legend(fontsize=7, ncol=2)
-    fig.suptitle(f"measured vs model: chi2 = {cmp.chi2:.4g}, dof {cmp.dof}"
+    fig.suptitle((f"{title}: " if title else "")
+                 + f"measured vs model: chi2 = {cmp.chi2:.4g}, dof {cmp.dof}"
+                 + (f", chi2/dof = {cmp.chi2 / cmp.dof:.4g}" if cmp.dof > 0 else "")
                  + (" (systematic residuals)" if cmp.systematic else ""), fontsize=11)
     fig.tight_layout()
     return fig
 
 
+def ladder_labels(ladder: Ladder) -> list[str]:
+    """What each rung of a ladder did, in words: "start", the effect it added,
+    or, for a rung that replaced a member of a block, e.g. "drag: c_tip
+    instead of c_elbow" (``LadderStep.params`` instead of ``.removed``)."""
+    labels = []
+    for s in ladder.steps:
+        if not s.effect:
+            labels.append("start")
+        elif s.removed:
+            labels.append(f"{s.effect}: {', '.join(s.params)} instead of "
+                          f"{', '.join(s.removed)}")
+        else:
+            labels.append(s.effect)
+    return labels
+
+
+def ladder_titles(ladder: Ladder) -> tuple[str, str]:
+    """Titles of a ladder's two compare figures: which fit each shows, the
+    start and the final one (its step and the parameters its effects added)."""
+    last = len(ladder.steps) - 1
+    if last == 0:
+        return "start (step 0, no effect added)", "final fit = start (no effect added)"
+    added = [p for p in ladder.fit.free if p not in ladder.steps[0].fit.free]
+    return ("start (step 0, no effect added)",
+            f"final fit (step {last}: {', '.join(added)} added)")
+
+
 def plot_ladder(ladder: Ladder, ax: Any = None):
     """Chi-square per degree of freedom against improvement step (log
-    scale), with the effect added at each step and the noise level 1."""
+    scale), with what each step did (:func:`ladder_labels`) and the noise
+    level 1."""
     ax = _axes(ax, (6.0, 4.0))
     steps = [s.step for s in ladder.steps]
     chi = [s.chi2_per_dof for s in ladder.steps]
     ax.semilogy(steps, chi, "o-", label="chi2 / dof after each step")
-    for s in ladder.steps:
-        ax.annotate(s.effect or "start", (s.step, s.chi2_per_dof), textcoords="offset points",
-                    xytext=(5, 5), fontsize=8)
+    last = len(ladder.steps) - 1
+    for k, (s, text) in enumerate(zip(ladder.steps, ladder_labels(ladder))):
+        right = k == last and k > 0      # the last label to the left: it stays inside
+        ax.annotate(text, (s.step, s.chi2_per_dof), textcoords="offset points",
+                    xytext=(-5, 6) if right else (5, 5), ha="right" if right else "left",
+                    fontsize=8)
     ax.axhline(1.0, color="grey", ls="--", lw=0.8, label="noise level (chi2/dof = 1)")
     ax.set_xticks(steps)
     ax.set_xlabel("improvement step")

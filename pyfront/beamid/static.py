@@ -14,7 +14,7 @@ from typing import Iterable, NamedTuple
 
 import numpy as np
 
-from . import _core
+from . import _check, _core
 from .errors import InputError, check_memory
 from .loads import Load, RadialWire, TipLoad
 from .model import Model
@@ -111,8 +111,8 @@ class StaticResult:
         """The shape at ``n`` equally spaced arc positions (or at the given ``s``)."""
         total = self.model.total_length
         if s is None:
-            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-                raise InputError(f"shape n = {n!r}, expected an integer, at least 2 (points)")
+            n = _check.count("shape n", n, min=2,
+                             expected="an integer, at least 2 (points)")
             check_memory(5 * 8 * int(n), f"shape n = {n}: the shape", ".2g")
             grid = np.linspace(0.0, total, int(n))
         else:
@@ -159,12 +159,10 @@ def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if not isinstance(load, (TipLoad, RadialWire)):
         raise InputError(f"load must be TipForce, TipMoment or RadialWire, got {load!r}")
-    if isinstance(wrt, str):
-        wrt = (wrt,)
-    wrt = tuple(wrt)
+    wrt = _check.names("wrt", wrt)
     idx = model.indices(wrt)
-    if tol is not None and not (0.0 < float(tol) < 1e-2):
-        raise InputError(f"tol = {tol}, expected a tolerance in (0, 1e-2)")
+    tol = _check.real("tol", tol, above=0.0, below=1e-2, none=True,
+                      expected="a tolerance in (0, 1e-2)")
     kind, values = load.encode()
     outputs, doutputs, unknowns, info = _core.static_solve(
         model.nbeams, model.vector(), kind, values, idx, 0.0 if tol is None else float(tol))
