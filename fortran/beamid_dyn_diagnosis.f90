@@ -40,7 +40,7 @@ module beamid_dyn_diagnosis
     private
 
     public :: problem_t, mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, &
-              null_side_init
+              null_side_init, mesh_check, mesh_recommended
 
     !> An estimation problem: experiments (kind, EV_* values), data rows
     !! (experiment, t, observation, value, sigma), a priori information and the
@@ -308,8 +308,7 @@ contains
         type(fit_result_t) :: refit
         type(status_t) :: st
         real(dp), allocatable :: values(:, :), pred(:), jdummy(:, :), change(:)
-        real(dp) :: err
-        integer :: e, m
+        integer :: e
         if (.not. any(pb%exp_kind == EXP_RELEASE)) return
         res%done = .true.
         values = pb%exp_values
@@ -350,16 +349,80 @@ contains
         res%drop = base%chi2 + base%chi2_prior - res%chi2
         res%p_value = chi2_sf(max(res%drop, 0.0_dp), 1)
         res%significant = res%p_value < alpha .and. res%drop > 0.0_dp
-        ! discretization error now ~ change * 2^k / (2^k - 1); after m more
-        ! doublings it falls by 2^(k m)
-        err = res%max_change*2.0_dp**MESH_ORDER/(2.0_dp**MESH_ORDER - 1.0_dp)
-        res%recommended = res%nepb
+        res%recommended = mesh_recommended(res%nepb, res%max_change)
+    end subroutine mesh_test
+
+    !> The elements per beam that bring the discretization error below
+    !! MESH_TARGET sigma, from `nepb` elements per beam and the largest change
+    !! `max_change` (in sigma units) of a prediction when the mesh is doubled:
+    !! the error now is about max_change 2^k / (2^k - 1) (k = MESH_ORDER), and
+    !! m more doublings divide it by 2^(k m). At least 2 nepb (the doubled
+    !! mesh is the one the change was measured on), at most MESH_MAX.
+    pure integer function mesh_recommended(nepb, max_change) result(rec)
+        integer, intent(in) :: nepb
+        real(dp), intent(in) :: max_change
+        real(dp) :: err
+        integer :: m
+        err = max_change*2.0_dp**MESH_ORDER/(2.0_dp**MESH_ORDER - 1.0_dp)
+        rec = nepb
         do m = 1, 16
-            if (res%recommended*2 > MESH_MAX) exit
-            res%recommended = res%recommended*2
+            if (rec*2 > MESH_MAX) exit
+            rec = rec*2
             if (err/2.0_dp**(MESH_ORDER*m) < MESH_TARGET) exit
         end do
-    end subroutine mesh_test
+    end function mesh_recommended
+
+    !> The mesh check of a finished fit (issue 30): without refitting, the
+    !! predictions of the data rows at the fitted `params` with every release
+    !! at twice its elements per beam against `pred` (the fit's own), the
+    !! largest change in sigma units (res%max_change at data row
+    !! res%max_row), the chi-square the refined model gives at `params`
+    !! (res%chi2; a priori rows not included) and the elements per beam
+    !! recommended (mesh_recommended). One plain run per release: the part
+    !! of the `mesh` candidate's test that needs no refit. Nothing is done
+    !! (res%done false) without releases.
+    subroutine mesh_check(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, params, &
+                          y, sigma, pred, res, stat, obs)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, params(:)
+        real(dp), intent(in) :: y(:), sigma(:), pred(:)
+        type(mesh_test_t), intent(out) :: res
+        type(status_t), intent(inout) :: stat
+        !> the problem's observation list row_q indexes (absent: the kind codes)
+        type(observation_t), intent(in), optional :: obs(:)
+        type(inverse_problem_t) :: fine
+        real(dp), allocatable :: values(:, :), fpred(:), jdummy(:, :), change(:)
+        integer :: e
+        if (.not. any(exp_kind == EXP_RELEASE)) return
+        res%done = .true.
+        values = exp_values
+        do e = 1, size(exp_kind)
+            if (exp_kind(e) /= EXP_RELEASE) cycle
+            res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
+            values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
+        end do
+        if (present(obs)) then
+            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
+                                      stat, obs)
+        else
+            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
+                                      stat)
+        end if
+        if (stat%code /= STATUS_OK) return
+        allocate (fpred(size(y)), jdummy(size(y), 0))
+        call fine%evaluate(params, [integer ::], fpred, jdummy, stat)
+        if (stat%code /= STATUS_OK) then
+            stat%message = trim(stat%message)//' (mesh check at twice the elements per beam)'
+            return
+        end if
+        change = abs(fpred - pred)/sigma
+        res%max_row = maxloc(change, 1)
+        res%max_change = change(res%max_row)
+        res%chi2 = sum(((y - fpred)/sigma)**2)
+        res%params = params
+        res%recommended = mesh_recommended(res%nepb, res%max_change)
+        res%ok = .true.
+    end subroutine mesh_check
 
     !> Diagnose a fit of any mix of static and release experiments (the
     !! orchestration both fronts call): the base fit evaluated at params0
@@ -655,8 +718,16 @@ contains
         pq = [sq, dq]
         pt = [spread(0.0_dp, 1, size(sexp)), dt]
         psig = [ssig, dsig]
-        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, pb%tol, &
-                                  probe, stat)
+        ! the data's observation list keeps its entries' numbers (the chain's
+        ! channel masks index it); the probe kinds follow it
+        if (allocated(pb%obs)) then
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, &
+                                      size(pb%obs) + pq, pb%tol, probe, stat, &
+                                      [pb%obs, default_observations()], probe=.true.)
+        else
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, &
+                                      pb%tol, probe, stat, probe=.true.)
+        end if
         if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)
     end subroutine all_probe_rows
 

@@ -93,11 +93,12 @@ module beamid_dynamic_experiments
     !! floor (0.1 sigma), at a twentieth of the cost of a run (7 ms, 1e-9: 135 ms).
     real(dp), parameter :: ROUGH_RTOL = 1.0e-6_dp
 
-    !> The last plain run of an experiment: its parameters and response.
+    !> The last plain run of an experiment: its parameters, output times and
+    !! response (and the response's rates when they were asked).
     type :: plain_cache_t
         logical :: valid = .false.
-        real(dp), allocatable :: params(:)
-        real(dp), allocatable :: y(:, :)
+        real(dp), allocatable :: params(:), times(:)
+        real(dp), allocatable :: y(:, :), rate(:, :)
     end type plain_cache_t
 
     !> A list of observations.
@@ -117,6 +118,14 @@ module beamid_dynamic_experiments
         integer, allocatable :: row_oi(:)
         real(dp), allocatable :: row_t(:)
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
+        !> the model time at each experiment's record zero (its clock offset
+        !! t0, set by beamid_inverse before evaluate): row i is predicted at
+        !! model time max(0, row_t(i) + shift(row_exp(i))) (before the
+        !! release the chain is at rest in its static shape)
+        real(dp), allocatable :: shift(:)
+        !> evaluate also returns d prediction / d t of every row in row_rate
+        logical :: want_rates = .false.
+        real(dp), allocatable :: row_rate(:)
     contains
         procedure :: evaluate => dynamic_evaluate
     end type dynamic_experiments_t
@@ -212,6 +221,7 @@ contains
             end if
         end do
         allocate (self%cache(size(exps)))
+        allocate (self%shift(size(exps)), self%row_rate(size(row_exp)), source=0.0_dp)
         self%rough_jacobian_ok = .false.
         do i = 1, size(exps)
             if (.not. any(row_exp == i)) cycle
@@ -236,8 +246,9 @@ contains
     !> The response of one release at the ascending times t_out: y(i, k)
     !! for every observation obs(i) and dy(i, k, j) = d y(i, k) / d
     !! params(wrt(j)), from the forward sensitivities of beamid_release (or
-    !! central differences when x%fd).
-    subroutine release_response(nbeams, params, x, t_out, wrt, obs, y, dy, stat)
+    !! central differences when x%fd); with `rate` also d y(i, k) / d t
+    !! (observation_rates: the column of a record's clock offset).
+    subroutine release_response(nbeams, params, x, t_out, wrt, obs, y, dy, stat, rate)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
@@ -246,6 +257,8 @@ contains
         type(observation_t), intent(in) :: obs(:)
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
+        !> d y(i, k) / d t (observation_rates)
+        real(dp), intent(out), optional :: rate(:, :)
         type(chain_t) :: chain
         type(release_out_t) :: out
         type(dyn_system_t) :: sys
@@ -255,6 +268,7 @@ contains
         integer :: i, k
         if (x%fd) then
             call central_differences()
+            if (present(rate) .and. stat%code == STATUS_OK) call plain_rates()
             return
         end if
         y = 0.0_dp
@@ -263,7 +277,8 @@ contains
         if (stat%code /= STATUS_OK) return
         call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, &
             x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
-            friction=x%law, friction_velocity=x%vslip), t_out, wrt, out, stat)
+            friction=x%law, friction_velocity=x%vslip, rates=present(rate)), t_out, wrt, out, &
+            stat)
         if (stat%code /= STATUS_OK) return
         call station_setup(chain, x, wrt, obs, size(wrt) > 0, sys, pars, accel, stat)
         if (stat%code /= STATUS_OK) return
@@ -284,7 +299,20 @@ contains
                 end if
             end do
         end do
+        if (present(rate)) call observation_rates(chain, x, obs, t_out, out, rate, stat)
     contains
+        !> The rates of a central-difference release: one forward run more.
+        subroutine plain_rates()
+            call chain_from_vector(nbeams, params, chain, stat)
+            if (stat%code /= STATUS_OK) return
+            call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, &
+                load=fe_load_t(x%fx, x%fy, x%moment), motor_gain=x%gain, integrator=x%method, &
+                rtol=x%rtol, dt=x%dt, friction=x%law, friction_velocity=x%vslip, rates=.true.), &
+                t_out, wrt(1:0), out, stat)
+            if (stat%code /= STATUS_OK) return
+            call observation_rates(chain, x, obs, t_out, out, rate, stat)
+        end subroutine plain_rates
+
         !> The response by central differences of whole runs (x%fd).
         subroutine central_differences()
             real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
@@ -319,7 +347,17 @@ contains
         integer :: row
         value = 0.0_dp
         grad = 0.0_dp
-        select case (o%kind)
+        row = qty_row(o%kind)
+        if (row == 0) return
+        value = out%y(row, k)
+        if (size(grad) > 0) grad = out%dy(row, k, :)
+    end subroutine observe
+
+    !> The row of release_out_t%y (QTY_* of beamid_release) of a fixed-point
+    !! kind (0: a kind beamid_release does not export).
+    pure integer function qty_row(kind) result(row)
+        integer, intent(in) :: kind
+        select case (kind)
         case (K_X_TIP)
             row = QTY_X_TIP
         case (K_Y_TIP)
@@ -337,11 +375,67 @@ contains
         case (K_MOTOR_TORQUE)
             row = QTY_MOTOR_TORQUE
         case default
-            return
+            row = 0
         end select
-        value = out%y(row, k)
-        if (size(grad) > 0) grad = out%dy(row, k, :)
-    end subroutine observe
+    end function qty_row
+
+    !> Time derivatives rate(i, k) of the observations obs(i) at the output
+    !! times t_out of a response computed with spec%rates (the column of a
+    !! record's clock offset, beamid_inverse EV_T0): the fixed points' from
+    !! out%rate (beamid_release quantity_rates: the velocities, the tip
+    !! angle's chain rule, the motor torque's rate); a station's and an
+    !! encoder's as observe_station's directional derivative along the
+    !! state's rate f(t, y) (positions, angles, curvature, moment and strain
+    !! along the velocities, the station velocities along the
+    !! accelerations). An acceleration's rate would need the jerk: it is left
+    !! 0 here and beamid_inverse refuses a clock offset on a record with
+    !! acceleration rows. At t <= 0 the chain rests: every rate is 0.
+    subroutine observation_rates(chain, x, obs, t_out, out, rate, stat)
+        type(chain_t), intent(in) :: chain
+        type(release_exp_t), intent(in) :: x
+        type(observation_t), intent(in) :: obs(:)
+        real(dp), intent(in) :: t_out(:)
+        type(release_out_t), intent(in) :: out
+        real(dp), intent(out) :: rate(:, :)
+        type(status_t), intent(inout) :: stat
+        type(dyn_system_t) :: sys
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: f(:, :)
+        real(dp) :: value, g(1), none(0), nos(0, 0), nod(0, 0)
+        logical :: local(size(obs))
+        integer :: i, k, row
+        rate = 0.0_dp
+        local = [(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
+                  obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
+                  i=1, size(obs))]
+        if (any(local)) then
+            call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+            if (stat%code /= STATUS_OK) return
+            allocate (pars(0), f(sys%nstate, 1))
+        end if
+        do k = 1, size(t_out)
+            if (t_out(k) <= 0.0_dp) cycle
+            if (any(local)) then
+                call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), nos, f(:, 1), nod, &
+                                     stat)
+                if (stat%code /= STATUS_OK) return
+            end if
+            do i = 1, size(obs)
+                if (obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N) cycle
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), [0], out%hist%y(:, k), f, value, g)
+                    rate(i, k) = g(1)
+                else if (local(i)) then
+                    call observe_station(sys, chain, obs(i), [0], out%hist%y(:, k), f, none, &
+                                         nod, value, g)
+                    rate(i, k) = g(1)
+                else
+                    row = qty_row(obs(i)%kind)
+                    if (row > 0) rate(i, k) = out%rate(row, k)
+                end if
+            end do
+        end do
+    end subroutine observation_rates
 
     !> One run: static equilibrium, release, integration, observations
     !! (no sensitivities: the central differences of x%fd).
@@ -613,29 +707,47 @@ contains
         real(dp), intent(out) :: predictions(:)
         real(dp), intent(out) :: jacobian(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: times(:), y(:, :), dy(:, :, :)
+        real(dp), allocatable :: times(:), y(:, :), dy(:, :, :), rate(:, :), tm(:)
         type(release_exp_t) :: rough
         integer :: e, i, k, nobs
+        logical :: rates
         predictions = 0.0_dp
         jacobian = 0.0_dp
         if (.not. allocated(self%cache)) allocate (self%cache(size(self%exps)))
+        if (.not. allocated(self%shift)) allocate (self%shift(size(self%exps)), source=0.0_dp)
+        if (.not. allocated(self%row_rate)) allocate (self%row_rate(size(self%row_exp)))
+        self%row_rate = 0.0_dp
+        rates = self%want_rates
+        ! the model time of every row: its record time plus its record's offset
+        tm = max(0.0_dp, self%row_t + self%shift(self%row_exp))
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
-            times = distinct_sorted(pack(self%row_t, self%row_exp == e))
+            times = distinct_sorted(pack(tm, self%row_exp == e))
             nobs = size(self%eobs(e)%o)
-            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt)))
+            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt)), &
+                      rate(nobs, size(times)), source=0.0_dp)
             if (self%rough == ROUGH_ALL .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
                 rough = self%exps(e)
                 rough%rtol = rough_tolerance(rough)
-                call release_response(self%nbeams, params, rough, times, wrt, self%eobs(e)%o, y, &
-                                      dy, stat)
+                if (rates) then
+                    call release_response(self%nbeams, params, rough, times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat, rate)
+                else
+                    call release_response(self%nbeams, params, rough, times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat)
+                end if
             else if (self%rough == ROUGH_JACOBIAN .and. size(wrt) > 0 .and. &
                      rough_tolerance(self%exps(e)) > 0.0_dp) then
-                call rough_response(e, times, y, dy)
+                call rough_response(e, times, y, dy, rate)
             else
-                call release_response(self%nbeams, params, self%exps(e), times, wrt, &
-                                      self%eobs(e)%o, y, dy, stat)
-                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, y)
+                if (rates) then
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat, rate)
+                else
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat)
+                end if
+                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, times, y, rate)
             end if
             if (stat%code /= STATUS_OK) then
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
@@ -643,31 +755,45 @@ contains
             end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
-                k = findloc(times, self%row_t(i), 1)
+                k = findloc(times, tm(i), 1)
                 predictions(i) = y(self%row_oi(i), k)
                 jacobian(i, :) = dy(self%row_oi(i), k, :)
+                ! before the release (model time clipped at 0) the chain rests
+                if (self%row_t(i) + self%shift(e) > 0.0_dp) &
+                    self%row_rate(i) = rate(self%row_oi(i), k)
             end do
-            deallocate (y, dy)
+            deallocate (y, dy, rate)
         end do
     contains
         !> Predictions at the experiment's own tolerance (the cached plain
         !! run or a new one), sensitivities at its rough tolerance.
-        subroutine rough_response(e, times, y, dy)
+        subroutine rough_response(e, times, y, dy, rate)
             integer, intent(in) :: e
             real(dp), intent(in) :: times(:)
-            real(dp), intent(out) :: y(:, :), dy(:, :, :)
+            real(dp), intent(out) :: y(:, :), dy(:, :, :), rate(:, :)
             real(dp), allocatable :: yr(:, :), none(:, :, :)
             logical :: cached
             cached = self%cache(e)%valid
-            if (cached) cached = all(self%cache(e)%params == params)
+            if (cached) cached = size(self%cache(e)%times) == size(times) .and. &
+                                 size(self%cache(e)%params) == size(params)
+            if (cached) cached = all(self%cache(e)%params == params) .and. &
+                                 all(self%cache(e)%times == times) .and. &
+                                 (allocated(self%cache(e)%rate) .or. .not. rates)
+            rate = 0.0_dp
             if (cached) then
                 y = self%cache(e)%y
+                if (rates) rate = self%cache(e)%rate
             else
                 allocate (none(size(self%eobs(e)%o), size(times), 0))
-                call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
-                                      self%eobs(e)%o, y, none, stat)
+                if (rates) then
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                                          self%eobs(e)%o, y, none, stat, rate)
+                else
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                                          self%eobs(e)%o, y, none, stat)
+                end if
                 if (stat%code /= STATUS_OK) return
-                call remember(e, y)
+                call remember(e, times, y, rate)
             end if
             rough = self%exps(e)
             rough%rtol = rough_tolerance(rough)
@@ -676,12 +802,18 @@ contains
                                   dy, stat)
         end subroutine rough_response
 
-        subroutine remember(e, y)
+        subroutine remember(e, times, y, rate)
             integer, intent(in) :: e
-            real(dp), intent(in) :: y(:, :)
+            real(dp), intent(in) :: times(:), y(:, :), rate(:, :)
             self%cache(e)%valid = .true.
             self%cache(e)%params = params
+            self%cache(e)%times = times
             self%cache(e)%y = y
+            if (rates) then
+                self%cache(e)%rate = rate
+            else if (allocated(self%cache(e)%rate)) then
+                deallocate (self%cache(e)%rate)
+            end if
         end subroutine remember
     end subroutine dynamic_evaluate
 end module beamid_dynamic_experiments

@@ -20,7 +20,7 @@ module beamid_release
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_to_coords, &
-                               dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, &
+                               dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, dyn_rates, &
                                FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
                                dyn_static_sens, dyn_output_sens, dyn_add_forcing, DP_FORCING
     use beamid_loads, only: tip_history_t, history_check
@@ -69,6 +69,9 @@ module beamid_release
         real(dp), allocatable :: y_init(:)
         !> progress(1) follows the output times reached (integ_opts_t%progress)
         real(dp), pointer :: progress(:) => null()
+        !> also return the quantities' time derivatives (release_out_t%rate):
+        !! the column of a record's clock offset (beamid_inverse, EV_T0)
+        logical :: rates = .false.
         !> load histories at the tip from t = 0 (beamid_loads; their tip
         !! indices are set here); their parameters follow the release load's
         !! components in wrt, history by history
@@ -85,6 +88,8 @@ module beamid_release
     type :: release_out_t
         real(dp), allocatable :: y(:, :)          !< (NQTY, nt), rows QTY_*
         real(dp), allocatable :: dy(:, :, :)      !< (NQTY, nt, size(wrt))
+        !> (NQTY, nt) d y / d t at the output times (spec%rates; energy: 0)
+        real(dp), allocatable :: rate(:, :)
         real(dp), allocatable :: ledger(:, :)     !< (4, nt): kinetic, strain, total, numerical
         real(dp), allocatable :: tip(:, :)        !< (3, nt): u, w, angle
         !> state sensitivities dy/dp (nstate, nt, size(wrt))
@@ -301,6 +306,56 @@ contains
                 end do
             end associate
         end do
+        if (spec%rates) then
+            allocate (out%rate(NQTY, nt), source=0.0_dp)
+            do k = 1, nt
+                ! at t = 0 the chain is at rest: every rate is 0 there
+                if (t_out(k) <= 0.0_dp) cycle
+                call quantity_rates(sys, t_out(k), out%hist%y(:, k), out%rate(:, k), stat)
+                if (stat%code /= STATUS_OK) return
+            end do
+        end if
     end subroutine release_response
+
+    !> Time derivatives of the exported quantities in state y (rows QTY_*):
+    !! the positions' from the velocities in y, the tip angle's by the chain
+    !! rule of atan2(w', 1 + u'), the motor torque's from the state's rate
+    !! (dyn_rates: the acceleration M^-1 F, or the lag's T'). Energy: 0.
+    subroutine quantity_rates(sys, t, y, rate, stat)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t          !< time (s): the load histories'
+        real(dp), intent(in) :: y(:)
+        real(dp), intent(out) :: rate(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: yd(:), power(:)
+        real(dp) :: a1, a2, torque
+        integer :: n, k
+        n = sys%n
+        k = sys%npt
+        rate = 0.0_dp
+        associate (v => y(n + 1:2*n))
+            rate(QTY_U_TIP) = v(sys%iu(k))
+            rate(QTY_W_TIP) = v(sys%iw(k))
+            rate(QTY_X_TIP) = rate(QTY_U_TIP)
+            rate(QTY_Y_TIP) = rate(QTY_W_TIP)
+            a1 = 1.0_dp + y(sys%idu(k))
+            a2 = y(sys%idw(k))
+            rate(QTY_TIP_ANGLE) = (a1*v(sys%idw(k)) - a2*v(sys%idu(k)))/(a1*a1 + a2*a2)
+            rate(QTY_X_ELBOW) = v(sys%iu(1))
+            rate(QTY_Y_ELBOW) = v(sys%iw(1))
+        end associate
+        if (sys%motor == 0.0_dp) return
+        allocate (yd(size(y)), power(sys%nwork))
+        call dyn_rates(sys, t, y, yd, power, torque, stat)
+        if (stat%code /= STATUS_OK) return
+        if (sys%nx > 0) then
+            rate(QTY_MOTOR_TORQUE) = yd(2*n + 1)
+        else
+            ! T = -r g Psidot, Psidot = (1 + u') w'_t - w' u'_t at the tip
+            rate(QTY_MOTOR_TORQUE) = -sys%motor*(y(n + sys%idu(k))*y(n + sys%idw(k)) + &
+                a1*yd(n + sys%idw(k)) - y(n + sys%idw(k))*y(n + sys%idu(k)) - &
+                a2*yd(n + sys%idu(k)))
+        end if
+    end subroutine quantity_rates
 
 end module beamid_release

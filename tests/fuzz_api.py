@@ -206,6 +206,7 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "design.candidates": {"M1": beamid.TipMoment(1.0)},
         "diagnose.candidates": ("elbow_flex",),
         "diagnose.nrefit": 1,
+        "fit.starts": 0,            # the one fit: a drawn 1 or 2 still runs more starts
         "improve.candidates": ("elbow_flex",),
         "improve.free": ("EI1",),
         "add_effect.effect": "elbow_flex",

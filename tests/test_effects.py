@@ -44,8 +44,14 @@ def test_families_defaults_and_bounds():
     """The default candidate lists keep their order; sidedness follows from
     the null value and the bounds."""
     assert STATIC_CANDIDATES == ("axial_coupling", "material_cubic", "elbow_flex", "root_flex")
+    assert _ce.default_effects("dynamic") == ("friction", "drag", "rotary_inertia",
+                                              "kelvin_voigt", "motor_lag", "elbow_flex",
+                                              "root_flex", "mesh")
+    # the measurement chain's candidates (beamid.chain) come before the mesh
     assert beamid.DYNAMIC_CANDIDATES == ("friction", "drag", "rotary_inertia", "kelvin_voigt",
-                                         "motor_lag", "elbow_flex", "root_flex", "mesh")
+                                         "motor_lag", "elbow_flex", "root_flex",
+                                         "clock_offset", "channel_bias", "channel_scale",
+                                         "gross_errors", "noise", "mesh")
     kinds = {n: e.kinds for n, e in EFFECTS.items() if n in PATTERNS}
     assert kinds["elbow_flex"] == kinds["root_flex"] == ("static", "dynamic")
     assert kinds["axial_coupling"] == kinds["material_cubic"] == ("static",)

@@ -134,7 +134,7 @@ contains
                                prior_sigma, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
-        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(12, nexp_)
+        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(18, nexp_)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
         integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
         integer(c_int), intent(out) :: prior_index(nprior)

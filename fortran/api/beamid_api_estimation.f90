@@ -2,7 +2,7 @@
 !! ladder (beamid_estimation, beamid_ladder) on the problems of
 !! beamid_inverse, any mix of static and release experiments.
 !!
-!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 12
+!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 18
 !! values per experiment, beamid_inverse's EV_* layout), data rows
 !! (experiment index, t, observation, value, sigma; the observation an
 !! index into the observation list obs_kind, obs_beam, obs_s of
@@ -25,9 +25,11 @@ module beamid_api_estimation
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq
+    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
     use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
+    use beamid_chain_fit, only: chain_fit
+    use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -37,11 +39,12 @@ module beamid_api_estimation
     public :: api_chi2_sf
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_effect_sizes, api_effect_table
-    public :: api_problem_predict
+    public :: api_problem_predict, api_chain_layout, api_fit_chain
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
     public :: api_deck_task_start, api_deck_task_write
+    public :: api_mesh_check
 
     !> The improve ladder of the last api_ladder_start or api_deck_task_start,
     !! stepped by api_ladder_step (a rung per call: the front shows progress)
@@ -292,7 +295,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
@@ -371,16 +374,97 @@ contains
         end subroutine add_effect
     end subroutine api_fit_effect
 
+    !> The fit with the measurement chain's row treatments (beamid_chain_fit:
+    !! the experiments' losses, burn-in and estimated sigmas, EV_LOSS,
+    !! EV_BURNIN, EV_SIGEST), results as api_fit_effect's (no effect block)
+    !! and per row: the last weight, the sigma it was judged with, that
+    !! sigma's standard deviation (0 where given) and 1 for a gross error.
+    subroutine api_fit_chain(nbeams, nparams, params0, nfree, free_idx, nprior, prior, ncov, &
+                             prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
+                             row_q, nobs, obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, &
+                             max_iter, params, sigmas, cov, &
+                             corr, flags, predictions, normalized, stats, log_cost, log_lambda, &
+                             log_step, log_params, info, weights, sigma_used, sigma_sd, &
+                             flagged, code, message, note)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, ncov
+        !f2py intent(hide) nparams, nfree, nprior, ncov, nexp, nrow
+        integer(c_int), intent(in) :: max_iter
+        real(c_double), intent(in) :: params0(nparams)
+        integer(c_int), intent(in) :: free_idx(nfree)
+        real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_sigma(nrow), tol
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree)
+        real(c_double), intent(out) :: cov(nfree, nfree), corr(nfree, nfree)
+        real(c_double), intent(out) :: predictions(nrow), normalized(nrow), stats(8)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1)
+        real(c_double), intent(out) :: log_params(nfree, max_iter + 1)
+        real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
+        integer(c_int), intent(out) :: flagged(nrow)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        type(inverse_problem_t) :: model
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(fit_result_t) :: res
+        type(lsq_problem_t) :: lp
+        real(dp) :: w(nrow), su(nrow), sd(nrow)
+        logical :: fl(nrow)
+        integer :: n
+        params = params0
+        note = ''
+        n = int(nprior)
+        if (ncov /= 0 .and. ncov /= nprior*nprior) then
+            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
+                            ' values, expected nprior**2 = '//fmt_int(n*n))
+        else
+            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                      int(row_exp), real(row_t, dp), int(row_q), &
+                                      real(tol, dp), model, stat, &
+                                      make_obs(obs_kind, obs_beam, obs_s))
+        end if
+        if (stat%code == STATUS_OK) then
+            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
+            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
+                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
+        end if
+        if (stat%code == STATUS_OK) then
+            call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
+                           w, su, sd, fl, stat)
+            if (allocated(res%note)) note = res%note
+        end if
+        call status_out(stat, code, message)
+        if (stat%code == STATUS_OK .and. allocated(res%note)) message = res%note
+        if (.not. allocated(res%params)) return
+        info(1) = int(res%stop, c_int)
+        if (stat%code /= STATUS_OK .and. stat%code /= ERR_NO_CONVERGENCE) return
+        call copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                      log_cost, log_lambda, log_step, log_params)
+        weights = w
+        sigma_used = su
+        sigma_sd = sd
+        flagged = merge(1_c_int, 0_c_int, fl)
+    end subroutine api_fit_chain
+
     !> Predictions of the data rows of any mix of experiment families
     !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
-    !! in the EV_* layout, 12 rows) and their derivatives w.r.t.
+    !! in the EV_* layout, 18 rows) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
                                    row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, &
                                    nwrt, wrt, tol, pred, jac, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(12, nexp), row_t(nrow), tol
+        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
         integer(c_int), intent(in) :: nobs
         !f2py intent(hide) nobs
@@ -401,6 +485,37 @@ contains
         pred = p
         jac = j
     end subroutine api_problem_predict
+
+    !> The nuisance parameters of the measurement chain the experiments'
+    !! value columns ask for (beamid_inverse chain_layout), in parameter
+    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale),
+    !! experiment (1-based) and entry of the problem's observation list of
+    !! nobs entries (0 for a clock offset); the first n of each (at most nexp
+    !! (1 + 2 MAX_CHANNEL_BITS)) are filled.
+    subroutine api_chain_layout(nexp, exp_kind, exp_values, nobs, n, kinds, exps, qs, code, &
+                                message)
+        integer(c_int), intent(in) :: nexp, nobs
+        !f2py intent(hide) nexp
+        integer(c_int), intent(in) :: exp_kind(nexp)
+        real(c_double), intent(in) :: exp_values(18, nexp)
+        integer(c_int), intent(out) :: n
+        integer(c_int), intent(out) :: kinds(105*nexp), exps(105*nexp), qs(105*nexp)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        integer, allocatable :: k(:), e(:), q(:)
+        n = 0
+        kinds = 0
+        exps = 0
+        qs = 0
+        call chain_layout(int(exp_kind), real(exp_values, dp), k, e, q, stat, int(nobs))
+        call status_out(stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        n = int(size(k), c_int)
+        kinds(1:n) = int(k, c_int)
+        exps(1:n) = int(e, c_int)
+        qs(1:n) = int(q, c_int)
+    end subroutine api_chain_layout
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
@@ -483,7 +598,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
@@ -628,7 +743,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(12, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
@@ -882,4 +997,36 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_deck_task_write
+
+    !> The mesh check of a finished fit (beamid_dyn_diagnosis mesh_check):
+    !! the data rows' predictions at `params` with every release at twice its
+    !! elements per beam against the fit's `pred`. out = [done (1/0), elements
+    !! per beam now, recommended, largest |change| / sigma, its data row
+    !! (1-based), chi-square of the refined model at params].
+    subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+                              row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
+                              row_sigma, pred, tol, out, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
+        !f2py intent(hide) nparams, nexp, nrow
+        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow)
+        integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
+        real(c_double), intent(in) :: row_value(nrow), row_sigma(nrow), pred(nrow), tol
+        real(c_double), intent(out) :: out(6)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(mesh_test_t) :: res
+        type(status_t) :: stat
+        call mesh_check(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
+                        real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
+                        real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat, &
+                        make_obs(obs_kind, obs_beam, obs_s))
+        call status_out(stat, code, message)
+        out = [merge(1.0_dp, 0.0_dp, res%done), real(res%nepb, dp), real(res%recommended, dp), &
+               res%max_change, real(res%max_row, dp), res%chi2]
+    end subroutine api_mesh_check
+
 end module beamid_api_estimation

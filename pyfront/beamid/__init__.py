@@ -30,6 +30,7 @@ from .diagnosis import (Comparison, Diagnosis, Effect, Ladder, add_effect, compa
 from . import dyn_diagnosis as _dyn_diagnosis  # registers the dynamic candidates
 from .dyn_diagnosis import DYNAMIC_CANDIDATES, TimeComparison
 from .consistency import Consistency, consistency
+from . import robust as _robust  # fills in fit's checks of its own end (issue 30)
 from .design import Advice, design
 
 __all__ = [

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import re
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, NoReturn
@@ -35,7 +36,7 @@ from .errors import InputError, check_memory
 MAX_COUNT = 2**31 - 1
 
 __all__ = ["MAX_COUNT", "show", "fail", "count", "real", "reals", "choice", "names", "flag",
-           "instance", "path", "mapping", "axes", "memory", "text", "is_int"]
+           "instance", "path", "mapping", "axes", "memory", "text", "is_int", "dask_client"]
 
 memory = check_memory
 
@@ -277,4 +278,28 @@ def axes(name: str, value: Any) -> Any:
 
     if not isinstance(value, Axes):
         fail(name, value, "None or a matplotlib Axes")
+    return value
+
+
+#: a Dask scheduler address: [protocol://]host:port
+_SCHEDULER = r"([a-z]+://)?[^\s:/]+:\d+/?"
+
+
+def dask_client(name: str, value: Any) -> Any:
+    """None, a scheduler address ('tcp://host:8786') or a
+    dask.distributed.Client (without Dask installed only None or an
+    address passes; nothing connects here)."""
+    if value is None:
+        return None
+    words = "None, a dask.distributed.Client or a scheduler address such as 'tcp://host:8786'"
+    if isinstance(value, str):
+        if not re.fullmatch(_SCHEDULER, value):
+            fail(name, value, words)
+        return value
+    try:
+        import distributed
+    except ImportError:
+        fail(name, value, words + " (Dask is not installed)")
+    if not isinstance(value, distributed.Client):
+        fail(name, value, words)
     return value

@@ -52,6 +52,8 @@ class Problem:
     obs_kind: np.ndarray | None = None
     obs_beam: np.ndarray | None = None
     obs_s: np.ndarray | None = None
+    #: the names of the observation list's entries (None: the kind names)
+    obs_labels: tuple[str, ...] | None = None
 
     def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The observation list as the binding takes it."""
@@ -61,6 +63,15 @@ class Problem:
         return (np.asarray(self.obs_kind, np.int32), np.asarray(self.obs_beam, np.int32),
                 np.asarray(self.obs_s, float))
 
+    def observation_names(self) -> tuple[str, ...]:
+        """The names of the observation list's entries, in its order."""
+        if self.obs_labels is not None:
+            return tuple(self.obs_labels)
+        if self.obs_kind is None:
+            return tuple(QUANTITY_NAMES.values())
+        return tuple(QUANTITY_NAMES[int(k)] + (f"@{int(b)}:{float(s):g}" if b > 0 else "")
+                     for k, b, s in zip(self.obs_kind, self.obs_beam, self.obs_s))
+
     def rows(self) -> tuple:
         """The experiments, the rows and the tolerance in the order the fit,
         diagnose and ladder entries take them."""
@@ -69,7 +80,7 @@ class Problem:
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
-NEXPVAL = 12
+NEXPVAL = 18
 
 
 def problem_predict(prob: Problem, params: np.ndarray,
@@ -432,3 +443,39 @@ def deck_task_write_report(path: str, task: str = "", output: str = ""
     before the files: ``(summary, files)``."""
     written, summary = _call(_api.api_deck_task_write, _path(path), task, output)
     return _text(summary), [line for line in _text(written).split("\n") if line]
+
+
+def fit_chain(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
+              max_iter: int = 50, prior_cov: np.ndarray | None = None) -> dict:
+    """:func:`fit` with the rows' treatment of the measurement chain (losses,
+    burn-in, estimated sigmas: beamid_chain_fit); the dict gains per row
+    ``weights``, ``sigma_used``, ``sigma_sd`` and ``flagged`` (gross errors)."""
+    free = np.asarray(free, dtype=np.int32)
+    cov = np.zeros(0) if prior_cov is None else np.ravel(prior_cov, order="F").astype(float)
+    extra = {}
+
+    def entry(*args):
+        out = _api.api_fit_chain(*args)
+        extra.update(weights=np.array(out[13]), sigma_used=np.array(out[14]),
+                     sigma_sd=np.array(out[15]), flagged=np.array(out[16], dtype=bool))
+        return out[:13] + out[17:]
+
+    result = _fit_call(entry, free.size, False, prob.nbeams, np.asarray(params0, float), free,
+                       prior, cov, *prob.rows(), int(max_iter))
+    result.update(extra)
+    return result
+
+
+def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
+    """The mesh check of a fit (beamid_dyn_diagnosis mesh_check): the data
+    rows' predictions at ``params`` with every release at twice its elements
+    per beam against the fit's ``pred``. Returns done (0 without releases),
+    nepb, recommended, max_change (sigma units), row (0-based) and chi2 (of
+    the refined model at params)."""
+    out = _call(_api.api_mesh_check, prob.nbeams, np.asarray(params, float), prob.exp_kind,
+                prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, *prob.observations(),
+                prob.row_value,
+                prob.row_sigma, np.asarray(pred, float), float(prob.tol))
+    out = np.asarray(out, float)
+    return {"done": int(out[0]), "nepb": int(out[1]), "recommended": int(out[2]),
+            "max_change": float(out[3]), "row": int(out[4]) - 1, "chi2": float(out[5])}

@@ -111,8 +111,9 @@ def _run_one(spec: _Spec, k: int) -> dict:
            "flags": ("",) * n}
     try:
         data, prior = _replicate_inputs(spec, k)
+        # a replicate is one fit (no mesh check, no more starts) unless asked
         res = _fit(spec.start, spec.experiments, data, free=spec.free, prior=prior,
-                   **spec.options)
+                   **{"starts": 0, "mesh": False, **spec.options})
     except BeamidError as exc:
         rec["status"] = NOT_CONVERGED if not isinstance(exc, InputError) else ERROR
         rec["message"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -432,7 +433,7 @@ def _dask_client(client: Any):
     except ImportError:
         raise ImportError(DASK_HINT) from None
     if isinstance(client, str):
-        if not re.fullmatch(r"([a-z]+://)?[^\s:/]+:\d+/?", client):
+        if not re.fullmatch(_check._SCHEDULER, client):
             _check.fail("client", client, "a dask.distributed.Client or a scheduler address "
                         "such as 'tcp://host:8786'")
         try:

@@ -37,7 +37,9 @@ from . import _check, _core_estimation as _ce
 from .errors import ConvergenceError, InputError
 from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
                          flag_is_problem)
-from .estimation import _free_indices, _named, _prior_arrays, _result
+from .estimation import _check_experiments, _free_indices, _named, _prior_arrays, _result
+from . import chain as _chain, chain_refit as _chain_refit
+from .chain import split_ladder_fit as _split_ladder_fit
 from .loads import RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
@@ -63,6 +65,10 @@ class Effect:
     null_value: float = 0.0
     lower: float = 0.0
     upper: float = math.inf
+    #: what kind of cause it is: "physics" (an effect of the model) or
+    #: "measurement chain" (a flaw of the record: beamid.chain's nuisance
+    #: parameters, whose names come from the fit's experiments and data)
+    cause: str = "physics"
 
     @property
     def one_sided(self) -> bool:
@@ -84,6 +90,8 @@ class Effect:
                            expected=f"a finite number within [{lower:g}, {upper:g}]")
         for field_name, value in (("lower", lower), ("upper", upper), ("null_value", null)):
             object.__setattr__(self, field_name, value)
+        object.__setattr__(self, "cause", _check.choice("Effect: cause", self.cause,
+                                                        ("physics", "measurement chain")))
 
 
 EFFECTS: dict[str, Effect] = {}
@@ -109,6 +117,11 @@ for _row in _ce.effect_table(1).values():
     register_effect(Effect(_row.name, _row.description, _core_params(_row.name),
                            kinds=_row.kinds, null_value=_row.null_value, lower=_row.lower,
                            upper=_row.upper))
+# the measurement chain's candidates (beamid.chain: nuisance parameters and
+# row treatments of release fits, not effects of the model)
+for _name, _text in _chain.CANDIDATE_EFFECTS:
+    register_effect(Effect(_name, _text, lambda m: (), kinds=("dynamic",),
+                           cause="measurement chain"))
 
 #: Candidate effects tried for static experiments, in order.
 STATIC_CANDIDATES = _ce.default_effects("static")
@@ -135,12 +148,15 @@ _RELEASE_FAMILY: dict[str, Callable[..., Any]] = {}
 
 def register_release_family(*, compare: Callable[..., Any], diagnosis: Callable[..., Any],
                             default_candidates: Callable[..., Any],
-                            refine_mesh: Callable[..., Any]) -> None:
+                            refine_mesh: Callable[..., Any],
+                            candidate: type | None = None) -> None:
     """Install the functions of the release family (beamid.dyn_diagnosis)
     that compare, diagnose, add_effect and improve call on fits with
-    releases."""
+    releases; ``candidate`` is the family's Candidate class (the measurement
+    chain's row candidates of a diagnosis are made of it)."""
     _RELEASE_FAMILY.update(compare=compare, diagnosis=diagnosis,
-                           default_candidates=default_candidates, refine_mesh=refine_mesh)
+                           default_candidates=default_candidates, refine_mesh=refine_mesh,
+                           candidate=candidate or Candidate)
 
 
 def _effect(name: str | Effect) -> Effect:
@@ -342,6 +358,8 @@ class Candidate:
     refit_start: str | None = None
     #: what each refit start gave (why the refit failed, when it did)
     refit_note: str = ""
+    #: "physics" or "measurement chain" (Effect.cause)
+    cause: str = "physics"
 
     @property
     def refit_failed(self) -> bool:
@@ -441,7 +459,7 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
 
     state = _STATES[int(s("state"))]
     if state != "tested":
-        return cls(eff.name, params, state)
+        return cls(eff.name, params, state, cause=eff.cause)
     if keep is not None:
         params = tuple(n for n, k in zip(params, keep) if k)
     refit = bool(s("refit_done")) and bool(s("refit_ok"))
@@ -449,7 +467,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
     if s("rival") and s("sep_experiment") > 0:
         sep = (exp_names[int(s("sep_experiment")) - 1],
                _ce.QUANTITY_NAMES[int(s("sep_quantity"))], s("separation"))
-    null = {n: float(model[n]) for n in params}
+    chain_values = raw.get("chain_values", {})
+    null = {n: float(chain_values[n]) if n in chain_values else float(model[n]) for n in params}
     each = list(enumerate(params))
     return cls(
         effect=eff.name, params=params, state=state, score_drop=s("score_drop"),
@@ -466,7 +485,8 @@ def _candidate(raw: dict, c: int, eff: Effect, params: tuple[str, ...], model: M
         refit_model=Model(model.nbeams, raw["refit_params"][:, c]) if refit else None,
         significant=bool(s("significant")), acceptable=bool(s("acceptable")),
         rival=bool(s("rival")), separating=sep, refit_tried=bool(s("refit_done")),
-        refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c]), **extra)
+        refit_start=raw["refit_start"][c], refit_note=_named(model, raw["notes"][c]),
+        cause=eff.cause, **extra)
 
 
 def _effect_request(fit: FitResult, effect: str | Effect, max_iter: int,
@@ -525,16 +545,74 @@ def diagnose(fit: FitResult, candidates: Sequence[str | Effect] | None = None, *
     nrefit = _check.count("nrefit", nrefit, min=0)
     ambiguity_delta = _check.real("ambiguity_delta", ambiguity_delta, min=0.0)
     collinear = _check.real("collinear", collinear, min=0.0, max=1.0)
+    user_fit, fit = fit, _chain.judged_fit(fit)   # the rows it judges (fitted, not gross errors)
     model = fit.model
     with_mesh, effects, names, blocks = _candidate_set(model, fit.experiments, candidates)
-    prob = build_problem(model, fit.experiments, fit.data)
+    rows = [e for e in effects if e.name in _chain.ROW_CANDIDATES]
+    keep = [k for k, e in enumerate(effects) if e.name not in _chain.ROW_CANDIDATES]
+    effects, names, blocks = ([x[k] for k in keep] for x in (effects, names, blocks))
+    ext = _chain.diagnosis_extension(fit, effects, names, blocks)
+    prob = build_problem(model, fit.experiments, fit.data, chain=ext.spec)
     free_idx = np.array([model.index(n) + 1 for n in fit.free], np.int32)
+    free_idx = np.concatenate([free_idx, ext.free]).astype(np.int32)
     nominal = _nominal(fit, nominal)
-    raw = _ce.problem_diagnose(prob, model.vector(), free_idx,
+    raw = _ce.problem_diagnose(prob, np.concatenate([model.vector(), ext.values]), free_idx,
                                _prior_arrays(model, fit.free, fit.prior)[1], blocks, alpha,
-                               int(nrefit), ambiguity_delta, collinear, nominal.vector(),
-                               with_mesh)
-    return _diagnosis(fit, raw, effects, names, alpha, with_mesh)
+                               int(nrefit), ambiguity_delta, collinear,
+                               np.concatenate([nominal.vector(), ext.values]), with_mesh)
+    ext.trim(raw, model.vector().size)
+    diag = _diagnosis(fit, raw, effects, names, alpha, with_mesh)
+    if rows:
+        diag = _with_row_candidates(diag, rows)
+    return dataclasses.replace(diag, fit=user_fit) if user_fit is not fit else diag
+
+
+def _with_row_candidates(diag: Diagnosis, rows: list[Effect]) -> Diagnosis:
+    """The diagnosis with the measurement chain's row candidates
+    (beamid.chain.row_candidates) ranked in: gross errors are the verdict
+    when their refit drops the chi-square most; noise larger than stated
+    when nothing else is significant and the residuals are white."""
+    dynamic = _dynamic(diag.fit.experiments)
+    cls = type(diag.candidates[0]) if diag.candidates else Candidate
+    if dynamic:
+        cls = _RELEASE_FAMILY["candidate"]
+    extra = _chain_refit.row_candidates(diag.fit, rows, diag.alpha_each, cls)
+    verdict = diag.verdict
+    for c in extra:
+        if c.effect == "gross_errors" and c.significant and (
+                verdict is None or c.chi2_drop > verdict.chi2_drop):
+            verdict = c
+    noise = next((c for c in extra if c.effect == "noise"), None)
+    white = False
+    if noise is not None and noise.significant and verdict is None:
+        cmp = compare(diag.fit)
+        series = getattr(cmp, "series", ())
+        level = diag.alpha / max(1, 3 * len(series))
+        white = bool(series) and not any(s.p_min < level for s in series
+                                         if not math.isnan(s.p_min))
+        if white:
+            verdict = noise
+    ranked = list(diag.candidates)
+    for c in extra:
+        # gross errors by their chi-square drop; noise (chi2 - dof, no refit:
+        # not comparable) after the tested candidates unless it is the verdict
+        pos = next((k for k, r in enumerate(ranked) if r.state != "tested"
+                    or (c.effect != "noise" and not (r.chi2_drop >= c.chi2_drop))),
+                   len(ranked))
+        ranked.insert(0 if c is verdict else pos, c)
+    if verdict is diag.verdict:
+        return dataclasses.replace(diag, candidates=tuple(ranked))
+    message = _verdict_message(diag.fit, tuple(ranked), verdict, (), diag.alpha,
+                               diag.alpha_each)
+    if verdict is noise:
+        f = noise.estimate["sigma factor"]
+        message += (f"\n  white residuals with chi2/dof = {f * f:.3g}: the stated sigmas are "
+                    f"too small by a factor {f:.3g}; fit with estimate_sigma=True")
+    elif verdict is not None:
+        message += ("\n  the refit with a Huber loss flags these rows as gross errors "
+                    "(fit with loss='huber')")
+    return dataclasses.replace(diag, candidates=tuple(ranked), verdict=verdict, rivals=(),
+                               message=message)
 
 
 def _candidate_set(model: Model, experiments, candidates):
@@ -560,7 +638,9 @@ def _candidate_set(model: Model, experiments, candidates):
         raise InputError("candidates is empty: name at least one effect")
     mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
     effects = [_effect(c) for c, m in zip(cands, mesh) if not m]
-    names = [e.params(model) for e in effects]
+    # the measurement chain's candidates are named and placed by
+    # beamid.chain.diagnosis_extension (their parameters follow the model's)
+    names = [e.params(model) if e.cause == "physics" else () for e in effects]
     return (any(mesh), effects, names,
             [np.array([model.index(n) + 1 for n in ns], np.int32) for ns in names])
 
@@ -629,7 +709,9 @@ def _verdict_message(fit: FitResult, ranked, verdict, rivals, alpha, alpha_each,
         return "\n".join(lines)
     est = ", ".join(f"{n} = {verdict.estimate[n]:.5g} +- {verdict.sigma[n]:.2g}"
                     for n in verdict.params)
-    lines.append(f"missing effect: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
+    what = ("measurement chain, not physics" if verdict.cause == "measurement chain"
+            else "missing effect")
+    lines.append(f"{what}: {verdict.effect} (chi-square drop {verdict.chi2_drop:.4g}, "
                  f"p = {verdict.p_value:.2g}; {est})")
     for c in ranked:
         if c.refit_failed and c.score_p < alpha_each:
@@ -686,7 +768,10 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
         # the same fit at twice the elements per beam
         refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
-                    prior=fit.prior or None, max_iter=max_iter)
+                    prior=fit.prior or None, max_iter=max_iter, starts=0, mesh=False)
+    if _effect(effect).cause == "measurement chain":   # a refit with the chain's parameters
+        return _chain_refit.add_chain_effect(fit, _effect(effect).name, max_iter=max_iter)
+    fit = _chain.judged_fit(fit)    # the rows the fit judges: fitted, not gross errors
     eff, params, mask = _effect_request(fit, effect, max_iter, starts)
     model = fit.model
     nominal = _nominal(fit, nominal)
@@ -806,10 +891,25 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
+    ext = _chain_extension(model, _check_experiments(experiments), data, effects, names,
+                           blocks)
     with _ce.LADDER_LOCK:
-        _ce.ladder_start(build_problem(model, experiments, data), model.vector(), free_idx,
+        _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
+                         np.concatenate([model.vector(), ext.values]), free_idx,
                          ptable, blocks, with_mesh, alpha, limit, int(max_iter))
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+
+
+def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
+                     effects: list[Effect], names: list, blocks: list):
+    """The measurement chain's candidates of a ladder (beamid.chain.extension):
+    their names and blocks filled in, the nuisance parameters returned. The
+    row candidates (gross errors, noise) are diagnose's only: dropped here
+    (in place)."""
+    keep = [k for k, e in enumerate(effects) if e.name not in _chain.ROW_CANDIDATES]
+    for x in (effects, names, blocks):
+        x[:] = [x[k] for k in keep]
+    return _chain.extension(model, dict(experiments), data, None, effects, names, blocks)
 
 
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
@@ -822,19 +922,26 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     call), and name its rungs."""
     dynamic = _dynamic(experiments)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
+    ext = _chain_extension(model, experiments, data, effects, names, blocks)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
         if _ce.ladder_step():
             break
-    all_names = model.names()
+    npar = model.vector().size
+    all_names = model.names() + tuple(ext.names)
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
             experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
-        fit = _result(Model(model.nbeams, r["start"]), experiments, data,
-                      tuple(all_names[i] for i in r["free"]), prior_map, r["fit"],
-                      nominal=Model(model.nbeams, r["nominal"]))
+        raw, phys, sub = _split_ladder_fit(r["fit"], r["free"], npar, ext.spec,
+                                           list(experiments))
+        fit = _result(Model(model.nbeams, r["start"][:npar]), experiments, data,
+                      tuple(all_names[i] for i in phys), prior_map, raw,
+                      nominal=Model(model.nbeams, r["nominal"][:npar]), chain=sub or None)
         fit = dataclasses.replace(fit, refit_start=r["refit_start"])
+        if ext.names:
+            ext.trim(r["diag"], npar)
+            r["diag"]["chain_values"] = dict(zip(ext.names, r["fit"]["params"][npar:]))
         diag = _diagnosis(fit, r["diag"], effects, names, alpha, with_mesh)
         effect = r["effect"]
         if effect is not None and effect.isdigit():   # a candidate's number (not a deck's name)

@@ -41,6 +41,10 @@ from .model import Model
 # import this module: this module installs its functions there at the end)
 from . import diagnosis as _dg
 from .diagnosis import Candidate, Diagnosis, Effect
+from . import chain as _chain
+
+#: standardized residual beyond which compare flags a row (beamid_chain_fit GROSS_Z)
+GROSS_Z = 3.5
 
 __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_dynamic",
            "improve_dynamic", "compare_dynamic", "refine_mesh", "MeshCandidate",
@@ -52,8 +56,18 @@ __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_d
 # and families) are the core's table (beamid_effects), registered with the
 # static ones by beamid.diagnosis
 
-#: Candidate effects tried for release experiments, in order (the core's table).
-DYNAMIC_CANDIDATES = _ce.default_effects("dynamic")
+
+def _with_chain(names: tuple[str, ...]) -> tuple[str, ...]:
+    """The core's default candidates with the measurement chain's
+    (beamid.chain) before the mesh, which is tried last."""
+    chain = tuple(n for n, _ in _chain.CANDIDATE_EFFECTS)
+    rest = tuple(n for n in names if n != "mesh")
+    return rest + chain + (("mesh",) if "mesh" in names else ())
+
+
+#: Candidate effects tried for release experiments, in order (the core's
+#: table, with the measurement chain's candidates of beamid.chain).
+DYNAMIC_CANDIDATES = _with_chain(_ce.default_effects("dynamic"))
 
 #: has this set of experiments a release (time histories)?
 is_dynamic = _dg._dynamic
@@ -142,8 +156,10 @@ def _dyn_diagnosis(fit: FitResult, raw: dict, effects: list[Effect],
         block = slice(raw["starts"][c], raw["starts"][c + 1])
         keep = raw["kept"][block]
         # the block as tested; the rest at null (not needed or determined)
+        values = raw.get("chain_values", {})
         left = tuple(n for n, k in zip(names[c], keep)
-                     if not k and n not in fit.free and float(model[n]) == 0.0)
+                     if not k and n not in fit.free and n not in values
+                     and float(model[n]) == 0.0)
         alike = tuple(n for n, a in zip(names[c], raw["ambiguous"][block]) if a)
         sep_t = (float(raw["sep_t"][c]) if raw["cstats"]["rival"][c]
                  and raw["cstats"]["sep_experiment"][c] > 0 else None)
@@ -247,6 +263,10 @@ class TimeSeries:
     autocorrelation_p: float   #: one-sided: neighbours alike
     amplitude_slope: float     #: trend of |normalized| with time (1/s)
     amplitude_p: float         #: two-sided
+    #: rows whose standardized residual passes GROSS_Z (3.5): gross errors
+    flagged: np.ndarray | None = None
+    #: rows fitted (False: before the fit's burn-in, shown but not fitted)
+    fitted: np.ndarray | None = None
 
     @property
     def p_min(self) -> float:
@@ -290,12 +310,19 @@ class TimeComparison:
     def __str__(self) -> str:
         lines = [f"{'experiment':<12}{'quantity':<13}{'rows':>5}{'chi2':>10}{'expected':>9}"
                  f"{'runs':>6}{'exp.':>7}{'runs p':>9}{'lag-1 r':>9}{'r p':>9}"
-                 f"{'|r| slope':>10}{'slope p':>9}"]
+                 f"{'|r| slope':>10}{'slope p':>9}{'flagged':>8}"]
+        flagged = []
         for s in self.series:
+            nflag = int(np.sum(s.flagged)) if s.flagged is not None else 0
             lines.append(f"{s.experiment:<12}{s.quantity:<13}{len(s.t):>5}{s.chi2:>10.4g}"
                          f"{s.expected:>9.3g}{s.runs:>6.0f}{s.expected_runs:>7.2f}"
                          f"{s.runs_p:>9.2g}{s.autocorrelation:>9.3f}{s.autocorrelation_p:>9.2g}"
-                         f"{s.amplitude_slope:>10.3g}{s.amplitude_p:>9.2g}")
+                         f"{s.amplitude_slope:>10.3g}{s.amplitude_p:>9.2g}{nflag:>8d}")
+            if nflag:
+                flagged += [f"{s.experiment} {s.quantity} t = {t:g} s ({z:+.3g} sigma)"
+                            for t, z in zip(s.t[s.flagged], s.normalized[s.flagged])]
+        if flagged:
+            lines.append("gross errors (|normalized residual| > 3.5): " + "; ".join(flagged))
         if self.static_rows:
             lines.append(f"{len(self.static_rows)} static rows, chi2 "
                          f"{sum(r.normalized ** 2 for r in self.static_rows):.4g}")
@@ -309,6 +336,7 @@ class TimeComparison:
     def plot(self, path=None, fig=None, title: str | None = None):
         """The figure of :func:`plot_time_comparison`; saved as PNG at ``path``."""
         path = _check.path("path", path, none=True)
+        title = _check.text("title", title, empty=True, none=True)
         if fig is not None:
             from matplotlib.figure import Figure
 
@@ -337,17 +365,25 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
             groups.setdefault((r.experiment, r.quantity), []).append(r)
         else:
             static_rows.append(r)
+    fitted = fit.fitted_rows if fit.fitted_rows is not None else np.ones(len(fit.residuals),
+                                                                           bool)
+    index = {id(r): i for i, r in enumerate(fit.residuals)}
     for (e, q), rows in groups.items():
         rows = sorted(rows, key=lambda r: r.t)
         t = np.array([r.t for r in rows])
         z = np.array([r.normalized for r in rows])
-        st = _ce.time_structure(t, z)
+        used = np.array([bool(fitted[index[id(r)]]) for r in rows])
+        flag = used & (np.abs(z) > GROSS_Z)
+        # the structure tests see the fitted rows that are not gross errors
+        keep = used & ~flag if fit.loss != "linear" else used
+        st = _ce.time_structure(t[keep], z[keep])
         series.append(TimeSeries(
             e, q, quantity_unit(q), t, np.array([r.measured for r in rows]),
             np.array([r.sigma for r in rows]), np.array([r.model for r in rows]), z,
-            float(np.sum(z ** 2)), float(len(rows)), *(float(v) for v in st[[0, 1, 3, 4, 6, 7,
-                                                                               9]])))
-    chi2 = float(sum(r.normalized ** 2 for r in fit.residuals))
+            float(np.sum(z[keep] ** 2)), float(np.sum(keep)),
+            *(float(v) for v in st[[0, 1, 3, 4, 6, 7, 9]]), flagged=flag, fitted=used))
+    chi2 = (float(fit.chi2) if fit.weights is not None
+            else float(sum(r.normalized ** 2 for r in fit.residuals)))
     dof = fit.dof
     p = _ce.chi2_sf(chi2 + fit.chi2_prior, dof) if dof > 0 else math.nan
     ntests = 1 + 3 * len(series)
@@ -398,6 +434,8 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
     title = _check.text("title", title, empty=True, none=True)
     import matplotlib.pyplot as plt
 
+    title = _check.text("title", title, empty=True, none=True)
+
     n = max(len(cmp.series), 1)
     if fig is None:
         fig = plt.figure(figsize=(4.2 * n, 5.6))
@@ -423,6 +461,15 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
         bottom.errorbar(s.t[sl], s.normalized[sl], yerr=np.ones_like(s.normalized[sl]),
                         fmt="o-" if step == 1 else "o", ms=3, color="C3", capsize=2,
                         elinewidth=1.0, label="normalized residual +- 1 sigma")
+        if s.flagged is not None and np.any(s.flagged):
+            for ax, y in ((top, s.measured), (bottom, s.normalized)):
+                ax.plot(s.t[s.flagged], y[s.flagged], "x", ms=9, mew=2, color="k",
+                        label="gross error (|r| > 3.5)")
+        if s.fitted is not None and not np.all(s.fitted):
+            t_end = float(np.max(s.t[~s.fitted]))
+            for ax in (top, bottom):
+                ax.axvspan(float(np.min(s.t)), t_end, color="0.8", alpha=0.5,
+                           label="burn-in (not fitted)")
         bottom.set_xlabel("t (s)")
         bottom.set_ylabel("(measured - model) / sigma")
         bottom.set_title(f"chi2 {s.chi2:.3g} / {s.expected:.0f}, lag-1 r {s.autocorrelation:.2f}",
@@ -439,4 +486,5 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
 # compare, diagnose, add_effect and improve in beamid.diagnosis call these on
 # fits with releases
 _dg.register_release_family(compare=compare_dynamic, diagnosis=_dyn_diagnosis,
-                            default_candidates=default_candidates, refine_mesh=refine_mesh)
+                            default_candidates=default_candidates, refine_mesh=refine_mesh,
+                            candidate=DynCandidate)

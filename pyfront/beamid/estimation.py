@@ -14,10 +14,11 @@ priori pseudo-measurements, SVD covariance) run in Fortran
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
+from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -46,6 +48,17 @@ def flag_is_problem(flag: str) -> bool:
 _EV_FD = 11
 
 Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
+
+#: Defaults of fit's several starts (beamid.robust): the spread (each free
+#: parameter times U(1 - s, 1 + s)) and the seed; at most MAX_STARTS more.
+START_SPREAD = 0.4
+START_SEED = 30
+MAX_STARTS = 1000
+#: The checks fit makes on its own end (issue 30: the mesh check, several
+#: starts, growing a long record). beamid.robust builds on this module's fit
+#: and fills this in when it is imported (the package imports it), so this
+#: module does not import it: ``fit`` (plain fit -> checked FitResult).
+_ROBUST: dict[str, Callable[..., Any]] = {}
 
 
 class Residual(NamedTuple):
@@ -115,6 +128,37 @@ class FitResult:
     #: for a refit with an effect added: the start it kept ("first-order
     #: estimate", "nominal model" or "continuation")
     refit_start: str | None = None
+    #: the measurement chain's nuisance parameters fitted with the physics
+    #: (``nuisance=`` of :func:`fit`; beamid.chain): estimates and sigmas by
+    #: name (``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``);
+    #: ``cov`` above is the physics block of ``full_cov`` (free parameters,
+    #: then these), so the physics sigmas account for them
+    nuisance: dict[str, float] = field(default_factory=dict)
+    nuisance_sigmas: dict[str, float] = field(default_factory=dict)
+    full_cov: np.ndarray | None = field(default=None, repr=False)
+    chain: "ChainSpec | None" = field(default=None, repr=False)
+    #: the rows' treatment (``loss``, ``burn_in``, ``estimate_sigma`` of
+    #: :func:`fit`): the loss; per row the last IRLS weight (0: burn-in),
+    #: whether it was fitted, and the rows flagged as gross errors
+    #: (standardized residual beyond 3.5: not in chi2 and dof)
+    loss: str = "linear"
+    weights: np.ndarray | None = field(default=None, repr=False)
+    fitted_rows: np.ndarray | None = field(default=None, repr=False)
+    gross_errors: tuple[int, ...] = ()
+    #: the sigmas estimated from the residuals, by channel "experiment:quantity":
+    #: (sigma, its standard deviation)
+    sigma_estimates: dict[str, tuple[float, float]] = field(default_factory=dict)
+    #: the rows' treatment asked for (beamid.chain.RowTreatment; None: plain)
+    treatment: "RowTreatment | None" = field(default=None, repr=False)
+    #: the mesh check (fits with releases that ended far above their degrees
+    #: of freedom or stalled; beamid.robust.MeshCheck), None when not made
+    mesh_check: "Any" = field(default=None, repr=False)
+    #: where every start ended (beamid.robust.StartEnd; empty: one start)
+    starts: tuple = field(default=(), repr=False)
+    #: the start whose end point this is ("given start" or "random start k")
+    start_won: str = "given start"
+    #: the fits that led here when the record was grown (one line per window)
+    path: tuple[str, ...] = field(default=(), repr=False)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -132,6 +176,15 @@ class FitResult:
         for name in self.free:
             lines.append(f"{name:<16}{self.estimates[name]:>14.6g}{self.sigmas[name]:>12.3g}  "
                          f"{self.flags[name]}")
+        for name, (v, sd) in self.sigma_estimates.items():
+            lines.append(f"sigma of {name} estimated from the residuals: {v:.4g} +- {sd:.2g}")
+        if self.gross_errors:
+            lines.append(f"gross errors (|normalized residual| > 3.5, not in chi2): rows "
+                         + ", ".join(str(i) for i in self.gross_errors))
+        if self.nuisance:
+            lines.append("measurement chain:")
+            for name, v in self.nuisance.items():
+                lines.append(f"{name:<16}{v:>14.6g}{self.nuisance_sigmas[name]:>12.3g}")
         lines.append(f"chi2 = {self.chi2:.4g} (+ a priori {self.chi2_prior:.3g}), dof = "
                      f"{self.dof}, chi2/dof = {self.chi2_per_dof:.3g}, "
                      f"{self.iterations} iterations, condition number {self.cond:.3g}")
@@ -165,8 +218,11 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
 
 
 def build_problem(model: Model, experiments: Experiments, data: Measurements,
-                  tol: float = 0.0) -> _ce.Problem:
-    """Arrays for the Fortran core; checks that every row can be predicted."""
+                  tol: float = 0.0, chain: ChainSpec | None = None,
+                  rows: RowTreatment | None = None) -> _ce.Problem:
+    """Arrays for the Fortran core; checks that every row can be predicted.
+    ``chain``: the nuisance parameters of the measurement chain (their
+    values follow the model's in the parameter vector, ChainSpec.order)."""
     exps = _check_experiments(experiments)
     if not isinstance(data, Measurements):
         raise InputError(f"data must be beamid.Measurements (read_measurements), got "
@@ -178,12 +234,16 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for j, name in enumerate(names):
         kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
-    # the problem's observation list: each distinct name once, parsed by the core
-    labels: dict[str, int] = {}
-    for q in data.quantity:
-        labels.setdefault(q, len(labels) + 1)
+    # the problem's observation list: each distinct name once, in the core's
+    # order of kinds and loci (observations.ordered), parsed by the core; the
+    # measurement chain's channel masks number its entries
+    labels = {q: i for i, q in enumerate(observations.ordered(data.quantity), start=1)}
     obs = [observations.parse(q) for q in labels]
     _check_stations(model, data, dict(zip(labels, obs)))
+    if chain:
+        chain.encode(names, values, labels)
+    if rows:
+        rows.encode(names, values, labels)
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -192,7 +252,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_t=np.array(data.t, float), tol=float(tol),
         obs_kind=np.array([o.code for o in obs], np.int32),
         obs_beam=np.array([o.beam for o in obs], np.int32),
-        obs_s=np.array([o.s for o in obs], float))
+        obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels))
 
 
 def _check_stations(model: Model, data: Measurements, parsed: dict) -> None:
@@ -297,7 +357,13 @@ def _check_fit_args(data, tol, max_iter) -> None:
 def fit(model: Model, experiments: Experiments, data: Measurements,
         free: Sequence[str] = ("EI1", "EI2"),
         prior: "Mapping[str, tuple[float, float]] | FitResult | None" = None, *,
-        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto") -> FitResult:
+        max_iter: int = 50, tol: float = 0.0, jacobian: str = "auto",
+        nuisance: Mapping | None = None, loss: str = "linear",
+        burn_in: "float | Mapping[str, float] | None" = None,
+        estimate_sigma: "bool | Sequence | None" = None,
+        starts: int | None = None, start_spread: float = START_SPREAD,
+        start_seed: int = START_SEED, workers: int | None = 1, client: Any = None,
+        mesh: bool = True, grow: bool | None = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -340,6 +406,59 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         Jacobian"). ``"exact"``: sensitivities at the release's own
         tolerance at every iteration. Static experiments are the same
         either way.
+    nuisance:
+        The measurement chain's nuisance parameters fitted with the physics
+        (docs/workflow_dynamic.md, "The measurement chain"):
+        ``{"time_offset": [experiment, ...], "bias": [(experiment,
+        quantity), ...], "scale": [...]}`` (a dict instead of a list gives
+        start values). A release's clock offset t0 is the model time at its
+        record's zero (the row at record time t is the model at t + t0);
+        a channel's bias b and scale s make a row read s h + b. Their
+        estimates and sigmas are ``result.nuisance`` and
+        ``result.nuisance_sigmas``; ``result.cov`` (the physics block of
+        ``result.full_cov``) accounts for them.
+    loss:
+        ``"linear"`` (least squares), ``"huber"`` or ``"cauchy"``: a robust
+        loss by iteratively reweighted least squares (the covariance from
+        the reweighted Jacobian); rows whose standardized residual passes
+        3.5 are ``result.gross_errors`` (left out of chi2 and dof).
+    burn_in:
+        A time (s) for every release, or ``{experiment: time}``: rows
+        before it are predicted and shown, not fitted.
+    estimate_sigma:
+        ``True`` (every channel), quantity names or (experiment, quantity)
+        pairs: their sigma is estimated from the residuals (the data's
+        sigmas are only its start), one degree of freedom each;
+        ``result.sigma_estimates`` holds each with its uncertainty.
+
+    starts:
+        More fits from random starts around ``model`` (each free parameter
+        times U(1 - start_spread, 1 + start_spread), start k from
+        ``SeedSequence(start_seed, spawn_key=(k,))``); the best end point is
+        the result (the given start's unless another went lower by more than
+        0.05, the noise floor's scale), ``result.starts`` says where every
+        start ended and
+        ``result.start_won`` which won (docs/workflow_dynamic.md, "Reaching
+        the best fit"). ``None`` (default): 4 more starts when a fit with
+        releases ends far above its degrees of freedom (p < 0.001) or
+        stalls and the mesh check does not name the mesh; 0: never.
+    workers, client:
+        Where the starts run, as in :func:`beamid.consistency`: ``workers``
+        local processes (1: this process; None: the cores, when the starts
+        are long enough to pay for the processes) or a Dask ``client``.
+    grow:
+        Grow the record: fit the releases' rows up to a window of about a
+        second first, then twice that, ... up to the whole record, each from
+        the last window's estimates (``result.path`` lists the windows), so
+        the phase is caught before the whole record is fitted. ``None``
+        (default): on records longer than 4 s; True: on records of 2 s and
+        more; False: never.
+    mesh:
+        Check the mesh of a fit with releases that ends far above its
+        degrees of freedom or stalls (``result.mesh_check``; one plain run at
+        twice the elements per beam, and a refit there when a prediction
+        moves by more than a sigma): when the discretization is the likely
+        cause, a warning names the elements per beam that would do.
 
     A parameter that runs away (beyond 100 times its start, or a stiffness
     below a ten-thousandth of it) is held where it was found and the others
@@ -352,7 +471,9 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     _check.choice("jacobian", jacobian, ("auto", "exact"))
-    prob = build_problem(model, experiments, data, tol)
+    chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
+    rows = parse_rows(loss, burn_in, estimate_sigma, _check_experiments(experiments), data)
+    prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
         # tolerance at every iteration (1, central differences, is kept)
@@ -364,8 +485,73 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     else:
         free_names, free_idx = _free_indices(model, free)
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
-    raw = _ce.fit(prob, model.vector(), free_idx, ptable, prior_cov=pcov, max_iter=int(max_iter))
-    return _result(model, experiments, data, free_names, prior_map, raw)
+    starts, start_spread, start_seed, workers, client, mesh, grow = _check_robust_args(
+        starts, start_spread, start_seed, workers, client, mesh, grow)
+    exp_names = list(_check_experiments(experiments))
+    params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
+
+    def plain() -> FitResult:
+        if not rows:
+            raw = _ce.fit(prob, params0, free_idx, ptable, prior_cov=pcov,
+                          max_iter=int(max_iter))
+            return _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+        raw = _ce.fit_chain(prob, params0, free_idx, ptable, prior_cov=pcov,
+                            max_iter=int(max_iter))
+        out = _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
+        sig = raw["sigma_used"]
+        residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
+        est = {}
+        for e, q in rows.estimate:
+            k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
+                     if x == e and y == q)
+            est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
+        return dataclasses.replace(
+            out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
+            fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
+                                  zip(data.experiment, data.t)], bool),
+            gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
+            sigma_estimates=est, treatment=rows)
+
+    checked = _ROBUST.get("fit")
+    # the measurement chain's fits (nuisance parameters, a loss, burn-in,
+    # estimated sigmas) are one start without the mesh check: the several
+    # starts and the mesh check refit through fit without the chain's keywords
+    if checked is None or chain or rows:
+        return plain()
+    return checked(plain, model, experiments, data, free, prior,
+                   {"max_iter": max_iter, "tol": tol, "jacobian": jacobian},
+                   starts=starts, spread=start_spread, seed=start_seed, workers=workers,
+                   client=client, mesh=mesh, grow=grow)
+
+
+def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],
+                free_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The parameter vector and free indices with the chain's nuisance
+    parameters after the model's (all of them free)."""
+    params0 = model.vector()
+    if not chain:
+        return params0, free_idx
+    starts = chain.starts(exp_names)
+    extra = np.arange(params0.size + 1, params0.size + starts.size + 1, dtype=np.int32)
+    return np.concatenate([params0, starts]), np.concatenate([free_idx, extra]).astype(np.int32)
+
+
+def _check_robust_args(starts, spread, seed, workers, client, mesh, grow) -> tuple:
+    """Argument checks of fit's keywords for its own end (issue 30): the
+    several starts, where they run, the mesh check and growing the record."""
+    starts = _check.count("starts", starts, min=0, max=MAX_STARTS, none=True,
+                          expected="None (automatic), 0 or a positive integer")
+    spread = _check.real("start_spread", spread, above=0.0, below=1.0,
+                         expected="a number in (0, 1)")
+    seed = _check.count("start_seed", seed, min=0, max=2**128, expected="an integer >= 0")
+    workers = _check.count("workers", workers, min=1, none=True,
+                           expected="None (the cores) or an integer >= 1")
+    client = _check.dask_client("client", client)
+    mesh = _check.flag("mesh", mesh)
+    if grow is not None and not isinstance(grow, (bool, np.bool_)):
+        _check.fail("grow", grow, "None (automatic), True or False")
+    grow = None if grow is None else bool(grow)
+    return starts, spread, seed, workers, client, mesh, grow
 
 
 def _with_carried(free: Sequence[str] | str, prior: "FitResult") -> tuple[str, ...]:
@@ -391,7 +577,22 @@ def _carried_prior(model: Model, prior: "FitResult"):
 
 def _result(start: Model, experiments: Experiments, data: Measurements,
             free: tuple[str, ...], prior: dict, raw: dict,
-            nominal: Model | None = None) -> FitResult:
+            nominal: Model | None = None, chain: ChainSpec | None = None) -> FitResult:
+    npar = start.vector().size
+    nf = len(free)
+    full_cov = None
+    nuis, nuis_sig = {}, {}
+    if chain:
+        exp_names = list(experiments)
+        names = chain.names(exp_names)
+        extra = np.asarray(raw["params"][npar:], float)
+        nuis = {n: float(v) for n, v in zip(names, extra)}
+        nuis_sig = {n: float(v) for n, v in zip(names, raw["sigmas"][nf:])}
+        chain = chain.with_values(exp_names, extra)
+        full_cov = raw["cov"]
+        raw = dict(raw, params=raw["params"][:npar], sigmas=raw["sigmas"][:nf],
+                   cov=raw["cov"][:nf, :nf], corr=raw["corr"][:nf, :nf], flags=raw["flags"][:nf],
+                   log_params=raw["log_params"][:nf])
     fitted = Model(start.nbeams, raw["params"])
     stop = raw.get("stop", "converged")
     note = _named(start, raw.get("note", "")) if stop not in ("converged", "evaluated") \
@@ -417,7 +618,8 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
         warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"],
                            stop, note if stop != "converged" else ""),
         stop=stop, note=note, nominal=nominal if nominal is not None else start,
-        refit_start=raw.get("start"))
+        refit_start=raw.get("start"), nuisance=nuis, nuisance_sigmas=nuis_sig,
+        full_cov=full_cov, chain=chain if chain else None)
 
 
 def predict(model: Model, experiments: Experiments, data: Measurements,

@@ -21,7 +21,8 @@ from functools import lru_cache
 from . import _check, _core
 from .errors import InputError, raise_for_status
 
-__all__ = ["Kind", "Observation", "kinds", "parse", "unit", "can_measure", "probe_kinds"]
+__all__ = ["Kind", "Observation", "kinds", "parse", "unit", "can_measure", "probe_kinds",
+           "ordered"]
 
 
 @dataclass(frozen=True)
@@ -108,3 +109,26 @@ def probe_kinds(family: str) -> tuple[str, ...]:
     attr = "probe_static" if family == "static" else "probe_release"
     ks = [k for k in kinds().values() if getattr(k, attr) > 0]
     return tuple(k.name for k in sorted(ks, key=lambda k: getattr(k, attr)))
+
+
+def ordered(names) -> tuple[str, ...]:
+    """The distinct observation names of ``names`` (canonical, as
+    :func:`parse` labels them) in the core's order: by kind code, then beam,
+    arc length and mode. An estimation problem's observation list is in
+    this order, so the measurement chain's channels (beamid.chain) are
+    numbered alike on both sides.
+
+    >>> ordered(["w_tip", "x@1:0.3", "u_tip", "x@1:0.10", "w_tip"])
+    ('u_tip', 'w_tip', 'x@1:0.1', 'x@1:0.3')
+    """
+    parsed = {o.label: o for o in (parse(n) for n in names)}
+    return tuple(sorted(parsed, key=lambda n: _order_key(parsed[n])))
+
+
+def sort_key(name: str) -> tuple:
+    """The place of observation ``name`` in :func:`ordered`."""
+    return _order_key(parse(name))
+
+
+def _order_key(o: Observation) -> tuple:
+    return (o.code, o.beam, o.s, o.mode)
