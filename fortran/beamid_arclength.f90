@@ -43,7 +43,7 @@ module beamid_arclength
     private
 
     public :: static_load_t, static_options_t, static_solution_t
-    public :: solve_static, static_shape, validate_static_load
+    public :: solve_static, static_shape, validate_static_load, static_stations
     public :: static_load_from_values, static_options_from_tol
     public :: LOAD_TIP, LOAD_WIRE, NOUT
     public :: OUT_X_TIP, OUT_Y_TIP, OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, &
@@ -109,6 +109,8 @@ module beamid_arclength
         real(dp), allocatable :: doutputs(:, :)
         !> shooting unknowns k(0), Q(0), N(0), T (T = 0 without a wire)
         real(dp) :: unknowns(4) = 0.0_dp
+        !> their derivatives d unknowns / d params(wrt(j)), nu x size(wrt)
+        real(dp), allocatable :: dunknowns(:, :)
         integer :: newton_iterations = 0
         integer :: load_steps = 0
         real(dp) :: residual = 0.0_dp
@@ -330,7 +332,7 @@ contains
     !! `w` and `vs` are work space for the stages of the columns v; rows
     !! before r0 of v are left as they are.
     subroutine integrate_beam(prob, beam, z, r0, v, colkind, stations, z_station, &
-                              opts, steps, w, vs, stat)
+                              opts, steps, w, vs, stat, v_station)
         type(problem_t), intent(in) :: prob
         integer, intent(in) :: beam
         real(dp), intent(inout) :: z(NZ)
@@ -343,6 +345,8 @@ contains
         type(static_options_t), intent(in) :: opts
         integer, intent(inout) :: steps
         type(status_t), intent(inout) :: stat
+        !> the variational columns at the stations (NZ x ncol x stations)
+        real(dp), intent(inout), optional :: v_station(:, :, :)
 
         real(dp) :: ei, c, a, length, s, h, hnew, err, sc(NZ)
         real(dp) :: k1(NZ), k2(NZ), k3(NZ), k4(NZ), k5(NZ), k6(NZ), k7(NZ)
@@ -425,6 +429,7 @@ contains
                 do while (next_station <= size(stations))
                     if (stations(next_station) > s + 1.0e-14_dp*length) exit
                     z_station(:, next_station) = z
+                    if (present(v_station)) v_station(:, :, next_station) = v
                     next_station = next_station + 1
                 end do
             end if
@@ -434,6 +439,7 @@ contains
         end do
         do while (next_station <= size(stations))
             z_station(:, next_station) = z
+            if (present(v_station)) v_station(:, :, next_station) = v
             next_station = next_station + 1
         end do
 
@@ -1319,6 +1325,7 @@ contains
         end do
         sol%unknowns = 0.0_dp
         sol%unknowns(1:prob%nu) = u
+        sol%dunknowns = du
     end subroutine finish
 
     !> Shape on the global arc positions s (ascending, within [0, total length])
@@ -1363,4 +1370,83 @@ contains
             moment(j) = chain%ei(beam)*zs(IK, j) + chain%cubic(beam)*zs(IK, j)**3
         end do
     end subroutine static_shape
+
+    !> The state z = (x, y, psi, k, Q, N) at stations (beam(i), s(i): arc
+    !! length s(i) from the root of beam(i), 0 <= s <= L) of a converged
+    !! solution sol (solve_static with the same wrt), and its derivatives
+    !! dz(:, i, j) = d z / d params(wrt(j)): one more shot with the
+    !! variational columns recorded at the stations, combined with the
+    !! unknowns' sensitivities (implicit function theorem, Eq. 44-51) as for
+    !! the tip. A station at s = 0 of beam b > 1 reads the state after the
+    !! joint; lengths of the beams before b move it (their columns), L_b
+    !! does not (the station is a material point).
+    subroutine static_stations(chain, load, sol, wrt, opts, beam, s, z, dz, stat)
+        type(chain_t), intent(in) :: chain
+        type(static_load_t), intent(in) :: load
+        type(static_solution_t), intent(in) :: sol
+        integer, intent(in) :: wrt(:), beam(:)
+        real(dp), intent(in) :: s(:)
+        type(static_options_t), intent(in) :: opts
+        real(dp), intent(out) :: z(:, :), dz(:, :, :)
+        type(status_t), intent(inout) :: stat
+        type(problem_t) :: prob
+        type(shot_t) :: shot
+        real(dp), allocatable :: vst(:, :, :), zst(:, :), local(:)
+        integer, allocatable :: on(:), order(:)
+        real(dp) :: zz(NZ)
+        integer :: nb, ncol, i, k, m, nw
+        z = 0.0_dp
+        dz = 0.0_dp
+        nb = chain%nbeams
+        nw = size(wrt)
+        call setup_problem(chain, load, prob)
+        ncol = NSHOOT + nw
+        call size_shot(shot, ncol, nb)
+        shot%work%v = 0.0_dp
+        shot%steps = 0
+        call root_state(prob%chain, sol%unknowns(1:NSHOOT), wrt, NSHOOT, .true., zz, shot%work%v)
+        do i = 1, nb
+            call column_kinds(nb, i, wrt, NSHOOT, shot%work%colkind)
+            on = pack([(k, k=1, size(beam))], beam == i)
+            ! ascending arc length on this beam
+            order = on
+            do k = 2, size(order)
+                m = k
+                do while (m > 1)
+                    if (s(order(m - 1)) <= s(order(m))) exit
+                    order([m - 1, m]) = order([m, m - 1])
+                    m = m - 1
+                end do
+            end do
+            ! stations at the beam's root: the state before integrating
+            m = 0
+            do k = 1, size(order)
+                if (s(order(k)) > 0.0_dp) exit
+                m = k
+                call record(order(k), zz, shot%work%v)
+            end do
+            order = order(m + 1:)
+            local = min(s(order), chain%length(i))
+            allocate (zst(NZ, size(order)), vst(NZ, ncol, size(order)))
+            call integrate_beam(prob, i, zz, IX, shot%work%v, shot%work%colkind, local, zst, opts, &
+                                shot%steps, shot%work%w, shot%work%vs, stat, vst)
+            if (stat%code /= STATUS_OK) return
+            do k = 1, size(order)
+                call record(order(k), zst(:, k), vst(:, :, k))
+            end do
+            deallocate (zst, vst)
+            call add_length_columns(prob%chain, i, wrt, NSHOOT, zz, shot%work%v)
+            if (i == nb) exit
+            call cross_joint(prob%chain, i, wrt, NSHOOT, zz, shot%work, stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+    contains
+        subroutine record(k, zk, vk)
+            integer, intent(in) :: k
+            real(dp), intent(in) :: zk(:), vk(:, :)
+            z(:, k) = zk
+            if (nw > 0) dz(:, k, :) = vk(:, NSHOOT + 1:) + &
+                                      matmul(vk(:, 1:NSHOOT), sol%dunknowns(1:NSHOOT, :))
+        end subroutine record
+    end subroutine static_stations
 end module beamid_arclength

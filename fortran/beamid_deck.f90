@@ -1083,6 +1083,7 @@ contains
         end if
         if (allocated(src%t)) dst%t = src%t
         if (allocated(src%quantity)) dst%quantity = src%quantity
+        if (allocated(src%obs)) dst%obs = src%obs
         if (allocated(src%value)) dst%value = src%value
         if (allocated(src%sigma)) dst%sigma = src%sigma
         if (allocated(src%line)) dst%line = src%line
@@ -1225,10 +1226,21 @@ contains
         call read_measurements(stage%data_path, stage%data, st)
         if (st%code == STATUS_OK .and. size(kinds) > 0 .and. count_lines_alloc(errors) == nerr) &
             call check_static_rows(stage%data, deck%exp_names, is_wire, stage%row_exp, st, &
-                                   kinds == EXP_RELEASE, has_motor)
+                                   kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_group
+
+    !> The beam lengths of the deck's model (empty before the model is read).
+    pure function deck_lengths(deck) result(lengths)
+        type(deck_t), intent(in) :: deck
+        real(dp), allocatable :: lengths(:)
+        integer :: b
+        allocate (lengths(0))
+        if (.not. allocated(deck%params) .or. deck%nbeams < 1) return
+        if (size(deck%params) /= param_count(deck%nbeams)) return
+        lengths = [(deck%params(param_index_beam(deck%nbeams, b, IB_L)), b=1, deck%nbeams)]
+    end function deck_lengths
 
     !> Run a deck with another task (`beamid fit|compare|diagnose|improve
     !! DECK`): a blank `task` keeps the deck's; an estimation task replaces

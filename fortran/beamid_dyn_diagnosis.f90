@@ -33,9 +33,9 @@ module beamid_dyn_diagnosis
                                  score_result_t, sort_desc, lsq_problem_t
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
                               EV_NEPB, EV_GAIN
-    use beamid_static_experiments, only: probe_rows, Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, &
-                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, median_of, distinct_sorted
+    use beamid_static_experiments, only: probe_rows, median_of, distinct_sorted
+    use beamid_observations, only: observation_t, default_observations, probe_kinds, KINDS, &
+                                   FAM_RELEASE, NEED_MOTOR
     implicit none
     private
 
@@ -43,12 +43,15 @@ module beamid_dyn_diagnosis
               null_side_init, mesh_check, mesh_recommended
 
     !> An estimation problem: experiments (kind, EV_* values), data rows
-    !! (experiment, t, quantity, value, sigma), a priori information and the
+    !! (experiment, t, observation, value, sigma), a priori information and the
     !! fit's iteration limit.
     type :: problem_t
         integer :: nbeams = 0
         integer, allocatable :: exp_kind(:), row_exp(:), row_q(:)
         real(dp), allocatable :: exp_values(:, :), row_t(:), y(:), sigma(:)
+        !> the problem's observation list, row_q indexes it (unallocated:
+        !! row_q are kind codes, beamid_observations)
+        type(observation_t), allocatable :: obs(:)
         real(dp) :: tol = 0.0_dp          !< static solver tolerance (0: default)
         type(prior_t) :: prior
         integer :: max_iter = 50
@@ -241,44 +244,47 @@ contains
     end subroutine cached_evaluate
 
     !> Probe rows of release experiments: at every distinct measured time of
-    !! each release, every quantity it can measure (u_tip w_tip tip_angle
-    !! x_elbow y_elbow, and motor_torque with a motor), with the sigma to judge
-    !! a difference by: the median data sigma of that quantity (u_tip and
-    !! x_tip, w_tip and y_tip alike), else of all length rows, else 1e-3
-    !! (m or rad) and 1e-2 N m for the torque.
-    pure subroutine dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_q, sigma, &
+    !! each release, every kind of the release probe list (beamid_observations:
+    !! u_tip w_tip tip_angle x_elbow y_elbow, and motor_torque with a motor),
+    !! with the sigma to judge a difference by: the median data sigma of that
+    !! kind and its twin (u_tip and x_tip, w_tip and y_tip alike), else for a
+    !! position or angle the median of all length rows (unit m), else the
+    !! kind's default sigma of the table (1e-3 m or rad, 1e-2 N m for the
+    !! torque). row_kind: the kind of each data row.
+    pure subroutine dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_kind, sigma, &
                                    pexp, pt, pq, psig)
-        integer, intent(in) :: exp_kind(:), row_exp(:), row_q(:)
+        integer, intent(in) :: exp_kind(:), row_exp(:), row_kind(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), sigma(:)
         integer, allocatable, intent(out) :: pexp(:), pq(:)
         real(dp), allocatable, intent(out) :: pt(:), psig(:)
-        integer, parameter :: qs(6) = [Q_U_TIP, Q_W_TIP, Q_TIP_ANGLE, Q_X_ELBOW, Q_Y_ELBOW, &
-                                       Q_MOTOR_TORQUE]
-        real(dp), allocatable :: times(:)
-        real(dp) :: sk(6), fallback
-        integer :: e, k, i
-        logical :: lengths(size(row_q))
-        lengths = row_q /= Q_TIP_ANGLE .and. row_q /= Q_MOTOR_TORQUE .and. row_q /= 4
+        integer, allocatable :: qs(:)
+        real(dp), allocatable :: times(:), sk(:)
+        real(dp) :: fallback
+        integer :: e, k, i, nq
+        logical :: lengths(size(row_kind))
+        qs = probe_kinds(FAM_RELEASE)
+        nq = size(qs)
+        allocate (sk(nq))
+        lengths = [(KINDS(row_kind(i))%unit == 'm', i=1, size(row_kind))]
         fallback = median_of(pack(sigma, lengths), 1.0e-3_dp)
-        do k = 1, 6
-            select case (qs(k))
-            case (Q_U_TIP)
-                sk(k) = median_of(pack(sigma, row_q == Q_U_TIP .or. row_q == Q_X_TIP), fallback)
-            case (Q_W_TIP)
-                sk(k) = median_of(pack(sigma, row_q == Q_W_TIP .or. row_q == Q_Y_TIP), fallback)
-            case (Q_MOTOR_TORQUE)
-                sk(k) = median_of(pack(sigma, row_q == qs(k)), 1.0e-2_dp)
-            case default
-                sk(k) = median_of(pack(sigma, row_q == qs(k)), fallback)
-            end select
+        do k = 1, nq
+            associate (r => KINDS(qs(k)))
+                if (r%unit == 'm' .or. r%unit == 'rad') then
+                    sk(k) = median_of(pack(sigma, row_kind == qs(k) .or. &
+                                      (r%twin > 0 .and. row_kind == r%twin)), fallback)
+                else
+                    sk(k) = median_of(pack(sigma, row_kind == qs(k)), r%sigma)
+                end if
+            end associate
         end do
         allocate (pexp(0), pq(0), pt(0), psig(0))
         do e = 1, size(exp_kind)
             if (exp_kind(e) /= EXP_RELEASE) cycle
             times = distinct_sorted(pack(row_t, row_exp == e))
             do i = 1, size(times)
-                do k = 1, 6
-                    if (qs(k) == Q_MOTOR_TORQUE .and. .not. exp_values(EV_GAIN, e) > 0.0_dp) cycle
+                do k = 1, nq
+                    if (KINDS(qs(k))%needs == NEED_MOTOR .and. &
+                        .not. exp_values(EV_GAIN, e) > 0.0_dp) cycle
                     pexp = [pexp, e]
                     pq = [pq, qs(k)]
                     pt = [pt, times(i)]
@@ -312,7 +318,7 @@ contains
             values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
         end do
         call inverse_problem_init(pb%nbeams, pb%exp_kind, values, pb%row_exp, pb%row_t, pb%row_q, &
-                                  pb%tol, fine, stat)
+                                  pb%tol, fine, stat, pb%obs)
         if (stat%code /= STATUS_OK) return
         ! the change of the predictions at the fitted parameters
         allocate (pred(size(pb%y)), jdummy(size(pb%y), 0))
@@ -376,12 +382,14 @@ contains
     !! of the `mesh` candidate's test that needs no refit. Nothing is done
     !! (res%done false) without releases.
     subroutine mesh_check(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, params, &
-                          y, sigma, pred, res, stat)
+                          y, sigma, pred, res, stat, obs)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, params(:)
         real(dp), intent(in) :: y(:), sigma(:), pred(:)
         type(mesh_test_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
+        !> the problem's observation list row_q indexes (absent: the kind codes)
+        type(observation_t), intent(in), optional :: obs(:)
         type(inverse_problem_t) :: fine
         real(dp), allocatable :: values(:, :), fpred(:), jdummy(:, :), change(:)
         integer :: e
@@ -393,7 +401,13 @@ contains
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
             values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
         end do
-        call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, stat)
+        if (present(obs)) then
+            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
+                                      stat, obs)
+        else
+            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
+                                      stat)
+        end if
         if (stat%code /= STATUS_OK) return
         allocate (fpred(size(y)), jdummy(size(y), 0))
         call fine%evaluate(params, [integer ::], fpred, jdummy, stat)
@@ -472,7 +486,7 @@ contains
             fopts%tol_cost = max(fopts%tol_cost, COST_FLOOR)
         end if
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
-                                  pb%row_q, pb%tol, prob, stat)
+                                  pb%row_q, pb%tol, prob, stat, pb%obs)
         if (stat%code /= STATUS_OK) return
         frefit = fopts
         if (prob%has_dynamic) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
@@ -694,18 +708,26 @@ contains
 
         allocate (sexp(0), sq(0), ssig(0))
         if (prob%has_static) then
-            call probe_rows(prob%st%loads, prob%st%row_quantity, pb%sigma(prob%st_rows), plocal, &
-                            sq, ssig)
+            call probe_rows(prob%st%loads, prob%st%row_obs%kind, pb%sigma(prob%st_rows), &
+                            plocal, sq, ssig)
             sexp = prob%st_exp(plocal)
         end if
-        call dyn_probe_rows(pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, pb%row_q, pb%sigma, &
-                            dexp, dt, dq, dsig)
+        call dyn_probe_rows(pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, prob%obs%kind, &
+                            pb%sigma, dexp, dt, dq, dsig)
         pexp = [sexp, dexp]
         pq = [sq, dq]
         pt = [spread(0.0_dp, 1, size(sexp)), dt]
         psig = [ssig, dsig]
-        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, pb%tol, &
-                                  probe, stat)
+        ! the data's observation list keeps its entries' numbers (the chain's
+        ! channel masks index it); the probe kinds follow it
+        if (allocated(pb%obs)) then
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, &
+                                      size(pb%obs) + pq, pb%tol, probe, stat, &
+                                      [pb%obs, default_observations()], probe=.true.)
+        else
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, &
+                                      pb%tol, probe, stat, probe=.true.)
+        end if
         if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)
     end subroutine all_probe_rows
 

@@ -6,9 +6,11 @@
 !! Eq. 159 when its gain is positive. A data row is (experiment, t, quantity,
 !! value, sigma); t = 0 measures the static shape before the release.
 !!
-!! Quantities use the one registry of beamid_static_experiments (u_tip w_tip
+!! Observations come from the one table of beamid_observations (u_tip w_tip
 !! x_tip y_tip tip_angle x_elbow y_elbow, plus motor_torque, which only a
-!! release with a motor produces; wire_force is static only).
+!! release with a motor produces; wire_force is static only); each row
+!! holds its observation and `observe` computes it and its sensitivities
+!! from a release's response.
 !!
 !! The sensitivity columns (Eq. 135-140, 161-162) are the hand-coded forward
 !! sensitivities of beamid_release (release_response: the released shape by
@@ -35,22 +37,30 @@ module beamid_dynamic_experiments
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN, dyn_param_t, &
+                               dyn_param_setup
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
-                                  METHOD_IMPLICIT, METHOD_RK4
+                                  METHOD_IMPLICIT, METHOD_RK4, integ_rate_sens
+    use beamid_fe_element, only: fe_hermite, FE_U, FE_W
+    use beamid_model, only: param_count, param_index_beam, IB_EI, IB_C
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
     use beamid_release, only: release_spec_t, release_out_t, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
-                              QTY_MOTOR_TORQUE
-    use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
-                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP, &
-                                         Q_MOTOR_TORQUE, NQUANT, distinct_sorted
+                              QTY_MOTOR_TORQUE, NQTY
+    use beamid_static_experiments, only: distinct_sorted
+    use beamid_observations, only: observation_t, observation_why_not, same_observation, &
+                                   FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
+                                   K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
+                                   K_W_TIP, K_MOTOR_TORQUE, kind_label, KINDS, LOCUS_STATION, &
+                                   K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
+                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS, &
+                                   K_ELBOW_ROTATION, K_ROOT_ROTATION
     implicit none
     private
 
     public :: release_exp_t, dynamic_experiments_t, dynamic_experiments_init
-    public :: release_response, check_dynamic_row
+    public :: release_response, check_dynamic_row, observe
 
     !> One release experiment: load, mesh, motor and integrator controls
     !! (0 for rtol, dt: the integrator's defaults).
@@ -91,17 +101,21 @@ module beamid_dynamic_experiments
         real(dp), allocatable :: y(:, :), rate(:, :)
     end type plain_cache_t
 
-    !> The row of release_out_t%y (QTY_* of beamid_release) that feeds each
-    !! quantity code of the estimation registry (0: wire_force, none).
-    integer, parameter :: QTY_OF(NQUANT) = [QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, 0, &
-                                            QTY_X_ELBOW, QTY_Y_ELBOW, QTY_U_TIP, QTY_W_TIP, &
-                                            QTY_MOTOR_TORQUE]
+    !> A list of observations.
+    type :: obs_list_t
+        type(observation_t), allocatable :: o(:)
+    end type obs_list_t
 
     !> Release experiments and the data rows they predict.
     type, extends(residual_model_t) :: dynamic_experiments_t
         integer :: nbeams = 0
         type(release_exp_t), allocatable :: exps(:)
-        integer, allocatable :: row_exp(:), row_quantity(:)
+        integer, allocatable :: row_exp(:)
+        type(observation_t), allocatable :: row_obs(:) !< observation of each row
+        !> the distinct observations of each experiment's rows, and the
+        !! index of each row's observation in its experiment's list
+        type(obs_list_t), allocatable :: eobs(:)
+        integer, allocatable :: row_oi(:)
         real(dp), allocatable :: row_t(:)
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
         !> the model time at each experiment's record zero (its clock offset
@@ -118,42 +132,55 @@ module beamid_dynamic_experiments
 
 contains
 
-    !> Why a row (t, quantity) cannot belong to release experiment `x`
-    !! ('' when it can): t negative or not finite, wire_force, motor_torque
-    !! without a motor.
-    pure function check_dynamic_row(x, t, q) result(why)
+    !> Why a row (t, observation) cannot belong to release experiment `x`
+    !! ('' when it can): t negative or not finite, an observation a release
+    !! cannot make (wire_force), motor_torque without a motor, a station off
+    !! the chain.
+    pure function check_dynamic_row(x, t, o, nbeams) result(why)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t
-        integer, intent(in) :: q
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: nbeams
         character(len=:), allocatable :: why
+        character(len=:), allocatable :: detail
+        integer :: reason
         why = ''
         if (.not. ieee_is_finite(t)) then
             why = 'field t is not finite'
         else if (t < 0.0_dp) then
             why = 'field t = '//fmt_real(t)//', expected t >= 0 (0: the static shape '// &
                   'before the release)'
-        else if (q < 1 .or. q > NQUANT) then
-            why = 'quantity code '//fmt_int(q)//', expected 1..'//fmt_int(NQUANT)
-        else if (q == Q_WIRE_FORCE) then
-            why = "field quantity = 'wire_force', but a release experiment has no wire"
-        else if (q == Q_MOTOR_TORQUE .and. .not. x%gain > 0.0_dp) then
-            why = "field quantity = 'motor_torque', but the experiment has no motor "// &
-                  '(motor_gain = 0)'
+        else
+            reason = observation_why_not(o, FAM_RELEASE, .false., x%gain > 0.0_dp, nbeams, &
+                                         [real(dp) ::])
+            detail = why_detail(o, reason, FAM_RELEASE, nbeams, [real(dp) ::])
+            select case (reason)
+            case (WHY_OK)
+            case (WHY_WIRE)
+                why = "field quantity = '"//kind_label(o%kind)//"', but a release experiment "// &
+                      'has no wire'
+            case (WHY_MOTOR)
+                why = "field quantity = '"//kind_label(o%kind)//"', but the experiment has no "// &
+                      'motor (motor_gain = 0)'
+            case default
+                why = "field quantity = '"//kind_label(o%kind)//"': "//detail
+            end select
         end if
     end function check_dynamic_row
 
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).
-    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_quantity, self, stat)
+    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
         integer, intent(in) :: nbeams
         type(release_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:), row_quantity(:)
+        integer, intent(in) :: row_exp(:)
+        type(observation_t), intent(in) :: row_obs(:)
         real(dp), intent(in) :: row_t(:)
         type(dynamic_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
-        integer :: i
+        integer :: i, e
         do i = 1, size(exps)
             if (exps(i)%nepb < 1) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
@@ -168,7 +195,7 @@ contains
             end if
         end do
         do i = 1, size(row_exp)
-            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_quantity(i))
+            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_obs(i), nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
@@ -178,7 +205,21 @@ contains
         self%exps = exps
         self%row_exp = row_exp
         self%row_t = row_t
-        self%row_quantity = row_quantity
+        self%row_obs = row_obs
+        allocate (self%eobs(size(exps)), self%row_oi(size(row_exp)))
+        do i = 1, size(exps)
+            allocate (self%eobs(i)%o(0))
+        end do
+        do i = 1, size(row_exp)
+            e = row_exp(i)
+            self%row_oi(i) = 0
+            if (size(self%eobs(e)%o) > 0) &
+                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, row_obs(i)), .true., 1)
+            if (self%row_oi(i) == 0) then
+                self%eobs(e)%o = [self%eobs(e)%o, row_obs(i)]
+                self%row_oi(i) = size(self%eobs(e)%o)
+            end if
+        end do
         allocate (self%cache(size(exps)))
         allocate (self%shift(size(exps)), self%row_rate(size(row_exp)), source=0.0_dp)
         self%rough_jacobian_ok = .false.
@@ -202,24 +243,29 @@ contains
         if (own < ROUGH_RTOL) rough_tolerance = ROUGH_RTOL
     end function rough_tolerance
 
-    !> The response of one release at the ascending times t_out: y(q, k) for
-    !! every quantity code q (the registry of beamid_static_experiments;
-    !! wire_force is 0) and dy(q, k, j) = d y(q, k) / d params(wrt(j)), from
-    !! the forward sensitivities of beamid_release (or central differences
-    !! when x%fd).
-    subroutine release_response(nbeams, params, x, t_out, wrt, y, dy, stat, rate)
+    !> The response of one release at the ascending times t_out: y(i, k)
+    !! for every observation obs(i) and dy(i, k, j) = d y(i, k) / d
+    !! params(wrt(j)), from the forward sensitivities of beamid_release (or
+    !! central differences when x%fd); with `rate` also d y(i, k) / d t
+    !! (observation_rates: the column of a record's clock offset).
+    subroutine release_response(nbeams, params, x, t_out, wrt, obs, y, dy, stat, rate)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t_out(:)
         integer, intent(in) :: wrt(:)
+        type(observation_t), intent(in) :: obs(:)
         real(dp), intent(out) :: y(:, :), dy(:, :, :)
         type(status_t), intent(inout) :: stat
-        !> d y(q, k) / d t (the integrated state's rates: release_out_t%rate)
+        !> d y(i, k) / d t (observation_rates)
         real(dp), intent(out), optional :: rate(:, :)
         type(chain_t) :: chain
         type(release_out_t) :: out
-        integer :: q
+        type(dyn_system_t) :: sys
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: a(:), da(:, :)
+        logical :: accel
+        integer :: i, k
         if (x%fd) then
             call central_differences()
             if (present(rate) .and. stat%code == STATUS_OK) call plain_rates()
@@ -234,13 +280,26 @@ contains
             friction=x%law, friction_velocity=x%vslip, rates=present(rate)), t_out, wrt, out, &
             stat)
         if (stat%code /= STATUS_OK) return
-        if (present(rate)) rate = 0.0_dp
-        do q = 1, NQUANT
-            if (QTY_OF(q) == 0) cycle
-            y(q, :) = out%y(QTY_OF(q), :)
-            dy(q, :, :) = out%dy(QTY_OF(q), :, :)
-            if (present(rate)) rate(q, :) = out%rate(QTY_OF(q), :)
+        call station_setup(chain, x, wrt, obs, size(wrt) > 0, sys, pars, accel, stat)
+        if (stat%code /= STATUS_OK) return
+        allocate (a(sys%nstate), da(sys%nstate, size(wrt)))
+        do k = 1, size(t_out)
+            if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), &
+                                            out%dstates(:, k, :), a, da, stat)
+            if (stat%code /= STATUS_OK) return
+            do i = 1, size(obs)
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), wrt, out%hist%y(:, k), &
+                                         out%dstates(:, k, :), y(i, k), dy(i, k, :))
+                else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                    call observe_station(sys, chain, obs(i), wrt, out%hist%y(:, k), &
+                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :))
+                else
+                    call observe(out, obs(i), k, y(i, k), dy(i, k, :))
+                end if
+            end do
         end do
+        if (present(rate)) call observation_rates(chain, x, obs, t_out, out, rate, stat)
     contains
         !> The rates of a central-difference release: one forward run more.
         subroutine plain_rates()
@@ -251,10 +310,7 @@ contains
                 rtol=x%rtol, dt=x%dt, friction=x%law, friction_velocity=x%vslip, rates=.true.), &
                 t_out, wrt(1:0), out, stat)
             if (stat%code /= STATUS_OK) return
-            rate = 0.0_dp
-            do q = 1, NQUANT
-                if (QTY_OF(q) /= 0) rate(q, :) = out%rate(QTY_OF(q), :)
-            end do
+            call observation_rates(chain, x, obs, t_out, out, rate, stat)
         end subroutine plain_rates
 
         !> The response by central differences of whole runs (x%fd).
@@ -263,29 +319,132 @@ contains
             real(dp) :: h
             integer :: j
             dy = 0.0_dp
-            call release_run(nbeams, params, x, t_out, y, stat)
+            call release_run(nbeams, params, x, t_out, obs, y, stat)
             if (stat%code /= STATUS_OK) return
             allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
             do j = 1, size(wrt)
                 p = params
                 h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
                 p(wrt(j)) = params(wrt(j)) + h
-                call release_run(nbeams, p, x, t_out, yp, stat)
+                call release_run(nbeams, p, x, t_out, obs, yp, stat)
                 if (stat%code /= STATUS_OK) return
                 p(wrt(j)) = params(wrt(j)) - h
-                call release_run(nbeams, p, x, t_out, ym, stat)
+                call release_run(nbeams, p, x, t_out, obs, ym, stat)
                 if (stat%code /= STATUS_OK) return
                 dy(:, :, j) = (yp - ym)/(2.0_dp*h)
             end do
         end subroutine central_differences
     end subroutine release_response
 
-    !> One run: static equilibrium, release, integration, quantities.
-    subroutine release_run(nbeams, params, x, t_out, y, stat)
+    !> The release family's observe: the value of observation o at output
+    !! time k of the response `out` and its derivatives d/d params(wrt)
+    !! (grad empty: no derivatives, out%dy need not be there).
+    subroutine observe(out, o, k, value, grad)
+        type(release_out_t), intent(in) :: out
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: k
+        real(dp), intent(out) :: value, grad(:)
+        integer :: row
+        value = 0.0_dp
+        grad = 0.0_dp
+        row = qty_row(o%kind)
+        if (row == 0) return
+        value = out%y(row, k)
+        if (size(grad) > 0) grad = out%dy(row, k, :)
+    end subroutine observe
+
+    !> The row of release_out_t%y (QTY_* of beamid_release) of a fixed-point
+    !! kind (0: a kind beamid_release does not export).
+    pure integer function qty_row(kind) result(row)
+        integer, intent(in) :: kind
+        select case (kind)
+        case (K_X_TIP)
+            row = QTY_X_TIP
+        case (K_Y_TIP)
+            row = QTY_Y_TIP
+        case (K_TIP_ANGLE)
+            row = QTY_TIP_ANGLE
+        case (K_X_ELBOW)
+            row = QTY_X_ELBOW
+        case (K_Y_ELBOW)
+            row = QTY_Y_ELBOW
+        case (K_U_TIP)
+            row = QTY_U_TIP
+        case (K_W_TIP)
+            row = QTY_W_TIP
+        case (K_MOTOR_TORQUE)
+            row = QTY_MOTOR_TORQUE
+        case default
+            row = 0
+        end select
+    end function qty_row
+
+    !> Time derivatives rate(i, k) of the observations obs(i) at the output
+    !! times t_out of a response computed with spec%rates (the column of a
+    !! record's clock offset, beamid_inverse EV_T0): the fixed points' from
+    !! out%rate (beamid_release quantity_rates: the velocities, the tip
+    !! angle's chain rule, the motor torque's rate); a station's and an
+    !! encoder's as observe_station's directional derivative along the
+    !! state's rate f(t, y) (positions, angles, curvature, moment and strain
+    !! along the velocities, the station velocities along the
+    !! accelerations). An acceleration's rate would need the jerk: it is left
+    !! 0 here and beamid_inverse refuses a clock offset on a record with
+    !! acceleration rows. At t <= 0 the chain rests: every rate is 0.
+    subroutine observation_rates(chain, x, obs, t_out, out, rate, stat)
+        type(chain_t), intent(in) :: chain
+        type(release_exp_t), intent(in) :: x
+        type(observation_t), intent(in) :: obs(:)
+        real(dp), intent(in) :: t_out(:)
+        type(release_out_t), intent(in) :: out
+        real(dp), intent(out) :: rate(:, :)
+        type(status_t), intent(inout) :: stat
+        type(dyn_system_t) :: sys
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: f(:, :)
+        real(dp) :: value, g(1), none(0), nos(0, 0), nod(0, 0)
+        logical :: local(size(obs))
+        integer :: i, k, row
+        rate = 0.0_dp
+        local = [(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
+                  obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
+                  i=1, size(obs))]
+        if (any(local)) then
+            call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+            if (stat%code /= STATUS_OK) return
+            allocate (pars(0), f(sys%nstate, 1))
+        end if
+        do k = 1, size(t_out)
+            if (t_out(k) <= 0.0_dp) cycle
+            if (any(local)) then
+                call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), nos, f(:, 1), nod, &
+                                     stat)
+                if (stat%code /= STATUS_OK) return
+            end if
+            do i = 1, size(obs)
+                if (obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N) cycle
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), [0], out%hist%y(:, k), f, value, g)
+                    rate(i, k) = g(1)
+                else if (local(i)) then
+                    call observe_station(sys, chain, obs(i), [0], out%hist%y(:, k), f, none, &
+                                         nod, value, g)
+                    rate(i, k) = g(1)
+                else
+                    row = qty_row(obs(i)%kind)
+                    if (row > 0) rate(i, k) = out%rate(row, k)
+                end if
+            end do
+        end do
+    end subroutine observation_rates
+
+    !> One run: static equilibrium, release, integration, observations
+    !! (no sensitivities: the central differences of x%fd).
+    subroutine release_run(nbeams, params, x, t_out, obs, y, stat)
         integer, intent(in) :: nbeams
         real(dp), intent(in) :: params(:)
         type(release_exp_t), intent(in) :: x
         real(dp), intent(in) :: t_out(:)
+        type(observation_t), intent(in) :: obs(:)
         real(dp), intent(out) :: y(:, :)
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
@@ -294,10 +453,12 @@ contains
         type(fe_solve_info_t) :: sinfo
         type(integ_opts_t) :: opts
         type(integ_stats_t) :: stats
-        type(history_t) :: hist
-        real(dp), allocatable :: y0(:), q(:)
-        real(dp) :: u, w, ang, ltot
-        integer :: k, n
+        type(release_out_t) :: out
+        type(dyn_param_t), allocatable :: pars(:)
+        real(dp), allocatable :: y0(:), q(:), a(:)
+        real(dp) :: u, w, ang, ltot, none(0), nos(0, 0), noda(0, 0)
+        logical :: accel
+        integer :: k, n, i
         y = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
@@ -313,23 +474,225 @@ contains
         if (x%dt > 0.0_dp) opts%dt = x%dt
         if (x%rtol > 0.0_dp) opts%rtol = x%rtol
         opts%atol = opts%rtol
-        call integrate(sys, y0, t_out, opts, hist, stats, stat)
+        call integrate(sys, y0, t_out, opts, out%hist, stats, stat)
         if (stat%code /= STATUS_OK) return
         ltot = sum(chain%length)
+        allocate (out%y(NQTY, size(t_out)), source=0.0_dp)
+        allocate (pars(0), a(sys%nstate))
+        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
         do k = 1, size(t_out)
-            call dyn_tip(sys, hist%y(1:n, k), u, w, ang)
-            y(Q_U_TIP, k) = u
-            y(Q_W_TIP, k) = w
-            y(Q_X_TIP, k) = ltot + u
-            y(Q_Y_TIP, k) = w
-            y(Q_TIP_ANGLE, k) = ang
-            if (sys%npt >= 2) then
-                y(Q_X_ELBOW, k) = chain%length(1) + hist%y(sys%iu(1), k)
-                y(Q_Y_ELBOW, k) = hist%y(sys%iw(1), k)
-            end if
-            y(Q_MOTOR_TORQUE, k) = hist%torque(k)
+            associate (hy => out%hist%y(:, k))
+                call dyn_tip(sys, hy(1:n), u, w, ang)
+                out%y(QTY_U_TIP, k) = u
+                out%y(QTY_W_TIP, k) = w
+                out%y(QTY_X_TIP, k) = ltot + u
+                out%y(QTY_Y_TIP, k) = w
+                out%y(QTY_TIP_ANGLE, k) = ang
+                if (sys%npt >= 2) then
+                    out%y(QTY_X_ELBOW, k) = chain%length(1) + hy(sys%iu(1))
+                    out%y(QTY_Y_ELBOW, k) = hy(sys%iw(1))
+                end if
+                out%y(QTY_MOTOR_TORQUE, k) = out%hist%torque(k)
+            end associate
+            if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), nos, a, noda, &
+                                            stat)
+            if (stat%code /= STATUS_OK) return
+            do i = 1, size(obs)
+                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                    call observe_encoder(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
+                                         nos, y(i, k), none)
+                else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
+                    call observe_station(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
+                                         nos, a, noda, y(i, k), none)
+                else
+                    call observe(out, obs(i), k, y(i, k), none)
+                end if
+            end do
         end do
     end subroutine release_run
+
+    !> What station observations need besides the response: the system (its
+    !! mesh) and, for accelerations, the parameters' derivative kinds
+    !! (accel: some observation is an acceleration).
+    subroutine station_setup(chain, x, wrt, obs, with_pars, sys, pars, accel, stat)
+        type(chain_t), intent(in) :: chain
+        type(release_exp_t), intent(in) :: x
+        integer, intent(in) :: wrt(:)
+        type(observation_t), intent(in) :: obs(:)
+        logical, intent(in) :: with_pars
+        type(dyn_system_t), intent(out) :: sys
+        type(dyn_param_t), allocatable, intent(out) :: pars(:)
+        logical, intent(out) :: accel
+        type(status_t), intent(inout) :: stat
+        integer :: i, j
+        allocate (pars(0))
+        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
+        if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
+                        obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
+                        i=1, size(obs))])) return
+        call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+        if (stat%code /= STATUS_OK .or. .not. (accel .and. with_pars)) return
+        deallocate (pars)
+        allocate (pars(size(wrt)))
+        do j = 1, size(wrt)
+            call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), wrt(j), &
+                                 pars(j), stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+    end subroutine station_setup
+
+    !> The encoders of a release: psi at the clamp (root_rotation), psi
+    !! after the elbow minus psi before it (elbow_rotation), from the slopes
+    !! either side of the joint (observe_station at s = 0 of beam 2 and s =
+    !! L1 of beam 1): zero unless the joint is compliant.
+    pure subroutine observe_encoder(sys, chain, o, wrt, y, sy, value, grad)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: y(:), sy(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: v1, g1(size(grad)), none(0), nod(0, 0)
+        if (o%kind == K_ROOT_ROTATION) then
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=1, s=0.0_dp), wrt, &
+                                 y, sy, none, nod, value, grad)
+        else
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=2, s=0.0_dp), wrt, &
+                                 y, sy, none, nod, value, grad)
+            call observe_station(sys, chain, observation_t(kind=K_PSI, beam=1, &
+                                 s=chain%length(1)), wrt, y, sy, none, nod, v1, g1)
+            value = value - v1
+            grad = grad - g1
+        end if
+    end subroutine observe_encoder
+
+    !> The release family's observe at a station (beam b, arc length s from
+    !! its root) from the full state y and its sensitivities sy (nstate x
+    !! size(wrt)), interpolated with the element's Hermite functions (Eq.
+    !! 76): position x = S + u, y = w (S the undeformed arc position), the
+    !! tangent angle psi = atan2(w', 1 + u'), the curvature kappa = chi /
+    !! ((1 + u')^2 + w'^2)^(3/2) with chi = w''(1 + u') - w' u'' (Eq. 72),
+    !! the moment EI chi + C chi^3, the gauge strain e + kappa t/2 (e the
+    !! Green axial strain, Eq. 70; t the strip thickness; the gauge on the
+    !! clockwise side, stretched by a counter-clockwise bend), and the
+    !! velocity and acceleration of the material point along the tangent t =
+    !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates
+    !! f of the state, da their sensitivities). Lengths carry no derivative
+    !! here (the release family has none, beamid_release).
+    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: y(:), sy(:, :), a(:), da(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: f(4), f1(4), f2(4), h, zeta, u, w, u1, w1, u2, w2, r2, chi, kap, e, p1
+        real(dp) :: vu, vw, ca, sb
+        real(dp), dimension(size(grad)) :: du, dw, du1, dw1, du2, dw2, dr2, dchi, dkap, dvu, &
+                                           dvw, dau
+        real(dp) :: qe(8), ve(8), ae(8)
+        real(dp) :: dqe(8, size(grad)), dve(8, size(grad)), dae(8, size(grad))
+        integer :: el, first, nel_b, j, m, n, idx
+        n = sys%n
+        value = 0.0_dp
+        grad = 0.0_dp
+        first = findloc(sys%mesh%beam, o%beam, 1)
+        nel_b = count(sys%mesh%beam == o%beam)
+        if (first == 0) return
+        h = sys%mesh%h(first)
+        idx = min(max(int(o%s/h), 0), nel_b - 1)
+        el = first + idx
+        zeta = min(max(o%s/h - real(idx, dp), 0.0_dp), 1.0_dp)
+        call fe_hermite(zeta, h, f, f1, f2)
+        qe = 0.0_dp
+        ve = 0.0_dp
+        ae = 0.0_dp
+        dqe = 0.0_dp
+        dve = 0.0_dp
+        dae = 0.0_dp
+        do m = 1, 8
+            j = sys%mesh%el_free(m, el)
+            if (j == 0) cycle
+            qe(m) = y(j)
+            ve(m) = y(n + j)
+            if (size(a) >= 2*n) ae(m) = a(n + j)
+            if (size(grad) > 0) then
+                dqe(m, :) = sy(j, :)
+                dve(m, :) = sy(n + j, :)
+                if (size(da, 1) >= 2*n) dae(m, :) = da(n + j, :)
+            end if
+        end do
+        u = dot_product(f, qe(FE_U))
+        w = dot_product(f, qe(FE_W))
+        u1 = dot_product(f1, qe(FE_U))
+        w1 = dot_product(f1, qe(FE_W))
+        u2 = dot_product(f2, qe(FE_U))
+        w2 = dot_product(f2, qe(FE_W))
+        du = matmul(f, dqe(FE_U, :))
+        dw = matmul(f, dqe(FE_W, :))
+        du1 = matmul(f1, dqe(FE_U, :))
+        dw1 = matmul(f1, dqe(FE_W, :))
+        du2 = matmul(f2, dqe(FE_U, :))
+        dw2 = matmul(f2, dqe(FE_W, :))
+        p1 = 1.0_dp + u1
+        r2 = p1*p1 + w1*w1
+        dr2 = 2.0_dp*(p1*du1 + w1*dw1)
+        chi = w2*p1 - w1*u2
+        dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
+        kap = chi/r2**1.5_dp
+        dkap = dchi/r2**1.5_dp - 1.5_dp*chi/r2**2.5_dp*dr2
+        select case (o%kind)
+        case (K_X)
+            value = sum(chain%length(1:o%beam - 1)) + o%s + u
+            grad = du
+        case (K_Y)
+            value = w
+            grad = dw
+        case (K_PSI)
+            value = atan2(w1, p1)
+            grad = (p1*dw1 - w1*du1)/r2
+        case (K_CURVATURE)
+            value = kap
+            grad = dkap
+        case (K_MOMENT)
+            associate (ei => chain%ei(o%beam), c => chain%cubic(o%beam))
+                value = ei*chi + c*chi**3
+                grad = (ei + 3.0_dp*c*chi*chi)*dchi
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_EI)) &
+                        grad(j) = grad(j) + chi
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_C)) &
+                        grad(j) = grad(j) + chi**3
+                end do
+            end associate
+        case (K_STRAIN)
+            e = u1 + 0.5_dp*(u1*u1 + w1*w1)
+            value = e + 0.5_dp*STRIP_THICKNESS*kap
+            grad = p1*du1 + w1*dw1 + 0.5_dp*STRIP_THICKNESS*dkap
+        case (K_VEL_T, K_VEL_N, K_ACCEL_T, K_ACCEL_N)
+            if (o%kind == K_VEL_T .or. o%kind == K_VEL_N) then
+                vu = dot_product(f, ve(FE_U))
+                vw = dot_product(f, ve(FE_W))
+                dvu = matmul(f, dve(FE_U, :))
+                dvw = matmul(f, dve(FE_W, :))
+            else
+                vu = dot_product(f, ae(FE_U))
+                vw = dot_product(f, ae(FE_W))
+                dvu = matmul(f, dae(FE_U, :))
+                dvw = matmul(f, dae(FE_W, :))
+            end if
+            if (o%kind == K_VEL_T .or. o%kind == K_ACCEL_T) then
+                ca = p1*vu + w1*vw
+                dau = du1*vu + p1*dvu + dw1*vw + w1*dvw
+            else
+                ca = -w1*vu + p1*vw
+                dau = -dw1*vu - w1*dvu + du1*vw + p1*dvw
+            end if
+            sb = sqrt(r2)
+            value = ca/sb
+            grad = dau/sb - 0.5_dp*ca/(sb*r2)*dr2
+        end select
+    end subroutine observe_station
 
     !> Predictions and sensitivities of the rows: one response per experiment
     !! that has rows, at the distinct times of its rows. A release with a
@@ -346,7 +709,7 @@ contains
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: times(:), y(:, :), dy(:, :, :), rate(:, :), tm(:)
         type(release_exp_t) :: rough
-        integer :: e, i, k
+        integer :: e, i, k, nobs
         logical :: rates
         predictions = 0.0_dp
         jacobian = 0.0_dp
@@ -360,27 +723,29 @@ contains
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
             times = distinct_sorted(pack(tm, self%row_exp == e))
-            allocate (y(NQUANT, size(times)), dy(NQUANT, size(times), size(wrt)), &
-                      rate(NQUANT, size(times)), source=0.0_dp)
+            nobs = size(self%eobs(e)%o)
+            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt)), &
+                      rate(nobs, size(times)), source=0.0_dp)
             if (self%rough == ROUGH_ALL .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
                 rough = self%exps(e)
                 rough%rtol = rough_tolerance(rough)
                 if (rates) then
-                    call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat, &
-                                          rate)
+                    call release_response(self%nbeams, params, rough, times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat, rate)
                 else
-                    call release_response(self%nbeams, params, rough, times, wrt, y, dy, stat)
+                    call release_response(self%nbeams, params, rough, times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat)
                 end if
             else if (self%rough == ROUGH_JACOBIAN .and. size(wrt) > 0 .and. &
                      rough_tolerance(self%exps(e)) > 0.0_dp) then
                 call rough_response(e, times, y, dy, rate)
             else
                 if (rates) then
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, &
-                                          stat, rate)
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat, rate)
                 else
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt, y, dy, &
-                                          stat)
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                                          self%eobs(e)%o, y, dy, stat)
                 end if
                 if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, times, y, rate)
             end if
@@ -391,11 +756,11 @@ contains
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
                 k = findloc(times, tm(i), 1)
-                predictions(i) = y(self%row_quantity(i), k)
-                jacobian(i, :) = dy(self%row_quantity(i), k, :)
+                predictions(i) = y(self%row_oi(i), k)
+                jacobian(i, :) = dy(self%row_oi(i), k, :)
                 ! before the release (model time clipped at 0) the chain rests
                 if (self%row_t(i) + self%shift(e) > 0.0_dp) &
-                    self%row_rate(i) = rate(self%row_quantity(i), k)
+                    self%row_rate(i) = rate(self%row_oi(i), k)
             end do
             deallocate (y, dy, rate)
         end do
@@ -419,21 +784,22 @@ contains
                 y = self%cache(e)%y
                 if (rates) rate = self%cache(e)%rate
             else
-                allocate (none(NQUANT, size(times), 0))
+                allocate (none(size(self%eobs(e)%o), size(times), 0))
                 if (rates) then
                     call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
-                                          y, none, stat, rate)
+                                          self%eobs(e)%o, y, none, stat, rate)
                 else
                     call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
-                                          y, none, stat)
+                                          self%eobs(e)%o, y, none, stat)
                 end if
                 if (stat%code /= STATUS_OK) return
                 call remember(e, times, y, rate)
             end if
             rough = self%exps(e)
             rough%rtol = rough_tolerance(rough)
-            allocate (yr(NQUANT, size(times)))
-            call release_response(self%nbeams, params, rough, times, wrt, yr, dy, stat)
+            allocate (yr(size(self%eobs(e)%o), size(times)))
+            call release_response(self%nbeams, params, rough, times, wrt, self%eobs(e)%o, yr, &
+                                  dy, stat)
         end subroutine rough_response
 
         subroutine remember(e, times, y, rate)

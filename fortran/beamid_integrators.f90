@@ -40,6 +40,7 @@ module beamid_integrators
     public :: integ_opts_t, integ_stats_t, history_t, radau_t, event_t
     public :: EVENT_START, EVENT_ZERO_VELOCITY, EVENT_UNSTICK
     public :: integrate, METHOD_RK4, METHOD_IMPLICIT
+    public :: integ_rate_sens
 
     integer, parameter :: METHOD_RK4 = 0, METHOD_IMPLICIT = 1
     !> The low-rank correction of a solve (lr_real, lr_cplx).
@@ -2198,6 +2199,26 @@ contains
     ! ---------------------------------------------------------------------
     ! Forward sensitivities S = dy/dp (Eq. 135-140; docs/theory_dynamics.md)
     ! ---------------------------------------------------------------------
+
+    !> The rates f = y' at the state y and their derivatives df(:, j) = d f
+    !! / d p_j along the state sensitivities s(:, j) and the parameters
+    !! pars (the variational equations of Eq. 135): what an acceleration
+    !! observation needs (beamid_dynamic_experiments). The friction law of
+    !! sys as set up (no sticking constraints).
+    subroutine integ_rate_sens(sys, pars, t, y, s, f, df, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(dyn_param_t), intent(in) :: pars(:)
+        real(dp), intent(in) :: t          !< time of y (s): the loads in time
+        real(dp), intent(in) :: y(:), s(:, :)
+        real(dp), intent(out) :: f(:), df(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: dl(:, :)
+        df = 0.0_dp
+        call dyn_eval(sys, t, y, stat, rates=f)
+        if (stat%code /= 0 .or. size(s, 2) == 0) return
+        allocate (dl(2*sys%npt, size(s, 2)))
+        call sens_rates(sys, pars, t, y, f, s, df, dl, stat, .true.)
+    end subroutine integ_rate_sens
 
     !> Rates of the sensitivities in rate form at the state y with rates f
     !! (the constrained ones): dS = (S_v, M^-1 (dF S + F_p - M_p a - (dM/dq

@@ -10,21 +10,27 @@
 !!
 !! Experiments cross as a kind (EXP_TIP, EXP_WIRE, EXP_RELEASE) and a
 !! column of NEXPVAL values (layout EV_*); rows as (experiment, t,
-!! quantity). Static rows need t = 0; duplicate (experiment, t, quantity)
-!! rows are rejected, naming the row.
+!! observation), the observation an index into the problem's observation
+!! list (beamid_observations: a kind and its locus; without a list, the
+!! index is the kind code). Static rows need t = 0; duplicate (experiment,
+!! t, observation) rows are rejected, naming the row.
 !!
 !! The measurement chain (issue 29): an experiment's value column may ask
 !! for nuisance parameters, fitted with the physics as extra columns: a
 !! clock offset t0 of a release's record (EV_T0 = 1: row i is the model at
 !! time t_i + t0, so t0 is the model time at the record's zero; column
-!! s h'(t_i + t0), the integrated state's rate), and per channel (experiment,
-!! quantity) a bias b and a scale s (bit q of EV_BIAS, EV_SCALE: the row
-!! reads s h + b; columns 1 and h). They follow the model's parameters in
-!! the parameter vector, in the order of chain_layout: per experiment its
-!! t0, its biases by quantity code, its scales by quantity code. Null values
-!! t0 = 0, b = 0, s = 1 (the perfect chain), so the score test and refits of
+!! s h'(t_i + t0), the observation's rate from the integrated state; the
+!! accelerations have none, and a time offset on a record with such rows is
+!! an input error), and per channel (experiment, observation) a bias b and a
+!! scale s (bit q - 1 of EV_BIAS, EV_SCALE for entry q of the observation
+!! list, so without a list for kind code q: the row reads s h + b; columns 1
+!! and h). They follow the model's parameters in the parameter vector, in
+!! the order of chain_layout: per experiment its t0, its biases by entry of
+!! the observation list, its scales likewise. Null values t0 = 0, b = 0,
+!! s = 1 (the perfect chain), so the score test and refits of
 !! beamid_estimation treat them as effects.
 module beamid_inverse
+    use, intrinsic :: iso_fortran_env, only: int64
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
@@ -32,7 +38,9 @@ module beamid_inverse
                                  fit_result_t, candidate_t, diagnose_options_t, diagnosis_t, &
                                  fit_at, diagnose
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
-                                         quantity_label, probe_rows, NQUANT
+                                         probe_rows
+    use beamid_observations, only: observation_t, obs_label, same_observation, &
+                                   default_observations, K_ACCEL_T, K_ACCEL_N
     use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
@@ -54,16 +62,20 @@ module beamid_inverse
     !! iteration, no rough Jacobian: fit(..., jacobian="exact"))
     !> The measurement chain of an experiment: EV_T0 (1: its record has a
     !! clock offset, releases only), EV_BIAS and EV_SCALE (bit q - 1 set: the
-    !! channel of quantity code q has a bias, a scale).
+    !! channel of entry q of the observation list has a bias, a scale).
     integer, parameter, public :: EV_T0 = 13, EV_BIAS = 14, EV_SCALE = 15
     !> The rows' treatment (beamid_chain_fit): EV_LOSS the loss of the
     !! experiment's rows (0 linear, 1 Huber, 2 Cauchy), EV_BURNIN a time
     !! before which its rows are predicted but not fitted (0: none), EV_SIGEST
-    !! the channels (bit q - 1) whose sigma is estimated from the residuals.
+    !! the channels (bit q - 1: entry q of the observation list) whose sigma
+    !! is estimated from the residuals.
     integer, parameter, public :: EV_LOSS = 16, EV_BURNIN = 17, EV_SIGEST = 18
     integer, parameter, public :: NEXPVAL = 18
     !> Kinds of the nuisance parameters (chain_layout).
     integer, parameter, public :: NU_T0 = 1, NU_BIAS = 2, NU_SCALE = 3
+    !> A channel mask is a whole number in a double: bits for the first 52
+    !! entries of the observation list at most.
+    integer, parameter, public :: MAX_CHANNEL_BITS = 52
 
     type, extends(residual_model_t) :: inverse_problem_t
         integer :: nrow = 0
@@ -73,12 +85,14 @@ module beamid_inverse
         integer, allocatable :: st_rows(:), dy_rows(:) !< data rows of each family
         integer, allocatable :: st_exp(:)  !< experiment number of each static experiment
         real(dp) :: tol = 0.0_dp           !< static solver tolerance (0: default)
+        type(observation_t), allocatable :: obs(:)  !< the observation of each row
         !> physical bounds and null (switched-off) values of every parameter:
         !! they belong to the model, whatever the experiments
         real(dp), allocatable :: lower(:), upper(:), nulls(:)
         !> the model's parameter count; the nuisance parameters follow it
         integer :: np = 0
-        !> nuisance parameters (chain_layout): kind NU_*, experiment, quantity
+        !> nuisance parameters (chain_layout): kind NU_*, experiment, entry
+        !! of the observation list
         integer, allocatable :: nu_kind(:), nu_exp(:), nu_q(:)
         !> per data row the index in the parameter vector of its record's
         !! clock offset, its channel's bias and scale (0: none)
@@ -93,19 +107,27 @@ contains
 
     !> Build the problem: a constructor per family (static_experiments_init,
     !! dynamic_experiments_init) on the rows of its experiments.
+    !! row_quantity(i) indexes obs, the problem's observation list (absent:
+    !! the kind codes, beamid_observations default_observations).
+    !! probe = .true.: rows that only predict (a diagnosis's probe rows on
+    !! the data problem's experiments and chain): a channel of the chain or
+    !! of an estimated sigma need not have rows among them.
     subroutine inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, &
-                                    row_quantity, tol, self, stat)
+                                    row_quantity, tol, self, stat, obs, probe)
         integer, intent(in) :: nbeams
         integer, intent(in) :: exp_kind(:), row_exp(:), row_quantity(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol
         type(inverse_problem_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
+        type(observation_t), intent(in), optional :: obs(:)
+        logical, intent(in), optional :: probe
+        type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
         type(static_load_t), allocatable :: loads(:)
         type(release_exp_t), allocatable :: rels(:)
         integer, allocatable :: smap(:), dmap(:)
         integer :: e, i, j, ns, nd
-        logical :: dynamic
+        logical :: dynamic, probing
         if (size(exp_values, 1) /= NEXPVAL .or. size(exp_values, 2) /= size(exp_kind)) then
             call set_status(stat, ERR_INPUT, where, 'experiment values are '// &
                             fmt_int(size(exp_values, 1))//' x '//fmt_int(size(exp_values, 2))// &
@@ -117,6 +139,21 @@ contains
                             'differ in length')
             return
         end if
+        probing = .false.
+        if (present(probe)) probing = probe
+        if (present(obs)) then
+            list = obs
+        else
+            list = default_observations()
+        end if
+        do i = 1, size(row_quantity)
+            if (row_quantity(i) < 1 .or. row_quantity(i) > size(list)) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' has observation '// &
+                                fmt_int(row_quantity(i))//', expected 1..'//fmt_int(size(list)))
+                return
+            end if
+        end do
+        robs = list(row_quantity)
         allocate (smap(size(exp_kind)), dmap(size(exp_kind)), source=0)
         ns = 0
         nd = 0
@@ -168,11 +205,11 @@ contains
             end if
             do j = 1, i - 1
                 if (row_exp(j) == row_exp(i) .and. row_t(j) == row_t(i) .and. &
-                    row_quantity(j) == row_quantity(i)) then
+                    same_observation(robs(j), robs(i))) then
                     call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)// &
                                     ' repeats row '//fmt_int(j)//' (experiment '// &
                                     fmt_int(row_exp(i))//', t = '//fmt_real(row_t(i))// &
-                                    ', quantity '//quantity_label(row_quantity(i))//')')
+                                    ', quantity '//obs_label(robs(i))//')')
                     return
                 end if
             end do
@@ -187,6 +224,7 @@ contains
         self%plain_trials = nd > 0
         self%st_exp = pack([(e, e=1, size(exp_kind))], smap > 0)
         self%tol = tol
+        self%obs = robs
         call effect_bounds(nbeams, self%lower, self%upper)
         call effect_null_values(nbeams, self%nulls)
         call chain_init(stat)
@@ -194,13 +232,13 @@ contains
         call rows_init(stat)
         if (stat%code /= STATUS_OK) return
         call static_experiments_init(nbeams, loads, smap(row_exp(self%st_rows)), &
-                                     row_quantity(self%st_rows), tol, self%st, stat)
+                                     robs(self%st_rows), tol, self%st, stat)
         if (stat%code /= STATUS_OK) then
             call renumber(self%st_rows)
             return
         end if
         call dynamic_experiments_init(nbeams, rels, dmap(row_exp(self%dy_rows)), &
-                                      row_t(self%dy_rows), row_quantity(self%dy_rows), &
+                                      row_t(self%dy_rows), robs(self%dy_rows), &
                                       self%dy, stat)
         if (stat%code /= STATUS_OK) call renumber(self%dy_rows)
         ! releases on the implicit integrator can steer the fit with rough
@@ -216,6 +254,7 @@ contains
             type(status_t), intent(inout) :: stat
             integer :: e, q, nchan, i
             real(dp) :: v
+            integer(int64) :: mask
             allocate (self%rows%loss(size(row_exp)), self%rows%channel(size(row_exp)), source=0)
             allocate (self%rows%fitted(size(row_exp)), source=.true.)
             if (size(exp_values, 1) < NEXPVAL) return
@@ -241,22 +280,24 @@ contains
                     return
                 end if
                 v = exp_values(EV_SIGEST, e)
-                if (.not. (v >= 0.0_dp .and. v <= real(2**NQUANT - 1, dp)) .or. v /= aint(v)) then
+                if (.not. channel_mask_ok(v, size(list))) then
                     call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                    ': sigma channel mask = '//fmt_real(v)//', expected an '// &
-                                    'integer in 0..'//fmt_int(2**NQUANT - 1))
+                                    ': sigma channel mask = '//fmt_real(v)//', expected '// &
+                                    channel_mask_range(size(list)))
                     return
                 end if
                 where (row_exp == e) self%rows%loss = nint(exp_values(EV_LOSS, e))
                 where (row_exp == e .and. row_t < exp_values(EV_BURNIN, e)) &
                     self%rows%fitted = .false.
-                do q = 1, NQUANT
-                    if (.not. btest(nint(v), q - 1)) cycle
-                    if (.not. any(row_exp == e .and. row_quantity == q)) then
+                mask = nint(v, int64)
+                do q = 1, min(size(list), MAX_CHANNEL_BITS)
+                    if (.not. btest(mask, q - 1)) cycle
+                    if (.not. any(row_exp == e .and. row_quantity == q) .and. &
+                        .not. probing) then
                         call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                        ': sigma of quantity '//quantity_label(q)// &
+                                        ': sigma of observation '//obs_label(list(q))// &
                                         ' to be estimated, but the experiment has no rows '// &
-                                        'of that quantity')
+                                        'of that observation')
                         return
                     end if
                     nchan = nchan + 1
@@ -277,16 +318,33 @@ contains
             type(status_t), intent(inout) :: stat
             integer :: k, i, e
             self%np = size(self%lower)
-            call chain_layout(exp_kind, exp_values, self%nu_kind, self%nu_exp, self%nu_q, stat)
+            call chain_layout(exp_kind, exp_values, self%nu_kind, self%nu_exp, self%nu_q, stat, &
+                              size(list))
             if (stat%code /= STATUS_OK) return
             do k = 1, size(self%nu_kind)
-                if (self%nu_kind(k) == NU_T0) cycle
+                if (self%nu_kind(k) == NU_T0) then
+                    ! the t0 column is the rows' time derivative: refuse a
+                    ! record whose rows include an observation without one
+                    do i = 1, size(row_exp)
+                        if (row_exp(i) /= self%nu_exp(k)) cycle
+                        if (robs(i)%kind /= K_ACCEL_T .and. robs(i)%kind /= K_ACCEL_N) cycle
+                        call set_status(stat, ERR_INPUT, where, 'experiment '// &
+                                        fmt_int(self%nu_exp(k))//': a time offset asked, '// &
+                                        'but row '//fmt_int(i)//' observes '// &
+                                        obs_label(robs(i))//', whose rate (the jerk) the '// &
+                                        'fit does not compute yet; expected no time offset '// &
+                                        'on a record with acceleration rows')
+                        return
+                    end do
+                    cycle
+                end if
                 if (any(row_exp == self%nu_exp(k) .and. row_quantity == self%nu_q(k))) cycle
+                if (probing) cycle
                 call set_status(stat, ERR_INPUT, where, 'experiment '// &
                                 fmt_int(self%nu_exp(k))//': a '// &
                                 trim(merge('bias ', 'scale', self%nu_kind(k) == NU_BIAS))// &
-                                ' of quantity '//quantity_label(self%nu_q(k))// &
-                                ', but the experiment has no rows of that quantity')
+                                ' of observation '//obs_label(list(self%nu_q(k)))// &
+                                ', but the experiment has no rows of that observation')
                 return
             end do
             self%lower = [self%lower, (-huge(1.0_dp), k=1, size(self%nu_kind))]
@@ -326,33 +384,37 @@ contains
 
     !> The nuisance parameters the experiments' value columns ask for (EV_T0,
     !! EV_BIAS, EV_SCALE), in parameter order: per experiment its clock
-    !! offset, its biases by quantity code, its scales by quantity code. kinds
-    !! NU_*, exps the experiment, qs the quantity code (0 for t0). A clock
-    !! offset on a static experiment, or a flag or mask out of range, is an
-    !! input error naming the experiment.
-    subroutine chain_layout(exp_kind, exp_values, kinds, exps, qs, stat)
+    !! offset, its biases by entry of the observation list, its scales
+    !! likewise. kinds NU_*, exps the experiment, qs the entry (0 for t0).
+    !! nobs: the length of the problem's observation list (absent: the kind
+    !! codes, NKIND entries). A clock offset on a static experiment, or a flag
+    !! or mask out of range, is an input error naming the experiment.
+    subroutine chain_layout(exp_kind, exp_values, kinds, exps, qs, stat, nobs)
         integer, intent(in) :: exp_kind(:)
         real(dp), intent(in) :: exp_values(:, :)
         integer, allocatable, intent(out) :: kinds(:), exps(:), qs(:)
         type(status_t), intent(inout) :: stat
+        integer, intent(in), optional :: nobs
         character(len=*), parameter :: where = 'measurement chain'
-        integer :: e, q, t0, mask(2), m
+        integer :: e, q, t0, m, n
+        integer(int64) :: mask(2)
         allocate (kinds(0), exps(0), qs(0))
         if (size(exp_values, 1) < NEXPVAL) return
+        n = size(default_observations())
+        if (present(nobs)) n = nobs
         do e = 1, size(exp_kind)
             do m = 1, 2
                 associate (v => exp_values(EV_BIAS + m - 1, e))
-                    if (.not. (v >= 0.0_dp .and. v <= real(2**NQUANT - 1, dp)) .or. &
-                        v /= aint(v)) then
+                    if (.not. channel_mask_ok(v, n)) then
                         call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
                                         ': '//trim(merge('bias ', 'scale', m == 1))// &
-                                        ' channel mask = '//fmt_real(v)//', expected an '// &
-                                        'integer in 0..'//fmt_int(2**NQUANT - 1))
+                                        ' channel mask = '//fmt_real(v)//', expected '// &
+                                        channel_mask_range(n))
                         return
                     end if
                 end associate
             end do
-            mask = nint(exp_values([EV_BIAS, EV_SCALE], e))
+            mask = nint(exp_values([EV_BIAS, EV_SCALE], e), int64)
             t0 = -1
             if (exp_values(EV_T0, e) == 0.0_dp .or. exp_values(EV_T0, e) == 1.0_dp) &
                 t0 = nint(exp_values(EV_T0, e))
@@ -370,7 +432,7 @@ contains
             end if
             if (t0 == 1) call push(NU_T0, 0)
             do m = 1, 2
-                do q = 1, NQUANT
+                do q = 1, min(n, MAX_CHANNEL_BITS)
                     if (btest(mask(m), q - 1)) call push(NU_BIAS + m - 1, q)
                 end do
             end do
@@ -383,6 +445,25 @@ contains
             qs = [qs, q]
         end subroutine push
     end subroutine chain_layout
+
+    !> A channel mask v is a whole number with bits only for the first
+    !! min(nobs, MAX_CHANNEL_BITS) entries of the observation list.
+    pure logical function channel_mask_ok(v, nobs)
+        real(dp), intent(in) :: v
+        integer, intent(in) :: nobs
+        channel_mask_ok = v >= 0.0_dp .and. v <= 2.0_dp**min(nobs, MAX_CHANNEL_BITS) - 1.0_dp &
+                          .and. v == aint(v)
+    end function channel_mask_ok
+
+    !> What channel_mask_ok expects, in words.
+    pure function channel_mask_range(nobs) result(text)
+        integer, intent(in) :: nobs
+        character(len=:), allocatable :: text
+        character(len=24) :: buf
+        write (buf, '(i0)') 2_int64**min(nobs, MAX_CHANNEL_BITS) - 1_int64
+        text = 'an integer in 0..'//trim(buf)//' (bit q - 1 for entry q of the '// &
+               fmt_int(nobs)//' observations)'
+    end function channel_mask_range
 
     !> Each family's rows, scattered back in data order, then the
     !! measurement chain: row i reads s h_i(p, t_i + t0) + b, with columns
@@ -492,14 +573,16 @@ contains
         type(static_experiments_t) :: probe
         real(dp), allocatable :: psig(:)
         integer, allocatable :: plocal(:)
+        integer :: i
         allocate (pexp(0), pq(0))
         call fit_at(self, lp, params0, free, fopts, base, stat)
         if (stat%code /= STATUS_OK) return
         if (self%has_static) then
-            call probe_rows(self%st%loads, self%st%row_quantity, lp%sigma(self%st_rows), plocal, &
-                            pq, psig)
-            call static_experiments_init(self%st%nbeams, self%st%loads, plocal, pq, self%tol, &
-                                         probe, stat)
+            call probe_rows(self%st%loads, self%st%row_obs%kind, lp%sigma(self%st_rows), &
+                            plocal, pq, psig)
+            call static_experiments_init(self%st%nbeams, self%st%loads, plocal, &
+                                         [(observation_t(kind=pq(i)), i=1, size(pq))], &
+                                         self%tol, probe, stat)
             if (stat%code /= STATUS_OK) return
             pexp = self%st_exp(plocal)
             call diagnose(self, lp, base, cands, fopts, dopts, diag, stat, probe, psig, nominal)

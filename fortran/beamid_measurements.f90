@@ -15,8 +15,10 @@ module beamid_measurements
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, ERR_SIZE, &
                              MAX_BYTES, fmt_int, fmt_bytes, set_alloc_error, lower
-    use beamid_static_experiments, only: quantity_code, quantity_label, NQUANT, Q_WIRE_FORCE, &
-                                         Q_MOTOR_TORQUE
+    use beamid_observations, only: observation_t, parse_observation, obs_label, kinds_list, &
+                                   same_observation, observation_why_not, FAM_STATIC, &
+                                   FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
+                                   K_MOTOR_TORQUE, K_WIRE_FORCE
     implicit none
     private
 
@@ -29,7 +31,8 @@ module beamid_measurements
         character(len=:), allocatable :: source         !< file name (for messages)
         character(len=:), allocatable :: experiment(:)  !< experiment name of each row
         real(dp), allocatable :: t(:)                   !< time (0 for static experiments)
-        integer, allocatable :: quantity(:)             !< quantity code (Q_* of beamid_static_experiments)
+        integer, allocatable :: quantity(:)             !< observation kind code (beamid_observations)
+        type(observation_t), allocatable :: obs(:)      !< observation of each row (kind, locus)
         real(dp), allocatable :: value(:)
         real(dp), allocatable :: sigma(:)               !< standard deviation, > 0
         integer, allocatable :: line(:)                 !< source line of each row
@@ -120,6 +123,7 @@ contains
 
         nlines = size(lines)
         allocate (character(len=len(lines)) :: data%experiment(nlines))
+        allocate (data%obs(nlines))
         allocate (data%t(nlines), data%quantity(nlines), data%value(nlines), &
                   data%sigma(nlines), data%line(nlines), stat=ierr)
         if (ierr /= 0) then
@@ -163,6 +167,7 @@ contains
         data%experiment = data%experiment(:nrow)
         data%t = data%t(:nrow)
         data%quantity = data%quantity(:nrow)
+        data%obs = data%obs(:nrow)
         data%value = data%value(:nrow)
         data%sigma = data%sigma(:nrow)
         data%line = data%line(:nrow)
@@ -175,7 +180,7 @@ contains
         integer, intent(in) :: comma(:), irow
         type(measurements_t), intent(inout) :: data
         type(status_t), intent(inout) :: stat
-        character(len=:), allocatable :: field
+        character(len=:), allocatable :: field, why
         field = field_of(line, comma, 1)
         if (len(field) == 0) then
             call set_status(stat, ERR_INPUT, where, 'field experiment is empty')
@@ -185,10 +190,14 @@ contains
         call parse_number(field_of(line, comma, 2), where, 't', data%t(irow), stat)
         if (stat%code /= STATUS_OK) return
         field = field_of(line, comma, 3)
-        data%quantity(irow) = quantity_code(field)
-        if (data%quantity(irow) == 0 .or. len(field) == 0) then
+        call parse_observation(field, data%obs(irow), why)
+        data%quantity(irow) = data%obs(irow)%kind
+        if (data%obs(irow)%kind == 0 .or. len(field) == 0) then
             call set_status(stat, ERR_INPUT, where, 'field quantity = '//quote(field)// &
-                            ', expected one of '//quantity_list())
+                            ', expected one of '//kinds_list())
+            return
+        else if (len(why) > 0) then
+            call set_status(stat, ERR_INPUT, where, 'field quantity = '//quote(field)//': '//why)
             return
         end if
         call parse_number(field_of(line, comma, 4), where, 'value', data%value(irow), stat)
@@ -217,11 +226,12 @@ contains
                 return
             end if
             first = findloc(data%experiment(:i - 1) == data%experiment(i) .and. data%t(:i - 1) &
-                            == data%t(i) .and. data%quantity(:i - 1) == data%quantity(i), .true., 1)
+                            == data%t(i) .and. same_observation(data%obs(:i - 1), data%obs(i)), &
+                            .true., 1)
             if (first > 0) then
                 call set_status(stat, ERR_INPUT, where, 'duplicate row: experiment '// &
                                 quote(trim(data%experiment(i)))//', t = '//fmt_g(data%t(i))// &
-                                ', quantity '//quote(quantity_label(data%quantity(i)))// &
+                                ', quantity '//quote(obs_label(data%obs(i)))// &
                                 ' already given ('//path//', line '// &
                                 fmt_int(data%line(first))//')')
                 return
@@ -254,7 +264,8 @@ contains
     !> Rows of static experiments: t must be 0, and wire_force needs a wire
     !! (the checks of beamid.estimation.build_problem). `row_exp` gives each
     !! row's experiment index into names/is_wire.
-    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor)
+    pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor, &
+                                      lengths)
         type(measurements_t), intent(in) :: data
         character(len=*), intent(in) :: names(:)
         logical, intent(in) :: is_wire(:)
@@ -263,9 +274,12 @@ contains
         !> release experiments (issue 13): any t >= 0, no wire_force, and
         !! motor_torque only with a motor (has_motor)
         logical, intent(in), optional :: is_release(:), has_motor(:)
-        integer :: i, e
-        logical :: release
-        character(len=:), allocatable :: where, x, why
+        !> the model's beam lengths: stations are checked against them
+        real(dp), intent(in), optional :: lengths(:)
+        real(dp), allocatable :: len_b(:)
+        integer :: i, e, reason, nb
+        logical :: release, motor, wire
+        character(len=:), allocatable :: where, x, why, q, detail
         allocate (row_exp(size(data%experiment)), source=0)
         call check_experiments(data, names, stat)
         if (stat%code /= STATUS_OK) return
@@ -278,19 +292,40 @@ contains
             if (present(is_release)) release = is_release(row_exp(i))
             x = ', but experiment '//quote(trim(data%experiment(i)))
             why = ''
-            if (data%quantity(i) == Q_MOTOR_TORQUE .and. .not. release) then
-                why = "field quantity = 'motor_torque'"//x//' is static (no motor)'
-            else if (data%quantity(i) == Q_MOTOR_TORQUE) then
-                if (.not. has_motor(row_exp(i))) why = "field quantity = 'motor_torque'"//x// &
-                                                       ' has no motor (motor_gain = 0)'
-            else if (release .and. data%quantity(i) == Q_WIRE_FORCE) then
-                why = "field quantity = 'wire_force'"//x//' is a release (no wire)'
-            else if (.not. release .and. data%t(i) /= 0.0_dp) then
+            q = "field quantity = "//quote(obs_label(data%obs(i)))
+            motor = .false.
+            wire = .false.
+            if (release .and. present(has_motor)) motor = has_motor(row_exp(i))
+            if (.not. release) wire = is_wire(row_exp(i))
+            nb = huge(1)
+            allocate (len_b(0))
+            if (present(lengths)) then
+                if (size(lengths) > 0) then
+                    nb = size(lengths)
+                    len_b = lengths
+                end if
+            end if
+            reason = observation_why_not(data%obs(i), merge(FAM_RELEASE, FAM_STATIC, release), &
+                                         wire, motor, nb, len_b)
+            detail = why_detail(data%obs(i), reason, merge(FAM_RELEASE, FAM_STATIC, release), &
+                                nb, len_b)
+            deallocate (len_b)
+            if (.not. release .and. data%t(i) /= 0.0_dp .and. &
+                (reason == WHY_OK .or. reason == WHY_WIRE)) then
                 why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the static experiment '// &
                       quote(trim(data%experiment(i)))
-            else if (.not. release .and. data%quantity(i) == Q_WIRE_FORCE) then
-                if (.not. is_wire(row_exp(i))) why = "field quantity = 'wire_force'"//x// &
-                                                     ' has no wire'
+            else if (reason == WHY_FAMILY .and. data%obs(i)%kind == K_MOTOR_TORQUE) then
+                why = q//x//' is static (no motor)'
+            else if (reason == WHY_FAMILY .and. data%obs(i)%kind == K_WIRE_FORCE) then
+                why = q//x//' is a release (no wire)'
+            else if (reason == WHY_FAMILY) then
+                why = q//x//' is '//trim(merge('a release', 'static   ', release))//' ('//detail//')'
+            else if (reason == WHY_MOTOR) then
+                why = q//x//' has no motor (motor_gain = 0)'
+            else if (reason == WHY_WIRE) then
+                why = q//x//' has no wire'
+            else if (reason /= WHY_OK) then
+                why = q//': '//detail
             end if
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, why)
@@ -501,12 +536,4 @@ contains
         q = "'"//text//"'"
     end function quote
 
-    pure function quantity_list() result(text)
-        character(len=:), allocatable :: text
-        integer :: k
-        text = quantity_label(1)
-        do k = 2, NQUANT
-            text = text//', '//quantity_label(k)
-        end do
-    end function quantity_list
 end module beamid_measurements

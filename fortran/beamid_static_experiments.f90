@@ -6,47 +6,40 @@
 !! solver (`solve_static`: outputs and IFT sensitivities, Eq. 40-51), so the
 !! Jacobian columns of Eq. 52 and 56 are available for any named parameter.
 !!
-!! Quantities (codes Q_*): x_tip y_tip tip_angle wire_force x_elbow y_elbow,
-!! u_tip = x_tip - (L1 + ... + Ln) and w_tip = y_tip.
+!! Observations (beamid_observations, the one table): x_tip y_tip tip_angle
+!! wire_force x_elbow y_elbow, u_tip = x_tip - (L1 + ... + Ln) and w_tip =
+!! y_tip; each row holds its observation (kind and locus) and `observe`
+!! computes it and its sensitivities from a static solution.
 !!
 !! The candidate effects, the physical bounds of every parameter and their
 !! null values are the table of beamid_effects.
 module beamid_static_experiments
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_index_beam, IB_L
+    use beamid_model, only: chain_t, chain_from_vector, param_index_beam, IB_L, IB_C, IB_EI
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
-                                solve_static, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, OUT_Y_TIP, &
+                                solve_static, static_stations, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, &
+                                OUT_Y_TIP, &
                                 OUT_TIP_ANGLE, OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW
+    use beamid_observations, only: observation_t, obs_label, observation_why_not, probe_kinds, &
+                                   KINDS, FAM_STATIC, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
+                                   K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_WIRE_FORCE, K_X_ELBOW, &
+                                   K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE, LOCUS_STATION, &
+                                   K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
+                                   STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION
     use beamid_estimation, only: residual_model_t, sort_desc
     implicit none
     private
 
-    public :: static_experiments_t, static_experiments_init, quantity_code, quantity_label
-    public :: probe_rows, NQUANT, median_of, distinct_sorted
-
-    !> Quantity codes.
-    integer, parameter, public :: Q_X_TIP = 1, Q_Y_TIP = 2, Q_TIP_ANGLE = 3, &
-                                  Q_WIRE_FORCE = 4, Q_X_ELBOW = 5, Q_Y_ELBOW = 6, Q_U_TIP = 7, &
-                                  Q_W_TIP = 8, Q_MOTOR_TORQUE = 9
-    !> The one quantity registry of every experiment family: static
-    !! experiments measure codes 1-8 (wire_force with a wire only), release
-    !! experiments (beamid_dynamic_experiments) all but wire_force, and
-    !! motor_torque only with a motor.
-    integer, parameter :: NQUANT = 9
-    character(len=*), parameter :: QUANTITY_NAMES(NQUANT) = [character(len=12) :: &
-        'x_tip', 'y_tip', 'tip_angle', 'wire_force', 'x_elbow', 'y_elbow', 'u_tip', 'w_tip', &
-        'motor_torque']
-    !> Solver output feeding each static quantity (motor_torque: none).
-    integer, parameter :: QUANTITY_OUTPUT(NQUANT) = [OUT_X_TIP, OUT_Y_TIP, OUT_TIP_ANGLE, &
-        OUT_WIRE_FORCE, OUT_X_ELBOW, OUT_Y_ELBOW, OUT_X_TIP, OUT_Y_TIP, 0]
+    public :: static_experiments_t, static_experiments_init, observe
+    public :: probe_rows, median_of, distinct_sorted
 
     !> Static experiments and the data rows they predict.
     type, extends(residual_model_t) :: static_experiments_t
         integer :: nbeams = 0
         type(static_load_t), allocatable :: loads(:)
         integer, allocatable :: row_exp(:)      !< experiment of each row
-        integer, allocatable :: row_quantity(:) !< Q_* code of each row
+        type(observation_t), allocatable :: row_obs(:) !< observation of each row
         type(static_options_t) :: opts
     contains
         procedure :: evaluate => static_evaluate
@@ -54,51 +47,43 @@ module beamid_static_experiments
 
 contains
 
-    !> Code of a quantity name (0 when unknown).
-    pure integer function quantity_code(name)
-        character(len=*), intent(in) :: name
-        integer :: i
-        quantity_code = 0
-        do i = 1, NQUANT
-            if (trim(adjustl(name)) == trim(QUANTITY_NAMES(i))) quantity_code = i
-        end do
-    end function quantity_code
-
-    pure function quantity_label(code) result(name)
-        integer, intent(in) :: code
-        character(len=:), allocatable :: name
-        if (code >= 1 .and. code <= NQUANT) then
-            name = trim(QUANTITY_NAMES(code))
-        else
-            name = '?'
-        end if
-    end function quantity_label
-
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).
-    pure subroutine static_experiments_init(nbeams, loads, row_exp, row_quantity, tol, &
-                                            self, stat)
+    pure subroutine static_experiments_init(nbeams, loads, row_exp, row_obs, tol, self, stat)
         integer, intent(in) :: nbeams
         type(static_load_t), intent(in) :: loads(:)
-        integer, intent(in) :: row_exp(:), row_quantity(:)
+        integer, intent(in) :: row_exp(:)
+        type(observation_t), intent(in) :: row_obs(:)
         real(dp), intent(in) :: tol
         type(static_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
-        integer :: i
-        character(len=:), allocatable :: problem
+        integer :: i, reason
+        character(len=:), allocatable :: problem, detail
         problem = ''
         do i = 1, size(row_exp)
-            if (row_quantity(i) < 1 .or. row_quantity(i) > NQUANT) then
-                problem = ' has quantity code '//fmt_int(row_quantity(i))//', expected 1..'// &
-                          fmt_int(NQUANT)
-            else if (row_quantity(i) == Q_WIRE_FORCE .and. &
-                     loads(row_exp(i))%kind /= LOAD_WIRE) then
-                problem = ': wire_force measured in experiment '//fmt_int(row_exp(i))// &
-                          ', which has no wire'
-            else if (row_quantity(i) == Q_MOTOR_TORQUE) then
-                problem = ': motor_torque measured in the static experiment '// &
+            reason = observation_why_not(row_obs(i), FAM_STATIC, &
+                                         loads(row_exp(i))%kind == LOAD_WIRE, .false., nbeams, &
+                                         [real(dp) ::])
+            detail = why_detail(row_obs(i), reason, FAM_STATIC, nbeams, [real(dp) ::])
+            select case (reason)
+            case (WHY_OK)
+            case (WHY_WIRE)
+                problem = ': '//obs_label(row_obs(i))//' measured in experiment '// &
+                          fmt_int(row_exp(i))//', which has no wire'
+            case (WHY_MOTOR)
+                problem = ': '//obs_label(row_obs(i))//' measured in the static experiment '// &
                           fmt_int(row_exp(i))//', which has no motor'
-            end if
+            case (WHY_FAMILY)
+                if (row_obs(i)%kind == K_MOTOR_TORQUE) then
+                    problem = ': motor_torque measured in the static experiment '// &
+                              fmt_int(row_exp(i))//', which has no motor'
+                else
+                    problem = ': '//obs_label(row_obs(i))//' in the static experiment '// &
+                              fmt_int(row_exp(i))//': '//detail
+                end if
+            case default
+                problem = ': '//detail
+            end select
             if (len(problem) > 0) then
                 call set_status(stat, ERR_INPUT, 'static experiments', 'row '//fmt_int(i)// &
                                 problem)
@@ -108,7 +93,7 @@ contains
         self%nbeams = nbeams
         self%loads = loads
         self%row_exp = row_exp
-        self%row_quantity = row_quantity
+        self%row_obs = row_obs
         if (tol > 0.0_dp) self%opts%tol = tol
     end subroutine static_experiments_init
 
@@ -123,7 +108,9 @@ contains
         type(status_t), intent(inout) :: stat
         type(chain_t) :: chain
         type(static_solution_t) :: sol
-        integer :: e, i, j, q, k, nb
+        integer :: e, i, k, nb
+        integer, allocatable :: st(:)
+        real(dp), allocatable :: z(:, :), dz(:, :, :)
         predictions = 0.0_dp
         jacobian = 0.0_dp
         nb = self%nbeams
@@ -136,51 +123,179 @@ contains
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
                 return
             end if
+            ! the station rows of this experiment: one more shot for all
+            st = pack([(i, i=1, size(self%row_exp))], self%row_exp == e .and. &
+                      [(KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION, &
+                        i=1, size(self%row_exp))])
+            if (size(st) > 0) then
+                allocate (z(6, size(st)), dz(6, size(st), size(wrt)))
+                call static_stations(chain, self%loads(e), sol, wrt, self%opts, &
+                                     self%row_obs(st)%beam, self%row_obs(st)%s, z, dz, stat)
+                if (stat%code /= STATUS_OK) then
+                    stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
+                    return
+                end if
+                do k = 1, size(st)
+                    call observe_station(chain, self%row_obs(st(k)), wrt, z(:, k), dz(:, k, :), &
+                                         predictions(st(k)), jacobian(st(k), :))
+                end do
+                deallocate (z, dz)
+            end if
+            ! encoders: psi at the clamp, and across the elbow
+            st = pack([(i, i=1, size(self%row_exp))], self%row_exp == e .and. &
+                      (self%row_obs%kind == K_ROOT_ROTATION .or. &
+                       self%row_obs%kind == K_ELBOW_ROTATION))
+            if (size(st) > 0) then
+                allocate (z(6, 3), dz(6, 3, size(wrt)))
+                call static_stations(chain, self%loads(e), sol, wrt, self%opts, &
+                                     [1, 1, min(2, nb)], [0.0_dp, chain%length(1), 0.0_dp], &
+                                     z, dz, stat)
+                if (stat%code /= STATUS_OK) then
+                    stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
+                    return
+                end if
+                do k = 1, size(st)
+                    if (self%row_obs(st(k))%kind == K_ROOT_ROTATION) then
+                        predictions(st(k)) = z(3, 1)
+                        jacobian(st(k), :) = dz(3, 1, :)
+                    else
+                        ! psi after the joint minus psi before it; the station
+                        ! before it is a material point, the joint moves with L1
+                        predictions(st(k)) = z(3, 3) - z(3, 2)
+                        jacobian(st(k), :) = dz(3, 3, :) - dz(3, 2, :)
+                        where (wrt == param_index_beam(nb, 1, IB_L)) &
+                            jacobian(st(k), :) = jacobian(st(k), :) - z(4, 2)
+                    end if
+                end do
+                deallocate (z, dz)
+            end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
-                q = self%row_quantity(i)
-                predictions(i) = sol%outputs(QUANTITY_OUTPUT(q))
-                jacobian(i, :) = sol%doutputs(QUANTITY_OUTPUT(q), :)
-                if (q == Q_U_TIP) then
-                    predictions(i) = predictions(i) - sum(chain%length)
-                    do j = 1, size(wrt)
-                        do k = 1, nb
-                            if (wrt(j) == param_index_beam(nb, k, IB_L)) &
-                                jacobian(i, j) = jacobian(i, j) - 1.0_dp
-                        end do
-                    end do
-                end if
+                if (KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION) cycle
+                if (self%row_obs(i)%kind == K_ROOT_ROTATION .or. &
+                    self%row_obs(i)%kind == K_ELBOW_ROTATION) cycle
+                call observe(chain, sol, self%row_obs(i), wrt, predictions(i), jacobian(i, :))
             end do
         end do
     end subroutine static_evaluate
 
+    !> The static family's observe: the value of observation o in the
+    !! solution sol of `chain` and its derivatives d/d params(wrt).
+    pure subroutine observe(chain, sol, o, wrt, value, grad)
+        type(chain_t), intent(in) :: chain
+        type(static_solution_t), intent(in) :: sol
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: value, grad(:)
+        integer :: out, j, k, nb
+        select case (o%kind)
+        case (K_X_TIP, K_U_TIP)
+            out = OUT_X_TIP
+        case (K_Y_TIP, K_W_TIP)
+            out = OUT_Y_TIP
+        case (K_TIP_ANGLE)
+            out = OUT_TIP_ANGLE
+        case (K_WIRE_FORCE)
+            out = OUT_WIRE_FORCE
+        case (K_X_ELBOW)
+            out = OUT_X_ELBOW
+        case (K_Y_ELBOW)
+            out = OUT_Y_ELBOW
+        case default
+            value = 0.0_dp
+            grad = 0.0_dp
+            return
+        end select
+        value = sol%outputs(out)
+        grad = sol%doutputs(out, :)
+        if (o%kind == K_U_TIP) then
+            nb = chain%nbeams
+            value = value - sum(chain%length)
+            do j = 1, size(wrt)
+                do k = 1, nb
+                    if (wrt(j) == param_index_beam(nb, k, IB_L)) grad(j) = grad(j) - 1.0_dp
+                end do
+            end do
+        end if
+    end subroutine observe
+
+    !> The static family's observe at a station from the arc-length state
+    !! z = (x, y, psi, k, Q, N) there and its sensitivities dz (6 x
+    !! size(wrt)): x, y, psi; curvature k; moment EI k + C k^3; gauge strain
+    !! k t/2 on the clockwise side (the arc-length model is inextensible:
+    !! no axial strain; t the strip thickness).
+    pure subroutine observe_station(chain, o, wrt, z, dz, value, grad)
+        type(chain_t), intent(in) :: chain
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: z(:), dz(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        integer :: j
+        real(dp) :: k
+        value = 0.0_dp
+        grad = 0.0_dp
+        k = z(4)
+        select case (o%kind)
+        case (K_X)
+            value = z(1)
+            grad = dz(1, :)
+        case (K_Y)
+            value = z(2)
+            grad = dz(2, :)
+        case (K_PSI)
+            value = z(3)
+            grad = dz(3, :)
+        case (K_CURVATURE)
+            value = k
+            grad = dz(4, :)
+        case (K_MOMENT)
+            associate (ei => chain%ei(o%beam), c => chain%cubic(o%beam))
+                value = ei*k + c*k**3
+                grad = (ei + 3.0_dp*c*k*k)*dz(4, :)
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_EI)) &
+                        grad(j) = grad(j) + k
+                    if (wrt(j) == param_index_beam(chain%nbeams, o%beam, IB_C)) &
+                        grad(j) = grad(j) + k**3
+                end do
+            end associate
+        case (K_STRAIN)
+            value = 0.5_dp*STRIP_THICKNESS*k
+            grad = 0.5_dp*STRIP_THICKNESS*dz(4, :)
+        end select
+    end subroutine observe_station
+
     !> Probe rows for separating rival explanations: every experiment and
-    !! every quantity it can measure (wire_force only with a wire), with the
-    !! sigma to judge a difference by: the median data sigma of that quantity,
-    !! or when it was not measured the defaults 1e-3 m, 1e-3 rad, 0.1 N.
-    pure subroutine probe_rows(loads, row_quantity, sigma, pexp, pq, psig)
+    !! every kind of the static probe list (beamid_observations: x_tip y_tip
+    !! tip_angle wire_force x_elbow y_elbow; wire_force only with a wire), with
+    !! the sigma to judge a difference by: the median data sigma of that kind
+    !! and its twin (u_tip for x_tip), or when neither was measured the
+    !! kind's default sigma of the table. row_kind: the kind of each data row.
+    pure subroutine probe_rows(loads, row_kind, sigma, pexp, pq, psig)
         type(static_load_t), intent(in) :: loads(:)
-        integer, intent(in) :: row_quantity(:)
+        integer, intent(in) :: row_kind(:)
         real(dp), intent(in) :: sigma(:)
         integer, allocatable, intent(out) :: pexp(:), pq(:)
         real(dp), allocatable, intent(out) :: psig(:)
-        integer, parameter :: probe_q(6) = [Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
-                                            Q_X_ELBOW, Q_Y_ELBOW]
-        real(dp), parameter :: default_sigma(6) = [1.0e-3_dp, 1.0e-3_dp, 1.0e-3_dp, 0.1_dp, &
-                                                   1.0e-3_dp, 1.0e-3_dp]
-        integer :: e, k, n
-        real(dp) :: sk(6)
-        do k = 1, 6
-            sk(k) = median_of(pack(sigma, row_quantity == probe_q(k) .or. &
-                                   (probe_q(k) == Q_X_TIP .and. row_quantity == Q_U_TIP) .or. &
-                                   (probe_q(k) == Q_Y_TIP .and. row_quantity == Q_W_TIP)), &
-                              default_sigma(k))
+        integer, allocatable :: probe_q(:)
+        real(dp), allocatable :: sk(:)
+        integer :: e, k, n, np
+        probe_q = probe_kinds(FAM_STATIC)
+        np = size(probe_q)
+        allocate (sk(np))
+        do k = 1, np
+            sk(k) = median_of(pack(sigma, row_kind == probe_q(k) .or. &
+                                   (KINDS(probe_q(k))%twin > 0 .and. &
+                                    row_kind == KINDS(probe_q(k))%twin)), &
+                              KINDS(probe_q(k))%sigma)
         end do
-        allocate (pexp(6*size(loads)), pq(6*size(loads)), psig(6*size(loads)))
+        allocate (pexp(np*size(loads)), pq(np*size(loads)), psig(np*size(loads)))
         n = 0
         do e = 1, size(loads)
-            do k = 1, 6
-                if (probe_q(k) == Q_WIRE_FORCE .and. loads(e)%kind /= LOAD_WIRE) cycle
+            do k = 1, np
+                if (observation_why_not(observation_t(kind=probe_q(k)), FAM_STATIC, &
+                                        loads(e)%kind == LOAD_WIRE, .false., 1, [real(dp) ::]) &
+                    /= WHY_OK) cycle
                 n = n + 1
                 pexp(n) = e
                 pq(n) = probe_q(k)

@@ -36,7 +36,7 @@ module beamid_tasks
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
-    use beamid_static_experiments, only: quantity_label
+    use beamid_observations, only: obs_label, obs_groups
     use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
@@ -615,7 +615,7 @@ contains
             end associate
             per_exp(e) = per_exp(e) + fo%normalized(i)**2
         end do
-        call residual_structure(level, d%data%quantity, fo%normalized, out)
+        call residual_structure(level, obs_groups(d%data%obs), fo%normalized, out)
         dof = real(fo%dof, dp)
         p = ieee_value(1.0_dp, ieee_quiet_nan)
         if (fo%dof > 0) p = chi2_sf(fo%chi2 + fo%chi2_prior, fo%dof)
@@ -649,8 +649,11 @@ contains
     function deck_problem(d) result(pb)
         type(deck_t), intent(in) :: d
         type(problem_t) :: pb
-        pb = problem_t(nbeams=d%nbeams, row_exp=d%row_exp, row_t=d%data%t, row_q=d%data%quantity, &
-                       y=d%data%value, sigma=d%data%sigma, max_iter=d%max_iter, &
+        integer :: r
+        ! each row its own entry of the observation list
+        pb = problem_t(nbeams=d%nbeams, row_exp=d%row_exp, row_t=d%data%t, &
+                       row_q=[(r, r=1, size(d%data%obs))], obs=d%data%obs, y=d%data%value, &
+                       sigma=d%data%sigma, max_iter=d%max_iter, &
                        prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
     end function deck_problem
@@ -773,7 +776,7 @@ contains
         if (st%code /= STATUS_OK) return
         do r = 1, size(d%row_exp)
             call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
-                     quantity_label(d%data%quantity(r))//','//fmt_e(d%data%value(r))//','// &
+                     obs_label(d%data%obs(r))//','//fmt_e(d%data%value(r))//','// &
                      fmt_e(fo%predictions(r))//','//fmt_e(d%data%sigma(r))//','// &
                      fmt_e(fo%normalized(r)))
         end do

@@ -2,6 +2,8 @@
 and scale fitted with the physics as extra columns."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -385,3 +387,91 @@ def test_time_offset_column_of_every_quantity(lag):
         # differences of whole runs resolve it to a few 1e-4 only
         tol = 2e-3 if q == "motor_torque" else 1e-4
         assert np.max(np.abs(jac[rows, 0] - fd[rows])) < tol * scale, q
+
+
+#: station and encoder observations of a release whose t0 column the core
+#: computes (the accelerations have none: test below)
+STATION_QS = ("x@2:0.714", "y@2:0.5", "psi@2:0.2", "curvature@1:0.4", "moment@1:0.4",
+              "strain@1:0.05", "vel_t@2:0.5", "vel_n@2:0.5", "elbow_rotation",
+              "root_rotation")
+
+
+def test_time_offset_column_of_station_observations():
+    """The t0 column of station and encoder observations (the directional
+    derivative along the state's rate: positions, angles, curvature, moment
+    and strain along the velocities, station velocities along the
+    accelerations) against central differences in t0; the fixed points'
+    alongside."""
+    model = BASE.replace(mu_elbow=0.0, mu_tip=0.0, C1=2.0, elbow_flex=0.02, root_flex=0.02)
+    exps = {"m": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, rtol=1e-12)}
+    qs = ("w_tip",) + STATION_QS
+    data = beamid.simulate_measurements(model, exps, list(qs), sigma=1e-3,
+                                        t=[0.05, 0.2, 0.45])
+    spec = ChainSpec(t0={"m": 0.01})
+    prob = build_problem(model, exps, data, chain=spec)
+    p0 = np.append(model.vector(), 0.01)
+    _, jac = _ce.problem_predict(prob, p0, np.array([p0.size], np.int32))
+    h = 1e-6
+    none = np.zeros(0, np.int32)
+    fd = (_ce.problem_predict(prob, p0 + np.eye(p0.size)[-1] * h, none)[0]
+          - _ce.problem_predict(prob, p0 - np.eye(p0.size)[-1] * h, none)[0]) / (2 * h)
+    for q in qs:
+        rows = np.array([x == q for x in data.quantity])
+        scale = np.max(np.abs(fd[rows]))
+        assert scale > 0.0, q
+        # the tangential velocity carries the fast axial modes: central
+        # differences of whole runs resolve its rate to about 1 % at 0.45 s
+        # (at 0.05 s to 3e-7 with h = 1e-7)
+        tol = 2e-2 if q.startswith("vel_t") else 2e-3 if q.startswith("strain") else 2e-4
+        assert np.max(np.abs(jac[rows, 0] - fd[rows])) < tol * scale, (q, jac[rows, 0],
+                                                                          fd[rows])
+
+
+def test_time_offset_refused_on_acceleration_rows():
+    """An accelerometer's rate (the jerk) is not computed: a clock offset on
+    its record is an InputError naming it, in Python and in the core, and
+    diagnose leaves that record's clock offset out of its candidates."""
+    exps = {"m": _release()}
+    data = beamid.simulate_measurements(BASE, exps, ["w_tip", "accel_n@2:0.5"], sigma=1e-2,
+                                        t=[0.1, 0.2, 0.3])
+    with pytest.raises(beamid.InputError, match=r"experiment 'm' has rows of accel_n@2:0.5, "
+                       r"whose rate \(the jerk\)"):
+        beamid.fit(BASE, exps, data, free=("EI1",), nuisance={"time_offset": ["m"]})
+    prob = build_problem(BASE, exps, data)
+    values = np.array(prob.exp_values)
+    values[12, 0] = 1.0     # EV_T0 past the Python check
+    bad = dataclasses.replace(prob, exp_values=np.asfortranarray(values))
+    with pytest.raises(beamid.InputError, match="observes accel_n@2:0.5, whose rate"):
+        _ce.problem_predict(bad, np.append(BASE.vector(), 0.0), np.zeros(0, np.int32))
+    own, cand = beamid.chain.candidate_spec(beamid.fit(BASE, exps, data, free=("EI1",)),
+                                            {"time_offset", "bias"})
+    assert cand.t0 == {} and ("m", "accel_n@2:0.5") in cand.bias
+
+
+def test_bias_and_scale_of_a_station_channel():
+    """Channels are keyed by the observation's name (a strain gauge and a
+    marker): a bias on the gauge and a scale on the marker are recovered,
+    the names written as given (0.050 is 0.05) and in the core's order."""
+    model = BASE.replace(C1=2.0)
+    exps = {"m": _release(4)}
+    qs = ["w_tip", "strain@1:0.05", "y@2:0.5"]
+    times = np.round(np.arange(1, 201) / 200.0, 6)
+    clean = beamid.simulate_measurements(model, exps, qs, sigma=1e-3, t=times)
+    rng = np.random.default_rng(7)
+    sig = {"w_tip": 1e-3, "strain@1:0.05": 2e-6, "y@2:0.5": 1e-3}
+    rows = []
+    for e, t, q, v in zip(clean.experiment, clean.t, clean.quantity, clean.value):
+        v = v + 5e-5 if q == "strain@1:0.05" else (1.04 * v if q == "y@2:0.5" else v)
+        rows.append((e, float(t), q, v + sig[q] * rng.standard_normal(), sig[q]))
+    data = beamid.Measurements.from_rows(rows)
+    spec = parse_nuisance({"bias": [("m", "strain@1:0.050")], "scale": ["y@2:0.5"]}, exps,
+                          data)
+    assert spec.names(["m"]) == ("bias[m:strain@1:0.05]", "scale[m:y@2:0.5]")
+    prob = build_problem(model, exps, data, chain=spec)
+    assert prob.observation_names() == ("w_tip", "y@2:0.5", "strain@1:0.05")
+    assert [(k, e, q) for k, e, q in layout(prob, ["m"])] == spec.order(["m"])
+    fit = beamid.fit(model, exps, data, free=("EI1",), nuisance=spec)
+    b, s = fit.nuisance["bias[m:strain@1:0.05]"], fit.nuisance["scale[m:y@2:0.5]"]
+    assert abs(b - 5e-5) < 3 * fit.nuisance_sigmas["bias[m:strain@1:0.05]"]
+    assert abs(s - 1.04) < 3 * fit.nuisance_sigmas["scale[m:y@2:0.5]"]
+    assert fit.chi2_per_dof < 1.3

@@ -11,16 +11,18 @@ module beamid_api_deck
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
-                             exit_code
+                             exit_code, set_status
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_experiments
     use beamid_measurements, only: measurements_t, read_measurements
-    use beamid_static_experiments, only: quantity_label, NQUANT
+    use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
+                                   parse_observation, obs_label, obs_groups
     implicit none
     private
 
     public :: api_deck_sizes, api_deck_arrays, api_run_deck, api_measurements_size, &
-              api_measurements_read, api_exit_code, api_quantity_labels
+              api_measurements_read, api_exit_code, api_quantity_labels, &
+              api_observation_table, api_observation_parse
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
@@ -204,16 +206,18 @@ contains
         if (stat%code == STATUS_OK) nrow = int(size(data%value), c_int)
     end subroutine api_measurements_size
 
-    !> The rows of a measurement CSV: t, value, sigma, source line, quantity
-    !! code (api_quantity_labels), and the index of each row's experiment into
-    !! `names` (the distinct experiment names, one per line, first use order).
+    !> The rows of a measurement CSV: t, value, sigma, source line, the
+    !! index of each row's observation into `qnames` (the distinct
+    !! observation names, one per line, first use order, as
+    !! beamid_observations writes them), and the index of each row's
+    !! experiment into `names` (the distinct experiment names, likewise).
     subroutine api_measurements_read(path, nrow, t, value, sigma, line, quantity, exp_index, &
-                                     names, code, message)
+                                     names, qnames, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(in) :: nrow
         real(c_double), intent(out) :: t(nrow), value(nrow), sigma(nrow)
         integer(c_int), intent(out) :: line(nrow), quantity(nrow), exp_index(nrow)
-        character(len=65536), intent(out) :: names
+        character(len=65536), intent(out) :: names, qnames
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         type(measurements_t) :: data
@@ -234,7 +238,30 @@ contains
         value = data%value
         sigma = data%sigma
         line = int(data%line, c_int)
-        quantity = int(data%quantity, c_int)
+        quantity = int(obs_groups(data%obs), c_int)
+        qnames = ''
+        joined = ''
+        do i = 1, nrow
+            if (quantity(i) /= i) cycle
+            joined = joined//obs_label(data%obs(i))//new_line('a')
+        end do
+        ! renumber the groups 1, 2, ... in first-use order
+        n = 0
+        do i = 1, nrow
+            if (quantity(i) == i) then
+                n = n + 1
+                quantity(i) = int(n, c_int)
+            else
+                quantity(i) = quantity(quantity(i))
+            end if
+        end do
+        if (len(joined) > TEXT_LEN) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the observation names take over '//fmt_int(TEXT_LEN)// &
+                      ' characters'
+            return
+        end if
+        qnames = joined
         allocate (character(len=len(data%experiment)) :: seen(nrow))
         n = 0
         joined = ''
@@ -263,15 +290,46 @@ contains
         names = joined
     end subroutine api_measurements_read
 
-    !> Names of the quantity codes 1..n, one per line.
+    !> Names of the observation kinds 1..n (beamid_observations), one per line.
     subroutine api_quantity_labels(text)
         character(len=4096), intent(out) :: text
         character(len=:), allocatable :: joined
         integer :: q
         joined = ''
-        do q = 1, NQUANT
-            joined = joined//quantity_label(q)//new_line('a')
+        do q = 1, NKIND
+            joined = joined//kind_label(q)//new_line('a')
         end do
         text = joined
     end subroutine api_quantity_labels
+
+    !> The observation table of beamid_observations, one kind per line:
+    !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;about.
+    subroutine api_observation_table(text)
+        character(len=16384), intent(out) :: text
+        text = kind_table_text()
+    end subroutine api_observation_table
+
+    !> Parse an observation name (beamid_observations parse_observation):
+    !! its kind code, beam and arc length s (a station), mode, and the
+    !! canonical name; code ERR_INPUT with what is wrong.
+    subroutine api_observation_parse(name, kind, beam, s, mode, label, code, message)
+        character(len=*), intent(in) :: name
+        integer(c_int), intent(out) :: kind, beam, mode
+        real(c_double), intent(out) :: s
+        character(len=256), intent(out) :: label
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(observation_t) :: o
+        type(status_t) :: stat
+        character(len=:), allocatable :: why
+        call parse_observation(name, o, why)
+        if (len(why) > 0) call set_status(stat, ERR_INPUT, 'observation', why)
+        call status_out(stat, code, message)
+        kind = int(o%kind, c_int)
+        beam = int(o%beam, c_int)
+        mode = int(o%mode, c_int)
+        s = real(o%s, c_double)
+        label = ''
+        if (len(why) == 0) label = obs_label(o)
+    end subroutine api_observation_parse
 end module beamid_api_deck

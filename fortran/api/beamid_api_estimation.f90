@@ -4,7 +4,9 @@
 !!
 !! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 18
 !! values per experiment, beamid_inverse's EV_* layout), data rows
-!! (experiment index, t, quantity code, value, sigma), free parameter indices,
+!! (experiment index, t, observation, value, sigma; the observation an
+!! index into the observation list obs_kind, obs_beam, obs_s of
+!! beamid_observations' kind codes and station loci), free parameter indices,
 !! a priori information as prior(3, nprior), a column [parameter index, mean,
 !! sigma] per parameter (Eq. 142-145). Indices are 1-based. Sizes are
 !! implied by the arrays (f2py fills them in); no array carries padding. Status
@@ -24,6 +26,7 @@ module beamid_api_estimation
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
+    use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
@@ -277,8 +280,8 @@ contains
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                               nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
-                              exp_values, nrow, row_exp, row_t, row_q, row_value, row_sigma, &
-                              tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              exp_values, nrow, row_exp, row_t, row_q, nobs, obs_kind, &
+                              obs_beam, obs_s, row_value, row_sigma, tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
                               predictions, normalized, stats, log_cost, log_lambda, log_step, &
                               log_params, info, code, message, note)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
@@ -288,6 +291,10 @@ contains
         integer(c_int), intent(in) :: free_idx(nfree), block(nblock)
         real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
@@ -322,7 +329,8 @@ contains
         else
             call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                       int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat)
+                                      real(tol, dp), model, stat, &
+                                      make_obs(obs_kind, obs_beam, obs_s))
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
@@ -373,7 +381,8 @@ contains
     !! sigma's standard deviation (0 where given) and 1 for a gross error.
     subroutine api_fit_chain(nbeams, nparams, params0, nfree, free_idx, nprior, prior, ncov, &
                              prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
-                             row_q, row_value, row_sigma, tol, max_iter, params, sigmas, cov, &
+                             row_q, nobs, obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, &
+                             max_iter, params, sigmas, cov, &
                              corr, flags, predictions, normalized, stats, log_cost, log_lambda, &
                              log_step, log_params, info, weights, sigma_used, sigma_sd, &
                              flagged, code, message, note)
@@ -384,6 +393,10 @@ contains
         integer(c_int), intent(in) :: free_idx(nfree)
         real(c_double), intent(in) :: prior(3, nprior), prior_cov(ncov)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree)
@@ -415,7 +428,8 @@ contains
         else
             call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                       int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat)
+                                      real(tol, dp), model, stat, &
+                                      make_obs(obs_kind, obs_beam, obs_s))
         end if
         if (stat%code == STATUS_OK) then
             call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
@@ -446,12 +460,16 @@ contains
     !! in the EV_* layout, 18 rows) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
-                                   row_exp, row_t, row_q, nwrt, wrt, tol, pred, jac, code, &
-                                   message)
+                                   row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, &
+                                   nwrt, wrt, tol, pred, jac, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
         real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -460,7 +478,7 @@ contains
         real(dp) :: p(nrow), j(nrow, nwrt)
         call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                   int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat)
+                                  model, stat, make_obs(obs_kind, obs_beam, obs_s))
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -471,15 +489,17 @@ contains
     !> The nuisance parameters of the measurement chain the experiments'
     !! value columns ask for (beamid_inverse chain_layout), in parameter
     !! order after the model's: kind (1 clock offset, 2 bias, 3 scale),
-    !! experiment (1-based) and quantity code (0 for a clock offset); the
-    !! first n of each (at most nexp (1 + 2 NQUANT)) are filled.
-    subroutine api_chain_layout(nexp, exp_kind, exp_values, n, kinds, exps, qs, code, message)
-        integer(c_int), intent(in) :: nexp
+    !! experiment (1-based) and entry of the problem's observation list of
+    !! nobs entries (0 for a clock offset); the first n of each (at most nexp
+    !! (1 + 2 MAX_CHANNEL_BITS)) are filled.
+    subroutine api_chain_layout(nexp, exp_kind, exp_values, nobs, n, kinds, exps, qs, code, &
+                                message)
+        integer(c_int), intent(in) :: nexp, nobs
         !f2py intent(hide) nexp
         integer(c_int), intent(in) :: exp_kind(nexp)
         real(c_double), intent(in) :: exp_values(18, nexp)
         integer(c_int), intent(out) :: n
-        integer(c_int), intent(out) :: kinds(19*nexp), exps(19*nexp), qs(19*nexp)
+        integer(c_int), intent(out) :: kinds(105*nexp), exps(105*nexp), qs(105*nexp)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         type(status_t) :: stat
@@ -488,7 +508,7 @@ contains
         kinds = 0
         exps = 0
         qs = 0
-        call chain_layout(int(exp_kind), real(exp_values, dp), k, e, q, stat)
+        call chain_layout(int(exp_kind), real(exp_values, dp), k, e, q, stat, int(nobs))
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         n = int(size(k), c_int)
@@ -502,6 +522,17 @@ contains
         real(c_double), intent(in) :: prior(:, :)
         pr = prior_t(nint(prior(1, :)), real(prior(2, :), dp), real(prior(3, :), dp))
     end function make_prior
+
+    !> The problem's observation list from the binding's arrays (kind code,
+    !! beam and arc length s of each entry; beamid_observations).
+    pure function make_obs(kind, beam, s) result(obs)
+        integer(c_int), intent(in) :: kind(:), beam(:)
+        real(c_double), intent(in) :: s(:)
+        type(observation_t) :: obs(size(kind))
+        integer :: i
+        obs = [(observation_t(kind=int(kind(i)), beam=int(beam(i)), s=real(s(i), dp)), &
+                i=1, size(kind))]
+    end function make_obs
 
     !> The problem of beamid_ladder from a binding's arrays.
     subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
@@ -552,7 +583,8 @@ contains
     !! starting values `nominal` and by continuation). Outputs: copy_diag.
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
                                     nprior, prior, nexp, exp_kind, exp_values, nrow, row_exp, &
-                                    row_t, row_q, row_value, row_sigma, tol, max_iter, ncand, &
+                                    row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
+                                    row_sigma, tol, max_iter, ncand, &
                                     cand_start, ncandp, cand_params, alpha, nrefit, &
                                     ambiguity_delta, collinear, with_mesh, cstats, pstats, &
                                     refit_params, ranking, cosine, dstats, refit_start, sep_t, &
@@ -562,6 +594,10 @@ contains
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
@@ -585,6 +621,7 @@ contains
 
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, 0, pb)
+        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         cs = make_cands(cand_start, cand_params, with_mesh)
         if (max_iter > 0) opts%max_iter = int(max_iter)
         dopts%alpha = alpha
@@ -694,14 +731,18 @@ contains
     !! per call, until none is significant at alpha or max_steps rungs were
     !! added.
     subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
-                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, row_value, &
-                                row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, nobs, &
+                                obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                 cand_params, with_mesh, alpha, max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
         integer(c_int), intent(in) :: free_idx(nfree)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
@@ -714,6 +755,7 @@ contains
         from_deck = .false.
         call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
+        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
                           int(max_steps), stat)
@@ -962,12 +1004,16 @@ contains
     !! per beam now, recommended, largest |change| / sigma, its data row
     !! (1-based), chi-square of the refined model at params].
     subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
-                              row_exp, row_t, row_q, row_value, row_sigma, pred, tol, out, &
-                              code, message)
+                              row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
+                              row_sigma, pred, tol, out, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
         !f2py intent(hide) nparams, nexp, nrow
         real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
+        integer(c_int), intent(in) :: nobs
+        !f2py intent(hide) nobs
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
         real(c_double), intent(in) :: row_value(nrow), row_sigma(nrow), pred(nrow), tol
         real(c_double), intent(out) :: out(6)
         integer(c_int), intent(out) :: code
@@ -976,7 +1022,8 @@ contains
         type(status_t) :: stat
         call mesh_check(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
                         real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
-                        real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat)
+                        real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat, &
+                        make_obs(obs_kind, obs_beam, obs_s))
         call status_out(stat, code, message)
         out = [merge(1.0_dp, 0.0_dp, res%done), real(res%nepb, dp), real(res%recommended, dp), &
                res%max_change, real(res%max_row, dp), res%chi2]

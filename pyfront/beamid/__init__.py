@@ -16,6 +16,8 @@ from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
 from .tables import reproduce
 from .measurements import Measurements, read_measurements
+from .channels import Sensor, read_channels
+from . import observations
 from .estimation import identify, Identification, FitResult, fit, simulate_measurements
 from .dynamics import Run, simulate
 from .load_histories import Chirp, HalfSine, SpinUp, Step, Table
@@ -38,6 +40,7 @@ __all__ = [
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
+    "Sensor", "read_channels", "observations",
     "identify", "Identification",
     "simulate", "simulate_dynamics", "Run", "FrictionEvent", "SENSITIVITY_QUANTITIES",
     "HalfSine", "Step", "Chirp", "Table", "SpinUp",

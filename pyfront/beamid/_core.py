@@ -220,7 +220,8 @@ def run_deck_report(path: str, task: str = "") -> tuple[str, list[str]]:
 
 @lru_cache(maxsize=None)
 def quantity_labels() -> tuple[str, ...]:
-    """Names of the measurable quantities, in code order (1-based codes)."""
+    """Names of the observation kinds, in code order (1-based codes;
+    beamid_observations, read by beamid.observations)."""
     return tuple(q for q in _text(_deck_api.api_quantity_labels()).split("\n") if q)
 
 
@@ -228,10 +229,10 @@ def read_measurements(path: str):
     """Rows of a measurement CSV, validated by beamid_measurements: experiment
     names, t, quantity names, value, sigma, source lines."""
     nrow = _call(_deck_api.api_measurements_size, _path(path))
-    t, value, sigma, line, quantity, exp_index, names = _call(
+    t, value, sigma, line, quantity, exp_index, names, qnames = _call(
         _deck_api.api_measurements_read, _path(path), int(nrow))
     exps = _text(names).split("\n")
-    labels = quantity_labels()
+    labels = _text(qnames).split("\n")
     return (tuple(exps[int(k) - 1] for k in exp_index), np.array(t, dtype=float),
             tuple(labels[int(q) - 1] for q in quantity), np.array(value, dtype=float),
             np.array(sigma, dtype=float), tuple(int(x) for x in line))

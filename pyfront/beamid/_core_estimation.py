@@ -27,7 +27,7 @@ from .errors import raise_for_status
 _api = _ext.beamid_api_estimation
 _design = _ext.beamid_api_design   # beamid_design: information algebra, MC summaries
 
-#: Quantity codes of the Fortran core (beamid_static_experiments' one table).
+#: Observation kind codes of the Fortran core (beamid_observations' one table).
 QUANTITY_NAMES = dict(enumerate(quantity_labels(), start=1))
 QUANTITY_CODES = {v: k for k, v in QUANTITY_NAMES.items()}
 
@@ -47,12 +47,36 @@ class Problem:
     row_sigma: np.ndarray     # (nrow,)
     row_t: np.ndarray         # (nrow,) times of the rows (0 for static experiments)
     tol: float = 0.0
+    #: the observation list row_q indexes (kind code, beam, arc length s of
+    #: each entry; None: row_q are kind codes)
+    obs_kind: np.ndarray | None = None
+    obs_beam: np.ndarray | None = None
+    obs_s: np.ndarray | None = None
+    #: the names of the observation list's entries (None: the kind names)
+    obs_labels: tuple[str, ...] | None = None
+
+    def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The observation list as the binding takes it."""
+        if self.obs_kind is None:
+            n = len(QUANTITY_NAMES)
+            return (np.arange(1, n + 1, dtype=np.int32), np.zeros(n, np.int32), np.zeros(n))
+        return (np.asarray(self.obs_kind, np.int32), np.asarray(self.obs_beam, np.int32),
+                np.asarray(self.obs_s, float))
+
+    def observation_names(self) -> tuple[str, ...]:
+        """The names of the observation list's entries, in its order."""
+        if self.obs_labels is not None:
+            return tuple(self.obs_labels)
+        if self.obs_kind is None:
+            return tuple(QUANTITY_NAMES.values())
+        return tuple(QUANTITY_NAMES[int(k)] + (f"@{int(b)}:{float(s):g}" if b > 0 else "")
+                     for k, b, s in zip(self.obs_kind, self.obs_beam, self.obs_s))
 
     def rows(self) -> tuple:
         """The experiments, the rows and the tolerance in the order the fit,
         diagnose and ladder entries take them."""
         return (self.exp_kind, self.exp_values, self.row_exp, self.row_t, self.row_q,
-                self.row_value, self.row_sigma, float(self.tol))
+                *self.observations(), self.row_value, self.row_sigma, float(self.tol))
 
 
 #: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
@@ -66,7 +90,8 @@ def problem_predict(prob: Problem, params: np.ndarray,
     wrt = np.asarray(wrt, dtype=np.int32)
     pred, jac = _call(_api.api_problem_predict,
                       prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
-                      prob.row_exp, prob.row_t, prob.row_q, wrt, float(prob.tol))
+                      prob.row_exp, prob.row_t, prob.row_q, *prob.observations(), wrt,
+                      float(prob.tol))
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
@@ -448,7 +473,8 @@ def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
     nepb, recommended, max_change (sigma units), row (0-based) and chi2 (of
     the refined model at params)."""
     out = _call(_api.api_mesh_check, prob.nbeams, np.asarray(params, float), prob.exp_kind,
-                prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, prob.row_value,
+                prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, *prob.observations(),
+                prob.row_value,
                 prob.row_sigma, np.asarray(pred, float), float(prob.tol))
     out = np.asarray(out, float)
     return {"done": int(out[0]), "nepb": int(out[1]), "recommended": int(out[2]),

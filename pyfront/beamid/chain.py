@@ -3,12 +3,15 @@
 A record's clock offset ``t0`` (a release's data row at record time t is
 the model at time t + t0: t0 is the model time at the logger's zero, 0.015
 when the logger started 15 ms after the release), and per channel
-(experiment, quantity) a bias ``b`` and a scale ``s`` (the row reads
-s h + b). They are extra columns of the one Gauss-Newton fit (Fortran,
-``beamid_inverse``): the t0 column is s dh/dt from the integrated state's
-rates, the bias column 1, the scale column h; the covariance of the physics
-parameters is the matching block of the full inverse, so it accounts for
-them.
+(experiment, observation: ``w_tip``, ``strain@1:0.05``) a bias ``b`` and a
+scale ``s`` (the row reads s h + b). They are extra columns of the one
+Gauss-Newton fit (Fortran, ``beamid_inverse``): the t0 column is s dh/dt
+from the integrated state's rates (every observation kind but the
+accelerations, whose records take no time offset), the bias column 1, the
+scale column h; the covariance of the physics parameters is the matching
+block of the full inverse, so it accounts for them. Channels are numbered
+by the problem's observation list (beamid.observations.ordered), at most
+the first 52 of it (a channel mask is a whole number in a double).
 
 >>> import beamid
 >>> spec = parse_nuisance({"time_offset": ["free"], "bias": [("free", "w_tip")]},
@@ -27,13 +30,20 @@ import numpy as np
 from . import _check, _core_estimation as _ce
 from ._core import _call
 from .errors import InputError
+from . import observations
 from .loads import Release
-from .measurements import QUANTITIES
+from .measurements import _canonical
 
 #: keys of the ``nuisance`` argument of :func:`beamid.fit`
 NUISANCE_KINDS = ("time_offset", "bias", "scale")
 #: rows of beamid_inverse's experiment value column (0-based): EV_T0, EV_BIAS, EV_SCALE
 _EV_T0, _EV_BIAS, _EV_SCALE = 12, 13, 14
+#: channels (bits of a mask in a double) of the first entries of the
+#: observation list at most (beamid_inverse MAX_CHANNEL_BITS)
+MAX_CHANNEL_BITS = 52
+#: kinds whose rate (the t0 column) the core does not compute: a record with
+#: such rows takes no clock offset (the acceleration's rate is the jerk)
+NO_RATE_KINDS = ("accel_t", "accel_n")
 #: null (perfect chain) value by kind
 NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0}
 _KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale"}
@@ -52,17 +62,18 @@ class ChainSpec:
         return bool(self.t0 or self.bias or self.scale)
 
     def order(self, experiments: list[str]) -> list[tuple[str, str, str]]:
-        """(kind, experiment, quantity) in the parameter order of the Fortran
-        core (chain_layout): per experiment its t0, its biases, its scales,
-        each by quantity code."""
+        """(kind, experiment, observation) in the parameter order of the
+        Fortran core (chain_layout): per experiment its t0, its biases, its
+        scales, each in the order of the observation list
+        (beamid.observations.ordered)."""
         out = []
         for e in experiments:
             if e in self.t0:
                 out.append(("time_offset", e, ""))
             for kind, table in (("bias", self.bias), ("scale", self.scale)):
-                for q in QUANTITIES:
-                    if (e, q) in table:
-                        out.append((kind, e, q))
+                qs = [q for x, q in table if x == e]
+                for q in sorted(qs, key=observations.sort_key):
+                    out.append((kind, e, q))
         return out
 
     def names(self, experiments: list[str] | None = None) -> tuple[str, ...]:
@@ -75,13 +86,16 @@ class ChainSpec:
         return np.array([table[k][e] if k == "time_offset" else table[k][(e, q)]
                          for k, e, q in self.order(experiments)], float)
 
-    def encode(self, experiments: list[str], values: np.ndarray) -> None:
-        """Set the EV_T0, EV_BIAS, EV_SCALE rows of ``values`` (NEXPVAL x nexp)."""
+    def encode(self, experiments: list[str], values: np.ndarray,
+               index: Mapping[str, int] | None = None) -> None:
+        """Set the EV_T0, EV_BIAS, EV_SCALE rows of ``values`` (NEXPVAL x
+        nexp); ``index``: the problem's observation list, name -> 1-based
+        entry (None: the kind codes)."""
         for j, e in enumerate(experiments):
             values[_EV_T0, j] = 1.0 if e in self.t0 else 0.0
             for row, table in ((_EV_BIAS, self.bias), (_EV_SCALE, self.scale)):
-                values[row, j] = float(sum(1 << (_ce.QUANTITY_CODES[q] - 1)
-                                           for (x, q) in table if x == e))
+                values[row, j] = _mask([q for (x, q) in table if x == e], index,
+                                       "nuisance")
 
     def with_values(self, experiments: list[str], values: np.ndarray) -> "ChainSpec":
         """The same parameters started at ``values`` (in :meth:`order`)."""
@@ -118,12 +132,32 @@ class RowTreatment:
     def __bool__(self) -> bool:
         return self.loss != "linear" or bool(self.burn_in) or bool(self.estimate)
 
-    def encode(self, experiments: list[str], values: np.ndarray) -> None:
+    def encode(self, experiments: list[str], values: np.ndarray,
+               index: Mapping[str, int] | None = None) -> None:
+        """Set the EV_LOSS, EV_BURNIN, EV_SIGEST rows of ``values``
+        (``index`` as :meth:`ChainSpec.encode`)."""
         for j, e in enumerate(experiments):
             values[_EV_LOSS, j] = float(LOSSES[self.loss])
             values[_EV_BURNIN, j] = float(self.burn_in.get(e, 0.0))
-            values[_EV_SIGEST, j] = float(sum(1 << (_ce.QUANTITY_CODES[q] - 1)
-                                              for (x, q) in self.estimate if x == e))
+            values[_EV_SIGEST, j] = _mask([q for (x, q) in self.estimate if x == e], index,
+                                          "estimate_sigma")
+
+
+def _mask(names: list[str], index: Mapping[str, int] | None, what: str) -> float:
+    """The channel mask of observations ``names``: bit q - 1 for entry q of
+    the observation list ``index`` (None: the kind codes)."""
+    table = index if index is not None else _ce.QUANTITY_CODES
+    mask = 0
+    for q in names:
+        if q not in table:
+            raise InputError(f"{what}: channel {q!r} is not among the data's observations "
+                             f"({', '.join(table)})")
+        if table[q] > MAX_CHANNEL_BITS:
+            raise InputError(f"{what}: channel {q!r} is entry {table[q]} of the data's "
+                             f"{len(table)} observations, expected one of the first "
+                             f"{MAX_CHANNEL_BITS} (beamid.observations.ordered)")
+        mask |= 1 << (table[q] - 1)
+    return float(mask)
 
 
 def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mapping[str, Any],
@@ -163,12 +197,13 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
         est = []
         for item in items:
             if isinstance(item, str):
-                found = [c for c in channels if c[1] == item]
+                found = [c for c in channels if c[1] == _name(item)]
                 if not found:
                     raise InputError(f"estimate_sigma: no experiment measures {item!r}")
                 est += found
-            elif isinstance(item, tuple) and len(item) == 2 and item in channels:
-                est.append((str(item[0]), str(item[1])))
+            elif isinstance(item, tuple) and len(item) == 2 and \
+                    (str(item[0]), _name(item[1])) in channels:
+                est.append((str(item[0]), _name(item[1])))
             else:
                 raise InputError(f"estimate_sigma: channel {item!r} does not exist (channels: "
                                  + ", ".join(f"({e!r}, {q!r})" for e, q in channels) + ")")
@@ -184,6 +219,36 @@ def param_name(kind: str, experiment: str, quantity: str) -> str:
 
 def _channels(data) -> set[tuple[str, str]]:
     return set(zip(data.experiment, data.quantity)) if data is not None else set()
+
+
+def _name(q: Any) -> str:
+    """The canonical name of observation ``q`` (``strain@1:0.050`` is
+    ``strain@1:0.05``); ``q`` itself when it is none (the caller says so)."""
+    if not isinstance(q, str):
+        return q
+    try:
+        return _canonical(q)
+    except InputError:
+        return q
+
+
+def _is_observation(q: Any) -> bool:
+    if not isinstance(q, str):
+        return False
+    try:
+        observations.parse(q)
+    except InputError:
+        return False
+    return True
+
+
+def _no_rate_rows(data, experiment: str) -> list[str]:
+    """The observations of ``experiment``'s rows that have no rate in the
+    core (NO_RATE_KINDS): a clock offset cannot be fitted on its record."""
+    if data is None:
+        return []
+    return sorted({q for e, q in zip(data.experiment, data.quantity) if e == experiment
+                   and observations.parse(q).kind in NO_RATE_KINDS})
 
 
 def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> ChainSpec:
@@ -231,12 +296,19 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                     raise InputError(f"nuisance['time_offset']: experiment {item!r} is "
                                      "static; a time offset needs a record in time (a "
                                      "beamid.Release)")
+                bad = _no_rate_rows(data, item)
+                if bad:
+                    raise InputError(f"nuisance['time_offset']: experiment {item!r} has rows "
+                                     f"of {', '.join(bad)}, whose rate (the jerk) the fit "
+                                     "does not compute yet; expected a time offset only on "
+                                     "a record without acceleration rows")
                 out[kind][item] = start
                 continue
             if isinstance(item, str):
-                if item not in QUANTITIES:
+                if not _is_observation(item):
                     raise InputError(f"nuisance[{kind!r}]: {item!r} is neither a quantity "
                                      f"nor an (experiment, quantity) pair")
+                item = _name(item)
                 found = sorted(c for c in channels if c[1] == item)
                 if data is not None and not found:
                     raise InputError(f"nuisance[{kind!r}]: no experiment measures {item!r}")
@@ -250,9 +322,11 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
             if e not in exps:
                 raise InputError(f"nuisance[{kind!r}]: no experiment {e!r} (experiments: "
                                  f"{', '.join(exps)})")
-            if q not in QUANTITIES:
+            if not _is_observation(q):
                 raise InputError(f"nuisance[{kind!r}]: {q!r} is not a quantity, expected one "
-                                 f"of {', '.join(QUANTITIES)}")
+                                 f"of {', '.join(_ce.QUANTITY_NAMES.values())} (a station "
+                                 "kind as kind@beam:s)")
+            q = _name(q)
             if data is not None and (e, q) not in channels:
                 have = sorted(q2 for e2, q2 in channels if e2 == e)
                 raise InputError(f"nuisance[{kind!r}]: channel ({e!r}, {q!r}) does not exist: "
@@ -263,10 +337,12 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
 
 
 def layout(prob: "_ce.Problem", names: list[str]) -> list[tuple[str, str, str]]:
-    """(kind, experiment, quantity) of the nuisance parameters of a problem,
-    as the Fortran core orders them (api_chain_layout: one source)."""
-    n, kinds, exps, qs = _call(_ce._api.api_chain_layout, prob.exp_kind, prob.exp_values)
-    return [(_KIND_CODE[int(k)], names[int(e) - 1], _ce.QUANTITY_NAMES.get(int(q), ""))
+    """(kind, experiment, observation) of the nuisance parameters of a
+    problem, as the Fortran core orders them (api_chain_layout: one source)."""
+    labels = prob.observation_names()
+    n, kinds, exps, qs = _call(_ce._api.api_chain_layout, prob.exp_kind, prob.exp_values,
+                               len(labels))
+    return [(_KIND_CODE[int(k)], names[int(e) - 1], labels[int(q) - 1] if q > 0 else "")
             for k, e, q in zip(kinds[:n], exps[:n], qs[:n])]
 
 
@@ -369,9 +445,12 @@ def _candidates(experiments, data, own: ChainSpec | None,
                          "(beamid.read_measurements)")
     rel = [e for e, x in experiments.items() if isinstance(x, Release)]
     channels = sorted({(e, q) for e, q in zip(data.experiment, data.quantity)
-                       if e in rel}, key=lambda c: (exps.index(c[0]), QUANTITIES.index(c[1])))
+                       if e in rel}, key=lambda c: (exps.index(c[0]),
+                                                    observations.sort_key(c[1])))
+    # a record with rows whose rate the core lacks takes no clock offset
     cand = ChainSpec(
-        {e: 0.0 for e in rel if e not in own.t0} if "time_offset" in kinds else {},
+        {e: 0.0 for e in rel if e not in own.t0 and not _no_rate_rows(data, e)}
+        if "time_offset" in kinds else {},
         {c: 0.0 for c in channels if c not in own.bias} if "bias" in kinds else {},
         {c: 1.0 for c in channels if c not in own.scale} if "scale" in kinds else {})
     return own, cand

@@ -36,6 +36,7 @@ from typing import Any, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _core_estimation as _ce
+from . import observations
 from .consistency import _check_fit, _deck_fit, _output_prefix, _save_figure
 from . import _check
 from .errors import InputError, _write_text
@@ -382,8 +383,12 @@ def predicted_covariance(fit: FitResult, rows: Sequence[tuple[Sequence[float], f
     return cov, sig
 
 
-#: Quantities the command ranks by default (u_tip, w_tip are aliases).
-DEFAULT_QUANTITIES = ("x_tip", "y_tip", "tip_angle", "x_elbow", "y_elbow", "wire_force")
+#: Quantities the command ranks by default: the static probe kinds of the
+#: core's observation table (beamid.observations), those an experiment needs
+#: nothing for first (x_tip y_tip tip_angle x_elbow y_elbow, then wire_force;
+#: u_tip, w_tip are their twins).
+DEFAULT_QUANTITIES = tuple(sorted(observations.probe_kinds("static"),
+                                  key=lambda q: observations.kinds()[q].needs != "none"))
 
 
 #: sigma of a candidate quantity the deck has no rows of (``beamid design``

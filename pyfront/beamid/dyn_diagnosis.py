@@ -32,9 +32,9 @@ import numpy as np
 
 from . import _check, _core_estimation as _ce
 from .errors import _write_all
-from .estimation import FitResult
+from .estimation import FitResult, predict
 from .loads import Release
-from .measurements import quantity_unit
+from .measurements import Measurements, quantity_unit
 from .model import Model
 
 # the static registry, verdict words and result types (diagnosis.py does not
@@ -394,12 +394,43 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
                           math.sqrt(2.0 * max(dof, 0)), p, systematic)
 
 
+#: markers per panel of a time comparison: a denser record is thinned
+MAX_MARKERS = 150
+#: points of the model's curve over a release
+DENSE_POINTS = 400
+
+
+def _dense_model(cmp: TimeComparison) -> dict:
+    """The fitted model over each release on a dense time grid (the curve
+    between the measurement times): {(experiment, quantity): (t, y)}; a
+    series whose prediction fails keeps its values at the sample times."""
+    out: dict = {}
+    by_exp: dict[str, list] = {}
+    for s in cmp.series:
+        by_exp.setdefault(s.experiment, []).append(s)
+    for e, series in by_exp.items():
+        tmax = max(float(np.max(s.t)) for s in series)
+        grid = np.union1d(np.linspace(0.0, tmax, DENSE_POINTS),
+                          np.concatenate([s.t for s in series]))
+        rows = [(e, t, s.quantity, 0.0, 1.0) for s in series for t in grid]
+        try:
+            pred, _ = predict(cmp.fit.model, {e: cmp.fit.experiments[e]},
+                              Measurements.from_rows(rows, source="<dense>"))
+        except Exception:   # noqa: BLE001 - the figure falls back to the samples
+            continue
+        for k, s in enumerate(series):
+            out[(e, s.quantity)] = (grid, pred[k * grid.size:(k + 1) * grid.size])
+    return out
+
+
 def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None):
     """One column per (experiment, quantity): on top measured values with
-    their error bars and the model over time (unit on the axis), below the
-    normalized residuals with their +-1 error bars and the +-2 sigma band;
-    the figure's title gives ``title`` (e.g. which fit) and the overall
-    chi-square. Returns the figure."""
+    their error bars (every k-th of a record denser than MAX_MARKERS) and
+    the model as a continuous curve over time (dense output between the
+    measurement times; unit on the axis), below the normalized residuals
+    with their +-1 error bars and the +-2 sigma band; the figure's title
+    gives ``title`` (e.g. which fit) and the overall chi-square. Returns
+    the figure."""
     title = _check.text("title", title, empty=True, none=True)
     import matplotlib.pyplot as plt
 
@@ -409,11 +440,17 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
     if fig is None:
         fig = plt.figure(figsize=(4.2 * n, 5.6))
     axes = fig.subplots(2, n, squeeze=False, sharex="col")
+    dense = _dense_model(cmp)
     for k, s in enumerate(cmp.series):
         top, bottom = axes[0, k], axes[1, k]
-        top.plot(s.t, s.model, "-", color="C0", label="model")
-        top.errorbar(s.t, s.measured, yerr=s.sigma, fmt="o", ms=3, color="C1", capsize=2,
-                     elinewidth=1.0, label="measured +- sigma")
+        tm, ym = dense.get((s.experiment, s.quantity), (s.t, s.model))
+        top.plot(tm, ym, "-", color="C0", label="model")
+        # a dense record: every k-th sample, so that the model stays visible
+        step = max(1, int(math.ceil(len(s.t) / MAX_MARKERS)))
+        sl = slice(None, None, step)
+        label = "measured +- sigma" + (f" (every {step}th)" if step > 1 else "")
+        top.errorbar(s.t[sl], s.measured[sl], yerr=s.sigma[sl], fmt="o", ms=3, color="C1",
+                     capsize=2, elinewidth=1.0, label=label)
         top.set_title(f"{s.experiment}: {s.quantity}")
         top.set_ylabel(f"{s.quantity} ({s.unit})")
         top.legend(fontsize=7)
@@ -421,9 +458,9 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
         bottom.axhline(0.0, color="0.5", lw=0.8, label="zero")
         # in sigma units the error bar is +-1: visible where sigma is not
         # beside the motion's amplitude
-        bottom.errorbar(s.t, s.normalized, yerr=np.ones_like(s.normalized), fmt="o-", ms=3,
-                        color="C3", capsize=2, elinewidth=1.0,
-                        label="normalized residual +- 1 sigma")
+        bottom.errorbar(s.t[sl], s.normalized[sl], yerr=np.ones_like(s.normalized[sl]),
+                        fmt="o-" if step == 1 else "o", ms=3, color="C3", capsize=2,
+                        elinewidth=1.0, label="normalized residual +- 1 sigma")
         if s.flagged is not None and np.any(s.flagged):
             for ax, y in ((top, s.measured), (bottom, s.normalized)):
                 ax.plot(s.t[s.flagged], y[s.flagged], "x", ms=9, mew=2, color="k",

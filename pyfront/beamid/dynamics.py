@@ -369,8 +369,7 @@ def simulate(model, release=None, t_out=None, elements_per_beam: int = 4,
 
 
 #: Quantities of ``Run.d`` (the Fortran table beamid_release QTY_*) ...
-SENSITIVITY_QUANTITIES = ("u_tip", "w_tip", "x_tip", "y_tip", "tip_angle", "x_elbow", "y_elbow",
-                          "motor_torque", "energy")
+SENSITIVITY_QUANTITIES = _cd.quantity_names()
 #: ... and the names of Run's own arrays for the same quantities.
 _QUANTITY_ALIASES = {"tip_u": "u_tip", "tip_w": "w_tip"}
 

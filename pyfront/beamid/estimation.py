@@ -23,6 +23,7 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from . import _check, _core_estimation as _ce
+from . import observations
 from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
@@ -233,16 +234,42 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     for j, name in enumerate(names):
         kinds[j], v = exps[name].encode()
         values[:v.size, j] = v
+    # the problem's observation list: each distinct name once, in the core's
+    # order of kinds and loci (observations.ordered), parsed by the core; the
+    # measurement chain's channel masks number its entries
+    labels = {q: i for i, q in enumerate(observations.ordered(data.quantity), start=1)}
+    obs = [observations.parse(q) for q in labels]
+    _check_stations(model, data, dict(zip(labels, obs)))
     if chain:
-        chain.encode(names, values)
+        chain.encode(names, values, labels)
     if rows:
-        rows.encode(names, values)
+        rows.encode(names, values, labels)
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
-        row_q=np.array([_ce.QUANTITY_CODES[q] for q in data.quantity], np.int32),
+        row_q=np.array([labels[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
-        row_t=np.array(data.t, float), tol=float(tol))
+        row_t=np.array(data.t, float), tol=float(tol),
+        obs_kind=np.array([o.code for o in obs], np.int32),
+        obs_beam=np.array([o.beam for o in obs], np.int32),
+        obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels))
+
+
+def _check_stations(model: Model, data: Measurements, parsed: dict) -> None:
+    """InputError naming the row for a station on a beam the model does not
+    have or beyond its beam's length (0 <= s <= L_b)."""
+    for i, q in enumerate(data.quantity):
+        o = parsed[q]
+        if observations.kinds()[o.kind].locus != "station":
+            continue
+        where = data._where(i)
+        if not 1 <= o.beam <= model.nbeams:
+            raise InputError(f"{where}: field quantity = {q!r}: beam {o.beam} does not exist, "
+                             f"expected 1..{model.nbeams}")
+        length = float(model[f"L{o.beam}"])
+        if o.s > length * (1.0 + 1e-12):
+            raise InputError(f"{where}: field quantity = {q!r}: station s = {o.s:g} is beyond "
+                             f"beam {o.beam}, expected 0 <= s <= {length:g} (L{o.beam})")
 
 
 def _free_indices(model: Model, free: Iterable[str]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -618,8 +645,12 @@ def _check_quantities(exps, quantities, sigma) -> None:
     for qs in lists:
         for q in ([qs] if isinstance(qs, str) else qs):
             if q not in QUANTITIES:
-                raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
-                                 f"{', '.join(QUANTITIES)}")
+                try:
+                    observations.parse(q)
+                except InputError:
+                    raise InputError(f"quantities: {q!r} is not a quantity, expected one of "
+                                     f"{', '.join(QUANTITIES)} (a station kind as "
+                                     "kind@beam:s)") from None
             if isinstance(sigma, Mapping) and q not in sigma:
                 raise InputError(f"sigma has no entry for quantity {q!r}")
     values = list(sigma.values()) if isinstance(sigma, Mapping) else [sigma]

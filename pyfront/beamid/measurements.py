@@ -19,19 +19,25 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from . import _check, _core
+from . import _check, _core, observations
 from .errors import InputError, _write_text
 from .loads import RadialWire, Release, TipLoad
 
-#: Measurable quantities, in code order (the Fortran table, beamid_static_experiments);
-#: u_tip = x_tip - (L1 + L2), w_tip = y_tip.
+#: Observation kinds, in code order (the Fortran table, beamid_observations);
+#: u_tip = x_tip - (L1 + L2), w_tip = y_tip. A station kind is written
+#: ``kind@beam:s`` (beamid.observations).
 QUANTITIES = _core.quantity_labels()
 
 
 def quantity_unit(quantity: str) -> str:
-    """The unit of a measured quantity (``m``, ``rad``, ``N`` or ``N m``),
-    read from its name (:data:`QUANTITIES`: angles are in rad, forces in N,
-    moments and torques in N m, positions and deflections in m)."""
+    """The unit of a measured quantity (``m``, ``rad``, ``N``, ``N m``, ...):
+    the core's observation table (beamid.observations); a name that is no
+    observation is read by its words (angle: rad, moment or torque: N m,
+    force: N, else m)."""
+    try:
+        return observations.unit(quantity)
+    except InputError:
+        pass
     q = quantity.lower()
     if "angle" in q:
         return "rad"
@@ -41,6 +47,11 @@ def quantity_unit(quantity: str) -> str:
         return "N"
     return "m"
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
+
+
+def _canonical(name: str) -> str:
+    """The core's name of an observation (x@2:0.7140 and x@2:0.714 are one)."""
+    return name if name in QUANTITIES else observations.parse(name).label
 
 
 @dataclass(frozen=True)
@@ -95,8 +106,14 @@ class Measurements:
         for i in range(n):
             where = self._where(i)
             if self.quantity[i] not in QUANTITIES:
-                raise InputError(f"{where}: field quantity = {self.quantity[i]!r}, expected "
-                                 f"one of {', '.join(QUANTITIES)}")
+                try:
+                    observations.parse(self.quantity[i])
+                except InputError as exc:
+                    if "unknown observation kind" in str(exc):
+                        raise InputError(f"{where}: field quantity = {self.quantity[i]!r}, "
+                                         f"expected one of {', '.join(QUANTITIES)}") from None
+                    raise InputError(f"{where}: field quantity = {self.quantity[i]!r}: "
+                                     f"{str(exc).split(': ', 1)[-1]}") from None
             for name in ("t", "value", "sigma"):
                 v = float(getattr(self, name)[i])
                 if not math.isfinite(v):
@@ -106,7 +123,7 @@ class Measurements:
                                  "sigma > 0 (the standard deviation of the row)")
             if self.t[i] < 0.0:
                 raise InputError(f"{where}: field t = {self.t[i]:g}, expected t >= 0")
-            key = (self.experiment[i], float(self.t[i]), self.quantity[i])
+            key = (self.experiment[i], float(self.t[i]), _canonical(self.quantity[i]))
             if key in seen:
                 raise InputError(f"{where}: duplicate row: experiment {key[0]!r}, t = "
                                  f"{key[1]:g}, quantity {key[2]!r} already given "
@@ -141,6 +158,40 @@ class Measurements:
                    quantity=tuple(str(r[2]) for r in rows),
                    value=np.array([float(r[3]) for r in rows]),
                    sigma=np.array([float(r[4]) for r in rows]), source=source)
+
+    @classmethod
+    def from_frame(cls, frame, source: str = "<DataFrame>") -> "Measurements":
+        """Build from a pandas DataFrame with the columns experiment, t,
+        quantity, value, sigma (the long format; pandas itself is not
+        imported here)."""
+        source = _check.text("from_frame: source", source)
+        try:
+            cols = [str(c) for c in getattr(frame, "columns", ())]
+        except TypeError:
+            _check.fail("from_frame: frame", frame, "a pandas DataFrame")
+        missing = [h for h in HEADER if h not in cols]
+        if missing:
+            raise InputError(f"{source}: columns {cols}, expected {', '.join(HEADER)} "
+                             f"(missing {', '.join(missing)})")
+        try:
+            return cls(experiment=tuple(str(e) for e in frame["experiment"]),
+                       t=np.asarray(frame["t"], float),
+                       quantity=tuple(str(q) for q in frame["quantity"]),
+                       value=np.asarray(frame["value"], float),
+                       sigma=np.asarray(frame["sigma"], float), source=source)
+        except (TypeError, ValueError, KeyError) as exc:
+            raise InputError(f"{source}: the columns t, value and sigma must hold numbers "
+                             f"({exc})") from None
+
+    def to_frame(self):
+        """The table as a pandas DataFrame (pandas must be installed)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InputError("to_frame needs pandas: pip install pandas") from None
+        return pd.DataFrame({"experiment": list(self.experiment), "t": self.t,
+                             "quantity": list(self.quantity), "value": self.value,
+                             "sigma": self.sigma})
 
     def rows(self) -> list[tuple[str, float, str, float, float]]:
         """The rows as tuples."""
@@ -194,17 +245,26 @@ class Measurements:
             x = experiments[e]
             but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
             if isinstance(x, Release):
-                if q == "wire_force":
+                why = observations.can_measure(q, "release", has_motor=x.has_motor)
+                if why == "family" and q == "wire_force":
                     raise InputError(f"{but} is a release (no wire)")
-                if q == "motor_torque" and not x.has_motor:
+                if why == "family":
+                    raise InputError(f"{but} is a release (only a static experiment "
+                                     f"measures {observations.parse(q).kind})")
+                if why == "motor":
                     raise InputError(f"{but} has no motor (motor_gain = 0)")
             elif isinstance(x, (TipLoad, RadialWire)):
-                if q == "motor_torque":
+                why = observations.can_measure(q, "static",
+                                               has_wire=isinstance(x, RadialWire))
+                if why == "family" and q == "motor_torque":
                     raise InputError(f"{but} is static (no motor)")
+                if why == "family":
+                    raise InputError(f"{but} is static (only a release experiment measures "
+                                     f"{observations.parse(q).kind})")
                 if self.t[i] != 0.0:
                     raise InputError(f"{self._where(i)}: field t = {self.t[i]:g}, expected 0 "
                                      f"for the static experiment {e!r}")
-                if q == "wire_force" and not isinstance(x, RadialWire):
+                if why == "wire":
                     raise InputError(f"{but} has no wire")
 
     def write(self, path: str | os.PathLike, comment: str = "") -> None:
@@ -243,6 +303,11 @@ def read_measurements(path: str | os.PathLike,
         names the file, the line and the field; a
         path that is not a str or os.PathLike names the argument.
     """
+    if type(path).__name__ == "DataFrame" and hasattr(path, "columns"):
+        data = Measurements.from_frame(path)
+        if experiments is not None:
+            data.check_experiments(experiments)
+        return data
     path = _check.path("read_measurements: path", path)
     if path.is_dir():
         raise InputError(f"cannot read measurement file {path}: it is a directory")

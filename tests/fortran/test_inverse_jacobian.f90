@@ -16,8 +16,11 @@ program test_inverse_jacobian
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_TIP, EXP_WIRE, &
                               EXP_RELEASE, NEXPVAL, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, &
                               EV_NEPB, EV_METHOD, EV_LAW, EV_RTOL
-    use beamid_static_experiments, only: Q_X_TIP, Q_Y_TIP, Q_TIP_ANGLE, Q_WIRE_FORCE, &
-                                         Q_X_ELBOW, Q_Y_ELBOW, Q_U_TIP, Q_W_TIP
+    ! rows name observation kinds (no observation list: row_q is the kind)
+    use beamid_observations, only: Q_X_TIP => K_X_TIP, Q_Y_TIP => K_Y_TIP, &
+                                   Q_TIP_ANGLE => K_TIP_ANGLE, Q_WIRE_FORCE => K_WIRE_FORCE, &
+                                   Q_X_ELBOW => K_X_ELBOW, Q_Y_ELBOW => K_Y_ELBOW, &
+                                   Q_U_TIP => K_U_TIP, Q_W_TIP => K_W_TIP
     use beamid_integrators, only: METHOD_IMPLICIT
     use beamid_dynamics, only: FRICTION_SIGN
     use beamid_testing, only: checks_t, check_true, check_close, check_finish
