@@ -434,7 +434,6 @@ def plot_time_comparison(cmp: TimeComparison, fig=None, title: str | None = None
     title = _check.text("title", title, empty=True, none=True)
     import matplotlib.pyplot as plt
 
-    title = _check.text("title", title, empty=True, none=True)
 
     n = max(len(cmp.series), 1)
     if fig is None:
