@@ -572,13 +572,16 @@ contains
         type(status_t), intent(inout) :: stat
         type(static_experiments_t) :: probe
         real(dp), allocatable :: psig(:)
-        integer, allocatable :: plocal(:)
+        integer, allocatable :: plocal(:), row_kinds(:)
         integer :: i
         allocate (pexp(0), pq(0))
         call fit_at(self, lp, params0, free, fopts, base, stat)
         if (stat%code /= STATUS_OK) return
         if (self%has_static) then
-            call probe_rows(self%st%loads, self%st%row_obs%kind, lp%sigma(self%st_rows), &
+            ! the rows' kinds as a contiguous copy (a component of an array of
+            ! types is strided: passing it made an array temporary each call)
+            row_kinds = self%st%row_obs%kind
+            call probe_rows(self%st%loads, row_kinds, lp%sigma(self%st_rows), &
                             plocal, pq, psig)
             call static_experiments_init(self%st%nbeams, self%st%loads, plocal, &
                                          [(observation_t(kind=pq(i)), i=1, size(pq))], &

@@ -69,8 +69,8 @@ def kinds() -> dict[str, Kind]:
 def parse(name: str) -> Observation:
     """Parse an observation name (the core's parser); InputError saying what
     is wrong (unknown kind, malformed station)."""
-    if not isinstance(name, str):
-        _check.fail("observation", name, "a name such as 'x_tip' or 'strain@1:0.05'")
+    if not isinstance(name, str) or not name.isascii():
+        _check.fail("observation", name, "a name (ASCII) such as 'x_tip' or 'strain@1:0.05'")
     return _parse(name)
 
 
