@@ -38,11 +38,13 @@ module beamid_dynamic_experiments
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN, dyn_param_t, &
-                               dyn_param_setup
+                               dyn_param_setup, damping_element
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT, METHOD_RK4, integ_rate_sens
-    use beamid_fe_element, only: fe_hermite, FE_U, FE_W
-    use beamid_model, only: param_count, param_index_beam, IB_EI, IB_C
+    use beamid_fe_element, only: fe_hermite, FE_U, FE_W, FE_NDOF, fe_element_mass, &
+                                 fe_element_tangent_tabulated, fe_element_force_tabulated
+    use beamid_model, only: param_count, param_index_beam, param_index_global, IB_EI, IB_C, &
+                            IB_EA, IB_RHO, IG_ETA
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
     use beamid_release, only: release_spec_t, release_out_t, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
@@ -55,7 +57,8 @@ module beamid_dynamic_experiments
                                    K_W_TIP, K_MOTOR_TORQUE, kind_label, KINDS, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
                                    K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS, &
-                                   K_ELBOW_ROTATION, K_ROOT_ROTATION
+                                   K_ELBOW_ROTATION, K_ROOT_ROTATION, K_REACTION_X, &
+                                   K_REACTION_Y, K_REACTION_MOMENT
     implicit none
     private
 
@@ -288,7 +291,11 @@ contains
                                             out%dstates(:, k, :), a, da, stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                if (is_reaction(obs(i)%kind)) then
+                    call observe_reaction(sys, chain, obs(i)%kind, wrt, out%hist%y(:, k), &
+                                          out%dstates(:, k, :), a, da, t_out(k) <= 0.0_dp, &
+                                          y(i, k), dy(i, k, :))
+                else if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
                     call observe_encoder(sys, chain, obs(i), wrt, out%hist%y(:, k), &
                                          out%dstates(:, k, :), y(i, k), dy(i, k, :))
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
@@ -421,7 +428,7 @@ contains
                 if (stat%code /= STATUS_OK) return
             end if
             do i = 1, size(obs)
-                if (obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N) cycle
+                if (needs_accel(obs(i)%kind)) cycle
                 if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
                     call observe_encoder(sys, chain, obs(i), [0], out%hist%y(:, k), f, value, g)
                     rate(i, k) = g(1)
@@ -479,7 +486,7 @@ contains
         ltot = sum(chain%length)
         allocate (out%y(NQTY, size(t_out)), source=0.0_dp)
         allocate (pars(0), a(sys%nstate))
-        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
+        accel = any([(needs_accel(obs(i)%kind), i=1, size(obs))])
         do k = 1, size(t_out)
             associate (hy => out%hist%y(:, k))
                 call dyn_tip(sys, hy(1:n), u, w, ang)
@@ -498,7 +505,11 @@ contains
                                             stat)
             if (stat%code /= STATUS_OK) return
             do i = 1, size(obs)
-                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                if (is_reaction(obs(i)%kind)) then
+                    call observe_reaction(sys, chain, obs(i)%kind, [integer ::], &
+                                          out%hist%y(:, k), nos, a, noda, t_out(k) <= 0.0_dp, &
+                                          y(i, k), none)
+                else if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
                     call observe_encoder(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
                                          nos, y(i, k), none)
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
@@ -526,10 +537,10 @@ contains
         type(status_t), intent(inout) :: stat
         integer :: i, j
         allocate (pars(0))
-        accel = any([(obs(i)%kind == K_ACCEL_T .or. obs(i)%kind == K_ACCEL_N, i=1, size(obs))])
+        accel = any([(needs_accel(obs(i)%kind), i=1, size(obs))])
         if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
-                        obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
-                        i=1, size(obs))])) return
+                        obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION .or. &
+                        is_reaction(obs(i)%kind), i=1, size(obs))])) return
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
         if (stat%code /= STATUS_OK .or. .not. (accel .and. with_pars)) return
         deallocate (pars)
@@ -540,6 +551,121 @@ contains
             if (stat%code /= STATUS_OK) return
         end do
     end subroutine station_setup
+
+    !> Kinds of the clamp's load cell.
+    elemental logical function is_reaction(kind)
+        integer, intent(in) :: kind
+        is_reaction = kind == K_REACTION_X .or. kind == K_REACTION_Y .or. &
+                      kind == K_REACTION_MOMENT
+    end function is_reaction
+
+    !> Kinds that need the accelerations (and whose rate would need the
+    !! jerk): the accelerometers and the load cell.
+    elemental logical function needs_accel(kind)
+        integer, intent(in) :: kind
+        needs_accel = kind == K_ACCEL_T .or. kind == K_ACCEL_N .or. is_reaction(kind)
+    end function needs_accel
+
+    !> The clamp's load cell in a release (kind K_REACTION_X, _Y, _MOMENT):
+    !! the clamped rows of the first element's equation of motion, G = M_e
+    !! a_e + f_e(q_e) + fd_e(q_e, v_e) (inertia, internal force, Kelvin-Voigt
+    !! damping; the Lagrange multipliers of the clamp, Eq. 104-107), are the
+    !! force the clamp exerts on the arm: x from the u row, y from the w row;
+    !! its moment (counter-clockwise) is the virtual work of a rigid rotation
+    !! of the root node, G_w' (1 + u') - G_u' w' (the root node's slopes).
+    !! `at_rest` (t <= 0: the static shape before the release) takes a = 0.
+    !! y, sy: the state and its sensitivities; a, da: the state's rates and
+    !! theirs.
+    pure subroutine observe_reaction(sys, chain, kind, wrt, y, sy, a, da, at_rest, value, grad)
+        type(dyn_system_t), intent(in) :: sys
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: kind
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: y(:), sy(:, :), a(:), da(:, :)
+        logical, intent(in) :: at_rest
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: qe(FE_NDOF), ve(FE_NDOF), ae(FE_NDOF), fe(FE_NDOF), ke(FE_NDOF, FE_NDOF)
+        real(dp) :: me(FE_NDOF, FE_NDOF), fd(FE_NDOF), kd(FE_NDOF, FE_NDOF)
+        real(dp) :: cd(FE_NDOF, FE_NDOF), unit(FE_NDOF), power, g(FE_NDOF)
+        real(dp) :: dqe(FE_NDOF, size(grad)), dve(FE_NDOF, size(grad))
+        real(dp) :: dae(FE_NDOF, size(grad)), dg(FE_NDOF, size(grad))
+        integer :: j, m, n, nb, ng
+        n = sys%n
+        nb = chain%nbeams
+        qe = 0.0_dp
+        ve = 0.0_dp
+        ae = 0.0_dp
+        dqe = 0.0_dp
+        dve = 0.0_dp
+        dae = 0.0_dp
+        do m = 1, FE_NDOF
+            j = sys%mesh%el_free(m, 1)
+            if (j == 0) cycle
+            qe(m) = y(j)
+            ve(m) = y(n + j)
+            if (.not. at_rest .and. size(a) >= 2*n) ae(m) = a(n + j)
+            if (size(grad) > 0) then
+                dqe(m, :) = sy(j, :)
+                dve(m, :) = sy(n + j, :)
+                if (.not. at_rest .and. size(da, 1) >= 2*n) dae(m, :) = da(n + j, :)
+            end if
+        end do
+        associate (mesh => sys%mesh)
+            ng = size(mesh%xg)
+            call fe_element_tangent_tabulated(ng, mesh%gauss_d1(:, :, 1), mesh%gauss_d2(:, :, 1), &
+                                              mesh%gauss_wh(:, 1), mesh%ea(1), mesh%ei(1), &
+                                              mesh%cubic(1), qe, ke, fe)
+            call fe_element_mass(mesh%h(1), mesh%rho(1), me)
+            g = fe + matmul(me, ae)
+            dg = matmul(ke, dqe) + matmul(me, dae)
+            if (sys%eta /= 0.0_dp) then
+                call damping_element(mesh%h(1), sys%eta*mesh%ei(1), mesh%xg, mesh%wg, qe, ve, &
+                                     fd, power, kd, cd)
+                g = g + fd
+                dg = dg + matmul(kd, dqe) + matmul(cd, dve)
+            end if
+            ! the parameters that enter the first element's equation directly:
+            ! f_e is linear in (EA, EI, C), M_e in rho, fd in eta EI
+            do j = 1, size(wrt)
+                if (wrt(j) == param_index_beam(nb, 1, IB_EA)) then
+                    call fe_element_force_tabulated(ng, mesh%gauss_d1(:, :, 1), &
+                                                    mesh%gauss_d2(:, :, 1), mesh%gauss_wh(:, 1), &
+                                                    1.0_dp, 0.0_dp, 0.0_dp, qe, unit)
+                    dg(:, j) = dg(:, j) + unit
+                else if (wrt(j) == param_index_beam(nb, 1, IB_EI)) then
+                    call fe_element_force_tabulated(ng, mesh%gauss_d1(:, :, 1), &
+                                                    mesh%gauss_d2(:, :, 1), mesh%gauss_wh(:, 1), &
+                                                    0.0_dp, 1.0_dp, 0.0_dp, qe, unit)
+                    dg(:, j) = dg(:, j) + unit
+                    if (sys%eta /= 0.0_dp) dg(:, j) = dg(:, j) + fd/mesh%ei(1)
+                else if (wrt(j) == param_index_beam(nb, 1, IB_C)) then
+                    call fe_element_force_tabulated(ng, mesh%gauss_d1(:, :, 1), &
+                                                    mesh%gauss_d2(:, :, 1), mesh%gauss_wh(:, 1), &
+                                                    0.0_dp, 0.0_dp, 1.0_dp, qe, unit)
+                    dg(:, j) = dg(:, j) + unit
+                else if (wrt(j) == param_index_beam(nb, 1, IB_RHO)) then
+                    call fe_element_mass(mesh%h(1), 1.0_dp, me)
+                    dg(:, j) = dg(:, j) + matmul(me, ae)
+                else if (wrt(j) == param_index_global(nb, IG_ETA)) then
+                    call damping_element(mesh%h(1), mesh%ei(1), mesh%xg, mesh%wg, qe, ve, unit, &
+                                         power)
+                    dg(:, j) = dg(:, j) + unit
+                end if
+            end do
+        end associate
+        ! element unknowns of the root node: w, w', u, u'
+        select case (kind)
+        case (K_REACTION_X)
+            value = g(3)
+            grad = dg(3, :)
+        case (K_REACTION_Y)
+            value = g(1)
+            grad = dg(1, :)
+        case default
+            value = g(2)*(1.0_dp + qe(4)) - g(4)*qe(2)
+            grad = dg(2, :)*(1.0_dp + qe(4)) + g(2)*dqe(4, :) - dg(4, :)*qe(2) - g(4)*dqe(2, :)
+        end select
+    end subroutine observe_reaction
 
     !> The encoders of a release: psi at the clamp (root_rotation), psi
     !! after the elbow minus psi before it (elbow_rotation), from the slopes

@@ -64,6 +64,7 @@ module beamid_dynamics
     public :: dyn_param_t, dyn_param_setup, dyn_dforce, dyn_dmass_mv, dyn_dmass_dq_mv
     public :: dyn_static_sens, dyn_output_sens, dyn_constrain, dyn_denergy, dyn_dnlt
     public :: DP_NONE, DP_LOAD, DP_FORCING, dyn_param_dcap
+    public :: damping_element
     public :: dyn_eval, dyn_add_forcing, dyn_work_name, dyn_breakpoints, dyn_dbreak
 
     !> Kinds of parameter derivatives (dyn_param_t): what a parameter acts on.

@@ -40,7 +40,8 @@ module beamid_inverse
     use beamid_static_experiments, only: static_experiments_t, static_experiments_init, &
                                          probe_rows
     use beamid_observations, only: observation_t, obs_label, same_observation, &
-                                   default_observations, K_ACCEL_T, K_ACCEL_N
+                                   default_observations, K_ACCEL_T, K_ACCEL_N, &
+                                   K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
     use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
@@ -327,13 +328,15 @@ contains
                     ! record whose rows include an observation without one
                     do i = 1, size(row_exp)
                         if (row_exp(i) /= self%nu_exp(k)) cycle
-                        if (robs(i)%kind /= K_ACCEL_T .and. robs(i)%kind /= K_ACCEL_N) cycle
+                        if (robs(i)%kind /= K_ACCEL_T .and. robs(i)%kind /= K_ACCEL_N .and. &
+                            robs(i)%kind /= K_REACTION_X .and. robs(i)%kind /= K_REACTION_Y &
+                            .and. robs(i)%kind /= K_REACTION_MOMENT) cycle
                         call set_status(stat, ERR_INPUT, where, 'experiment '// &
                                         fmt_int(self%nu_exp(k))//': a time offset asked, '// &
                                         'but row '//fmt_int(i)//' observes '// &
                                         obs_label(robs(i))//', whose rate (the jerk) the '// &
                                         'fit does not compute yet; expected no time offset '// &
-                                        'on a record with acceleration rows')
+                                        'on a record with acceleration or load-cell rows')
                         return
                     end do
                     cycle

@@ -26,7 +26,8 @@ module beamid_static_experiments
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_WIRE_FORCE, K_X_ELBOW, &
                                    K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
-                                   STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION
+                                   STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION, &
+                                   K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
     use beamid_estimation, only: residual_model_t, sort_desc
     implicit none
     private
@@ -141,10 +142,11 @@ contains
                 end do
                 deallocate (z, dz)
             end if
-            ! encoders: psi at the clamp, and across the elbow
+            ! encoders (psi at the clamp, and across the elbow) and the
+            ! clamp's load cell: the states at the clamp and either side of
+            ! the elbow
             st = pack([(i, i=1, size(self%row_exp))], self%row_exp == e .and. &
-                      (self%row_obs%kind == K_ROOT_ROTATION .or. &
-                       self%row_obs%kind == K_ELBOW_ROTATION))
+                      at_joint(self%row_obs%kind))
             if (size(st) > 0) then
                 allocate (z(6, 3), dz(6, 3, size(wrt)))
                 call static_stations(chain, self%loads(e), sol, wrt, self%opts, &
@@ -158,6 +160,10 @@ contains
                     if (self%row_obs(st(k))%kind == K_ROOT_ROTATION) then
                         predictions(st(k)) = z(3, 1)
                         jacobian(st(k), :) = dz(3, 1, :)
+                    else if (self%row_obs(st(k))%kind /= K_ELBOW_ROTATION) then
+                        call observe_reaction(chain, self%row_obs(st(k))%kind, wrt, z(:, 1), &
+                                              dz(:, 1, :), predictions(st(k)), &
+                                              jacobian(st(k), :))
                     else
                         ! psi after the joint minus psi before it; the station
                         ! before it is a material point, the joint moves with L1
@@ -172,12 +178,50 @@ contains
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
                 if (KINDS(self%row_obs(i)%kind)%locus == LOCUS_STATION) cycle
-                if (self%row_obs(i)%kind == K_ROOT_ROTATION .or. &
-                    self%row_obs(i)%kind == K_ELBOW_ROTATION) cycle
+                if (at_joint(self%row_obs(i)%kind)) cycle
                 call observe(chain, sol, self%row_obs(i), wrt, predictions(i), jacobian(i, :))
             end do
         end do
     end subroutine static_evaluate
+
+    !> Kinds read from the states at the clamp and either side of the
+    !! elbow: the encoders and the load cell.
+    elemental logical function at_joint(kind)
+        integer, intent(in) :: kind
+        at_joint = kind == K_ROOT_ROTATION .or. kind == K_ELBOW_ROTATION .or. &
+                   kind == K_REACTION_X .or. kind == K_REACTION_Y .or. &
+                   kind == K_REACTION_MOMENT
+    end function at_joint
+
+    !> The clamp's load cell from the state z = (x, y, psi, k, Q, N) at
+    !! the clamp (s = 0 of beam 1) and its sensitivities dz: the internal
+    !! force there is N t + Q n (t = (cos psi, sin psi), n = (-sin psi, cos
+    !! psi): the force the arm beyond the clamp transmits, the tip load's
+    !! resultant), the internal moment M(0) = EI1 k + C1 k^3; the clamp
+    !! exerts their opposites on the arm (kind: K_REACTION_X, _Y, _MOMENT).
+    pure subroutine observe_reaction(chain, kind, wrt, z, dz, value, grad)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: kind
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(in) :: z(:), dz(:, :)
+        real(dp), intent(out) :: value, grad(:)
+        real(dp) :: c, s
+        c = cos(z(3))
+        s = sin(z(3))
+        select case (kind)
+        case (K_REACTION_X)
+            value = -(z(6)*c - z(5)*s)
+            grad = -(dz(6, :)*c - dz(5, :)*s - (z(6)*s + z(5)*c)*dz(3, :))
+        case (K_REACTION_Y)
+            value = -(z(6)*s + z(5)*c)
+            grad = -(dz(6, :)*s + dz(5, :)*c + (z(6)*c - z(5)*s)*dz(3, :))
+        case default
+            call observe_station(chain, observation_t(kind=K_MOMENT, beam=1, s=0.0_dp), wrt, &
+                                 z, dz, value, grad)
+            value = -value
+            grad = -grad
+        end select
+    end subroutine observe_reaction
 
     !> The static family's observe: the value of observation o in the
     !! solution sol of `chain` and its derivatives d/d params(wrt).

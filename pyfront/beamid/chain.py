@@ -42,8 +42,9 @@ _EV_T0, _EV_BIAS, _EV_SCALE = 12, 13, 14
 #: observation list at most (beamid_inverse MAX_CHANNEL_BITS)
 MAX_CHANNEL_BITS = 52
 #: kinds whose rate (the t0 column) the core does not compute: a record with
-#: such rows takes no clock offset (the acceleration's rate is the jerk)
-NO_RATE_KINDS = ("accel_t", "accel_n")
+#: such rows takes no clock offset (the acceleration's rate is the jerk; the
+#: load cell's reaction holds the accelerations too)
+NO_RATE_KINDS = ("accel_t", "accel_n", "reaction_x", "reaction_y", "reaction_moment")
 #: null (perfect chain) value by kind
 NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0}
 _KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale"}
