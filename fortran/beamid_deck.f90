@@ -25,11 +25,13 @@ module beamid_deck
                             IM_MU, IM_C, IG_AXIAL_COUPLING, IG_ROOT_FLEX, IG_ETA, IG_R_MOTOR, &
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
+    use beamid_observations, only: observation_t, parse_observation
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
-    use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
+    use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g, &
+                                   read_channel_file, sensor_t
     use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
                                nml_strs, nml_logical, nml_given, add_error, nml_ints
@@ -41,19 +43,19 @@ module beamid_deck
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
-        ' beamid model load static fe published experiment fit simulate '
+        ' beamid model load static fe published experiment fit simulate sensor '
     !> Tasks the batch runs.
     character(len=*), parameter :: KNOWN_TASKS = &
         ' static fe_static fe_modes fit compare diagnose improve simulate identify '
     !> Estimation tasks and the groups their decks may hold.
     character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve identify '
-    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published '
+    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published sensor '
     !> Size bounds, checked before anything is allocated: beams of a chain,
     !! output times, and the memory a mesh or a table may need (bytes).
     integer, parameter :: MAX_BEAMS = 1000
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
-    character(len=*), parameter :: REPEATABLE = ' experiment published '
+    character(len=*), parameter :: REPEATABLE = ' experiment published sensor '
     !> The classes of a documented deviation (&published kind), '' for none.
     character(len=*), parameter :: DEVIATION_KINDS = '||formulation|random draws|unexplained|'
     !> The words of integrator and friction (codes: read_choice's callers).
@@ -67,6 +69,11 @@ module beamid_deck
     type, public :: stage_t
         character(len=:), allocatable :: name
         character(len=:), allocatable :: data_path
+        !> the data file is a logger's wide CSV of this experiment (read
+        !! through the deck's &sensor table; '' for the long format) and the
+        !! sigma of its channels without one of their own (0: none)
+        character(len=:), allocatable :: logger_experiment
+        real(dp) :: logger_sigma = 0.0_dp
         type(measurements_t) :: data
         integer, allocatable :: row_exp(:)              !< experiment index of each data row
         integer, allocatable :: free(:)
@@ -113,6 +120,13 @@ module beamid_deck
         integer, allocatable :: exp_kind(:)
         real(dp), allocatable :: exp_values(:, :)
         character(len=:), allocatable :: data_path      !< measurement CSV
+        !> the &sensor table: channel names of a logger file, their
+        !! observations and sigmas (0: none of its own)
+        type(sensor_t), allocatable :: sensors(:)
+        !> for the Python reader: 'N name observation sigma' per sensor and
+        !! 'C stage experiment sigma' per &fit reading a logger file (tab
+        !! separated)
+        character(len=:), allocatable :: channel_text
         type(measurements_t) :: data
         integer, allocatable :: row_exp(:)              !< experiment index of each data row
         integer, allocatable :: free(:)                 !< parameter indices to estimate
@@ -1010,6 +1024,8 @@ contains
         is_wire = loads%kind == LOAD_WIRE .and. kinds == 0
         has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
 
+        call read_sensor_groups(f, deck, errors)
+
         ! ---- &fit: one group, or for task identify one per stage, in order
         deck%candidates = default_effects(FAMILY_STATIC)
         nf = nml_count(f, 'fit')
@@ -1035,6 +1051,13 @@ contains
             end do
         end do
         call take_stage(deck, stages(1))   ! the deck's own fit is its first (only) stage
+        do k = 1, nf
+            if (.not. allocated(stages(k)%logger_experiment)) cycle
+            if (len(stages(k)%logger_experiment) == 0) cycle
+            deck%channel_text = deck%channel_text//'C'//achar(9)//fmt_int(k)//achar(9)// &
+                                stages(k)%logger_experiment//achar(9)// &
+                                fmt_g(stages(k)%logger_sigma)//new_line('a')
+        end do
         if (deck%task /= 'identify') return
         call move_alloc(stages, deck%stages)   ! not copied: see copy_measurements
         associate (stages => deck%stages)
@@ -1115,8 +1138,13 @@ contains
         allocate (stage%free(0), stage%prior_index(0), stage%prior_mean(0), stage%prior_sigma(0))
         where = f%path//', line '//fmt_int(g%line)//': &fit '
         call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
-                            'candidates alpha max_iter stage ', errors)
+                            'candidates alpha max_iter stage logger_experiment logger_sigma ', &
+                            errors)
         data = ''
+        stage%logger_experiment = ''
+        call nml_str(f, g, 'logger_experiment', stage%logger_experiment, given, errors)
+        stage%logger_experiment = trim(adjustl(stage%logger_experiment))
+        call nml_real(f, g, 'logger_sigma', stage%logger_sigma, given, errors)
         name = 'stage'//fmt_int(k)
         call nml_str(f, g, 'data', data, given, errors)
         call nml_str(f, g, 'stage', name, given, errors)
@@ -1223,13 +1251,100 @@ contains
             slash = index(f%path, '/', back=.true.)
             stage%data_path = f%path(:slash)//trim(data)
         end if
-        call read_measurements(stage%data_path, stage%data, st)
+        if (nml_given(g, 'logger_sigma') .and. .not. stage%logger_sigma > 0.0_dp) &
+            call add_error(errors, where//'logger_sigma = '//fmt_g(stage%logger_sigma)// &
+                           ', expected a sigma > 0')
+        if (nml_given(g, 'logger_sigma') .and. len(stage%logger_experiment) == 0) &
+            call add_error(errors, where//'logger_sigma is given without logger_experiment '// &
+                           '(the experiment a logger file records)')
+        if (len(stage%logger_experiment) > 0) then
+            if (.not. any(deck%exp_names == stage%logger_experiment)) then
+                call add_error(errors, where//"logger_experiment = '"// &
+                               stage%logger_experiment//"' is not defined (experiments: "// &
+                               join_names(deck%exp_names)//')')
+                return
+            end if
+            call read_channel_file(stage%data_path, stage%logger_experiment, deck%sensors, &
+                                   stage%logger_sigma, stage%data, st)
+        else
+            call read_measurements(stage%data_path, stage%data, st)
+        end if
         if (st%code == STATUS_OK .and. size(kinds) > 0 .and. count_lines_alloc(errors) == nerr) &
             call check_static_rows(stage%data, deck%exp_names, is_wire, stage%row_exp, st, &
                                    kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
     end subroutine read_fit_group
+
+    !> The &sensor groups (name, observation, sigma): the channels of a
+    !! logger file with names of their own (docs/rig.md).
+    subroutine read_sensor_groups(f, deck, errors)
+        type(nml_file_t), intent(in) :: f
+        type(deck_t), intent(inout) :: deck
+        character(len=:), allocatable, intent(inout) :: errors
+        type(nml_group_t) :: g
+        type(observation_t) :: o
+        character(len=:), allocatable :: name, obs, where, why
+        type(nml_text_t), allocatable :: names(:), obss(:)
+        real(dp), allocatable :: sig(:)
+        real(dp) :: sigma
+        logical :: given
+        integer :: k, i, n
+        n = nml_count(f, 'sensor')
+        allocate (names(0), obss(0), sig(0))
+        deck%channel_text = ''
+        do k = 1, n
+            g = f%groups(nml_find(f, 'sensor', k))
+            where = f%path//', line '//fmt_int(g%line)//': &sensor '
+            call nml_check_keys(f, g, ' name observation sigma ', errors)
+            name = ''
+            obs = ''
+            sigma = 0.0_dp
+            call nml_str(f, g, 'name', name, given, errors)
+            call nml_str(f, g, 'observation', obs, given, errors)
+            call nml_real(f, g, 'sigma', sigma, given, errors)
+            name = trim(adjustl(name))
+            obs = trim(adjustl(obs))
+            if (len(name) == 0 .or. index(name, ',') > 0 .or. index(name, achar(9)) > 0) &
+                call add_error(errors, where//"name = '"//name//"', expected a channel name "// &
+                               '(no commas)')
+            call parse_observation(obs, o, why)
+            if (len(why) > 0 .or. len(obs) == 0) then
+                if (len(obs) == 0) why = 'observation is missing'
+                call add_error(errors, where//"'"//name//"': observation = '"//obs//"': "//why)
+            end if
+            if (given .and. .not. sigma > 0.0_dp) call add_error(errors, where//"'"//name// &
+                "': sigma = "//fmt_g(sigma)//', expected a sigma > 0')
+            do i = 1, size(names)
+                if (names(i)%s == name) call add_error(errors, where//"name = '"//name// &
+                                                       "' defined twice")
+            end do
+            names = [names, nml_text_t(name)]
+            obss = [obss, nml_text_t(obs)]
+            sig = [sig, sigma]
+        end do
+        allocate (deck%sensors(size(names)))
+        do i = 1, size(names)
+            deck%sensors(i)%name = names(i)%s
+            deck%sensors(i)%observation = obss(i)%s
+            deck%sensors(i)%sigma = sig(i)
+            deck%channel_text = deck%channel_text//'N'//achar(9)//names(i)%s//achar(9)// &
+                                obss(i)%s//achar(9)//fmt_g(sig(i))//new_line('a')
+        end do
+    end subroutine read_sensor_groups
+
+    !> Names joined by ', ' ('none' for none).
+    pure function join_names(names) result(text)
+        character(len=*), intent(in) :: names(:)
+        character(len=:), allocatable :: text
+        integer :: i
+        text = 'none'
+        if (size(names) == 0) return
+        text = trim(names(1))
+        do i = 2, size(names)
+            text = text//', '//trim(names(i))
+        end do
+    end function join_names
 
     !> The beam lengths of the deck's model (empty before the model is read).
     pure function deck_lengths(deck) result(lengths)

@@ -23,8 +23,19 @@ module beamid_measurements
     private
 
     public :: measurements_t, read_measurements, check_experiments, check_static_rows, fmt_g
+    public :: read_channel_file, TIME_HEADERS, sensor_t
 
     character(len=*), parameter :: HEADER = 'experiment,t,quantity,value,sigma'
+    !> Accepted names of a logger file's time column (its first column).
+    character(len=*), parameter :: TIME_HEADERS(4) = [character(len=6) :: 't', 'time', &
+                                                      'time_s', 't_s']
+
+    !> A sensor of a logger file: its channel name, the observation it makes
+    !! and the sigma of one reading (<= 0: none of its own).
+    type :: sensor_t
+        character(len=:), allocatable :: name, observation
+        real(dp) :: sigma = 0.0_dp
+    end type sensor_t
 
     !> A validated table, one entry per row in file order.
     type :: measurements_t
@@ -54,6 +65,145 @@ contains
         if (stat%code /= STATUS_OK) return
         call check_row_values(path, data, stat)
     end subroutine read_measurements
+
+    !> Read a data logger's wide CSV (a time column `t` or `time`, then one
+    !! column per channel) into the rows of `experiment`, as the Python
+    !! front's beamid.read_channels does, with its messages: a channel's
+    !! header is a sensor's name (sensors(k)%name: it measures
+    !! sensors(k)%observation with sigma sensors(k)%sigma) or an
+    !! observation name itself; a channel without a sigma of its own takes
+    !! `sigma` (<= 0: none, an error). An empty field is a channel not
+    !! sampled at that time. Rows in file order, per line the channels in
+    !! column order.
+    subroutine read_channel_file(path, experiment, sensors, sigma, data, stat)
+        character(len=*), intent(in) :: path, experiment
+        type(sensor_t), intent(in) :: sensors(:)
+        real(dp), intent(in) :: sigma
+        type(measurements_t), intent(out) :: data
+        type(status_t), intent(inout) :: stat
+        character(len=:), allocatable :: lines(:), line, hw, name, field, why, known
+        type(observation_t), allocatable :: chan_obs(:)
+        real(dp), allocatable :: chan_sig(:)
+        integer, allocatable :: comma(:), hcomma(:)
+        character(len=:), allocatable :: header
+        integer :: i, k, c, nh, nrow, hline, ierr
+        real(dp) :: t, v
+        data%source = path
+        call read_lines(path, lines, stat)
+        if (stat%code /= STATUS_OK) return
+        hline = 0
+        do i = 1, size(lines)
+            line = clean(lines(i))
+            if (len(line) == 0) cycle
+            hline = i
+            exit
+        end do
+        if (hline == 0) then
+            call set_status(stat, ERR_INPUT, path, 'no header line (a time column, then one '// &
+                            'column per channel)')
+            return
+        end if
+        header = line
+        call split(header, hcomma)
+        nh = size(hcomma) + 1
+        hw = path//', line '//fmt_int(hline)
+        if (.not. any(TIME_HEADERS == lower(field_of(header, hcomma, 1)))) then
+            call set_status(stat, ERR_INPUT, hw, 'the first column is '// &
+                            quote(field_of(header, hcomma, 1))//', expected the time (t or time)')
+            return
+        end if
+        if (nh < 2) then
+            call set_status(stat, ERR_INPUT, hw, 'no channel column after the time')
+            return
+        end if
+        allocate (chan_obs(nh - 1), chan_sig(nh - 1))
+        do c = 2, nh
+            name = field_of(header, hcomma, c)
+            k = 0
+            do i = 1, size(sensors)
+                if (sensors(i)%name == name) k = i
+            end do
+            if (k > 0) then
+                call parse_observation(sensors(k)%observation, chan_obs(c - 1), why)
+                if (len(why) > 0) then
+                    call set_status(stat, ERR_INPUT, hw, 'sensor '//quote(name)// &
+                                    ': observation = '//quote(sensors(k)%observation)//': '//why)
+                    return
+                end if
+                chan_sig(c - 1) = sensors(k)%sigma
+            else
+                call parse_observation(name, chan_obs(c - 1), why)
+                if (len(why) > 0 .or. len(name) == 0) then
+                    known = ''
+                    do k = 1, size(sensors)
+                        if (k > 1) known = known//', '
+                        known = known//sensors(k)%name
+                    end do
+                    if (size(sensors) == 0) known = 'none'
+                    call set_status(stat, ERR_INPUT, hw, 'channel header '//quote(name)// &
+                                    ' matches no sensor (sensors: '//known//') and is no '// &
+                                    'observation (kind or kind@beam:s)')
+                    return
+                end if
+                chan_sig(c - 1) = 0.0_dp
+            end if
+            if (.not. chan_sig(c - 1) > 0.0_dp) chan_sig(c - 1) = sigma
+            if (.not. chan_sig(c - 1) > 0.0_dp) then
+                call set_status(stat, ERR_INPUT, hw, 'channel '//quote(name)//' has no sigma: '// &
+                                'give sigma= or a Sensor with one')
+                return
+            end if
+        end do
+        nrow = (nh - 1)*(size(lines) - hline)
+        allocate (character(len=max(1, len_trim(experiment))) :: data%experiment(nrow))
+        allocate (data%obs(nrow))
+        allocate (data%t(nrow), data%quantity(nrow), data%value(nrow), data%sigma(nrow), &
+                  data%line(nrow), stat=ierr)
+        if (ierr /= 0) then
+            call set_alloc_error(stat, 'read_channels', 'the rows of '//path, &
+                                 40.0_dp*real(nrow, dp))
+            return
+        end if
+        nrow = 0
+        do i = hline + 1, size(lines)
+            line = clean(lines(i))
+            if (len(line) == 0) cycle
+            call split(line, comma)
+            if (size(comma) + 1 /= nh) then
+                call set_status(stat, ERR_INPUT, path//', line '//fmt_int(i), 'expected '// &
+                                fmt_int(nh)//' fields ('//header//'), got '// &
+                                fmt_int(size(comma) + 1))
+                return
+            end if
+            field = field_of(line, comma, 1)
+            call parse_number(field, path//', line '//fmt_int(i), &
+                              field_of(header, hcomma, 1), t, stat)
+            if (stat%code /= STATUS_OK) return
+            do c = 2, nh
+                field = field_of(line, comma, c)
+                if (len(field) == 0) cycle          ! a channel not sampled at this time
+                call parse_number(field, path//', line '//fmt_int(i), &
+                                  field_of(header, hcomma, c), v, stat)
+                if (stat%code /= STATUS_OK) return
+                nrow = nrow + 1
+                data%experiment(nrow) = experiment
+                data%t(nrow) = t
+                data%obs(nrow) = chan_obs(c - 1)
+                data%quantity(nrow) = chan_obs(c - 1)%kind
+                data%value(nrow) = v
+                data%sigma(nrow) = chan_sig(c - 1)
+                data%line(nrow) = i
+            end do
+        end do
+        data%experiment = data%experiment(:nrow)
+        data%t = data%t(:nrow)
+        data%quantity = data%quantity(:nrow)
+        data%obs = data%obs(:nrow)
+        data%value = data%value(:nrow)
+        data%sigma = data%sigma(:nrow)
+        data%line = data%line(:nrow)
+        call check_row_values(path, data, stat)
+    end subroutine read_channel_file
 
     !> Every line of the file `path`, as long as its longest (ERR_IO when it
     !! cannot be opened or read, ERR_SIZE when it would not fit in MAX_BYTES).

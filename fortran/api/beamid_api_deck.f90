@@ -57,7 +57,8 @@ contains
     !! sim_friction_velocity, alpha. text: task, output, data path, then the
     !! experiment names and the candidates, one per line, then the &published
     !! lines (deck_t%published), then for task identify one line per stage
-    !! (deck_t%stage_text).
+    !! (deck_t%stage_text), then the &sensor table and the &fit groups that
+    !! read a logger file (deck_t%channel_text).
     subroutine api_deck_sizes(path, sizes, reals, text, code, message)
         character(len=*), intent(in) :: path
         integer(c_int), intent(out) :: sizes(21)
@@ -93,6 +94,7 @@ contains
         end do
         t = t//d%published
         if (allocated(d%stage_text)) t = t//d%stage_text   ! task identify: 'S' lines
+        if (allocated(d%channel_text)) t = t//d%channel_text   ! &sensor 'N', logger 'C' lines
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
             message = trim(path)//': the names of the deck are too long (over '// &

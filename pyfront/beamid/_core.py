@@ -184,6 +184,15 @@ def read_deck(path: str) -> dict:
                     "max_iter": int(f[4])}
                    for f in (ln.split("\t") for ln in lines[3 + nexp + ncand:])
                    if f[0] == "S" and len(f) == 5],
+        # the &sensor table ('N name observation sigma', sigma 0: none of its
+        # own) and the &fit groups whose data is a logger file ('C stage
+        # experiment sigma', stage 1-based)
+        "sensors": [(f[1], f[2], float(f[3]) or None)
+                    for f in (ln.split("\t") for ln in lines[3 + nexp + ncand:])
+                    if f[0] == "N" and len(f) == 4],
+        "loggers": {int(f[1]) - 1: (f[2], float(f[3]) or None)
+                    for f in (ln.split("\t") for ln in lines[3 + nexp + ncand:])
+                    if f[0] == "C" and len(f) == 4},
     }
 
 

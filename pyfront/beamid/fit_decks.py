@@ -31,6 +31,7 @@ from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _p
                          _result as _fit_result, identify)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
+from .channels import Sensor, read_channels
 from .measurements import Measurements, read_measurements
 from .model import Model
 from .plot_fit import ladder_titles, plot_compare, plot_ladder
@@ -136,14 +137,25 @@ class FitDeck(OutputPrefix):
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
 
 
+def _stage_data(values: dict, stage: int, path: str, experiments: dict) -> Measurements:
+    """The data of &fit group `stage` (0-based): its measurement CSV, or a
+    logger file read through the deck's &sensor table (read_channels)."""
+    loggers = values.get("loggers", {})
+    if stage not in loggers:
+        return read_measurements(path, experiments)
+    experiment, sigma = loggers[stage]
+    sensors = [Sensor(n, o, s) for n, o, s in values.get("sensors", ())]
+    return read_channels(path, experiment, sigma=sigma, sensors=sensors)
+
+
 def _fit_deck(path: Path, values: dict) -> FitDeck:
     """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    data = read_measurements(values["data_path"], experiments)
+    data = _stage_data(values, 0, values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
-                         read_measurements(s["data_path"], experiments),
+                         _stage_data(values, k, s["data_path"], experiments),
                          tuple(names[i] for i in s["free"]), s["max_iter"])
                    for k, s in enumerate(values.get("stages", ())))
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
