@@ -419,7 +419,7 @@ contains
             if (is_fit .and. index(FIT_GROUPS, ' '//name//' ') == 0) then
                 call add_error(errors, where//'group &'//name//' does not belong in an '// &
                                'estimation deck, expected one of:'//FIT_GROUPS(:len_trim(FIT_GROUPS)))
-            else if (.not. is_fit .and. index(' experiment fit ', ' '//name//' ') > 0) then
+            else if (.not. is_fit .and. index(' experiment fit sensor ', ' '//name//' ') > 0) then
                 call add_error(errors, where//'group &'//name//' is only for the estimation '// &
                                'tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
             else if (task /= 'simulate' .and. name == 'simulate') then
