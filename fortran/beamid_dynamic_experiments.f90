@@ -290,6 +290,11 @@ contains
             if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), &
                                             out%dstates(:, k, :), a, da, stat)
             if (stat%code /= STATUS_OK) return
+            if (accel .and. t_out(k) <= 0.0_dp) then
+                ! t = 0 is the static shape before the release: at rest
+                a = 0.0_dp
+                da = 0.0_dp
+            end if
             do i = 1, size(obs)
                 if (is_reaction(obs(i)%kind)) then
                     call observe_reaction(sys, chain, obs(i)%kind, wrt, out%hist%y(:, k), &
@@ -504,6 +509,7 @@ contains
             if (accel) call integ_rate_sens(sys, pars, t_out(k), out%hist%y(:, k), nos, a, noda, &
                                             stat)
             if (stat%code /= STATUS_OK) return
+            if (accel .and. t_out(k) <= 0.0_dp) a = 0.0_dp   ! before the release: at rest
             do i = 1, size(obs)
                 if (is_reaction(obs(i)%kind)) then
                     call observe_reaction(sys, chain, obs(i)%kind, [integer ::], &
