@@ -341,7 +341,7 @@ contains
         if (stat%code == STATUS_OK .and. nblock == 0) then
             call fit_least_squares(model, lp, real(params0, dp), int(free_idx), opts, res, stat)
             if (allocated(res%note)) note = res%note
-        else if (stat%code == STATUS_OK .and. model%has_dynamic) then
+        else if (stat%code == STATUS_OK .and. model%timed()) then
             call null_side_init(int(nbeams), model, side)
             call add_effect(side)
         else if (stat%code == STATUS_OK) then
