@@ -38,7 +38,7 @@ module beamid_problem
     use, intrinsic :: iso_fortran_env, only: int64
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
-    use beamid_estimation, only: residual_model_t, prior_t, lsq_problem_t
+    use beamid_estimation, only: residual_model_t, prior_t, lsq_problem_t, prior_from_covariance
     use beamid_observations, only: observation_t, obs_label, same_observation, &
                                    default_observations, K_ACCEL_T, K_ACCEL_N
     use beamid_effects, only: effect_bounds, effect_null_values
@@ -52,6 +52,7 @@ module beamid_problem
     private
 
     public :: inverse_problem_t, problem_t, inverse_problem_init, inverse_lsq
+    public :: observation_list, problem_from_arrays, problem_lsq_from_arrays
     public :: chain_layout
     !> The spec layout (beamid_family), here for the problem's callers.
     public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
@@ -535,6 +536,65 @@ contains
         type(prior_t), intent(in) :: prior
         lp = lsq_problem_t(y, sigma, self%lower, self%upper, self%nulls, prior)
     end function inverse_lsq
+
+    !> The problem's observation list from parallel arrays (kind code, beam
+    !! and arc length s of each entry; beamid_observations).
+    pure function observation_list(kind, beam, s) result(obs)
+        integer, intent(in) :: kind(:), beam(:)
+        real(dp), intent(in) :: s(:)
+        type(observation_t) :: obs(size(kind))
+        integer :: i
+        obs = [(observation_t(kind=kind(i), beam=beam(i), s=s(i)), i=1, size(kind))]
+    end function observation_list
+
+    !> The inverse problem of the marshalled arrays of a front: experiments
+    !! (kinds, value columns), rows (experiment, t, entry of the observation
+    !! list) and the observation list as parallel arrays (obs_kind,
+    !! obs_beam, obs_s; observation_list).
+    subroutine problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+                                   obs_kind, obs_beam, obs_s, tol, model, stat)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        integer, intent(in) :: obs_kind(:), obs_beam(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        type(inverse_problem_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
+                                  model, stat, observation_list(obs_kind, obs_beam, obs_s))
+    end subroutine problem_from_arrays
+
+    !> The inverse problem and its least-squares problem from the
+    !! marshalled arrays of a front (the set-up every estimation entry of
+    !! the binding shares): problem_from_arrays, then the data rows y
+    !! (sigma) with a priori information, columns [index, mean, sigma] of
+    !! `prior`, independent (prior_cov empty) or a full covariance of the
+    !! prior parameters (prior_cov: nprior**2 values, column by column; a
+    !! previous fit carried forward, Eq. 146-148, 164-166).
+    subroutine problem_lsq_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+                                       obs_kind, obs_beam, obs_s, tol, y, sigma, prior, &
+                                       prior_cov, model, lp, stat)
+        integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        integer, intent(in) :: obs_kind(:), obs_beam(:)
+        real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        real(dp), intent(in) :: y(:), sigma(:), prior(:, :), prior_cov(:)
+        type(inverse_problem_t), intent(out) :: model
+        type(lsq_problem_t), intent(out) :: lp
+        type(status_t), intent(inout) :: stat
+        integer :: n
+        n = size(prior, 2)
+        if (size(prior_cov) /= 0 .and. size(prior_cov) /= n*n) then
+            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '// &
+                            fmt_int(size(prior_cov))//' values, expected nprior**2 = '// &
+                            fmt_int(n*n))
+            return
+        end if
+        call problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+                                 obs_kind, obs_beam, obs_s, tol, model, stat)
+        if (stat%code /= STATUS_OK) return
+        lp = inverse_lsq(model, y, sigma, prior_t(nint(prior(1, :)), prior(2, :), prior(3, :)))
+        if (size(prior_cov) /= 0) call prior_from_covariance(nint(prior(1, :)), prior(2, :), &
+                                                             reshape(prior_cov, [n, n]), &
+                                                             lp%prior, stat)
+    end subroutine problem_lsq_from_arrays
 
     !> Whether the problem has a timed family (records in time: integrated
     !! responses, each evaluation costly).

@@ -18,14 +18,15 @@ module beamid_api_estimation
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
                              set_status, fmt_int, put_text
-    use beamid_estimation, only: residual_structure, residual_model_t, prior_from_covariance
+    use beamid_estimation, only: residual_structure, residual_model_t
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
+    use beamid_inverse, only: inverse_problem_t, chain_layout
+    use beamid_problem, only: problem_from_arrays, problem_lsq_from_arrays, observation_list
     use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
@@ -315,29 +316,18 @@ contains
         type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
         type(lsq_problem_t) :: lp
-        integer :: n
 
         params = params0
         note = ''
-        n = int(nprior)
         if (any(block < 1 .or. block > nparams)) then
             call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
                             'outside 1..nparams')
-        else if (ncov /= 0 .and. ncov /= nprior * nprior) then
-            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
-                            ' values, expected nprior**2 = '//fmt_int(n * n))
         else
-            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                      int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat, &
-                                      make_obs(obs_kind, obs_beam, obs_s))
+            call set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, &
+                        obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, model, &
+                        lp, stat)
         end if
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
-            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
-                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
-        end if
+        call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK .and. nblock == 0) then
             call fit_least_squares(model, lp, real(params0, dp), int(free_idx), opts, res, stat)
             if (allocated(res%note)) note = res%note
@@ -418,25 +408,11 @@ contains
         type(lsq_problem_t) :: lp
         real(dp) :: w(nrow), su(nrow), sd(nrow)
         logical :: fl(nrow)
-        integer :: n
         params = params0
         note = ''
-        n = int(nprior)
-        if (ncov /= 0 .and. ncov /= nprior*nprior) then
-            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
-                            ' values, expected nprior**2 = '//fmt_int(n*n))
-        else
-            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                      int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat, &
-                                      make_obs(obs_kind, obs_beam, obs_s))
-        end if
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
-            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
-                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
-        end if
+        call set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
+                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+        call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK) then
             call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
                            w, su, sd, fl, stat)
@@ -476,9 +452,9 @@ contains
         type(inverse_problem_t) :: model
         type(status_t) :: stat
         real(dp) :: p(nrow), j(nrow, nwrt)
-        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat, make_obs(obs_kind, obs_beam, obs_s))
+        call problem_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                 int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
+                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -517,6 +493,24 @@ contains
         qs(1:n) = int(q, c_int)
     end subroutine api_chain_layout
 
+    !> The estimation entries' one set-up (beamid_problem
+    !! problem_lsq_from_arrays), the arrays in the library's kinds.
+    subroutine set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
+                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        real(c_double), intent(in) :: row_value(:), row_sigma(:), prior(:, :), prior_cov(:)
+        type(inverse_problem_t), intent(out) :: model
+        type(lsq_problem_t), intent(out) :: lp
+        type(status_t), intent(inout) :: stat
+        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                     int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
+                                     int(obs_beam), real(obs_s, dp), real(tol, dp), &
+                                     real(row_value, dp), real(row_sigma, dp), &
+                                     real(prior, dp), real(prior_cov, dp), model, lp, stat)
+    end subroutine set_up
+
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
         real(c_double), intent(in) :: prior(:, :)
@@ -529,9 +523,7 @@ contains
         integer(c_int), intent(in) :: kind(:), beam(:)
         real(c_double), intent(in) :: s(:)
         type(observation_t) :: obs(size(kind))
-        integer :: i
-        obs = [(observation_t(kind=int(kind(i)), beam=int(beam(i)), s=real(s(i), dp)), &
-                i=1, size(kind))]
+        obs = observation_list(int(kind), int(beam), real(s, dp))
     end function make_obs
 
     !> The problem of beamid_ladder from a binding's arrays.
