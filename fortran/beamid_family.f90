@@ -20,11 +20,11 @@ module beamid_family
     use beamid_status, only: status_t
     use beamid_arclength, only: LOAD_TIP, LOAD_WIRE
     use beamid_estimation, only: residual_model_t
-    use beamid_observations, only: observation_t, KINDS
+    use beamid_observations, only: observation_t, KINDS, FAM_STATIC, FAM_RELEASE
     implicit none
     private
 
-    public :: experiment_family_t, family_slot_t
+    public :: experiment_family_t, family_slot_t, spec_key_t, spec_key_index
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
@@ -46,6 +46,54 @@ module beamid_family
     !! is estimated from the residuals.
     integer, parameter, public :: EV_LOSS = 16, EV_BURNIN = 17, EV_SIGEST = 18
     integer, parameter, public :: NEXPVAL = 18
+
+    !> A named key of an experiment's spec: its name (the deck's), the row
+    !! of the value column it fills, the families that accept it (FAM_* bits
+    !! of beamid_observations' families column; ALL_FAMILIES: the measurement
+    !! chain's keys, which every family accepts and the problem checks) and
+    !! the value an experiment of such a family takes when the key is not
+    !! given.
+    type :: spec_key_t
+        character(len=17) :: name = ''
+        integer :: row = 0
+        integer :: families = 0
+        real(dp) :: default = 0.0_dp
+        character(len=80) :: about = ''
+    end type spec_key_t
+
+    integer, parameter, public :: ALL_FAMILIES = -1
+    integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
+
+    !> The one key table of experiment specs (the deck's names; codes for
+    !! integrator, friction and loss as the deck reader gives them).
+    type(spec_key_t), parameter, public :: SPEC_KEYS(NEXPVAL) = [ &
+        spec_key_t('fx', EV_FX, BOTH, 0.0_dp, 'tip force along x (N)'), &
+        spec_key_t('fy', EV_FY, BOTH, 0.0_dp, 'tip force along y (N)'), &
+        spec_key_t('moment', EV_MOMENT, BOTH, 0.0_dp, 'tip moment (N m)'), &
+        spec_key_t('wire_length', EV_WIRE_LENGTH, FAM_STATIC, 0.0_dp, &
+                   'radial wire length (m; kind 2)'), &
+        spec_key_t('elements_per_beam', EV_NEPB, FAM_RELEASE, 4.0_dp, &
+                   'finite elements per beam'), &
+        spec_key_t('motor_gain', EV_GAIN, FAM_RELEASE, 0.0_dp, 'motor gain (0: no motor)'), &
+        spec_key_t('integrator', EV_METHOD, FAM_RELEASE, 0.0_dp, &
+                   'integrator code (0 rk4, 1 implicit)'), &
+        spec_key_t('friction', EV_LAW, FAM_RELEASE, 0.0_dp, &
+                   'friction law code (0 sign, 1 smooth, 2 sign_literal)'), &
+        spec_key_t('rtol', EV_RTOL, FAM_RELEASE, 0.0_dp, 'relative tolerance (0: default)'), &
+        spec_key_t('dt', EV_DT, FAM_RELEASE, 0.0_dp, 'rk4 time step (s; 0: default)'), &
+        spec_key_t('v_slip', EV_VSLIP, FAM_RELEASE, 0.0_dp, &
+                   'smooth friction slip speed (m/s; 0: 1e-4)'), &
+        spec_key_t('fd', EV_FD, FAM_RELEASE, 0.0_dp, &
+                   'sensitivities (0 rough, 1 central differences, 2 exact)'), &
+        spec_key_t('t0', EV_T0, ALL_FAMILIES, 0.0_dp, '1: the record has a clock offset'), &
+        spec_key_t('bias', EV_BIAS, ALL_FAMILIES, 0.0_dp, 'channel mask of biases'), &
+        spec_key_t('scale', EV_SCALE, ALL_FAMILIES, 0.0_dp, 'channel mask of scales'), &
+        spec_key_t('loss', EV_LOSS, ALL_FAMILIES, 0.0_dp, &
+                   'loss code (0 linear, 1 huber, 2 cauchy)'), &
+        spec_key_t('burn_in', EV_BURNIN, ALL_FAMILIES, 0.0_dp, &
+                   'time before which rows are not fitted (s)'), &
+        spec_key_t('sigma_est', EV_SIGEST, ALL_FAMILIES, 0.0_dp, &
+                   'channel mask of estimated sigmas')]
 
     !> One family of experiments and the data rows they predict.
     type, abstract, extends(residual_model_t) :: experiment_family_t
@@ -70,6 +118,7 @@ module beamid_family
         procedure :: probe => no_probe
         procedure :: probe_model => no_probe_model
         procedure :: observes
+        procedure :: accepts
     end type experiment_family_t
 
     !> A slot of the problem's list of families.
@@ -142,6 +191,15 @@ contains
         if (.false.) stat%code = size(plocal) + size(pq) + size(self%exp_ids) + int(tol)
     end subroutine no_probe_model
 
+    !> The index in SPEC_KEYS of key `name` (0: no such key).
+    pure integer function spec_key_index(name) result(k)
+        character(len=*), intent(in) :: name
+        do k = 1, size(SPEC_KEYS)
+            if (trim(SPEC_KEYS(k)%name) == trim(name)) return
+        end do
+        k = 0
+    end function spec_key_index
+
     !> Whether the family can produce observation kind `kind` (the families
     !! column of the observation table).
     pure logical function observes(self, kind)
@@ -151,4 +209,14 @@ contains
         if (kind < 1 .or. kind > size(KINDS)) return
         observes = iand(KINDS(kind)%families, self%family_code()) /= 0
     end function observes
+
+    !> Whether the family's specs take key k of SPEC_KEYS.
+    pure logical function accepts(self, k)
+        class(experiment_family_t), intent(in) :: self
+        integer, intent(in) :: k
+        accepts = .false.
+        if (k < 1 .or. k > size(SPEC_KEYS)) return
+        accepts = SPEC_KEYS(k)%families == ALL_FAMILIES .or. &
+                  iand(SPEC_KEYS(k)%families, self%family_code()) /= 0
+    end function accepts
 end module beamid_family

@@ -48,11 +48,12 @@ module beamid_problem
                              EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, &
                              EV_BURNIN, EV_SIGEST, NEXPVAL
     use beamid_families, only: registered_families, family_of_kind, kind_timed, kinds_expected
+    use beamid_family, only: SPEC_KEYS
     implicit none
     private
 
     public :: inverse_problem_t, problem_t, inverse_problem_init, inverse_lsq
-    public :: observation_list, problem_from_arrays, problem_lsq_from_arrays
+    public :: observation_list, problem_from_arrays, problem_lsq_from_arrays, spec_columns
     public :: chain_layout
     !> The spec layout (beamid_family), here for the problem's callers.
     public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
@@ -115,7 +116,7 @@ contains
         logical, intent(in), optional :: probe
         type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
-        type(family_slot_t), allocatable :: all(:)
+        type(family_slot_t), allocatable :: reg(:)
         integer, allocatable :: efam(:), eloc(:), fmap(:), fexp(:), frows(:)
         integer :: e, i, j, f, nf
         logical :: probing
@@ -146,10 +147,10 @@ contains
         end do
         robs = list(row_quantity)
         ! each experiment to the family that claims its kind
-        call registered_families(all)
+        call registered_families(reg)
         allocate (efam(size(exp_kind)), eloc(size(exp_kind)), source=0)
         do e = 1, size(exp_kind)
-            efam(e) = family_of_kind(all, exp_kind(e))
+            efam(e) = family_of_kind(reg, exp_kind(e))
             if (efam(e) == 0) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected '//kinds_expected())
@@ -164,10 +165,10 @@ contains
                                 fmt_int(size(exp_kind)))
                 return
             end if
-            if (.not. all(efam(row_exp(i)))%item%timed() .and. row_t(i) /= 0.0_dp) then
+            if (.not. reg(efam(row_exp(i)))%item%timed() .and. row_t(i) /= 0.0_dp) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': field t = '// &
                                 fmt_real(row_t(i))//', expected 0 for the '// &
-                                all(efam(row_exp(i)))%item%name()//' experiment '// &
+                                reg(efam(row_exp(i)))%item%name()//' experiment '// &
                                 fmt_int(row_exp(i)))
                 return
             end if
@@ -194,17 +195,17 @@ contains
         ! the families that have experiments, each built on its own
         ! experiments and rows (numbered in the family)
         nf = 0
-        allocate (fmap(size(all)), source=0)
-        do f = 1, size(all)
+        allocate (fmap(size(reg)), source=0)
+        do f = 1, size(reg)
             if (any(efam == f)) then
                 nf = nf + 1
                 fmap(f) = nf
             end if
         end do
         allocate (self%fams(nf))
-        do f = 1, size(all)
+        do f = 1, size(reg)
             if (fmap(f) == 0) cycle
-            call move_alloc(all(f)%item, self%fams(fmap(f))%item)
+            call move_alloc(reg(f)%item, self%fams(fmap(f))%item)
         end do
         self%exp_fam = fmap(efam)
         self%exp_loc = eloc
@@ -259,9 +260,9 @@ contains
                                     ': burn-in = '//fmt_real(v)//', expected a time >= 0')
                     return
                 end if
-                if (v > 0.0_dp .and. .not. all(efam(e))%item%timed()) then
+                if (v > 0.0_dp .and. .not. reg(efam(e))%item%timed()) then
                     call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                    ': a burn-in asked for a '//all(efam(e))%item%name()// &
+                                    ': a burn-in asked for a '//reg(efam(e))%item%name()// &
                                     ' experiment (only a release has a record in time)')
                     return
                 end if
@@ -536,6 +537,84 @@ contains
         type(prior_t), intent(in) :: prior
         lp = lsq_problem_t(y, sigma, self%lower, self%upper, self%nulls, prior)
     end function inverse_lsq
+
+    !> The experiments' value columns from named specs: experiment e of
+    !! kind exp_kind(e) takes, for every key of SPEC_KEYS its family
+    !! accepts, the value of the triple (kv_exp = e, kv_key = that key's
+    !! index, kv_value) or else the key's default (keys it does not accept:
+    !! 0). A key its family does not accept, an unknown key or experiment,
+    !! or a key given twice is an input error naming the experiment, the key
+    !! and the keys accepted.
+    subroutine spec_columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        integer, intent(in) :: exp_kind(:), kv_exp(:), kv_key(:)
+        real(dp), intent(in) :: kv_value(:)
+        real(dp), allocatable, intent(out) :: values(:, :)
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'experiments'
+        type(family_slot_t), allocatable :: reg(:)
+        logical, allocatable :: given(:, :)
+        integer :: e, i, k, f
+        character(len=:), allocatable :: accepted
+        allocate (values(size(SPEC_KEYS), size(exp_kind)), source=0.0_dp)
+        allocate (given(size(SPEC_KEYS), size(exp_kind)), source=.false.)
+        if (size(kv_key) /= size(kv_exp) .or. size(kv_value) /= size(kv_exp)) then
+            call set_status(stat, ERR_INPUT, where, 'spec triples: experiment, key and value '// &
+                            'lists differ in length')
+            return
+        end if
+        call registered_families(reg)
+        do e = 1, size(exp_kind)
+            f = family_of_kind(reg, exp_kind(e))
+            if (f == 0) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
+                                'kind '//fmt_int(exp_kind(e))//', expected '//kinds_expected())
+                return
+            end if
+            do k = 1, size(SPEC_KEYS)
+                if (reg(f)%item%accepts(k)) values(SPEC_KEYS(k)%row, e) = SPEC_KEYS(k)%default
+            end do
+        end do
+        do i = 1, size(kv_exp)
+            e = kv_exp(i)
+            if (e < 1 .or. e > size(exp_kind)) then
+                call set_status(stat, ERR_INPUT, where, 'spec triple '//fmt_int(i)// &
+                                ' names experiment '//fmt_int(e)//', expected 1..'// &
+                                fmt_int(size(exp_kind)))
+                return
+            end if
+            k = kv_key(i)
+            f = family_of_kind(reg, exp_kind(e))
+            if (k >= 1 .and. k <= size(SPEC_KEYS)) then
+                if (reg(f)%item%accepts(k)) then
+                    if (given(k, e)) then
+                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                        ': key '//trim(SPEC_KEYS(k)%name)//' given twice')
+                        return
+                    end if
+                    given(k, e) = .true.
+                    values(SPEC_KEYS(k)%row, e) = kv_value(i)
+                    cycle
+                end if
+            end if
+            accepted = ''
+            do k = 1, size(SPEC_KEYS)
+                if (.not. reg(f)%item%accepts(k)) cycle
+                if (len(accepted) > 0) accepted = accepted//', '
+                accepted = accepted//trim(SPEC_KEYS(k)%name)
+            end do
+            if (kv_key(i) >= 1 .and. kv_key(i) <= size(SPEC_KEYS)) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' ('// &
+                                reg(f)%item%name()//'): key '// &
+                                trim(SPEC_KEYS(kv_key(i))%name)//' is not a key of a '// &
+                                reg(f)%item%name()//' experiment; expected one of '//accepted)
+            else
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' ('// &
+                                reg(f)%item%name()//'): key number '//fmt_int(kv_key(i))// &
+                                ' is unknown; expected one of '//accepted)
+            end if
+            return
+        end do
+    end subroutine spec_columns
 
     !> The problem's observation list from parallel arrays (kind code, beam
     !! and arc length s of each entry; beamid_observations).
