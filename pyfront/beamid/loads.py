@@ -163,6 +163,10 @@ class Release:
         keys = _core.spec_keys()
         v = [float(x) for x in _check.reals("values", values,
                                            min_size=keys["dt"].row + 1)]
+        for key, n in (("integrator", 2), ("friction", 3)):
+            row = keys[key].row
+            if v[row] not in (0.0, 1.0, 2.0)[:n]:
+                _check.fail(f"values[{row}]", v[row], f"a code of the {key}")
         return cls.from_spec({k: v[sk.row] for k, sk in keys.items() if sk.row < len(v)})
 
     @classmethod
