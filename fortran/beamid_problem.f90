@@ -658,6 +658,7 @@ contains
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
+        type(prior_t) :: pr
         integer :: n
         n = size(prior, 2)
         if (size(prior_cov) /= 0 .and. size(prior_cov) /= n*n) then
@@ -669,7 +670,13 @@ contains
         call problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
                                  obs_kind, obs_beam, obs_s, tol, model, stat)
         if (stat%code /= STATUS_OK) return
-        lp = inverse_lsq(model, y, sigma, prior_t(nint(prior(1, :)), prior(2, :), prior(3, :)))
+        ! the prior as a variable of its own: gfortran 12 passed the structure
+        ! constructor's allocatable components as freed temporaries (a fit
+        ! with a prior of two or more parameters read garbage)
+        pr%index = nint(prior(1, :))
+        pr%mean = prior(2, :)
+        pr%sigma = prior(3, :)
+        lp = inverse_lsq(model, y, sigma, pr)
         if (size(prior_cov) /= 0) call prior_from_covariance(nint(prior(1, :)), prior(2, :), &
                                                              reshape(prior_cov, [n, n]), &
                                                              lp%prior, stat)

@@ -68,3 +68,15 @@ def test_unknown_kind_names_the_registered_kinds():
     with pytest.raises(beamid.InputError, match=r"experiment 2 has kind 9, expected "
                        r"1 \(tip load\), 2 \(wire\) or 3 \(release\)"):
         _ce.problem_predict(bad, BASE.vector(), np.zeros(0, np.int32))
+
+
+def test_prior_of_several_parameters_reaches_the_fit():
+    """The shared set-up (problem_lsq_from_arrays) carries every prior
+    parameter: a tight prior pins both estimates at its means."""
+    exps = {"tip": beamid.TipLoad(fy=-2.0), "wire": beamid.RadialWire(1.4)}
+    data = beamid.simulate_measurements(BASE, exps, ["x_tip", "y_tip"], sigma=1e-3, seed=3)
+    ei1, ei2 = BASE["EI1"], BASE["EI2"]
+    fit = beamid.fit(BASE, exps, data, free=("EI1", "EI2"),
+                     prior={"EI1": (1.05 * ei1, 1e-9), "EI2": (0.95 * ei2, 1e-9)})
+    assert abs(fit.estimates["EI1"] / (1.05 * ei1) - 1.0) < 1e-6
+    assert abs(fit.estimates["EI2"] / (0.95 * ei2) - 1.0) < 1e-6
