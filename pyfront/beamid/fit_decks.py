@@ -87,7 +87,8 @@ def load(kind: int, spec) -> Load | Release:
         values = [float(x) for x in spec]
         spec = {k: values[sk.row] for k, sk in _core.spec_keys().items() if sk.row < len(values)}
     if kind == LOAD_RELEASE:
-        return Release.from_spec(spec)
+        keys = _core.spec_keys()
+        return Release.from_spec({k: v for k, v in spec.items() if "release" in keys[k].families})
     if kind == LOAD_WIRE:
         return RadialWire(spec["wire_length"])
     return TipLoad(spec["fx"], spec["fy"], spec["moment"])

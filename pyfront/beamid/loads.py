@@ -167,15 +167,26 @@ class Release:
             row = keys[key].row
             if v[row] not in (0.0, 1.0, 2.0)[:n]:
                 _check.fail(f"values[{row}]", v[row], f"a code of the {key}")
-        return cls.from_spec({k: v[sk.row] for k, sk in keys.items() if sk.row < len(v)})
+        return cls.from_spec({k: v[sk.row] for k, sk in keys.items()
+                              if sk.row < len(v) and "release" in sk.families})
 
     @classmethod
     def from_spec(cls, spec: dict) -> "Release":
-        """The Release of a spec by the core's key names (a deck's experiment)."""
-        v = {k: float(spec.get(k, sk.default)) for k, sk in _core.spec_keys().items()}
+        """The Release of a spec by the core's key names (a deck's experiment;
+        keys not given take the core's defaults)."""
+        keys = {k: sk for k, sk in _core.spec_keys().items() if "release" in sk.families}
+        if not isinstance(spec, dict):
+            raise InputError(f"Release.from_spec: spec = {spec!r}, expected a dict of the "
+                             f"release's spec keys ({', '.join(keys)})")
+        for k in spec:
+            if k not in keys:
+                raise InputError(f"Release.from_spec: key {k!r} is not a key of a release; "
+                                 f"expected one of {', '.join(keys)}")
+        v = {k: _check.real(f"Release.from_spec: {k}", spec.get(k, sk.default))
+             for k, sk in keys.items()}
         for key, n in (("integrator", 2), ("friction", 3)):
             if v[key] not in (0.0, 1.0, 2.0)[:n]:
-                _check.fail(key, v[key], f"a code of the {key}")
+                _check.fail(f"Release.from_spec: {key}", v[key], f"a code of the {key}")
         integrators = {c: n for n, c in _INTEGRATORS.items()}
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
         return cls(TipLoad(v["fx"], v["fy"], v["moment"]),
