@@ -1229,6 +1229,13 @@ contains
                                    kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
+        if (st%code == STATUS_OK .and. allocated(stage%data%sigma)) then
+            i = findloc(ieee_is_nan(stage%data%sigma), .true., 1)
+            if (i > 0) call add_error(errors, where//'data: sigma missing: '// &
+                stage%data_path//', line '//fmt_int(stage%data%line(i))//' has no sigma '// &
+                '(an empty field) and no estimation is asked; expected a sigma > 0 on '// &
+                'every row')
+        end if
     end subroutine read_fit_group
 
     !> The beam lengths of the deck's model (empty before the model is read).

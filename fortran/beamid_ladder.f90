@@ -4,6 +4,7 @@
 !! through beamid_tasks (decks), Python through beamid_api_estimation
 !! (beamid.diagnose, beamid.improve), so both write the same ladder.
 module beamid_ladder
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, fmt_int, set_status
     use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
@@ -99,6 +100,11 @@ contains
         type(status_t) :: stat
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, problem, stat, pb%obs)
+        if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma))) &
+            call set_status(stat, ERR_INPUT, 'fit', 'sigma missing: row '// &
+                            fmt_int(findloc(ieee_is_nan(pb%sigma), .true., 1))// &
+                            ' has no sigma and no estimation is asked (estimate_sigma); '// &
+                            'expected a sigma > 0 on every row')
         if (stat%code == STATUS_OK) then
             opts%max_iter = pb%max_iter
             lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)

@@ -3,6 +3,7 @@ and scale fitted with the physics as extra columns."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -475,3 +476,75 @@ def test_bias_and_scale_of_a_station_channel():
     assert abs(b - 5e-5) < 3 * fit.nuisance_sigmas["bias[m:strain@1:0.05]"]
     assert abs(s - 1.04) < 3 * fit.nuisance_sigmas["scale[m:y@2:0.5]"]
     assert fit.chi2_per_dof < 1.3
+
+
+# --------------------------------------------------------- rows without sigma
+
+def _without_sigma(data, quantity):
+    """``data`` with the sigma of every row of ``quantity`` not given."""
+    return beamid.Measurements.from_rows(
+        [(e, t, q, v, None if q == quantity else s) for e, t, q, v, s in data.rows()])
+
+
+def test_sigma_missing_without_estimation_is_refused(small, tmp_path):
+    """Rows with no sigma (None, or an empty CSV field) and no estimation
+    asked: InputError naming the channel; the deck reader names the line."""
+    exps, data = small
+    bare = _without_sigma(data, "w_tip")
+    assert np.isnan(bare.sigma).sum() == 5 and not np.isnan(bare.sigma[:1]).any()
+    with pytest.raises(beamid.InputError, match=r"sigma missing: 5 rows have no sigma .*"
+                       r"\('free', 'w_tip'\).*estimate_sigma"):
+        beamid.fit(BASE, exps, bare, free=("rho2",))
+    with pytest.raises(beamid.InputError, match="sigma missing"):      # another channel's
+        beamid.fit(BASE, exps, bare, free=("rho2",), estimate_sigma=[("free", "u_tip")])
+    with pytest.raises(beamid.InputError, match="improve: sigma missing"):
+        beamid.improve(BASE, exps, bare, free=("rho2",), candidates=["drag"])
+    path = tmp_path / "d.csv"
+    bare.write(path)
+    assert ",w_tip," in path.read_text() and path.read_text().count(",\n") == 5
+    again = beamid.read_measurements(path)
+    assert np.array_equal(np.isnan(again.sigma), np.isnan(bare.sigma))
+    with pytest.raises(beamid.InputError, match="expected sigma > 0"):
+        beamid.Measurements.from_rows([("free", 0.1, "w_tip", 0.1, 0.0)])
+
+
+def test_sigma_missing_is_estimated_when_asked():
+    """A channel with no sigma given and estimate_sigma: the fit starts
+    its sigma from the channel's spread and estimates it (1 mm noise)."""
+    times = np.round(np.arange(1, 41) * 0.03, 6)
+    exps = {"free": _release()}
+    exact = beamid.simulate_measurements(BASE, exps, ["u_tip", "w_tip"], sigma=1e-3, t=times)
+    rng = np.random.default_rng(3)
+    noisy = exact.with_values(exact.value + 1e-3 * rng.standard_normal(len(exact)))
+    bare = _without_sigma(noisy, "w_tip")
+    fit = beamid.fit(BASE, exps, bare, free=("rho2",), estimate_sigma=["w_tip"])
+    s, sd = fit.sigma_estimates["free:w_tip"]
+    assert abs(s - 1e-3) < 3 * sd and 0.05e-3 < sd < 0.2e-3
+    ref = beamid.fit(BASE, exps, noisy, free=("rho2",), estimate_sigma=["w_tip"])
+    assert fit.estimates["rho2"] == pytest.approx(ref.estimates["rho2"], rel=1e-6)
+    assert s == pytest.approx(ref.sigma_estimates["free:w_tip"][0], rel=1e-5)
+
+
+def _deck16(tmp_path, fit_keys="", blank_w=False):
+    """Table 16's fit deck (release from 8 N, 36 rows of tip w and u) in
+    ``tmp_path`` with ``fit_keys`` added to its &fit group; ``blank_w``:
+    the w rows without sigma."""
+    seed = Path(__file__).resolve().parent.parent / "inputs" / "seed"
+    lines = (seed / "table16_data.csv").read_text().splitlines()
+    if blank_w:
+        lines = [ln.rsplit(",", 1)[0] + "," if ",w_tip," in ln else ln for ln in lines]
+    (tmp_path / "table16_data.csv").write_text("\n".join(lines) + "\n")
+    text = (seed / "table16_fit.nml").read_text().replace(
+        "output = 'out/table16_fit'", "output = 'out/t16'")
+    text = text.replace("  free = 'mu_elbow', 'mu_tip', 'rho1', 'rho2'\n",
+                        "  free = 'mu_elbow', 'mu_tip', 'rho1', 'rho2'\n" + fit_keys)
+    deck = tmp_path / "t16.nml"
+    deck.write_text(text)
+    return deck
+
+
+def test_deck_sigma_missing_names_the_line(tmp_path):
+    deck = _deck16(tmp_path, blank_w=True)
+    with pytest.raises(beamid.InputError, match=r"&fit data: sigma missing: .*table16_data"
+                       r"\.csv, line 4 has no sigma .*no estimation is asked"):
+        beamid.read_deck(deck)

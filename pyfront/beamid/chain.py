@@ -210,6 +210,31 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
     return RowTreatment(loss, burn, tuple(dict.fromkeys(est)))
 
 
+def check_sigma_given(data, rows: RowTreatment | None, what: str = "fit") -> None:
+    """InputError when rows of ``data`` have no sigma (NaN: an empty sigma
+    field, or None in Measurements.from_rows) and their channel's sigma is
+    not estimated (``rows.estimate``), naming the channels and the first row."""
+    if data is None or not hasattr(data, "sigma"):
+        return
+    sigma = np.asarray(data.sigma, float)
+    if not np.isnan(sigma).any():
+        return
+    estimated = set(rows.estimate) if rows else set()
+    missing = [i for i in np.flatnonzero(np.isnan(sigma))
+               if (data.experiment[i], data.quantity[i]) not in estimated]
+    if not missing:
+        return
+    channels = list(dict.fromkeys((data.experiment[i], data.quantity[i]) for i in missing))
+    raise InputError(
+        f"{what}: sigma missing: {len(missing)} rows have no sigma ({data._where(missing[0])}"
+        f" first) and no estimation is asked for their channel"
+        f"{'s' if len(channels) > 1 else ''} "
+        + ", ".join(f"({e!r}, {q!r})" for e, q in channels[:6])
+        + (" ..." if len(channels) > 6 else "")
+        + "; expected a sigma > 0 on every row, or estimate_sigma=True (or naming those "
+        "channels) so that the fit estimates it from the residuals")
+
+
 def param_name(kind: str, experiment: str, quantity: str) -> str:
     """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
     if kind == "time_offset":
@@ -505,8 +530,8 @@ def judged_fit(fit):
     if fit.fitted_rows is not None:
         keep &= np.asarray(fit.fitted_rows, bool)
     keep[list(fit.gross_errors)] = False
-    if keep.all():
-        return fit
+    if keep.all() and not np.isnan(np.asarray(fit.data.sigma, float)).any():
+        return fit    # (rows without sigma take the fit's estimate below)
     idx = np.flatnonzero(keep)
     data = fit.data.__class__.from_rows(
         [(fit.data.experiment[i], float(fit.data.t[i]), fit.data.quantity[i],

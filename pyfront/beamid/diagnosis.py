@@ -887,6 +887,7 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
                 expected="a significance level in (0, 1)")
     max_iter = _check.count("max_iter", max_iter, min=1)
     max_steps = _check.count("max_steps", max_steps, min=0, none=True)
+    _chain.check_sigma_given(data, None, "improve")
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)

@@ -28,7 +28,7 @@ from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
-from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
+from .chain import ChainSpec, RowTreatment, check_sigma_given, parse_nuisance, parse_rows
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -473,6 +473,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     _check.choice("jacobian", jacobian, ("auto", "exact"))
     chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
     rows = parse_rows(loss, burn_in, estimate_sigma, _check_experiments(experiments), data)
+    check_sigma_given(data, rows)
     prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
