@@ -159,6 +159,10 @@ contains
         end do
         res%chi2 = sum(res%normalized**2, mask=rows%fitted .and. .not. flagged)
         res%dof = res%dof - count(.not. rows%fitted) - count(flagged) - nest
+        res%row_sigma = sigma
+        res%row_weight = weights
+        res%row_gross = flagged
+        res%row_sigma_sd = sigma_sd
     end subroutine chain_fit
 
     !> The rows' sigmas where not given (NaN: an empty sigma field): the

@@ -27,6 +27,7 @@ module beamid_deck
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
+    use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
@@ -1115,7 +1116,7 @@ contains
         allocate (stage%free(0), stage%prior_index(0), stage%prior_mean(0), stage%prior_sigma(0))
         where = f%path//', line '//fmt_int(g%line)//': &fit '
         call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
-                            'candidates alpha max_iter stage ', errors)
+                            'candidates alpha max_iter stage'//CHAIN_KEYS, errors)
         data = ''
         name = 'stage'//fmt_int(k)
         call nml_str(f, g, 'data', data, given, errors)
@@ -1229,14 +1230,59 @@ contains
                                    kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
-        if (st%code == STATUS_OK .and. allocated(stage%data%sigma)) then
-            i = findloc(ieee_is_nan(stage%data%sigma), .true., 1)
-            if (i > 0) call add_error(errors, where//'data: sigma missing: '// &
-                stage%data_path//', line '//fmt_int(stage%data%line(i))//' has no sigma '// &
-                '(an empty field) and no estimation is asked; expected a sigma > 0 on '// &
-                'every row')
-        end if
+        if (st%code /= STATUS_OK .or. .not. allocated(stage%row_exp)) return
+        if (count_lines_alloc(errors) /= nerr) return
+        call read_chain_keys(f, g, where, identify, deck, stage, errors)
+        if (count_lines_alloc(errors) /= nerr) return
+        i = chain_sigma_missing(deck%exp_values, stage%row_exp, stage%data%obs, &
+                                stage%data%sigma)
+        if (i > 0) call add_error(errors, where//'data: sigma missing: '// &
+            stage%data_path//', line '//fmt_int(stage%data%line(i))//' has no sigma '// &
+            "(an empty field) and no estimation is asked; expected a sigma > 0 on every "// &
+            "row, or estimate_sigma = 'all' (or naming its channel)")
     end subroutine read_fit_group
+
+    !> The measurement chain's keys of a &fit group (beamid_chain_deck:
+    !! time_offset, bias, scale, loss, burn_in, estimate_sigma) into the
+    !! experiments' value columns; not for task identify.
+    subroutine read_chain_keys(f, g, where, identify, deck, stage, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=*), intent(in) :: where
+        logical, intent(in) :: identify
+        type(deck_t), intent(inout) :: deck
+        type(stage_t), intent(in) :: stage
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=*), parameter :: keys(5) = [character(len=14) :: 'time_offset', 'bias', &
+                                                  'scale', 'loss', 'estimate_sigma']
+        type(nml_text_t), allocatable :: items(:)
+        character(len=40) :: text
+        logical :: given
+        real(dp) :: t
+        integer :: k
+        do k = 1, size(keys)
+            if (.not. nml_given(g, trim(keys(k)))) cycle
+            if (identify) then
+                call add_error(errors, where//trim(keys(k))//' is not used by task '// &
+                               "'identify' (fit a stage's deck on its own)")
+                cycle
+            end if
+            call nml_strs(f, g, trim(keys(k)), items, given, errors)
+            call set_chain_key(trim(keys(k)), items, deck%exp_names, deck%exp_kind, &
+                               stage%row_exp, stage%data%obs, deck%exp_values, where, errors)
+        end do
+        if (.not. nml_given(g, 'burn_in')) return
+        if (identify) then
+            call add_error(errors, where//"burn_in is not used by task 'identify'")
+            return
+        end if
+        t = -1.0_dp
+        call nml_real(f, g, 'burn_in', t, given, errors)
+        write (text, '(es24.17)') t
+        call set_chain_key('burn_in', [nml_text_t(trim(adjustl(text)))], deck%exp_names, &
+                           deck%exp_kind, stage%row_exp, stage%data%obs, deck%exp_values, &
+                           where, errors)
+    end subroutine read_chain_keys
 
     !> The beam lengths of the deck's model (empty before the model is read).
     pure function deck_lengths(deck) result(lengths)

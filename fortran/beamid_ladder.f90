@@ -11,7 +11,8 @@ module beamid_ladder
                                  diagnose_options_t, diagnosis_t, chi2_sf, lsq_problem_t, &
                                  fit_least_squares
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, &
-                              inverse_diagnose, EXP_RELEASE, EV_NEPB
+                              inverse_diagnose, EXP_RELEASE, EV_NEPB, EV_LOSS, EV_SIGEST
+    use beamid_chain_fit, only: chain_fit, chain_active
     use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t
     implicit none
     private
@@ -98,9 +99,12 @@ contains
         type(fit_options_t) :: opts
         type(lsq_problem_t) :: lp
         type(status_t) :: stat
+        real(dp) :: w(size(pb%y)), su(size(pb%y)), sd(size(pb%y))
+        logical :: gross(size(pb%y))
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, problem, stat, pb%obs)
-        if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma))) &
+        if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma)) .and. &
+            .not. chain_active(problem%rows)) &
             call set_status(stat, ERR_INPUT, 'fit', 'sigma missing: row '// &
                             fmt_int(findloc(ieee_is_nan(pb%sigma), .true., 1))// &
                             ' has no sigma and no estimation is asked (estimate_sigma); '// &
@@ -109,10 +113,33 @@ contains
             opts%max_iter = pb%max_iter
             lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)
             if (present(prior)) lp%prior = prior
-            call fit_least_squares(problem, lp, params0, free, opts, fo, stat)
+            if (chain_active(problem%rows)) then
+                ! a loss, burn-in rows or estimated sigmas (EV_LOSS, EV_BURNIN,
+                ! EV_SIGEST): the chain's fit, as beamid.fit with them
+                call chain_fit(problem, lp, params0, free, opts, problem%rows, fo, w, su, sd, &
+                               gross, stat)
+            else
+                call fit_least_squares(problem, lp, params0, free, opts, fo, stat)
+            end if
         end if
         if (stat%code /= STATUS_OK) st = stat
     end subroutine problem_fit
+
+    !> The problem as a fit with the chain's row treatments judged it (its
+    !! diagnosis sees these rows): each row's sigma as judged (estimated
+    !! where asked), burn-in rows and gross errors out (sigma 1e8 times
+    !! larger); pb itself after a plain fit.
+    function judged_problem(pb, fo) result(out)
+        type(problem_t), intent(in) :: pb
+        type(fit_result_t), intent(in) :: fo
+        type(problem_t) :: out
+        out = pb
+        if (.not. allocated(fo%row_sigma)) return
+        out%sigma = fo%row_sigma
+        where (fo%row_weight <= 0.0_dp .or. fo%row_gross) out%sigma = 1.0e8_dp*fo%row_sigma
+        ! a plain problem now: the treatments are in its sigmas
+        out%exp_values(EV_LOSS:EV_SIGEST, :) = 0.0_dp
+    end function judged_problem
 
     !> Score tests, refits and ranking of the candidates `cs` around the fit
     !! at params(free) (not refitted): with release experiments
@@ -214,8 +241,8 @@ contains
         if (st%code /= STATUS_OK) return
         associate (r => lad%r, pb => lad%pb, cs => lad%cs)
             r%nominal = lad%nominal
-            call problem_diagnose(pb, r%fit%params, r%fit%free, lad%nominal, cs, lad%fopts, &
-                                  lad%dopts, r%dg, st)
+            call problem_diagnose(judged_problem(pb, r%fit), r%fit%params, r%fit%free, &
+                                  lad%nominal, cs, lad%fopts, lad%dopts, r%dg, st)
             if (st%code /= STATUS_OK) return
             lad%n = lad%n + 1
             if (lad%n > size(lad%rungs)) lad%rungs = [lad%rungs, r]

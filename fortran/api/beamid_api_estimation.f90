@@ -42,7 +42,7 @@ module beamid_api_estimation
     public :: api_problem_predict, api_chain_layout, api_fit_chain
     public :: api_problem_diagnose, api_time_structure
     public :: api_ladder_start, api_ladder_step
-    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
+    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag, api_ladder_rows
     public :: api_deck_task_start, api_deck_task_write
     public :: api_mesh_check
 
@@ -840,6 +840,40 @@ contains
                           log_cost, log_lambda, log_step, log_params)
         end associate
     end subroutine api_ladder_fit
+
+    !> The rows of rung k's fit as the measurement chain's treatments judged
+    !! them (beamid_chain_fit): per row its last weight, the sigma it was
+    !! judged with, that sigma's standard deviation and 1 for a gross error;
+    !! has = 0 for a plain fit (nothing set).
+    subroutine api_ladder_rows(k, nrow, weights, sigma_used, sigma_sd, flagged, has, code, &
+                               message)
+        integer(c_int), intent(in) :: k, nrow
+        real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
+        integer(c_int), intent(out) :: flagged(nrow), has, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        has = 0
+        weights = 1.0_c_double
+        sigma_used = 0.0_c_double
+        sigma_sd = 0.0_c_double
+        flagged = 0
+        if (.not. rung_ok(k, int(size(lad%rungs(max(1, min(k, lad%n)))%start), c_int), code, &
+                          message)) return
+        associate (f => lad%rungs(k)%fit)
+            if (nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nrow = '//fmt_int(int(nrow))// &
+                                ', expected '//fmt_int(size(f%predictions)))
+                call status_out(stat, code, message)
+                return
+            end if
+            if (.not. allocated(f%row_sigma)) return
+            has = 1
+            weights = f%row_weight
+            sigma_used = f%row_sigma
+            sigma_sd = f%row_sigma_sd
+            flagged = merge(1_c_int, 0_c_int, f%row_gross)
+        end associate
+    end subroutine api_ladder_rows
 
     !> The diagnosis of rung k of the ladder started last (outputs as
     !! api_problem_diagnose).

@@ -362,8 +362,18 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
-            "refit_start": START_NAMES.get(int(info[2]))})
+            "refit_start": START_NAMES.get(int(info[2])), "rows": _ladder_rows(k, int(info[3]))})
     return rungs
+
+
+def _ladder_rows(k: int, nrow: int) -> dict | None:
+    """The rows of rung ``k``'s fit as the measurement chain's treatments
+    judged them (the keys :func:`fit_chain` adds), None for a plain fit."""
+    weights, sigma_used, sigma_sd, flagged, has = _call(_api.api_ladder_rows, k, nrow)
+    if not has:
+        return None
+    return {"weights": np.array(weights), "sigma_used": np.array(sigma_used),
+            "sigma_sd": np.array(sigma_sd), "flagged": np.array(flagged, dtype=bool)}
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,

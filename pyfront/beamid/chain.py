@@ -235,6 +235,36 @@ def check_sigma_given(data, rows: RowTreatment | None, what: str = "fit") -> Non
         "channels) so that the fit estimates it from the residuals")
 
 
+def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment | None]:
+    """The measurement chain a deck's &fit asks for (beamid_chain_deck): its
+    nuisance parameters and rows' treatment decoded from the experiments'
+    value columns ``experiments`` ((name, kind, values) as the reader gives
+    them), channel masks over the data's observations in the core's order
+    (beamid.observations.ordered). (None, None) when it asks nothing."""
+    labels = observations.ordered(data.quantity)
+    t0, bias, scale, burn, est = {}, {}, {}, {}, []
+    loss = "linear"
+
+    def bits(v: float) -> list[str]:
+        m = int(round(v))
+        return [q for i, q in enumerate(labels[:MAX_CHANNEL_BITS]) if m >> i & 1]
+
+    codes = {c: n for n, c in LOSSES.items()}
+    for name, kind, values in experiments:
+        v = list(values) + [0.0] * max(0, _EV_SIGEST + 1 - len(values))
+        if v[_EV_T0] == 1.0:
+            t0[name] = 0.0
+        bias.update({(name, q): 0.0 for q in bits(v[_EV_BIAS])})
+        scale.update({(name, q): 1.0 for q in bits(v[_EV_SCALE])})
+        if v[_EV_LOSS]:
+            loss = codes[int(round(v[_EV_LOSS]))]
+        if v[_EV_BURNIN] > 0.0:
+            burn[name] = float(v[_EV_BURNIN])
+        est += [(name, q) for q in bits(v[_EV_SIGEST])]
+    spec, rows = ChainSpec(t0, bias, scale), RowTreatment(loss, burn, tuple(est))
+    return (spec or None), (rows or None)
+
+
 def param_name(kind: str, experiment: str, quantity: str) -> str:
     """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
     if kind == "time_offset":

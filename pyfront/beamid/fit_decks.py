@@ -25,10 +25,11 @@ from typing import Any
 import numpy as np
 
 from . import _check, _core
+from . import chain as _chain
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
-                         _result as _fit_result, identify)
+                         _result as _fit_result, identify, with_row_treatment)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
@@ -134,6 +135,10 @@ class FitDeck(OutputPrefix):
     max_iter: int = 50
     published: tuple = ()     #: &published groups (beamid.decks.Published)
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
+    #: the measurement chain of &fit (time_offset, bias, scale: beamid.chain.ChainSpec;
+    #: loss, burn_in, estimate_sigma: beamid.chain.RowTreatment), None when not asked
+    nuisance: Any = None
+    treatment: Any = None
 
 
 def _fit_deck(path: Path, values: dict) -> FitDeck:
@@ -146,13 +151,14 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                          read_measurements(s["data_path"], experiments),
                          tuple(names[i] for i in s["free"]), s["max_iter"])
                    for k, s in enumerate(values.get("stages", ())))
+    nuisance, treatment = _chain.from_deck(values["experiments"], data)
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
                    experiments=experiments, data=data,
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
                    max_iter=values["max_iter"], published=published(values),
-                   stages=stages)
+                   stages=stages, nuisance=nuisance, treatment=treatment)
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
@@ -254,17 +260,25 @@ def _deck_result(deck: FitDeck) -> Any:
     the deck's files from the same ladder."""
     _ce.deck_task_start(str(deck.path), deck.task)
     names = deck.model.names()
+    exps = list(deck.experiments)
+    own = deck.nuisance or _chain.ChainSpec()
     if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
-        rung = _ce.ladder_rungs(len(names), [])[0]
-        free_names = tuple(names[i] for i in rung["free"])   # the fit's own, as _run_ladder
+        rung = _ce.ladder_rungs(len(names) + len(own.names(exps)), [])[0]
+        raw, phys, sub = _chain.split_ladder_fit(rung["fit"], rung["free"], len(names), own,
+                                                 exps)
+        free_names = tuple(names[i] for i in phys)   # the fit's own, as _run_ladder
         prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
         fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map,
-                          rung["fit"])
+                          raw, chain=sub or None)
+        if rung["rows"] is not None:
+            fit = with_row_treatment(fit, deck.treatment or _chain.RowTreatment(),
+                                     rung["rows"])
         return fit if deck.task == "fit" else compare(fit)
     prior_map = _prior_arrays(deck.model, _free_indices(deck.model, deck.free)[0], deck.prior)[0]
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
-                         deck.alpha, len(deck.candidates or ()) * improve, deck.task)
+                         deck.alpha, len(deck.candidates or ()) * improve, deck.task,
+                         own=deck.nuisance, treatment=deck.treatment)
     return ladder if improve else ladder.steps[0].diagnosis
 
 
