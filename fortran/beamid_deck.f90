@@ -31,7 +31,8 @@ module beamid_deck
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
-    use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
+    use beamid_namelist, only: nml_merge_items, nml_file_t, nml_group_t, nml_text_t, &
+                               nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
                                nml_strs, nml_logical, nml_given, add_error, nml_ints
     implicit none
@@ -167,10 +168,13 @@ contains
     !! per line, each naming the file, the line, the group, the variable, the
     !! value and what was expected); the status holds the first one and the
     !! count. A file that cannot be read is ERR_IO, a bad deck ERR_DECK.
-    subroutine read_deck(path, deck, stat)
+    subroutine read_deck(path, deck, stat, fit_keys)
         character(len=*), intent(in) :: path
         type(deck_t), intent(out) :: deck
         type(status_t), intent(inout) :: stat
+        !> items of &fit given apart (the command line's measurement chain
+        !! options of beamid fit/diagnose/improve): they replace the deck's
+        character(len=*), intent(in), optional :: fit_keys
         type(nml_file_t) :: f
         character(len=:), allocatable :: errors
 
@@ -179,6 +183,7 @@ contains
         errors = ''
         call nml_read_file(path, f, errors, stat)
         if (stat%code /= STATUS_OK) return
+        if (present(fit_keys)) call nml_merge_items(f, 'fit', fit_keys, 'command line', errors)
         ! a CSV given as a deck (no group, one error said) is said in one line
         if (size(f%groups) > 0 .or. index(errors, ': a measurement CSV file (') == 0) &
             call read_all(f, deck, errors)

@@ -632,3 +632,24 @@ def test_deck_sigma_missing_estimated(tmp_path):
     fit = beamid.run(deck)
     s, sd = fit.sigma_estimates["free:w_tip"]
     assert abs(s - 1.5e-3) < 3 * sd
+
+
+def test_cli_chain_options_are_the_deck_keys(tmp_path, capsys):
+    """beamid fit DECK with the measurement chain's options writes the bytes
+    the deck with the same &fit items writes (one reader: the options are
+    &fit items), and a bad option is refused by that reader."""
+    from beamid.cli import main
+    keyed = tmp_path / "keyed"
+    keyed.mkdir()
+    _deck16(keyed, CHAIN_KEYS)
+    assert main(["fit", str(keyed / "t16.nml"), "--no-plots"]) == 0
+    plain = _deck16(tmp_path)
+    assert main(["fit", str(plain), "--no-plots", "--time-offset", "free", "--bias",
+                 "free:w_tip", "--loss", "huber", "--estimate-sigma", "u_tip",
+                 "--burn-in", "0.1"]) == 0
+    for suffix in ("_estimates.csv", "_covariance.csv", "_residuals.csv"):
+        assert (tmp_path / "out" / f"t16{suffix}").read_bytes() == \
+            (keyed / "out" / f"t16{suffix}").read_bytes()
+    assert main(["fit", str(plain), "--no-plots", "--time-offset", "held"]) == 2
+    assert "&fit time_offset = 'held': no experiment of that name (experiments: free)" in \
+        capsys.readouterr().err

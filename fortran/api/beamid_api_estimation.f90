@@ -950,14 +950,16 @@ contains
     !! step it with api_ladder_step (diagnose: one rung, improve: a rung per
     !! call), read it with api_ladder_rung, api_ladder_fit and api_ladder_diag
     !! and write the deck's files with api_deck_task_write: its fits run once.
-    subroutine api_deck_task_start(path, task, stage, code, message)
+    subroutine api_deck_task_start(path, task, stage, fit_keys, code, message)
         character(len=*), intent(in) :: path, task
+        !> &fit items given apart (beamid_deck read_deck; blank: none)
+        character(len=*), intent(in) :: fit_keys
         integer(c_int), intent(in) :: stage
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
-        call read_deck(trim(path), d, stat)
+        call read_deck(trim(path), d, stat, fit_keys)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         ! the stages held go on only on the deck that fitted them
         if (stage <= 1 .or. .not. allocated(staged) .or. .not. is_held(d)) staged = [rung_t ::]
@@ -992,9 +994,10 @@ contains
     !! api_deck_task_start started on it and api_ladder_step ended;
     !! `output`: the output prefix (blank: the deck's; beamid demo writes its
     !! decks' files elsewhere); `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, output, written, summary, code, message)
+    subroutine api_deck_task_write(path, task, output, fit_keys, written, summary, code, &
+                                   message)
         use beamid_status, only: put_text
-        character(len=*), intent(in) :: path, task, output
+        character(len=*), intent(in) :: path, task, output, fit_keys
         character(len=65536), intent(out) :: written, message
         !> the summary line beamid-batch prints (run_task)
         character(len=4096), intent(out) :: summary
@@ -1007,7 +1010,7 @@ contains
             call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
         else
-            call read_deck(trim(path), d, stat)
+            call read_deck(trim(path), d, stat, fit_keys)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
             if (len_trim(output) > 0) d%output = trim(output)
             if (stat%code == STATUS_OK .and. .not. is_held(d)) then

@@ -428,15 +428,16 @@ def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------- estimation decks: the deck's fit runs once
 
-def deck_task_start(path: str, task: str = "", stage: int = 0) -> None:
+def deck_task_start(path: str, task: str = "", stage: int = 0, fit_keys: str = "") -> None:
     """Start the ladder of an estimation deck run as ``task`` (default the
     deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
     compare; of an identify deck the fit of ``stage``, 1-based, from the
     stages fitted by the calls before); :func:`ladder_step` diagnoses
     (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
     reads it, :func:`deck_task_write` writes the deck's files. Hold
-    :data:`LADDER_LOCK` from the first start to the write."""
-    _call(_api.api_deck_task_start, _path(path), task, int(stage))
+    :data:`LADDER_LOCK` from the first start to the write. ``fit_keys``: &fit
+    items given apart (the command line's), as :func:`beamid._core.read_deck`."""
+    _call(_api.api_deck_task_start, _path(path), task, int(stage), fit_keys)
 
 
 def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
@@ -447,11 +448,11 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     return deck_task_write_report(path, task, output)[1]
 
 
-def deck_task_write_report(path: str, task: str = "", output: str = ""
+def deck_task_write_report(path: str, task: str = "", output: str = "", fit_keys: str = ""
                            ) -> tuple[str, list[str]]:
     """:func:`deck_task_write` and the summary line beamid-batch prints
     before the files: ``(summary, files)``."""
-    written, summary = _call(_api.api_deck_task_write, _path(path), task, output)
+    written, summary = _call(_api.api_deck_task_write, _path(path), task, output, fit_keys)
     return _text(summary), [line for line in _text(written).split("\n") if line]
 
 

@@ -139,9 +139,45 @@ class FitDeck(OutputPrefix):
     #: loss, burn_in, estimate_sigma: beamid.chain.RowTreatment), None when not asked
     nuisance: Any = None
     treatment: Any = None
+    #: &fit items given apart from the file (the command line's measurement
+    #: chain options, :func:`chain_options`): the deck reads with them
+    fit_keys: str = ""
 
 
-def _fit_deck(path: Path, values: dict) -> FitDeck:
+def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
+                  burn_in: float | None = None, estimate_sigma=None) -> str:
+    """The &fit items of the measurement chain's options of ``beamid
+    fit|compare|diagnose|improve DECK`` (docs/decks.md, "The measurement
+    chain"), for :func:`read_fit_deck`'s ``fit_keys``: the Fortran deck reader
+    checks them as the deck's own. ``estimate_sigma``: None (not asked), an
+    empty list (every channel) or channels.
+
+    >>> chain_options(time_offset=["free"], bias=["free:w_tip"], loss="huber")
+    "time_offset = 'free'\\nbias = 'free:w_tip'\\nloss = 'huber'"
+    """
+    items = []
+
+    def words(key: str, values) -> None:
+        values = [values] if isinstance(values, str) else list(values)
+        for v in values:
+            if not isinstance(v, str) or "'" in v or "\n" in v or not v.strip():
+                _check.fail(key, v, "a name without quotes or line breaks")
+        if values:
+            items.append(f"{key} = " + ", ".join(f"'{v}'" for v in values))
+
+    words("time_offset", time_offset)
+    words("bias", bias)
+    words("scale", scale)
+    if loss is not None:
+        words("loss", [loss])
+    if burn_in is not None:
+        items.append(f"burn_in = {_check.real('burn_in', burn_in)!r}")
+    if estimate_sigma is not None:
+        words("estimate_sigma", list(estimate_sigma) or ["all"])
+    return "\n".join(items)
+
+
+def _fit_deck(path: Path, values: dict, fit_keys: str = "") -> FitDeck:
     """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
@@ -158,17 +194,20 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
                    max_iter=values["max_iter"], published=published(values),
-                   stages=stages, nuisance=nuisance, treatment=treatment)
+                   stages=stages, nuisance=nuisance, treatment=treatment, fit_keys=fit_keys)
 
 
-def read_fit_deck(path: str | os.PathLike) -> FitDeck:
-    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`)."""
+def read_fit_deck(path: str | os.PathLike, fit_keys: str = "") -> FitDeck:
+    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`);
+    ``fit_keys``: &fit items given apart, which replace the deck's (the
+    command line's measurement chain options, :func:`chain_options`)."""
     path = check_path(path)
-    values = _core.read_deck(str(path))
+    fit_keys = _check.text("fit_keys", fit_keys, empty=True)
+    values = _core.read_deck(str(path), fit_keys)
     if values["task"] not in FIT_TASKS:
         raise InputError(f"{path}: task {values['task']!r} is not an estimation task "
                          f"{FIT_TASKS}")
-    return _fit_deck(path, values)
+    return _fit_deck(path, values, fit_keys)
 
 
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
@@ -200,7 +239,8 @@ def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output,
+                                                      deck.fit_keys)
     files = [Path(p) for p in written]
     figures: list[Path] = []
     if isinstance(out, Ladder):
@@ -239,7 +279,7 @@ def _check_as_read(deck: FitDeck) -> None:
     """InputError unless ``deck`` is its file as read, but for ``task`` and
     ``output``: the Fortran runs the deck file (its fit once, for the files
     and the result)."""
-    read = read_fit_deck(deck.path)
+    read = read_fit_deck(deck.path, deck.fit_keys)
     differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
               and not _same(getattr(deck, f.name), getattr(read, f.name))]
     if differ:
@@ -258,7 +298,7 @@ def _deck_result(deck: FitDeck) -> Any:
     candidates; ``_core_estimation.deck_task_start``); the caller holds
     ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
     the deck's files from the same ladder."""
-    _ce.deck_task_start(str(deck.path), deck.task)
+    _ce.deck_task_start(str(deck.path), deck.task, fit_keys=deck.fit_keys)
     names = deck.model.names()
     exps = list(deck.experiments)
     own = deck.nuisance or _chain.ChainSpec()
