@@ -355,8 +355,8 @@ def _commands() -> list:
                            help="rows of the releases before T predicted, not fitted "
                                 "(&fit burn_in)")),
         ("--estimate-sigma", dict(nargs="*", default=None, metavar="CHANNEL", help="estimate "
-                                  "the sigma of these channels from the residuals, of every "
-                                  "channel without one (&fit estimate_sigma)")),
+                                  "the sigma of these channels from the residuals, without a "
+                                  "CHANNEL of every channel (&fit estimate_sigma)")),
     ]
     estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
                    "overrides the deck's task (docs/decks.md); the measurement chain's "
