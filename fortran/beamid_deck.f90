@@ -1205,6 +1205,8 @@ contains
             allocate (deck%candidates(size(candidates)))
             do i = 1, size(candidates)
                 deck%candidates(i) = candidates(i)%s
+                ! the measurement chain's row candidates (beamid_ladder row_rung)
+                if (candidates(i)%s == 'gross_errors' .or. candidates(i)%s == 'noise') cycle
                 call effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &

@@ -662,12 +662,24 @@ contains
                        sigma=d%data%sigma, max_iter=d%max_iter, &
                        prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
-        if (.not. chain_asked(pb%exp_values)) return
+        if (.not. chain_asked(pb%exp_values) .and. .not. asks_noise(d)) return
         list = ordered_observations(d%data%obs)
         pb%obs = list
         pb%row_q = [(findloc(same_observation(list, d%data%obs(r)), .true., 1), &
                      r=1, size(d%data%obs))]
     end function deck_problem
+
+    !> Is noise larger than stated among the deck's candidates (its rung
+    !! estimates every channel's sigma: channel masks over distinct observations)?
+    pure logical function asks_noise(d)
+        type(deck_t), intent(in) :: d
+        integer :: c
+        asks_noise = .false.
+        if (.not. allocated(d%candidates)) return
+        do c = 1, size(d%candidates)
+            if (trim(adjustl(d%candidates(c))) == 'noise') asks_noise = .true.
+        end do
+    end function asks_noise
 
     !> The name of parameter k of the deck's fit: the model's, then the
     !! measurement chain's nuisance parameters (t0[experiment],
@@ -764,6 +776,15 @@ contains
         do c = 1, size(d%candidates)
             if (dyn .and. trim(adjustl(d%candidates(c))) == 'mesh') then
                 cs%with_mesh = .true.
+                cycle
+            end if
+            ! the measurement chain's row candidates of the ladder (row_rung)
+            if (trim(adjustl(d%candidates(c))) == 'gross_errors') then
+                cs%gross = .true.
+                cycle
+            end if
+            if (trim(adjustl(d%candidates(c))) == 'noise') then
+                cs%noise = .true.
                 cycle
             end if
             one%name = trim(d%candidates(c))

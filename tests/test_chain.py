@@ -653,3 +653,42 @@ def test_cli_chain_options_are_the_deck_keys(tmp_path, capsys):
     assert main(["fit", str(plain), "--no-plots", "--time-offset", "held"]) == 2
     assert "&fit time_offset = 'held': no experiment of that name (experiments: free)" in \
         capsys.readouterr().err
+
+
+def test_improve_ladder_adds_gross_errors_then_stops(gross):
+    """The Fortran ladder's row candidates (named): three lost markers make
+    the first rung `gross_errors` (a Huber loss; the rows flagged), after
+    which the noise is as stated and the ladder ends."""
+    _, dirty = gross
+    exps = {"free": _release(2)}
+    ladder = beamid.improve(BASE.replace(rho2=0.5), exps, dirty, free=("rho2",),
+                            candidates=["gross_errors", "noise"])
+    assert [s.effect for s in ladder.steps] == [None, "gross_errors"]
+    fit = ladder.fit
+    assert fit.loss == "huber" and fit.gross_errors == (10, 51, 90)
+    assert abs(fit.estimates["rho2"] - 0.530) < 3 * fit.sigmas["rho2"]
+    assert fit.chi2_per_dof < 1.3 < ladder.steps[0].chi2_per_dof
+
+
+def test_improve_ladder_adds_noise(gross):
+    """Noise about twice the stated sigma and nothing else: the ladder's rung
+    `noise` estimates each channel's sigma as beamid.fit(estimate_sigma=True)
+    does, near the spread of the noise drawn (stated 1 mm)."""
+    clean, _ = gross
+    rng = np.random.default_rng(11)
+    noisy = clean.with_values(clean.value + 1.7e-3 * rng.standard_normal(len(clean)))
+    start = BASE.replace(rho2=0.5)
+    ladder = beamid.improve(start, {"free": _release(2)}, noisy,
+                            free=("rho2",), candidates=["gross_errors", "noise"])
+    assert [s.effect for s in ladder.steps] == [None, "noise"]
+    api = beamid.fit(start, {"free": _release(2)}, noisy, free=("rho2",),
+                     estimate_sigma=True)
+    exact = beamid.simulate_measurements(BASE, {"free": _release(2, rtol=1e-11)},
+                                         ["u_tip", "w_tip"], sigma=1e-3, t=clean.t[::2])
+    for q in ("u_tip", "w_tip"):
+        s, sd = ladder.fit.sigma_estimates[f"free:{q}"]
+        assert (s, sd) == pytest.approx(api.sigma_estimates[f"free:{q}"], rel=1e-9)
+        rows = np.array([x == q for x in noisy.quantity])
+        drawn = np.std(noisy.value[rows] - exact.value[rows])
+        assert 1.4e-3 < drawn and abs(s - drawn) < 2 * sd
+    assert abs(ladder.fit.chi2_per_dof - 1.0) < 0.1

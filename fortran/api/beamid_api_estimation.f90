@@ -561,7 +561,11 @@ contains
             cs%cands(c)%name = trim(cs%names(c))
             cs%cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
         end do
-        cs%with_mesh = with_mesh /= 0
+        ! bit 0: the mesh test; the improve ladder's row candidates: bit 1
+        ! gross errors, bit 2 noise larger than stated (beamid_ladder row_rung)
+        cs%with_mesh = btest(with_mesh, 0)
+        cs%gross = btest(with_mesh, 1)
+        cs%noise = btest(with_mesh, 2)
     end function make_cands
 
     !> Structure in time of one series of normalized residuals

@@ -319,14 +319,16 @@ LADDER_LOCK = threading.RLock()
 
 def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
                  blocks: list[np.ndarray], with_mesh: bool, alpha: float, max_steps: int,
-                 max_iter: int = 50) -> None:
+                 max_iter: int = 50, gross: bool = False, noise: bool = False) -> None:
     """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
     runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
-    rungs (the extension holds one ladder at a time)."""
+    rungs (the extension holds one ladder at a time). ``gross``, ``noise``:
+    the measurement chain's row candidates (beamid_ladder row_rung)."""
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
           np.asarray(free, np.int32), prior, *prob.rows(), int(max_iter), starts, flat,
-          int(bool(with_mesh)), float(alpha), int(max_steps))
+          int(bool(with_mesh)) | 2 * bool(gross) | 4 * bool(noise), float(alpha),
+          int(max_steps))
 
 
 def ladder_step() -> bool:

@@ -893,12 +893,15 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
+    # the chain's row candidates join the ladder when named (beamid_ladder row_rung)
+    named = {e.name for e in effects} if candidates is not None else set()
     ext = _chain_extension(model, _check_experiments(experiments), data, effects, names,
                            blocks)
     with _ce.LADDER_LOCK:
         _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
                          np.concatenate([model.vector(), ext.values]), free_idx,
-                         ptable, blocks, with_mesh, alpha, limit, int(max_iter))
+                         ptable, blocks, with_mesh, alpha, limit, int(max_iter),
+                         gross="gross_errors" in named, noise="noise" in named)
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
 
 
@@ -932,6 +935,7 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
             break
     npar = model.vector().size
     all_names = model.names() + tuple(ext.names)
+    rows_now = treatment or _chain.RowTreatment()
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
@@ -942,8 +946,13 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                       tuple(all_names[i] for i in phys), prior_map, raw,
                       nominal=Model(model.nbeams, r["nominal"][:npar]), chain=sub or None)
         fit = dataclasses.replace(fit, refit_start=r["refit_start"])
-        if r["rows"] is not None:     # a deck's loss, burn-in or estimated sigmas
-            fit = _with_row_treatment(fit, treatment or _chain.RowTreatment(), r["rows"])
+        if r["effect"] == "gross_errors":        # the ladder's row candidates (row_rung)
+            rows_now = dataclasses.replace(rows_now, loss="huber")
+        elif r["effect"] == "noise":
+            rows_now = dataclasses.replace(rows_now, estimate=tuple(sorted(
+                set(zip(data.experiment, data.quantity)))))
+        if r["rows"] is not None:     # a loss, burn-in or estimated sigmas
+            fit = _with_row_treatment(fit, rows_now, r["rows"])
         if ext.names:
             ext.trim(r["diag"], npar)
             r["diag"]["chain_values"] = dict(zip(ext.names, r["fit"]["params"][npar:]))
