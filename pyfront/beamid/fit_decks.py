@@ -298,7 +298,7 @@ def _deck_result(deck: FitDeck) -> Any:
     candidates; ``_core_estimation.deck_task_start``); the caller holds
     ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
     the deck's files from the same ladder."""
-    _ce.deck_task_start(str(deck.path), deck.task, fit_keys=deck.fit_keys)
+    _ce.deck_task_start(str(deck.path), deck.task, 0, deck.fit_keys)
     names = deck.model.names()
     exps = list(deck.experiments)
     own = deck.nuisance or _chain.ChainSpec()
