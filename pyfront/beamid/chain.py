@@ -250,17 +250,23 @@ def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment |
         return [q for i, q in enumerate(labels[:MAX_CHANNEL_BITS]) if m >> i & 1]
 
     codes = {c: n for n, c in LOSSES.items()}
+    keys = ("t0", "bias", "scale", "loss", "burn_in", "sigma_est")
     for name, kind, values in experiments:
-        v = list(values) + [0.0] * max(0, _EV_SIGEST + 1 - len(values))
-        if v[_EV_T0] == 1.0:
+        if isinstance(values, Mapping):          # a spec by the core's key names
+            t, b, sc, lo, bu, se = (float(values.get(k, 0.0)) for k in keys)
+        else:                                    # a value column
+            v = list(values) + [0.0] * max(0, _EV_SIGEST + 1 - len(values))
+            t, b, sc, lo, bu, se = (float(v[i]) for i in (_EV_T0, _EV_BIAS, _EV_SCALE,
+                                                         _EV_LOSS, _EV_BURNIN, _EV_SIGEST))
+        if t == 1.0:
             t0[name] = 0.0
-        bias.update({(name, q): 0.0 for q in bits(v[_EV_BIAS])})
-        scale.update({(name, q): 1.0 for q in bits(v[_EV_SCALE])})
-        if v[_EV_LOSS]:
-            loss = codes[int(round(v[_EV_LOSS]))]
-        if v[_EV_BURNIN] > 0.0:
-            burn[name] = float(v[_EV_BURNIN])
-        est += [(name, q) for q in bits(v[_EV_SIGEST])]
+        bias.update({(name, q): 0.0 for q in bits(b)})
+        scale.update({(name, q): 1.0 for q in bits(sc)})
+        if lo:
+            loss = codes[int(round(lo))]
+        if bu > 0.0:
+            burn[name] = bu
+        est += [(name, q) for q in bits(se)]
     spec, rows = ChainSpec(t0, bias, scale), RowTreatment(loss, burn, tuple(est))
     return (spec or None), (rows or None)
 
