@@ -23,9 +23,9 @@
 !! whose standardized residual stays within GROSS_Z (the others are flagged
 !! as gross errors), less one degree of freedom per estimated sigma.
 module beamid_chain_fit
-    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
     use beamid_estimation, only: residual_model_t, lsq_problem_t, fit_options_t, fit_result_t, &
                                  fit_least_squares
     implicit none
@@ -98,6 +98,8 @@ contains
         if (size(rows%channel) > 0) nchan = maxval(rows%channel)
         weights = merge(1.0_dp, 0.0_dp, rows%fitted)
         sigma = lp%sigma
+        call start_sigmas(lp%y, rows%channel, sigma, stat)
+        if (stat%code /= STATUS_OK) return
         sigma_sd = 0.0_dp
         p = params0
         lw = lp
@@ -157,5 +159,47 @@ contains
         end do
         res%chi2 = sum(res%normalized**2, mask=rows%fitted .and. .not. flagged)
         res%dof = res%dof - count(.not. rows%fitted) - count(flagged) - nest
+        res%row_sigma = sigma
+        res%row_weight = weights
+        res%row_gross = flagged
+        res%row_sigma_sd = sigma_sd
     end subroutine chain_fit
+
+    !> The rows' sigmas where not given (NaN: an empty sigma field): the
+    !! start of an estimated channel's sigma (the mean of its given sigmas,
+    !! else the spread of its values, else 1; the passes estimate it);
+    !! ERR_INPUT for a row without sigma whose channel is not estimated.
+    pure subroutine start_sigmas(y, channel, sigma, stat)
+        real(dp), intent(in) :: y(:)
+        integer, intent(in) :: channel(:)
+        real(dp), intent(inout) :: sigma(:)
+        type(status_t), intent(inout) :: stat
+        logical :: none(size(sigma))
+        integer :: c, i, n
+        real(dp) :: start, mean
+        none = ieee_is_nan(sigma)
+        if (.not. any(none)) return
+        do i = 1, size(sigma)
+            if (none(i) .and. channel(i) == 0) then
+                call set_status(stat, ERR_INPUT, 'fit', 'sigma missing: row '//fmt_int(i)// &
+                                ' has no sigma and no estimation is asked for its '// &
+                                'channel; expected a sigma > 0 on every row or its '// &
+                                "channel's sigma estimated (estimate_sigma)")
+                return
+            end if
+        end do
+        do c = 1, maxval(channel)
+            if (.not. any(none .and. channel == c)) cycle
+            n = count(channel == c .and. .not. none)
+            if (n > 0) then
+                start = sum(sigma, mask=channel == c .and. .not. none)/real(n, dp)
+            else
+                n = count(channel == c)
+                mean = sum(y, mask=channel == c)/real(n, dp)
+                start = sqrt(sum((y - mean)**2, mask=channel == c)/real(max(n - 1, 1), dp))
+                if (.not. start > 0.0_dp) start = 1.0_dp
+            end if
+            where (none .and. channel == c) sigma = start
+        end do
+    end subroutine start_sigmas
 end module beamid_chain_fit

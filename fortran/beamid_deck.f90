@@ -28,11 +28,13 @@ module beamid_deck
     use beamid_observations, only: observation_t, parse_observation
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
+    use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g, &
                                    read_channel_file, sensor_t
-    use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
+    use beamid_namelist, only: nml_merge_items, nml_file_t, nml_group_t, nml_text_t, &
+                               nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &
                                nml_strs, nml_logical, nml_given, add_error, nml_ints
     implicit none
@@ -180,10 +182,13 @@ contains
     !! per line, each naming the file, the line, the group, the variable, the
     !! value and what was expected); the status holds the first one and the
     !! count. A file that cannot be read is ERR_IO, a bad deck ERR_DECK.
-    subroutine read_deck(path, deck, stat)
+    subroutine read_deck(path, deck, stat, fit_keys)
         character(len=*), intent(in) :: path
         type(deck_t), intent(out) :: deck
         type(status_t), intent(inout) :: stat
+        !> items of &fit given apart (the command line's measurement chain
+        !! options of beamid fit/diagnose/improve): they replace the deck's
+        character(len=*), intent(in), optional :: fit_keys
         type(nml_file_t) :: f
         character(len=:), allocatable :: errors
 
@@ -192,6 +197,7 @@ contains
         errors = ''
         call nml_read_file(path, f, errors, stat)
         if (stat%code /= STATUS_OK) return
+        if (present(fit_keys)) call nml_merge_items(f, 'fit', fit_keys, 'command line', errors)
         ! a CSV given as a deck (no group, one error said) is said in one line
         if (size(f%groups) > 0 .or. index(errors, ': a measurement CSV file (') == 0) &
             call read_all(f, deck, errors)
@@ -1138,8 +1144,8 @@ contains
         allocate (stage%free(0), stage%prior_index(0), stage%prior_mean(0), stage%prior_sigma(0))
         where = f%path//', line '//fmt_int(g%line)//': &fit '
         call nml_check_keys(f, g, ' data free prior_names prior_means prior_sigmas '// &
-                            'candidates alpha max_iter stage logger_experiment logger_sigma ', &
-                            errors)
+                            'candidates alpha max_iter stage logger_experiment logger_sigma'// &
+                            CHAIN_KEYS, errors)
         data = ''
         stage%logger_experiment = ''
         call nml_str(f, g, 'logger_experiment', stage%logger_experiment, given, errors)
@@ -1227,6 +1233,8 @@ contains
             allocate (deck%candidates(size(candidates)))
             do i = 1, size(candidates)
                 deck%candidates(i) = candidates(i)%s
+                ! the measurement chain's row candidates (beamid_ladder row_rung)
+                if (candidates(i)%s == 'gross_errors' .or. candidates(i)%s == 'noise') cycle
                 call effect_params(deck%nbeams, deck%candidates(i), block, st)
                 if (st%code /= STATUS_OK) then
                     call add_error(errors, where//"candidates = '"//candidates(i)%s// &
@@ -1274,6 +1282,16 @@ contains
                                    kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
+        if (st%code /= STATUS_OK .or. .not. allocated(stage%row_exp)) return
+        if (count_lines_alloc(errors) /= nerr) return
+        call read_chain_keys(f, g, where, identify, deck, stage, errors)
+        if (count_lines_alloc(errors) /= nerr) return
+        i = chain_sigma_missing(deck%exp_values, stage%row_exp, stage%data%obs, &
+                                stage%data%sigma)
+        if (i > 0) call add_error(errors, where//'data: sigma missing: '// &
+            stage%data_path//', line '//fmt_int(stage%data%line(i))//' has no sigma '// &
+            "(an empty field) and no estimation is asked; expected a sigma > 0 on every "// &
+            "row, or estimate_sigma = 'all' (or naming its channel)")
     end subroutine read_fit_group
 
     !> The &sensor groups (name, observation, sigma): the channels of a
@@ -1345,6 +1363,47 @@ contains
             text = text//', '//trim(names(i))
         end do
     end function join_names
+    !> The measurement chain's keys of a &fit group (beamid_chain_deck:
+    !! time_offset, bias, scale, loss, burn_in, estimate_sigma) into the
+    !! experiments' value columns; not for task identify.
+    subroutine read_chain_keys(f, g, where, identify, deck, stage, errors)
+        type(nml_file_t), intent(in) :: f
+        type(nml_group_t), intent(in) :: g
+        character(len=*), intent(in) :: where
+        logical, intent(in) :: identify
+        type(deck_t), intent(inout) :: deck
+        type(stage_t), intent(in) :: stage
+        character(len=:), allocatable, intent(inout) :: errors
+        character(len=*), parameter :: keys(5) = [character(len=14) :: 'time_offset', 'bias', &
+                                                  'scale', 'loss', 'estimate_sigma']
+        type(nml_text_t), allocatable :: items(:)
+        character(len=40) :: text
+        logical :: given
+        real(dp) :: t
+        integer :: k
+        do k = 1, size(keys)
+            if (.not. nml_given(g, trim(keys(k)))) cycle
+            if (identify) then
+                call add_error(errors, where//trim(keys(k))//' is not used by task '// &
+                               "'identify' (fit a stage's deck on its own)")
+                cycle
+            end if
+            call nml_strs(f, g, trim(keys(k)), items, given, errors)
+            call set_chain_key(trim(keys(k)), items, deck%exp_names, deck%exp_kind, &
+                               stage%row_exp, stage%data%obs, deck%exp_values, where, errors)
+        end do
+        if (.not. nml_given(g, 'burn_in')) return
+        if (identify) then
+            call add_error(errors, where//"burn_in is not used by task 'identify'")
+            return
+        end if
+        t = -1.0_dp
+        call nml_real(f, g, 'burn_in', t, given, errors)
+        write (text, '(es24.17)') t
+        call set_chain_key('burn_in', [nml_text_t(trim(adjustl(text)))], deck%exp_names, &
+                           deck%exp_kind, stage%row_exp, stage%data%obs, deck%exp_values, &
+                           where, errors)
+    end subroutine read_chain_keys
 
     !> The beam lengths of the deck's model (empty before the model is read).
     pure function deck_lengths(deck) result(lengths)

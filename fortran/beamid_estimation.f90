@@ -188,6 +188,12 @@ module beamid_estimation
         integer :: nlog = 0                     !< log entries (0 = start)
         real(dp), allocatable :: log_cost(:), log_lambda(:), log_step(:)
         real(dp), allocatable :: log_params(:, :) !< (nfree, 0:nlog)
+        !> a fit with the measurement chain's row treatments (beamid_chain_fit;
+        !! unallocated otherwise): per row the sigma it was judged with
+        !! (estimated where asked), its last weight (0: burn-in) and whether
+        !! it is a gross error
+        real(dp), allocatable :: row_sigma(:), row_weight(:), row_sigma_sd(:)
+        logical, allocatable :: row_gross(:)
     end type fit_result_t
 
     !> Score (Lagrange-multiplier) test of one block of parameters.

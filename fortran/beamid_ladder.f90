@@ -4,13 +4,17 @@
 !! through beamid_tasks (decks), Python through beamid_api_estimation
 !! (beamid.diagnose, beamid.improve), so both write the same ladder.
 module beamid_ladder
+    use, intrinsic :: iso_fortran_env, only: int64
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, fmt_int, set_status
     use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, chi2_sf, lsq_problem_t, &
                                  fit_least_squares
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, &
-                              inverse_diagnose, EXP_RELEASE, EV_NEPB
+                              inverse_diagnose, EXP_RELEASE, EV_NEPB, EV_LOSS, EV_SIGEST, &
+                              MAX_CHANNEL_BITS
+    use beamid_chain_fit, only: chain_fit, chain_active
     use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t
     implicit none
     private
@@ -26,7 +30,15 @@ module beamid_ladder
         character(len=32), allocatable :: names(:)
         type(candidate_t), allocatable :: cands(:)
         logical :: with_mesh = .false.
+        !> the measurement chain's row candidates of the improve ladder
+        !! (row_rung): gross errors (the next rung fits with a Huber loss)
+        !! and noise larger than stated (the next rung estimates the sigmas)
+        logical :: gross = .false., noise = .false.
     end type cand_set_t
+
+    !> gross errors: at most this share of the rows (and at least 3), as
+    !! beamid.chain.GROSS_SHARE
+    real(dp), parameter :: GROSS_SHARE = 0.02_dp
 
     !> One diagnosis: the base fit, the library's report and the probe rows.
     type :: diag_out_t
@@ -97,16 +109,47 @@ contains
         type(fit_options_t) :: opts
         type(lsq_problem_t) :: lp
         type(status_t) :: stat
+        real(dp) :: w(size(pb%y)), su(size(pb%y)), sd(size(pb%y))
+        logical :: gross(size(pb%y))
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, problem, stat, pb%obs)
+        if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma)) .and. &
+            .not. chain_active(problem%rows)) &
+            call set_status(stat, ERR_INPUT, 'fit', 'sigma missing: row '// &
+                            fmt_int(findloc(ieee_is_nan(pb%sigma), .true., 1))// &
+                            ' has no sigma and no estimation is asked (estimate_sigma); '// &
+                            'expected a sigma > 0 on every row')
         if (stat%code == STATUS_OK) then
             opts%max_iter = pb%max_iter
             lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)
             if (present(prior)) lp%prior = prior
-            call fit_least_squares(problem, lp, params0, free, opts, fo, stat)
+            if (chain_active(problem%rows)) then
+                ! a loss, burn-in rows or estimated sigmas (EV_LOSS, EV_BURNIN,
+                ! EV_SIGEST): the chain's fit, as beamid.fit with them
+                call chain_fit(problem, lp, params0, free, opts, problem%rows, fo, w, su, sd, &
+                               gross, stat)
+            else
+                call fit_least_squares(problem, lp, params0, free, opts, fo, stat)
+            end if
         end if
         if (stat%code /= STATUS_OK) st = stat
     end subroutine problem_fit
+
+    !> The problem as a fit with the chain's row treatments judged it (its
+    !! diagnosis sees these rows): each row's sigma as judged (estimated
+    !! where asked), burn-in rows and gross errors out (sigma 1e8 times
+    !! larger); pb itself after a plain fit.
+    function judged_problem(pb, fo) result(out)
+        type(problem_t), intent(in) :: pb
+        type(fit_result_t), intent(in) :: fo
+        type(problem_t) :: out
+        out = pb
+        if (.not. allocated(fo%row_sigma)) return
+        out%sigma = fo%row_sigma
+        where (fo%row_weight <= 0.0_dp .or. fo%row_gross) out%sigma = 1.0e8_dp*fo%row_sigma
+        ! a plain problem now: the treatments are in its sigmas
+        out%exp_values(EV_LOSS:EV_SIGEST, :) = 0.0_dp
+    end function judged_problem
 
     !> Score tests, refits and ranking of the candidates `cs` around the fit
     !! at params(free) (not refitted): with release experiments
@@ -208,14 +251,22 @@ contains
         if (st%code /= STATUS_OK) return
         associate (r => lad%r, pb => lad%pb, cs => lad%cs)
             r%nominal = lad%nominal
-            call problem_diagnose(pb, r%fit%params, r%fit%free, lad%nominal, cs, lad%fopts, &
-                                  lad%dopts, r%dg, st)
+            call problem_diagnose(judged_problem(pb, r%fit), r%fit%params, r%fit%free, &
+                                  lad%nominal, cs, lad%fopts, lad%dopts, r%dg, st)
             if (st%code /= STATUS_OK) return
             lad%n = lad%n + 1
             if (lad%n > size(lad%rungs)) lad%rungs = [lad%rungs, r]
             lad%rungs(lad%n) = r
             v = r%dg%diag%verdict
-            if ((v == 0 .and. .not. r%dg%mesh%significant) .or. lad%k == lad%max_steps) return
+            if (lad%k == lad%max_steps) return
+            ! the measurement chain's row candidates: gross errors before any
+            ! effect (they would be blamed on the physics), noise larger than
+            ! stated when nothing else is found
+            if (row_rung(lad, v == 0 .and. .not. r%dg%mesh%significant, st)) then
+                lad%done = st%code /= STATUS_OK
+                return
+            end if
+            if (v == 0 .and. .not. r%dg%mesh%significant) return
             lad%k = lad%k + 1
             if (r%dg%mesh%done .and. .not. r%dg%mesh%significant) cs%with_mesh = .false.
             now = r%fit%free    ! (a copy: the fit below overwrites r%fit)
@@ -260,6 +311,109 @@ contains
         end associate
         lad%done = .false.
     end subroutine ladder_step
+
+    !> The next rung of the measurement chain's row candidates, when one is
+    !! due (true: lad%r holds its fit): `gross_errors` while asked and the
+    !! rung's fit has rows beyond the Bonferroni level alpha / n of the largest
+    !! of n normal residuals on the bulk's scale (1.4826 times the median
+    !! absolute deviation of the normalized residuals, at least 1; none when
+    !! more than GROSS_SHARE of the rows, at least 3, would be): the fit again
+    !! with a Huber loss on every experiment (beamid_chain_fit); `noise`, when
+    !! asked and `quiet` (no effect found), and the chi-square is above its
+    !! degrees of freedom at level alpha: the fit again with every channel's
+    !! sigma estimated. Each is tested until added once. As beamid.chain's
+    !! gross_rows and diagnose's noise candidate.
+    logical function row_rung(lad, quiet, st) result(added)
+        type(ladder_t), intent(inout) :: lad
+        logical, intent(in) :: quiet
+        type(status_t), intent(inout) :: st
+        real(dp), allocatable :: z(:), dev(:)
+        logical, allocatable :: judged(:)
+        real(dp) :: scale, level
+        integer :: n, nflag, e, i, q
+        added = .false.
+        if (.not. problem_dynamic(lad%pb)) return
+        associate (r => lad%r, pb => lad%pb, cs => lad%cs)
+            level = lad%dopts%alpha
+            if (cs%gross) then
+                judged = [(.true., i=1, size(r%fit%normalized))]
+                if (allocated(r%fit%row_weight)) judged = r%fit%row_weight > 0.0_dp .and. &
+                                                          .not. r%fit%row_gross
+                z = pack(r%fit%normalized, judged)
+                n = size(z)
+                if (n >= 5) then
+                    dev = abs(z - median(z))
+                    scale = max(1.0_dp, 1.4826_dp*median(dev))
+                    nflag = 0
+                    do i = 1, n
+                        if (chi2_sf((z(i)/scale)**2, 1) < level/real(n, dp)) nflag = nflag + 1
+                    end do
+                    if (nflag > 0 .and. nflag <= max(3, int(GROSS_SHARE*real(n, dp)))) then
+                        cs%gross = .false.
+                        pb%exp_values(EV_LOSS, :) = 1.0_dp          ! Huber
+                        call rung_refit(lad, 'gross_errors', st)
+                        added = .true.
+                        return
+                    end if
+                end if
+            end if
+            if (cs%noise .and. quiet .and. r%fit%dof > 0) then
+                if (chi2_sf(r%fit%chi2 + r%fit%chi2_prior, r%fit%dof) < level) then
+                    cs%noise = .false.
+                    do i = 1, size(pb%row_q)
+                        e = pb%row_exp(i)
+                        q = pb%row_q(i)
+                        if (q > MAX_CHANNEL_BITS) cycle
+                        if (.not. btest(nint(pb%exp_values(EV_SIGEST, e), int64), q - 1)) &
+                            pb%exp_values(EV_SIGEST, e) = pb%exp_values(EV_SIGEST, e) + &
+                                                          2.0_dp**(q - 1)
+                    end do
+                    call rung_refit(lad, 'noise', st)
+                    added = .true.
+                end if
+            end if
+        end associate
+    end function row_rung
+
+    !> A rung that changes how the rows are treated (row_rung): the rung's fit
+    !! again from its estimates, the same parameters free.
+    subroutine rung_refit(lad, name, st)
+        type(ladder_t), intent(inout) :: lad
+        character(len=*), intent(in) :: name
+        type(status_t), intent(inout) :: st
+        integer, allocatable :: now(:)
+        lad%k = lad%k + 1
+        associate (r => lad%r)
+            now = r%fit%free
+            r%effect = name
+            r%start = r%fit%params
+            r%params = [integer ::]
+            r%removed = [integer ::]
+            r%refit_start = 0
+            call problem_fit(lad%pb, r%start, now, r%fit, st)
+        end associate
+    end subroutine rung_refit
+
+    !> The median of x.
+    pure real(dp) function median(x)
+        real(dp), intent(in) :: x(:)
+        real(dp) :: y(size(x)), t
+        integer :: i, j, n
+        y = x
+        n = size(y)
+        do i = 2, n                    ! insertion sort (a rung's rows: thousands)
+            t = y(i)
+            j = i - 1
+            do while (j >= 1)
+                if (y(j) <= t) exit
+                y(j + 1) = y(j)
+                j = j - 1
+            end do
+            y(j + 1) = t
+        end do
+        median = y((n + 1)/2)
+        if (mod(n, 2) == 0) median = 0.5_dp*(y(n/2) + y(n/2 + 1))
+    end function median
 
     !> End a started ladder at its fit, undiagnosed (a fit or compare deck):
     !! the fit is the only rung, with no candidates and an empty diagnosis.

@@ -5,13 +5,15 @@
 !! row is validated with the rules and messages of the Python reader
 !! (`pyfront/beamid/measurements.py`), so both name the same file, line and
 !! field: wrong field count, empty experiment, non-numeric or non-finite t,
-!! value or sigma, unknown quantity, sigma <= 0, t < 0, duplicate rows, and
+!! value or sigma, unknown quantity, sigma <= 0 (an empty sigma is not given:
+!! NaN, estimated by the fit or refused there), t < 0, duplicate rows, and
 !! (check_experiments) an experiment the deck does not define.
 !!
 !! Library code: no printing, no STOP; errors come back in a status_t with
 !! ERR_INPUT (bad content) or ERR_IO (file cannot be opened or read).
 module beamid_measurements
-    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_value, &
+                                             ieee_quiet_nan
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, ERR_IO, ERR_SIZE, &
                              MAX_BYTES, fmt_int, fmt_bytes, set_alloc_error, lower
@@ -352,7 +354,14 @@ contains
         end if
         call parse_number(field_of(line, comma, 4), where, 'value', data%value(irow), stat)
         if (stat%code /= STATUS_OK) return
-        call parse_number(field_of(line, comma, 5), where, 'sigma', data%sigma(irow), stat)
+        ! an empty sigma is not given (NaN): the fit estimates it (estimate_sigma)
+        ! or refuses the row (beamid_inverse, check_sigma_given)
+        field = field_of(line, comma, 5)
+        if (len(trim(field)) == 0) then
+            data%sigma(irow) = ieee_value(1.0_dp, ieee_quiet_nan)
+            return
+        end if
+        call parse_number(field, where, 'sigma', data%sigma(irow), stat)
     end subroutine parse_row
 
     !> Pass 2: the values of every row (as Measurements.__post_init__):
@@ -365,7 +374,7 @@ contains
         integer :: i, first
         do i = 1, size(data%t)
             where = path//', line '//fmt_int(data%line(i))
-            if (.not. data%sigma(i) > 0.0_dp) then
+            if (.not. data%sigma(i) > 0.0_dp .and. .not. ieee_is_nan(data%sigma(i))) then
                 call set_status(stat, ERR_INPUT, where, 'field sigma = '//fmt_g(data%sigma(i))// &
                                 ', expected sigma > 0 (the standard deviation of the row)')
                 return

@@ -21,7 +21,7 @@ module beamid_namelist
 
     public :: nml_file_t, nml_group_t, nml_item_t, nml_text_t, nml_read_file, nml_count, &
               nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, nml_strs, &
-              nml_logical, nml_given, add_error, nml_where, nml_ints
+              nml_logical, nml_given, add_error, nml_where, nml_ints, nml_merge_items
 
     type :: nml_text_t
         character(len=:), allocatable :: s
@@ -102,6 +102,41 @@ contains
         end if
         call scan_text(text, file, errors)
     end subroutine nml_read_file
+
+    !> Items given apart from the file (`text`: `key = values` items, as in a
+    !! group, e.g. a command line's options) merged into the first group
+    !! `name` of `file`: an item replaces the group's item of its key, or is
+    !! added. Syntax problems go to `errors`, named `where`.
+    subroutine nml_merge_items(file, name, text, where, errors)
+        type(nml_file_t), intent(inout) :: file
+        character(len=*), intent(in) :: name, text, where
+        character(len=:), allocatable, intent(inout) :: errors
+        type(nml_file_t) :: extra
+        character(len=:), allocatable :: found
+        integer :: g, i, k
+        if (len_trim(text) == 0) return
+        extra%path = where
+        allocate (extra%groups(0))
+        found = ''
+        call scan_text('&'//name//new_line('a')//text//new_line('a')//'/'//new_line('a'), &
+                       extra, found)
+        if (len(found) > 0) then
+            errors = errors//found
+            return
+        end if
+        g = nml_find(file, name, 1)
+        if (g == 0 .or. size(extra%groups) /= 1) return
+        associate (grp => file%groups(g))
+            do i = 1, size(extra%groups(1)%items)
+                k = item_index(grp, extra%groups(1)%items(i)%key)
+                if (k > 0) then
+                    grp%items(k) = extra%groups(1)%items(i)
+                else
+                    grp%items = [grp%items, extra%groups(1)%items(i)]
+                end if
+            end do
+        end associate
+    end subroutine nml_merge_items
 
     !> Split the text into groups and items.
     subroutine scan_text(text, file, errors)

@@ -18,7 +18,8 @@ module beamid_tasks
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_OUTPUT, ERR_INPUT, set_status, fmt_int, &
                              set_alloc_error, fmt_real
-    use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L
+    use beamid_model, only: chain_t, chain_from_vector, param_name, param_index_beam, IB_L, &
+                            param_count
     use beamid_deck, only: deck_t, stage_t, take_stage, FRICTION_LAWS
     use beamid_arclength, only: static_options_t, static_solution_t, solve_static, LOAD_WIRE, &
                                 static_shape, NOUT
@@ -33,10 +34,12 @@ module beamid_tasks
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
-    use beamid_inverse, only: NEXPVAL, EXP_RELEASE
+    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
+                              NU_BIAS, NU_SCALE
+    use beamid_chain_deck, only: chain_asked, ordered_observations
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
-    use beamid_observations, only: obs_label, obs_groups
+    use beamid_observations, only: obs_label, obs_groups, observation_t, same_observation
     use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
@@ -183,7 +186,7 @@ contains
         do i = 1, size(f%free)
             if (f%flags(i) == FLAG_OK) cycle
             if (len(flagged) > 0) flagged = flagged//', '
-            flagged = flagged//param_name(d%nbeams, f%free(i))//' '// &
+            flagged = flagged//deck_param_name(d, f%free(i))//' '// &
                       trim(FLAG_NAMES(min(max(f%flags(i), 0), ubound(FLAG_NAMES, 1))))
         end do
         if (len(flagged) > 0) text = text//'; flagged: '//flagged
@@ -649,14 +652,88 @@ contains
     function deck_problem(d) result(pb)
         type(deck_t), intent(in) :: d
         type(problem_t) :: pb
+        type(observation_t), allocatable :: list(:)
         integer :: r
-        ! each row its own entry of the observation list
+        ! each row its own entry of the observation list, but with the
+        ! measurement chain, whose channel masks number the distinct
+        ! observations in the core's order (beamid_chain_deck)
         pb = problem_t(nbeams=d%nbeams, row_exp=d%row_exp, row_t=d%data%t, &
                        row_q=[(r, r=1, size(d%data%obs))], obs=d%data%obs, y=d%data%value, &
                        sigma=d%data%sigma, max_iter=d%max_iter, &
                        prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
+        if (.not. chain_asked(pb%exp_values) .and. .not. asks_noise(d)) return
+        list = ordered_observations(d%data%obs)
+        pb%obs = list
+        pb%row_q = [(findloc(same_observation(list, d%data%obs(r)), .true., 1), &
+                     r=1, size(d%data%obs))]
     end function deck_problem
+
+    !> Is noise larger than stated among the deck's candidates (its rung
+    !! estimates every channel's sigma: channel masks over distinct observations)?
+    pure logical function asks_noise(d)
+        type(deck_t), intent(in) :: d
+        integer :: c
+        asks_noise = .false.
+        if (.not. allocated(d%candidates)) return
+        do c = 1, size(d%candidates)
+            if (trim(adjustl(d%candidates(c))) == 'noise') asks_noise = .true.
+        end do
+    end function asks_noise
+
+    !> The name of parameter k of the deck's fit: the model's, then the
+    !! measurement chain's nuisance parameters (t0[experiment],
+    !! bias[experiment:quantity], scale[...], chain_layout's order).
+    function deck_param_name(d, k) result(name)
+        type(deck_t), intent(in) :: d
+        integer, intent(in) :: k
+        character(len=:), allocatable :: name
+        type(problem_t) :: pb
+        integer, allocatable :: kinds(:), exps(:), qs(:)
+        type(status_t) :: st
+        integer :: j
+        if (k <= param_count(d%nbeams)) then
+            name = param_name(d%nbeams, k)
+            return
+        end if
+        pb = deck_problem(d)
+        call chain_layout(pb%exp_kind, pb%exp_values, kinds, exps, qs, st, size(pb%obs))
+        j = k - param_count(d%nbeams)
+        name = '#'//fmt_int(k)
+        if (st%code /= STATUS_OK .or. j > size(kinds)) return
+        select case (kinds(j))
+        case (NU_T0)
+            name = 't0['//trim(d%exp_names(exps(j)))//']'
+        case (NU_BIAS)
+            name = 'bias['//trim(d%exp_names(exps(j)))//':'//obs_label(pb%obs(qs(j)))//']'
+        case default
+            name = 'scale['//trim(d%exp_names(exps(j)))//':'//obs_label(pb%obs(qs(j)))//']'
+        end select
+    end function deck_param_name
+
+    !> The deck's start: its model's parameters, then the nuisance
+    !! parameters of its measurement chain at their null values (t0 = 0,
+    !! b = 0, s = 1), and the free ones: the deck's, then every nuisance
+    !! parameter.
+    subroutine deck_start(d, params, free, st)
+        type(deck_t), intent(in) :: d
+        real(dp), allocatable, intent(out) :: params(:)
+        integer, allocatable, intent(out) :: free(:)
+        type(status_t), intent(inout) :: st
+        type(problem_t) :: pb
+        integer, allocatable :: kinds(:), exps(:), qs(:)
+        integer :: j, np
+        params = d%params
+        free = d%free
+        if (.not. allocated(d%exp_values)) return
+        if (.not. chain_asked(d%exp_values)) return
+        pb = deck_problem(d)
+        call chain_layout(pb%exp_kind, pb%exp_values, kinds, exps, qs, st, size(pb%obs))
+        if (st%code /= STATUS_OK) return
+        np = size(params)
+        params = [params, merge(1.0_dp, 0.0_dp, kinds == NU_SCALE)]
+        free = [free, (np + j, j=1, size(kinds))]
+    end subroutine deck_start
 
     !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
     !! values.
@@ -676,6 +753,9 @@ contains
             where (d%exp_kind > 0) kinds = d%exp_kind
             do e = 1, size(d%experiments)
                 if (d%exp_kind(e) > 0) values(:, e) = d%exp_values(:, e)
+                ! the measurement chain's rows of a static experiment too
+                if (d%exp_kind(e) == 0) values(EV_T0:EV_SIGEST, e) = &
+                    d%exp_values(EV_T0:EV_SIGEST, e)
             end do
         end if
     end subroutine deck_experiments
@@ -698,6 +778,15 @@ contains
                 cs%with_mesh = .true.
                 cycle
             end if
+            ! the measurement chain's row candidates of the ladder (row_rung)
+            if (trim(adjustl(d%candidates(c))) == 'gross_errors') then
+                cs%gross = .true.
+                cycle
+            end if
+            if (trim(adjustl(d%candidates(c))) == 'noise') then
+                cs%noise = .true.
+                cycle
+            end if
             one%name = trim(d%candidates(c))
             call effect_params(d%nbeams, d%candidates(c), one%params, st)
             if (st%code /= STATUS_OK) return
@@ -717,8 +806,11 @@ contains
         type(ladder_t), intent(out) :: lad
         type(status_t), intent(inout) :: st
         type(cand_set_t) :: cs
+        real(dp), allocatable :: params(:)
+        integer, allocatable :: free(:)
         call deck_candidates(d, cs, st)
-        if (st%code == STATUS_OK) call ladder_start(lad, deck_problem(d), d%params, d%free, cs, &
+        if (st%code == STATUS_OK) call deck_start(d, params, free, st)
+        if (st%code == STATUS_OK) call ladder_start(lad, deck_problem(d), params, free, cs, &
             d%alpha, merge(size(d%candidates), 0, d%task == 'improve'), st)
         if (d%task == 'fit' .or. d%task == 'compare') call ladder_end_at_fit(lad)
         if (st%code /= STATUS_OK .and. allocated(d%exp_names)) call name_experiment(d, st)
@@ -743,7 +835,7 @@ contains
         call open_output(fl, part//'_estimates.csv', 'name,estimate,sigma,flag', unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)
-            call put(unit, ios, param_name(d%nbeams, fo%free(i))//','// &
+            call put(unit, ios, deck_param_name(d, fo%free(i))//','// &
                      fmt_e(fo%params(fo%free(i)))//','//fmt_e(fo%sigmas(i))//','// &
                      trim(FLAG_NAMES(min(max(fo%flags(i), 0), ubound(FLAG_NAMES, 1)))))
         end do
@@ -757,12 +849,12 @@ contains
 
         line = 'name'
         do i = 1, size(fo%free)
-            line = line//','//param_name(d%nbeams, fo%free(i))
+            line = line//','//deck_param_name(d, fo%free(i))
         end do
         call open_output(fl, part//'_covariance.csv', line, unit, ios, st)
         if (st%code /= STATUS_OK) return
         do i = 1, size(fo%free)
-            line = param_name(d%nbeams, fo%free(i))
+            line = deck_param_name(d, fo%free(i))
             do j = 1, size(fo%free)
                 line = line//','//fmt_e(fo%cov(i, j))
             end do
@@ -771,10 +863,24 @@ contains
         call close_checked(fl, unit, ios, st)
         if (st%code /= STATUS_OK) return
 
+        ! a fit with the chain's row treatments (beamid_chain_fit): the sigma each
+        ! row was judged with (estimated where asked), its last weight (0: a
+        ! burn-in row) and 1 for a gross error
+        line = ''
+        if (allocated(fo%row_sigma)) line = ',weight,gross_error'
         call open_output(fl, part//'_residuals.csv', &
-                         'experiment,t,quantity,measured,model,sigma,normalized', unit, ios, st)
+                         'experiment,t,quantity,measured,model,sigma,normalized'//line, unit, &
+                         ios, st)
         if (st%code /= STATUS_OK) return
         do r = 1, size(d%row_exp)
+            if (allocated(fo%row_sigma)) then
+                call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
+                         obs_label(d%data%obs(r))//','//fmt_e(d%data%value(r))//','// &
+                         fmt_e(fo%predictions(r))//','//fmt_e(fo%row_sigma(r))//','// &
+                         fmt_e(fo%normalized(r))//','//fmt_e(fo%row_weight(r))//','// &
+                         trim(merge('1', '0', fo%row_gross(r))))
+                cycle
+            end if
             call put(unit, ios, trim(d%data%experiment(r))//','//fmt_g(d%data%t(r))//','// &
                      obs_label(d%data%obs(r))//','//fmt_e(d%data%value(r))//','// &
                      fmt_e(fo%predictions(r))//','//fmt_e(d%data%sigma(r))//','// &

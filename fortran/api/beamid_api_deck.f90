@@ -59,8 +59,10 @@ contains
     !! lines (deck_t%published), then for task identify one line per stage
     !! (deck_t%stage_text), then the &sensor table and the &fit groups that
     !! read a logger file (deck_t%channel_text).
-    subroutine api_deck_sizes(path, sizes, reals, text, code, message)
+    subroutine api_deck_sizes(path, fit_keys, sizes, reals, text, code, message)
         character(len=*), intent(in) :: path
+        !> &fit items given apart (beamid_deck read_deck; blank: none)
+        character(len=*), intent(in) :: fit_keys
         integer(c_int), intent(out) :: sizes(21)
         real(c_double), intent(out) :: reals(12)
         character(len=65536), intent(out) :: text
@@ -71,7 +73,7 @@ contains
         character(len=:), allocatable :: t
         integer :: i
         text = ''
-        call read_deck(trim(path), d, stat)
+        call read_deck(trim(path), d, stat, fit_keys)
         call put_errors(d, stat, code, message)
         if (stat%code /= STATUS_OK) return
         sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
@@ -131,10 +133,10 @@ contains
     !! free parameter indices (1-based), output times, experiments (kind 1
     !! tip, 2 wire, 3 release and 12 values in beamid_inverse's EV_* layout:
     !! fx, fy, moment, wire_length, ...; beamid_tasks deck_experiments), priors.
-    subroutine api_deck_arrays(path, nparams, nwrt, nt, nexp_, nfree, nprior, params, wrt, &
-                               t_out, exp_kind, exp_values, free_idx, prior_index, prior_mean, &
-                               prior_sigma, code, message)
-        character(len=*), intent(in) :: path
+    subroutine api_deck_arrays(path, fit_keys, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
+                               wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
+                               prior_mean, prior_sigma, code, message)
+        character(len=*), intent(in) :: path, fit_keys
         integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
         real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(18, nexp_)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
@@ -146,7 +148,7 @@ contains
         type(status_t) :: stat
         integer, allocatable :: kinds(:)
         real(dp), allocatable :: values(:, :)
-        call read_deck(trim(path), d, stat)
+        call read_deck(trim(path), d, stat, fit_keys)
         call put_errors(d, stat, code, message)
         if (stat%code /= STATUS_OK) return
         if (size(d%params) /= nparams .or. nexp(d) /= nexp_) then

@@ -49,7 +49,7 @@ module beamid_api_estimation
     public :: api_problem_predict, api_chain_layout, api_fit_chain
     public :: api_problem_diagnose, api_time_structure, api_spec_keys
     public :: api_ladder_start, api_ladder_step
-    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
+    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag, api_ladder_rows
     public :: api_deck_task_start, api_deck_task_write
     public :: api_mesh_check
 
@@ -647,7 +647,11 @@ contains
             cs%cands(c)%name = trim(cs%names(c))
             cs%cands(c)%params = int(cand_params(cand_start(c):cand_start(c + 1) - 1))
         end do
-        cs%with_mesh = with_mesh /= 0
+        ! bit 0: the mesh test; the improve ladder's row candidates: bit 1
+        ! gross errors, bit 2 noise larger than stated (beamid_ladder row_rung)
+        cs%with_mesh = btest(with_mesh, 0)
+        cs%gross = btest(with_mesh, 1)
+        cs%noise = btest(with_mesh, 2)
     end function make_cands
 
     !> Structure in time of one series of normalized residuals
@@ -947,6 +951,40 @@ contains
         end associate
     end subroutine api_ladder_fit
 
+    !> The rows of rung k's fit as the measurement chain's treatments judged
+    !! them (beamid_chain_fit): per row its last weight, the sigma it was
+    !! judged with, that sigma's standard deviation and 1 for a gross error;
+    !! has = 0 for a plain fit (nothing set).
+    subroutine api_ladder_rows(k, nrow, weights, sigma_used, sigma_sd, flagged, has, code, &
+                               message)
+        integer(c_int), intent(in) :: k, nrow
+        real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
+        integer(c_int), intent(out) :: flagged(nrow), has, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        has = 0
+        weights = 1.0_c_double
+        sigma_used = 0.0_c_double
+        sigma_sd = 0.0_c_double
+        flagged = 0
+        if (.not. rung_ok(k, int(size(lad%rungs(max(1, min(k, lad%n)))%start), c_int), code, &
+                          message)) return
+        associate (f => lad%rungs(k)%fit)
+            if (nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nrow = '//fmt_int(int(nrow))// &
+                                ', expected '//fmt_int(size(f%predictions)))
+                call status_out(stat, code, message)
+                return
+            end if
+            if (.not. allocated(f%row_sigma)) return
+            has = 1
+            weights = f%row_weight
+            sigma_used = f%row_sigma
+            sigma_sd = f%row_sigma_sd
+            flagged = merge(1_c_int, 0_c_int, f%row_gross)
+        end associate
+    end subroutine api_ladder_rows
+
     !> The diagnosis of rung k of the ladder started last (outputs as
     !! api_problem_diagnose).
     subroutine api_ladder_diag(k, nparams, ncand, ncandp, cstats, pstats, refit_params, ranking, &
@@ -1022,14 +1060,16 @@ contains
     !! step it with api_ladder_step (diagnose: one rung, improve: a rung per
     !! call), read it with api_ladder_rung, api_ladder_fit and api_ladder_diag
     !! and write the deck's files with api_deck_task_write: its fits run once.
-    subroutine api_deck_task_start(path, task, stage, code, message)
+    subroutine api_deck_task_start(path, task, stage, fit_keys, code, message)
         character(len=*), intent(in) :: path, task
+        !> &fit items given apart (beamid_deck read_deck; blank: none)
+        character(len=*), intent(in) :: fit_keys
         integer(c_int), intent(in) :: stage
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         type(deck_t) :: d
         type(status_t) :: stat
-        call read_deck(trim(path), d, stat)
+        call read_deck(trim(path), d, stat, fit_keys)
         if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
         ! the stages held go on only on the deck that fitted them
         if (stage <= 1 .or. .not. allocated(staged) .or. .not. is_held(d)) staged = [rung_t ::]
@@ -1064,9 +1104,10 @@ contains
     !! api_deck_task_start started on it and api_ladder_step ended;
     !! `output`: the output prefix (blank: the deck's; beamid demo writes its
     !! decks' files elsewhere); `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, output, written, summary, code, message)
+    subroutine api_deck_task_write(path, task, output, fit_keys, written, summary, code, &
+                                   message)
         use beamid_status, only: put_text
-        character(len=*), intent(in) :: path, task, output
+        character(len=*), intent(in) :: path, task, output, fit_keys
         character(len=65536), intent(out) :: written, message
         !> the summary line beamid-batch prints (run_task)
         character(len=4096), intent(out) :: summary
@@ -1079,7 +1120,7 @@ contains
             call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
                             'api_deck_task_start and api_ladder_step first)')
         else
-            call read_deck(trim(path), d, stat)
+            call read_deck(trim(path), d, stat, fit_keys)
             if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
             if (len_trim(output) > 0) d%output = trim(output)
             if (stat%code == STATUS_OK .and. .not. is_held(d)) then

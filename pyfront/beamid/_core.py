@@ -144,16 +144,18 @@ def _path(path) -> bytes:
     return os.fsencode(str(path))
 
 
-def read_deck(path: str) -> dict:
+def read_deck(path: str, fit_keys: str = "") -> dict:
     """Read and validate a deck with the Fortran reader (beamid_deck); every
-    problem found is in the InputError's message, one per line."""
-    sizes, reals, text = _call(_deck_api.api_deck_sizes, _path(path))
+    problem found is in the InputError's message, one per line. ``fit_keys``:
+    &fit items given apart (``loss = 'huber'``, the command line's), which
+    replace the deck's."""
+    sizes, reals, text = _call(_deck_api.api_deck_sizes, _path(path), fit_keys)
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
     (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean,
-     prior_sigma) = _call(_deck_api.api_deck_arrays, _path(path), nparams, nwrt, nt, nexp, nfree,
-                          nprior)
+     prior_sigma) = _call(_deck_api.api_deck_arrays, _path(path), fit_keys, nparams, nwrt, nt,
+                          nexp, nfree, nprior)
     lines = _text(text).split("\n")
     names = lines[3:3 + nexp]
     return {

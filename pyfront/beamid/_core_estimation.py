@@ -327,14 +327,16 @@ LADDER_LOCK = threading.RLock()
 
 def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
                  blocks: list[np.ndarray], with_mesh: bool, alpha: float, max_steps: int,
-                 max_iter: int = 50) -> None:
+                 max_iter: int = 50, gross: bool = False, noise: bool = False) -> None:
     """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
     runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
-    rungs (the extension holds one ladder at a time)."""
+    rungs (the extension holds one ladder at a time). ``gross``, ``noise``:
+    the measurement chain's row candidates (beamid_ladder row_rung)."""
     starts, flat = _blocks(blocks)
     _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
           np.asarray(free, np.int32), prior, *prob.rows(), int(max_iter), starts, flat,
-          int(bool(with_mesh)), float(alpha), int(max_steps))
+          int(bool(with_mesh)) | 2 * bool(gross) | 4 * bool(noise), float(alpha),
+          int(max_steps))
 
 
 def ladder_step() -> bool:
@@ -370,8 +372,18 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
-            "refit_start": START_NAMES.get(int(info[2]))})
+            "refit_start": START_NAMES.get(int(info[2])), "rows": _ladder_rows(k, int(info[3]))})
     return rungs
+
+
+def _ladder_rows(k: int, nrow: int) -> dict | None:
+    """The rows of rung ``k``'s fit as the measurement chain's treatments
+    judged them (the keys :func:`fit_chain` adds), None for a plain fit."""
+    weights, sigma_used, sigma_sd, flagged, has = _call(_api.api_ladder_rows, k, nrow)
+    if not has:
+        return None
+    return {"weights": np.array(weights), "sigma_used": np.array(sigma_used),
+            "sigma_sd": np.array(sigma_sd), "flagged": np.array(flagged, dtype=bool)}
 
 
 def residual_structure(level: np.ndarray, group: np.ndarray,
@@ -426,15 +438,16 @@ def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------- estimation decks: the deck's fit runs once
 
-def deck_task_start(path: str, task: str = "", stage: int = 0) -> None:
+def deck_task_start(path: str, task: str = "", stage: int = 0, fit_keys: str = "") -> None:
     """Start the ladder of an estimation deck run as ``task`` (default the
     deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
     compare; of an identify deck the fit of ``stage``, 1-based, from the
     stages fitted by the calls before); :func:`ladder_step` diagnoses
     (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
     reads it, :func:`deck_task_write` writes the deck's files. Hold
-    :data:`LADDER_LOCK` from the first start to the write."""
-    _call(_api.api_deck_task_start, _path(path), task, int(stage))
+    :data:`LADDER_LOCK` from the first start to the write. ``fit_keys``: &fit
+    items given apart (the command line's), as :func:`beamid._core.read_deck`."""
+    _call(_api.api_deck_task_start, _path(path), task, int(stage), fit_keys)
 
 
 def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
@@ -445,11 +458,11 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     return deck_task_write_report(path, task, output)[1]
 
 
-def deck_task_write_report(path: str, task: str = "", output: str = ""
+def deck_task_write_report(path: str, task: str = "", output: str = "", fit_keys: str = ""
                            ) -> tuple[str, list[str]]:
     """:func:`deck_task_write` and the summary line beamid-batch prints
     before the files: ``(summary, files)``."""
-    written, summary = _call(_api.api_deck_task_write, _path(path), task, output)
+    written, summary = _call(_api.api_deck_task_write, _path(path), task, output, fit_keys)
     return _text(summary), [line for line in _text(written).split("\n") if line]
 
 

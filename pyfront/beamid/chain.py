@@ -211,6 +211,67 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
     return RowTreatment(loss, burn, tuple(dict.fromkeys(est)))
 
 
+def check_sigma_given(data, rows: RowTreatment | None, what: str = "fit") -> None:
+    """InputError when rows of ``data`` have no sigma (NaN: an empty sigma
+    field, or None in Measurements.from_rows) and their channel's sigma is
+    not estimated (``rows.estimate``), naming the channels and the first row."""
+    if data is None or not hasattr(data, "sigma"):
+        return
+    sigma = np.asarray(data.sigma, float)
+    if not np.isnan(sigma).any():
+        return
+    estimated = set(rows.estimate) if rows else set()
+    missing = [i for i in np.flatnonzero(np.isnan(sigma))
+               if (data.experiment[i], data.quantity[i]) not in estimated]
+    if not missing:
+        return
+    channels = list(dict.fromkeys((data.experiment[i], data.quantity[i]) for i in missing))
+    raise InputError(
+        f"{what}: sigma missing: {len(missing)} rows have no sigma ({data._where(missing[0])}"
+        f" first) and no estimation is asked for their channel"
+        f"{'s' if len(channels) > 1 else ''} "
+        + ", ".join(f"({e!r}, {q!r})" for e, q in channels[:6])
+        + (" ..." if len(channels) > 6 else "")
+        + "; expected a sigma > 0 on every row, or estimate_sigma=True (or naming those "
+        "channels) so that the fit estimates it from the residuals")
+
+
+def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment | None]:
+    """The measurement chain a deck's &fit asks for (beamid_chain_deck): its
+    nuisance parameters and rows' treatment decoded from the experiments'
+    value columns ``experiments`` ((name, kind, values) as the reader gives
+    them), channel masks over the data's observations in the core's order
+    (beamid.observations.ordered). (None, None) when it asks nothing."""
+    labels = observations.ordered(data.quantity)
+    t0, bias, scale, burn, est = {}, {}, {}, {}, []
+    loss = "linear"
+
+    def bits(v: float) -> list[str]:
+        m = int(round(v))
+        return [q for i, q in enumerate(labels[:MAX_CHANNEL_BITS]) if m >> i & 1]
+
+    codes = {c: n for n, c in LOSSES.items()}
+    keys = ("t0", "bias", "scale", "loss", "burn_in", "sigma_est")
+    for name, kind, values in experiments:
+        if isinstance(values, Mapping):          # a spec by the core's key names
+            t, b, sc, lo, bu, se = (float(values.get(k, 0.0)) for k in keys)
+        else:                                    # a value column
+            v = list(values) + [0.0] * max(0, _EV_SIGEST + 1 - len(values))
+            t, b, sc, lo, bu, se = (float(v[i]) for i in (_EV_T0, _EV_BIAS, _EV_SCALE,
+                                                         _EV_LOSS, _EV_BURNIN, _EV_SIGEST))
+        if t == 1.0:
+            t0[name] = 0.0
+        bias.update({(name, q): 0.0 for q in bits(b)})
+        scale.update({(name, q): 1.0 for q in bits(sc)})
+        if lo:
+            loss = codes[int(round(lo))]
+        if bu > 0.0:
+            burn[name] = bu
+        est += [(name, q) for q in bits(se)]
+    spec, rows = ChainSpec(t0, bias, scale), RowTreatment(loss, burn, tuple(est))
+    return (spec or None), (rows or None)
+
+
 def param_name(kind: str, experiment: str, quantity: str) -> str:
     """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
     if kind == "time_offset":
@@ -506,8 +567,8 @@ def judged_fit(fit):
     if fit.fitted_rows is not None:
         keep &= np.asarray(fit.fitted_rows, bool)
     keep[list(fit.gross_errors)] = False
-    if keep.all():
-        return fit
+    if keep.all() and not np.isnan(np.asarray(fit.data.sigma, float)).any():
+        return fit    # (rows without sigma take the fit's estimate below)
     idx = np.flatnonzero(keep)
     data = fit.data.__class__.from_rows(
         [(fit.data.experiment[i], float(fit.data.t[i]), fit.data.quantity[i],

@@ -123,10 +123,12 @@ def _report(result, one_line: bool = False) -> int:
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
-    from .fit_decks import read_fit_deck, run_fit_deck
+    from .fit_decks import chain_options, read_fit_deck, run_fit_deck
 
     # the subcommand overrides the deck's task (docs/decks.md): `beamid fit` fits only
-    deck = dataclasses.replace(read_fit_deck(args.deck), task=args.command)
+    keys = chain_options(args.time_offset, args.bias, args.scale, args.loss, args.burn_in,
+                         args.estimate_sigma)
+    deck = dataclasses.replace(read_fit_deck(args.deck, keys), task=args.command)
     return _report(run_fit_deck(deck, plots=not args.no_plots))
 
 
@@ -338,9 +340,28 @@ def _commands() -> list:
     def values(metavar: str, text: str, kind=FINITE):   # numbers, default a fresh []
         return dict(type=kind, nargs="*", default=[], metavar=metavar, help=text)
 
+    # the measurement chain (docs/decks.md, "The measurement chain"): &fit items
+    # the Fortran deck reader checks as the deck's own; they replace the deck's
+    chain = [
+        ("--time-offset", dict(nargs="+", default=(), metavar="EXPERIMENT", help="fit a clock "
+                               "offset t0 of these releases' records (&fit time_offset)")),
+        ("--bias", dict(nargs="+", default=(), metavar="CHANNEL", help="fit a bias of these "
+                        "channels, experiment:quantity or a quantity (&fit bias)")),
+        ("--scale", dict(nargs="+", default=(), metavar="CHANNEL", help="fit a scale of these "
+                         "channels (&fit scale)")),
+        ("--loss", dict(choices=("linear", "huber", "cauchy"), help="robust loss by "
+                        "iteratively reweighted least squares (&fit loss)")),
+        ("--burn-in", dict(type=_number(0.0, what="a time >= 0 (s)"), metavar="T",
+                           help="rows of the releases before T predicted, not fitted "
+                                "(&fit burn_in)")),
+        ("--estimate-sigma", dict(nargs="*", default=None, metavar="CHANNEL", help="estimate "
+                                  "the sigma of these channels from the residuals, without a "
+                                  "CHANNEL of every channel (&fit estimate_sigma)")),
+    ]
     estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
-                   "overrides the deck's task (docs/decks.md).",
-                   [deck, no_plots("write CSV files only")]) for name, text in (
+                   "overrides the deck's task (docs/decks.md); the measurement chain's "
+                   "options replace the deck's &fit items.",
+                   [deck, no_plots("write CSV files only"), *chain]) for name, text in (
         ("fit", "estimate parameters from a measurement deck (fit only)"),
         ("compare", "fit, then measured against model with residual tests"),
         ("diagnose", "fit, then rank the candidate missing effects"),

@@ -38,6 +38,7 @@ from .errors import ConvergenceError, InputError
 from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit as _fit,
                          flag_is_problem)
 from .estimation import _check_experiments, _free_indices, _named, _prior_arrays, _result
+from .estimation import with_row_treatment as _with_row_treatment
 from . import chain as _chain, chain_refit as _chain_refit
 from .chain import split_ladder_fit as _split_ladder_fit
 from .loads import RadialWire, TipLoad, Release
@@ -887,48 +888,54 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
                 expected="a significance level in (0, 1)")
     max_iter = _check.count("max_iter", max_iter, min=1)
     max_steps = _check.count("max_steps", max_steps, min=0, none=True)
+    _chain.check_sigma_given(data, None, "improve")
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     limit = len(effects) + with_mesh if max_steps is None else max_steps
     free_names, free_idx = _free_indices(model, free)
     prior_map, ptable = _prior_arrays(model, free_names, prior)
+    # the chain's row candidates join the ladder when named (beamid_ladder row_rung)
+    named = {e.name for e in effects} if candidates is not None else set()
     ext = _chain_extension(model, _check_experiments(experiments), data, effects, names,
                            blocks)
     with _ce.LADDER_LOCK:
         _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
                          np.concatenate([model.vector(), ext.values]), free_idx,
-                         ptable, blocks, with_mesh, alpha, limit, int(max_iter))
+                         ptable, blocks, with_mesh, alpha, limit, int(max_iter),
+                         gross="gross_errors" in named, noise="noise" in named)
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
 
 
 def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
-                     effects: list[Effect], names: list, blocks: list):
+                     effects: list[Effect], names: list, blocks: list, own=None):
     """The measurement chain's candidates of a ladder (beamid.chain.extension):
-    their names and blocks filled in, the nuisance parameters returned. The
+    their names and blocks filled in, the nuisance parameters returned (after
+    the ladder's own, ``own``: a deck's &fit nuisance parameters). The
     row candidates (gross errors, noise) are diagnose's only: dropped here
     (in place)."""
     keep = [k for k, e in enumerate(effects) if e.name not in _chain.ROW_CANDIDATES]
     for x in (effects, names, blocks):
         x[:] = [x[k] for k in keep]
-    return _chain.extension(model, dict(experiments), data, None, effects, names, blocks)
+    return _chain.extension(model, dict(experiments), data, own, effects, names, blocks)
 
 
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                 prior_map: Mapping[str, tuple[float, float]],
                 candidates: Sequence[str | Effect] | None, alpha: float,
-                max_steps: int, desc: str = "improve") -> Ladder:
+                max_steps: int, desc: str = "improve", own=None, treatment=None) -> Ladder:
     """Run the ladder started in the extension (``_ce.ladder_start`` or
     ``_ce.deck_task_start``) a rung per call, with a progress bar labelled
     ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
     call), and name its rungs."""
     dynamic = _dynamic(experiments)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
-    ext = _chain_extension(model, experiments, data, effects, names, blocks)
+    ext = _chain_extension(model, experiments, data, effects, names, blocks, own)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
         if _ce.ladder_step():
             break
     npar = model.vector().size
     all_names = model.names() + tuple(ext.names)
+    rows_now = treatment or _chain.RowTreatment()
     steps = []
     for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
         if r["elements_per_beam"]:
@@ -939,6 +946,13 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                       tuple(all_names[i] for i in phys), prior_map, raw,
                       nominal=Model(model.nbeams, r["nominal"][:npar]), chain=sub or None)
         fit = dataclasses.replace(fit, refit_start=r["refit_start"])
+        if r["effect"] == "gross_errors":        # the ladder's row candidates (row_rung)
+            rows_now = dataclasses.replace(rows_now, loss="huber")
+        elif r["effect"] == "noise":
+            rows_now = dataclasses.replace(rows_now, estimate=tuple(sorted(
+                set(zip(data.experiment, data.quantity)))))
+        if r["rows"] is not None:     # a loss, burn-in or estimated sigmas
+            fit = _with_row_treatment(fit, rows_now, r["rows"])
         if ext.names:
             ext.trim(r["diag"], npar)
             r["diag"]["chain_values"] = dict(zip(ext.names, r["fit"]["params"][npar:]))

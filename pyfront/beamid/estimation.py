@@ -28,7 +28,7 @@ from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
-from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
+from .chain import ChainSpec, RowTreatment, check_sigma_given, parse_nuisance, parse_rows
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -474,6 +474,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     _check.choice("jacobian", jacobian, ("auto", "exact"))
     chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
     rows = parse_rows(loss, burn_in, estimate_sigma, _check_experiments(experiments), data)
+    check_sigma_given(data, rows)
     prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
         # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
@@ -499,19 +500,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         raw = _ce.fit_chain(prob, params0, free_idx, ptable, prior_cov=pcov,
                             max_iter=int(max_iter))
         out = _result(model, experiments, data, free_names, prior_map, raw, chain=chain)
-        sig = raw["sigma_used"]
-        residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
-        est = {}
-        for e, q in rows.estimate:
-            k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
-                     if x == e and y == q)
-            est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
-        return dataclasses.replace(
-            out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
-            fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
-                                  zip(data.experiment, data.t)], bool),
-            gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
-            sigma_estimates=est, treatment=rows)
+        return with_row_treatment(out, rows, raw)
 
     checked = _ROBUST.get("fit")
     # the measurement chain's fits (nuisance parameters, a loss, burn-in,
@@ -574,6 +563,27 @@ def _carried_prior(model: Model, prior: "FitResult"):
     rows = [(model.index(n) + 1, float(prior.estimates[f]), float(np.sqrt(cov[i, i])))
             for i, (n, f) in enumerate(zip(names, prior.free))]
     return {n: (m, s) for n, (_, m, s) in zip(names, rows)}, _ce.prior_table(rows), cov
+
+
+def with_row_treatment(out: FitResult, rows: RowTreatment, raw: dict) -> FitResult:
+    """The fit ``out`` with the rows as the measurement chain's treatments
+    ``rows`` judged them (``raw``: the keys weights, sigma_used, sigma_sd and
+    flagged of beamid_chain_fit): each residual's sigma, the weights, the
+    fitted rows, the gross errors and the estimated sigmas."""
+    data = out.data
+    sig = raw["sigma_used"]
+    residuals = [r._replace(sigma=float(s)) for r, s in zip(out.residuals, sig)]
+    est = {}
+    for e, q in rows.estimate:
+        k = next(i for i, (x, y) in enumerate(zip(data.experiment, data.quantity))
+                 if x == e and y == q)
+        est[f"{e}:{q}"] = (float(sig[k]), float(raw["sigma_sd"][k]))
+    return dataclasses.replace(
+        out, residuals=residuals, loss=rows.loss, weights=raw["weights"],
+        fitted_rows=np.array([t >= rows.burn_in.get(e, 0.0) for e, t in
+                              zip(data.experiment, data.t)], bool),
+        gross_errors=tuple(int(i) for i in np.flatnonzero(raw["flagged"])),
+        sigma_estimates=est, treatment=rows)
 
 
 def _result(start: Model, experiments: Experiments, data: Measurements,

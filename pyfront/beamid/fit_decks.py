@@ -25,10 +25,11 @@ from typing import Any
 import numpy as np
 
 from . import _check, _core
+from . import chain as _chain
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
-                         _result as _fit_result, identify)
+                         _result as _fit_result, identify, with_row_treatment)
 from . import _core_estimation as _ce
 from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
 from .channels import Sensor, read_channels
@@ -140,6 +141,13 @@ class FitDeck(OutputPrefix):
     max_iter: int = 50
     published: tuple = ()     #: &published groups (beamid.decks.Published)
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
+    #: the measurement chain of &fit (time_offset, bias, scale: beamid.chain.ChainSpec;
+    #: loss, burn_in, estimate_sigma: beamid.chain.RowTreatment), None when not asked
+    nuisance: Any = None
+    treatment: Any = None
+    #: &fit items given apart from the file (the command line's measurement
+    #: chain options, :func:`chain_options`): the deck reads with them
+    fit_keys: str = ""
 
 
 def _stage_data(values: dict, stage: int, path: str, experiments: dict) -> Measurements:
@@ -153,7 +161,40 @@ def _stage_data(values: dict, stage: int, path: str, experiments: dict) -> Measu
     return read_channels(path, experiment, sigma=sigma, sensors=sensors)
 
 
-def _fit_deck(path: Path, values: dict) -> FitDeck:
+def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
+                  burn_in: float | None = None, estimate_sigma=None) -> str:
+    """The &fit items of the measurement chain's options of ``beamid
+    fit|compare|diagnose|improve DECK`` (docs/decks.md, "The measurement
+    chain"), for :func:`read_fit_deck`'s ``fit_keys``: the Fortran deck reader
+    checks them as the deck's own. ``estimate_sigma``: None (not asked), an
+    empty list (every channel) or channels.
+
+    >>> chain_options(time_offset=["free"], bias=["free:w_tip"], loss="huber")
+    "time_offset = 'free'\\nbias = 'free:w_tip'\\nloss = 'huber'"
+    """
+    items = []
+
+    def words(key: str, values) -> None:
+        values = [values] if isinstance(values, str) else list(values)
+        for v in values:
+            if not isinstance(v, str) or "'" in v or "\n" in v or not v.strip():
+                _check.fail(key, v, "a name without quotes or line breaks")
+        if values:
+            items.append(f"{key} = " + ", ".join(f"'{v}'" for v in values))
+
+    words("time_offset", time_offset)
+    words("bias", bias)
+    words("scale", scale)
+    if loss is not None:
+        words("loss", [loss])
+    if burn_in is not None:
+        items.append(f"burn_in = {_check.real('burn_in', burn_in)!r}")
+    if estimate_sigma is not None:
+        words("estimate_sigma", list(estimate_sigma) or ["all"])
+    return "\n".join(items)
+
+
+def _fit_deck(path: Path, values: dict, fit_keys: str = "") -> FitDeck:
     """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
@@ -163,23 +204,27 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                          _stage_data(values, k, s["data_path"], experiments),
                          tuple(names[i] for i in s["free"]), s["max_iter"])
                    for k, s in enumerate(values.get("stages", ())))
+    nuisance, treatment = _chain.from_deck(values["experiments"], data)
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
                    experiments=experiments, data=data,
                    free=tuple(names[i] for i in values["free"]),
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
                    max_iter=values["max_iter"], published=published(values),
-                   stages=stages)
+                   stages=stages, nuisance=nuisance, treatment=treatment, fit_keys=fit_keys)
 
 
-def read_fit_deck(path: str | os.PathLike) -> FitDeck:
-    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`)."""
+def read_fit_deck(path: str | os.PathLike, fit_keys: str = "") -> FitDeck:
+    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`);
+    ``fit_keys``: &fit items given apart, which replace the deck's (the
+    command line's measurement chain options, :func:`chain_options`)."""
     path = check_path(path)
-    values = _core.read_deck(str(path))
+    fit_keys = _check.text("fit_keys", fit_keys, empty=True)
+    values = _core.read_deck(str(path), fit_keys)
     if values["task"] not in FIT_TASKS:
         raise InputError(f"{path}: task {values['task']!r} is not an estimation task "
                          f"{FIT_TASKS}")
-    return _fit_deck(path, values)
+    return _fit_deck(path, values, fit_keys)
 
 
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
@@ -211,7 +256,8 @@ def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
         deck = read_fit_deck(deck)
     with _ce.LADDER_LOCK:
         out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output,
+                                                      deck.fit_keys)
     files = [Path(p) for p in written]
     figures: list[Path] = []
     if isinstance(out, Ladder):
@@ -250,7 +296,7 @@ def _check_as_read(deck: FitDeck) -> None:
     """InputError unless ``deck`` is its file as read, but for ``task`` and
     ``output``: the Fortran runs the deck file (its fit once, for the files
     and the result)."""
-    read = read_fit_deck(deck.path)
+    read = read_fit_deck(deck.path, deck.fit_keys)
     differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
               and not _same(getattr(deck, f.name), getattr(read, f.name))]
     if differ:
@@ -269,19 +315,27 @@ def _deck_result(deck: FitDeck) -> Any:
     candidates; ``_core_estimation.deck_task_start``); the caller holds
     ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
     the deck's files from the same ladder."""
-    _ce.deck_task_start(str(deck.path), deck.task)
+    _ce.deck_task_start(str(deck.path), deck.task, 0, deck.fit_keys)
     names = deck.model.names()
+    exps = list(deck.experiments)
+    own = deck.nuisance or _chain.ChainSpec()
     if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
-        rung = _ce.ladder_rungs(len(names), [])[0]
-        free_names = tuple(names[i] for i in rung["free"])   # the fit's own, as _run_ladder
+        rung = _ce.ladder_rungs(len(names) + len(own.names(exps)), [])[0]
+        raw, phys, sub = _chain.split_ladder_fit(rung["fit"], rung["free"], len(names), own,
+                                                 exps)
+        free_names = tuple(names[i] for i in phys)   # the fit's own, as _run_ladder
         prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
         fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map,
-                          rung["fit"])
+                          raw, chain=sub or None)
+        if rung["rows"] is not None:
+            fit = with_row_treatment(fit, deck.treatment or _chain.RowTreatment(),
+                                     rung["rows"])
         return fit if deck.task == "fit" else compare(fit)
     prior_map = _prior_arrays(deck.model, _free_indices(deck.model, deck.free)[0], deck.prior)[0]
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
-                         deck.alpha, len(deck.candidates or ()) * improve, deck.task)
+                         deck.alpha, len(deck.candidates or ()) * improve, deck.task,
+                         own=deck.nuisance, treatment=deck.treatment)
     return ladder if improve else ladder.steps[0].diagnosis
 
 

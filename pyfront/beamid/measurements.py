@@ -7,7 +7,8 @@
 array([0.2763])
 
 ``t`` is 0 for static experiments; ``sigma`` > 0 is the standard deviation of
-the row. Every row is validated; a bad one raises :class:`beamid.InputError`
+the row; an empty ``sigma`` (NaN) is not given: :func:`beamid.fit` then
+estimates it (``estimate_sigma``) or refuses the row. Every row is validated; a bad one raises :class:`beamid.InputError`
 naming the file, the line and the field.
 """
 from __future__ import annotations
@@ -86,8 +87,20 @@ class Measurements:
         _check.text("measurements: source", self.source)
         n = len(self.experiment)
         for name in ("t", "value", "sigma"):
-            # non-finite entries are named by row below
-            arr = _check.reals(f"measurements: {name}", getattr(self, name), finite=False)
+            # non-finite entries are named by row below; a NaN sigma is not given
+            value, missing = getattr(self, name), None
+            if name == "sigma" and isinstance(value, (np.ndarray, list, tuple)):
+                try:
+                    value = np.array(value, dtype=np.float64)
+                except (TypeError, ValueError):
+                    pass
+                else:
+                    missing = np.isnan(value) if value.ndim == 1 else None
+                    if missing is not None:
+                        value = np.where(missing, 1.0, value)
+            arr = _check.reals(f"measurements: {name}", value, finite=False)
+            if missing is not None:
+                arr[missing] = math.nan
             if arr.shape != (n,):
                 raise InputError(f"measurements: {name} has {arr.size} entries for {n} rows")
             arr.setflags(write=False)
@@ -116,9 +129,9 @@ class Measurements:
                                      f"{str(exc).split(': ', 1)[-1]}") from None
             for name in ("t", "value", "sigma"):
                 v = float(getattr(self, name)[i])
-                if not math.isfinite(v):
+                if not math.isfinite(v) and not (name == "sigma" and math.isnan(v)):
                     raise InputError(f"{where}: field {name} = {v}, expected a finite number")
-            if not self.sigma[i] > 0.0:
+            if not self.sigma[i] > 0.0 and not math.isnan(self.sigma[i]):
                 raise InputError(f"{where}: field sigma = {self.sigma[i]:g}, expected "
                                  "sigma > 0 (the standard deviation of the row)")
             if self.t[i] < 0.0:
@@ -139,7 +152,8 @@ class Measurements:
 
     @classmethod
     def from_rows(cls, rows: Iterable[Sequence], source: str = "<python>") -> "Measurements":
-        """Build from ``(experiment, t, quantity, value, sigma)`` tuples."""
+        """Build from ``(experiment, t, quantity, value, sigma)`` tuples
+        (sigma None: not given, NaN)."""
         _check.text("source", source)
         if isinstance(rows, (str, bytes, Mapping)) or not isinstance(rows, Iterable):
             _check.fail("rows", rows, "an iterable of (experiment, t, quantity, value, sigma)")
@@ -151,13 +165,16 @@ class Measurements:
             for j in (0, 2):
                 _check.text(f"{source}, row {k}: field {HEADER[j]}", row[j])
             for j in (1, 3, 4):    # NaN and infinities are named by Measurements
+                if j == 4 and row[4] is None:    # sigma not given (NaN)
+                    continue
                 _check.real(f"{source}, row {k}: field {HEADER[j]}", row[j], finite=False,
                             expected="a number")
         return cls(experiment=tuple(str(r[0]) for r in rows),
                    t=np.array([float(r[1]) for r in rows]),
                    quantity=tuple(str(r[2]) for r in rows),
                    value=np.array([float(r[3]) for r in rows]),
-                   sigma=np.array([float(r[4]) for r in rows]), source=source)
+                   sigma=np.array([math.nan if r[4] is None else float(r[4]) for r in rows]),
+                   source=source)
 
     @classmethod
     def from_frame(cls, frame, source: str = "<DataFrame>") -> "Measurements":
@@ -272,7 +289,8 @@ class Measurements:
         path = _check.path("path", path)
         comment = _check.text("comment", comment, empty=True)
         lines = [f"# {c}" for c in comment.splitlines()] + [",".join(HEADER)]
-        lines += [f"{e},{t:.17g},{q},{v:.17g},{s:.17g}" for e, t, q, v, s in self.rows()]
+        lines += [f"{e},{t:.17g},{q},{v:.17g},{'' if math.isnan(s) else f'{s:.17g}'}"
+                  for e, t, q, v, s in self.rows()]
         _write_text(path, "\n".join(lines) + "\n")
 
 
