@@ -33,6 +33,7 @@ module beamid_api_estimation
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
+    use beamid_api_marshal, only: copy_fit, copy_diag
     implicit none
     private
 
@@ -222,40 +223,6 @@ contains
         real(c_double), intent(out) :: p
         p = chi2_sf(real(x, dp), int(k))
     end subroutine api_chi2_sf
-
-    !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
-    !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
-    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest zero,
-    !! as f2py allocates them).
-    subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                        log_cost, log_lambda, log_step, log_params)
-        type(fit_result_t), intent(in) :: res
-        real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
-        integer(c_int), intent(out) :: flags(:)
-        real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
-        real(c_double), intent(inout) :: log_cost(:), log_lambda(:), log_step(:), &
-                                         log_params(:, :)
-        integer :: n, lo
-        params = res%params
-        sigmas = res%sigmas
-        cov = res%cov
-        corr = res%corr
-        flags = int(res%flags, c_int)
-        predictions = res%predictions
-        normalized = res%normalized
-        stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
-                 real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
-                 real(res%nlog, dp)]
-        n = min(res%nlog + 1, size(log_cost))
-        ! the log runs 0:nlog; its shrink in fit_least_squares reallocates (to 1-based
-        ! bounds) only when the fit stopped before max_iter, so index from lbound
-        lo = lbound(res%log_cost, 1)
-        log_cost(1:n) = res%log_cost(lo:lo + n - 1)
-        log_lambda(1:n) = res%log_lambda(lo:lo + n - 1)
-        log_step(1:n) = res%log_step(lo:lo + n - 1)
-        lo = lbound(res%log_params, 2)
-        log_params(:, 1:n) = res%log_params(:, lo:lo + n - 1)
-    end subroutine copy_fit
 
     !> The one fit entry (beamid.fit, beamid.add_effect) on any mix of
     !! experiment families (beamid_inverse layout). A priori information is
@@ -635,94 +602,6 @@ contains
                        refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
                        mesh_params, kept, notes)
     end subroutine api_problem_diagnose
-
-    !> The outputs of a diagnosis (zero when `ok` is false): cstats 18 values
-    !! per candidate, pstats 6 per candidate parameter, dstats 6 (names:
-    !! api_code_names tables 6-8); candidate state 4 (CAND_NOT_SEEN) for
-    !! effects the data rows do not see; refit_start(c) the start the refit
-    !! kept (START_*, 0: none); sep_t(c) the time of the probe row separating
-    !! rival c from the verdict; mstats the mesh test (table 9), mesh_params
-    !! its refined refit's parameters (else `params`); kept(k) 1: the
-    !! candidate parameter was tested, 0: left at null (not needed or not
-    !! determined), 2: left at null although about as good alone as the
-    !! member tested; `notes` one line per candidate (what the refit starts
-    !! gave, newline-separated).
-    subroutine copy_diag(dg, cs, ok, params, cstats, pstats, refit_params, ranking, cosine, &
-                         dstats, refit_start, sep_t, mstats, mesh_params, kept, notes)
-        type(diag_out_t), intent(in) :: dg
-        type(cand_set_t), intent(in) :: cs
-        logical, intent(in) :: ok
-        real(dp), intent(in) :: params(:)
-        real(c_double), intent(out) :: cstats(:, :), pstats(:, :), refit_params(:, :)
-        real(c_double), intent(out) :: cosine(:, :), dstats(:), sep_t(:), mstats(:)
-        real(c_double), intent(out) :: mesh_params(:)
-        integer(c_int), intent(out) :: ranking(:), refit_start(:), kept(:)
-        character(len=*), intent(out) :: notes
-        character(len=:), allocatable :: text
-        integer :: c, k, j, nf, r, u
-
-        mesh_params = params
-        notes = ''
-        if (.not. ok) return
-        nf = 0       ! a rung that ended at its fit (fit, compare decks): not diagnosed
-        if (allocated(dg%base%free)) nf = size(dg%base%free)
-        text = ''
-        k = 0
-        do c = 1, size(cs%cands)
-            associate (cr => dg%diag%cand(c))
-                r = cr%separating_row
-                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
-                                real(cr%score%dof, dp), b2r(cr%score%physical), &
-                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
-                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
-                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
-                                real(merge(dg%pexp(max(r, 1)), 0, r > 0), dp), &
-                                real(merge(dg%pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
-                if (r > 0) sep_t(c) = dg%pt(r)
-                if (cr%refit_ok) then
-                    cstats(17, c) = cr%refit%chi2
-                    cstats(18, c) = cr%refit%chi2_prior
-                    refit_params(:, c) = cr%refit%params
-                end if
-                refit_start(c) = int(cr%info%start, c_int)
-                if (c > 1) text = text//new_line('a')
-                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
-                do j = 1, size(cs%cands(c)%params)
-                    k = k + 1
-                    ! position of this parameter in the block as tested
-                    u = findloc(dg%used(c)%params, cs%cands(c)%params(j), 1)
-                    if (u == 0 .and. any(dg%ambiguous == cs%cands(c)%params(j))) kept(k) = 2
-                    if (u == 0) cycle
-                    kept(k) = 1
-                    if (allocated(cr%score%estimate)) then
-                        pstats(1:3, k) = [cr%score%estimate(u), cr%score%sigma(u), &
-                                          b2r(cr%score%active(u))]
-                    end if
-                    if (cr%refit_ok) then
-                        pstats(4:6, k) = [cr%refit%params(dg%used(c)%params(u)), &
-                                          cr%refit%sigmas(nf + u), &
-                                          real(cr%refit%flags(nf + u), dp)]
-                    end if
-                end do
-            end associate
-        end do
-        notes = text
-        ranking = int(dg%diag%ranking, c_int)
-        cosine = dg%diag%cosine
-        dstats = [real(dg%diag%verdict, dp), real(dg%diag%ntested, dp), dg%diag%alpha_each, &
-                  dg%base%chi2, dg%base%chi2_prior, real(dg%base%dof, dp)]
-        associate (m => dg%mesh)
-            mstats = [b2r(m%done), b2r(m%ok), real(m%nepb, dp), real(m%recommended, dp), &
-                      m%chi2, m%drop, m%p_value, m%max_change, real(m%max_row, dp), &
-                      b2r(m%significant)]
-            if (allocated(m%params)) mesh_params = m%params
-        end associate
-    contains
-        pure real(dp) function b2r(flag)
-            logical, intent(in) :: flag
-            b2r = merge(1.0_dp, 0.0_dp, flag)
-        end function b2r
-    end subroutine copy_diag
 
     !> Start the improve ladder (beamid_ladder ladder_start; the ladder
     !! beamid-batch runs): fit params0(free_idx); then

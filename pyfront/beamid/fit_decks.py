@@ -98,10 +98,24 @@ def run_files(deck: Any) -> list[Path]:
     """Run a deck's task with the runners of ``beamid-batch`` (the same
     Fortran, so the same bytes) and return the files written (all or none).
     A deck object runs its file with its ``task`` (so a FitDeck whose task was
-    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``)."""
+    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``),
+    from the deck as read (its handle: the file is not read again)."""
     if hasattr(deck, "path"):
+        handle = deck_handle(deck)
+        if handle is not None:
+            return [Path(p) for p in handle.run_task(deck.task)[1]]
         return [Path(p) for p in _core.run_deck(str(deck.path), deck.task)]
     return [Path(p) for p in _core.run_deck(str(check_path(deck, "deck")))]
+
+
+def deck_handle(deck: Any) -> _core.DeckHandle | None:
+    """The open handle of the file a deck object was read from (None: the
+    deck was not read by read_deck, its handle was closed, or its ``path``
+    was replaced since)."""
+    handle = getattr(deck, "handle", None)
+    if handle is None or handle.closed or Path(handle.path) != Path(deck.path):
+        return None
+    return handle
 
 
 # ---- estimation decks
@@ -134,16 +148,35 @@ class FitDeck(OutputPrefix):
     max_iter: int = 50
     published: tuple = ()     #: &published groups (beamid.decks.Published)
     stages: tuple[Stage, ...] = ()   #: task identify: the stages, in order
+    #: the deck as read once by the Fortran reader (beamid._core.DeckHandle:
+    #: the deck file and its measurement files, each opened once); its run
+    #: goes through it. None for a FitDeck built by hand (run reads its path).
+    handle: Any = field(default=None, repr=False, compare=False)
 
 
-def _fit_deck(path: Path, values: dict) -> FitDeck:
-    """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
+def _rows_measurements(rows: tuple, source: str, experiments: dict) -> Measurements:
+    """Measurements from the rows of the deck reader (as read_measurements
+    builds them from its file), checked against the deck's experiments."""
+    names, t, quantity, value, sigma, lines = rows
+    data = Measurements(names, t, quantity, value, sigma, source=str(Path(source)), lines=lines)
+    data.check_experiments(experiments)
+    return data
+
+
+def _fit_deck(path: Path, values: dict, handle: Any = None) -> FitDeck:
+    """A FitDeck from the values of the Fortran reader (beamid._core.read_deck),
+    its measurements from ``handle`` (the deck as read; None: read the files)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    data = read_measurements(values["data_path"], experiments)
-    stages = tuple(Stage(s["name"], data if k == 0 else
-                         read_measurements(s["data_path"], experiments),
+
+    def rows(stage: int, source: str) -> Measurements:
+        if handle is None:
+            return read_measurements(source, experiments)
+        return _rows_measurements(handle.data(stage), source, experiments)
+
+    data = rows(0, values["data_path"])
+    stages = tuple(Stage(s["name"], data if k == 0 else rows(k + 1, s["data_path"]),
                          tuple(names[i] for i in s["free"]), s["max_iter"])
                    for k, s in enumerate(values.get("stages", ())))
     return FitDeck(path=path, task=values["task"], output=values["output"], model=model,
@@ -152,17 +185,21 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
                    max_iter=values["max_iter"], published=published(values),
-                   stages=stages)
+                   stages=stages, handle=handle)
 
 
 def read_fit_deck(path: str | os.PathLike) -> FitDeck:
-    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`)."""
+    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`;
+    the deck and its measurement files are opened once, held by the
+    FitDeck's ``handle``)."""
     path = check_path(path)
-    values = _core.read_deck(str(path))
+    handle = _core.DeckHandle(path)
+    values = handle.values()
     if values["task"] not in FIT_TASKS:
+        handle.close()
         raise InputError(f"{path}: task {values['task']!r} is not an estimation task "
                          f"{FIT_TASKS}")
-    return _fit_deck(path, values)
+    return _fit_deck(path, values, handle)
 
 
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
@@ -189,12 +226,14 @@ def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     """:func:`run_fit_deck` as (text, CSV files, result, the summary line
     beamid-batch prints, figures written)."""
     if isinstance(deck, FitDeck):
-        _check_as_read(deck)
+        handle = _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
-    with _ce.LADDER_LOCK:
-        out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output)
+        handle = deck.handle
+    with handle.lock:      # the run the handle holds: from its start to its files
+        out = (identify_deck(deck, handle) if deck.task == "identify" else
+               _deck_result(deck, handle))
+        summary, written = _ce.deck_task_write_report(handle, deck.task, deck.output)
     files = [Path(p) for p in written]
     figures: list[Path] = []
     if isinstance(out, Ladder):
@@ -229,12 +268,19 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def _check_as_read(deck: FitDeck) -> None:
+def _check_as_read(deck: FitDeck) -> Any:
     """InputError unless ``deck`` is its file as read, but for ``task`` and
     ``output``: the Fortran runs the deck file (its fit once, for the files
-    and the result)."""
-    read = read_fit_deck(deck.path)
-    differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
+    and the result). Returns the handle of the deck as read (the deck's own,
+    else the file read now)."""
+    handle = deck_handle(deck)
+    if handle is None:
+        read = read_fit_deck(deck.path)
+        handle = read.handle
+    else:
+        read = _fit_deck(deck.path, handle.values(), handle)
+    differ = [f.name for f in dataclasses.fields(FitDeck)
+              if f.name not in ("task", "output", "handle")
               and not _same(getattr(deck, f.name), getattr(read, f.name))]
     if differ:
         shown = "; ".join(f"{n} = {getattr(deck, n)!r}, expected {getattr(read, n)!r}"
@@ -243,19 +289,21 @@ def _check_as_read(deck: FitDeck) -> None:
         raise InputError(f"run_fit_deck: {shown} (as {deck.path} reads: a FitDeck runs as "
                          "its file reads, only task and output may be replaced; write the change "
                          "into the deck file)")
+    return handle
 
 
-def _deck_result(deck: FitDeck) -> Any:
+def _deck_result(deck: FitDeck, handle: Any) -> Any:
     """The result of the deck's task, FitResult (fit), Comparison (compare),
     Diagnosis (diagnose) or Ladder (improve), from the ladder the Fortran of
     ``beamid-batch`` runs on the deck as read there (its problem and
-    candidates; ``_core_estimation.deck_task_start``); the caller holds
-    ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
-    the deck's files from the same ladder."""
-    _ce.deck_task_start(str(deck.path), deck.task)
+    candidates; ``_core_estimation.deck_task_start`` on the deck's
+    ``handle``, which holds the run and returns its rungs); the caller holds
+    ``handle.lock`` until ``deck_task_write`` has written the deck's files
+    from the same ladder."""
+    _ce.deck_task_start(handle, deck.task)
     names = deck.model.names()
     if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
-        rung = _ce.ladder_rungs(len(names), [])[0]
+        rung = _ce.ladder_rungs(len(names), [], handle)[0]
         free_names = tuple(names[i] for i in rung["free"])   # the fit's own, as _run_ladder
         prior_map = _prior_arrays(deck.model, free_names, deck.prior)[0]
         fit = _fit_result(deck.model, deck.experiments, deck.data, free_names, prior_map,
@@ -264,7 +312,7 @@ def _deck_result(deck: FitDeck) -> Any:
     prior_map = _prior_arrays(deck.model, _free_indices(deck.model, deck.free)[0], deck.prior)[0]
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
-                         deck.alpha, len(deck.candidates or ()) * improve, deck.task)
+                         deck.alpha, len(deck.candidates or ()) * improve, deck.task, handle)
     return ladder if improve else ladder.steps[0].diagnosis
 
 
@@ -286,23 +334,26 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
     return written
 
 
-def identify_deck(deck: FitDeck) -> Any:
+def identify_deck(deck: FitDeck, handle: Any = None) -> Any:
     """:func:`beamid.identify` on the stages of an identification deck (task
     ``identify``): the deck's model is the start, its experiments serve every
     stage, the first stage takes the deck's a priori values. Each stage is
     fitted by the Fortran of ``beamid-batch`` on the deck as read there
-    (``_core_estimation.deck_task_start``), so its files can then be written
-    from the same fits (``deck_task_write(path, "identify")``, under
-    ``_core_estimation.LADDER_LOCK`` from the first stage on)."""
+    (``_core_estimation.deck_task_start`` on ``handle``, default the deck's
+    own), so its files can then be written from the same fits
+    (``deck_task_write(handle)``, under ``handle.lock`` from the first stage
+    on)."""
     if deck.task != "identify" or not deck.stages:
         raise InputError(f"{deck.path}: task {deck.task!r} is not 'identify' (one &fit group "
                          "per stage)")
+    if handle is None:
+        handle = _check_as_read(deck)
     names, number = deck.model.names(), {s.name: k for k, s in enumerate(deck.stages, 1)}
 
     def stage_fit(name, start, exps, data, _free, prior, _limit):   # as estimation.fit's
         carried = _carried_prior(start, prior)[0] if isinstance(prior, FitResult) else None
-        _ce.deck_task_start(str(deck.path), "identify", number[name])
-        r = _ce.ladder_rungs(len(names), [])[0]
+        _ce.deck_task_start(handle, "identify", number[name])
+        r = _ce.ladder_rungs(len(names), [], handle)[0]
         free = tuple(names[i] for i in r["free"])
         prior_map = _prior_arrays(start, free, prior)[0] if carried is None else carried
         return _fit_result(start, exps, data, free, prior_map, r["fit"])
@@ -310,7 +361,7 @@ def identify_deck(deck: FitDeck) -> Any:
     stages = {s.name: (deck.experiments, s.data, s.free) + ((deck.prior,) if k == 0 and
                                                              deck.prior else ())
               for k, s in enumerate(deck.stages)}
-    with _ce.LADDER_LOCK:
+    with handle.lock:
         return _identify(deck.model, stages, 50, None, stage_fit)
 
 
