@@ -122,3 +122,39 @@ def test_a_bad_deck_holds_no_handle(tmp_path):
     with pytest.raises(InputError, match="bad.nml"):
         _core.DeckHandle(bad)
     assert _core.decks_open() == before
+
+
+def test_a_run_uses_the_deck_as_opened(tmp_path):
+    """The run reads nothing again: a CSV changed after the open changes
+    neither the rows the handle returns nor the files its run writes (the
+    path-based entries read the deck again and had to refuse this case)."""
+    deck, csv = _copy(tmp_path, DEMO, "hidden_effect.nml", "hidden_effect.csv")
+    with _core.DeckHandle(deck) as handle:
+        rows = handle.data()
+        csv.write_text("\n".join(csv.read_text().splitlines()[:-1]) + "\n")   # a row less
+        assert len(handle.data()[1]) == len(rows[1]) == handle.values()["ndata"]
+        _ce.deck_task_start(handle, "fit")
+        files = _ce.deck_task_write(handle)
+    residuals = next(Path(p) for p in files if p.endswith("_residuals.csv"))
+    assert len(residuals.read_text().splitlines()) == len(rows[1]) + 1    # header + rows
+
+
+def test_identify_stages_in_order_on_a_handle(tmp_path):
+    """The stages of an identify deck start in order on its handle and the
+    files are written only from all of them."""
+    deck = _copy(tmp_path, SEED, "identify_three_stages.nml", "table05_data.csv",
+                 "table16_data.csv", "table23_data.csv")[0]
+    with _core.DeckHandle(deck) as handle:
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_start(handle, "identify", 2)
+        assert str(err.value) == "stage: 2, expected 1 (the stages in order)"
+        with pytest.raises(InputError, match="^ladder: no ended ladder of "):
+            _ce.deck_task_write(handle)
+        _ce.deck_task_start(handle, "identify", 1)
+        with pytest.raises(InputError) as err:
+            _ce.deck_task_write(handle)
+        assert str(err.value) == ("identify: 1 of 3 stages fitted, expected all "
+                                  "(deck_run_start each stage first)")
+        with pytest.raises(InputError) as err:     # the stage's ladder has one rung
+            _core._call(_core._deck_api.api_deck_handle_rung, handle.id, 2, 3)
+        assert str(err.value) == "ladder: rung 2, expected 1..1 (start and step the deck first)"

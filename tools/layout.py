@@ -51,8 +51,19 @@ KEPT = ("api", "app")
 
 
 def sources() -> list[str]:
-    """The files directly under fortran/ (the ones to place)."""
+    """The files directly under fortran/ (the ones still to move)."""
     return sorted(p.name for p in (ROOT / "fortran").iterdir() if p.is_file())
+
+
+def located() -> dict[str, Path]:
+    """Every library source by name: directly under fortran/ or already in
+    a layer folder (after the move)."""
+    found = {name: ROOT / "fortran" / name for name in sources()}
+    for layer in LAYERS:
+        folder = ROOT / "fortran" / layer
+        if folder.is_dir():
+            found.update({p.name: p for p in folder.iterdir() if p.is_file()})
+    return found
 
 
 def placement() -> dict[str, str]:
@@ -70,24 +81,25 @@ def check() -> list[str]:
     """Problems: a source without a layer, a layer entry without a file, a
     module using one of a later layer."""
     where = placement()
-    present = set(sources())
+    files = located()
+    present = set(files)
     problems = [f"fortran/{n}: no layer in tools/layout.py LAYERS" for n in sorted(present)
                 if n not in where]
     problems += [f"fortran/{n}: listed in LAYERS ({where[n]}) but absent"
                  for n in sorted(where) if n not in present]
-    problems += check_uses(where, present)
+    problems += check_uses(where, files)
     return problems
 
 
-def check_uses(where: dict[str, str], present: set[str]) -> list[str]:
+def check_uses(where: dict[str, str], files: dict[str, Path]) -> list[str]:
     """A module may use modules of its own layer and of lower layers only."""
     order = list(LAYERS)
-    module_layer = {n.rsplit(".", 1)[0]: where[n] for n in present if n in where}
+    module_layer = {n.rsplit(".", 1)[0].lower(): where[n] for n in files if n in where}
     problems = []
-    for name in sorted(present):
+    for name in sorted(files):
         if name not in where or name.endswith(".inc"):
             continue
-        text = (ROOT / "fortran" / name).read_text()
+        text = files[name].read_text()
         for used in sorted(set(re.findall(r"^\s*use\s+(beamid_\w+)", text, re.M | re.I))):
             layer = module_layer.get(used.lower())
             if layer and order.index(layer) > order.index(where[name]):
@@ -130,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
         print("\n".join(problems), file=sys.stderr)
         return 1
     if args.check:
-        print(f"layout: {len(sources())} files in {len(LAYERS)} layers, uses in layer order")
+        print(f"layout: {len(located())} files in {len(LAYERS)} layers ({len(sources())} to "
+              "move), uses in layer order")
         return 0
     pairs = moves()
     if not args.dry_run:
