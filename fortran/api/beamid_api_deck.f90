@@ -77,8 +77,9 @@ contains
         end if
     end subroutine put_errors
 
-    !> Read and validate a deck. sizes: nbeams, nparams, nwrt, nt (output
-    !! times), nexp, nfree, nprior, ncand, ndata (measurement rows), has_load,
+    !> The sizes and scalars of the deck of `handle` (api_deck_open). sizes:
+    !! nbeams, nparams, nwrt, nt (output times), nexp, nfree, nprior, ncand,
+    !! ndata (measurement rows), has_load,
     !! shape_points, fe_elements_per_beam, fe_moment_form, fe_rotary_inertia,
     !! fe_point_masses, fe_steps, sim_elements_per_beam, sim_integrator,
     !! sim_friction, max_iter, load_kind. reals: load fx, fy, moment,

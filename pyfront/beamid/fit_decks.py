@@ -113,7 +113,9 @@ def deck_handle(deck: Any) -> _core.DeckHandle | None:
     deck was not read by read_deck, its handle was closed, or its ``path``
     was replaced since)."""
     handle = getattr(deck, "handle", None)
-    if handle is None or handle.closed or Path(handle.path) != Path(deck.path):
+    if not isinstance(handle, _core.DeckHandle) or handle.closed:
+        return None
+    if Path(handle.path) != Path(deck.path):
         return None
     return handle
 
