@@ -157,4 +157,4 @@ def test_identify_stages_in_order_on_a_handle(tmp_path):
                                   "(deck_run_start each stage first)")
         with pytest.raises(InputError) as err:     # the stage's ladder has one rung
             _core._call(_core._deck_api.api_deck_handle_rung, handle.id, 2, 3)
-        assert str(err.value) == "ladder: rung 2, expected 1..1 (start and step the deck first)"
+        assert str(err.value) == "ladder: rung 2, expected 1..1 (start and step a ladder first)"

@@ -24,8 +24,7 @@ module beamid_api_deck
     use beamid_tasks, only: deck_experiments
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
-    use beamid_ladder, only: ladder_t, diag_out_t, cand_set_t
-    use beamid_api_marshal, only: copy_fit, copy_diag
+    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
@@ -128,18 +127,21 @@ contains
         end if
         text = t
         end associate
-    contains
-        pure integer function nsize_i(a)
-            integer, allocatable, intent(in) :: a(:)
-            nsize_i = 0
-            if (allocated(a)) nsize_i = size(a)
-        end function nsize_i
-        pure integer function nsize_r(a)
-            real(dp), allocatable, intent(in) :: a(:)
-            nsize_r = 0
-            if (allocated(a)) nsize_r = size(a)
-        end function nsize_r
     end subroutine api_deck_handle_sizes
+
+    !> size(a), 0 when a is not allocated.
+    pure integer function nsize_i(a)
+        integer, allocatable, intent(in) :: a(:)
+        nsize_i = 0
+        if (allocated(a)) nsize_i = size(a)
+    end function nsize_i
+
+    !> size(a), 0 when a is not allocated.
+    pure integer function nsize_r(a)
+        real(dp), allocatable, intent(in) :: a(:)
+        nsize_r = 0
+        if (allocated(a)) nsize_r = size(a)
+    end function nsize_r
 
     pure integer function nexp(d)
         type(deck_t), intent(in) :: d
@@ -172,8 +174,8 @@ contains
         real(dp), allocatable :: values(:, :)
         if (.not. handle_ok(handle, code, message)) return
         associate (d => slots(handle)%run%deck)
-        if (size(d%params) /= nparams .or. nexp(d) /= nexp_ .or. nsize(d%wrt) /= nwrt .or. &
-            nsize(d%free) /= nfree .or. nsize(d%prior_index) /= nprior .or. &
+        if (size(d%params) /= nparams .or. nexp(d) /= nexp_ .or. nsize_i(d%wrt) /= nwrt .or. &
+            nsize_i(d%free) /= nfree .or. nsize_i(d%prior_index) /= nprior .or. &
             nsize_r(d%sim_t_out) /= nt) then
             code = int(ERR_INPUT, c_int)
             message = d%path//': nparams = '//fmt_int(int(nparams))//', nexp = '// &
@@ -197,20 +199,9 @@ contains
             prior_sigma = d%prior_sigma(:nprior)
         end if
         end associate
-    contains
-        pure integer function nsize(a)
-            integer, allocatable, intent(in) :: a(:)
-            nsize = 0
-            if (allocated(a)) nsize = size(a)
-        end function nsize
-        pure integer function nsize_r(a)
-            real(dp), allocatable, intent(in) :: a(:)
-            nsize_r = 0
-            if (allocated(a)) nsize_r = size(a)
-        end function nsize_r
     end subroutine api_deck_handle_arrays
 
-!> Read and validate the deck at `path` and the measurement files it names
+    !> Read and validate the deck at `path` and the measurement files it names
     !! (once: beamid_deck_run deck_run_open) and hold it under `handle` (> 0)
     !! until api_deck_close(handle). A deck with problems is not held
     !! (handle 0): every problem, one per line, in message.
@@ -358,18 +349,8 @@ contains
         character(len=256), intent(out) :: message
         effect = ''
         if (.not. handle_ok(handle, code, message)) return
-        associate (lad => slots(handle)%run%lad)
-            if (.not. rung_ok(lad, k, nparams, code, message)) return
-            associate (r => lad%rungs(k))
-                info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
-                free_idx(:size(r%fit%free)) = r%fit%free
-                added(:size(r%params)) = r%params
-                removed(:size(r%removed)) = r%removed
-                start = r%start
-                nominal = r%nominal
-                effect = r%effect
-            end associate
-        end associate
+        call rung_out(slots(handle)%run%lad, k, nparams, whose(handle), info, free_idx, added, &
+                      removed, start, nominal, effect, code, message)
     end subroutine api_deck_handle_rung
 
     !> The fit of rung k of the ladder of `handle` (outputs as
@@ -387,25 +368,11 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        type(status_t) :: stat
         note = ''
         if (.not. handle_ok(handle, code, message)) return
-        if (.not. rung_ok(slots(handle)%run%lad, k, nparams, code, message)) return
-        associate (f => slots(handle)%run%lad%rungs(k)%fit)
-            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
-                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
-                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
-                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
-                    ' of the deck of handle '//fmt_int(int(handle))//')')
-                call status_out(stat, code, message)
-                return
-            end if
-            info(1) = int(f%stop, c_int)
-            if (allocated(f%note)) note = f%note
-            if (allocated(f%note)) message = f%note
-            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                          log_cost, log_lambda, log_step, log_params)
-        end associate
+        call rung_fit_out(slots(handle)%run%lad, k, nparams, nfree, nrow, whose(handle), params, &
+                          sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                          log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_deck_handle_fit
 
     !> The diagnosis of rung k of the ladder of `handle` (outputs as
@@ -423,60 +390,19 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        type(diag_out_t) :: none
-        type(status_t) :: stat
         notes = ''
         if (.not. handle_ok(handle, code, message)) return
-        associate (lad => slots(handle)%run%lad)
-            if (rung_ok(lad, k, nparams, code, message)) then
-                if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
-                    call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, &
-                                   cstats, pstats, refit_params, ranking, cosine, dstats, &
-                                   refit_start, sep_t, mstats, mesh_params, kept, notes)
-                    return
-                end if
-                call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
-                                ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
-                                fmt_int(size(lad%cs%cands))//' candidates of '// &
-                                fmt_int(cand_params_size(lad%cs))//' parameters (the deck '// &
-                                'of handle '//fmt_int(int(handle))//')')
-                call status_out(stat, code, message)
-            end if
-            call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
-                           pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
-                           mstats, mesh_params, kept, notes)
-        end associate
+        call rung_diag_out(slots(handle)%run%lad, k, nparams, ncand, ncandp, whose(handle), &
+                           cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
+                           sep_t, mstats, mesh_params, kept, notes, code, message)
     end subroutine api_deck_handle_diag
 
-    !> Is k a rung of lad, of nparams parameters? (else ERR_INPUT naming k or nparams)
-    logical function rung_ok(lad, k, nparams, code, message)
-        type(ladder_t), intent(in) :: lad
-        integer(c_int), intent(in) :: k, nparams
-        integer(c_int), intent(out) :: code
-        character(len=*), intent(out) :: message
-        type(status_t) :: stat
-        rung_ok = k >= 1 .and. k <= lad%n
-        if (.not. rung_ok) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
-                            ', expected 1..'//fmt_int(lad%n)//' (start and step the deck first)')
-        else if (nparams /= size(lad%rungs(k)%start)) then
-            rung_ok = .false.
-            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
-                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
-                            ' (the parameters of the deck)')
-        end if
-        call status_out(stat, code, message)
-    end function rung_ok
-
-    !> The parameters of all candidates of cs (ncandp of api_deck_handle_diag).
-    pure integer function cand_params_size(cs)
-        type(cand_set_t), intent(in) :: cs
-        integer :: c
-        cand_params_size = 0
-        do c = 1, size(cs%cands)
-            cand_params_size = cand_params_size + size(cs%cands(c)%params)
-        end do
-    end function cand_params_size
+    !> The deck of handle, as refusals name its ladder.
+    function whose(handle) result(text)
+        integer(c_int), intent(in) :: handle
+        character(len=:), allocatable :: text
+        text = 'the deck of handle '//fmt_int(int(handle))
+    end function whose
 
     !> Write the files of the deck of `handle` from the ladder (or the
     !! stages) api_deck_handle_start started and api_deck_handle_step ended

@@ -33,7 +33,7 @@ module beamid_api_estimation
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
-    use beamid_api_marshal, only: copy_fit, copy_diag
+    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out
     implicit none
     private
 
@@ -673,17 +673,8 @@ contains
         character(len=64), intent(out) :: effect
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        effect = ''
-        if (.not. rung_ok(k, nparams, code, message)) return
-        associate (r => lad%rungs(k))
-            info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
-            free_idx(:size(r%fit%free)) = r%fit%free
-            added(:size(r%params)) = r%params
-            removed(:size(r%removed)) = r%removed
-            start = r%start
-            nominal = r%nominal
-            effect = r%effect
-        end associate
+        call rung_out(lad, k, nparams, 'the ladder started last', info, free_idx, added, &
+                      removed, start, nominal, effect, code, message)
     end subroutine api_ladder_rung
 
     !> The fit of rung k of the ladder started last (outputs as api_fit_effect).
@@ -700,24 +691,9 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        type(status_t) :: stat
-        note = ''
-        if (.not. rung_ok(k, nparams, code, message)) return
-        associate (f => lad%rungs(k)%fit)
-            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
-                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
-                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
-                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
-                    ' of the ladder started last)')
-                call status_out(stat, code, message)
-                return
-            end if
-            info(1) = int(f%stop, c_int)
-            if (allocated(f%note)) note = f%note
-            if (allocated(f%note)) message = f%note
-            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                          log_cost, log_lambda, log_step, log_params)
-        end associate
+        call rung_fit_out(lad, k, nparams, nfree, nrow, 'the ladder started last', params, &
+                          sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                          log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_ladder_fit
 
     !> The diagnosis of rung k of the ladder started last (outputs as
@@ -735,58 +711,10 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        type(diag_out_t) :: none
-        type(status_t) :: stat
-        if (rung_ok(k, nparams, code, message)) then
-            if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
-                call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
-                               pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
-                               mstats, mesh_params, kept, notes)
-                return
-            end if
-            call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
-                            ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
-                            fmt_int(size(lad%cs%cands))//' candidates of '// &
-                            fmt_int(cand_params_size(lad%cs))//' parameters (the ladder '// &
-                            'started last)')
-            call status_out(stat, code, message)
-        end if
-        call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
-                       pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
-                       mesh_params, kept, notes)
+        call rung_diag_out(lad, k, nparams, ncand, ncandp, 'the ladder started last', cstats, &
+                           pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                           mstats, mesh_params, kept, notes, code, message)
     end subroutine api_ladder_diag
-
-    !> Is k a rung of the ladder started last, of nparams parameters? (else
-    !! ERR_INPUT naming k or nparams)
-    logical function rung_ok(k, nparams, code, message)
-        integer(c_int), intent(in) :: k, nparams
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(status_t) :: stat
-        integer :: n
-        n = lad%n
-        rung_ok = k >= 1 .and. k <= n
-        if (.not. rung_ok) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
-                            ', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
-        else if (nparams /= size(lad%rungs(k)%start)) then
-            rung_ok = .false.
-            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
-                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
-                            ' (the parameters of the ladder started last)')
-        end if
-        call status_out(stat, code, message)
-    end function rung_ok
-
-    !> The parameters of all candidates of cs (ncandp of api_ladder_diag).
-    pure integer function cand_params_size(cs)
-        type(cand_set_t), intent(in) :: cs
-        integer :: c
-        cand_params_size = 0
-        do c = 1, size(cs%cands)
-            cand_params_size = cand_params_size + size(cs%cands(c)%params)
-        end do
-    end function cand_params_size
 
     !> Start the ladder of the estimation deck at `path` run as `task` (blank:
     !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:

@@ -1,17 +1,20 @@
 !> The binding's copies of library results into the output arrays of its
 !! entries (no f2py entry here: a module of the core library that the f2py
-!! modules of fortran/api share): a fit's outputs (copy_fit) and a
-!! diagnosis' (copy_diag), for the entries on a problem
-!! (beamid_api_estimation) and on a deck's run (beamid_api_deck).
+!! modules of fortran/api share): a fit's outputs (copy_fit), a diagnosis'
+!! (copy_diag) and a ladder's rungs (rung_out, rung_fit_out,
+!! rung_diag_out: the caller's sizes checked against the ladder), for the
+!! entries on a problem (beamid_api_estimation) and on a deck's run
+!! (beamid_api_deck).
 module beamid_api_marshal
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
+    use beamid_status, only: status_t, status_out, set_status, fmt_int, ERR_INPUT
     use beamid_estimation, only: fit_result_t
-    use beamid_ladder, only: cand_set_t, diag_out_t
+    use beamid_ladder, only: cand_set_t, diag_out_t, ladder_t
     implicit none
     private
 
-    public :: copy_fit, copy_diag
+    public :: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, cand_params_size
 
 contains
 
@@ -136,4 +139,136 @@ contains
             b2r = merge(1.0_dp, 0.0_dp, flag)
         end function b2r
     end subroutine copy_diag
+
+    !> Rung k of lad: effect ('start', the number of the candidate added, or
+    !! 'mesh (N elements per beam)'), info = [free parameters, elements per
+    !! beam of the releases (0: as given), the start the verdict's refit kept
+    !! (START_*), data rows, the fits' iteration limit], the free parameters,
+    !! those the rung switched on and those it set back (index lists, zeros
+    !! after), where its fit started and the nominal model of its refits.
+    !! `whose` names the ladder in refusals.
+    subroutine rung_out(lad, k, nparams, whose, info, free_idx, added, removed, start, nominal, &
+                        effect, code, message)
+        type(ladder_t), intent(in) :: lad
+        integer(c_int), intent(in) :: k, nparams
+        character(len=*), intent(in) :: whose
+        integer(c_int), intent(out) :: info(5), free_idx(nparams), added(nparams)
+        integer(c_int), intent(out) :: removed(nparams)
+        real(c_double), intent(out) :: start(nparams), nominal(nparams)
+        character(len=*), intent(out) :: effect
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        effect = ''
+        if (.not. rung_ok(lad, k, nparams, whose, code, message)) return
+        associate (r => lad%rungs(k))
+            info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
+            free_idx(:size(r%fit%free)) = r%fit%free
+            added(:size(r%params)) = r%params
+            removed(:size(r%removed)) = r%removed
+            start = r%start
+            nominal = r%nominal
+            effect = r%effect
+        end associate
+    end subroutine rung_out
+
+    !> The fit of rung k of lad (outputs as api_fit_effect; copy_fit).
+    subroutine rung_fit_out(lad, k, nparams, nfree, nrow, whose, params, sigmas, cov, corr, &
+                            flags, predictions, normalized, stats, log_cost, log_lambda, &
+                            log_step, log_params, info, code, message, note)
+        type(ladder_t), intent(in) :: lad
+        integer(c_int), intent(in) :: k, nparams, nfree, nrow
+        character(len=*), intent(in) :: whose
+        real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
+        real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
+        integer(c_int), intent(out) :: flags(:), info(2)
+        real(c_double), intent(inout) :: log_cost(:), log_lambda(:), log_step(:), &
+                                         log_params(:, :)
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message, note
+        type(status_t) :: stat
+        note = ''
+        if (.not. rung_ok(lad, k, nparams, whose, code, message)) return
+        associate (f => lad%rungs(k)%fit)
+            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
+                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
+                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
+                    ' of '//whose//')')
+                call status_out(stat, code, message)
+                return
+            end if
+            info(1) = int(f%stop, c_int)
+            if (allocated(f%note)) note = f%note
+            if (allocated(f%note)) message = f%note
+            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
+                          log_cost, log_lambda, log_step, log_params)
+        end associate
+    end subroutine rung_fit_out
+
+    !> The diagnosis of rung k of lad (outputs as api_problem_diagnose;
+    !! copy_diag), zeros after a refusal.
+    subroutine rung_diag_out(lad, k, nparams, ncand, ncandp, whose, cstats, pstats, &
+                             refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                             mesh_params, kept, notes, code, message)
+        type(ladder_t), intent(in) :: lad
+        integer(c_int), intent(in) :: k, nparams, ncand, ncandp
+        character(len=*), intent(in) :: whose
+        real(c_double), intent(out) :: cstats(:, :), pstats(:, :), refit_params(:, :)
+        real(c_double), intent(out) :: cosine(:, :), dstats(:), sep_t(:), mstats(:)
+        real(c_double), intent(out) :: mesh_params(:)
+        integer(c_int), intent(out) :: ranking(:), refit_start(:), kept(:)
+        character(len=*), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        type(diag_out_t) :: none
+        type(status_t) :: stat
+        if (rung_ok(lad, k, nparams, whose, code, message)) then
+            if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
+                call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
+                               pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                               mstats, mesh_params, kept, notes)
+                return
+            end if
+            call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
+                            ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
+                            fmt_int(size(lad%cs%cands))//' candidates of '// &
+                            fmt_int(cand_params_size(lad%cs))//' parameters ('//whose//')')
+            call status_out(stat, code, message)
+        end if
+        call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
+                       pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
+                       mesh_params, kept, notes)
+    end subroutine rung_diag_out
+
+    !> Is k a rung of lad, of nparams parameters? (else ERR_INPUT naming k
+    !! or nparams; `whose` names the ladder)
+    logical function rung_ok(lad, k, nparams, whose, code, message)
+        type(ladder_t), intent(in) :: lad
+        integer(c_int), intent(in) :: k, nparams
+        character(len=*), intent(in) :: whose
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        type(status_t) :: stat
+        rung_ok = k >= 1 .and. k <= lad%n
+        if (.not. rung_ok) then
+            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
+                            ', expected 1..'//fmt_int(lad%n)//' (start and step a ladder first)')
+        else if (nparams /= size(lad%rungs(k)%start)) then
+            rung_ok = .false.
+            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
+                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
+                            ' (the parameters of '//whose//')')
+        end if
+        call status_out(stat, code, message)
+    end function rung_ok
+
+    !> The parameters of all candidates of cs (ncandp of the diagnosis entries).
+    pure integer function cand_params_size(cs)
+        type(cand_set_t), intent(in) :: cs
+        integer :: c
+        cand_params_size = 0
+        do c = 1, size(cs%cands)
+            cand_params_size = cand_params_size + size(cs%cands(c)%params)
+        end do
+    end function cand_params_size
 end module beamid_api_marshal
