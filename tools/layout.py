@@ -42,6 +42,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "inverse": ("beamid_estimation.f90", "beamid_chain_fit.f90", "beamid_design.f90",
                 "beamid_observations.f90", "beamid_effects.f90",
                 "beamid_static_experiments.f90", "beamid_dynamic_experiments.f90",
+                "beamid_family.f90", "beamid_families.f90", "beamid_problem.f90",
                 "beamid_inverse.f90", "beamid_dyn_diagnosis.f90", "beamid_ladder.f90"),
     "io": ("beamid_namelist.f90", "beamid_measurements.f90", "beamid_deck.f90",
            "beamid_tasks.f90", "beamid_deck_run.f90"),
