@@ -2,9 +2,17 @@
 !! runners: Python reads decks and measurement CSVs and runs decks through
 !! the same Fortran as beamid-batch (docs/decks.md).
 !!
-!! A deck is read twice: api_deck_sizes validates it and returns the array
-!! sizes and the scalars, api_deck_arrays fills the arrays (no state is kept
-!! between the calls). Messages: every problem, one per line.
+!! A deck is read once per run: api_deck_open reads and validates it and the
+!! measurement files it names (beamid_deck_run) into a slot of this module
+!! and returns its handle; the caller owns the handle (the Python object
+!! beamid._core.DeckHandle) and releases it with api_deck_close. Every other
+!! deck entry takes the handle: the sizes and scalars (api_deck_handle_sizes),
+!! the arrays (api_deck_handle_arrays), the measurement rows
+!! (api_deck_handle_data), the task run at once (api_deck_handle_task), or an
+!! estimation task in steps (api_deck_handle_start, _step, then the rungs'
+!! results returned by api_deck_handle_rung, _fit, _diag, and the files
+!! written by api_deck_handle_write). No slot is found by path; what a run
+!! computed is held by its handle only. Messages: every problem, one per line.
 !! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
 !! declares output scalars = 0 (characters blank), so no entry zeroes them.
 module beamid_api_deck
@@ -12,20 +20,40 @@ module beamid_api_deck
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
                              exit_code, set_status
-    use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_experiments
+    use beamid_deck, only: deck_t
+    use beamid_tasks, only: deck_experiments
+    use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
+                               deck_run_step, deck_run_write
+    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
     implicit none
     private
 
-    public :: api_deck_sizes, api_deck_arrays, api_run_deck, api_measurements_size, &
+    public :: api_deck_open, api_deck_close, api_deck_handle_sizes, api_deck_handle_arrays, &
+              api_deck_handle_data_size, api_deck_handle_data, api_deck_handle_task, &
+              api_deck_handle_start, api_deck_handle_step, api_deck_handle_rung, &
+              api_deck_handle_fit, api_deck_handle_diag, api_deck_handle_write, &
+              api_deck_handles_open
+    public :: api_measurements_size, &
               api_measurements_read, api_exit_code, api_quantity_labels, &
               api_observation_table, api_observation_parse
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
+
+    !> A slot of the handle table: the run of one open deck (unallocated: free).
+    type :: slot_t
+        type(deck_run_t), allocatable :: run
+    end type slot_t
+
+    !> The decks opened by api_deck_open and not yet closed: slots(h)%run is
+    !! the run of handle h. Each slot belongs to the caller that holds its
+    !! handle (one Python DeckHandle object); the binding never looks a slot
+    !! up by anything but its handle. (Slots move, never copy: a deck_t
+    !! cannot be assigned, beamid_deck_run.)
+    type(slot_t), allocatable, save :: slots(:)
 
 contains
 
@@ -48,8 +76,9 @@ contains
         end if
     end subroutine put_errors
 
-    !> Read and validate a deck. sizes: nbeams, nparams, nwrt, nt (output
-    !! times), nexp, nfree, nprior, ncand, ndata (measurement rows), has_load,
+    !> The sizes and scalars of the deck of `handle` (api_deck_open). sizes:
+    !! nbeams, nparams, nwrt, nt (output times), nexp, nfree, nprior, ncand,
+    !! ndata (measurement rows), has_load,
     !! shape_points, fe_elements_per_beam, fe_moment_form, fe_rotary_inertia,
     !! fe_point_masses, fe_steps, sim_elements_per_beam, sim_integrator,
     !! sim_friction, max_iter, load_kind. reals: load fx, fy, moment,
@@ -59,23 +88,18 @@ contains
     !! lines (deck_t%published), then for task identify one line per stage
     !! (deck_t%stage_text), then the &sensor table and the &fit groups that
     !! read a logger file (deck_t%channel_text).
-    subroutine api_deck_sizes(path, fit_keys, sizes, reals, text, code, message)
-        character(len=*), intent(in) :: path
-        !> &fit items given apart (beamid_deck read_deck; blank: none)
-        character(len=*), intent(in) :: fit_keys
+    subroutine api_deck_handle_sizes(handle, sizes, reals, text, code, message)
+        integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: sizes(21)
         real(c_double), intent(out) :: reals(12)
         character(len=65536), intent(out) :: text
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
         character(len=:), allocatable :: t
         integer :: i
         text = ''
-        call read_deck(trim(path), d, stat, fit_keys)
-        call put_errors(d, stat, code, message)
-        if (stat%code /= STATUS_OK) return
+        if (.not. handle_ok(handle, code, message)) return
+        associate (d => slots(handle)%run%deck)
         sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
                      nexp(d), nsize_i(d%free), nsize_i(d%prior_index), ncand(d), &
                      nsize_r(d%data%value), merge(1, 0, d%has_load), d%shape_points, &
@@ -85,7 +109,7 @@ contains
         reals = [d%load%fx, d%load%fy, d%load%moment, d%load%wire_length, d%tol, d%fe_tol, &
                  d%sim_dt, d%sim_rtol, d%sim_atol, d%sim_motor_gain, d%sim_friction_velocity, &
                  d%alpha]
-        t = d%task//new_line('a')//d%output//new_line('a')
+        t = slots(handle)%run%task//new_line('a')//slots(handle)%run%output//new_line('a')
         if (allocated(d%data_path)) t = t//d%data_path
         t = t//new_line('a')
         do i = 1, nexp(d)
@@ -99,23 +123,27 @@ contains
         if (allocated(d%channel_text)) t = t//d%channel_text   ! &sensor 'N', logger 'C' lines
         if (len(t) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the names of the deck are too long (over '// &
+            message = d%path//': the names of the deck are too long (over '// &
                       fmt_int(TEXT_LEN)//' characters)'
             return
         end if
         text = t
-    contains
-        pure integer function nsize_i(a)
-            integer, allocatable, intent(in) :: a(:)
-            nsize_i = 0
-            if (allocated(a)) nsize_i = size(a)
-        end function nsize_i
-        pure integer function nsize_r(a)
-            real(dp), allocatable, intent(in) :: a(:)
-            nsize_r = 0
-            if (allocated(a)) nsize_r = size(a)
-        end function nsize_r
-    end subroutine api_deck_sizes
+        end associate
+    end subroutine api_deck_handle_sizes
+
+    !> size(a), 0 when a is not allocated.
+    pure integer function nsize_i(a)
+        integer, allocatable, intent(in) :: a(:)
+        nsize_i = 0
+        if (allocated(a)) nsize_i = size(a)
+    end function nsize_i
+
+    !> size(a), 0 when a is not allocated.
+    pure integer function nsize_r(a)
+        real(dp), allocatable, intent(in) :: a(:)
+        nsize_r = 0
+        if (allocated(a)) nsize_r = size(a)
+    end function nsize_r
 
     pure integer function nexp(d)
         type(deck_t), intent(in) :: d
@@ -129,14 +157,14 @@ contains
         if (allocated(d%candidates)) ncand = size(d%candidates)
     end function ncand
 
-    !> The arrays of a deck (sizes from api_deck_sizes): parameters, wrt and
+    !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters, wrt and
     !! free parameter indices (1-based), output times, experiments (kind 1
     !! tip, 2 wire, 3 release and 12 values in beamid_inverse's EV_* layout:
     !! fx, fy, moment, wire_length, ...; beamid_tasks deck_experiments), priors.
-    subroutine api_deck_arrays(path, fit_keys, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
-                               wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
-                               prior_mean, prior_sigma, code, message)
-        character(len=*), intent(in) :: path, fit_keys
+    subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
+                                      wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
+                                      prior_mean, prior_sigma, code, message)
+        integer(c_int), intent(in) :: handle
         integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
         real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(18, nexp_)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
@@ -144,16 +172,18 @@ contains
         integer(c_int), intent(out) :: prior_index(nprior)
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
         integer, allocatable :: kinds(:)
         real(dp), allocatable :: values(:, :)
-        call read_deck(trim(path), d, stat, fit_keys)
-        call put_errors(d, stat, code, message)
-        if (stat%code /= STATUS_OK) return
-        if (size(d%params) /= nparams .or. nexp(d) /= nexp_) then
+        if (.not. handle_ok(handle, code, message)) return
+        associate (d => slots(handle)%run%deck)
+        if (size(d%params) /= nparams .or. nexp(d) /= nexp_ .or. nsize_i(d%wrt) /= nwrt .or. &
+            nsize_i(d%free) /= nfree .or. nsize_i(d%prior_index) /= nprior .or. &
+            nsize_r(d%sim_t_out) /= nt) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the deck changed between two reads'
+            message = d%path//': nparams = '//fmt_int(int(nparams))//', nexp = '// &
+                      fmt_int(int(nexp_))//', nwrt = '//fmt_int(int(nwrt))//', nt = '// &
+                      fmt_int(int(nt))//', nfree = '//fmt_int(int(nfree))//', nprior = '// &
+                      fmt_int(int(nprior))//', expected the sizes of api_deck_handle_sizes'
             return
         end if
         params = d%params
@@ -170,33 +200,293 @@ contains
             prior_mean = d%prior_mean(:nprior)
             prior_sigma = d%prior_sigma(:nprior)
         end if
-    end subroutine api_deck_arrays
+        end associate
+    end subroutine api_deck_handle_arrays
 
-    !> Read a deck and run its task as beamid-batch does (beamid_tasks): the
-    !! files written, one per line, in `written`. A non-blank `task` replaces
-    !! the deck's (`beamid fit|compare|diagnose|improve DECK`): an estimation
-    !! task for an estimation deck only.
-    subroutine api_run_deck(path, task, written, summary, code, message)
-        character(len=*), intent(in) :: path, task
+    !> Read and validate the deck at `path` and the measurement files it names
+    !! (once: beamid_deck_run deck_run_open) and hold it under `handle` (> 0)
+    !! until api_deck_close(handle). A deck with problems is not held
+    !! (handle 0): every problem, one per line, in message. fit_keys: &fit
+    !! items given apart (beamid_deck read_deck; blank: none).
+    subroutine api_deck_open(path, fit_keys, handle, code, message)
+        character(len=*), intent(in) :: path, fit_keys
+        integer(c_int), intent(out) :: handle
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(slot_t), allocatable :: grown(:)
+        type(status_t) :: stat
+        integer :: h, i
+        if (.not. allocated(slots)) allocate (slots(0))
+        h = 0
+        do i = 1, size(slots)
+            if (allocated(slots(i)%run)) cycle
+            h = i
+            exit
+        end do
+        if (h == 0) then
+            allocate (grown(2*size(slots) + 1))
+            do i = 1, size(slots)
+                call move_alloc(slots(i)%run, grown(i)%run)
+            end do
+            h = size(slots) + 1
+            call move_alloc(grown, slots)
+        end if
+        allocate (slots(h)%run)
+        call deck_run_open(trim(path), slots(h)%run, stat, fit_keys)
+        call put_errors(slots(h)%run%deck, stat, code, message)
+        handle = 0
+        if (stat%code == STATUS_OK) then
+            handle = int(h, c_int)
+        else
+            deallocate (slots(h)%run)
+        end if
+    end subroutine api_deck_open
+
+    !> Release the deck of `handle` and what its run computed (a closed or
+    !! unknown handle: nothing happens).
+    subroutine api_deck_close(handle)
+        integer(c_int), intent(in) :: handle
+        if (.not. allocated(slots)) return
+        if (handle < 1 .or. handle > size(slots)) return
+        if (allocated(slots(handle)%run)) deallocate (slots(handle)%run)
+    end subroutine api_deck_close
+
+    !> The number of decks held (handles not yet closed).
+    subroutine api_deck_handles_open(n)
+        integer(c_int), intent(out) :: n
+        integer :: i
+        n = 0
+        if (.not. allocated(slots)) return
+        do i = 1, size(slots)
+            if (allocated(slots(i)%run)) n = n + 1_c_int
+        end do
+    end subroutine api_deck_handles_open
+
+    !> Is handle an open deck? (else code ERR_INPUT naming it)
+    logical function handle_ok(handle, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        type(status_t) :: stat
+        handle_ok = allocated(slots)
+        if (handle_ok) handle_ok = handle >= 1 .and. handle <= size(slots)
+        if (handle_ok) handle_ok = allocated(slots(handle)%run)
+        if (.not. handle_ok) call set_status(stat, ERR_INPUT, 'handle', fmt_int(int(handle))// &
+                                             ', expected the handle of an open deck '// &
+                                             '(api_deck_open, not closed)')
+        call status_out(stat, code, message)
+    end function handle_ok
+
+    !> Run the task of the deck of `handle` as beamid-batch does
+    !! (beamid_deck_run deck_run_task): the files written, one per line, in
+    !! `written`. A non-blank `task` replaces the deck's (`beamid
+    !! fit|compare|diagnose|improve DECK`): an estimation task for an
+    !! estimation deck only.
+    subroutine api_deck_handle_task(handle, task, written, summary, code, message)
+        integer(c_int), intent(in) :: handle
+        character(len=*), intent(in) :: task
         character(len=65536), intent(out) :: written
         !> the summary line beamid-batch prints (run_task)
         character(len=4096), intent(out) :: summary
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        type(deck_t) :: d
         type(status_t) :: stat
         character(len=:), allocatable :: files, line
         written = ''
         summary = ''
-        call read_deck(trim(path), d, stat)
-        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-        if (stat%code == STATUS_OK) then
-            call run_task(d, files, stat, summary=line)
-            if (stat%code == STATUS_OK) call put_text(files, written)
-            if (stat%code == STATUS_OK) summary = line
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_run_task(slots(handle)%run, trim(task), files, line, stat)
+        if (stat%code == STATUS_OK) call put_text(files, written)
+        if (stat%code == STATUS_OK) summary = line
+        call put_errors(slots(handle)%run%deck, stat, code, message)
+    end subroutine api_deck_handle_task
+
+    !> Start the ladder of the estimation deck of `handle` run as `task`
+    !! (blank: the deck's; beamid_deck_run deck_run_start: the fit,
+    !! undiagnosed for fit and compare; of an identify deck the fit of
+    !! `stage`, 1-based, from the stages fitted by the calls before); step
+    !! it with api_deck_handle_step, read it with api_deck_handle_rung, _fit
+    !! and _diag, write the deck's files with api_deck_handle_write.
+    subroutine api_deck_handle_start(handle, task, stage, code, message)
+        integer(c_int), intent(in) :: handle
+        character(len=*), intent(in) :: task
+        integer(c_int), intent(in) :: stage
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(status_t) :: stat
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_run_start(slots(handle)%run, trim(task), int(stage), stat)
+        call status_out(stat, code, message)
+    end subroutine api_deck_handle_start
+
+    !> One rung of the ladder of `handle` (beamid_deck_run deck_run_step):
+    !! nrung rungs are done; done = 1 when the ladder has ended (an ended
+    !! ladder is not stepped: nrung is its count).
+    subroutine api_deck_handle_step(handle, nrung, done, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: nrung, done, code
+        character(len=65536), intent(out) :: message
+        type(status_t) :: stat
+        if (.not. handle_ok(handle, code, message)) return
+        associate (run => slots(handle)%run)
+            if (run%started .and. .not. run%lad%done) call deck_run_step(run, stat)
+            if (.not. run%started) call deck_run_step(run, stat)   ! its refusal
+            nrung = int(run%lad%n, c_int)
+            done = merge(1_c_int, 0_c_int, run%lad%done)
+        end associate
+        call status_out(stat, code, message)
+    end subroutine api_deck_handle_step
+
+    !> Rung k of the ladder of `handle` (outputs as beamid_api_estimation
+    !! api_ladder_rung): effect, info = [free parameters, elements per beam
+    !! of the releases, the start the refit kept, data rows, the fits'
+    !! iteration limit], free_idx, added, removed, start, nominal.
+    subroutine api_deck_handle_rung(handle, k, nparams, info, free_idx, added, removed, start, &
+                                    nominal, effect, code, message)
+        integer(c_int), intent(in) :: handle, k, nparams
+        integer(c_int), intent(out) :: info(5), free_idx(nparams), added(nparams)
+        integer(c_int), intent(out) :: removed(nparams)
+        real(c_double), intent(out) :: start(nparams), nominal(nparams)
+        character(len=64), intent(out) :: effect
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        effect = ''
+        if (.not. handle_ok(handle, code, message)) return
+        call rung_out(slots(handle)%run%lad, k, nparams, whose(handle), info, free_idx, added, &
+                      removed, start, nominal, effect, code, message)
+    end subroutine api_deck_handle_rung
+
+    !> The fit of rung k of the ladder of `handle` (outputs as
+    !! beamid_api_estimation api_fit_effect).
+    subroutine api_deck_handle_fit(handle, k, nparams, nfree, nrow, max_iter, params, sigmas, &
+                                   cov, corr, flags, predictions, normalized, stats, log_cost, &
+                                   log_lambda, log_step, log_params, info, code, message, note)
+        integer(c_int), intent(in) :: handle, k, nparams, nfree, nrow, max_iter
+        real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
+        real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
+        integer(c_int), intent(out) :: flags(nfree), info(2)
+        real(c_double), intent(out) :: stats(8)
+        real(c_double), intent(out) :: log_cost(max_iter + 1), log_lambda(max_iter + 1)
+        real(c_double), intent(out) :: log_step(max_iter + 1), log_params(nfree, max_iter + 1)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=8192), intent(out) :: note
+        note = ''
+        if (.not. handle_ok(handle, code, message)) return
+        call rung_fit_out(slots(handle)%run%lad, k, nparams, nfree, nrow, whose(handle), params, &
+                          sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                          log_lambda, log_step, log_params, info, code, message, note)
+    end subroutine api_deck_handle_fit
+
+    !> The diagnosis of rung k of the ladder of `handle` (outputs as
+    !! beamid_api_estimation api_problem_diagnose).
+    subroutine api_deck_handle_diag(handle, k, nparams, ncand, ncandp, cstats, pstats, &
+                                    refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                                    mstats, mesh_params, kept, notes, code, message)
+        integer(c_int), intent(in) :: handle, k, nparams, ncand, ncandp
+        real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp)
+        real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
+        integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
+        real(c_double), intent(out) :: dstats(6), sep_t(ncand), mstats(10)
+        real(c_double), intent(out) :: mesh_params(nparams)
+        integer(c_int), intent(out) :: kept(ncandp)
+        character(len=8192), intent(out) :: notes
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        notes = ''
+        if (.not. handle_ok(handle, code, message)) return
+        call rung_diag_out(slots(handle)%run%lad, k, nparams, ncand, ncandp, whose(handle), &
+                           cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
+                           sep_t, mstats, mesh_params, kept, notes, code, message)
+    end subroutine api_deck_handle_diag
+
+    !> The deck of handle, as refusals name its ladder.
+    function whose(handle) result(text)
+        integer(c_int), intent(in) :: handle
+        character(len=:), allocatable :: text
+        text = 'the deck of handle '//fmt_int(int(handle))
+    end function whose
+
+    !> Write the files of the deck of `handle` from the ladder (or the
+    !! stages) api_deck_handle_start started and api_deck_handle_step ended
+    !! (beamid_deck_run deck_run_write: all or none, the bytes beamid-batch
+    !! writes); `output`: the output prefix (blank: the deck's; beamid demo
+    !! writes its decks' files elsewhere); `written`: the files, one per line.
+    subroutine api_deck_handle_write(handle, output, written, summary, code, message)
+        integer(c_int), intent(in) :: handle
+        character(len=*), intent(in) :: output
+        character(len=65536), intent(out) :: written, message
+        !> the summary line beamid-batch prints (run_task)
+        character(len=4096), intent(out) :: summary
+        integer(c_int), intent(out) :: code
+        type(status_t) :: stat
+        character(len=:), allocatable :: files, line
+        written = ''
+        summary = ''
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_run_write(slots(handle)%run, trim(output), files, line, stat)
+        if (stat%code == STATUS_OK) call put_text(files, written)
+        if (stat%code == STATUS_OK) summary = line
+        call status_out(stat, code, message)
+    end subroutine api_deck_handle_write
+
+    !> The size of a measurement table of the deck of `handle`: stage 0 the
+    !! deck's data file, stage k the k-th stage's of an identify deck.
+    subroutine api_deck_handle_data_size(handle, stage, nrow, code, message)
+        integer(c_int), intent(in) :: handle, stage
+        integer(c_int), intent(out) :: nrow, code
+        character(len=65536), intent(out) :: message
+        nrow = 0
+        if (.not. handle_ok(handle, code, message)) return
+        if (.not. stage_ok(handle, stage, code, message)) return
+        if (stage == 0) then
+            if (allocated(slots(handle)%run%deck%data%value)) &
+                nrow = int(size(slots(handle)%run%deck%data%value), c_int)
+        else
+            nrow = int(size(slots(handle)%run%deck%stages(stage)%data%value), c_int)
         end if
-        call put_errors(d, stat, code, message)
-    end subroutine api_run_deck
+    end subroutine api_deck_handle_data_size
+
+    !> Is stage 0 or a stage of the deck of handle? (else ERR_INPUT)
+    logical function stage_ok(handle, stage, code, message)
+        integer(c_int), intent(in) :: handle, stage
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        type(status_t) :: stat
+        integer :: n
+        n = 0
+        if (allocated(slots(handle)%run%deck%stages)) n = size(slots(handle)%run%deck%stages)
+        stage_ok = stage >= 0 .and. stage <= n
+        if (.not. stage_ok) call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))// &
+                                            ', expected 0..'//fmt_int(n))
+        call status_out(stat, code, message)
+    end function stage_ok
+
+    !> The rows of a measurement table of the deck of `handle` (stage as
+    !! api_deck_handle_data_size; outputs as api_measurements_read).
+    subroutine api_deck_handle_data(handle, stage, nrow, t, value, sigma, line, quantity, &
+                                    exp_index, names, qnames, code, message)
+        integer(c_int), intent(in) :: handle, stage
+        integer(c_int), intent(in) :: nrow
+        real(c_double), intent(out) :: t(nrow), value(nrow), sigma(nrow)
+        integer(c_int), intent(out) :: line(nrow), quantity(nrow), exp_index(nrow)
+        character(len=65536), intent(out) :: names, qnames
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        names = ''
+        qnames = ''
+        if (.not. handle_ok(handle, code, message)) return
+        if (.not. stage_ok(handle, stage, code, message)) return
+        if (stage == 0) then
+            call copy_rows(slots(handle)%run%deck%data, slots(handle)%run%deck%data_path, nrow, t, &
+                           value, sigma, line, quantity, exp_index, names, qnames, code, message)
+        else
+            associate (s => slots(handle)%run%deck%stages(stage))
+                call copy_rows(s%data, s%data_path, nrow, t, value, sigma, line, quantity, &
+                               exp_index, names, qnames, code, message)
+            end associate
+        end if
+    end subroutine api_deck_handle_data
 
     !> Rows of a measurement CSV (after validation) and the longest name.
     subroutine api_measurements_size(path, nrow, code, message)
@@ -226,18 +516,43 @@ contains
         character(len=65536), intent(out) :: message
         type(measurements_t) :: data
         type(status_t) :: stat
+        names = ''
+        qnames = ''
+        call read_measurements(trim(path), data, stat)
+        call status_out(stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        call copy_rows(data, trim(path), nrow, t, value, sigma, line, quantity, exp_index, &
+                       names, qnames, code, message)
+    end subroutine api_measurements_read
+
+    !> The outputs of api_measurements_read from the rows of `data` (read
+    !! from `path`, named in messages).
+    subroutine copy_rows(data, path, nrow, t, value, sigma, line, quantity, exp_index, names, &
+                         qnames, code, message)
+        type(measurements_t), intent(in) :: data
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nrow
+        real(c_double), intent(out) :: t(nrow), value(nrow), sigma(nrow)
+        integer(c_int), intent(out) :: line(nrow), quantity(nrow), exp_index(nrow)
+        character(len=65536), intent(out) :: names, qnames
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
         character(len=:), allocatable :: joined
         character(len=:), allocatable :: seen(:)
         integer :: i, j, k, n
         names = ''
-        call read_measurements(trim(path), data, stat)
-        call status_out(stat, code, message)
-        if (stat%code /= STATUS_OK) return
-        if (size(data%value) /= nrow) then
+        qnames = ''
+        code = 0
+        message = ''
+        n = 0
+        if (allocated(data%value)) n = size(data%value)
+        if (n /= nrow) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the file changed between two reads'
+            message = path//': nrow = '//fmt_int(int(nrow))//', expected '// &
+                      fmt_int(n)//' (the rows read)'
             return
         end if
+        if (n == 0) return
         t = data%t
         value = data%value
         sigma = data%sigma
@@ -261,7 +576,7 @@ contains
         end do
         if (len(joined) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the observation names take over '//fmt_int(TEXT_LEN)// &
+            message = path//': the observation names take over '//fmt_int(TEXT_LEN)// &
                       ' characters'
             return
         end if
@@ -287,12 +602,12 @@ contains
         end do
         if (len(joined) > TEXT_LEN) then
             code = int(ERR_INPUT, c_int)
-            message = trim(path)//': the experiment names take over '//fmt_int(TEXT_LEN)// &
+            message = path//': the experiment names take over '//fmt_int(TEXT_LEN)// &
                       ' characters'
             return
         end if
         names = joined
-    end subroutine api_measurements_read
+    end subroutine copy_rows
 
     !> Names of the observation kinds 1..n (beamid_observations), one per line.
     subroutine api_quantity_labels(text)

@@ -40,6 +40,7 @@ module beamid_api_estimation
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
+    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out
     implicit none
     private
 
@@ -266,40 +267,6 @@ contains
         real(c_double), intent(out) :: p
         p = chi2_sf(real(x, dp), int(k))
     end subroutine api_chi2_sf
-
-    !> The outputs of a fit entry from a fit result: stats = chi2, chi2_prior,
-    !! cond, dof, rank, iterations, converged, nlog (names: api_code_names 5);
-    !! the log arrays hold nlog + 1 entries (entry 1 = start; the rest zero,
-    !! as f2py allocates them).
-    subroutine copy_fit(res, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                        log_cost, log_lambda, log_step, log_params)
-        type(fit_result_t), intent(in) :: res
-        real(c_double), intent(out) :: params(:), sigmas(:), cov(:, :), corr(:, :)
-        integer(c_int), intent(out) :: flags(:)
-        real(c_double), intent(out) :: predictions(:), normalized(:), stats(8)
-        real(c_double), intent(inout) :: log_cost(:), log_lambda(:), log_step(:), &
-                                         log_params(:, :)
-        integer :: n, lo
-        params = res%params
-        sigmas = res%sigmas
-        cov = res%cov
-        corr = res%corr
-        flags = int(res%flags, c_int)
-        predictions = res%predictions
-        normalized = res%normalized
-        stats = [res%chi2, res%chi2_prior, res%cond, real(res%dof, dp), real(res%rank, dp), &
-                 real(res%iterations, dp), merge(1.0_dp, 0.0_dp, res%converged), &
-                 real(res%nlog, dp)]
-        n = min(res%nlog + 1, size(log_cost))
-        ! the log runs 0:nlog; its shrink in fit_least_squares reallocates (to 1-based
-        ! bounds) only when the fit stopped before max_iter, so index from lbound
-        lo = lbound(res%log_cost, 1)
-        log_cost(1:n) = res%log_cost(lo:lo + n - 1)
-        log_lambda(1:n) = res%log_lambda(lo:lo + n - 1)
-        log_step(1:n) = res%log_step(lo:lo + n - 1)
-        lo = lbound(res%log_params, 2)
-        log_params(:, 1:n) = res%log_params(:, lo:lo + n - 1)
-    end subroutine copy_fit
 
     !> The one fit entry (beamid.fit, beamid.add_effect) on any mix of
     !! experiment families (beamid_inverse layout). A priori information is
@@ -736,94 +703,6 @@ contains
                        mesh_params, kept, notes)
     end subroutine api_problem_diagnose
 
-    !> The outputs of a diagnosis (zero when `ok` is false): cstats 18 values
-    !! per candidate, pstats 6 per candidate parameter, dstats 6 (names:
-    !! api_code_names tables 6-8); candidate state 4 (CAND_NOT_SEEN) for
-    !! effects the data rows do not see; refit_start(c) the start the refit
-    !! kept (START_*, 0: none); sep_t(c) the time of the probe row separating
-    !! rival c from the verdict; mstats the mesh test (table 9), mesh_params
-    !! its refined refit's parameters (else `params`); kept(k) 1: the
-    !! candidate parameter was tested, 0: left at null (not needed or not
-    !! determined), 2: left at null although about as good alone as the
-    !! member tested; `notes` one line per candidate (what the refit starts
-    !! gave, newline-separated).
-    subroutine copy_diag(dg, cs, ok, params, cstats, pstats, refit_params, ranking, cosine, &
-                         dstats, refit_start, sep_t, mstats, mesh_params, kept, notes)
-        type(diag_out_t), intent(in) :: dg
-        type(cand_set_t), intent(in) :: cs
-        logical, intent(in) :: ok
-        real(dp), intent(in) :: params(:)
-        real(c_double), intent(out) :: cstats(:, :), pstats(:, :), refit_params(:, :)
-        real(c_double), intent(out) :: cosine(:, :), dstats(:), sep_t(:), mstats(:)
-        real(c_double), intent(out) :: mesh_params(:)
-        integer(c_int), intent(out) :: ranking(:), refit_start(:), kept(:)
-        character(len=*), intent(out) :: notes
-        character(len=:), allocatable :: text
-        integer :: c, k, j, nf, r, u
-
-        mesh_params = params
-        notes = ''
-        if (.not. ok) return
-        nf = 0       ! a rung that ended at its fit (fit, compare decks): not diagnosed
-        if (allocated(dg%base%free)) nf = size(dg%base%free)
-        text = ''
-        k = 0
-        do c = 1, size(cs%cands)
-            associate (cr => dg%diag%cand(c))
-                r = cr%separating_row
-                cstats(:, c) = [real(cr%state, dp), cr%score%drop, cr%score%p_value, &
-                                real(cr%score%dof, dp), b2r(cr%score%physical), &
-                                b2r(cr%score%identifiable), b2r(cr%refit_done), &
-                                b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
-                                b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
-                                real(merge(dg%pexp(max(r, 1)), 0, r > 0), dp), &
-                                real(merge(dg%pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
-                if (r > 0) sep_t(c) = dg%pt(r)
-                if (cr%refit_ok) then
-                    cstats(17, c) = cr%refit%chi2
-                    cstats(18, c) = cr%refit%chi2_prior
-                    refit_params(:, c) = cr%refit%params
-                end if
-                refit_start(c) = int(cr%info%start, c_int)
-                if (c > 1) text = text//new_line('a')
-                if (cr%refit_done .and. allocated(cr%info%note)) text = text//cr%info%note
-                do j = 1, size(cs%cands(c)%params)
-                    k = k + 1
-                    ! position of this parameter in the block as tested
-                    u = findloc(dg%used(c)%params, cs%cands(c)%params(j), 1)
-                    if (u == 0 .and. any(dg%ambiguous == cs%cands(c)%params(j))) kept(k) = 2
-                    if (u == 0) cycle
-                    kept(k) = 1
-                    if (allocated(cr%score%estimate)) then
-                        pstats(1:3, k) = [cr%score%estimate(u), cr%score%sigma(u), &
-                                          b2r(cr%score%active(u))]
-                    end if
-                    if (cr%refit_ok) then
-                        pstats(4:6, k) = [cr%refit%params(dg%used(c)%params(u)), &
-                                          cr%refit%sigmas(nf + u), &
-                                          real(cr%refit%flags(nf + u), dp)]
-                    end if
-                end do
-            end associate
-        end do
-        notes = text
-        ranking = int(dg%diag%ranking, c_int)
-        cosine = dg%diag%cosine
-        dstats = [real(dg%diag%verdict, dp), real(dg%diag%ntested, dp), dg%diag%alpha_each, &
-                  dg%base%chi2, dg%base%chi2_prior, real(dg%base%dof, dp)]
-        associate (m => dg%mesh)
-            mstats = [b2r(m%done), b2r(m%ok), real(m%nepb, dp), real(m%recommended, dp), &
-                      m%chi2, m%drop, m%p_value, m%max_change, real(m%max_row, dp), &
-                      b2r(m%significant)]
-            if (allocated(m%params)) mesh_params = m%params
-        end associate
-    contains
-        pure real(dp) function b2r(flag)
-            logical, intent(in) :: flag
-            b2r = merge(1.0_dp, 0.0_dp, flag)
-        end function b2r
-    end subroutine copy_diag
-
     !> Start the improve ladder (beamid_ladder ladder_start; the ladder
     !! beamid-batch runs): fit params0(free_idx); then
     !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
@@ -904,17 +783,8 @@ contains
         character(len=64), intent(out) :: effect
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        effect = ''
-        if (.not. rung_ok(k, nparams, code, message)) return
-        associate (r => lad%rungs(k))
-            info = [size(r%fit%free), r%nepb, r%refit_start, size(lad%pb%y), lad%pb%max_iter]
-            free_idx(:size(r%fit%free)) = r%fit%free
-            added(:size(r%params)) = r%params
-            removed(:size(r%removed)) = r%removed
-            start = r%start
-            nominal = r%nominal
-            effect = r%effect
-        end associate
+        call rung_out(lad, k, nparams, 'the ladder started last', info, free_idx, added, &
+                      removed, start, nominal, effect, code, message)
     end subroutine api_ladder_rung
 
     !> The fit of rung k of the ladder started last (outputs as api_fit_effect).
@@ -931,24 +801,9 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        type(status_t) :: stat
-        note = ''
-        if (.not. rung_ok(k, nparams, code, message)) return
-        associate (f => lad%rungs(k)%fit)
-            if (nfree /= size(f%free) .or. nrow /= size(f%predictions)) then
-                call set_status(stat, ERR_INPUT, 'ladder', 'nfree = '//fmt_int(int(nfree))// &
-                    ', nrow = '//fmt_int(int(nrow))//', expected '//fmt_int(size(f%free))// &
-                    ' and '//fmt_int(size(f%predictions))//' (rung '//fmt_int(int(k))// &
-                    ' of the ladder started last)')
-                call status_out(stat, code, message)
-                return
-            end if
-            info(1) = int(f%stop, c_int)
-            if (allocated(f%note)) note = f%note
-            if (allocated(f%note)) message = f%note
-            call copy_fit(f, params, sigmas, cov, corr, flags, predictions, normalized, stats, &
-                          log_cost, log_lambda, log_step, log_params)
-        end associate
+        call rung_fit_out(lad, k, nparams, nfree, nrow, 'the ladder started last', params, &
+                          sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
+                          log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_ladder_fit
 
     !> The rows of rung k's fit as the measurement chain's treatments judged
@@ -1000,58 +855,10 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        type(diag_out_t) :: none
-        type(status_t) :: stat
-        if (rung_ok(k, nparams, code, message)) then
-            if (size(lad%cs%cands) == ncand .and. ncandp == cand_params_size(lad%cs)) then
-                call copy_diag(lad%rungs(k)%dg, lad%cs, .true., lad%rungs(k)%fit%params, cstats, &
-                               pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
-                               mstats, mesh_params, kept, notes)
-                return
-            end if
-            call set_status(stat, ERR_INPUT, 'ladder', 'ncand = '//fmt_int(int(ncand))// &
-                            ', ncandp = '//fmt_int(int(ncandp))//', expected '// &
-                            fmt_int(size(lad%cs%cands))//' candidates of '// &
-                            fmt_int(cand_params_size(lad%cs))//' parameters (the ladder '// &
-                            'started last)')
-            call status_out(stat, code, message)
-        end if
-        call copy_diag(none, lad%cs, .false., spread(0.0_dp, 1, int(nparams)), cstats, &
-                       pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
-                       mesh_params, kept, notes)
+        call rung_diag_out(lad, k, nparams, ncand, ncandp, 'the ladder started last', cstats, &
+                           pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                           mstats, mesh_params, kept, notes, code, message)
     end subroutine api_ladder_diag
-
-    !> Is k a rung of the ladder started last, of nparams parameters? (else
-    !! ERR_INPUT naming k or nparams)
-    logical function rung_ok(k, nparams, code, message)
-        integer(c_int), intent(in) :: k, nparams
-        integer(c_int), intent(out) :: code
-        character(len=256), intent(out) :: message
-        type(status_t) :: stat
-        integer :: n
-        n = lad%n
-        rung_ok = k >= 1 .and. k <= n
-        if (.not. rung_ok) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'rung '//fmt_int(int(k))// &
-                            ', expected 1..'//fmt_int(n)//' (start and step a ladder first)')
-        else if (nparams /= size(lad%rungs(k)%start)) then
-            rung_ok = .false.
-            call set_status(stat, ERR_INPUT, 'ladder', 'nparams = '//fmt_int(int(nparams))// &
-                            ', expected '//fmt_int(size(lad%rungs(k)%start))// &
-                            ' (the parameters of the ladder started last)')
-        end if
-        call status_out(stat, code, message)
-    end function rung_ok
-
-    !> The parameters of all candidates of cs (ncandp of api_ladder_diag).
-    pure integer function cand_params_size(cs)
-        type(cand_set_t), intent(in) :: cs
-        integer :: c
-        cand_params_size = 0
-        do c = 1, size(cs%cands)
-            cand_params_size = cand_params_size + size(cs%cands(c)%params)
-        end do
-    end function cand_params_size
 
     !> Start the ladder of the estimation deck at `path` run as `task` (blank:
     !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:

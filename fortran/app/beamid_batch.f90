@@ -1,6 +1,7 @@
 !> beamid-batch DECK: run a namelist deck without Python (docs/decks.md).
 !!
-!! Reads and validates the deck (beamid_deck), runs its task (beamid_tasks:
+!! Reads and validates the deck once (beamid_deck_run: the deck and its
+!! measurement files, held in a local run), runs its task (beamid_tasks:
 !! static, fe_static, fe_modes, fit, compare, diagnose, improve, identify,
 !! simulate) and prints what `beamid run DECK` prints: one summary line (the
 !! deck's path and what the run found) and 'wrote PATH' per file written
@@ -11,13 +12,12 @@
 program beamid_batch
     use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
     use beamid_status, only: status_t, STATUS_OK, exit_code, EXIT_BAD_INPUT
-    use beamid_deck, only: deck_t, read_deck
-    use beamid_tasks, only: run_task
+    use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task
     implicit none
 
     character(len=*), parameter :: VERSION = '0.1.0'
     character(len=:), allocatable :: arg, path, written, summary
-    type(deck_t) :: deck
+    type(deck_run_t) :: run
     type(status_t) :: stat
     logical :: quiet
     integer :: i, n, start, nl
@@ -51,12 +51,12 @@ program beamid_batch
         stop EXIT_BAD_INPUT, quiet=.true.
     end if
 
-    call read_deck(path, deck, stat)
-    if (stat%code == STATUS_OK) call run_task(deck, written, stat, summary=summary)
+    call deck_run_open(path, run, stat)
+    if (stat%code == STATUS_OK) call deck_run_task(run, '', written, summary, stat)
     if (stat%code /= STATUS_OK) then
-        if (allocated(deck%errors)) then
-            if (len(deck%errors) > 0) then
-                call report(deck%errors)
+        if (allocated(run%deck%errors)) then
+            if (len(run%deck%errors) > 0) then
+                call report(run%deck%errors)
                 stop exit_code(stat%code), quiet=.true.
             end if
         end if

@@ -11,6 +11,8 @@ binding (``!f2py intent(hide)``), so the functions here pass arrays only.
 from __future__ import annotations
 
 import os
+import threading
+import weakref
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
@@ -144,18 +146,96 @@ def _path(path) -> bytes:
     return os.fsencode(str(path))
 
 
+class DeckHandle:
+    """A deck read once by the Fortran reader of beamid-batch
+    (``beamid_deck_run``: the deck and the measurement files it names, each
+    opened once), held in the extension under a handle that this object owns.
+    Everything a run needs of the deck comes through it: its values
+    (:meth:`values`), its measurement rows (:meth:`data`), its task run at
+    once (:meth:`run_task`) or, for an estimation deck, in steps whose results
+    are returned to the caller (``_core_estimation.deck_task_start`` with the
+    handle). :meth:`close` (or the end of a ``with`` block, or the collection
+    of the object) releases the deck and what its run computed.
+
+    Raises InputError listing every problem of the deck (file, line, group,
+    variable, value)."""
+
+    def __init__(self, path: str | os.PathLike, fit_keys: str = "") -> None:
+        self.path = str(path)
+        #: &fit items given apart (the command line's), which replace the deck's
+        self.fit_keys = fit_keys
+        self.id = int(_call(_deck_api.api_deck_open, _path(path), fit_keys))
+        self._close = weakref.finalize(self, _deck_api.api_deck_close, self.id)
+        #: held from the start of a run in steps to its write (one run at a time)
+        self.lock = threading.RLock()
+
+    def __repr__(self) -> str:
+        return f"DeckHandle({self.path!r}, {'closed' if self.closed else 'open'})"
+
+    def __reduce__(self):          # another process reads the file itself
+        return (DeckHandle, (self.path, self.fit_keys))
+
+    def __enter__(self) -> "DeckHandle":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        return not self._close.alive
+
+    def close(self) -> None:
+        """Release the deck in the extension (again: nothing happens)."""
+        self._close()
+
+    def _id(self) -> int:
+        if self.closed:
+            raise ValueError(f"{self!r}: the deck handle is closed")
+        return self.id
+
+    def values(self) -> dict:
+        """The deck's values as the Fortran reader validated them (a new
+        dict on each call; the file is not read again)."""
+        return _deck_values(self._id())
+
+    def data(self, stage: int = 0):
+        """Rows of the deck's measurement file (stage 0) or of stage
+        ``stage`` of an identify deck, as :func:`read_measurements`."""
+        nrow = _call(_deck_api.api_deck_handle_data_size, self._id(), int(stage))
+        return _rows(_call(_deck_api.api_deck_handle_data, self._id(), int(stage), int(nrow)))
+
+    def run_task(self, task: str = "") -> tuple[str, list[str]]:
+        """Run the deck's task (or ``task``, an estimation task for an
+        estimation deck) as beamid-batch does and write its files:
+        ``(summary line, files)``."""
+        written, summary = _call(_deck_api.api_deck_handle_task, self._id(), task)
+        return _text(summary), [line for line in _text(written).split("\n") if line]
+
+
+def decks_open() -> int:
+    """The number of decks the extension holds (handles not yet closed)."""
+    return int(_deck_api.api_deck_handles_open())
+
+
 def read_deck(path: str, fit_keys: str = "") -> dict:
     """Read and validate a deck with the Fortran reader (beamid_deck); every
     problem found is in the InputError's message, one per line. ``fit_keys``:
     &fit items given apart (``loss = 'huber'``, the command line's), which
     replace the deck's."""
-    sizes, reals, text = _call(_deck_api.api_deck_sizes, _path(path), fit_keys)
+    with DeckHandle(path, fit_keys) as handle:
+        return handle.values()
+
+
+def _deck_values(handle: int) -> dict:
+    """The values of the deck held under ``handle`` (api_deck_handle_sizes, _arrays)."""
+    sizes, reals, text = _call(_deck_api.api_deck_handle_sizes, handle)
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
     (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean,
-     prior_sigma) = _call(_deck_api.api_deck_arrays, _path(path), fit_keys, nparams, nwrt, nt,
-                          nexp, nfree, nprior)
+     prior_sigma) = _call(_deck_api.api_deck_handle_arrays, handle, nparams, nwrt, nt, nexp,
+                          nfree, nprior)
     lines = _text(text).split("\n")
     names = lines[3:3 + nexp]
     return {
@@ -227,8 +307,8 @@ def run_deck(path: str, task: str = "") -> list[str]:
 def run_deck_report(path: str, task: str = "") -> tuple[str, list[str]]:
     """:func:`run_deck` and the summary line beamid-batch prints before the
     files: ``(summary, files)``."""
-    written, summary = _call(_deck_api.api_run_deck, _path(path), task)
-    return _text(summary), [line for line in _text(written).split("\n") if line]
+    with DeckHandle(path) as handle:
+        return handle.run_task(task)
 
 
 @lru_cache(maxsize=None)
@@ -300,8 +380,12 @@ def read_measurements(path: str):
     """Rows of a measurement CSV, validated by beamid_measurements: experiment
     names, t, quantity names, value, sigma, source lines."""
     nrow = _call(_deck_api.api_measurements_size, _path(path))
-    t, value, sigma, line, quantity, exp_index, names, qnames = _call(
-        _deck_api.api_measurements_read, _path(path), int(nrow))
+    return _rows(_call(_deck_api.api_measurements_read, _path(path), int(nrow)))
+
+
+def _rows(out):
+    """read_measurements' tuple from the outputs of a measurement entry."""
+    t, value, sigma, line, quantity, exp_index, names, qnames = out
     exps = _text(names).split("\n")
     labels = _text(qnames).split("\n")
     return (tuple(exps[int(k) - 1] for k in exp_index), np.array(t, dtype=float),

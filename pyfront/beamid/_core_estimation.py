@@ -22,10 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
-from ._core import _call, _path, _text, quantity_labels, spec_keys, spec_triples
+from ._core import DeckHandle, _call, _path, _text, quantity_labels, spec_keys, spec_triples
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
+_deck_api = _ext.beamid_api_deck
 _design = _ext.beamid_api_design   # beamid_design: information algebra, MC summaries
 
 #: Observation kind codes of the Fortran core (beamid_observations' one table).
@@ -339,36 +340,47 @@ def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np
           int(max_steps))
 
 
-def ladder_step() -> bool:
+def ladder_step(deck: DeckHandle | None = None) -> bool:
     """Diagnose the ladder's last fit and, unless the ladder ends there, add
     the verdict's effect and refit (one rung); True once the ladder has
-    ended."""
-    _nrung, done = _call(_api.api_ladder_step)
+    ended. ``deck``: the ladder of that deck's run (:func:`deck_task_start`
+    with a handle), else the ladder of :func:`ladder_start`."""
+    if deck is not None:
+        _nrung, done = _call(_deck_api.api_deck_handle_step, deck._id())
+    else:
+        _nrung, done = _call(_api.api_ladder_step)
     return bool(done)
 
 
-def ladder_rungs(nparams: int, blocks: list[np.ndarray]) -> list[dict]:
+def ladder_rungs(nparams: int, blocks: list[np.ndarray],
+                 deck: DeckHandle | None = None) -> list[dict]:
     """The rungs of the ladder ended by :func:`ladder_step`: per rung a dict
     with ``effect`` (None for the start, else the candidate's 1-based
     number or effect name, or ``"mesh (N elements per beam)"``), ``fit``
     (the dict of :func:`fit`), ``diag`` (of :func:`problem_diagnose`),
     ``free``, ``params`` (switched on), ``removed`` (set back), ``start``
     and ``nominal`` (parameter vectors), ``elements_per_beam`` (of the
-    releases, 0: as given) and ``refit_start``."""
+    releases, 0: as given) and ``refit_start``. ``deck``: the rungs of that
+    deck's run, returned from its handle (else of :func:`ladder_start`'s)."""
     starts, flat = _blocks(blocks)
-    nrung, _done = _call(_api.api_ladder_step)   # an ended ladder: no step, the count
+    if deck is None:
+        step, rung, fit_, diag = (_api.api_ladder_step, _api.api_ladder_rung,
+                                  _api.api_ladder_fit, _api.api_ladder_diag)
+    else:
+        step, rung, fit_, diag = (functools.partial(entry, deck._id()) for entry in (
+            _deck_api.api_deck_handle_step, _deck_api.api_deck_handle_rung,
+            _deck_api.api_deck_handle_fit, _deck_api.api_deck_handle_diag))
+    nrung, _done = _call(step)   # an ended ladder: no step, the count
     rungs = []
     for k in range(1, int(nrung) + 1):
-        info, free_k, added, removed, start, nominal, effect = _call(_api.api_ladder_rung, k,
-                                                                     nparams)
+        info, free_k, added, removed, start, nominal, effect = _call(rung, k, nparams)
         nfree = int(info[0])
         effect = _text(effect).strip()
         rungs.append({
             "effect": None if effect == "start" else effect,
-            "fit": _fit_call(_api.api_ladder_fit, nfree, False, k, nparams, nfree,
-                             int(info[3]), int(info[4])),
-            "diag": _diag_dict(_call(_api.api_ladder_diag, k, nparams, starts.size - 1,
-                                     flat.size), starts),
+            "fit": _fit_call(fit_, nfree, False, k, nparams, nfree, int(info[3]),
+                             int(info[4])),
+            "diag": _diag_dict(_call(diag, k, nparams, starts.size - 1, flat.size), starts),
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
@@ -438,19 +450,30 @@ def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------- estimation decks: the deck's fit runs once
 
-def deck_task_start(path: str, task: str = "", stage: int = 0, fit_keys: str = "") -> None:
+def deck_task_start(path: str | DeckHandle, task: str = "", stage: int = 0,
+                    fit_keys: str = "") -> None:
     """Start the ladder of an estimation deck run as ``task`` (default the
     deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
     compare; of an identify deck the fit of ``stage``, 1-based, from the
     stages fitted by the calls before); :func:`ladder_step` diagnoses
     (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
-    reads it, :func:`deck_task_write` writes the deck's files. Hold
-    :data:`LADDER_LOCK` from the first start to the write. ``fit_keys``: &fit
-    items given apart (the command line's), as :func:`beamid._core.read_deck`."""
-    _call(_api.api_deck_task_start, _path(path), task, int(stage), fit_keys)
+    reads it, :func:`deck_task_write` writes the deck's files.
+
+    ``path`` a :class:`beamid._core.DeckHandle`: the deck read once, its run
+    held by the handle (pass the handle to :func:`ladder_step`,
+    :func:`ladder_rungs` and :func:`deck_task_write`; hold ``handle.lock``
+    from the start to the write). A path: the extension's one ladder, found
+    again by path (hold :data:`LADDER_LOCK` from the first start to the
+    write; kept for older callers). ``fit_keys``: with a path, &fit items
+    given apart (the command line's), as :func:`beamid._core.read_deck`; a
+    handle holds the deck read with its own."""
+    if isinstance(path, DeckHandle):
+        _call(_deck_api.api_deck_handle_start, path._id(), task, int(stage))
+    else:
+        _call(_api.api_deck_task_start, _path(path), task, int(stage), fit_keys)
 
 
-def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
+def deck_task_write(path: str | DeckHandle, task: str = "", output: str = "") -> list[str]:
     """Write the files of the deck run as ``task`` (all or none, the bytes of
     beamid-batch) from the ladder :func:`deck_task_start` started on it, to
     the output prefix ``output`` (default the deck's, resolved against the
@@ -458,11 +481,15 @@ def deck_task_write(path: str, task: str = "", output: str = "") -> list[str]:
     return deck_task_write_report(path, task, output)[1]
 
 
-def deck_task_write_report(path: str, task: str = "", output: str = "", fit_keys: str = ""
-                           ) -> tuple[str, list[str]]:
+def deck_task_write_report(path: str | DeckHandle, task: str = "", output: str = "",
+                           fit_keys: str = "") -> tuple[str, list[str]]:
     """:func:`deck_task_write` and the summary line beamid-batch prints
-    before the files: ``(summary, files)``."""
-    written, summary = _call(_api.api_deck_task_write, _path(path), task, output, fit_keys)
+    before the files: ``(summary, files)``. A DeckHandle writes the files of
+    the task its run started (``task`` is not used)."""
+    if isinstance(path, DeckHandle):
+        written, summary = _call(_deck_api.api_deck_handle_write, path._id(), output)
+    else:
+        written, summary = _call(_api.api_deck_task_write, _path(path), task, output, fit_keys)
     return _text(summary), [line for line in _text(written).split("\n") if line]
 
 

@@ -96,7 +96,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(summary)
             _print_files([*files, *figures])
         return EXIT_OK
-    summary, files = run_deck_report(str(args.deck))   # the path as given, as the batch
+    handle = deck.handle        # the deck as read, unless the reader's path differs from
+    if handle is not None and handle.path == str(args.deck):    # the path as given,
+        summary, files = handle.run_task()      # which the summary names, as the batch's
+    else:
+        summary, files = run_deck_report(str(args.deck))
     if not args.quiet:
         print(summary)
         _print_files(files)

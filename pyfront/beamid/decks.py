@@ -57,6 +57,9 @@ class Deck(OutputPrefix):
     fe: dict = field(default_factory=lambda: dict(FE_DEFAULTS))
     #: task simulate: ``t_out`` (array) and the keyword arguments of beamid.simulate
     simulate: dict | None = None
+    #: the deck as read once by the Fortran reader (beamid._core.DeckHandle);
+    #: run goes through it. None for a Deck built by hand (run reads its path).
+    handle: Any = field(default=None, repr=False, compare=False)
 
 
 def read_deck(path: str | os.PathLike):
@@ -64,11 +67,14 @@ def read_deck(path: str | os.PathLike):
     InputError listing every problem (file, line, group, variable, value).
 
     Estimation decks (tasks fit, compare, diagnose, improve) are returned as
-    :class:`beamid.fit_decks.FitDeck`; the others as :class:`Deck`."""
+    :class:`beamid.fit_decks.FitDeck`; the others as :class:`Deck`. The deck
+    file and each measurement file it names are opened once: the deck's
+    ``handle`` holds them as read for its run (released with the deck)."""
     path = _check_path(path)
-    values = _core.read_deck(str(path))
+    handle = _core.DeckHandle(path)
+    values = handle.values()
     if values["task"] in FIT_TASKS:
-        return _fit_deck(path, values)
+        return _fit_deck(path, values, handle)
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     load = _load(*values["load"])
@@ -78,7 +84,8 @@ def read_deck(path: str | os.PathLike):
     return Deck(path=path, task=values["task"], output=values["output"], model=model,
                 load=load, wrt=tuple(names[i] for i in values["wrt"]),
                 shape_points=values["shape_points"], tol=values["tol"] or None,
-                published=_published(values), fe=values["fe"], simulate=simulate)
+                published=_published(values), fe=values["fe"], simulate=simulate,
+                handle=handle)
 
 
 def write_deck(deck: Deck, path: str | os.PathLike) -> None:

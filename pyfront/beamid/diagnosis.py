@@ -921,23 +921,24 @@ def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
 def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                 prior_map: Mapping[str, tuple[float, float]],
                 candidates: Sequence[str | Effect] | None, alpha: float,
-                max_steps: int, desc: str = "improve", own=None, treatment=None) -> Ladder:
-    """Run the ladder started in the extension (``_ce.ladder_start`` or
-    ``_ce.deck_task_start``) a rung per call, with a progress bar labelled
-    ``desc`` on a terminal (none when max_steps = 0: a diagnosis alone, one
-    call), and name its rungs."""
+                max_steps: int, desc: str = "improve", own=None, treatment=None,
+                deck: Any = None) -> Ladder:
+    """Run the ladder started in the extension (``_ce.ladder_start``, or
+    ``_ce.deck_task_start`` on the handle ``deck``) a rung per call, with a
+    progress bar labelled ``desc`` on a terminal (none when max_steps = 0: a
+    diagnosis alone, one call), and name its rungs."""
     dynamic = _dynamic(experiments)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     ext = _chain_extension(model, experiments, data, effects, names, blocks, own)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
-        if _ce.ladder_step():
+        if _ce.ladder_step() if deck is None else _ce.ladder_step(deck):
             break
     npar = model.vector().size
     all_names = model.names() + tuple(ext.names)
     rows_now = treatment or _chain.RowTreatment()
     steps = []
-    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks)):
+    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks, deck)):
         if r["elements_per_beam"]:
             experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
         raw, phys, sub = _split_ladder_fit(r["fit"], r["free"], npar, ext.spec,

@@ -105,10 +105,26 @@ def run_files(deck: Any) -> list[Path]:
     """Run a deck's task with the runners of ``beamid-batch`` (the same
     Fortran, so the same bytes) and return the files written (all or none).
     A deck object runs its file with its ``task`` (so a FitDeck whose task was
-    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``)."""
+    replaced runs that task, as ``beamid fit|compare|diagnose|improve DECK``),
+    from the deck as read (its handle: the file is not read again)."""
     if hasattr(deck, "path"):
+        handle = deck_handle(deck)
+        if handle is not None:
+            return [Path(p) for p in handle.run_task(deck.task)[1]]
         return [Path(p) for p in _core.run_deck(str(deck.path), deck.task)]
     return [Path(p) for p in _core.run_deck(str(check_path(deck, "deck")))]
+
+
+def deck_handle(deck: Any) -> _core.DeckHandle | None:
+    """The open handle of the file a deck object was read from (None: the
+    deck was not read by read_deck, its handle was closed, or its ``path``
+    was replaced since)."""
+    handle = getattr(deck, "handle", None)
+    if not isinstance(handle, _core.DeckHandle) or handle.closed:
+        return None
+    if Path(handle.path) != Path(deck.path):
+        return None
+    return handle
 
 
 # ---- estimation decks
@@ -148,6 +164,10 @@ class FitDeck(OutputPrefix):
     #: &fit items given apart from the file (the command line's measurement
     #: chain options, :func:`chain_options`): the deck reads with them
     fit_keys: str = ""
+    #: the deck as read once by the Fortran reader (beamid._core.DeckHandle:
+    #: the deck file and its measurement files, each opened once); its run
+    #: goes through it. None for a FitDeck built by hand (run reads its path).
+    handle: Any = field(default=None, repr=False, compare=False)
 
 
 def _stage_data(values: dict, stage: int, path: str, experiments: dict) -> Measurements:
@@ -159,6 +179,15 @@ def _stage_data(values: dict, stage: int, path: str, experiments: dict) -> Measu
     experiment, sigma = loggers[stage]
     sensors = [Sensor(n, o, s) for n, o, s in values.get("sensors", ())]
     return read_channels(path, experiment, sigma=sigma, sensors=sensors)
+
+
+def _rows_measurements(rows: tuple, source: str, experiments: dict) -> Measurements:
+    """Measurements from the rows of the deck reader (as read_measurements
+    builds them from its file), checked against the deck's experiments."""
+    names, t, quantity, value, sigma, lines = rows
+    data = Measurements(names, t, quantity, value, sigma, source=str(Path(source)), lines=lines)
+    data.check_experiments(experiments)
+    return data
 
 
 def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
@@ -194,14 +223,20 @@ def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
     return "\n".join(items)
 
 
-def _fit_deck(path: Path, values: dict, fit_keys: str = "") -> FitDeck:
-    """A FitDeck from the values of the Fortran reader (beamid._core.read_deck)."""
+def _fit_deck(path: Path, values: dict, fit_keys: str = "", handle: Any = None) -> FitDeck:
+    """A FitDeck from the values of the Fortran reader (beamid._core.read_deck),
+    its measurements from ``handle`` (the deck as read; None: read the files)."""
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
-    data = _stage_data(values, 0, values["data_path"], experiments)
-    stages = tuple(Stage(s["name"], data if k == 0 else
-                         _stage_data(values, k, s["data_path"], experiments),
+
+    def rows(stage: int, source: str) -> Measurements:
+        if handle is None:
+            return _stage_data(values, stage, source, experiments)
+        return _rows_measurements(handle.data(stage), source, experiments)
+
+    data = rows(0, values["data_path"])
+    stages = tuple(Stage(s["name"], data if k == 0 else rows(k + 1, s["data_path"]),
                          tuple(names[i] for i in s["free"]), s["max_iter"])
                    for k, s in enumerate(values.get("stages", ())))
     nuisance, treatment = _chain.from_deck(values["experiments"], data)
@@ -211,20 +246,25 @@ def _fit_deck(path: Path, values: dict, fit_keys: str = "") -> FitDeck:
                    prior={names[i]: (m, s) for i, m, s in values["prior"]},
                    candidates=tuple(values["candidates"]) or None, alpha=values["alpha"],
                    max_iter=values["max_iter"], published=published(values),
-                   stages=stages, nuisance=nuisance, treatment=treatment, fit_keys=fit_keys)
+                   stages=stages, nuisance=nuisance, treatment=treatment, fit_keys=fit_keys,
+                   handle=handle)
 
 
 def read_fit_deck(path: str | os.PathLike, fit_keys: str = "") -> FitDeck:
-    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`);
-    ``fit_keys``: &fit items given apart, which replace the deck's (the
-    command line's measurement chain options, :func:`chain_options`)."""
+    """Read and validate an estimation deck (the reader of :func:`beamid.read_deck`;
+    the deck and its measurement files are opened once, held by the
+    FitDeck's ``handle``); ``fit_keys``: &fit items given apart, which replace
+    the deck's (the command line's measurement chain options,
+    :func:`chain_options`)."""
     path = check_path(path)
     fit_keys = _check.text("fit_keys", fit_keys, empty=True)
-    values = _core.read_deck(str(path), fit_keys)
+    handle = _core.DeckHandle(path, fit_keys)
+    values = handle.values()
     if values["task"] not in FIT_TASKS:
+        handle.close()
         raise InputError(f"{path}: task {values['task']!r} is not an estimation task "
                          f"{FIT_TASKS}")
-    return _fit_deck(path, values, fit_keys)
+    return _fit_deck(path, values, fit_keys, handle)
 
 
 def run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
@@ -251,13 +291,14 @@ def _run_fit_deck(deck: FitDeck | str | os.PathLike, plots: bool = True
     """:func:`run_fit_deck` as (text, CSV files, result, the summary line
     beamid-batch prints, figures written)."""
     if isinstance(deck, FitDeck):
-        _check_as_read(deck)
+        handle = _check_as_read(deck)
     else:
         deck = read_fit_deck(deck)
-    with _ce.LADDER_LOCK:
-        out = identify_deck(deck) if deck.task == "identify" else _deck_result(deck)
-        summary, written = _ce.deck_task_write_report(str(deck.path), deck.task, deck.output,
-                                                      deck.fit_keys)
+        handle = deck.handle
+    with handle.lock:      # the run the handle holds: from its start to its files
+        out = (identify_deck(deck, handle) if deck.task == "identify" else
+               _deck_result(deck, handle))
+        summary, written = _ce.deck_task_write_report(handle, deck.task, deck.output)
     files = [Path(p) for p in written]
     figures: list[Path] = []
     if isinstance(out, Ladder):
@@ -292,12 +333,19 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def _check_as_read(deck: FitDeck) -> None:
+def _check_as_read(deck: FitDeck) -> Any:
     """InputError unless ``deck`` is its file as read, but for ``task`` and
     ``output``: the Fortran runs the deck file (its fit once, for the files
-    and the result)."""
-    read = read_fit_deck(deck.path, deck.fit_keys)
-    differ = [f.name for f in dataclasses.fields(FitDeck) if f.name not in ("task", "output")
+    and the result). Returns the handle of the deck as read (the deck's own,
+    else the file read now)."""
+    handle = deck_handle(deck)
+    if handle is None:
+        read = read_fit_deck(deck.path, deck.fit_keys)
+        handle = read.handle
+    else:
+        read = _fit_deck(deck.path, handle.values(), deck.fit_keys, handle)
+    differ = [f.name for f in dataclasses.fields(FitDeck)
+              if f.name not in ("task", "output", "handle")
               and not _same(getattr(deck, f.name), getattr(read, f.name))]
     if differ:
         shown = "; ".join(f"{n} = {getattr(deck, n)!r}, expected {getattr(read, n)!r}"
@@ -306,21 +354,23 @@ def _check_as_read(deck: FitDeck) -> None:
         raise InputError(f"run_fit_deck: {shown} (as {deck.path} reads: a FitDeck runs as "
                          "its file reads, only task and output may be replaced; write the change "
                          "into the deck file)")
+    return handle
 
 
-def _deck_result(deck: FitDeck) -> Any:
+def _deck_result(deck: FitDeck, handle: Any) -> Any:
     """The result of the deck's task, FitResult (fit), Comparison (compare),
     Diagnosis (diagnose) or Ladder (improve), from the ladder the Fortran of
     ``beamid-batch`` runs on the deck as read there (its problem and
-    candidates; ``_core_estimation.deck_task_start``); the caller holds
-    ``_core_estimation.LADDER_LOCK`` until ``deck_task_write`` has written
-    the deck's files from the same ladder."""
-    _ce.deck_task_start(str(deck.path), deck.task, 0, deck.fit_keys)
+    candidates; ``_core_estimation.deck_task_start`` on the deck's
+    ``handle``, which holds the run and returns its rungs); the caller holds
+    ``handle.lock`` until ``deck_task_write`` has written the deck's files
+    from the same ladder."""
+    _ce.deck_task_start(handle, deck.task)
     names = deck.model.names()
     exps = list(deck.experiments)
     own = deck.nuisance or _chain.ChainSpec()
     if deck.task in ("fit", "compare"):     # the ladder ended at its fit, undiagnosed
-        rung = _ce.ladder_rungs(len(names) + len(own.names(exps)), [])[0]
+        rung = _ce.ladder_rungs(len(names) + len(own.names(exps)), [], handle)[0]
         raw, phys, sub = _chain.split_ladder_fit(rung["fit"], rung["free"], len(names), own,
                                                  exps)
         free_names = tuple(names[i] for i in phys)   # the fit's own, as _run_ladder
@@ -335,7 +385,7 @@ def _deck_result(deck: FitDeck) -> Any:
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
                          deck.alpha, len(deck.candidates or ()) * improve, deck.task,
-                         own=deck.nuisance, treatment=deck.treatment)
+                         own=deck.nuisance, treatment=deck.treatment, deck=handle)
     return ladder if improve else ladder.steps[0].diagnosis
 
 
@@ -357,23 +407,26 @@ def _plots(prefix: Path, cmp=None, ladder=None) -> list[Path]:
     return written
 
 
-def identify_deck(deck: FitDeck) -> Any:
+def identify_deck(deck: FitDeck, handle: Any = None) -> Any:
     """:func:`beamid.identify` on the stages of an identification deck (task
     ``identify``): the deck's model is the start, its experiments serve every
     stage, the first stage takes the deck's a priori values. Each stage is
     fitted by the Fortran of ``beamid-batch`` on the deck as read there
-    (``_core_estimation.deck_task_start``), so its files can then be written
-    from the same fits (``deck_task_write(path, "identify")``, under
-    ``_core_estimation.LADDER_LOCK`` from the first stage on)."""
+    (``_core_estimation.deck_task_start`` on ``handle``, default the deck's
+    own), so its files can then be written from the same fits
+    (``deck_task_write(handle)``, under ``handle.lock`` from the first stage
+    on)."""
     if deck.task != "identify" or not deck.stages:
         raise InputError(f"{deck.path}: task {deck.task!r} is not 'identify' (one &fit group "
                          "per stage)")
+    if handle is None:
+        handle = _check_as_read(deck)
     names, number = deck.model.names(), {s.name: k for k, s in enumerate(deck.stages, 1)}
 
     def stage_fit(name, start, exps, data, _free, prior, _limit):   # as estimation.fit's
         carried = _carried_prior(start, prior)[0] if isinstance(prior, FitResult) else None
-        _ce.deck_task_start(str(deck.path), "identify", number[name])
-        r = _ce.ladder_rungs(len(names), [])[0]
+        _ce.deck_task_start(handle, "identify", number[name])
+        r = _ce.ladder_rungs(len(names), [], handle)[0]
         free = tuple(names[i] for i in r["free"])
         prior_map = _prior_arrays(start, free, prior)[0] if carried is None else carried
         return _fit_result(start, exps, data, free, prior_map, r["fit"])
@@ -381,7 +434,7 @@ def identify_deck(deck: FitDeck) -> Any:
     stages = {s.name: (deck.experiments, s.data, s.free) + ((deck.prior,) if k == 0 and
                                                              deck.prior else ())
               for k, s in enumerate(deck.stages)}
-    with _ce.LADDER_LOCK:
+    with handle.lock:
         return _identify(deck.model, stages, 50, None, stage_fit)
 
 
