@@ -24,7 +24,7 @@ module beamid_api_deck
     use beamid_tasks, only: deck_experiments
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
-    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out
+    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
@@ -34,7 +34,8 @@ module beamid_api_deck
     public :: api_deck_open, api_deck_close, api_deck_handle_sizes, api_deck_handle_arrays, &
               api_deck_handle_data_size, api_deck_handle_data, api_deck_handle_task, &
               api_deck_handle_start, api_deck_handle_step, api_deck_handle_rung, &
-              api_deck_handle_fit, api_deck_handle_diag, api_deck_handle_write, &
+              api_deck_handle_fit, api_deck_handle_diag, api_deck_handle_rows, &
+              api_deck_handle_write, &
               api_deck_handles_open
     public :: api_measurements_size, &
               api_measurements_read, api_exit_code, api_quantity_labels, &
@@ -377,6 +378,20 @@ contains
                           sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                           log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_deck_handle_fit
+
+    !> The rows of rung k's fit of the ladder of `handle` as the measurement
+    !! chain's treatments judged them (outputs as beamid_api_estimation
+    !! api_ladder_rows).
+    subroutine api_deck_handle_rows(handle, k, nrow, weights, sigma_used, sigma_sd, flagged, &
+                                    has, code, message)
+        integer(c_int), intent(in) :: handle, k, nrow
+        real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
+        integer(c_int), intent(out) :: flagged(nrow), has, code
+        character(len=256), intent(out) :: message
+        if (.not. handle_ok(handle, code, message)) return
+        call rung_rows_out(slots(handle)%run%lad, k, nrow, whose(handle), weights, sigma_used, &
+                           sigma_sd, flagged, has, code, message)
+    end subroutine api_deck_handle_rows
 
     !> The diagnosis of rung k of the ladder of `handle` (outputs as
     !! beamid_api_estimation api_problem_diagnose).

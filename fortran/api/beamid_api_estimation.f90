@@ -40,7 +40,7 @@ module beamid_api_estimation
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
-    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out
+    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, rung_rows_out
     implicit none
     private
 
@@ -816,28 +816,8 @@ contains
         real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
         integer(c_int), intent(out) :: flagged(nrow), has, code
         character(len=256), intent(out) :: message
-        type(status_t) :: stat
-        has = 0
-        weights = 1.0_c_double
-        sigma_used = 0.0_c_double
-        sigma_sd = 0.0_c_double
-        flagged = 0
-        if (.not. rung_ok(k, int(size(lad%rungs(max(1, min(k, lad%n)))%start), c_int), code, &
-                          message)) return
-        associate (f => lad%rungs(k)%fit)
-            if (nrow /= size(f%predictions)) then
-                call set_status(stat, ERR_INPUT, 'ladder', 'nrow = '//fmt_int(int(nrow))// &
-                                ', expected '//fmt_int(size(f%predictions)))
-                call status_out(stat, code, message)
-                return
-            end if
-            if (.not. allocated(f%row_sigma)) return
-            has = 1
-            weights = f%row_weight
-            sigma_used = f%row_sigma
-            sigma_sd = f%row_sigma_sd
-            flagged = merge(1_c_int, 0_c_int, f%row_gross)
-        end associate
+        call rung_rows_out(lad, k, nrow, 'the ladder started last', weights, sigma_used, &
+                           sigma_sd, flagged, has, code, message)
     end subroutine api_ladder_rows
 
     !> The diagnosis of rung k of the ladder started last (outputs as

@@ -14,7 +14,8 @@ module beamid_api_marshal
     implicit none
     private
 
-    public :: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, cand_params_size
+    public :: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, rung_rows_out, &
+              cand_params_size
 
 contains
 
@@ -239,6 +240,47 @@ contains
                        pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, mstats, &
                        mesh_params, kept, notes)
     end subroutine rung_diag_out
+
+    !> The rows of rung k's fit of lad as the measurement chain's treatments
+    !! judged them (beamid_chain_fit): per row its last weight, the sigma it
+    !! was judged with, that sigma's standard deviation and 1 for a gross
+    !! error; has = 0 for a plain fit (nothing set).
+    subroutine rung_rows_out(lad, k, nrow, whose, weights, sigma_used, sigma_sd, flagged, has, &
+                             code, message)
+        type(ladder_t), intent(in) :: lad
+        integer(c_int), intent(in) :: k, nrow
+        character(len=*), intent(in) :: whose
+        real(c_double), intent(out) :: weights(:), sigma_used(:), sigma_sd(:)
+        integer(c_int), intent(out) :: flagged(:), has, code
+        character(len=*), intent(out) :: message
+        type(status_t) :: stat
+        has = 0
+        weights = 1.0_c_double
+        sigma_used = 0.0_c_double
+        sigma_sd = 0.0_c_double
+        flagged = 0
+        if (k >= 1 .and. k <= lad%n) then
+            if (.not. rung_ok(lad, k, int(size(lad%rungs(k)%start), c_int), whose, code, &
+                              message)) return
+        else
+            if (.not. rung_ok(lad, k, 0_c_int, whose, code, message)) return
+        end if
+        associate (f => lad%rungs(k)%fit)
+            if (nrow /= size(f%predictions)) then
+                call set_status(stat, ERR_INPUT, 'ladder', 'nrow = '//fmt_int(int(nrow))// &
+                                ', expected '//fmt_int(size(f%predictions))//' (rung '// &
+                                fmt_int(int(k))//' of '//whose//')')
+                call status_out(stat, code, message)
+                return
+            end if
+            if (.not. allocated(f%row_sigma)) return
+            has = 1
+            weights = f%row_weight
+            sigma_used = f%row_sigma
+            sigma_sd = f%row_sigma_sd
+            flagged = merge(1_c_int, 0_c_int, f%row_gross)
+        end associate
+    end subroutine rung_rows_out
 
     !> Is k a rung of lad, of nparams parameters? (else ERR_INPUT naming k
     !! or nparams; `whose` names the ladder)

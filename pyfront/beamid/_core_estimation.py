@@ -384,14 +384,20 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray],
             "free": np.array(free_k[:nfree]) - 1, "params": added[added > 0] - 1,
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
-            "refit_start": START_NAMES.get(int(info[2])), "rows": _ladder_rows(k, int(info[3]))})
+            "refit_start": START_NAMES.get(int(info[2])),
+            "rows": _ladder_rows(k, int(info[3]), deck)})
     return rungs
 
 
-def _ladder_rows(k: int, nrow: int) -> dict | None:
+def _ladder_rows(k: int, nrow: int, deck: DeckHandle | None = None) -> dict | None:
     """The rows of rung ``k``'s fit as the measurement chain's treatments
-    judged them (the keys :func:`fit_chain` adds), None for a plain fit."""
-    weights, sigma_used, sigma_sd, flagged, has = _call(_api.api_ladder_rows, k, nrow)
+    judged them (the keys :func:`fit_chain` adds), None for a plain fit;
+    ``deck``: of that deck's run (else of :func:`ladder_start`'s)."""
+    if deck is None:
+        out = _call(_api.api_ladder_rows, k, nrow)
+    else:
+        out = _call(_deck_api.api_deck_handle_rows, deck._id(), k, nrow)
+    weights, sigma_used, sigma_sd, flagged, has = out
     if not has:
         return None
     return {"weights": np.array(weights), "sigma_used": np.array(sigma_used),

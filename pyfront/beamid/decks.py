@@ -74,7 +74,7 @@ def read_deck(path: str | os.PathLike):
     handle = _core.DeckHandle(path)
     values = handle.values()
     if values["task"] in FIT_TASKS:
-        return _fit_deck(path, values, handle)
+        return _fit_deck(path, values, handle=handle)
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     load = _load(*values["load"])
