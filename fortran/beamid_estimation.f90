@@ -229,6 +229,10 @@ module beamid_estimation
         !> the refit starts tried (refit_effect: first-order, nominal,
         !! continuation)
         logical :: starts(3) = .true.
+        !> the continuation start only when neither earlier start converged
+        !! (releases: five fits with sensitivities, paid only for a base fit
+        !! too far off for the first-order and the nominal start; issue 30)
+        logical :: continue_if_none = .false.
     end type diagnose_options_t
 
     !> How a refit with an effect switched on went (refit_effect).
@@ -1417,14 +1421,15 @@ contains
     !! The best is the lowest chi-square among the starts that converge
     !! (STOP_CONVERGED; a later start must beat the best so far by more than
     !! 1e-6 of it, so the same minimum reached twice keeps the earlier start,
-    !! whatever the nominal model). Starts after one whose chi-square is
+    !! whatever the nominal model). With `last_resort` the continuation
+    !! runs only when neither earlier start converged. Starts after one whose chi-square is
     !! consistent with the noise (below dof + 3 sqrt(2 dof)) are skipped: no
     !! other minimum can be significantly better. `info%note` says what each start gave. When
     !! none converges, `res` is the lowest-cost attempt (flagged) and the
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
     subroutine refit_effect(model, lp, base, block, score, nominal, opts, res, info, stat, &
-                            ncont, use, enough)
+                            ncont, use, enough, last_resort)
         class(residual_model_t), intent(inout) :: model
         type(lsq_problem_t), intent(in) :: lp
         real(dp), intent(in) :: nominal(:)
@@ -1439,6 +1444,8 @@ contains
         logical, intent(in), optional :: use(3) !< which starts to try (default all)
         !> stop at a converged start with half the predicted drop (default no)
         logical, intent(in), optional :: enough
+        !> the continuation only when no earlier start converged (default no)
+        logical, intent(in), optional :: last_resort
         integer :: nb, half, nsteps, kk
         logical :: try(3), same
         integer, allocatable :: all_free(:)
@@ -1498,6 +1505,9 @@ contains
         end if
 
         ! 3. continuation in the effect's strength from its null value
+        if (present(last_resort)) then
+            if (last_resort .and. rs%have_best) try(3) = .false.
+        end if
         if (try(3) .and. .not. refit_done(rs) .and. any(target /= lp%nulls(block))) then
             call continue_in_strength(model, lp, base, block, target, all_free, opts, nsteps, &
                                       p, kk, why)
@@ -1726,7 +1736,8 @@ contains
                 call clear_status(st)
                 call refit_effect(model, lp, base, cands(c)%params, cr%score, start, fopts, &
                                   cr%refit, cr%info, st, use=dopts%starts, &
-                                  enough=dopts%first_enough)
+                                  enough=dopts%first_enough, &
+                                  last_resort=dopts%continue_if_none)
                 if (st%code < 0) then
                     stat = st
                     return

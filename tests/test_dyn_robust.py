@@ -172,9 +172,6 @@ def test_strong_tip_drag_is_recovered_from_a_tenth_of_it(strong_drag):
     assert fit.starts == () and fit.mesh_check is None
 
 
-@pytest.mark.xfail(strict=True, reason="issue 30, not done: on a strong tip drag improve's "
-                   "first rung adds kelvin_voigt (chi2/dof 1320) and the drag refit then fails "
-                   "(eta runs away to 0 and the refit counts as not converged)")
 def test_improve_finds_a_strong_tip_drag_without_an_extra_rung(strong_drag):
     base, rel, data = strong_drag
     ladder = beamid.improve(base.replace(rho2=0.545), rel, data, free=("rho2",),

@@ -103,7 +103,12 @@ class Release:
     and the quantities ``u_tip w_tip x_tip y_tip tip_angle x_elbow y_elbow``,
     and ``motor_torque`` with a motor. ``integrator`` ("implicit" or "rk4"),
     ``rtol``, ``dt`` and ``friction`` ("sign", "smooth", "sign_literal") as
-    in :func:`beamid.simulate` (None: its defaults).
+    in :func:`beamid.simulate` (None: its defaults). ``friction_velocity``
+    is the smooth law's regularization velocity vs in m/s (None: 1e-4 m/s,
+    :data:`beamid.dynamics.DEFAULT_FRICTION_VELOCITY`); it is used by the
+    smooth law only, so it is refused with another law. The friction
+    homotopy of :func:`beamid.fit` (``homotopy=``) fits on the smooth law
+    with a shrinking vs before the sign law.
     """
 
     load: TipLoad
@@ -113,6 +118,7 @@ class Release:
     rtol: float | None = None
     dt: float | None = None
     friction: str | None = None
+    friction_velocity: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.load, TipLoad):
@@ -130,10 +136,17 @@ class Release:
         for name in ("rtol", "dt"):
             v = _check.real(f"Release: {name}", getattr(self, name), above=0.0, none=True)
             object.__setattr__(self, name, v)
+        vs = _check.real("Release: friction_velocity", self.friction_velocity, above=0.0,
+                         none=True, expected="a regularization velocity > 0 (m/s)")
+        if vs is not None and friction != "smooth":
+            raise InputError(f"Release: friction_velocity = {vs:g} with friction = "
+                             f"{friction!r}, expected friction='smooth' (the velocity "
+                             "regularizes the smooth law only)")
+        object.__setattr__(self, "friction_velocity", vs)
         encoded = np.array([self.load.fx, self.load.fy, self.load.moment, 0.0,
                             float(nepb), gain, float(_INTEGRATORS[self.integrator]),
                             float(_FRICTION_LAWS[friction]), self.rtol or 0.0, self.dt or 0.0,
-                            0.0, 0.0])
+                            self.friction_velocity or 0.0, 0.0])
         encoded.setflags(write=False)
         object.__setattr__(self, "_encoded", encoded)
 
@@ -153,7 +166,9 @@ class Release:
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
         return cls(TipLoad(v[0], v[1], v[2]), elements_per_beam=int(round(v[4])),
                    motor_gain=v[5], integrator=integrators[int(round(v[6]))],
-                   rtol=v[8] or None, dt=v[9] or None, friction=laws[int(round(v[7]))])
+                   rtol=v[8] or None, dt=v[9] or None, friction=laws[int(round(v[7]))],
+                   friction_velocity=(v[10] or None) if len(v) > 10 and
+                   int(round(v[7])) == 1 else None)
 
     @property
     def has_motor(self) -> bool:
@@ -161,4 +176,6 @@ class Release:
 
     def describe(self) -> str:
         text = f"release from {self.load.describe()}, {self.elements_per_beam} elements per beam"
+        if self.friction_velocity is not None:
+            text += f", smooth friction vs = {self.friction_velocity:g} m/s"
         return text + (f", motor gain {self.motor_gain:g}" if self.has_motor else "")
