@@ -180,3 +180,75 @@ def test_improve_finds_a_strong_tip_drag_without_an_extra_rung(strong_drag):
     fit = ladder.fit
     assert fit.chi2 / fit.dof <= 1.5
     assert abs(fit.estimates["c_tip"] - 0.2) < 3 * fit.sigmas["c_tip"]
+
+
+# ------------------------------------------------------------------ friction homotopy
+
+def test_release_friction_velocity_is_typed_and_checked():
+    rel = beamid.Release(beamid.TipForce(fy=8.0), friction="smooth", friction_velocity=1e-3)
+    assert rel.friction_velocity == 1e-3 and rel.encode()[1][10] == 1e-3
+    assert beamid.Release.decode(rel.encode()[1]) == rel
+    assert "vs = 0.001 m/s" in rel.describe()
+    # the default: the library's 1e-4 m/s (0 in the value column)
+    plain = beamid.Release(beamid.TipForce(fy=8.0), friction="smooth")
+    assert plain.friction_velocity is None and plain.encode()[1][10] == 0.0
+    for kw, text in (({"friction": "smooth", "friction_velocity": 0.0},
+                      "friction_velocity = 0"),
+                     ({"friction": "smooth", "friction_velocity": "fast"},
+                      "friction_velocity = 'fast'"),
+                     ({"friction": "smooth", "friction_velocity": float("nan")},
+                      "friction_velocity = nan"),
+                     ({"friction_velocity": 1e-3}, "expected friction='smooth'"),
+                     ({"friction": "sign", "friction_velocity": 1e-3},
+                      "expected friction='smooth'")):
+        with pytest.raises(beamid.InputError, match=text):
+            beamid.Release(beamid.TipForce(fy=8.0), **kw)
+    # the velocity reaches the integrator: the smooth law's tip moves with it
+    t = np.linspace(0.1, 1.3, 13)
+
+    def w_tip(**kw):
+        rel = {"r": beamid.Release(beamid.TipForce(fy=8.0), **kw)}
+        return np.asarray(beamid.simulate_measurements(TRUTH, rel, ["w_tip"], t=t).value)
+
+    w = {vs: w_tip(friction="smooth", friction_velocity=vs) for vs in (1e-2, 1e-4)}
+    sign = w_tip()
+    assert np.max(np.abs(w[1e-2] - sign)) > 5 * np.max(np.abs(w[1e-4] - sign))
+
+
+def test_friction_homotopy_ends_on_the_sign_law_at_the_same_minimum(table16):
+    deck, exps, ref = table16
+    start = TRUTH.replace(mu_elbow=0.015, mu_tip=0.01, rho1=0.5603, rho2=0.5437)
+    fit = beamid.fit(start, exps, deck.data, free=FREE, homotopy=True)
+    assert fit.start_won == robust.HOMOTOPY and len(fit.path) == 3
+    assert fit.path[0].startswith("smooth law, vs = 0.01 m/s")
+    assert fit.path[1].startswith("smooth law, vs = 0.001 m/s")
+    assert fit.path[2].startswith("sign law") and fit.converged
+    # the sign law's minimum: Table 16's answer
+    assert abs(fit.chi2 - ref.chi2) < robust.same_chi2(ref.chi2)
+    for n in FREE:
+        assert abs(fit.estimates[n] - ref.estimates[n]) < 0.1 * ref.sigmas[n], n
+    # nothing to do without friction or on the smooth law
+    assert not robust.homotopy_applies(TRUTH.replace(mu_elbow=0.0, mu_tip=0.0), exps, ("rho1",))
+    smooth = robust.smooth_friction(exps, 1e-3)
+    assert not robust.homotopy_applies(TRUTH, smooth, FREE)
+    with pytest.raises(beamid.InputError, match="homotopy = 'yes'"):
+        beamid.fit(start, exps, deck.data, free=FREE, homotopy="yes")
+
+
+# ------------------------------------------------------------------ strong hidden effects
+
+def test_strong_motor_ratio_is_recovered_from_the_nominal_one():
+    """A motor ratio of 0.6 (the nominal model's 1.0): data at rtol 1e-11 on
+    the fit's mesh, sigma 1e-4 m, seed 21; fitted from r_motor = 1."""
+    base = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
+    rig = {"m": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, motor_gain=0.2,
+                               rtol=1e-11)}
+    data = beamid.simulate_measurements(base.replace(r_motor=0.6), rig, ["w_tip", "u_tip"],
+                                        sigma=1e-4, t=np.linspace(0.05, 1.3, 26), seed=21,
+                                        noise=True)
+    rel = {"m": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, motor_gain=0.2)}
+    fit = beamid.fit(base, rel, data, free=("rho2", "r_motor"))
+    assert fit.converged and fit.chi2 / fit.dof <= 1.5
+    assert abs(fit.estimates["r_motor"] - 0.6) < 3 * fit.sigmas["r_motor"]
+    assert abs(fit.estimates["rho2"] - base["rho2"]) < 3 * fit.sigmas["rho2"]
+    assert fit.starts == () and fit.mesh_check is None
