@@ -59,6 +59,8 @@ module beamid_estimation
     !! it iterates): accurate, the Jacobian rough (predictions at the user's
     !! tolerance), or predictions and Jacobian rough (the search's first
     !! phase). Each phase ends with the accurate evaluation at its final point.
+    !> Relative noise floor of an integrated response's chi-square (noise_floor).
+    real(dp), parameter :: FLOOR_REL = 1.0e-5_dp
     integer, parameter, public :: ROUGH_OFF = 0, ROUGH_JACOBIAN = 1, ROUGH_ALL = 2
 
     !> A damped crawl: CRAWL_STEPS damped steps lowering the chi-square by
@@ -814,6 +816,19 @@ contains
         end associate
     end subroutine projected_svd
 
+    !> The cost's noise floor: floor_chi2, and for an integrated response
+    !! FLOOR_REL of the cost when that is more (issue 30, long records: the
+    !! integrator's relative error makes the chi-square of a long record
+    !! rough at ~1e-5 of itself, where steps of 0.01 are no longer
+    !! judged; beamid.robust.same_chi2 is the same rule). Below a
+    !! chi-square of 1000 it is floor_chi2.
+    pure real(dp) function noise_floor(w, opts)
+        type(gn_state_t), intent(in) :: w
+        type(fit_options_t), intent(in) :: opts
+        noise_floor = opts%floor_chi2
+        if (w%integrated) noise_floor = max(noise_floor, FLOOR_REL*w%cost)
+    end function noise_floor
+
     !> Is iteration `it` at a minimum, before its step (w%pred_gn set)?
     pure logical function at_minimum(w, it, rough, opts)
         type(gn_state_t), intent(in) :: w
@@ -834,8 +849,8 @@ contains
         ! its error control), it lowered the chi-square by less than
         ! floor_chi2 and the next step promises less than floor_chi2 more:
         ! what is left to gain has no statistical meaning
-        at_minimum = it > 1 .and. w%poor_step .and. w%dcost <= opts%floor_chi2 .and. &
-                     w%pred_gn <= opts%floor_chi2
+        at_minimum = it > 1 .and. w%poor_step .and. w%dcost <= noise_floor(w, opts) .and. &
+                     w%pred_gn <= noise_floor(w, opts)
         if (at_minimum) return
         ! a rough phase's own noise floor (issue 30): its Jacobian carries the
         ! rough sensitivities' error (a few per cent of each column), and
@@ -861,7 +876,7 @@ contains
         ! one accurate integration with sensitivities apiece (10 s at 500
         ! Hz: five steps, a third of the fit's cost, for 0.03 of chi-square)
         at_minimum = w%integrated .and. rough == ROUGH_OFF .and. it > w%it0 .and. &
-                     w%dcost <= opts%floor_chi2 .and. w%pred_gn <= opts%floor_chi2
+                     w%dcost <= noise_floor(w, opts) .and. w%pred_gn <= noise_floor(w, opts)
         if (at_minimum) return
         ! the rough model pays while the misfit is well above the data's
         ! noise; once the data are fitted better than their sigmas (chi2
@@ -959,7 +974,7 @@ contains
             w%nstuck = 0
         end if
         w%cost = w%cost_t
-        if (w%poor_step .and. w%dcost <= opts%floor_chi2) then
+        if (w%poor_step .and. w%dcost <= noise_floor(w, opts)) then
             w%nfloor = w%nfloor + 1
         else
             w%nfloor = 0
@@ -1024,10 +1039,10 @@ contains
         end if
         w%pred_gn = predicted_decrease(w%s, w%u, w%rr, opts%rcond)
         if (w%level == ROUGH_ALL) then
-            go_on = w%pred_gn > opts%floor_chi2*min(1.0_dp, w%cost/max(w%mt - w%n, 1)) .and. &
+            go_on = w%pred_gn > noise_floor(w, opts)*min(1.0_dp, w%cost/max(w%mt - w%n, 1)) .and. &
                     w%cost > 1.0e-18_dp*w%mt
         else
-            go_on = w%pred_gn > opts%floor_chi2
+            go_on = w%pred_gn > noise_floor(w, opts)
         end if
     end subroutine confirm_at_final_point
 
