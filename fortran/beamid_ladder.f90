@@ -259,8 +259,12 @@ contains
                     lad%added = pack(lad%added, lad%added /= gone)
                 end if
             end if
-            call rung_at_best(pb, lad%nominal, r, st)
-            if (st%code /= STATUS_OK) return
+            if (r%dg%dynamic) then
+                ! (releases: a static fit's minimum does not depend on
+                ! where friction switched)
+                call rung_at_best(pb, lad%nominal, r, st)
+                if (st%code /= STATUS_OK) return
+            end if
             lad%added = [lad%added, r%params]
             lad%nominal(r%params) = r%fit%params(r%params)
         end associate

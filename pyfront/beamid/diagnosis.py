@@ -809,8 +809,9 @@ class LadderStep(NamedTuple):
     #: needs (set back to their null values: a rival member of the block)
     removed: tuple[str, ...] = ()
     #: the check that the rung's fit is at its best before the ladder goes
-    #: on (a rung that ends far above its degrees of freedom is refitted
-    #: from the nominal model with its effect as fitted; "" when not run)
+    #: on (with releases, a rung that ends far above its degrees of freedom
+    #: is refitted from the nominal model with its effect as fitted; "" when
+    #: not run; the table prints it when the refit replaced the rung's fit)
     at_best: str = ""
 
     def __repr__(self) -> str:
@@ -859,7 +860,7 @@ class Ladder(_ByRankAndName):
             if s.removed:
                 lines.append(f"{'':<6}{'':<18}{', '.join(s.params)} instead of "
                              f"{', '.join(s.removed)} (no longer needed)")
-            if s.at_best:
+            if s.at_best.startswith("at its best from"):   # the rung's fit was replaced
                 lines.append(f"{'':<6}{'':<18}{s.at_best}")
         lines.append(self.steps[-1].diagnosis.message)
         return "\n".join(lines)
