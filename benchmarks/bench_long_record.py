@@ -22,6 +22,15 @@ Measured (28 November 2026, shared 2-core machine under load, --quick, CPU s):
 truth's, farthest parameter 2.55 sigma (rho2 at 5 s). Cost per simulated second at
 10 s / at 2.6 s: 6.0 - the target (<= 2) is MISSED: the iterations on the longest
 window are not bounded. The 30 s record was not run in this session.
+
+After the stopping-rule changes for integrated responses (issue 30: the accurate
+phase ends at the noise floor; the floor of a chi-square above 1000 is 1e-5 of it),
+same machine and load, CPU s: 2.6 s 3.28 (6 iterations), 10 s 42.7 (4 windows, 6 in
+the last), both converged, chi-square at or below the truth's, farthest parameter
+0.87 and 0.55 sigma. Cost per simulated second at 10 s / at 2.6 s: 3.4 - still
+MISSED (the windows of the grown record together cost about as much as the last).
+One evaluation with sensitivities costs 0.37 CPU s per simulated second at both
+lengths (not the cause). The 30 s record was not run.
 """
 from __future__ import annotations
 

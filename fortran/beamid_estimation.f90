@@ -59,6 +59,8 @@ module beamid_estimation
     !! it iterates): accurate, the Jacobian rough (predictions at the user's
     !! tolerance), or predictions and Jacobian rough (the search's first
     !! phase). Each phase ends with the accurate evaluation at its final point.
+    !> Relative noise floor of an integrated response's chi-square (noise_floor).
+    real(dp), parameter :: FLOOR_REL = 1.0e-5_dp
     integer, parameter, public :: ROUGH_OFF = 0, ROUGH_JACOBIAN = 1, ROUGH_ALL = 2
 
     !> A damped crawl: CRAWL_STEPS damped steps lowering the chi-square by
@@ -235,6 +237,10 @@ module beamid_estimation
         !> the refit starts tried (refit_effect: first-order, nominal,
         !! continuation)
         logical :: starts(3) = .true.
+        !> the continuation start only when neither earlier start converged
+        !! (releases: five fits with sensitivities, paid only for a base fit
+        !! too far off for the first-order and the nominal start; issue 30)
+        logical :: continue_if_none = .false.
     end type diagnose_options_t
 
     !> How a refit with an effect switched on went (refit_effect).
@@ -816,6 +822,19 @@ contains
         end associate
     end subroutine projected_svd
 
+    !> The cost's noise floor: floor_chi2, and for an integrated response
+    !! FLOOR_REL of the cost when that is more (issue 30, long records: the
+    !! integrator's relative error makes the chi-square of a long record
+    !! rough at ~1e-5 of itself, where steps of 0.01 are no longer
+    !! judged; beamid.robust.same_chi2 is the same rule). Below a
+    !! chi-square of 1000 it is floor_chi2.
+    pure real(dp) function noise_floor(w, opts)
+        type(gn_state_t), intent(in) :: w
+        type(fit_options_t), intent(in) :: opts
+        noise_floor = opts%floor_chi2
+        if (w%integrated) noise_floor = max(noise_floor, FLOOR_REL*w%cost)
+    end function noise_floor
+
     !> Is iteration `it` at a minimum, before its step (w%pred_gn set)?
     pure logical function at_minimum(w, it, rough, opts)
         type(gn_state_t), intent(in) :: w
@@ -836,8 +855,8 @@ contains
         ! its error control), it lowered the chi-square by less than
         ! floor_chi2 and the next step promises less than floor_chi2 more:
         ! what is left to gain has no statistical meaning
-        at_minimum = it > 1 .and. w%poor_step .and. w%dcost <= opts%floor_chi2 .and. &
-                     w%pred_gn <= opts%floor_chi2
+        at_minimum = it > 1 .and. w%poor_step .and. w%dcost <= noise_floor(w, opts) .and. &
+                     w%pred_gn <= noise_floor(w, opts)
         if (at_minimum) return
         ! a rough phase's own noise floor (issue 30): its Jacobian carries the
         ! rough sensitivities' error (a few per cent of each column), and
@@ -852,6 +871,18 @@ contains
         ! response ends there too: at 5 s and more, the friction switches
         ! leave pred_gn above floor_chi2 where steps no longer gain it.
         at_minimum = (rough /= ROUGH_OFF .or. w%integrated) .and. it > 1 .and. w%nfloor >= 2
+        if (at_minimum) return
+        ! the accurate phase of an integrated response (issue 30, cost on
+        ! long records): a step of this phase gained less than floor_chi2
+        ! and the next Gauss-Newton step promises less than floor_chi2 more,
+        ! every parameter within 0.1 sigma of the linearized minimum. The
+        ! accurate sensitivities still differ from the derivative of the
+        ! integrated predictions (event location, error control) by more
+        ! than such a step, so undamped steps went on gaining ~1e-3 each at
+        ! one accurate integration with sensitivities apiece (10 s at 500
+        ! Hz: five steps, a third of the fit's cost, for 0.03 of chi-square)
+        at_minimum = w%integrated .and. rough == ROUGH_OFF .and. it > w%it0 .and. &
+                     w%dcost <= noise_floor(w, opts) .and. w%pred_gn <= noise_floor(w, opts)
         if (at_minimum) return
         ! the rough model pays while the misfit is well above the data's
         ! noise; once the data are fitted better than their sigmas (chi2
@@ -949,7 +980,7 @@ contains
             w%nstuck = 0
         end if
         w%cost = w%cost_t
-        if (w%poor_step .and. w%dcost <= opts%floor_chi2) then
+        if (w%poor_step .and. w%dcost <= noise_floor(w, opts)) then
             w%nfloor = w%nfloor + 1
         else
             w%nfloor = 0
@@ -1014,10 +1045,10 @@ contains
         end if
         w%pred_gn = predicted_decrease(w%s, w%u, w%rr, opts%rcond)
         if (w%level == ROUGH_ALL) then
-            go_on = w%pred_gn > opts%floor_chi2*min(1.0_dp, w%cost/max(w%mt - w%n, 1)) .and. &
+            go_on = w%pred_gn > noise_floor(w, opts)*min(1.0_dp, w%cost/max(w%mt - w%n, 1)) .and. &
                     w%cost > 1.0e-18_dp*w%mt
         else
-            go_on = w%pred_gn > opts%floor_chi2
+            go_on = w%pred_gn > noise_floor(w, opts)
         end if
     end subroutine confirm_at_final_point
 
@@ -1423,14 +1454,15 @@ contains
     !! The best is the lowest chi-square among the starts that converge
     !! (STOP_CONVERGED; a later start must beat the best so far by more than
     !! 1e-6 of it, so the same minimum reached twice keeps the earlier start,
-    !! whatever the nominal model). Starts after one whose chi-square is
+    !! whatever the nominal model). With `last_resort` the continuation
+    !! runs only when neither earlier start converged. Starts after one whose chi-square is
     !! consistent with the noise (below dof + 3 sqrt(2 dof)) are skipped: no
     !! other minimum can be significantly better. `info%note` says what each start gave. When
     !! none converges, `res` is the lowest-cost attempt (flagged) and the
     !! status is ERR_NO_CONVERGENCE with the notes; a model that cannot be
     !! evaluated at base%params is an error as usual.
     subroutine refit_effect(model, lp, base, block, score, nominal, opts, res, info, stat, &
-                            ncont, use, enough)
+                            ncont, use, enough, last_resort)
         class(residual_model_t), intent(inout) :: model
         type(lsq_problem_t), intent(in) :: lp
         real(dp), intent(in) :: nominal(:)
@@ -1445,6 +1477,8 @@ contains
         logical, intent(in), optional :: use(3) !< which starts to try (default all)
         !> stop at a converged start with half the predicted drop (default no)
         logical, intent(in), optional :: enough
+        !> the continuation only when no earlier start converged (default no)
+        logical, intent(in), optional :: last_resort
         integer :: nb, half, nsteps, kk
         logical :: try(3), same
         integer, allocatable :: all_free(:)
@@ -1504,6 +1538,9 @@ contains
         end if
 
         ! 3. continuation in the effect's strength from its null value
+        if (present(last_resort)) then
+            if (last_resort .and. rs%have_best) try(3) = .false.
+        end if
         if (try(3) .and. .not. refit_done(rs) .and. any(target /= lp%nulls(block))) then
             call continue_in_strength(model, lp, base, block, target, all_free, opts, nsteps, &
                                       p, kk, why)
@@ -1732,7 +1769,8 @@ contains
                 call clear_status(st)
                 call refit_effect(model, lp, base, cands(c)%params, cr%score, start, fopts, &
                                   cr%refit, cr%info, st, use=dopts%starts, &
-                                  enough=dopts%first_enough)
+                                  enough=dopts%first_enough, &
+                                  last_resort=dopts%continue_if_none)
                 if (st%code < 0) then
                     stat = st
                     return

@@ -7,10 +7,10 @@ module beamid_ladder
     use, intrinsic :: iso_fortran_env, only: int64
     use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, fmt_int, set_status
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, fmt_int, fmt_real, set_status
     use beamid_estimation, only: fit_result_t, fit_options_t, prior_t, candidate_t, &
                                  diagnose_options_t, diagnosis_t, chi2_sf, lsq_problem_t, &
-                                 fit_least_squares
+                                 fit_least_squares, STOP_CONVERGED
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, &
                               inverse_diagnose, EXP_RELEASE, EV_NEPB, EV_LOSS, EV_SIGEST, &
                               MAX_CHANNEL_BITS
@@ -23,6 +23,10 @@ module beamid_ladder
     public :: problem_fit, problem_diagnose, problem_dynamic
     public :: ladder_start, ladder_step
     public :: ladder_end_at_fit
+
+    !> A rung's fit ends "far above its degrees of freedom" when the
+    !! chi-square's p-value is below this (beamid.robust.FAR_P).
+    real(dp), parameter :: FAR_P = 1.0e-3_dp
 
     !> The candidates of one diagnosis: effects with their parameter blocks;
     !! with releases `mesh` is tested apart (with_mesh).
@@ -306,6 +310,12 @@ contains
                     lad%added = pack(lad%added, lad%added /= gone)
                 end if
             end if
+            if (r%dg%dynamic) then
+                ! (releases: a static fit's minimum does not depend on
+                ! where friction switched)
+                call rung_at_best(pb, lad%nominal, r, st)
+                if (st%code /= STATUS_OK) return
+            end if
             lad%added = [lad%added, r%params]
             lad%nominal(r%params) = r%fit%params(r%params)
         end associate
@@ -414,6 +424,57 @@ contains
         median = y((n + 1)/2)
         if (mod(n, 2) == 0) median = 0.5_dp*(y(n/2) + y(n/2 + 1))
     end function median
+
+    !> A rung's fit at its best before the ladder goes on (issue 30): when
+    !! it ends far above its degrees of freedom (p below FAR_P), the fit is
+    !! repeated from the user's model (`nominal`: earlier rungs' parameters
+    !! as fitted) with the rung's parameters at their fitted values, so the
+    !! parameters fitted before the effect was added (friction absorbing a
+    !! root compliance) leave the minimum they found without it. The lower
+    !! end point is the rung's fit when it is lower by more than
+    !! max(0.05, 1e-5 chi2) (the noise floor of an integrated response); the
+    !! fit's note says what the check found.
+    subroutine rung_at_best(pb, nominal, r, st)
+        type(problem_t), intent(in) :: pb
+        real(dp), intent(in) :: nominal(:)
+        type(rung_t), intent(inout) :: r
+        type(status_t), intent(inout) :: st
+        type(fit_result_t) :: again
+        type(status_t) :: st2
+        real(dp), allocatable :: p(:)
+        real(dp) :: c0, c1
+        character(len=:), allocatable :: text
+        if (.not. allocated(r%fit%params) .or. r%fit%dof <= 0) return
+        c0 = r%fit%chi2 + r%fit%chi2_prior
+        if (chi2_sf(c0, r%fit%dof) >= FAR_P) return
+        p = nominal
+        p(r%params) = r%fit%params(r%params)
+        if (all(p(r%fit%free) == r%fit%params(r%fit%free))) return
+        call problem_fit(pb, p, r%fit%free, again, st2)
+        if (st2%code < 0) then
+            st = st2           ! bad input is bad input
+            return
+        end if
+        if (st2%code /= STATUS_OK .or. .not. allocated(again%params)) then
+            text = 'at its best: the refit from the nominal model failed ('// &
+                   trim(st2%message)//')'
+        else
+            c1 = again%chi2 + again%chi2_prior
+            if (again%stop == STOP_CONVERGED .and. c0 - c1 >= max(0.05_dp, 1.0e-5_dp*c1)) then
+                text = 'at its best from the nominal model: chi2 '//fmt_real(again%chi2)// &
+                       ' where the fit from the diagnosis'' refit ended at '// &
+                       fmt_real(r%fit%chi2)//' (a local minimum)'
+                r%fit = again
+            else
+                text = 'at its best: the refit from the nominal model ended at chi2 '// &
+                       fmt_real(again%chi2)
+            end if
+        end if
+        if (allocated(r%fit%note)) then
+            if (len(r%fit%note) > 0) text = r%fit%note//'; '//text
+        end if
+        r%fit%note = text
+    end subroutine rung_at_best
 
     !> End a started ladder at its fit, undiagnosed (a fit or compare deck):
     !! the fit is the only rung, with no candidates and an empty diagnosis.

@@ -172,9 +172,6 @@ def test_strong_tip_drag_is_recovered_from_a_tenth_of_it(strong_drag):
     assert fit.starts == () and fit.mesh_check is None
 
 
-@pytest.mark.xfail(strict=True, reason="issue 30, not done: on a strong tip drag improve's "
-                   "first rung adds kelvin_voigt (chi2/dof 1320) and the drag refit then fails "
-                   "(eta runs away to 0 and the refit counts as not converged)")
 def test_improve_finds_a_strong_tip_drag_without_an_extra_rung(strong_drag):
     base, rel, data = strong_drag
     ladder = beamid.improve(base.replace(rho2=0.545), rel, data, free=("rho2",),
@@ -183,3 +180,122 @@ def test_improve_finds_a_strong_tip_drag_without_an_extra_rung(strong_drag):
     fit = ladder.fit
     assert fit.chi2 / fit.dof <= 1.5
     assert abs(fit.estimates["c_tip"] - 0.2) < 3 * fit.sigmas["c_tip"]
+
+
+# ------------------------------------------------------------------ friction homotopy
+
+def test_release_friction_velocity_is_typed_and_checked():
+    rel = beamid.Release(beamid.TipForce(fy=8.0), friction="smooth", friction_velocity=1e-3)
+    assert rel.friction_velocity == 1e-3 and rel.encode()[1][10] == 1e-3
+    assert beamid.Release.decode(rel.encode()[1]) == rel
+    assert "vs = 0.001 m/s" in rel.describe()
+    # the default: the library's 1e-4 m/s (0 in the value column)
+    plain = beamid.Release(beamid.TipForce(fy=8.0), friction="smooth")
+    assert plain.friction_velocity is None and plain.encode()[1][10] == 0.0
+    for kw, text in (({"friction": "smooth", "friction_velocity": 0.0},
+                      "friction_velocity = 0"),
+                     ({"friction": "smooth", "friction_velocity": "fast"},
+                      "friction_velocity = 'fast'"),
+                     ({"friction": "smooth", "friction_velocity": float("nan")},
+                      "friction_velocity = nan"),
+                     ({"friction_velocity": 1e-3}, "expected friction='smooth'"),
+                     ({"friction": "sign", "friction_velocity": 1e-3},
+                      "expected friction='smooth'")):
+        with pytest.raises(beamid.InputError, match=text):
+            beamid.Release(beamid.TipForce(fy=8.0), **kw)
+    # the velocity reaches the integrator: the smooth law's tip moves with it
+    t = np.linspace(0.1, 1.3, 13)
+
+    def w_tip(**kw):
+        rel = {"r": beamid.Release(beamid.TipForce(fy=8.0), **kw)}
+        return np.asarray(beamid.simulate_measurements(TRUTH, rel, ["w_tip"], t=t).value)
+
+    w = {vs: w_tip(friction="smooth", friction_velocity=vs) for vs in (1e-2, 1e-4)}
+    sign = w_tip()
+    assert np.max(np.abs(w[1e-2] - sign)) > 5 * np.max(np.abs(w[1e-4] - sign))
+
+
+def test_friction_homotopy_ends_on_the_sign_law_at_the_same_minimum(table16):
+    deck, exps, ref = table16
+    start = TRUTH.replace(mu_elbow=0.015, mu_tip=0.01, rho1=0.5603, rho2=0.5437)
+    fit = beamid.fit(start, exps, deck.data, free=FREE, homotopy=True)
+    assert fit.start_won == robust.HOMOTOPY and len(fit.path) == 3
+    assert fit.path[0].startswith("smooth law, vs = 0.01 m/s")
+    assert fit.path[1].startswith("smooth law, vs = 0.001 m/s")
+    assert fit.path[2].startswith("sign law") and fit.converged
+    # the sign law's minimum: Table 16's answer
+    assert abs(fit.chi2 - ref.chi2) < robust.same_chi2(ref.chi2)
+    for n in FREE:
+        assert abs(fit.estimates[n] - ref.estimates[n]) < 0.1 * ref.sigmas[n], n
+    # nothing to do without friction or on the smooth law
+    assert not robust.homotopy_applies(TRUTH.replace(mu_elbow=0.0, mu_tip=0.0), exps, ("rho1",))
+    smooth = robust.smooth_friction(exps, 1e-3)
+    assert not robust.homotopy_applies(TRUTH, smooth, FREE)
+    with pytest.raises(beamid.InputError, match="homotopy = 'yes'"):
+        beamid.fit(start, exps, deck.data, free=FREE, homotopy="yes")
+
+
+# ------------------------------------------------------------------ strong hidden effects
+
+def test_strong_motor_ratio_is_recovered_from_the_nominal_one():
+    """A motor ratio of 0.6 (the nominal model's 1.0): data at rtol 1e-11 on
+    the fit's mesh, sigma 1e-4 m, seed 21; fitted from r_motor = 1."""
+    base = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02)
+    rig = {"m": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, motor_gain=0.2,
+                               rtol=1e-11)}
+    data = beamid.simulate_measurements(base.replace(r_motor=0.6), rig, ["w_tip", "u_tip"],
+                                        sigma=1e-4, t=np.linspace(0.05, 1.3, 26), seed=21,
+                                        noise=True)
+    rel = {"m": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, motor_gain=0.2)}
+    fit = beamid.fit(base, rel, data, free=("rho2", "r_motor"))
+    assert fit.converged and fit.chi2 / fit.dof <= 1.5
+    assert abs(fit.estimates["r_motor"] - 0.6) < 3 * fit.sigmas["r_motor"]
+    assert abs(fit.estimates["rho2"] - base["rho2"]) < 3 * fit.sigmas["rho2"]
+    assert fit.starts == () and fit.mesh_check is None
+
+
+def test_strong_root_compliance_is_found_by_improve_without_an_extra_rung():
+    """The dissertation's friction and a root compliance of 80 N m/rad
+    (root_flex = 0.0125 rad/(N m)), tip u and w at 26 times over 1.3 s made
+    at rtol 1e-11 with noise 6e-4 and 1e-3 m (seed 30), fitted from the
+    published friction starts: the root_flex rung's fit from the diagnosis'
+    refit stops in a local minimum (friction absorbed the compliance at the
+    start), the rung is refitted from the nominal model before the ladder
+    goes on (issue 30: it added elbow_flex), and no further rung follows."""
+    truth = beamid.pace(J_elbow=0.0, J_tip=0.0, mu_elbow=0.01, mu_tip=0.02, root_flex=0.0125)
+    rig = {"H": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4, rtol=1e-11)}
+    data = beamid.simulate_measurements(truth, rig, ["u_tip", "w_tip"],
+                                        {"u_tip": 6e-4, "w_tip": 1e-3},
+                                        t=np.linspace(0.05, 1.3, 26), seed=30, noise=True)
+    rel = {"H": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=4)}
+    ladder = beamid.improve(beamid.pace(J_elbow=0, J_tip=0, mu_elbow=0.015, mu_tip=0.01), rel,
+                            data, free=("mu_elbow", "mu_tip"),
+                            candidates=("root_flex", "elbow_flex", "drag"))
+    assert ladder.effects == ("root_flex",)
+    fit = ladder.fit
+    assert fit.chi2 / fit.dof <= 1.5
+    for name in ("root_flex", "mu_elbow", "mu_tip"):
+        assert abs(fit.estimates[name] - truth[name]) < 3 * fit.sigmas[name], name
+    assert "at its best" in ladder["root_flex"].at_best
+    assert "at its best" in str(ladder)
+
+
+def test_ten_second_record_is_recovered_at_a_bounded_cost():
+    """Table 16's fit on a 10 s release (2 elements per beam, 20 Hz), data at
+    rtol 1e-11 with sigma 1e-4 m (seed 10), from the published starts: the
+    record is grown (1.25, 2.5, 5, 10 s) and every parameter recovered."""
+    t = np.arange(1, 201) / 20.0
+    rig = {"long": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=2, rtol=1e-11)}
+    data = beamid.simulate_measurements(TRUTH, rig, ["w_tip", "u_tip"], sigma=1e-4, t=t,
+                                        seed=10, noise=True)
+    rel = {"long": beamid.Release(beamid.TipForce(fy=8.0), elements_per_beam=2)}
+    start = TRUTH.replace(mu_elbow=0.015, mu_tip=0.01, rho1=0.5603, rho2=0.5437)
+    fit = beamid.fit(start, rel, data, free=FREE)
+    assert fit.converged and fit.chi2 / fit.dof <= 1.5 and len(fit.path) == 4
+    for n in FREE:
+        assert abs(fit.estimates[n] - TRUTH[n]) < 3 * fit.sigmas[n], n
+    # the whole record's window from the 5 s window's estimates: 14
+    # iterations measured (damped steps of rough phases gaining 0.005-0.06
+    # each, chi2 381: below the relative noise floor's reach); a guard
+    # against growth, not the issue's bound (not reached: docs/workflow_dynamic.md)
+    assert fit.iterations <= 16

@@ -809,6 +809,11 @@ class LadderStep(NamedTuple):
     #: parameters an earlier rung switched on that this rung's fit no longer
     #: needs (set back to their null values: a rival member of the block)
     removed: tuple[str, ...] = ()
+    #: the check that the rung's fit is at its best before the ladder goes
+    #: on (with releases, a rung that ends far above its degrees of freedom
+    #: is refitted from the nominal model with its effect as fitted; "" when
+    #: not run; the table prints it when the refit replaced the rung's fit)
+    at_best: str = ""
 
     def __repr__(self) -> str:
         return (f"<LadderStep {self.step}: {self.effect or '(start)'}, chi2 {self.chi2:.5g} "
@@ -856,6 +861,8 @@ class Ladder(_ByRankAndName):
             if s.removed:
                 lines.append(f"{'':<6}{'':<18}{', '.join(s.params)} instead of "
                              f"{', '.join(s.removed)} (no longer needed)")
+            if s.at_best.startswith("at its best from"):   # the rung's fit was replaced
+                lines.append(f"{'':<6}{'':<18}{s.at_best}")
         lines.append(self.steps[-1].diagnosis.message)
         return "\n".join(lines)
 
@@ -903,6 +910,13 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
                          ptable, blocks, with_mesh, alpha, limit, int(max_iter),
                          gross="gross_errors" in named, noise="noise" in named)
         return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+
+
+def _at_best(model: Model, note: str) -> str:
+    """The ladder's at-its-best check in a rung's raw fit note (beamid_ladder
+    rung_at_best), parameters named; "" when it did not run."""
+    part = next((p for p in str(note).split("; ") if p.startswith("at its best")), "")
+    return _named(model, part) if part else ""
 
 
 def _chain_extension(model: Model, experiments: Experiments, data: Measurements,
@@ -964,7 +978,8 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
         steps.append(LadderStep(k, effect, fit.chi2, fit.dof, fit.chi2_per_dof,
                                 dict(fit.estimates), dict(fit.sigmas), fit, diag,
                                 tuple(all_names[i] for i in r["params"]),
-                                tuple(all_names[i] for i in r["removed"])))
+                                tuple(all_names[i] for i in r["removed"]),
+                                _at_best(model, r["fit"].get("note", ""))))
         if dynamic and diag.mesh is not None:
             with_mesh = False    # the mesh is judged once (beamid_ladder)
     return Ladder(tuple(steps))

@@ -364,7 +364,8 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         estimate_sigma: "bool | Sequence | None" = None,
         starts: int | None = None, start_spread: float = START_SPREAD,
         start_seed: int = START_SEED, workers: int | None = 1, client: Any = None,
-        mesh: bool = True, grow: bool | None = None) -> FitResult:
+        mesh: bool = True, grow: bool | None = None,
+        homotopy: bool | None = None) -> FitResult:
     """Estimate the ``free`` parameters of ``model`` from ``data``.
 
     Weighted Gauss-Newton differential correction (Eq. 39, weights 1/sigma^2
@@ -454,6 +455,17 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         the phase is caught before the whole record is fitted. ``None``
         (default): on records longer than 4 s; True: on records of 2 s and
         more; False: never.
+    homotopy:
+        The friction homotopy (a model with joint friction on releases with
+        the sign law): fit on the smooth law mu N v / sqrt(v^2 + vs^2) at
+        vs = 1e-2, then 1e-3 m/s, then on the sign law, each stage from the
+        last one's estimates (``result.path`` lists the stages), so the
+        stick-slip pattern settles before Gauss-Newton sees its kinks.
+        ``None`` (default): when the plain fit ends far above its degrees
+        of freedom or stalls and the mesh is not the likely cause (the
+        path's end replaces the fit when it goes lower by more than 0.05;
+        ``result.start_won`` is then "friction homotopy"); True: always (the
+        path is the fit); False: never.
     mesh:
         Check the mesh of a fit with releases that ends far above its
         degrees of freedom or stalls (``result.mesh_check``; one plain run at
@@ -489,6 +501,9 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         (prior_map, ptable), pcov = _prior_arrays(model, free_names, prior), None
     starts, start_spread, start_seed, workers, client, mesh, grow = _check_robust_args(
         starts, start_spread, start_seed, workers, client, mesh, grow)
+    if homotopy is not None and not isinstance(homotopy, (bool, np.bool_)):
+        _check.fail("homotopy", homotopy, "None (automatic), True or False")
+    homotopy = None if homotopy is None else bool(homotopy)
     exp_names = list(_check_experiments(experiments))
     params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
 
@@ -511,7 +526,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     return checked(plain, model, experiments, data, free, prior,
                    {"max_iter": max_iter, "tol": tol, "jacobian": jacobian},
                    starts=starts, spread=start_spread, seed=start_seed, workers=workers,
-                   client=client, mesh=mesh, grow=grow)
+                   client=client, mesh=mesh, grow=grow, homotopy=homotopy)
 
 
 def _with_chain(model: Model, chain: ChainSpec | None, exp_names: list[str],

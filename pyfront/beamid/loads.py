@@ -111,7 +111,12 @@ class Release:
     and the quantities ``u_tip w_tip x_tip y_tip tip_angle x_elbow y_elbow``,
     and ``motor_torque`` with a motor. ``integrator`` ("implicit" or "rk4"),
     ``rtol``, ``dt`` and ``friction`` ("sign", "smooth", "sign_literal") as
-    in :func:`beamid.simulate` (None: its defaults).
+    in :func:`beamid.simulate` (None: its defaults). ``friction_velocity``
+    is the smooth law's regularization velocity vs in m/s (None: 1e-4 m/s,
+    :data:`beamid.dynamics.DEFAULT_FRICTION_VELOCITY`); it is used by the
+    smooth law only, so it is refused with another law. The friction
+    homotopy of :func:`beamid.fit` (``homotopy=``) fits on the smooth law
+    with a shrinking vs before the sign law.
     """
 
     load: TipLoad
@@ -121,6 +126,7 @@ class Release:
     rtol: float | None = None
     dt: float | None = None
     friction: str | None = None
+    friction_velocity: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.load, TipLoad):
@@ -138,11 +144,20 @@ class Release:
         for name in ("rtol", "dt"):
             v = _check.real(f"Release: {name}", getattr(self, name), above=0.0, none=True)
             object.__setattr__(self, name, v)
+        vs = _check.real("Release: friction_velocity", self.friction_velocity, above=0.0,
+                         none=True, expected="a regularization velocity > 0 (m/s)")
+        if vs is not None and friction != "smooth":
+            raise InputError(f"Release: friction_velocity = {vs:g} with friction = "
+                             f"{friction!r}, expected friction='smooth' (the velocity "
+                             "regularizes the smooth law only)")
+        object.__setattr__(self, "friction_velocity", vs)
         spec = {"fx": self.load.fx, "fy": self.load.fy, "moment": self.load.moment,
                 "elements_per_beam": float(nepb), "motor_gain": gain,
                 "integrator": float(_INTEGRATORS[self.integrator]),
                 "friction": float(_FRICTION_LAWS[friction]), "rtol": self.rtol or 0.0,
                 "dt": self.dt or 0.0}
+        if vs is not None:
+            spec["v_slip"] = vs
         object.__setattr__(self, "_spec", spec)
 
     def encode(self) -> tuple[int, np.ndarray]:
@@ -189,11 +204,15 @@ class Release:
                 _check.fail(f"Release.from_spec: {key}", v[key], f"a code of the {key}")
         integrators = {c: n for n, c in _INTEGRATORS.items()}
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
+        law = laws[int(round(v["friction"]))]
+        vs = v.get("v_slip", 0.0)
         return cls(TipLoad(v["fx"], v["fy"], v["moment"]),
                    elements_per_beam=int(round(v["elements_per_beam"])),
                    motor_gain=v["motor_gain"], integrator=integrators[int(round(v["integrator"]))],
-                   rtol=v["rtol"] or None, dt=v["dt"] or None,
-                   friction=laws[int(round(v["friction"]))])
+                   rtol=v["rtol"] or None, dt=v["dt"] or None, friction=law,
+                   # the smooth law's velocity (0: the core's default; a deck's
+                   # velocity beside another law is unused there)
+                   friction_velocity=vs if vs > 0.0 and law == "smooth" else None)
 
     @property
     def has_motor(self) -> bool:
@@ -201,4 +220,6 @@ class Release:
 
     def describe(self) -> str:
         text = f"release from {self.load.describe()}, {self.elements_per_beam} elements per beam"
+        if self.friction_velocity is not None:
+            text += f", smooth friction vs = {self.friction_velocity:g} m/s"
         return text + (f", motor gain {self.motor_gain:g}" if self.has_motor else "")

@@ -36,6 +36,19 @@ to the whole record, each window from the last one's estimates), so the
 phase of the response is caught before the whole record is fitted
 (:func:`grown_fit`; ``result.path`` lists the windows).
 
+A fourth is the friction homotopy: ``fit(..., homotopy=None)`` fits a
+model with joint friction on releases with the sign law (the
+dissertation's, Eq. 101-102) first on the smooth law mu N v / sqrt(v^2 +
+vs^2) at the regularization velocities :data:`HOMOTOPY_VELOCITIES`
+(largest first), each from the last one's estimates, and then on the sign
+law, so the pattern of stick and slip settles before Gauss-Newton sees the
+kinks of its switches (:func:`homotopy_fit`; ``result.path`` lists the
+stages). ``None`` (default) runs it when the plain fit ends far above its
+degrees of freedom or stalls and the mesh is not the likely cause (the
+path's end is kept when it goes lower than the plain fit by more than
+:func:`same_chi2`, ``result.start_won`` then says "friction homotopy");
+True always (the path is the fit); False never.
+
 This module builds on :func:`beamid.estimation.fit` (each start, window and
 mesh refit is a plain fit) and registers :func:`checked_fit` with it when
 imported (``import beamid`` does), so estimation does not import it.
@@ -155,7 +168,7 @@ def mesh_check(fit: Any, *, prior: Any = None, options: dict | None = None) -> M
     try:
         refit = _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
                      prior=prior if prior is not None else (fit.prior or None), starts=0,
-                     mesh=False, **dict(options or {}))
+                     mesh=False, homotopy=False, **dict(options or {}))
         chi2 = refit.chi2 + refit.chi2_prior
     except BeamidError:
         chi2 = out["chi2"]      # the refined model at the fit's estimates
@@ -222,7 +235,7 @@ def _run_start(spec: _StartSpec, k: int) -> tuple[int, Any, str]:
     start = random_start(spec, k)
     try:
         res = _fit(start, spec.experiments, spec.data, free=spec.fit_free, prior=spec.prior,
-                   starts=0, mesh=False, **spec.options)
+                   starts=0, mesh=False, homotopy=False, **spec.options)
     except BeamidError as exc:
         return k, None, (str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     return k, replace(res, nominal=spec.model), ""
@@ -396,23 +409,116 @@ def grown_fit(model: Any, experiments: Any, data: Any, free: Any, prior: Any,
     for k, end in enumerate(windows):
         part = data if k == len(windows) - 1 else record_up_to(experiments, data, end)
         res = _fit(current, experiments, part, free=free, prior=prior, starts=0, mesh=False,
-                   grow=False, **options)
+                   grow=False, homotopy=False, **options)
         path.append(f"t <= {end:g} s: {len(part)} rows, {res.iterations} iterations, "
                     f"{res.stop}, chi2 {res.chi2:.6g} for {res.dof} dof")
         current = res.model
     return res, tuple(path)
 
 
+# ------------------------------------------------------------------ friction homotopy
+
+#: The smooth law's regularization velocities (m/s) of the friction
+#: homotopy, largest first; the last stage is the sign law. 1e-2 m/s moves
+#: the PACE tip by ~1.5e-3 m over a period (docs/dynamics.md): coarse
+#: enough that the switch pattern is smooth in the parameters; 1e-3 m/s is
+#: within a few sigma of the sign law on the tests' records.
+HOMOTOPY_VELOCITIES = (1.0e-2, 1.0e-3)
+
+#: the label of the homotopy's end point among the starts
+HOMOTOPY = "friction homotopy"
+
+
+def _sign_law(x: Any) -> bool:
+    return isinstance(x, Release) and (x.friction is None or x.friction == "sign")
+
+
+def homotopy_applies(model: Any, experiments: Any, free: Any) -> bool:
+    """A release on the sign law, and joint friction in the model (a
+    friction coefficient that is not zero or is free)."""
+    if not any(_sign_law(x) for x in dict(experiments).values()):
+        return False
+    names = (free,) if isinstance(free, str) else tuple(free)
+    return any(n.startswith("mu_") and (model[n] != 0.0 or n in names)
+               for n in model.names())
+
+
+def smooth_friction(experiments: Any, velocity: float) -> dict:
+    """The experiments with every release on the sign law moved to the
+    smooth law at regularization velocity ``velocity`` (m/s)."""
+    return {n: replace(x, friction="smooth", friction_velocity=float(velocity))
+            if _sign_law(x) else x for n, x in dict(experiments).items()}
+
+
+def homotopy_fit(model: Any, experiments: Any, data: Any, free: Any, prior: Any,
+                 options: dict, grow: bool | None = False,
+                 velocities: Sequence[float] = HOMOTOPY_VELOCITIES
+                 ) -> tuple[Any, tuple[str, ...]]:
+    """Fit on the smooth friction law at each of ``velocities`` (largest
+    first), each stage from the last one's estimates, then on the
+    experiments' own (sign) law. A stage that cannot be fitted ends the
+    smooth part (the sign-law fit starts from the last stage that could).
+    Returns the sign-law fit (its start: the last smooth stage's
+    estimates) and the path, one line per stage."""
+    path = []
+    current = model
+    for vs in velocities:
+        try:
+            res = _fit(current, smooth_friction(experiments, vs), data, free=free, prior=prior,
+                       starts=0, mesh=False, grow=grow, homotopy=False, **options)
+        except BeamidError as exc:
+            path.append(f"smooth law, vs = {vs:g} m/s: not fitted "
+                        f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
+            break
+        path.append(f"smooth law, vs = {vs:g} m/s: {res.iterations} iterations, {res.stop}, "
+                    f"chi2 {res.chi2:.6g} for {res.dof} dof")
+        current = res.model
+    res = _fit(current, experiments, data, free=free, prior=prior, starts=0, mesh=False,
+               grow=grow, homotopy=False, **options)
+    path.append(f"sign law: {res.iterations} iterations, {res.stop}, "
+                f"chi2 {res.chi2:.6g} for {res.dof} dof")
+    return res, tuple(path)
+
+
+def _with_homotopy(result: Any, model: Any, experiments: Any, data: Any, free: Any,
+                   prior: Any, options: dict, grow: bool | None) -> Any:
+    """``result`` (a plain fit that ended far or stalled) against the
+    friction homotopy from the same start: the homotopy's end when it went
+    lower by more than same_chi2 (warned), else ``result`` with a note."""
+    try:
+        alt, path = homotopy_fit(model, experiments, data, free, prior, options, grow=grow)
+    except BeamidError as exc:
+        text = (f"the friction homotopy from the same start failed "
+                f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
+        return replace(result, note=result.note + ("; " if result.note else "") + text)
+    c0, c1 = result.chi2 + result.chi2_prior, alt.chi2 + alt.chi2_prior
+    if c0 - c1 >= same_chi2(c1):
+        text = (f"the friction homotopy went lower than the plain fit (chi2 {c1:.6g} against "
+                f"{c0:.6g}): the plain fit ended in a local minimum")
+        return replace(alt, nominal=model, path=path, start_won=HOMOTOPY,
+                       note=alt.note + ("; " if alt.note else "") + text,
+                       warnings=alt.warnings + (text,))
+    text = (f"the friction homotopy from the same start ended at chi2 {c1:.6g} "
+            f"(the plain fit's {c0:.6g})")
+    return replace(result, note=result.note + ("; " if result.note else "") + text)
+
+
 # ------------------------------------------------------------------ fit's own end
 
 def checked_fit(plain: Callable[[], Any], model: Any, experiments: Any, data: Any, free: Any,
                 prior: Any, options: dict, *, starts: int | None, spread: float, seed: int,
-                workers: int | None, client: Any, mesh: bool, grow: bool | None) -> Any:
+                workers: int | None, client: Any, mesh: bool, grow: bool | None,
+                homotopy: bool | None = False) -> Any:
     """What :func:`beamid.fit` does with its checked arguments: the plain fit
-    (``plain()``) or the grown record, then the mesh check and the several
-    starts (the module docstring)."""
+    (``plain()``), the grown record or the friction homotopy, then the mesh
+    check, the homotopy after a far fit and the several starts (the module
+    docstring)."""
     t0 = time.perf_counter()
-    if should_grow(grow, experiments, data):
+    applies = homotopy is not False and homotopy_applies(model, experiments, free)
+    if homotopy and applies:
+        result, path = homotopy_fit(model, experiments, data, free, prior, options, grow=grow)
+        result = replace(result, nominal=model, path=path, start_won=HOMOTOPY)
+    elif should_grow(grow, experiments, data):
         result, path = grown_fit(model, experiments, data, free, prior, options)
         result = replace(result, nominal=model, path=path)
     else:
@@ -425,9 +531,14 @@ def checked_fit(plain: Callable[[], Any], model: Any, experiments: Any, data: An
             result = replace(result, mesh_check=check,
                              warnings=result.warnings + (check.message,) if check.likely_cause
                              else result.warnings)
+    likely = result.mesh_check is not None and result.mesh_check.likely_cause
+    if far and homotopy is None and applies and not likely:
+        check = result.mesh_check
+        result = replace(_with_homotopy(result, model, experiments, data, free, prior,
+                                        options, grow), mesh_check=check)
+        far = needs_check(result)
     nstarts = starts
     if starts is None:
-        likely = result.mesh_check is not None and result.mesh_check.likely_cause
         nstarts = AUTO_STARTS if far and not likely else 0
     if nstarts:
         why = ("ended far above its degrees of freedom" if result.stop != "stalled" else
