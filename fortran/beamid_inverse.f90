@@ -43,6 +43,7 @@ module beamid_inverse
                                    default_observations, K_ACCEL_T, K_ACCEL_N
     use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
+                                          exp_histories_t, attach_histories, &
                                           dynamic_experiments_init
     use beamid_chain_fit, only: chain_rows_t
     implicit none
@@ -113,7 +114,7 @@ contains
     !! the data problem's experiments and chain): a channel of the chain or
     !! of an estimated sigma need not have rows among them.
     subroutine inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, &
-                                    row_quantity, tol, self, stat, obs, probe)
+                                    row_quantity, tol, self, stat, obs, probe, hist)
         integer, intent(in) :: nbeams
         integer, intent(in) :: exp_kind(:), row_exp(:), row_quantity(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol
@@ -121,6 +122,9 @@ contains
         type(status_t), intent(inout) :: stat
         type(observation_t), intent(in), optional :: obs(:)
         logical, intent(in), optional :: probe
+        !> load histories of the release experiments (their own list;
+        !! beamid_dynamic_experiments exp_histories_t)
+        type(exp_histories_t), intent(in), optional :: hist
         type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
         type(static_load_t), allocatable :: loads(:)
@@ -182,6 +186,11 @@ contains
                                                         exp_values(EV_VSLIP, e) > 0.0_dp), &
                                             fd=nint(exp_values(EV_FD, e)) == 1, &
                                             exact=nint(exp_values(EV_FD, e)) == 2)]
+                if (present(hist)) then
+                    call attach_histories(hist, e, maxval(row_t, mask=row_exp == e), rels(nd), &
+                                          stat)
+                    if (stat%code /= STATUS_OK) return
+                end if
             case default
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected 1 (tip load), '// &
@@ -189,6 +198,25 @@ contains
                 return
             end select
         end do
+        if (present(hist)) then
+            if (allocated(hist%spec)) then
+                do j = 1, size(hist%spec, 2)
+                    e = nint(hist%spec(1, j))
+                    if (e < 1 .or. e > size(exp_kind)) then
+                        call set_status(stat, ERR_INPUT, where, 'load history '//fmt_int(j)// &
+                                        ' names experiment '//fmt_int(e)//', expected 1..'// &
+                                        fmt_int(size(exp_kind)))
+                        return
+                    end if
+                    if (exp_kind(e) /= EXP_RELEASE) then
+                        call set_status(stat, ERR_INPUT, where, 'load history '//fmt_int(j)// &
+                                        ' on experiment '//fmt_int(e)//', a static '// &
+                                        'experiment: histories act on dynamic experiments only')
+                        return
+                    end if
+                end do
+            end if
+        end if
         do i = 1, size(row_exp)
             if (row_exp(i) < 1 .or. row_exp(i) > size(exp_kind)) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//' names '// &

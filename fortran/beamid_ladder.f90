@@ -98,7 +98,7 @@ contains
         type(lsq_problem_t) :: lp
         type(status_t) :: stat
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
-                                  pb%row_q, pb%tol, problem, stat, pb%obs)
+                                  pb%row_q, pb%tol, problem, stat, pb%obs, hist=pb%hist)
         if (stat%code == STATUS_OK) then
             opts%max_iter = pb%max_iter
             lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)
@@ -132,7 +132,8 @@ contains
                               dg%ambiguous)
         else
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
-                                      pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs)
+                                      pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs, &
+                                      hist=pb%hist)
             if (stat%code == STATUS_OK) &
                 call inverse_diagnose(problem, inverse_lsq(problem, pb%y, pb%sigma, pb%prior), &
                                       params, nominal, free, cs%cands, fopts, dopts, dg%base, &

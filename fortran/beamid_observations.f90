@@ -50,6 +50,9 @@ module beamid_observations
                                   K_ACCEL_T = 18, K_ACCEL_N = 19
     !> Encoders: the relative rotation at the elbow and at the root.
     integer, parameter, public :: K_ELBOW_ROTATION = 20, K_ROOT_ROTATION = 21
+    !> The torque of the shoulder hub (the clamp) on the arm, -M at s = 0 of
+    !! beam 1: what drives a prescribed hub rotation (issue 28)
+    integer, parameter, public :: K_HUB_TORQUE = 22
     !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
     !! observation sits t/2 from the neutral axis.
     real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
@@ -70,7 +73,7 @@ module beamid_observations
         character(len=72) :: about = ''
     end type obs_kind_t
 
-    integer, parameter :: NKIND = 21
+    integer, parameter :: NKIND = 22
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
     type(obs_kind_t), parameter :: KINDS(NKIND) = [ &
         obs_kind_t('x_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 1, 0, K_U_TIP, &
@@ -114,7 +117,9 @@ module beamid_observations
         obs_kind_t('elbow_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
                    'encoder at the elbow: psi after it minus psi before it'), &
         obs_kind_t('root_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
-                   'encoder at the root: psi of the arm at the clamp')]
+                   'encoder at the root: psi of the arm at the clamp'), &
+        obs_kind_t('hub_torque', 'N m', FAM_RELEASE, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'torque of the hub (clamp) on the arm: -moment at the root')]
 
     !> An observation: a kind and its locus.
     type :: observation_t

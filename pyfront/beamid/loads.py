@@ -7,6 +7,7 @@ import numpy as np
 
 from .dynamics import FRICTION_LAWS as _FRICTION_LAWS, INTEGRATORS as _INTEGRATORS
 from . import _check
+from . import load_histories as _lh
 from .errors import InputError
 
 LOAD_TIP = 1
@@ -104,17 +105,31 @@ class Release:
     and ``motor_torque`` with a motor. ``integrator`` ("implicit" or "rk4"),
     ``rtol``, ``dt`` and ``friction`` ("sign", "smooth", "sign_literal") as
     in :func:`beamid.simulate` (None: its defaults).
+
+    ``loads``: load histories acting from t = 0 as in :func:`beamid.simulate`
+    (a mapping target -> history or (target, history) pairs; docs/loads.md):
+    a forced-response experiment, e.g. a hammer test from rest with
+    ``load=None`` (the arm at rest, undeformed) or a hub-driven arm with
+    ``{"hub": beamid.SpinUp(w_s, T)}``. The fit, diagnose and improve run
+    them as any release.
     """
 
-    load: TipLoad
+    load: TipLoad | None
     elements_per_beam: int = 4
     motor_gain: float = 0.0
     integrator: str = "implicit"
     rtol: float | None = None
     dt: float | None = None
     friction: str | None = None
+    loads: object = None
 
     def __post_init__(self) -> None:
+        if self.load is None:
+            object.__setattr__(self, "load", TipLoad())
+        pairs = () if self.loads is None or (hasattr(self.loads, "__len__")
+                                             and len(self.loads) == 0) \
+            else tuple(_lh._pairs(self.loads))
+        object.__setattr__(self, "loads", pairs)
         if not isinstance(self.load, TipLoad):
             raise InputError(f"Release: load = {self.load!r}, expected a TipForce / TipMoment "
                              "(the static load held before the release)")
@@ -161,4 +176,8 @@ class Release:
 
     def describe(self) -> str:
         text = f"release from {self.load.describe()}, {self.elements_per_beam} elements per beam"
-        return text + (f", motor gain {self.motor_gain:g}" if self.has_motor else "")
+        text += f", motor gain {self.motor_gain:g}" if self.has_motor else ""
+        if self.loads:
+            text += ", load histories " + ", ".join(
+                f"{t} {type(h).__name__}" for t, h in self.loads)
+        return text
