@@ -22,7 +22,8 @@ module beamid_api_deck
 
     public :: api_deck_sizes, api_deck_arrays, api_run_deck, api_measurements_size, &
               api_measurements_read, api_exit_code, api_quantity_labels, &
-              api_observation_table, api_observation_parse
+              api_observation_table, api_observation_parse, api_deck_history_sizes, &
+              api_deck_histories
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
@@ -112,6 +113,52 @@ contains
             if (allocated(a)) nsize_r = size(a)
         end function nsize_r
     end subroutine api_deck_sizes
+
+    !> The sizes of a deck's &history groups (beamid_deck_history): nh
+    !! histories, ntab table rows (api_deck_histories returns them).
+    subroutine api_deck_history_sizes(path, nh, ntab, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(out) :: nh, ntab
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        nh = 0
+        ntab = 0
+        call read_deck(trim(path), d, stat)
+        call put_errors(d, stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        if (allocated(d%hist%spec)) nh = int(size(d%hist%spec, 2), c_int)
+        if (allocated(d%hist%tab)) ntab = int(size(d%hist%tab, 2), c_int)
+    end subroutine api_deck_history_sizes
+
+    !> A deck's &history groups: a column [experiment (1-based; a simulate
+    !! deck's: 1), beamid_loads' 9 values] per history and the table rows
+    !! (t, value) they refer to (sizes from api_deck_history_sizes).
+    subroutine api_deck_histories(path, nh, ntab, spec, tab, code, message)
+        character(len=*), intent(in) :: path
+        integer(c_int), intent(in) :: nh, ntab
+        real(c_double), intent(out) :: spec(10, nh), tab(2, ntab)
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        type(deck_t) :: d
+        type(status_t) :: stat
+        spec = 0.0_c_double
+        tab = 0.0_c_double
+        call read_deck(trim(path), d, stat)
+        call put_errors(d, stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        if (.not. allocated(d%hist%spec)) return
+        if (size(d%hist%spec, 2) /= nh .or. size(d%hist%tab, 2) /= ntab) then
+            code = int(ERR_INPUT, c_int)
+            message = trim(path)//': the deck has '//fmt_int(size(d%hist%spec, 2))// &
+                      ' histories and '//fmt_int(size(d%hist%tab, 2))//' table rows, asked '// &
+                      fmt_int(int(nh))//' and '//fmt_int(int(ntab))
+            return
+        end if
+        spec = real(d%hist%spec, c_double)
+        tab = real(d%hist%tab, c_double)
+    end subroutine api_deck_histories
 
     pure integer function nexp(d)
         type(deck_t), intent(in) :: d

@@ -187,6 +187,15 @@ def read_deck(path: str) -> dict:
     }
 
 
+def deck_histories(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """A deck's &history groups as the core's columns: spec (10, nh), each
+    [experiment (1-based), beamid_loads' layout], and table rows (2, ntab)."""
+    nh, ntab = _call(_deck_api.api_deck_history_sizes, _path(path))
+    spec, tab = _call(_deck_api.api_deck_histories, _path(path), int(nh), int(ntab))
+    return (np.array(spec, dtype=float).reshape(10, int(nh)),
+            np.array(tab, dtype=float).reshape(2, int(ntab)))
+
+
 def _published_groups(lines: list[str]) -> list[dict]:
     """The &published groups from the reader's lines ('P table row note',
     'K kind section', 'Q quantity value digits', 'D deviation'; tab separated)."""

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from . import _check, _core
+from . import load_histories as _lh
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
@@ -141,6 +142,12 @@ def _fit_deck(path: Path, values: dict) -> FitDeck:
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
+    spec, tab = _core.deck_histories(str(path))
+    for j, name in enumerate(experiments):     # the &history groups of each release
+        cols = spec[1:, spec[0] == j + 1]
+        if cols.shape[1]:
+            experiments[name] = dataclasses.replace(experiments[name],
+                                                    loads=_lh.from_columns(cols, tab))
     data = read_measurements(values["data_path"], experiments)
     stages = tuple(Stage(s["name"], data if k == 0 else
                          read_measurements(s["data_path"], experiments),
