@@ -381,8 +381,13 @@ contains
         it = find(head, time)
         iv = find(head, column)
         if (it == 0 .or. iv == 0) then
-            call add_error(errors, path//", line 1: no column '"// &
-                           merge(time, column, it == 0)//"' (header: "//line//')')
+            if (it == 0) then
+                call add_error(errors, path//", line 1: no column '"//time//"' (header: "// &
+                               line//')')
+            else
+                call add_error(errors, path//", line 1: no column '"//column//"' (header: "// &
+                               line//')')
+            end if
             close (u)
             return
         end if
