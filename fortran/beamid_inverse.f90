@@ -187,8 +187,10 @@ contains
                                             fd=nint(exp_values(EV_FD, e)) == 1, &
                                             exact=nint(exp_values(EV_FD, e)) == 2)]
                 if (present(hist)) then
-                    call attach_histories(hist, e, maxval(row_t, mask=row_exp == e), rels(nd), &
-                                          stat)
+                    ! (an experiment without rows here, as in a probe problem: not checked)
+                    call attach_histories(hist, e, merge(maxval(row_t, mask=row_exp == e), &
+                                                         huge(1.0_dp), any(row_exp == e)), &
+                                          rels(nd), stat)
                     if (stat%code /= STATUS_OK) return
                 end if
             case default
