@@ -44,6 +44,7 @@ module beamid_dynamic_experiments
     use beamid_fe_element, only: fe_hermite, FE_U, FE_W
     use beamid_model, only: param_count, param_index_beam, IB_EI, IB_C
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
+    use beamid_hub, only: hub_forcing_t
     use beamid_loads, only: tip_history_t, histories_from_columns, history_check, LD_NSPEC
     use beamid_release, only: release_spec_t, release_out_t, release_add_loads, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
@@ -376,7 +377,8 @@ contains
                                          out%dstates(:, k, :), y(i, k), dy(i, k, :))
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), wrt, out%hist%y(:, k), &
-                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :))
+                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :), &
+                                         hub_rates(sys, t_out(k)))
                 else
                     call observe(out, obs(i), k, y(i, k), dy(i, k, :))
                 end if
@@ -585,7 +587,7 @@ contains
                                          nos, y(i, k), none)
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
-                                         nos, a, noda, y(i, k), none)
+                                         nos, a, noda, y(i, k), none, hub_rates(sys, t_out(k)))
                 else
                     call observe(out, obs(i), k, y(i, k), none)
                 end if
@@ -675,17 +677,23 @@ contains
     !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates
     !! f of the state, da their sensitivities). Lengths carry no derivative
     !! here (the release family has none, beamid_release).
-    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad)
+    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad, hub)
         type(dyn_system_t), intent(in) :: sys
         type(chain_t), intent(in) :: chain
         type(observation_t), intent(in) :: o
         integer, intent(in) :: wrt(:)
         real(dp), intent(in) :: y(:), sy(:, :), a(:), da(:, :)
         real(dp), intent(out) :: value, grad(:)
+        !> the hub's rate and angular acceleration (Omega, Omega') of a
+        !! prescribed hub rotation: velocities and accelerations are then the
+        !! inertial ones (what a sensor on the arm reads), in the hub frame's
+        !! components, v + Omega J rho and a + 2 Omega J v + Omega' J rho -
+        !! Omega^2 rho (rho = (S + u, w); the fit's parameters leave Omega alone)
+        real(dp), intent(in), optional :: hub(2)
         real(dp) :: f(4), f1(4), f2(4), h, zeta, u, w, u1, w1, u2, w2, r2, chi, kap, e, p1
-        real(dp) :: vu, vw, ca, sb
+        real(dp) :: vu, vw, ca, sb, om, omd, xs, gu, gw
         real(dp), dimension(size(grad)) :: du, dw, du1, dw1, du2, dw2, dr2, dchi, dkap, dvu, &
-                                           dvw, dau
+                                           dvw, dau, dgu, dgw
         real(dp) :: qe(8), ve(8), ae(8)
         real(dp) :: dqe(8, size(grad)), dve(8, size(grad)), dae(8, size(grad))
         integer :: el, first, nel_b, j, m, n, idx
@@ -777,6 +785,29 @@ contains
                 dvu = matmul(f, dae(FE_U, :))
                 dvw = matmul(f, dae(FE_W, :))
             end if
+            if (present(hub)) then
+                ! the inertial velocity or acceleration, in the hub frame's components
+                if (any(hub /= 0.0_dp)) then
+                    om = hub(1)
+                    omd = hub(2)
+                    xs = sum(chain%length(1:o%beam - 1)) + o%s + u
+                    if (o%kind == K_VEL_T .or. o%kind == K_VEL_N) then
+                        vu = vu - om*w
+                        vw = vw + om*xs
+                        dvu = dvu - om*dw
+                        dvw = dvw + om*du
+                    else
+                        gu = dot_product(f, ve(FE_U))
+                        gw = dot_product(f, ve(FE_W))
+                        dgu = matmul(f, dve(FE_U, :))
+                        dgw = matmul(f, dve(FE_W, :))
+                        vu = vu - 2.0_dp*om*gw - omd*w - om*om*xs
+                        vw = vw + 2.0_dp*om*gu + omd*xs - om*om*w
+                        dvu = dvu - 2.0_dp*om*dgw - omd*dw - om*om*du
+                        dvw = dvw + 2.0_dp*om*dgu + omd*du - om*om*dw
+                    end if
+                end if
+            end if
             if (o%kind == K_VEL_T .or. o%kind == K_ACCEL_T) then
                 ca = p1*vu + w1*vw
                 dau = du1*vu + p1*dvu + dw1*vw + w1*dvw
@@ -789,6 +820,21 @@ contains
             grad = dau/sb - 0.5_dp*ca/(sb*r2)*dr2
         end select
     end subroutine observe_station
+
+    !> (Omega, Omega') of the prescribed hub rotation of `sys` at t (0 without one).
+    pure function hub_rates(sys, t) result(r)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t
+        real(dp) :: r(2)
+        integer :: l
+        r = 0.0_dp
+        do l = 1, sys%nloads
+            select type (h => sys%loads(l)%f)
+            type is (hub_forcing_t)
+                call h%rate(t, r(1), r(2))
+            end select
+        end do
+    end function hub_rates
 
     !> Predictions and sensitivities of the rows: one response per experiment
     !! that has rows, at the distinct times of its rows. A release with a

@@ -53,7 +53,7 @@ def test_impact_test_fits_stiffness_and_density():
 def test_hub_driven_arm_fits_its_friction():
     """The friction coefficients of the elbow and tip masses of a hub-driven
     arm from its hub torque, a root strain gauge and a tip accelerometer
-    (accelerations in the hub frame)."""
+    (its inertial reading)."""
     truth = ARM.replace(mu_elbow=0.01, mu_tip=0.02)
     fine = beamid.Release(None, rtol=1e-11, loads=SPIN)
     data = _noisy(truth, {"spin": fine}, SPIN_SIGMA, SPIN_T, seed=3)
@@ -64,6 +64,23 @@ def test_hub_driven_arm_fits_its_friction():
     for name in ("mu_elbow", "mu_tip"):
         assert abs(fit.estimates[name] - truth[name]) < 3 * fit.sigmas[name], name
         assert fit.sigmas[name] < 0.01 * truth[name], name
+
+
+def test_accelerometer_on_a_spinning_arm_reads_the_inertial_acceleration():
+    """On the uniform cantilever spun to 10 rad/s in 5 s: at t = 2.5 s (Omega
+    = 5 rad/s, Omega' = 4 rad/s^2) the tip reads -Omega^2 L along the arm and
+    about Omega' L across it, a velocity sensor Omega L; at the steady spin
+    -w_s^2 L (to 1e-3: the stretch and the vibration)."""
+    arm = beamid.cantilever()
+    L = arm["L1"]
+    spin = beamid.Release(None, rtol=1e-10, loads={"hub": beamid.SpinUp(w_s=10.0, T=5.0)})
+    q = [f"accel_t@1:{L:g}", f"accel_n@1:{L:g}", f"vel_n@1:{L:g}"]
+    d = beamid.simulate_measurements(arm, {"s": spin}, q, t=[2.5, 6.0])
+    (at, an, vn), (at6, an6, vn6) = np.asarray(d.value).reshape(2, 3)
+    assert at == pytest.approx(-25.0 * L, rel=1e-3) and vn == pytest.approx(5.0 * L, rel=1e-4)
+    assert an == pytest.approx(4.0 * L, rel=0.03)
+    assert at6 == pytest.approx(-100.0 * L, rel=1e-4) and vn6 == pytest.approx(10.0 * L, rel=1e-4)
+    assert abs(an6) < 0.01
 
 
 def test_hub_torque_static_and_quasi_static():
@@ -82,27 +99,36 @@ def test_hub_torque_static_and_quasi_static():
     assert d.value[0] == pytest.approx(inertia * 2 * ws / T, rel=0.01)
 
 
-def test_hub_torque_sensitivity_against_central_differences():
-    """d hub_torque / d (EI1, rho1, m_tip, mu_tip), and the tip's, on a
-    spin-up with friction: forward sensitivities against central differences,
-    both at rtol 1e-11 (the hub frame's inertial forces depend on the masses)."""
-    truth = ARM.replace(mu_elbow=0.01, mu_tip=0.02)
+@pytest.mark.parametrize("friction, quantities", [
+    (True, ("hub_torque", "w_tip")),
+    (False, ("hub_torque", "w_tip", TIP_ACCEL))])
+def test_hub_torque_sensitivity_against_central_differences(friction, quantities):
+    """d hub_torque / d (EI1, rho1, m_tip), the tip's w and (without
+    friction: an acceleration's sensitivities do not follow the friction's
+    switches exactly, about 1 % off here, as without a hub) the tip
+    accelerometer's inertial reading, on a
+    spin-up: forward sensitivities against central differences, both at rtol
+    1e-11 (the hub frame's inertial forces depend on the masses)."""
+    truth = ARM.replace(mu_elbow=0.01, mu_tip=0.02) if friction else ARM
     exps = {"spin": beamid.Release(None, rtol=1e-11, loads=SPIN)}
-    wrt = ("EI1", "rho1", "m_tip", "mu_tip")
+    wrt = ("EI1", "rho1", "m_tip") + (("mu_tip",) if friction else ())
     data = beamid.Measurements.from_rows(
-        [("spin", t, q, 0.0, 1e-3) for t in (0.0, 0.3, 0.6, 1.2)
-         for q in ("hub_torque", "w_tip")], source="<test>")
+        [("spin", t, q, 0.0, 1e-3) for t in (0.0, 0.3, 0.6, 1.2) for q in quantities],
+        source="<test>")
+    nq = len(quantities)
     pred, jac = beamid.estimation.predict(truth, exps, data, wrt)
-    assert pred[0] == 0.0 and np.max(np.abs(pred[::2])) > 0.1
+    assert pred[0] == 0.0 and np.max(np.abs(pred[::nq])) > 0.1
     for j, name in enumerate(wrt):
         h = 1e-4 * abs(truth[name])
         yp, _ = beamid.estimation.predict(truth.replace(**{name: truth[name] + h}), exps, data)
         ym, _ = beamid.estimation.predict(truth.replace(**{name: truth[name] - h}), exps, data)
         fd = (yp - ym) / (2 * h)
-        for rows in (slice(0, None, 2), slice(1, None, 2)):     # hub_torque, w_tip
+        for k in range(nq):
+            rows = slice(k, None, nq)
             scale = np.max(np.abs(fd[rows]))
             assert scale > 1e-6, name
-            np.testing.assert_allclose(jac[rows, j], fd[rows], atol=2e-3 * scale, err_msg=name)
+            np.testing.assert_allclose(jac[rows, j], fd[rows], atol=2e-3 * scale,
+                                       err_msg=f"{quantities[k]}, {name}")
 
 
 #: the hidden-effect data: tip position, elbow position, tip accelerometer
