@@ -31,6 +31,8 @@ module beamid_deck
     use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
+    use beamid_dynamic_experiments, only: exp_histories_t
+    use beamid_deck_history, only: read_history_groups
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g, &
                                    read_channel_file, sensor_t
     use beamid_namelist, only: nml_merge_items, nml_file_t, nml_group_t, nml_text_t, &
@@ -45,19 +47,20 @@ module beamid_deck
 
     integer, parameter :: NAME_LEN = 32
     character(len=*), parameter :: KNOWN_GROUPS = &
-        ' beamid model load static fe published experiment fit simulate sensor '
+        ' beamid model load static fe published experiment fit simulate sensor history '
     !> Tasks the batch runs.
     character(len=*), parameter :: KNOWN_TASKS = &
         ' static fe_static fe_modes fit compare diagnose improve simulate identify '
     !> Estimation tasks and the groups their decks may hold.
     character(len=*), parameter :: FIT_TASKS = ' fit compare diagnose improve identify '
-    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published sensor '
+    character(len=*), parameter :: FIT_GROUPS = ' beamid model experiment fit published sensor '// &
+                                                'history '
     !> Size bounds, checked before anything is allocated: beams of a chain,
     !! output times, and the memory a mesh or a table may need (bytes).
     integer, parameter :: MAX_BEAMS = 1000
     integer, parameter :: MAX_TIMES = 10000000
     !> Groups that may appear more than once.
-    character(len=*), parameter :: REPEATABLE = ' experiment published sensor '
+    character(len=*), parameter :: REPEATABLE = ' experiment published sensor history '
     !> The classes of a documented deviation (&published kind), '' for none.
     character(len=*), parameter :: DEVIATION_KINDS = '||formulation|random draws|unexplained|'
     !> The words of integrator and friction (codes: read_choice's callers).
@@ -152,6 +155,9 @@ module beamid_deck
         real(dp) :: sim_atol = 0.0_dp                   !< 0: rtol
         real(dp) :: sim_motor_gain = 0.0_dp
         real(dp) :: sim_friction_velocity = 1.0e-4_dp   !< smooth law's vs (m/s)
+        !> &history groups (issue 28): the load histories of the release
+        !! experiments (a simulate deck's: experiment 1)
+        type(exp_histories_t) :: hist
     end type deck_t
 
 contains
@@ -236,6 +242,7 @@ contains
         character(len=:), allocatable, intent(inout) :: errors
         character(len=:), allocatable :: task, output, preset, name
         integer :: k, nbeams, nb_preset, ib
+        real(dp) :: t_last
         logical :: given, is_fit, ok_head, out_ok
         real(dp), allocatable :: base(:)
         type(status_t) :: st
@@ -324,15 +331,47 @@ contains
         call read_model(f, nbeams, base, len_trim(preset) > 0, deck, errors)
         if (is_fit) then
             call read_fit_groups(f, deck, errors)
+            call fit_histories()
             return
         end if
         call read_load(f, deck, errors)
         if (task == 'simulate') then
             call read_simulate_group(f, deck, errors)
+            t_last = -1.0_dp
+            if (allocated(deck%sim_t_out)) then
+                if (size(deck%sim_t_out) > 0) t_last = maxval(deck%sim_t_out)
+            end if
+            call read_history_groups(f, [character(len=1) ::], [logical ::], [t_last], &
+                                     deck%hist, errors)
             return
         end if
         call read_fe_group(f, deck, errors)
         call read_static_group(f, deck, errors)
+    contains
+        !> The &history groups of an estimation deck, each experiment's last
+        !! time its last data row's (unknown: not checked).
+        subroutine fit_histories()
+            real(dp), allocatable :: t_end(:)
+            character(len=1), allocatable :: none(:)
+            integer :: e
+            if (.not. allocated(deck%exp_names)) then
+                allocate (none(0))
+                call read_history_groups(f, none, [logical ::], [real(dp) ::], deck%hist, &
+                                         errors)
+                return
+            end if
+            allocate (t_end(size(deck%exp_names)), source=-1.0_dp)
+            if (allocated(deck%row_exp) .and. allocated(deck%data%t)) then
+                if (size(deck%row_exp) == size(deck%data%t)) then
+                    do e = 1, size(t_end)
+                        if (any(deck%row_exp == e)) t_end(e) = maxval(deck%data%t, &
+                                                                      mask=deck%row_exp == e)
+                    end do
+                end if
+            end if
+            call read_history_groups(f, deck%exp_names, deck%exp_kind == EXP_RELEASE, t_end, &
+                                     deck%hist, errors)
+        end subroutine fit_histories
     end subroutine read_all
 
     !> One &published group: table, row, note, and equally long quantity,
@@ -425,6 +464,9 @@ contains
             if (is_fit .and. index(FIT_GROUPS, ' '//name//' ') == 0) then
                 call add_error(errors, where//'group &'//name//' does not belong in an '// &
                                'estimation deck, expected one of:'//FIT_GROUPS(:len_trim(FIT_GROUPS)))
+            else if (.not. is_fit .and. task /= 'simulate' .and. name == 'history') then
+                call add_error(errors, where//'group &history is only for task "simulate" '// &
+                               'and the estimation tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))
             else if (.not. is_fit .and. index(' experiment fit sensor ', ' '//name//' ') > 0) then
                 call add_error(errors, where//'group &'//name//' is only for the estimation '// &
                                'tasks'//FIT_TASKS(:len_trim(FIT_TASKS)))

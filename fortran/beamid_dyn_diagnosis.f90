@@ -36,6 +36,7 @@ module beamid_dyn_diagnosis
                               EV_NEPB, EV_GAIN
     use beamid_static_experiments, only: median_of, distinct_sorted
     use beamid_families, only: kind_mesh_key
+    use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_observations, only: observation_t, default_observations, probe_kinds, KINDS, &
                                    FAM_RELEASE, NEED_MOTOR
     implicit none
@@ -57,6 +58,8 @@ module beamid_dyn_diagnosis
         real(dp) :: tol = 0.0_dp          !< static solver tolerance (0: default)
         type(prior_t) :: prior
         integer :: max_iter = 50
+        !> the release experiments' load histories (their own list)
+        type(exp_histories_t) :: hist
     end type problem_t
 
     !> Parameters whose forward sensitivity does not exist at the null value,
@@ -313,7 +316,7 @@ contains
         call refine_meshes(pb%exp_kind, pb%exp_values, values, res)
         if (.not. res%done) return
         call inverse_problem_init(pb%nbeams, pb%exp_kind, values, pb%row_exp, pb%row_t, pb%row_q, &
-                                  pb%tol, fine, stat, pb%obs)
+                                  pb%tol, fine, stat, pb%obs, hist=pb%hist)
         if (stat%code /= STATUS_OK) return
         ! the change of the predictions at the fitted parameters
         allocate (pred(size(pb%y)), jdummy(size(pb%y), 0))
@@ -396,7 +399,7 @@ contains
     !! of the `mesh` candidate's test that needs no refit. Nothing is done
     !! (res%done false) without releases.
     subroutine mesh_check(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, params, &
-                          y, sigma, pred, res, stat, obs)
+                          y, sigma, pred, res, stat, obs, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, params(:)
         real(dp), intent(in) :: y(:), sigma(:), pred(:)
@@ -404,16 +407,18 @@ contains
         type(status_t), intent(inout) :: stat
         !> the problem's observation list row_q indexes (absent: the kind codes)
         type(observation_t), intent(in), optional :: obs(:)
+        !> the release experiments' load histories
+        type(exp_histories_t), intent(in), optional :: hist
         type(inverse_problem_t) :: fine
         real(dp), allocatable :: values(:, :), fpred(:), jdummy(:, :), change(:)
         call refine_meshes(exp_kind, exp_values, values, res)
         if (.not. res%done) return
         if (present(obs)) then
             call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
-                                      stat, obs)
+                                      stat, obs, hist=hist)
         else
             call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
-                                      stat)
+                                      stat, hist=hist)
         end if
         if (stat%code /= STATUS_OK) return
         allocate (fpred(size(y)), jdummy(size(y), 0))
@@ -493,7 +498,7 @@ contains
             fopts%tol_cost = max(fopts%tol_cost, COST_FLOOR)
         end if
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
-                                  pb%row_q, pb%tol, prob, stat, pb%obs)
+                                  pb%row_q, pb%tol, prob, stat, pb%obs, hist=pb%hist)
         if (stat%code /= STATUS_OK) return
         frefit = fopts
         if (prob%timed()) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
@@ -784,10 +789,11 @@ contains
         if (allocated(pb%obs)) then
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, &
                                       size(pb%obs) + pq, pb%tol, probe, stat, &
-                                      [pb%obs, default_observations()], probe=.true.)
+                                      [pb%obs, default_observations()], probe=.true., &
+                                      hist=pb%hist)
         else
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, &
-                                      pb%tol, probe, stat, probe=.true.)
+                                      pb%tol, probe, stat, probe=.true., hist=pb%hist)
         end if
         if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)
     end subroutine all_probe_rows

@@ -46,7 +46,9 @@ module beamid_dynamic_experiments
     use beamid_model, only: param_count, param_index_beam, param_index_global, IB_EI, IB_C, &
                             IB_EA, IB_RHO, IG_ETA
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
-    use beamid_release, only: release_spec_t, release_out_t, &
+    use beamid_hub, only: hub_forcing_t
+    use beamid_loads, only: tip_history_t, histories_from_columns, history_check, LD_NSPEC
+    use beamid_release, only: release_spec_t, release_out_t, release_add_loads, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
                               QTY_MOTOR_TORQUE, NQTY
@@ -60,12 +62,12 @@ module beamid_dynamic_experiments
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
                                    K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS, &
                                    K_ELBOW_ROTATION, K_ROOT_ROTATION, K_REACTION_X, &
-                                   K_REACTION_Y, K_REACTION_MOMENT
+                                   K_REACTION_Y, K_REACTION_MOMENT, K_HUB_TORQUE
     implicit none
     private
 
     public :: release_exp_t, dynamic_experiments_t, dynamic_experiments_init
-    public :: release_response, check_dynamic_row, observe
+    public :: release_response, check_dynamic_row, observe, attach_histories
 
     !> One release experiment: load, mesh, motor and integrator controls
     !! (0 for rtol, dt: the integrator's defaults).
@@ -81,7 +83,24 @@ module beamid_dynamic_experiments
         !> sensitivities at the experiment's own tolerance at every fit
         !! iteration (no rough Jacobian: fit(..., jacobian="exact"))
         logical :: exact = .false.
+        !> load histories at the tip and a prescribed hub rotation from t = 0
+        !! (release_spec_t's fields of the same names; beamid_loads,
+        !! beamid_hub): a forced response, a hammer test, a spin-up
+        type(tip_history_t), allocatable :: histories(:)
+        logical :: hub = .false.
+        real(dp) :: hub_ws = 0.0_dp, hub_period = 0.0_dp
+        real(dp), allocatable :: hub_table(:, :)
     end type release_exp_t
+
+    !> The load histories of a problem's experiments as the binding
+    !! marshals them (their own list beside the experiments' value columns):
+    !! column l of spec is [experiment, then beamid_loads' LD_NSPEC values],
+    !! the table rows in tab (2, :) (t, value) that the columns' first-row
+    !! indices refer to.
+    type, public :: exp_histories_t
+        real(dp), allocatable :: spec(:, :)
+        real(dp), allocatable :: tab(:, :)
+    end type exp_histories_t
 
     !> Relative (and absolute) integration tolerance of the rough
     !! answers. On the Table 16 release (4 elements per beam, 19
@@ -300,6 +319,74 @@ contains
         end do
     end subroutine dynamic_experiments_init
 
+    !> The release_spec_t of experiment x (its histories and hub included).
+    function exp_spec(x, rates) result(spec)
+        type(release_exp_t), intent(in) :: x
+        logical, intent(in) :: rates
+        type(release_spec_t) :: spec
+        spec = release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, x%fy, x%moment), &
+                              motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
+                              friction=x%law, friction_velocity=x%vslip, rates=rates)
+        if (allocated(x%histories)) spec%histories = x%histories
+        spec%hub = x%hub
+        spec%hub_ws = x%hub_ws
+        spec%hub_period = x%hub_period
+        if (allocated(x%hub_table)) spec%hub_table = x%hub_table
+    end function exp_spec
+
+    !> Add x's load histories and hub to a system set up for it (the
+    !! station observations' and the plain runs' systems; release_add_loads).
+    subroutine add_loads(sys, x, stat)
+        type(dyn_system_t), intent(inout) :: sys
+        type(release_exp_t), intent(in) :: x
+        type(status_t), intent(inout) :: stat
+        integer :: nhp
+        if (.not. (allocated(x%histories) .or. x%hub)) return
+        call release_add_loads(sys, exp_spec(x, .false.), huge(1.0_dp), nhp, stat)
+    end subroutine add_loads
+
+    !> Attach the histories of `hist` (columns whose experiment is `e`) to
+    !! release experiment x, checked against its last data time t_end
+    !! (a history starting after it is refused, naming the experiment).
+    subroutine attach_histories(hist, e, t_end, x, stat)
+        type(exp_histories_t), intent(in) :: hist
+        integer, intent(in) :: e
+        real(dp), intent(in) :: t_end
+        type(release_exp_t), intent(inout) :: x
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: cols(:, :), tab(:, :)
+        real(dp) :: hub(2)
+        integer :: l
+        if (.not. allocated(hist%spec)) return
+        if (size(hist%spec, 2) == 0) return
+        if (size(hist%spec, 1) /= LD_NSPEC + 1) then
+            call set_status(stat, ERR_INPUT, 'experiment histories', 'columns of '// &
+                            fmt_int(size(hist%spec, 1))//' values, expected '// &
+                            fmt_int(LD_NSPEC + 1)//' (experiment, then the history)')
+            return
+        end if
+        cols = hist%spec(2:, pack([(l, l=1, size(hist%spec, 2))], nint(hist%spec(1, :)) == e))
+        if (size(cols, 2) == 0) return
+        if (allocated(hist%tab)) then
+            tab = hist%tab
+        else
+            allocate (tab(2, 0))
+        end if
+        call histories_from_columns(cols, tab, x%histories, stat, hub, x%hub, x%hub_table)
+        if (stat%code /= STATUS_OK) then
+            stat%message = 'experiment '//fmt_int(e)//': '//trim(stat%message)
+            return
+        end if
+        x%hub_ws = hub(1)
+        x%hub_period = hub(2)
+        do l = 1, size(x%histories)
+            call history_check(x%histories(l)%hist, 'experiment '//fmt_int(e)// &
+                               ': load history '//fmt_int(l)//' ('// &
+                               trim(x%histories(l)%name)//')', t_end, stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+    end subroutine attach_histories
+
     !> The looser tolerance of x's rough sensitivities, 0 when x has none:
     !! RK4 (fixed dt), central differences, `exact`, or a tolerance of its own
     !! already at ROUGH_RTOL or looser.
@@ -346,10 +433,7 @@ contains
         dy = 0.0_dp
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
-        call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, &
-            x%fy, x%moment), motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
-            friction=x%law, friction_velocity=x%vslip, rates=present(rate)), t_out, wrt, out, &
-            stat)
+        call sens_response(chain, exp_spec(x, present(rate)), t_out, wrt, out, stat)
         if (stat%code /= STATUS_OK) return
         call station_setup(chain, x, wrt, obs, size(wrt) > 0, sys, pars, accel, stat)
         if (stat%code /= STATUS_OK) return
@@ -368,12 +452,13 @@ contains
                     call observe_reaction(sys, chain, obs(i)%kind, wrt, out%hist%y(:, k), &
                                           out%dstates(:, k, :), a, da, t_out(k) <= 0.0_dp, &
                                           y(i, k), dy(i, k, :))
-                else if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                else if (root_kind(obs(i)%kind)) then
                     call observe_encoder(sys, chain, obs(i), wrt, out%hist%y(:, k), &
                                          out%dstates(:, k, :), y(i, k), dy(i, k, :))
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), wrt, out%hist%y(:, k), &
-                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :))
+                                         out%dstates(:, k, :), a, da, y(i, k), dy(i, k, :), &
+                                         hub_rates(sys, t_out(k)))
                 else
                     call observe(out, obs(i), k, y(i, k), dy(i, k, :))
                 end if
@@ -385,10 +470,7 @@ contains
         subroutine plain_rates()
             call chain_from_vector(nbeams, params, chain, stat)
             if (stat%code /= STATUS_OK) return
-            call sens_response(chain, release_spec_t(elements_per_beam=x%nepb, &
-                load=fe_load_t(x%fx, x%fy, x%moment), motor_gain=x%gain, integrator=x%method, &
-                rtol=x%rtol, dt=x%dt, friction=x%law, friction_velocity=x%vslip, rates=.true.), &
-                t_out, wrt(1:0), out, stat)
+            call sens_response(chain, exp_spec(x, .true.), t_out, wrt(1:0), out, stat)
             if (stat%code /= STATUS_OK) return
             call observation_rates(chain, x, obs, t_out, out, rate, stat)
         end subroutine plain_rates
@@ -486,10 +568,11 @@ contains
         integer :: i, k, row
         rate = 0.0_dp
         local = [(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
-                  obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION, &
+                  root_kind(obs(i)%kind), &
                   i=1, size(obs))]
         if (any(local)) then
             call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+            if (stat%code == STATUS_OK) call add_loads(sys, x, stat)
             if (stat%code /= STATUS_OK) return
             allocate (pars(0), f(sys%nstate, 1))
         end if
@@ -502,7 +585,7 @@ contains
             end if
             do i = 1, size(obs)
                 if (needs_accel(obs(i)%kind)) cycle
-                if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                if (root_kind(obs(i)%kind)) then
                     call observe_encoder(sys, chain, obs(i), [0], out%hist%y(:, k), f, value, g)
                     rate(i, k) = g(1)
                 else if (local(i)) then
@@ -543,6 +626,7 @@ contains
         call chain_from_vector(nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+        if (stat%code == STATUS_OK) call add_loads(sys, x, stat)
         if (stat%code /= STATUS_OK) return
         n = sys%n
         allocate (y0(sys%nstate), q(n), source=0.0_dp)
@@ -583,12 +667,12 @@ contains
                     call observe_reaction(sys, chain, obs(i)%kind, [integer ::], &
                                           out%hist%y(:, k), nos, a, noda, t_out(k) <= 0.0_dp, &
                                           y(i, k), none)
-                else if (obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION) then
+                else if (root_kind(obs(i)%kind)) then
                     call observe_encoder(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
                                          nos, y(i, k), none)
                 else if (KINDS(obs(i)%kind)%locus == LOCUS_STATION) then
                     call observe_station(sys, chain, obs(i), [integer ::], out%hist%y(:, k), &
-                                         nos, a, noda, y(i, k), none)
+                                         nos, a, noda, y(i, k), none, hub_rates(sys, t_out(k)))
                 else
                     call observe(out, obs(i), k, y(i, k), none)
                 end if
@@ -613,9 +697,10 @@ contains
         allocate (pars(0))
         accel = any([(needs_accel(obs(i)%kind), i=1, size(obs))])
         if (.not. any([(KINDS(obs(i)%kind)%locus == LOCUS_STATION .or. &
-                        obs(i)%kind == K_ELBOW_ROTATION .or. obs(i)%kind == K_ROOT_ROTATION .or. &
-                        is_reaction(obs(i)%kind), i=1, size(obs))])) return
+                        root_kind(obs(i)%kind) .or. is_reaction(obs(i)%kind), &
+                        i=1, size(obs))])) return
         call dyn_setup(chain, x%nepb, x%gain, x%law, x%vslip, sys, stat)
+        if (stat%code == STATUS_OK) call add_loads(sys, x, stat)
         if (stat%code /= STATUS_OK .or. .not. (accel .and. with_pars)) return
         deallocate (pars)
         allocate (pars(size(wrt)))
@@ -753,7 +838,13 @@ contains
         real(dp), intent(in) :: y(:), sy(:, :)
         real(dp), intent(out) :: value, grad(:)
         real(dp) :: v1, g1(size(grad)), none(0), nod(0, 0)
-        if (o%kind == K_ROOT_ROTATION) then
+        if (o%kind == K_HUB_TORQUE) then
+            ! the clamp's moment on the arm balances the internal moment M(0)
+            call observe_station(sys, chain, observation_t(kind=K_MOMENT, beam=1, s=0.0_dp), &
+                                 wrt, y, sy, none, nod, value, grad)
+            value = -value
+            grad = -grad
+        else if (o%kind == K_ROOT_ROTATION) then
             call observe_station(sys, chain, observation_t(kind=K_PSI, beam=1, s=0.0_dp), wrt, &
                                  y, sy, none, nod, value, grad)
         else
@@ -765,6 +856,13 @@ contains
             grad = grad - g1
         end if
     end subroutine observe_encoder
+
+    !> The observations computed at the root or the elbow from the stations
+    !! (observe_encoder): the encoders and the hub torque.
+    pure logical function root_kind(k)
+        integer, intent(in) :: k
+        root_kind = k == K_ELBOW_ROTATION .or. k == K_ROOT_ROTATION .or. k == K_HUB_TORQUE
+    end function root_kind
 
     !> The release family's observe at a station (beam b, arc length s from
     !! its root) from the full state y and its sensitivities sy (nstate x
@@ -779,17 +877,23 @@ contains
     !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates
     !! f of the state, da their sensitivities). Lengths carry no derivative
     !! here (the release family has none, beamid_release).
-    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad)
+    pure subroutine observe_station(sys, chain, o, wrt, y, sy, a, da, value, grad, hub)
         type(dyn_system_t), intent(in) :: sys
         type(chain_t), intent(in) :: chain
         type(observation_t), intent(in) :: o
         integer, intent(in) :: wrt(:)
         real(dp), intent(in) :: y(:), sy(:, :), a(:), da(:, :)
         real(dp), intent(out) :: value, grad(:)
+        !> the hub's rate and angular acceleration (Omega, Omega') of a
+        !! prescribed hub rotation: velocities and accelerations are then the
+        !! inertial ones (what a sensor on the arm reads), in the hub frame's
+        !! components, v + Omega J rho and a + 2 Omega J v + Omega' J rho -
+        !! Omega^2 rho (rho = (S + u, w); the fit's parameters leave Omega alone)
+        real(dp), intent(in), optional :: hub(2)
         real(dp) :: f(4), f1(4), f2(4), h, zeta, u, w, u1, w1, u2, w2, r2, chi, kap, e, p1
-        real(dp) :: vu, vw, ca, sb
+        real(dp) :: vu, vw, ca, sb, om, omd, xs, gu, gw
         real(dp), dimension(size(grad)) :: du, dw, du1, dw1, du2, dw2, dr2, dchi, dkap, dvu, &
-                                           dvw, dau
+                                           dvw, dau, dgu, dgw
         real(dp) :: qe(8), ve(8), ae(8)
         real(dp) :: dqe(8, size(grad)), dve(8, size(grad)), dae(8, size(grad))
         integer :: el, first, nel_b, j, m, n, idx
@@ -881,6 +985,29 @@ contains
                 dvu = matmul(f, dae(FE_U, :))
                 dvw = matmul(f, dae(FE_W, :))
             end if
+            if (present(hub)) then
+                ! the inertial velocity or acceleration, in the hub frame's components
+                if (any(hub /= 0.0_dp)) then
+                    om = hub(1)
+                    omd = hub(2)
+                    xs = sum(chain%length(1:o%beam - 1)) + o%s + u
+                    if (o%kind == K_VEL_T .or. o%kind == K_VEL_N) then
+                        vu = vu - om*w
+                        vw = vw + om*xs
+                        dvu = dvu - om*dw
+                        dvw = dvw + om*du
+                    else
+                        gu = dot_product(f, ve(FE_U))
+                        gw = dot_product(f, ve(FE_W))
+                        dgu = matmul(f, dve(FE_U, :))
+                        dgw = matmul(f, dve(FE_W, :))
+                        vu = vu - 2.0_dp*om*gw - omd*w - om*om*xs
+                        vw = vw + 2.0_dp*om*gu + omd*xs - om*om*w
+                        dvu = dvu - 2.0_dp*om*dgw - omd*dw - om*om*du
+                        dvw = dvw + 2.0_dp*om*dgu + omd*du - om*om*dw
+                    end if
+                end if
+            end if
             if (o%kind == K_VEL_T .or. o%kind == K_ACCEL_T) then
                 ca = p1*vu + w1*vw
                 dau = du1*vu + p1*dvu + dw1*vw + w1*dvw
@@ -893,6 +1020,21 @@ contains
             grad = dau/sb - 0.5_dp*ca/(sb*r2)*dr2
         end select
     end subroutine observe_station
+
+    !> (Omega, Omega') of the prescribed hub rotation of `sys` at t (0 without one).
+    pure function hub_rates(sys, t) result(r)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: t
+        real(dp) :: r(2)
+        integer :: l
+        r = 0.0_dp
+        do l = 1, sys%nloads
+            select type (h => sys%loads(l)%f)
+            type is (hub_forcing_t)
+                call h%rate(t, r(1), r(2))
+            end select
+        end do
+    end function hub_rates
 
     !> Predictions and sensitivities of the rows: one response per experiment
     !! that has rows, at the distinct times of its rows. A release with a

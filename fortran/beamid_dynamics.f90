@@ -1460,6 +1460,16 @@ contains
         case (DP_FORCING)
             call sys%loads(k)%f%dforce(par%ip, t, q, v, fp)
         end select
+        ! forcings proportional to the masses (the hub frame's inertial forces)
+        if (par%kind == DP_RHO .or. par%kind == DP_MASS) then
+            do i = 1, sys%nloads
+                if (par%kind == DP_RHO) then
+                    call sys%loads(i)%f%dmass(k, 0, t, q, v, fp)
+                else
+                    call sys%loads(i)%f%dmass(0, sys%iu(k), t, q, v, fp)
+                end if
+            end do
+        end if
     end subroutine dyn_dforce
 
     !> y += (dM/dp) a at q (density, point mass, rotary inertia).

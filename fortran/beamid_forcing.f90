@@ -39,6 +39,11 @@ module beamid_forcing
         procedure :: nparams => forcing_no_params
         procedure :: param_name => forcing_param_name
         procedure :: dforce => forcing_no_dforce
+        !> fp += dF_l/dp for a mass parameter of the chain: the density of
+        !! beam `beam` (> 0), or the point mass whose u is free unknown
+        !! `iu_point` (> 0); forces proportional to the mass (a hub frame's
+        !! inertial forces) depend on them
+        procedure :: dmass => forcing_no_dmass
         !> times in (t0, t1] where F_l is not smooth, ascending
         procedure :: breakpoints => forcing_no_breaks
         !> d tb / dp_i of breakpoint tb where F_l jumps (0: p_i does not move
@@ -104,6 +109,13 @@ contains
         real(dp), intent(in) :: t, q(:), v(:)
         real(dp), intent(inout) :: fp(:)
     end subroutine forcing_no_dforce
+
+    pure subroutine forcing_no_dmass(self, beam, iu_point, t, q, v, fp)
+        class(forcing_t), intent(in) :: self
+        integer, intent(in) :: beam, iu_point
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: fp(:)
+    end subroutine forcing_no_dmass
 
     pure real(dp) function forcing_no_dbreak(self, i, tb) result(d)
         class(forcing_t), intent(in) :: self

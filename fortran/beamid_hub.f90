@@ -53,6 +53,7 @@ module beamid_hub
         procedure :: nparams => hub_nparams
         procedure :: param_name => hub_param_name
         procedure :: dforce => hub_dforce
+        procedure :: dmass => hub_dmass
         procedure :: breakpoints => hub_breakpoints
         procedure :: rate => hub_rate_of
     end type hub_forcing_t
@@ -214,10 +215,13 @@ contains
     !> F_hub = a (c + M q) + b P (c + M q) + g P M v, scattered to the free
     !! unknowns (a = Omega^2, b = -Omega', g = -2 Omega; their w_s derivatives
     !! for dforce), element by element, the point masses on (u, w).
-    pure subroutine hub_force(self, a, b, g, q, v, f)
+    pure subroutine hub_force(self, a, b, g, q, v, f, we, wn)
         class(hub_forcing_t), intent(in) :: self
         real(dp), intent(in) :: a, b, g, q(:), v(:)
         real(dp), intent(inout) :: f(:)
+        !> weights of the elements' and the nodes' masses (absent: 1): the
+        !! derivative with respect to a mass parameter
+        real(dp), intent(in), optional :: we(:), wn(:)
         real(dp) :: zf(self%mesh%ndof), vf(self%mesh%ndof), ze(FE_NDOF), ve(FE_NDOF)
         real(dp) :: fe(FE_NDOF), mz(FE_NDOF), mv(FE_NDOF), m, zu, zw, vu, vw
         integer :: el, k, i, nd, iu, iw
@@ -231,6 +235,7 @@ contains
                 mz = matmul(self%me(:, :, el), ze)
                 mv = matmul(self%me(:, :, el), ve)
                 fe = a*mz + b*turn(mz) + g*turn(mv)
+                if (present(we)) fe = we(el)*fe
                 do k = 1, FE_NDOF
                     i = mesh%el_free(k, el)
                     if (i /= 0) f(i) = f(i) + fe(k)
@@ -238,6 +243,7 @@ contains
             end do
             do nd = 2, mesh%nnode
                 m = mesh%node_mass(nd)
+                if (present(wn)) m = wn(nd)
                 if (m == 0.0_dp) cycle
                 iu = mesh%free_of(mesh%node_dof(DOF_U, nd))
                 iw = mesh%free_of(mesh%node_dof(DOF_W, nd))
@@ -339,6 +345,33 @@ contains
         call self%rate(t, om, omd)
         call hub_force(self, 2.0_dp*om*om/self%ws, -omd/self%ws, -2.0_dp*om/self%ws, q, v, fp)
     end subroutine hub_dforce
+
+    !> dF/dp of a mass parameter: F_hub is linear in the masses, so it is
+    !! F_hub with the element masses of beam `beam` divided by their density
+    !! (the others 0), or with the one point mass at free unknown iu_point.
+    pure subroutine hub_dmass(self, beam, iu_point, t, q, v, fp)
+        class(hub_forcing_t), intent(in) :: self
+        integer, intent(in) :: beam, iu_point
+        real(dp), intent(in) :: t, q(:), v(:)
+        real(dp), intent(inout) :: fp(:)
+        real(dp) :: om, omd, we(self%mesh%nel), wn(self%mesh%nnode)
+        integer :: el, nd
+        call self%rate(t, om, omd)
+        if (om == 0.0_dp .and. omd == 0.0_dp) return
+        we = 0.0_dp
+        wn = 0.0_dp
+        if (beam > 0) then
+            do el = 1, self%mesh%nel
+                if (self%mesh%beam(el) == beam .and. self%mesh%rho(el) /= 0.0_dp) &
+                    we(el) = 1.0_dp/self%mesh%rho(el)
+            end do
+        else if (iu_point > 0) then
+            do nd = 2, self%mesh%nnode
+                if (self%mesh%free_of(self%mesh%node_dof(DOF_U, nd)) == iu_point) wn(nd) = 1.0_dp
+            end do
+        end if
+        call hub_force(self, om*om, -omd, -2.0_dp*om, q, v, fp, we, wn)
+    end subroutine hub_dmass
 
     pure function hub_breakpoints(self, t0, t1) result(tb)
         class(hub_forcing_t), intent(in) :: self

@@ -116,7 +116,7 @@ contains
         real(dp) :: w(size(pb%y)), su(size(pb%y)), sd(size(pb%y))
         logical :: gross(size(pb%y))
         call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
-                                  pb%row_q, pb%tol, problem, stat, pb%obs)
+                                  pb%row_q, pb%tol, problem, stat, pb%obs, hist=pb%hist)
         if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma)) .and. &
             .not. chain_active(problem%rows)) &
             call set_status(stat, ERR_INPUT, 'fit', 'sigma missing: row '// &
@@ -179,7 +179,8 @@ contains
                               dg%ambiguous)
         else
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
-                                      pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs)
+                                      pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs, &
+                                      hist=pb%hist)
             if (stat%code == STATUS_OK) &
                 call inverse_diagnose(problem, inverse_lsq(problem, pb%y, pb%sigma, pb%prior), &
                                       params, nominal, free, cs%cands, fopts, dopts, dg%base, &

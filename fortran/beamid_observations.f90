@@ -53,6 +53,9 @@ module beamid_observations
     !> The clamp's load cell: the force (global x and y) and the moment
     !! (counter-clockwise) that the clamp exerts on the arm.
     integer, parameter, public :: K_REACTION_X = 22, K_REACTION_Y = 23, K_REACTION_MOMENT = 24
+    !> The torque of the shoulder hub (the clamp) on the arm, -M at s = 0 of
+    !! beam 1: what drives a prescribed hub rotation (issue 28)
+    integer, parameter, public :: K_HUB_TORQUE = 25
     !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
     !! observation sits t/2 from the neutral axis.
     real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
@@ -73,7 +76,7 @@ module beamid_observations
         character(len=72) :: about = ''
     end type obs_kind_t
 
-    integer, parameter :: NKIND = 24
+    integer, parameter :: NKIND = 25
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
     type(obs_kind_t), parameter :: KINDS(NKIND) = [ &
         obs_kind_t('x_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 1, 0, K_U_TIP, &
@@ -123,7 +126,9 @@ module beamid_observations
         obs_kind_t('reaction_y', 'N', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
                    'load cell: y force of the clamp on the arm (global axes)'), &
         obs_kind_t('reaction_moment', 'N m', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'load cell: moment of the clamp on the arm, counter-clockwise')]
+                   0, 'load cell: moment of the clamp on the arm, counter-clockwise'), &
+        obs_kind_t('hub_torque', 'N m', FAM_RELEASE, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'torque of the hub (clamp) on the arm: -moment at the root')]
 
     !> An observation: a kind and its locus.
     type :: observation_t

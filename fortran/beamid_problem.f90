@@ -49,6 +49,9 @@ module beamid_problem
                              EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, &
                              EV_BURNIN, EV_SIGEST, NEXPVAL
     use beamid_families, only: registered_families, family_of_kind, kind_timed, kinds_expected
+    use beamid_family, only: experiment_family_t
+    use beamid_dynamic_experiments, only: dynamic_experiments_t, exp_histories_t, &
+                                          attach_histories
     use beamid_family, only: SPEC_KEYS
     implicit none
     private
@@ -107,7 +110,7 @@ contains
     !! the data problem's experiments and chain): a channel of the chain or
     !! of an estimated sigma need not have rows among them.
     subroutine inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, &
-                                    row_quantity, tol, self, stat, obs, probe)
+                                    row_quantity, tol, self, stat, obs, probe, hist)
         integer, intent(in) :: nbeams
         integer, intent(in) :: exp_kind(:), row_exp(:), row_quantity(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), tol
@@ -115,6 +118,9 @@ contains
         type(status_t), intent(inout) :: stat
         type(observation_t), intent(in), optional :: obs(:)
         logical, intent(in), optional :: probe
+        !> load histories of the release experiments (their own list beside
+        !! the value columns; beamid_dynamic_experiments exp_histories_t)
+        type(exp_histories_t), intent(in), optional :: hist
         type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
         type(family_slot_t), allocatable :: reg(:)
@@ -233,8 +239,47 @@ contains
                 self%plain_trials = self%plain_trials .or. fam%plain_trials
                 self%rough_jacobian_ok = self%rough_jacobian_ok .or. fam%rough_jacobian_ok
             end associate
+            if (present(hist)) call histories_init(self%fams(f)%item, fexp, stat)
+            if (stat%code /= STATUS_OK) return
         end do
     contains
+        !> The load histories of the release family's experiments (fexp their
+        !! numbers in the problem), each checked against its experiment's
+        !! last row (an experiment without rows here, as in a probe problem:
+        !! not checked); a history on another family's experiment is an error.
+        subroutine histories_init(fam, fexp, stat)
+            class(experiment_family_t), intent(inout) :: fam
+            integer, intent(in) :: fexp(:)
+            type(status_t), intent(inout) :: stat
+            integer :: k, e
+            if (.not. allocated(hist%spec)) return
+            do k = 1, size(hist%spec, 2)
+                e = nint(hist%spec(1, k))
+                if (e < 1 .or. e > size(exp_kind)) then
+                    call set_status(stat, ERR_INPUT, where, 'load history '//fmt_int(k)// &
+                                    ' names experiment '//fmt_int(e)//', expected 1..'// &
+                                    fmt_int(size(exp_kind)))
+                    return
+                end if
+                if (exp_kind(e) /= EXP_RELEASE) then
+                    call set_status(stat, ERR_INPUT, where, 'load history '//fmt_int(k)// &
+                                    ' on experiment '//fmt_int(e)//', a static '// &
+                                    'experiment: histories act on dynamic experiments only')
+                    return
+                end if
+            end do
+            select type (fam)
+            type is (dynamic_experiments_t)
+                do k = 1, size(fexp)
+                    e = fexp(k)
+                    call attach_histories(hist, e, merge(maxval(row_t, mask=row_exp == e), &
+                                                         huge(1.0_dp), any(row_exp == e)), &
+                                          fam%exps(k), stat)
+                    if (stat%code /= STATUS_OK) return
+                end do
+            end select
+        end subroutine histories_init
+
         !> Each row's loss, burn-in and estimated sigma (EV_LOSS, EV_BURNIN,
         !! EV_SIGEST), checked: a loss code 0..2, a burn-in time >= 0 on a
         !! release only, a channel mask whose channels have rows.
@@ -634,14 +679,17 @@ contains
     !! list) and the observation list as parallel arrays (obs_kind,
     !! obs_beam, obs_s; observation_list).
     subroutine problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
-                                   obs_kind, obs_beam, obs_s, tol, model, stat)
+                                   obs_kind, obs_beam, obs_s, tol, model, stat, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer, intent(in) :: obs_kind(:), obs_beam(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
         type(inverse_problem_t), intent(out) :: model
         type(status_t), intent(inout) :: stat
+        !> the release experiments' load histories (their own list)
+        type(exp_histories_t), intent(in), optional :: hist
         call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
-                                  model, stat, observation_list(obs_kind, obs_beam, obs_s))
+                                  model, stat, observation_list(obs_kind, obs_beam, obs_s), &
+                                  hist=hist)
     end subroutine problem_from_arrays
 
     !> The inverse problem and its least-squares problem from the
@@ -653,7 +701,7 @@ contains
     !! previous fit carried forward, Eq. 146-148, 164-166).
     subroutine problem_lsq_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
                                        obs_kind, obs_beam, obs_s, tol, y, sigma, prior, &
-                                       prior_cov, model, lp, stat)
+                                       prior_cov, model, lp, stat, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer, intent(in) :: obs_kind(:), obs_beam(:)
         real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
@@ -661,6 +709,8 @@ contains
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
+        !> the release experiments' load histories (their own list)
+        type(exp_histories_t), intent(in), optional :: hist
         type(prior_t) :: pr
         integer :: n
         n = size(prior, 2)
@@ -671,7 +721,7 @@ contains
             return
         end if
         call problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
-                                 obs_kind, obs_beam, obs_s, tol, model, stat)
+                                 obs_kind, obs_beam, obs_s, tol, model, stat, hist)
         if (stat%code /= STATUS_OK) return
         ! the prior as a variable of its own: gfortran 12 passed the structure
         ! constructor's allocatable components as freed temporaries (a fit

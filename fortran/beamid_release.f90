@@ -31,6 +31,7 @@ module beamid_release
     private
 
     public :: release_spec_t, release_out_t, release_response, release_load_index
+    public :: release_add_loads
     public :: release_quantity_name, release_wrt_name
     public :: NQTY, QTY_U_TIP, QTY_W_TIP, QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, &
               QTY_Y_ELBOW, QTY_MOTOR_TORQUE, QTY_ENERGY
@@ -152,8 +153,6 @@ contains
         real(dp) :: e0, u, w, ang
         integer :: k, n, nt, nw, j, l, nhp, base, ip
         logical :: modal
-        type(tip_history_t) :: th
-        type(hub_forcing_t) :: hub
 
         nt = size(t_out)
         nw = size(wrt)
@@ -171,33 +170,8 @@ contains
             call dyn_set_modes(sys, spec%modes, stat)
             if (stat%code /= STATUS_OK) return
         end if
-        ! the load histories: one forcing each, acting at the tip
-        nhp = 0
-        if (allocated(spec%histories)) then
-            do l = 1, size(spec%histories)
-                th = spec%histories(l)
-                call history_check(th%hist, 'load history '//fmt_int(l)//' ('// &
-                                   th%work_name()//')', t_out(max(1, nt)), stat)
-                if (stat%code /= STATUS_OK) return
-                th%iw = sys%iw(sys%npt)
-                th%iu = sys%iu(sys%npt)
-                th%idw = sys%idw(sys%npt)
-                th%idu = sys%idu(sys%npt)
-                call dyn_add_forcing(sys, th)
-                nhp = nhp + th%nparams()
-            end do
-        end if
-        if (spec%hub) then
-            if (allocated(spec%hub_table)) then
-                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub angle table', hub, &
-                               stat, spec%hub_table(1, :), spec%hub_table(2, :))
-            else
-                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
-            end if
-            if (stat%code /= STATUS_OK) return
-            call dyn_add_forcing(sys, hub)
-            nhp = nhp + hub%nparams()
-        end if
+        call release_add_loads(sys, spec, t_out(max(1, nt)), nhp, stat)
+        if (stat%code /= STATUS_OK) return
         base = param_count(chain%nbeams) + NLOAD
         do j = 1, nw
             if (wrt(j) < 1 .or. wrt(j) > base + nhp) then
@@ -316,6 +290,48 @@ contains
             end do
         end if
     end subroutine release_response
+
+    !> Add spec's load histories (one forcing each, acting at the tip) and
+    !! its prescribed hub rotation to the system `sys`, each history checked
+    !! against the experiment's end t_end; nhp = their parameters' number
+    !! (the wrt indices after the release load's). The estimation's station
+    !! observations build their system the same way (beamid_dynamic_experiments).
+    subroutine release_add_loads(sys, spec, t_end, nhp, stat)
+        type(dyn_system_t), intent(inout) :: sys
+        type(release_spec_t), intent(in) :: spec
+        real(dp), intent(in) :: t_end
+        integer, intent(out) :: nhp
+        type(status_t), intent(inout) :: stat
+        type(tip_history_t) :: th
+        type(hub_forcing_t) :: hub
+        integer :: l
+        nhp = 0
+        if (allocated(spec%histories)) then
+            do l = 1, size(spec%histories)
+                th = spec%histories(l)
+                call history_check(th%hist, 'load history '//fmt_int(l)//' ('// &
+                                   th%work_name()//')', t_end, stat)
+                if (stat%code /= STATUS_OK) return
+                th%iw = sys%iw(sys%npt)
+                th%iu = sys%iu(sys%npt)
+                th%idw = sys%idw(sys%npt)
+                th%idu = sys%idu(sys%npt)
+                call dyn_add_forcing(sys, th)
+                nhp = nhp + th%nparams()
+            end do
+        end if
+        if (spec%hub) then
+            if (allocated(spec%hub_table)) then
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub angle table', hub, &
+                               stat, spec%hub_table(1, :), spec%hub_table(2, :))
+            else
+                call hub_setup(sys, spec%hub_ws, spec%hub_period, 'hub law', hub, stat)
+            end if
+            if (stat%code /= STATUS_OK) return
+            call dyn_add_forcing(sys, hub)
+            nhp = nhp + hub%nparams()
+        end if
+    end subroutine release_add_loads
 
     !> Time derivatives of the exported quantities in state y (rows QTY_*):
     !! the positions' from the velocities in y, the tip angle's by the chain

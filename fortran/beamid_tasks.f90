@@ -30,6 +30,7 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
+    use beamid_loads, only: histories_from_columns
     use beamid_dynamics, only: dyn_work_name
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
@@ -349,23 +350,46 @@ contains
         type(status_t), intent(inout) :: st
         type(chain_t) :: chain
         type(release_out_t) :: out
+        type(release_spec_t) :: spec
         character(len=:), allocatable :: header, line
-        integer :: unit, ios, k, i, nwork, nowrt(0)
+        integer :: unit, ios, k, i, nwork, nowrt(0), nbase
+        real(dp) :: hub(2)
 
         call chain_from_vector(d%nbeams, d%params, chain, st)
         if (st%code /= STATUS_OK) return
-        call release_response(chain, release_spec_t(elements_per_beam=d%sim_elements_per_beam, &
+        spec = release_spec_t(elements_per_beam=d%sim_elements_per_beam, &
             load=fe_load_t(d%load%fx, d%load%fy, d%load%moment), motor_gain=d%sim_motor_gain, &
             integrator=d%sim_integrator, rtol=d%sim_rtol, atol=d%sim_atol, dt=d%sim_dt, &
-            friction=d%sim_friction, friction_velocity=d%sim_friction_velocity), d%sim_t_out, &
-            nowrt, out, st)
+            friction=d%sim_friction, friction_velocity=d%sim_friction_velocity)
+        ! the deck's &history groups (experiment 1 of its list)
+        if (allocated(d%hist%spec)) then
+            if (size(d%hist%spec, 2) > 0) then
+                call histories_from_columns(d%hist%spec(2:, :), d%hist%tab, spec%histories, &
+                                            st, hub, spec%hub, spec%hub_table)
+                if (st%code /= STATUS_OK) return
+                spec%hub_ws = hub(1)
+                spec%hub_period = hub(2)
+            end if
+        end if
+        call release_response(chain, spec, d%sim_t_out, nowrt, out, st)
         if (st%code /= STATUS_OK) return
         nwork = out%nwork
 
         header = 't,tip_u,tip_w,tip_angle,energy,kinetic,potential'
-        do i = 1, nwork
+        ! the chain's work lines, then the histories' (named by their targets)
+        ! and the hub's
+        nbase = nwork
+        if (allocated(spec%histories)) nbase = nbase - size(spec%histories)
+        if (spec%hub) nbase = nbase - 1
+        do i = 1, nbase
             header = header//','//dyn_work_name(d%nbeams, i)
         end do
+        if (allocated(spec%histories)) then
+            do i = 1, size(spec%histories)
+                header = header//','//trim(spec%histories(i)%name)
+            end do
+        end if
+        if (spec%hub) header = header//',hub'
         header = header//',work,numerical,motor_torque'
         call open_output(fl, '_history.csv', header, unit, ios, st)
         if (st%code /= STATUS_OK) return
@@ -568,6 +592,7 @@ contains
         ds%experiments = d%experiments
         if (allocated(d%exp_kind)) ds%exp_kind = d%exp_kind
         if (allocated(d%exp_values)) ds%exp_values = d%exp_values
+        ds%hist = d%hist
         call take_stage(ds, stage)
     end subroutine stage_deck
 
@@ -662,6 +687,7 @@ contains
                        sigma=d%data%sigma, max_iter=d%max_iter, &
                        prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
         call deck_experiments(d, pb%exp_kind, pb%exp_values)
+        pb%hist = d%hist
         if (.not. chain_asked(pb%exp_values) .and. .not. asks_noise(d)) return
         list = ordered_observations(d%data%obs)
         pb%obs = list

@@ -39,7 +39,8 @@ module beamid_api_deck
               api_deck_handles_open
     public :: api_measurements_size, &
               api_measurements_read, api_exit_code, api_quantity_labels, &
-              api_observation_table, api_observation_parse
+              api_observation_table, api_observation_parse, api_deck_handle_history_sizes, &
+              api_deck_handle_histories
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
@@ -145,6 +146,50 @@ contains
         nsize_r = 0
         if (allocated(a)) nsize_r = size(a)
     end function nsize_r
+
+    !> The sizes of the &history groups of the deck of `handle`
+    !! (beamid_deck_history): nh histories, ntab table rows
+    !! (api_deck_handle_histories returns them).
+    subroutine api_deck_handle_history_sizes(handle, nh, ntab, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: nh, ntab
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        nh = 0
+        ntab = 0
+        if (.not. handle_ok(handle, code, message)) return
+        associate (d => slots(handle)%run%deck)
+            if (allocated(d%hist%spec)) nh = int(size(d%hist%spec, 2), c_int)
+            if (allocated(d%hist%tab)) ntab = int(size(d%hist%tab, 2), c_int)
+        end associate
+    end subroutine api_deck_handle_history_sizes
+
+    !> The &history groups of the deck of `handle`: a column [experiment
+    !! (1-based; a simulate deck's: 1), beamid_loads' 9 values] per history
+    !! and the table rows (t, value) they refer to (sizes from
+    !! api_deck_handle_history_sizes).
+    subroutine api_deck_handle_histories(handle, nh, ntab, spec, tab, code, message)
+        integer(c_int), intent(in) :: handle, nh, ntab
+        real(c_double), intent(out) :: spec(10, nh), tab(2, ntab)
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        spec = 0.0_c_double
+        tab = 0.0_c_double
+        if (.not. handle_ok(handle, code, message)) return
+        associate (d => slots(handle)%run%deck)
+            if (.not. allocated(d%hist%spec)) return
+            if (size(d%hist%spec, 2) /= nh .or. size(d%hist%tab, 2) /= ntab) then
+                code = int(ERR_INPUT, c_int)
+                message = d%path//': nh = '//fmt_int(int(nh))//', ntab = '// &
+                          fmt_int(int(ntab))//', expected '//fmt_int(size(d%hist%spec, 2))// &
+                          ' and '//fmt_int(size(d%hist%tab, 2))// &
+                          ' (api_deck_handle_history_sizes)'
+                return
+            end if
+            spec = real(d%hist%spec, c_double)
+            tab = real(d%hist%tab, c_double)
+        end associate
+    end subroutine api_deck_handle_histories
 
     pure integer function nexp(d)
         type(deck_t), intent(in) :: d

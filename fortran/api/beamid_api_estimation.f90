@@ -37,6 +37,7 @@ module beamid_api_estimation
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
+    use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -292,9 +293,14 @@ contains
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                               nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
                               nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, row_q, nobs, obs_kind, &
-                              obs_beam, obs_s, row_value, row_sigma, tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
+                              obs_beam, obs_s, row_value, row_sigma, tol, nhs, hist_spec, &
+                              nhtab, hist_tab, max_iter, start_mask, params, sigmas, cov, corr, &
+                              flags, &
                               predictions, normalized, stats, log_cost, log_lambda, log_step, &
                               log_params, info, code, message, note)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nblock, nprior, nexp, nrow
         !f2py intent(hide) nparams, nfree, nblock, nprior, ncov, nexp, nrow
         integer(c_int), intent(in) :: max_iter, start_mask, ncov
@@ -345,7 +351,7 @@ contains
         else
             call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, &
                         obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, model, &
-                        lp, stat)
+                        lp, stat, make_hist(hist_spec, hist_tab))
         end if
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK .and. nblock == 0) then
@@ -392,10 +398,14 @@ contains
     subroutine api_fit_chain(nbeams, nparams, params0, nfree, free_idx, nprior, prior, ncov, &
                              prior_cov, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, &
                              row_q, nobs, obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, &
+                             nhs, hist_spec, nhtab, hist_tab, &
                              max_iter, params, sigmas, cov, &
                              corr, flags, predictions, normalized, stats, log_cost, log_lambda, &
                              log_step, log_params, info, weights, sigma_used, sigma_sd, &
                              flagged, code, message, note)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, ncov
         !f2py intent(hide) nparams, nfree, nprior, ncov, nexp, nrow
         integer(c_int), intent(in) :: max_iter
@@ -441,7 +451,8 @@ contains
         params = params0
         note = ''
         call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, &
+                    make_hist(hist_spec, hist_tab))
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK) then
             call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
@@ -467,7 +478,10 @@ contains
     !! params(wrt) (wrt may be empty).
     subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, &
                                    row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, &
-                                   nwrt, wrt, tol, pred, jac, code, message)
+                                   nwrt, wrt, tol, nhs, hist_spec, nhtab, hist_tab, pred, jac, code, message)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
         real(c_double), intent(in) :: params(nparams), row_t(nrow), tol
@@ -494,7 +508,8 @@ contains
         end if
         call problem_from_arrays(int(nbeams), int(exp_kind), values, &
                                  int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
-                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat)
+                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat, &
+                                 make_hist(hist_spec, hist_tab))
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -557,7 +572,7 @@ contains
     !> The estimation entries' one set-up (beamid_problem
     !! problem_lsq_from_arrays), the arrays in the library's kinds.
     subroutine set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, hist)
         integer(c_int), intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
         real(c_double), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
@@ -565,11 +580,12 @@ contains
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
+        type(exp_histories_t), intent(in) :: hist
         call problem_lsq_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
                                      int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
                                      int(obs_beam), real(obs_s, dp), real(tol, dp), &
                                      real(row_value, dp), real(row_sigma, dp), &
-                                     real(prior, dp), real(prior_cov, dp), model, lp, stat)
+                                     real(prior, dp), real(prior_cov, dp), model, lp, stat, hist)
     end subroutine set_up
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
@@ -586,6 +602,14 @@ contains
         type(observation_t) :: obs(size(kind))
         obs = observation_list(int(kind), int(beam), real(s, dp))
     end function make_obs
+
+    !> The release experiments' load histories from the binding's columns
+    !! [experiment, beamid_loads' 9 values] and table rows (t, value).
+    pure type(exp_histories_t) function make_hist(spec, tab) result(h)
+        real(c_double), intent(in) :: spec(:, :), tab(:, :)
+        h%spec = real(spec, dp)
+        h%tab = real(tab, dp)
+    end function make_hist
 
     !> The problem of beamid_ladder from a binding's arrays.
     subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
@@ -641,11 +665,15 @@ contains
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
                                     nprior, prior, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, &
                                     row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
-                                    row_sigma, tol, max_iter, ncand, &
+                                    row_sigma, tol, nhs, hist_spec, nhtab, hist_tab, max_iter, &
+                                    ncand, &
                                     cand_start, ncandp, cand_params, alpha, nrefit, &
                                     ambiguity_delta, collinear, with_mesh, cstats, pstats, &
                                     refit_params, ranking, cosine, dstats, refit_start, sep_t, &
                                     mstats, mesh_params, kept, notes, code, message)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), nominal(nparams), prior(3, nprior)
@@ -688,6 +716,7 @@ contains
         end if
         call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, 0, pb)
+        pb%hist = make_hist(hist_spec, hist_tab)
         pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         cs = make_cands(cand_start, cand_params, with_mesh)
         if (max_iter > 0) opts%max_iter = int(max_iter)
@@ -711,8 +740,13 @@ contains
     !! added.
     subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
                                 exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, row_q, nobs, &
-                                obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
+                                obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, nhs, &
+                                hist_spec, nhtab, hist_tab, max_iter, ncand, cand_start, &
+                                ncandp, &
                                 cand_params, with_mesh, alpha, max_steps, code, message)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
         !f2py intent(hide) nparams, nfree, nprior, nexp, nrow, ncand, ncandp
         real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
@@ -744,6 +778,7 @@ contains
         end if
         call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
+        pb%hist = make_hist(hist_spec, hist_tab)
         pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
@@ -939,7 +974,10 @@ contains
     !! (1-based), chi-square of the refined model at params].
     subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, &
                               row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
-                              row_sigma, pred, tol, out, code, message)
+                              row_sigma, pred, tol, nhs, hist_spec, nhtab, hist_tab, out, code, message)
+        integer(c_int), intent(in) :: nhs, nhtab
+        !f2py intent(hide) nhs, nhtab
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
         !f2py intent(hide) nparams, nexp, nrow
         real(c_double), intent(in) :: params(nparams), row_t(nrow)
@@ -967,7 +1005,8 @@ contains
         call mesh_check(int(nbeams), int(exp_kind), values, int(row_exp), &
                         real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
                         real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat, &
-                        make_obs(obs_kind, obs_beam, obs_s))
+                        make_obs(obs_kind, obs_beam, obs_s), &
+                        hist=make_hist(hist_spec, hist_tab))
         call status_out(stat, code, message)
         out = [merge(1.0_dp, 0.0_dp, res%done), real(res%nepb, dp), real(res%recommended, dp), &
                res%max_change, real(res%max_row, dp), res%chi2]

@@ -280,6 +280,19 @@ def _deck_values(handle: int) -> dict:
     }
 
 
+def deck_histories(deck: "str | DeckHandle") -> tuple[np.ndarray, np.ndarray]:
+    """A deck's &history groups as the core's columns: spec (10, nh), each
+    [experiment (1-based), beamid_loads' layout], and table rows (2, ntab).
+    ``deck``: a :class:`DeckHandle` (the deck as read), or a path (read now)."""
+    if not isinstance(deck, DeckHandle):
+        with DeckHandle(deck) as handle:
+            return deck_histories(handle)
+    nh, ntab = _call(_deck_api.api_deck_handle_history_sizes, deck._id())
+    spec, tab = _call(_deck_api.api_deck_handle_histories, deck._id(), int(nh), int(ntab))
+    return (np.array(spec, dtype=float).reshape(10, int(nh)),
+            np.array(tab, dtype=float).reshape(2, int(ntab)))
+
+
 def _published_groups(lines: list[str]) -> list[dict]:
     """The &published groups from the reader's lines ('P table row note',
     'K kind section', 'Q quantity value digits', 'D deviation'; tab separated)."""

@@ -58,6 +58,17 @@ class Problem:
     obs_s: np.ndarray | None = None
     #: the names of the observation list's entries (None: the kind names)
     obs_labels: tuple[str, ...] | None = None
+    #: the release experiments' load histories, their own list beside the
+    #: value columns: a column [experiment (1-based), beamid_loads' 9 values]
+    #: per history (10, nh) and the table rows (2, ntab) they refer to
+    hist_spec: np.ndarray | None = None
+    hist_tab: np.ndarray | None = None
+
+    def histories(self) -> tuple[np.ndarray, np.ndarray]:
+        """The load histories as the binding takes them (none: empty)."""
+        spec = np.zeros((10, 0), order="F") if self.hist_spec is None else self.hist_spec
+        tab = np.zeros((2, 1), order="F") if self.hist_tab is None else self.hist_tab
+        return np.asfortranarray(spec, float), np.asfortranarray(tab, float)
 
     def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The observation list as the binding takes it."""
@@ -85,7 +96,8 @@ class Problem:
         """The experiments, the rows and the tolerance in the order the fit,
         diagnose and ladder entries take them."""
         return (self.exp_kind, *self.specs(), self.row_exp, self.row_t, self.row_q,
-                *self.observations(), self.row_value, self.row_sigma, float(self.tol))
+                *self.observations(), self.row_value, self.row_sigma, float(self.tol),
+                *self.histories())
 
 
 #: rows of an experiment's value column (the core's key table, one row a key)
@@ -100,7 +112,7 @@ def problem_predict(prob: Problem, params: np.ndarray,
     pred, jac = _call(_api.api_problem_predict,
                       prob.nbeams, np.asarray(params, float), prob.exp_kind, *prob.specs(),
                       prob.row_exp, prob.row_t, prob.row_q, *prob.observations(), wrt,
-                      float(prob.tol))
+                      float(prob.tol), *prob.histories())
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
 
 
@@ -529,7 +541,7 @@ def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
     out = _call(_api.api_mesh_check, prob.nbeams, np.asarray(params, float), prob.exp_kind,
                 *prob.specs(), prob.row_exp, prob.row_t, prob.row_q, *prob.observations(),
                 prob.row_value,
-                prob.row_sigma, np.asarray(pred, float), float(prob.tol))
+                prob.row_sigma, np.asarray(pred, float), float(prob.tol), *prob.histories())
     out = np.asarray(out, float)
     return {"done": int(out[0]), "nepb": int(out[1]), "recommended": int(out[2]),
             "max_change": float(out[3]), "row": int(out[4]) - 1, "chi2": float(out[5])}

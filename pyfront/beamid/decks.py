@@ -20,6 +20,7 @@ from typing import Any
 import f90nml
 
 from . import _check, fe
+from . import load_histories as _lh
 from .errors import _write_text
 from .fit_decks import FIT_TASKS, FitDeck, OutputPrefix, Published, _fit_deck, run_files
 from .fit_decks import check_path as _check_path, load as _load, published as _published
@@ -81,6 +82,9 @@ def read_deck(path: str | os.PathLike):
     simulate = None
     if values["task"] == "simulate":
         simulate = {"t_out": values["t_out"], **values["simulate"]}
+        spec, tab = _core.deck_histories(handle)
+        if spec.shape[1]:        # the &history groups (docs/loads.md)
+            simulate["loads"] = _lh.from_columns(spec[1:], tab)
     return Deck(path=path, task=values["task"], output=values["output"], model=model,
                 load=load, wrt=tuple(names[i] for i in values["wrt"]),
                 shape_points=values["shape_points"], tol=values["tol"] or None,

@@ -24,6 +24,8 @@ import numpy as np
 
 from . import _check, _core_estimation as _ce
 from . import observations
+from . import load_histories as _lh
+from .dynamics import _warn_chirp
 from .errors import InputError
 from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
@@ -245,6 +247,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         chain.encode(names, values, labels)
     if rows:
         rows.encode(names, values, labels)
+    hist_spec, hist_tab = _histories(model, names, exps)
     return _ce.Problem(
         nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
@@ -253,7 +256,29 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_t=np.array(data.t, float), tol=float(tol),
         obs_kind=np.array([o.code for o in obs], np.int32),
         obs_beam=np.array([o.beam for o in obs], np.int32),
-        obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels))
+        obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels),
+        hist_spec=hist_spec, hist_tab=hist_tab)
+
+
+def _histories(model: Model, names: list[str], exps) -> tuple:
+    """The load histories of the release experiments as the core's own list
+    (a column [experiment, beamid_loads' layout] each; None, None without
+    any); a chirp above the mesh's highest frequency is warned of."""
+    cols, tabs = [], []
+    for j, name in enumerate(names):
+        x = exps[name]
+        if not (isinstance(x, Release) and x.loads):
+            continue
+        _warn_chirp(model, x.elements_per_beam, list(x.loads))
+        spec, tab = _lh.columns(list(x.loads))
+        offset = sum(t.shape[1] for t in tabs)
+        spec = np.array(spec)
+        spec[7, spec[8] > 0] += offset
+        cols += [np.concatenate([[j + 1.0], spec[:, k]]) for k in range(spec.shape[1])]
+        tabs.append(tab)
+    if not cols:
+        return None, None
+    return (np.asfortranarray(np.array(cols).T), np.asfortranarray(np.concatenate(tabs, axis=1)))
 
 
 def _check_stations(model: Model, data: Measurements, parsed: dict) -> None:

@@ -26,6 +26,7 @@ import numpy as np
 
 from . import _check, _core
 from . import chain as _chain
+from . import load_histories as _lh
 from .diagnosis import Ladder, _run_ladder, compare
 from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
@@ -229,6 +230,12 @@ def _fit_deck(path: Path, values: dict, fit_keys: str = "", handle: Any = None) 
     model = Model(values["nbeams"], values["params"])
     names = model.names()
     experiments = {n: load(kind, vals) for n, kind, vals in values["experiments"]}
+    spec, tab = _core.deck_histories(handle if handle is not None else str(path))
+    for j, name in enumerate(experiments):     # the &history groups of each release
+        cols = spec[1:, spec[0] == j + 1]
+        if cols.shape[1]:
+            experiments[name] = dataclasses.replace(experiments[name],
+                                                    loads=_lh.from_columns(cols, tab))
 
     def rows(stage: int, source: str) -> Measurements:
         if handle is None:

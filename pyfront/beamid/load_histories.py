@@ -270,3 +270,27 @@ def highest_chirp(loads) -> float:
     """The highest frequency (Hz) any chirp of ``loads`` reaches (0 without one)."""
     return max((max(h.f0, h.f1) for _, h in _pairs(loads) if isinstance(h, Chirp)),
                default=0.0)
+
+
+def from_columns(spec, tab) -> list[tuple[str, History]]:
+    """The (target, history) pairs of the core's columns: spec (9, n) in
+    beamid_loads' layout (a deck's &history groups), table rows tab (2, :)."""
+    spec = np.asarray(spec, dtype=float).reshape(9, -1)
+    tab = np.asarray(tab, dtype=float).reshape(2, -1)
+    names = {code: name for name, code in TARGETS.items()}
+    out: list[tuple[str, History]] = []
+    for target, kind, amp, start, dur, f0, f1, first, count in spec.T:
+        kind, first, count = int(kind), int(first), int(count)
+        if kind == _KIND["table"]:
+            rows = tab[:, first - 1:first - 1 + count]
+            hist: History = Table(tuple(rows[0]), tuple(rows[1]), scale=amp)
+        elif kind == _KIND["half_sine"]:
+            hist = HalfSine(amp, dur, start)
+        elif kind == _KIND["step"]:
+            hist = Step(amp, start)
+        elif kind == _KIND["chirp"]:
+            hist = Chirp(amp, f0, f1, dur, start)
+        else:
+            hist = SpinUp(amp, dur)
+        out.append((names[int(target)], hist))
+    return out

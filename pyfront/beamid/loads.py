@@ -7,6 +7,7 @@ import numpy as np
 
 from .dynamics import FRICTION_LAWS as _FRICTION_LAWS, INTEGRATORS as _INTEGRATORS
 from . import _check, _core
+from . import load_histories as _lh
 from .errors import InputError
 
 LOAD_TIP = 1
@@ -117,9 +118,16 @@ class Release:
     smooth law only, so it is refused with another law. The friction
     homotopy of :func:`beamid.fit` (``homotopy=``) fits on the smooth law
     with a shrinking vs before the sign law.
+
+    ``loads``: load histories acting from t = 0 as in :func:`beamid.simulate`
+    (a mapping target -> history or (target, history) pairs; docs/loads.md):
+    a forced-response experiment, e.g. a hammer test from rest with
+    ``load=None`` (the arm at rest, undeformed) or a hub-driven arm with
+    ``{"hub": beamid.SpinUp(w_s, T)}``. The fit, diagnose and improve run
+    them as any release.
     """
 
-    load: TipLoad
+    load: TipLoad | None
     elements_per_beam: int = 4
     motor_gain: float = 0.0
     integrator: str = "implicit"
@@ -127,8 +135,15 @@ class Release:
     dt: float | None = None
     friction: str | None = None
     friction_velocity: float | None = None
+    loads: object = None
 
     def __post_init__(self) -> None:
+        if self.load is None:
+            object.__setattr__(self, "load", TipLoad())
+        pairs = () if self.loads is None or (hasattr(self.loads, "__len__")
+                                             and len(self.loads) == 0) \
+            else tuple(_lh._pairs(self.loads))
+        object.__setattr__(self, "loads", pairs)
         if not isinstance(self.load, TipLoad):
             raise InputError(f"Release: load = {self.load!r}, expected a TipForce / TipMoment "
                              "(the static load held before the release)")
@@ -222,4 +237,8 @@ class Release:
         text = f"release from {self.load.describe()}, {self.elements_per_beam} elements per beam"
         if self.friction_velocity is not None:
             text += f", smooth friction vs = {self.friction_velocity:g} m/s"
-        return text + (f", motor gain {self.motor_gain:g}" if self.has_motor else "")
+        text += f", motor gain {self.motor_gain:g}" if self.has_motor else ""
+        if self.loads:
+            text += ", load histories " + ", ".join(
+                f"{t} {type(h).__name__}" for t, h in self.loads)
+        return text
