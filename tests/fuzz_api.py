@@ -171,6 +171,7 @@ class Env:
         self.logger_csv.write_text("t,y_tip,strain@1:0.05\n0.0,0.1,1e-3\n0.01,0.2,2e-3\n")
         self.deck = beamid.read_deck(self.deck_path)
         self.fe = beamid.fe_static(self.model, self.load, 4)
+        self.pairing = beamid.pair_modes([1.0, 2.0], None, [1.1, 2.1, 3.0], None)
         self.effect = beamid.Effect("fuzz_effect", "a registered effect of the fuzz",
                                     lambda m: ("root_flex",))
 
@@ -192,6 +193,10 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "key": ("M1", "y_tip"), "shape": env.fe, "target": "EI1",
         "peak": 1.0, "duration": 0.01, "amplitude": 1.0, "f0": 1.0, "f1": 2.0,
         "w_s": 1.0, "T": 1.0,
+        "a": np.eye(3), "b": np.eye(3)[:, :2], "measured_freq": [1.0, 2.0],
+        "measured_shapes": [[1.0, 0.0], [0.0, 1.0], [0.1, 0.1]],
+        "model_freq": [1.1, 2.1, 3.0], "model_shapes": np.eye(3), "measured": 1,
+        "pairing": env.pairing, "nmodes": 2, "stations": ("shape_n@1:0.4", "shape_psi@2:0.3"),
     }
     override = {
         "read_measurements.path": env.csv_path,
@@ -238,6 +243,9 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "read_channels.source": env.logger_csv,
         "read_channels.experiment": "free",
         "read_channels.sigma": 1e-3,
+        "changes.other": env.pairing,
+        "modal_analysis.elements_per_beam": 2,
+        "modal_analysis.wrt": ("EI1", "rho1"),
         "from_frame.frame": _Frame({"experiment": ["F2"], "t": [0.0], "quantity": ["y_tip"],
                                     "value": [0.1], "sigma": [1e-3]}),
     }

@@ -32,6 +32,7 @@ from .dyn_diagnosis import DYNAMIC_CANDIDATES, TimeComparison
 from .consistency import Consistency, consistency
 from . import robust as _robust  # fills in fit's checks of its own end (issue 30)
 from .design import Advice, design
+from .modal import ModalResult, ModePairing, mac, modal_analysis, pair_modes, plot_mac
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
@@ -49,5 +50,6 @@ __all__ = [
     "Comparison", "Diagnosis", "Ladder",
     "consistency", "Consistency", "design", "Advice",
     "DYNAMIC_CANDIDATES", "TimeComparison",
+    "modal_analysis", "ModalResult", "mac", "pair_modes", "ModePairing", "plot_mac",
 ]
 __version__ = "0.1.0"
