@@ -44,6 +44,8 @@ module beamid_inverse
     use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_dynamic_experiments, only: release_exp_t, dynamic_experiments_t, &
                                           dynamic_experiments_init
+    use beamid_modal_experiments, only: modal_exp_t, modal_experiments_t, &
+                                        modal_experiments_init
     use beamid_chain_fit, only: chain_rows_t
     implicit none
     private
@@ -53,6 +55,10 @@ module beamid_inverse
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
+    !> A modal test about the equilibrium under the load (EV_FX, EV_FY,
+    !! EV_MOMENT, exact moment form; mesh EV_NEPB): beamid_modal_experiments,
+    !! the third family, in the style of the other two (issue 27).
+    integer, parameter, public :: EXP_MODAL = 4
     !> Rows of an experiment's value column.
     integer, parameter, public :: EV_FX = 1, EV_FY = 2, EV_MOMENT = 3, EV_WIRE_LENGTH = 4, &
                                   EV_NEPB = 5, EV_GAIN = 6, EV_METHOD = 7, EV_LAW = 8, &
@@ -79,10 +85,12 @@ module beamid_inverse
 
     type, extends(residual_model_t) :: inverse_problem_t
         integer :: nrow = 0
-        logical :: has_static = .false., has_dynamic = .false.
+        logical :: has_static = .false., has_dynamic = .false., has_modal = .false.
         type(static_experiments_t) :: st
         type(dynamic_experiments_t) :: dy
+        type(modal_experiments_t) :: mo
         integer, allocatable :: st_rows(:), dy_rows(:) !< data rows of each family
+        integer, allocatable :: mo_rows(:)
         integer, allocatable :: st_exp(:)  !< experiment number of each static experiment
         real(dp) :: tol = 0.0_dp           !< static solver tolerance (0: default)
         type(observation_t), allocatable :: obs(:)  !< the observation of each row
@@ -125,8 +133,9 @@ contains
         character(len=*), parameter :: where = 'experiments'
         type(static_load_t), allocatable :: loads(:)
         type(release_exp_t), allocatable :: rels(:)
-        integer, allocatable :: smap(:), dmap(:)
-        integer :: e, i, j, ns, nd
+        type(modal_exp_t), allocatable :: mods(:)
+        integer, allocatable :: smap(:), dmap(:), mmap(:)
+        integer :: e, i, j, ns, nd, nm
         logical :: dynamic, probing
         if (size(exp_values, 1) /= NEXPVAL .or. size(exp_values, 2) /= size(exp_kind)) then
             call set_status(stat, ERR_INPUT, where, 'experiment values are '// &
@@ -154,10 +163,11 @@ contains
             end if
         end do
         robs = list(row_quantity)
-        allocate (smap(size(exp_kind)), dmap(size(exp_kind)), source=0)
+        allocate (smap(size(exp_kind)), dmap(size(exp_kind)), mmap(size(exp_kind)), source=0)
         ns = 0
         nd = 0
-        allocate (loads(0), rels(0))
+        nm = 0
+        allocate (loads(0), rels(0), mods(0))
         do e = 1, size(exp_kind)
             select case (exp_kind(e))
             case (EXP_TIP, EXP_WIRE)
@@ -182,10 +192,16 @@ contains
                                                         exp_values(EV_VSLIP, e) > 0.0_dp), &
                                             fd=nint(exp_values(EV_FD, e)) == 1, &
                                             exact=nint(exp_values(EV_FD, e)) == 2)]
+            case (EXP_MODAL)
+                nm = nm + 1
+                mmap(e) = nm
+                mods = [mods, modal_exp_t(fx=exp_values(EV_FX, e), fy=exp_values(EV_FY, e), &
+                                          moment=exp_values(EV_MOMENT, e), &
+                                          nepb=nint(exp_values(EV_NEPB, e)))]
             case default
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected 1 (tip load), '// &
-                                '2 (wire) or 3 (release)')
+                                '2 (wire), 3 (release) or 4 (modal)')
                 return
             end select
         end do
@@ -197,6 +213,12 @@ contains
                 return
             end if
             dynamic = exp_kind(row_exp(i)) == EXP_RELEASE
+            if (exp_kind(row_exp(i)) == EXP_MODAL .and. row_t(i) /= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': field t = '// &
+                                fmt_real(row_t(i))//', expected 0 for the modal experiment '// &
+                                fmt_int(row_exp(i)))
+                return
+            end if
             if (.not. dynamic .and. row_t(i) /= 0.0_dp) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': field t = '// &
                                 fmt_real(row_t(i))//', expected 0 for the static experiment '// &
@@ -217,6 +239,8 @@ contains
         self%nrow = size(row_exp)
         self%st_rows = pack([(i, i=1, size(row_exp))], smap(row_exp) > 0)
         self%dy_rows = pack([(i, i=1, size(row_exp))], dmap(row_exp) > 0)
+        self%mo_rows = pack([(i, i=1, size(row_exp))], mmap(row_exp) > 0)
+        self%has_modal = nm > 0
         self%has_static = ns > 0
         self%has_dynamic = nd > 0
         ! a release's predictions do not depend on the sensitivities asked,
@@ -240,7 +264,13 @@ contains
         call dynamic_experiments_init(nbeams, rels, dmap(row_exp(self%dy_rows)), &
                                       row_t(self%dy_rows), robs(self%dy_rows), &
                                       self%dy, stat)
-        if (stat%code /= STATUS_OK) call renumber(self%dy_rows)
+        if (stat%code /= STATUS_OK) then
+            call renumber(self%dy_rows)
+            return
+        end if
+        call modal_experiments_init(nbeams, mods, mmap(row_exp(self%mo_rows)), &
+                                    row_t(self%mo_rows), robs(self%mo_rows), self%mo, stat)
+        if (stat%code /= STATUS_OK) call renumber(self%mo_rows)
         ! releases on the implicit integrator can steer the fit with rough
         ! sensitivities (beamid_dynamic_experiments, ROUGH_RTOL)
         self%rough_jacobian_ok = self%dy%rough_jacobian_ok
@@ -512,6 +542,14 @@ contains
             if (stat%code /= STATUS_OK) return
             predictions(self%dy_rows) = p
             jacobian(self%dy_rows, pcol) = j
+            deallocate (p, j)
+        end if
+        if (size(self%mo_rows) > 0) then
+            allocate (p(size(self%mo_rows)), j(size(self%mo_rows), size(pw)))
+            call self%mo%evaluate(params(1:np), pw, p, j, stat)
+            if (stat%code /= STATUS_OK) return
+            predictions(self%mo_rows) = p
+            jacobian(self%mo_rows, pcol) = j
         end if
         if (.not. allocated(self%nu_kind)) return
         if (size(self%nu_kind) == 0) return

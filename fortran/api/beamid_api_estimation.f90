@@ -26,7 +26,7 @@ module beamid_api_estimation
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
-    use beamid_observations, only: observation_t
+    use beamid_observations, only: observation_t, MODE_STRIDE
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
@@ -530,7 +530,9 @@ contains
         real(c_double), intent(in) :: s(:)
         type(observation_t) :: obs(size(kind))
         integer :: i
-        obs = [(observation_t(kind=int(kind(i)), beam=int(beam(i)), s=real(s(i), dp)), &
+        ! a modal observation's kind carries its mode (MODE_STRIDE)
+        obs = [(observation_t(kind=int(mod(kind(i), MODE_STRIDE)), beam=int(beam(i)), &
+                              s=real(s(i), dp), mode=int(kind(i)/MODE_STRIDE)), &
                 i=1, size(kind))]
     end function make_obs
 

@@ -10,7 +10,7 @@ The numerical work is done in Fortran; this package wraps it.
 """
 from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
-from .loads import RadialWire, Release, TipForce, TipLoad, TipMoment
+from .loads import Modal, RadialWire, Release, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
@@ -37,7 +37,7 @@ from .modal import ModalResult, ModePairing, mac, modal_analysis, pair_modes, pl
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
-    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
+    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release", "Modal",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",

@@ -25,7 +25,7 @@ import numpy as np
 from . import _check, _core_estimation as _ce
 from . import observations
 from .errors import InputError
-from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
+from .loads import LOAD_RELEASE, Modal, RadialWire, Release, TipLoad
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
@@ -210,9 +210,9 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
                          "{'F3': beamid.TipForce(fy=3.0)}")
     out = {}
     for name, load in experiments.items():
-        if not isinstance(load, (TipLoad, RadialWire, Release)):
+        if not isinstance(load, (TipLoad, RadialWire, Release, Modal)):
             raise InputError(f"experiment {name!r}: load = {load!r}, expected TipForce, "
-                             "TipMoment, RadialWire or Release")
+                             "TipMoment, RadialWire, Release or Modal")
         out[str(name)] = load
     return out
 
@@ -250,7 +250,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_q=np.array([labels[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
         row_t=np.array(data.t, float), tol=float(tol),
-        obs_kind=np.array([o.code for o in obs], np.int32),
+        obs_kind=np.array([observations.binding_code(o) for o in obs], np.int32),
         obs_beam=np.array([o.beam for o in obs], np.int32),
         obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels))
 
@@ -679,7 +679,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     noise = _check.flag("noise", noise)
     if isinstance(t, Mapping):
         t = {str(k): v for k, v in t.items()}
-    mixed = any(isinstance(x, Release) for x in exps.values())
+    mixed = any(isinstance(x, (Release, Modal)) for x in exps.values())
     rows = []
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities

@@ -1,0 +1,219 @@
+!> Modal experiments (issue 27): the experiment family of a modal test, the
+!! arm held by a tip load (none, a force, an exact moment) and its modes
+!! about that equilibrium measured (beamid_modal). Rows are `freq[k]` (Hz),
+!! `damping[k]` (ratio; damped models only) and mode shape entries
+!! `shape_n@b:s[k]`, `shape_t@...`, `shape_psi@...`, `shape_strain@...`,
+!! mode k the k-th lowest mode of the model. The shape rows of one mode in
+!! one experiment form its measured shape vector: the predictions are the
+!! model's mode sampled at those stations, scaled to unit 2-norm with its
+!! largest entry positive (the measured entries must be normalized alike:
+!! beamid.modal.normalize_shape); their Jacobian is that normalization's
+!! derivative. A shape row needs a frequency row of the same mode in the
+!! same experiment (the pairing of measured and model modes is made on the
+!! frequencies and shapes before the fit, beamid.pair_modes).
+module beamid_modal_experiments
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int, fmt_real
+    use beamid_model, only: chain_t, chain_from_vector
+    use beamid_estimation, only: residual_model_t
+    use beamid_observations, only: observation_t, observation_why_not, why_detail, kind_label, &
+                                   obs_label, FAM_MODAL, WHY_OK, K_FREQ, K_DAMPING, &
+                                   K_SHAPE_N, K_SHAPE_T, K_SHAPE_PSI, K_SHAPE_STRAIN
+    use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_load_t, FE_MOMENT_EXACT
+    use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
+                            modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
+    implicit none
+    private
+
+    public :: modal_exp_t, modal_experiments_t, modal_experiments_init, check_modal_row
+
+    !> One modal experiment: the static load held during the test and the mesh.
+    type :: modal_exp_t
+        real(dp) :: fx = 0.0_dp, fy = 0.0_dp, moment = 0.0_dp
+        integer :: nepb = 4
+    end type modal_exp_t
+
+    !> Modal experiments and the data rows they predict.
+    type, extends(residual_model_t) :: modal_experiments_t
+        integer :: nbeams = 0
+        type(modal_exp_t), allocatable :: exps(:)
+        integer, allocatable :: row_exp(:)
+        type(observation_t), allocatable :: row_obs(:)
+    contains
+        procedure :: evaluate => modal_evaluate
+    end type modal_experiments_t
+
+contains
+
+    !> Why observation o cannot be a row of a modal experiment ('' when it can).
+    pure function check_modal_row(t, o, nbeams) result(why)
+        real(dp), intent(in) :: t
+        type(observation_t), intent(in) :: o
+        integer, intent(in) :: nbeams
+        character(len=:), allocatable :: why
+        integer :: reason
+        why = ''
+        if (t /= 0.0_dp) then
+            why = 'field t = '//fmt_real(t)//', expected 0 for a modal experiment'
+            return
+        end if
+        reason = observation_why_not(o, FAM_MODAL, .false., .false., nbeams, [real(dp) ::])
+        if (reason /= WHY_OK) why = "field quantity = '"//kind_label(o%kind)//"': "// &
+            why_detail(o, reason, FAM_MODAL, nbeams, [real(dp) ::])
+    end function check_modal_row
+
+    !> Set up and validate the experiments and rows: each row a modal kind,
+    !! each shape row with a frequency row of its mode in its experiment.
+    subroutine modal_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
+        integer, intent(in) :: nbeams
+        type(modal_exp_t), intent(in) :: exps(:)
+        integer, intent(in) :: row_exp(:)
+        real(dp), intent(in) :: row_t(:)
+        type(observation_t), intent(in) :: row_obs(:)
+        type(modal_experiments_t), intent(out) :: self
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'modal experiments'
+        character(len=:), allocatable :: why
+        integer :: i, j
+        logical :: found
+        do i = 1, size(exps)
+            if (exps(i)%nepb < 1) then
+                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
+                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
+                                ', expected >= 1')
+                return
+            end if
+        end do
+        do i = 1, size(row_exp)
+            why = check_modal_row(row_t(i), row_obs(i), nbeams)
+            if (len(why) > 0) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
+                return
+            end if
+            if (shape_kind(row_obs(i)%kind) == 0) cycle
+            found = .false.
+            do j = 1, size(row_exp)
+                if (row_exp(j) == row_exp(i) .and. row_obs(j)%kind == K_FREQ .and. &
+                    row_obs(j)%mode == row_obs(i)%mode) found = .true.
+            end do
+            if (.not. found) then
+                call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': shape entry '// &
+                                obs_label(row_obs(i))//' has no frequency row freq['// &
+                                fmt_int(row_obs(i)%mode)//'] in its experiment: a mode '// &
+                                'shape belongs to a measured mode, expected its frequency too')
+                return
+            end if
+        end do
+        self%nbeams = nbeams
+        self%exps = exps
+        self%row_exp = row_exp
+        self%row_obs = row_obs
+    end subroutine modal_experiments_init
+
+    !> beamid_modal's SHAPE_* of a shape kind, 0 for the others.
+    elemental integer function shape_kind(kind) result(code)
+        integer, intent(in) :: kind
+        select case (kind)
+        case (K_SHAPE_N)
+            code = SHAPE_N
+        case (K_SHAPE_T)
+            code = SHAPE_T
+        case (K_SHAPE_PSI)
+            code = SHAPE_PSI
+        case (K_SHAPE_STRAIN)
+            code = SHAPE_STRAIN
+        case default
+            code = 0
+        end select
+    end function shape_kind
+
+    !> Predictions and their Jacobian (columns wrt) of every row: one modal
+    !! analysis per experiment with rows, up to its highest mode.
+    subroutine modal_evaluate(self, params, wrt, predictions, jacobian, stat)
+        class(modal_experiments_t), intent(inout) :: self
+        real(dp), intent(in) :: params(:)
+        integer, intent(in) :: wrt(:)
+        real(dp), intent(out) :: predictions(:)
+        real(dp), intent(out) :: jacobian(:, :)
+        type(status_t), intent(inout) :: stat
+        type(modal_spec_t) :: spec
+        type(modal_out_t) :: out
+        type(chain_t) :: chain
+        type(fe_mesh_t) :: mesh
+        integer, allocatable :: rows(:), srows(:)
+        real(dp), allocatable :: v(:), dv(:, :), u(:)
+        real(dp) :: nrm, sgn
+        integer :: e, i, j, k, r, nmodes, kk
+        predictions = 0.0_dp
+        jacobian = 0.0_dp
+        call chain_from_vector(self%nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        do e = 1, size(self%exps)
+            rows = pack([(i, i=1, size(self%row_exp))], self%row_exp == e)
+            if (size(rows) == 0) cycle
+            spec%elements_per_beam = self%exps(e)%nepb
+            spec%load = fe_load_t(self%exps(e)%fx, self%exps(e)%fy, self%exps(e)%moment, &
+                                  FE_MOMENT_EXACT)
+            nmodes = maxval(self%row_obs(rows)%mode)
+            call modal_solve(self%nbeams, params, spec, nmodes, wrt, out, stat)
+            if (stat%code /= STATUS_OK) then
+                stat%message = 'modal experiment '//fmt_int(e)//': '//stat%message
+                return
+            end if
+            call fe_mesh_build(chain, spec%elements_per_beam, mesh, stat)
+            if (stat%code /= STATUS_OK) return
+            do i = 1, size(rows)
+                r = rows(i)
+                k = self%row_obs(r)%mode
+                select case (self%row_obs(r)%kind)
+                case (K_FREQ)
+                    predictions(r) = out%freq(k)
+                    jacobian(r, :) = out%dfreq(k, :)
+                case (K_DAMPING)
+                    if (.not. out%damped) then
+                        call set_status(stat, ERR_INPUT, 'modal experiments', 'row '// &
+                                        fmt_int(r)//': damping['//fmt_int(k)//'] asked of '// &
+                                        'an undamped model (no drag c_* and no Kelvin-Voigt '// &
+                                        'eta): expected a damping effect in the model or no '// &
+                                        'damping rows')
+                        return
+                    end if
+                    predictions(r) = out%zeta(k)
+                    jacobian(r, :) = out%dzeta(k, :)
+                end select
+            end do
+            ! shapes: per mode, its rows normalized together
+            do k = 1, nmodes
+                srows = pack(rows, shape_kind(self%row_obs(rows)%kind) > 0 .and. &
+                             self%row_obs(rows)%mode == k)
+                if (size(srows) == 0) cycle
+                allocate (v(size(srows)), dv(size(srows), size(wrt)))
+                do i = 1, size(srows)
+                    r = srows(i)
+                    kk = shape_kind(self%row_obs(r)%kind)
+                    v(i) = modal_station(mesh, out%q, out%phi(:, k), kk, self%row_obs(r)%beam, &
+                                         self%row_obs(r)%s)
+                    do j = 1, size(wrt)
+                        dv(i, j) = modal_station_sens(mesh, out, k, j, kk, self%row_obs(r)%beam, &
+                                                      self%row_obs(r)%s)
+                    end do
+                end do
+                nrm = norm2(v)
+                if (.not. (nrm > 0.0_dp)) then
+                    call set_status(stat, ERR_INPUT, 'modal experiments', 'experiment '// &
+                                    fmt_int(e)//': mode '//fmt_int(k)//' is zero at every '// &
+                                    'shape station of its rows: expected stations where it moves')
+                    return
+                end if
+                sgn = sign(1.0_dp, v(maxloc(abs(v), 1)))
+                u = v/nrm
+                predictions(srows) = sgn*u
+                do i = 1, size(wrt)
+                    jacobian(srows, i) = sgn*(dv(:, i) - u*dot_product(u, dv(:, i)))/nrm
+                end do
+                deallocate (v, dv)
+            end do
+        end do
+    end subroutine modal_evaluate
+
+end module beamid_modal_experiments
