@@ -21,12 +21,17 @@ module beamid_modal_experiments
                                    K_SHAPE_N, K_SHAPE_T, K_SHAPE_PSI, K_SHAPE_STRAIN
     use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, fe_load_t, FE_MOMENT_EXACT
     use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
-                            modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
+                            modal_station_sens, modal_param_effect, MP_INVERSE, SHAPE_N, &
+                            SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
     implicit none
     private
 
     public :: modal_exp_t, modal_experiments_t, modal_experiments_init, check_modal_row
 
+    !> The compliance (rad per N m) of the one-sided difference column of a
+    !! compliance at 0: a hinge spring 1e6 times stiffer than the arm's
+    !! bending stiffness per element length (EI / h ~ 60 N m).
+    real(dp), parameter :: NULL_FLEX_STEP = 1.0e-8_dp
     !> One modal experiment: the static load held during the test and the mesh.
     type :: modal_exp_t
         real(dp) :: fx = 0.0_dp, fy = 0.0_dp, moment = 0.0_dp
@@ -128,7 +133,11 @@ contains
     end function shape_kind
 
     !> Predictions and their Jacobian (columns wrt) of every row: one modal
-    !! analysis per experiment with rows, up to its highest mode.
+    !! analysis per experiment with rows, up to its highest mode. A
+    !! compliance at 0 (a locked joint or clamped root, whose derivative
+    !! needs a hinge the mesh does not have) gets a one-sided difference
+    !! column from a second analysis at the compliance NULL_FLEX_STEP (the
+    !! score test of a diagnosis asks for it at its null value).
     subroutine modal_evaluate(self, params, wrt, predictions, jacobian, stat)
         class(modal_experiments_t), intent(inout) :: self
         real(dp), intent(in) :: params(:)
@@ -136,84 +145,126 @@ contains
         real(dp), intent(out) :: predictions(:)
         real(dp), intent(out) :: jacobian(:, :)
         type(status_t), intent(inout) :: stat
-        type(modal_spec_t) :: spec
-        type(modal_out_t) :: out
         type(chain_t) :: chain
-        type(fe_mesh_t) :: mesh
-        integer, allocatable :: rows(:), srows(:)
-        real(dp), allocatable :: v(:), dv(:, :), u(:)
-        real(dp) :: nrm, sgn
-        integer :: e, i, j, k, r, nmodes, kk
+        integer, allocatable :: rows(:), cols(:), nulls(:)
+        real(dp), allocatable :: p(:), jac(:, :), p2(:), step(:), none(:, :)
+        character(len=:), allocatable :: why
+        integer :: e, i, c, effect
         predictions = 0.0_dp
         jacobian = 0.0_dp
         call chain_from_vector(self%nbeams, params, chain, stat)
         if (stat%code /= STATUS_OK) return
+        allocate (cols(0), nulls(0))
+        do c = 1, size(wrt)
+            call modal_param_effect(chain, wrt(c), effect, why)
+            if (effect == MP_INVERSE .and. params(wrt(c)) == 0.0_dp) then
+                nulls = [nulls, c]
+            else
+                cols = [cols, c]
+            end if
+        end do
         do e = 1, size(self%exps)
             rows = pack([(i, i=1, size(self%row_exp))], self%row_exp == e)
             if (size(rows) == 0) cycle
-            spec%elements_per_beam = self%exps(e)%nepb
-            spec%load = fe_load_t(self%exps(e)%fx, self%exps(e)%fy, self%exps(e)%moment, &
-                                  FE_MOMENT_EXACT)
-            nmodes = maxval(self%row_obs(rows)%mode)
-            call modal_solve(self%nbeams, params, spec, nmodes, wrt, out, stat)
-            if (stat%code /= STATUS_OK) then
-                stat%message = 'modal experiment '//fmt_int(e)//': '//stat%message
-                return
-            end if
-            call fe_mesh_build(chain, spec%elements_per_beam, mesh, stat)
+            allocate (p(size(rows)), jac(size(rows), size(cols)))
+            call predict(self, e, rows, params, wrt(cols), p, jac, stat)
             if (stat%code /= STATUS_OK) return
-            do i = 1, size(rows)
-                r = rows(i)
-                k = self%row_obs(r)%mode
-                select case (self%row_obs(r)%kind)
-                case (K_FREQ)
-                    predictions(r) = out%freq(k)
-                    jacobian(r, :) = out%dfreq(k, :)
-                case (K_DAMPING)
-                    if (.not. out%damped) then
-                        call set_status(stat, ERR_INPUT, 'modal experiments', 'row '// &
-                                        fmt_int(r)//': damping['//fmt_int(k)//'] asked of '// &
-                                        'an undamped model (no drag c_* and no Kelvin-Voigt '// &
-                                        'eta): expected a damping effect in the model or no '// &
-                                        'damping rows')
-                        return
-                    end if
-                    predictions(r) = out%zeta(k)
-                    jacobian(r, :) = out%dzeta(k, :)
-                end select
+            predictions(rows) = p
+            jacobian(rows, cols) = jac
+            do i = 1, size(nulls)
+                p2 = params
+                p2(wrt(nulls(i))) = NULL_FLEX_STEP
+                allocate (step(size(rows)), none(size(rows), 0))
+                call predict(self, e, rows, p2, [integer ::], step, none, stat)
+                if (stat%code /= STATUS_OK) return
+                jacobian(rows, nulls(i)) = (step - p)/NULL_FLEX_STEP
+                deallocate (step, none)
             end do
-            ! shapes: per mode, its rows normalized together
-            do k = 1, nmodes
-                srows = pack(rows, shape_kind(self%row_obs(rows)%kind) > 0 .and. &
-                             self%row_obs(rows)%mode == k)
-                if (size(srows) == 0) cycle
-                allocate (v(size(srows)), dv(size(srows), size(wrt)))
-                do i = 1, size(srows)
-                    r = srows(i)
-                    kk = shape_kind(self%row_obs(r)%kind)
-                    v(i) = modal_station(mesh, out%q, out%phi(:, k), kk, self%row_obs(r)%beam, &
-                                         self%row_obs(r)%s)
-                    do j = 1, size(wrt)
-                        dv(i, j) = modal_station_sens(mesh, out, k, j, kk, self%row_obs(r)%beam, &
-                                                      self%row_obs(r)%s)
-                    end do
-                end do
-                nrm = norm2(v)
-                if (.not. (nrm > 0.0_dp)) then
-                    call set_status(stat, ERR_INPUT, 'modal experiments', 'experiment '// &
-                                    fmt_int(e)//': mode '//fmt_int(k)//' is zero at every '// &
-                                    'shape station of its rows: expected stations where it moves')
-                    return
-                end if
-                sgn = sign(1.0_dp, v(maxloc(abs(v), 1)))
-                u = v/nrm
-                predictions(srows) = sgn*u
-                do i = 1, size(wrt)
-                    jacobian(srows, i) = sgn*(dv(:, i) - u*dot_product(u, dv(:, i)))/nrm
-                end do
-                deallocate (v, dv)
-            end do
+            deallocate (p, jac)
         end do
     end subroutine modal_evaluate
+
+    !> Rows `rows` of experiment e (predictions p, Jacobian jac, columns wrt).
+    subroutine predict(self, e, rows, params, wrt, p, jac, stat)
+        type(modal_experiments_t), intent(in) :: self
+        integer, intent(in) :: e, rows(:), wrt(:)
+        real(dp), intent(in) :: params(:)
+        real(dp), intent(out) :: p(:), jac(:, :)
+        type(status_t), intent(inout) :: stat
+        type(modal_spec_t) :: spec
+        type(modal_out_t) :: out
+        type(chain_t) :: chain
+        type(fe_mesh_t) :: mesh
+        integer, allocatable :: srows(:)
+        real(dp), allocatable :: v(:), dv(:, :), u(:)
+        real(dp) :: nrm, sgn
+        integer :: i, j, k, r, nmodes, kk
+        p = 0.0_dp
+        jac = 0.0_dp
+        call chain_from_vector(self%nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        spec%elements_per_beam = self%exps(e)%nepb
+        spec%load = fe_load_t(self%exps(e)%fx, self%exps(e)%fy, self%exps(e)%moment, &
+                              FE_MOMENT_EXACT)
+        nmodes = maxval(self%row_obs(rows)%mode)
+        call modal_solve(self%nbeams, params, spec, nmodes, wrt, out, stat)
+        if (stat%code /= STATUS_OK) then
+            stat%message = 'modal experiment '//fmt_int(e)//': '//stat%message
+            return
+        end if
+        call fe_mesh_build(chain, spec%elements_per_beam, mesh, stat)
+        if (stat%code /= STATUS_OK) return
+        do i = 1, size(rows)
+            r = rows(i)
+            k = self%row_obs(r)%mode
+            select case (self%row_obs(r)%kind)
+            case (K_FREQ)
+                p(i) = out%freq(k)
+                jac(i, :) = out%dfreq(k, :)
+            case (K_DAMPING)
+                if (.not. out%damped) then
+                    call set_status(stat, ERR_INPUT, 'modal experiments', 'row '// &
+                                    fmt_int(r)//': damping['//fmt_int(k)//'] asked of '// &
+                                    'an undamped model (no drag c_* and no Kelvin-Voigt '// &
+                                    'eta): expected a damping effect in the model or no '// &
+                                    'damping rows')
+                    return
+                end if
+                p(i) = out%zeta(k)
+                jac(i, :) = out%dzeta(k, :)
+            end select
+        end do
+        ! shapes: per mode, its rows normalized together (indices into rows)
+        do k = 1, nmodes
+            srows = pack([(i, i=1, size(rows))], shape_kind(self%row_obs(rows)%kind) > 0 .and. &
+                         self%row_obs(rows)%mode == k)
+            if (size(srows) == 0) cycle
+            allocate (v(size(srows)), dv(size(srows), size(wrt)))
+            do i = 1, size(srows)
+                r = rows(srows(i))
+                kk = shape_kind(self%row_obs(r)%kind)
+                v(i) = modal_station(mesh, out%q, out%phi(:, k), kk, self%row_obs(r)%beam, &
+                                     self%row_obs(r)%s)
+                do j = 1, size(wrt)
+                    dv(i, j) = modal_station_sens(mesh, out, k, j, kk, self%row_obs(r)%beam, &
+                                                  self%row_obs(r)%s)
+                end do
+            end do
+            nrm = norm2(v)
+            if (.not. (nrm > 0.0_dp)) then
+                call set_status(stat, ERR_INPUT, 'modal experiments', 'experiment '// &
+                                fmt_int(e)//': mode '//fmt_int(k)//' is zero at every '// &
+                                'shape station of its rows: expected stations where it moves')
+                return
+            end if
+            sgn = sign(1.0_dp, v(maxloc(abs(v), 1)))
+            u = v/nrm
+            p(srows) = sgn*u
+            do j = 1, size(wrt)
+                jac(srows, j) = sgn*(dv(:, j) - u*dot_product(u, dv(:, j)))/nrm
+            end do
+            deallocate (v, dv)
+        end do
+    end subroutine predict
 
 end module beamid_modal_experiments

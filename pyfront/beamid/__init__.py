@@ -33,6 +33,7 @@ from .consistency import Consistency, consistency
 from . import robust as _robust  # fills in fit's checks of its own end (issue 30)
 from .design import Advice, design
 from .modal import ModalResult, ModePairing, mac, modal_analysis, pair_modes, plot_mac
+from .modal_data import UFFModal, modal_rows, read_uff
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
@@ -51,5 +52,6 @@ __all__ = [
     "consistency", "Consistency", "design", "Advice",
     "DYNAMIC_CANDIDATES", "TimeComparison",
     "modal_analysis", "ModalResult", "mac", "pair_modes", "ModePairing", "plot_mac",
+    "modal_rows", "read_uff", "UFFModal",
 ]
 __version__ = "0.1.0"

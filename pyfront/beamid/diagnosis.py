@@ -40,7 +40,7 @@ from .estimation import (FLAG_TEXT, FitResult, Experiments, build_problem, fit a
 from .estimation import _check_experiments, _free_indices, _named, _prior_arrays, _result
 from . import chain as _chain, chain_refit as _chain_refit
 from .chain import split_ladder_fit as _split_ladder_fit
-from .loads import RadialWire, TipLoad, Release
+from .loads import Modal, RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
 from .progress import progress
@@ -126,7 +126,21 @@ for _name, _text in _chain.CANDIDATE_EFFECTS:
 #: Candidate effects tried for static experiments, in order.
 STATIC_CANDIDATES = _ce.default_effects("static")
 
+#: Candidate effects tried for modal experiments alone (issue 27): what a
+#: modal test sees that the static arm does not (the mesh candidate is not
+#: offered for modal data yet).
+MODAL_CANDIDATES = ("rotary_inertia", "root_flex", "elbow_flex", "drag", "kelvin_voigt")
+
 _STATES = dict(_ce.CANDIDATE_STATES)
+
+
+def _modal_only(experiments: Any) -> bool:
+    """Are all experiments modal tests (beamid.Modal)?"""
+    try:
+        exps = dict(experiments).values()
+        return bool(exps) and all(isinstance(x, Modal) for x in exps)
+    except (TypeError, ValueError):
+        return False
 
 
 def _dynamic(experiments: Any) -> bool:
@@ -623,6 +637,8 @@ def _candidate_set(model: Model, experiments, candidates):
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
         candidates = _RELEASE_FAMILY["default_candidates"](experiments)
+    if candidates is None and _modal_only(experiments):
+        candidates = MODAL_CANDIDATES
     if isinstance(candidates, (str, Effect)):
         candidates = [candidates]
     elif candidates is not None:

@@ -33,7 +33,7 @@ from .fe import _load_components, _mesh
 from .loads import RadialWire
 
 __all__ = ["ModalResult", "ModePairing", "modal_analysis", "mac", "pair_modes", "plot_mac",
-           "SHAPE_KINDS", "parse_station"]
+           "SHAPE_KINDS", "parse_station", "normalize_shape", "modal_rows"]
 
 #: Station quantities of a mode shape and their codes in the core (beamid_modal
 #: SHAPE_*): displacement along the local normal and tangent, change of the
@@ -74,6 +74,15 @@ def _unit(v: np.ndarray) -> tuple[np.ndarray, float, float]:
         return v.copy(), 1.0, 0.0
     sign = 1.0 if v[int(np.argmax(np.abs(v)))] >= 0.0 else -1.0
     return sign * v / norm, sign, norm
+
+
+def normalize_shape(values: Any) -> np.ndarray:
+    """A measured mode shape (its entries at the stations of one mode) scaled as
+    the modal experiment predicts it: unit 2-norm, the largest entry positive."""
+    v = _check.reals("values", values, min_size=1)
+    if not np.any(v):
+        raise InputError("values: every entry is 0, expected a mode shape that moves")
+    return _unit(v)[0]
 
 
 @dataclass(frozen=True, repr=False)
