@@ -256,6 +256,9 @@ class Measurements:
                 why = observations.can_measure(q, "release", has_motor=x.has_motor)
                 if why == "family" and q == "wire_force":
                     raise InputError(f"{but} is a release (no wire)")
+                if why == "family" and not observations.can_measure(q, "modal"):
+                    raise InputError(f"{but} is a release (only a modal experiment "
+                                     f"measures {observations.parse(q).kind})")
                 if why == "family":
                     raise InputError(f"{but} is a release (only a static experiment "
                                      f"measures {observations.parse(q).kind})")
@@ -266,6 +269,9 @@ class Measurements:
                                                has_wire=isinstance(x, RadialWire))
                 if why == "family" and q == "motor_torque":
                     raise InputError(f"{but} is static (no motor)")
+                if why == "family" and not observations.can_measure(q, "modal"):
+                    raise InputError(f"{but} is static (only a modal experiment measures "
+                                     f"{observations.parse(q).kind})")
                 if why == "family":
                     raise InputError(f"{but} is static (only a release experiment measures "
                                      f"{observations.parse(q).kind})")
