@@ -6,9 +6,11 @@
 !! mode k the k-th lowest mode of the model. The shape rows of one mode in
 !! one experiment form its measured shape vector: the predictions are the
 !! model's mode sampled at those stations, scaled to unit 2-norm with its
-!! largest entry positive (the measured entries must be normalized alike:
-!! beamid.modal.normalize_shape); their Jacobian is that normalization's
-!! derivative. A shape row needs a frequency row of the same mode in the
+!! first entry (the mode's first shape row in data order) positive; the
+!! measured entries are normalized alike and their largest entry is written
+!! first (beamid.modal_rows), so the sign is read where the mode moves most
+!! and cannot flip between nearly equal entries. Their Jacobian is that
+!! normalization's derivative. A shape row needs a frequency row of the same mode in the
 !! same experiment (the pairing of measured and model modes is made on the
 !! frequencies and shapes before the fit, beamid.pair_modes).
 module beamid_modal_experiments
@@ -257,7 +259,14 @@ contains
                                 'shape station of its rows: expected stations where it moves')
                 return
             end if
-            sgn = sign(1.0_dp, v(maxloc(abs(v), 1)))
+            ! the sign: the mode's first shape row (in data order) positive, the
+            ! row modal_rows puts first, where the measured mode moves most
+            ! (the largest entry when the first is zero)
+            if (v(1) /= 0.0_dp) then
+                sgn = sign(1.0_dp, v(1))
+            else
+                sgn = sign(1.0_dp, v(maxloc(abs(v), 1)))
+            end if
             u = v/nrm
             p(srows) = sgn*u
             do j = 1, size(wrt)

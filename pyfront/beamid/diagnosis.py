@@ -246,8 +246,9 @@ class Comparison:
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
     the force magnitude, else the moment magnitude, else for a wire the
-    pull-in (total length - Lw); for a release, its load's (as beamid-batch)."""
-    if isinstance(load, Release):
+    pull-in (total length - Lw); for a release or a modal test, its load's (as
+    beamid-batch)."""
+    if isinstance(load, (Release, Modal)):
         load = load.load
     if isinstance(load, RadialWire):
         return model.total_length - load.Lw

@@ -176,7 +176,9 @@ class Modal:
     quantities ``freq[k]`` (Hz), ``damping[k]`` (damped models) and mode shape
     entries ``shape_n@b:s[k]`` (``shape_t``, ``shape_psi``, ``shape_strain``),
     k the k-th lowest mode of the model; the shape entries of one mode are
-    unit-normalized together (:func:`beamid.modal.normalize_shape`).
+    unit-normalized together, the model's mode signed so that the mode's first
+    shape row is positive (:func:`beamid.modal_rows` writes the largest
+    measured entry first).
     """
 
     load: TipLoad | None = None

@@ -42,7 +42,9 @@ def modal_rows(experiment: str, freq: Any, shapes: Any = None, stations: Sequenc
     ``freq``: the measured natural frequencies (Hz), one per measured mode;
     ``shapes``: (stations x modes) mode shapes, real or complex (a complex
     mode is rotated real first), each normalized as the experiment predicts
-    (:func:`beamid.modal.normalize_shape`); ``stations``: a name per shape row
+    (:func:`beamid.modal.normalize_shape`: unit norm, the largest entry
+    positive and written first, where the experiment reads the sign of its
+    model mode); ``stations``: a name per shape row
     (``shape_n@1:0.4``...); ``damping``: the damping ratios (a rows of
     ``damping[k]``; None: no damping rows); ``modes``: the model mode number
     of each measured mode (from :func:`beamid.pair_modes`; default 1, 2, ...).
@@ -90,8 +92,12 @@ def modal_rows(experiment: str, freq: Any, shapes: Any = None, stations: Sequenc
         ss = _check.real("sigma_shape", sigma_shape, above=0.0)
         for i, k in enumerate(modes):
             col = normalize_shape(_real_shape(arr[:, i]))
-            for (kind, beam, s), v in zip(names, col):
-                rows.append((experiment, 0.0, f"{kind}@{beam}:{s:g}[{k}]", float(v), ss))
+            # the largest entry first: the modal experiment signs its mode by
+            # the mode's first shape row (beamid_modal_experiments)
+            first = int(np.argmax(np.abs(col)))
+            for j in [first] + [j for j in range(len(names)) if j != first]:
+                kind, beam, s = names[j]
+                rows.append((experiment, 0.0, f"{kind}@{beam}:{s:g}[{k}]", float(col[j]), ss))
     for _, _, q, _, _ in rows:
         observations.parse(q)
     return Measurements.from_rows(rows, source="<modal arrays>")
