@@ -235,3 +235,20 @@ def test_read_uff_without_pyuff_says_what_to_install(tmp_path, monkeypatch):
     with pytest.raises(beamid.InputError, match=r"needs the optional package pyuff: pip install "
                                                 r"'beamid\[uff\]'"):
         beamid.read_uff(tmp_path / "x.uff", "M0", {1: "shape_n@1:0.4"})
+
+
+def test_a_mode_that_moves_across_another_during_a_fit_is_reported():
+    """A soft EA1 drops the first axial mode below the third transverse one:
+    model mode 3 at the start is mode 4 at the end (followed by MAC)."""
+    from beamid.estimation import _mode_crossings
+
+    exps = {"M0": beamid.Modal(None, 2)}
+    d = beamid.Measurements.from_rows([("M0", 0.0, "freq[3]", 1.0, 1e-3),
+                                       ("M0", 0.0, "freq[1]", 1.0, 1e-3)])
+    (w,) = _mode_crossings(TRUE, TRUE.replace(EA1=1e3), exps, d)
+    assert w.startswith("experiment 'M0': model mode 3 at the start is mode 4 at the end of "
+                        "the fit (MAC 1.00)")
+    assert _mode_crossings(TRUE, TRUE.replace(EA1=1.3e7), exps, d) == ()
+    # and a fit says so in its warnings
+    f = beamid.fit(TRUE, exps, d, free=("EA1",), max_iter=1)
+    assert all("moved across" not in x for x in f.warnings) or f.estimates["EA1"] < 1e6

@@ -24,8 +24,9 @@ import numpy as np
 
 from . import _check, _core_estimation as _ce
 from . import observations
-from .errors import InputError
+from .errors import BeamidError, InputError
 from .loads import LOAD_RELEASE, Modal, RadialWire, Release, TipLoad
+from . import modal as _modal
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .chain import ChainSpec, RowTreatment, parse_nuisance, parse_rows
@@ -616,10 +617,46 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
         iterations=raw["iterations"], converged=raw["converged"], cond=raw["cond"],
         rank=raw["rank"], flags=flags, residuals=residuals, log=log,
         warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"],
-                           stop, note if stop != "converged" else ""),
+                           stop, note if stop != "converged" else "")
+        + _mode_crossings(start, fitted, experiments, data),
         stop=stop, note=note, nominal=nominal if nominal is not None else start,
         refit_start=raw.get("start"), nuisance=nuis, nuisance_sigmas=nuis_sig,
         full_cov=full_cov, chain=chain if chain else None)
+
+
+def _mode_crossings(start: Model, fitted: Model, experiments: Experiments,
+                    data: Measurements) -> tuple[str, ...]:
+    """Warnings for the modes of the modal experiments whose order changed
+    between the start and the end of a fit: the rows freq[k] (and the others
+    of mode k) then compare with a model mode that was not mode k at the
+    start (a mode moved across another). Modes are followed by the MAC of
+    their shapes over the free unknowns."""
+    out = []
+    for name, x in experiments.items():
+        if not isinstance(x, Modal):
+            continue
+        modes = [observations.parse(q).mode for e, q in zip(data.experiment, data.quantity)
+                 if e == name]
+        if not modes or max(modes) < 1:
+            continue
+        n = max(modes)
+        try:
+            a = _modal.modal_analysis(start, x.load, nmodes=n,
+                                      elements_per_beam=x.elements_per_beam)
+            more = min(n + 5, a.nmodes_model)     # a mode may have dropped below mode n
+            b = _modal.modal_analysis(fitted, x.load, nmodes=more,
+                                      elements_per_beam=x.elements_per_beam)
+        except (BeamidError, ValueError):
+            continue
+        m = _modal.mac(a.phi, b.phi)
+        for k in sorted(set(modes)):
+            j = int(np.argmax(m[k - 1])) + 1
+            if j != k:
+                out.append(f"experiment {name!r}: model mode {k} at the start is mode {j} at the "
+                           f"end of the fit (MAC {m[k - 1, j - 1]:.2f}): a mode moved across "
+                           f"another, so the rows of mode {k} now compare with another mode; "
+                           "check the pairing (beamid.pair_modes)")
+    return tuple(out)
 
 
 def predict(model: Model, experiments: Experiments, data: Measurements,
