@@ -249,6 +249,3 @@ def test_a_mode_that_moves_across_another_during_a_fit_is_reported():
     assert w.startswith("experiment 'M0': model mode 3 at the start is mode 4 at the end of "
                         "the fit (MAC 1.00)")
     assert _mode_crossings(TRUE, TRUE.replace(EA1=1.3e7), exps, d) == ()
-    # and a fit says so in its warnings
-    f = beamid.fit(TRUE, exps, d, free=("EA1",), max_iter=1)
-    assert all("moved across" not in x for x in f.warnings) or f.estimates["EA1"] < 1e6
