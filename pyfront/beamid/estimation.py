@@ -630,7 +630,7 @@ def _mode_crossings(start: Model, fitted: Model, experiments: Experiments,
     between the start and the end of a fit: the rows freq[k] (and the others
     of mode k) then compare with a model mode that was not mode k at the
     start (a mode moved across another). Modes are followed by the MAC of
-    their shapes over the free unknowns."""
+    their shapes at ten stations a beam (normal and tangential motion)."""
     out = []
     for name, x in experiments.items():
         if not isinstance(x, Modal):
@@ -641,14 +641,19 @@ def _mode_crossings(start: Model, fitted: Model, experiments: Experiments,
             continue
         n = max(modes)
         try:
-            a = _modal.modal_analysis(start, x.load, nmodes=n,
+            # shapes along the whole arm (not the free unknowns: a compliance
+            # fitted from 0 adds a hinge, and unknowns, during the fit)
+            where = tuple((kind, b, start[f"L{b}"] * (j / 10) * (1 - 1e-12))
+                          for b in range(1, start.nbeams + 1) for j in range(1, 11)
+                          for kind in ("shape_n", "shape_t"))
+            a = _modal.modal_analysis(start, x.load, nmodes=n, stations=where,
                                       elements_per_beam=x.elements_per_beam)
             more = min(n + 5, a.nmodes_model)     # a mode may have dropped below mode n
-            b = _modal.modal_analysis(fitted, x.load, nmodes=more,
+            b = _modal.modal_analysis(fitted, x.load, nmodes=more, stations=where,
                                       elements_per_beam=x.elements_per_beam)
         except (BeamidError, ValueError):
             continue
-        m = _modal.mac(a.phi, b.phi)
+        m = _modal.mac(a.shapes, b.shapes)
         for k in sorted(set(modes)):
             j = int(np.argmax(m[k - 1])) + 1
             if j != k:
