@@ -197,7 +197,8 @@ contains
                 mmap(e) = nm
                 mods = [mods, modal_exp_t(fx=exp_values(EV_FX, e), fy=exp_values(EV_FY, e), &
                                           moment=exp_values(EV_MOMENT, e), &
-                                          nepb=nint(exp_values(EV_NEPB, e)))]
+                                          nepb=nint(exp_values(EV_NEPB, e)), &
+                                          fd=nint(exp_values(EV_FD, e)) == 1)]
             case default
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)//' has '// &
                                 'kind '//fmt_int(exp_kind(e))//', expected 1 (tip load), '// &
