@@ -30,7 +30,7 @@ from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
                          _result as _fit_result, identify)
 from . import _core_estimation as _ce
-from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
+from .loads import LOAD_MODAL, LOAD_RELEASE, LOAD_WIRE, Load, Modal, RadialWire, Release, TipLoad
 from .measurements import Measurements, read_measurements
 from .model import Model
 from .plot_fit import ladder_titles, plot_compare, plot_ladder
@@ -79,11 +79,14 @@ def published(values: dict) -> tuple[Published, ...]:
                  for g in values["published"])
 
 
-def load(kind: int, values: list[float]) -> Load | Release:
+def load(kind: int, values: list[float]) -> Load | Release | Modal:
     """A load or a release from the reader's (kind, values in beamid_inverse's
     EV_* layout: fx, fy, moment, wire_length, ...)."""
     if kind == LOAD_RELEASE:
         return Release.decode(values)
+    if kind == LOAD_MODAL:
+        return Modal(TipLoad(values[0], values[1], values[2]),
+                     elements_per_beam=int(round(values[4])))
     if kind == LOAD_WIRE:
         return RadialWire(values[3])
     return TipLoad(values[0], values[1], values[2])
