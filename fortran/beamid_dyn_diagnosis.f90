@@ -32,6 +32,7 @@ module beamid_dyn_diagnosis
                                  fit_least_squares, diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
                                  score_result_t, sort_desc, lsq_problem_t
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
+                              EXP_MODAL, &
                               EV_NEPB, EV_GAIN
     use beamid_static_experiments, only: probe_rows, median_of, distinct_sorted
     use beamid_observations, only: observation_t, default_observations, probe_kinds, KINDS, &
@@ -295,7 +296,7 @@ contains
     end subroutine dyn_probe_rows
 
     !> The mesh test (see the module header): refit `free` from base%params
-    !! with every release at twice its elements per beam.
+    !! with every release (and modal test) at twice its elements per beam.
     subroutine mesh_test(pb, lp, base, fopts, alpha, res, stat)
         type(problem_t), intent(in) :: pb
         type(lsq_problem_t), intent(in) :: lp   !< pb's data on its model's bounds
@@ -313,7 +314,8 @@ contains
         res%done = .true.
         values = pb%exp_values
         do e = 1, size(pb%exp_kind)
-            if (pb%exp_kind(e) /= EXP_RELEASE) cycle
+            ! the releases and the modal tests beside them (both FE meshes)
+            if (pb%exp_kind(e) /= EXP_RELEASE .and. pb%exp_kind(e) /= EXP_MODAL) cycle
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
             values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
         end do
@@ -397,7 +399,7 @@ contains
         res%done = .true.
         values = exp_values
         do e = 1, size(exp_kind)
-            if (exp_kind(e) /= EXP_RELEASE) cycle
+            if (exp_kind(e) /= EXP_RELEASE .and. exp_kind(e) /= EXP_MODAL) cycle
             res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
             values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
         end do

@@ -325,3 +325,17 @@ def test_a_modal_experiment_refuses_release_options(modal_deck_dir):
                                       free="'EI1'"))
     with pytest.raises(beamid.InputError, match="kind = 'modal' does not take motor_gain"):
         beamid.run(str(deck))
+
+
+def test_the_mesh_candidate_refines_modal_tests_beside_releases():
+    coarse = {"R": beamid.Release(beamid.TipForce(fy=3.0), elements_per_beam=2),
+              "M0": beamid.Modal(None, 2)}
+    fine = {"R": beamid.Release(beamid.TipForce(fy=3.0), elements_per_beam=8),
+            "M0": beamid.Modal(None, 8)}
+    d = beamid.simulate_measurements(TRUE, fine, {"R": ["w_tip"],
+                                                  "M0": ["freq[1]", "freq[2]", "freq[3]"]},
+                                     t={"R": [0.1, 0.3]}, sigma=1e-4)
+    f = beamid.fit(TRUE, coarse, d, free=("EI1",))
+    dg = beamid.diagnose(f, candidates=("mesh", "rotary_inertia"))
+    assert dg.verdict.effect == "mesh"
+    assert "freq[3] at t = 0 s in experiment M0" in dg.message
