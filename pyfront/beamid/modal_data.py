@@ -32,6 +32,14 @@ def _real_shape(column: np.ndarray) -> np.ndarray:
     return np.asarray(column, dtype=float)
 
 
+def _per_mode(name: str, value: Any, n: int) -> np.ndarray:
+    """One positive sigma or one per mode (n), as an array of n."""
+    v = _check.reals(name, value, scalar=True, min_size=1)
+    if v.size not in (1, n) or not np.all(v > 0):
+        _check.fail(name, value, f"a positive sigma or {n} of them (one per mode)")
+    return np.broadcast_to(v, (n,))
+
+
 def modal_rows(experiment: str, freq: Any, shapes: Any = None, stations: Sequence[str] = (),
                *, damping: Any = None, modes: Sequence[int] | None = None,
                sigma_freq: float | Sequence[float] = 0.01,
@@ -62,9 +70,7 @@ def modal_rows(experiment: str, freq: Any, shapes: Any = None, stations: Sequenc
     if len(modes) != n or len(set(modes)) != n:
         raise InputError(f"modes = {list(modes)}, expected {n} distinct model mode numbers "
                          "(one per measured frequency)")
-    sf = np.broadcast_to(_check.reals("sigma_freq", sigma_freq, scalar=True, min=0.0), (n,))
-    if not np.all(sf > 0):
-        raise InputError(f"sigma_freq = {sigma_freq}, expected positive sigmas")
+    sf = _per_mode("sigma_freq", sigma_freq, n)
     rows: list[tuple[str, float, str, float, float]] = []
     for i, k in enumerate(modes):
         rows.append((experiment, 0.0, f"freq[{k}]", float(f[i]), float(sf[i])))
@@ -72,15 +78,17 @@ def modal_rows(experiment: str, freq: Any, shapes: Any = None, stations: Sequenc
         z = _check.reals("damping", damping, min_size=1, min=0.0)
         if z.size != n:
             raise InputError(f"damping has {z.size} ratios, expected {n} (one per frequency)")
-        sz = np.broadcast_to(_check.reals("sigma_damping", sigma_damping, scalar=True,
-                                          above=0.0), (n,))
+        sz = _per_mode("sigma_damping", sigma_damping, n)
         for i, k in enumerate(modes):
             rows.append((experiment, 0.0, f"damping[{k}]", float(z[i]), float(sz[i])))
     if shapes is not None:
         if isinstance(stations, str):
             stations = (stations,)
         names = [parse_station(s) for s in stations]
-        arr = np.asarray(shapes)
+        try:
+            arr = np.asarray(shapes)
+        except (ValueError, TypeError):
+            _check.fail("shapes", shapes, "a (stations x modes) array")
         if np.iscomplexobj(arr):
             if arr.ndim != 2 or not np.all(np.isfinite(arr)):
                 _check.fail("shapes", shapes, "a finite (stations x modes) array")
@@ -138,6 +146,9 @@ def read_uff(path: Any, experiment: str, stations: Mapping[int, str], *, directi
     experiment = _check.text("experiment", experiment)
     stations = _check.mapping("stations", stations, min_size=1, keys=int)
     direction = _check.count("direction", direction, min=1, max=3)
+    sigma_freq = _check.real("sigma_freq", sigma_freq, above=0.0)
+    sigma_shape = _check.real("sigma_shape", sigma_shape, above=0.0)
+    sigma_damping = _check.real("sigma_damping", sigma_damping, above=0.0, none=True)
     pyuff = _pyuff()
     if not file.is_file():
         raise InputError(f"path = {str(file)!r}: no such file")
