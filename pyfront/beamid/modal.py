@@ -128,17 +128,14 @@ class ModalResult:
         return k - 1
 
     def shape(self, k: int) -> np.ndarray:
-        """Mode k sampled at the stations, unit 2-norm, its largest entry positive."""
+        """Mode k sampled at the stations, unit 2-norm, its largest entry positive
+        (empty without stations)."""
         i = self._mode(k)
-        if not self.stations:
-            raise InputError("shape: this result has no stations (pass stations=...)")
-        return _unit(self.shapes[:, i])[0]
+        return _unit(self.shapes[:, i])[0]     # empty without stations
 
     def dshape(self, k: int) -> np.ndarray:
         """Derivative of ``shape(k)`` (stations x wrt)."""
         i = self._mode(k)
-        if not self.stations:
-            raise InputError("dshape: this result has no stations (pass stations=...)")
         u, sign, norm = _unit(self.shapes[:, i])
         if norm == 0.0:
             return np.zeros((len(self.stations), len(self.wrt)))
