@@ -167,3 +167,13 @@ def test_plot_mac_labels():
     assert ax.get_title() == "MAC, measured vs model modes"
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("model mode", "measured mode")
     assert len(ax.patches) == 2
+
+
+@pytest.mark.parametrize("nepb", [2, 8])
+def test_straight_arm_matches_the_linear_modes_at_other_meshes(nepb):
+    """4 and 16 elements of Tables 9-10: the same numbers as beamid.modes,
+    whose tests pin the published digits (tests/test_fe_modes.py)."""
+    model = beamid.pace(J_elbow=0.0, J_tip=0.0)
+    md = beamid.modes(model, nepb)
+    r = beamid.modal_analysis(model, nmodes=md.omega.size, elements_per_beam=nepb)
+    assert_allclose(r.freq * TWO_PI, md.omega, rtol=1e-9)
