@@ -31,6 +31,7 @@ from . import _check, _core
 from .errors import InputError
 from .fe import _load_components, _mesh
 from .loads import RadialWire
+from .plotting import _axes
 
 __all__ = ["ModalResult", "ModePairing", "modal_analysis", "mac", "pair_modes", "plot_mac",
            "SHAPE_KINDS", "parse_station", "normalize_shape", "modal_rows"]
@@ -324,8 +325,6 @@ def pair_modes(measured_freq: Any, measured_shapes: Any, model_freq: Any, model_
 def plot_mac(pairing: Any, ax: Any = None, *, title: str = "MAC, measured vs model modes") -> Any:
     """The MAC matrix of a ``ModePairing`` (or a matrix, measured x model) as an
     image, pairs outlined; returns the Axes."""
-    from .plotting import _axes
-
     matrix = pairing.mac if isinstance(pairing, ModePairing) else _check.reals(
         "pairing", pairing, ndim=2, min_size=1)
     ax = _axes(_check.axes("ax", ax))
