@@ -31,11 +31,9 @@ class _CentralDifferences(beamid.Modal):
     """A Modal experiment whose Jacobian columns are central differences
     (EV_FD = 1): the baseline, not a user option."""
 
-    def encode(self):
-        kind, values = super().encode()
-        values = values.copy()
-        values[11] = 1.0
-        return kind, values
+    def spec(self):
+        kind, spec = super().spec()
+        return kind, dict(spec, fd=1.0)
 
 
 def best_of(fn, repeat=3):

@@ -27,8 +27,9 @@ module beamid_deck
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
     use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
-    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EXP_MODAL, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
+    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
+    use beamid_family, only: EXP_MODAL
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g
     use beamid_namelist, only: nml_file_t, nml_group_t, nml_text_t, nml_read_file, nml_count, &
                                nml_find, nml_check_keys, nml_real, nml_reals, nml_int, nml_str, &

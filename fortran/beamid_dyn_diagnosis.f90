@@ -32,9 +32,9 @@ module beamid_dyn_diagnosis
                                  fit_least_squares, diagnose, chi2_sf, CAND_NOT_SEEN, score_test, &
                                  score_result_t, sort_desc, lsq_problem_t
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
-                              EXP_MODAL, &
                               EV_NEPB, EV_GAIN
-    use beamid_static_experiments, only: probe_rows, median_of, distinct_sorted
+    use beamid_static_experiments, only: median_of, distinct_sorted
+    use beamid_families, only: kind_mesh_key
     use beamid_observations, only: observation_t, default_observations, probe_kinds, KINDS, &
                                    FAM_RELEASE, NEED_MOTOR
     implicit none
@@ -296,7 +296,7 @@ contains
     end subroutine dyn_probe_rows
 
     !> The mesh test (see the module header): refit `free` from base%params
-    !! with every release (and modal test) at twice its elements per beam.
+    !! with every release at twice its elements per beam.
     subroutine mesh_test(pb, lp, base, fopts, alpha, res, stat)
         type(problem_t), intent(in) :: pb
         type(lsq_problem_t), intent(in) :: lp   !< pb's data on its model's bounds
@@ -309,16 +309,8 @@ contains
         type(fit_result_t) :: refit
         type(status_t) :: st
         real(dp), allocatable :: values(:, :), pred(:), jdummy(:, :), change(:)
-        integer :: e
-        if (.not. any(pb%exp_kind == EXP_RELEASE)) return
-        res%done = .true.
-        values = pb%exp_values
-        do e = 1, size(pb%exp_kind)
-            ! the releases and the modal tests beside them (both FE meshes)
-            if (pb%exp_kind(e) /= EXP_RELEASE .and. pb%exp_kind(e) /= EXP_MODAL) cycle
-            res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
-            values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
-        end do
+        call refine_meshes(pb%exp_kind, pb%exp_values, values, res)
+        if (.not. res%done) return
         call inverse_problem_init(pb%nbeams, pb%exp_kind, values, pb%row_exp, pb%row_t, pb%row_q, &
                                   pb%tol, fine, stat, pb%obs)
         if (stat%code /= STATUS_OK) return
@@ -353,6 +345,25 @@ contains
         res%significant = res%p_value < alpha .and. res%drop > 0.0_dp
         res%recommended = mesh_recommended(res%nepb, res%max_change)
     end subroutine mesh_test
+
+    !> The value columns with every experiment that has a mesh (its family's
+    !! mesh_key) at twice its elements per beam; res%done when there is one,
+    !! res%nepb the largest elements per beam before refining.
+    subroutine refine_meshes(exp_kind, exp_values, values, res)
+        integer, intent(in) :: exp_kind(:)
+        real(dp), intent(in) :: exp_values(:, :)
+        real(dp), allocatable, intent(out) :: values(:, :)
+        type(mesh_test_t), intent(inout) :: res
+        integer :: e, key
+        values = exp_values
+        do e = 1, size(exp_kind)
+            key = kind_mesh_key(exp_kind(e))
+            if (key == 0) cycle
+            res%done = .true.
+            res%nepb = max(res%nepb, nint(values(key, e)))
+            values(key, e) = 2.0_dp*values(key, e)
+        end do
+    end subroutine refine_meshes
 
     !> The elements per beam that bring the discretization error below
     !! MESH_TARGET sigma, from `nepb` elements per beam and the largest change
@@ -394,15 +405,8 @@ contains
         type(observation_t), intent(in), optional :: obs(:)
         type(inverse_problem_t) :: fine
         real(dp), allocatable :: values(:, :), fpred(:), jdummy(:, :), change(:)
-        integer :: e
-        if (.not. any(exp_kind == EXP_RELEASE)) return
-        res%done = .true.
-        values = exp_values
-        do e = 1, size(exp_kind)
-            if (exp_kind(e) /= EXP_RELEASE .and. exp_kind(e) /= EXP_MODAL) cycle
-            res%nepb = max(res%nepb, nint(values(EV_NEPB, e)))
-            values(EV_NEPB, e) = 2.0_dp*values(EV_NEPB, e)
-        end do
+        call refine_meshes(exp_kind, exp_values, values, res)
+        if (.not. res%done) return
         if (present(obs)) then
             call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
                                       stat, obs)
@@ -491,7 +495,7 @@ contains
                                   pb%row_q, pb%tol, prob, stat, pb%obs)
         if (stat%code /= STATUS_OK) return
         frefit = fopts
-        if (prob%has_dynamic) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
+        if (prob%timed()) frefit%max_iter = min(fopts%max_iter, REFIT_MAX_ITER)
         call null_side_init(pb%nbeams, prob, side)
         lp = inverse_lsq(prob, pb%y, pb%sigma, pb%prior)
         call fit_at(side, lp, params0, free, fopts, base, stat)
@@ -519,7 +523,7 @@ contains
         call all_probe_rows(pb, prob, probe, pexp, pt, pq, psig, stat)
         if (stat%code /= STATUS_OK) return
         dsub = dopts
-        if (prob%has_dynamic) then
+        if (prob%timed()) then
             ! every refit integrates the response with its sensitivities many
             ! times: confirm only what the score tests find significant, and
             ! stop at the first start that confirms the predicted drop
@@ -530,7 +534,7 @@ contains
             ! too far off for both the first-order and the nominal start
             dsub%starts = [.true., .true., .false.]
         end if
-        if (with_mesh .and. prob%has_dynamic) then
+        if (with_mesh .and. prob%timed()) then
             ! the mesh test counts as one more test in the Bonferroni level
             dsub%alpha = dopts%alpha*real(ns, dp)/real(ns + 1, dp)
         end if
@@ -543,7 +547,7 @@ contains
             sub%alpha_each = dopts%alpha
         end if
         call scatter_back(sub, seen, map, diag)
-        if (with_mesh .and. prob%has_dynamic) then
+        if (with_mesh .and. prob%timed()) then
             call mesh_test(pb, lp, base, frefit, dopts%alpha/real(diag%ntested + 1, dp), mesh, &
                            stat)
         end if
@@ -708,12 +712,20 @@ contains
         integer, allocatable :: sexp(:), sq(:), dexp(:), dq(:), plocal(:)
         real(dp), allocatable :: ssig(:), dt(:), dsig(:)
 
+        integer, allocatable :: fq(:)
+        real(dp), allocatable :: fsig(:)
+        integer :: f
         allocate (sexp(0), sq(0), ssig(0))
-        if (prob%has_static) then
-            call probe_rows(prob%st%loads, prob%st%row_obs%kind, pb%sigma(prob%st_rows), &
-                            plocal, sq, ssig)
-            sexp = prob%st_exp(plocal)
-        end if
+        ! the probe rows the families propose (the static family's), then
+        ! the releases' (dyn_probe_rows)
+        do f = 1, size(prob%fams)
+            associate (fam => prob%fams(f)%item)
+                call fam%probe(pb%sigma(fam%rows), plocal, fq, fsig)
+                sexp = [sexp, fam%exp_ids(plocal)]
+                sq = [sq, fq]
+                ssig = [ssig, fsig]
+            end associate
+        end do
         call dyn_probe_rows(pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, prob%obs%kind, &
                             pb%sigma, dexp, dt, dq, dsig)
         pexp = [sexp, dexp]

@@ -49,6 +49,8 @@ module beamid_dynamic_experiments
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
                               QTY_MOTOR_TORQUE, NQTY
     use beamid_static_experiments, only: distinct_sorted
+    use beamid_family, only: experiment_family_t, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, &
+                             EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD
     use beamid_observations, only: observation_t, observation_why_not, same_observation, &
                                    FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
@@ -106,8 +108,13 @@ module beamid_dynamic_experiments
         type(observation_t), allocatable :: o(:)
     end type obs_list_t
 
-    !> Release experiments and the data rows they predict.
-    type, extends(residual_model_t) :: dynamic_experiments_t
+    !> Release experiments and the data rows they predict: the release
+    !! family of the inverse problem (experiment kind EXP_RELEASE). Its
+    !! clock offsets (shift: row i is predicted at model time
+    !! max(0, row_t(i) + shift(row_exp(i))); before the release the chain is
+    !! at rest in its static shape) and rates (want_rates, row_rate) are the
+    !! timed family's components of experiment_family_t.
+    type, extends(experiment_family_t) :: dynamic_experiments_t
         integer :: nbeams = 0
         type(release_exp_t), allocatable :: exps(:)
         integer, allocatable :: row_exp(:)
@@ -118,19 +125,80 @@ module beamid_dynamic_experiments
         integer, allocatable :: row_oi(:)
         real(dp), allocatable :: row_t(:)
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
-        !> the model time at each experiment's record zero (its clock offset
-        !! t0, set by beamid_inverse before evaluate): row i is predicted at
-        !! model time max(0, row_t(i) + shift(row_exp(i))) (before the
-        !! release the chain is at rest in its static shape)
-        real(dp), allocatable :: shift(:)
-        !> evaluate also returns d prediction / d t of every row in row_rate
-        logical :: want_rates = .false.
-        real(dp), allocatable :: row_rate(:)
     contains
         procedure :: evaluate => dynamic_evaluate
+        procedure, nopass :: name => release_name
+        procedure, nopass :: claims => release_claims
+        procedure, nopass :: kind_label => release_kind_label
+        procedure, nopass :: timed => release_timed
+        procedure, nopass :: family_code => release_family_code
+        procedure, nopass :: mesh_key => release_mesh_key
+        procedure :: build => release_build
     end type dynamic_experiments_t
 
 contains
+
+    pure function release_name() result(text)
+        character(len=:), allocatable :: text
+        text = 'release'
+    end function release_name
+
+    pure logical function release_claims(kind)
+        integer, intent(in) :: kind
+        release_claims = kind == EXP_RELEASE
+    end function release_claims
+
+    pure function release_kind_label(kind) result(text)
+        integer, intent(in) :: kind
+        character(len=:), allocatable :: text
+        text = 'release'
+        if (.false.) text = repeat(' ', kind)
+    end function release_kind_label
+
+    pure logical function release_timed()
+        release_timed = .true.
+    end function release_timed
+
+    pure integer function release_family_code()
+        release_family_code = FAM_RELEASE
+    end function release_family_code
+
+    !> Elements per beam: the row EV_NEPB of a release's value column.
+    pure integer function release_mesh_key()
+        release_mesh_key = EV_NEPB
+    end function release_mesh_key
+
+    !> The family's constructor for the problem: a release_exp_t per
+    !! experiment from its value column, then dynamic_experiments_init.
+    subroutine release_build(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
+        class(dynamic_experiments_t), intent(inout) :: self
+        integer, intent(in) :: nbeams, kinds(:), row_exp(:)
+        real(dp), intent(in) :: values(:, :), row_t(:), tol
+        type(observation_t), intent(in) :: row_obs(:)
+        type(status_t), intent(inout) :: stat
+        type(release_exp_t), allocatable :: rels(:)
+        integer :: e
+        if (.false.) e = int(tol)
+        allocate (rels(size(kinds)))
+        do e = 1, size(kinds)
+            rels(e) = release_exp_t(fx=values(EV_FX, e), fy=values(EV_FY, e), &
+                                    moment=values(EV_MOMENT, e), &
+                                    nepb=nint(values(EV_NEPB, e)), &
+                                    gain=values(EV_GAIN, e), &
+                                    method=nint(values(EV_METHOD, e)), &
+                                    law=nint(values(EV_LAW, e)), &
+                                    rtol=values(EV_RTOL, e), &
+                                    dt=values(EV_DT, e), &
+                                    vslip=merge(values(EV_VSLIP, e), 1.0e-4_dp, &
+                                                values(EV_VSLIP, e) > 0.0_dp), &
+                                    fd=nint(values(EV_FD, e)) == 1, &
+                                    exact=nint(values(EV_FD, e)) == 2)
+        end do
+        call dynamic_experiments_init(nbeams, rels, row_exp, row_t, row_obs, self, stat)
+        ! a release's predictions do not depend on the sensitivities asked,
+        ! which cost several runs: the fit judges its trial steps without them
+        self%plain_trials = .true.
+    end subroutine release_build
 
     !> Why a row (t, observation) cannot belong to release experiment `x`
     !! ('' when it can): t negative or not finite, an observation a release

@@ -28,14 +28,17 @@ module beamid_static_experiments
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
                                    STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION
     use beamid_estimation, only: residual_model_t, sort_desc
+    use beamid_family, only: experiment_family_t, EXP_TIP, EXP_WIRE, EV_FX, EV_FY, EV_MOMENT, &
+                             EV_WIRE_LENGTH
     implicit none
     private
 
     public :: static_experiments_t, static_experiments_init, observe
     public :: probe_rows, median_of, distinct_sorted
 
-    !> Static experiments and the data rows they predict.
-    type, extends(residual_model_t) :: static_experiments_t
+    !> Static experiments and the data rows they predict: the static family
+    !! of the inverse problem (experiment kinds EXP_TIP, EXP_WIRE).
+    type, extends(experiment_family_t) :: static_experiments_t
         integer :: nbeams = 0
         type(static_load_t), allocatable :: loads(:)
         integer, allocatable :: row_exp(:)      !< experiment of each row
@@ -43,9 +46,96 @@ module beamid_static_experiments
         type(static_options_t) :: opts
     contains
         procedure :: evaluate => static_evaluate
+        procedure, nopass :: name => static_name
+        procedure, nopass :: claims => static_claims
+        procedure, nopass :: kind_label => static_kind_label
+        procedure, nopass :: timed => static_timed
+        procedure, nopass :: family_code => static_family_code
+        procedure :: build => static_build
+        procedure :: probe => static_probe
+        procedure :: probe_model => static_probe_model
     end type static_experiments_t
 
 contains
+
+    pure function static_name() result(text)
+        character(len=:), allocatable :: text
+        text = 'static'
+    end function static_name
+
+    pure logical function static_claims(kind)
+        integer, intent(in) :: kind
+        static_claims = kind == EXP_TIP .or. kind == EXP_WIRE
+    end function static_claims
+
+    pure function static_kind_label(kind) result(text)
+        integer, intent(in) :: kind
+        character(len=:), allocatable :: text
+        text = trim(merge('tip load', 'wire    ', kind == EXP_TIP))
+    end function static_kind_label
+
+    pure logical function static_timed()
+        static_timed = .false.
+    end function static_timed
+
+    pure integer function static_family_code()
+        static_family_code = FAM_STATIC
+    end function static_family_code
+
+    !> The family's constructor for the problem: a static load per
+    !! experiment from its value column (EV_FX, EV_FY, EV_MOMENT,
+    !! EV_WIRE_LENGTH), then static_experiments_init.
+    subroutine static_build(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
+        class(static_experiments_t), intent(inout) :: self
+        integer, intent(in) :: nbeams, kinds(:), row_exp(:)
+        real(dp), intent(in) :: values(:, :), row_t(:), tol
+        type(observation_t), intent(in) :: row_obs(:)
+        type(status_t), intent(inout) :: stat
+        type(static_load_t), allocatable :: loads(:)
+        integer :: e
+        if (.false.) e = size(row_t)
+        allocate (loads(size(kinds)))
+        do e = 1, size(kinds)
+            loads(e) = static_load_t(kind=kinds(e), fx=values(EV_FX, e), fy=values(EV_FY, e), &
+                                     moment=values(EV_MOMENT, e), &
+                                     wire_length=values(EV_WIRE_LENGTH, e))
+        end do
+        call static_experiments_init(nbeams, loads, row_exp, row_obs, tol, self, stat)
+        self%plain_trials = .false.
+        self%rough_jacobian_ok = .false.
+    end subroutine static_build
+
+    !> Probe rows: every static experiment and every quantity it can
+    !! measure (probe_rows), with the median sigma of the data rows.
+    subroutine static_probe(self, sigma, plocal, pq, psig)
+        class(static_experiments_t), intent(in) :: self
+        real(dp), intent(in) :: sigma(:)
+        integer, allocatable, intent(out) :: plocal(:), pq(:)
+        real(dp), allocatable, intent(out) :: psig(:)
+        integer, allocatable :: row_kinds(:)
+        ! the rows' kinds as a contiguous copy (a component of an array of
+        ! types is strided: passing it made an array temporary each call)
+        row_kinds = self%row_obs%kind
+        call probe_rows(self%loads, row_kinds, sigma, plocal, pq, psig)
+    end subroutine static_probe
+
+    !> The static experiments of the probe rows (local experiments plocal,
+    !! kinds pq) as a model of their own.
+    subroutine static_probe_model(self, plocal, pq, tol, model, stat)
+        class(static_experiments_t), intent(in) :: self
+        integer, intent(in) :: plocal(:), pq(:)
+        real(dp), intent(in) :: tol
+        class(residual_model_t), allocatable, intent(inout) :: model
+        type(status_t), intent(inout) :: stat
+        type(static_experiments_t) :: probe
+        integer :: i
+        if (allocated(model)) deallocate (model)
+        call static_experiments_init(self%nbeams, self%loads, plocal, &
+                                     [(observation_t(kind=pq(i)), i=1, size(pq))], tol, probe, &
+                                     stat)
+        if (stat%code /= STATUS_OK) return
+        allocate (model, source=probe)
+    end subroutine static_probe_model
 
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).

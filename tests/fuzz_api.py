@@ -244,6 +244,7 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "with_values.value": [0.1] * len(env.data),
         "check_experiments.experiments": env.exps,
         "decode.values": beamid.Release(beamid.TipForce(fy=1.0)).encode()[1],
+        "from_spec.spec": beamid.Release(beamid.TipForce(fy=1.0)).spec()[1],
         "Release.load": env.load,
         "Release.elements_per_beam": 2,
         "modal_cost.t": 0.1,

@@ -2,8 +2,10 @@
 !! ladder (beamid_estimation, beamid_ladder) on the problems of
 !! beamid_inverse, any mix of static and release experiments.
 !!
-!! A problem crosses as plain arrays: experiments (kind and NEXPVAL = 18
-!! values per experiment, beamid_inverse's EV_* layout), data rows
+!! A problem crosses as plain arrays: experiments (a kind each, and named
+!! specs as sparse triples kv_exp, kv_key, kv_value: experiment, key of the
+!! core's key table api_spec_keys, value; a key not given takes its default;
+!! no positional layout crosses), data rows
 !! (experiment index, t, observation, value, sigma; the observation an
 !! index into the observation list obs_kind, obs_beam, obs_s of
 !! beamid_observations' kind codes and station loci), free parameter indices,
@@ -18,15 +20,20 @@ module beamid_api_estimation
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, status_out, STATUS_OK, ERR_NO_CONVERGENCE, ERR_INPUT, &
                              set_status, fmt_int, put_text
-    use beamid_estimation, only: residual_structure, residual_model_t, prior_from_covariance
+    use beamid_estimation, only: residual_structure, residual_model_t
     use beamid_estimation, only: fit_options_t, fit_result_t, prior_t, fit_least_squares, &
                                  lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_deck, only: deck_t, read_deck, deck_set_task
     use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
-    use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, chain_layout
-    use beamid_observations, only: observation_t, MODE_STRIDE
+    use beamid_inverse, only: inverse_problem_t, chain_layout
+    use beamid_problem, only: problem_from_arrays, problem_lsq_from_arrays, observation_list, &
+                              spec_columns
+    use beamid_family, only: SPEC_KEYS
+    use beamid_families, only: registered_families
+    use beamid_family, only: family_slot_t
+    use beamid_observations, only: observation_t
     use beamid_dyn_diagnosis, only: null_side_model_t, null_side_init, time_structure
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
@@ -40,7 +47,7 @@ module beamid_api_estimation
     public :: api_residual_structure, api_fit_effect, api_code_names
     public :: api_effect_sizes, api_effect_table
     public :: api_problem_predict, api_chain_layout, api_fit_chain
-    public :: api_problem_diagnose, api_time_structure
+    public :: api_problem_diagnose, api_time_structure, api_spec_keys
     public :: api_ladder_start, api_ladder_step
     public :: api_ladder_rung, api_ladder_fit, api_ladder_diag
     public :: api_deck_task_start, api_deck_task_write
@@ -215,6 +222,43 @@ contains
         call status_out(st, code, message)
     end subroutine api_effect_table
 
+    !> The key table of experiment specs (beamid_family SPEC_KEYS), one line
+    !! per key: name, the row of the core's value column it fills, the
+    !! families that accept it ('+'-joined names from the registry), its
+    !! default and its meaning, tab-separated; then one line per experiment
+    !! kind the families take: 'kind', its code, its family, its words. The
+    !! fronts build experiments by these names (a key's number is its line).
+    subroutine api_spec_keys(text)
+        character(len=4096), intent(out) :: text
+        character(len=:), allocatable :: t, fams
+        type(family_slot_t), allocatable :: reg(:)
+        character(len=32) :: buf
+        integer :: k, f
+        call registered_families(reg)
+        t = ''
+        do k = 1, size(SPEC_KEYS)
+            fams = ''
+            do f = 1, size(reg)
+                if (.not. reg(f)%item%accepts(k)) cycle
+                if (len(fams) > 0) fams = fams//'+'
+                fams = fams//reg(f)%item%name()
+            end do
+            write (buf, '(g0)') SPEC_KEYS(k)%default
+            if (k > 1) t = t//new_line('a')
+            t = t//trim(SPEC_KEYS(k)%name)//achar(9)//fmt_int(SPEC_KEYS(k)%row)//achar(9)// &
+                fams//achar(9)//trim(buf)//achar(9)//trim(SPEC_KEYS(k)%about)
+        end do
+        do k = 1, 64
+            do f = 1, size(reg)
+                if (.not. reg(f)%item%claims(k)) cycle
+                t = t//new_line('a')//'kind'//achar(9)//fmt_int(k)//achar(9)// &
+                    reg(f)%item%name()//achar(9)//reg(f)%item%kind_label(k)
+                exit
+            end do
+        end do
+        text = t
+    end subroutine api_spec_keys
+
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)
         real(c_double), intent(in) :: x
@@ -280,7 +324,7 @@ contains
     !! attempt in the outputs).
     subroutine api_fit_effect(nbeams, nparams, params0, nfree, free_idx, nblock, block, &
                               nominal, nprior, prior, ncov, prior_cov, nexp, exp_kind, &
-                              exp_values, nrow, row_exp, row_t, row_q, nobs, obs_kind, &
+                              nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, row_q, nobs, obs_kind, &
                               obs_beam, obs_s, row_value, row_sigma, tol, max_iter, start_mask, params, sigmas, cov, corr, flags, &
                               predictions, normalized, stats, log_cost, log_lambda, log_step, &
                               log_params, info, code, message, note)
@@ -295,7 +339,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree + nblock)
         real(c_double), intent(out) :: cov(nfree + nblock, nfree + nblock)
@@ -307,6 +351,11 @@ contains
         real(c_double), intent(out) :: log_params(nfree + nblock, max_iter + 1)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(null_side_model_t) :: side
@@ -315,33 +364,27 @@ contains
         type(fit_result_t) :: res
         type(refit_info_t) :: rinfo
         type(lsq_problem_t) :: lp
-        integer :: n
 
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
         params = params0
         note = ''
-        n = int(nprior)
         if (any(block < 1 .or. block > nparams)) then
             call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
                             'outside 1..nparams')
-        else if (ncov /= 0 .and. ncov /= nprior * nprior) then
-            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
-                            ' values, expected nprior**2 = '//fmt_int(n * n))
         else
-            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                      int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat, &
-                                      make_obs(obs_kind, obs_beam, obs_s))
+            call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, &
+                        obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, model, &
+                        lp, stat)
         end if
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
-            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
-                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
-        end if
+        call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK .and. nblock == 0) then
             call fit_least_squares(model, lp, real(params0, dp), int(free_idx), opts, res, stat)
             if (allocated(res%note)) note = res%note
-        else if (stat%code == STATUS_OK .and. model%has_dynamic) then
+        else if (stat%code == STATUS_OK .and. model%timed()) then
             call null_side_init(int(nbeams), model, side)
             call add_effect(side)
         else if (stat%code == STATUS_OK) then
@@ -380,7 +423,7 @@ contains
     !! and per row: the last weight, the sigma it was judged with, that
     !! sigma's standard deviation (0 where given) and 1 for a gross error.
     subroutine api_fit_chain(nbeams, nparams, params0, nfree, free_idx, nprior, prior, ncov, &
-                             prior_cov, nexp, exp_kind, exp_values, nrow, row_exp, row_t, &
+                             prior_cov, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, &
                              row_q, nobs, obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, &
                              max_iter, params, sigmas, cov, &
                              corr, flags, predictions, normalized, stats, log_cost, log_lambda, &
@@ -397,7 +440,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         real(c_double), intent(out) :: params(nparams), sigmas(nfree)
         real(c_double), intent(out) :: cov(nfree, nfree), corr(nfree, nfree)
@@ -410,6 +453,11 @@ contains
         integer(c_int), intent(out) :: flagged(nrow)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(status_t) :: stat
@@ -418,25 +466,16 @@ contains
         type(lsq_problem_t) :: lp
         real(dp) :: w(nrow), su(nrow), sd(nrow)
         logical :: fl(nrow)
-        integer :: n
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
         params = params0
         note = ''
-        n = int(nprior)
-        if (ncov /= 0 .and. ncov /= nprior*nprior) then
-            call set_status(stat, ERR_INPUT, 'prior', 'prior_cov has '//fmt_int(int(ncov))// &
-                            ' values, expected nprior**2 = '//fmt_int(n*n))
-        else
-            call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                      int(row_exp), real(row_t, dp), int(row_q), &
-                                      real(tol, dp), model, stat, &
-                                      make_obs(obs_kind, obs_beam, obs_s))
-        end if
-        if (stat%code == STATUS_OK) then
-            call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
-            lp = inverse_lsq(model, real(row_value, dp), real(row_sigma, dp), make_prior(prior))
-            if (ncov /= 0) call prior_from_covariance(nint(prior(1, :)), real(prior(2, :), dp), &
-                reshape(real(prior_cov, dp), [n, n]), lp%prior, stat)
-        end if
+        call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, obs_beam, &
+                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+        call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK) then
             call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
                            w, su, sd, fl, stat)
@@ -456,15 +495,15 @@ contains
     end subroutine api_fit_chain
 
     !> Predictions of the data rows of any mix of experiment families
-    !! (beamid_inverse: kinds 1 tip load, 2 wire, 3 release; exp_values(:, e)
-    !! in the EV_* layout, 18 rows) and their derivatives w.r.t.
+    !! (beamid_problem: kinds 1 tip load, 2 wire, 3 release; their specs as
+    !! triples, api_spec_keys) and their derivatives w.r.t.
     !! params(wrt) (wrt may be empty).
-    subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+    subroutine api_problem_predict(nbeams, nparams, params, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, &
                                    row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, &
                                    nwrt, wrt, tol, pred, jac, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow, nwrt
         !f2py intent(hide) nparams, nexp, nrow, nwrt
-        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow), tol
+        real(c_double), intent(in) :: params(nparams), row_t(nrow), tol
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow), wrt(nwrt)
         integer(c_int), intent(in) :: nobs
         !f2py intent(hide) nobs
@@ -473,12 +512,22 @@ contains
         real(c_double), intent(out) :: pred(nrow), jac(nrow, nwrt)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         type(inverse_problem_t) :: model
         type(status_t) :: stat
         real(dp) :: p(nrow), j(nrow, nwrt)
-        call inverse_problem_init(int(nbeams), int(exp_kind), real(exp_values, dp), &
-                                  int(row_exp), real(row_t, dp), int(row_q), real(tol, dp), &
-                                  model, stat, make_obs(obs_kind, obs_beam, obs_s))
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
+        call problem_from_arrays(int(nbeams), int(exp_kind), values, &
+                                 int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
+                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -492,23 +541,32 @@ contains
     !! experiment (1-based) and entry of the problem's observation list of
     !! nobs entries (0 for a clock offset); the first n of each (at most nexp
     !! (1 + 2 MAX_CHANNEL_BITS)) are filled.
-    subroutine api_chain_layout(nexp, exp_kind, exp_values, nobs, n, kinds, exps, qs, code, &
+    subroutine api_chain_layout(nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nobs, n, kinds, exps, qs, code, &
                                 message)
         integer(c_int), intent(in) :: nexp, nobs
         !f2py intent(hide) nexp
         integer(c_int), intent(in) :: exp_kind(nexp)
-        real(c_double), intent(in) :: exp_values(18, nexp)
         integer(c_int), intent(out) :: n
         integer(c_int), intent(out) :: kinds(105*nexp), exps(105*nexp), qs(105*nexp)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         type(status_t) :: stat
         integer, allocatable :: k(:), e(:), q(:)
         n = 0
         kinds = 0
         exps = 0
         qs = 0
-        call chain_layout(int(exp_kind), real(exp_values, dp), k, e, q, stat, int(nobs))
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
+        call chain_layout(int(exp_kind), values, k, e, q, stat, int(nobs))
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         n = int(size(k), c_int)
@@ -516,6 +574,36 @@ contains
         exps(1:n) = int(e, c_int)
         qs(1:n) = int(q, c_int)
     end subroutine api_chain_layout
+
+    !> The experiments' value columns from the named specs the binding
+    !! takes (experiment, key of the core's key table, value: beamid_problem
+    !! spec_columns; the table is api_spec_keys).
+    subroutine columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        integer(c_int), intent(in) :: exp_kind(:), kv_exp(:), kv_key(:)
+        real(c_double), intent(in) :: kv_value(:)
+        real(dp), allocatable, intent(out) :: values(:, :)
+        type(status_t), intent(inout) :: stat
+        call spec_columns(int(exp_kind), int(kv_exp), int(kv_key), real(kv_value, dp), values, &
+                          stat)
+    end subroutine columns
+
+    !> The estimation entries' one set-up (beamid_problem
+    !! problem_lsq_from_arrays), the arrays in the library's kinds.
+    subroutine set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
+                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
+        integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        real(c_double), intent(in) :: row_value(:), row_sigma(:), prior(:, :), prior_cov(:)
+        type(inverse_problem_t), intent(out) :: model
+        type(lsq_problem_t), intent(out) :: lp
+        type(status_t), intent(inout) :: stat
+        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
+                                     int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
+                                     int(obs_beam), real(obs_s, dp), real(tol, dp), &
+                                     real(row_value, dp), real(row_sigma, dp), &
+                                     real(prior, dp), real(prior_cov, dp), model, lp, stat)
+    end subroutine set_up
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
@@ -529,11 +617,7 @@ contains
         integer(c_int), intent(in) :: kind(:), beam(:)
         real(c_double), intent(in) :: s(:)
         type(observation_t) :: obs(size(kind))
-        integer :: i
-        ! a modal observation's kind carries its mode (MODE_STRIDE)
-        obs = [(observation_t(kind=int(mod(kind(i), MODE_STRIDE)), beam=int(beam(i)), &
-                              s=real(s(i), dp), mode=int(kind(i)/MODE_STRIDE)), &
-                i=1, size(kind))]
+        obs = observation_list(int(kind), int(beam), real(s, dp))
     end function make_obs
 
     !> The problem of beamid_ladder from a binding's arrays.
@@ -584,7 +668,7 @@ contains
     !! leading ones refitted (from the first-order estimate, from the user's
     !! starting values `nominal` and by continuation). Outputs: copy_diag.
     subroutine api_problem_diagnose(nbeams, nparams, params0, nominal, nfree, free_idx, &
-                                    nprior, prior, nexp, exp_kind, exp_values, nrow, row_exp, &
+                                    nprior, prior, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, &
                                     row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
                                     row_sigma, tol, max_iter, ncand, &
                                     cand_start, ncandp, cand_params, alpha, nrefit, &
@@ -600,7 +684,7 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, nrefit, with_mesh
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
@@ -614,6 +698,11 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         type(status_t) :: stat
         type(problem_t) :: pb
         type(fit_options_t) :: opts
@@ -621,7 +710,12 @@ contains
         type(diag_out_t) :: dg
         type(cand_set_t) :: cs
 
-        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
+        call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, 0, pb)
         pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         cs = make_cands(cand_start, cand_params, with_mesh)
@@ -733,7 +827,7 @@ contains
     !! per call, until none is significant at alpha or max_steps rungs were
     !! added.
     subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
-                                exp_kind, exp_values, nrow, row_exp, row_t, row_q, nobs, &
+                                exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, row_q, nobs, &
                                 obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, max_iter, ncand, cand_start, ncandp, &
                                 cand_params, with_mesh, alpha, max_steps, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nrow, max_iter
@@ -745,17 +839,27 @@ contains
         !f2py intent(hide) nobs
         integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
         real(c_double), intent(in) :: obs_s(nobs)
-        real(c_double), intent(in) :: exp_values(18, nexp), row_t(nrow), row_value(nrow)
+        real(c_double), intent(in) :: row_t(nrow), row_value(nrow)
         real(c_double), intent(in) :: row_sigma(nrow), tol
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
         real(c_double), intent(in) :: alpha
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         type(status_t) :: stat
         type(problem_t) :: pb
         from_deck = .false.
-        call make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
+        call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
                           row_sigma, tol, prior, max_iter, pb)
         pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
@@ -1005,12 +1109,12 @@ contains
     !! elements per beam against the fit's `pred`. out = [done (1/0), elements
     !! per beam now, recommended, largest |change| / sigma, its data row
     !! (1-based), chi-square of the refined model at params].
-    subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, exp_values, nrow, &
+    subroutine api_mesh_check(nbeams, nparams, params, nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, &
                               row_exp, row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_value, &
                               row_sigma, pred, tol, out, code, message)
         integer(c_int), intent(in) :: nbeams, nparams, nexp, nrow
         !f2py intent(hide) nparams, nexp, nrow
-        real(c_double), intent(in) :: params(nparams), exp_values(18, nexp), row_t(nrow)
+        real(c_double), intent(in) :: params(nparams), row_t(nrow)
         integer(c_int), intent(in) :: exp_kind(nexp), row_exp(nrow), row_q(nrow)
         integer(c_int), intent(in) :: nobs
         !f2py intent(hide) nobs
@@ -1020,9 +1124,19 @@ contains
         real(c_double), intent(out) :: out(6)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
+        integer(c_int), intent(in) :: nkv
+        !f2py intent(hide) nkv
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        real(dp), allocatable :: values(:, :)
         type(mesh_test_t) :: res
         type(status_t) :: stat
-        call mesh_check(int(nbeams), int(exp_kind), real(exp_values, dp), int(row_exp), &
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) then
+            call status_out(stat, code, message)
+            return
+        end if
+        call mesh_check(int(nbeams), int(exp_kind), values, int(row_exp), &
                         real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
                         real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat, &
                         make_obs(obs_kind, obs_beam, obs_s))

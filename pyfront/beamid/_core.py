@@ -11,6 +11,7 @@ binding (``!f2py intent(hide)``), so the functions here pass arrays only.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
 
@@ -182,7 +183,8 @@ def read_deck(path: str) -> dict:
                      "dt": float(reals[6]) or None, "rtol": float(reals[7]) or None,
                      "atol": float(reals[8]) or None, "motor_gain": float(reals[9]),
                      "friction_velocity": float(reals[10]) or None},
-        "experiments": [(n, int(k), [float(x) for x in v])
+        # each experiment: name, kind and its spec by the core's key names
+        "experiments": [(n, int(k), {key: float(v[sk.row]) for key, sk in spec_keys().items()})
                         for n, k, v in zip(names, exp_kind, np.array(exp_values).T)],
         "free": [int(i) - 1 for i in free],
         "prior": [(int(i) - 1, float(m), float(s))
@@ -235,6 +237,64 @@ def quantity_labels() -> tuple[str, ...]:
     """Names of the observation kinds, in code order (1-based codes;
     beamid_observations, read by beamid.observations)."""
     return tuple(q for q in _text(_deck_api.api_quantity_labels()).split("\n") if q)
+
+
+@dataclass(frozen=True)
+class SpecKey:
+    """A key of the core's experiment specs (beamid_family SPEC_KEYS)."""
+
+    name: str
+    number: int            # 1-based: the key as the binding takes it
+    row: int               # 0-based row of the core's value column
+    families: tuple[str, ...]
+    default: float
+    about: str
+
+
+@lru_cache(maxsize=None)
+def spec_keys() -> dict[str, SpecKey]:
+    """The core's key table of experiment specs, by name (api_spec_keys):
+    the fronts build experiments by these names and keep no copy."""
+    text = _text(_ext.beamid_api_estimation.api_spec_keys())
+    keys = {}
+    for line in text.split("\n"):
+        f = line.split("\t")
+        if len(f) < 5 or f[0] == "kind":
+            continue
+        keys[f[0]] = SpecKey(f[0], len(keys) + 1, int(f[1]) - 1, tuple(f[2].split("+")),
+                             float(f[3]), f[4])
+    return keys
+
+
+def spec_row(name: str) -> int:
+    """The 0-based row of spec key ``name`` in the core's value column."""
+    return spec_keys()[name].row
+
+
+def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Value columns (keys by row, one column per experiment) as the
+    binding's sparse named triples: (1-based experiment, key number, value)
+    for every nonzero entry; a key not given takes its default in the core."""
+    values = np.asarray(values, float).reshape(len(spec_keys()), -1)
+    exp, key, val = [], [], []
+    for j in range(values.shape[1]):
+        for k in spec_keys().values():
+            v = float(values[k.row, j])
+            if v != 0.0:
+                exp.append(j + 1)
+                key.append(k.number)
+                val.append(v)
+    return np.array(exp, np.int32), np.array(key, np.int32), np.array(val, float)
+
+
+def spec_column(spec: dict) -> np.ndarray:
+    """A value column of the core's layout from named values (rows of keys
+    not named are 0: the core fills defaults)."""
+    keys = spec_keys()
+    col = np.zeros(len(keys))
+    for name, v in spec.items():
+        col[keys[name].row] = float(v)
+    return col
 
 
 def read_measurements(path: str):

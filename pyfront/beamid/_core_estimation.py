@@ -3,7 +3,8 @@ improve ladder, experiment design and Monte Carlo summaries.
 
 An estimation problem (any mix of static and release experiments) crosses
 the boundary as plain arrays (see ``fortran/api/beamid_api_estimation.f90``):
-experiments as kinds and NEXPVAL value columns, data rows as (experiment
+experiments as kinds and named specs (sparse triples: experiment, key of the
+core's key table ``_core.spec_keys``, value), data rows as (experiment
 index, t, quantity code, value, sigma), 1-based parameter indices. Result
 arrays are read by the column names the Fortran exports (CSTATS and friends).
 
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _ext
-from ._core import _call, _path, _text, quantity_labels
+from ._core import _call, _path, _text, quantity_labels, spec_keys, spec_triples
 from .errors import raise_for_status
 
 _api = _ext.beamid_api_estimation
@@ -40,7 +41,9 @@ class Problem:
 
     nbeams: int
     exp_kind: np.ndarray      # (nexp,) int32
-    exp_values: np.ndarray    # (NEXPVAL, nexp) float, Fortran order
+    #: (NEXPVAL, nexp) float: each experiment's spec, row spec_keys()[name].row
+    #: for key ``name`` (0: not given); it crosses as named triples (specs())
+    exp_values: np.ndarray
     row_exp: np.ndarray       # (nrow,) int32, 1-based
     row_q: np.ndarray         # (nrow,) int32
     row_value: np.ndarray     # (nrow,)
@@ -72,15 +75,20 @@ class Problem:
         return tuple(QUANTITY_NAMES[int(k)] + (f"@{int(b)}:{float(s):g}" if b > 0 else "")
                      for k, b, s in zip(self.obs_kind, self.obs_beam, self.obs_s))
 
+    def specs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The experiments' specs as the binding takes them: sparse triples
+        (1-based experiment, key number, value) by the core's key names."""
+        return spec_triples(self.exp_values)
+
     def rows(self) -> tuple:
         """The experiments, the rows and the tolerance in the order the fit,
         diagnose and ladder entries take them."""
-        return (self.exp_kind, self.exp_values, self.row_exp, self.row_t, self.row_q,
+        return (self.exp_kind, *self.specs(), self.row_exp, self.row_t, self.row_q,
                 *self.observations(), self.row_value, self.row_sigma, float(self.tol))
 
 
-#: values per experiment of the mixed-family API (beamid_inverse NEXPVAL)
-NEXPVAL = 18
+#: rows of an experiment's value column (the core's key table, one row a key)
+NEXPVAL = len(spec_keys())
 
 
 def problem_predict(prob: Problem, params: np.ndarray,
@@ -89,7 +97,7 @@ def problem_predict(prob: Problem, params: np.ndarray,
     experiments (beamid_inverse; wrt 1-based)."""
     wrt = np.asarray(wrt, dtype=np.int32)
     pred, jac = _call(_api.api_problem_predict,
-                      prob.nbeams, np.asarray(params, float), prob.exp_kind, prob.exp_values,
+                      prob.nbeams, np.asarray(params, float), prob.exp_kind, *prob.specs(),
                       prob.row_exp, prob.row_t, prob.row_q, *prob.observations(), wrt,
                       float(prob.tol))
     return np.array(pred), np.array(jac).reshape(prob.row_exp.size, wrt.size)
@@ -473,7 +481,7 @@ def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
     nepb, recommended, max_change (sigma units), row (0-based) and chi2 (of
     the refined model at params)."""
     out = _call(_api.api_mesh_check, prob.nbeams, np.asarray(params, float), prob.exp_kind,
-                prob.exp_values, prob.row_exp, prob.row_t, prob.row_q, *prob.observations(),
+                *prob.specs(), prob.row_exp, prob.row_t, prob.row_q, *prob.observations(),
                 prob.row_value,
                 prob.row_sigma, np.asarray(pred, float), float(prob.tol))
     out = np.asarray(out, float)

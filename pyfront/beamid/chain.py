@@ -28,7 +28,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import _check, _core_estimation as _ce
-from ._core import _call
+from ._core import _call, spec_row
 from .errors import InputError
 from . import observations
 from .loads import Release
@@ -36,8 +36,8 @@ from .measurements import _canonical
 
 #: keys of the ``nuisance`` argument of :func:`beamid.fit`
 NUISANCE_KINDS = ("time_offset", "bias", "scale")
-#: rows of beamid_inverse's experiment value column (0-based): EV_T0, EV_BIAS, EV_SCALE
-_EV_T0, _EV_BIAS, _EV_SCALE = 12, 13, 14
+#: rows (0-based) of the keys t0, bias, scale in the core's value column (its key table)
+_EV_T0, _EV_BIAS, _EV_SCALE = (spec_row(k) for k in ("t0", "bias", "scale"))
 #: channels (bits of a mask in a double) of the first entries of the
 #: observation list at most (beamid_inverse MAX_CHANNEL_BITS)
 MAX_CHANNEL_BITS = 52
@@ -114,7 +114,7 @@ class ChainSpec:
 
 
 #: rows of the experiment value column: EV_LOSS, EV_BURNIN, EV_SIGEST (0-based)
-_EV_LOSS, _EV_BURNIN, _EV_SIGEST = 15, 16, 17
+_EV_LOSS, _EV_BURNIN, _EV_SIGEST = (spec_row(k) for k in ("loss", "burn_in", "sigma_est"))
 #: the losses of :func:`beamid.fit` and their Fortran codes (beamid_chain_fit)
 LOSSES = {"linear": 0, "huber": 1, "cauchy": 2}
 
@@ -340,7 +340,7 @@ def layout(prob: "_ce.Problem", names: list[str]) -> list[tuple[str, str, str]]:
     """(kind, experiment, observation) of the nuisance parameters of a
     problem, as the Fortran core orders them (api_chain_layout: one source)."""
     labels = prob.observation_names()
-    n, kinds, exps, qs = _call(_ce._api.api_chain_layout, prob.exp_kind, prob.exp_values,
+    n, kinds, exps, qs = _call(_ce._api.api_chain_layout, prob.exp_kind, *prob.specs(),
                                len(labels))
     return [(_KIND_CODE[int(k)], names[int(e) - 1], labels[int(q) - 1] if q > 0 else "")
             for k, e, q in zip(kinds[:n], exps[:n], qs[:n])]

@@ -46,7 +46,7 @@ def flag_is_problem(flag: str) -> bool:
     return flag not in ("ok", WEAK)
 #: row of a release's value column that selects its Jacobian (beamid_inverse
 #: EV_FD, 0-based): 0 forward sensitivities, 1 central differences, 2 exact
-_EV_FD = 11
+_EV_FD = _ce.spec_keys()["fd"].row
 
 Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
 
@@ -233,8 +233,9 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     kinds = np.zeros(len(names), np.int32)
     values = np.zeros((_ce.NEXPVAL, len(names)))
     for j, name in enumerate(names):
-        kinds[j], v = exps[name].encode()
-        values[:v.size, j] = v
+        kinds[j], spec = exps[name].spec()
+        for key, v in spec.items():
+            values[_ce.spec_keys()[key].row, j] = v
     # the problem's observation list: each distinct name once, in the core's
     # order of kinds and loci (observations.ordered), parsed by the core; the
     # measurement chain's channel masks number its entries

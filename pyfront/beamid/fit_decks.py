@@ -79,17 +79,22 @@ def published(values: dict) -> tuple[Published, ...]:
                  for g in values["published"])
 
 
-def load(kind: int, values: list[float]) -> Load | Release | Modal:
-    """A load or a release from the reader's (kind, values in beamid_inverse's
-    EV_* layout: fx, fy, moment, wire_length, ...)."""
-    if kind == LOAD_RELEASE:
-        return Release.decode(values)
+def load(kind: int, spec) -> Load | Release | Modal:
+    """A load or a release from the reader's (kind, spec by the core's key
+    names: fx, fy, moment, wire_length, elements_per_beam, ...; a list is
+    taken as a value column of the core's layout)."""
+    if not isinstance(spec, dict):
+        values = [float(x) for x in spec]
+        spec = {k: values[sk.row] for k, sk in _core.spec_keys().items() if sk.row < len(values)}
     if kind == LOAD_MODAL:
-        return Modal(TipLoad(values[0], values[1], values[2]),
-                     elements_per_beam=int(round(values[4])))
+        return Modal(TipLoad(spec.get("fx", 0.0), spec.get("fy", 0.0), spec.get("moment", 0.0)),
+                     elements_per_beam=int(round(spec.get("elements_per_beam", 4))))
+    if kind == LOAD_RELEASE:
+        keys = _core.spec_keys()
+        return Release.from_spec({k: v for k, v in spec.items() if "release" in keys[k].families})
     if kind == LOAD_WIRE:
-        return RadialWire(values[3])
-    return TipLoad(values[0], values[1], values[2])
+        return RadialWire(spec["wire_length"])
+    return TipLoad(spec["fx"], spec["fy"], spec["moment"])
 
 
 def check_path(path: Any, what: str = "path") -> Path:

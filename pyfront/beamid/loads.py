@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dynamics import FRICTION_LAWS as _FRICTION_LAWS, INTEGRATORS as _INTEGRATORS
-from . import _check
+from . import _check, _core
 from .errors import InputError
 
 LOAD_TIP = 1
@@ -36,6 +36,10 @@ class TipLoad:
     def encode(self) -> tuple[int, np.ndarray]:
         """(kind, [fx, fy, moment, Lw]) as the Fortran core takes it (read-only)."""
         return LOAD_TIP, self._encoded
+
+    def spec(self) -> tuple[int, dict[str, float]]:
+        """(kind, the experiment's spec by the core's key names)."""
+        return LOAD_TIP, {"fx": self.fx, "fy": self.fy, "moment": self.moment}
 
     def __add__(self, other: "TipLoad") -> "TipLoad":
         if not isinstance(other, TipLoad):
@@ -81,6 +85,10 @@ class RadialWire:
     def encode(self) -> tuple[int, np.ndarray]:
         """(kind, [0, 0, 0, Lw]) as the Fortran core takes it (read-only)."""
         return LOAD_WIRE, self._encoded
+
+    def spec(self) -> tuple[int, dict[str, float]]:
+        """(kind, the experiment's spec by the core's key names)."""
+        return LOAD_WIRE, {"wire_length": self.Lw}
 
     def describe(self) -> str:
         return f"radial wire Lw = {self.Lw:g} m"
@@ -130,30 +138,62 @@ class Release:
         for name in ("rtol", "dt"):
             v = _check.real(f"Release: {name}", getattr(self, name), above=0.0, none=True)
             object.__setattr__(self, name, v)
-        encoded = np.array([self.load.fx, self.load.fy, self.load.moment, 0.0,
-                            float(nepb), gain, float(_INTEGRATORS[self.integrator]),
-                            float(_FRICTION_LAWS[friction]), self.rtol or 0.0, self.dt or 0.0,
-                            0.0, 0.0])
-        encoded.setflags(write=False)
-        object.__setattr__(self, "_encoded", encoded)
+        spec = {"fx": self.load.fx, "fy": self.load.fy, "moment": self.load.moment,
+                "elements_per_beam": float(nepb), "motor_gain": gain,
+                "integrator": float(_INTEGRATORS[self.integrator]),
+                "friction": float(_FRICTION_LAWS[friction]), "rtol": self.rtol or 0.0,
+                "dt": self.dt or 0.0}
+        object.__setattr__(self, "_spec", spec)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
-        return LOAD_RELEASE, self._encoded
+        """(kind, the values in the core's value-column layout, rows from its
+        key table: _core.spec_keys) for the Fortran core."""
+        encoded = _core.spec_column(self._spec)
+        encoded.setflags(write=False)
+        return LOAD_RELEASE, encoded
+
+    def spec(self) -> tuple[int, dict[str, float]]:
+        """(kind, the experiment's spec by the core's key names)."""
+        return LOAD_RELEASE, dict(self._spec)
 
     @classmethod
     def decode(cls, values) -> "Release":
-        """The Release of the values in beamid_inverse's EV_* layout (a deck's)."""
-        v = [float(x) for x in _check.reals("values", values, min_size=10)]
-        codes = {6: "integrator", 7: "friction"}
-        for k, what in codes.items():
-            if v[k] not in (0.0, 1.0, 2.0)[: 2 if k == 6 else 3]:
-                _check.fail(f"values[{k}]", v[k], f"a code of the {what}")
+        """The Release of the values in the core's value-column layout (a
+        deck's; rows from the core's key table)."""
+        keys = _core.spec_keys()
+        v = [float(x) for x in _check.reals("values", values,
+                                           min_size=keys["dt"].row + 1)]
+        for key, n in (("integrator", 2), ("friction", 3)):
+            row = keys[key].row
+            if v[row] not in (0.0, 1.0, 2.0)[:n]:
+                _check.fail(f"values[{row}]", v[row], f"a code of the {key}")
+        return cls.from_spec({k: v[sk.row] for k, sk in keys.items()
+                              if sk.row < len(v) and "release" in sk.families})
+
+    @classmethod
+    def from_spec(cls, spec: dict) -> "Release":
+        """The Release of a spec by the core's key names (a deck's experiment;
+        keys not given take the core's defaults)."""
+        keys = {k: sk for k, sk in _core.spec_keys().items() if "release" in sk.families}
+        if not isinstance(spec, dict):
+            raise InputError(f"Release.from_spec: spec = {spec!r}, expected a dict of the "
+                             f"release's spec keys ({', '.join(keys)})")
+        for k in spec:
+            if k not in keys:
+                raise InputError(f"Release.from_spec: key {k!r} is not a key of a release; "
+                                 f"expected one of {', '.join(keys)}")
+        v = {k: _check.real(f"Release.from_spec: {k}", spec.get(k, sk.default))
+             for k, sk in keys.items()}
+        for key, n in (("integrator", 2), ("friction", 3)):
+            if v[key] not in (0.0, 1.0, 2.0)[:n]:
+                _check.fail(f"Release.from_spec: {key}", v[key], f"a code of the {key}")
         integrators = {c: n for n, c in _INTEGRATORS.items()}
         laws = {c: n for n, c in _FRICTION_LAWS.items()}
-        return cls(TipLoad(v[0], v[1], v[2]), elements_per_beam=int(round(v[4])),
-                   motor_gain=v[5], integrator=integrators[int(round(v[6]))],
-                   rtol=v[8] or None, dt=v[9] or None, friction=laws[int(round(v[7]))])
+        return cls(TipLoad(v["fx"], v["fy"], v["moment"]),
+                   elements_per_beam=int(round(v["elements_per_beam"])),
+                   motor_gain=v["motor_gain"], integrator=integrators[int(round(v["integrator"]))],
+                   rtol=v["rtol"] or None, dt=v["dt"] or None,
+                   friction=laws[int(round(v["friction"]))])
 
     @property
     def has_motor(self) -> bool:
@@ -201,6 +241,12 @@ class Modal:
     def encode(self) -> tuple[int, np.ndarray]:
         """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
         return LOAD_MODAL, self._encoded
+
+    def spec(self) -> tuple[int, dict[str, float]]:
+        """(kind, the experiment's spec by the core's key names)."""
+        return LOAD_MODAL, {"fx": float(self.load.fx), "fy": float(self.load.fy),
+                            "moment": float(self.load.moment),
+                            "elements_per_beam": float(self.elements_per_beam)}
 
     def describe(self) -> str:
         return (f"modal test about {self.load.describe()}, {self.elements_per_beam} elements "

@@ -1,0 +1,82 @@
+"""Experiment families as an open list (issue 25): the core's key table of
+experiment specs, experiments crossing the binding by name, and the
+refusals that name the experiment, the key and the keys accepted."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import beamid
+from beamid import _core, _core_estimation as _ce
+from beamid.estimation import build_problem
+
+BASE = beamid.pace()
+
+
+def _static_problem():
+    exps = {"tip": beamid.TipLoad(fy=-2.0), "wire": beamid.RadialWire(1.4)}
+    data = beamid.simulate_measurements(BASE, exps, ["x_tip", "y_tip"], sigma=1e-3)
+    return build_problem(BASE, exps, data)
+
+
+def test_key_table_from_the_core():
+    keys = _core.spec_keys()
+    # the deck's names, in the core's row order, with the families that take them
+    assert list(keys)[:12] == ["fx", "fy", "moment", "wire_length", "elements_per_beam",
+                               "motor_gain", "integrator", "friction", "rtol", "dt", "v_slip",
+                               "fd"]
+    assert [k.row for k in keys.values()] == list(range(len(keys)))
+    assert _ce.NEXPVAL == len(keys) == 18
+    assert keys["wire_length"].families == ("static",)
+    assert keys["elements_per_beam"].families == ("release",)
+    assert keys["elements_per_beam"].default == 4.0
+    assert keys["burn_in"].families == ("static", "release")
+    # a Release builds its spec by these names
+    kind, spec = beamid.Release(beamid.TipLoad(fy=-1.0), elements_per_beam=3).spec()
+    assert kind == 3 and spec["elements_per_beam"] == 3.0 and spec["fy"] == -1.0
+    assert set(spec) <= set(keys)
+
+
+def test_specs_cross_as_sparse_triples():
+    prob = _static_problem()
+    exp, key, val = prob.specs()
+    # only the keys given: fy = -2 of the tip load, wire_length = 1.4 of the wire
+    assert exp.tolist() == [1, 2]
+    assert [list(_core.spec_keys())[k - 1] for k in key] == ["fy", "wire_length"]
+    assert val.tolist() == [-2.0, 1.4]
+    pred, _ = _ce.problem_predict(prob, BASE.vector(), np.zeros(0, np.int32))
+    assert pred.shape == (4,) and np.all(np.isfinite(pred))
+
+
+def test_key_not_of_the_family_is_refused():
+    prob = _static_problem()
+    values = np.array(prob.exp_values)
+    values[_core.spec_row("elements_per_beam"), 1] = 8.0
+    bad = dataclasses.replace(prob, exp_values=np.asfortranarray(values))
+    with pytest.raises(beamid.InputError, match=r"experiment 2 \(static\): key "
+                       r"elements_per_beam is not a key of a static experiment; expected one "
+                       r"of fx, fy, moment, wire_length, t0, bias, scale, loss, burn_in, "
+                       r"sigma_est"):
+        _ce.problem_predict(bad, BASE.vector(), np.zeros(0, np.int32))
+
+
+def test_unknown_kind_names_the_registered_kinds():
+    prob = _static_problem()
+    bad = dataclasses.replace(prob, exp_kind=np.array([1, 9], np.int32))
+    with pytest.raises(beamid.InputError, match=r"experiment 2 has kind 9, expected "
+                       r"1 \(tip load\), 2 \(wire\) or 3 \(release\)"):
+        _ce.problem_predict(bad, BASE.vector(), np.zeros(0, np.int32))
+
+
+def test_prior_of_several_parameters_reaches_the_fit():
+    """The shared set-up (problem_lsq_from_arrays) carries every prior
+    parameter: a tight prior pins both estimates at its means."""
+    exps = {"tip": beamid.TipLoad(fy=-2.0), "wire": beamid.RadialWire(1.4)}
+    data = beamid.simulate_measurements(BASE, exps, ["x_tip", "y_tip"], sigma=1e-3, seed=3)
+    ei1, ei2 = BASE["EI1"], BASE["EI2"]
+    fit = beamid.fit(BASE, exps, data, free=("EI1", "EI2"),
+                     prior={"EI1": (1.05 * ei1, 1e-9), "EI2": (0.95 * ei2, 1e-9)})
+    assert abs(fit.estimates["EI1"] / (1.05 * ei1) - 1.0) < 1e-6
+    assert abs(fit.estimates["EI2"] / (0.95 * ei2) - 1.0) < 1e-6
