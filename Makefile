@@ -44,7 +44,7 @@ $(VPY):
 
 $(STAMP): $(VPY) $(BUILD_INPUTS)
 	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q meson-python meson ninja numpy scipy f90nml matplotlib tqdm pytest hypothesis dask distributed
+	$(VPY) -m pip install -q meson-python meson ninja numpy scipy f90nml matplotlib tqdm pytest hypothesis dask distributed pyuff
 	$(VPY) -m pip install -q --no-build-isolation -e .
 	@touch $(STAMP)
 

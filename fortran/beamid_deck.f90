@@ -33,6 +33,7 @@ module beamid_deck
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_deck_history, only: read_history_groups
+    use beamid_family, only: EXP_MODAL
     use beamid_measurements, only: measurements_t, read_measurements, check_static_rows, fmt_g, &
                                    read_channel_file, sensor_t
     use beamid_namelist, only: nml_merge_items, nml_file_t, nml_group_t, nml_text_t, &
@@ -657,7 +658,7 @@ contains
     !! integrator 'implicit' or 'rk4', rtol, dt, friction 'sign', 'smooth' or
     !! 'sign_literal'), in ev (beamid_inverse's EV_* layout; ev(EV_NEPB) = 0
     !! for a static experiment).
-    subroutine read_experiment(f, g, label, arm, load, ev, errors)
+    subroutine read_experiment(f, g, label, arm, load, ev, errors, kind_code)
         type(nml_file_t), intent(in) :: f
         type(nml_group_t), intent(in) :: g
         character(len=*), intent(in) :: label
@@ -665,6 +666,9 @@ contains
         type(static_load_t), intent(out) :: load
         real(dp), intent(out) :: ev(NEXPVAL)
         character(len=:), allocatable, intent(inout) :: errors
+        !> 0 static, EXP_RELEASE, EXP_MODAL (kind = 'modal', issue 27: the
+        !! tip load held during the modal test and elements_per_beam)
+        integer, intent(out) :: kind_code
         character(len=:), allocatable :: kind, text
         character(len=*), parameter :: dyn_keys(6) = [character(len=17) :: &
             'elements_per_beam', 'motor_gain', 'integrator', 'rtol', 'dt', 'friction']
@@ -672,8 +676,31 @@ contains
         integer :: nepb, i
         real(dp) :: x
         ev = 0.0_dp
+        kind_code = 0
         kind = ''
         call nml_str(f, g, 'kind', kind, given, errors)
+        if (trim(kind) == 'modal') then
+            kind_code = EXP_MODAL
+            do i = 2, size(dyn_keys)
+                if (nml_given(g, trim(dyn_keys(i)))) call add_error(errors, label// &
+                    ": kind = 'modal' does not take "//trim(dyn_keys(i))// &
+                    " (only kind = 'release' does)")
+            end do
+            if (nml_given(g, 'wire_length')) call add_error(errors, label// &
+                ": kind = 'modal' does not take wire_length (the finite element model has "// &
+                "no wire)")
+            load%kind = LOAD_TIP
+            call nml_real(f, g, 'fx', load%fx, given, errors)
+            call nml_real(f, g, 'fy', load%fy, given, errors)
+            call nml_real(f, g, 'moment', load%moment, given, errors)
+            ev(EV_FX:EV_MOMENT) = [load%fx, load%fy, load%moment]
+            nepb = 4
+            call nml_int(f, g, 'elements_per_beam', nepb, given, errors)
+            if (nepb < 1) call add_error(errors, label//': elements_per_beam = '// &
+                                         fmt_int(nepb)//', expected at least 1')
+            ev(EV_NEPB) = real(max(nepb, 1), dp)
+            return
+        end if
         if (trim(kind) /= 'release') then
             do i = 1, size(dyn_keys)
                 if (nml_given(g, trim(dyn_keys(i)))) call add_error(errors, label// &
@@ -683,6 +710,7 @@ contains
             call read_load_values(f, g, label, arm, load, errors)
             return
         end if
+        kind_code = EXP_RELEASE
         load%kind = LOAD_TIP
         call nml_real(f, g, 'fx', load%fx, given, errors)
         call nml_real(f, g, 'fy', load%fy, given, errors)
@@ -1020,7 +1048,7 @@ contains
         real(dp), allocatable :: evalues(:, :)
         real(dp) :: ev(NEXPVAL)
         logical :: given
-        integer :: ne, k, i, ig, maxlen, nerr, nf
+        integer :: ne, k, i, ig, maxlen, nerr, nf, kcode
         type(static_load_t) :: load
         type(nml_group_t) :: gx
         type(stage_t), allocatable :: stages(:)
@@ -1050,10 +1078,10 @@ contains
                 if (names(i)%s == name) call add_error(errors, where// &
                     "&experiment name = '"//name//"' defined twice")
             end do
-            call read_experiment(f, gx, label, arm_length(deck), load, ev, errors)
+            call read_experiment(f, gx, label, arm_length(deck), load, ev, errors, kcode)
             names = [names, nml_text_t(name)]
             loads = [loads, load]
-            kinds = [kinds, merge(EXP_RELEASE, 0, ev(EV_NEPB) > 0.0_dp)]
+            kinds = [kinds, kcode]
             evalues = reshape([evalues, ev], [NEXPVAL, size(kinds)])
         end do
         if (ne == 0) call add_error(errors, f%path//': no &experiment groups: define at '// &
@@ -1321,7 +1349,8 @@ contains
         end if
         if (st%code == STATUS_OK .and. size(kinds) > 0 .and. count_lines_alloc(errors) == nerr) &
             call check_static_rows(stage%data, deck%exp_names, is_wire, stage%row_exp, st, &
-                                   kinds == EXP_RELEASE, has_motor, deck_lengths(deck))
+                                   kinds == EXP_RELEASE, has_motor, deck_lengths(deck), &
+                                   kinds == EXP_MODAL)
         if (st%code /= STATUS_OK) call add_error(errors, f%path//', line '// &
             fmt_int(g%line)//': &fit data: '//trim(st%message))
         if (st%code /= STATUS_OK .or. .not. allocated(stage%row_exp)) return

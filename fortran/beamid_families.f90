@@ -10,6 +10,7 @@ module beamid_families
     use beamid_status, only: fmt_int
     use beamid_static_experiments, only: static_experiments_t
     use beamid_dynamic_experiments, only: dynamic_experiments_t
+    use beamid_modal_experiments, only: modal_experiments_t
     implicit none
     private
 
@@ -26,6 +27,7 @@ contains
         allocate (fams(0))
         call register(fams, static_experiments_t())
         call register(fams, dynamic_experiments_t())
+        call register(fams, modal_experiments_t())
     end subroutine registered_families
 
     subroutine register(fams, proto)

@@ -20,7 +20,7 @@ module beamid_family
     use beamid_status, only: status_t
     use beamid_arclength, only: LOAD_TIP, LOAD_WIRE
     use beamid_estimation, only: residual_model_t
-    use beamid_observations, only: observation_t, KINDS, FAM_STATIC, FAM_RELEASE
+    use beamid_observations, only: observation_t, KINDS, FAM_STATIC, FAM_RELEASE, FAM_MODAL
     implicit none
     private
 
@@ -28,6 +28,9 @@ module beamid_family
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
+    !> A modal test about the equilibrium under a tip load (issue 27,
+    !! beamid_modal_experiments).
+    integer, parameter, public :: EXP_MODAL = 4
     !> Rows of an experiment's value column.
     integer, parameter, public :: EV_FX = 1, EV_FY = 2, EV_MOMENT = 3, EV_WIRE_LENGTH = 4, &
                                   EV_NEPB = 5, EV_GAIN = 6, EV_METHOD = 7, EV_LAW = 8, &
@@ -62,7 +65,9 @@ module beamid_family
     end type spec_key_t
 
     integer, parameter, public :: ALL_FAMILIES = -1
-    integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
+    integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE + FAM_MODAL
+    !> the finite element families: a mesh and central-difference columns
+    integer, parameter :: FE_FAMS = FAM_RELEASE + FAM_MODAL
 
     !> The one key table of experiment specs (the deck's names; codes for
     !! integrator, friction and loss as the deck reader gives them).
@@ -72,7 +77,7 @@ module beamid_family
         spec_key_t('moment', EV_MOMENT, BOTH, 0.0_dp, 'tip moment (N m)'), &
         spec_key_t('wire_length', EV_WIRE_LENGTH, FAM_STATIC, 0.0_dp, &
                    'radial wire length (m; kind 2)'), &
-        spec_key_t('elements_per_beam', EV_NEPB, FAM_RELEASE, 4.0_dp, &
+        spec_key_t('elements_per_beam', EV_NEPB, FE_FAMS, 4.0_dp, &
                    'finite elements per beam'), &
         spec_key_t('motor_gain', EV_GAIN, FAM_RELEASE, 0.0_dp, 'motor gain (0: no motor)'), &
         spec_key_t('integrator', EV_METHOD, FAM_RELEASE, 0.0_dp, &
@@ -83,7 +88,7 @@ module beamid_family
         spec_key_t('dt', EV_DT, FAM_RELEASE, 0.0_dp, 'rk4 time step (s; 0: default)'), &
         spec_key_t('v_slip', EV_VSLIP, FAM_RELEASE, 0.0_dp, &
                    'smooth friction slip speed (m/s; 0: 1e-4)'), &
-        spec_key_t('fd', EV_FD, FAM_RELEASE, 0.0_dp, &
+        spec_key_t('fd', EV_FD, FE_FAMS, 0.0_dp, &
                    'sensitivities (0 rough, 1 central differences, 2 exact)'), &
         spec_key_t('t0', EV_T0, ALL_FAMILIES, 0.0_dp, '1: the record has a clock offset'), &
         spec_key_t('bias', EV_BIAS, ALL_FAMILIES, 0.0_dp, 'channel mask of biases'), &

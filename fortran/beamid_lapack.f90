@@ -10,7 +10,7 @@ module beamid_lapack
     implicit none
     private
 
-    public :: solve_dense, solve_banded, sym_gen_eig, svd_thin
+    public :: solve_dense, solve_banded, sym_gen_eig, svd_thin, gen_eig
 
     interface
         subroutine dgesv(n, nrhs, a, lda, ipiv, b, ldb, info)
@@ -41,6 +41,15 @@ module beamid_lapack
             real(dp), intent(out) :: s(*), u(ldu, *), vt(ldvt, *), work(*)
             integer, intent(out) :: info
         end subroutine dgesvd
+        subroutine dgeev(jobvl, jobvr, n, a, lda, wr, wi, vl, ldvl, vr, ldvr, work, lwork, &
+                         info)
+            import :: dp
+            character(len=1), intent(in) :: jobvl, jobvr
+            integer, intent(in) :: n, lda, ldvl, ldvr, lwork
+            real(dp), intent(inout) :: a(lda, *)
+            real(dp), intent(out) :: wr(*), wi(*), vl(ldvl, *), vr(ldvr, *), work(*)
+            integer, intent(out) :: info
+        end subroutine dgeev
     end interface
 
 contains
@@ -142,4 +151,30 @@ contains
         if (info > 0) call set_status(stat, ERR_SINGULAR, 'svd_thin', 'SVD did not '// &
                                       'converge ('//fmt_int(info)//' superdiagonals)')
     end subroutine svd_thin
+
+    !> Eigenvalues wr + i wi and right eigenvectors of a general real square
+    !! matrix (dgeev). `a` is destroyed. A complex pair (wi(j) > 0, wi(j+1) =
+    !! -wi(j)) has the eigenvector vr(:, j) + i vr(:, j+1) for eigenvalue j
+    !! (LAPACK's packing).
+    subroutine gen_eig(a, wr, wi, vr, stat)
+        real(dp), intent(inout) :: a(:, :)
+        real(dp), intent(out) :: wr(:), wi(:), vr(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: work(:)
+        real(dp) :: query(1), vl(1, 1)
+        integer :: n, info
+        n = size(a, 1)
+        if (size(a, 2) /= n .or. size(wr) /= n .or. size(wi) /= n .or. &
+            any(shape(vr) /= [n, n])) then
+            call set_status(stat, ERR_INPUT, 'gen_eig', 'shape mismatch for n = '// &
+                            fmt_int(n))
+            return
+        end if
+        if (n == 0) return
+        call dgeev('N', 'V', n, a, n, wr, wi, vl, 1, vr, n, query, -1, info)
+        allocate (work(max(1, int(query(1)))))
+        call dgeev('N', 'V', n, a, n, wr, wi, vl, 1, vr, n, work, size(work), info)
+        if (info > 0) call set_status(stat, ERR_SINGULAR, 'gen_eig', 'QR iteration did '// &
+                                      'not converge ('//fmt_int(info)//' eigenvalues left)')
+    end subroutine gen_eig
 end module beamid_lapack

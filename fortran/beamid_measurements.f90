@@ -19,7 +19,7 @@ module beamid_measurements
                              MAX_BYTES, fmt_int, fmt_bytes, set_alloc_error, lower
     use beamid_observations, only: observation_t, parse_observation, obs_label, kinds_list, &
                                    same_observation, observation_why_not, FAM_STATIC, &
-                                   FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
+                                   FAM_RELEASE, FAM_MODAL, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
                                    K_MOTOR_TORQUE, K_WIRE_FORCE
     implicit none
     private
@@ -424,7 +424,7 @@ contains
     !! (the checks of beamid.estimation.build_problem). `row_exp` gives each
     !! row's experiment index into names/is_wire.
     pure subroutine check_static_rows(data, names, is_wire, row_exp, stat, is_release, has_motor, &
-                                      lengths)
+                                      lengths, is_modal)
         type(measurements_t), intent(in) :: data
         character(len=*), intent(in) :: names(:)
         logical, intent(in) :: is_wire(:)
@@ -435,9 +435,11 @@ contains
         logical, intent(in), optional :: is_release(:), has_motor(:)
         !> the model's beam lengths: stations are checked against them
         real(dp), intent(in), optional :: lengths(:)
+        !> modal experiments (issue 27): t = 0, the modal kinds only
+        logical, intent(in), optional :: is_modal(:)
         real(dp), allocatable :: len_b(:)
-        integer :: i, e, reason, nb
-        logical :: release, motor, wire
+        integer :: i, e, reason, nb, fam
+        logical :: release, motor, wire, modal
         character(len=:), allocatable :: where, x, why, q, detail
         allocate (row_exp(size(data%experiment)), source=0)
         call check_experiments(data, names, stat)
@@ -464,12 +466,21 @@ contains
                     len_b = lengths
                 end if
             end if
-            reason = observation_why_not(data%obs(i), merge(FAM_RELEASE, FAM_STATIC, release), &
-                                         wire, motor, nb, len_b)
-            detail = why_detail(data%obs(i), reason, merge(FAM_RELEASE, FAM_STATIC, release), &
-                                nb, len_b)
+            modal = .false.
+            if (present(is_modal)) modal = is_modal(row_exp(i))
+            fam = merge(FAM_RELEASE, FAM_STATIC, release)
+            if (modal) fam = FAM_MODAL
+            reason = observation_why_not(data%obs(i), fam, wire, motor, nb, len_b)
+            detail = why_detail(data%obs(i), reason, fam, nb, len_b)
             deallocate (len_b)
-            if (.not. release .and. data%t(i) /= 0.0_dp .and. &
+            if (modal) then
+                if (reason /= WHY_OK) then
+                    why = q//x//' is a modal test ('//detail//')'
+                else if (data%t(i) /= 0.0_dp) then
+                    why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the modal '// &
+                          'experiment '//quote(trim(data%experiment(i)))
+                end if
+            else if (.not. release .and. data%t(i) /= 0.0_dp .and. &
                 (reason == WHY_OK .or. reason == WHY_WIRE)) then
                 why = 'field t = '//fmt_g(data%t(i))//', expected 0 for the static experiment '// &
                       quote(trim(data%experiment(i)))

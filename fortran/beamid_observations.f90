@@ -32,8 +32,14 @@ module beamid_observations
 
     !> Loci.
     integer, parameter, public :: LOCUS_NONE = 0, LOCUS_STATION = 1, LOCUS_MODE = 2
-    !> Family bits: static load cases, releases (the dynamics).
-    integer, parameter, public :: FAM_STATIC = 1, FAM_RELEASE = 2
+    !> A station and a mode: a mode shape entry (`shape_n@1:0.4[2]`).
+    integer, parameter, public :: LOCUS_STATION_MODE = 3
+    !> Family bits: static load cases, releases (the dynamics), modal tests.
+    integer, parameter, public :: FAM_STATIC = 1, FAM_RELEASE = 2, FAM_MODAL = 4
+    !> A modal observation crosses the binding's (kind, beam, s) arrays as
+    !! kind + MODE_STRIDE * mode (make_obs decodes it; beamid.observations
+    !! encodes it): the kind codes stay below MODE_STRIDE.
+    integer, parameter, public :: MODE_STRIDE = 1000
     !> What an experiment must have for a kind.
     integer, parameter, public :: NEED_NONE = 0, NEED_WIRE = 1, NEED_MOTOR = 2
     !> Reasons of observation_why_not.
@@ -56,6 +62,11 @@ module beamid_observations
     !> The torque of the shoulder hub (the clamp) on the arm, -M at s = 0 of
     !! beam 1: what drives a prescribed hub rotation (issue 28)
     integer, parameter, public :: K_HUB_TORQUE = 25
+    !> Modal kinds (issue 27): the natural frequency and damping ratio of a
+    !! mode (LOCUS_MODE) and its shape at a station (LOCUS_STATION_MODE),
+    !! unit-normalized over the experiment's shape rows of that mode.
+    integer, parameter, public :: K_FREQ = 26, K_DAMPING = 27, K_SHAPE_N = 28, &
+                                  K_SHAPE_T = 29, K_SHAPE_PSI = 30, K_SHAPE_STRAIN = 31
     !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
     !! observation sits t/2 from the neutral axis.
     real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
@@ -76,7 +87,7 @@ module beamid_observations
         character(len=72) :: about = ''
     end type obs_kind_t
 
-    integer, parameter :: NKIND = 25
+    integer, parameter :: NKIND = 31
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE
     type(obs_kind_t), parameter :: KINDS(NKIND) = [ &
         obs_kind_t('x_tip', 'm', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 1, 0, K_U_TIP, &
@@ -128,7 +139,19 @@ module beamid_observations
         obs_kind_t('reaction_moment', 'N m', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
                    0, 'load cell: moment of the clamp on the arm, counter-clockwise'), &
         obs_kind_t('hub_torque', 'N m', FAM_RELEASE, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'torque of the hub (clamp) on the arm: -moment at the root')]
+                   0, 'torque of the hub (clamp) on the arm: -moment at the root'), &
+        obs_kind_t('freq', 'Hz', FAM_MODAL, LOCUS_MODE, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
+                   'natural frequency of the mode'), &
+        obs_kind_t('damping', '1', FAM_MODAL, LOCUS_MODE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
+                   'damping ratio of the mode (damped models)'), &
+        obs_kind_t('shape_n', '1', FAM_MODAL, LOCUS_STATION_MODE, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'mode shape: displacement along the local normal'), &
+        obs_kind_t('shape_t', '1', FAM_MODAL, LOCUS_STATION_MODE, NEED_NONE, 1.0e-2_dp, 0, 0, &
+                   0, 'mode shape: displacement along the local tangent'), &
+        obs_kind_t('shape_psi', '1', FAM_MODAL, LOCUS_STATION_MODE, NEED_NONE, 1.0e-2_dp, 0, &
+                   0, 0, 'mode shape: rotation (change of psi)'), &
+        obs_kind_t('shape_strain', '1', FAM_MODAL, LOCUS_STATION_MODE, NEED_NONE, 1.0e-2_dp, &
+                   0, 0, 0, 'mode shape: change of the gauge strain')]
 
     !> An observation: a kind and its locus.
     type :: observation_t
@@ -171,7 +194,9 @@ contains
         case (LOCUS_STATION)
             name = name//'@'//fmt_int(o%beam)//':'//fmt_short(o%s)
         case (LOCUS_MODE)
-            name = name//'@'//fmt_int(o%mode)
+            name = name//'['//fmt_int(o%mode)//']'
+        case (LOCUS_STATION_MODE)
+            name = name//'@'//fmt_int(o%beam)//':'//fmt_short(o%s)//'['//fmt_int(o%mode)//']'
         end select
     end function obs_label
 
@@ -244,9 +269,26 @@ contains
         type(observation_t), intent(out) :: o
         character(len=:), allocatable, intent(out) :: why
         character(len=:), allocatable :: t, kname, locus
-        integer :: at, colon, ios
+        integer :: at, colon, ios, bra, mode
         why = ''
         t = trim(adjustl(text))
+        ! a mode number in brackets at the end: freq[2], shape_n@1:0.4[2]
+        mode = 0
+        bra = index(t, '[')
+        if (bra > 0) then
+            if (t(len(t):) /= ']' .or. bra == len(t) - 1) then
+                why = 'mode of "'//t//'", expected a mode number in brackets: kind[mode]'
+                return
+            end if
+            read (t(bra + 1:len(t) - 1), *, iostat=ios) mode
+            if (ios /= 0 .or. verify(trim(adjustl(t(bra + 1:len(t) - 1))), '0123456789') /= 0 &
+                .or. mode < 1) then
+                why = 'mode "'//t(bra + 1:len(t) - 1)//'" of "'//t//'", expected a mode '// &
+                      'number >= 1'
+                return
+            end if
+            t = t(:bra - 1)
+        end if
         at = index(t, '@')
         if (at == 0) then
             kname = t
@@ -261,11 +303,26 @@ contains
             o%kind = 0
             return
         end if
+        if (KINDS(o%kind)%locus == LOCUS_MODE .or. KINDS(o%kind)%locus == LOCUS_STATION_MODE) then
+            if (mode == 0) then
+                if (KINDS(o%kind)%locus == LOCUS_STATION_MODE) then
+                    why = '"'//kname//'" needs a station and a mode number: '//kname// &
+                          '@beam:s[mode]'
+                else
+                    why = '"'//kname//'" needs a mode number: '//kname//'[mode]'
+                end if
+                return
+            end if
+            o%mode = mode
+        else if (bra > 0) then
+            why = '"'//kname//'" takes no mode number, got "'//trim(adjustl(text))//'"'
+            return
+        end if
         select case (KINDS(o%kind)%locus)
         case (LOCUS_NONE)
             if (at > 0) why = '"'//kname//'" is a fixed point of the arm and takes no '// &
                               'locus, got "'//t//'"'
-        case (LOCUS_STATION)
+        case (LOCUS_STATION, LOCUS_STATION_MODE)
             if (at == 0) then
                 why = '"'//kname//'" needs a station: '//kname//'@beam:s (beam number, '// &
                       'arc length s in m from the beam''s root)'
@@ -295,9 +352,7 @@ contains
                 why = 'arc length s = '//fmt_short(o%s)//' of "'//t//'", expected 0 <= s <= L'
             end if
         case (LOCUS_MODE)
-            read (locus, *, iostat=ios) o%mode
-            if (at == 0 .or. ios /= 0 .or. o%mode < 1) &
-                why = '"'//kname//'" needs a mode number: '//kname//'@mode'
+            if (at > 0) why = '"'//kname//'" takes a mode number only: '//kname//'[mode]'
         end select
     end subroutine parse_observation
 
@@ -330,7 +385,7 @@ contains
             why = WHY_MOTOR
         else if (o%kind == K_ELBOW_ROTATION .and. nbeams < 2) then
             why = WHY_BEAM
-        else if (k%locus == LOCUS_STATION) then
+        else if (k%locus == LOCUS_STATION .or. k%locus == LOCUS_STATION_MODE) then
             if (o%beam < 1 .or. o%beam > nbeams) then
                 why = WHY_BEAM
             else if (size(lengths) >= o%beam) then
@@ -352,7 +407,11 @@ contains
         case (WHY_KIND)
             detail = 'observation kind code '//fmt_int(o%kind)//', expected 1..'//fmt_int(NKIND)
         case (WHY_FAMILY)
-            if (family == FAM_STATIC) then
+            if (KINDS(o%kind)%families == FAM_MODAL) then
+                detail = 'only a modal experiment measures '//kind_label(o%kind)
+            else if (family == FAM_MODAL) then
+                detail = 'a modal experiment measures freq, damping and shape_* only'
+            else if (family == FAM_STATIC) then
                 detail = 'only a release experiment measures '//kind_label(o%kind)
             else
                 detail = 'only a static experiment measures '//kind_label(o%kind)
@@ -380,6 +439,8 @@ contains
         do k = 2, NKIND
             text = text//', '//kind_label(k)
             if (KINDS(k)%locus == LOCUS_STATION) text = text//'@beam:s'
+            if (KINDS(k)%locus == LOCUS_MODE) text = text//'[mode]'
+            if (KINDS(k)%locus == LOCUS_STATION_MODE) text = text//'@beam:s[mode]'
         end do
     end function kinds_list
 
@@ -402,13 +463,14 @@ contains
 
     !> The table as text, one kind per line:
     !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;about
-    !! (families: static, release joined by '+'; locus: none, station, mode;
+    !! (families: static, release, modal joined by '+'; locus: none, station,
+    !! mode, station+mode;
     !! needs: none, wire, motor; probe_*: the place in that family's probe
     !! list, 0: none; twin: the kind's twin by name, '' for none).
     pure function kind_table_text() result(text)
         character(len=:), allocatable :: text
-        character(len=*), parameter :: LOCI(0:2) = [character(len=7) :: 'none', 'station', &
-                                                     'mode']
+        character(len=*), parameter :: LOCI(0:3) = [character(len=12) :: 'none', 'station', &
+                                                     'mode', 'station+mode']
         character(len=*), parameter :: NEEDS(0:2) = [character(len=5) :: 'none', 'wire', &
                                                      'motor']
         character(len=:), allocatable :: fam, twin
@@ -423,6 +485,10 @@ contains
                 if (iand(r%families, FAM_RELEASE) /= 0) then
                     if (len(fam) > 0) fam = fam//'+'
                     fam = fam//'release'
+                end if
+                if (iand(r%families, FAM_MODAL) /= 0) then
+                    if (len(fam) > 0) fam = fam//'+'
+                    fam = fam//'modal'
                 end if
                 write (buf, '(es24.16)') r%sigma
                 twin = ''

@@ -39,7 +39,7 @@ module beamid_problem
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     use beamid_estimation, only: residual_model_t, prior_t, lsq_problem_t, prior_from_covariance
-    use beamid_observations, only: observation_t, obs_label, same_observation, &
+    use beamid_observations, only: observation_t, obs_label, same_observation, MODE_STRIDE, &
                                    default_observations, K_ACCEL_T, K_ACCEL_N, &
                                    K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
     use beamid_effects, only: effect_bounds, effect_null_values
@@ -671,7 +671,9 @@ contains
         real(dp), intent(in) :: s(:)
         type(observation_t) :: obs(size(kind))
         integer :: i
-        obs = [(observation_t(kind=kind(i), beam=beam(i), s=s(i)), i=1, size(kind))]
+        ! a modal observation's kind carries its mode (MODE_STRIDE)
+        obs = [(observation_t(kind=mod(kind(i), MODE_STRIDE), beam=beam(i), s=s(i), &
+                              mode=kind(i)/MODE_STRIDE), i=1, size(kind))]
     end function observation_list
 
     !> The inverse problem of the marshalled arrays of a front: experiments

@@ -171,8 +171,29 @@ class Env:
         self.logger_csv.write_text("t,y_tip,strain@1:0.05\n0.0,0.1,1e-3\n0.01,0.2,2e-3\n")
         self.deck = beamid.read_deck(self.deck_path)
         self.fe = beamid.fe_static(self.model, self.load, 4)
+        self.pairing = beamid.pair_modes([1.0, 2.0], None, [1.1, 2.1, 3.0], None)
+        self.uff_path = work / "modes.uff"
+        _write_uff(self.uff_path)
         self.effect = beamid.Effect("fuzz_effect", "a registered effect of the fuzz",
                                     lambda m: ("root_flex",))
+
+
+def _write_uff(path: Path) -> None:
+    """A small UFF file of two modes at nodes 1, 2 (pyuff writes it; without
+    pyuff an empty file, and read_uff's calls say pyuff is missing)."""
+    try:
+        import pyuff
+    except ImportError:
+        path.write_text("")
+        return
+    sets = [pyuff.prepare_55(model_type=1, id1="fuzz", id2="NONE", id3="NONE", id4="NONE",
+                             id5="NONE", analysis_type=2, data_ch=2, spec_data_type=8,
+                             data_type=2, n_data_per_node=3, r1=np.zeros(2),
+                             r2=np.array([0.3, 1.0]) * (1 - 2 * k), r3=np.zeros(2),
+                             node_nums=[1, 2], load_case=1, mode_n=k + 1, modal_m=0,
+                             freq=0.4 + k, modal_damp_vis=0.01, modal_damp_his=0.0)
+            for k in range(2)]
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
 
 
 def valid_examples(env: Env) -> tuple[dict, dict]:
@@ -192,6 +213,11 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "key": ("M1", "y_tip"), "shape": env.fe, "target": "EI1",
         "peak": 1.0, "duration": 0.01, "amplitude": 1.0, "f0": 1.0, "f1": 2.0,
         "w_s": 1.0, "T": 1.0,
+        "a": np.eye(3), "b": np.eye(3)[:, :2], "measured_freq": [1.0, 2.0],
+        "measured_shapes": [[1.0, 0.0], [0.0, 1.0], [0.1, 0.1]],
+        "model_freq": [1.1, 2.1, 3.0], "model_shapes": np.eye(3), "measured": 1,
+        "pairing": env.pairing, "nmodes": 2, "stations": ("shape_n@1:0.4", "shape_psi@2:0.3"),
+        "freq": [0.4, 1.7], "shapes": [[1.0, 0.2], [0.5, -1.0]],
     }
     override = {
         "read_measurements.path": env.csv_path,
@@ -239,6 +265,16 @@ def valid_examples(env: Env) -> tuple[dict, dict]:
         "read_channels.source": env.logger_csv,
         "read_channels.experiment": "free",
         "read_channels.sigma": 1e-3,
+        "changes.other": env.pairing,
+        "modal_rows.experiment": "M0",
+        "modal_rows.stations": ("shape_n@1:0.4", "shape_n@2:0.7"),
+        "read_uff.path": env.uff_path,
+        "read_uff.experiment": "M0",
+        "read_uff.stations": {1: "shape_n@1:0.4", 2: "shape_n@2:0.7"},
+        "Modal.load": env.load,
+        "Modal.elements_per_beam": 2,
+        "modal_analysis.elements_per_beam": 2,
+        "modal_analysis.wrt": ("EI1", "rho1"),
         "from_frame.frame": _Frame({"experiment": ["F2"], "t": [0.0], "quantity": ["y_tip"],
                                     "value": [0.1], "sigma": [1e-3]}),
     }

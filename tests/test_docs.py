@@ -135,6 +135,8 @@ PY_PAGES = [p for p in DOCS if any(b.lang in ("python", "pycon") for b in blocks
 #: ``python tests/test_docs.py --write-images`` runs the pages and copies the
 #: files into docs/img, so the images are the examples' own.
 DOC_IMAGES = {
+    "modal_mac.png": ("modal.md", "mac.png", dict(
+        title="MAC, measured vs model modes", xlabel="model mode", ylabel="measured mode")),
     "workflow_compare_start.png": ("workflow.md", "compare_start.png", dict(
         title="start: measured vs model: chi2 = 4.392e+04, dof 13, chi2/dof = 3378",
         xlabel="experiment", ylabel="x_tip (m)")),

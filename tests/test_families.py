@@ -30,9 +30,9 @@ def test_key_table_from_the_core():
     assert [k.row for k in keys.values()] == list(range(len(keys)))
     assert _ce.NEXPVAL == len(keys) == 18
     assert keys["wire_length"].families == ("static",)
-    assert keys["elements_per_beam"].families == ("release",)
+    assert keys["elements_per_beam"].families == ("release", "modal")   # the FE families
     assert keys["elements_per_beam"].default == 4.0
-    assert keys["burn_in"].families == ("static", "release")
+    assert keys["burn_in"].families == ("static", "release", "modal")
     # a Release builds its spec by these names
     kind, spec = beamid.Release(beamid.TipLoad(fy=-1.0), elements_per_beam=3).spec()
     assert kind == 3 and spec["elements_per_beam"] == 3.0 and spec["fy"] == -1.0
@@ -66,7 +66,7 @@ def test_unknown_kind_names_the_registered_kinds():
     prob = _static_problem()
     bad = dataclasses.replace(prob, exp_kind=np.array([1, 9], np.int32))
     with pytest.raises(beamid.InputError, match=r"experiment 2 has kind 9, expected "
-                       r"1 \(tip load\), 2 \(wire\) or 3 \(release\)"):
+                       r"1 \(tip load\), 2 \(wire\), 3 \(release\) or 4 \(modal\)"):
         _ce.problem_predict(bad, BASE.vector(), np.zeros(0, np.int32))
 
 

@@ -18,10 +18,11 @@ INPUTS = Path(__file__).resolve().parents[1] / "inputs"
 
 #: Modules a function may import locally: optional (Dask; tqdm, whose absence
 #: progress.py tolerates; pandas, which only Measurements.to_frame needs and
-#: names when missing) or deliberately deferred (matplotlib: importing
+#: names when missing; pyuff, which only read_uff needs and names when
+#: missing) or deliberately deferred (matplotlib: importing
 #: pyplot picks a backend, which the command line sets to Agg first, and
 #: costs more than the rest of ``import beamid``).
-LOCAL_OK = ("matplotlib", "distributed", "dask", "tqdm", "pandas")
+LOCAL_OK = ("matplotlib", "distributed", "dask", "tqdm", "pandas", "pyuff")
 #: cli.py still imports its subcommands' modules in the handlers (issue 25:
 #: to move to its top with the command-line work on that file).
 LOCAL_EXEMPT = ("cli.py",)

@@ -10,7 +10,7 @@ The numerical work is done in Fortran; this package wraps it.
 """
 from .errors import BeamidError, ConvergenceError, InputError, OutputError
 from .model import Model, cantilever, pace
-from .loads import RadialWire, Release, TipForce, TipLoad, TipMoment
+from .loads import Modal, RadialWire, Release, TipForce, TipLoad, TipMoment
 from .static import Shape, StaticResult, solve_static
 from .fe import axial_modes_linear, buckling_load, fe_path, fe_static, modes
 from .decks import Deck, read_deck, run, write_deck
@@ -32,11 +32,13 @@ from .dyn_diagnosis import DYNAMIC_CANDIDATES, TimeComparison
 from .consistency import Consistency, consistency
 from . import robust as _robust  # fills in fit's checks of its own end (issue 30)
 from .design import Advice, design
+from .modal import ModalResult, ModePairing, mac, modal_analysis, pair_modes, plot_mac
+from .modal_data import UFFModal, modal_rows, read_uff
 
 __all__ = [
     "BeamidError", "ConvergenceError", "InputError", "OutputError",
     "Model", "pace", "cantilever",
-    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release",
+    "TipForce", "TipMoment", "TipLoad", "RadialWire", "Release", "Modal",
     "solve_static", "StaticResult", "Shape",
     "Deck", "read_deck", "write_deck", "run", "reproduce",
     "Measurements", "read_measurements", "fit", "FitResult", "simulate_measurements",
@@ -49,5 +51,7 @@ __all__ = [
     "Comparison", "Diagnosis", "Ladder",
     "consistency", "Consistency", "design", "Advice",
     "DYNAMIC_CANDIDATES", "TimeComparison",
+    "modal_analysis", "ModalResult", "mac", "pair_modes", "ModePairing", "plot_mac",
+    "modal_rows", "read_uff", "UFFModal",
 ]
 __version__ = "0.1.0"

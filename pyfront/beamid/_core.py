@@ -25,6 +25,7 @@ from .errors import raise_for_status
 _static = _ext.beamid_api_static
 _fe = _ext.beamid_api_fe
 _deck_api = _ext.beamid_api_deck
+_modal = _ext.beamid_api_modal
 
 
 def _text(value) -> str:
@@ -116,6 +117,17 @@ def fe_buckling(nbeams: int, params: np.ndarray, nepb: int):
 def fe_modes(nbeams: int, params: np.ndarray, nepb: int, rotary: int, nfree: int):
     """(omega, phi, axial, dofs) of the linear modes."""
     return _call(_fe.api_fe_modes, nbeams, params, nepb, rotary, nfree)
+
+
+def modal(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, nmodes: int,
+          wrt: np.ndarray, kinds: np.ndarray, beams: np.ndarray, s: np.ndarray, nfree: int):
+    """(freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes) of the
+    modes about the static equilibrium (beamid_modal)."""
+    def pad(a: np.ndarray) -> np.ndarray:   # f2py does not pass empty arrays
+        return a if a.size else np.zeros(1, dtype=a.dtype)
+
+    return _call(_modal.api_modal, nbeams, params, nepb, loads, nmodes, wrt.size, pad(wrt),
+                 s.size, pad(kinds), pad(beams), pad(s), nfree)
 
 
 def fe_axial_linear(nbeams: int, params: np.ndarray, nepb: int, point_masses: int) -> np.ndarray:

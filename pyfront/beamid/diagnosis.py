@@ -41,7 +41,7 @@ from .estimation import _check_experiments, _free_indices, _named, _prior_arrays
 from .estimation import with_row_treatment as _with_row_treatment
 from . import chain as _chain, chain_refit as _chain_refit
 from .chain import split_ladder_fit as _split_ladder_fit
-from .loads import RadialWire, TipLoad, Release
+from .loads import Modal, RadialWire, TipLoad, Release
 from .measurements import Measurements
 from .model import Model
 from .progress import progress
@@ -127,7 +127,21 @@ for _name, _text in _chain.CANDIDATE_EFFECTS:
 #: Candidate effects tried for static experiments, in order.
 STATIC_CANDIDATES = _ce.default_effects("static")
 
+#: Candidate effects tried for modal experiments alone (issue 27): what a
+#: modal test sees that the static arm does not (the mesh candidate is not
+#: offered for modal data yet).
+MODAL_CANDIDATES = ("rotary_inertia", "root_flex", "elbow_flex", "drag", "kelvin_voigt")
+
 _STATES = dict(_ce.CANDIDATE_STATES)
+
+
+def _modal_only(experiments: Any) -> bool:
+    """Are all experiments modal tests (beamid.Modal)?"""
+    try:
+        exps = dict(experiments).values()
+        return bool(exps) and all(isinstance(x, Modal) for x in exps)
+    except (TypeError, ValueError):
+        return False
 
 
 def _dynamic(experiments: Any) -> bool:
@@ -233,8 +247,9 @@ class Comparison:
 def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     """A scalar that orders experiments by how hard they load the arm:
     the force magnitude, else the moment magnitude, else for a wire the
-    pull-in (total length - Lw); for a release, its load's (as beamid-batch)."""
-    if isinstance(load, Release):
+    pull-in (total length - Lw); for a release or a modal test, its load's (as
+    beamid-batch)."""
+    if isinstance(load, (Release, Modal)):
         load = load.load
     if isinstance(load, RadialWire):
         return model.total_length - load.Lw
@@ -624,6 +639,8 @@ def _candidate_set(model: Model, experiments, candidates):
     dynamic = _dynamic(experiments)
     if candidates is None and dynamic:
         candidates = _RELEASE_FAMILY["default_candidates"](experiments)
+    if candidates is None and _modal_only(experiments):
+        candidates = MODAL_CANDIDATES
     if isinstance(candidates, (str, Effect)):
         candidates = [candidates]
     elif candidates is not None:

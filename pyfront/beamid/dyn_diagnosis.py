@@ -33,7 +33,7 @@ import numpy as np
 from . import _check, _core_estimation as _ce
 from .errors import _write_all
 from .estimation import FitResult, predict
-from .loads import Release
+from .loads import Modal, Release
 from .measurements import Measurements, quantity_unit
 from .model import Model
 
@@ -83,11 +83,11 @@ def default_candidates(experiments: Any) -> tuple[str, ...]:
 
 def refine_mesh(experiments: Any, elements_per_beam: int | None = None,
                 factor: int = 2) -> dict:
-    """The experiments with every release at ``elements_per_beam`` (default
-    ``factor`` times its own)."""
+    """The experiments with every release and modal test at
+    ``elements_per_beam`` (default ``factor`` times its own)."""
     out = {}
     for name, x in dict(experiments).items():
-        if isinstance(x, Release):
+        if isinstance(x, (Release, Modal)):
             n = int(elements_per_beam) if elements_per_beam else x.elements_per_beam * factor
             x = dataclasses.replace(x, elements_per_beam=n)
         out[name] = x

@@ -26,8 +26,9 @@ from . import _check, _core_estimation as _ce
 from . import observations
 from . import load_histories as _lh
 from .dynamics import _warn_chirp
-from .errors import InputError
-from .loads import LOAD_RELEASE, RadialWire, Release, TipLoad
+from .errors import BeamidError, InputError
+from .loads import LOAD_RELEASE, Modal, RadialWire, Release, TipLoad
+from . import modal as _modal
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .chain import ChainSpec, RowTreatment, check_sigma_given, parse_nuisance, parse_rows
@@ -212,9 +213,9 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
                          "{'F3': beamid.TipForce(fy=3.0)}")
     out = {}
     for name, load in experiments.items():
-        if not isinstance(load, (TipLoad, RadialWire, Release)):
+        if not isinstance(load, (TipLoad, RadialWire, Release, Modal)):
             raise InputError(f"experiment {name!r}: load = {load!r}, expected TipForce, "
-                             "TipMoment, RadialWire or Release")
+                             "TipMoment, RadialWire, Release or Modal")
         out[str(name)] = load
     return out
 
@@ -254,7 +255,7 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
         row_q=np.array([labels[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
         row_t=np.array(data.t, float), tol=float(tol),
-        obs_kind=np.array([o.code for o in obs], np.int32),
+        obs_kind=np.array([observations.binding_code(o) for o in obs], np.int32),
         obs_beam=np.array([o.beam for o in obs], np.int32),
         obs_s=np.array([o.s for o in obs], float), obs_labels=tuple(labels),
         hist_spec=hist_spec, hist_tab=hist_tab)
@@ -667,10 +668,51 @@ def _result(start: Model, experiments: Experiments, data: Measurements,
         iterations=raw["iterations"], converged=raw["converged"], cond=raw["cond"],
         rank=raw["rank"], flags=flags, residuals=residuals, log=log,
         warnings=_warnings(free, raw["flags"], raw["corr"], raw["cond"], raw["rank"],
-                           stop, note if stop != "converged" else ""),
+                           stop, note if stop != "converged" else "")
+        + _mode_crossings(start, fitted, experiments, data),
         stop=stop, note=note, nominal=nominal if nominal is not None else start,
         refit_start=raw.get("start"), nuisance=nuis, nuisance_sigmas=nuis_sig,
         full_cov=full_cov, chain=chain if chain else None)
+
+
+def _mode_crossings(start: Model, fitted: Model, experiments: Experiments,
+                    data: Measurements) -> tuple[str, ...]:
+    """Warnings for the modes of the modal experiments whose order changed
+    between the start and the end of a fit: the rows freq[k] (and the others
+    of mode k) then compare with a model mode that was not mode k at the
+    start (a mode moved across another). Modes are followed by the MAC of
+    their shapes at ten stations a beam (normal and tangential motion)."""
+    out = []
+    for name, x in experiments.items():
+        if not isinstance(x, Modal):
+            continue
+        modes = [observations.parse(q).mode for e, q in zip(data.experiment, data.quantity)
+                 if e == name]
+        if not modes or max(modes) < 1:
+            continue
+        n = max(modes)
+        try:
+            # shapes along the whole arm (not the free unknowns: a compliance
+            # fitted from 0 adds a hinge, and unknowns, during the fit)
+            where = tuple((kind, b, start[f"L{b}"] * (j / 10) * (1 - 1e-12))
+                          for b in range(1, start.nbeams + 1) for j in range(1, 11)
+                          for kind in ("shape_n", "shape_t"))
+            a = _modal.modal_analysis(start, x.load, nmodes=n, stations=where,
+                                      elements_per_beam=x.elements_per_beam)
+            more = min(n + 5, a.nmodes_model)     # a mode may have dropped below mode n
+            b = _modal.modal_analysis(fitted, x.load, nmodes=more, stations=where,
+                                      elements_per_beam=x.elements_per_beam)
+        except (BeamidError, ValueError):
+            continue
+        m = _modal.mac(a.shapes, b.shapes)
+        for k in sorted(set(modes)):
+            j = int(np.argmax(m[k - 1])) + 1
+            if j != k:
+                out.append(f"experiment {name!r}: model mode {k} at the start is mode {j} at the "
+                           f"end of the fit (MAC {m[k - 1, j - 1]:.2f}): a mode moved across "
+                           f"another, so the rows of mode {k} now compare with another mode; "
+                           "check the pairing (beamid.pair_modes)")
+    return tuple(out)
 
 
 def predict(model: Model, experiments: Experiments, data: Measurements,
@@ -730,7 +772,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     noise = _check.flag("noise", noise)
     if isinstance(t, Mapping):
         t = {str(k): v for k, v in t.items()}
-    mixed = any(isinstance(x, Release) for x in exps.values())
+    mixed = any(isinstance(x, (Release, Modal)) for x in exps.values())
     rows = []
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities

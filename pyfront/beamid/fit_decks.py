@@ -32,7 +32,7 @@ from .errors import InputError, _write_text
 from .estimation import (FitResult, _carried_prior, _free_indices, _identify, _prior_arrays,
                          _result as _fit_result, identify, with_row_treatment)
 from . import _core_estimation as _ce
-from .loads import LOAD_RELEASE, LOAD_WIRE, Load, RadialWire, Release, TipLoad
+from .loads import LOAD_MODAL, LOAD_RELEASE, LOAD_WIRE, Load, Modal, RadialWire, Release, TipLoad
 from .channels import Sensor, read_channels
 from .measurements import Measurements, read_measurements
 from .model import Model
@@ -82,13 +82,16 @@ def published(values: dict) -> tuple[Published, ...]:
                  for g in values["published"])
 
 
-def load(kind: int, spec) -> Load | Release:
+def load(kind: int, spec) -> Load | Release | Modal:
     """A load or a release from the reader's (kind, spec by the core's key
     names: fx, fy, moment, wire_length, elements_per_beam, ...; a list is
     taken as a value column of the core's layout)."""
     if not isinstance(spec, dict):
         values = [float(x) for x in spec]
         spec = {k: values[sk.row] for k, sk in _core.spec_keys().items() if sk.row < len(values)}
+    if kind == LOAD_MODAL:
+        return Modal(TipLoad(spec.get("fx", 0.0), spec.get("fy", 0.0), spec.get("moment", 0.0)),
+                     elements_per_beam=int(round(spec.get("elements_per_beam", 4))))
     if kind == LOAD_RELEASE:
         keys = _core.spec_keys()
         return Release.from_spec({k: v for k, v in spec.items() if "release" in keys[k].families})

@@ -242,3 +242,52 @@ class Release:
             text += ", load histories " + ", ".join(
                 f"{t} {type(h).__name__}" for t, h in self.loads)
         return text
+
+
+LOAD_MODAL = 4
+
+
+@dataclass(frozen=True)
+class Modal:
+    """A modal test (issue 27, docs/modal.md): the finite element model held in
+    static equilibrium under the tip ``load`` (None: the straight arm; a
+    TipForce, a TipMoment taken in its exact form, or their sum), its modes
+    about that equilibrium measured. Its data rows have t = 0 and the
+    quantities ``freq[k]`` (Hz), ``damping[k]`` (damped models) and mode shape
+    entries ``shape_n@b:s[k]`` (``shape_t``, ``shape_psi``, ``shape_strain``),
+    k the k-th lowest mode of the model; the shape entries of one mode are
+    unit-normalized together, the model's mode signed so that the mode's first
+    shape row is positive (:func:`beamid.modal_rows` writes the largest
+    measured entry first).
+    """
+
+    load: TipLoad | None = None
+    elements_per_beam: int = 4
+
+    def __post_init__(self) -> None:
+        load = TipLoad() if self.load is None else self.load
+        if not isinstance(load, TipLoad):
+            raise InputError(f"Modal: load = {self.load!r}, expected None, a TipForce or a "
+                             "TipMoment (a radial wire is not in the finite element model)")
+        object.__setattr__(self, "load", load)
+        nepb = _check.count("Modal: elements_per_beam", self.elements_per_beam, min=1)
+        _check.memory(8 * 40 * 4 * (nepb + 1), f"Modal: elements_per_beam = {nepb}: the mesh")
+        object.__setattr__(self, "elements_per_beam", nepb)
+        encoded = np.array([load.fx, load.fy, load.moment, 0.0, float(nepb), 0.0, 0.0, 0.0,
+                            0.0, 0.0, 0.0, 0.0])
+        encoded.setflags(write=False)
+        object.__setattr__(self, "_encoded", encoded)
+
+    def encode(self) -> tuple[int, np.ndarray]:
+        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
+        return LOAD_MODAL, self._encoded
+
+    def spec(self) -> tuple[int, dict[str, float]]:
+        """(kind, the experiment's spec by the core's key names)."""
+        return LOAD_MODAL, {"fx": float(self.load.fx), "fy": float(self.load.fy),
+                            "moment": float(self.load.moment),
+                            "elements_per_beam": float(self.elements_per_beam)}
+
+    def describe(self) -> str:
+        return (f"modal test about {self.load.describe()}, {self.elements_per_beam} elements "
+                "per beam")

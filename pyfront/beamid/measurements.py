@@ -22,7 +22,7 @@ import numpy as np
 
 from . import _check, _core, observations
 from .errors import InputError, _write_text
-from .loads import RadialWire, Release, TipLoad
+from .loads import Modal, RadialWire, Release, TipLoad
 
 #: Observation kinds, in code order (the Fortran table, beamid_observations);
 #: u_tip = x_tip - (L1 + L2), w_tip = y_tip. A station kind is written
@@ -261,10 +261,21 @@ class Measurements:
         for i, (e, q) in enumerate(zip(self.experiment, self.quantity)):
             x = experiments[e]
             but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
+            if isinstance(x, Modal):
+                if observations.can_measure(q, "modal"):
+                    raise InputError(f"{but} is a modal test (it measures freq[k], "
+                                     "damping[k] and shape_*@b:s[k])")
+                if self.t[i] != 0.0:
+                    raise InputError(f"{self._where(i)}: field t = {self.t[i]:g}, expected 0 "
+                                     f"for the modal experiment {e!r}")
+                continue
             if isinstance(x, Release):
                 why = observations.can_measure(q, "release", has_motor=x.has_motor)
                 if why == "family" and q == "wire_force":
                     raise InputError(f"{but} is a release (no wire)")
+                if why == "family" and not observations.can_measure(q, "modal"):
+                    raise InputError(f"{but} is a release (only a modal experiment "
+                                     f"measures {observations.parse(q).kind})")
                 if why == "family":
                     raise InputError(f"{but} is a release (only a static experiment "
                                      f"measures {observations.parse(q).kind})")
@@ -275,6 +286,9 @@ class Measurements:
                                                has_wire=isinstance(x, RadialWire))
                 if why == "family" and q == "motor_torque":
                     raise InputError(f"{but} is static (no motor)")
+                if why == "family" and not observations.can_measure(q, "modal"):
+                    raise InputError(f"{but} is static (only a modal experiment measures "
+                                     f"{observations.parse(q).kind})")
                 if why == "family":
                     raise InputError(f"{but} is static (only a release experiment measures "
                                      f"{observations.parse(q).kind})")

@@ -31,8 +31,8 @@ class Kind:
 
     name: str
     unit: str
-    families: frozenset          #: {"static", "release"}
-    locus: str                   #: "none" (a fixed point), "station" (beam, s) or "mode"
+    families: frozenset          #: {"static", "release", "modal"}
+    locus: str                   #: "none", "station" (beam, s), "mode" or "station+mode"
     needs: str                   #: "none", "wire" or "motor"
     sigma: float                 #: default sigma of a probe row
     probe_static: int            #: place in the static probe list (0: none)
@@ -83,6 +83,17 @@ def _parse(name: str) -> Observation:
     return Observation(k, int(kind), int(beam), float(s), int(mode), _core._text(label))
 
 
+#: A modal observation crosses the binding's kind array as kind + MODE_STRIDE *
+#: mode (beamid_observations MODE_STRIDE)
+MODE_STRIDE = 1000
+
+
+def binding_code(o: Observation) -> int:
+    """The kind code of ``o`` as the binding's observation arrays take it (the
+    mode folded in, beamid_observations MODE_STRIDE)."""
+    return o.code + MODE_STRIDE * o.mode
+
+
 def unit(name: str) -> str:
     """The unit of an observation (``m``, ``rad``, ``N``, ``N m``, ...)."""
     return kinds()[parse(name).kind].unit
@@ -92,7 +103,7 @@ def can_measure(name: str, family: str, *, has_wire: bool = False,
                 has_motor: bool = False) -> str:
     """'' when an experiment of ``family`` ("static" or "release") can make
     observation ``name``, else the reason: "family", "wire" or "motor"."""
-    family = _check.choice("family", family, ("static", "release"))
+    family = _check.choice("family", family, ("static", "release", "modal"))
     k = kinds()[parse(name).kind]
     if family not in k.families:
         return "family"

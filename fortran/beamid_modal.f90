@@ -1,0 +1,588 @@
+!> Modal analysis of the finite element chain about a static equilibrium
+!! (issue 27): the arm held by a tip load (none, a tip force, a tip moment),
+!! linearized about its equilibrium q*(p),
+!!
+!!     M(q*) x'' + C(q*) x' + K_T(q*) x = 0,
+!!
+!! K_T = d(NLT - Q)/dq (the Newton matrix of Eq. 85, with the hinge springs of
+!! the root and joint compliances and the cubic law), M the consistent mass
+!! with the point masses and, for J > 0, their rotary inertia (Eq. 130-132,
+!! evaluated at q*), C = -dF/dv of the dynamics at rest: viscous drag at the
+!! mass points and Kelvin-Voigt damping eta EI dchi/dt (beamid_dynamics). The
+!! velocity terms of rotary inertia are quadratic in v and vanish at rest.
+!! Coulomb friction has no linearization about rest (sign(v) jumps there):
+!! the modal model leaves it out, so mu_* have a zero column. The FE model is
+!! the exact elastica: axial_coupling (the arc-length model's switch) has no
+!! effect either, nor have the motor parameters (no motor in a modal test).
+!! A radial wire is a constraint the FE model does not carry, and the tip
+!! moment of Eq. 78 is not conservative (its tangent is unsymmetric): both
+!! are refused; a tip moment takes the exact form (FE_MOMENT_EXACT).
+!!
+!! Undamped (C = 0): K_T phi = lambda M phi (dsygv), phi^T M phi = 1,
+!! frequencies sqrt(lambda) / (2 pi) in Hz, ascending: mode k is the k-th.
+!! Damped: the state-space eigenproblem of [0 I; -M^-1 K, -M^-1 C] (dgeev);
+!! mode k is the underdamped root s = -zeta w + i w sqrt(1 - zeta^2) whose
+!! displacement part best matches (MAC in M) the undamped mode k; its
+!! frequency is |s| / (2 pi), its damping ratio -Re(s) / |s|. Mode shapes
+!! are the undamped (real) modes in both cases.
+!!
+!! Sensitivities with respect to model parameters (docs/modal.md):
+!! - the equilibrium moves, dq*/dp = -K_T^-1 dR/dp|_q;
+!! - the total matrix derivatives dX/dp = dX/dp|_q + (dX/dq)[dq*/dp], X = K_T,
+!!   M, C. Every term of the three is linear in its parameter group (EI, EA,
+!!   C, rho, m, J, c, eta) or in 1/f (the compliances), so dX/dp|_q is exact
+!!   from one more assembly at the same q with the parameter doubled (set to
+!!   1 from 0); the directional derivative along dq*/dp is a central
+!!   difference of the assembly (step 1e-5 / |dq*/dp|_inf, error ~1e-9
+!!   relative): a semi-analytic derivative, one dense solve per parameter;
+!! - d lambda = phi^T (dK - lambda dM) phi (undamped), and for a damped root
+!!   ds = -psi^T (s^2 dM + s dC + dK) psi / psi^T (2 s M + C) psi (M, C, K
+!!   symmetric, so the left eigenvector is the right one, unconjugated);
+!! - mode shapes by Nelson's method (1976): (K - lambda M) v = -(dK -
+!!   dlambda M - lambda dM) phi with the largest entry of phi held at 0,
+!!   dphi = v + c phi, c = -phi^T M v - phi^T dM phi / 2.
+module beamid_modal
+    use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK, set_status, ERR_INPUT, ERR_NUMERIC, &
+                             fmt_int, fmt_real
+    use beamid_model, only: chain_t, chain_from_vector, param_count, param_name, PER_BEAM, &
+                            PER_MASS, IB_L, IM_MU, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
+                            IG_R_MOTOR, IG_TAU_MOTOR
+    use beamid_fe_element, only: FE_W, FE_U, fe_hermite
+    use beamid_fe_assembly, only: fe_load_t, fe_mesh_t, fe_band_rows, fe_mass, &
+                                  fe_tip_load_jacobian, fe_internal_force, fe_band_to_dense, &
+                                  fe_check_dense, FE_MOMENT_EXACT
+    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN
+    use beamid_lapack, only: sym_gen_eig, gen_eig, solve_dense
+    use beamid_observations, only: STRIP_THICKNESS
+    implicit none
+    private
+
+    public :: modal_spec_t, modal_out_t, modal_solve, modal_station, modal_station_sens
+    public :: modal_param_effect, modal_check_stations, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN, SHAPE_X, SHAPE_Y
+    public :: MP_NONE, MP_LINEAR, MP_INVERSE
+
+    real(dp), parameter :: TWO_PI = 6.283185307179586476925286766559_dp
+    !> Relative size of the central-difference step along dq*/dp.
+    real(dp), parameter :: DIR_STEP = 1.0e-5_dp
+
+    !> Quantities of a mode shape sampled at a station (modal_station):
+    !! the displacement along the local normal and tangent of the deformed
+    !! arm at q*, the change of the tangent angle psi, the change of the gauge
+    !! strain e + kappa t/2 (as the observation `strain`), and the
+    !! displacement along x and y.
+    integer, parameter :: SHAPE_N = 1, SHAPE_T = 2, SHAPE_PSI = 3, SHAPE_STRAIN = 4, &
+                          SHAPE_X = 5, SHAPE_Y = 6
+    !> How a parameter enters the modal model: not at all, linearly, as 1/p.
+    integer, parameter :: MP_NONE = 0, MP_LINEAR = 1, MP_INVERSE = 2
+
+    !> A modal experiment: mesh and the static load held during the test.
+    type :: modal_spec_t
+        integer :: elements_per_beam = 4
+        type(fe_load_t) :: load
+    end type modal_spec_t
+
+    !> What modal_solve returns; mode arrays hold the first nmodes modes.
+    type :: modal_out_t
+        integer :: n = 0                      !< free unknowns (the model's mode count)
+        integer :: nmodes = 0
+        logical :: damped = .false.
+        real(dp), allocatable :: q(:)         !< static equilibrium q*
+        real(dp), allocatable :: lambda(:)    !< undamped eigenvalues omega^2 (all n)
+        real(dp), allocatable :: phi(:, :)    !< (n, nmodes) mass-normalized modes
+        real(dp), allocatable :: freq(:)      !< (nmodes) natural frequencies, Hz
+        real(dp), allocatable :: zeta(:)      !< (nmodes) damping ratios (0 undamped)
+        real(dp), allocatable :: dq(:, :)     !< (n, nwrt) dq*/dp
+        real(dp), allocatable :: dfreq(:, :)  !< (nmodes, nwrt)
+        real(dp), allocatable :: dzeta(:, :)  !< (nmodes, nwrt)
+        real(dp), allocatable :: dphi(:, :, :)  !< (n, nmodes, nwrt)
+        !> the step of the directional differences per parameter (modal_station_sens)
+        real(dp), allocatable :: hdir(:)
+    end type modal_out_t
+
+contains
+
+    !> How parameter `index` of a chain of nbeams beams enters the modal
+    !! model (MP_*); `why` is set (non-empty) when it cannot be differentiated
+    !! here: a length (the mesh depends on it) or a compliance at 0 (a hinge
+    !! appears).
+    pure subroutine modal_param_effect(chain, index, effect, why)
+        type(chain_t), intent(in) :: chain
+        integer, intent(in) :: index
+        integer, intent(out) :: effect
+        character(len=:), allocatable, intent(out) :: why
+        integer :: nb, i, which
+        nb = chain%nbeams
+        why = ''
+        effect = MP_LINEAR
+        i = index
+        if (i <= PER_BEAM*nb) then
+            which = mod(i - 1, PER_BEAM) + 1
+            if (which == IB_L) then
+                effect = MP_NONE
+                why = 'sensitivity with respect to '//param_name(nb, index)// &
+                      ' (the mesh depends on it) is not available'
+            end if
+        else if (i <= (PER_BEAM + PER_MASS)*nb) then
+            which = mod(i - PER_BEAM*nb - 1, PER_MASS) + 1
+            if (which == IM_MU) effect = MP_NONE
+        else if (i <= (PER_BEAM + PER_MASS)*nb + nb - 1) then
+            effect = MP_INVERSE
+            if (.not. (chain%joint_flex(i - (PER_BEAM + PER_MASS)*nb) > 0.0_dp)) then
+                why = 'sensitivity with respect to '//param_name(nb, index)// &
+                      ' at 0 (a locked joint) is not available: give it a positive compliance'
+            end if
+        else
+            which = i - (PER_BEAM + PER_MASS)*nb - (nb - 1)
+            select case (which)
+            case (IG_AXIAL_COUPLING, IG_R_MOTOR, IG_TAU_MOTOR)
+                effect = MP_NONE
+            case (IG_ROOT_FLEX)
+                effect = MP_INVERSE
+                if (.not. (chain%root_flex > 0.0_dp)) why = 'sensitivity with respect to '// &
+                    'root_flex at 0 (a clamped root) is not available: give it a positive '// &
+                    'compliance'
+            end select
+        end if
+    end subroutine modal_param_effect
+
+    !> The dynamic system of the modal model: the chain without friction and
+    !! without motor.
+    subroutine modal_system(nbeams, params, nepb, sys, stat)
+        integer, intent(in) :: nbeams, nepb
+        real(dp), intent(in) :: params(:)
+        type(dyn_system_t), intent(out) :: sys
+        type(status_t), intent(inout) :: stat
+        type(chain_t) :: chain
+        call chain_from_vector(nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        chain%friction = 0.0_dp
+        call dyn_setup(chain, nepb, 0.0_dp, FRICTION_SIGN, 1.0e-4_dp, sys, stat)
+    end subroutine modal_system
+
+    !> Dense K_T (with the tip moment's load stiffness), M(q) and C at rest,
+    !! and the internal force NLT(q), at q.
+    subroutine modal_matrices(sys, load, q, k, m, c, nlt)
+        type(dyn_system_t), intent(in) :: sys
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(out) :: k(:, :), m(:, :), c(:, :), nlt(:)
+        real(dp), allocatable :: kb(:, :), cb(:, :), v(:), b(:), p(:), d(:)
+        real(dp) :: x(0), e
+        integer :: n
+        n = sys%n
+        allocate (kb(fe_band_rows(sys%mesh), n), cb(fe_band_rows(sys%mesh), n), v(n), b(n), &
+                  p(n), d(n), source=0.0_dp)
+        call dyn_jacobian(sys, 0.0_dp, q, v, x, kb, cb, b, p, d, e)
+        call fe_tip_load_jacobian(sys%mesh, q, load, -1.0_dp, kb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, k)
+        call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, c)
+        call fe_mass(sys%mesh, q, .true., kb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, m)
+        call fe_internal_force(sys%mesh, q, nlt)
+    end subroutine modal_matrices
+
+    !> Check the experiment and the request before anything is solved.
+    subroutine modal_check(nbeams, params, spec, nmodes, wrt, stat)
+        integer, intent(in) :: nbeams, nmodes, wrt(:)
+        real(dp), intent(in) :: params(:)
+        type(modal_spec_t), intent(in) :: spec
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'modal_solve'
+        integer :: j
+        if (spec%elements_per_beam < 1) then
+            call set_status(stat, ERR_INPUT, where, 'elements_per_beam = '// &
+                            fmt_int(spec%elements_per_beam)//', expected at least 1')
+            return
+        end if
+        if (.not. (ieee_is_finite(spec%load%fx) .and. ieee_is_finite(spec%load%fy) .and. &
+                   ieee_is_finite(spec%load%moment))) then
+            call set_status(stat, ERR_INPUT, where, 'the tip load is not finite')
+            return
+        end if
+        if (spec%load%moment /= 0.0_dp .and. spec%load%moment_form /= FE_MOMENT_EXACT) then
+            call set_status(stat, ERR_INPUT, where, 'moment_form = '// &
+                            fmt_int(spec%load%moment_form)//' (Eq. 78) with a tip moment of '// &
+                            fmt_real(spec%load%moment)//' N m: its load stiffness is not '// &
+                            'symmetric, so the modes about it are not those of a '// &
+                            'conservative system; expected moment_form = 1 (exact)')
+            return
+        end if
+        if (nmodes < 1) then
+            call set_status(stat, ERR_INPUT, where, 'nmodes = '//fmt_int(nmodes)// &
+                            ', expected at least 1')
+            return
+        end if
+        do j = 1, size(wrt)
+            if (wrt(j) < 1 .or. wrt(j) > param_count(nbeams)) then
+                call set_status(stat, ERR_INPUT, where, 'wrt('//fmt_int(j)//') = '// &
+                                fmt_int(wrt(j))//', expected a parameter index in 1..'// &
+                                fmt_int(param_count(nbeams)))
+                return
+            end if
+        end do
+        if (size(params) /= param_count(nbeams)) then
+            call set_status(stat, ERR_INPUT, where, 'params has '//fmt_int(size(params))// &
+                            ' values, expected '//fmt_int(param_count(nbeams)))
+        end if
+    end subroutine modal_check
+
+    !> Modes of the experiment `spec` for the parameter vector `params` of a
+    !! chain of nbeams beams: the first nmodes frequencies (Hz), damping ratios
+    !! and mass-normalized shapes, and their derivatives with respect to the
+    !! parameters `wrt` (indices into params).
+    subroutine modal_solve(nbeams, params, spec, nmodes, wrt, out, stat)
+        integer, intent(in) :: nbeams, nmodes, wrt(:)
+        real(dp), intent(in) :: params(:)
+        type(modal_spec_t), intent(in) :: spec
+        type(modal_out_t), intent(out) :: out
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'modal_solve'
+        type(dyn_system_t) :: sys
+        type(chain_t) :: chain
+        type(fe_newton_opts_t) :: opts
+        type(fe_solve_info_t) :: info
+        real(dp), allocatable :: k(:, :), m(:, :), c(:, :), nlt(:), vec(:, :)
+        complex(dp), allocatable :: psi(:, :), s(:)
+        integer :: n, nw, i
+        call modal_check(nbeams, params, spec, nmodes, wrt, stat)
+        if (stat%code /= STATUS_OK) return
+        call chain_from_vector(nbeams, params, chain, stat)
+        if (stat%code /= STATUS_OK) return
+        call modal_system(nbeams, params, spec%elements_per_beam, sys, stat)
+        if (stat%code /= STATUS_OK) return
+        n = sys%n
+        if (nmodes > n) then
+            call set_status(stat, ERR_INPUT, where, 'mode '//fmt_int(nmodes)//' asked, but '// &
+                            'the model of '//fmt_int(spec%elements_per_beam)// &
+                            ' elements per beam has '//fmt_int(n)//' modes')
+            return
+        end if
+        call fe_check_dense(2*n, where, stat)
+        if (stat%code /= STATUS_OK) return
+        nw = size(wrt)
+        out%n = n
+        out%nmodes = nmodes
+        allocate (out%q(n), out%lambda(n), out%phi(n, nmodes), out%freq(nmodes), &
+                  out%zeta(nmodes), out%dq(n, nw), out%dfreq(nmodes, nw), &
+                  out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), out%hdir(nw), source=0.0_dp)
+        allocate (k(n, n), m(n, n), c(n, n), nlt(n), vec(n, n))
+        out%q = 0.0_dp
+        call fe_solve_static(sys%mesh, spec%load, out%q, .false., opts, info, stat)
+        if (stat%code /= STATUS_OK) return
+        call modal_matrices(sys, spec%load, out%q, k, m, c, nlt)
+        out%damped = any(c /= 0.0_dp)
+        call undamped_modes(k, m, out%lambda, vec, stat)
+        if (stat%code /= STATUS_OK) return
+        out%phi = vec(:, 1:nmodes)
+        out%freq = sqrt(out%lambda(1:nmodes))/TWO_PI
+        allocate (s(nmodes), psi(n, nmodes))
+        if (out%damped) then
+            call damped_modes(k, m, c, out%phi, s, psi, stat)
+            if (stat%code /= STATUS_OK) return
+            out%freq = abs(s)/TWO_PI
+            out%zeta = -real(s, dp)/abs(s)
+        end if
+        do i = 1, nw
+            call modal_sensitivity(chain, sys, spec%load, params, wrt(i), k, m, c, out, s, &
+                                   psi, i, stat)
+            if (stat%code /= STATUS_OK) return
+        end do
+    end subroutine modal_solve
+
+    !> K phi = lambda M phi; every lambda must be positive (a stable
+    !! equilibrium).
+    subroutine undamped_modes(k, m, lambda, vec, stat)
+        real(dp), intent(in) :: k(:, :), m(:, :)
+        real(dp), intent(out) :: lambda(:), vec(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: mm(:, :)
+        vec = k
+        mm = m
+        call sym_gen_eig(vec, mm, lambda, stat)
+        if (stat%code /= STATUS_OK) return
+        if (lambda(1) <= 0.0_dp) then
+            call set_status(stat, ERR_NUMERIC, 'modal_solve', 'the tangent stiffness at '// &
+                            'the equilibrium has the eigenvalue '//fmt_real(lambda(1))// &
+                            ': the equilibrium is not stable, it has no vibration modes')
+        end if
+    end subroutine undamped_modes
+
+    !> The damped roots s (Im s > 0) and their displacement eigenvectors psi
+    !! paired with the undamped modes phi (MAC in M).
+    subroutine damped_modes(k, m, c, phi, s, psi, stat)
+        real(dp), intent(in) :: k(:, :), m(:, :), c(:, :), phi(:, :)
+        complex(dp), intent(out) :: s(:), psi(:, :)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: a(:, :), mk(:, :), mm(:, :), wr(:), wi(:), vr(:, :)
+        complex(dp), allocatable :: z(:), mz(:)
+        real(dp) :: best, mac, den
+        integer :: n, i, j, jbest
+        n = size(k, 1)
+        allocate (a(2*n, 2*n), mk(n, 2*n), wr(2*n), wi(2*n), vr(2*n, 2*n), z(n), mz(n))
+        mk(:, 1:n) = k
+        mk(:, n + 1:) = c
+        mm = m
+        call solve_dense(mm, mk, stat)
+        if (stat%code /= STATUS_OK) return
+        a = 0.0_dp
+        do i = 1, n
+            a(i, n + i) = 1.0_dp
+        end do
+        a(n + 1:, :) = -mk
+        call gen_eig(a, wr, wi, vr, stat)
+        if (stat%code /= STATUS_OK) return
+        do i = 1, size(s)
+            best = 0.0_dp
+            jbest = 0
+            do j = 1, 2*n - 1
+                if (.not. (wi(j) > 0.0_dp)) cycle
+                z = cmplx(vr(1:n, j), vr(1:n, j + 1), dp)
+                mz = matmul(m, z)
+                den = real(dot_product(z, mz), dp)
+                if (.not. (den > 0.0_dp)) cycle
+                mac = abs(dot_product(phi(:, i), mz))**2/den
+                if (mac > best) then
+                    best = mac
+                    jbest = j
+                end if
+            end do
+            if (jbest == 0 .or. best < 0.5_dp) then
+                call set_status(stat, ERR_NUMERIC, 'modal_solve', 'mode '//fmt_int(i)// &
+                                ' has no underdamped root of the damped model (best MAC '// &
+                                fmt_real(best)//'): it is overdamped')
+                return
+            end if
+            s(i) = cmplx(wr(jbest), wi(jbest), dp)
+            psi(:, i) = cmplx(vr(1:n, jbest), vr(1:n, jbest + 1), dp)
+        end do
+    end subroutine damped_modes
+
+    !> Derivatives with respect to parameter `index` (column j of out).
+    subroutine modal_sensitivity(chain, sys, load, params, index, k, m, c, out, s, psi, j, &
+                                 stat)
+        type(chain_t), intent(in) :: chain
+        type(dyn_system_t), intent(in) :: sys
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: params(:), k(:, :), m(:, :), c(:, :)
+        integer, intent(in) :: index, j
+        type(modal_out_t), intent(inout) :: out
+        complex(dp), intent(in) :: s(:), psi(:, :)
+        type(status_t), intent(inout) :: stat
+        type(dyn_system_t) :: sys2
+        real(dp), allocatable :: p2(:), k2(:, :), m2(:, :), c2(:, :), f1(:), f2(:), dk(:, :), &
+                                 dm(:, :), dc(:, :), kk(:, :), rhs(:, :), kp(:, :), mp(:, :), &
+                                 cp(:, :), km(:, :), mmn(:, :), cm(:, :), fx(:)
+        character(len=:), allocatable :: why
+        real(dp) :: p, scale, h, dlam, lam
+        complex(dp) :: ds, num, den
+        integer :: effect, n, i
+        n = sys%n
+        call modal_param_effect(chain, index, effect, why)
+        if (len(why) > 0) then
+            call set_status(stat, ERR_INPUT, 'modal_solve', why)
+            return
+        end if
+        if (effect == MP_NONE) return
+        allocate (k2(n, n), m2(n, n), c2(n, n), f1(n), f2(n), fx(n), kp(n, n), mp(n, n), &
+                  cp(n, n), km(n, n), mmn(n, n), cm(n, n))
+        ! dX/dp at the fixed q from X(p) and X(p2)
+        p = params(index)
+        p2 = params
+        if (p == 0.0_dp) then
+            p2(index) = 1.0_dp
+            scale = 1.0_dp
+        else
+            p2(index) = 2.0_dp*p
+            scale = 1.0_dp/p
+            if (effect == MP_INVERSE) scale = -2.0_dp/p
+        end if
+        call modal_system(chain%nbeams, p2, sys%mesh%nel/chain%nbeams, sys2, stat)
+        if (stat%code /= STATUS_OK) return
+        call modal_matrices(sys2, load, out%q, k2, m2, c2, f2)
+        call fe_internal_force(sys%mesh, out%q, f1)
+        if (effect == MP_INVERSE) then
+            ! X = A/p + B: X(p) - X(2p) = A/(2p), dX/dp = -A/p^2 = -(2/p)(X(p) - X(2p))
+            dk = scale*(k - k2)
+            dm = scale*(m - m2)
+            dc = scale*(c - c2)
+            f2 = scale*(f1 - f2)
+        else
+            dk = scale*(k2 - k)
+            dm = scale*(m2 - m)
+            dc = scale*(c2 - c)
+            f2 = scale*(f2 - f1)
+        end if
+        ! the equilibrium moves: K_T dq = -dR/dp (the load does not depend on p)
+        kk = k
+        allocate (rhs(n, 1))
+        rhs(:, 1) = -f2
+        call solve_dense(kk, rhs, stat)
+        if (stat%code /= STATUS_OK) return
+        out%dq(:, j) = rhs(:, 1)
+        h = 0.0_dp
+        if (maxval(abs(rhs(:, 1))) > 0.0_dp) then
+            h = DIR_STEP*max(1.0_dp, maxval(abs(out%q)))/maxval(abs(rhs(:, 1)))
+            call modal_matrices(sys, load, out%q + h*rhs(:, 1), kp, mp, cp, fx)
+            call modal_matrices(sys, load, out%q - h*rhs(:, 1), km, mmn, cm, fx)
+            dk = dk + (kp - km)/(2.0_dp*h)
+            dm = dm + (mp - mmn)/(2.0_dp*h)
+            dc = dc + (cp - cm)/(2.0_dp*h)
+        end if
+        out%hdir(j) = h
+        do i = 1, out%nmodes
+            lam = out%lambda(i)
+            associate (ph => out%phi(:, i))
+                dlam = dot_product(ph, matmul(dk, ph) - lam*matmul(dm, ph))
+                out%dfreq(i, j) = dlam/(2.0_dp*sqrt(lam))/TWO_PI
+                call nelson(k, m, dk, dm, lam, dlam, ph, out%dphi(:, i, j), stat)
+                if (stat%code /= STATUS_OK) return
+            end associate
+            if (out%damped) then
+                associate (z => psi(:, i), si => s(i))
+                    num = sum(z*matmul(si*si*dm + si*dc + dk, z))
+                    den = sum(z*matmul(2.0_dp*si*m + c, z))
+                    ds = -num/den
+                    out%dfreq(i, j) = real(conjg(si)*ds, dp)/abs(si)/TWO_PI
+                    out%dzeta(i, j) = -(real(ds, dp)*abs(si) - real(si, dp)* &
+                                        (real(conjg(si)*ds, dp)/abs(si)))/abs(si)**2
+                end associate
+            end if
+        end do
+    end subroutine modal_sensitivity
+
+    !> Nelson's method for the derivative of the mass-normalized mode phi of
+    !! the distinct eigenvalue lam.
+    subroutine nelson(k, m, dk, dm, lam, dlam, phi, dphi, stat)
+        real(dp), intent(in) :: k(:, :), m(:, :), dk(:, :), dm(:, :), lam, dlam, phi(:)
+        real(dp), intent(out) :: dphi(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: a(:, :), rhs(:, :)
+        integer :: n, im
+        real(dp) :: cc
+        n = size(phi)
+        a = k - lam*m
+        allocate (rhs(n, 1))
+        rhs(:, 1) = -(matmul(dk, phi) - dlam*matmul(m, phi) - lam*matmul(dm, phi))
+        im = maxloc(abs(phi), 1)
+        a(im, :) = 0.0_dp
+        a(:, im) = 0.0_dp
+        a(im, im) = 1.0_dp
+        rhs(im, 1) = 0.0_dp
+        call solve_dense(a, rhs, stat)
+        if (stat%code /= STATUS_OK) return
+        cc = -dot_product(phi, matmul(m, rhs(:, 1))) - 0.5_dp*dot_product(phi, matmul(dm, phi))
+        dphi = rhs(:, 1) + cc*phi
+    end subroutine nelson
+
+    !> A mode shape `vec` (free unknowns) sampled at a station (beam b, arc
+    !! length s from its root) of the arm deformed to q: SHAPE_* (linear in
+    !! vec: the change of the quantity along vec).
+    pure real(dp) function modal_station(mesh, q, vec, kind, beam, s) result(value)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), vec(:), s
+        integer, intent(in) :: kind, beam
+        real(dp) :: f(4), f1(4), f2(4), h, zeta, qe(8), ve(8), u1, w1, u2, w2, du, dw, du1, &
+                    dw1, du2, dw2, p1, r2, chi, dchi, dr2, dkap
+        integer :: el, first, nel_b, idx, a, j
+        value = 0.0_dp
+        first = findloc(mesh%beam, beam, 1)
+        if (first == 0) return
+        nel_b = count(mesh%beam == beam)
+        h = mesh%h(first)
+        idx = min(max(int(s/h), 0), nel_b - 1)
+        el = first + idx
+        zeta = min(max(s/h - real(idx, dp), 0.0_dp), 1.0_dp)
+        call fe_hermite(zeta, h, f, f1, f2)
+        qe = 0.0_dp
+        ve = 0.0_dp
+        do a = 1, 8
+            j = mesh%el_free(a, el)
+            if (j == 0) cycle
+            qe(a) = q(j)
+            ve(a) = vec(j)
+        end do
+        u1 = dot_product(f1, qe(FE_U))
+        w1 = dot_product(f1, qe(FE_W))
+        u2 = dot_product(f2, qe(FE_U))
+        w2 = dot_product(f2, qe(FE_W))
+        du = dot_product(f, ve(FE_U))
+        dw = dot_product(f, ve(FE_W))
+        du1 = dot_product(f1, ve(FE_U))
+        dw1 = dot_product(f1, ve(FE_W))
+        du2 = dot_product(f2, ve(FE_U))
+        dw2 = dot_product(f2, ve(FE_W))
+        p1 = 1.0_dp + u1
+        r2 = p1*p1 + w1*w1
+        select case (kind)
+        case (SHAPE_N)
+            value = (-w1*du + p1*dw)/sqrt(r2)
+        case (SHAPE_T)
+            value = (p1*du + w1*dw)/sqrt(r2)
+        case (SHAPE_PSI)
+            value = (p1*dw1 - w1*du1)/r2
+        case (SHAPE_STRAIN)
+            chi = w2*p1 - w1*u2
+            dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
+            dr2 = 2.0_dp*(p1*du1 + w1*dw1)
+            dkap = dchi/r2**1.5_dp - 1.5_dp*chi/r2**2.5_dp*dr2
+            value = p1*du1 + w1*dw1 + 0.5_dp*STRIP_THICKNESS*dkap
+        case (SHAPE_X)
+            value = du
+        case (SHAPE_Y)
+            value = dw
+        end select
+    end function modal_station
+
+    !> Derivative of modal_station of mode i with respect to parameter j of
+    !! `out`: the shape's derivative sampled at q*, plus the change of the
+    !! sampling (the local frame) as q* moves (central difference along
+    !! dq*/dp with the step modal_solve used).
+    pure real(dp) function modal_station_sens(mesh, out, i, j, kind, beam, s) result(d)
+        type(fe_mesh_t), intent(in) :: mesh
+        type(modal_out_t), intent(in) :: out
+        integer, intent(in) :: i, j, kind, beam
+        real(dp), intent(in) :: s
+        real(dp) :: h
+        d = modal_station(mesh, out%q, out%dphi(:, i, j), kind, beam, s)
+        h = out%hdir(j)
+        if (h > 0.0_dp) d = d + (modal_station(mesh, out%q + h*out%dq(:, j), out%phi(:, i), &
+                                              kind, beam, s) &
+                                 - modal_station(mesh, out%q - h*out%dq(:, j), out%phi(:, i), &
+                                                 kind, beam, s))/(2.0_dp*h)
+    end function modal_station_sens
+
+    !> Each station (kind SHAPE_*, beam, s) must name a known kind, a beam of
+    !! the mesh and an arc length within that beam.
+    pure subroutine modal_check_stations(mesh, kinds, beams, s, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(in) :: kinds(:), beams(:)
+        real(dp), intent(in) :: s(:)
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'modal_station'
+        integer :: k
+        real(dp) :: length
+        do k = 1, size(kinds)
+            if (kinds(k) < SHAPE_N .or. kinds(k) > SHAPE_Y) then
+                call set_status(stat, ERR_INPUT, where, 'station '//fmt_int(k)//' kind = '// &
+                                fmt_int(kinds(k))//', expected 1..6 (n, t, psi, strain, x, y)')
+                return
+            end if
+            if (beams(k) < 1 .or. beams(k) > mesh%nbeams) then
+                call set_status(stat, ERR_INPUT, where, 'station '//fmt_int(k)//' beam = '// &
+                                fmt_int(beams(k))//', expected 1..'//fmt_int(mesh%nbeams))
+                return
+            end if
+            length = sum(mesh%h, mask=mesh%beam == beams(k))
+            if (.not. (s(k) >= 0.0_dp .and. s(k) <= length*(1.0_dp + 1.0e-12_dp))) then
+                call set_status(stat, ERR_INPUT, where, 'station '//fmt_int(k)//' s = '// &
+                                fmt_real(s(k))//' on beam '//fmt_int(beams(k))// &
+                                ', expected an arc length in [0, '//fmt_real(length)//']')
+                return
+            end if
+        end do
+    end subroutine modal_check_stations
+
+end module beamid_modal

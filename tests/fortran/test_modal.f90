@@ -1,0 +1,161 @@
+!> The modal analysis about a static equilibrium (beamid_modal, issue 27):
+!! frequency, damping-ratio, mode-shape (Nelson) and station-shape
+!! derivatives against (five-point) central differences of the whole analysis (static
+!! solve and eigenproblem redone at p +- h), with every effect that changes
+!! stiffness, mass or damping switched on: the cubic law, elbow and root
+!! hinges, rotary inertia, a tip force and an exact tip moment, and, in the
+!! damped case, drag and Kelvin-Voigt damping.
+program test_modal
+    use beamid_kinds, only: dp
+    use beamid_status, only: status_t, STATUS_OK
+    use beamid_model, only: param_count, param_name
+    use beamid_presets, only: preset_params
+    use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, FE_MOMENT_EXACT
+    use beamid_model, only: chain_t, chain_from_vector
+    use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
+                            modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
+    use beamid_testing, only: checks_t, check_true, check_finish
+    implicit none
+
+    character(len=*), parameter :: wrt_names(10) = [character(len=12) :: 'EI1', 'EA2', &
+        'rho1', 'C2', 'm_tip', 'J_elbow', 'elbow_flex', 'root_flex', 'c_tip', 'eta']
+    integer, parameter :: NMODES = 5
+    type(checks_t) :: t
+    real(dp), allocatable :: base(:)
+    type(modal_spec_t) :: spec
+    integer :: nb
+
+    call base_model(nb, base)
+    spec%elements_per_beam = 3
+    spec%load%fx = -2.0_dp
+    spec%load%fy = 5.0_dp
+    spec%load%moment = 1.0_dp
+    spec%load%moment_form = FE_MOMENT_EXACT
+    call derivatives_match(nb, base, spec, 'undamped', .false.)
+    base(index_of(nb, 'c_tip')) = 0.5_dp
+    base(index_of(nb, 'eta')) = 2.0e-3_dp
+    call derivatives_match(nb, base, spec, 'damped', .true.)
+    call check_finish(t, 'test_modal')
+
+contains
+
+    subroutine base_model(nb, params)
+        integer, intent(out) :: nb
+        real(dp), allocatable, intent(out) :: params(:)
+        type(status_t) :: stat
+        call preset_params('pace', nb, params, stat)
+        call check_true(t, 'pace preset', stat%code == STATUS_OK)
+        params(index_of(nb, 'C1')) = 3.0_dp
+        params(index_of(nb, 'C2')) = 7.0_dp
+        params(index_of(nb, 'elbow_flex')) = 0.01_dp
+        params(index_of(nb, 'root_flex')) = 0.02_dp
+        params(index_of(nb, 'J_elbow')) = 0.0123_dp
+        params(index_of(nb, 'J_tip')) = 0.0015_dp
+    end subroutine base_model
+
+    integer function index_of(nb, name)
+        integer, intent(in) :: nb
+        character(len=*), intent(in) :: name
+        integer :: i
+        index_of = 0
+        do i = 1, param_count(nb)
+            if (param_name(nb, i) == name) index_of = i
+        end do
+        call check_true(t, 'parameter '//name//' exists', index_of > 0)
+    end function index_of
+
+    subroutine solve(nb, params, spec, wrt, out)
+        integer, intent(in) :: nb, wrt(:)
+        real(dp), intent(in) :: params(:)
+        type(modal_spec_t), intent(in) :: spec
+        type(modal_out_t), intent(out) :: out
+        type(status_t) :: stat
+        call modal_solve(nb, params, spec, NMODES, wrt, out, stat)
+        call check_true(t, 'modal solve: '//trim(stat%message), stat%code == STATUS_OK)
+    end subroutine solve
+
+    subroutine derivatives_match(nb, base, spec, label, damped)
+        integer, intent(in) :: nb
+        real(dp), intent(in) :: base(:)
+        type(modal_spec_t), intent(in) :: spec
+        character(len=*), intent(in) :: label
+        logical, intent(in) :: damped
+        type(modal_out_t) :: out, runs(4)
+        type(fe_mesh_t) :: mesh
+        type(chain_t) :: chain
+        type(status_t) :: stat
+        real(dp) :: p(size(base)), h, fd, scale, got, sgn(4), vals(4)
+        real(dp), allocatable :: dphi_fd(:)
+        integer :: wrt(size(wrt_names)), j, k, i, st, m, kinds(4)
+        integer, parameter :: offsets(4) = [-2, -1, 1, 2]
+        character(len=200) :: what
+        kinds = [SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN]
+        do j = 1, size(wrt_names)
+            wrt(j) = index_of(nb, trim(wrt_names(j)))
+        end do
+        call solve(nb, base, spec, wrt, out)
+        call check_true(t, label//': damped flag', out%damped .eqv. damped)
+        call chain_from_vector(nb, base, chain, stat)
+        call fe_mesh_build(chain, spec%elements_per_beam, mesh, stat)
+        do j = 1, size(wrt)
+            i = wrt(j)
+            if (base(i) == 0.0_dp) cycle
+            ! the five-point stencil at h = 1e-2 of the parameter: the lowest
+            ! eigenvalues carry a round-off of about eps lambda_max (the axial
+            ! modes), 1e-7 relative, too much for a step of 1e-4
+            h = 1.0e-2_dp*abs(base(i))
+            do st = 1, 4
+                p = base
+                p(i) = base(i) + real(offsets(st), dp)*h
+                call solve(nb, p, spec, [integer ::], runs(st))
+            end do
+            do k = 1, NMODES
+                fd = stencil([(runs(st)%freq(k), st=1, 4)], h)
+                scale = out%freq(k)/abs(base(i))
+                write (what, '(a, i0, a, 2es14.6)') label//': d freq ', k, ' / d '// &
+                    trim(wrt_names(j))//' vs differences', out%dfreq(k, j), fd
+                call check_true(t, trim(what), abs(out%dfreq(k, j) - fd) <= 1.0e-4_dp*scale)
+                if (damped) then
+                    fd = stencil([(runs(st)%zeta(k), st=1, 4)], h)
+                    scale = max(out%zeta(k), 1.0e-6_dp)/abs(base(i))
+                    write (what, '(a, i0, a, 2es14.6)') label//': d zeta ', k, ' / d '// &
+                        trim(wrt_names(j))//' vs differences', out%dzeta(k, j), fd
+                    call check_true(t, trim(what), abs(out%dzeta(k, j) - fd) <= 1.0e-4_dp*scale)
+                end if
+                ! Nelson: the mass-normalized shape, signs aligned with the base
+                do st = 1, 4
+                    sgn(st) = sign(1.0_dp, dot_product(runs(st)%phi(:, k), out%phi(:, k)))
+                end do
+                dphi_fd = (sgn(1)*runs(1)%phi(:, k) - 8.0_dp*sgn(2)*runs(2)%phi(:, k) &
+                           + 8.0_dp*sgn(3)*runs(3)%phi(:, k) - sgn(4)*runs(4)%phi(:, k)) &
+                          /(12.0_dp*h)
+                scale = maxval(abs(out%phi(:, k)))/abs(base(i))
+                write (what, '(a, i0, a, es12.4)') label//': d phi ', k, ' / d '// &
+                    trim(wrt_names(j))//' (Nelson), worst error ', &
+                    maxval(abs(out%dphi(:, k, j) - dphi_fd))/scale
+                call check_true(t, trim(what), &
+                                maxval(abs(out%dphi(:, k, j) - dphi_fd)) <= 1.0e-4_dp*scale)
+                do m = 1, 4
+                    do st = 1, 4
+                        vals(st) = sgn(st)*modal_station(mesh, runs(st)%q, runs(st)%phi(:, k), &
+                                                         kinds(m), 2, 0.5_dp)
+                    end do
+                    fd = stencil(vals, h)
+                    got = modal_station_sens(mesh, out, k, j, kinds(m), 2, 0.5_dp)
+                    scale = max(abs(modal_station(mesh, out%q, out%phi(:, k), kinds(m), 2, &
+                                                  0.5_dp)), abs(fd)*abs(base(i)), 1.0e-12_dp) &
+                            /abs(base(i))
+                    write (what, '(a, i0, a, i0, a, 2es14.6)') label//': station kind ', &
+                        kinds(m), ' mode ', k, ' d/d '//trim(wrt_names(j)), got, fd
+                    call check_true(t, trim(what), abs(got - fd) <= 1.0e-4_dp*scale)
+                end do
+            end do
+        end do
+    end subroutine derivatives_match
+
+    !> f'(x) from f(x - 2h), f(x - h), f(x + h), f(x + 2h) (error O(h^4)).
+    pure real(dp) function stencil(f, h)
+        real(dp), intent(in) :: f(4), h
+        stencil = (f(1) - 8.0_dp*f(2) + 8.0_dp*f(3) - f(4))/(12.0_dp*h)
+    end function stencil
+end program test_modal
