@@ -27,7 +27,8 @@ module beamid_deck
     use beamid_presets, only: preset_params
     use beamid_observations, only: observation_t, parse_observation
     use beamid_arclength, only: static_load_t, LOAD_TIP, LOAD_WIRE
-    use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC
+    use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC, &
+                              FAMILY_MODAL
     use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
                               EV_METHOD, EV_LAW, EV_RTOL, EV_DT
@@ -1104,6 +1105,10 @@ contains
 
         ! ---- &fit: one group, or for task identify one per stage, in order
         deck%candidates = default_effects(FAMILY_STATIC)
+        ! modal tests alone: the modal family's defaults (as beamid.diagnose)
+        if (size(kinds) > 0) then
+            if (all(kinds == EXP_MODAL)) deck%candidates = default_effects(FAMILY_MODAL)
+        end if
         nf = nml_count(f, 'fit')
         if (nf == 0) then
             call add_error(errors, f%path//': group &fit is missing (data, free)')

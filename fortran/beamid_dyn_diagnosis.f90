@@ -43,7 +43,7 @@ module beamid_dyn_diagnosis
     private
 
     public :: problem_t, mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, &
-              null_side_init, mesh_check, mesh_recommended
+              null_side_init, mesh_check, mesh_recommended, mesh_test, has_mesh
 
     !> An estimation problem: experiments (kind, EV_* values), data rows
     !! (experiment, t, observation, value, sigma), a priori information and the
@@ -299,8 +299,20 @@ contains
         end do
     end subroutine dyn_probe_rows
 
+    !> Has the problem an experiment with a mesh of its own (its family's
+    !! mesh_key: a release, a modal test) that the mesh test can refine?
+    logical function has_mesh(exp_kind)
+        integer, intent(in) :: exp_kind(:)
+        integer :: e
+        has_mesh = .false.
+        do e = 1, size(exp_kind)
+            if (kind_mesh_key(exp_kind(e)) > 0) has_mesh = .true.
+        end do
+    end function has_mesh
+
     !> The mesh test (see the module header): refit `free` from base%params
-    !! with every release at twice its elements per beam.
+    !! with every release and modal test (every experiment whose family has a
+    !! mesh_key) at twice its elements per beam.
     subroutine mesh_test(pb, lp, base, fopts, alpha, res, stat)
         type(problem_t), intent(in) :: pb
         type(lsq_problem_t), intent(in) :: lp   !< pb's data on its model's bounds

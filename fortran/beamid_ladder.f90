@@ -15,7 +15,8 @@ module beamid_ladder
                               inverse_diagnose, EXP_RELEASE, EV_NEPB, EV_LOSS, EV_SIGEST, &
                               MAX_CHANNEL_BITS
     use beamid_chain_fit, only: chain_fit, chain_active
-    use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t
+    use beamid_families, only: kind_mesh_key
+    use beamid_dyn_diagnosis, only: problem_t, dyn_diagnose, mesh_test_t, mesh_test, has_mesh
     implicit none
     private
 
@@ -172,6 +173,8 @@ contains
         type(status_t), intent(inout) :: st
         type(inverse_problem_t) :: problem
         type(status_t) :: stat
+        type(diagnose_options_t) :: dsub
+        logical :: mesh
         dg%dynamic = problem_dynamic(pb)
         if (dg%dynamic) then
             call dyn_diagnose(pb, params, nominal, free, cs%cands, fopts, dopts, cs%with_mesh, &
@@ -181,10 +184,20 @@ contains
             call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
                                       pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs, &
                                       hist=pb%hist)
+            ! modal tests have a mesh of their own (issue 27): with `mesh`
+            ! asked, the mesh test as with releases, one more test in the
+            ! Bonferroni level
+            mesh = cs%with_mesh .and. has_mesh(pb%exp_kind)
+            dsub = dopts
+            if (mesh .and. size(cs%cands) > 0) dsub%alpha = dopts%alpha* &
+                real(size(cs%cands), dp)/real(size(cs%cands) + 1, dp)
             if (stat%code == STATUS_OK) &
                 call inverse_diagnose(problem, inverse_lsq(problem, pb%y, pb%sigma, pb%prior), &
-                                      params, nominal, free, cs%cands, fopts, dopts, dg%base, &
+                                      params, nominal, free, cs%cands, fopts, dsub, dg%base, &
                                       dg%diag, dg%pexp, dg%pq, stat)
+            if (stat%code == STATUS_OK .and. mesh) &
+                call mesh_test(pb, inverse_lsq(problem, pb%y, pb%sigma, pb%prior), dg%base, &
+                               fopts, dopts%alpha/real(dg%diag%ntested + 1, dp), dg%mesh, stat)
             dg%used = cs%cands
             allocate (dg%ambiguous(0))
             if (allocated(dg%pexp)) allocate (dg%pt(size(dg%pexp)), source=0.0_dp)
@@ -278,7 +291,11 @@ contains
             r%removed = [integer ::]
             if (r%dg%mesh%significant) then
                 r%nepb = r%dg%mesh%recommended
-                where (pb%exp_kind == EXP_RELEASE) pb%exp_values(EV_NEPB, :) = real(r%nepb, dp)
+                ! every experiment with a mesh of its own: releases, modal tests
+                do j = 1, size(pb%exp_kind)
+                    if (kind_mesh_key(pb%exp_kind(j)) > 0) &
+                        pb%exp_values(kind_mesh_key(pb%exp_kind(j)), j) = real(r%nepb, dp)
+                end do
                 r%effect = 'mesh ('//fmt_int(r%nepb)//' elements per beam)'
                 r%start = r%fit%params
                 r%params = [integer ::]

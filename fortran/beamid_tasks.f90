@@ -35,12 +35,13 @@ module beamid_tasks
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
-    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
+    use beamid_inverse, only: NEXPVAL, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
                               NU_BIAS, NU_SCALE
     use beamid_chain_deck, only: chain_asked, ordered_observations
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
     use beamid_observations, only: obs_label, obs_groups, observation_t, same_observation
+    use beamid_dyn_diagnosis, only: has_mesh
     use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
@@ -787,7 +788,7 @@ contains
     end subroutine deck_experiments
 
     !> The deck's candidates: every effect named, with its parameters; in a
-    !! deck with releases `mesh` is the mesh test of beamid_dyn_diagnosis
+    !! deck with releases or modal tests `mesh` is the mesh test of beamid_dyn_diagnosis
     !! (as beamid.diagnose does), not a candidate without parameters.
     subroutine deck_candidates(d, cs, st)
         type(deck_t), intent(in) :: d
@@ -797,7 +798,8 @@ contains
         logical :: dyn
         type(candidate_t) :: one
         dyn = .false.
-        if (allocated(d%exp_kind)) dyn = any(d%exp_kind == EXP_RELEASE)   ! time histories
+        ! experiments with a mesh of their own (releases, modal tests)
+        if (allocated(d%exp_kind)) dyn = has_mesh(d%exp_kind)
         allocate (cs%names(0), cs%cands(0))
         do c = 1, size(d%candidates)
             if (dyn .and. trim(adjustl(d%candidates(c))) == 'mesh') then

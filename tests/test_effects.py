@@ -8,7 +8,7 @@ import pytest
 
 import beamid
 from beamid import _core_estimation as _ce
-from beamid.diagnosis import EFFECTS, STATIC_CANDIDATES, Effect, register_effect
+from beamid.diagnosis import EFFECTS, MODAL_CANDIDATES, STATIC_CANDIDATES, Effect, register_effect
 
 #: what each built-in effect switches on, by pattern, for nbeams = 1, 2, 3
 PATTERNS = {
@@ -53,9 +53,13 @@ def test_families_defaults_and_bounds():
                                          "clock_offset", "channel_bias", "channel_scale",
                                          "gross_errors", "noise", "mesh")
     kinds = {n: e.kinds for n, e in EFFECTS.items() if n in PATTERNS}
-    assert kinds["elbow_flex"] == kinds["root_flex"] == ("static", "dynamic")
+    assert kinds["elbow_flex"] == kinds["root_flex"] == ("static", "dynamic", "modal")
     assert kinds["axial_coupling"] == kinds["material_cubic"] == ("static",)
-    assert all(kinds[n] == ("dynamic",) for n in ("friction", "drag", "mesh"))
+    assert all(kinds[n] == ("dynamic",) for n in ("friction", "motor_lag", "mesh"))
+    assert kinds["drag"] == kinds["rotary_inertia"] == ("dynamic", "modal")
+    # modal tests alone (issue 27): the defaults of beamid.diagnose and of a deck
+    assert _ce.default_effects("modal") == MODAL_CANDIDATES == (
+        "rotary_inertia", "root_flex", "elbow_flex", "drag", "kelvin_voigt")
     assert [n for n in PATTERNS if not EFFECTS[n].one_sided] == ["material_cubic"]
     assert (EFFECTS["material_cubic"].lower, EFFECTS["material_cubic"].upper) == \
         (-math.inf, math.inf)

@@ -339,3 +339,52 @@ def test_the_mesh_candidate_refines_modal_tests_beside_releases():
     dg = beamid.diagnose(f, candidates=("mesh", "rotary_inertia"))
     assert dg.verdict.effect == "mesh"
     assert "freq[3] at t = 0 s in experiment M0" in dg.message
+
+
+@pytest.mark.parametrize("static", [False, True])
+def test_the_mesh_candidate_refines_modal_tests_alone(static):
+    """Modal tests alone (and beside a static experiment, which has no mesh
+    of its own): data from a finer mesh (8 elements per beam against 2),
+    sigma 1e-4 on the frequencies, noise with seed 3. diagnose's mesh test
+    finds the coarse mesh, its line names the frequency that moves most,
+    add_effect and improve refine the modal tests."""
+    coarse = {"M0": beamid.Modal(None, 2), "M3": beamid.Modal(beamid.TipForce(fy=3.0), 2)}
+    fine = {"M0": beamid.Modal(None, 8), "M3": beamid.Modal(beamid.TipForce(fy=3.0), 8)}
+    qs = {"M0": ["freq[1]", "freq[2]", "freq[3]"], "M3": ["freq[1]", "freq[2]", "freq[3]"]}
+    if static:
+        coarse["F3"] = fine["F3"] = beamid.TipForce(fy=3.0)
+        qs["F3"] = ["y_tip"]
+    d = beamid.simulate_measurements(TRUE, fine, qs, sigma=1e-4, noise=True, seed=3)
+    f = beamid.fit(TRUE, coarse, d, free=("EI1",))
+    dg = beamid.diagnose(f, candidates=("mesh", "rotary_inertia"))
+    assert dg.verdict.effect == "mesh"
+    assert dg.mesh.elements_per_beam == 2 and dg.mesh.recommended >= 8
+    assert dg.mesh.chi2_drop > 100.0
+    assert dg.mesh.max_change_at[2] == "freq[3]"
+    assert "refine the mesh: at 4 elements per beam instead of 2" in dg.message
+    refined = beamid.add_effect(f, "mesh")
+    assert refined.experiments["M0"].elements_per_beam == 4
+    assert refined.chi2 < f.chi2 / 10
+    lad = beamid.improve(TRUE, coarse, d, free=("EI1",), candidates=("mesh",))
+    assert lad.steps[1].effect.startswith("mesh (")
+    assert lad.steps[1].fit.experiments["M3"].elements_per_beam == dg.mesh.recommended
+    assert lad.steps[1].chi2 < f.chi2 / 10
+
+
+def test_a_modal_deck_tries_the_modal_candidates_by_default(modal_deck_dir):
+    """A deck of modal tests alone without `candidates`: the modal defaults
+    (the core's effects table, as beamid.diagnose); `mesh` named in such a
+    deck is the mesh test of its modal tests."""
+    deck = modal_deck_dir / "modal.nml"
+    deck.write_text(MODAL_DECK.format(task="diagnose", extra="", root_flex=0.0,
+                                      free="'EI1', 'rho1'"))
+    dg = beamid.run(str(deck))
+    effects = {c.effect for c in dg.candidates}
+    assert effects == {"rotary_inertia", "root_flex", "elbow_flex", "drag", "kelvin_voigt"}
+    ranking = (modal_deck_dir / "out" / "modal_ranking.csv").read_text().splitlines()
+    assert {line.split(",")[1] for line in ranking[1:]} == effects
+    deck.write_text(MODAL_DECK.format(task="diagnose", extra="", root_flex=0.0,
+                                      free="'EI1', 'rho1'\n    candidates = 'mesh'"))
+    dg = beamid.run(str(deck))
+    assert dg.mesh is not None and dg.mesh.elements_per_beam == 4
+    assert dg.mesh.state == "tested" and dg.mesh.recommended >= 8

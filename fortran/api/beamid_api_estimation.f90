@@ -38,7 +38,7 @@ module beamid_api_estimation
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
     use beamid_dynamic_experiments, only: exp_histories_t
-    use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, effect_params
+    use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, NFAMILY, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
     use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, rung_rows_out
@@ -189,7 +189,8 @@ contains
                                 indices, code, message)
         integer(c_int), intent(in) :: nbeams, neffect, nindex
         character(len=4096), intent(out) :: text
-        integer(c_int), intent(out) :: ranks(2, neffect), starts(neffect + 1), indices(nindex)
+        ! ranks: one row per family of beamid_effects (NFAMILY = 3; f2py needs the number)
+        integer(c_int), intent(out) :: ranks(3, neffect), starts(neffect + 1), indices(nindex)
         real(c_double), intent(out) :: values(3, neffect)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
@@ -207,7 +208,10 @@ contains
             call status_out(st, code, message)
             return
         end if
-        t = trim(FAMILY_NAMES(1))//achar(9)//trim(FAMILY_NAMES(2))
+        t = trim(FAMILY_NAMES(1))
+        do i = 2, NFAMILY
+            t = t//achar(9)//trim(FAMILY_NAMES(i))
+        end do
         k = 1
         do i = 1, NEFFECTS
             t = t//new_line('a')//trim(EFFECTS(i)%name)//achar(9)//trim(EFFECTS(i)%description)

@@ -56,7 +56,7 @@ class Effect:
     ``params(model)`` names the parameters that switch it on; at their null
     value ``null_value`` (0 for every built-in effect) the effect is off, and
     physical values lie within ``lower`` and ``upper``. ``kinds`` says which
-    experiment families can see it (``static``, ``dynamic``).
+    experiment families can see it (``static``, ``dynamic``, ``modal``).
     """
 
     name: str
@@ -83,7 +83,7 @@ class Effect:
             _check.fail("Effect: params", self.params, "a function of the model that names "
                         "the effect's parameters")
         object.__setattr__(self, "kinds", _check.names("Effect: kinds", self.kinds,
-                                                       allowed=("static", "dynamic")))
+                                                       allowed=("static", "dynamic", "modal")))
         lower = _check.real("Effect: lower", self.lower, finite=False)
         upper = _check.real("Effect: upper", self.upper, finite=False, above=lower,
                             expected=f"a number above lower = {lower:g}")
@@ -128,9 +128,9 @@ for _name, _text in _chain.CANDIDATE_EFFECTS:
 STATIC_CANDIDATES = _ce.default_effects("static")
 
 #: Candidate effects tried for modal experiments alone (issue 27): what a
-#: modal test sees that the static arm does not (the mesh candidate is not
-#: offered for modal data yet).
-MODAL_CANDIDATES = ("rotary_inertia", "root_flex", "elbow_flex", "drag", "kelvin_voigt")
+#: modal test sees that the static arm does not; ``mesh`` (the modal tests at
+#: twice their elements per beam) is named, not tried by default.
+MODAL_CANDIDATES = _ce.default_effects("modal")
 
 _STATES = dict(_ce.CANDIDATE_STATES)
 
@@ -140,6 +140,16 @@ def _modal_only(experiments: Any) -> bool:
     try:
         exps = dict(experiments).values()
         return bool(exps) and all(isinstance(x, Modal) for x in exps)
+    except (TypeError, ValueError):
+        return False
+
+
+def _meshed(experiments: Any) -> bool:
+    """Has this set of experiments one with a mesh of its own (a release, a
+    modal test: the Fortran families' mesh_key), which the ``mesh`` candidate
+    refines?"""
+    try:
+        return any(isinstance(x, (Release, Modal)) for x in dict(experiments).values())
     except (TypeError, ValueError):
         return False
 
@@ -654,7 +664,8 @@ def _candidate_set(model: Model, experiments, candidates):
                         f"{_check.show(c)} is neither)")
     if not cands:
         raise InputError("candidates is empty: name at least one effect")
-    mesh = [dynamic and _effect(c).name == "mesh" for c in cands]
+    meshed = _meshed(experiments)
+    mesh = [meshed and _effect(c).name == "mesh" for c in cands]
     effects = [_effect(c) for c, m in zip(cands, mesh) if not m]
     # the measurement chain's candidates are named and placed by
     # beamid.chain.diagnosis_extension (their parameters follow the model's)
@@ -667,7 +678,7 @@ def _diagnosis(fit: FitResult, raw: dict, effects: list[Effect], names: list[tup
                alpha: float, with_mesh: bool = False) -> Diagnosis:
     """The Diagnosis of a fit from the Fortran result arrays (with releases:
     beamid.dyn_diagnosis names the results, a DynDiagnosis)."""
-    if _dynamic(fit.experiments):
+    if _dynamic(fit.experiments) or with_mesh:   # with_mesh: releases or modal tests
         return _RELEASE_FAMILY["diagnosis"](fit, raw, effects, names, alpha, with_mesh)
     out = [_candidate(raw, c, eff, names[c], fit.model, list(fit.experiments))
            for c, eff in enumerate(effects)]
@@ -779,10 +790,10 @@ def add_effect(fit: FitResult, effect: str | Effect, *, max_iter: int = 50,
     start converges at all (the message says why for each). ``starts``
     limits the starts tried (names as in ``refit_start``; default all). On
     fits with release experiments the effect ``mesh`` refits at twice the
-    elements per beam.
+    elements per beam (releases and modal tests alike).
     """
     _check.instance("fit", fit, FitResult, "a beamid.FitResult (beamid.fit)")
-    if _dynamic(fit.experiments) and _effect(effect).name == "mesh":
+    if _meshed(fit.experiments) and _effect(effect).name == "mesh":
         # the same fit at twice the elements per beam
         refine_mesh = _RELEASE_FAMILY["refine_mesh"]
         return _fit(fit.model, refine_mesh(fit.experiments), fit.data, free=fit.free,
@@ -903,8 +914,8 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     tested): one the new fit no longer needs, typically the rival member of
     a block picked while another effect was still missing, goes back to its
     null value and the rung is refitted without it (``LadderStep.removed``).
-    A significant ``mesh`` candidate refines every release to the
-    recommended elements per beam; the mesh is tested until found adequate.
+    A significant ``mesh`` candidate refines every release and modal test
+    to the recommended elements per beam; the mesh is tested until found adequate.
     """
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
@@ -958,7 +969,6 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
     ``_ce.deck_task_start`` on the handle ``deck``) a rung per call, with a
     progress bar labelled ``desc`` on a terminal (none when max_steps = 0: a
     diagnosis alone, one call), and name its rungs."""
-    dynamic = _dynamic(experiments)
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     ext = _chain_extension(model, experiments, data, effects, names, blocks, own)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
@@ -997,6 +1007,6 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                                 tuple(all_names[i] for i in r["params"]),
                                 tuple(all_names[i] for i in r["removed"]),
                                 _at_best(model, r["fit"].get("note", ""))))
-        if dynamic and diag.mesh is not None:
+        if getattr(diag, "mesh", None) is not None:
             with_mesh = False    # the mesh is judged once (beamid_ladder)
     return Ladder(tuple(steps))
