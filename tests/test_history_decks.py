@@ -133,3 +133,22 @@ def test_chirp_above_the_mesh_warns_naming_the_frequency(tmp_path):
     with pytest.warns(UserWarning, match=r"a chirp reaches 50000 Hz, above the highest "
                       r"frequency of the mesh \(28659\.9 Hz at elements_per_beam = 4\)"):
         beamid.simulate(beamid.pace(J_elbow=0.0, J_tip=0.0), None, [0.0, 1e-5], loads=loads)
+
+
+def test_chirp_above_the_mesh_warned_by_batch_too(tmp_path, batch_exe):
+    """beamid-batch writes the same warning to stderr (the library returns it,
+    deck_warnings), runs the deck and exits 0; a chirp within the mesh: none."""
+    text = SIM.replace("t_end = 0.2, n_out = 5", "t_end = 0.002, n_out = 3")
+    deck = _deck(tmp_path, text + "&history target = 'tip_fy', form = 'chirp', "
+                 "amplitude = 1.0, f0 = 0.0, f1 = 50000.0, duration = 0.002 /\n")
+    run = _run([batch_exe, deck], tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert run.stderr == (f"beamid-batch: warning: {deck}: &history 1: a chirp reaches "
+                          "50000 Hz, above the highest frequency of the mesh (28659.9 Hz at "
+                          "elements_per_beam = 4): the response there is the mesh's, not the "
+                          "arm's\n")
+    assert "_history.csv" in run.stdout
+    low = _deck(tmp_path, text + "&history target = 'tip_fy', form = 'chirp', "
+                "amplitude = 1.0, f0 = 0.0, f1 = 50.0, duration = 0.002 /\n", "low.nml")
+    run = _run([batch_exe, low], tmp_path)
+    assert run.returncode == 0 and run.stderr == "", run.stderr

@@ -22,14 +22,15 @@ contains
     !! shapes sampled at the stations (raw: as phi is scaled), and their
     !! derivatives with respect to the parameters wrt (1-based indices).
     !! wrt and the station arrays hold at least one entry each (f2py passes
-    !! no empty arrays): nwrt and nsta say how many are used.
-    subroutine api_modal(nbeams, nparams, params, nepb, load, nmodes, nwrt, mwrt, wrt, nsta, &
+    !! no empty arrays): nwrt and nsta say how many are used. spin = (Omega
+    !! rad/s, coriolis 0/1): the modes about a steady hub spin (0: none).
+    subroutine api_modal(nbeams, nparams, params, nepb, load, spin, nmodes, nwrt, mwrt, wrt, nsta, &
                          msta, sta_kind, sta_beam, sta_s, nfree, freq, zeta, damped, q, phi, dq, &
                          dfreq, dzeta, dphi, shapes, dshapes, code, message)
         !f2py intent(hide) nparams, mwrt, msta
         integer(c_int), intent(in) :: nbeams, nparams, nepb, nmodes, nwrt, mwrt, nsta, msta
         integer(c_int), intent(in) :: nfree
-        real(c_double), intent(in) :: params(nparams), load(4), sta_s(msta)
+        real(c_double), intent(in) :: params(nparams), load(4), spin(2), sta_s(msta)
         integer(c_int), intent(in) :: wrt(mwrt), sta_kind(msta), sta_beam(msta)
         real(c_double), intent(out) :: freq(nmodes), zeta(nmodes), q(nfree), &
                                        phi(nfree, nmodes), dq(nfree, nwrt), &
@@ -57,6 +58,8 @@ contains
                             ', expected '//fmt_int(mesh%nfree))
         if (stat%code == STATUS_OK) then
             spec%elements_per_beam = nepb
+            spec%spin_rate = spin(1)
+            spec%coriolis = spin(2) /= 0.0_c_double
             call modal_solve(nbeams, params, spec, nmodes, wrt(1:nwrt), out, stat)
         end if
         if (stat%code == STATUS_OK) call modal_check_stations(mesh, sta_kind(1:nsta), sta_beam(1:nsta), &

@@ -13,6 +13,7 @@ program beamid_batch
     use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
     use beamid_status, only: status_t, STATUS_OK, exit_code, EXIT_BAD_INPUT
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task
+    use beamid_tasks, only: deck_warnings
     implicit none
 
     character(len=*), parameter :: VERSION = '0.1.0'
@@ -63,6 +64,7 @@ program beamid_batch
         call report(trim(stat%message))
         stop exit_code(stat%code), quiet=.true.
     end if
+    call report(deck_warnings(run%deck), 'warning')
     if (quiet) stop
     write (output_unit, '(a)') summary
     start = 1
@@ -76,14 +78,20 @@ program beamid_batch
 contains
 
     !> One line 'beamid-batch: error: ...' per line of text.
-    subroutine report(text)
+    !> Each line of text to stderr as 'beamid-batch: <what>: line' (what:
+    !! 'error' unless given).
+    subroutine report(text, what)
         character(len=*), intent(in) :: text
+        character(len=*), intent(in), optional :: what
+        character(len=:), allocatable :: label
         integer :: start, nl
+        label = 'error'
+        if (present(what)) label = what
         start = 1
         do while (start <= len(text))
             nl = index(text(start:), new_line('a'))
             if (nl == 0) nl = len(text) - start + 2
-            write (error_unit, '(a)') 'beamid-batch: error: '//text(start:start + nl - 2)
+            write (error_unit, '(a)') 'beamid-batch: '//label//': '//text(start:start + nl - 2)
             start = start + nl
         end do
     end subroutine report

@@ -113,6 +113,7 @@ class ModalResult:
     nmodes_model: int
     elements_per_beam: int
     load: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
+    spin_rate: float = 0.0
 
     def __repr__(self) -> str:
         f = ", ".join(f"{x:.4g}" for x in self.freq[:6])
@@ -146,7 +147,8 @@ class ModalResult:
 
 def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
                    elements_per_beam: int = 4, wrt: Sequence[str] = (),
-                   stations: Sequence[Any] = ()) -> ModalResult:
+                   stations: Sequence[Any] = (), spin_rate: float = 0.0,
+                   coriolis: bool = True) -> ModalResult:
     """Modes of ``model`` linearized about its FE equilibrium under ``load``.
 
     ``load``: None (the straight arm), a ``TipForce``, a ``TipMoment`` (its
@@ -157,6 +159,12 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     compliances at 0 are refused; friction, axial_coupling and the motor have
     zero columns). ``stations``: where the shapes are sampled, names such as
     ``shape_n@1:0.4`` (kinds in ``SHAPE_KINDS``) or tuples (kind, beam, s).
+    ``spin_rate`` (rad/s): the modes about a steady hub spin at that rate, in
+    the hub frame (the equilibrium under the centrifugal load, its geometric
+    stiffening and centrifugal softening; a clamped root, locked joints and no
+    rotary inertia, as the hub requires; no ``wrt``). ``coriolis``: keep the
+    Coriolis coupling of axial and in-plane motion (a gyroscopic
+    eigenproblem); False gives the classic uncoupled in-plane model.
     """
     if isinstance(load, RadialWire):
         raise InputError("load = RadialWire: a modal experiment takes a tip force or moment "
@@ -167,6 +175,8 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     if nmodes > nfree:
         raise InputError(f"nmodes = {nmodes}: the model of {elements_per_beam} elements per "
                          f"beam has {nfree} modes")
+    spin_rate = _check.real("spin_rate", spin_rate)
+    coriolis = _check.flag("coriolis", coriolis)
     wrt = _check.names("wrt", wrt)
     windex = model.indices(wrt) if wrt else np.zeros(0, dtype=np.int32)
     if isinstance(stations, str):
@@ -187,7 +197,7 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     loads = np.array([*comps, 1.0], dtype=np.float64)
     (freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes) = _core.modal(
         nbeams, params, int(elements_per_beam), loads, nmodes, np.asarray(windex, np.int32),
-        kinds, beams, svals, nfree)
+        kinds, beams, svals, nfree, spin=(spin_rate, bool(coriolis)))
     names = tuple(f"{k}@{b}:{s:g}" for k, b, s in parsed)
     return ModalResult(freq=np.array(freq), zeta=np.array(zeta), damped=bool(damped),
                        q=np.array(q), phi=np.array(phi), stations=names,
@@ -196,7 +206,7 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
                        dphi=np.array(dphi),
                        dshapes=np.array(dshapes).reshape(len(parsed), nmodes, len(wrt)),
                        nmodes_model=int(nfree), elements_per_beam=int(elements_per_beam),
-                       load=tuple(float(c) for c in comps))
+                       load=tuple(float(c) for c in comps), spin_rate=spin_rate)
 
 
 # ---------------------------------------------------------------- MAC and pairing

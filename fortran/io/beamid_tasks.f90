@@ -30,12 +30,12 @@ module beamid_tasks
     ! elements (beamid_fe_nodes), dynamics (beamid_release) and estimation
     ! (beamid_inverse).
     use beamid_release, only: release_spec_t, release_out_t, release_response
-    use beamid_loads, only: histories_from_columns
+    use beamid_loads, only: histories_from_columns, HIST_CHIRP
     use beamid_dynamics, only: dyn_work_name
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
-    use beamid_inverse, only: NEXPVAL, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
+    use beamid_inverse, only: NEXPVAL, EV_NEPB, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
                               NU_BIAS, NU_SCALE
     use beamid_chain_deck, only: chain_asked, ordered_observations
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
@@ -48,7 +48,7 @@ module beamid_tasks
     private
 
     public :: run_task, files_t, deck_problem, deck_candidates, deck_ladder_start
-    public :: deck_stage_start, deck_experiments, name_experiment
+    public :: deck_stage_start, deck_experiments, name_experiment, deck_warnings
 
     !> The files of one run: final names, newline separated, in write order;
     !! each is `prefix` (the deck's output resolved against its directory)
@@ -338,6 +338,50 @@ contains
             fmt_int(nw)//' transverse and '//fmt_int(nu)//' axial frequencies, the lowest '// &
             short(minval(omega))//' rad/s'
     end subroutine run_fe_modes
+
+    !> Warnings about a deck that is valid but asks something the model cannot
+    !! give (one per line, '' for none; the library does not print them,
+    !! beamid-batch writes them to stderr, beamid.simulate and the fits warn
+    !! in Python alike): a chirp of a &history group reaching above the
+    !! highest frequency of the mesh its experiment runs on (the linear
+    !! modes of fe_modes_table without rotary inertia, as
+    !! beamid.dynamics._warn_chirp), where the response is the mesh's.
+    function deck_warnings(d) result(text)
+        type(deck_t), intent(in) :: d
+        character(len=:), allocatable :: text
+        type(fe_mesh_t) :: mesh
+        type(status_t) :: st
+        real(dp), allocatable :: omega(:), phi(:, :), values(:, :)
+        integer, allocatable :: axial(:), dofs(:, :), kinds(:)
+        real(dp) :: top, fmax
+        integer :: k, e, nepb
+        text = ''
+        if (.not. allocated(d%hist%spec)) return
+        do k = 1, size(d%hist%spec, 2)
+            if (nint(d%hist%spec(3, k)) /= HIST_CHIRP) cycle
+            top = max(d%hist%spec(7, k), d%hist%spec(8, k))
+            e = nint(d%hist%spec(1, k))
+            if (d%task == 'simulate') then
+                nepb = d%sim_elements_per_beam
+            else
+                call deck_experiments(d, kinds, values)
+                if (e < 1 .or. e > size(kinds)) cycle
+                nepb = nint(values(EV_NEPB, e))
+            end if
+            call fe_mesh_from_params(d%nbeams, d%params, nepb, mesh, st)
+            if (st%code /= STATUS_OK) cycle
+            if (allocated(omega)) deallocate (omega, phi, axial, dofs)
+            allocate (omega(mesh%nfree), phi(mesh%nfree, mesh%nfree), axial(mesh%nfree), &
+                      dofs(2, mesh%nfree))
+            call fe_modes_table(mesh, .false., omega, phi, axial, dofs, st)
+            if (st%code /= STATUS_OK) cycle
+            fmax = maxval(omega)/(2.0_dp*acos(-1.0_dp))
+            if (top > fmax) text = text//d%path//': &history '//fmt_int(k)//': a chirp '// &
+                'reaches '//short(top)//' Hz, above the highest frequency of the mesh ('// &
+                short(fmax)//' Hz at elements_per_beam = '//fmt_int(nepb)//'): the response '// &
+                'there is the mesh''s, not the arm''s'//new_line('a')
+        end do
+    end function deck_warnings
 
     ! -------------------------------------------------------------- dynamics
 

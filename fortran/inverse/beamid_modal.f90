@@ -41,6 +41,20 @@
 !! - mode shapes by Nelson's method (1976): (K - lambda M) v = -(dK -
 !!   dlambda M - lambda dM) phi with the largest entry of phi held at 0,
 !!   dphi = v + c phi, c = -phi^T M v - phi^T dM phi / 2.
+!!
+!! About a steady spin (spin_rate = Omega /= 0, issue 28): the arm in the hub
+!! frame of beamid_hub turning at the constant rate Omega. The equilibrium
+!! solves NLT(q) - Q_tip(q) - Omega^2 (c + M q) = 0 (Newton from the static
+!! equilibrium under the tip load); the geometrically nonlinear element
+!! carries the centrifugal axial force into K_T(q*) (the stiffening), the
+!! centrifugal force's own derivative -Omega^2 M softens the in-plane and the
+!! axial motion, and the Coriolis force -2 Omega P M v adds the skew
+!! gyroscopic matrix G = 2 Omega P M, which couples axial and in-plane
+!! motion: M x'' + (C + G) x' + (K_T - Omega^2 M) x = 0, solved in state
+!! space like a damped model (coriolis = .false. drops G: the classic
+!! uncoupled chordwise model). Shapes stay the modes of (K_T - Omega^2 M, M);
+!! without dissipation the damping ratios are 0. Sensitivities about a spin
+!! are not available.
 module beamid_modal
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
     use beamid_kinds, only: dp
@@ -57,6 +71,8 @@ module beamid_modal
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN
     use beamid_lapack, only: sym_gen_eig, gen_eig, solve_dense
     use beamid_observations, only: STRIP_THICKNESS
+    use beamid_hub, only: hub_forcing_t, hub_setup
+    use beamid_fe_assembly, only: fe_tip_load
     implicit none
     private
 
@@ -82,6 +98,10 @@ module beamid_modal
     type :: modal_spec_t
         integer :: elements_per_beam = 4
         type(fe_load_t) :: load
+        !> steady hub spin rate Omega (rad/s): modes about the steady spin
+        real(dp) :: spin_rate = 0.0_dp
+        !> with a spin: keep the Coriolis (gyroscopic) coupling
+        logical :: coriolis = .true.
     end type modal_spec_t
 
     !> What modal_solve returns; mode arrays hold the first nmodes modes.
@@ -210,6 +230,18 @@ contains
                             'conservative system; expected moment_form = 1 (exact)')
             return
         end if
+        if (.not. ieee_is_finite(spec%spin_rate)) then
+            call set_status(stat, ERR_INPUT, where, 'spin_rate = '//fmt_real(spec%spin_rate)// &
+                            ' rad/s, expected a finite number')
+            return
+        end if
+        if (spec%spin_rate /= 0.0_dp .and. size(wrt) > 0) then
+            call set_status(stat, ERR_INPUT, where, 'spin_rate = '//fmt_real(spec%spin_rate)// &
+                            ' rad/s with sensitivities (wrt): the sensitivities of the modes '// &
+                            'about a steady spin are not available; expected spin_rate = 0 '// &
+                            'or no wrt')
+            return
+        end if
         if (nmodes < 1) then
             call set_status(stat, ERR_INPUT, where, 'nmodes = '//fmt_int(nmodes)// &
                             ', expected at least 1')
@@ -244,9 +276,11 @@ contains
         type(chain_t) :: chain
         type(fe_newton_opts_t) :: opts
         type(fe_solve_info_t) :: info
-        real(dp), allocatable :: k(:, :), m(:, :), c(:, :), nlt(:), vec(:, :)
+        real(dp), allocatable :: k(:, :), m(:, :), c(:, :), nlt(:), vec(:, :), g(:, :)
         complex(dp), allocatable :: psi(:, :), s(:)
+        type(hub_forcing_t) :: hub
         integer :: n, nw, i
+        logical :: spin
         call modal_check(nbeams, params, spec, nmodes, wrt, stat)
         if (stat%code /= STATUS_OK) return
         call chain_from_vector(nbeams, params, chain, stat)
@@ -272,18 +306,31 @@ contains
         out%q = 0.0_dp
         call fe_solve_static(sys%mesh, spec%load, out%q, .false., opts, info, stat)
         if (stat%code /= STATUS_OK) return
+        spin = spec%spin_rate /= 0.0_dp
+        allocate (g(n, n), source=0.0_dp)
+        if (spin) then
+            call hub_setup(sys, spec%spin_rate, 1.0_dp, 'modal_solve (spin_rate = '// &
+                           fmt_real(spec%spin_rate)//' rad/s)', hub, stat)
+            if (stat%code /= STATUS_OK) return
+            call spin_equilibrium(sys, hub, spec%load, out%q, stat)
+            if (stat%code /= STATUS_OK) return
+        end if
         call modal_matrices(sys, spec%load, out%q, k, m, c, nlt)
         out%damped = any(c /= 0.0_dp)
+        if (spin) then
+            call spin_matrices(sys, hub, out%q, k, g)
+            if (.not. spec%coriolis) g = 0.0_dp
+        end if
         call undamped_modes(k, m, out%lambda, vec, stat)
         if (stat%code /= STATUS_OK) return
         out%phi = vec(:, 1:nmodes)
         out%freq = sqrt(out%lambda(1:nmodes))/TWO_PI
         allocate (s(nmodes), psi(n, nmodes))
-        if (out%damped) then
-            call damped_modes(k, m, c, out%phi, s, psi, stat)
+        if (out%damped .or. any(g /= 0.0_dp)) then
+            call damped_modes(k, m, c + g, out%phi, s, psi, stat)
             if (stat%code /= STATUS_OK) return
             out%freq = abs(s)/TWO_PI
-            out%zeta = -real(s, dp)/abs(s)
+            if (out%damped) out%zeta = -real(s, dp)/abs(s)
         end if
         do i = 1, nw
             call modal_sensitivity(chain, sys, spec%load, params, wrt(i), k, m, c, out, s, &
@@ -291,6 +338,60 @@ contains
             if (stat%code /= STATUS_OK) return
         end do
     end subroutine modal_solve
+
+    !> The equilibrium in the hub frame turning at hub%ws: Newton on
+    !! NLT(q) - Q_tip(q) - F_hub(q) = 0 from q (the static equilibrium under
+    !! the tip load), with the tangent K_T - dQ/dq - Omega^2 M.
+    subroutine spin_equilibrium(sys, hub, load, q, stat)
+        type(dyn_system_t), intent(in) :: sys
+        type(hub_forcing_t), intent(in) :: hub
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(inout) :: q(:)
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: k(:, :), m(:, :), c(:, :), g(:, :), nlt(:), f(:), qv(:), &
+                                 r(:, :), v(:)
+        real(dp) :: power, step
+        integer :: n, it
+        n = size(q)
+        allocate (k(n, n), m(n, n), c(n, n), g(n, n), nlt(n), f(n), qv(n), r(n, 1), v(n), &
+                  source=0.0_dp)
+        do it = 1, 60
+            f = 0.0_dp
+            call hub%apply(2.0_dp*hub%period, q, v, f, power)
+            call fe_tip_load(sys%mesh, q, load, qv)
+            call modal_matrices(sys, load, q, k, m, c, nlt)
+            call spin_matrices(sys, hub, q, k, g)
+            r(:, 1) = -(nlt - qv - f)
+            call solve_dense(k, r, stat)
+            if (stat%code /= STATUS_OK) return
+            q = q + r(:, 1)
+            step = maxval(abs(r(:, 1)))
+            if (.not. ieee_is_finite(step)) exit
+            if (step <= 1.0e-13_dp*max(1.0_dp, maxval(abs(q)))) return
+        end do
+        call set_status(stat, ERR_NUMERIC, 'modal_solve', 'spin_rate = '// &
+                        fmt_real(hub%ws)//' rad/s: the equilibrium in the hub frame did not '// &
+                        'converge in 60 Newton steps (last step '//fmt_real(step)//')')
+    end subroutine spin_equilibrium
+
+    !> k += -Omega^2 M (the centrifugal force's derivative) and g = 2 Omega
+    !! P M (the Coriolis force's), dense, at the steady spin hub%ws.
+    subroutine spin_matrices(sys, hub, q, k, g)
+        type(dyn_system_t), intent(in) :: sys
+        type(hub_forcing_t), intent(in) :: hub
+        real(dp), intent(in) :: q(:)
+        real(dp), intent(inout) :: k(:, :)
+        real(dp), intent(out) :: g(:, :)
+        real(dp), allocatable :: kb(:, :), cb(:, :), kd(:, :), v(:)
+        integer :: n
+        n = size(q)
+        allocate (kb(fe_band_rows(sys%mesh), n), cb(fe_band_rows(sys%mesh), n), kd(n, n), &
+                  v(n), source=0.0_dp)
+        call hub%jacobian(2.0_dp*hub%period, q, v, sys%mesh%kl, sys%mesh%ku, kb, cb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, kd)
+        k = k + kd
+        call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, g)
+    end subroutine spin_matrices
 
     !> K phi = lambda M phi; every lambda must be positive (a stable
     !! equilibrium).
