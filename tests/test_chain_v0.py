@@ -102,7 +102,9 @@ def test_diagnose_names_the_initial_velocity(record):
     assert abs(refit.estimates["rho2"] - 0.530) < 2 * refit.sigmas["rho2"]
     with pytest.raises(beamid.InputError, match="no parameter left to add"):
         beamid.add_effect(refit, "initial_velocity")
-    assert "initial_velocity" in beamid.dyn_diagnosis.DYNAMIC_CANDIDATES
+    # a candidate by name, not among the release's defaults
+    assert "initial_velocity" not in beamid.DYNAMIC_CANDIDATES
+    assert beamid.diagnosis.EFFECTS["initial_velocity"].cause == "measurement chain"
 
 
 def test_bad_initial_velocity_input(record):
@@ -144,3 +146,18 @@ def test_deck_initial_velocity_key(tmp_path):
     with pytest.raises(beamid.InputError, match="initial_velocity = 'held': no experiment "
                                                 "of that name"):
         beamid.read_deck(_deck16(tmp_path, "  initial_velocity = 'held'\n"))
+
+
+def test_simulate_through_the_chain(record):
+    """simulate_measurements(nuisance=...) reads the data through the chain:
+    the same rows as the problem's prediction at (model, v0), noise from the
+    same seed."""
+    times = np.round(np.arange(1, 66) * 0.02, 6)
+    fine = {"free": _release(2, rtol=1e-11)}
+    sim = beamid.simulate_measurements(BASE, fine, ["u_tip", "w_tip"], sigma=1e-3, t=times,
+                                       noise=True, seed=7,
+                                       nuisance={"initial_velocity": {"free": V0}})
+    assert np.max(np.abs(sim.value - record.value)) < 1e-14
+    at_rest = beamid.simulate_measurements(BASE, fine, ["u_tip", "w_tip"], sigma=1e-3,
+                                           t=times)
+    assert np.max(np.abs(sim.value - at_rest.value)) > 0.05

@@ -469,6 +469,12 @@ CANDIDATE_EFFECTS = (
      "estimates the sigmas)"),
 )
 
+#: chain candidates tried only when named in ``candidates`` (not among the
+#: release's defaults): a release's initial velocity v0 trades off against
+#: the static load and the damping of a short record, and the defaults keep
+#: the diagnoses (and the decks' outputs) they had
+OPT_IN_CANDIDATES = ("initial_velocity",)
+
 
 @dataclass
 class DiagnosisExtension:
