@@ -29,10 +29,13 @@
 !! an input error), and per channel (experiment, observation) a bias b and a
 !! scale s (bit q - 1 of EV_BIAS, EV_SCALE for entry q of the observation
 !! list, so without a list for kind code q: the row reads s h + b; columns 1
-!! and h). They follow the model's parameters in the parameter vector, in
-!! the order of chain_layout: per experiment its t0, its biases by entry of
-!! the observation list, its scales likewise. Null values t0 = 0, b = 0,
-!! s = 1 (the perfect chain), so the score test and refits of
+!! and h), and a release's initial tip normal velocity v0 (EV_V0 = 1: the
+!! static shape q starts with the velocity field v0 q / w_tip(q); column s
+!! dh/dv0 from the family's sensitivities started at (0, q / w_tip(q))).
+!! They follow the model's parameters in the parameter vector, in the order
+!! of chain_layout: per experiment its t0, its v0, its biases by entry of
+!! the observation list, its scales likewise. Null values t0 = 0, v0 = 0,
+!! b = 0, s = 1 (the perfect chain), so the score test and refits of
 !! beamid_estimation treat them as effects.
 module beamid_problem
     use, intrinsic :: iso_fortran_env, only: int64

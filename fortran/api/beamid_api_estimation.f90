@@ -519,10 +519,11 @@ contains
 
     !> The nuisance parameters of the measurement chain the experiments'
     !! value columns ask for (beamid_inverse chain_layout), in parameter
-    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale, 4 initial velocity),
-    !! experiment (1-based) and entry of the problem's observation list of
-    !! nobs entries (0 for a clock offset or an initial velocity); the first n of each (at most nexp
-    !! (2 + 2 MAX_CHANNEL_BITS)) are filled.
+    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale, 4
+    !! initial velocity), experiment (1-based) and entry of the problem's
+    !! observation list of nobs entries (0 for a clock offset or an initial
+    !! velocity); the first n of each (at most nexp (2 + 2 MAX_CHANNEL_BITS))
+    !! are filled.
     subroutine api_chain_layout(nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nobs, n, kinds, exps, qs, code, &
                                 message)
         integer(c_int), intent(in) :: nexp, nobs

@@ -438,10 +438,13 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         The measurement chain's nuisance parameters fitted with the physics
         (docs/workflow_dynamic.md, "The measurement chain"):
         ``{"time_offset": [experiment, ...], "bias": [(experiment,
-        quantity), ...], "scale": [...]}`` (a dict instead of a list gives
-        start values). A release's clock offset t0 is the model time at its
-        record's zero (the row at record time t is the model at t + t0);
-        a channel's bias b and scale s make a row read s h + b. Their
+        quantity), ...], "scale": [...], "initial_velocity": [release,
+        ...]}`` (a dict instead of a list gives start values). A release's
+        clock offset t0 is the model time at its record's zero (the row at
+        record time t is the model at t + t0); a channel's bias b and scale
+        s make a row read s h + b; a release's initial velocity v0 is its
+        tip's normal velocity at t = 0 (the static shape q starts with the
+        velocity field v0 q / w_tip(q); ``v0[release]``). Their
         estimates and sigmas are ``result.nuisance`` and
         ``result.nuisance_sigmas``; ``result.cov`` (the physics block of
         ``result.full_cov``) accounts for them.
