@@ -1,6 +1,6 @@
 """Observations: what an experiment can measure, read from the Fortran core.
 
-The one table lives in ``fortran/beamid_observations.f90``; this module
+The one table lives in ``fortran/inverse/beamid_observations.f90``; this module
 reads it once through the binding (``api_observation_table``) and keeps no
 copy of its own. An observation is a kind and its locus: ``x_tip`` (a fixed
 point of the arm) or ``kind@beam:s`` for a station, ``s`` in metres from

@@ -1,5 +1,5 @@
 !> The element kernels of the nonlinear finite element chain (Chapter IV,
-!! fortran/beamid_fe_element.f90) and the banded tangent assembly
+!! fortran/fe/beamid_fe_element.f90) and the banded tangent assembly
 !! (beamid_fe_assembly):
 !! * the Gauss-point element force against the dissertation's F-tensor form
 !!   (Eq. 77): contractions of the nodal values with exact integrals of
