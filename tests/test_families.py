@@ -28,11 +28,12 @@ def test_key_table_from_the_core():
                                "motor_gain", "integrator", "friction", "rtol", "dt", "v_slip",
                                "fd"]
     assert [k.row for k in keys.values()] == list(range(len(keys)))
-    assert _ce.NEXPVAL == len(keys) == 18
+    assert _ce.NEXPVAL == len(keys) == 19          # v0, the chain's initial velocity, is 19th
     assert keys["wire_length"].families == ("static",)
     assert keys["elements_per_beam"].families == ("release", "modal")   # the FE families
     assert keys["elements_per_beam"].default == 4.0
     assert keys["burn_in"].families == ("static", "release", "modal")
+    assert keys["v0"].row == 18 and keys["v0"].default == 0.0
     # a Release builds its spec by these names
     kind, spec = beamid.Release(beamid.TipLoad(fy=-1.0), elements_per_beam=3).spec()
     assert kind == 3 and spec["elements_per_beam"] == 3.0 and spec["fy"] == -1.0

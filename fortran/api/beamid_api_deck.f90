@@ -205,14 +205,15 @@ contains
 
     !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters, wrt and
     !! free parameter indices (1-based), output times, experiments (kind 1
-    !! tip, 2 wire, 3 release and 12 values in beamid_inverse's EV_* layout:
-    !! fx, fy, moment, wire_length, ...; beamid_tasks deck_experiments), priors.
+    !! tip, 2 wire, 3 release and 19 values (NEXPVAL) in beamid_inverse's EV_*
+    !! layout: fx, fy, moment, wire_length, ...; beamid_tasks
+    !! deck_experiments), priors.
     subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
                                       wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
                                       prior_mean, prior_sigma, code, message)
         integer(c_int), intent(in) :: handle
         integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
-        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(18, nexp_)
+        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(19, nexp_)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
         integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
         integer(c_int), intent(out) :: prior_index(nprior)

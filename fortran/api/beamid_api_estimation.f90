@@ -523,17 +523,18 @@ contains
 
     !> The nuisance parameters of the measurement chain the experiments'
     !! value columns ask for (beamid_inverse chain_layout), in parameter
-    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale),
-    !! experiment (1-based) and entry of the problem's observation list of
-    !! nobs entries (0 for a clock offset); the first n of each (at most nexp
-    !! (1 + 2 MAX_CHANNEL_BITS)) are filled.
+    !! order after the model's: kind (1 clock offset, 2 bias, 3 scale, 4
+    !! initial velocity), experiment (1-based) and entry of the problem's
+    !! observation list of nobs entries (0 for a clock offset or an initial
+    !! velocity); the first n of each (at most nexp (2 + 2 MAX_CHANNEL_BITS))
+    !! are filled.
     subroutine api_chain_layout(nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nobs, n, kinds, exps, qs, code, &
                                 message)
         integer(c_int), intent(in) :: nexp, nobs
         !f2py intent(hide) nexp
         integer(c_int), intent(in) :: exp_kind(nexp)
         integer(c_int), intent(out) :: n
-        integer(c_int), intent(out) :: kinds(105*nexp), exps(105*nexp), qs(105*nexp)
+        integer(c_int), intent(out) :: kinds(106*nexp), exps(106*nexp), qs(106*nexp)
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         integer(c_int), intent(in) :: nkv

@@ -15,14 +15,15 @@
 !! LOAD_MOMENT (release_load_index).
 module beamid_release
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int
+    use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int, fmt_real
     use beamid_model, only: chain_t, param_count, param_name
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_to_coords, &
                                dyn_to_physical, dyn_energy, dyn_tip, dyn_torque, dyn_rates, &
                                FRICTION_SIGN, dyn_param_t, dyn_param_setup, &
-                               dyn_static_sens, dyn_output_sens, dyn_add_forcing, DP_FORCING
+                               dyn_static_sens, dyn_output_sens, dyn_add_forcing, DP_FORCING, &
+                               DP_NONE
     use beamid_loads, only: tip_history_t, history_check
     use beamid_hub, only: hub_forcing_t, hub_setup
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
@@ -32,6 +33,9 @@ module beamid_release
 
     public :: release_spec_t, release_out_t, release_response, release_load_index
     public :: release_add_loads
+    !> The wrt index of the initial tip normal velocity v0 (spec%v0): its
+    !! sensitivity starts at ds/dv0(0) = (0, q / w_tip(q)) and has no forcing.
+    integer, parameter, public :: WRT_V0 = -1
     public :: release_quantity_name, release_wrt_name
     public :: NQTY, QTY_U_TIP, QTY_W_TIP, QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, &
               QTY_Y_ELBOW, QTY_MOTOR_TORQUE, QTY_ENERGY
@@ -68,6 +72,9 @@ module beamid_release
         !> start from this state instead of the static shape (its sensitivity
         !! is then zero)
         real(dp), allocatable :: y_init(:)
+        !> the initial tip normal velocity (m/s): the static shape q starts
+        !! with the velocity field v0 q / w_tip(q) (0: at rest)
+        real(dp) :: v0 = 0.0_dp
         !> progress(1) follows the output times reached (integ_opts_t%progress)
         real(dp), pointer :: progress(:) => null()
         !> also return the quantities' time derivatives (release_out_t%rate):
@@ -174,6 +181,7 @@ contains
         if (stat%code /= STATUS_OK) return
         base = param_count(chain%nbeams) + NLOAD
         do j = 1, nw
+            if (wrt(j) == WRT_V0) cycle
             if (wrt(j) < 1 .or. wrt(j) > base + nhp) then
                 call set_status(stat, ERR_INPUT, where, 'wrt('//fmt_int(j)//') = '// &
                                 fmt_int(wrt(j))//', expected 1..'//fmt_int(base + nhp)// &
@@ -188,6 +196,10 @@ contains
         out%nwork = sys%nwork
         allocate (y0(sys%nstate), q(n), s0(sys%nstate, nw), pars(nw))
         do j = 1, nw
+            if (wrt(j) == WRT_V0) then
+                pars(j)%kind = DP_NONE
+                cycle
+            end if
             if (wrt(j) > base) then
                 ! parameter ip of history l (DP_FORCING)
                 ip = wrt(j) - base
@@ -214,6 +226,11 @@ contains
                 return
             end if
             y0 = spec%y_init
+            if (spec%v0 /= 0.0_dp .or. any(wrt == WRT_V0)) then
+                call set_status(stat, ERR_INPUT, where, 'an initial velocity v0 with a '// &
+                                'given initial state: expected one of them')
+                return
+            end if
         else
             q = 0.0_dp
             call fe_solve_static(sys%mesh, spec%load, q, .false., nopts, sinfo, stat)
@@ -223,6 +240,22 @@ contains
             ! static equilibrium, the Newton tangent); zero velocity sensitivity
             if (nw > 0) call dyn_static_sens(sys, spec%load, q, pars, s0(1:n, :), stat)
             if (stat%code /= STATUS_OK) return
+            if (spec%v0 /= 0.0_dp .or. any(wrt == WRT_V0)) then
+                ! the initial velocity field: the static shape scaled to tip
+                ! normal velocity v0; d/dv0 starts as that field (no forcing)
+                call dyn_tip(sys, q, u, w, ang)
+                if (abs(w) <= 1.0e-12_dp*sum(chain%length)) then
+                    call set_status(stat, ERR_INPUT, where, 'an initial velocity v0 = '// &
+                                    fmt_real(spec%v0)//', but the static shape has no tip '// &
+                                    'deflection (w_tip = '//fmt_real(w)//'); expected a '// &
+                                    'release load that deflects the tip')
+                    return
+                end if
+                y0(n + 1:2*n) = spec%v0*q/w
+                do j = 1, nw
+                    if (wrt(j) == WRT_V0) s0(n + 1:2*n, j) = q/w
+                end do
+            end if
         end if
         opts%method = spec%integrator
         if (spec%dt > 0.0_dp) opts%dt = spec%dt

@@ -38,7 +38,7 @@ module beamid_dynamic_experiments
     use beamid_fe_assembly, only: fe_load_t
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_tip, FRICTION_SIGN, dyn_param_t, &
-                               dyn_param_setup, damping_element
+                               dyn_param_setup, damping_element, DP_NONE
     use beamid_integrators, only: integ_opts_t, integ_stats_t, history_t, integrate, &
                                   METHOD_IMPLICIT, METHOD_RK4, integ_rate_sens
     use beamid_fe_element, only: fe_hermite, FE_U, FE_W, FE_NDOF, fe_element_mass, &
@@ -51,7 +51,7 @@ module beamid_dynamic_experiments
     use beamid_release, only: release_spec_t, release_out_t, release_add_loads, &
                               sens_response => release_response, QTY_U_TIP, QTY_W_TIP, &
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
-                              QTY_MOTOR_TORQUE, NQTY
+                              QTY_MOTOR_TORQUE, NQTY, WRT_V0
     use beamid_static_experiments, only: distinct_sorted
     use beamid_family, only: experiment_family_t, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, &
                              EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD
@@ -80,6 +80,7 @@ module beamid_dynamic_experiments
         real(dp) :: rtol = 0.0_dp, dt = 0.0_dp
         real(dp) :: vslip = 1.0e-4_dp
         logical :: fd = .false.   !< central-difference columns (benchmark baseline)
+        real(dp) :: v0 = 0.0_dp   !< initial tip normal velocity (the chain's nuisance)
         !> sensitivities at the experiment's own tolerance at every fit
         !! iteration (no rough Jacobian: fit(..., jacobian="exact"))
         logical :: exact = .false.
@@ -327,6 +328,7 @@ contains
         spec = release_spec_t(elements_per_beam=x%nepb, load=fe_load_t(x%fx, x%fy, x%moment), &
                               motor_gain=x%gain, integrator=x%method, rtol=x%rtol, dt=x%dt, &
                               friction=x%law, friction_velocity=x%vslip, rates=rates)
+        spec%v0 = x%v0
         if (allocated(x%histories)) spec%histories = x%histories
         spec%hub = x%hub
         spec%hub_ws = x%hub_ws
@@ -478,6 +480,7 @@ contains
         !> The response by central differences of whole runs (x%fd).
         subroutine central_differences()
             real(dp), allocatable :: yp(:, :), ym(:, :), p(:)
+            type(release_exp_t) :: xv
             real(dp) :: h
             integer :: j
             dy = 0.0_dp
@@ -485,6 +488,18 @@ contains
             if (stat%code /= STATUS_OK) return
             allocate (yp(size(y, 1), size(y, 2)), ym(size(y, 1), size(y, 2)))
             do j = 1, size(wrt)
+                if (wrt(j) == WRT_V0) then
+                    xv = x
+                    h = 1.0e-4_dp*max(abs(x%v0), 1.0e-2_dp)
+                    xv%v0 = x%v0 + h
+                    call release_run(nbeams, params, xv, t_out, obs, yp, stat)
+                    if (stat%code /= STATUS_OK) return
+                    xv%v0 = x%v0 - h
+                    call release_run(nbeams, params, xv, t_out, obs, ym, stat)
+                    if (stat%code /= STATUS_OK) return
+                    dy(:, :, j) = (yp - ym)/(2.0_dp*h)
+                    cycle
+                end if
                 p = params
                 h = 1.0e-4_dp*max(abs(params(wrt(j))), 1.0e-2_dp)
                 p(wrt(j)) = params(wrt(j)) + h
@@ -634,6 +649,18 @@ contains
                              sinfo, stat)
         if (stat%code /= STATUS_OK) return
         y0(1:n) = q
+        if (x%v0 /= 0.0_dp) then
+            ! the initial velocity field (beamid_release): the static shape
+            ! scaled to tip normal velocity v0
+            call dyn_tip(sys, q, u, w, ang)
+            if (abs(w) <= 1.0e-12_dp*sum(chain%length)) then
+                call set_status(stat, ERR_INPUT, 'release', 'an initial velocity v0 = '// &
+                                fmt_real(x%v0)//', but the static shape has no tip '// &
+                                'deflection; expected a release load that deflects the tip')
+                return
+            end if
+            y0(n + 1:2*n) = x%v0*q/w
+        end if
         opts%method = x%method
         if (x%dt > 0.0_dp) opts%dt = x%dt
         if (x%rtol > 0.0_dp) opts%rtol = x%rtol
@@ -705,6 +732,10 @@ contains
         deallocate (pars)
         allocate (pars(size(wrt)))
         do j = 1, size(wrt)
+            if (wrt(j) == WRT_V0) then
+                pars(j)%kind = DP_NONE   ! the initial velocity: no forcing
+                cycle
+            end if
             call dyn_param_setup(sys, chain, wrt(j) - param_count(chain%nbeams), wrt(j), &
                                  pars(j), stat)
             if (stat%code /= STATUS_OK) return
@@ -1050,6 +1081,7 @@ contains
         real(dp), intent(out) :: jacobian(:, :)
         type(status_t), intent(inout) :: stat
         real(dp), allocatable :: times(:), y(:, :), dy(:, :, :), rate(:, :), tm(:)
+        integer, allocatable :: wrt_e(:)
         type(release_exp_t) :: rough
         integer :: e, i, k, nobs
         logical :: rates
@@ -1060,36 +1092,48 @@ contains
         if (.not. allocated(self%row_rate)) allocate (self%row_rate(size(self%row_exp)))
         self%row_rate = 0.0_dp
         rates = self%want_rates
+        if (.not. allocated(self%v0)) allocate (self%v0(size(self%exps)), source=0.0_dp)
+        if (.not. allocated(self%v0_fit)) allocate (self%v0_fit(size(self%exps)), &
+                                                    source=.false.)
+        if (allocated(self%row_dv0)) deallocate (self%row_dv0)
+        allocate (self%row_dv0(size(self%row_exp)), source=0.0_dp)
         ! the model time of every row: its record time plus its record's offset
         tm = max(0.0_dp, self%row_t + self%shift(self%row_exp))
         do e = 1, size(self%exps)
             if (.not. any(self%row_exp == e)) cycle
             times = distinct_sorted(pack(tm, self%row_exp == e))
             nobs = size(self%eobs(e)%o)
-            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt)), &
+            ! the initial velocity (the chain's nuisance v0) and its column
+            self%exps(e)%v0 = self%v0(e)
+            if (self%v0_fit(e)) then
+                wrt_e = [wrt, WRT_V0]
+            else
+                wrt_e = wrt
+            end if
+            allocate (y(nobs, size(times)), dy(nobs, size(times), size(wrt_e)), &
                       rate(nobs, size(times)), source=0.0_dp)
             if (self%rough == ROUGH_ALL .and. rough_tolerance(self%exps(e)) > 0.0_dp) then
                 rough = self%exps(e)
                 rough%rtol = rough_tolerance(rough)
                 if (rates) then
-                    call release_response(self%nbeams, params, rough, times, wrt, &
+                    call release_response(self%nbeams, params, rough, times, wrt_e, &
                                           self%eobs(e)%o, y, dy, stat, rate)
                 else
-                    call release_response(self%nbeams, params, rough, times, wrt, &
+                    call release_response(self%nbeams, params, rough, times, wrt_e, &
                                           self%eobs(e)%o, y, dy, stat)
                 end if
-            else if (self%rough == ROUGH_JACOBIAN .and. size(wrt) > 0 .and. &
+            else if (self%rough == ROUGH_JACOBIAN .and. size(wrt_e) > 0 .and. &
                      rough_tolerance(self%exps(e)) > 0.0_dp) then
                 call rough_response(e, times, y, dy, rate)
             else
                 if (rates) then
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt_e, &
                                           self%eobs(e)%o, y, dy, stat, rate)
                 else
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt, &
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt_e, &
                                           self%eobs(e)%o, y, dy, stat)
                 end if
-                if (stat%code == STATUS_OK .and. size(wrt) == 0) call remember(e, times, y, rate)
+                if (stat%code == STATUS_OK .and. size(wrt_e) == 0) call remember(e, times, y, rate)
             end if
             if (stat%code /= STATUS_OK) then
                 stat%message = trim(stat%message)//' (experiment '//fmt_int(e)//')'
@@ -1099,7 +1143,8 @@ contains
                 if (self%row_exp(i) /= e) cycle
                 k = findloc(times, tm(i), 1)
                 predictions(i) = y(self%row_oi(i), k)
-                jacobian(i, :) = dy(self%row_oi(i), k, :)
+                jacobian(i, :) = dy(self%row_oi(i), k, 1:size(wrt))
+                if (self%v0_fit(e)) self%row_dv0(i) = dy(self%row_oi(i), k, size(wrt_e))
                 ! before the release (model time clipped at 0) the chain rests
                 if (self%row_t(i) + self%shift(e) > 0.0_dp) &
                     self%row_rate(i) = rate(self%row_oi(i), k)
@@ -1116,9 +1161,10 @@ contains
             real(dp), allocatable :: yr(:, :), none(:, :, :)
             logical :: cached
             cached = self%cache(e)%valid
+            ! the cache's key: the model's parameters and the initial velocity
             if (cached) cached = size(self%cache(e)%times) == size(times) .and. &
-                                 size(self%cache(e)%params) == size(params)
-            if (cached) cached = all(self%cache(e)%params == params) .and. &
+                                 size(self%cache(e)%params) == size(params) + 1
+            if (cached) cached = all(self%cache(e)%params == [params, self%v0(e)]) .and. &
                                  all(self%cache(e)%times == times) .and. &
                                  (allocated(self%cache(e)%rate) .or. .not. rates)
             rate = 0.0_dp
@@ -1128,10 +1174,10 @@ contains
             else
                 allocate (none(size(self%eobs(e)%o), size(times), 0))
                 if (rates) then
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt_e(1:0), &
                                           self%eobs(e)%o, y, none, stat, rate)
                 else
-                    call release_response(self%nbeams, params, self%exps(e), times, wrt(1:0), &
+                    call release_response(self%nbeams, params, self%exps(e), times, wrt_e(1:0), &
                                           self%eobs(e)%o, y, none, stat)
                 end if
                 if (stat%code /= STATUS_OK) return
@@ -1140,7 +1186,7 @@ contains
             rough = self%exps(e)
             rough%rtol = rough_tolerance(rough)
             allocate (yr(size(self%eobs(e)%o), size(times)))
-            call release_response(self%nbeams, params, rough, times, wrt, self%eobs(e)%o, yr, &
+            call release_response(self%nbeams, params, rough, times, wrt_e, self%eobs(e)%o, yr, &
                                   dy, stat)
         end subroutine rough_response
 
@@ -1148,7 +1194,7 @@ contains
             integer, intent(in) :: e
             real(dp), intent(in) :: times(:), y(:, :), rate(:, :)
             self%cache(e)%valid = .true.
-            self%cache(e)%params = params
+            self%cache(e)%params = [params, self%v0(e)]
             self%cache(e)%times = times
             self%cache(e)%y = y
             if (rates) then

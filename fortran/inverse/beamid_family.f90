@@ -48,7 +48,11 @@ module beamid_family
     !! the channels (bit q - 1: entry q of the observation list) whose sigma
     !! is estimated from the residuals.
     integer, parameter, public :: EV_LOSS = 16, EV_BURNIN = 17, EV_SIGEST = 18
-    integer, parameter, public :: NEXPVAL = 18
+    !> EV_V0 (1: a release's initial velocity v0 is a nuisance parameter of
+    !! the measurement chain: the chain starts from its static shape with the
+    !! velocity field v0 q / w_tip(q), q the static displacement).
+    integer, parameter, public :: EV_V0 = 19
+    integer, parameter, public :: NEXPVAL = 19
 
     !> A named key of an experiment's spec: its name (the deck's), the row
     !! of the value column it fills, the families that accept it (FAM_* bits
@@ -98,7 +102,9 @@ module beamid_family
         spec_key_t('burn_in', EV_BURNIN, ALL_FAMILIES, 0.0_dp, &
                    'time before which rows are not fitted (s)'), &
         spec_key_t('sigma_est', EV_SIGEST, ALL_FAMILIES, 0.0_dp, &
-                   'channel mask of estimated sigmas')]
+                   'channel mask of estimated sigmas'), &
+        spec_key_t('v0', EV_V0, ALL_FAMILIES, 0.0_dp, &
+                   '1: the release''s initial tip normal velocity is fitted')]
 
     !> One family of experiments and the data rows they predict.
     type, abstract, extends(residual_model_t) :: experiment_family_t
@@ -112,6 +118,13 @@ module beamid_family
         real(dp), allocatable :: shift(:)
         logical :: want_rates = .false.
         real(dp), allocatable :: row_rate(:)
+        !> releases: each experiment's initial tip normal velocity (the chain
+        !! nuisance v0, set by the problem before evaluate; 0: at rest), whether
+        !! its column is asked (v0_fit), and then d prediction / d v0 of every
+        !! row (row_dv0)
+        real(dp), allocatable :: v0(:)
+        logical, allocatable :: v0_fit(:)
+        real(dp), allocatable :: row_dv0(:)
     contains
         procedure(name_if), deferred, nopass :: name
         procedure(claims_if), deferred, nopass :: claims

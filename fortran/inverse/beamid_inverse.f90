@@ -13,7 +13,7 @@ module beamid_inverse
                               EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, &
                               EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, &
                               EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, NU_T0, NU_BIAS, NU_SCALE, &
-                              MAX_CHANNEL_BITS
+                              NU_V0, EV_V0, MAX_CHANNEL_BITS
     implicit none
     private
 
@@ -22,7 +22,7 @@ module beamid_inverse
     public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
               EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, &
               EV_SCALE, EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, NU_T0, NU_BIAS, NU_SCALE, &
-              MAX_CHANNEL_BITS
+              NU_V0, EV_V0, MAX_CHANNEL_BITS
 
 contains
 

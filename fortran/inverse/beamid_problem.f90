@@ -29,10 +29,13 @@
 !! an input error), and per channel (experiment, observation) a bias b and a
 !! scale s (bit q - 1 of EV_BIAS, EV_SCALE for entry q of the observation
 !! list, so without a list for kind code q: the row reads s h + b; columns 1
-!! and h). They follow the model's parameters in the parameter vector, in
-!! the order of chain_layout: per experiment its t0, its biases by entry of
-!! the observation list, its scales likewise. Null values t0 = 0, b = 0,
-!! s = 1 (the perfect chain), so the score test and refits of
+!! and h), and a release's initial tip normal velocity v0 (EV_V0 = 1: the
+!! static shape q starts with the velocity field v0 q / w_tip(q); column s
+!! dh/dv0 from the family's sensitivities started at (0, q / w_tip(q))).
+!! They follow the model's parameters in the parameter vector, in the order
+!! of chain_layout: per experiment its t0, its v0, its biases by entry of
+!! the observation list, its scales likewise. Null values t0 = 0, v0 = 0,
+!! b = 0, s = 1 (the perfect chain), so the score test and refits of
 !! beamid_estimation treat them as effects.
 module beamid_problem
     use, intrinsic :: iso_fortran_env, only: int64
@@ -47,7 +50,7 @@ module beamid_problem
     use beamid_family, only: family_slot_t, EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, &
                              EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, &
                              EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, &
-                             EV_BURNIN, EV_SIGEST, NEXPVAL
+                             EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0
     use beamid_families, only: registered_families, family_of_kind, kind_timed, kinds_expected
     use beamid_family, only: experiment_family_t
     use beamid_dynamic_experiments, only: dynamic_experiments_t, exp_histories_t, &
@@ -62,10 +65,10 @@ module beamid_problem
     !> The spec layout (beamid_family), here for the problem's callers.
     public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
               EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, &
-              EV_SCALE, EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL
+              EV_SCALE, EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0
 
     !> Kinds of the nuisance parameters (chain_layout).
-    integer, parameter, public :: NU_T0 = 1, NU_BIAS = 2, NU_SCALE = 3
+    integer, parameter, public :: NU_T0 = 1, NU_BIAS = 2, NU_SCALE = 3, NU_V0 = 4
     !> A channel mask is a whole number in a double: bits for the first 52
     !! entries of the observation list at most.
     integer, parameter, public :: MAX_CHANNEL_BITS = 52
@@ -89,6 +92,8 @@ module beamid_problem
         !> per data row the index in the parameter vector of its record's
         !! clock offset, its channel's bias and scale (0: none)
         integer, allocatable :: row_t0(:), row_bias(:), row_scale(:)
+        !> per data row the index of its release's initial velocity (0: none)
+        integer, allocatable :: row_v0(:)
         type(chain_rows_t) :: rows        !< each row's loss, burn-in, estimated sigma
     contains
         procedure :: evaluate => inverse_evaluate
@@ -373,6 +378,7 @@ contains
                     end do
                     cycle
                 end if
+                if (self%nu_kind(k) == NU_V0) cycle
                 if (any(row_exp == self%nu_exp(k) .and. row_quantity == self%nu_q(k))) cycle
                 if (probing) cycle
                 call set_status(stat, ERR_INPUT, where, 'experiment '// &
@@ -387,7 +393,7 @@ contains
             self%nulls = [self%nulls, (merge(1.0_dp, 0.0_dp, self%nu_kind(k) == NU_SCALE), &
                                        k=1, size(self%nu_kind))]
             allocate (self%row_t0(size(row_exp)), self%row_bias(size(row_exp)), &
-                      self%row_scale(size(row_exp)), source=0)
+                      self%row_scale(size(row_exp)), self%row_v0(size(row_exp)), source=0)
             do k = 1, size(self%nu_kind)
                 e = self%nu_exp(k)
                 do i = 1, size(row_exp)
@@ -395,6 +401,8 @@ contains
                     select case (self%nu_kind(k))
                     case (NU_T0)
                         self%row_t0(i) = self%np + k
+                    case (NU_V0)
+                        self%row_v0(i) = self%np + k
                     case (NU_BIAS)
                         if (row_quantity(i) == self%nu_q(k)) self%row_bias(i) = self%np + k
                     case (NU_SCALE)
@@ -466,6 +474,24 @@ contains
                 return
             end if
             if (t0 == 1) call push(NU_T0, 0)
+            if (size(exp_values, 1) >= EV_V0) then
+                associate (v => exp_values(EV_V0, e))
+                    if (v /= 0.0_dp .and. v /= 1.0_dp) then
+                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                        ': initial velocity flag v0 = '//fmt_real(v)// &
+                                        ', expected 0 or 1')
+                        return
+                    end if
+                    if (v == 1.0_dp .and. exp_kind(e) /= EXP_RELEASE) then
+                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                        ': an initial velocity v0 asked for an experiment '// &
+                                        'that is not a release (only a release starts '// &
+                                        'moving)')
+                        return
+                    end if
+                    if (v == 1.0_dp) call push(NU_V0, 0)
+                end associate
+            end if
             do m = 1, 2
                 do q = 1, min(n, MAX_CHANNEL_BITS)
                     if (btest(mask(m), q - 1)) call push(NU_BIAS + m - 1, q)
@@ -538,6 +564,18 @@ contains
                     if (self%exp_fam(self%nu_exp(k)) /= f) cycle
                     fam%shift(self%exp_loc(self%nu_exp(k))) = params(np + k)
                 end do
+                if (any(self%nu_kind == NU_V0)) then
+                    if (.not. allocated(fam%v0)) allocate (fam%v0(size(fam%exp_ids)))
+                    if (.not. allocated(fam%v0_fit)) allocate (fam%v0_fit(size(fam%exp_ids)))
+                    fam%v0 = 0.0_dp
+                    fam%v0_fit = .false.
+                    do k = 1, size(self%nu_kind)
+                        if (self%nu_kind(k) /= NU_V0) cycle
+                        if (self%exp_fam(self%nu_exp(k)) /= f) cycle
+                        fam%v0(self%exp_loc(self%nu_exp(k))) = params(np + k)
+                        fam%v0_fit(self%exp_loc(self%nu_exp(k))) = any(wrt == np + k)
+                    end do
+                end if
                 call fam%evaluate(params(1:np), pw, p, j, stat)
                 if (stat%code /= STATUS_OK) return
                 predictions(fam%rows) = p
@@ -563,6 +601,16 @@ contains
                         do i = 1, size(fam%rows)
                             if (self%row_t0(fam%rows(i)) == wrt(c)) jacobian(fam%rows(i), c) = &
                                 scale(fam%rows(i))*fam%row_rate(i)
+                        end do
+                    end associate
+                end do
+            case (NU_V0)
+                do f = 1, size(self%fams)
+                    associate (fam => self%fams(f)%item)
+                        if (.not. allocated(fam%row_dv0)) cycle
+                        do i = 1, size(fam%rows)
+                            if (self%row_v0(fam%rows(i)) == wrt(c)) jacobian(fam%rows(i), c) = &
+                                scale(fam%rows(i))*fam%row_dv0(i)
                         end do
                     end associate
                 end do

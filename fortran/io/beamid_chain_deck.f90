@@ -1,6 +1,6 @@
 !> The measurement chain of an estimation deck (issue 29; docs/decks.md,
 !! "The measurement chain"): the &fit keys time_offset, bias, scale, loss,
-!! burn_in and estimate_sigma, read into the experiments' value columns as
+!! burn_in, estimate_sigma and initial_velocity, read into the experiments' value columns as
 !! beamid.fit sets them (beamid_inverse EV_T0, EV_BIAS, EV_SCALE, EV_LOSS,
 !! EV_BURNIN, EV_SIGEST), so a deck and the Python API fit one problem.
 !!
@@ -19,14 +19,14 @@ module beamid_chain_deck
     use beamid_namelist, only: nml_text_t, add_error
     use beamid_observations, only: observation_t, obs_label, same_observation, parse_observation
     use beamid_inverse, only: EXP_RELEASE, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, EV_BURNIN, &
-                              EV_SIGEST, MAX_CHANNEL_BITS
+                              EV_SIGEST, MAX_CHANNEL_BITS, EV_V0
     implicit none
     private
 
     public :: ordered_observations, chain_asked, set_chain_key, CHAIN_KEYS, chain_sigma_missing
     !> The &fit keys of the measurement chain (nml_check_keys' list form).
     character(len=*), parameter :: CHAIN_KEYS = ' time_offset bias scale loss burn_in '// &
-                                                'estimate_sigma '
+                                                'estimate_sigma initial_velocity '
     character(len=*), parameter :: LOSS_NAMES(0:2) = [character(len=6) :: 'linear', 'huber', &
                                                       'cauchy']
 
@@ -72,6 +72,8 @@ contains
         chain_asked = .false.
         if (size(values, 1) < EV_SIGEST) return
         chain_asked = any(values(EV_T0:EV_SIGEST, :) /= 0.0_dp)
+        if (size(values, 1) >= EV_V0) chain_asked = chain_asked .or. &
+                                                    any(values(EV_V0, :) /= 0.0_dp)
     end function chain_asked
 
     !> One chain key of a deck's &fit (`key` one of CHAIN_KEYS, `items` its
@@ -106,6 +108,21 @@ contains
                                    "record in time (kind = 'release')")
                 else
                     values(EV_T0, e) = 1.0_dp
+                end if
+            end do
+        case ('initial_velocity')
+            do i = 1, size(items)
+                e = find_name(names, items(i)%s)
+                if (e == 0) then
+                    call add_error(errors, where//"initial_velocity = '"//items(i)%s// &
+                                   "': no experiment of that name (experiments: "// &
+                                   joined(names)//')')
+                else if (kinds(e) /= EXP_RELEASE) then
+                    call add_error(errors, where//"initial_velocity = '"//items(i)%s// &
+                                   "': the experiment is static; an initial velocity needs "// &
+                                   "a release (kind = 'release')")
+                else
+                    values(EV_V0, e) = 1.0_dp
                 end if
             end do
         case ('bias', 'scale', 'estimate_sigma')

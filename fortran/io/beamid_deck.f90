@@ -1440,7 +1440,8 @@ contains
         end do
     end function join_names
     !> The measurement chain's keys of a &fit group (beamid_chain_deck:
-    !! time_offset, bias, scale, loss, burn_in, estimate_sigma) into the
+    !! time_offset, bias, scale, loss, burn_in, estimate_sigma,
+    !! initial_velocity) into the
     !! experiments' value columns; not for task identify.
     subroutine read_chain_keys(f, g, where, identify, deck, stage, errors)
         type(nml_file_t), intent(in) :: f
@@ -1450,8 +1451,9 @@ contains
         type(deck_t), intent(inout) :: deck
         type(stage_t), intent(in) :: stage
         character(len=:), allocatable, intent(inout) :: errors
-        character(len=*), parameter :: keys(5) = [character(len=14) :: 'time_offset', 'bias', &
-                                                  'scale', 'loss', 'estimate_sigma']
+        character(len=*), parameter :: keys(6) = [character(len=16) :: 'time_offset', 'bias', &
+                                                  'scale', 'loss', 'estimate_sigma', &
+                                                  'initial_velocity']
         type(nml_text_t), allocatable :: items(:)
         character(len=40) :: text
         logical :: given

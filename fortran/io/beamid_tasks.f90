@@ -36,7 +36,7 @@ module beamid_tasks
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
     use beamid_inverse, only: NEXPVAL, EV_NEPB, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
-                              NU_BIAS, NU_SCALE
+                              NU_BIAS, NU_SCALE, NU_V0
     use beamid_chain_deck, only: chain_asked, ordered_observations
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
@@ -775,6 +775,8 @@ contains
         select case (kinds(j))
         case (NU_T0)
             name = 't0['//trim(d%exp_names(exps(j)))//']'
+        case (NU_V0)
+            name = 'v0['//trim(d%exp_names(exps(j)))//']'
         case (NU_BIAS)
             name = 'bias['//trim(d%exp_names(exps(j)))//':'//obs_label(pb%obs(qs(j)))//']'
         case default

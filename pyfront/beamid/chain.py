@@ -8,7 +8,10 @@ scale ``s`` (the row reads s h + b). They are extra columns of the one
 Gauss-Newton fit (Fortran, ``beamid_inverse``): the t0 column is s dh/dt
 from the integrated state's rates (every observation kind but the
 accelerations, whose records take no time offset), the bias column 1, the
-scale column h; the covariance of the physics parameters is the matching
+scale column h; a release's initial tip normal velocity ``v0`` (the
+chain starts from its static shape q with the velocity field v0 q /
+w_tip(q) instead of at rest) has the column s dh/dv0 from the sensitivity
+equations started at ds/dv0(0) = (0, q / w_tip(q)); the covariance of the physics parameters is the matching
 block of the full inverse, so it accounts for them. Channels are numbered
 by the problem's observation list (beamid.observations.ordered), at most
 the first 52 of it (a channel mask is a whole number in a double).
@@ -35,9 +38,9 @@ from .loads import Release
 from .measurements import _canonical
 
 #: keys of the ``nuisance`` argument of :func:`beamid.fit`
-NUISANCE_KINDS = ("time_offset", "bias", "scale")
+NUISANCE_KINDS = ("time_offset", "bias", "scale", "initial_velocity")
 #: rows (0-based) of the keys t0, bias, scale in the core's value column (its key table)
-_EV_T0, _EV_BIAS, _EV_SCALE = (spec_row(k) for k in ("t0", "bias", "scale"))
+_EV_T0, _EV_BIAS, _EV_SCALE, _EV_V0 = (spec_row(k) for k in ("t0", "bias", "scale", "v0"))
 #: channels (bits of a mask in a double) of the first entries of the
 #: observation list at most (beamid_inverse MAX_CHANNEL_BITS)
 MAX_CHANNEL_BITS = 52
@@ -46,31 +49,35 @@ MAX_CHANNEL_BITS = 52
 #: load cell's reaction holds the accelerations too)
 NO_RATE_KINDS = ("accel_t", "accel_n", "reaction_x", "reaction_y", "reaction_moment")
 #: null (perfect chain) value by kind
-NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0}
-_KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale"}
+NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0, "initial_velocity": 0.0}
+_KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale", 4: "initial_velocity"}
 
 
 @dataclass(frozen=True)
 class ChainSpec:
     """The nuisance parameters of a fit: ``t0`` {experiment: start},
-    ``bias`` and ``scale`` {(experiment, quantity): start}."""
+    ``bias`` and ``scale`` {(experiment, quantity): start}, ``v0``
+    {release: start} (its initial tip normal velocity, m/s)."""
 
     t0: dict[str, float] = field(default_factory=dict)
     bias: dict[tuple[str, str], float] = field(default_factory=dict)
     scale: dict[tuple[str, str], float] = field(default_factory=dict)
+    v0: dict[str, float] = field(default_factory=dict)
 
     def __bool__(self) -> bool:
-        return bool(self.t0 or self.bias or self.scale)
+        return bool(self.t0 or self.bias or self.scale or self.v0)
 
     def order(self, experiments: list[str]) -> list[tuple[str, str, str]]:
         """(kind, experiment, observation) in the parameter order of the
-        Fortran core (chain_layout): per experiment its t0, its biases, its
-        scales, each in the order of the observation list
+        Fortran core (chain_layout): per experiment its t0, its v0, its
+        biases, its scales, each in the order of the observation list
         (beamid.observations.ordered)."""
         out = []
         for e in experiments:
             if e in self.t0:
                 out.append(("time_offset", e, ""))
+            if e in self.v0:
+                out.append(("initial_velocity", e, ""))
             for kind, table in (("bias", self.bias), ("scale", self.scale)):
                 qs = [q for x, q in table if x == e]
                 for q in sorted(qs, key=observations.sort_key):
@@ -79,12 +86,14 @@ class ChainSpec:
 
     def names(self, experiments: list[str] | None = None) -> tuple[str, ...]:
         exps = experiments if experiments is not None else list(dict.fromkeys(
-            list(self.t0) + [e for e, _ in self.bias] + [e for e, _ in self.scale]))
+            list(self.t0) + list(self.v0) + [e for e, _ in self.bias]
+            + [e for e, _ in self.scale]))
         return tuple(param_name(k, e, q) for k, e, q in self.order(exps))
 
     def starts(self, experiments: list[str]) -> np.ndarray:
-        table = {"time_offset": self.t0, "bias": self.bias, "scale": self.scale}
-        return np.array([table[k][e] if k == "time_offset" else table[k][(e, q)]
+        table = {"time_offset": self.t0, "bias": self.bias, "scale": self.scale,
+                 "initial_velocity": self.v0}
+        return np.array([table[k][e] if k in _PER_EXPERIMENT else table[k][(e, q)]
                          for k, e, q in self.order(experiments)], float)
 
     def encode(self, experiments: list[str], values: np.ndarray,
@@ -94,24 +103,31 @@ class ChainSpec:
         entry (None: the kind codes)."""
         for j, e in enumerate(experiments):
             values[_EV_T0, j] = 1.0 if e in self.t0 else 0.0
+            values[_EV_V0, j] = 1.0 if e in self.v0 else 0.0
             for row, table in ((_EV_BIAS, self.bias), (_EV_SCALE, self.scale)):
                 values[row, j] = _mask([q for (x, q) in table if x == e], index,
                                        "nuisance")
 
     def with_values(self, experiments: list[str], values: np.ndarray) -> "ChainSpec":
         """The same parameters started at ``values`` (in :meth:`order`)."""
-        t0, bias, scale = {}, {}, {}
+        t0, bias, scale, v0 = {}, {}, {}, {}
         for (k, e, q), v in zip(self.order(experiments), values):
             if k == "time_offset":
                 t0[e] = float(v)
+            elif k == "initial_velocity":
+                v0[e] = float(v)
             else:
                 (bias if k == "bias" else scale)[(e, q)] = float(v)
-        return ChainSpec(t0, bias, scale)
+        return ChainSpec(t0, bias, scale, v0)
 
     def merged(self, other: "ChainSpec") -> "ChainSpec":
         """This spec with ``other``'s parameters added (its own values kept)."""
         return ChainSpec({**other.t0, **self.t0}, {**other.bias, **self.bias},
-                         {**other.scale, **self.scale})
+                         {**other.scale, **self.scale}, {**other.v0, **self.v0})
+
+
+#: the nuisance kinds with one parameter per experiment (no channel)
+_PER_EXPERIMENT = ("time_offset", "initial_velocity")
 
 
 #: rows of the experiment value column: EV_LOSS, EV_BURNIN, EV_SIGEST (0-based)
@@ -243,7 +259,7 @@ def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment |
     them), channel masks over the data's observations in the core's order
     (beamid.observations.ordered). (None, None) when it asks nothing."""
     labels = observations.ordered(data.quantity)
-    t0, bias, scale, burn, est = {}, {}, {}, {}, []
+    t0, bias, scale, burn, est, v0 = {}, {}, {}, {}, [], {}
     loss = "linear"
 
     def bits(v: float) -> list[str]:
@@ -261,6 +277,12 @@ def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment |
                                                          _EV_LOSS, _EV_BURNIN, _EV_SIGEST))
         if t == 1.0:
             t0[name] = 0.0
+        if isinstance(values, Mapping):
+            v0_flag = float(values.get("v0", 0.0))
+        else:
+            v0_flag = float(values[_EV_V0]) if len(values) > _EV_V0 else 0.0
+        if v0_flag == 1.0:
+            v0[name] = 0.0
         bias.update({(name, q): 0.0 for q in bits(b)})
         scale.update({(name, q): 1.0 for q in bits(sc)})
         if lo:
@@ -268,14 +290,16 @@ def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment |
         if bu > 0.0:
             burn[name] = bu
         est += [(name, q) for q in bits(se)]
-    spec, rows = ChainSpec(t0, bias, scale), RowTreatment(loss, burn, tuple(est))
+    spec, rows = ChainSpec(t0, bias, scale, v0), RowTreatment(loss, burn, tuple(est))
     return (spec or None), (rows or None)
 
 
 def param_name(kind: str, experiment: str, quantity: str) -> str:
-    """``t0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
+    """``t0[exp]``, ``v0[exp]``, ``bias[exp:quantity]``, ``scale[exp:quantity]``."""
     if kind == "time_offset":
         return f"t0[{experiment}]"
+    if kind == "initial_velocity":
+        return f"v0[{experiment}]"
     return f"{kind}[{experiment}:{quantity}]"
 
 
@@ -317,7 +341,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
     """Check and normalize the ``nuisance`` argument of :func:`beamid.fit`.
 
     ``{"time_offset": [experiment, ...], "bias": [(experiment, quantity),
-    ...], "scale": [...]}``; each list may be a dict giving the start value
+    ...], "scale": [...], "initial_velocity": [release, ...]}``; each list may be a dict giving the start value
     (``{"free": 0.01}``, ``{("free", "w_tip"): 1e-3}``); a bare quantity
     name in ``bias``/``scale`` means that quantity in every experiment that
     measures it.
@@ -329,7 +353,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
     nuisance = _check.mapping("nuisance", nuisance)
     exps = dict(experiments)
     channels = _channels(data)
-    out: dict[str, dict] = {"time_offset": {}, "bias": {}, "scale": {}}
+    out: dict[str, dict] = {"time_offset": {}, "bias": {}, "scale": {}, "initial_velocity": {}}
     for kind, items in nuisance.items():
         if kind not in NUISANCE_KINDS:
             raise InputError(f"nuisance: unknown kind {kind!r}, expected one of "
@@ -346,10 +370,20 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                                 above=0.0 if kind == "scale" else None,
                                 expected="a finite number" + (" > 0" if kind == "scale"
                                                               else ""))
-            if not isinstance(item, str if kind == "time_offset" else (str, tuple)):
-                _check.fail(f"nuisance[{kind!r}]", item, "an experiment name" if kind ==
-                            "time_offset" else "an (experiment, quantity) pair or a "
+            if not isinstance(item, str if kind in _PER_EXPERIMENT else (str, tuple)):
+                _check.fail(f"nuisance[{kind!r}]", item, "an experiment name" if kind in
+                            _PER_EXPERIMENT else "an (experiment, quantity) pair or a "
                             "quantity name")
+            if kind == "initial_velocity":
+                if item not in exps:
+                    raise InputError(f"nuisance['initial_velocity']: no experiment {item!r} "
+                                     f"(experiments: {', '.join(exps)})")
+                if not isinstance(exps[item], Release):
+                    raise InputError(f"nuisance['initial_velocity']: experiment {item!r} is "
+                                     "static; an initial velocity needs a release (a "
+                                     "beamid.Release)")
+                out[kind][item] = start
+                continue
             if kind == "time_offset":
                 if item not in exps:
                     raise InputError(f"nuisance['time_offset']: no experiment {item!r} "
@@ -395,7 +429,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                                  f"experiment {e!r} has no rows of {q!r} (it measures "
                                  f"{', '.join(have) or 'nothing'})")
             out[kind][(e, q)] = start
-    return ChainSpec(out["time_offset"], out["bias"], out["scale"])
+    return ChainSpec(out["time_offset"], out["bias"], out["scale"], out["initial_velocity"])
 
 
 def layout(prob: "_ce.Problem", names: list[str]) -> list[tuple[str, str, str]]:
@@ -411,9 +445,9 @@ def layout(prob: "_ce.Problem", names: list[str]) -> list[tuple[str, str, str]]:
 # ------------------------------------------------- the chain among the candidates
 
 #: the measurement chain's candidates of beamid.diagnose (time histories)
-CHAIN_CANDIDATES = ("clock_offset", "channel_bias", "channel_scale")
+CHAIN_CANDIDATES = ("clock_offset", "channel_bias", "channel_scale", "initial_velocity")
 _CANDIDATE_KIND = {"clock_offset": "time_offset", "channel_bias": "bias",
-                   "channel_scale": "scale"}
+                   "channel_scale": "scale", "initial_velocity": "initial_velocity"}
 
 
 #: the chain's candidate effects (name, description), in the order they are
@@ -427,11 +461,19 @@ CANDIDATE_EFFECTS = (
      "gauge's zero drift"),
     ("channel_scale", "a scale s of a channel: a gauge factor, an accelerometer's "
      "sensitivity"),
+    ("initial_velocity", "an initial velocity v0 of a release (the tip's normal velocity "
+     "at t = 0: the chain was not released at rest)"),
     ("gross_errors", "a few rows far off (a lost marker, a spike): the refit with a Huber "
      "loss"),
     ("noise", "noise larger than stated: white residuals with chi2/dof above 1 (the refit "
      "estimates the sigmas)"),
 )
+
+#: chain candidates tried only when named in ``candidates`` (not among the
+#: release's defaults): a release's initial velocity v0 trades off against
+#: the static load and the damping of a short record, and the defaults keep
+#: the diagnoses (and the decks' outputs) they had
+OPT_IN_CANDIDATES = ("initial_velocity",)
 
 
 @dataclass
@@ -478,9 +520,11 @@ def extension(model, experiments, data, own: ChainSpec | None, effects: list, na
         kind = _CANDIDATE_KIND.get(eff.name)
         if kind is None:
             continue
-        table = {"time_offset": cand.t0, "bias": cand.bias, "scale": cand.scale}[kind]
+        table = {"time_offset": cand.t0, "bias": cand.bias, "scale": cand.scale,
+                 "initial_velocity": cand.v0}[kind]
         ns = tuple(param_name(k, e, q) for k, e, q in order
-                   if k == kind and ((e in table) if kind == "time_offset" else ((e, q) in table)))
+                   if k == kind and ((e in table) if kind in _PER_EXPERIMENT
+                                     else ((e, q) in table)))
         names[c] = ns
         blocks[c] = np.array([index[n] for n in ns], np.int32)
     free = np.array([index[n] for n in own.names(exps)], np.int32)
@@ -514,7 +558,8 @@ def _candidates(experiments, data, own: ChainSpec | None,
         {e: 0.0 for e in rel if e not in own.t0 and not _no_rate_rows(data, e)}
         if "time_offset" in kinds else {},
         {c: 0.0 for c in channels if c not in own.bias} if "bias" in kinds else {},
-        {c: 1.0 for c in channels if c not in own.scale} if "scale" in kinds else {})
+        {c: 1.0 for c in channels if c not in own.scale} if "scale" in kinds else {},
+        {e: 0.0 for e in rel if e not in own.v0} if "initial_velocity" in kinds else {})
     return own, cand
 
 
@@ -537,6 +582,8 @@ def split_ladder_fit(raw: dict, free0, npar: int, spec: ChainSpec,
         k, e, q = order[i - npar]
         if k == "time_offset":
             sub.t0[e] = float(params[i])
+        elif k == "initial_velocity":
+            sub.v0[e] = float(params[i])
         else:
             (sub.bias if k == "bias" else sub.scale)[(e, q)] = float(params[i])
     out = dict(raw, params=np.concatenate([params[:npar], params[chain]]))

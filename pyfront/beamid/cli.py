@@ -131,7 +131,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
     # the subcommand overrides the deck's task (docs/decks.md): `beamid fit` fits only
     keys = chain_options(args.time_offset, args.bias, args.scale, args.loss, args.burn_in,
-                         args.estimate_sigma)
+                         args.estimate_sigma, args.initial_velocity)
     deck = dataclasses.replace(read_fit_deck(args.deck, keys), task=args.command)
     return _report(run_fit_deck(deck, plots=not args.no_plots))
 
@@ -361,6 +361,9 @@ def _commands() -> list:
         ("--estimate-sigma", dict(nargs="*", default=None, metavar="CHANNEL", help="estimate "
                                   "the sigma of these channels from the residuals, without a "
                                   "CHANNEL of every channel (&fit estimate_sigma)")),
+        ("--initial-velocity", dict(nargs="+", default=(), metavar="EXPERIMENT", help="fit the "
+                                    "initial tip normal velocity v0 of these releases (&fit "
+                                    "initial_velocity)")),
     ]
     estimation = [(name, _cmd_estimate, text, f"{text[0].upper()}{text[1:]}. The subcommand "
                    "overrides the deck's task (docs/decks.md); the measurement chain's "

@@ -60,7 +60,7 @@ __all__ = ["DYNAMIC_CANDIDATES", "is_dynamic", "diagnose_dynamic", "add_effect_d
 def _with_chain(names: tuple[str, ...]) -> tuple[str, ...]:
     """The core's default candidates with the measurement chain's
     (beamid.chain) before the mesh, which is tried last."""
-    chain = tuple(n for n, _ in _chain.CANDIDATE_EFFECTS)
+    chain = tuple(n for n, _ in _chain.CANDIDATE_EFFECTS if n not in _chain.OPT_IN_CANDIDATES)
     rest = tuple(n for n in names if n != "mesh")
     return rest + chain + (("mesh",) if "mesh" in names else ())
 

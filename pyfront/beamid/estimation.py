@@ -438,10 +438,13 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         The measurement chain's nuisance parameters fitted with the physics
         (docs/workflow_dynamic.md, "The measurement chain"):
         ``{"time_offset": [experiment, ...], "bias": [(experiment,
-        quantity), ...], "scale": [...]}`` (a dict instead of a list gives
-        start values). A release's clock offset t0 is the model time at its
-        record's zero (the row at record time t is the model at t + t0);
-        a channel's bias b and scale s make a row read s h + b. Their
+        quantity), ...], "scale": [...], "initial_velocity": [release,
+        ...]}`` (a dict instead of a list gives start values). A release's
+        clock offset t0 is the model time at its record's zero (the row at
+        record time t is the model at t + t0); a channel's bias b and scale
+        s make a row read s h + b; a release's initial velocity v0 is its
+        tip's normal velocity at t = 0 (the static shape q starts with the
+        velocity field v0 q / w_tip(q); ``v0[release]``). Their
         estimates and sigmas are ``result.nuisance`` and
         ``result.nuisance_sigmas``; ``result.cov`` (the physics block of
         ``result.full_cov``) accounts for them.
@@ -754,7 +757,8 @@ def _check_quantities(exps, quantities, sigma) -> None:
 def simulate_measurements(model: Model, experiments: Experiments, quantities: Sequence[str] | Mapping,
              sigma: float | Mapping[str, float] = 1e-3, *, seed: int | None = None,
              noise: bool = False,
-             t: Sequence[float] | Mapping[str, Sequence[float]] | None = None) -> Measurements:
+             t: Sequence[float] | Mapping[str, Sequence[float]] | None = None,
+             nuisance: Mapping[str, Any] | None = None) -> Measurements:
     """Synthetic measurements of ``quantities`` in every experiment.
 
     ``quantities`` is a list used for every experiment or a mapping
@@ -763,6 +767,10 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     from ``numpy.random.default_rng(seed)``. ``t``: the measurement times of
     the :class:`beamid.Release` experiments (one sequence for all, or
     ``{experiment: times}``); static experiments are measured at t = 0.
+    ``nuisance``: a measurement chain to simulate, as :func:`fit` takes it
+    with start values (``{"initial_velocity": {"free": 0.2}}``: a release
+    thrown with tip normal velocity 0.2 m/s; ``{"time_offset": {"free":
+    0.015}}``, biases and scales likewise): the data read through it.
     """
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
@@ -790,7 +798,13 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
                 rows.append((name, tk, q, measurement_value(result, q) if not mixed else 0.0, s))
     data = Measurements.from_rows(rows, source="<simulated>")
     values = data.value
-    if mixed:
+    if nuisance is not None:
+        spec = parse_nuisance(nuisance, exps, data)
+        values, _ = _ce.problem_predict(build_problem(model, exps, data, chain=spec),
+                                        np.concatenate([model.vector(),
+                                                        spec.starts(list(exps))]),
+                                        np.zeros(0, np.int32))
+    elif mixed:
         values, _ = _ce.problem_predict(build_problem(model, exps, data), model.vector(),
                                         np.zeros(0, np.int32))
     if noise:

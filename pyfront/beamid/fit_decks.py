@@ -195,7 +195,8 @@ def _rows_measurements(rows: tuple, source: str, experiments: dict) -> Measureme
 
 
 def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
-                  burn_in: float | None = None, estimate_sigma=None) -> str:
+                  burn_in: float | None = None, estimate_sigma=None,
+                  initial_velocity=()) -> str:
     """The &fit items of the measurement chain's options of ``beamid
     fit|compare|diagnose|improve DECK`` (docs/decks.md, "The measurement
     chain"), for :func:`read_fit_deck`'s ``fit_keys``: the Fortran deck reader
@@ -218,6 +219,7 @@ def chain_options(time_offset=(), bias=(), scale=(), loss: str | None = None,
     words("time_offset", time_offset)
     words("bias", bias)
     words("scale", scale)
+    words("initial_velocity", initial_velocity)
     if loss is not None:
         words("loss", [loss])
     if burn_in is not None:
