@@ -193,7 +193,7 @@ contains
             character(len=*), intent(in) :: text
             logical, intent(inout) :: pick(:, :)
             type(observation_t) :: o
-            character(len=:), allocatable :: why, quantity
+            character(len=:), allocatable :: why, quantity, where_exp
             integer :: colon, ee, r, found
             colon = index(text, ':')
             ee = 0
@@ -217,9 +217,13 @@ contains
                 pick(findloc(same_observation(list, o), .true., 1), row_exp(r)) = .true.
                 found = found + 1
             end do
-            if (found == 0) call add_error(errors, where//key//" = '"//text//"': no data "// &
-                'row of '//obs_label(o)//trim(merge(" in experiment '"//names(max(ee, 1))// &
-                "'", repeat(' ', len(names(1)) + 16), ee > 0))//' (the channel does not exist)')
+            if (found == 0) then
+                ! (the experiment named only when the channel named one)
+                where_exp = ''
+                if (ee > 0) where_exp = " in experiment '"//trim(names(ee))//"'"
+                call add_error(errors, where//key//" = '"//text//"': no data row of "// &
+                               obs_label(o)//where_exp//' (the channel does not exist)')
+            end if
         end subroutine channels
     end subroutine set_chain_key
 
