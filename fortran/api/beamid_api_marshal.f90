@@ -93,9 +93,13 @@ contains
                                 b2r(cr%score%identifiable), b2r(cr%refit_done), &
                                 b2r(cr%refit_ok), cr%lr_drop, cr%lr_p, b2r(cr%significant), &
                                 b2r(cr%acceptable), b2r(cr%rival), cr%separation, &
-                                real(merge(dg%pexp(max(r, 1)), 0, r > 0), dp), &
-                                real(merge(dg%pq(max(r, 1)), 0, r > 0), dp), 0.0_dp, 0.0_dp]
-                if (r > 0) sep_t(c) = dg%pt(r)
+                                0.0_dp, 0.0_dp, 0.0_dp, 0.0_dp]
+                ! (merge() would index the probe rows, possibly none, even for r = 0)
+                if (r > 0) then
+                    cstats(15, c) = real(dg%pexp(r), dp)
+                    cstats(16, c) = real(dg%pq(r), dp)
+                    sep_t(c) = dg%pt(r)
+                end if
                 if (cr%refit_ok) then
                     cstats(17, c) = cr%refit%chi2
                     cstats(18, c) = cr%refit%chi2_prior
