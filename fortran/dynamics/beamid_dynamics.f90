@@ -1531,7 +1531,7 @@ contains
         type(dyn_param_t), intent(in) :: pars(:)
         real(dp), intent(out) :: s(:, :)
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: jb(:, :), r(:), g(:)
+        real(dp), allocatable :: jb(:, :), r(:), g(:), rhs(:, :)
         type(fe_load_t) :: unit
         integer :: j
         if (size(pars) == 0) return
@@ -1552,7 +1552,11 @@ contains
                 s(:, j) = -g
             end if
         end do
-        call solve_banded(sys%mesh%kl, sys%mesh%ku, jb, s, stat)
+        ! (s may be a section of the state's sensitivities, its first n rows:
+        ! LAPACK takes a contiguous copy, made here once)
+        rhs = s
+        call solve_banded(sys%mesh%kl, sys%mesh%ku, jb, rhs, stat)
+        s = rhs
     end subroutine dyn_static_sens
 
     !> Sensitivities of the outputs at the state y from the state sensitivity
