@@ -7,8 +7,11 @@ The move waits until the branches in flight are merged (a move in a branch
 makes every other branch's edit of the same file a rename conflict):
 
     python tools/layout.py --check        # every file placed, none missing
-    python tools/layout.py --dry-run      # print the moves and edits
-    python tools/layout.py --refs         # move, edit meson.build and the references
+    python tools/layout.py                # print the moves and edits (changes nothing)
+    python tools/layout.py --move --refs  # move, edit meson.build and the references
+
+Nothing moves without ``--move`` (a run with no argument once moved a whole
+tree by mistake).
 
 Run it at the top of a clean work tree; it refuses when a source file of
 ``fortran/`` has no layer here (a module added since: give it one in LAYERS)
@@ -136,10 +139,17 @@ def reference_files() -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="only check LAYERS against fortran/")
-    ap.add_argument("--dry-run", action="store_true", help="print, change nothing")
+    ap.add_argument("--move", action="store_true",
+                    help="perform the moves and edits (without it: print them only)")
+    ap.add_argument("--dry-run", action="store_true",
+                    help="print, change nothing (the default; kept for older notes)")
     ap.add_argument("--refs", action="store_true",
                     help="also rewrite the paths named in docs, tests and docstrings")
     args = ap.parse_args(argv)
+    if args.move and args.dry_run:
+        print("layout: --move and --dry-run contradict each other; give one", file=sys.stderr)
+        return 2
+    args.dry_run = not args.move
     problems = check()
     if problems:
         print("\n".join(problems), file=sys.stderr)
