@@ -207,7 +207,9 @@ def _message(fit, ranked, verdict, rivals, alpha, alpha_each, mesh, not_seen) ->
         where = ""
         if mesh.max_change_at:
             e, t, q = mesh.max_change_at
-            where = f" ({q} at t = {t:g} s in experiment {e})"
+            # a modal entry (freq[3], shape_n@1:0.4[2]) has no time
+            when = "" if str(q).endswith("]") else f" at t = {t:g} s"
+            where = f" ({q}{when} in experiment {e})"
         lines += _dg._undetermined(fit)
         lines.append(
             f"refine the mesh: at {2 * mesh.elements_per_beam} elements per beam instead of "
