@@ -356,3 +356,42 @@ def test_cli_design_argument_errors_come_first_in_the_command_lines_words(
         err = capsys.readouterr().err
         assert err.startswith("beamid: error: ") and words in err, err
         assert "None" not in err and len(err.splitlines()) == 1
+
+
+def test_cli_design_ranks_station_observations(tmp_path, capsys):
+    """A strain gauge or a curvature at a station is a candidate like a tip
+    position; its default sigma is the observation table's (1e-6 for a gauge),
+    printed; a gauge at 0.05 m on beam 1 of Table 5's arm predicts EI2 much
+    better than a tip position (the root's curvature carries the whole moment)."""
+    from beamid.cli import main
+    from beamid.tables import inputs_dir
+
+    deck = str(inputs_dir("seed") / "table05_fit.nml")
+    assert main(["design", deck, "--quantities", "x_tip", "strain@1:0.05", "--target", "EI2",
+                 "--out", str(tmp_path), "--no-plots"]) == 0
+    out = capsys.readouterr().out
+    assert "sigma of strain@1:0.05: 1e-06 (default: the deck has no strain@1:0.05 rows" in out
+    rows = [r.split(",") for r in
+            (tmp_path / "table05_fit_design.csv").read_text().splitlines()[2:]]
+    assert [r[2] for r in rows[:4]] == ["strain@1:0.05"] * 4
+    assert float(rows[0][4]) < 0.2 * float(rows[-1][4])
+    # the table's columns widen for the long name
+    assert "1     F8.00         strain@1:0.05       1e-06" in out
+    assert main(["design", deck, "--quantities", "strain@1", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert "--quantities strain@1: unknown quantity 'strain@1' (station \"1\"" in err
+
+
+def test_design_of_a_forced_release_with_an_accelerometer(tmp_path, capsys):
+    """hammer_fit.nml measures accel_n@2:0.714: its design ranks the
+    accelerometer's times beside the tip's (the deck's own quantities)."""
+    from beamid.cli import main
+    from beamid.tables import inputs_dir
+
+    deck = str(inputs_dir("demo") / "hammer_fit.nml")
+    assert main(["design", deck, "--out", str(tmp_path), "--no-plots"]) == 0
+    rows = [r.split(",") for r in
+            (tmp_path / "hammer_fit_design.csv").read_text().splitlines()[2:]]
+    labels = {r[2].rsplit("@", 1)[0] for r in rows}
+    assert labels == {"w_tip", "accel_n@2:0.714"}
+    assert all(float(r[4]) > 0 for r in rows)

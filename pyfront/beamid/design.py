@@ -43,7 +43,7 @@ from .errors import InputError, _write_text
 from .estimation import FitResult, predict
 from .fit_decks import read_fit_deck
 from .loads import RadialWire, Release, TipForce, TipMoment
-from .measurements import QUANTITIES, Measurements
+from .measurements import Measurements
 from .plot_fit import parameter_unit
 from .plotting import agg_pyplot
 
@@ -122,12 +122,17 @@ class Advice:
     def table(self, top: int | None = None) -> str:
         """The ranking as text (best first)."""
         top = _check.count("top", top, min=0, none=True)
-        head = f"{'rank':<6}{'experiment':<14}{'quantity':<12}{'sigma':>10}{'predicted':>13}{'gain':>8}"
+        shown = list(self.ranking[:top] if top else self.ranking)
+        # the columns widen for long names (a station at a time: accel_n@2:0.714@0.55)
+        we = max([14] + [len(e) + 2 for (e, _), _ in shown])
+        wq = max([12] + [len(q) + 2 for (_, q), _ in shown])
+        head = (f"{'rank':<6}{'experiment':<{we}}{'quantity':<{wq}}{'sigma':>10}"
+                f"{'predicted':>13}{'gain':>8}")
         lines = [f"{self.criterion}: now {self.current:.4g} "
                  f"(free: {', '.join(self.free)})", head, "-" * len(head)]
-        for i, ((e, q), v) in enumerate(self.ranking[:top] if top else self.ranking):
+        for i, ((e, q), v) in enumerate(shown):
             gain = self.current / v if v > 0 else math.inf
-            lines.append(f"{i + 1:<6}{e:<14}{q:<12}{self.sigma[(e, q)]:>10.3g}{v:>13.4g}"
+            lines.append(f"{i + 1:<6}{e:<{we}}{q:<{wq}}{self.sigma[(e, q)]:>10.3g}{v:>13.4g}"
                          f"{gain:>8.2f}")
         if self.skipped:
             lines.append("skipped (not defined for that experiment): "
@@ -259,8 +264,7 @@ def _rows(experiments: dict, quantities, sigma, rtimes: Mapping[str, list] | Non
     for name in experiments:
         qs = quantities.get(name, ()) if isinstance(quantities, Mapping) else quantities
         for q in _check.names("quantities", qs):
-            if q not in QUANTITIES:
-                raise InputError(f"quantity {q!r}, expected one of {', '.join(QUANTITIES)}")
+            _known(q, "quantities")
             for t in (rtimes or {}).get(name, [0.0]):
                 rows.append((name, q, _sigma_of(sigma, q), t))
     if not rows:
@@ -391,13 +395,33 @@ DEFAULT_QUANTITIES = tuple(sorted(observations.probe_kinds("static"),
                                   key=lambda q: observations.kinds()[q].needs != "none"))
 
 
-#: sigma of a candidate quantity the deck has no rows of (``beamid design``
-#: without ``--sigma``): 1 mm, 1 mrad, 0.1 N, 0.01 N m (the measurement
-#: sigmas of the dissertation's tests, docs/deviations.md); printed when used
-DEFAULT_SIGMA = {"x_tip": 1e-3, "y_tip": 1e-3, "x_elbow": 1e-3, "y_elbow": 1e-3,
-                 "u_tip": 1e-3, "w_tip": 1e-3, "tip_angle": 1e-3, "wire_force": 0.1,
-                 "motor_torque": 0.01}
-_UNIT = {"tip_angle": "rad", "wire_force": "N", "motor_torque": "N m"}
+def default_sigma(quantity: str) -> float:
+    """The sigma of a candidate ``quantity`` the deck has no rows of (``beamid
+    design`` without ``--sigma``): the default probe sigma of its kind in the
+    core's observation table (1 mm, 1 mrad, 0.1 N, 0.01 N m for the
+    dissertation's quantities, their measurement sigmas: docs/deviations.md;
+    1e-6 for a strain gauge, 0.01 m/s^2 for an accelerometer). Printed when
+    used. InputError for a name that is no observation."""
+    return observations.kinds()[observations.parse(quantity).kind].sigma
+
+
+#: the default sigmas of the dissertation's quantities (:func:`default_sigma`
+#: gives any observation's)
+DEFAULT_SIGMA = {q: default_sigma(q) for q in ("x_tip", "y_tip", "x_elbow", "y_elbow",
+                                               "u_tip", "w_tip", "tip_angle", "wire_force",
+                                               "motor_torque")}
+
+
+def _known(quantity: str, where: str) -> str:
+    """``quantity`` if the observation table knows it (a fixed point such as
+    ``x_tip`` or a station ``strain@1:0.05``), else InputError naming
+    ``where``."""
+    try:
+        observations.parse(quantity)
+    except InputError as exc:
+        detail = str(exc).removeprefix("observation: ")
+        raise InputError(f"{where}: unknown quantity {quantity!r} ({detail})") from None
+    return quantity
 
 
 def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements,
@@ -412,9 +436,7 @@ def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Me
         q, eq, v = (str(item).partition("=")[0].strip(), "=" in str(item),
                     str(item).partition("=")[2].strip())
         if eq:
-            if q not in QUANTITIES:
-                raise InputError(f"--sigma {item}: unknown quantity {q!r}, expected one of "
-                                 f"{', '.join(QUANTITIES)}")
+            _known(q, f"--sigma {item}")
         else:
             v = str(item)
         try:
@@ -436,9 +458,11 @@ def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Me
         if own:
             out[q] = float(np.median(own))
             continue
-        out[q] = DEFAULT_SIGMA[q]
+        out[q] = default_sigma(q)
         if notes is not None:
-            notes.append(f"sigma of {q}: {DEFAULT_SIGMA[q]:g} {_UNIT.get(q, 'm')} (default: the "
+            unit = observations.unit(q)
+            unit = "" if unit == "1" else f" {unit}"    # a strain has no unit
+            notes.append(f"sigma of {q}: {out[q]:g}{unit} (default: the "
                          f"deck has no {q} rows; set it with --sigma {q}=VALUE)")
     return out
 
@@ -465,9 +489,7 @@ def run_design_deck(deck: str | os.PathLike, forces: Sequence[float] = (),
                          f"{', '.join(d.free)}); leave --target out to rank by the "
                          "D-criterion over all free parameters")
     for q in quantities or ():
-        if q not in QUANTITIES:
-            raise InputError(f"--quantities {q}: unknown quantity, expected one of "
-                             f"{', '.join(QUANTITIES)}")
+        _known(q, f"--quantities {q}")
     for flag, vals, low in (("--force", forces, -math.inf), ("--moment", moments, -math.inf),
                             ("--wire", wires, 0.0), ("--times", times, 0.0)):
         for v in vals:
