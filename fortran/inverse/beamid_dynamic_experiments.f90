@@ -902,7 +902,7 @@ contains
     !! tangent angle psi = atan2(w', 1 + u'), the curvature kappa = chi /
     !! ((1 + u')^2 + w'^2)^(3/2) with chi = w''(1 + u') - w' u'' (Eq. 72),
     !! the moment EI chi + C chi^3, the gauge strain e + kappa t/2 (e the
-    !! Green axial strain, Eq. 70; t the strip thickness; the gauge on the
+    !! Green axial strain, Eq. 70; t = thick<b> of the beam, d/dt = kappa/2; the gauge on the
     !! clockwise side, stretched by a counter-clockwise bend), and the
     !! velocity and acceleration of the material point along the tangent t =
     !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates

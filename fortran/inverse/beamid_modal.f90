@@ -62,7 +62,7 @@ module beamid_modal
                              fmt_int, fmt_real
     use beamid_model, only: chain_t, chain_from_vector, param_count, param_name, PER_BEAM, &
                             PER_MASS, IB_L, IM_MU, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
-                            IG_R_MOTOR, IG_TAU_MOTOR, NUM_GLOBAL, param_index_thickness
+                            IG_R_MOTOR, IG_TAU_MOTOR, param_index_thickness
     use beamid_fe_element, only: FE_W, FE_U, fe_hermite
     use beamid_fe_assembly, only: fe_load_t, fe_mesh_t, fe_band_rows, fe_mass, &
                                   fe_tip_load_jacobian, fe_internal_force, fe_band_to_dense, &
@@ -121,7 +121,7 @@ module beamid_modal
         real(dp), allocatable :: dphi(:, :, :)  !< (n, nmodes, nwrt)
         !> strip thickness per beam (the gauge strain of SHAPE_STRAIN)
         real(dp), allocatable :: thickness(:)
-        !> 1 where wrt(j) is the thickness of beam b (b), else 0 (per j)
+        !> per wrt entry j: b when wrt(j) is thick<b>, else 0
         integer, allocatable :: wrt_thick(:)
         !> the step of the directional differences per parameter (modal_station_sens)
         real(dp), allocatable :: hdir(:)
