@@ -242,7 +242,7 @@ def test_chain_of_three_equal_beams_is_one_long_beam():
     values = {}
     for i in (1, 2, 3):
         values.update({f"L{i}": 0.3, f"EI{i}": 10.0, f"EA{i}": p["EA1"], f"rho{i}": p["rho1"],
-                       f"C{i}": 0.0})
+                       f"C{i}": 0.0, f"thick{i}": p["thick1"]})
     three = _three_beam_model(values)
     load = beamid.TipForce(fx=-1.0, fy=6.0) + beamid.TipMoment(2.0)
     r1 = beamid.fe_static(one, load, 6)

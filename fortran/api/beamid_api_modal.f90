@@ -77,7 +77,8 @@ contains
             do i = 1, nmodes
                 do k = 1, nsta
                     shapes(k, i) = modal_station(mesh, out%q, out%phi(:, i), sta_kind(k), &
-                                                 sta_beam(k), sta_s(k))
+                                                 sta_beam(k), sta_s(k), &
+                                                 out%thickness(sta_beam(k)))
                     do j = 1, nwrt
                         dshapes(k, i, j) = modal_station_sens(mesh, out, i, j, sta_kind(k), &
                                                               sta_beam(k), sta_s(k))

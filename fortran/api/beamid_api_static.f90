@@ -35,13 +35,17 @@ contains
         integer :: i
         joined = ''
         names = ''
-        if (nbeams < 1 .or. param_count(int(nbeams))*24 > len(names)) then
-            call set_status(stat, ERR_INPUT, 'api_param_names', 'cannot name the parameters of '// &
-                            fmt_int(int(nbeams))//' beams')
-        else
+        ! the names' own length bounds the chain, not a guess per name (the
+        ! thicknesses appended after the globals made 24 a name cost 3 beams)
+        if (nbeams >= 1) then
             do i = 1, param_count(int(nbeams))
                 joined = joined//param_name(int(nbeams), i)//' '
             end do
+        end if
+        if (nbeams < 1 .or. len(joined) > len(names)) then
+            call set_status(stat, ERR_INPUT, 'api_param_names', 'cannot name the parameters of '// &
+                            fmt_int(int(nbeams))//' beams')
+        else
             names = joined
         end if
         call status_out(stat, code, message)

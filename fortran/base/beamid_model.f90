@@ -10,6 +10,9 @@
 !!       joints k >= 2 are m_joint<k> ..., the tip is m_tip J_tip mu_tip c_tip
 !!  3. per joint k = 1..nb-1:         rotational compliance (elbow_flex, joint<k>_flex)
 !!  4. globals: axial_coupling root_flex eta r_motor tau_motor
+!!  5. per beam i = 1..nb:            thick<i> (strip thickness, m: the gauge
+!!       strain k t/2; appended after the globals so that every earlier
+!!       index keeps its place)
 !!
 !! Null values switch an effect off: C = 0 (Eq. 16), flex = 0 (rigid), mu = c = 0,
 !! eta = 0, tau_motor = 0. axial_coupling = 1 is the exact elastica, 0 the
@@ -22,8 +25,9 @@ module beamid_model
     private
 
     public :: chain_t, param_count, param_name, param_index_beam, param_index_mass
-    public :: param_index_joint_flex, param_index_global, chain_from_vector, param_problem
-    public :: PER_BEAM, PER_MASS, NUM_GLOBAL
+    public :: param_index_joint_flex, param_index_global, param_index_thickness
+    public :: chain_from_vector, param_problem
+    public :: PER_BEAM, PER_MASS, NUM_GLOBAL, PACE_THICKNESS
     public :: IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, IM_MU, IM_C
     public :: IG_AXIAL_COUPLING, IG_ROOT_FLEX, IG_ETA, IG_R_MOTOR, IG_TAU_MOTOR
 
@@ -32,6 +36,10 @@ module beamid_model
     integer, parameter :: IM_M = 1, IM_J = 2, IM_MU = 3, IM_C = 4
     integer, parameter :: IG_AXIAL_COUPLING = 1, IG_ROOT_FLEX = 2, IG_ETA = 3, &
                           IG_R_MOTOR = 4, IG_TAU_MOTOR = 5
+
+    !> Strip thickness t of the PACE beams (Section 4.1.4; EA = 12 EI / t^2):
+    !! the default of every beam's thick<i>.
+    real(dp), parameter :: PACE_THICKNESS = 0.00315976_dp
 
     character(len=*), parameter :: beam_names(PER_BEAM) = &
         [character(len=3) :: 'L', 'EI', 'EA', 'rho', 'C']
@@ -47,6 +55,8 @@ module beamid_model
         real(dp), allocatable :: length(:), ei(:), ea(:), rho(:), cubic(:)
         real(dp), allocatable :: mass(:), inertia(:), friction(:), drag(:)
         real(dp), allocatable :: joint_flex(:)
+        !> strip thickness per beam (m): only the gauge strain k t/2 uses it
+        real(dp), allocatable :: thickness(:)
         real(dp) :: axial_coupling = 1.0_dp
         real(dp) :: root_flex = 0.0_dp
         real(dp) :: eta = 0.0_dp
@@ -59,7 +69,7 @@ contains
     !> Number of named parameters of a chain of `nbeams` beams.
     pure integer function param_count(nbeams)
         integer, intent(in) :: nbeams
-        param_count = PER_BEAM*nbeams + PER_MASS*nbeams + (nbeams - 1) + NUM_GLOBAL
+        param_count = PER_BEAM*nbeams + PER_MASS*nbeams + (nbeams - 1) + NUM_GLOBAL + nbeams
     end function param_count
 
     pure integer function param_index_beam(nbeams, beam, which)
@@ -82,6 +92,12 @@ contains
         param_index_global = (PER_BEAM + PER_MASS)*nbeams + (nbeams - 1) + which
     end function param_index_global
 
+    !> Index of beam `beam`'s strip thickness thick<beam> (after the globals).
+    pure integer function param_index_thickness(nbeams, beam)
+        integer, intent(in) :: nbeams, beam
+        param_index_thickness = (PER_BEAM + PER_MASS)*nbeams + (nbeams - 1) + NUM_GLOBAL + beam
+    end function param_index_thickness
+
     !> Name of parameter `index` (1-based) of a chain of `nbeams` beams.
     pure function param_name(nbeams, index) result(name)
         integer, intent(in) :: nbeams, index
@@ -100,9 +116,12 @@ contains
         else if (i <= (PER_BEAM + PER_MASS)*nbeams + nbeams - 1) then
             k = i - (PER_BEAM + PER_MASS)*nbeams
             name = point_name(nbeams, k)//'_flex'
-        else
+        else if (i <= (PER_BEAM + PER_MASS)*nbeams + nbeams - 1 + NUM_GLOBAL) then
             k = i - (PER_BEAM + PER_MASS)*nbeams - (nbeams - 1)
             name = trim(global_names(k))
+        else
+            k = i - param_index_thickness(nbeams, 0)
+            name = 'thick'//fmt_int(k)
         end if
     end function param_name
 
@@ -171,6 +190,7 @@ contains
         chain%eta = params(param_index_global(nbeams, IG_ETA))
         chain%r_motor = params(param_index_global(nbeams, IG_R_MOTOR))
         chain%tau_motor = params(param_index_global(nbeams, IG_TAU_MOTOR))
+        chain%thickness = params([(param_index_thickness(nbeams, i), i = 1, nbeams)])
     end subroutine chain_from_vector
 
     !> Empty when `value` is legal for parameter `index`; otherwise a message
@@ -183,9 +203,10 @@ contains
         logical :: positive, bad
         ! (the name is formatted only for a bad value: every solve validates
         ! its whole parameter vector)
-        ! strictly positive: lengths, stiffnesses, density; the rest >= 0,
-        ! except C (either sign, Eq. 16) and axial_coupling (0..1).
-        positive = index <= PER_BEAM*nbeams .and. mod(index - 1, PER_BEAM) + 1 /= IB_C
+        ! strictly positive: lengths, stiffnesses, density, thickness; the
+        ! rest >= 0, except C (either sign, Eq. 16) and axial_coupling (0..1).
+        positive = (index <= PER_BEAM*nbeams .and. mod(index - 1, PER_BEAM) + 1 /= IB_C) &
+                   .or. index > param_index_thickness(nbeams, 0)
         if (.not. ieee_is_finite(value)) then
             bad = .true.
             expected = 'a finite number'

@@ -4,15 +4,13 @@ module beamid_presets
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT
     use beamid_model, only: param_count, param_index_beam, param_index_mass, &
-                            param_index_global, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
+                            param_index_global, param_index_thickness, PACE_THICKNESS, &
+                            IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
                             IG_R_MOTOR
     implicit none
     private
 
     public :: preset_params, PACE_THICKNESS
-
-    !> Strip thickness t (Section 4.1.4); EA = 12 EI / t^2.
-    real(dp), parameter :: PACE_THICKNESS = 0.00315976_dp
 
 contains
 
@@ -60,6 +58,7 @@ contains
             p(param_index_beam(nbeams, i, IB_EA)) = 12.0_dp*ei/PACE_THICKNESS**2
             p(param_index_beam(nbeams, i, IB_RHO)) = rho
             p(param_index_beam(nbeams, i, IB_C)) = 0.0_dp
+            p(param_index_thickness(nbeams, i)) = PACE_THICKNESS
         end subroutine set_beam
     end subroutine preset_params
 end module beamid_presets

@@ -44,7 +44,7 @@ module beamid_dynamic_experiments
     use beamid_fe_element, only: fe_hermite, FE_U, FE_W, FE_NDOF, fe_element_mass, &
                                  fe_element_tangent_tabulated, fe_element_force_tabulated
     use beamid_model, only: param_count, param_index_beam, param_index_global, IB_EI, IB_C, &
-                            IB_EA, IB_RHO, IG_ETA
+                            IB_EA, IB_RHO, IG_ETA, param_index_thickness
     use beamid_estimation, only: residual_model_t, ROUGH_JACOBIAN, ROUGH_ALL
     use beamid_hub, only: hub_forcing_t
     use beamid_loads, only: tip_history_t, histories_from_columns, history_check, LD_NSPEC
@@ -60,7 +60,7 @@ module beamid_dynamic_experiments
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_X_ELBOW, K_Y_ELBOW, K_U_TIP, &
                                    K_W_TIP, K_MOTOR_TORQUE, kind_label, KINDS, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, K_VEL_T, &
-                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, STRIP_THICKNESS, &
+                                   K_VEL_N, K_ACCEL_T, K_ACCEL_N, &
                                    K_ELBOW_ROTATION, K_ROOT_ROTATION, K_REACTION_X, &
                                    K_REACTION_Y, K_REACTION_MOMENT, K_HUB_TORQUE
     implicit none
@@ -902,7 +902,7 @@ contains
     !! tangent angle psi = atan2(w', 1 + u'), the curvature kappa = chi /
     !! ((1 + u')^2 + w'^2)^(3/2) with chi = w''(1 + u') - w' u'' (Eq. 72),
     !! the moment EI chi + C chi^3, the gauge strain e + kappa t/2 (e the
-    !! Green axial strain, Eq. 70; t the strip thickness; the gauge on the
+    !! Green axial strain, Eq. 70; t = thick<b> of the beam, d/dt = kappa/2; the gauge on the
     !! clockwise side, stretched by a counter-clockwise bend), and the
     !! velocity and acceleration of the material point along the tangent t =
     !! (1 + u', w')/|.| and the normal n = (-w', 1 + u')/|.| (a = the rates
@@ -1002,8 +1002,14 @@ contains
             end associate
         case (K_STRAIN)
             e = u1 + 0.5_dp*(u1*u1 + w1*w1)
-            value = e + 0.5_dp*STRIP_THICKNESS*kap
-            grad = p1*du1 + w1*dw1 + 0.5_dp*STRIP_THICKNESS*dkap
+            associate (t => chain%thickness(o%beam))
+                value = e + 0.5_dp*t*kap
+                grad = p1*du1 + w1*dw1 + 0.5_dp*t*dkap
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_thickness(chain%nbeams, o%beam)) &
+                        grad(j) = grad(j) + 0.5_dp*kap
+                end do
+            end associate
         case (K_VEL_T, K_VEL_N, K_ACCEL_T, K_ACCEL_N)
             if (o%kind == K_VEL_T .or. o%kind == K_VEL_N) then
                 vu = dot_product(f, ve(FE_U))

@@ -62,7 +62,7 @@ module beamid_modal
                              fmt_int, fmt_real
     use beamid_model, only: chain_t, chain_from_vector, param_count, param_name, PER_BEAM, &
                             PER_MASS, IB_L, IM_MU, IG_AXIAL_COUPLING, IG_ROOT_FLEX, &
-                            IG_R_MOTOR, IG_TAU_MOTOR
+                            IG_R_MOTOR, IG_TAU_MOTOR, param_index_thickness
     use beamid_fe_element, only: FE_W, FE_U, fe_hermite
     use beamid_fe_assembly, only: fe_load_t, fe_mesh_t, fe_band_rows, fe_mass, &
                                   fe_tip_load_jacobian, fe_internal_force, fe_band_to_dense, &
@@ -70,7 +70,6 @@ module beamid_modal
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN
     use beamid_lapack, only: sym_gen_eig, gen_eig, solve_dense
-    use beamid_observations, only: STRIP_THICKNESS
     use beamid_hub, only: hub_forcing_t, hub_setup
     use beamid_fe_assembly, only: fe_tip_load
     implicit none
@@ -87,10 +86,12 @@ module beamid_modal
     !> Quantities of a mode shape sampled at a station (modal_station):
     !! the displacement along the local normal and tangent of the deformed
     !! arm at q*, the change of the tangent angle psi, the change of the gauge
-    !! strain e + kappa t/2 (as the observation `strain`), and the
-    !! displacement along x and y.
+    !! strain e + kappa t/2 (as the observation `strain`, t the beam's strip
+    !! thickness), and the displacement along x and y. SHAPE_KAPPA (the
+    !! change of the curvature, d strain / d t = its half) is internal: no
+    !! station may ask for it.
     integer, parameter :: SHAPE_N = 1, SHAPE_T = 2, SHAPE_PSI = 3, SHAPE_STRAIN = 4, &
-                          SHAPE_X = 5, SHAPE_Y = 6
+                          SHAPE_X = 5, SHAPE_Y = 6, SHAPE_KAPPA = 7
     !> How a parameter enters the modal model: not at all, linearly, as 1/p.
     integer, parameter :: MP_NONE = 0, MP_LINEAR = 1, MP_INVERSE = 2
 
@@ -118,6 +119,10 @@ module beamid_modal
         real(dp), allocatable :: dfreq(:, :)  !< (nmodes, nwrt)
         real(dp), allocatable :: dzeta(:, :)  !< (nmodes, nwrt)
         real(dp), allocatable :: dphi(:, :, :)  !< (n, nmodes, nwrt)
+        !> strip thickness per beam (the gauge strain of SHAPE_STRAIN)
+        real(dp), allocatable :: thickness(:)
+        !> per wrt entry j: b when wrt(j) is thick<b>, else 0
+        integer, allocatable :: wrt_thick(:)
         !> the step of the directional differences per parameter (modal_station_sens)
         real(dp), allocatable :: hdir(:)
     end type modal_out_t
@@ -154,6 +159,8 @@ contains
                 why = 'sensitivity with respect to '//param_name(nb, index)// &
                       ' at 0 (a locked joint) is not available: give it a positive compliance'
             end if
+        else if (i > param_index_thickness(nb, 0)) then
+            effect = MP_NONE    ! the strip thickness: only the gauge's reading
         else
             which = i - (PER_BEAM + PER_MASS)*nb - (nb - 1)
             select case (which)
@@ -299,6 +306,12 @@ contains
         nw = size(wrt)
         out%n = n
         out%nmodes = nmodes
+        out%thickness = chain%thickness
+        allocate (out%wrt_thick(nw), source=0)
+        do i = 1, nw
+            if (wrt(i) > param_index_thickness(nbeams, 0)) &
+                out%wrt_thick(i) = wrt(i) - param_index_thickness(nbeams, 0)
+        end do
         allocate (out%q(n), out%lambda(n), out%phi(n, nmodes), out%freq(nmodes), &
                   out%zeta(nmodes), out%dq(n, nw), out%dfreq(nmodes, nw), &
                   out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), out%hdir(nw), source=0.0_dp)
@@ -580,10 +593,11 @@ contains
 
     !> A mode shape `vec` (free unknowns) sampled at a station (beam b, arc
     !! length s from its root) of the arm deformed to q: SHAPE_* (linear in
-    !! vec: the change of the quantity along vec).
-    pure real(dp) function modal_station(mesh, q, vec, kind, beam, s) result(value)
+    !! vec: the change of the quantity along vec); t the strip thickness of
+    !! that beam (SHAPE_STRAIN).
+    pure real(dp) function modal_station(mesh, q, vec, kind, beam, s, t) result(value)
         type(fe_mesh_t), intent(in) :: mesh
-        real(dp), intent(in) :: q(:), vec(:), s
+        real(dp), intent(in) :: q(:), vec(:), s, t
         integer, intent(in) :: kind, beam
         real(dp) :: f(4), f1(4), f2(4), h, zeta, qe(8), ve(8), u1, w1, u2, w2, du, dw, du1, &
                     dw1, du2, dw2, p1, r2, chi, dchi, dr2, dkap
@@ -629,7 +643,12 @@ contains
             dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
             dr2 = 2.0_dp*(p1*du1 + w1*dw1)
             dkap = dchi/r2**1.5_dp - 1.5_dp*chi/r2**2.5_dp*dr2
-            value = p1*du1 + w1*dw1 + 0.5_dp*STRIP_THICKNESS*dkap
+            value = p1*du1 + w1*dw1 + 0.5_dp*t*dkap
+        case (SHAPE_KAPPA)
+            chi = w2*p1 - w1*u2
+            dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
+            dr2 = 2.0_dp*(p1*du1 + w1*dw1)
+            value = dchi/r2**1.5_dp - 1.5_dp*chi/r2**2.5_dp*dr2
         case (SHAPE_X)
             value = du
         case (SHAPE_Y)
@@ -640,19 +659,23 @@ contains
     !> Derivative of modal_station of mode i with respect to parameter j of
     !! `out`: the shape's derivative sampled at q*, plus the change of the
     !! sampling (the local frame) as q* moves (central difference along
-    !! dq*/dp with the step modal_solve used).
+    !! dq*/dp with the step modal_solve used); for the strip thickness of
+    !! the station's beam, the gauge strain's kappa/2.
     pure real(dp) function modal_station_sens(mesh, out, i, j, kind, beam, s) result(d)
         type(fe_mesh_t), intent(in) :: mesh
         type(modal_out_t), intent(in) :: out
         integer, intent(in) :: i, j, kind, beam
         real(dp), intent(in) :: s
-        real(dp) :: h
-        d = modal_station(mesh, out%q, out%dphi(:, i, j), kind, beam, s)
+        real(dp) :: h, t
+        t = out%thickness(beam)
+        d = modal_station(mesh, out%q, out%dphi(:, i, j), kind, beam, s, t)
         h = out%hdir(j)
         if (h > 0.0_dp) d = d + (modal_station(mesh, out%q + h*out%dq(:, j), out%phi(:, i), &
-                                              kind, beam, s) &
+                                              kind, beam, s, t) &
                                  - modal_station(mesh, out%q - h*out%dq(:, j), out%phi(:, i), &
-                                                 kind, beam, s))/(2.0_dp*h)
+                                                 kind, beam, s, t))/(2.0_dp*h)
+        if (kind == SHAPE_STRAIN .and. out%wrt_thick(j) == beam) &
+            d = d + 0.5_dp*modal_station(mesh, out%q, out%phi(:, i), SHAPE_KAPPA, beam, s, t)
     end function modal_station_sens
 
     !> Each station (kind SHAPE_*, beam, s) must name a known kind, a beam of

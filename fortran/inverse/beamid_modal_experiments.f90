@@ -354,7 +354,7 @@ contains
                 r = rows(srows(i))
                 kk = shape_kind(self%row_obs(r)%kind)
                 v(i) = modal_station(mesh, out%q, out%phi(:, k), kk, self%row_obs(r)%beam, &
-                                     self%row_obs(r)%s)
+                                     self%row_obs(r)%s, chain%thickness(self%row_obs(r)%beam))
                 do j = 1, size(wrt)
                     dv(i, j) = modal_station_sens(mesh, out, k, j, kk, self%row_obs(r)%beam, &
                                                   self%row_obs(r)%s)

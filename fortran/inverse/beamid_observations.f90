@@ -67,9 +67,6 @@ module beamid_observations
     !! unit-normalized over the experiment's shape rows of that mode.
     integer, parameter, public :: K_FREQ = 26, K_DAMPING = 27, K_SHAPE_N = 28, &
                                   K_SHAPE_T = 29, K_SHAPE_PSI = 30, K_SHAPE_STRAIN = 31
-    !> Thickness of the PACE strip (m, Section 4.1.4): the gauge of a strain
-    !! observation sits t/2 from the neutral axis.
-    real(dp), parameter, public :: STRIP_THICKNESS = 0.00315976_dp
 
     !> One row of the table.
     type :: obs_kind_t

@@ -16,7 +16,8 @@
 module beamid_static_experiments
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_index_beam, IB_L, IB_C, IB_EI
+    use beamid_model, only: chain_t, chain_from_vector, param_index_beam, param_index_thickness, &
+                            IB_L, IB_C, IB_EI
     use beamid_arclength, only: static_load_t, static_options_t, static_solution_t, &
                                 solve_static, static_stations, LOAD_TIP, LOAD_WIRE, OUT_X_TIP, &
                                 OUT_Y_TIP, &
@@ -26,7 +27,7 @@ module beamid_static_experiments
                                    K_X_TIP, K_Y_TIP, K_TIP_ANGLE, K_WIRE_FORCE, K_X_ELBOW, &
                                    K_Y_ELBOW, K_U_TIP, K_W_TIP, K_MOTOR_TORQUE, LOCUS_STATION, &
                                    K_X, K_Y, K_PSI, K_CURVATURE, K_MOMENT, K_STRAIN, &
-                                   STRIP_THICKNESS, K_ELBOW_ROTATION, K_ROOT_ROTATION, &
+                                   K_ELBOW_ROTATION, K_ROOT_ROTATION, &
                                    K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
     use beamid_estimation, only: residual_model_t, sort_desc
     use beamid_family, only: experiment_family_t, EXP_TIP, EXP_WIRE, EV_FX, EV_FY, EV_MOMENT, &
@@ -357,7 +358,8 @@ contains
     !! z = (x, y, psi, k, Q, N) there and its sensitivities dz (6 x
     !! size(wrt)): x, y, psi; curvature k; moment EI k + C k^3; gauge strain
     !! k t/2 on the clockwise side (the arc-length model is inextensible:
-    !! no axial strain; t the strip thickness).
+    !! no axial strain; t the strip thickness of the gauge's beam, parameter
+    !! thick<beam>, d/dt = k/2).
     pure subroutine observe_station(chain, o, wrt, z, dz, value, grad)
         type(chain_t), intent(in) :: chain
         type(observation_t), intent(in) :: o
@@ -394,8 +396,14 @@ contains
                 end do
             end associate
         case (K_STRAIN)
-            value = 0.5_dp*STRIP_THICKNESS*k
-            grad = 0.5_dp*STRIP_THICKNESS*dz(4, :)
+            associate (t => chain%thickness(o%beam))
+                value = 0.5_dp*t*k
+                grad = 0.5_dp*t*dz(4, :)
+                do j = 1, size(wrt)
+                    if (wrt(j) == param_index_thickness(chain%nbeams, o%beam)) &
+                        grad(j) = grad(j) + 0.5_dp*k
+                end do
+            end associate
         end select
     end subroutine observe_station
 

@@ -21,7 +21,8 @@ module beamid_deck
                              fmt_real, lower, fmt_bytes, MAX_BYTES
     use beamid_model, only: param_count, param_name, param_index_beam, param_index_mass, &
                             param_index_joint_flex, param_index_global, chain_t, &
-                            chain_from_vector, IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
+                            param_index_thickness, PACE_THICKNESS, chain_from_vector, &
+                            IB_L, IB_EI, IB_EA, IB_RHO, IB_C, IM_M, IM_J, &
                             IM_MU, IM_C, IG_AXIAL_COUPLING, IG_ROOT_FLEX, IG_ETA, IG_R_MOTOR, &
                             IG_TAU_MOTOR
     use beamid_presets, only: preset_params
@@ -492,6 +493,7 @@ contains
             ieee_value(1.0_dp, ieee_quiet_nan)
         base(param_index_global(nbeams, IG_AXIAL_COUPLING)) = 1.0_dp
         base(param_index_global(nbeams, IG_R_MOTOR)) = 1.0_dp
+        base([(param_index_thickness(nbeams, i), i = 1, nbeams)]) = PACE_THICKNESS
     end function structure_base
 
     !> &model: arrays per beam / mass point / joint, scalars, named elbow and
@@ -538,7 +540,7 @@ contains
                 call nml_check_keys(f, g, ' l ei ea rho c m j mu c_drag joint_flex '// &
                                     'axial_coupling root_flex eta r_motor tau_motor m_elbow '// &
                                     'j_elbow mu_elbow c_elbow elbow_flex m_tip j_tip mu_tip '// &
-                                    'c_tip ', errors)
+                                    'c_tip thick ', errors)
                 do k = 1, size(beam_keys)
                     call read_list(trim(beam_keys(k)), [(param_index_beam(nbeams, i, &
                                    beam_which(k)), i = 1, nbeams)], 'one per beam')
@@ -550,6 +552,8 @@ contains
                 end do
                 call read_list('joint_flex', [(param_index_joint_flex(nbeams, i), &
                                                i = 1, nbeams - 1)], 'one per joint')
+                call read_list('thick', [(param_index_thickness(nbeams, i), i = 1, nbeams)], &
+                               'one per beam')
                 do k = 1, size(global_keys)
                     idx = param_index_global(nbeams, global_which(k))
                     call nml_real(f, g, trim(global_keys(k)), params(idx), given, errors)

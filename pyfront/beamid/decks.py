@@ -37,7 +37,8 @@ __all__ = ["Deck", "Published", "read_deck", "write_deck", "run", "run_files",
 #: defaults of the &fe group (docs/fe.md)
 FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": False,
                "point_masses": True, "steps": 0, "tol": 0.0}
-_PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}"}
+_PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}",
+             "thick": "thick{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
 _GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
 

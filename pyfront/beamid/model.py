@@ -5,8 +5,10 @@ with point masses at the joints and the tip. Its parameters have fixed names
 (see :func:`Model.names`): per beam ``L1 EI1 EA1 rho1 C1`` ..., per mass point
 ``m_elbow J_elbow mu_elbow c_elbow`` (joint 1; ``m_joint2`` ... for longer
 chains; ``m_joint1`` is accepted for ``m_elbow``) and ``m_tip J_tip mu_tip
-c_tip``, the joint compliances ``elbow_flex`` (``joint2_flex`` ...), and the
-globals ``axial_coupling root_flex eta r_motor tau_motor``.
+c_tip``, the joint compliances ``elbow_flex`` (``joint2_flex`` ...), the
+globals ``axial_coupling root_flex eta r_motor tau_motor``, and per beam the strip
+thickness ``thick1`` ... (m; only the gauge strain kappa t/2 reads it; after the
+globals, so every earlier position is unchanged).
 """
 from __future__ import annotations
 
@@ -18,7 +20,8 @@ import numpy as np
 from . import _check, _core
 from .errors import InputError
 
-#: Strip thickness of the PACE beams (Section 4.1.4): EA = 12 EI / t^2.
+#: Strip thickness of the PACE beams (Section 4.1.4): EA = 12 EI / t^2; the
+#: default of every beam's ``thick<i>``.
 PACE_THICKNESS = 0.00315976
 
 

@@ -29,7 +29,8 @@ def parameter_unit(name: str) -> str:
         if stem.startswith(prefix):
             return unit
     return {"L": "m", "EI": "N m^2", "EA": "N", "rho": "kg/m", "C": "N m^4", "eta": "s",
-            "r_motor": "N m s", "tau_motor": "s", "axial_coupling": "-"}.get(stem, "-")
+            "r_motor": "N m s", "tau_motor": "s", "axial_coupling": "-",
+            "thick": "m"}.get(stem, "-")
 
 
 def _quantities(cmp: Comparison) -> list[str]:

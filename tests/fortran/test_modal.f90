@@ -17,8 +17,11 @@ program test_modal
     use beamid_testing, only: checks_t, check_true, check_finish
     implicit none
 
-    character(len=*), parameter :: wrt_names(10) = [character(len=12) :: 'EI1', 'EA2', &
-        'rho1', 'C2', 'm_tip', 'J_elbow', 'elbow_flex', 'root_flex', 'c_tip', 'eta']
+    ! thick2: the gauge strain's kappa/2 at the station (on beam 2); thick1:
+    ! zero there
+    character(len=*), parameter :: wrt_names(12) = [character(len=12) :: 'EI1', 'EA2', &
+        'rho1', 'C2', 'm_tip', 'J_elbow', 'elbow_flex', 'root_flex', 'c_tip', 'eta', &
+        'thick2', 'thick1']
     integer, parameter :: NMODES = 5
     type(checks_t) :: t
     real(dp), allocatable :: base(:)
@@ -138,12 +141,14 @@ contains
                 do m = 1, 4
                     do st = 1, 4
                         vals(st) = sgn(st)*modal_station(mesh, runs(st)%q, runs(st)%phi(:, k), &
-                                                         kinds(m), 2, 0.5_dp)
+                                                         kinds(m), 2, 0.5_dp, &
+                                                         runs(st)%thickness(2))
                     end do
                     fd = stencil(vals, h)
                     got = modal_station_sens(mesh, out, k, j, kinds(m), 2, 0.5_dp)
                     scale = max(abs(modal_station(mesh, out%q, out%phi(:, k), kinds(m), 2, &
-                                                  0.5_dp)), abs(fd)*abs(base(i)), 1.0e-12_dp) &
+                                                  0.5_dp, out%thickness(2))), &
+                                abs(fd)*abs(base(i)), 1.0e-12_dp) &
                             /abs(base(i))
                     write (what, '(a, i0, a, i0, a, 2es14.6)') label//': station kind ', &
                         kinds(m), ' mode ', k, ' d/d '//trim(wrt_names(j)), got, fd
