@@ -217,3 +217,20 @@ def test_release_load_cell_sensitivities(name):
         scale = np.max(np.abs(fd[rows])) + 1e-12
         err = np.max(np.abs(jac[rows, 0] - fd[rows])) / scale
         assert err < (5e-2 if kind == "reaction_x" else 3e-2), (kind, err)
+
+
+def test_simulated_static_station_rows():
+    """simulate_measurements of static experiments takes station observations
+    (they were refused: 'unknown quantity'): a gauge reads kappa t/2 of the
+    same station's curvature, and the tip rows are those of the arc-length
+    solution read by name."""
+    m = beamid.pace()
+    exps = {"F": beamid.TipForce(fy=3.0)}
+    d = beamid.simulate_measurements(m, exps, ["x_tip", "strain@1:0.05", "curvature@1:0.05"],
+                                     sigma=1e-6)
+    plain = beamid.simulate_measurements(m, exps, ["x_tip"], sigma=1e-6)
+    x, strain, kappa = d.value
+    assert x == pytest.approx(plain.value[0], rel=1e-12, abs=0.0)
+    assert strain == pytest.approx(0.5 * m.vector()[m.names().index("thick1")] * kappa,
+                                   rel=1e-12)
+    assert kappa > 0.0

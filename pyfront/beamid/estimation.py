@@ -32,6 +32,8 @@ from . import modal as _modal
 from .measurements import Measurements, QUANTITIES
 from .model import Model
 from .chain import ChainSpec, RowTreatment, check_sigma_given, parse_nuisance, parse_rows
+from .static import ALIASES as _static_aliases
+from .static import OUTPUTS as _static_outputs
 from .static import measurement_value, solve_static
 
 #: Meaning of the per-parameter flags returned by the Fortran core (its table).
@@ -780,7 +782,17 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     noise = _check.flag("noise", noise)
     if isinstance(t, Mapping):
         t = {str(k): v for k, v in t.items()}
-    mixed = any(isinstance(x, (Release, Modal)) for x in exps.values())
+    def listed(q):
+        return [q] if isinstance(q, str) else list(q)
+
+    # static experiments measuring only the tip, elbow and wire are solved here
+    # and read by name; any other mix (a release, a modal test, a station's
+    # gauge or curvature) is predicted through the inverse problem's families
+    direct = {"u_tip", "w_tip", *_static_outputs, *_static_aliases}
+    mixed = (any(isinstance(x, (Release, Modal)) for x in exps.values())
+             or any(q not in direct for name in exps
+                    for q in listed(quantities[name] if isinstance(quantities, Mapping)
+                                    else quantities)))
     rows = []
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities
