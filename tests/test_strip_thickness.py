@@ -186,3 +186,16 @@ def test_thickness_and_a_gauge_scale_are_not_separable():
                      nuisance={"scale": ["strain@1:0.05"]})
     assert res.sigmas["thick1"] == np.inf
     assert "thick1: not determined by these data" in res.warnings
+
+
+def test_parameter_names_of_a_long_chain_have_no_buffer_cap():
+    """The names come one by one from the core (no text buffer bounds the
+    chain: a 8192-character buffer cut it at about 90 beams): a chain of
+    MAX_BEAMS beams is named, the thicknesses last."""
+    from beamid.model import MAX_BEAMS
+
+    names = beamid._core.param_names(MAX_BEAMS)
+    assert len(names) == len(set(names)) > 6 * MAX_BEAMS
+    assert names[-1] == f"thick{MAX_BEAMS}" and names[-MAX_BEAMS] == "thick1"
+    model = beamid.Model(MAX_BEAMS, np.ones(len(names)))
+    assert model.names()[:2] == ("L1", "EI1")

@@ -18,7 +18,7 @@ module beamid_api_static
     implicit none
     private
 
-    public :: api_param_names, api_check_params
+    public :: api_param_names, api_param_count, api_param_name, api_check_params
     public :: api_static_solve, api_static_shape, api_preset_size, api_preset
 
 contains
@@ -50,6 +50,44 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_param_names
+
+    !> Length of the parameter vector of a chain of nbeams beams (with
+    !! api_param_name: the names one by one, so no text buffer bounds the
+    !! chain).
+    subroutine api_param_count(nbeams, count, code, message)
+        integer(c_int), intent(in) :: nbeams
+        integer(c_int), intent(out) :: count, code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        count = 0
+        if (nbeams < 1) then
+            call set_status(stat, ERR_INPUT, 'api_param_count', 'nbeams = '// &
+                            fmt_int(int(nbeams))//', expected at least 1')
+        else
+            count = int(param_count(int(nbeams)), c_int)
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_param_count
+
+    !> Name of parameter i (1-based) of a chain of nbeams beams.
+    subroutine api_param_name(nbeams, i, name, code, message)
+        integer(c_int), intent(in) :: nbeams, i
+        character(len=64), intent(out) :: name
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        name = ''
+        if (nbeams < 1) then
+            call set_status(stat, ERR_INPUT, 'api_param_name', 'nbeams = '// &
+                            fmt_int(int(nbeams))//', expected at least 1')
+        else if (i < 1 .or. i > param_count(int(nbeams))) then
+            call set_status(stat, ERR_INPUT, 'api_param_name', 'parameter '//fmt_int(int(i))// &
+                            ', expected 1..'//fmt_int(param_count(int(nbeams))))
+        else
+            name = param_name(int(nbeams), int(i))
+        end if
+        call status_out(stat, code, message)
+    end subroutine api_param_name
 
     !> Number of beams of a preset ('pace', 'cantilever'); code < 0 if unknown.
     subroutine api_preset_size(name, nbeams, code, message)

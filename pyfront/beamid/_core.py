@@ -52,7 +52,9 @@ def _floats(values) -> np.ndarray:
 @lru_cache(maxsize=None)
 def param_names(nbeams: int) -> tuple[str, ...]:
     """Names of the parameter vector of a chain of ``nbeams`` beams, in order."""
-    return tuple(_text(_call(_static.api_param_names, nbeams)).split())
+    count = int(_call(_static.api_param_count, nbeams))
+    return tuple(_text(_call(_static.api_param_name, nbeams, i)).strip()
+                 for i in range(1, count + 1))
 
 
 def preset(name: str) -> tuple[int, np.ndarray]:
