@@ -9,8 +9,8 @@
 !! problem (beamid_problem), the chain's checks and the diagnosis ask the
 !! families, never a kind code.
 module beamid_families
-    use beamid_family, only: experiment_family_t, family_slot_t, EXP_TIP, EXP_WIRE, EXP_RELEASE, &
-                             EXP_MODAL, EV_NEPB
+    use beamid_family, only: experiment_family_t, family_slot_t, family_identity_t, &
+                             KIND_LABEL_LEN, EXP_TIP, EXP_WIRE, EXP_RELEASE, EXP_MODAL, EV_NEPB
     use beamid_observations, only: FAM_STATIC, FAM_RELEASE, FAM_MODAL
     use beamid_status, only: fmt_int
     use beamid_static_experiments, only: static_experiments_t
@@ -31,24 +31,25 @@ contains
     subroutine registered_families(fams)
         type(family_slot_t), allocatable, intent(out) :: fams(:)
         allocate (fams(0))
-        call register(fams, static_experiments_t(), 'static', FAM_STATIC, [EXP_TIP, EXP_WIRE], &
-                      [character(len=8) :: 'tip load', 'wire'])
-        call register(fams, dynamic_experiments_t(), 'release', FAM_RELEASE, [EXP_RELEASE], &
-                      ['release'], timed=.true., mesh_key=EV_NEPB)
-        call register(fams, modal_experiments_t(), 'modal', FAM_MODAL, [EXP_MODAL], ['modal'], &
-                      mesh_key=EV_NEPB)
+        call register(fams, static_experiments_t(), &
+                      family_identity_t(name='static', code=FAM_STATIC, kinds=[EXP_TIP, EXP_WIRE], &
+                                        labels=[character(len=KIND_LABEL_LEN) :: 'tip load', &
+                                                'wire']))
+        call register(fams, dynamic_experiments_t(), &
+                      family_identity_t(name='release', code=FAM_RELEASE, kinds=[EXP_RELEASE], &
+                                        labels=[character(len=KIND_LABEL_LEN) :: 'release'], &
+                                        timed=.true., mesh_key=EV_NEPB))
+        call register(fams, modal_experiments_t(), &
+                      family_identity_t(name='modal', code=FAM_MODAL, kinds=[EXP_MODAL], &
+                                        labels=[character(len=KIND_LABEL_LEN) :: 'modal'], &
+                                        mesh_key=EV_NEPB))
     end subroutine registered_families
 
-    !> Append a family: an empty instance of its type and what it is
-    !! (experiment_family_t%identify).
-    subroutine register(fams, proto, name, code, kinds, labels, timed, mesh_key)
+    !> Append a family: an empty instance of its type and what it is.
+    subroutine register(fams, proto, id)
         type(family_slot_t), allocatable, intent(inout) :: fams(:)
         class(experiment_family_t), intent(in) :: proto
-        character(len=*), intent(in) :: name
-        integer, intent(in) :: code, kinds(:)
-        character(len=*), intent(in) :: labels(:)
-        logical, intent(in), optional :: timed
-        integer, intent(in), optional :: mesh_key
+        type(family_identity_t), intent(in) :: id
         type(family_slot_t), allocatable :: more(:)
         integer :: i
         allocate (more(size(fams) + 1))
@@ -56,7 +57,7 @@ contains
             call move_alloc(fams(i)%item, more(i)%item)
         end do
         allocate (more(size(more))%item, source=proto)
-        call more(size(more))%item%identify(name, code, kinds, labels, timed, mesh_key)
+        call more(size(more))%item%identify(id)
         call move_alloc(more, fams)
     end subroutine register
 

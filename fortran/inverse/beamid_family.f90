@@ -115,6 +115,21 @@ module beamid_family
         spec_key_t('v0', EV_V0, ALL_FAMILIES, 0.0_dp, &
                    '1: the release''s initial tip normal velocity is fitted')]
 
+    !> What a family is, a row of the registry (beamid_families): its name
+    !! in messages, its code in the families column of beamid_observations,
+    !! the experiment kinds (EXP_*) it takes and their words, whether its rows
+    !! are records in time (a row has t; a clock offset and a burn-in make
+    !! sense) and the row of a spec's value column that holds its elements
+    !! per beam (0: no mesh to refine).
+    type, public :: family_identity_t
+        character(len=:), allocatable :: name
+        integer :: code = 0
+        integer, allocatable :: kinds(:)
+        character(len=KIND_LABEL_LEN), allocatable :: labels(:)
+        logical :: timed = .false.
+        integer :: mesh_key = 0
+    end type family_identity_t
+
     !> What a family's build reads: the model's number of beams, the kind
     !! (EXP_*) and value column of each of its experiments, and its data rows
     !! (row_exp local experiment numbers 1..size(kinds), times, observations)
@@ -131,17 +146,8 @@ module beamid_family
 
     !> One family of experiments and the data rows they predict.
     type, abstract, extends(residual_model_t) :: experiment_family_t
-        !> what the family is (set by identify at registration): its name in
-        !! messages, its code in the families column of beamid_observations,
-        !! the experiment kinds it takes and their words, whether its rows are
-        !! records in time, the row of a spec's value column that holds its
-        !! elements per beam (0: no mesh to refine)
-        character(len=:), allocatable, private :: family_name
-        integer, private :: code = 0
-        integer, allocatable, private :: exp_kinds(:)
-        character(len=KIND_LABEL_LEN), allocatable, private :: exp_labels(:)
-        logical, private :: records_in_time = .false.
-        integer, private :: mesh_row = 0
+        !> what the family is (set by identify at registration)
+        type(family_identity_t), private :: id
         !> the model's number of beams, the local experiment and the
         !! observation of each of the family's rows
         integer :: nbeams = 0
@@ -199,25 +205,11 @@ module beamid_family
 
 contains
 
-    !> Set what the family is (at registration, beamid_families): its name,
-    !! its FAM_* code, the experiment kinds it takes with their words, and
-    !! optionally whether its rows are records in time (default no) and the
-    !! value-column row of its elements per beam (default 0: no mesh).
-    pure subroutine identify(self, name, code, kinds, labels, timed, mesh_key)
+    !> Set what the family is (at registration, beamid_families).
+    pure subroutine identify(self, id)
         class(experiment_family_t), intent(inout) :: self
-        character(len=*), intent(in) :: name
-        integer, intent(in) :: code, kinds(:)
-        character(len=*), intent(in) :: labels(:)
-        logical, intent(in), optional :: timed
-        integer, intent(in), optional :: mesh_key
-        self%family_name = name
-        self%code = code
-        self%exp_kinds = kinds
-        self%exp_labels = labels
-        self%records_in_time = .false.
-        if (present(timed)) self%records_in_time = timed
-        self%mesh_row = 0
-        if (present(mesh_key)) self%mesh_row = mesh_key
+        type(family_identity_t), intent(in) :: id
+        self%id = id
     end subroutine identify
 
     !> Build the family on its experiments and rows (build, which may set
@@ -229,19 +221,10 @@ contains
         type(family_input_t), intent(in) :: input
         integer, intent(in) :: rows(:), exp_ids(:)
         type(status_t), intent(inout) :: stat
-        character(len=:), allocatable :: name
-        integer, allocatable :: kinds(:)
-        character(len=KIND_LABEL_LEN), allocatable :: labels(:)
-        logical :: timed
-        integer :: code, mesh_row
-        name = self%family_name
-        code = self%code
-        kinds = self%exp_kinds
-        labels = self%exp_labels
-        timed = self%records_in_time
-        mesh_row = self%mesh_row
+        type(family_identity_t) :: id
+        id = self%id
         call self%build(input, stat)
-        call self%identify(name, code, kinds, labels, timed, mesh_row)
+        self%id = id
         if (stat%code /= 0) return
         self%nbeams = input%nbeams
         self%row_exp = input%row_exp
@@ -255,7 +238,7 @@ contains
         class(experiment_family_t), intent(in) :: self
         character(len=:), allocatable :: text
         text = ''
-        if (allocated(self%family_name)) text = self%family_name
+        if (allocated(self%id%name)) text = self%id%name
     end function name
 
     !> Whether experiments of this kind (EXP_*) belong to the family.
@@ -263,7 +246,7 @@ contains
         class(experiment_family_t), intent(in) :: self
         integer, intent(in) :: kind
         claims = .false.
-        if (allocated(self%exp_kinds)) claims = any(self%exp_kinds == kind)
+        if (allocated(self%id%kinds)) claims = any(self%id%kinds == kind)
     end function claims
 
     !> The words for an experiment kind of the family ('tip load'; '' for a
@@ -274,29 +257,28 @@ contains
         character(len=:), allocatable :: text
         integer :: k
         text = ''
-        if (.not. allocated(self%exp_kinds)) return
-        k = findloc(self%exp_kinds, kind, 1)
-        if (k > 0) text = trim(self%exp_labels(k))
+        if (.not. allocated(self%id%kinds)) return
+        k = findloc(self%id%kinds, kind, 1)
+        if (k > 0) text = trim(self%id%labels(k))
     end function kind_label
 
-    !> Whether the family's rows are records in time (a row has t; a clock
-    !! offset and a burn-in make sense).
+    !> Whether the family's rows are records in time.
     pure logical function timed(self)
         class(experiment_family_t), intent(in) :: self
-        timed = self%records_in_time
+        timed = self%id%timed
     end function timed
 
     !> The family's code in the families column of beamid_observations.
     pure integer function family_code(self)
         class(experiment_family_t), intent(in) :: self
-        family_code = self%code
+        family_code = self%id%code
     end function family_code
 
     !> The row of a value column holding the family's elements per beam, 0
     !! when it has no mesh to refine.
     pure integer function mesh_key(self)
         class(experiment_family_t), intent(in) :: self
-        mesh_key = self%mesh_row
+        mesh_key = self%id%mesh_key
     end function mesh_key
 
     !> The family's rows (its own numbering) of its local experiment e.

@@ -17,8 +17,8 @@ module beamid_modal_experiments
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int, fmt_real
     use beamid_model, only: chain_t, chain_from_vector
-    use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, EV_NEPB, &
-                             EV_FD
+    use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, &
+                             EV_NEPB, EV_FD
     use beamid_observations, only: observation_t, observation_why_not, why_detail, kind_label, &
                                    obs_label, FAM_MODAL, WHY_OK, K_FREQ, K_DAMPING, &
                                    K_SHAPE_N, K_SHAPE_T, K_SHAPE_PSI, K_SHAPE_STRAIN
