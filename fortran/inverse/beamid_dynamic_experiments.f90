@@ -171,8 +171,7 @@ contains
                                         fd=nint(v(EV_FD)) == 1, exact=nint(v(EV_FD)) == 2)
             end associate
         end do
-        call dynamic_experiments_init(input%nbeams, rels, input%row_exp, input%row_t, &
-                                      input%row_obs, self, stat)
+        call dynamic_experiments_init(input, rels, self, stat)
         ! a release's predictions do not depend on the sensitivities asked,
         ! which cost several runs: the fit judges its trial steps without them
         self%plain_trials = .true.
@@ -216,61 +215,51 @@ contains
 
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).
-    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
-        integer, intent(in) :: nbeams
+    subroutine dynamic_experiments_init(input, exps, self, stat)
+        type(family_input_t), intent(in) :: input
         type(release_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:)
-        type(observation_t), intent(in) :: row_obs(:)
-        real(dp), intent(in) :: row_t(:)
         type(dynamic_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
         integer :: i, e
         do i = 1, size(exps)
-            if (exps(i)%nepb < 1) then
-                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
-                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
-                                ', expected >= 1')
-                return
-            end if
             if (.not. (exps(i)%gain >= 0.0_dp .and. ieee_is_finite(exps(i)%gain))) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
                                 ': motor_gain = '//fmt_real(exps(i)%gain)//', expected >= 0')
                 return
             end if
         end do
-        do i = 1, size(row_exp)
-            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_obs(i), nbeams)
+        do i = 1, size(input%row_exp)
+            why = check_dynamic_row(exps(input%row_exp(i)), input%row_t(i), input%row_obs(i), &
+                                    input%nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
             end if
         end do
-        self%nbeams = nbeams
         self%exps = exps
-        self%row_exp = row_exp
-        self%row_t = row_t
-        self%row_obs = row_obs
-        allocate (self%eobs(size(exps)), self%row_oi(size(row_exp)))
+        self%row_t = input%row_t
+        allocate (self%eobs(size(exps)), self%row_oi(size(input%row_exp)))
         do i = 1, size(exps)
             allocate (self%eobs(i)%o(0))
         end do
-        do i = 1, size(row_exp)
-            e = row_exp(i)
+        do i = 1, size(input%row_exp)
+            e = input%row_exp(i)
             self%row_oi(i) = 0
             if (size(self%eobs(e)%o) > 0) &
-                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, row_obs(i)), .true., 1)
+                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, input%row_obs(i)), &
+                                         .true., 1)
             if (self%row_oi(i) == 0) then
-                self%eobs(e)%o = [self%eobs(e)%o, row_obs(i)]
+                self%eobs(e)%o = [self%eobs(e)%o, input%row_obs(i)]
                 self%row_oi(i) = size(self%eobs(e)%o)
             end if
         end do
         allocate (self%cache(size(exps)))
-        allocate (self%shift(size(exps)), self%row_rate(size(row_exp)), source=0.0_dp)
+        allocate (self%shift(size(exps)), self%row_rate(size(input%row_exp)), source=0.0_dp)
         self%rough_jacobian_ok = .false.
         do i = 1, size(exps)
-            if (.not. any(row_exp == i)) cycle
+            if (.not. any(input%row_exp == i)) cycle
             if (rough_tolerance(exps(i)) > 0.0_dp) self%rough_jacobian_ok = .true.
         end do
     end subroutine dynamic_experiments_init

@@ -24,7 +24,7 @@
 !! (rows EV_*) until the named specs replace it; the layout lives here, once.
 module beamid_family
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t
+    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int
     use beamid_arclength, only: LOAD_TIP, LOAD_WIRE
     use beamid_estimation, only: residual_model_t
     use beamid_observations, only: observation_t, KINDS, FAM_STATIC, FAM_RELEASE, FAM_MODAL
@@ -213,7 +213,9 @@ contains
     end subroutine identify
 
     !> Build the family on its experiments and rows (build, which may set
-    !! the family up afresh: what the family is stays as registered), then
+    !! the family up afresh: what the family is stays as registered; a family
+    !! with a mesh is refused an experiment with less than one element per
+    !! beam before its build), then
     !! take the problem's numbers of its rows and experiments and, for the
     !! evaluations, the input's beams, local experiments and observations.
     subroutine setup(self, input, rows, exp_ids, stat)
@@ -222,6 +224,20 @@ contains
         integer, intent(in) :: rows(:), exp_ids(:)
         type(status_t), intent(inout) :: stat
         type(family_identity_t) :: id
+        integer :: e, nepb
+        ! a family with a mesh: at least one element per beam in each experiment
+        if (self%id%mesh_key > 0) then
+            do e = 1, size(input%kinds)
+                nepb = nint(input%values(self%id%mesh_key, e))
+                if (nepb < 1) then
+                    call set_status(stat, ERR_INPUT, self%name()//' experiments', 'experiment '// &
+                                    fmt_int(e)//': '//trim(SPEC_KEYS(findloc(SPEC_KEYS%row, &
+                                    self%id%mesh_key, 1))%name)//' = '//fmt_int(nepb)// &
+                                    ', expected >= 1')
+                    return
+                end if
+            end do
+        end if
         id = self%id
         call self%build(input, stat)
         self%id = id

@@ -72,8 +72,7 @@ contains
                                       nepb=nint(v(EV_NEPB)), fd=nint(v(EV_FD)) == 1)
             end associate
         end do
-        call modal_experiments_init(input%nbeams, mods, input%row_exp, input%row_t, &
-                                    input%row_obs, self, stat)
+        call modal_experiments_init(input, mods, self, stat)
     end subroutine modal_build
 
     !> Why observation o cannot be a row of a modal experiment ('' when it can).
@@ -95,50 +94,37 @@ contains
 
     !> Set up and validate the experiments and rows: each row a modal kind,
     !! each shape row with a frequency row of its mode in its experiment.
-    subroutine modal_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
-        integer, intent(in) :: nbeams
+    subroutine modal_experiments_init(input, exps, self, stat)
+        type(family_input_t), intent(in) :: input
         type(modal_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:)
-        real(dp), intent(in) :: row_t(:)
-        type(observation_t), intent(in) :: row_obs(:)
         type(modal_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'modal experiments'
         character(len=:), allocatable :: why
         integer :: i, j
         logical :: found
-        do i = 1, size(exps)
-            if (exps(i)%nepb < 1) then
-                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
-                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
-                                ', expected >= 1')
-                return
-            end if
-        end do
-        do i = 1, size(row_exp)
-            why = check_modal_row(row_t(i), row_obs(i), nbeams)
+        do i = 1, size(input%row_exp)
+            why = check_modal_row(input%row_t(i), input%row_obs(i), input%nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
             end if
-            if (shape_kind(row_obs(i)%kind) == 0) cycle
+            if (shape_kind(input%row_obs(i)%kind) == 0) cycle
             found = .false.
-            do j = 1, size(row_exp)
-                if (row_exp(j) == row_exp(i) .and. row_obs(j)%kind == K_FREQ .and. &
-                    row_obs(j)%mode == row_obs(i)%mode) found = .true.
+            do j = 1, size(input%row_exp)
+                if (input%row_exp(j) == input%row_exp(i) .and. &
+                    input%row_obs(j)%kind == K_FREQ .and. &
+                    input%row_obs(j)%mode == input%row_obs(i)%mode) found = .true.
             end do
             if (.not. found) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': shape entry '// &
-                                obs_label(row_obs(i))//' has no frequency row freq['// &
-                                fmt_int(row_obs(i)%mode)//'] in its experiment: a mode '// &
+                                obs_label(input%row_obs(i))//' has no frequency row freq['// &
+                                fmt_int(input%row_obs(i)%mode)//'] in its experiment: a mode '// &
                                 'shape belongs to a measured mode, expected its frequency too')
                 return
             end if
         end do
-        self%nbeams = nbeams
         self%exps = exps
-        self%row_exp = row_exp
-        self%row_obs = row_obs
     end subroutine modal_experiments_init
 
     !> beamid_modal's SHAPE_* of a shape kind, 0 for the others.

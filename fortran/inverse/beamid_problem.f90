@@ -106,8 +106,8 @@ module beamid_problem
 
 contains
 
-    !> Build the problem: a constructor per family (static_experiments_init,
-    !! dynamic_experiments_init) on the rows of its experiments.
+    !> Build the problem: each family that has experiments built on their
+    !! rows (experiment_family_t%setup, which calls the family's build).
     !! row_quantity(i) indexes obs, the problem's observation list (absent:
     !! the kind codes, beamid_observations default_observations).
     !! probe = .true.: rows that only predict (a diagnosis's probe rows on
