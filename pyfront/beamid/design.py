@@ -392,11 +392,12 @@ DEFAULT_QUANTITIES = tuple(sorted(observations.probe_kinds("static"),
 
 
 #: sigma of a candidate quantity the deck has no rows of (``beamid design``
-#: without ``--sigma``): the default probe sigma of its kind in the core's
-#: observation table (beamid.observations; for the tip and elbow 1 mm, 1 mrad,
-#: 0.1 N, 0.01 N m, the measurement sigmas of the dissertation's tests,
-#: docs/deviations.md); printed with the kind's unit when used
-DEFAULT_SIGMA = {name: kind.sigma for name, kind in observations.kinds().items()}
+#: without ``--sigma``): 1 mm, 1 mrad, 0.1 N, 0.01 N m (the measurement
+#: sigmas of the dissertation's tests, docs/deviations.md); printed when used
+DEFAULT_SIGMA = {"x_tip": 1e-3, "y_tip": 1e-3, "x_elbow": 1e-3, "y_elbow": 1e-3,
+                 "u_tip": 1e-3, "w_tip": 1e-3, "tip_angle": 1e-3, "wire_force": 0.1,
+                 "motor_torque": 0.01}
+_UNIT = {"tip_angle": "rad", "wire_force": "N", "motor_torque": "N m"}
 
 
 def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Measurements,
@@ -437,8 +438,8 @@ def parse_sigma(items: Sequence[str] | None, quantities: Sequence[str], data: Me
             continue
         out[q] = DEFAULT_SIGMA[q]
         if notes is not None:
-            notes.append(f"sigma of {q}: {DEFAULT_SIGMA[q]:g} {observations.unit(q)} (default: "
-                         f"the deck has no {q} rows; set it with --sigma {q}=VALUE)")
+            notes.append(f"sigma of {q}: {DEFAULT_SIGMA[q]:g} {_UNIT.get(q, 'm')} (default: the "
+                         f"deck has no {q} rows; set it with --sigma {q}=VALUE)")
     return out
 
 
