@@ -35,7 +35,7 @@ module beamid_dyn_diagnosis
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
                               EV_NEPB, EV_GAIN
     use beamid_static_experiments, only: median_of, distinct_sorted
-    use beamid_families, only: kind_mesh_key
+    use beamid_families, only: kind_mesh_key, has_mesh
     use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_observations, only: observation_t, default_observations, probe_kinds, KINDS, &
                                    FAM_RELEASE, NEED_MOTOR
@@ -43,7 +43,9 @@ module beamid_dyn_diagnosis
     private
 
     public :: problem_t, mesh_test_t, dyn_diagnose, time_structure, null_side_model_t, &
-              null_side_init, mesh_check, mesh_recommended, mesh_test, has_mesh
+              null_side_init, mesh_check, mesh_recommended, mesh_test
+    !> (beamid_families' has_mesh, here for the callers that take it from here)
+    public :: has_mesh
 
     !> An estimation problem: experiments (kind, EV_* values), data rows
     !! (experiment, t, observation, value, sigma), a priori information and the
@@ -298,17 +300,6 @@ contains
             end do
         end do
     end subroutine dyn_probe_rows
-
-    !> Has the problem an experiment with a mesh of its own (its family's
-    !! mesh_key: a release, a modal test) that the mesh test can refine?
-    logical function has_mesh(exp_kind)
-        integer, intent(in) :: exp_kind(:)
-        integer :: e
-        has_mesh = .false.
-        do e = 1, size(exp_kind)
-            if (kind_mesh_key(exp_kind(e)) > 0) has_mesh = .true.
-        end do
-    end function has_mesh
 
     !> The mesh test (see the module header): refit `free` from base%params
     !! with every release and modal test (every experiment whose family has a

@@ -53,7 +53,7 @@ module beamid_dynamic_experiments
                               QTY_X_TIP, QTY_Y_TIP, QTY_TIP_ANGLE, QTY_X_ELBOW, QTY_Y_ELBOW, &
                               QTY_MOTOR_TORQUE, NQTY, WRT_V0
     use beamid_static_experiments, only: distinct_sorted
-    use beamid_family, only: experiment_family_t, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, &
+    use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, &
                              EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD
     use beamid_observations, only: observation_t, observation_why_not, same_observation, &
                                    FAM_RELEASE, why_detail, WHY_OK, WHY_WIRE, WHY_MOTOR, WHY_FAMILY, &
@@ -138,10 +138,7 @@ module beamid_dynamic_experiments
     !! at rest in its static shape) and rates (want_rates, row_rate) are the
     !! timed family's components of experiment_family_t.
     type, extends(experiment_family_t) :: dynamic_experiments_t
-        integer :: nbeams = 0
         type(release_exp_t), allocatable :: exps(:)
-        integer, allocatable :: row_exp(:)
-        type(observation_t), allocatable :: row_obs(:) !< observation of each row
         !> the distinct observations of each experiment's rows, and the
         !! index of each row's observation in its experiment's list
         type(obs_list_t), allocatable :: eobs(:)
@@ -150,74 +147,31 @@ module beamid_dynamic_experiments
         type(plain_cache_t), allocatable :: cache(:) !< per experiment (rough mode)
     contains
         procedure :: evaluate => dynamic_evaluate
-        procedure, nopass :: name => release_name
-        procedure, nopass :: claims => release_claims
-        procedure, nopass :: kind_label => release_kind_label
-        procedure, nopass :: timed => release_timed
-        procedure, nopass :: family_code => release_family_code
-        procedure, nopass :: mesh_key => release_mesh_key
         procedure :: build => release_build
     end type dynamic_experiments_t
 
 contains
 
-    pure function release_name() result(text)
-        character(len=:), allocatable :: text
-        text = 'release'
-    end function release_name
-
-    pure logical function release_claims(kind)
-        integer, intent(in) :: kind
-        release_claims = kind == EXP_RELEASE
-    end function release_claims
-
-    pure function release_kind_label(kind) result(text)
-        integer, intent(in) :: kind
-        character(len=:), allocatable :: text
-        text = 'release'
-        if (.false.) text = repeat(' ', kind)
-    end function release_kind_label
-
-    pure logical function release_timed()
-        release_timed = .true.
-    end function release_timed
-
-    pure integer function release_family_code()
-        release_family_code = FAM_RELEASE
-    end function release_family_code
-
-    !> Elements per beam: the row EV_NEPB of a release's value column.
-    pure integer function release_mesh_key()
-        release_mesh_key = EV_NEPB
-    end function release_mesh_key
-
     !> The family's constructor for the problem: a release_exp_t per
     !! experiment from its value column, then dynamic_experiments_init.
-    subroutine release_build(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
+    subroutine release_build(self, input, stat)
         class(dynamic_experiments_t), intent(inout) :: self
-        integer, intent(in) :: nbeams, kinds(:), row_exp(:)
-        real(dp), intent(in) :: values(:, :), row_t(:), tol
-        type(observation_t), intent(in) :: row_obs(:)
+        type(family_input_t), intent(in) :: input
         type(status_t), intent(inout) :: stat
         type(release_exp_t), allocatable :: rels(:)
         integer :: e
-        if (.false.) e = int(tol)
-        allocate (rels(size(kinds)))
-        do e = 1, size(kinds)
-            rels(e) = release_exp_t(fx=values(EV_FX, e), fy=values(EV_FY, e), &
-                                    moment=values(EV_MOMENT, e), &
-                                    nepb=nint(values(EV_NEPB, e)), &
-                                    gain=values(EV_GAIN, e), &
-                                    method=nint(values(EV_METHOD, e)), &
-                                    law=nint(values(EV_LAW, e)), &
-                                    rtol=values(EV_RTOL, e), &
-                                    dt=values(EV_DT, e), &
-                                    vslip=merge(values(EV_VSLIP, e), 1.0e-4_dp, &
-                                                values(EV_VSLIP, e) > 0.0_dp), &
-                                    fd=nint(values(EV_FD, e)) == 1, &
-                                    exact=nint(values(EV_FD, e)) == 2)
+        allocate (rels(size(input%kinds)))
+        do e = 1, size(input%kinds)
+            associate (v => input%values(:, e))
+                rels(e) = release_exp_t(fx=v(EV_FX), fy=v(EV_FY), moment=v(EV_MOMENT), &
+                                        nepb=nint(v(EV_NEPB)), gain=v(EV_GAIN), &
+                                        method=nint(v(EV_METHOD)), law=nint(v(EV_LAW)), &
+                                        rtol=v(EV_RTOL), dt=v(EV_DT), &
+                                        vslip=merge(v(EV_VSLIP), 1.0e-4_dp, v(EV_VSLIP) > 0.0_dp), &
+                                        fd=nint(v(EV_FD)) == 1, exact=nint(v(EV_FD)) == 2)
+            end associate
         end do
-        call dynamic_experiments_init(nbeams, rels, row_exp, row_t, row_obs, self, stat)
+        call dynamic_experiments_init(input, rels, self, stat)
         ! a release's predictions do not depend on the sensitivities asked,
         ! which cost several runs: the fit judges its trial steps without them
         self%plain_trials = .true.
@@ -261,61 +215,51 @@ contains
 
     !> Set up and validate the experiments and rows (the list lengths and
     !! experiment numbers as inverse_problem_init checked them).
-    subroutine dynamic_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
-        integer, intent(in) :: nbeams
+    subroutine dynamic_experiments_init(input, exps, self, stat)
+        type(family_input_t), intent(in) :: input
         type(release_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:)
-        type(observation_t), intent(in) :: row_obs(:)
-        real(dp), intent(in) :: row_t(:)
         type(dynamic_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'dynamic experiments'
         character(len=:), allocatable :: why
         integer :: i, e
         do i = 1, size(exps)
-            if (exps(i)%nepb < 1) then
-                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
-                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
-                                ', expected >= 1')
-                return
-            end if
             if (.not. (exps(i)%gain >= 0.0_dp .and. ieee_is_finite(exps(i)%gain))) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
                                 ': motor_gain = '//fmt_real(exps(i)%gain)//', expected >= 0')
                 return
             end if
         end do
-        do i = 1, size(row_exp)
-            why = check_dynamic_row(exps(row_exp(i)), row_t(i), row_obs(i), nbeams)
+        do i = 1, size(input%row_exp)
+            why = check_dynamic_row(exps(input%row_exp(i)), input%row_t(i), input%row_obs(i), &
+                                    input%nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
             end if
         end do
-        self%nbeams = nbeams
         self%exps = exps
-        self%row_exp = row_exp
-        self%row_t = row_t
-        self%row_obs = row_obs
-        allocate (self%eobs(size(exps)), self%row_oi(size(row_exp)))
+        self%row_t = input%row_t
+        allocate (self%eobs(size(exps)), self%row_oi(size(input%row_exp)))
         do i = 1, size(exps)
             allocate (self%eobs(i)%o(0))
         end do
-        do i = 1, size(row_exp)
-            e = row_exp(i)
+        do i = 1, size(input%row_exp)
+            e = input%row_exp(i)
             self%row_oi(i) = 0
             if (size(self%eobs(e)%o) > 0) &
-                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, row_obs(i)), .true., 1)
+                self%row_oi(i) = findloc(same_observation(self%eobs(e)%o, input%row_obs(i)), &
+                                         .true., 1)
             if (self%row_oi(i) == 0) then
-                self%eobs(e)%o = [self%eobs(e)%o, row_obs(i)]
+                self%eobs(e)%o = [self%eobs(e)%o, input%row_obs(i)]
                 self%row_oi(i) = size(self%eobs(e)%o)
             end if
         end do
         allocate (self%cache(size(exps)))
-        allocate (self%shift(size(exps)), self%row_rate(size(row_exp)), source=0.0_dp)
+        allocate (self%shift(size(exps)), self%row_rate(size(input%row_exp)), source=0.0_dp)
         self%rough_jacobian_ok = .false.
         do i = 1, size(exps)
-            if (.not. any(row_exp == i)) cycle
+            if (.not. any(input%row_exp == i)) cycle
             if (rough_tolerance(exps(i)) > 0.0_dp) self%rough_jacobian_ok = .true.
         end do
     end subroutine dynamic_experiments_init

@@ -2,22 +2,29 @@
 !! problem extends (issue 25, "experiment families, an open list").
 !!
 !! A family owns its experiments and the data rows they predict: it builds
-!! itself from its experiments' specs and its rows (`build`), evaluates the
-!! predictions and Jacobian of all its rows at once (`evaluate`, the
-!! residual_model_t interface: one type-bound call per evaluation, never one
-!! per row), proposes probe rows for a diagnosis (`probe`), tells which
-!! observation kinds it can produce (`observes`, from the families column of
-!! beamid_observations) and where its mesh lives in a spec (`mesh_key`).
-!! The problem (beamid_problem) holds a list of families (family_slot_t);
-!! which family takes an experiment kind is the registry's business
-!! (beamid_families): a new family is one module extending this type plus
-!! one line there (docs/development.md, "Adding an experiment family").
+!! itself from its experiments' specs and its rows (`build`, on a
+!! family_input_t), evaluates the predictions and Jacobian of all its rows
+!! at once (`evaluate`, the residual_model_t interface: one type-bound call
+!! per evaluation, never one per row), proposes probe rows for a diagnosis
+!! (`probe`), tells which observation kinds it can produce (`observes`, from
+!! the families column of beamid_observations) and which spec keys it takes
+!! (`accepts`, from SPEC_KEYS).
+!!
+!! What a family is (its name, code, experiment kinds and their words,
+!! whether its rows are records in time, where its mesh lives in a spec) is
+!! data of the base type, set once when the family is registered
+!! (beamid_families, one `call register` line a family, through `identify`)
+!! and read through the accessors below, which no family overrides; `setup`
+!! builds a family and keeps that identity. The problem (beamid_problem)
+!! holds a list of families (family_slot_t); a new family is one module
+!! extending this type plus its line in the registry (docs/development.md,
+!! "Adding an experiment family").
 !!
 !! The spec of an experiment crosses as a kind (EXP_*) and a value column
 !! (rows EV_*) until the named specs replace it; the layout lives here, once.
 module beamid_family
     use beamid_kinds, only: dp
-    use beamid_status, only: status_t
+    use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int
     use beamid_arclength, only: LOAD_TIP, LOAD_WIRE
     use beamid_estimation, only: residual_model_t
     use beamid_observations, only: observation_t, KINDS, FAM_STATIC, FAM_RELEASE, FAM_MODAL
@@ -69,6 +76,8 @@ module beamid_family
     end type spec_key_t
 
     integer, parameter, public :: ALL_FAMILIES = -1
+    !> The longest words of an experiment kind (kind_label).
+    integer, parameter, public :: KIND_LABEL_LEN = 16
     integer, parameter :: BOTH = FAM_STATIC + FAM_RELEASE + FAM_MODAL
     !> the finite element families: a mesh and central-difference columns
     integer, parameter :: FE_FAMS = FAM_RELEASE + FAM_MODAL
@@ -106,8 +115,44 @@ module beamid_family
         spec_key_t('v0', EV_V0, ALL_FAMILIES, 0.0_dp, &
                    '1: the release''s initial tip normal velocity is fitted')]
 
+    !> What a family is, a row of the registry (beamid_families): its name
+    !! in messages, its code in the families column of beamid_observations,
+    !! the experiment kinds (EXP_*) it takes and their words, whether its rows
+    !! are records in time (a row has t; a clock offset and a burn-in make
+    !! sense) and the row of a spec's value column that holds its elements
+    !! per beam (0: no mesh to refine).
+    type, public :: family_identity_t
+        character(len=:), allocatable :: name
+        integer :: code = 0
+        integer, allocatable :: kinds(:)
+        character(len=KIND_LABEL_LEN), allocatable :: labels(:)
+        logical :: timed = .false.
+        integer :: mesh_key = 0
+    end type family_identity_t
+
+    !> What a family's build reads: the model's number of beams, the kind
+    !! (EXP_*) and value column of each of its experiments, and its data rows
+    !! (row_exp local experiment numbers 1..size(kinds), times, observations)
+    !! with the static solver's tolerance (0: default).
+    type, public :: family_input_t
+        integer :: nbeams = 0
+        integer, allocatable :: kinds(:)
+        real(dp), allocatable :: values(:, :)
+        integer, allocatable :: row_exp(:)
+        real(dp), allocatable :: row_t(:)
+        type(observation_t), allocatable :: row_obs(:)
+        real(dp) :: tol = 0.0_dp
+    end type family_input_t
+
     !> One family of experiments and the data rows they predict.
     type, abstract, extends(residual_model_t) :: experiment_family_t
+        !> what the family is (set by identify at registration)
+        type(family_identity_t), private :: id
+        !> the model's number of beams, the local experiment and the
+        !! observation of each of the family's rows
+        integer :: nbeams = 0
+        integer, allocatable :: row_exp(:)
+        type(observation_t), allocatable :: row_obs(:)
         !> the problem's data rows of this family, in the family's row order
         integer, allocatable :: rows(:)
         !> the problem's number of each of the family's experiments
@@ -126,17 +171,20 @@ module beamid_family
         logical, allocatable :: v0_fit(:)
         real(dp), allocatable :: row_dv0(:)
     contains
-        procedure(name_if), deferred, nopass :: name
-        procedure(claims_if), deferred, nopass :: claims
-        procedure(kind_label_if), deferred, nopass :: kind_label
-        procedure(timed_if), deferred, nopass :: timed
-        procedure(family_code_if), deferred, nopass :: family_code
         procedure(build_if), deferred :: build
-        procedure, nopass :: mesh_key => no_mesh
         procedure :: probe => no_probe
         procedure :: probe_model => no_probe_model
-        procedure :: observes
-        procedure :: accepts
+        procedure, non_overridable :: identify
+        procedure, non_overridable :: setup
+        procedure, non_overridable :: name
+        procedure, non_overridable :: claims
+        procedure, non_overridable :: kind_label
+        procedure, non_overridable :: timed
+        procedure, non_overridable :: family_code
+        procedure, non_overridable :: mesh_key
+        procedure, non_overridable :: exp_rows
+        procedure, non_overridable :: observes
+        procedure, non_overridable :: accepts
     end type experiment_family_t
 
     !> A slot of the problem's list of families.
@@ -145,45 +193,118 @@ module beamid_family
     end type family_slot_t
 
     abstract interface
-        !> The family's name in messages ('static', 'release').
-        pure function name_if() result(text)
-            character(len=:), allocatable :: text
-        end function name_if
-        !> Whether experiments of this kind (EXP_*) belong to the family.
-        pure logical function claims_if(kind)
-            integer, intent(in) :: kind
-        end function claims_if
-        !> The words for an experiment kind of the family ('tip load').
-        pure function kind_label_if(kind) result(text)
-            integer, intent(in) :: kind
-            character(len=:), allocatable :: text
-        end function kind_label_if
-        !> Whether the family's rows are records in time (a row has t; a
-        !! clock offset and a burn-in make sense).
-        pure logical function timed_if()
-        end function timed_if
-        !> The family's code in the families column of beamid_observations.
-        pure integer function family_code_if()
-        end function family_code_if
         !> Build from the experiments' kinds and value columns and the
-        !! family's rows (row_exp local experiment numbers 1..size(kinds)).
-        subroutine build_if(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
-            import :: experiment_family_t, dp, observation_t, status_t
+        !! family's rows (beamid_problem calls it through setup).
+        subroutine build_if(self, input, stat)
+            import :: experiment_family_t, family_input_t, status_t
             class(experiment_family_t), intent(inout) :: self
-            integer, intent(in) :: nbeams, kinds(:), row_exp(:)
-            real(dp), intent(in) :: values(:, :), row_t(:), tol
-            type(observation_t), intent(in) :: row_obs(:)
+            type(family_input_t), intent(in) :: input
             type(status_t), intent(inout) :: stat
         end subroutine build_if
     end interface
 
 contains
 
+    !> Set what the family is (at registration, beamid_families).
+    pure subroutine identify(self, id)
+        class(experiment_family_t), intent(inout) :: self
+        type(family_identity_t), intent(in) :: id
+        self%id = id
+    end subroutine identify
+
+    !> Build the family on its experiments and rows (build, which may set
+    !! the family up afresh: what the family is stays as registered; a family
+    !! with a mesh is refused an experiment with less than one element per
+    !! beam before its build), then
+    !! take the problem's numbers of its rows and experiments and, for the
+    !! evaluations, the input's beams, local experiments and observations.
+    subroutine setup(self, input, rows, exp_ids, stat)
+        class(experiment_family_t), intent(inout) :: self
+        type(family_input_t), intent(in) :: input
+        integer, intent(in) :: rows(:), exp_ids(:)
+        type(status_t), intent(inout) :: stat
+        type(family_identity_t) :: id
+        integer :: e, nepb
+        ! a family with a mesh: at least one element per beam in each experiment
+        if (self%id%mesh_key > 0) then
+            do e = 1, size(input%kinds)
+                nepb = nint(input%values(self%id%mesh_key, e))
+                if (nepb < 1) then
+                    call set_status(stat, ERR_INPUT, self%name()//' experiments', 'experiment '// &
+                                    fmt_int(e)//': '//trim(SPEC_KEYS(findloc(SPEC_KEYS%row, &
+                                    self%id%mesh_key, 1))%name)//' = '//fmt_int(nepb)// &
+                                    ', expected >= 1')
+                    return
+                end if
+            end do
+        end if
+        id = self%id
+        call self%build(input, stat)
+        self%id = id
+        if (stat%code /= 0) return
+        self%nbeams = input%nbeams
+        self%row_exp = input%row_exp
+        self%row_obs = input%row_obs
+        self%rows = rows
+        self%exp_ids = exp_ids
+    end subroutine setup
+
+    !> The family's name in messages ('static', 'release').
+    pure function name(self) result(text)
+        class(experiment_family_t), intent(in) :: self
+        character(len=:), allocatable :: text
+        text = ''
+        if (allocated(self%id%name)) text = self%id%name
+    end function name
+
+    !> Whether experiments of this kind (EXP_*) belong to the family.
+    pure logical function claims(self, kind)
+        class(experiment_family_t), intent(in) :: self
+        integer, intent(in) :: kind
+        claims = .false.
+        if (allocated(self%id%kinds)) claims = any(self%id%kinds == kind)
+    end function claims
+
+    !> The words for an experiment kind of the family ('tip load'; '' for a
+    !! kind it does not take).
+    pure function kind_label(self, kind) result(text)
+        class(experiment_family_t), intent(in) :: self
+        integer, intent(in) :: kind
+        character(len=:), allocatable :: text
+        integer :: k
+        text = ''
+        if (.not. allocated(self%id%kinds)) return
+        k = findloc(self%id%kinds, kind, 1)
+        if (k > 0) text = trim(self%id%labels(k))
+    end function kind_label
+
+    !> Whether the family's rows are records in time.
+    pure logical function timed(self)
+        class(experiment_family_t), intent(in) :: self
+        timed = self%id%timed
+    end function timed
+
+    !> The family's code in the families column of beamid_observations.
+    pure integer function family_code(self)
+        class(experiment_family_t), intent(in) :: self
+        family_code = self%id%code
+    end function family_code
+
     !> The row of a value column holding the family's elements per beam, 0
     !! when it has no mesh to refine.
-    pure integer function no_mesh()
-        no_mesh = 0
-    end function no_mesh
+    pure integer function mesh_key(self)
+        class(experiment_family_t), intent(in) :: self
+        mesh_key = self%id%mesh_key
+    end function mesh_key
+
+    !> The family's rows (its own numbering) of its local experiment e.
+    pure function exp_rows(self, e) result(r)
+        class(experiment_family_t), intent(in) :: self
+        integer, intent(in) :: e
+        integer, allocatable :: r(:)
+        integer :: i
+        r = pack([(i, i=1, size(self%row_exp))], self%row_exp == e)
+    end function exp_rows
 
     !> The family's probe rows for a diagnosis, from the sigmas of its data
     !! rows: the family's (local) experiment number, the observation kind

@@ -17,8 +17,8 @@ module beamid_modal_experiments
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int, fmt_real
     use beamid_model, only: chain_t, chain_from_vector
-    use beamid_family, only: experiment_family_t, EXP_MODAL, EV_FX, EV_FY, EV_MOMENT, EV_NEPB, &
-                             EV_FD
+    use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, &
+                             EV_NEPB, EV_FD
     use beamid_observations, only: observation_t, observation_why_not, why_detail, kind_label, &
                                    obs_label, FAM_MODAL, WHY_OK, K_FREQ, K_DAMPING, &
                                    K_SHAPE_N, K_SHAPE_T, K_SHAPE_PSI, K_SHAPE_STRAIN
@@ -50,75 +50,29 @@ module beamid_modal_experiments
     !> Modal experiments and the data rows they predict.
     !! (the family of experiment kind EXP_MODAL, registered in beamid_families)
     type, extends(experiment_family_t) :: modal_experiments_t
-        integer :: nbeams = 0
         type(modal_exp_t), allocatable :: exps(:)
-        integer, allocatable :: row_exp(:)
-        type(observation_t), allocatable :: row_obs(:)
     contains
         procedure :: evaluate => modal_evaluate
-        procedure, nopass :: name => modal_name
-        procedure, nopass :: claims => modal_claims
-        procedure, nopass :: kind_label => modal_kind_label
-        procedure, nopass :: timed => modal_timed
-        procedure, nopass :: family_code => modal_family_code
-        procedure, nopass :: mesh_key => modal_mesh_key
         procedure :: build => modal_build
     end type modal_experiments_t
 
 contains
 
-    pure function modal_name() result(text)
-        character(len=:), allocatable :: text
-        text = 'modal'
-    end function modal_name
-
-    pure logical function modal_claims(kind)
-        integer, intent(in) :: kind
-        modal_claims = kind == EXP_MODAL
-    end function modal_claims
-
-    pure function modal_kind_label(kind) result(text)
-        integer, intent(in) :: kind
-        character(len=:), allocatable :: text
-        text = 'modal'
-        if (.false.) text = text(:kind*0 + 5)
-    end function modal_kind_label
-
-    pure logical function modal_timed()
-        modal_timed = .false.
-    end function modal_timed
-
-    pure integer function modal_family_code()
-        modal_family_code = FAM_MODAL
-    end function modal_family_code
-
-    pure integer function modal_mesh_key()
-        modal_mesh_key = EV_NEPB
-    end function modal_mesh_key
-
     !> Build from the value columns (fx, fy, moment, elements_per_beam, fd).
-    subroutine modal_build(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
+    subroutine modal_build(self, input, stat)
         class(modal_experiments_t), intent(inout) :: self
-        integer, intent(in) :: nbeams, kinds(:), row_exp(:)
-        real(dp), intent(in) :: values(:, :), row_t(:), tol
-        type(observation_t), intent(in) :: row_obs(:)
+        type(family_input_t), intent(in) :: input
         type(status_t), intent(inout) :: stat
         type(modal_exp_t), allocatable :: mods(:)
-        type(modal_experiments_t) :: built
         integer :: e
-        if (.false.) e = int(tol)
-        allocate (mods(size(kinds)))
-        do e = 1, size(kinds)
-            mods(e) = modal_exp_t(fx=values(EV_FX, e), fy=values(EV_FY, e), &
-                                  moment=values(EV_MOMENT, e), nepb=nint(values(EV_NEPB, e)), &
-                                  fd=nint(values(EV_FD, e)) == 1)
+        allocate (mods(size(input%kinds)))
+        do e = 1, size(input%kinds)
+            associate (v => input%values(:, e))
+                mods(e) = modal_exp_t(fx=v(EV_FX), fy=v(EV_FY), moment=v(EV_MOMENT), &
+                                      nepb=nint(v(EV_NEPB)), fd=nint(v(EV_FD)) == 1)
+            end associate
         end do
-        call modal_experiments_init(nbeams, mods, row_exp, row_t, row_obs, built, stat)
-        if (stat%code /= STATUS_OK) return
-        self%nbeams = built%nbeams
-        self%exps = built%exps
-        self%row_exp = built%row_exp
-        self%row_obs = built%row_obs
+        call modal_experiments_init(input, mods, self, stat)
     end subroutine modal_build
 
     !> Why observation o cannot be a row of a modal experiment ('' when it can).
@@ -140,50 +94,37 @@ contains
 
     !> Set up and validate the experiments and rows: each row a modal kind,
     !! each shape row with a frequency row of its mode in its experiment.
-    subroutine modal_experiments_init(nbeams, exps, row_exp, row_t, row_obs, self, stat)
-        integer, intent(in) :: nbeams
+    subroutine modal_experiments_init(input, exps, self, stat)
+        type(family_input_t), intent(in) :: input
         type(modal_exp_t), intent(in) :: exps(:)
-        integer, intent(in) :: row_exp(:)
-        real(dp), intent(in) :: row_t(:)
-        type(observation_t), intent(in) :: row_obs(:)
         type(modal_experiments_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'modal experiments'
         character(len=:), allocatable :: why
         integer :: i, j
         logical :: found
-        do i = 1, size(exps)
-            if (exps(i)%nepb < 1) then
-                call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(i)// &
-                                ': elements_per_beam = '//fmt_int(exps(i)%nepb)// &
-                                ', expected >= 1')
-                return
-            end if
-        end do
-        do i = 1, size(row_exp)
-            why = check_modal_row(row_t(i), row_obs(i), nbeams)
+        do i = 1, size(input%row_exp)
+            why = check_modal_row(input%row_t(i), input%row_obs(i), input%nbeams)
             if (len(why) > 0) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': '//why)
                 return
             end if
-            if (shape_kind(row_obs(i)%kind) == 0) cycle
+            if (shape_kind(input%row_obs(i)%kind) == 0) cycle
             found = .false.
-            do j = 1, size(row_exp)
-                if (row_exp(j) == row_exp(i) .and. row_obs(j)%kind == K_FREQ .and. &
-                    row_obs(j)%mode == row_obs(i)%mode) found = .true.
+            do j = 1, size(input%row_exp)
+                if (input%row_exp(j) == input%row_exp(i) .and. &
+                    input%row_obs(j)%kind == K_FREQ .and. &
+                    input%row_obs(j)%mode == input%row_obs(i)%mode) found = .true.
             end do
             if (.not. found) then
                 call set_status(stat, ERR_INPUT, where, 'row '//fmt_int(i)//': shape entry '// &
-                                obs_label(row_obs(i))//' has no frequency row freq['// &
-                                fmt_int(row_obs(i)%mode)//'] in its experiment: a mode '// &
+                                obs_label(input%row_obs(i))//' has no frequency row freq['// &
+                                fmt_int(input%row_obs(i)%mode)//'] in its experiment: a mode '// &
                                 'shape belongs to a measured mode, expected its frequency too')
                 return
             end if
         end do
-        self%nbeams = nbeams
         self%exps = exps
-        self%row_exp = row_exp
-        self%row_obs = row_obs
     end subroutine modal_experiments_init
 
     !> beamid_modal's SHAPE_* of a shape kind, 0 for the others.
@@ -235,7 +176,7 @@ contains
             end if
         end do
         do e = 1, size(self%exps)
-            rows = pack([(i, i=1, size(self%row_exp))], self%row_exp == e)
+            rows = self%exp_rows(e)
             if (size(rows) == 0) cycle
             if (self%exps(e)%fd) then
                 call central_differences(e, rows, stat)

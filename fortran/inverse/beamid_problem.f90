@@ -52,7 +52,7 @@ module beamid_problem
                              EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, &
                              EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0
     use beamid_families, only: registered_families, family_of_kind, kind_timed, kinds_expected
-    use beamid_family, only: experiment_family_t
+    use beamid_family, only: experiment_family_t, family_input_t
     use beamid_dynamic_experiments, only: dynamic_experiments_t, exp_histories_t, &
                                           attach_histories
     use beamid_family, only: SPEC_KEYS
@@ -98,7 +98,6 @@ module beamid_problem
     contains
         procedure :: evaluate => inverse_evaluate
         procedure :: timed => problem_timed
-        procedure :: has_mesh => problem_has_mesh
     end type inverse_problem_t
 
     !> The issue's name for the problem of a list of families.
@@ -107,8 +106,8 @@ module beamid_problem
 
 contains
 
-    !> Build the problem: a constructor per family (static_experiments_init,
-    !! dynamic_experiments_init) on the rows of its experiments.
+    !> Build the problem: each family that has experiments built on their
+    !! rows (experiment_family_t%setup, which calls the family's build).
     !! row_quantity(i) indexes obs, the problem's observation list (absent:
     !! the kind codes, beamid_observations default_observations).
     !! probe = .true.: rows that only predict (a diagnosis's probe rows on
@@ -226,16 +225,15 @@ contains
         do f = 1, nf
             fexp = pack([(e, e=1, size(exp_kind))], self%exp_fam == f)
             frows = pack([(i, i=1, size(row_exp))], self%exp_fam(row_exp) == f)
-            call self%fams(f)%item%build(nbeams, exp_kind(fexp), exp_values(:, fexp), &
-                                         eloc(row_exp(frows)), row_t(frows), robs(frows), tol, &
-                                         stat)
+            call self%fams(f)%item%setup(family_input_t(nbeams, exp_kind(fexp), &
+                                                        exp_values(:, fexp), &
+                                                        eloc(row_exp(frows)), row_t(frows), &
+                                                        robs(frows), tol), frows, fexp, stat)
             if (stat%code /= STATUS_OK) then
                 call renumber(frows)
                 return
             end if
             associate (fam => self%fams(f)%item)
-                fam%rows = frows
-                fam%exp_ids = fexp
                 fam%want_rates = any(self%nu_kind == NU_T0)
                 ! a family of integrated responses: the fit judges its trial
                 ! steps on predictions alone; one whose columns can be rough
@@ -796,16 +794,5 @@ contains
             if (self%fams(f)%item%timed()) problem_timed = .true.
         end do
     end function problem_timed
-
-    !> Whether a family of the problem has a mesh to refine (the mesh test).
-    logical function problem_has_mesh(self)
-        class(inverse_problem_t), intent(in) :: self
-        integer :: f
-        problem_has_mesh = .false.
-        if (.not. allocated(self%fams)) return
-        do f = 1, size(self%fams)
-            if (self%fams(f)%item%mesh_key() > 0) problem_has_mesh = .true.
-        end do
-    end function problem_has_mesh
 
 end module beamid_problem

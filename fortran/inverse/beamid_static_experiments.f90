@@ -30,7 +30,7 @@ module beamid_static_experiments
                                    K_ELBOW_ROTATION, K_ROOT_ROTATION, &
                                    K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
     use beamid_estimation, only: residual_model_t, sort_desc
-    use beamid_family, only: experiment_family_t, EXP_TIP, EXP_WIRE, EV_FX, EV_FY, EV_MOMENT, &
+    use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, &
                              EV_WIRE_LENGTH
     implicit none
     private
@@ -41,18 +41,10 @@ module beamid_static_experiments
     !> Static experiments and the data rows they predict: the static family
     !! of the inverse problem (experiment kinds EXP_TIP, EXP_WIRE).
     type, extends(experiment_family_t) :: static_experiments_t
-        integer :: nbeams = 0
         type(static_load_t), allocatable :: loads(:)
-        integer, allocatable :: row_exp(:)      !< experiment of each row
-        type(observation_t), allocatable :: row_obs(:) !< observation of each row
         type(static_options_t) :: opts
     contains
         procedure :: evaluate => static_evaluate
-        procedure, nopass :: name => static_name
-        procedure, nopass :: claims => static_claims
-        procedure, nopass :: kind_label => static_kind_label
-        procedure, nopass :: timed => static_timed
-        procedure, nopass :: family_code => static_family_code
         procedure :: build => static_build
         procedure :: probe => static_probe
         procedure :: probe_model => static_probe_model
@@ -60,49 +52,24 @@ module beamid_static_experiments
 
 contains
 
-    pure function static_name() result(text)
-        character(len=:), allocatable :: text
-        text = 'static'
-    end function static_name
-
-    pure logical function static_claims(kind)
-        integer, intent(in) :: kind
-        static_claims = kind == EXP_TIP .or. kind == EXP_WIRE
-    end function static_claims
-
-    pure function static_kind_label(kind) result(text)
-        integer, intent(in) :: kind
-        character(len=:), allocatable :: text
-        text = trim(merge('tip load', 'wire    ', kind == EXP_TIP))
-    end function static_kind_label
-
-    pure logical function static_timed()
-        static_timed = .false.
-    end function static_timed
-
-    pure integer function static_family_code()
-        static_family_code = FAM_STATIC
-    end function static_family_code
-
     !> The family's constructor for the problem: a static load per
     !! experiment from its value column (EV_FX, EV_FY, EV_MOMENT,
     !! EV_WIRE_LENGTH), then static_experiments_init.
-    subroutine static_build(self, nbeams, kinds, values, row_exp, row_t, row_obs, tol, stat)
+    subroutine static_build(self, input, stat)
         class(static_experiments_t), intent(inout) :: self
-        integer, intent(in) :: nbeams, kinds(:), row_exp(:)
-        real(dp), intent(in) :: values(:, :), row_t(:), tol
-        type(observation_t), intent(in) :: row_obs(:)
+        type(family_input_t), intent(in) :: input
         type(status_t), intent(inout) :: stat
         type(static_load_t), allocatable :: loads(:)
         integer :: e
-        if (.false.) e = size(row_t)
-        allocate (loads(size(kinds)))
-        do e = 1, size(kinds)
-            loads(e) = static_load_t(kind=kinds(e), fx=values(EV_FX, e), fy=values(EV_FY, e), &
-                                     moment=values(EV_MOMENT, e), &
-                                     wire_length=values(EV_WIRE_LENGTH, e))
+        allocate (loads(size(input%kinds)))
+        do e = 1, size(input%kinds)
+            associate (v => input%values(:, e))
+                loads(e) = static_load_t(kind=input%kinds(e), fx=v(EV_FX), fy=v(EV_FY), &
+                                         moment=v(EV_MOMENT), wire_length=v(EV_WIRE_LENGTH))
+            end associate
         end do
-        call static_experiments_init(nbeams, loads, row_exp, row_obs, tol, self, stat)
+        call static_experiments_init(input%nbeams, loads, input%row_exp, input%row_obs, &
+                                     input%tol, self, stat)
         self%plain_trials = .false.
         self%rough_jacobian_ok = .false.
     end subroutine static_build

@@ -50,6 +50,12 @@ def quantity_unit(quantity: str) -> str:
 HEADER = ("experiment", "t", "quantity", "value", "sigma")
 
 
+def _needs(name: str) -> str:
+    """What an experiment needs to make observation ``name`` (the core's
+    table: "none", "wire" or "motor")."""
+    return observations.kinds()[observations.parse(name).kind].needs
+
+
 def _canonical(name: str) -> str:
     """The core's name of an observation (x@2:0.7140 and x@2:0.714 are one)."""
     return name if name in QUANTITIES else observations.parse(name).label
@@ -271,7 +277,7 @@ class Measurements:
                 continue
             if isinstance(x, Release):
                 why = observations.can_measure(q, "release", has_motor=x.has_motor)
-                if why == "family" and q == "wire_force":
+                if why == "family" and _needs(q) == "wire":
                     raise InputError(f"{but} is a release (no wire)")
                 if why == "family" and not observations.can_measure(q, "modal"):
                     raise InputError(f"{but} is a release (only a modal experiment "
@@ -284,7 +290,7 @@ class Measurements:
             elif isinstance(x, (TipLoad, RadialWire)):
                 why = observations.can_measure(q, "static",
                                                has_wire=isinstance(x, RadialWire))
-                if why == "family" and q == "motor_torque":
+                if why == "family" and _needs(q) == "motor":
                     raise InputError(f"{but} is static (no motor)")
                 if why == "family" and not observations.can_measure(q, "modal"):
                     raise InputError(f"{but} is static (only a modal experiment measures "
