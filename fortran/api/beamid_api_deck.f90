@@ -24,7 +24,8 @@ module beamid_api_deck
     use beamid_tasks, only: deck_experiments
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
-    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out
+    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out, &
+                                  free_slot, slot_ok
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
@@ -264,18 +265,12 @@ contains
         type(status_t) :: stat
         integer :: h, i
         if (.not. allocated(slots)) allocate (slots(0))
-        h = 0
-        do i = 1, size(slots)
-            if (allocated(slots(i)%run)) cycle
-            h = i
-            exit
-        end do
-        if (h == 0) then
+        h = free_slot(used())
+        if (h > size(slots)) then
             allocate (grown(2*size(slots) + 1))
             do i = 1, size(slots)
                 call move_alloc(slots(i)%run, grown(i)%run)
             end do
-            h = size(slots) + 1
             call move_alloc(grown, slots)
         end if
         allocate (slots(h)%run)
@@ -301,27 +296,24 @@ contains
     !> The number of decks held (handles not yet closed).
     subroutine api_deck_handles_open(n)
         integer(c_int), intent(out) :: n
-        integer :: i
-        n = 0
-        if (.not. allocated(slots)) return
-        do i = 1, size(slots)
-            if (allocated(slots(i)%run)) n = n + 1_c_int
-        end do
+        n = int(count(used()), c_int)
     end subroutine api_deck_handles_open
+
+    !> The slots of the handle table in use (none before the first open).
+    function used() result(u)
+        logical, allocatable :: u(:)
+        integer :: i
+        allocate (u(0))
+        if (allocated(slots)) u = [(allocated(slots(i)%run), i = 1, size(slots))]
+    end function used
 
     !> Is handle an open deck? (else code ERR_INPUT naming it)
     logical function handle_ok(handle, code, message)
         integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: code
         character(len=*), intent(out) :: message
-        type(status_t) :: stat
-        handle_ok = allocated(slots)
-        if (handle_ok) handle_ok = handle >= 1 .and. handle <= size(slots)
-        if (handle_ok) handle_ok = allocated(slots(handle)%run)
-        if (.not. handle_ok) call set_status(stat, ERR_INPUT, 'handle', fmt_int(int(handle))// &
-                                             ', expected the handle of an open deck '// &
-                                             '(api_deck_open, not closed)')
-        call status_out(stat, code, message)
+        handle_ok = slot_ok(used(), handle, 'an open deck (api_deck_open, not closed)', code, &
+                            message)
     end function handle_ok
 
     !> Run the task of the deck of `handle` as beamid-batch does
@@ -385,7 +377,7 @@ contains
     end subroutine api_deck_handle_step
 
     !> Rung k of the ladder of `handle` (outputs as beamid_api_estimation
-    !! api_ladder_rung): effect, info = [free parameters, elements per beam
+    !! api_ladder_handle_rung): effect, info = [free parameters, elements per beam
     !! of the releases, the start the refit kept, data rows, the fits'
     !! iteration limit], free_idx, added, removed, start, nominal.
     subroutine api_deck_handle_rung(handle, k, nparams, info, free_idx, added, removed, start, &
@@ -427,7 +419,7 @@ contains
 
     !> The rows of rung k's fit of the ladder of `handle` as the measurement
     !! chain's treatments judged them (outputs as beamid_api_estimation
-    !! api_ladder_rows).
+    !! api_ladder_handle_rows).
     subroutine api_deck_handle_rows(handle, k, nrow, weights, sigma_used, sigma_sd, flagged, &
                                     has, code, message)
         integer(c_int), intent(in) :: handle, k, nrow
