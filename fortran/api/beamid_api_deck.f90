@@ -21,7 +21,7 @@ module beamid_api_deck
     use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
                              exit_code, set_status
     use beamid_deck, only: deck_t
-    use beamid_tasks, only: deck_experiments
+    use beamid_tasks, only: deck_specs
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
     use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out, &
@@ -33,6 +33,7 @@ module beamid_api_deck
     private
 
     public :: api_deck_open, api_deck_close, api_deck_handle_sizes, api_deck_handle_arrays, &
+              api_deck_handle_spec_size, api_deck_handle_specs, &
               api_deck_handle_data_size, api_deck_handle_data, api_deck_handle_task, &
               api_deck_handle_start, api_deck_handle_step, api_deck_handle_rung, &
               api_deck_handle_fit, api_deck_handle_diag, api_deck_handle_rows, &
@@ -204,44 +205,35 @@ contains
         if (allocated(d%candidates)) ncand = size(d%candidates)
     end function ncand
 
-    !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters, wrt and
-    !! free parameter indices (1-based), output times, experiments (kind 1
-    !! tip, 2 wire, 3 release and 19 values (NEXPVAL) in beamid_inverse's EV_*
-    !! layout: fx, fy, moment, wire_length, ...; beamid_tasks
-    !! deck_experiments), priors.
-    subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
-                                      wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
-                                      prior_mean, prior_sigma, code, message)
+    !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters,
+    !! wrt and free parameter indices (1-based), output times, priors. Its
+    !! experiments: api_deck_handle_specs.
+    subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nfree, nprior, params, wrt, &
+                                      t_out, free_idx, prior_index, prior_mean, prior_sigma, &
+                                      code, message)
         integer(c_int), intent(in) :: handle
-        integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
-        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(19, nexp_)
+        integer(c_int), intent(in) :: nparams, nwrt, nt, nfree, nprior
+        real(c_double), intent(out) :: params(nparams), t_out(nt)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
-        integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
+        integer(c_int), intent(out) :: wrt(nwrt), free_idx(nfree)
         integer(c_int), intent(out) :: prior_index(nprior)
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        integer, allocatable :: kinds(:)
-        real(dp), allocatable :: values(:, :)
         if (.not. handle_ok(handle, code, message)) return
         associate (d => slots(handle)%run%deck)
-        if (size(d%params) /= nparams .or. nexp(d) /= nexp_ .or. nsize_i(d%wrt) /= nwrt .or. &
+        if (size(d%params) /= nparams .or. nsize_i(d%wrt) /= nwrt .or. &
             nsize_i(d%free) /= nfree .or. nsize_i(d%prior_index) /= nprior .or. &
             nsize_r(d%sim_t_out) /= nt) then
             code = int(ERR_INPUT, c_int)
-            message = d%path//': nparams = '//fmt_int(int(nparams))//', nexp = '// &
-                      fmt_int(int(nexp_))//', nwrt = '//fmt_int(int(nwrt))//', nt = '// &
-                      fmt_int(int(nt))//', nfree = '//fmt_int(int(nfree))//', nprior = '// &
-                      fmt_int(int(nprior))//', expected the sizes of api_deck_handle_sizes'
+            message = d%path//': nparams = '//fmt_int(int(nparams))//', nwrt = '// &
+                      fmt_int(int(nwrt))//', nt = '//fmt_int(int(nt))//', nfree = '// &
+                      fmt_int(int(nfree))//', nprior = '//fmt_int(int(nprior))// &
+                      ', expected the sizes of api_deck_handle_sizes'
             return
         end if
         params = d%params
         if (nwrt > 0) wrt = int(d%wrt(:nwrt), c_int)
         if (nt > 0) t_out = d%sim_t_out(:nt)
-        if (nexp_ > 0) then
-            call deck_experiments(d, kinds, values)
-            exp_kind = int(kinds, c_int)
-            exp_values = values
-        end if
         if (nfree > 0) free_idx = int(d%free(:nfree), c_int)
         if (nprior > 0) then
             prior_index = int(d%prior_index(:nprior), c_int)
@@ -250,6 +242,49 @@ contains
         end if
         end associate
     end subroutine api_deck_handle_arrays
+
+    !> The number of named spec triples of the deck of `handle`
+    !! (api_deck_handle_specs).
+    subroutine api_deck_handle_spec_size(handle, nkv, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: nkv, code
+        character(len=65536), intent(out) :: message
+        integer, allocatable :: kinds(:), kv_exp(:), kv_key(:)
+        real(dp), allocatable :: kv_value(:)
+        nkv = 0
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_specs(slots(handle)%run%deck, kinds, kv_exp, kv_key, kv_value)
+        nkv = int(size(kv_exp), c_int)
+    end subroutine api_deck_handle_spec_size
+
+    !> The experiments of the deck of `handle` (nexp from
+    !! api_deck_handle_sizes, nkv from api_deck_handle_spec_size): each one's
+    !! kind and its named spec as triples (experiment, key of the core's key
+    !! table api_spec_keys, value; every key of each experiment, the form the
+    !! estimation entries take: beamid_tasks deck_specs).
+    subroutine api_deck_handle_specs(handle, nexp_, nkv, exp_kind, kv_exp, kv_key, kv_value, &
+                                     code, message)
+        integer(c_int), intent(in) :: handle, nexp_, nkv
+        integer(c_int), intent(out) :: exp_kind(nexp_), kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(out) :: kv_value(nkv)
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        integer, allocatable :: kinds(:), e(:), k(:)
+        real(dp), allocatable :: v(:)
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_specs(slots(handle)%run%deck, kinds, e, k, v)
+        if (size(kinds) /= nexp_ .or. size(e) /= nkv) then
+            code = int(ERR_INPUT, c_int)
+            message = slots(handle)%run%deck%path//': nexp = '//fmt_int(int(nexp_))// &
+                      ', nkv = '//fmt_int(int(nkv))//', expected '//fmt_int(size(kinds))// &
+                      ' and '//fmt_int(size(e))//' (api_deck_handle_sizes, _spec_size)'
+            return
+        end if
+        exp_kind = int(kinds, c_int)
+        kv_exp = int(e, c_int)
+        kv_key = int(k, c_int)
+        kv_value = real(v, c_double)
+    end subroutine api_deck_handle_specs
 
     !> Read and validate the deck at `path` and the measurement files it names
     !! (once: beamid_deck_run deck_run_open) and hold it under `handle` (> 0)

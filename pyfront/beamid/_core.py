@@ -249,9 +249,16 @@ def _deck_values(handle: int) -> dict:
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
-    (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean,
-     prior_sigma) = _call(_deck_api.api_deck_handle_arrays, handle, nparams, nwrt, nt, nexp,
-                          nfree, nprior)
+    (params, wrt, t_out, free, prior_index, prior_mean,
+     prior_sigma) = _call(_deck_api.api_deck_handle_arrays, handle, nparams, nwrt, nt, nfree,
+                          nprior)
+    nkv = _call(_deck_api.api_deck_handle_spec_size, handle)
+    exp_kind, kv_exp, kv_key, kv_value = _call(_deck_api.api_deck_handle_specs, handle, nexp,
+                                               nkv)
+    key_names = {k.number: name for name, k in spec_keys().items()}
+    specs: list[dict] = [{} for _ in range(nexp)]
+    for e, k, v in zip(kv_exp, kv_key, kv_value):     # named triples: no layout
+        specs[int(e) - 1][key_names[int(k)]] = float(v)
     lines = _text(text).split("\n")
     names = lines[3:3 + nexp]
     return {
@@ -270,8 +277,7 @@ def _deck_values(handle: int) -> dict:
                      "atol": float(reals[8]) or None, "motor_gain": float(reals[9]),
                      "friction_velocity": float(reals[10]) or None},
         # each experiment: name, kind and its spec by the core's key names
-        "experiments": [(n, int(k), {key: float(v[sk.row]) for key, sk in spec_keys().items()})
-                        for n, k, v in zip(names, exp_kind, np.array(exp_values).T)],
+        "experiments": [(n, int(k), spec) for n, k, spec in zip(names, exp_kind, specs)],
         "free": [int(i) - 1 for i in free],
         "prior": [(int(i) - 1, float(m), float(s))
                   for i, m, s in zip(prior_index, prior_mean, prior_sigma)],
