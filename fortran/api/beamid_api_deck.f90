@@ -3,7 +3,8 @@
 !! the same Fortran as beamid-batch (docs/decks.md).
 !!
 !! A deck is read once per run: api_deck_open reads and validates it and the
-!! measurement files it names (beamid_deck_run) into a slot of this module
+!! measurement files it names (beamid_deck_run) into a slot of the binding's
+!! handle table (beamid_api_runs)
 !! and returns its handle; the caller owns the handle (the Python object
 !! beamid._core.DeckHandle) and releases it with api_deck_close. Every other
 !! deck entry takes the handle: the sizes and scalars (api_deck_handle_sizes),
@@ -24,8 +25,8 @@ module beamid_api_deck
     use beamid_tasks, only: deck_specs
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
-    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out, &
-                                  free_slot, slot_ok
+    use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out
+    use beamid_api_runs, only: runs, RUN_DECK, run_open, run_close, runs_held, run_ok
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
@@ -46,18 +47,6 @@ module beamid_api_deck
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
-
-    !> A slot of the handle table: the run of one open deck (unallocated: free).
-    type :: slot_t
-        type(deck_run_t), allocatable :: run
-    end type slot_t
-
-    !> The decks opened by api_deck_open and not yet closed: slots(h)%run is
-    !! the run of handle h. Each slot belongs to the caller that holds its
-    !! handle (one Python DeckHandle object); the binding never looks a slot
-    !! up by anything but its handle. (Slots move, never copy: a deck_t
-    !! cannot be assigned, beamid_deck_run.)
-    type(slot_t), allocatable, save :: slots(:)
 
 contains
 
@@ -103,7 +92,7 @@ contains
         integer :: i
         text = ''
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
         sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
                      nexp(d), nsize_i(d%free), nsize_i(d%prior_index), ncand(d), &
                      nsize_r(d%data%value), merge(1, 0, d%has_load), d%shape_points, &
@@ -113,7 +102,7 @@ contains
         reals = [d%load%fx, d%load%fy, d%load%moment, d%load%wire_length, d%tol, d%fe_tol, &
                  d%sim_dt, d%sim_rtol, d%sim_atol, d%sim_motor_gain, d%sim_friction_velocity, &
                  d%alpha]
-        t = slots(handle)%run%task//new_line('a')//slots(handle)%run%output//new_line('a')
+        t = runs(handle)%deck%task//new_line('a')//runs(handle)%deck%output//new_line('a')
         if (allocated(d%data_path)) t = t//d%data_path
         t = t//new_line('a')
         do i = 1, nexp(d)
@@ -160,7 +149,7 @@ contains
         nh = 0
         ntab = 0
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
             if (allocated(d%hist%spec)) nh = int(size(d%hist%spec, 2), c_int)
             if (allocated(d%hist%tab)) ntab = int(size(d%hist%tab, 2), c_int)
         end associate
@@ -178,7 +167,7 @@ contains
         spec = 0.0_c_double
         tab = 0.0_c_double
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
             if (.not. allocated(d%hist%spec)) return
             if (size(d%hist%spec, 2) /= nh .or. size(d%hist%tab, 2) /= ntab) then
                 code = int(ERR_INPUT, c_int)
@@ -220,7 +209,7 @@ contains
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
         if (size(d%params) /= nparams .or. nsize_i(d%wrt) /= nwrt .or. &
             nsize_i(d%free) /= nfree .or. nsize_i(d%prior_index) /= nprior .or. &
             nsize_r(d%sim_t_out) /= nt) then
@@ -253,7 +242,7 @@ contains
         real(dp), allocatable :: kv_value(:)
         nkv = 0
         if (.not. handle_ok(handle, code, message)) return
-        call deck_specs(slots(handle)%run%deck, kinds, kv_exp, kv_key, kv_value)
+        call deck_specs(runs(handle)%deck%deck, kinds, kv_exp, kv_key, kv_value)
         nkv = int(size(kv_exp), c_int)
     end subroutine api_deck_handle_spec_size
 
@@ -272,10 +261,10 @@ contains
         integer, allocatable :: kinds(:), e(:), k(:)
         real(dp), allocatable :: v(:)
         if (.not. handle_ok(handle, code, message)) return
-        call deck_specs(slots(handle)%run%deck, kinds, e, k, v)
+        call deck_specs(runs(handle)%deck%deck, kinds, e, k, v)
         if (size(kinds) /= nexp_ .or. size(e) /= nkv) then
             code = int(ERR_INPUT, c_int)
-            message = slots(handle)%run%deck%path//': nexp = '//fmt_int(int(nexp_))// &
+            message = runs(handle)%deck%deck%path//': nexp = '//fmt_int(int(nexp_))// &
                       ', nkv = '//fmt_int(int(nkv))//', expected '//fmt_int(size(kinds))// &
                       ' and '//fmt_int(size(e))//' (api_deck_handle_sizes, _spec_size)'
             return
@@ -296,26 +285,16 @@ contains
         integer(c_int), intent(out) :: handle
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        type(slot_t), allocatable :: grown(:)
         type(status_t) :: stat
-        integer :: h, i
-        if (.not. allocated(slots)) allocate (slots(0))
-        h = free_slot(used())
-        if (h > size(slots)) then
-            allocate (grown(2*size(slots) + 1))
-            do i = 1, size(slots)
-                call move_alloc(slots(i)%run, grown(i)%run)
-            end do
-            call move_alloc(grown, slots)
-        end if
-        allocate (slots(h)%run)
-        call deck_run_open(trim(path), slots(h)%run, stat, fit_keys)
-        call put_errors(slots(h)%run%deck, stat, code, message)
+        integer :: h
+        call run_open(RUN_DECK, h)
+        call deck_run_open(trim(path), runs(h)%deck, stat, fit_keys)
+        call put_errors(runs(h)%deck%deck, stat, code, message)
         handle = 0
         if (stat%code == STATUS_OK) then
             handle = int(h, c_int)
         else
-            deallocate (slots(h)%run)
+            call run_close(h, RUN_DECK)
         end if
     end subroutine api_deck_open
 
@@ -323,32 +302,21 @@ contains
     !! unknown handle: nothing happens).
     subroutine api_deck_close(handle)
         integer(c_int), intent(in) :: handle
-        if (.not. allocated(slots)) return
-        if (handle < 1 .or. handle > size(slots)) return
-        if (allocated(slots(handle)%run)) deallocate (slots(handle)%run)
+        call run_close(int(handle), RUN_DECK)
     end subroutine api_deck_close
 
     !> The number of decks held (handles not yet closed).
     subroutine api_deck_handles_open(n)
         integer(c_int), intent(out) :: n
-        n = int(count(used()), c_int)
+        n = int(runs_held(RUN_DECK), c_int)
     end subroutine api_deck_handles_open
-
-    !> The slots of the handle table in use (none before the first open).
-    function used() result(u)
-        logical, allocatable :: u(:)
-        integer :: i
-        allocate (u(0))
-        if (allocated(slots)) u = [(allocated(slots(i)%run), i = 1, size(slots))]
-    end function used
 
     !> Is handle an open deck? (else code ERR_INPUT naming it)
     logical function handle_ok(handle, code, message)
         integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: code
         character(len=*), intent(out) :: message
-        handle_ok = slot_ok(used(), handle, 'an open deck (api_deck_open, not closed)', code, &
-                            message)
+        handle_ok = run_ok(handle, RUN_DECK, code, message)
     end function handle_ok
 
     !> Run the task of the deck of `handle` as beamid-batch does
@@ -369,10 +337,10 @@ contains
         written = ''
         summary = ''
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_task(slots(handle)%run, trim(task), files, line, stat)
+        call deck_run_task(runs(handle)%deck, trim(task), files, line, stat)
         if (stat%code == STATUS_OK) call put_text(files, written)
         if (stat%code == STATUS_OK) summary = line
-        call put_errors(slots(handle)%run%deck, stat, code, message)
+        call put_errors(runs(handle)%deck%deck, stat, code, message)
     end subroutine api_deck_handle_task
 
     !> Start the ladder of the estimation deck of `handle` run as `task`
@@ -389,7 +357,7 @@ contains
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_start(slots(handle)%run, trim(task), int(stage), stat)
+        call deck_run_start(runs(handle)%deck, trim(task), int(stage), stat)
         call status_out(stat, code, message)
     end subroutine api_deck_handle_start
 
@@ -402,7 +370,7 @@ contains
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
         if (.not. handle_ok(handle, code, message)) return
-        associate (run => slots(handle)%run)
+        associate (run => runs(handle)%deck)
             if (run%started .and. .not. run%lad%done) call deck_run_step(run, stat)
             if (.not. run%started) call deck_run_step(run, stat)   ! its refusal
             nrung = int(run%lad%n, c_int)
@@ -426,7 +394,7 @@ contains
         character(len=256), intent(out) :: message
         effect = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_out(slots(handle)%run%lad, k, nparams, whose(handle), info, free_idx, added, &
+        call rung_out(runs(handle)%deck%lad, k, nparams, whose(handle), info, free_idx, added, &
                       removed, start, nominal, effect, code, message)
     end subroutine api_deck_handle_rung
 
@@ -447,7 +415,7 @@ contains
         character(len=8192), intent(out) :: note
         note = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_fit_out(slots(handle)%run%lad, k, nparams, nfree, nrow, whose(handle), params, &
+        call rung_fit_out(runs(handle)%deck%lad, k, nparams, nfree, nrow, whose(handle), params, &
                           sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                           log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_deck_handle_fit
@@ -462,7 +430,7 @@ contains
         integer(c_int), intent(out) :: flagged(nrow), has, code
         character(len=256), intent(out) :: message
         if (.not. handle_ok(handle, code, message)) return
-        call rung_rows_out(slots(handle)%run%lad, k, nrow, whose(handle), weights, sigma_used, &
+        call rung_rows_out(runs(handle)%deck%lad, k, nrow, whose(handle), weights, sigma_used, &
                            sigma_sd, flagged, has, code, message)
     end subroutine api_deck_handle_rows
 
@@ -483,7 +451,7 @@ contains
         character(len=256), intent(out) :: message
         notes = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_diag_out(slots(handle)%run%lad, k, nparams, ncand, ncandp, whose(handle), &
+        call rung_diag_out(runs(handle)%deck%lad, k, nparams, ncand, ncandp, whose(handle), &
                            cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
                            sep_t, mstats, mesh_params, kept, notes, code, message)
     end subroutine api_deck_handle_diag
@@ -512,7 +480,7 @@ contains
         written = ''
         summary = ''
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_write(slots(handle)%run, trim(output), files, line, stat)
+        call deck_run_write(runs(handle)%deck, trim(output), files, line, stat)
         if (stat%code == STATUS_OK) call put_text(files, written)
         if (stat%code == STATUS_OK) summary = line
         call status_out(stat, code, message)
@@ -528,10 +496,10 @@ contains
         if (.not. handle_ok(handle, code, message)) return
         if (.not. stage_ok(handle, stage, code, message)) return
         if (stage == 0) then
-            if (allocated(slots(handle)%run%deck%data%value)) &
-                nrow = int(size(slots(handle)%run%deck%data%value), c_int)
+            if (allocated(runs(handle)%deck%deck%data%value)) &
+                nrow = int(size(runs(handle)%deck%deck%data%value), c_int)
         else
-            nrow = int(size(slots(handle)%run%deck%stages(stage)%data%value), c_int)
+            nrow = int(size(runs(handle)%deck%deck%stages(stage)%data%value), c_int)
         end if
     end subroutine api_deck_handle_data_size
 
@@ -543,7 +511,7 @@ contains
         type(status_t) :: stat
         integer :: n
         n = 0
-        if (allocated(slots(handle)%run%deck%stages)) n = size(slots(handle)%run%deck%stages)
+        if (allocated(runs(handle)%deck%deck%stages)) n = size(runs(handle)%deck%deck%stages)
         stage_ok = stage >= 0 .and. stage <= n
         if (.not. stage_ok) call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))// &
                                             ', expected 0..'//fmt_int(n))
@@ -566,10 +534,10 @@ contains
         if (.not. handle_ok(handle, code, message)) return
         if (.not. stage_ok(handle, stage, code, message)) return
         if (stage == 0) then
-            call copy_rows(slots(handle)%run%deck%data, slots(handle)%run%deck%data_path, nrow, t, &
+            call copy_rows(runs(handle)%deck%deck%data, runs(handle)%deck%deck%data_path, nrow, t, &
                            value, sigma, line, quantity, exp_index, names, qnames, code, message)
         else
-            associate (s => slots(handle)%run%deck%stages(stage))
+            associate (s => runs(handle)%deck%deck%stages(stage))
                 call copy_rows(s%data, s%data_path, nrow, t, value, sigma, line, quantity, &
                                exp_index, names, qnames, code, message)
             end associate

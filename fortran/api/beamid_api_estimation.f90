@@ -15,6 +15,13 @@
 !! codes follow beamid_status; logical results are 0/1 integers.
 !! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
 !! declares output scalars = 0 (characters blank), so no entry zeroes them.
+!!
+!! An improve ladder is a run the caller owns: api_ladder_open starts it in a
+!! slot of the binding's handle table (beamid_api_runs) and returns its
+!! handle; api_ladder_handle_step steps it (a rung per call: the front shows
+!! progress), api_ladder_handle_rung, _fit, _rows and _diag return its rungs
+!! (results of a size known only after the run), api_ladder_close frees it.
+!! No ladder is held anywhere else: two ladders never meet.
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -40,7 +47,8 @@ module beamid_api_estimation
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
     use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, &
-                                  rung_rows_out, free_slot, slot_ok
+                                  rung_rows_out
+    use beamid_api_runs, only: runs, RUN_LADDER, run_open, run_close, runs_held, run_ok
     implicit none
     private
 
@@ -53,20 +61,6 @@ module beamid_api_estimation
     public :: api_ladder_handle_rung, api_ladder_handle_fit, api_ladder_handle_diag, &
               api_ladder_handle_rows
     public :: api_mesh_check
-
-    !> A slot of the ladder table: the ladder of one handle (unallocated: free).
-    type :: ladder_slot_t
-        type(ladder_t), allocatable :: lad
-    end type ladder_slot_t
-
-    !> The improve ladders opened by api_ladder_open and not yet closed:
-    !! ladders(h)%lad is the ladder of handle h, stepped by
-    !! api_ladder_handle_step (a rung per call: the front shows progress) and
-    !! read by api_ladder_handle_rung, _fit, _rows and _diag (results of a
-    !! size known only after the run). Each slot belongs to the caller that
-    !! holds its handle (one Python LadderHandle object); a slot is found by
-    !! its handle only, so two ladders (two threads' improves) never meet.
-    type(ladder_slot_t), allocatable, save :: ladders(:)
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -779,10 +773,9 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        type(ladder_slot_t), allocatable :: grown(:)
         type(status_t) :: stat
         type(problem_t) :: pb
-        integer :: h, i
+        integer :: h
         handle = 0
         call make_problem(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
                           obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, hist_spec, &
@@ -791,24 +784,15 @@ contains
             call status_out(stat, code, message)
             return
         end if
-        if (.not. allocated(ladders)) allocate (ladders(0))
-        h = free_slot(ladders_used())
-        if (h > size(ladders)) then
-            allocate (grown(2*size(ladders) + 1))
-            do i = 1, size(ladders)
-                call move_alloc(ladders(i)%lad, grown(i)%lad)
-            end do
-            call move_alloc(grown, ladders)
-        end if
-        allocate (ladders(h)%lad)
-        call ladder_start(ladders(h)%lad, pb, real(params0, dp), int(free_idx), &
+        call run_open(RUN_LADDER, h)
+        call ladder_start(runs(h)%lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
                           int(max_steps), stat)
         call status_out(stat, code, message)
         if (stat%code == STATUS_OK) then
             handle = int(h, c_int)
         else
-            deallocate (ladders(h)%lad)
+            call run_close(h, RUN_LADDER)
         end if
     end subroutine api_ladder_open
 
@@ -816,32 +800,21 @@ contains
     !! happens).
     subroutine api_ladder_close(handle)
         integer(c_int), intent(in) :: handle
-        if (.not. allocated(ladders)) return
-        if (handle < 1 .or. handle > size(ladders)) return
-        if (allocated(ladders(handle)%lad)) deallocate (ladders(handle)%lad)
+        call run_close(int(handle), RUN_LADDER)
     end subroutine api_ladder_close
 
     !> The number of ladders held (handles not yet closed).
     subroutine api_ladder_handles_open(n)
         integer(c_int), intent(out) :: n
-        n = int(count(ladders_used()), c_int)
+        n = int(runs_held(RUN_LADDER), c_int)
     end subroutine api_ladder_handles_open
-
-    !> The slots of the ladder table in use (none before the first open).
-    function ladders_used() result(u)
-        logical, allocatable :: u(:)
-        integer :: i
-        allocate (u(0))
-        if (allocated(ladders)) u = [(allocated(ladders(i)%lad), i = 1, size(ladders))]
-    end function ladders_used
 
     !> Is handle an open ladder? (else code ERR_INPUT naming it)
     logical function ladder_ok(handle, code, message)
         integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: code
         character(len=*), intent(out) :: message
-        ladder_ok = slot_ok(ladders_used(), handle, &
-                            'an open ladder (api_ladder_open, not closed)', code, message)
+        ladder_ok = run_ok(handle, RUN_LADDER, code, message)
     end function ladder_ok
 
     !> The ladder of handle, as refusals name it.
@@ -860,7 +833,7 @@ contains
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
         if (.not. ladder_ok(handle, code, message)) return
-        associate (lad => ladders(handle)%lad)
+        associate (lad => runs(handle)%lad)
             call ladder_step(lad, stat)
             nrung = int(lad%n, c_int)
             done = merge(1_c_int, 0_c_int, lad%done)
@@ -887,7 +860,7 @@ contains
         character(len=256), intent(out) :: message
         effect = ''
         if (.not. ladder_ok(handle, code, message)) return
-        call rung_out(ladders(handle)%lad, k, nparams, whose(handle), info, free_idx, added, &
+        call rung_out(runs(handle)%lad, k, nparams, whose(handle), info, free_idx, added, &
                       removed, start, nominal, effect, code, message)
     end subroutine api_ladder_handle_rung
 
@@ -908,7 +881,7 @@ contains
         character(len=8192), intent(out) :: note
         note = ''
         if (.not. ladder_ok(handle, code, message)) return
-        call rung_fit_out(ladders(handle)%lad, k, nparams, nfree, nrow, whose(handle), params, &
+        call rung_fit_out(runs(handle)%lad, k, nparams, nfree, nrow, whose(handle), params, &
                           sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                           log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_ladder_handle_fit
@@ -924,7 +897,7 @@ contains
         integer(c_int), intent(out) :: flagged(nrow), has, code
         character(len=256), intent(out) :: message
         if (.not. ladder_ok(handle, code, message)) return
-        call rung_rows_out(ladders(handle)%lad, k, nrow, whose(handle), weights, sigma_used, &
+        call rung_rows_out(runs(handle)%lad, k, nrow, whose(handle), weights, sigma_used, &
                            sigma_sd, flagged, has, code, message)
     end subroutine api_ladder_handle_rows
 
@@ -945,7 +918,7 @@ contains
         character(len=256), intent(out) :: message
         notes = ''
         if (.not. ladder_ok(handle, code, message)) return
-        call rung_diag_out(ladders(handle)%lad, k, nparams, ncand, ncandp, whose(handle), &
+        call rung_diag_out(runs(handle)%lad, k, nparams, ncand, ncandp, whose(handle), &
                            cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
                            sep_t, mstats, mesh_params, kept, notes, code, message)
     end subroutine api_ladder_handle_diag

@@ -15,7 +15,7 @@ module beamid_api_marshal
     private
 
     public :: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, rung_rows_out, &
-              cand_params_size, free_slot, slot_ok
+              cand_params_size
 
 contains
 
@@ -318,30 +318,4 @@ contains
         end do
     end function cand_params_size
 
-    !> The slot a handle table gives a new run: the first free one of `used`
-    !! (the slots in use), else size(used) + 1 (the table grows). The
-    !! binding's handle tables (decks: beamid_api_deck, ladders:
-    !! beamid_api_estimation) hold each run for the caller that owns its
-    !! handle; no slot is ever found by anything but its handle.
-    pure integer function free_slot(used) result(h)
-        logical, intent(in) :: used(:)
-        h = findloc(used, .false., 1)
-        if (h == 0) h = size(used) + 1
-    end function free_slot
-
-    !> Is `handle` a slot in use of a handle table (used: the slots in use)?
-    !! Else ERR_INPUT naming the handle and `what` it should be.
-    logical function slot_ok(used, handle, what, code, message)
-        logical, intent(in) :: used(:)
-        integer(c_int), intent(in) :: handle
-        character(len=*), intent(in) :: what
-        integer(c_int), intent(out) :: code
-        character(len=*), intent(out) :: message
-        type(status_t) :: stat
-        slot_ok = handle >= 1 .and. handle <= size(used)
-        if (slot_ok) slot_ok = used(handle)
-        if (.not. slot_ok) call set_status(stat, ERR_INPUT, 'handle', fmt_int(int(handle))// &
-                                           ', expected the handle of '//what)
-        call status_out(stat, code, message)
-    end function slot_ok
 end module beamid_api_marshal

@@ -162,7 +162,36 @@ def _path(path) -> bytes:
     return os.fsencode(str(path))
 
 
-class DeckHandle:
+class Handle:
+    """A run held in the extension's handle table (beamid_api_runs) under a
+    handle that this object owns: :meth:`close` (or the end of a ``with``
+    block, or the collection of the object) releases it with ``closer``."""
+
+    def __init__(self, handle: int, closer) -> None:
+        self.id = int(handle)
+        self._close = weakref.finalize(self, closer, self.id)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        return not self._close.alive
+
+    def close(self) -> None:
+        """Release the run in the extension (again: nothing happens)."""
+        self._close()
+
+    def _id(self) -> int:
+        if self.closed:
+            raise ValueError(f"{self!r}: the {type(self).__name__} is closed")
+        return self.id
+
+
+class DeckHandle(Handle):
     """A deck read once by the Fortran reader of beamid-batch
     (``beamid_deck_run``: the deck and the measurement files it names, each
     opened once), held in the extension under a handle that this object owns.
@@ -180,8 +209,8 @@ class DeckHandle:
         self.path = str(path)
         #: &fit items given apart (the command line's), which replace the deck's
         self.fit_keys = fit_keys
-        self.id = int(_call(_deck_api.api_deck_open, _path(path), fit_keys))
-        self._close = weakref.finalize(self, _deck_api.api_deck_close, self.id)
+        super().__init__(_call(_deck_api.api_deck_open, _path(path), fit_keys),
+                         _deck_api.api_deck_close)
         #: held from the start of a run in steps to its write (one run at a time)
         self.lock = threading.RLock()
 
@@ -190,25 +219,6 @@ class DeckHandle:
 
     def __reduce__(self):          # another process reads the file itself
         return (DeckHandle, (self.path, self.fit_keys))
-
-    def __enter__(self) -> "DeckHandle":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        return not self._close.alive
-
-    def close(self) -> None:
-        """Release the deck in the extension (again: nothing happens)."""
-        self._close()
-
-    def _id(self) -> int:
-        if self.closed:
-            raise ValueError(f"{self!r}: the deck handle is closed")
-        return self.id
 
     def values(self) -> dict:
         """The deck's values as the Fortran reader validated them (a new

@@ -16,13 +16,12 @@ attached to the exception as ``exc.partial``.
 from __future__ import annotations
 
 import functools
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import _ext
-from ._core import DeckHandle, _call, _text, quantity_labels, spec_keys, spec_triples
+from ._core import DeckHandle, Handle, _call, _text, quantity_labels, spec_keys, spec_triples
 from .errors import InputError, raise_for_status
 
 _api = _ext.beamid_api_estimation
@@ -330,7 +329,7 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
 
 
-class LadderHandle:
+class LadderHandle(Handle):
     """An improve ladder (Fortran beamid_ladder, the one beamid-batch runs)
     held in the extension under a handle that this object owns: started by
     :func:`ladder_start`, stepped by :func:`ladder_step`, its rungs returned
@@ -339,30 +338,10 @@ class LadderHandle:
     ``with`` block, or the collection of the object) releases the ladder."""
 
     def __init__(self, handle: int) -> None:
-        self.id = int(handle)
-        self._close = weakref.finalize(self, _api.api_ladder_close, self.id)
+        super().__init__(handle, _api.api_ladder_close)
 
     def __repr__(self) -> str:
         return f"LadderHandle({self.id}, {'closed' if self.closed else 'open'})"
-
-    def __enter__(self) -> "LadderHandle":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        return not self._close.alive
-
-    def close(self) -> None:
-        """Release the ladder in the extension (again: nothing happens)."""
-        self._close()
-
-    def _id(self) -> int:
-        if self.closed:
-            raise ValueError(f"{self!r}: the ladder handle is closed")
-        return self.id
 
 
 def ladders_open() -> int:
