@@ -117,30 +117,18 @@ contains
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
         integer(c_int), intent(out) :: code
+        character(len=1024) :: tables(9)
+        tables = [character(len=1024) :: joined(FLAG_NAMES), joined(STOP_NAMES), &
+                  joined(START_NAMES), joined(CAND_NAMES), joined(FIT_STAT_NAMES), &
+                  joined(CSTAT_NAMES), joined(PSTAT_NAMES), joined(DSTAT_NAMES), &
+                  joined(MSTAT_NAMES)]
         code = 0
-        select case (table)
-        case (1)
-            names = joined(FLAG_NAMES)
-        case (2)
-            names = joined(STOP_NAMES)
-        case (3)
-            names = joined(START_NAMES)
-        case (4)
-            names = joined(CAND_NAMES)
-        case (5)
-            names = joined(FIT_STAT_NAMES)
-        case (6)
-            names = joined(CSTAT_NAMES)
-        case (7)
-            names = joined(PSTAT_NAMES)
-        case (8)
-            names = joined(DSTAT_NAMES)
-        case (9)
-            names = joined(MSTAT_NAMES)
-        case default
-            names = ''
+        names = ''
+        if (table >= 1 .and. table <= size(tables)) then
+            names = tables(table)
+        else
             code = -1
-        end select
+        end if
     contains
         pure function joined(words) result(text)
             character(len=*), intent(in) :: words(:)
@@ -323,7 +311,6 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(null_side_model_t) :: side
@@ -333,20 +320,15 @@ contains
         type(refit_info_t) :: rinfo
         type(lsq_problem_t) :: lp
 
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
         params = params0
         note = ''
         if (any(block < 1 .or. block > nparams)) then
             call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
                             'outside 1..nparams')
         else
-            call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, &
-                        obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, model, &
-                        lp, stat, make_hist(hist_spec, hist_tab))
+            call set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                        obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, &
+                        prior_cov, hist_spec, hist_tab, model, lp, stat)
         end if
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK .and. nblock == 0) then
@@ -429,7 +411,6 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(status_t) :: stat
@@ -438,16 +419,11 @@ contains
         type(lsq_problem_t) :: lp
         real(dp) :: w(nrow), su(nrow), sd(nrow)
         logical :: fl(nrow)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
         params = params0
         note = ''
-        call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, &
-                    make_hist(hist_spec, hist_tab))
+        call set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                    obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, &
+                    hist_spec, hist_tab, model, lp, stat)
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK) then
             call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
@@ -492,19 +468,11 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         type(inverse_problem_t) :: model
         type(status_t) :: stat
         real(dp) :: p(nrow), j(nrow, nwrt)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
-        call problem_from_arrays(int(nbeams), int(exp_kind), values, &
-                                 int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
-                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat, &
-                                 make_hist(hist_spec, hist_tab))
+        call make_model(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                        obs_kind, obs_beam, obs_s, tol, hist_spec, hist_tab, model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -566,23 +534,48 @@ contains
     end subroutine columns
 
     !> The estimation entries' one set-up (beamid_problem
-    !! problem_lsq_from_arrays), the arrays in the library's kinds.
-    subroutine set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, hist)
-        integer(c_int), intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
-        real(c_double), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
-        real(c_double), intent(in) :: row_value(:), row_sigma(:), prior(:, :), prior_cov(:)
+    !! problem_lsq_from_arrays) from the binding's arrays, the named specs
+    !! made columns (columns) and the arrays in the library's kinds.
+    subroutine set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                      obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, &
+                      hist_spec, hist_tab, model, lp, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), kv_exp(:), kv_key(:), row_exp(:)
+        integer(c_int), intent(in) :: row_q(:), obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: kv_value(:), row_t(:), obs_s(:), tol, row_value(:)
+        real(c_double), intent(in) :: row_sigma(:), prior(:, :), prior_cov(:)
+        real(c_double), intent(in) :: hist_spec(:, :), hist_tab(:, :)
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
-        type(exp_histories_t), intent(in) :: hist
-        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
+        real(dp), allocatable :: values(:, :)
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) return
+        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), values, &
                                      int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
                                      int(obs_beam), real(obs_s, dp), real(tol, dp), &
                                      real(row_value, dp), real(row_sigma, dp), &
-                                     real(prior, dp), real(prior_cov, dp), model, lp, stat, hist)
+                                     real(prior, dp), real(prior_cov, dp), model, lp, stat, &
+                                     make_hist(hist_spec, hist_tab))
     end subroutine set_up
+
+    !> The model of the prediction entries (beamid_problem
+    !! problem_from_arrays) from the binding's arrays, as set_up.
+    subroutine make_model(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                          obs_kind, obs_beam, obs_s, tol, hist_spec, hist_tab, model, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), kv_exp(:), kv_key(:), row_exp(:)
+        integer(c_int), intent(in) :: row_q(:), obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: kv_value(:), row_t(:), obs_s(:), tol
+        real(c_double), intent(in) :: hist_spec(:, :), hist_tab(:, :)
+        type(inverse_problem_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: values(:, :)
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) return
+        call problem_from_arrays(int(nbeams), int(exp_kind), values, int(row_exp), &
+                                 real(row_t, dp), int(row_q), int(obs_kind), int(obs_beam), &
+                                 real(obs_s, dp), real(tol, dp), model, stat, &
+                                 make_hist(hist_spec, hist_tab))
+    end subroutine make_model
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
