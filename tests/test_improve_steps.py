@@ -32,8 +32,8 @@ def test_improve_draws_its_bar_a_rung_at_a_time(monkeypatch, capsys):
     steps = []
     real_step = _ce.ladder_step
 
-    def step() -> bool:
-        done = real_step()
+    def step(run) -> bool:
+        done = real_step(run)
         steps.append(done)
         return done
 
@@ -91,10 +91,10 @@ def test_improve_deck_runs_its_ladder_once_and_writes_the_batch_bytes(tmp_path, 
     assert calls == ["deck_task_start"]
 
 
-def test_improve_ladders_from_two_threads_take_turns():
-    """The binding holds one ladder at a time: two ladders started from two
-    threads wait for each other (``_ce.LADDER_LOCK``) and each ends as it
-    does alone."""
+def test_improve_ladders_from_two_threads_run_side_by_side():
+    """Each improve owns its ladder (a handle of the binding, no lock): two
+    ladders started from two threads overlap and each ends as it does
+    alone."""
     import threading
 
     model, exps, data = _elbow_flex_problem()
@@ -120,6 +120,58 @@ def test_improve_ladders_from_two_threads_take_turns():
     for k in (0, 1):
         assert got[k].effects == alone[k].effects
         assert [s.chi2 for s in got[k].steps] == [s.chi2 for s in alone[k].steps]
+
+
+def test_two_ladder_handles_interleaved_each_end_as_alone():
+    """Two ladders open at once, stepped in turn: each handle returns its
+    own rungs, equal to those of its ladder run alone, and closing them
+    releases both."""
+    from beamid.diagnosis import _candidate_set
+    from beamid.estimation import _free_indices, _prior_arrays, build_problem
+
+    model, exps, data = _elbow_flex_problem()
+    truth2 = beamid.pace(axial_coupling=0.0, root_flex=0.003)
+    data2 = beamid.simulate_measurements(truth2, exps, ["x_tip", "y_tip", "tip_angle"],
+                                         sigma=1e-4)
+    cands = ("elbow_flex", "axial_coupling", "root_flex")
+    with_mesh, effects, _names, blocks = _candidate_set(model, exps, cands)
+    free_idx = _free_indices(model, ("EI1", "EI2"))[1]
+    ptable = _prior_arrays(model, ("EI1", "EI2"), None)[1]
+    nparams = model.vector().size
+
+    def start(d):
+        return _ce.ladder_start(build_problem(model, exps, d), model.vector(), free_idx,
+                                ptable, blocks, with_mesh, 0.01, len(effects))
+
+    def rungs(run):
+        return [(r["effect"], r["fit"]["chi2"], tuple(r["fit"]["params"]))
+                for r in _ce.ladder_rungs(nparams, blocks, run)]
+
+    alone = []
+    for d in (data, data2):
+        with start(d) as run:
+            while not _ce.ladder_step(run):
+                pass
+            alone.append(rungs(run))
+    assert [[r[0] for r in a] for a in alone] == [[None, "1"], [None, "3"]]
+    before = _ce.ladders_open()
+    a, b = start(data), start(data2)
+    assert a.id != b.id and _ce.ladders_open() == before + 2
+    done = [False, False]
+    while not all(done):            # a rung of a, a rung of b, ...
+        for k, run in enumerate((a, b)):
+            if not done[k]:
+                done[k] = _ce.ladder_step(run)
+    assert [rungs(a), rungs(b)] == alone
+    a.close()
+    b.close()
+    b.close()                       # again: nothing happens
+    assert _ce.ladders_open() == before and a.closed
+    with pytest.raises(ValueError, match="closed"):
+        _ce.ladder_step(a)
+    with pytest.raises(beamid.InputError, match=r"^handle: 0, expected the handle of an "
+                       r"open ladder \(api_ladder_open, not closed\)$"):
+        _core._call(_ce._api.api_ladder_handle_step, 0)
 
 
 def test_a_ladder_is_indexed_by_rung_and_by_added_effect():

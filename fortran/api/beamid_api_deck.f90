@@ -3,7 +3,8 @@
 !! the same Fortran as beamid-batch (docs/decks.md).
 !!
 !! A deck is read once per run: api_deck_open reads and validates it and the
-!! measurement files it names (beamid_deck_run) into a slot of this module
+!! measurement files it names (beamid_deck_run) into a slot of the binding's
+!! handle table (beamid_api_runs)
 !! and returns its handle; the caller owns the handle (the Python object
 !! beamid._core.DeckHandle) and releases it with api_deck_close. Every other
 !! deck entry takes the handle: the sizes and scalars (api_deck_handle_sizes),
@@ -21,10 +22,11 @@ module beamid_api_deck
     use beamid_status, only: status_t, status_out, put_text, fmt_int, STATUS_OK, ERR_INPUT, &
                              exit_code, set_status
     use beamid_deck, only: deck_t
-    use beamid_tasks, only: deck_experiments
+    use beamid_tasks, only: deck_specs
     use beamid_deck_run, only: deck_run_t, deck_run_open, deck_run_task, deck_run_start, &
                                deck_run_step, deck_run_write
     use beamid_api_marshal, only: rung_out, rung_fit_out, rung_diag_out, rung_rows_out
+    use beamid_api_runs, only: runs, RUN_DECK, run_open, run_close, runs_held, run_ok
     use beamid_measurements, only: measurements_t, read_measurements
     use beamid_observations, only: kind_label, NKIND, kind_table_text, observation_t, &
                                    parse_observation, obs_label, obs_groups
@@ -32,6 +34,7 @@ module beamid_api_deck
     private
 
     public :: api_deck_open, api_deck_close, api_deck_handle_sizes, api_deck_handle_arrays, &
+              api_deck_handle_spec_size, api_deck_handle_specs, &
               api_deck_handle_data_size, api_deck_handle_data, api_deck_handle_task, &
               api_deck_handle_start, api_deck_handle_step, api_deck_handle_rung, &
               api_deck_handle_fit, api_deck_handle_diag, api_deck_handle_rows, &
@@ -44,18 +47,6 @@ module beamid_api_deck
 
     !> Length of the messages and texts exchanged here.
     integer, parameter :: TEXT_LEN = 65536
-
-    !> A slot of the handle table: the run of one open deck (unallocated: free).
-    type :: slot_t
-        type(deck_run_t), allocatable :: run
-    end type slot_t
-
-    !> The decks opened by api_deck_open and not yet closed: slots(h)%run is
-    !! the run of handle h. Each slot belongs to the caller that holds its
-    !! handle (one Python DeckHandle object); the binding never looks a slot
-    !! up by anything but its handle. (Slots move, never copy: a deck_t
-    !! cannot be assigned, beamid_deck_run.)
-    type(slot_t), allocatable, save :: slots(:)
 
 contains
 
@@ -101,7 +92,7 @@ contains
         integer :: i
         text = ''
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
         sizes = int([d%nbeams, size(d%params), nsize_i(d%wrt), nsize_r(d%sim_t_out), &
                      nexp(d), nsize_i(d%free), nsize_i(d%prior_index), ncand(d), &
                      nsize_r(d%data%value), merge(1, 0, d%has_load), d%shape_points, &
@@ -111,7 +102,7 @@ contains
         reals = [d%load%fx, d%load%fy, d%load%moment, d%load%wire_length, d%tol, d%fe_tol, &
                  d%sim_dt, d%sim_rtol, d%sim_atol, d%sim_motor_gain, d%sim_friction_velocity, &
                  d%alpha]
-        t = slots(handle)%run%task//new_line('a')//slots(handle)%run%output//new_line('a')
+        t = runs(handle)%deck%task//new_line('a')//runs(handle)%deck%output//new_line('a')
         if (allocated(d%data_path)) t = t//d%data_path
         t = t//new_line('a')
         do i = 1, nexp(d)
@@ -158,7 +149,7 @@ contains
         nh = 0
         ntab = 0
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
             if (allocated(d%hist%spec)) nh = int(size(d%hist%spec, 2), c_int)
             if (allocated(d%hist%tab)) ntab = int(size(d%hist%tab, 2), c_int)
         end associate
@@ -176,7 +167,7 @@ contains
         spec = 0.0_c_double
         tab = 0.0_c_double
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
+        associate (d => runs(handle)%deck%deck)
             if (.not. allocated(d%hist%spec)) return
             if (size(d%hist%spec, 2) /= nh .or. size(d%hist%tab, 2) /= ntab) then
                 code = int(ERR_INPUT, c_int)
@@ -203,44 +194,35 @@ contains
         if (allocated(d%candidates)) ncand = size(d%candidates)
     end function ncand
 
-    !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters, wrt and
-    !! free parameter indices (1-based), output times, experiments (kind 1
-    !! tip, 2 wire, 3 release and 19 values (NEXPVAL) in beamid_inverse's EV_*
-    !! layout: fx, fy, moment, wire_length, ...; beamid_tasks
-    !! deck_experiments), priors.
-    subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nexp_, nfree, nprior, params, &
-                                      wrt, t_out, exp_kind, exp_values, free_idx, prior_index, &
-                                      prior_mean, prior_sigma, code, message)
+    !> The arrays of a deck (sizes from api_deck_handle_sizes): parameters,
+    !! wrt and free parameter indices (1-based), output times, priors. Its
+    !! experiments: api_deck_handle_specs.
+    subroutine api_deck_handle_arrays(handle, nparams, nwrt, nt, nfree, nprior, params, wrt, &
+                                      t_out, free_idx, prior_index, prior_mean, prior_sigma, &
+                                      code, message)
         integer(c_int), intent(in) :: handle
-        integer(c_int), intent(in) :: nparams, nwrt, nt, nexp_, nfree, nprior
-        real(c_double), intent(out) :: params(nparams), t_out(nt), exp_values(19, nexp_)
+        integer(c_int), intent(in) :: nparams, nwrt, nt, nfree, nprior
+        real(c_double), intent(out) :: params(nparams), t_out(nt)
         real(c_double), intent(out) :: prior_mean(nprior), prior_sigma(nprior)
-        integer(c_int), intent(out) :: wrt(nwrt), exp_kind(nexp_), free_idx(nfree)
+        integer(c_int), intent(out) :: wrt(nwrt), free_idx(nfree)
         integer(c_int), intent(out) :: prior_index(nprior)
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        integer, allocatable :: kinds(:)
-        real(dp), allocatable :: values(:, :)
         if (.not. handle_ok(handle, code, message)) return
-        associate (d => slots(handle)%run%deck)
-        if (size(d%params) /= nparams .or. nexp(d) /= nexp_ .or. nsize_i(d%wrt) /= nwrt .or. &
+        associate (d => runs(handle)%deck%deck)
+        if (size(d%params) /= nparams .or. nsize_i(d%wrt) /= nwrt .or. &
             nsize_i(d%free) /= nfree .or. nsize_i(d%prior_index) /= nprior .or. &
             nsize_r(d%sim_t_out) /= nt) then
             code = int(ERR_INPUT, c_int)
-            message = d%path//': nparams = '//fmt_int(int(nparams))//', nexp = '// &
-                      fmt_int(int(nexp_))//', nwrt = '//fmt_int(int(nwrt))//', nt = '// &
-                      fmt_int(int(nt))//', nfree = '//fmt_int(int(nfree))//', nprior = '// &
-                      fmt_int(int(nprior))//', expected the sizes of api_deck_handle_sizes'
+            message = d%path//': nparams = '//fmt_int(int(nparams))//', nwrt = '// &
+                      fmt_int(int(nwrt))//', nt = '//fmt_int(int(nt))//', nfree = '// &
+                      fmt_int(int(nfree))//', nprior = '//fmt_int(int(nprior))// &
+                      ', expected the sizes of api_deck_handle_sizes'
             return
         end if
         params = d%params
         if (nwrt > 0) wrt = int(d%wrt(:nwrt), c_int)
         if (nt > 0) t_out = d%sim_t_out(:nt)
-        if (nexp_ > 0) then
-            call deck_experiments(d, kinds, values)
-            exp_kind = int(kinds, c_int)
-            exp_values = values
-        end if
         if (nfree > 0) free_idx = int(d%free(:nfree), c_int)
         if (nprior > 0) then
             prior_index = int(d%prior_index(:nprior), c_int)
@@ -249,6 +231,49 @@ contains
         end if
         end associate
     end subroutine api_deck_handle_arrays
+
+    !> The number of named spec triples of the deck of `handle`
+    !! (api_deck_handle_specs).
+    subroutine api_deck_handle_spec_size(handle, nkv, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: nkv, code
+        character(len=65536), intent(out) :: message
+        integer, allocatable :: kinds(:), kv_exp(:), kv_key(:)
+        real(dp), allocatable :: kv_value(:)
+        nkv = 0
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_specs(runs(handle)%deck%deck, kinds, kv_exp, kv_key, kv_value)
+        nkv = int(size(kv_exp), c_int)
+    end subroutine api_deck_handle_spec_size
+
+    !> The experiments of the deck of `handle` (nexp from
+    !! api_deck_handle_sizes, nkv from api_deck_handle_spec_size): each one's
+    !! kind and its named spec as triples (experiment, key of the core's key
+    !! table api_spec_keys, value; every key of each experiment, the form the
+    !! estimation entries take: beamid_tasks deck_specs).
+    subroutine api_deck_handle_specs(handle, nexp_, nkv, exp_kind, kv_exp, kv_key, kv_value, &
+                                     code, message)
+        integer(c_int), intent(in) :: handle, nexp_, nkv
+        integer(c_int), intent(out) :: exp_kind(nexp_), kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(out) :: kv_value(nkv)
+        integer(c_int), intent(out) :: code
+        character(len=65536), intent(out) :: message
+        integer, allocatable :: kinds(:), e(:), k(:)
+        real(dp), allocatable :: v(:)
+        if (.not. handle_ok(handle, code, message)) return
+        call deck_specs(runs(handle)%deck%deck, kinds, e, k, v)
+        if (size(kinds) /= nexp_ .or. size(e) /= nkv) then
+            code = int(ERR_INPUT, c_int)
+            message = runs(handle)%deck%deck%path//': nexp = '//fmt_int(int(nexp_))// &
+                      ', nkv = '//fmt_int(int(nkv))//', expected '//fmt_int(size(kinds))// &
+                      ' and '//fmt_int(size(e))//' (api_deck_handle_sizes, _spec_size)'
+            return
+        end if
+        exp_kind = int(kinds, c_int)
+        kv_exp = int(e, c_int)
+        kv_key = int(k, c_int)
+        kv_value = real(v, c_double)
+    end subroutine api_deck_handle_specs
 
     !> Read and validate the deck at `path` and the measurement files it names
     !! (once: beamid_deck_run deck_run_open) and hold it under `handle` (> 0)
@@ -260,32 +285,16 @@ contains
         integer(c_int), intent(out) :: handle
         integer(c_int), intent(out) :: code
         character(len=65536), intent(out) :: message
-        type(slot_t), allocatable :: grown(:)
         type(status_t) :: stat
-        integer :: h, i
-        if (.not. allocated(slots)) allocate (slots(0))
-        h = 0
-        do i = 1, size(slots)
-            if (allocated(slots(i)%run)) cycle
-            h = i
-            exit
-        end do
-        if (h == 0) then
-            allocate (grown(2*size(slots) + 1))
-            do i = 1, size(slots)
-                call move_alloc(slots(i)%run, grown(i)%run)
-            end do
-            h = size(slots) + 1
-            call move_alloc(grown, slots)
-        end if
-        allocate (slots(h)%run)
-        call deck_run_open(trim(path), slots(h)%run, stat, fit_keys)
-        call put_errors(slots(h)%run%deck, stat, code, message)
+        integer :: h
+        call run_open(RUN_DECK, h)
+        call deck_run_open(trim(path), runs(h)%deck, stat, fit_keys)
+        call put_errors(runs(h)%deck%deck, stat, code, message)
         handle = 0
         if (stat%code == STATUS_OK) then
             handle = int(h, c_int)
         else
-            deallocate (slots(h)%run)
+            call run_close(h, RUN_DECK)
         end if
     end subroutine api_deck_open
 
@@ -293,20 +302,13 @@ contains
     !! unknown handle: nothing happens).
     subroutine api_deck_close(handle)
         integer(c_int), intent(in) :: handle
-        if (.not. allocated(slots)) return
-        if (handle < 1 .or. handle > size(slots)) return
-        if (allocated(slots(handle)%run)) deallocate (slots(handle)%run)
+        call run_close(int(handle), RUN_DECK)
     end subroutine api_deck_close
 
     !> The number of decks held (handles not yet closed).
     subroutine api_deck_handles_open(n)
         integer(c_int), intent(out) :: n
-        integer :: i
-        n = 0
-        if (.not. allocated(slots)) return
-        do i = 1, size(slots)
-            if (allocated(slots(i)%run)) n = n + 1_c_int
-        end do
+        n = int(runs_held(RUN_DECK), c_int)
     end subroutine api_deck_handles_open
 
     !> Is handle an open deck? (else code ERR_INPUT naming it)
@@ -314,14 +316,7 @@ contains
         integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: code
         character(len=*), intent(out) :: message
-        type(status_t) :: stat
-        handle_ok = allocated(slots)
-        if (handle_ok) handle_ok = handle >= 1 .and. handle <= size(slots)
-        if (handle_ok) handle_ok = allocated(slots(handle)%run)
-        if (.not. handle_ok) call set_status(stat, ERR_INPUT, 'handle', fmt_int(int(handle))// &
-                                             ', expected the handle of an open deck '// &
-                                             '(api_deck_open, not closed)')
-        call status_out(stat, code, message)
+        handle_ok = run_ok(handle, RUN_DECK, code, message)
     end function handle_ok
 
     !> Run the task of the deck of `handle` as beamid-batch does
@@ -342,10 +337,10 @@ contains
         written = ''
         summary = ''
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_task(slots(handle)%run, trim(task), files, line, stat)
+        call deck_run_task(runs(handle)%deck, trim(task), files, line, stat)
         if (stat%code == STATUS_OK) call put_text(files, written)
         if (stat%code == STATUS_OK) summary = line
-        call put_errors(slots(handle)%run%deck, stat, code, message)
+        call put_errors(runs(handle)%deck%deck, stat, code, message)
     end subroutine api_deck_handle_task
 
     !> Start the ladder of the estimation deck of `handle` run as `task`
@@ -362,7 +357,7 @@ contains
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_start(slots(handle)%run, trim(task), int(stage), stat)
+        call deck_run_start(runs(handle)%deck, trim(task), int(stage), stat)
         call status_out(stat, code, message)
     end subroutine api_deck_handle_start
 
@@ -375,7 +370,7 @@ contains
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
         if (.not. handle_ok(handle, code, message)) return
-        associate (run => slots(handle)%run)
+        associate (run => runs(handle)%deck)
             if (run%started .and. .not. run%lad%done) call deck_run_step(run, stat)
             if (.not. run%started) call deck_run_step(run, stat)   ! its refusal
             nrung = int(run%lad%n, c_int)
@@ -385,7 +380,7 @@ contains
     end subroutine api_deck_handle_step
 
     !> Rung k of the ladder of `handle` (outputs as beamid_api_estimation
-    !! api_ladder_rung): effect, info = [free parameters, elements per beam
+    !! api_ladder_handle_rung): effect, info = [free parameters, elements per beam
     !! of the releases, the start the refit kept, data rows, the fits'
     !! iteration limit], free_idx, added, removed, start, nominal.
     subroutine api_deck_handle_rung(handle, k, nparams, info, free_idx, added, removed, start, &
@@ -399,7 +394,7 @@ contains
         character(len=256), intent(out) :: message
         effect = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_out(slots(handle)%run%lad, k, nparams, whose(handle), info, free_idx, added, &
+        call rung_out(runs(handle)%deck%lad, k, nparams, whose(handle), info, free_idx, added, &
                       removed, start, nominal, effect, code, message)
     end subroutine api_deck_handle_rung
 
@@ -420,14 +415,14 @@ contains
         character(len=8192), intent(out) :: note
         note = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_fit_out(slots(handle)%run%lad, k, nparams, nfree, nrow, whose(handle), params, &
+        call rung_fit_out(runs(handle)%deck%lad, k, nparams, nfree, nrow, whose(handle), params, &
                           sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                           log_lambda, log_step, log_params, info, code, message, note)
     end subroutine api_deck_handle_fit
 
     !> The rows of rung k's fit of the ladder of `handle` as the measurement
     !! chain's treatments judged them (outputs as beamid_api_estimation
-    !! api_ladder_rows).
+    !! api_ladder_handle_rows).
     subroutine api_deck_handle_rows(handle, k, nrow, weights, sigma_used, sigma_sd, flagged, &
                                     has, code, message)
         integer(c_int), intent(in) :: handle, k, nrow
@@ -435,7 +430,7 @@ contains
         integer(c_int), intent(out) :: flagged(nrow), has, code
         character(len=256), intent(out) :: message
         if (.not. handle_ok(handle, code, message)) return
-        call rung_rows_out(slots(handle)%run%lad, k, nrow, whose(handle), weights, sigma_used, &
+        call rung_rows_out(runs(handle)%deck%lad, k, nrow, whose(handle), weights, sigma_used, &
                            sigma_sd, flagged, has, code, message)
     end subroutine api_deck_handle_rows
 
@@ -456,7 +451,7 @@ contains
         character(len=256), intent(out) :: message
         notes = ''
         if (.not. handle_ok(handle, code, message)) return
-        call rung_diag_out(slots(handle)%run%lad, k, nparams, ncand, ncandp, whose(handle), &
+        call rung_diag_out(runs(handle)%deck%lad, k, nparams, ncand, ncandp, whose(handle), &
                            cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
                            sep_t, mstats, mesh_params, kept, notes, code, message)
     end subroutine api_deck_handle_diag
@@ -485,7 +480,7 @@ contains
         written = ''
         summary = ''
         if (.not. handle_ok(handle, code, message)) return
-        call deck_run_write(slots(handle)%run, trim(output), files, line, stat)
+        call deck_run_write(runs(handle)%deck, trim(output), files, line, stat)
         if (stat%code == STATUS_OK) call put_text(files, written)
         if (stat%code == STATUS_OK) summary = line
         call status_out(stat, code, message)
@@ -501,10 +496,10 @@ contains
         if (.not. handle_ok(handle, code, message)) return
         if (.not. stage_ok(handle, stage, code, message)) return
         if (stage == 0) then
-            if (allocated(slots(handle)%run%deck%data%value)) &
-                nrow = int(size(slots(handle)%run%deck%data%value), c_int)
+            if (allocated(runs(handle)%deck%deck%data%value)) &
+                nrow = int(size(runs(handle)%deck%deck%data%value), c_int)
         else
-            nrow = int(size(slots(handle)%run%deck%stages(stage)%data%value), c_int)
+            nrow = int(size(runs(handle)%deck%deck%stages(stage)%data%value), c_int)
         end if
     end subroutine api_deck_handle_data_size
 
@@ -516,7 +511,7 @@ contains
         type(status_t) :: stat
         integer :: n
         n = 0
-        if (allocated(slots(handle)%run%deck%stages)) n = size(slots(handle)%run%deck%stages)
+        if (allocated(runs(handle)%deck%deck%stages)) n = size(runs(handle)%deck%deck%stages)
         stage_ok = stage >= 0 .and. stage <= n
         if (.not. stage_ok) call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))// &
                                             ', expected 0..'//fmt_int(n))
@@ -539,10 +534,10 @@ contains
         if (.not. handle_ok(handle, code, message)) return
         if (.not. stage_ok(handle, stage, code, message)) return
         if (stage == 0) then
-            call copy_rows(slots(handle)%run%deck%data, slots(handle)%run%deck%data_path, nrow, t, &
+            call copy_rows(runs(handle)%deck%deck%data, runs(handle)%deck%deck%data_path, nrow, t, &
                            value, sigma, line, quantity, exp_index, names, qnames, code, message)
         else
-            associate (s => slots(handle)%run%deck%stages(stage))
+            associate (s => runs(handle)%deck%deck%stages(stage))
                 call copy_rows(s%data, s%data_path, nrow, t, value, sigma, line, quantity, &
                                exp_index, names, qnames, code, message)
             end associate

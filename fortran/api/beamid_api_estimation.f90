@@ -15,6 +15,13 @@
 !! codes follow beamid_status; logical results are 0/1 integers.
 !! Outputs of a failed call are zeros: f2py allocates output arrays zeroed and
 !! declares output scalars = 0 (characters blank), so no entry zeroes them.
+!!
+!! An improve ladder is a run the caller owns: api_ladder_open starts it in a
+!! slot of the binding's handle table (beamid_api_runs) and returns its
+!! handle; api_ladder_handle_step steps it (a rung per call: the front shows
+!! progress), api_ladder_handle_rung, _fit, _rows and _diag return its rungs
+!! (results of a size known only after the run), api_ladder_close frees it.
+!! No ladder is held anywhere else: two ladders never meet.
 module beamid_api_estimation
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
@@ -25,8 +32,6 @@ module beamid_api_estimation
                                  lsq_problem_t, diagnose_options_t, chi2_sf, fit_at, score_test, &
                                  score_result_t, refit_effect, refit_info_t, FLAG_NAMES, &
                                  STOP_NAMES, START_NAMES, CAND_NAMES
-    use beamid_deck, only: deck_t, read_deck, deck_set_task
-    use beamid_tasks, only: run_task, deck_ladder_start, deck_stage_start, name_experiment
     use beamid_inverse, only: inverse_problem_t, chain_layout
     use beamid_problem, only: problem_from_arrays, problem_lsq_from_arrays, observation_list, &
                               spec_columns
@@ -41,7 +46,9 @@ module beamid_api_estimation
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, NFAMILY, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
-    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, rung_rows_out
+    use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, &
+                                  rung_rows_out
+    use beamid_api_runs, only: runs, RUN_LADDER, run_open, run_close, runs_held, run_ok
     implicit none
     private
 
@@ -50,26 +57,10 @@ module beamid_api_estimation
     public :: api_effect_sizes, api_effect_table
     public :: api_problem_predict, api_chain_layout, api_fit_chain
     public :: api_problem_diagnose, api_time_structure, api_spec_keys
-    public :: api_ladder_start, api_ladder_step
-    public :: api_ladder_rung, api_ladder_fit, api_ladder_diag, api_ladder_rows
-    public :: api_deck_task_start, api_deck_task_write
+    public :: api_ladder_open, api_ladder_close, api_ladder_handles_open, api_ladder_handle_step
+    public :: api_ladder_handle_rung, api_ladder_handle_fit, api_ladder_handle_diag, &
+              api_ladder_handle_rows
     public :: api_mesh_check
-
-    !> The improve ladder of the last api_ladder_start or api_deck_task_start,
-    !! stepped by api_ladder_step (a rung per call: the front shows progress)
-    !! and read by api_ladder_rung, api_ladder_fit and api_ladder_diag
-    !! (results of a size known only after the run: GUIDE, module arrays of
-    !! the binding). One ladder at a time.
-    type(ladder_t), save :: lad
-    !> The stages of the identify deck fitted last (api_deck_task_start),
-    !! whose files api_deck_task_write writes.
-    type(rung_t), allocatable, save :: staged(:)
-    !> The deck (task as run) whose ladder or stages lad and staged hold
-    !! (api_deck_task_start): api_deck_task_write writes only its files and
-    !! api_ladder_step names its experiments in a failure; from_deck is false
-    !! once api_ladder_start started a ladder on a problem instead.
-    type(deck_t), save :: held
-    logical, save :: from_deck = .false.
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -126,30 +117,18 @@ contains
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
         integer(c_int), intent(out) :: code
+        character(len=1024) :: tables(9)
+        tables = [character(len=1024) :: joined(FLAG_NAMES), joined(STOP_NAMES), &
+                  joined(START_NAMES), joined(CAND_NAMES), joined(FIT_STAT_NAMES), &
+                  joined(CSTAT_NAMES), joined(PSTAT_NAMES), joined(DSTAT_NAMES), &
+                  joined(MSTAT_NAMES)]
         code = 0
-        select case (table)
-        case (1)
-            names = joined(FLAG_NAMES)
-        case (2)
-            names = joined(STOP_NAMES)
-        case (3)
-            names = joined(START_NAMES)
-        case (4)
-            names = joined(CAND_NAMES)
-        case (5)
-            names = joined(FIT_STAT_NAMES)
-        case (6)
-            names = joined(CSTAT_NAMES)
-        case (7)
-            names = joined(PSTAT_NAMES)
-        case (8)
-            names = joined(DSTAT_NAMES)
-        case (9)
-            names = joined(MSTAT_NAMES)
-        case default
-            names = ''
+        names = ''
+        if (table >= 1 .and. table <= size(tables)) then
+            names = tables(table)
+        else
             code = -1
-        end select
+        end if
     contains
         pure function joined(words) result(text)
             character(len=*), intent(in) :: words(:)
@@ -332,7 +311,6 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(null_side_model_t) :: side
@@ -342,20 +320,15 @@ contains
         type(refit_info_t) :: rinfo
         type(lsq_problem_t) :: lp
 
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
         params = params0
         note = ''
         if (any(block < 1 .or. block > nparams)) then
             call set_status(stat, ERR_INPUT, 'add effect', 'effect parameter index '// &
                             'outside 1..nparams')
         else
-            call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, &
-                        obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, model, &
-                        lp, stat, make_hist(hist_spec, hist_tab))
+            call set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                        obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, &
+                        prior_cov, hist_spec, hist_tab, model, lp, stat)
         end if
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK .and. nblock == 0) then
@@ -438,7 +411,6 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         character(len=8192), intent(out) :: note
         type(inverse_problem_t) :: model
         type(status_t) :: stat
@@ -447,16 +419,11 @@ contains
         type(lsq_problem_t) :: lp
         real(dp) :: w(nrow), su(nrow), sd(nrow)
         logical :: fl(nrow)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
         params = params0
         note = ''
-        call set_up(nbeams, exp_kind, values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                    obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, &
-                    make_hist(hist_spec, hist_tab))
+        call set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                    obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, &
+                    hist_spec, hist_tab, model, lp, stat)
         call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
         if (stat%code == STATUS_OK) then
             call chain_fit(model, lp, real(params0, dp), int(free_idx), opts, model%rows, res, &
@@ -501,19 +468,11 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         type(inverse_problem_t) :: model
         type(status_t) :: stat
         real(dp) :: p(nrow), j(nrow, nwrt)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
-        if (stat%code /= STATUS_OK) then
-            call status_out(stat, code, message)
-            return
-        end if
-        call problem_from_arrays(int(nbeams), int(exp_kind), values, &
-                                 int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
-                                 int(obs_beam), real(obs_s, dp), real(tol, dp), model, stat, &
-                                 make_hist(hist_spec, hist_tab))
+        call make_model(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                        obs_kind, obs_beam, obs_s, tol, hist_spec, hist_tab, model, stat)
         if (stat%code == STATUS_OK) call model%evaluate(real(params, dp), int(wrt), p, j, stat)
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
@@ -575,23 +534,48 @@ contains
     end subroutine columns
 
     !> The estimation entries' one set-up (beamid_problem
-    !! problem_lsq_from_arrays), the arrays in the library's kinds.
-    subroutine set_up(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, obs_beam, &
-                      obs_s, tol, row_value, row_sigma, prior, prior_cov, model, lp, stat, hist)
-        integer(c_int), intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
-        real(c_double), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
-        real(c_double), intent(in) :: row_value(:), row_sigma(:), prior(:, :), prior_cov(:)
+    !! problem_lsq_from_arrays) from the binding's arrays, the named specs
+    !! made columns (columns) and the arrays in the library's kinds.
+    subroutine set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                      obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, &
+                      hist_spec, hist_tab, model, lp, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), kv_exp(:), kv_key(:), row_exp(:)
+        integer(c_int), intent(in) :: row_q(:), obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: kv_value(:), row_t(:), obs_s(:), tol, row_value(:)
+        real(c_double), intent(in) :: row_sigma(:), prior(:, :), prior_cov(:)
+        real(c_double), intent(in) :: hist_spec(:, :), hist_tab(:, :)
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
-        type(exp_histories_t), intent(in) :: hist
-        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), real(exp_values, dp), &
+        real(dp), allocatable :: values(:, :)
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) return
+        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), values, &
                                      int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
                                      int(obs_beam), real(obs_s, dp), real(tol, dp), &
                                      real(row_value, dp), real(row_sigma, dp), &
-                                     real(prior, dp), real(prior_cov, dp), model, lp, stat, hist)
+                                     real(prior, dp), real(prior_cov, dp), model, lp, stat, &
+                                     make_hist(hist_spec, hist_tab))
     end subroutine set_up
+
+    !> The model of the prediction entries (beamid_problem
+    !! problem_from_arrays) from the binding's arrays, as set_up.
+    subroutine make_model(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                          obs_kind, obs_beam, obs_s, tol, hist_spec, hist_tab, model, stat)
+        integer(c_int), intent(in) :: nbeams, exp_kind(:), kv_exp(:), kv_key(:), row_exp(:)
+        integer(c_int), intent(in) :: row_q(:), obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: kv_value(:), row_t(:), obs_s(:), tol
+        real(c_double), intent(in) :: hist_spec(:, :), hist_tab(:, :)
+        type(inverse_problem_t), intent(out) :: model
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: values(:, :)
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) return
+        call problem_from_arrays(int(nbeams), int(exp_kind), values, int(row_exp), &
+                                 real(row_t, dp), int(row_q), int(obs_kind), int(obs_beam), &
+                                 real(obs_s, dp), real(tol, dp), model, stat, &
+                                 make_hist(hist_spec, hist_tab))
+    end subroutine make_model
 
     !> Independent a priori information from the binding's columns [index, mean, sigma].
     pure type(prior_t) function make_prior(prior) result(pr)
@@ -616,19 +600,30 @@ contains
         h%tab = real(tab, dp)
     end function make_hist
 
-    !> The problem of beamid_ladder from a binding's arrays.
-    subroutine make_problem(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, row_value, &
-                            row_sigma, tol, prior, max_iter, pb)
+    !> The problem of beamid_ladder from a binding's arrays: the named
+    !! specs (columns), the observation list, the load histories and the a
+    !! priori information; max_iter > 0 replaces the fits' iteration limit.
+    subroutine make_problem(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                            obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, hist_spec, &
+                            hist_tab, prior, max_iter, pb, stat)
         integer(c_int), intent(in) :: nbeams, max_iter
-        integer(c_int), intent(in) :: exp_kind(:), row_exp(:), row_q(:)
-        real(c_double), intent(in) :: exp_values(:, :), row_t(:), row_value(:), row_sigma(:)
-        real(c_double), intent(in) :: tol, prior(:, :)
+        integer(c_int), intent(in) :: exp_kind(:), kv_exp(:), kv_key(:), row_exp(:), row_q(:)
+        integer(c_int), intent(in) :: obs_kind(:), obs_beam(:)
+        real(c_double), intent(in) :: kv_value(:), row_t(:), obs_s(:), row_value(:)
+        real(c_double), intent(in) :: row_sigma(:), tol, hist_spec(:, :), hist_tab(:, :)
+        real(c_double), intent(in) :: prior(:, :)
         type(problem_t), intent(out) :: pb
+        type(status_t), intent(inout) :: stat
+        real(dp), allocatable :: values(:, :)
+        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        if (stat%code /= STATUS_OK) return
         pb = problem_t(nbeams=int(nbeams), exp_kind=int(exp_kind), row_exp=int(row_exp), &
-                       row_q=int(row_q), exp_values=real(exp_values, dp), row_t=real(row_t, dp), &
+                       row_q=int(row_q), exp_values=values, row_t=real(row_t, dp), &
                        y=real(row_value, dp), sigma=real(row_sigma, dp), tol=real(tol, dp), &
                        prior=make_prior(prior))
         if (max_iter > 0) pb%max_iter = int(max_iter)
+        pb%hist = make_hist(hist_spec, hist_tab)
+        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
     end subroutine make_problem
 
     !> The candidate blocks cand_params(cand_start(c):cand_start(c+1)-1),
@@ -706,7 +701,6 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         type(status_t) :: stat
         type(problem_t) :: pb
         type(fit_options_t) :: opts
@@ -714,15 +708,13 @@ contains
         type(diag_out_t) :: dg
         type(cand_set_t) :: cs
 
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        call make_problem(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                          obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, hist_spec, &
+                          hist_tab, prior, 0, pb, stat)
         if (stat%code /= STATUS_OK) then
             call status_out(stat, code, message)
             return
         end if
-        call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
-                          row_sigma, tol, prior, 0, pb)
-        pb%hist = make_hist(hist_spec, hist_tab)
-        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
         cs = make_cands(cand_start, cand_params, with_mesh)
         if (max_iter > 0) opts%max_iter = int(max_iter)
         dopts%alpha = alpha
@@ -737,18 +729,19 @@ contains
                        mesh_params, kept, notes)
     end subroutine api_problem_diagnose
 
-    !> Start the improve ladder (beamid_ladder ladder_start; the ladder
-    !! beamid-batch runs): fit params0(free_idx); then
-    !! api_ladder_step diagnoses (candidate blocks as api_problem_diagnose,
-    !! with_mesh: test the mesh apart) and adds the verdict's effect, a rung
-    !! per call, until none is significant at alpha or max_steps rungs were
-    !! added.
-    subroutine api_ladder_start(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
-                                exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, row_q, nobs, &
-                                obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, nhs, &
-                                hist_spec, nhtab, hist_tab, max_iter, ncand, cand_start, &
-                                ncandp, &
-                                cand_params, with_mesh, alpha, max_steps, code, message)
+    !> Open an improve ladder (beamid_ladder ladder_start; the ladder
+    !! beamid-batch runs): fit params0(free_idx) and hold the ladder under
+    !! `handle` (> 0) until api_ladder_close(handle); then
+    !! api_ladder_handle_step diagnoses (candidate blocks as
+    !! api_problem_diagnose, with_mesh: test the mesh apart) and adds the
+    !! verdict's effect, a rung per call, until none is significant at alpha
+    !! or max_steps rungs were added. A failed start holds nothing (handle 0).
+    subroutine api_ladder_open(nbeams, nparams, params0, nfree, free_idx, nprior, prior, nexp, &
+                               exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, row_t, &
+                               row_q, nobs, obs_kind, obs_beam, obs_s, row_value, row_sigma, &
+                               tol, nhs, hist_spec, nhtab, hist_tab, max_iter, ncand, &
+                               cand_start, ncandp, cand_params, with_mesh, alpha, max_steps, &
+                               handle, code, message)
         integer(c_int), intent(in) :: nhs, nhtab
         !f2py intent(hide) nhs, nhtab
         real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
@@ -766,47 +759,82 @@ contains
         integer(c_int), intent(in) :: ncand, ncandp, with_mesh, max_steps
         integer(c_int), intent(in) :: cand_start(ncand + 1), cand_params(ncandp)
         real(c_double), intent(in) :: alpha
+        integer(c_int), intent(out) :: handle
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         integer(c_int), intent(in) :: nkv
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
         type(status_t) :: stat
         type(problem_t) :: pb
-        from_deck = .false.
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        integer :: h
+        handle = 0
+        call make_problem(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
+                          obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, hist_spec, &
+                          hist_tab, prior, max_iter, pb, stat)
         if (stat%code /= STATUS_OK) then
             call status_out(stat, code, message)
             return
         end if
-        call make_problem(nbeams, exp_kind, values, row_exp, row_t, row_q, row_value, &
-                          row_sigma, tol, prior, max_iter, pb)
-        pb%hist = make_hist(hist_spec, hist_tab)
-        pb%obs = make_obs(obs_kind, obs_beam, obs_s)
-        call ladder_start(lad, pb, real(params0, dp), int(free_idx), &
+        call run_open(RUN_LADDER, h)
+        call ladder_start(runs(h)%lad, pb, real(params0, dp), int(free_idx), &
                           make_cands(cand_start, cand_params, with_mesh), real(alpha, dp), &
                           int(max_steps), stat)
         call status_out(stat, code, message)
-    end subroutine api_ladder_start
+        if (stat%code == STATUS_OK) then
+            handle = int(h, c_int)
+        else
+            call run_close(h, RUN_LADDER)
+        end if
+    end subroutine api_ladder_open
 
-    !> One rung of the ladder started last (beamid_ladder ladder_step):
-    !! nrung rungs are done; done = 1 when the ladder has ended. A failure of
-    !! a deck's ladder names the experiment and the deck, as beamid-batch.
-    subroutine api_ladder_step(nrung, done, code, message)
+    !> Release the ladder of `handle` (a closed or unknown handle: nothing
+    !! happens).
+    subroutine api_ladder_close(handle)
+        integer(c_int), intent(in) :: handle
+        call run_close(int(handle), RUN_LADDER)
+    end subroutine api_ladder_close
+
+    !> The number of ladders held (handles not yet closed).
+    subroutine api_ladder_handles_open(n)
+        integer(c_int), intent(out) :: n
+        n = int(runs_held(RUN_LADDER), c_int)
+    end subroutine api_ladder_handles_open
+
+    !> Is handle an open ladder? (else code ERR_INPUT naming it)
+    logical function ladder_ok(handle, code, message)
+        integer(c_int), intent(in) :: handle
+        integer(c_int), intent(out) :: code
+        character(len=*), intent(out) :: message
+        ladder_ok = run_ok(handle, RUN_LADDER, code, message)
+    end function ladder_ok
+
+    !> The ladder of handle, as refusals name it.
+    function whose(handle) result(text)
+        integer(c_int), intent(in) :: handle
+        character(len=:), allocatable :: text
+        text = 'the ladder of handle '//fmt_int(int(handle))
+    end function whose
+
+    !> One rung of the ladder of `handle` (beamid_ladder ladder_step):
+    !! nrung rungs are done; done = 1 when the ladder has ended (an ended
+    !! ladder is not stepped: nrung is its count).
+    subroutine api_ladder_handle_step(handle, nrung, done, code, message)
+        integer(c_int), intent(in) :: handle
         integer(c_int), intent(out) :: nrung, done, code
         character(len=65536), intent(out) :: message
         type(status_t) :: stat
-        call ladder_step(lad, stat)
-        if (stat%code /= STATUS_OK .and. from_deck .and. allocated(held%exp_names)) &
-            call name_experiment(held, stat)
-        nrung = int(lad%n, c_int)
-        done = merge(1_c_int, 0_c_int, lad%done)
+        if (.not. ladder_ok(handle, code, message)) return
+        associate (lad => runs(handle)%lad)
+            call ladder_step(lad, stat)
+            nrung = int(lad%n, c_int)
+            done = merge(1_c_int, 0_c_int, lad%done)
+        end associate
         call status_out(stat, code, message)
-    end subroutine api_ladder_step
+    end subroutine api_ladder_handle_step
 
-    !> Rung k of the ladder started last: effect ('start', the number of the
+    !> Rung k of the ladder of `handle`: effect ('start', the number of the
     !! candidate added, or 'mesh (N elements per beam)'), info = [free
     !! parameters, elements per beam of the releases (0: as given), the
     !! start the verdict's refit kept (START_*), data rows, the fits' iteration
@@ -814,24 +842,27 @@ contains
     !! argument named `free` would shadow C's free() in f2py's wrapper), those
     !! the rung switched on and those it set back (index lists, zeros after),
     !! where its fit started and the nominal model of its refits.
-    subroutine api_ladder_rung(k, nparams, info, free_idx, added, removed, start, nominal, effect, &
-                               code, message)
-        integer(c_int), intent(in) :: k, nparams
+    subroutine api_ladder_handle_rung(handle, k, nparams, info, free_idx, added, removed, start, &
+                                      nominal, effect, code, message)
+        integer(c_int), intent(in) :: handle, k, nparams
         integer(c_int), intent(out) :: info(5), free_idx(nparams), added(nparams)
         integer(c_int), intent(out) :: removed(nparams)
         real(c_double), intent(out) :: start(nparams), nominal(nparams)
         character(len=64), intent(out) :: effect
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        call rung_out(lad, k, nparams, 'the ladder started last', info, free_idx, added, &
+        effect = ''
+        if (.not. ladder_ok(handle, code, message)) return
+        call rung_out(runs(handle)%lad, k, nparams, whose(handle), info, free_idx, added, &
                       removed, start, nominal, effect, code, message)
-    end subroutine api_ladder_rung
+    end subroutine api_ladder_handle_rung
 
-    !> The fit of rung k of the ladder started last (outputs as api_fit_effect).
-    subroutine api_ladder_fit(k, nparams, nfree, nrow, max_iter, params, sigmas, cov, corr, &
-                              flags, predictions, normalized, stats, log_cost, log_lambda, &
-                              log_step, log_params, info, code, message, note)
-        integer(c_int), intent(in) :: k, nparams, nfree, nrow, max_iter
+    !> The fit of rung k of the ladder of `handle` (outputs as api_fit_effect).
+    subroutine api_ladder_handle_fit(handle, k, nparams, nfree, nrow, max_iter, params, sigmas, &
+                                     cov, corr, flags, predictions, normalized, stats, &
+                                     log_cost, log_lambda, log_step, log_params, info, code, &
+                                     message, note)
+        integer(c_int), intent(in) :: handle, k, nparams, nfree, nrow, max_iter
         real(c_double), intent(out) :: params(nparams), sigmas(nfree), cov(nfree, nfree)
         real(c_double), intent(out) :: corr(nfree, nfree), predictions(nrow), normalized(nrow)
         integer(c_int), intent(out) :: flags(nfree), info(2)
@@ -841,31 +872,34 @@ contains
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
         character(len=8192), intent(out) :: note
-        call rung_fit_out(lad, k, nparams, nfree, nrow, 'the ladder started last', params, &
+        note = ''
+        if (.not. ladder_ok(handle, code, message)) return
+        call rung_fit_out(runs(handle)%lad, k, nparams, nfree, nrow, whose(handle), params, &
                           sigmas, cov, corr, flags, predictions, normalized, stats, log_cost, &
                           log_lambda, log_step, log_params, info, code, message, note)
-    end subroutine api_ladder_fit
+    end subroutine api_ladder_handle_fit
 
-    !> The rows of rung k's fit as the measurement chain's treatments judged
-    !! them (beamid_chain_fit): per row its last weight, the sigma it was
-    !! judged with, that sigma's standard deviation and 1 for a gross error;
-    !! has = 0 for a plain fit (nothing set).
-    subroutine api_ladder_rows(k, nrow, weights, sigma_used, sigma_sd, flagged, has, code, &
-                               message)
-        integer(c_int), intent(in) :: k, nrow
+    !> The rows of rung k's fit of the ladder of `handle` as the measurement
+    !! chain's treatments judged them (beamid_chain_fit): per row its last
+    !! weight, the sigma it was judged with, that sigma's standard deviation
+    !! and 1 for a gross error; has = 0 for a plain fit (nothing set).
+    subroutine api_ladder_handle_rows(handle, k, nrow, weights, sigma_used, sigma_sd, flagged, &
+                                      has, code, message)
+        integer(c_int), intent(in) :: handle, k, nrow
         real(c_double), intent(out) :: weights(nrow), sigma_used(nrow), sigma_sd(nrow)
         integer(c_int), intent(out) :: flagged(nrow), has, code
         character(len=256), intent(out) :: message
-        call rung_rows_out(lad, k, nrow, 'the ladder started last', weights, sigma_used, &
+        if (.not. ladder_ok(handle, code, message)) return
+        call rung_rows_out(runs(handle)%lad, k, nrow, whose(handle), weights, sigma_used, &
                            sigma_sd, flagged, has, code, message)
-    end subroutine api_ladder_rows
+    end subroutine api_ladder_handle_rows
 
-    !> The diagnosis of rung k of the ladder started last (outputs as
+    !> The diagnosis of rung k of the ladder of `handle` (outputs as
     !! api_problem_diagnose).
-    subroutine api_ladder_diag(k, nparams, ncand, ncandp, cstats, pstats, refit_params, ranking, &
-                               cosine, dstats, refit_start, sep_t, mstats, mesh_params, kept, &
-                               notes, code, message)
-        integer(c_int), intent(in) :: k, nparams, ncand, ncandp
+    subroutine api_ladder_handle_diag(handle, k, nparams, ncand, ncandp, cstats, pstats, &
+                                      refit_params, ranking, cosine, dstats, refit_start, sep_t, &
+                                      mstats, mesh_params, kept, notes, code, message)
+        integer(c_int), intent(in) :: handle, k, nparams, ncand, ncandp
         real(c_double), intent(out) :: cstats(18, ncand), pstats(6, ncandp)
         real(c_double), intent(out) :: refit_params(nparams, ncand), cosine(ncand, ncand)
         integer(c_int), intent(out) :: ranking(ncand), refit_start(ncand)
@@ -875,102 +909,12 @@ contains
         character(len=8192), intent(out) :: notes
         integer(c_int), intent(out) :: code
         character(len=256), intent(out) :: message
-        call rung_diag_out(lad, k, nparams, ncand, ncandp, 'the ladder started last', cstats, &
-                           pstats, refit_params, ranking, cosine, dstats, refit_start, sep_t, &
-                           mstats, mesh_params, kept, notes, code, message)
-    end subroutine api_ladder_diag
-
-    !> Start the ladder of the estimation deck at `path` run as `task` (blank:
-    !! the deck's; beamid_tasks deck_ladder_start, as beamid-batch runs it:
-    !! the fit, undiagnosed for fit and compare; of an identify deck the fit of
-    !! `stage` from the stages fitted by the calls before, deck_stage_start),
-    !! step it with api_ladder_step (diagnose: one rung, improve: a rung per
-    !! call), read it with api_ladder_rung, api_ladder_fit and api_ladder_diag
-    !! and write the deck's files with api_deck_task_write: its fits run once.
-    subroutine api_deck_task_start(path, task, stage, fit_keys, code, message)
-        character(len=*), intent(in) :: path, task
-        !> &fit items given apart (beamid_deck read_deck; blank: none)
-        character(len=*), intent(in) :: fit_keys
-        integer(c_int), intent(in) :: stage
-        integer(c_int), intent(out) :: code
-        character(len=65536), intent(out) :: message
-        type(deck_t) :: d
-        type(status_t) :: stat
-        call read_deck(trim(path), d, stat, fit_keys)
-        if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-        ! the stages held go on only on the deck that fitted them
-        if (stage <= 1 .or. .not. allocated(staged) .or. .not. is_held(d)) staged = [rung_t ::]
-        lad%done = .true.
-        lad%n = 0
-        from_deck = .false.
-        if (stat%code == STATUS_OK .and. max(int(stage), 1) /= size(staged) + 1) &
-            call set_status(stat, ERR_INPUT, 'stage', fmt_int(int(stage))//', expected '// &
-                            fmt_int(size(staged) + 1)//' (the stages in order)')
-        if (stat%code == STATUS_OK) then
-            if (d%task == 'identify') then
-                call deck_stage_start(d, staged, lad, stat)
-                if (stat%code == STATUS_OK) staged = [staged, lad%rungs(1)]
-            else
-                call deck_ladder_start(d, lad, stat)
-            end if
-        end if
-        if (stat%code == STATUS_OK) held = d
-        from_deck = stat%code == STATUS_OK
-        call status_out(stat, code, message)
-    end subroutine api_deck_task_start
-
-    !> Is d (read, its task set) the deck api_deck_task_start started last?
-    logical function is_held(d)
-        type(deck_t), intent(in) :: d
-        is_held = from_deck .and. allocated(held%path) .and. allocated(held%task)
-        if (is_held) is_held = d%path == held%path .and. d%task == held%task
-    end function is_held
-
-    !> Write the files of the deck at `path` run as `task` (beamid_tasks
-    !! run_task: all or none, the bytes beamid-batch writes) from the ladder
-    !! api_deck_task_start started on it and api_ladder_step ended;
-    !! `output`: the output prefix (blank: the deck's; beamid demo writes its
-    !! decks' files elsewhere); `written`: the files, one per line.
-    subroutine api_deck_task_write(path, task, output, fit_keys, written, summary, code, &
-                                   message)
-        use beamid_status, only: put_text
-        character(len=*), intent(in) :: path, task, output, fit_keys
-        character(len=65536), intent(out) :: written, message
-        !> the summary line beamid-batch prints (run_task)
-        character(len=4096), intent(out) :: summary
-        integer(c_int), intent(out) :: code
-        type(deck_t) :: d
-        type(status_t) :: stat
-        character(len=:), allocatable :: files, line
-        summary = ''
-        if (.not. lad%done .or. lad%n < 1 .or. .not. from_deck) then
-            call set_status(stat, ERR_INPUT, 'ladder', 'no ended ladder of a deck (run '// &
-                            'api_deck_task_start and api_ladder_step first)')
-        else
-            call read_deck(trim(path), d, stat, fit_keys)
-            if (stat%code == STATUS_OK) call deck_set_task(d, task, stat)
-            if (len_trim(output) > 0) d%output = trim(output)
-            if (stat%code == STATUS_OK .and. .not. is_held(d)) then
-                call set_status(stat, ERR_INPUT, 'path', "'"//d%path//"' run as '"//d%task// &
-                                "', expected '"//held%path//"' run as '"//held%task// &
-                                "' (the deck api_deck_task_start started last)")
-            else if (stat%code == STATUS_OK .and. d%task == 'identify') then
-                ! (no short-circuit in Fortran: the sizes only of an identify deck)
-                if (size(staged) /= size(d%stages)) then
-                    call set_status(stat, ERR_INPUT, 'identify', fmt_int(size(staged))// &
-                                    ' of '//fmt_int(size(d%stages))//' stages fitted, '// &
-                                    'expected all (api_deck_task_start each stage first)')
-                else
-                    call run_task(d, files, stat, staged, line)
-                end if
-            else if (stat%code == STATUS_OK) then
-                call run_task(d, files, stat, lad%rungs(:lad%n), line)
-            end if
-            if (stat%code == STATUS_OK) call put_text(files, written)
-            if (stat%code == STATUS_OK) summary = line
-        end if
-        call status_out(stat, code, message)
-    end subroutine api_deck_task_write
+        notes = ''
+        if (.not. ladder_ok(handle, code, message)) return
+        call rung_diag_out(runs(handle)%lad, k, nparams, ncand, ncandp, whose(handle), &
+                           cstats, pstats, refit_params, ranking, cosine, dstats, refit_start, &
+                           sep_t, mstats, mesh_params, kept, notes, code, message)
+    end subroutine api_ladder_handle_diag
 
     !> The mesh check of a finished fit (beamid_dyn_diagnosis mesh_check):
     !! the data rows' predictions at `params` with every release at twice its

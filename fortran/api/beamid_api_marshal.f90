@@ -317,4 +317,5 @@ contains
             cand_params_size = cand_params_size + size(cs%cands(c)%params)
         end do
     end function cand_params_size
+
 end module beamid_api_marshal

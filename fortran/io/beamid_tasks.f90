@@ -42,13 +42,14 @@ module beamid_tasks
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
     use beamid_observations, only: obs_label, obs_groups, observation_t, same_observation
     use beamid_dyn_diagnosis, only: has_mesh
+    use beamid_family, only: SPEC_KEYS
     use beamid_effects, only: effect_params
     use beamid_measurements, only: fmt_g
     implicit none
     private
 
     public :: run_task, files_t, deck_problem, deck_candidates, deck_ladder_start
-    public :: deck_stage_start, deck_experiments, name_experiment, deck_warnings
+    public :: deck_stage_start, deck_experiments, deck_specs, name_experiment, deck_warnings
 
     !> The files of one run: final names, newline separated, in write order;
     !! each is `prefix` (the deck's output resolved against its directory)
@@ -832,6 +833,28 @@ contains
             end do
         end if
     end subroutine deck_experiments
+
+    !> The deck's experiments as named specs, the form the fronts take
+    !! (beamid_api_deck api_deck_handle_specs): their kinds, and for each
+    !! experiment e every key k of the core's key table (beamid_family
+    !! SPEC_KEYS, in its order) with its value, as triples kv_exp(i) = e,
+    !! kv_key(i) = k, kv_value(i): no positional layout leaves the core.
+    pure subroutine deck_specs(d, kinds, kv_exp, kv_key, kv_value)
+        type(deck_t), intent(in) :: d
+        integer, allocatable, intent(out) :: kinds(:), kv_exp(:), kv_key(:)
+        real(dp), allocatable, intent(out) :: kv_value(:)
+        real(dp), allocatable :: values(:, :)
+        integer :: e, k, nk
+        if (.not. allocated(d%experiments)) then   ! a deck without experiments
+            allocate (kinds(0), kv_exp(0), kv_key(0), kv_value(0))
+            return
+        end if
+        call deck_experiments(d, kinds, values)
+        nk = size(SPEC_KEYS)
+        kv_exp = [((e, k = 1, nk), e = 1, size(kinds))]
+        kv_key = [((k, k = 1, nk), e = 1, size(kinds))]
+        kv_value = [((values(SPEC_KEYS(k)%row, e), k = 1, nk), e = 1, size(kinds))]
+    end subroutine deck_specs
 
     !> The deck's candidates: every effect named, with its parameters; in a
     !! deck with releases or modal tests `mesh` is the mesh test of beamid_dyn_diagnosis

@@ -164,7 +164,36 @@ def _path(path) -> bytes:
     return os.fsencode(str(path))
 
 
-class DeckHandle:
+class Handle:
+    """A run held in the extension's handle table (beamid_api_runs) under a
+    handle that this object owns: :meth:`close` (or the end of a ``with``
+    block, or the collection of the object) releases it with ``closer``."""
+
+    def __init__(self, handle: int, closer) -> None:
+        self.id = int(handle)
+        self._close = weakref.finalize(self, closer, self.id)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        return not self._close.alive
+
+    def close(self) -> None:
+        """Release the run in the extension (again: nothing happens)."""
+        self._close()
+
+    def _id(self) -> int:
+        if self.closed:
+            raise ValueError(f"{self!r}: the {type(self).__name__} is closed")
+        return self.id
+
+
+class DeckHandle(Handle):
     """A deck read once by the Fortran reader of beamid-batch
     (``beamid_deck_run``: the deck and the measurement files it names, each
     opened once), held in the extension under a handle that this object owns.
@@ -182,8 +211,8 @@ class DeckHandle:
         self.path = str(path)
         #: &fit items given apart (the command line's), which replace the deck's
         self.fit_keys = fit_keys
-        self.id = int(_call(_deck_api.api_deck_open, _path(path), fit_keys))
-        self._close = weakref.finalize(self, _deck_api.api_deck_close, self.id)
+        super().__init__(_call(_deck_api.api_deck_open, _path(path), fit_keys),
+                         _deck_api.api_deck_close)
         #: held from the start of a run in steps to its write (one run at a time)
         self.lock = threading.RLock()
 
@@ -192,25 +221,6 @@ class DeckHandle:
 
     def __reduce__(self):          # another process reads the file itself
         return (DeckHandle, (self.path, self.fit_keys))
-
-    def __enter__(self) -> "DeckHandle":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        return not self._close.alive
-
-    def close(self) -> None:
-        """Release the deck in the extension (again: nothing happens)."""
-        self._close()
-
-    def _id(self) -> int:
-        if self.closed:
-            raise ValueError(f"{self!r}: the deck handle is closed")
-        return self.id
 
     def values(self) -> dict:
         """The deck's values as the Fortran reader validated them (a new
@@ -251,9 +261,16 @@ def _deck_values(handle: int) -> dict:
     (nbeams, nparams, nwrt, nt, nexp, nfree, nprior, ncand, ndata, has_load, shape_points,
      fe_epb, fe_form, fe_rotary, fe_masses, fe_steps, sim_epb, sim_integrator, sim_friction,
      max_iter, load_kind) = (int(v) for v in sizes)
-    (params, wrt, t_out, exp_kind, exp_values, free, prior_index, prior_mean,
-     prior_sigma) = _call(_deck_api.api_deck_handle_arrays, handle, nparams, nwrt, nt, nexp,
-                          nfree, nprior)
+    (params, wrt, t_out, free, prior_index, prior_mean,
+     prior_sigma) = _call(_deck_api.api_deck_handle_arrays, handle, nparams, nwrt, nt, nfree,
+                          nprior)
+    nkv = _call(_deck_api.api_deck_handle_spec_size, handle)
+    exp_kind, kv_exp, kv_key, kv_value = _call(_deck_api.api_deck_handle_specs, handle, nexp,
+                                               nkv)
+    key_names = {k.number: name for name, k in spec_keys().items()}
+    specs: list[dict] = [{} for _ in range(nexp)]
+    for e, k, v in zip(kv_exp, kv_key, kv_value):     # named triples: no layout
+        specs[int(e) - 1][key_names[int(k)]] = float(v)
     lines = _text(text).split("\n")
     names = lines[3:3 + nexp]
     return {
@@ -272,8 +289,7 @@ def _deck_values(handle: int) -> dict:
                      "atol": float(reals[8]) or None, "motor_gain": float(reals[9]),
                      "friction_velocity": float(reals[10]) or None},
         # each experiment: name, kind and its spec by the core's key names
-        "experiments": [(n, int(k), {key: float(v[sk.row]) for key, sk in spec_keys().items()})
-                        for n, k, v in zip(names, exp_kind, np.array(exp_values).T)],
+        "experiments": [(n, int(k), spec) for n, k, spec in zip(names, exp_kind, specs)],
         "free": [int(i) - 1 for i in free],
         "prior": [(int(i) - 1, float(m), float(s))
                   for i, m, s in zip(prior_index, prior_mean, prior_sigma)],

@@ -16,14 +16,13 @@ attached to the exception as ``exc.partial``.
 from __future__ import annotations
 
 import functools
-import threading
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import _ext
-from ._core import DeckHandle, _call, _path, _text, quantity_labels, spec_keys, spec_triples
-from .errors import raise_for_status
+from ._core import DeckHandle, Handle, _call, _text, quantity_labels, spec_keys, spec_triples
+from .errors import InputError, raise_for_status
 
 _api = _ext.beamid_api_estimation
 _deck_api = _ext.beamid_api_deck
@@ -330,58 +329,81 @@ def problem_diagnose(prob: Problem, params0: np.ndarray, free: np.ndarray, prior
         float(ambiguity_delta), float(collinear), int(bool(with_mesh))), starts)
 
 
-#: The extension holds one improve ladder at a time (module state of the
-#: binding, beamid_api_estimation): a caller holds this lock from
-#: :func:`ladder_start` / :func:`deck_task_start` to its last read
-#: (:func:`ladder_rungs`, :func:`deck_task_write`), so ladders run from
-#: several threads take turns instead of overwriting each other.
-LADDER_LOCK = threading.RLock()
+class LadderHandle(Handle):
+    """An improve ladder (Fortran beamid_ladder, the one beamid-batch runs)
+    held in the extension under a handle that this object owns: started by
+    :func:`ladder_start`, stepped by :func:`ladder_step`, its rungs returned
+    by :func:`ladder_rungs`. Ladders of several handles (several threads'
+    ``improve`` calls) are independent; :meth:`close` (or the end of a
+    ``with`` block, or the collection of the object) releases the ladder."""
+
+    def __init__(self, handle: int) -> None:
+        super().__init__(handle, _api.api_ladder_close)
+
+    def __repr__(self) -> str:
+        return f"LadderHandle({self.id}, {'closed' if self.closed else 'open'})"
+
+
+def ladders_open() -> int:
+    """The number of ladders the extension holds (handles not yet closed)."""
+    return int(_api.api_ladder_handles_open())
 
 
 def ladder_start(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
                  blocks: list[np.ndarray], with_mesh: bool, alpha: float, max_steps: int,
-                 max_iter: int = 50, gross: bool = False, noise: bool = False) -> None:
-    """Start the improve ladder (Fortran beamid_ladder, the one beamid-batch
-    runs) with the fit of ``params0[free]``; :func:`ladder_step` runs its
-    rungs (the extension holds one ladder at a time). ``gross``, ``noise``:
-    the measurement chain's row candidates (beamid_ladder row_rung)."""
+                 max_iter: int = 50, gross: bool = False, noise: bool = False) -> LadderHandle:
+    """Start an improve ladder (Fortran beamid_ladder, the one beamid-batch
+    runs) with the fit of ``params0[free]`` and return its handle:
+    :func:`ladder_step` runs its rungs, :func:`ladder_rungs` returns them.
+    ``gross``, ``noise``: the measurement chain's row candidates
+    (beamid_ladder row_rung)."""
     starts, flat = _blocks(blocks)
-    _call(_api.api_ladder_start, prob.nbeams, np.asarray(params0, float),
-          np.asarray(free, np.int32), prior, *prob.rows(), int(max_iter), starts, flat,
-          int(bool(with_mesh)) | 2 * bool(gross) | 4 * bool(noise), float(alpha),
-          int(max_steps))
+    handle = _call(_api.api_ladder_open, prob.nbeams, np.asarray(params0, float),
+                   np.asarray(free, np.int32), prior, *prob.rows(), int(max_iter), starts,
+                   flat, int(bool(with_mesh)) | 2 * bool(gross) | 4 * bool(noise),
+                   float(alpha), int(max_steps))
+    return LadderHandle(handle)
 
 
-def ladder_step(deck: DeckHandle | None = None) -> bool:
-    """Diagnose the ladder's last fit and, unless the ladder ends there, add
-    the verdict's effect and refit (one rung); True once the ladder has
-    ended. ``deck``: the ladder of that deck's run (:func:`deck_task_start`
-    with a handle), else the ladder of :func:`ladder_start`."""
-    if deck is not None:
-        _nrung, done = _call(_deck_api.api_deck_handle_step, deck._id())
+def _entries(run: LadderHandle | DeckHandle) -> tuple:
+    """The step, rung, fit, rows and diag entries of a run's ladder, its
+    handle bound: a problem's (:func:`ladder_start`) or a deck's
+    (:func:`deck_task_start`)."""
+    if isinstance(run, LadderHandle):
+        entries = (_api.api_ladder_handle_step, _api.api_ladder_handle_rung,
+                   _api.api_ladder_handle_fit, _api.api_ladder_handle_rows,
+                   _api.api_ladder_handle_diag)
+    elif isinstance(run, DeckHandle):
+        entries = (_deck_api.api_deck_handle_step, _deck_api.api_deck_handle_rung,
+                   _deck_api.api_deck_handle_fit, _deck_api.api_deck_handle_rows,
+                   _deck_api.api_deck_handle_diag)
     else:
-        _nrung, done = _call(_api.api_ladder_step)
+        raise InputError(f"run: {run!r}, expected a LadderHandle (ladder_start) or a "
+                         "DeckHandle (deck_task_start)")
+    return tuple(functools.partial(entry, run._id()) for entry in entries)
+
+
+def ladder_step(run: LadderHandle | DeckHandle) -> bool:
+    """Diagnose the last fit of the ladder of ``run`` and, unless the ladder
+    ends there, add the verdict's effect and refit (one rung); True once the
+    ladder has ended. ``run``: the handle :func:`ladder_start` returned, or a
+    deck's handle its ladder was started on (:func:`deck_task_start`)."""
+    _nrung, done = _call(_entries(run)[0])
     return bool(done)
 
 
 def ladder_rungs(nparams: int, blocks: list[np.ndarray],
-                 deck: DeckHandle | None = None) -> list[dict]:
-    """The rungs of the ladder ended by :func:`ladder_step`: per rung a dict
-    with ``effect`` (None for the start, else the candidate's 1-based
-    number or effect name, or ``"mesh (N elements per beam)"``), ``fit``
-    (the dict of :func:`fit`), ``diag`` (of :func:`problem_diagnose`),
-    ``free``, ``params`` (switched on), ``removed`` (set back), ``start``
-    and ``nominal`` (parameter vectors), ``elements_per_beam`` (of the
-    releases, 0: as given) and ``refit_start``. ``deck``: the rungs of that
-    deck's run, returned from its handle (else of :func:`ladder_start`'s)."""
+                 run: LadderHandle | DeckHandle) -> list[dict]:
+    """The rungs of the ladder of ``run`` ended by :func:`ladder_step`: per
+    rung a dict with ``effect`` (None for the start, else the candidate's
+    1-based number or effect name, or ``"mesh (N elements per beam)"``),
+    ``fit`` (the dict of :func:`fit`), ``diag`` (of
+    :func:`problem_diagnose`), ``free``, ``params`` (switched on),
+    ``removed`` (set back), ``start`` and ``nominal`` (parameter vectors),
+    ``elements_per_beam`` (of the releases, 0: as given) and
+    ``refit_start``, returned from the run's handle."""
     starts, flat = _blocks(blocks)
-    if deck is None:
-        step, rung, fit_, diag = (_api.api_ladder_step, _api.api_ladder_rung,
-                                  _api.api_ladder_fit, _api.api_ladder_diag)
-    else:
-        step, rung, fit_, diag = (functools.partial(entry, deck._id()) for entry in (
-            _deck_api.api_deck_handle_step, _deck_api.api_deck_handle_rung,
-            _deck_api.api_deck_handle_fit, _deck_api.api_deck_handle_diag))
+    step, rung, fit_, rows_, diag = _entries(run)
     nrung, _done = _call(step)   # an ended ladder: no step, the count
     rungs = []
     for k in range(1, int(nrung) + 1):
@@ -397,19 +419,15 @@ def ladder_rungs(nparams: int, blocks: list[np.ndarray],
             "removed": removed[removed > 0] - 1, "start": np.array(start),
             "nominal": np.array(nominal), "elements_per_beam": int(info[1]),
             "refit_start": START_NAMES.get(int(info[2])),
-            "rows": _ladder_rows(k, int(info[3]), deck)})
+            "rows": _ladder_rows(rows_, k, int(info[3]))})
     return rungs
 
 
-def _ladder_rows(k: int, nrow: int, deck: DeckHandle | None = None) -> dict | None:
+def _ladder_rows(rows, k: int, nrow: int) -> dict | None:
     """The rows of rung ``k``'s fit as the measurement chain's treatments
     judged them (the keys :func:`fit_chain` adds), None for a plain fit;
-    ``deck``: of that deck's run (else of :func:`ladder_start`'s)."""
-    if deck is None:
-        out = _call(_api.api_ladder_rows, k, nrow)
-    else:
-        out = _call(_deck_api.api_deck_handle_rows, deck._id(), k, nrow)
-    weights, sigma_used, sigma_sd, flagged, has = out
+    ``rows``: the rows entry of the run's handle (:func:`_entries`)."""
+    weights, sigma_used, sigma_sd, flagged, has = _call(rows, k, nrow)
     if not has:
         return None
     return {"weights": np.array(weights), "sigma_used": np.array(sigma_used),
@@ -468,8 +486,7 @@ def chi2_sf_many(x: np.ndarray, k: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------- estimation decks: the deck's fit runs once
 
-def deck_task_start(path: str | DeckHandle, task: str = "", stage: int = 0,
-                    fit_keys: str = "") -> None:
+def deck_task_start(deck: DeckHandle, task: str = "", stage: int = 0) -> None:
     """Start the ladder of an estimation deck run as ``task`` (default the
     deck's) as beamid-batch runs it: the fit (undiagnosed for fit and
     compare; of an identify deck the fit of ``stage``, 1-based, from the
@@ -477,37 +494,37 @@ def deck_task_start(path: str | DeckHandle, task: str = "", stage: int = 0,
     (diagnose: one rung, improve: a rung per call), :func:`ladder_rungs`
     reads it, :func:`deck_task_write` writes the deck's files.
 
-    ``path`` a :class:`beamid._core.DeckHandle`: the deck read once, its run
+    ``deck`` a :class:`beamid._core.DeckHandle`: the deck read once, its run
     held by the handle (pass the handle to :func:`ladder_step`,
     :func:`ladder_rungs` and :func:`deck_task_write`; hold ``handle.lock``
-    from the start to the write). A path: the extension's one ladder, found
-    again by path (hold :data:`LADDER_LOCK` from the first start to the
-    write; kept for older callers). ``fit_keys``: with a path, &fit items
-    given apart (the command line's), as :func:`beamid._core.read_deck`; a
-    handle holds the deck read with its own."""
-    if isinstance(path, DeckHandle):
-        _call(_deck_api.api_deck_handle_start, path._id(), task, int(stage))
-    else:
-        _call(_api.api_deck_task_start, _path(path), task, int(stage), fit_keys)
+    from the start to the write). A path is refused: the run of a deck
+    lives in its handle, never found again by path."""
+    _call(_deck_api.api_deck_handle_start, _deck(deck)._id(), task, int(stage))
 
 
-def deck_task_write(path: str | DeckHandle, task: str = "", output: str = "") -> list[str]:
-    """Write the files of the deck run as ``task`` (all or none, the bytes of
-    beamid-batch) from the ladder :func:`deck_task_start` started on it, to
-    the output prefix ``output`` (default the deck's, resolved against the
-    deck's folder as the deck's own)."""
-    return deck_task_write_report(path, task, output)[1]
+def _deck(deck) -> DeckHandle:
+    """``deck`` if a DeckHandle; else InputError naming it."""
+    if not isinstance(deck, DeckHandle):
+        raise InputError(f"deck: {deck!r}, expected a beamid._core.DeckHandle (the run of a "
+                         "deck is held by its handle, not found by path)")
+    return deck
 
 
-def deck_task_write_report(path: str | DeckHandle, task: str = "", output: str = "",
+def deck_task_write(deck: DeckHandle, task: str = "", output: str = "") -> list[str]:
+    """Write the files of the deck run (all or none, the bytes of
+    beamid-batch) from the ladder :func:`deck_task_start` started on its
+    handle, to the output prefix ``output`` (default the deck's, resolved
+    against the deck's folder as the deck's own)."""
+    return deck_task_write_report(deck, task, output)[1]
+
+
+def deck_task_write_report(deck: DeckHandle, task: str = "", output: str = "",
                            fit_keys: str = "") -> tuple[str, list[str]]:
     """:func:`deck_task_write` and the summary line beamid-batch prints
-    before the files: ``(summary, files)``. A DeckHandle writes the files of
-    the task its run started (``task`` is not used)."""
-    if isinstance(path, DeckHandle):
-        written, summary = _call(_deck_api.api_deck_handle_write, path._id(), output)
-    else:
-        written, summary = _call(_api.api_deck_task_write, _path(path), task, output, fit_keys)
+    before the files: ``(summary, files)``. The handle writes the files of
+    the task its run started (``task`` and ``fit_keys`` are not used: the
+    handle holds the deck as read with its own)."""
+    written, summary = _call(_deck_api.api_deck_handle_write, _deck(deck)._id(), output)
     return _text(summary), [line for line in _text(written).split("\n") if line]
 
 

@@ -932,12 +932,12 @@ def improve(model: Model, experiments: Experiments, data: Measurements,
     named = {e.name for e in effects} if candidates is not None else set()
     ext = _chain_extension(model, _check_experiments(experiments), data, effects, names,
                            blocks)
-    with _ce.LADDER_LOCK:
-        _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
-                         np.concatenate([model.vector(), ext.values]), free_idx,
-                         ptable, blocks, with_mesh, alpha, limit, int(max_iter),
-                         gross="gross_errors" in named, noise="noise" in named)
-        return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit)
+    with _ce.ladder_start(build_problem(model, experiments, data, chain=ext.spec),
+                          np.concatenate([model.vector(), ext.values]), free_idx,
+                          ptable, blocks, with_mesh, alpha, limit, int(max_iter),
+                          gross="gross_errors" in named, noise="noise" in named) as run:
+        return _run_ladder(model, experiments, data, prior_map, candidates, alpha, limit,
+                           run=run)
 
 
 def _at_best(model: Model, note: str) -> str:
@@ -964,22 +964,22 @@ def _run_ladder(model: Model, experiments: Experiments, data: Measurements,
                 prior_map: Mapping[str, tuple[float, float]],
                 candidates: Sequence[str | Effect] | None, alpha: float,
                 max_steps: int, desc: str = "improve", own=None, treatment=None,
-                deck: Any = None) -> Ladder:
-    """Run the ladder started in the extension (``_ce.ladder_start``, or
-    ``_ce.deck_task_start`` on the handle ``deck``) a rung per call, with a
-    progress bar labelled ``desc`` on a terminal (none when max_steps = 0: a
-    diagnosis alone, one call), and name its rungs."""
+                run: Any = None) -> Ladder:
+    """Run the ladder of the handle ``run`` (``_ce.ladder_start``'s, or a
+    deck's handle ``_ce.deck_task_start`` started it on) a rung per call,
+    with a progress bar labelled ``desc`` on a terminal (none when
+    max_steps = 0: a diagnosis alone, one call), and name its rungs."""
     with_mesh, effects, names, blocks = _candidate_set(model, experiments, candidates)
     ext = _chain_extension(model, experiments, data, effects, names, blocks, own)
     for _ in progress(itertools.count(), total=max_steps + 1, desc=desc,   # on a tty only
                       enabled=None if max_steps else False):
-        if _ce.ladder_step() if deck is None else _ce.ladder_step(deck):
+        if _ce.ladder_step(run):
             break
     npar = model.vector().size
     all_names = model.names() + tuple(ext.names)
     rows_now = treatment or _chain.RowTreatment()
     steps = []
-    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks, deck)):
+    for k, r in enumerate(_ce.ladder_rungs(len(all_names), blocks, run)):
         if r["elements_per_beam"]:
             experiments = _RELEASE_FAMILY["refine_mesh"](experiments, r["elements_per_beam"])
         raw, phys, sub = _split_ladder_fit(r["fit"], r["free"], npar, ext.spec,

@@ -397,7 +397,7 @@ def _deck_result(deck: FitDeck, handle: Any) -> Any:
     improve = deck.task == "improve"
     ladder = _run_ladder(deck.model, deck.experiments, deck.data, prior_map, deck.candidates,
                          deck.alpha, len(deck.candidates or ()) * improve, deck.task,
-                         own=deck.nuisance, treatment=deck.treatment, deck=handle)
+                         own=deck.nuisance, treatment=deck.treatment, run=handle)
     return ladder if improve else ladder.steps[0].diagnosis
 
 
