@@ -134,9 +134,13 @@ def reals(name: str, value: Any, *, ndim: int = 1, min_size: int = 0,
         return None
     what = f"{'a sequence' if ndim == 1 else f'a {ndim}-d array'} of " \
            f"{'finite ' if finite else ''}numbers"
-    if isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
+    # an array is none of the kinds below (the abstract-class tests cost a
+    # few microseconds a call on the fit's and the model's paths)
+    if type(value) is np.ndarray:
+        pass
+    elif isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
         fail(name, value, what)
-    if scalar and _is_real(value):
+    elif scalar and _is_real(value):
         value = [value]
     elif isinstance(value, Iterator):
         value = list(value)
@@ -190,6 +194,11 @@ def names(name: str, value: Any, *, allowed: Iterable[str] | None = None,
     distinct when ``unique``; ``none``: None passes."""
     if value is None and none:
         return None
+    # the common case, already a tuple of names, without the general checks
+    # below (solve_static's and fit's per-call cost; the same result)
+    if type(value) is tuple and allowed is None and not unique and \
+            len(value) >= min_size and all(type(item) is str for item in value):
+        return value
     what = "a name or a sequence of names (strings)"
     if isinstance(value, str):
         value = (value,)

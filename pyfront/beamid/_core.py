@@ -401,16 +401,20 @@ def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     """Value columns (keys by row, one column per experiment) as the
     binding's sparse named triples: (1-based experiment, key number, value)
     for every nonzero entry; a key not given takes its default in the core."""
-    values = np.asarray(values, float).reshape(len(spec_keys()), -1)
-    exp, key, val = [], [], []
-    for j in range(values.shape[1]):
-        for k in spec_keys().values():
-            v = float(values[k.row, j])
-            if v != 0.0:
-                exp.append(j + 1)
-                key.append(k.number)
-                val.append(v)
-    return np.array(exp, np.int32), np.array(key, np.int32), np.array(val, float)
+    rows, numbers = _spec_key_order()
+    # experiments by column, keys in the table's order within each: the
+    # nonzero entries of the transposed table, row by row
+    by_exp = np.asarray(values, float).reshape(len(rows), -1)[rows, :].T
+    j, k = np.nonzero(by_exp != 0.0)
+    return ((j + 1).astype(np.int32), numbers[k], np.array(by_exp[j, k], float))
+
+
+@lru_cache(maxsize=None)
+def _spec_key_order() -> tuple[np.ndarray, np.ndarray]:
+    """The value column's rows and the key numbers, in the key table's order."""
+    keys = list(spec_keys().values())
+    return (np.array([k.row for k in keys], np.intp), np.array([k.number for k in keys],
+                                                                np.int32))
 
 
 def spec_column(spec: dict) -> np.ndarray:

@@ -515,8 +515,9 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if not isinstance(model, Model):
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     _check.choice("jacobian", jacobian, ("auto", "exact"))
-    chain = parse_nuisance(nuisance, _check_experiments(experiments), data)
-    rows = parse_rows(loss, burn_in, estimate_sigma, _check_experiments(experiments), data)
+    exps = _check_experiments(experiments)   # once: the checks below take the dict
+    chain = parse_nuisance(nuisance, exps, data)
+    rows = parse_rows(loss, burn_in, estimate_sigma, exps, data)
     check_sigma_given(data, rows)
     prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
@@ -535,7 +536,7 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     if homotopy is not None and not isinstance(homotopy, (bool, np.bool_)):
         _check.fail("homotopy", homotopy, "None (automatic), True or False")
     homotopy = None if homotopy is None else bool(homotopy)
-    exp_names = list(_check_experiments(experiments))
+    exp_names = list(exps)
     params0, free_idx = _with_chain(model, chain, exp_names, free_idx)
 
     def plain() -> FitResult:

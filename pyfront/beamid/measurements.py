@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -224,6 +224,16 @@ class Measurements:
     def with_values(self, value: Sequence[float]) -> "Measurements":
         """Same rows with new values (e.g. noisy copies)."""
         value = _check.reals("value", value, finite=False)   # NaN: named by row
+        if value.shape == (len(self),) and np.isfinite(value).all():
+            # only the values are new and they are valid: the rows were checked
+            # when this table was built (consistency makes a table a replicate)
+            new = object.__new__(Measurements)
+            for f in fields(self):
+                object.__setattr__(new, f.name, getattr(self, f.name))
+            value = np.array(value, dtype=np.float64)
+            value.setflags(write=False)
+            object.__setattr__(new, "value", value)
+            return new
         return Measurements(self.experiment, self.t, self.quantity, value,
                             self.sigma, self.source, self.lines)
 
