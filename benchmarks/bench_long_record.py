@@ -48,16 +48,18 @@ phase. After issue 30's fixes (a rough phase ends below the noise floor,
 damped trials of an integrated response stop there, the early windows at
 rtol 1e-6, the accurate phase ends after a good step when the next promises
 less than the floor, each row's output time by bisection), same machine
-under load, full run, CPU s: 1 s 0.73 (3 iterations), 2.6 s 2.04 (4),
-5 s 10.3 (3 windows, 6 in the last), 10 s 9.17 (4 windows, 4 in the last),
-30 s 31.7 (5 windows, 4 in the last): all converged at or below the truth's
-chi-square, farthest parameter 2.48 sigma (rho2 at 5 s, the data's noise:
-the same end as before). Cost per simulated second at 10 s / at 2.6 s: 1.17
-- the target is MET; 30 s costs 1.06 CPU s per simulated second against
-0.78 at 2.6 s. The 5 s record is the exception (2.05 s per simulated
-second, then 1.65 with the last rule): its last window goes on to the
-accurate model for two steps where the 10 and 30 s windows stop after the
-rough-Jacobian phase.
+under load (load average 9 on the 2 cores; the 30 s row while `make test`
+ran), full run, CPU s: 1 s 0.72 (3 iterations), 2.6 s 2.00 (4), 5 s 8.35
+(3 windows, 5 in the last), 10 s 9.07 (4 windows, 4 in the last), 30 s 43.0
+(5 windows, 5 in the last): all converged at or below the truth's
+chi-square, farthest parameter 2.68 sigma (rho1 at 30 s; 2.66, rho2, at
+5 s). Cost per simulated second at 10 s / at 2.6 s: 1.18
+- the target is MET; slope of log(fit time) against log(length) over 1-30
+s: 1.19. The 5 s record costs 1.67 CPU s per simulated second against 0.91
+at 10 s: its last window goes on to the accurate model for a step where the
+10 s window stops after the rough-Jacobian phase. Before the last rule (the
+accurate phase's end after a good step) the same bench gave 5 s 10.3 s and
+30 s 31.7 s (4 iterations in the last window, on a less loaded machine).
 """
 from __future__ import annotations
 
