@@ -34,7 +34,9 @@ record longer than :data:`GROW_ABOVE` seconds window by window (the end
 halved until the next halving falls below :data:`GROW_FIRST`, then doubled up
 to the whole record, each window from the last one's estimates), so the
 phase of the response is caught before the whole record is fitted
-(:func:`grown_fit`; ``result.path`` lists the windows).
+(:func:`grown_fit`; ``result.path`` lists the windows). The windows before
+the last are fitted at the rough tolerance :data:`GROW_RTOL`; the last, the
+whole record, at the releases' own.
 
 A fourth is the friction homotopy: ``fit(..., homotopy=None)`` fits a
 model with joint friction on releases with the sign law (the
