@@ -59,7 +59,9 @@ def test_twenty_starts_reach_the_best_or_say_they_did_not(twenty):
         if e.state == robust.LOCAL:
             assert 1.5 < e.above_best < 1.7 and e.stop == "converged"
         else:
-            assert e.state in (robust.BEST, robust.SAME) and e.above_best < 0.01
+            # the same minimum to the noise floor's precision (each fit ends
+            # when the next step promises less than 0.01: ends 0.011 apart)
+            assert e.state in (robust.BEST, robust.SAME) and e.above_best < 0.02
     # the random starts are within 0.6-1.4 times the given start
     for e in ends[1:]:
         for n in FREE:
@@ -276,8 +278,12 @@ def test_strong_root_compliance_is_found_by_improve_without_an_extra_rung():
     assert fit.chi2 / fit.dof <= 1.5
     for name in ("root_flex", "mu_elbow", "mu_tip"):
         assert abs(fit.estimates[name] - truth[name]) < 3 * fit.sigmas[name], name
-    assert "at its best" in ladder["root_flex"].at_best
-    assert "at its best" in str(ladder)
+    # the rung is at its best: either its fit was (the check did not run:
+    # with issue 30's stopping rules the diagnosis' refit reaches chi2 40.3
+    # for 49 dof) or the at-its-best refit made it so
+    step = ladder["root_flex"]
+    assert "at its best" in step.at_best or (step.at_best == "" and
+                                             step.fit.chi2 / step.fit.dof <= 1.0)
 
 
 def test_ten_second_record_is_recovered_at_a_bounded_cost():
