@@ -548,8 +548,11 @@ def test_sigma_missing_is_estimated_when_asked():
     s, sd = fit.sigma_estimates["free:w_tip"]
     assert abs(s - 1e-3) < 3 * sd and 0.05e-3 < sd < 0.2e-3
     ref = beamid.fit(BASE, exps, noisy, free=("rho2",), estimate_sigma=["w_tip"])
-    assert fit.estimates["rho2"] == pytest.approx(ref.estimates["rho2"], rel=1e-6)
-    assert s == pytest.approx(ref.sigma_estimates["free:w_tip"][0], rel=1e-5)
+    # the same minimum from different weights on the way: within the fit's
+    # noise floor (every parameter within 0.1 sigma of the linearized
+    # minimum; issue 30's stopping rules end there, 6e-5 relative apart)
+    assert abs(fit.estimates["rho2"] - ref.estimates["rho2"]) < 0.1 * ref.sigmas["rho2"]
+    assert s == pytest.approx(ref.sigma_estimates["free:w_tip"][0], rel=1e-3)
 
 
 def _deck16(tmp_path, fit_keys="", blank_w=False):

@@ -59,7 +59,9 @@ def test_twenty_starts_reach_the_best_or_say_they_did_not(twenty):
         if e.state == robust.LOCAL:
             assert 1.5 < e.above_best < 1.7 and e.stop == "converged"
         else:
-            assert e.state in (robust.BEST, robust.SAME) and e.above_best < 0.01
+            # the same minimum to the noise floor's precision (each fit ends
+            # when the next step promises less than 0.01: ends 0.011 apart)
+            assert e.state in (robust.BEST, robust.SAME) and e.above_best < 0.02
     # the random starts are within 0.6-1.4 times the given start
     for e in ends[1:]:
         for n in FREE:
@@ -276,8 +278,12 @@ def test_strong_root_compliance_is_found_by_improve_without_an_extra_rung():
     assert fit.chi2 / fit.dof <= 1.5
     for name in ("root_flex", "mu_elbow", "mu_tip"):
         assert abs(fit.estimates[name] - truth[name]) < 3 * fit.sigmas[name], name
-    assert "at its best" in ladder["root_flex"].at_best
-    assert "at its best" in str(ladder)
+    # the rung is at its best: either its fit was (the check did not run:
+    # with issue 30's stopping rules the diagnosis' refit reaches chi2 40.3
+    # for 49 dof) or the at-its-best refit made it so
+    step = ladder["root_flex"]
+    assert "at its best" in step.at_best or (step.at_best == "" and
+                                             step.fit.chi2 / step.fit.dof <= 1.0)
 
 
 def test_ten_second_record_is_recovered_at_a_bounded_cost():
@@ -294,8 +300,34 @@ def test_ten_second_record_is_recovered_at_a_bounded_cost():
     assert fit.converged and fit.chi2 / fit.dof <= 1.5 and len(fit.path) == 4
     for n in FREE:
         assert abs(fit.estimates[n] - TRUTH[n]) < 3 * fit.sigmas[n], n
-    # the whole record's window from the 5 s window's estimates: 14
-    # iterations measured (damped steps of rough phases gaining 0.005-0.06
-    # each, chi2 381: below the relative noise floor's reach); a guard
-    # against growth, not the issue's bound (not reached: docs/workflow_dynamic.md)
-    assert fit.iterations <= 16
+    # the whole record's window from the 5 s window's estimates: 12
+    # iterations measured (14 before the rough windows and the noise-floor
+    # rules of issue 30's cost; damped steps of the accurate phase gaining
+    # 0.002-0.12 each against the floor of 0.01 at chi2 381: the 2-element
+    # mesh is not smooth at that scale); a guard against growth, not the
+    # issue's bound (docs/workflow_dynamic.md, "Long records")
+    assert fit.iterations <= 14
+
+
+def test_long_record_full_fit_starts_at_its_optimum():
+    """Table 16's fit on a 5 s release at 500 Hz (4 elements per beam, data
+    at rtol 1e-11 with sigma 1e-4 m, seed 5, as benchmarks/bench_long_record):
+    the record is grown (1.25 and 2.5 s at the rough tolerance, then 5 s)
+    and the whole record's fit starts near its optimum, so its iterations
+    are bounded: 5 measured (two on the rough model, two rough-Jacobian
+    steps and one accurate step), against 10 before issue 30's changes
+    (sixteen damped trials of steps below the noise floor in one of them)."""
+    t = np.arange(1, 2501) / 500.0
+    rig = {"r": beamid.Release(beamid.TipForce(fy=8.0), rtol=1e-11)}
+    data = beamid.simulate_measurements(TRUTH, rig, ["w_tip", "u_tip"], sigma=1e-4, t=t,
+                                        seed=5, noise=True)
+    rel = {"r": beamid.Release(beamid.TipForce(fy=8.0))}
+    start = TRUTH.replace(mu_elbow=0.015, mu_tip=0.01, rho1=0.5603, rho2=0.5437)
+    fit = beamid.fit(start, rel, data, free=FREE)
+    assert fit.converged and len(fit.path) == 3
+    assert [p.split(",")[1].strip() for p in fit.path] == [
+        "2 iterations", "1 iterations", "5 iterations"]
+    assert fit.iterations == 5
+    assert fit.chi2 == pytest.approx(5057.54, abs=0.01)
+    for n in FREE:
+        assert abs(fit.estimates[n] - TRUTH[n]) < 3 * fit.sigmas[n], n

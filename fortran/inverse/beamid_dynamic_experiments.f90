@@ -1091,7 +1091,7 @@ contains
             end if
             do i = 1, size(self%row_exp)
                 if (self%row_exp(i) /= e) cycle
-                k = findloc(times, tm(i), 1)
+                k = sorted_index(times, tm(i))
                 predictions(i) = y(self%row_oi(i), k)
                 jacobian(i, :) = dy(self%row_oi(i), k, 1:size(wrt))
                 if (self%v0_fit(e)) self%row_dv0(i) = dy(self%row_oi(i), k, size(wrt_e))
@@ -1154,4 +1154,23 @@ contains
             end if
         end subroutine remember
     end subroutine dynamic_evaluate
+
+    !> The index of x in the ascending distinct values `sorted` (which hold
+    !! it): a bisection, so that finding each row's output time costs
+    !! O(log n) on a long record, not O(n) (findloc: quadratic in the rows).
+    pure integer function sorted_index(sorted, x) result(k)
+        real(dp), intent(in) :: sorted(:), x
+        integer :: lo, hi, mid
+        lo = 1
+        hi = size(sorted)
+        do while (lo < hi)
+            mid = (lo + hi)/2
+            if (sorted(mid) < x) then
+                lo = mid + 1
+            else
+                hi = mid
+            end if
+        end do
+        k = lo
+    end function sorted_index
 end module beamid_dynamic_experiments

@@ -434,13 +434,14 @@ contains
         end if
     end function median_of
 
-    !> The distinct values of x in ascending order.
+    !> The distinct values of x in ascending order (a merge sort: the
+    !! output times of a long record's rows, O(n log n) in any row order).
     pure function distinct_sorted(x) result(out)
         real(dp), intent(in) :: x(:)
         real(dp), allocatable :: out(:)
         real(dp) :: v(size(x))
         integer :: i, n
-        v = x(sort_desc(-x))   ! ascending
+        v = ascending(x)
         allocate (out(size(v)))
         n = 0
         do i = 1, size(v)
@@ -452,4 +453,41 @@ contains
         end do
         out = out(:n)
     end function distinct_sorted
+
+    !> x in ascending order: a bottom-up merge sort (runs of width 1, 2,
+    !! 4, ... merged from one buffer into the other).
+    pure function ascending(x) result(v)
+        real(dp), intent(in) :: x(:)
+        real(dp) :: v(size(x))
+        real(dp) :: b(size(x))
+        integer :: n, width, lo, mid, hi, i, j, k
+        n = size(x)
+        v = x
+        width = 1
+        do while (width < n)
+            do lo = 1, n, 2*width
+                mid = min(lo + width - 1, n)
+                hi = min(lo + 2*width - 1, n)
+                i = lo
+                j = mid + 1
+                do k = lo, hi
+                    if (j > hi) then
+                        b(k) = v(i)
+                        i = i + 1
+                    else if (i > mid) then
+                        b(k) = v(j)
+                        j = j + 1
+                    else if (v(j) < v(i)) then
+                        b(k) = v(j)
+                        j = j + 1
+                    else
+                        b(k) = v(i)
+                        i = i + 1
+                    end if
+                end do
+            end do
+            v = b
+            width = 2*width
+        end do
+    end function ascending
 end module beamid_static_experiments

@@ -483,9 +483,10 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
         Grow the record: fit the releases' rows up to a window of about a
         second first, then twice that, ... up to the whole record, each from
         the last window's estimates (``result.path`` lists the windows), so
-        the phase is caught before the whole record is fitted. ``None``
-        (default): on records longer than 4 s; True: on records of 2 s and
-        more; False: never.
+        the phase is caught before the whole record is fitted (the windows
+        before the last at rtol 1e-6, the whole record at the releases' own
+        tolerance). ``None`` (default): on records longer than 4 s; True: on
+        records of 2 s and more; False: never.
     homotopy:
         The friction homotopy (a model with joint friction on releases with
         the sign law): fit on the smooth law mu N v / sqrt(v^2 + vs^2) at
