@@ -148,7 +148,9 @@ def test_bad_modal_names(name, match):
 
 
 def test_modal_kinds_in_a_static_experiment_are_refused():
-    with pytest.raises(beamid.InputError, match=r"unknown quantity 'freq\[1\]'"):
+    # simulated rows get the same row-naming message as a fit's data
+    with pytest.raises(beamid.InputError, match=r"row 1: field quantity = 'freq\[1\]', but "
+                       r"experiment 'F' is static \(only a modal experiment measures freq\)"):
         beamid.simulate_measurements(TRUE, {"F": beamid.TipForce(fy=1.0)}, ["freq[1]"])
     d = beamid.Measurements.from_rows([("F", 0.0, "freq[1]", 0.4, 1e-3)])
     with pytest.raises(beamid.InputError, match="only a modal experiment measures freq"):
