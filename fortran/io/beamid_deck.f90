@@ -696,9 +696,14 @@ contains
             if (nml_given(g, 'wire_length')) then
                 x = 0.0_dp
                 call nml_real(f, g, 'wire_length', x, given, errors)
-                if (.not. (x > 0.05_dp*arm .and. x < arm)) call add_error(errors, label// &
-                    ': wire_length = '//fmt_g(x)//', expected a length between 5 % of the '// &
-                    'arm and the arm ('//fmt_g(arm)//' m)')
+                if (.not. x > 0.0_dp) then
+                    call add_error(errors, label//': wire_length = '//fmt_g(x)// &
+                                   ', expected a length > 0 (m)')
+                else if (x >= arm .and. arm > 0.0_dp) then
+                    call add_error(errors, label//': wire_length = '//fmt_g(x)// &
+                                   ', expected a length shorter than the arm ('//fmt_g(arm)// &
+                                   ' m; a longer wire is slack)')
+                end if
                 if (nml_given(g, 'fx') .or. nml_given(g, 'fy') .or. nml_given(g, 'moment')) &
                     call add_error(errors, label//": kind = 'modal' with wire_length does "// &
                                    "not take fx, fy or moment (the wire holds the arm)")
