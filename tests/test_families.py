@@ -29,7 +29,7 @@ def test_key_table_from_the_core():
                                "fd"]
     assert [k.row for k in keys.values()] == list(range(len(keys)))
     assert _ce.NEXPVAL == len(keys) == 19          # v0, the chain's initial velocity, is 19th
-    assert keys["wire_length"].families == ("static",)
+    assert keys["wire_length"].families == ("static", "modal")   # a wire held in a modal test
     assert keys["elements_per_beam"].families == ("release", "modal")   # the FE families
     assert keys["elements_per_beam"].default == 4.0
     assert keys["burn_in"].families == ("static", "release", "modal")

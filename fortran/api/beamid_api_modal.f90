@@ -24,19 +24,23 @@ contains
     !! wrt and the station arrays hold at least one entry each (f2py passes
     !! no empty arrays): nwrt and nsta say how many are used. spin = (Omega
     !! rad/s, coriolis 0/1): the modes about a steady hub spin (0: none).
-    subroutine api_modal(nbeams, nparams, params, nepb, load, spin, nmodes, nwrt, mwrt, wrt, nsta, &
-                         msta, sta_kind, sta_beam, sta_s, nfree, freq, zeta, damped, q, phi, dq, &
-                         dfreq, dzeta, dphi, shapes, dshapes, code, message)
+    !! wire_length > 0: the modes about a radial wire's equilibrium (the load
+    !! zero), tension its tension at q (N) and dtension dT/dp.
+    subroutine api_modal(nbeams, nparams, params, nepb, load, spin, wire_length, nmodes, nwrt, &
+                         mwrt, wrt, nsta, msta, sta_kind, sta_beam, sta_s, nfree, freq, zeta, &
+                         damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes, tension, &
+                         dtension, code, message)
         !f2py intent(hide) nparams, mwrt, msta
         integer(c_int), intent(in) :: nbeams, nparams, nepb, nmodes, nwrt, mwrt, nsta, msta
         integer(c_int), intent(in) :: nfree
         real(c_double), intent(in) :: params(nparams), load(4), spin(2), sta_s(msta)
+        real(c_double), intent(in) :: wire_length
         integer(c_int), intent(in) :: wrt(mwrt), sta_kind(msta), sta_beam(msta)
         real(c_double), intent(out) :: freq(nmodes), zeta(nmodes), q(nfree), &
                                        phi(nfree, nmodes), dq(nfree, nwrt), &
                                        dfreq(nmodes, nwrt), dzeta(nmodes, nwrt), &
                                        dphi(nfree, nmodes, nwrt), shapes(nsta, nmodes), &
-                                       dshapes(nsta, nmodes, nwrt)
+                                       dshapes(nsta, nmodes, nwrt), tension, dtension(nwrt)
         integer(c_int), intent(out) :: damped, code
         character(len=256), intent(out) :: message
         type(fe_mesh_t) :: mesh
@@ -45,6 +49,7 @@ contains
         type(status_t) :: stat
         integer :: i, j, k
         damped = 0
+        tension = 0.0_c_double
         if (nwrt < 0 .or. nwrt > mwrt .or. nsta < 0 .or. nsta > msta) then
             call set_status(stat, ERR_INPUT, 'api_modal', 'nwrt = '//fmt_int(nwrt)// &
                             ', nsta = '//fmt_int(nsta)//': more than the arrays hold')
@@ -60,6 +65,7 @@ contains
             spec%elements_per_beam = nepb
             spec%spin_rate = spin(1)
             spec%coriolis = spin(2) /= 0.0_c_double
+            spec%wire_length = wire_length
             call modal_solve(nbeams, params, spec, nmodes, wrt(1:nwrt), out, stat)
         end if
         if (stat%code == STATUS_OK) call modal_check_stations(mesh, sta_kind(1:nsta), sta_beam(1:nsta), &
@@ -68,6 +74,8 @@ contains
             freq = out%freq
             zeta = out%zeta
             damped = merge(1, 0, out%damped)
+            tension = out%tension
+            dtension = out%dtension
             q = out%q
             phi = out%phi
             dq = out%dq

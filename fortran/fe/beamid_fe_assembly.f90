@@ -48,6 +48,7 @@ module beamid_fe_assembly
     public :: fe_work_t, fe_work_init, fe_residual, fe_check_dense
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
+    public :: fe_wire_tip, fe_wire_force, fe_wire_jacobian
     public :: fe_expand, fe_node_value, fe_spring_dofs
     public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
@@ -781,6 +782,58 @@ contains
             call band_add(kb, mesh%kl, mesh%ku, idu, idw, -m)
         end if
     end subroutine fe_tip_load_jacobian
+
+    !> Radial wire of length Lw from the tip to the root (Eq. 22, Figure 8),
+    !! in the finite element model: the tip sits at x = (L + u, w) (L the
+    !! undeformed arm, u and w the tip's displacements), the wire holds it on
+    !! the circle |x| = Lw with the tension T, and pulls it with P = -T e,
+    !! e = x/|x| (no moment: Eq. 23's zero tip moment). The constraint
+    !! g(q) = |x| - Lw has the gradient e on (u, w) of the tip and the Hessian
+    !! (I - e e^T)/|x|: the equilibrium is stationary for U(q) + T g(q). This
+    !! returns the free indices iu, iw of the tip's u and w, x and r = |x|.
+    pure subroutine fe_wire_tip(mesh, q, iu, iw, x, r)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:)
+        integer, intent(out) :: iu, iw
+        real(dp), intent(out) :: x(2), r
+        integer :: idw, idu
+        call tip_indices(mesh, iw, idw, iu, idu)
+        x = [mesh%s(mesh%nnode) + q(iu), q(iw)]
+        r = hypot(x(1), x(2))
+    end subroutine fe_wire_tip
+
+    !> Generalized force of the wire at tension T on the free unknowns (as
+    !! fe_tip_load's Q): -T e on the tip's u and w.
+    pure subroutine fe_wire_force(mesh, q, tension, qv)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), tension
+        real(dp), intent(out) :: qv(:)
+        real(dp) :: x(2), r
+        integer :: iu, iw
+        call fe_wire_tip(mesh, q, iu, iw, x, r)
+        qv = 0.0_dp
+        qv(iu) = -tension*x(1)/r
+        qv(iw) = -tension*x(2)/r
+    end subroutine fe_wire_force
+
+    !> kb += scale * dQ/dq of the wire at the fixed tension T: the wire turns
+    !! with the tip, dQ/dx = -T (I - e e^T)/|x| (so the tangent d(NLT - Q)/dq
+    !! gains the wire's geometric stiffness T (I - e e^T)/|x|, a restoring
+    !! stiffness across the wire, none along it).
+    pure subroutine fe_wire_jacobian(mesh, q, tension, scale, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), tension, scale
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp) :: x(2), r, e(2), g
+        integer :: iu, iw
+        call fe_wire_tip(mesh, q, iu, iw, x, r)
+        e = x/r
+        g = -scale*tension/r
+        call band_add(kb, mesh%kl, mesh%ku, iu, iu, g*(1.0_dp - e(1)*e(1)))
+        call band_add(kb, mesh%kl, mesh%ku, iu, iw, -g*e(1)*e(2))
+        call band_add(kb, mesh%kl, mesh%ku, iw, iu, -g*e(1)*e(2))
+        call band_add(kb, mesh%kl, mesh%ku, iw, iw, g*(1.0_dp - e(2)*e(2)))
+    end subroutine fe_wire_jacobian
 
     pure subroutine tip_indices(mesh, iw, idw, iu, idu)
         type(fe_mesh_t), intent(in) :: mesh

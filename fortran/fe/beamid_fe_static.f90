@@ -6,10 +6,12 @@ module beamid_fe_static
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, ERR_NO_CONVERGENCE, &
                              ERR_NUMERIC, fmt_int, fmt_real, set_alloc_error
-    use beamid_lapack, only: solve_banded, sym_gen_eig
+    use beamid_lapack, only: solve_banded, sym_gen_eig, solve_dense
     use beamid_fe_assembly, only: fe_mesh_t, fe_check_dense, fe_load_t, fe_band_rows, &
                                   fe_work_t, fe_work_init, fe_residual, fe_tip_load, &
-                                  fe_stiffness_linear, DOF_W, DOF_U
+                                  fe_stiffness_linear, DOF_W, DOF_U, fe_wire_tip, &
+                                  fe_wire_force, fe_wire_jacobian, fe_band_to_dense, &
+                                  FE_MOMENT_EXACT
     use beamid_band, only: band_scatter, band_to_dense, ldlt_inertia
     use beamid_fe_element, only: FE_NDOF, FE_W, FE_U, fe_hermite
     implicit none
@@ -17,6 +19,7 @@ module beamid_fe_static
 
     public :: fe_newton_opts_t, fe_solve_info_t
     public :: fe_residual, fe_newton, fe_solve_static, fe_path, fe_buckling_load
+    public :: fe_solve_wire, fe_wire_bordered
 
     !> Controls of the Newton iteration and of the load stepping.
     type :: fe_newton_opts_t
@@ -425,5 +428,183 @@ contains
         itip = mesh%free_of(4*(mesh%nnode - 1) + DOF_W)
         if (mode(itip) /= 0.0_dp) mode = mode/mode(itip)
     end subroutine fe_buckling_load
+
+    !> Static equilibrium held by a radial wire of length wire_length from the
+    !! tip to the root (fe_wire_tip): NLT(q) + T e(q) = 0 on the free unknowns
+    !! (e = x/|x| on the tip's u and w), |x| = Lw, with the tension T an
+    !! unknown (the Lagrange multiplier of the constraint; the arc-length
+    !! model's OUT_WIRE_FORCE). Reached by a homotopy: the arm is first bent
+    !! by the exact tip moment M0 that makes a circle of chord Lw (fe_solve_static
+    !! with load steps), then the moment is taken off in steps, (1 - s) M0
+    !! with s = 0 .. 1, each step a bordered Newton solve (fe_wire_bordered) on
+    !! (q, T) started from the last; a step that fails is halved. The wire must
+    !! end taut (T > 0).
+    subroutine fe_solve_wire(mesh, wire_length, q, tension, opts, info, stat)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: wire_length
+        real(dp), intent(out) :: q(:), tension
+        type(fe_newton_opts_t), intent(in) :: opts
+        type(fe_solve_info_t), intent(out) :: info
+        type(status_t), intent(inout) :: stat
+        character(len=*), parameter :: where = 'fe_solve_wire'
+        real(dp), allocatable :: q_try(:)
+        real(dp) :: total, ratio, lo, hi, theta, ei_mean, m0, s, ds, t_try, resid
+        integer :: its, nbisect, it
+        type(status_t) :: inner
+        type(fe_solve_info_t) :: info0
+        type(fe_work_t) :: work
+        tension = 0.0_dp
+        if (size(q) /= mesh%nfree) then
+            call set_status(stat, ERR_INPUT, where, 'q has '//fmt_int(size(q))// &
+                            ' entries, expected '//fmt_int(mesh%nfree))
+            return
+        end if
+        total = mesh%s(mesh%nnode)
+        if (.not. (ieee_is_finite(wire_length) .and. wire_length > 0.05_dp*total .and. &
+                   wire_length < total)) then
+            call set_status(stat, ERR_INPUT, where, 'wire length Lw = '// &
+                            fmt_real(wire_length)//', expected a length between 5 % of the '// &
+                            'arm and the arm ('//fmt_real(total)//' m)')
+            return
+        end if
+        ! the circle of length L and chord Lw: sin(theta/2)/(theta/2) = Lw/L
+        ratio = wire_length/total
+        lo = 0.0_dp
+        hi = 6.283185307179586_dp
+        do it = 1, 100
+            theta = 0.5_dp*(lo + hi)
+            if (sin(0.5_dp*theta)/(0.5_dp*theta) > ratio) then
+                lo = theta
+            else
+                hi = theta
+            end if
+        end do
+        ei_mean = total/sum(mesh%h/mesh%ei)
+        m0 = theta/total*ei_mean
+        call fe_solve_static(mesh, fe_load_t(0.0_dp, 0.0_dp, m0, FE_MOMENT_EXACT), q, &
+                             .false., opts, info0, stat)
+        if (stat%code /= 0) then
+            stat%message = 'the bent start of the radial wire Lw = '// &
+                           fmt_real(wire_length)//': '//trim(stat%message)
+            return
+        end if
+        info%iterations = info0%iterations
+        info%steps = info0%steps
+        call fe_work_init(mesh, work)
+        allocate (q_try(mesh%nfree))
+        s = -1.0_dp     ! s = 0 first: the wire put on at the full moment
+        ds = 1.0_dp
+        nbisect = 0
+        do while (s < 1.0_dp)
+            q_try = q
+            t_try = tension
+            inner = status_t()
+            call fe_wire_bordered(mesh, wire_length, (1.0_dp - min(s + ds, 1.0_dp))*m0, &
+                                  q_try, t_try, opts, its, resid, inner, work)
+            info%iterations = info%iterations + its
+            if (inner%code /= 0) then
+                nbisect = nbisect + 1
+                if (nbisect > opts%max_bisect .or. s < 0.0_dp) then
+                    call set_status(stat, ERR_NO_CONVERGENCE, where, 'radial wire Lw = '// &
+                                    fmt_real(wire_length)//': the moment could not be '// &
+                                    'taken off past '//fmt_real(max(s, 0.0_dp))// &
+                                    ' of the homotopy; last: '//trim(inner%message))
+                    return
+                end if
+                ds = 0.5_dp*ds
+                cycle
+            end if
+            q = q_try
+            tension = t_try
+            if (s < 0.0_dp) then
+                s = 0.0_dp
+                ds = 0.25_dp
+            else
+                s = min(s + ds, 1.0_dp)
+                if (its <= 4) ds = min(2.0_dp*ds, 0.5_dp)
+            end if
+            info%steps = info%steps + 1
+            info%residual = resid
+        end do
+        if (.not. (tension > 0.0_dp)) then
+            call set_status(stat, ERR_NO_CONVERGENCE, where, 'radial wire Lw = '// &
+                            fmt_real(wire_length)//': the equilibrium found has the '// &
+                            'tension '//fmt_real(tension)//' N: no taut-wire shape found')
+        end if
+    end subroutine fe_solve_wire
+
+    !> Bordered Newton on (q, T) for the wire of length wire_length with the
+    !! exact tip moment `moment` beside it: [K_T + T H, e; e^T, 0] (dq, dT) =
+    !! -(NLT - Q_M + T e, |x| - Lw), H = (I - e e^T)/|x| (fe_wire_jacobian),
+    !! dense (the systems are those of a modal test). `work`: fe_work_init's.
+    subroutine fe_wire_bordered(mesh, wire_length, moment, q, tension, opts, iterations, &
+                                residual, stat, work)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: wire_length, moment
+        real(dp), intent(inout) :: q(:), tension
+        type(fe_newton_opts_t), intent(in) :: opts
+        integer, intent(out) :: iterations
+        real(dp), intent(out) :: residual
+        type(status_t), intent(inout) :: stat
+        type(fe_work_t), intent(inout) :: work
+        character(len=*), parameter :: where = 'fe_wire_bordered'
+        real(dp), allocatable :: r(:), jb(:, :), a(:, :), k(:, :), rhs(:, :), qv(:)
+        real(dp) :: x(2), rad, step, turn
+        type(fe_load_t) :: load
+        integer :: n, it, iu, iw
+        n = mesh%nfree
+        load = fe_load_t(0.0_dp, 0.0_dp, moment, FE_MOMENT_EXACT)
+        allocate (r(n), qv(n), jb(fe_band_rows(mesh), n), a(n + 1, n + 1), k(n, n), &
+                  rhs(n + 1, 1))
+        iterations = 0
+        step = huge(1.0_dp)
+        do it = 1, opts%max_iter
+            iterations = it
+            call wire_residual()
+            call fe_wire_jacobian(mesh, q, tension, -1.0_dp, jb)
+            call fe_band_to_dense(jb, mesh%kl, mesh%ku, k)
+            a = 0.0_dp
+            a(1:n, 1:n) = k
+            a(iu, n + 1) = x(1)/rad
+            a(iw, n + 1) = x(2)/rad
+            a(n + 1, iu) = x(1)/rad
+            a(n + 1, iw) = x(2)/rad
+            rhs(1:n, 1) = -r
+            rhs(n + 1, 1) = -(rad - wire_length)
+            call solve_dense(a, rhs, stat)
+            if (stat%code /= 0) return
+            turn = max_slope_change(mesh, rhs(1:n, 1))
+            if (turn > MAX_TURN) rhs(:, 1) = rhs(:, 1)*(MAX_TURN/turn)
+            q = q + rhs(1:n, 1)
+            tension = tension + rhs(n + 1, 1)
+            step = maxval(abs(rhs(1:n, 1)))
+            if (.not. ieee_is_finite(step) .or. step > 1.0e6_dp) then
+                call set_status(stat, ERR_NUMERIC, where, 'Newton step became '// &
+                                fmt_real(step)//' at iteration '//fmt_int(it))
+                return
+            end if
+            if (step <= opts%tol*(1.0_dp + maxval(abs(q))) .and. &
+                abs(rhs(n + 1, 1)) <= opts%tol*(1.0_dp + abs(tension))) then
+                call wire_residual()
+                residual = max(maxval(abs(r)), abs(rad - wire_length))
+                return
+            end if
+        end do
+        call wire_residual()
+        residual = max(maxval(abs(r)), abs(rad - wire_length))
+        call set_status(stat, ERR_NO_CONVERGENCE, where, 'no convergence in '// &
+                        fmt_int(opts%max_iter)//' iterations: last step '// &
+                        fmt_real(step)//', residual '//fmt_real(residual)// &
+                        ', tolerance '//fmt_real(opts%tol))
+    contains
+        !> r = NLT - Q_M - Q_wire and jb its Jacobian at fixed T without the
+        !! wire's part; x, rad of the tip.
+        subroutine wire_residual()
+            call fe_residual(mesh, load, q, r, jb, work)
+            call fe_wire_force(mesh, q, tension, qv)
+            r = r - qv
+            call fe_wire_tip(mesh, q, iu, iw, x, rad)
+        end subroutine wire_residual
+    end subroutine fe_wire_bordered
 
 end module beamid_fe_static

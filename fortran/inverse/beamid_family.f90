@@ -88,7 +88,7 @@ module beamid_family
         spec_key_t('fx', EV_FX, BOTH, 0.0_dp, 'tip force along x (N)'), &
         spec_key_t('fy', EV_FY, BOTH, 0.0_dp, 'tip force along y (N)'), &
         spec_key_t('moment', EV_MOMENT, BOTH, 0.0_dp, 'tip moment (N m)'), &
-        spec_key_t('wire_length', EV_WIRE_LENGTH, FAM_STATIC, 0.0_dp, &
+        spec_key_t('wire_length', EV_WIRE_LENGTH, FAM_STATIC + FAM_MODAL, 0.0_dp, &
                    'radial wire length (m; kind 2)'), &
         spec_key_t('elements_per_beam', EV_NEPB, FE_FAMS, 4.0_dp, &
                    'finite elements per beam'), &

@@ -14,9 +14,24 @@
 !! the modal model leaves it out, so mu_* have a zero column. The FE model is
 !! the exact elastica: axial_coupling (the arc-length model's switch) has no
 !! effect either, nor have the motor parameters (no motor in a modal test).
-!! A radial wire is a constraint the FE model does not carry, and the tip
-!! moment of Eq. 78 is not conservative (its tangent is unsymmetric): both
-!! are refused; a tip moment takes the exact form (FE_MOMENT_EXACT).
+!! The tip moment of Eq. 78 is not conservative (its tangent is
+!! unsymmetric): it is refused; a tip moment takes the exact form
+!! (FE_MOMENT_EXACT).
+!!
+!! About a radial wire (wire_length > 0, Eq. 22, fe_solve_wire): the wire
+!! stays on during the test, inextensible and taut, so the tip moves on the
+!! circle |x| = Lw: the modes are those of the constrained problem. With T
+!! the tension at q*, e = x/|x| the wire's direction at the tip and
+!! H = (I - e e^T)/|x| on the tip's (u, w), the stiffness is K_T + T H
+!! (the wire's geometric stiffness: the Hessian of U + T g, g = |x| - Lw)
+!! and the motion keeps e^T dx = 0. One tip unknown is eliminated, q = Z y
+!! (the one of the larger |e| component, j: q_j = -(e_k/e_j) q_k), and the
+!! modes of (Z^T K Z, Z^T M Z, Z^T C Z) are sought; phi = Z y. The model has
+!! n - 1 modes. Sensitivities: (dq*, dT) from the bordered tangent
+!! [K_T + T H, e; e^T, 0] (dq*, dT) = (-dR/dp, 0); dK gains dT H; Z moves
+!! with the tip (dZ from dq*), so dK_r = Z^T dK Z + dZ^T K Z + Z^T K dZ
+!! (likewise M, C), and dphi = dZ y + Z dy with dy from Nelson's method on
+!! the reduced problem.
 !!
 !! Undamped (C = 0): K_T phi = lambda M phi (dsygv), phi^T M phi = 1,
 !! frequencies sqrt(lambda) / (2 pi) in Hz, ascending: mode k is the k-th.
@@ -67,7 +82,9 @@ module beamid_modal
     use beamid_fe_assembly, only: fe_load_t, fe_mesh_t, fe_band_rows, fe_mass, &
                                   fe_tip_load_jacobian, fe_internal_force, fe_band_to_dense, &
                                   fe_check_dense, FE_MOMENT_EXACT
-    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static
+    use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static, &
+                                fe_solve_wire
+    use beamid_fe_assembly, only: fe_wire_tip, fe_wire_jacobian
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN
     use beamid_lapack, only: sym_gen_eig, gen_eig, solve_dense
     use beamid_hub, only: hub_forcing_t, hub_setup
@@ -103,6 +120,9 @@ module beamid_modal
         real(dp) :: spin_rate = 0.0_dp
         !> with a spin: keep the Coriolis (gyroscopic) coupling
         logical :: coriolis = .true.
+        !> radial wire length Lw (m) held during the test (0: no wire; then
+        !! `load` must be zero)
+        real(dp) :: wire_length = 0.0_dp
     end type modal_spec_t
 
     !> What modal_solve returns; mode arrays hold the first nmodes modes.
@@ -125,7 +145,22 @@ module beamid_modal
         integer, allocatable :: wrt_thick(:)
         !> the step of the directional differences per parameter (modal_station_sens)
         real(dp), allocatable :: hdir(:)
+        !> the wire's tension T at q* (N; 0 without a wire) and dT/dp (nwrt)
+        real(dp) :: tension = 0.0_dp
+        real(dp), allocatable :: dtension(:)
     end type modal_out_t
+
+    !> The constraint of a radial wire on the modal problem: q = z y.
+    type :: wire_red_t
+        logical :: on = .false.
+        real(dp) :: tension = 0.0_dp
+        integer :: iu = 0, iw = 0, j = 0, ko = 0   !< tip u, w; eliminated, kept
+        integer :: col_ko = 0                       !< column of ko in z
+        real(dp) :: x(2) = 0.0_dp, rad = 0.0_dp
+        real(dp), allocatable :: z(:, :)            !< (n, n - 1)
+        real(dp), allocatable :: kr(:, :), mr(:, :), cr(:, :), y(:, :)
+        complex(dp), allocatable :: psir(:, :)
+    end type wire_red_t
 
 contains
 
@@ -191,11 +226,13 @@ contains
 
     !> Dense K_T (with the tip moment's load stiffness), M(q) and C at rest,
     !! and the internal force NLT(q), at q.
-    subroutine modal_matrices(sys, load, q, k, m, c, nlt)
+    subroutine modal_matrices(sys, load, q, k, m, c, nlt, tension)
         type(dyn_system_t), intent(in) :: sys
         type(fe_load_t), intent(in) :: load
         real(dp), intent(in) :: q(:)
         real(dp), intent(out) :: k(:, :), m(:, :), c(:, :), nlt(:)
+        !> a radial wire's tension: K_T gains its geometric stiffness T H
+        real(dp), intent(in), optional :: tension
         real(dp), allocatable :: kb(:, :), cb(:, :), v(:), b(:), p(:), d(:)
         real(dp) :: x(0), e
         integer :: n
@@ -204,6 +241,9 @@ contains
                   p(n), d(n), source=0.0_dp)
         call dyn_jacobian(sys, 0.0_dp, q, v, x, kb, cb, b, p, d, e)
         call fe_tip_load_jacobian(sys%mesh, q, load, -1.0_dp, kb)
+        if (present(tension)) then
+            if (tension /= 0.0_dp) call fe_wire_jacobian(sys%mesh, q, tension, -1.0_dp, kb)
+        end if
         call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, k)
         call fe_band_to_dense(cb, sys%mesh%kl, sys%mesh%ku, c)
         call fe_mass(sys%mesh, q, .true., kb)
@@ -236,6 +276,28 @@ contains
                             'symmetric, so the modes about it are not those of a '// &
                             'conservative system; expected moment_form = 1 (exact)')
             return
+        end if
+        if (spec%wire_length /= 0.0_dp) then
+            if (.not. (ieee_is_finite(spec%wire_length) .and. spec%wire_length > 0.0_dp)) then
+                call set_status(stat, ERR_INPUT, where, 'wire_length = '// &
+                                fmt_real(spec%wire_length)//' m, expected a positive length '// &
+                                '(or 0: no wire)')
+                return
+            end if
+            if (spec%load%fx /= 0.0_dp .or. spec%load%fy /= 0.0_dp .or. &
+                spec%load%moment /= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'a radial wire (wire_length = '// &
+                                fmt_real(spec%wire_length)//' m) with a tip load: expected '// &
+                                'one or the other')
+                return
+            end if
+            if (spec%spin_rate /= 0.0_dp) then
+                call set_status(stat, ERR_INPUT, where, 'a radial wire (wire_length = '// &
+                                fmt_real(spec%wire_length)//' m) with spin_rate = '// &
+                                fmt_real(spec%spin_rate)//' rad/s: expected no spin about a '// &
+                                'wired equilibrium')
+                return
+            end if
         end if
         if (.not. ieee_is_finite(spec%spin_rate)) then
             call set_status(stat, ERR_INPUT, where, 'spin_rate = '//fmt_real(spec%spin_rate)// &
@@ -286,7 +348,8 @@ contains
         real(dp), allocatable :: k(:, :), m(:, :), c(:, :), nlt(:), vec(:, :), g(:, :)
         complex(dp), allocatable :: psi(:, :), s(:)
         type(hub_forcing_t) :: hub
-        integer :: n, nw, i
+        type(wire_red_t) :: wire
+        integer :: n, nw, i, nm
         logical :: spin
         call modal_check(nbeams, params, spec, nmodes, wrt, stat)
         if (stat%code /= STATUS_OK) return
@@ -295,16 +358,18 @@ contains
         call modal_system(nbeams, params, spec%elements_per_beam, sys, stat)
         if (stat%code /= STATUS_OK) return
         n = sys%n
-        if (nmodes > n) then
+        wire%on = spec%wire_length > 0.0_dp
+        nm = merge(n - 1, n, wire%on)
+        if (nmodes > nm) then
             call set_status(stat, ERR_INPUT, where, 'mode '//fmt_int(nmodes)//' asked, but '// &
                             'the model of '//fmt_int(spec%elements_per_beam)// &
-                            ' elements per beam has '//fmt_int(n)//' modes')
+                            ' elements per beam has '//fmt_int(nm)//' modes')
             return
         end if
         call fe_check_dense(2*n, where, stat)
         if (stat%code /= STATUS_OK) return
         nw = size(wrt)
-        out%n = n
+        out%n = nm
         out%nmodes = nmodes
         out%thickness = chain%thickness
         allocate (out%wrt_thick(nw), source=0)
@@ -314,10 +379,15 @@ contains
         end do
         allocate (out%q(n), out%lambda(n), out%phi(n, nmodes), out%freq(nmodes), &
                   out%zeta(nmodes), out%dq(n, nw), out%dfreq(nmodes, nw), &
-                  out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), out%hdir(nw), source=0.0_dp)
-        allocate (k(n, n), m(n, n), c(n, n), nlt(n), vec(n, n))
+                  out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), out%hdir(nw), &
+                  out%dtension(nw), source=0.0_dp)
+        allocate (k(n, n), m(n, n), c(n, n), nlt(n), vec(nm, nm))
         out%q = 0.0_dp
-        call fe_solve_static(sys%mesh, spec%load, out%q, .false., opts, info, stat)
+        if (wire%on) then
+            call fe_solve_wire(sys%mesh, spec%wire_length, out%q, out%tension, opts, info, stat)
+        else
+            call fe_solve_static(sys%mesh, spec%load, out%q, .false., opts, info, stat)
+        end if
         if (stat%code /= STATUS_OK) return
         spin = spec%spin_rate /= 0.0_dp
         allocate (g(n, n), source=0.0_dp)
@@ -328,29 +398,89 @@ contains
             call spin_equilibrium(sys, hub, spec%load, out%q, stat)
             if (stat%code /= STATUS_OK) return
         end if
-        call modal_matrices(sys, spec%load, out%q, k, m, c, nlt)
+        call modal_matrices(sys, spec%load, out%q, k, m, c, nlt, out%tension)
         out%damped = any(c /= 0.0_dp)
         if (spin) then
             call spin_matrices(sys, hub, out%q, k, g)
             if (.not. spec%coriolis) g = 0.0_dp
         end if
-        call undamped_modes(k, m, out%lambda, vec, stat)
-        if (stat%code /= STATUS_OK) return
-        out%phi = vec(:, 1:nmodes)
-        out%freq = sqrt(out%lambda(1:nmodes))/TWO_PI
         allocate (s(nmodes), psi(n, nmodes))
-        if (out%damped .or. any(g /= 0.0_dp)) then
-            call damped_modes(k, m, c + g, out%phi, s, psi, stat)
+        if (wire%on) then
+            wire%tension = out%tension
+            call wire_reduction(sys, out%q, wire)
+            wire%kr = matmul(transpose(wire%z), matmul(k, wire%z))
+            wire%mr = matmul(transpose(wire%z), matmul(m, wire%z))
+            wire%cr = matmul(transpose(wire%z), matmul(c, wire%z))
+            call undamped_modes(wire%kr, wire%mr, out%lambda(1:nm), vec, stat)
             if (stat%code /= STATUS_OK) return
-            out%freq = abs(s)/TWO_PI
-            if (out%damped) out%zeta = -real(s, dp)/abs(s)
+            wire%y = vec(:, 1:nmodes)
+            out%phi = matmul(wire%z, wire%y)
+            out%freq = sqrt(out%lambda(1:nmodes))/TWO_PI
+            allocate (wire%psir(nm, nmodes))
+            if (out%damped) then
+                call damped_modes(wire%kr, wire%mr, wire%cr, wire%y, s, wire%psir, stat)
+                if (stat%code /= STATUS_OK) return
+                psi = matmul(wire%z, wire%psir)
+                out%freq = abs(s)/TWO_PI
+                out%zeta = -real(s, dp)/abs(s)
+            end if
+        else
+            call undamped_modes(k, m, out%lambda, vec, stat)
+            if (stat%code /= STATUS_OK) return
+            out%phi = vec(:, 1:nmodes)
+            out%freq = sqrt(out%lambda(1:nmodes))/TWO_PI
+            if (out%damped .or. any(g /= 0.0_dp)) then
+                call damped_modes(k, m, c + g, out%phi, s, psi, stat)
+                if (stat%code /= STATUS_OK) return
+                out%freq = abs(s)/TWO_PI
+                if (out%damped) out%zeta = -real(s, dp)/abs(s)
+            end if
         end if
         do i = 1, nw
             call modal_sensitivity(chain, sys, spec%load, params, wrt(i), k, m, c, out, s, &
-                                   psi, i, stat)
+                                   psi, i, wire, stat)
             if (stat%code /= STATUS_OK) return
         end do
     end subroutine modal_solve
+
+    !> The elimination q = z y of the wire's constraint e^T dx = 0 at the tip
+    !! of q: the tip unknown j of the larger |e| component follows the other,
+    !! ko: q_j = -(x_ko / x_j) q_ko.
+    subroutine wire_reduction(sys, q, wire)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:)
+        type(wire_red_t), intent(inout) :: wire
+        integer :: n, i, col
+        n = sys%n
+        call fe_wire_tip(sys%mesh, q, wire%iu, wire%iw, wire%x, wire%rad)
+        if (abs(wire%x(2)) >= abs(wire%x(1))) then
+            wire%j = wire%iw
+            wire%ko = wire%iu
+        else
+            wire%j = wire%iu
+            wire%ko = wire%iw
+        end if
+        allocate (wire%z(n, n - 1), source=0.0_dp)
+        col = 0
+        do i = 1, n
+            if (i == wire%j) cycle
+            col = col + 1
+            wire%z(i, col) = 1.0_dp
+            if (i == wire%ko) wire%col_ko = col
+        end do
+        wire%z(wire%j, wire%col_ko) = -wire_ratio(wire, wire%x)
+    end subroutine wire_reduction
+
+    !> x_ko / x_j of the tip position x (x(1) along u, x(2) along w).
+    pure real(dp) function wire_ratio(wire, x) result(ratio)
+        type(wire_red_t), intent(in) :: wire
+        real(dp), intent(in) :: x(2)
+        if (wire%j == wire%iw) then
+            ratio = x(1)/x(2)
+        else
+            ratio = x(2)/x(1)
+        end if
+    end function wire_ratio
 
     !> The equilibrium in the hub frame turning at hub%ws: Newton on
     !! NLT(q) - Q_tip(q) - F_hub(q) = 0 from q (the static equilibrium under
@@ -476,7 +606,7 @@ contains
 
     !> Derivatives with respect to parameter `index` (column j of out).
     subroutine modal_sensitivity(chain, sys, load, params, index, k, m, c, out, s, psi, j, &
-                                 stat)
+                                 wire, stat)
         type(chain_t), intent(in) :: chain
         type(dyn_system_t), intent(in) :: sys
         type(fe_load_t), intent(in) :: load
@@ -484,8 +614,11 @@ contains
         integer, intent(in) :: index, j
         type(modal_out_t), intent(inout) :: out
         complex(dp), intent(in) :: s(:), psi(:, :)
+        type(wire_red_t), intent(in) :: wire
         type(status_t), intent(inout) :: stat
         type(dyn_system_t) :: sys2
+        real(dp), allocatable :: dz(:, :), dkr(:, :), dmr(:, :), dcr(:, :), dy(:)
+        real(dp) :: dx(2), dratio, e(2), hw(2, 2)
         real(dp), allocatable :: p2(:), k2(:, :), m2(:, :), c2(:, :), f1(:), f2(:), dk(:, :), &
                                  dm(:, :), dc(:, :), kk(:, :), rhs(:, :), kp(:, :), mp(:, :), &
                                  cp(:, :), km(:, :), mmn(:, :), cm(:, :), fx(:)
@@ -515,7 +648,7 @@ contains
         end if
         call modal_system(chain%nbeams, p2, sys%mesh%nel/chain%nbeams, sys2, stat)
         if (stat%code /= STATUS_OK) return
-        call modal_matrices(sys2, load, out%q, k2, m2, c2, f2)
+        call modal_matrices(sys2, load, out%q, k2, m2, c2, f2, out%tension)
         call fe_internal_force(sys%mesh, out%q, f1)
         if (effect == MP_INVERSE) then
             ! X = A/p + B: X(p) - X(2p) = A/(2p), dX/dp = -A/p^2 = -(2/p)(X(p) - X(2p))
@@ -529,23 +662,78 @@ contains
             dc = scale*(c2 - c)
             f2 = scale*(f2 - f1)
         end if
-        ! the equilibrium moves: K_T dq = -dR/dp (the load does not depend on p)
-        kk = k
-        allocate (rhs(n, 1))
-        rhs(:, 1) = -f2
+        ! the equilibrium moves: K_T dq = -dR/dp (the load does not depend on p);
+        ! with a wire, the bordered tangent gives (dq, dT) on the circle
+        if (wire%on) then
+            allocate (kk(n + 1, n + 1), rhs(n + 1, 1), source=0.0_dp)
+            kk(1:n, 1:n) = k
+            kk(wire%iu, n + 1) = wire%x(1)/wire%rad
+            kk(wire%iw, n + 1) = wire%x(2)/wire%rad
+            kk(n + 1, 1:n) = kk(1:n, n + 1)
+        else
+            kk = k
+            allocate (rhs(n, 1), source=0.0_dp)
+        end if
+        rhs(1:n, 1) = -f2
         call solve_dense(kk, rhs, stat)
         if (stat%code /= STATUS_OK) return
-        out%dq(:, j) = rhs(:, 1)
+        out%dq(:, j) = rhs(1:n, 1)
+        if (wire%on) out%dtension(j) = rhs(n + 1, 1)
         h = 0.0_dp
-        if (maxval(abs(rhs(:, 1))) > 0.0_dp) then
-            h = DIR_STEP*max(1.0_dp, maxval(abs(out%q)))/maxval(abs(rhs(:, 1)))
-            call modal_matrices(sys, load, out%q + h*rhs(:, 1), kp, mp, cp, fx)
-            call modal_matrices(sys, load, out%q - h*rhs(:, 1), km, mmn, cm, fx)
+        if (maxval(abs(rhs(1:n, 1))) > 0.0_dp) then
+            h = DIR_STEP*max(1.0_dp, maxval(abs(out%q)))/maxval(abs(rhs(1:n, 1)))
+            call modal_matrices(sys, load, out%q + h*rhs(1:n, 1), kp, mp, cp, fx, out%tension)
+            call modal_matrices(sys, load, out%q - h*rhs(1:n, 1), km, mmn, cm, fx, out%tension)
             dk = dk + (kp - km)/(2.0_dp*h)
             dm = dm + (mp - mmn)/(2.0_dp*h)
             dc = dc + (cp - cm)/(2.0_dp*h)
         end if
         out%hdir(j) = h
+        if (wire%on) then
+            ! the tension's change: dT H
+            e = wire%x/wire%rad
+            hw(1, :) = [1.0_dp - e(1)*e(1), -e(1)*e(2)]
+            hw(2, :) = [-e(1)*e(2), 1.0_dp - e(2)*e(2)]
+            hw = out%dtension(j)*hw/wire%rad
+            dk(wire%iu, wire%iu) = dk(wire%iu, wire%iu) + hw(1, 1)
+            dk(wire%iu, wire%iw) = dk(wire%iu, wire%iw) + hw(1, 2)
+            dk(wire%iw, wire%iu) = dk(wire%iw, wire%iu) + hw(2, 1)
+            dk(wire%iw, wire%iw) = dk(wire%iw, wire%iw) + hw(2, 2)
+            ! the constraint turns with the tip: dz, and the reduced derivatives
+            dx = [out%dq(wire%iu, j), out%dq(wire%iw, j)]
+            if (wire%j == wire%iw) then
+                dratio = (dx(1)*wire%x(2) - wire%x(1)*dx(2))/wire%x(2)**2
+            else
+                dratio = (dx(2)*wire%x(1) - wire%x(2)*dx(1))/wire%x(1)**2
+            end if
+            allocate (dz(n, n - 1), source=0.0_dp)
+            dz(wire%j, wire%col_ko) = -dratio
+            dkr = reduced_derivative(wire%z, dz, k, dk)
+            dmr = reduced_derivative(wire%z, dz, m, dm)
+            dcr = reduced_derivative(wire%z, dz, c, dc)
+            allocate (dy(n - 1))
+            do i = 1, out%nmodes
+                lam = out%lambda(i)
+                associate (yy => wire%y(:, i))
+                    dlam = dot_product(yy, matmul(dkr, yy) - lam*matmul(dmr, yy))
+                    out%dfreq(i, j) = dlam/(2.0_dp*sqrt(lam))/TWO_PI
+                    call nelson(wire%kr, wire%mr, dkr, dmr, lam, dlam, yy, dy, stat)
+                    if (stat%code /= STATUS_OK) return
+                    out%dphi(:, i, j) = matmul(dz, yy) + matmul(wire%z, dy)
+                end associate
+                if (out%damped) then
+                    associate (z => wire%psir(:, i), si => s(i))
+                        num = sum(z*matmul(si*si*dmr + si*dcr + dkr, z))
+                        den = sum(z*matmul(2.0_dp*si*wire%mr + wire%cr, z))
+                        ds = -num/den
+                        out%dfreq(i, j) = real(conjg(si)*ds, dp)/abs(si)/TWO_PI
+                        out%dzeta(i, j) = -(real(ds, dp)*abs(si) - real(si, dp)* &
+                                            (real(conjg(si)*ds, dp)/abs(si)))/abs(si)**2
+                    end associate
+                end if
+            end do
+            return
+        end if
         do i = 1, out%nmodes
             lam = out%lambda(i)
             associate (ph => out%phi(:, i))
@@ -566,6 +754,15 @@ contains
             end if
         end do
     end subroutine modal_sensitivity
+
+    !> d(z^T a z) = z^T da z + dz^T a z + z^T a dz.
+    pure function reduced_derivative(z, dz, a, da) result(dr)
+        real(dp), intent(in) :: z(:, :), dz(:, :), a(:, :), da(:, :)
+        real(dp), allocatable :: dr(:, :), az(:, :)
+        az = matmul(a, z)
+        dr = matmul(transpose(z), matmul(da, z)) + matmul(transpose(dz), az)
+        dr = dr + transpose(matmul(transpose(dz), az))
+    end function reduced_derivative
 
     !> Nelson's method for the derivative of the mass-normalized mode phi of
     !! the distinct eigenvalue lam.

@@ -1,5 +1,5 @@
 !> Modal experiments (issue 27): the experiment family of a modal test, the
-!! arm held by a tip load (none, a force, an exact moment) and its modes
+!! arm held by a tip load (none, a force, an exact moment) or a radial wire, and its modes
 !! about that equilibrium measured (beamid_modal). Rows are `freq[k]` (Hz),
 !! `damping[k]` (ratio; damped models only) and mode shape entries
 !! `shape_n@b:s[k]`, `shape_t@...`, `shape_psi@...`, `shape_strain@...`,
@@ -18,7 +18,7 @@ module beamid_modal_experiments
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, fmt_int, fmt_real
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_family, only: experiment_family_t, family_input_t, EV_FX, EV_FY, EV_MOMENT, &
-                             EV_NEPB, EV_FD
+                             EV_NEPB, EV_FD, EV_WIRE_LENGTH
     use beamid_observations, only: observation_t, observation_why_not, why_detail, kind_label, &
                                    obs_label, FAM_MODAL, WHY_OK, K_FREQ, K_DAMPING, &
                                    K_SHAPE_N, K_SHAPE_T, K_SHAPE_PSI, K_SHAPE_STRAIN
@@ -42,6 +42,8 @@ module beamid_modal_experiments
     !> One modal experiment: the static load held during the test and the mesh.
     type :: modal_exp_t
         real(dp) :: fx = 0.0_dp, fy = 0.0_dp, moment = 0.0_dp
+        !> a radial wire's length (m; 0: none), held on during the test
+        real(dp) :: wire_length = 0.0_dp
         integer :: nepb = 4
         !> central-difference columns (the benchmark's baseline, EV_FD = 1)
         logical :: fd = .false.
@@ -58,7 +60,8 @@ module beamid_modal_experiments
 
 contains
 
-    !> Build from the value columns (fx, fy, moment, elements_per_beam, fd).
+    !> Build from the value columns (fx, fy, moment, wire_length,
+    !! elements_per_beam, fd).
     subroutine modal_build(self, input, stat)
         class(modal_experiments_t), intent(inout) :: self
         type(family_input_t), intent(in) :: input
@@ -69,6 +72,7 @@ contains
         do e = 1, size(input%kinds)
             associate (v => input%values(:, e))
                 mods(e) = modal_exp_t(fx=v(EV_FX), fy=v(EV_FY), moment=v(EV_MOMENT), &
+                                      wire_length=v(EV_WIRE_LENGTH), &
                                       nepb=nint(v(EV_NEPB)), fd=nint(v(EV_FD)) == 1)
             end associate
         end do
@@ -257,6 +261,7 @@ contains
         spec%elements_per_beam = self%exps(e)%nepb
         spec%load = fe_load_t(self%exps(e)%fx, self%exps(e)%fy, self%exps(e)%moment, &
                               FE_MOMENT_EXACT)
+        spec%wire_length = self%exps(e)%wire_length
         nmodes = maxval(self%row_obs(rows)%mode)
         call modal_solve(self%nbeams, params, spec, nmodes, wrt, out, stat)
         if (stat%code /= STATUS_OK) then

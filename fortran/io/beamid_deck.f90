@@ -32,7 +32,7 @@ module beamid_deck
                               FAMILY_MODAL
     use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
     use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
-                              EV_METHOD, EV_LAW, EV_RTOL, EV_DT
+                              EV_WIRE_LENGTH, EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_deck_history, only: read_history_groups
     use beamid_family, only: EXP_MODAL
@@ -691,14 +691,28 @@ contains
                     ": kind = 'modal' does not take "//trim(dyn_keys(i))// &
                     " (only kind = 'release' does)")
             end do
-            if (nml_given(g, 'wire_length')) call add_error(errors, label// &
-                ": kind = 'modal' does not take wire_length (the finite element model has "// &
-                "no wire)")
             load%kind = LOAD_TIP
             call nml_real(f, g, 'fx', load%fx, given, errors)
             call nml_real(f, g, 'fy', load%fy, given, errors)
             call nml_real(f, g, 'moment', load%moment, given, errors)
             ev(EV_FX:EV_MOMENT) = [load%fx, load%fy, load%moment]
+            ! a radial wire held during the test (beamid_modal: the tip on its circle)
+            if (nml_given(g, 'wire_length')) then
+                x = 0.0_dp
+                call nml_real(f, g, 'wire_length', x, given, errors)
+                if (.not. x > 0.0_dp) then
+                    call add_error(errors, label//': wire_length = '//fmt_g(x)// &
+                                   ', expected a length > 0 (m)')
+                else if (x >= arm .and. arm > 0.0_dp) then
+                    call add_error(errors, label//': wire_length = '//fmt_g(x)// &
+                                   ', expected a length shorter than the arm ('//fmt_g(arm)// &
+                                   ' m; a longer wire is slack)')
+                end if
+                if (nml_given(g, 'fx') .or. nml_given(g, 'fy') .or. nml_given(g, 'moment')) &
+                    call add_error(errors, label//": kind = 'modal' with wire_length does "// &
+                                   "not take fx, fy or moment (the wire holds the arm)")
+                ev(EV_WIRE_LENGTH) = x
+            end if
             nepb = 4
             call nml_int(f, g, 'elements_per_beam', nepb, given, errors)
             if (nepb < 1) call add_error(errors, label//': elements_per_beam = '// &

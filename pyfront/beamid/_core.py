@@ -123,15 +123,17 @@ def fe_modes(nbeams: int, params: np.ndarray, nepb: int, rotary: int, nfree: int
 
 def modal(nbeams: int, params: np.ndarray, nepb: int, loads: np.ndarray, nmodes: int,
           wrt: np.ndarray, kinds: np.ndarray, beams: np.ndarray, s: np.ndarray, nfree: int,
-          spin: tuple[float, bool] = (0.0, True)):
-    """(freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes) of the
-    modes about the static equilibrium (beamid_modal); ``spin`` = (Omega rad/s,
-    coriolis): about a steady hub spin."""
+          spin: tuple[float, bool] = (0.0, True), wire_length: float = 0.0):
+    """(freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes, tension,
+    dtension) of the modes about the static equilibrium (beamid_modal); ``spin`` =
+    (Omega rad/s, coriolis): about a steady hub spin; ``wire_length`` > 0: about a
+    radial wire's equilibrium (its tension and dT/dp)."""
     def pad(a: np.ndarray) -> np.ndarray:   # f2py does not pass empty arrays
         return a if a.size else np.zeros(1, dtype=a.dtype)
 
     spin_arr = np.array([float(spin[0]), 1.0 if spin[1] else 0.0], dtype=np.float64)
-    return _call(_modal.api_modal, nbeams, params, nepb, loads, spin_arr, nmodes, wrt.size,
+    return _call(_modal.api_modal, nbeams, params, nepb, loads, spin_arr, float(wire_length),
+                 nmodes, wrt.size,
                  pad(wrt),
                  s.size, pad(kinds), pad(beams), pad(s), nfree)
 

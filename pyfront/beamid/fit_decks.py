@@ -90,8 +90,9 @@ def load(kind: int, spec) -> Load | Release | Modal:
         values = [float(x) for x in spec]
         spec = {k: values[sk.row] for k, sk in _core.spec_keys().items() if sk.row < len(values)}
     if kind == LOAD_MODAL:
-        return Modal(TipLoad(spec.get("fx", 0.0), spec.get("fy", 0.0), spec.get("moment", 0.0)),
-                     elements_per_beam=int(round(spec.get("elements_per_beam", 4))))
+        held = (RadialWire(spec["wire_length"]) if spec.get("wire_length", 0.0) > 0.0 else
+                TipLoad(spec.get("fx", 0.0), spec.get("fy", 0.0), spec.get("moment", 0.0)))
+        return Modal(held, elements_per_beam=int(round(spec.get("elements_per_beam", 4))))
     if kind == LOAD_RELEASE:
         keys = _core.spec_keys()
         return Release.from_spec({k: v for k, v in spec.items() if "release" in keys[k].families})

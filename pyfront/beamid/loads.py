@@ -251,8 +251,9 @@ LOAD_MODAL = 4
 class Modal:
     """A modal test (issue 27, docs/modal.md): the finite element model held in
     static equilibrium under the tip ``load`` (None: the straight arm; a
-    TipForce, a TipMoment taken in its exact form, or their sum), its modes
-    about that equilibrium measured. Its data rows have t = 0 and the
+    TipForce, a TipMoment taken in its exact form, or their sum; or a
+    RadialWire left on during the test, the tip then moving on the wire's
+    circle), its modes about that equilibrium measured. Its data rows have t = 0 and the
     quantities ``freq[k]`` (Hz), ``damping[k]`` (damped models) and mode shape
     entries ``shape_n@b:s[k]`` (``shape_t``, ``shape_psi``, ``shape_strain``),
     k the k-th lowest mode of the model; the shape entries of one mode are
@@ -261,20 +262,23 @@ class Modal:
     measured entry first).
     """
 
-    load: TipLoad | None = None
+    load: TipLoad | RadialWire | None = None
     elements_per_beam: int = 4
 
     def __post_init__(self) -> None:
         load = TipLoad() if self.load is None else self.load
-        if not isinstance(load, TipLoad):
-            raise InputError(f"Modal: load = {self.load!r}, expected None, a TipForce or a "
-                             "TipMoment (a radial wire is not in the finite element model)")
+        if not isinstance(load, (TipLoad, RadialWire)):
+            raise InputError(f"Modal: load = {self.load!r}, expected None, a TipForce, a "
+                             "TipMoment or a RadialWire")
         object.__setattr__(self, "load", load)
         nepb = _check.count("Modal: elements_per_beam", self.elements_per_beam, min=1)
         _check.memory(8 * 40 * 4 * (nepb + 1), f"Modal: elements_per_beam = {nepb}: the mesh")
         object.__setattr__(self, "elements_per_beam", nepb)
-        encoded = np.array([load.fx, load.fy, load.moment, 0.0, float(nepb), 0.0, 0.0, 0.0,
-                            0.0, 0.0, 0.0, 0.0])
+        if isinstance(load, RadialWire):
+            head = [0.0, 0.0, 0.0, float(load.Lw)]
+        else:
+            head = [load.fx, load.fy, load.moment, 0.0]
+        encoded = np.array([*head, float(nepb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
         encoded.setflags(write=False)
         object.__setattr__(self, "_encoded", encoded)
 
@@ -284,6 +288,9 @@ class Modal:
 
     def spec(self) -> tuple[int, dict[str, float]]:
         """(kind, the experiment's spec by the core's key names)."""
+        if isinstance(self.load, RadialWire):
+            return LOAD_MODAL, {"wire_length": float(self.load.Lw),
+                                "elements_per_beam": float(self.elements_per_beam)}
         return LOAD_MODAL, {"fx": float(self.load.fx), "fy": float(self.load.fy),
                             "moment": float(self.load.moment),
                             "elements_per_beam": float(self.elements_per_beam)}

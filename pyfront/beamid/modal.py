@@ -114,6 +114,11 @@ class ModalResult:
     elements_per_beam: int
     load: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
     spin_rate: float = 0.0
+    #: a radial wire's length (m; 0: none), its tension at the equilibrium (N)
+    #: and the tension's derivatives (one per name of ``wrt``)
+    wire_length: float = 0.0
+    tension: float = 0.0
+    dtension: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __repr__(self) -> str:
         f = ", ".join(f"{x:.4g}" for x in self.freq[:6])
@@ -152,10 +157,12 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     """Modes of ``model`` linearized about its FE equilibrium under ``load``.
 
     ``load``: None (the straight arm), a ``TipForce``, a ``TipMoment`` (its
-    exact virtual work; the Eq. 78 form is not conservative) or their sum. A
-    ``RadialWire`` is refused: the FE model has no wire. ``nmodes``: how many
+    exact virtual work; the Eq. 78 form is not conservative), their sum, or a
+    ``RadialWire`` left on during the test (inextensible and taut: the tip
+    moves on the wire's circle, so the model has one mode fewer; the result
+    carries the wire's ``tension`` and ``dtension``). ``nmodes``: how many
     of the lowest modes to return (at most the model's count, its free
-    unknowns). ``wrt``: parameter names for the sensitivities (lengths and
+    unknowns, one fewer with a wire). ``wrt``: parameter names for the sensitivities (lengths and
     compliances at 0 are refused; friction, axial_coupling and the motor have
     zero columns). ``stations``: where the shapes are sampled, names such as
     ``shape_n@1:0.4`` (kinds in ``SHAPE_KINDS``) or tuples (kind, beam, s).
@@ -166,15 +173,18 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     Coriolis coupling of axial and in-plane motion (a gyroscopic
     eigenproblem); False gives the classic uncoupled in-plane model.
     """
+    wire_length = 0.0
     if isinstance(load, RadialWire):
-        raise InputError("load = RadialWire: a modal experiment takes a tip force or moment "
-                         "(the finite element model has no wire)")
-    comps = np.zeros(3) if load is None else _load_components(load)
+        wire_length = float(load.Lw)
+        comps = np.zeros(3)
+    else:
+        comps = np.zeros(3) if load is None else _load_components(load)
     nbeams, params, _, nfree = _mesh(model, elements_per_beam, hinged=True)
     nmodes = _check.count("nmodes", nmodes, min=1)
-    if nmodes > nfree:
+    nmodel = nfree - 1 if wire_length > 0.0 else nfree
+    if nmodes > nmodel:
         raise InputError(f"nmodes = {nmodes}: the model of {elements_per_beam} elements per "
-                         f"beam has {nfree} modes")
+                         f"beam has {nmodel} modes")
     spin_rate = _check.real("spin_rate", spin_rate)
     coriolis = _check.flag("coriolis", coriolis)
     wrt = _check.names("wrt", wrt)
@@ -195,9 +205,10 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
     beams = np.array([b for _, b, _ in parsed], dtype=np.int32)
     svals = np.array([s for _, _, s in parsed], dtype=np.float64)
     loads = np.array([*comps, 1.0], dtype=np.float64)
-    (freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes) = _core.modal(
+    (freq, zeta, damped, q, phi, dq, dfreq, dzeta, dphi, shapes, dshapes, tension,
+     dtension) = _core.modal(
         nbeams, params, int(elements_per_beam), loads, nmodes, np.asarray(windex, np.int32),
-        kinds, beams, svals, nfree, spin=(spin_rate, bool(coriolis)))
+        kinds, beams, svals, nfree, spin=(spin_rate, bool(coriolis)), wire_length=wire_length)
     names = tuple(f"{k}@{b}:{s:g}" for k, b, s in parsed)
     return ModalResult(freq=np.array(freq), zeta=np.array(zeta), damped=bool(damped),
                        q=np.array(q), phi=np.array(phi), stations=names,
@@ -205,8 +216,10 @@ def modal_analysis(model: Any, load: Any = None, *, nmodes: int = 6,
                        dq=np.array(dq), dfreq=np.array(dfreq), dzeta=np.array(dzeta),
                        dphi=np.array(dphi),
                        dshapes=np.array(dshapes).reshape(len(parsed), nmodes, len(wrt)),
-                       nmodes_model=int(nfree), elements_per_beam=int(elements_per_beam),
-                       load=tuple(float(c) for c in comps), spin_rate=spin_rate)
+                       nmodes_model=int(nmodel), elements_per_beam=int(elements_per_beam),
+                       load=tuple(float(c) for c in comps), spin_rate=spin_rate,
+                       wire_length=wire_length, tension=float(tension),
+                       dtension=np.array(dtension).reshape(len(wrt)))
 
 
 # ---------------------------------------------------------------- MAC and pairing

@@ -10,11 +10,14 @@ program test_modal
     use beamid_status, only: status_t, STATUS_OK
     use beamid_model, only: param_count, param_name
     use beamid_presets, only: preset_params
-    use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, FE_MOMENT_EXACT
+    use beamid_fe_assembly, only: fe_mesh_t, fe_mesh_build, FE_MOMENT_EXACT, fe_load_t, &
+                                  fe_residual, fe_band_rows, fe_band_to_dense, fe_wire_force, &
+                                  fe_wire_jacobian, fe_wire_tip
+    use beamid_fe_static, only: fe_solve_wire, fe_newton_opts_t, fe_solve_info_t
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
                             modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
-    use beamid_testing, only: checks_t, check_true, check_finish
+    use beamid_testing, only: checks_t, check_true, check_finish, check_close, check_below
     implicit none
 
     ! thick2: the gauge strain's kappa/2 at the station (on beam 2); thick1:
@@ -38,6 +41,7 @@ program test_modal
     base(index_of(nb, 'c_tip')) = 0.5_dp
     base(index_of(nb, 'eta')) = 2.0e-3_dp
     call derivatives_match(nb, base, spec, 'damped', .true.)
+    call wire_tangent_matches_differences(nb, base)
     call check_finish(t, 'test_modal')
 
 contains
@@ -163,4 +167,63 @@ contains
         real(dp), intent(in) :: f(4), h
         stencil = (f(1) - 8.0_dp*f(2) + 8.0_dp*f(3) - f(4))/(12.0_dp*h)
     end function stencil
+    !> The radial wire in the FE model (fe_solve_wire): the equilibrium lies
+    !! on the wire's circle with zero residual NLT + T e, and the tangent
+    !! with the wire's geometric stiffness, d(NLT - Q_wire)/dq at fixed T,
+    !! matches central differences of the residual, at q* and off it.
+    subroutine wire_tangent_matches_differences(nb, params)
+        integer, intent(in) :: nb
+        real(dp), intent(in) :: params(:)
+        type(chain_t) :: chain
+        type(fe_mesh_t) :: mesh
+        type(status_t) :: stat
+        type(fe_newton_opts_t) :: opts
+        type(fe_solve_info_t) :: info
+        real(dp), allocatable :: q(:), r(:), rp(:), rm(:), jb(:, :), k(:, :), kd(:, :), qt(:)
+        real(dp) :: tension, x(2), rad, h
+        integer :: n, i, iu, iw, pass
+        call chain_from_vector(nb, params, chain, stat)
+        call fe_mesh_build(chain, 3, mesh, stat)
+        call check_true(t, 'wire: mesh', stat%code == STATUS_OK)
+        n = mesh%nfree
+        allocate (q(n), r(n), rp(n), rm(n), qt(n), jb(fe_band_rows(mesh), n), k(n, n), kd(n, n))
+        call fe_solve_wire(mesh, 1.3_dp, q, tension, opts, info, stat)
+        call check_true(t, 'wire: equilibrium found', stat%code == STATUS_OK .and. &
+                        tension > 0.0_dp)
+        call fe_wire_tip(mesh, q, iu, iw, x, rad)
+        call check_close(t, 'wire: tip on the circle', rad, 1.3_dp, 0.0_dp, 1.0e-12_dp)
+        call wire_res(mesh, tension, q, r)
+        call check_below(t, 'wire: residual at q*', maxval(abs(r)), 1.0e-8_dp*tension)
+        do pass = 1, 2
+            qt = q
+            if (pass == 2) qt = q + 0.01_dp*[(sin(real(i, dp)), i=1, n)]
+            call fe_residual(mesh, fe_load_t(), qt, r, jb)
+            call fe_wire_jacobian(mesh, qt, tension, -1.0_dp, jb)
+            call fe_band_to_dense(jb, mesh%kl, mesh%ku, k)
+            h = 1.0e-6_dp
+            do i = 1, n
+                qt(i) = qt(i) + h
+                call wire_res(mesh, tension, qt, rp)
+                qt(i) = qt(i) - 2.0_dp*h
+                call wire_res(mesh, tension, qt, rm)
+                qt(i) = qt(i) + h
+                kd(:, i) = (rp - rm)/(2.0_dp*h)
+            end do
+            call check_close(t, 'wire: tangent vs central differences', k, kd, 1.0e-6_dp, &
+                             1.0e-6_dp*maxval(abs(k)))
+        end do
+    end subroutine wire_tangent_matches_differences
+
+    !> NLT(q) - Q_wire(q) at the fixed tension.
+    subroutine wire_res(mesh, tension, qq, rr)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: tension, qq(:)
+        real(dp), intent(out) :: rr(:)
+        real(dp), allocatable :: qv(:)
+        allocate (qv(size(qq)))
+        call fe_residual(mesh, fe_load_t(), qq, rr)
+        call fe_wire_force(mesh, qq, tension, qv)
+        rr = rr - qv
+    end subroutine wire_res
+
 end program test_modal
