@@ -55,7 +55,7 @@ module beamid_dynamics
     private
 
     public :: dyn_system_t, dyn_setup, dyn_forces, dyn_power, dyn_jacobian, dyn_rates, dyn_energy
-    public :: dyn_velocity_coupled
+    public :: dyn_velocity_coupled, dyn_damping_dir
     public :: dyn_mass, dyn_tip, dyn_nwork, dyn_psidot, dyn_torque
     public :: FRICTION_SIGN, FRICTION_SMOOTH, FRICTION_SIGN_LITERAL, GRAVITY
     public :: dyn_set_modes, dyn_to_physical, dyn_to_coords, dyn_cforces, dyn_cpower
@@ -846,6 +846,50 @@ contains
             end do
         end if
     end subroutine velocity_terms
+
+    !> Directional derivative (dC/dq)[vq] at rest (v = 0) of the damping
+    !! matrix C = dF/dv of velocity_terms, in band storage (cb is zeroed):
+    !! at rest only Kelvin-Voigt damping's sum wt dchi dchi^T depends on q
+    !! (drag is constant; rotary inertia's and the friction's C vanish or are
+    !! off), so dC = sum wt (Hc vq dchi^T + dchi (Hc vq)^T), Hc = d2chi/dq2.
+    pure subroutine dyn_damping_dir(sys, q, vq, cb)
+        type(dyn_system_t), intent(in) :: sys
+        real(dp), intent(in) :: q(:), vq(:)
+        real(dp), intent(out) :: cb(:, :)
+        real(dp), allocatable :: qf(:), vf(:)
+        real(dp) :: chi, dchi(FE_NDOF), g1(4), g2(4), hv(FE_NDOF), wt, qe(FE_NDOF), &
+                    ve(FE_NDOF), cd(FE_NDOF, FE_NDOF)
+        integer :: el, g, aa, bb, ia, ib, edx(FE_NDOF)
+        cb = 0.0_dp
+        if (sys%eta == 0.0_dp) return
+        allocate (qf(sys%mesh%ndof), vf(sys%mesh%ndof))
+        call fe_expand(sys%mesh, q, qf)
+        call fe_expand(sys%mesh, vq, vf)
+        do el = 1, sys%mesh%nel
+            edx = sys%mesh%el_dof(:, el)
+            qe = qf(edx)
+            ve = vf(edx)
+            cd = 0.0_dp
+            do g = 1, size(sys%mesh%xg)
+                call chi_gradient(sys%mesh%h(el), qe, sys%mesh%xg(g), chi, dchi, g1, g2)
+                wt = sys%mesh%wg(g)*sys%mesh%h(el)*sys%eta*sys%mesh%ei(el)
+                hv(FE_U) = g1*dot_product(g2, ve(FE_W)) - g2*dot_product(g1, ve(FE_W))
+                hv(FE_W) = g2*dot_product(g1, ve(FE_U)) - g1*dot_product(g2, ve(FE_U))
+                do bb = 1, FE_NDOF
+                    cd(:, bb) = cd(:, bb) + wt*(hv*dchi(bb) + dchi*hv(bb))
+                end do
+            end do
+            do bb = 1, FE_NDOF
+                ib = sys%mesh%free_of(edx(bb))
+                if (ib == 0) cycle
+                do aa = 1, FE_NDOF
+                    ia = sys%mesh%free_of(edx(aa))
+                    if (ia == 0) cycle
+                    call fe_band_add(cb, sys%mesh%kl, sys%mesh%ku, ia, ib, cd(aa, bb))
+                end do
+            end do
+        end do
+    end subroutine dyn_damping_dir
 
     !> Whether the forces depend on the velocities through more than the
     !! sign law's constant friction (C = dF/dv nonzero somewhere): drag,

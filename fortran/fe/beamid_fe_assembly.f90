@@ -35,7 +35,8 @@ module beamid_fe_assembly
                                  fe_gauss_table, fe_element_energy, &
                                  fe_element_force_tabulated, fe_element_tangent_tabulated, &
                                  fe_element_mass, fe_hinge_energy, fe_hinge_force, &
-                                 fe_hinge_tangent
+                                 fe_hinge_tangent, fe_element_tangent_dir, &
+                                 fe_hinge_tangent_dir, fe_angle_hessian_dir
     ! the band helpers live in beamid_band; the fe_band_* names stay exported
     ! from here for the callers that import them with the mesh
     use beamid_band, only: band_add, band_scatter, fe_band_add => band_add, &
@@ -49,6 +50,7 @@ module beamid_fe_assembly
     public :: fe_internal_force, fe_tangent, fe_energy, fe_mass, fe_stiffness_linear
     public :: fe_tip_load, fe_tip_load_jacobian, fe_reactions
     public :: fe_wire_tip, fe_wire_force, fe_wire_jacobian
+    public :: fe_tangent_dir, fe_mass_dir, fe_tip_load_jacobian_dir, fe_wire_jacobian_dir
     public :: fe_expand, fe_node_value, fe_spring_dofs
     public :: FE_BAND, DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     public :: FE_MOMENT_EQ78, FE_MOMENT_EXACT
@@ -834,6 +836,109 @@ contains
         call band_add(kb, mesh%kl, mesh%ku, iw, iu, -g*e(1)*e(2))
         call band_add(kb, mesh%kl, mesh%ku, iw, iw, g*(1.0_dp - e(2)*e(2)))
     end subroutine fe_wire_jacobian
+
+    !> Directional derivative (dK_T/dq)[v] of the tangent of fe_tangent (the
+    !! elements and the hinge springs) along the free vector v, in band
+    !! storage, hand-coded (fe_element_tangent_dir, fe_hinge_tangent_dir).
+    pure subroutine fe_tangent_dir(mesh, q, v, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), v(:)
+        real(dp), intent(out) :: kb(:, :)
+        real(dp) :: qpad(0:mesh%nfree), vpad(0:mesh%nfree), qe(FE_NDOF), ve(FE_NDOF), &
+                    ke(FE_NDOF, FE_NDOF), ks(4, 4), flex
+        integer :: el, j, idx(4)
+        call pad_free(q, qpad)
+        call pad_free(v, vpad)
+        kb = 0.0_dp
+        do el = 1, mesh%nel
+            call element_vector(mesh, qpad, el, qe)
+            call element_vector(mesh, vpad, el, ve)
+            call fe_element_tangent_dir(mesh%h(el), mesh%ea(el), mesh%ei(el), mesh%cubic(el), &
+                                        mesh%xg, mesh%wg, qe, ve, ke)
+            call band_scatter(kb, mesh%kl, mesh%ku, mesh%el_free(:, el), ke)
+        end do
+        do j = merge(0, 1, mesh%root_flex > 0.0_dp), mesh%nhinge
+            call fe_spring_dofs(mesh, j, idx, flex)
+            call fe_hinge_tangent_dir(flex, qpad(idx), vpad(idx), ks)
+            call band_scatter(kb, mesh%kl, mesh%ku, idx, ks)
+        end do
+    end subroutine fe_tangent_dir
+
+    !> Directional derivative (dM/dq)[v] of fe_mass(mesh, q, .true., mb)
+    !! along v: only the rotary inertia's block of Eq. 132 depends on q,
+    !! J [2(1+u') du', -(dw'(1+u') + w' du'); ., 2 w' dw'].
+    pure subroutine fe_mass_dir(mesh, q, v, mb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), v(:)
+        real(dp), intent(out) :: mb(:, :)
+        real(dp) :: du, dw, vu, vw, jm
+        integer :: node, iw, iu
+        mb = 0.0_dp
+        do node = 2, mesh%nnode
+            if (mesh%node_inertia(node) == 0.0_dp) cycle
+            jm = mesh%node_inertia(node)
+            iw = mesh%free_of(4*(node - 1) + DOF_DW)
+            iu = mesh%free_of(4*(node - 1) + DOF_DU)
+            du = q(iu)
+            dw = q(iw)
+            vu = v(iu)
+            vw = v(iw)
+            call band_add(mb, mesh%kl, mesh%ku, iw, iw, 2.0_dp*jm*(1.0_dp + du)*vu)
+            call band_add(mb, mesh%kl, mesh%ku, iw, iu, -jm*(vw*(1.0_dp + du) + dw*vu))
+            call band_add(mb, mesh%kl, mesh%ku, iu, iw, -jm*(vw*(1.0_dp + du) + dw*vu))
+            call band_add(mb, mesh%kl, mesh%ku, iu, iu, 2.0_dp*jm*dw*vw)
+        end do
+    end subroutine fe_mass_dir
+
+    !> kb += scale * (d2Q/dq2)[v] of the tip load along v (the exact tip
+    !! moment's M Hessian(Psi) moves with the tip slopes; the forces and
+    !! the Eq. 78 moment's Jacobian are constant).
+    pure subroutine fe_tip_load_jacobian_dir(mesh, q, v, load, scale, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), v(:)
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: scale
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp) :: m, ha, hb, dha, dhb
+        integer :: iw, iu, idw, idu
+        call tip_indices(mesh, iw, idw, iu, idu)
+        m = scale*load%moment
+        if (m == 0.0_dp .or. load%moment_form /= FE_MOMENT_EXACT) return
+        call fe_angle_hessian_dir(1.0_dp + q(idu), q(idw), v(idu), v(idw), ha, hb, dha, dhb)
+        call band_add(kb, mesh%kl, mesh%ku, idw, idw, m*dha)
+        call band_add(kb, mesh%kl, mesh%ku, idu, idu, -m*dha)
+        call band_add(kb, mesh%kl, mesh%ku, idw, idu, m*dhb)
+        call band_add(kb, mesh%kl, mesh%ku, idu, idw, m*dhb)
+    end subroutine fe_tip_load_jacobian_dir
+
+    !> kb += scale * (d/dq of fe_wire_jacobian's dQ/dq)[v] at the fixed
+    !! tension T: with x the tip, r = |x|, dx = v on the tip's (u, w),
+    !! d[(I - x x^T/r^2)/r] = -(x.dx) I/r^3 - (dx x^T + x dx^T)/r^3
+    !! + 3 (x.dx) x x^T/r^5, times -T (the change of T itself is the
+    !! caller's: dT H).
+    pure subroutine fe_wire_jacobian_dir(mesh, q, v, tension, scale, kb)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), v(:), tension, scale
+        real(dp), intent(inout) :: kb(:, :)
+        real(dp) :: x(2), r, dx(2), xdx, g, dh(2, 2)
+        integer :: iu, iw, i, j, idx(2)
+        call fe_wire_tip(mesh, q, iu, iw, x, r)
+        idx = [iu, iw]
+        dx = v(idx)
+        xdx = dot_product(x, dx)
+        g = -scale*tension
+        do j = 1, 2
+            do i = 1, 2
+                dh(i, j) = -(dx(i)*x(j) + x(i)*dx(j))/r**3 + 3.0_dp*xdx*x(i)*x(j)/r**5
+            end do
+            dh(j, j) = dh(j, j) - xdx/r**3
+        end do
+        do j = 1, 2
+            do i = 1, 2
+                call band_add(kb, mesh%kl, mesh%ku, idx(i), idx(j), g*dh(i, j))
+            end do
+        end do
+    end subroutine fe_wire_jacobian_dir
 
     pure subroutine tip_indices(mesh, iw, idw, iu, idu)
         type(fe_mesh_t), intent(in) :: mesh

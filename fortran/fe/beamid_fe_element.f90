@@ -27,6 +27,7 @@ module beamid_fe_element
     public :: fe_element_mass, fe_element_strain
     public :: fe_gauss_table, fe_element_force_tabulated, fe_element_tangent_tabulated
     public :: fe_hinge_energy, fe_hinge_force, fe_hinge_tangent
+    public :: fe_element_tangent_dir, fe_hinge_tangent_dir, fe_angle_hessian_dir
 
     !> Unknowns per element.
     integer, parameter :: FE_NDOF = 8
@@ -465,5 +466,119 @@ contains
             k(i + 1, i) = k(i + 1, i) + m*(y*y - x*x)/r4
         end do
     end subroutine fe_hinge_tangent
+
+    !> Directional derivative (dk/dq)[ve] of the element tangent k = d^2V/dq^2
+    !! of fe_element_tangent along the element vector ve (the third derivative
+    !! of V contracted with ve), hand-coded. Per Gauss point, with N = EA e,
+    !! M = EI chi + C chi^3, S = EI + 3 C chi^2, de = de/dq, dchi = dchi/dq
+    !! and the constant Hessians He = d2e/dq2, Hc = d2chi/dq2 (e and chi are
+    !! quadratic in q, so their third derivatives vanish):
+    !!     k  = wh [EA de de^T + S dchi dchi^T + N He + M Hc],
+    !!     dk = wh [EA (He ve de^T + de (He ve)^T) + 6 C chi (dchi.ve) dchi dchi^T
+    !!            + S (Hc ve dchi^T + dchi (Hc ve)^T) + EA (de.ve) He + S (dchi.ve) Hc].
+    pure subroutine fe_element_tangent_dir(h, ea, ei, cubic, xg, wg, qe, ve, dk)
+        real(dp), intent(in) :: h, ea, ei, cubic
+        real(dp), intent(in) :: xg(:), wg(:)   !< Gauss points and weights on [0, 1]
+        real(dp), intent(in) :: qe(FE_NDOF), ve(FE_NDOF)
+        real(dp), intent(out) :: dk(FE_NDOF, FE_NDOF)
+        real(dp) :: f(4), g1(4), g2(4), a, b, c, d, chi, va, vb, vc, vd, wt, stiff, dstiff, &
+                    rate_e, rate_chi, hm
+        real(dp) :: de(FE_NDOF), dchi(FE_NDOF), hev(FE_NDOF), hcv(FE_NDOF)
+        integer :: g, i, j
+        dk = 0.0_dp
+        do g = 1, size(xg)
+            call fe_hermite(xg(g), h, f, g1, g2)
+            a = dot_product(g1, qe(FE_U))
+            b = dot_product(g1, qe(FE_W))
+            c = dot_product(g2, qe(FE_U))
+            d = dot_product(g2, qe(FE_W))
+            va = dot_product(g1, ve(FE_U))
+            vb = dot_product(g1, ve(FE_W))
+            vc = dot_product(g2, ve(FE_U))
+            vd = dot_product(g2, ve(FE_W))
+            chi = d*(1.0_dp + a) - b*c
+            de(FE_U) = (1.0_dp + a)*g1
+            de(FE_W) = b*g1
+            dchi(FE_U) = d*g1 - b*g2
+            dchi(FE_W) = (1.0_dp + a)*g2 - c*g1
+            ! He ve: g1 g1^T on the uu and the ww blocks
+            hev(FE_U) = va*g1
+            hev(FE_W) = vb*g1
+            ! Hc ve: d2chi/dU_i dW_j = g1_i g2_j - g2_i g1_j
+            hcv(FE_U) = vd*g1 - vb*g2
+            hcv(FE_W) = va*g2 - vc*g1
+            rate_e = dot_product(de, ve)
+            rate_chi = dot_product(dchi, ve)
+            wt = wg(g)*h
+            stiff = ei + 3.0_dp*cubic*chi*chi
+            dstiff = 6.0_dp*cubic*chi*rate_chi
+            do j = 1, FE_NDOF
+                do i = 1, FE_NDOF
+                    dk(i, j) = dk(i, j) + wt*(ea*(hev(i)*de(j) + de(i)*hev(j)) &
+                                              + dstiff*dchi(i)*dchi(j) &
+                                              + stiff*(hcv(i)*dchi(j) + dchi(i)*hcv(j)))
+                end do
+            end do
+            do j = 1, 4
+                do i = 1, 4
+                    hm = wt*ea*rate_e*g1(i)*g1(j)
+                    dk(FE_U(i), FE_U(j)) = dk(FE_U(i), FE_U(j)) + hm
+                    dk(FE_W(i), FE_W(j)) = dk(FE_W(i), FE_W(j)) + hm
+                    hm = wt*stiff*rate_chi*(g1(i)*g2(j) - g2(i)*g1(j))
+                    dk(FE_U(i), FE_W(j)) = dk(FE_U(i), FE_W(j)) + hm
+                    dk(FE_W(j), FE_U(i)) = dk(FE_W(j), FE_U(i)) + hm
+                end do
+            end do
+        end do
+    end subroutine fe_element_tangent_dir
+
+    !> Hessian of the angle psi = atan2(y, x) on (y, x) is [ha, hb; hb, -ha],
+    !! ha = -2xy/r^4, hb = (y^2 - x^2)/r^4; this returns ha, hb and their
+    !! directional derivatives along (dy, dx): psi is harmonic, so
+    !! dha = P dx + Q dy, dhb = -Q dx + P dy with
+    !! P = (6x^2 y - 2y^3)/r^6, Q = (6x y^2 - 2x^3)/r^6.
+    pure subroutine fe_angle_hessian_dir(x, y, dx, dy, ha, hb, dha, dhb)
+        real(dp), intent(in) :: x, y, dx, dy
+        real(dp), intent(out) :: ha, hb, dha, dhb
+        real(dp) :: r2, r4, r6, pp, qq
+        r2 = x*x + y*y
+        r4 = r2*r2
+        r6 = r4*r2
+        ha = -2.0_dp*x*y/r4
+        hb = (y*y - x*x)/r4
+        pp = (6.0_dp*x*x*y - 2.0_dp*y**3)/r6
+        qq = (6.0_dp*x*y*y - 2.0_dp*x**3)/r6
+        dha = pp*dx + qq*dy
+        dhb = -qq*dx + pp*dy
+    end subroutine fe_angle_hessian_dir
+
+    !> Directional derivative along vs of the hinge tangent
+    !! K = (g g^T + dpsi H)/flex of fe_hinge_tangent (hand-coded):
+    !! dK = ((H vs) g^T + g (H vs)^T + (g.vs) H + dpsi dH)/flex, dH the
+    !! derivative of the Hessians of psi- and psi+ (fe_angle_hessian_dir).
+    pure subroutine fe_hinge_tangent_dir(flex, s, vs, dk)
+        real(dp), intent(in) :: flex, s(4), vs(4)
+        real(dp), intent(out) :: dk(4, 4)
+        real(dp) :: dpsi, g(4), hm(4, 4), dh(4, 4), hv(4), sg, ha, hb, dha, dhb
+        integer :: i, j, side
+        call hinge_angle(s, dpsi, g)
+        hm = 0.0_dp
+        dh = 0.0_dp
+        do side = 0, 1
+            i = 2*side + 1
+            ! psi- enters dpsi with sign -1, psi+ with +1
+            sg = merge(-1.0_dp, 1.0_dp, side == 0)
+            call fe_angle_hessian_dir(1.0_dp + s(i + 1), s(i), vs(i + 1), vs(i), ha, hb, dha, dhb)
+            hm(i:i + 1, i:i + 1) = sg*reshape([ha, hb, hb, -ha], [2, 2])
+            dh(i:i + 1, i:i + 1) = sg*reshape([dha, dhb, dhb, -dha], [2, 2])
+        end do
+        hv = matmul(hm, vs)
+        do j = 1, 4
+            do i = 1, 4
+                dk(i, j) = (hv(i)*g(j) + g(i)*hv(j) + dot_product(g, vs)*hm(i, j) &
+                            + dpsi*dh(i, j))/flex
+            end do
+        end do
+    end subroutine fe_hinge_tangent_dir
 
 end module beamid_fe_element

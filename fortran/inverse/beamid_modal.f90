@@ -81,11 +81,13 @@ module beamid_modal
     use beamid_fe_element, only: FE_W, FE_U, fe_hermite
     use beamid_fe_assembly, only: fe_load_t, fe_mesh_t, fe_band_rows, fe_mass, &
                                   fe_tip_load_jacobian, fe_internal_force, fe_band_to_dense, &
-                                  fe_check_dense, FE_MOMENT_EXACT
+                                  fe_check_dense, FE_MOMENT_EXACT, fe_tangent_dir, &
+                                  fe_mass_dir, fe_tip_load_jacobian_dir, fe_wire_jacobian_dir
     use beamid_fe_static, only: fe_newton_opts_t, fe_solve_info_t, fe_solve_static, &
                                 fe_solve_wire
     use beamid_fe_assembly, only: fe_wire_tip, fe_wire_jacobian
-    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN
+    use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_jacobian, FRICTION_SIGN, &
+                               dyn_damping_dir
     use beamid_lapack, only: sym_gen_eig, gen_eig, solve_dense
     use beamid_hub, only: hub_forcing_t, hub_setup
     use beamid_fe_assembly, only: fe_tip_load
@@ -95,9 +97,13 @@ module beamid_modal
     public :: modal_spec_t, modal_out_t, modal_solve, modal_station, modal_station_sens
     public :: modal_param_effect, modal_check_stations, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN, SHAPE_X, SHAPE_Y
     public :: MP_NONE, MP_LINEAR, MP_INVERSE
+    ! the matrices and their directional derivative, for the kernel tests
+    public :: modal_system, modal_matrices, modal_matrices_dir
 
     real(dp), parameter :: TWO_PI = 6.283185307179586476925286766559_dp
-    !> Relative size of the central-difference step along dq*/dp.
+    !> Relative size of the central-difference step along dq*/dp of a
+    !! station's sampling (modal_station_sens; the matrices' derivative along
+    !! dq*/dp is hand-coded, modal_matrices_dir).
     real(dp), parameter :: DIR_STEP = 1.0e-5_dp
 
     !> Quantities of a mode shape sampled at a station (modal_station):
@@ -250,6 +256,31 @@ contains
         call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, m)
         call fe_internal_force(sys%mesh, q, nlt)
     end subroutine modal_matrices
+
+    !> Directional derivatives (dX/dq)[v] at q of the matrices of
+    !! modal_matrices, X = K_T, M, C (at the fixed wire tension), hand-coded:
+    !! the elements' and the hinge springs' tangents (fe_tangent_dir), the
+    !! exact tip moment's load stiffness, the wire's geometric stiffness
+    !! T (I - e e^T)/|x| at the fixed T, the rotary inertia's mass block
+    !! (fe_mass_dir) and Kelvin-Voigt damping's C (dyn_damping_dir). The
+    !! other terms (consistent and point masses, drag, the tip forces) do not
+    !! depend on q; the velocity terms of rotary inertia vanish at rest.
+    subroutine modal_matrices_dir(sys, load, q, v, tension, dk, dm, dc)
+        type(dyn_system_t), intent(in) :: sys
+        type(fe_load_t), intent(in) :: load
+        real(dp), intent(in) :: q(:), v(:), tension
+        real(dp), intent(out) :: dk(:, :), dm(:, :), dc(:, :)
+        real(dp), allocatable :: kb(:, :)
+        allocate (kb(fe_band_rows(sys%mesh), sys%n))
+        call fe_tangent_dir(sys%mesh, q, v, kb)
+        call fe_tip_load_jacobian_dir(sys%mesh, q, v, load, -1.0_dp, kb)
+        if (tension /= 0.0_dp) call fe_wire_jacobian_dir(sys%mesh, q, v, tension, -1.0_dp, kb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, dk)
+        call fe_mass_dir(sys%mesh, q, v, kb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, dm)
+        call dyn_damping_dir(sys, q, v, kb)
+        call fe_band_to_dense(kb, sys%mesh%kl, sys%mesh%ku, dc)
+    end subroutine modal_matrices_dir
 
     !> Check the experiment and the request before anything is solved.
     subroutine modal_check(nbeams, params, spec, nmodes, wrt, stat)
@@ -621,7 +652,7 @@ contains
         real(dp) :: dx(2), dratio, e(2), hw(2, 2)
         real(dp), allocatable :: p2(:), k2(:, :), m2(:, :), c2(:, :), f1(:), f2(:), dk(:, :), &
                                  dm(:, :), dc(:, :), kk(:, :), rhs(:, :), kp(:, :), mp(:, :), &
-                                 cp(:, :), km(:, :), mmn(:, :), cm(:, :), fx(:)
+                                 cp(:, :)
         character(len=:), allocatable :: why
         real(dp) :: p, scale, h, dlam, lam
         complex(dp) :: ds, num, den
@@ -633,8 +664,7 @@ contains
             return
         end if
         if (effect == MP_NONE) return
-        allocate (k2(n, n), m2(n, n), c2(n, n), f1(n), f2(n), fx(n), kp(n, n), mp(n, n), &
-                  cp(n, n), km(n, n), mmn(n, n), cm(n, n))
+        allocate (k2(n, n), m2(n, n), c2(n, n), f1(n), f2(n), kp(n, n), mp(n, n), cp(n, n))
         ! dX/dp at the fixed q from X(p) and X(p2)
         p = params(index)
         p2 = params
@@ -681,12 +711,12 @@ contains
         if (wire%on) out%dtension(j) = rhs(n + 1, 1)
         h = 0.0_dp
         if (maxval(abs(rhs(1:n, 1))) > 0.0_dp) then
+            ! the step of modal_station_sens's difference of the sampling
             h = DIR_STEP*max(1.0_dp, maxval(abs(out%q)))/maxval(abs(rhs(1:n, 1)))
-            call modal_matrices(sys, load, out%q + h*rhs(1:n, 1), kp, mp, cp, fx, out%tension)
-            call modal_matrices(sys, load, out%q - h*rhs(1:n, 1), km, mmn, cm, fx, out%tension)
-            dk = dk + (kp - km)/(2.0_dp*h)
-            dm = dm + (mp - mmn)/(2.0_dp*h)
-            dc = dc + (cp - cm)/(2.0_dp*h)
+            call modal_matrices_dir(sys, load, out%q, rhs(1:n, 1), out%tension, kp, mp, cp)
+            dk = dk + kp
+            dm = dm + mp
+            dc = dc + cp
         end if
         out%hdir(j) = h
         if (wire%on) then

@@ -17,6 +17,10 @@ program test_modal
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
                             modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
+    use beamid_modal, only: modal_system, modal_matrices, modal_matrices_dir
+    use beamid_dynamics, only: dyn_system_t
+    use beamid_fe_element, only: fe_element_tangent, fe_element_tangent_dir, fe_gauss_points, &
+                                 fe_hinge_tangent, fe_hinge_tangent_dir
     use beamid_testing, only: checks_t, check_true, check_finish, check_close, check_below
     implicit none
 
@@ -42,6 +46,8 @@ program test_modal
     base(index_of(nb, 'eta')) = 2.0e-3_dp
     call derivatives_match(nb, base, spec, 'damped', .true.)
     call wire_tangent_matches_differences(nb, base)
+    call element_tangent_dir_matches_differences()
+    call matrices_dir_match_differences(nb, base, spec)
     call check_finish(t, 'test_modal')
 
 contains
@@ -225,5 +231,92 @@ contains
         call fe_wire_force(mesh, qq, tension, qv)
         rr = rr - qv
     end subroutine wire_res
+
+    !> Pseudo-random entries in (-amp, amp) from a fixed sequence.
+    function pattern(n, seed, amp) result(x)
+        integer, intent(in) :: n, seed
+        real(dp), intent(in) :: amp
+        real(dp) :: x(n)
+        integer :: i
+        do i = 1, n
+            x(i) = amp*sin(12.9898_dp*real(i + 7*seed, dp) + 78.233_dp*real(seed, dp))
+        end do
+    end function pattern
+
+    !> The hand-coded directional derivatives of the element tangent and of
+    !! the hinge tangent against central differences of the tangent along
+    !! pseudo-random directions at a deformed state.
+    subroutine element_tangent_dir_matches_differences()
+        real(dp) :: xg(7), wg(7), qe(8), ve(8), f(8), kp(8, 8), km(8, 8), dk(8, 8), s(4), &
+                    vs(4), f4(4), kp4(4, 4), km4(4, 4), dk4(4, 4), h
+        integer :: dir
+        character(len=1) :: tag
+        call fe_gauss_points(7, xg, wg)
+        h = 1.0e-6_dp
+        do dir = 1, 3
+            write (tag, '(i1)') dir
+            qe = pattern(8, dir, 0.2_dp)
+            ve = pattern(8, dir + 10, 1.0_dp)
+            call fe_element_tangent_dir(0.3_dp, 50.0_dp, 2.0_dp, 5.0_dp, xg, wg, qe, ve, dk)
+            call fe_element_tangent(0.3_dp, 50.0_dp, 2.0_dp, 5.0_dp, xg, wg, qe + h*ve, f, kp)
+            call fe_element_tangent(0.3_dp, 50.0_dp, 2.0_dp, 5.0_dp, xg, wg, qe - h*ve, f, km)
+            call check_true(t, 'element tangent dir '//tag//': nonzero', maxval(abs(dk)) > 1.0_dp)
+            call check_below(t, 'element tangent dir '//tag//' vs central differences', &
+                             maxval(abs(dk - (kp - km)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dk)))
+            s = pattern(4, dir + 20, 0.3_dp)
+            vs = pattern(4, dir + 30, 1.0_dp)
+            call fe_hinge_tangent_dir(0.01_dp, s, vs, dk4)
+            call fe_hinge_tangent(0.01_dp, s + h*vs, f4, kp4)
+            call fe_hinge_tangent(0.01_dp, s - h*vs, f4, km4)
+            call check_true(t, 'hinge tangent dir '//tag//': nonzero', maxval(abs(dk4)) > 1.0_dp)
+            call check_below(t, 'hinge tangent dir '//tag//' vs central differences', &
+                             maxval(abs(dk4 - (kp4 - km4)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dk4)))
+        end do
+    end subroutine element_tangent_dir_matches_differences
+
+    !> modal_matrices_dir (K_T with the hinges, the cubic law and the exact
+    !! tip moment or a wire's tension; M with rotary inertia; C with
+    !! Kelvin-Voigt damping and drag) against central differences of
+    !! modal_matrices along pseudo-random directions at a deformed state.
+    subroutine matrices_dir_match_differences(nb, base, spec)
+        integer, intent(in) :: nb
+        real(dp), intent(in) :: base(:)
+        type(modal_spec_t), intent(in) :: spec
+        type(dyn_system_t) :: sys
+        type(status_t) :: stat
+        real(dp), allocatable :: params(:), q(:), v(:), nlt(:), kp(:, :), mp(:, :), cp(:, :), &
+                                 km(:, :), mm(:, :), cm(:, :), dk(:, :), dm(:, :), dc(:, :)
+        real(dp) :: h, tension
+        integer :: n, dir
+        character(len=1) :: tag
+        allocate (params, source=base)
+        params(index_of(nb, 'c_tip')) = 0.5_dp
+        params(index_of(nb, 'eta')) = 2.0e-3_dp
+        call modal_system(nb, params, 3, sys, stat)
+        call check_true(t, 'matrices dir: system', stat%code == STATUS_OK)
+        n = sys%n
+        allocate (nlt(n), kp(n, n), mp(n, n), cp(n, n), km(n, n), mm(n, n), cm(n, n), &
+                  dk(n, n), dm(n, n), dc(n, n))
+        h = 1.0e-6_dp
+        do dir = 1, 4
+            write (tag, '(i1)') dir
+            ! directions 1, 2: the tip moment; 3, 4: a wire's tension
+            tension = merge(0.0_dp, 3.0_dp, dir <= 2)
+            q = pattern(n, dir + 40, 0.1_dp)
+            v = pattern(n, dir + 50, 1.0_dp)
+            call modal_matrices_dir(sys, spec%load, q, v, tension, dk, dm, dc)
+            call modal_matrices(sys, spec%load, q + h*v, kp, mp, cp, nlt, tension)
+            call modal_matrices(sys, spec%load, q - h*v, km, mm, cm, nlt, tension)
+            call check_true(t, 'matrices dir '//tag//': dK, dM, dC nonzero', &
+                            maxval(abs(dk)) > 0.0_dp .and. maxval(abs(dm)) > 0.0_dp .and. &
+                            maxval(abs(dc)) > 0.0_dp)
+            call check_below(t, 'matrices dir '//tag//': dK_T vs central differences', &
+                             maxval(abs(dk - (kp - km)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dk)))
+            call check_below(t, 'matrices dir '//tag//': dM vs central differences', &
+                             maxval(abs(dm - (mp - mm)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dm)))
+            call check_below(t, 'matrices dir '//tag//': dC vs central differences', &
+                             maxval(abs(dc - (cp - cm)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dc)))
+        end do
+    end subroutine matrices_dir_match_differences
 
 end program test_modal
