@@ -47,9 +47,16 @@
 !!   M, C. Every term of the three is linear in its parameter group (EI, EA,
 !!   C, rho, m, J, c, eta) or in 1/f (the compliances), so dX/dp|_q is exact
 !!   from one more assembly at the same q with the parameter doubled (set to
-!!   1 from 0); the directional derivative along dq*/dp is a central
-!!   difference of the assembly (step 1e-5 / |dq*/dp|_inf, error ~1e-9
-!!   relative): a semi-analytic derivative, one dense solve per parameter;
+!!   1 from 0); the directional derivative (dX/dq)[v] along v = dq*/dp is
+!!   hand-coded (modal_matrices_dir): the third derivative of the element
+!!   strain energy contracted with v (fe_element_tangent_dir: e and chi are
+!!   quadratic in q, so it needs their first and second derivatives only),
+!!   the hinge springs' (fe_hinge_tangent_dir), the exact tip moment's and
+!!   the wire's load stiffness at the fixed T (dT H is added apart), the
+!!   rotary inertia's mass block and Kelvin-Voigt damping's C; the
+!!   consistent and point masses, drag and the tip forces do not depend on
+!!   q. One dense solve per parameter; no difference step (a station's
+!!   sampling frame moving with q* is hand-coded too, modal_station_dq);
 !! - d lambda = phi^T (dK - lambda dM) phi (undamped), and for a damped root
 !!   ds = -psi^T (s^2 dM + s dC + dK) psi / psi^T (2 s M + C) psi (M, C, K
 !!   symmetric, so the left eigenvector is the right one, unconjugated);
@@ -98,13 +105,9 @@ module beamid_modal
     public :: modal_param_effect, modal_check_stations, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN, SHAPE_X, SHAPE_Y
     public :: MP_NONE, MP_LINEAR, MP_INVERSE
     ! the matrices and their directional derivative, for the kernel tests
-    public :: modal_system, modal_matrices, modal_matrices_dir
+    public :: modal_system, modal_matrices, modal_matrices_dir, modal_station_dq
 
     real(dp), parameter :: TWO_PI = 6.283185307179586476925286766559_dp
-    !> Relative size of the central-difference step along dq*/dp of a
-    !! station's sampling (modal_station_sens; the matrices' derivative along
-    !! dq*/dp is hand-coded, modal_matrices_dir).
-    real(dp), parameter :: DIR_STEP = 1.0e-5_dp
 
     !> Quantities of a mode shape sampled at a station (modal_station):
     !! the displacement along the local normal and tangent of the deformed
@@ -149,8 +152,6 @@ module beamid_modal
         real(dp), allocatable :: thickness(:)
         !> per wrt entry j: b when wrt(j) is thick<b>, else 0
         integer, allocatable :: wrt_thick(:)
-        !> the step of the directional differences per parameter (modal_station_sens)
-        real(dp), allocatable :: hdir(:)
         !> the wire's tension T at q* (N; 0 without a wire) and dT/dp (nwrt)
         real(dp) :: tension = 0.0_dp
         real(dp), allocatable :: dtension(:)
@@ -410,7 +411,7 @@ contains
         end do
         allocate (out%q(n), out%lambda(n), out%phi(n, nmodes), out%freq(nmodes), &
                   out%zeta(nmodes), out%dq(n, nw), out%dfreq(nmodes, nw), &
-                  out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), out%hdir(nw), &
+                  out%dzeta(nmodes, nw), out%dphi(n, nmodes, nw), &
                   out%dtension(nw), source=0.0_dp)
         allocate (k(n, n), m(n, n), c(n, n), nlt(n), vec(nm, nm))
         out%q = 0.0_dp
@@ -654,7 +655,7 @@ contains
                                  dm(:, :), dc(:, :), kk(:, :), rhs(:, :), kp(:, :), mp(:, :), &
                                  cp(:, :)
         character(len=:), allocatable :: why
-        real(dp) :: p, scale, h, dlam, lam
+        real(dp) :: p, scale, dlam, lam
         complex(dp) :: ds, num, den
         integer :: effect, n, i
         n = sys%n
@@ -709,16 +710,12 @@ contains
         if (stat%code /= STATUS_OK) return
         out%dq(:, j) = rhs(1:n, 1)
         if (wire%on) out%dtension(j) = rhs(n + 1, 1)
-        h = 0.0_dp
         if (maxval(abs(rhs(1:n, 1))) > 0.0_dp) then
-            ! the step of modal_station_sens's difference of the sampling
-            h = DIR_STEP*max(1.0_dp, maxval(abs(out%q)))/maxval(abs(rhs(1:n, 1)))
             call modal_matrices_dir(sys, load, out%q, rhs(1:n, 1), out%tension, kp, mp, cp)
             dk = dk + kp
             dm = dm + mp
             dc = dc + cp
         end if
-        out%hdir(j) = h
         if (wire%on) then
             ! the tension's change: dT H
             e = wire%x/wire%rad
@@ -883,24 +880,97 @@ contains
         end select
     end function modal_station
 
+    !> Directional derivative of modal_station(mesh, q, vec, ...) with respect
+    !! to q along dq at the fixed vec (the sampling frame moving with q*),
+    !! hand-coded: with p1 = 1 + u', r2 = p1^2 + w'^2 and the changes
+    !! (d.) of u', w', u'', w'' along dq, the derivative of each SHAPE_* of
+    !! modal_station by the product and the quotient rules.
+    pure real(dp) function modal_station_dq(mesh, q, dq, vec, kind, beam, s, t) result(value)
+        type(fe_mesh_t), intent(in) :: mesh
+        real(dp), intent(in) :: q(:), dq(:), vec(:), s, t
+        integer, intent(in) :: kind, beam
+        real(dp) :: f(4), f1(4), f2(4), h, zeta, qe(8), ve(8), de(8), u1, w1, u2, w2, du, dw, &
+                    du1, dw1, du2, dw2, p1, r2, chi, dchi, dr2, su1, sw1, su2, sw2, sr2, schi, &
+                    sdchi, sdr2, base
+        integer :: el, first, nel_b, idx, a, j
+        value = 0.0_dp
+        first = findloc(mesh%beam, beam, 1)
+        if (first == 0) return
+        nel_b = count(mesh%beam == beam)
+        h = mesh%h(first)
+        idx = min(max(int(s/h), 0), nel_b - 1)
+        el = first + idx
+        zeta = min(max(s/h - real(idx, dp), 0.0_dp), 1.0_dp)
+        call fe_hermite(zeta, h, f, f1, f2)
+        qe = 0.0_dp
+        ve = 0.0_dp
+        de = 0.0_dp
+        do a = 1, 8
+            j = mesh%el_free(a, el)
+            if (j == 0) cycle
+            qe(a) = q(j)
+            ve(a) = vec(j)
+            de(a) = dq(j)
+        end do
+        u1 = dot_product(f1, qe(FE_U))
+        w1 = dot_product(f1, qe(FE_W))
+        u2 = dot_product(f2, qe(FE_U))
+        w2 = dot_product(f2, qe(FE_W))
+        du = dot_product(f, ve(FE_U))
+        dw = dot_product(f, ve(FE_W))
+        du1 = dot_product(f1, ve(FE_U))
+        dw1 = dot_product(f1, ve(FE_W))
+        du2 = dot_product(f2, ve(FE_U))
+        dw2 = dot_product(f2, ve(FE_W))
+        ! the changes of q's u', w', u'', w'' along dq
+        su1 = dot_product(f1, de(FE_U))
+        sw1 = dot_product(f1, de(FE_W))
+        su2 = dot_product(f2, de(FE_U))
+        sw2 = dot_product(f2, de(FE_W))
+        p1 = 1.0_dp + u1
+        r2 = p1*p1 + w1*w1
+        sr2 = 2.0_dp*(p1*su1 + w1*sw1)
+        select case (kind)
+        case (SHAPE_N)
+            base = -w1*du + p1*dw
+            value = (-sw1*du + su1*dw)/sqrt(r2) - 0.5_dp*base*sr2/r2**1.5_dp
+        case (SHAPE_T)
+            base = p1*du + w1*dw
+            value = (su1*du + sw1*dw)/sqrt(r2) - 0.5_dp*base*sr2/r2**1.5_dp
+        case (SHAPE_PSI)
+            base = p1*dw1 - w1*du1
+            value = (su1*dw1 - sw1*du1)/r2 - base*sr2/(r2*r2)
+        case (SHAPE_STRAIN, SHAPE_KAPPA)
+            chi = w2*p1 - w1*u2
+            dchi = dw2*p1 + w2*du1 - dw1*u2 - w1*du2
+            dr2 = 2.0_dp*(p1*du1 + w1*dw1)
+            schi = sw2*p1 + w2*su1 - sw1*u2 - w1*su2
+            sdchi = dw2*su1 + sw2*du1 - dw1*su2 - sw1*du2
+            sdr2 = 2.0_dp*(su1*du1 + sw1*dw1)
+            ! d[dchi r2^-1.5 - 1.5 chi dr2 r2^-2.5]
+            value = sdchi/r2**1.5_dp - 1.5_dp*dchi*sr2/r2**2.5_dp &
+                    - 1.5_dp*(schi*dr2 + chi*sdr2)/r2**2.5_dp &
+                    + 3.75_dp*chi*dr2*sr2/r2**3.5_dp
+            if (kind == SHAPE_STRAIN) value = su1*du1 + sw1*dw1 + 0.5_dp*t*value
+        case default
+            value = 0.0_dp   ! SHAPE_X, SHAPE_Y: the displacements, linear in vec only
+        end select
+    end function modal_station_dq
+
     !> Derivative of modal_station of mode i with respect to parameter j of
     !! `out`: the shape's derivative sampled at q*, plus the change of the
-    !! sampling (the local frame) as q* moves (central difference along
-    !! dq*/dp with the step modal_solve used); for the strip thickness of
+    !! sampling (the local frame) as q* moves (modal_station_dq along
+    !! dq*/dp); for the strip thickness of
     !! the station's beam, the gauge strain's kappa/2.
     pure real(dp) function modal_station_sens(mesh, out, i, j, kind, beam, s) result(d)
         type(fe_mesh_t), intent(in) :: mesh
         type(modal_out_t), intent(in) :: out
         integer, intent(in) :: i, j, kind, beam
         real(dp), intent(in) :: s
-        real(dp) :: h, t
+        real(dp) :: t
         t = out%thickness(beam)
         d = modal_station(mesh, out%q, out%dphi(:, i, j), kind, beam, s, t)
-        h = out%hdir(j)
-        if (h > 0.0_dp) d = d + (modal_station(mesh, out%q + h*out%dq(:, j), out%phi(:, i), &
-                                              kind, beam, s, t) &
-                                 - modal_station(mesh, out%q - h*out%dq(:, j), out%phi(:, i), &
-                                                 kind, beam, s, t))/(2.0_dp*h)
+        d = d + modal_station_dq(mesh, out%q, out%dq(:, j), out%phi(:, i), kind, beam, s, t)
         if (kind == SHAPE_STRAIN .and. out%wrt_thick(j) == beam) &
             d = d + 0.5_dp*modal_station(mesh, out%q, out%phi(:, i), SHAPE_KAPPA, beam, s, t)
     end function modal_station_sens

@@ -17,7 +17,7 @@ program test_modal
     use beamid_model, only: chain_t, chain_from_vector
     use beamid_modal, only: modal_spec_t, modal_out_t, modal_solve, modal_station, &
                             modal_station_sens, SHAPE_N, SHAPE_T, SHAPE_PSI, SHAPE_STRAIN
-    use beamid_modal, only: modal_system, modal_matrices, modal_matrices_dir
+    use beamid_modal, only: modal_system, modal_matrices, modal_matrices_dir, modal_station_dq
     use beamid_dynamics, only: dyn_system_t
     use beamid_fe_element, only: fe_element_tangent, fe_element_tangent_dir, fe_gauss_points, &
                                  fe_hinge_tangent, fe_hinge_tangent_dir
@@ -286,9 +286,9 @@ contains
         type(status_t) :: stat
         real(dp), allocatable :: params(:), q(:), v(:), nlt(:), kp(:, :), mp(:, :), cp(:, :), &
                                  km(:, :), mm(:, :), cm(:, :), dk(:, :), dm(:, :), dc(:, :)
-        real(dp) :: h, tension
-        integer :: n, dir
-        character(len=1) :: tag
+        real(dp) :: h, tension, got, want
+        integer :: n, dir, kind
+        character(len=1) :: tag, ktag
         allocate (params, source=base)
         params(index_of(nb, 'c_tip')) = 0.5_dp
         params(index_of(nb, 'eta')) = 2.0e-3_dp
@@ -316,7 +316,26 @@ contains
                              maxval(abs(dm - (mp - mm)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dm)))
             call check_below(t, 'matrices dir '//tag//': dC vs central differences', &
                              maxval(abs(dc - (cp - cm)/(2.0_dp*h))), 1.0e-6_dp*maxval(abs(dc)))
+            ! a station's sampling frame moving with q (modal_station_dq), every kind
+            do kind = 1, 6
+                got = modal_station_dq(sys%mesh, q, v, dir_vec(n), kind, 2, 0.37_dp, 3.0e-3_dp)
+                want = (modal_station(sys%mesh, q + h*v, dir_vec(n), kind, 2, 0.37_dp, &
+                                      3.0e-3_dp) &
+                        - modal_station(sys%mesh, q - h*v, dir_vec(n), kind, 2, 0.37_dp, &
+                                        3.0e-3_dp))/(2.0_dp*h)
+                write (ktag, '(i1)') kind
+                call check_close(t, 'station dq '//tag//' kind '//ktag// &
+                                 ' vs central differences', got, want, 1.0e-6_dp, 1.0e-9_dp)
+                if (kind <= SHAPE_STRAIN) call check_true(t, 'station dq '//tag//' kind '// &
+                                                          ktag//': nonzero', abs(got) > 1.0e-3_dp)
+            end do
         end do
     end subroutine matrices_dir_match_differences
+
+    function dir_vec(n) result(x)
+        integer, intent(in) :: n
+        real(dp) :: x(n)
+        x = pattern(n, 77, 1.0_dp)
+    end function dir_vec
 
 end program test_modal
