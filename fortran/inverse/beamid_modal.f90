@@ -823,36 +823,15 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:), vec(:), s, t
         integer, intent(in) :: kind, beam
-        real(dp) :: f(4), f1(4), f2(4), h, zeta, qe(8), ve(8), u1, w1, u2, w2, du, dw, du1, &
-                    dw1, du2, dw2, p1, r2, chi, dchi, dr2, dkap
-        integer :: el, first, nel_b, idx, a, j
+        real(dp) :: jq(6), jv(6), u1, w1, u2, w2, du, dw, du1, dw1, du2, dw2, p1, r2, chi, &
+                    dchi, dr2, dkap
+        logical :: ok
         value = 0.0_dp
-        first = findloc(mesh%beam, beam, 1)
-        if (first == 0) return
-        nel_b = count(mesh%beam == beam)
-        h = mesh%h(first)
-        idx = min(max(int(s/h), 0), nel_b - 1)
-        el = first + idx
-        zeta = min(max(s/h - real(idx, dp), 0.0_dp), 1.0_dp)
-        call fe_hermite(zeta, h, f, f1, f2)
-        qe = 0.0_dp
-        ve = 0.0_dp
-        do a = 1, 8
-            j = mesh%el_free(a, el)
-            if (j == 0) cycle
-            qe(a) = q(j)
-            ve(a) = vec(j)
-        end do
-        u1 = dot_product(f1, qe(FE_U))
-        w1 = dot_product(f1, qe(FE_W))
-        u2 = dot_product(f2, qe(FE_U))
-        w2 = dot_product(f2, qe(FE_W))
-        du = dot_product(f, ve(FE_U))
-        dw = dot_product(f, ve(FE_W))
-        du1 = dot_product(f1, ve(FE_U))
-        dw1 = dot_product(f1, ve(FE_W))
-        du2 = dot_product(f2, ve(FE_U))
-        dw2 = dot_product(f2, ve(FE_W))
+        call station_jet(mesh, beam, s, q, ok, jq)
+        if (.not. ok) return
+        call station_jet(mesh, beam, s, vec, ok, jv)
+        u1 = jq(3); w1 = jq(4); u2 = jq(5); w2 = jq(6)
+        du = jv(1); dw = jv(2); du1 = jv(3); dw1 = jv(4); du2 = jv(5); dw2 = jv(6)
         p1 = 1.0_dp + u1
         r2 = p1*p1 + w1*w1
         select case (kind)
@@ -880,6 +859,37 @@ contains
         end select
     end function modal_station
 
+    !> The values and arc-length derivatives of a nodal vector v at the
+    !! station (beam, s): jet = [u, w, u', w', u'', w''] (the element holding
+    !! s, the cubic Hermite functions of Eq. 76); ok = .false. for a beam
+    !! the mesh does not have.
+    pure subroutine station_jet(mesh, beam, s, v, ok, jet)
+        type(fe_mesh_t), intent(in) :: mesh
+        integer, intent(in) :: beam
+        real(dp), intent(in) :: s, v(:)
+        logical, intent(out) :: ok
+        real(dp), intent(out) :: jet(6)
+        real(dp) :: f(4), f1(4), f2(4), h, zeta, ve(8)
+        integer :: el, first, nel_b, idx, a, j
+        jet = 0.0_dp
+        first = findloc(mesh%beam, beam, 1)
+        ok = first /= 0
+        if (.not. ok) return
+        nel_b = count(mesh%beam == beam)
+        h = mesh%h(first)
+        idx = min(max(int(s/h), 0), nel_b - 1)
+        el = first + idx
+        zeta = min(max(s/h - real(idx, dp), 0.0_dp), 1.0_dp)
+        call fe_hermite(zeta, h, f, f1, f2)
+        ve = 0.0_dp
+        do a = 1, 8
+            j = mesh%el_free(a, el)
+            if (j /= 0) ve(a) = v(j)
+        end do
+        jet = [dot_product(f, ve(FE_U)), dot_product(f, ve(FE_W)), dot_product(f1, ve(FE_U)), &
+               dot_product(f1, ve(FE_W)), dot_product(f2, ve(FE_U)), dot_product(f2, ve(FE_W))]
+    end subroutine station_jet
+
     !> Directional derivative of modal_station(mesh, q, vec, ...) with respect
     !! to q along dq at the fixed vec (the sampling frame moving with q*),
     !! hand-coded: with p1 = 1 + u', r2 = p1^2 + w'^2 and the changes
@@ -889,44 +899,18 @@ contains
         type(fe_mesh_t), intent(in) :: mesh
         real(dp), intent(in) :: q(:), dq(:), vec(:), s, t
         integer, intent(in) :: kind, beam
-        real(dp) :: f(4), f1(4), f2(4), h, zeta, qe(8), ve(8), de(8), u1, w1, u2, w2, du, dw, &
-                    du1, dw1, du2, dw2, p1, r2, chi, dchi, dr2, su1, sw1, su2, sw2, sr2, schi, &
-                    sdchi, sdr2, base
-        integer :: el, first, nel_b, idx, a, j
+        real(dp) :: jq(6), jv(6), jd(6), u1, w1, u2, w2, du, dw, du1, dw1, du2, dw2, p1, r2, &
+                    chi, dchi, dr2, su1, sw1, su2, sw2, sr2, schi, sdchi, sdr2, base
+        logical :: ok
         value = 0.0_dp
-        first = findloc(mesh%beam, beam, 1)
-        if (first == 0) return
-        nel_b = count(mesh%beam == beam)
-        h = mesh%h(first)
-        idx = min(max(int(s/h), 0), nel_b - 1)
-        el = first + idx
-        zeta = min(max(s/h - real(idx, dp), 0.0_dp), 1.0_dp)
-        call fe_hermite(zeta, h, f, f1, f2)
-        qe = 0.0_dp
-        ve = 0.0_dp
-        de = 0.0_dp
-        do a = 1, 8
-            j = mesh%el_free(a, el)
-            if (j == 0) cycle
-            qe(a) = q(j)
-            ve(a) = vec(j)
-            de(a) = dq(j)
-        end do
-        u1 = dot_product(f1, qe(FE_U))
-        w1 = dot_product(f1, qe(FE_W))
-        u2 = dot_product(f2, qe(FE_U))
-        w2 = dot_product(f2, qe(FE_W))
-        du = dot_product(f, ve(FE_U))
-        dw = dot_product(f, ve(FE_W))
-        du1 = dot_product(f1, ve(FE_U))
-        dw1 = dot_product(f1, ve(FE_W))
-        du2 = dot_product(f2, ve(FE_U))
-        dw2 = dot_product(f2, ve(FE_W))
+        call station_jet(mesh, beam, s, q, ok, jq)
+        if (.not. ok) return
+        call station_jet(mesh, beam, s, vec, ok, jv)
+        call station_jet(mesh, beam, s, dq, ok, jd)
+        u1 = jq(3); w1 = jq(4); u2 = jq(5); w2 = jq(6)
+        du = jv(1); dw = jv(2); du1 = jv(3); dw1 = jv(4); du2 = jv(5); dw2 = jv(6)
         ! the changes of q's u', w', u'', w'' along dq
-        su1 = dot_product(f1, de(FE_U))
-        sw1 = dot_product(f1, de(FE_W))
-        su2 = dot_product(f2, de(FE_U))
-        sw2 = dot_product(f2, de(FE_W))
+        su1 = jd(3); sw1 = jd(4); su2 = jd(5); sw2 = jd(6)
         p1 = 1.0_dp + u1
         r2 = p1*p1 + w1*w1
         sr2 = 2.0_dp*(p1*su1 + w1*sw1)
