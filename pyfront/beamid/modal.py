@@ -16,8 +16,9 @@ including the movement of the equilibrium with the parameter::
     beamid.pair_modes(f_measured, s_measured, r.freq, r.shapes)
 
 Coulomb friction has no linearization about rest and is left out (mu has a
-zero column); a radial wire and the tip moment of Eq. 78 (not conservative)
-are refused.
+zero column); the tip moment of Eq. 78 (not conservative) is refused. A
+radial wire holds the tip on its circle during the test (the constrained
+eigenproblem about the wire's equilibrium; ``tension`` and ``dtension``).
 """
 from __future__ import annotations
 
