@@ -840,7 +840,7 @@ class LadderStep(NamedTuple):
     #: the check that the rung's fit is at its best before the ladder goes
     #: on (with releases, a rung that ends far above its degrees of freedom
     #: is refitted from the nominal model with its effect as fitted; "" when
-    #: not run; the table prints it when the refit replaced the rung's fit)
+    #: not run; the table prints it when it ran)
     at_best: str = ""
 
     def __repr__(self) -> str:
@@ -889,7 +889,7 @@ class Ladder(_ByRankAndName):
             if s.removed:
                 lines.append(f"{'':<6}{'':<18}{', '.join(s.params)} instead of "
                              f"{', '.join(s.removed)} (no longer needed)")
-            if s.at_best.startswith("at its best from"):   # the rung's fit was replaced
+            if s.at_best:     # the at-its-best check ran: what it found
                 lines.append(f"{'':<6}{'':<18}{s.at_best}")
         lines.append(self.steps[-1].diagnosis.message)
         return "\n".join(lines)
