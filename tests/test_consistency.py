@@ -128,6 +128,62 @@ def test_same_seed_same_replicates_serial_processes_and_dask(table5_fit):
     _same(serial, by_address)
 
 
+def test_batched_replicates_are_the_one_at_a_time_fits(table5_fit, monkeypatch):
+    """Without releases the core fits the replicates a chunk at a time
+    (beamid_replicates): every number is the one beamid.fit gives for the
+    replicate's data, with a prior redrawn too, and a replicate whose fit does
+    not end cleanly is refitted through beamid.fit for its message."""
+    import importlib
+
+    mc_mod = importlib.import_module("beamid.consistency")
+    fit = beamid.fit(table5_fit.start, table5_fit.experiments, table5_fit.data,
+                     free=table5_fit.free, prior={"EI2": (11.0, 0.3)})
+    monkeypatch.setattr(mc_mod, "BATCH", 5)   # chunks of 5: 3 calls, the last short
+    for case, options in ((table5_fit, None), (fit, None), (table5_fit, {"max_iter": 4})):
+        spec = mc_mod._spec(case, 7, options)
+        assert mc_mod._batch(spec) is not None
+        batched = beamid.consistency(case, replicates=12, seed=7, workers=1, options=options)
+        with monkeypatch.context() as m:
+            m.setattr(mc_mod, "_batch", lambda spec: None)
+            single = beamid.consistency(case, replicates=12, seed=7, workers=1,
+                                        options=options)
+        _same(batched, single)
+        np.testing.assert_array_equal(batched.chi2_prior, single.chi2_prior)
+        assert batched.messages == single.messages and batched.flags == single.flags
+        # and each equals beamid.fit on the replicate's own data
+        data, prior = mc_mod._replicate_inputs(spec, 3)
+        if options is None:
+            one = beamid.fit(case.start, case.experiments, data, free=case.free, prior=prior)
+            assert [batched.estimates[n][3] for n in case.free] == \
+                [one.estimates[n] for n in case.free]
+            assert batched.chi2[3] == one.chi2 and batched.iterations[3] == one.iterations
+    # with max_iter 4 some replicates do not converge: they keep fit's message
+    assert "not converged" in batched.status and "ok" in batched.status
+    assert all(m for m, st in zip(batched.messages, batched.status) if st != "ok")
+
+
+def test_replicates_entry_checks_its_arrays(table5_fit):
+    from beamid import _core_estimation as ce
+    from beamid.estimation import build_problem
+
+    prob = build_problem(table5_fit.start, table5_fit.experiments, table5_fit.data)
+    p0 = table5_fit.start.vector()
+    free = np.array([table5_fit.start.index(n) + 1 for n in table5_fit.free], np.int32)
+    ys = np.tile(np.asarray(table5_fit.data.value, float)[:, None], (1, 2))
+    table = ce.prior_table([(2, 11.0, 0.3)])
+    with pytest.raises(InputError, match=r"a priori means 3, expected nprior x nrep = 2"):
+        ce._call(ce._api.api_fit_replicates, prob.nbeams, p0, free, table,
+                 *prob.rows()[:10], prob.row_sigma, 0.0, *prob.histories(), 50, ys,
+                 np.zeros(3))
+    out = ce.fit_replicates(prob, p0, free, ce.prior_table([]), ys, np.zeros((0, 2)))
+    # the data themselves, twice: the fit of the data, twice
+    for j, name in enumerate(table5_fit.free):
+        assert out["params"][free[j] - 1, 0] == out["params"][free[j] - 1, 1] == \
+            table5_fit.estimates[name]
+        assert out["sigmas"][j, 1] == table5_fit.sigmas[name]
+    assert out["code"].tolist() == [0, 0] and out["stop"] == ["converged"] * 2
+
+
 def test_failed_replicates_are_counted_not_dropped(table5_fit):
     # one Gauss-Newton iteration cannot converge from the Table 5 start
     mc = beamid.consistency(table5_fit, replicates=6, seed=1, workers=1,

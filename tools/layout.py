@@ -47,7 +47,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
                 "beamid_static_experiments.f90", "beamid_dynamic_experiments.f90",
                 "beamid_family.f90", "beamid_families.f90", "beamid_problem.f90",
                 "beamid_inverse.f90", "beamid_dyn_diagnosis.f90", "beamid_ladder.f90",
-                "beamid_modal.f90", "beamid_modal_experiments.f90"),
+                "beamid_modal.f90", "beamid_modal_experiments.f90", "beamid_replicates.f90"),
     "io": ("beamid_namelist.f90", "beamid_measurements.f90", "beamid_deck.f90",
            "beamid_tasks.f90", "beamid_deck_run.f90", "beamid_chain_deck.f90",
            "beamid_deck_history.f90"),

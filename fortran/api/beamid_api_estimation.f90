@@ -48,6 +48,7 @@ module beamid_api_estimation
                              ladder_t, ladder_start, ladder_step
     use beamid_api_marshal, only: copy_fit, copy_diag, rung_out, rung_fit_out, rung_diag_out, &
                                   rung_rows_out
+    use beamid_replicates, only: fit_replicates, replicate_out_t, NREP_STATS
     use beamid_api_runs, only: runs, RUN_LADDER, run_open, run_close, runs_held, run_ok
     implicit none
     private
@@ -60,7 +61,7 @@ module beamid_api_estimation
     public :: api_ladder_open, api_ladder_close, api_ladder_handles_open, api_ladder_handle_step
     public :: api_ladder_handle_rung, api_ladder_handle_fit, api_ladder_handle_diag, &
               api_ladder_handle_rows
-    public :: api_mesh_check
+    public :: api_mesh_check, api_fit_replicates
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -960,5 +961,76 @@ contains
         out = [merge(1.0_dp, 0.0_dp, res%done), real(res%nepb, dp), real(res%recommended, dp), &
                res%max_change, real(res%max_row, dp), res%chi2]
     end subroutine api_mesh_check
+
+    !> Monte Carlo replicates of one fit (beamid.consistency; library
+    !! beamid_replicates fit_replicates): the problem of api_fit_effect's
+    !! arrays (no effect block, independent a priori information) fitted from
+    !! params0 on each column r of ys (the rows' values) with a priori means
+    !! means(:, r) (prior's indices and sigmas). Per replicate: the full
+    !! parameter vector, the sigmas and flags of the free parameters, the
+    !! fit's stats (api_code_names table 5), how it ended (STOP_*) and its
+    !! status code (codes; 0: the fit ended, converged or flagged). code and
+    !! message: the arrays' shapes.
+    subroutine api_fit_replicates(nbeams, nparams, params0, nfree, free_idx, nprior, prior, &
+                                  nexp, exp_kind, nkv, kv_exp, kv_key, kv_value, nrow, row_exp, &
+                                  row_t, row_q, nobs, obs_kind, obs_beam, obs_s, row_sigma, tol, &
+                                  nhs, hist_spec, nhtab, hist_tab, max_iter, nrep, ys, nmean, &
+                                  means, params, sigmas, flags, stats, stops, codes, code, message)
+        integer(c_int), intent(in) :: nbeams, nparams, nfree, nprior, nexp, nkv, nrow, nobs
+        !f2py intent(hide) nparams, nfree, nprior, nexp, nkv, nrow, nobs
+        integer(c_int), intent(in) :: nhs, nhtab, nrep, max_iter, nmean
+        !f2py intent(hide) nhs, nhtab, nrep, nmean
+        real(c_double), intent(in) :: params0(nparams), prior(3, nprior)
+        integer(c_int), intent(in) :: free_idx(nfree), exp_kind(nexp)
+        integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
+        real(c_double), intent(in) :: kv_value(nkv)
+        integer(c_int), intent(in) :: row_exp(nrow), row_q(nrow)
+        real(c_double), intent(in) :: row_t(nrow), row_sigma(nrow), tol
+        integer(c_int), intent(in) :: obs_kind(nobs), obs_beam(nobs)
+        real(c_double), intent(in) :: obs_s(nobs)
+        real(c_double), intent(in) :: hist_spec(10, nhs), hist_tab(2, nhtab)
+        !> the a priori means column by column (nprior x nrep; flat, so that
+        !! no prior passes as an empty array)
+        real(c_double), intent(in) :: ys(nrow, nrep), means(nmean)
+        real(c_double), intent(out) :: params(nparams, nrep), sigmas(nfree, nrep)
+        integer(c_int), intent(out) :: flags(nfree, nrep), stops(nrep), codes(nrep)
+        real(c_double), intent(out) :: stats(8, nrep)
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        type(fit_options_t) :: opts
+        type(replicate_out_t) :: out
+        real(dp), allocatable :: values(:, :)
+
+        params = spread(params0, 2, nrep)
+        sigmas = 0.0_c_double
+        flags = 0
+        stats = 0.0_c_double
+        stops = 0
+        codes = 0
+        call make_options(max_iter, 0.0_c_double, 0.0_c_double, opts)
+        if (nmean /= nprior*nrep) then
+            call set_status(stat, ERR_INPUT, 'replicates', 'a priori means '// &
+                            fmt_int(int(nmean))//', expected nprior x nrep = '// &
+                            fmt_int(int(nprior*nrep)))
+        else
+            call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        end if
+        if (stat%code == STATUS_OK) &
+            call fit_replicates(int(nbeams), int(exp_kind), values, int(row_exp), &
+                                real(row_t, dp), int(row_q), int(obs_kind), int(obs_beam), &
+                                real(obs_s, dp), real(tol, dp), real(row_sigma, dp), &
+                                real(prior, dp), make_hist(hist_spec, hist_tab), &
+                                real(params0, dp), int(free_idx), opts, real(ys, dp), &
+                                reshape(real(means, dp), [int(nprior), int(nrep)]), out, stat)
+        call status_out(stat, code, message)
+        if (stat%code /= STATUS_OK) return
+        params = out%params
+        sigmas = out%sigmas
+        flags = int(out%flags, c_int)
+        stats = out%stats(1:NREP_STATS, :)
+        stops = int(out%stop, c_int)
+        codes = int(out%code, c_int)
+    end subroutine api_fit_replicates
 
 end module beamid_api_estimation

@@ -562,3 +562,33 @@ def mesh_check(prob: Problem, params: np.ndarray, pred: np.ndarray) -> dict:
     out = np.asarray(out, float)
     return {"done": int(out[0]), "nepb": int(out[1]), "recommended": int(out[2]),
             "max_change": float(out[3]), "row": int(out[4]) - 1, "chi2": float(out[5])}
+
+
+def fit_replicates(prob: Problem, params0: np.ndarray, free: np.ndarray, prior: np.ndarray,
+                   ys: np.ndarray, means: np.ndarray, max_iter: int = 50) -> dict:
+    """Monte Carlo replicates of one fit in one call (beamid_replicates):
+    the problem ``prob`` (its row values unused) fitted from ``params0`` on
+    each column of ``ys`` (nrow x nrep, the rows' values) with a priori means
+    ``means`` (nprior x nrep; ``prior`` a :func:`prior_table` giving the
+    indices and sigmas). Each replicate is the fit :func:`fit` would make of
+    its data. Returns arrays over the replicates (last axis): ``params``,
+    ``sigmas``, ``flags``, the fit stats by name (``chi2``, ``chi2_prior``,
+    ``dof``, ``iterations``, ``converged``, ...), ``stop`` (STOP_NAMES) and
+    ``code`` (0: the fit ended; else its status code: the replicate is to be
+    refitted through :func:`fit` for its message)."""
+    ys = np.asfortranarray(ys, float)
+    means = np.ravel(np.reshape(np.asarray(means, float), (prior.shape[1], ys.shape[1])),
+                     order="F")
+    (kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, obs_kind, obs_beam, obs_s,
+     _value, row_sigma, tol, hist_spec, hist_tab) = prob.rows()
+    params, sigmas, flags, stats, stops, codes = _call(
+        _api.api_fit_replicates, prob.nbeams, np.asarray(params0, float),
+        np.asarray(free, np.int32), prior, kind, kv_exp, kv_key, kv_value, row_exp, row_t,
+        row_q, obs_kind, obs_beam, obs_s, row_sigma, tol, hist_spec, hist_tab, int(max_iter),
+        ys, means)
+    st = Columns(np.asarray(stats), FIT_STATS)
+    out = {name: np.array(st[name]) for name in FIT_STATS}
+    out.update(params=np.array(params), sigmas=np.array(sigmas), flags=np.array(flags, int),
+               stop=[STOP_NAMES.get(int(s), "stalled") for s in stops],
+               code=np.array(codes, int))
+    return out

@@ -19,11 +19,17 @@ chi-square(dof) distribution.
 >>> mc.failed, mc.estimates["EI1"].shape
 (0, (20,))
 
-Only the public estimation API is used (``beamid.fit`` on
-:class:`beamid.Measurements` built from the fit's own rows, and the
-:class:`beamid.FitResult` attributes), so the same function serves every
-experiment family that ``beamid.fit`` accepts. The summary statistics are
-computed in Fortran (``beamid_design::mc_summary``).
+A replicate is the fit ``beamid.fit`` makes of its data (on
+:class:`beamid.Measurements` built from the fit's own rows), so the same
+function serves every experiment family that ``beamid.fit`` accepts. Without
+releases a fit is one Gauss-Newton run (no record to grow, no homotopy, no
+mesh check), and the replicates are fitted by the core in one call per
+chunk of ``BATCH`` (``beamid_replicates``: each replicate's problem built
+afresh and fitted exactly as ``beamid.fit`` would, the same numbers without
+the per-fit checks and result assembly of the front); a replicate whose fit
+did not end cleanly (an error, not converged, a flagged parameter) is refitted
+through ``beamid.fit`` for its message. The summary statistics are computed
+in Fortran (``beamid_design::mc_summary``).
 
 Reproducibility: replicate ``k`` draws from its own generator
 ``numpy.random.default_rng(numpy.random.SeedSequence(seed, spawn_key=(k,)))``
@@ -51,8 +57,11 @@ import numpy as np
 
 from . import _check
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
-from .estimation import FitResult, fit as _fit, flag_is_problem
+from . import _core_estimation as _ce
+from .estimation import (FLAG_TEXT, FitResult, _check_fit_args, _free_indices, _prior_arrays,
+                         build_problem, fit as _fit, flag_is_problem)
 from ._core_estimation import chi2_sf_many, mc_summary
+from .loads import Release
 from .fit_decks import read_fit_deck
 from .plotting import agg_pyplot
 from .progress import progress
@@ -92,14 +101,20 @@ def replicate_generator(seed: int, k: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(k),)))
 
 
-def _replicate_inputs(spec: _Spec, k: int):
+def _replicate_draws(spec: _Spec, k: int) -> tuple[np.ndarray, list[float]]:
+    """Replicate ``k``'s row values and a priori means (in spec.prior's order)."""
     rng = replicate_generator(spec.seed, k)
     z = rng.standard_normal(len(spec.data) + len(spec.prior))
-    data = spec.data.with_values(spec.truth_rows + z[:len(spec.data)] * spec.data.sigma)
-    prior = {}
-    for i, (name, (_, sigma)) in enumerate(spec.prior.items()):
-        prior[name] = (float(spec.truth[spec.free.index(name)]
-                             + z[len(spec.data) + i] * sigma), sigma)
+    values = spec.truth_rows + z[:len(spec.data)] * spec.data.sigma
+    means = [float(spec.truth[spec.free.index(name)] + z[len(spec.data) + i] * sigma)
+             for i, (name, (_, sigma)) in enumerate(spec.prior.items())]
+    return values, means
+
+
+def _replicate_inputs(spec: _Spec, k: int):
+    values, means = _replicate_draws(spec, k)
+    data = spec.data.with_values(values)
+    prior = {name: (m, sigma) for m, (name, (_, sigma)) in zip(means, spec.prior.items())}
     return data, prior
 
 
@@ -142,9 +157,85 @@ def _run_one(spec: _Spec, k: int) -> dict:
     return rec
 
 
+#: replicates per call of the core's batched fit (the progress bar moves between calls)
+BATCH = 64
+
+
+class _Batch:
+    """The replicates of a fit without releases, fitted by the core a chunk
+    at a time (``_core_estimation.fit_replicates``): the problem's arrays,
+    free indices and a priori table built once, as ``beamid.fit`` builds
+    them. Raises InputError (from those checks) when they refuse the fit's
+    inputs: every replicate then goes through ``beamid.fit`` and records
+    the error itself."""
+
+    def __init__(self, spec: _Spec) -> None:
+        opts = {"max_iter": 50, "tol": 0.0, **spec.options}
+        _check_fit_args(spec.data, opts["tol"], opts["max_iter"])
+        _check.choice("jacobian", opts.get("jacobian", "auto"), ("auto", "exact"))
+        model = spec.start
+        self.spec = spec
+        self.prob = build_problem(model, spec.experiments, spec.data, opts["tol"])
+        self.free, self.free_idx = _free_indices(model, spec.free)
+        prior_map, self.ptable = _prior_arrays(model, self.free, spec.prior)
+        if tuple(prior_map) != tuple(spec.prior):
+            raise InputError("a priori names are not the free parameters' own")
+        self.params0 = model.vector()
+        self.max_iter = int(opts["max_iter"])
+
+    def records(self, ks: Sequence[int]) -> list[dict]:
+        spec, n = self.spec, len(self.free)
+        draws = [_replicate_draws(spec, k) for k in ks]
+        ys = np.array([v for v, _ in draws], float).T
+        means = np.array([m for _, m in draws], float).reshape(len(ks), -1).T
+        out = _ce.fit_replicates(self.prob, self.params0, self.free_idx, self.ptable, ys,
+                                 means, self.max_iter)
+        cols = self.free_idx - 1
+        records = []
+        for i, k in enumerate(ks):
+            flags = tuple(FLAG_TEXT.get(int(f), "flagged") for f in out["flags"][:n, i])
+            if (out["code"][i] != 0 or not out["converged"][i]
+                    or any(flag_is_problem(f) for f in flags)):
+                # refitted through beamid.fit: the same fit, with its message
+                records.append(_run_one(spec, k))
+                continue
+            records.append({
+                "k": int(k), "status": OK, "message": "", "converged": True,
+                "estimates": np.array(out["params"][cols, i], float),
+                "sigmas": np.array(out["sigmas"][:n, i], float),
+                "chi2": float(out["chi2"][i]), "chi2_prior": float(out["chi2_prior"][i]),
+                "dof": int(out["dof"][i]), "iterations": int(out["iterations"][i]),
+                "flags": flags})
+        return records
+
+
+def _batch(spec: _Spec) -> _Batch | None:
+    """The batched runner for ``spec``, or None: releases (a fit of them may
+    grow its record, run the homotopy or check its mesh) or inputs the
+    fit's checks refuse go through ``beamid.fit`` one replicate at a time."""
+    if any(isinstance(x, Release) for x in spec.experiments.values()):
+        return None
+    try:
+        return _Batch(spec)
+    except BeamidError:
+        return None
+
+
+def _records(spec: _Spec, ks: Sequence[int], batch: _Batch | None):
+    """The records of replicates ``ks`` in order, one at a time (for the
+    progress bar), batched when ``batch`` is given."""
+    ks = list(ks)
+    if batch is None:
+        for k in ks:
+            yield _run_one(spec, k)
+        return
+    for a in range(0, len(ks), BATCH):
+        yield from batch.records(ks[a:a + BATCH])
+
+
 def _run_chunk(spec: _Spec, ks: Sequence[int]) -> list[dict]:
     """Worker entry point (module level, so spawn/forkserver and Dask can pickle it)."""
-    return [_run_one(spec, k) for k in ks]
+    return list(_records(spec, ks, _batch(spec)))
 
 
 @dataclass(frozen=True)
@@ -465,6 +556,7 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
             if owned:
                 client.close()
     nworkers = min(_local_workers(workers), replicates)
+    batch = _batch(spec) if nworkers <= 1 or workers is None else None
     probe: list[dict] = []
     if workers is None and nworkers > 1:
         # all cores only when the run pays for starting the processes (each
@@ -473,14 +565,15 @@ def _execute(spec: _Spec, replicates: int, client: Any, workers: int | None,
         times = []
         for k in range(min(PROBE, replicates)):
             t0 = time.perf_counter()
-            probe.append(_run_one(spec, k))
+            probe.extend(_records(spec, [k], batch))
             times.append(time.perf_counter() - t0)
         if float(np.median(times)) * (replicates - len(probe)) < SERIAL_BELOW:
             nworkers = 1
     first = len(probe)
 
     def serial(runner: str) -> tuple[list[dict], str]:
-        it = (_run_one(spec, k) for k in range(first, replicates))
+        it = _records(spec, range(first, replicates), batch if batch is not None else
+                      _batch(spec))
         return probe + list(progress(it, total=replicates - first, desc=desc,
                                      enabled=show)), runner
 
