@@ -81,3 +81,31 @@ def test_prior_of_several_parameters_reaches_the_fit():
                      prior={"EI1": (1.05 * ei1, 1e-9), "EI2": (0.95 * ei2, 1e-9)})
     assert abs(fit.estimates["EI1"] / (1.05 * ei1) - 1.0) < 1e-6
     assert abs(fit.estimates["EI2"] / (0.95 * ei2) - 1.0) < 1e-6
+
+
+def test_family_registry_from_the_core():
+    """The fronts ask the core's registry what an experiment is (records in
+    time, a mesh of its own), not which class it is."""
+    from beamid import loads
+    from beamid.diagnosis import _dynamic, _meshed, _modal_only
+
+    fams = _core.families()
+    assert list(fams) == ["static", "release", "modal"]
+    assert [f.timed for f in fams.values()] == [False, True, False]
+    assert [f.mesh_key for f in fams.values()] == ["", "elements_per_beam", "elements_per_beam"]
+    assert fams["static"].kinds == {1: "tip load", 2: "wire"}
+    assert _core.family_of_kind(3) is fams["release"] and _core.family_of_kind(9) is None
+    rel = beamid.Release(beamid.TipLoad(fy=-1.0))
+    modal = beamid.Modal(beamid.TipLoad(fy=-1.0))
+    assert loads.family(rel).name == "release" and loads.timed(rel)
+    assert loads.family(beamid.RadialWire(1.4)).name == "static"
+    assert loads.family(modal).meshed and not loads.timed(modal)
+    assert loads.family("F3") is None and not loads.timed(3.0)
+    static = {"F": beamid.TipForce(fy=3.0)}
+    assert not _dynamic(static) and not _meshed(static) and not _modal_only(static)
+    assert _dynamic({"r": rel, **static}) and _meshed({"m": modal}) and _modal_only({"m": modal})
+    assert not _modal_only({"m": modal, **static})
+    # what has no family is refused by name
+    with pytest.raises(beamid.InputError, match="experiment 'x': load = 'F3', expected"):
+        beamid.fit(BASE, {"x": "F3"}, beamid.simulate_measurements(BASE, static, ["y_tip"],
+                                                                    sigma=1e-3))

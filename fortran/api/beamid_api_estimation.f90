@@ -61,7 +61,7 @@ module beamid_api_estimation
     public :: api_ladder_open, api_ladder_close, api_ladder_handles_open, api_ladder_handle_step
     public :: api_ladder_handle_rung, api_ladder_handle_fit, api_ladder_handle_diag, &
               api_ladder_handle_rows
-    public :: api_mesh_check, api_fit_replicates
+    public :: api_mesh_check, api_fit_replicates, api_family_table
 
     ! notes strings (refit notes of every candidate) are character(len=8192):
     ! f2py needs the length as a literal
@@ -1032,5 +1032,35 @@ contains
         stops = int(out%stop, c_int)
         codes = int(out%code, c_int)
     end subroutine api_fit_replicates
+
+    !> The registry of experiment families (beamid_families), a line each:
+    !! name, tab, 1 when its rows are records in time (timed), tab, the spec
+    !! key holding its elements per beam ('' when it has no mesh), tab, its
+    !! experiment kinds as code:words separated by commas. The fronts ask it
+    !! what a family is instead of asking which class an experiment is.
+    subroutine api_family_table(text)
+        character(len=4096), intent(out) :: text
+        character(len=:), allocatable :: t, kinds, mesh
+        type(family_slot_t), allocatable :: reg(:)
+        integer :: f, k, key
+        call registered_families(reg)
+        t = ''
+        do f = 1, size(reg)
+            kinds = ''
+            do k = 1, 64
+                if (.not. reg(f)%item%claims(k)) cycle
+                if (len(kinds) > 0) kinds = kinds//','
+                kinds = kinds//fmt_int(k)//':'//reg(f)%item%kind_label(k)
+            end do
+            mesh = ''
+            key = 0
+            if (reg(f)%item%mesh_key() > 0) key = findloc(SPEC_KEYS%row, reg(f)%item%mesh_key(), 1)
+            if (key > 0) mesh = trim(SPEC_KEYS(key)%name)
+            if (f > 1) t = t//new_line('a')
+            t = t//reg(f)%item%name()//achar(9)//merge('1', '0', reg(f)%item%timed())// &
+                achar(9)//mesh//achar(9)//kinds
+        end do
+        text = t
+    end subroutine api_family_table
 
 end module beamid_api_estimation

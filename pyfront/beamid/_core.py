@@ -394,6 +394,43 @@ def spec_keys() -> dict[str, SpecKey]:
     return keys
 
 
+@dataclass(frozen=True)
+class Family:
+    """An experiment family of the core's registry (beamid_families)."""
+
+    name: str                 #: 'static', 'release', 'modal'
+    timed: bool               #: its rows are records in time (a clock offset, a burn-in)
+    mesh_key: str             #: the spec key of its elements per beam ('': no mesh)
+    kinds: dict[int, str]     #: its experiment kinds: code -> words
+
+    @property
+    def meshed(self) -> bool:
+        """Whether its experiments have a mesh of their own (the ``mesh`` candidate)."""
+        return bool(self.mesh_key)
+
+
+@lru_cache(maxsize=None)
+def families() -> dict[str, Family]:
+    """The core's registry of experiment families, by name (api_family_table):
+    the fronts ask it what a family is, not which class an experiment is."""
+    out = {}
+    for line in _text(_ext.beamid_api_estimation.api_family_table()).split("\n"):
+        f = line.split("\t")
+        if len(f) < 4:
+            continue
+        kinds = {int(c): w for c, w in (k.split(":", 1) for k in f[3].split(",") if k)}
+        out[f[0]] = Family(f[0], f[1] == "1", f[2], kinds)
+    return out
+
+
+def family_of_kind(kind: int) -> Family | None:
+    """The family that takes experiments of kind code ``kind`` (None: no family)."""
+    for fam in families().values():
+        if int(kind) in fam.kinds:
+            return fam
+    return None
+
+
 def spec_row(name: str) -> int:
     """The 0-based row of spec key ``name`` in the core's value column."""
     return spec_keys()[name].row

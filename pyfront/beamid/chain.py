@@ -34,7 +34,7 @@ from . import _check, _core_estimation as _ce
 from ._core import _call, spec_row
 from .errors import InputError
 from . import observations
-from .loads import Release
+from .loads import timed
 from .measurements import _canonical
 
 #: keys of the ``nuisance`` argument of :func:`beamid.fit`
@@ -184,7 +184,7 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
     if not isinstance(loss, str) or loss not in LOSSES:   # the words test_chain names
         _check.fail("loss", loss, f"one of {', '.join(LOSSES)}")
     exps = dict(experiments)
-    rel = [e for e, x in exps.items() if isinstance(x, Release)]
+    rel = [e for e, x in exps.items() if timed(x)]
     burn: dict[str, float] = {}
     if burn_in is not None:
         table = burn_in if isinstance(burn_in, Mapping) else {e: burn_in for e in rel}
@@ -195,7 +195,7 @@ def parse_rows(loss: Any, burn_in: Any, estimate_sigma: Any, experiments: Mappin
             if e not in exps:
                 raise InputError(f"burn_in: no experiment {e!r} (experiments: "
                                  f"{', '.join(exps)})")
-            if not isinstance(exps[e], Release):
+            if not timed(exps[e]):
                 raise InputError(f"burn_in: experiment {e!r} is static; a burn-in needs a "
                                  "record in time (a beamid.Release)")
             burn[e] = _check.real(f"burn_in[{e!r}]", t, min=0.0,
@@ -378,7 +378,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                 if item not in exps:
                     raise InputError(f"nuisance['initial_velocity']: no experiment {item!r} "
                                      f"(experiments: {', '.join(exps)})")
-                if not isinstance(exps[item], Release):
+                if not timed(exps[item]):
                     raise InputError(f"nuisance['initial_velocity']: experiment {item!r} is "
                                      "static; an initial velocity needs a release (a "
                                      "beamid.Release)")
@@ -388,7 +388,7 @@ def parse_nuisance(nuisance: Any, experiments: Mapping[str, Any], data) -> Chain
                 if item not in exps:
                     raise InputError(f"nuisance['time_offset']: no experiment {item!r} "
                                      f"(experiments: {', '.join(exps)})")
-                if not isinstance(exps[item], Release):
+                if not timed(exps[item]):
                     raise InputError(f"nuisance['time_offset']: experiment {item!r} is "
                                      "static; a time offset needs a record in time (a "
                                      "beamid.Release)")
@@ -549,7 +549,7 @@ def _candidates(experiments, data, own: ChainSpec | None,
     if not hasattr(data, "experiment"):
         raise InputError(f"data = {type(data).__name__}, expected beamid.Measurements "
                          "(beamid.read_measurements)")
-    rel = [e for e, x in experiments.items() if isinstance(x, Release)]
+    rel = [e for e, x in experiments.items() if timed(x)]
     channels = sorted({(e, q) for e, q in zip(data.experiment, data.quantity)
                        if e in rel}, key=lambda c: (exps.index(c[0]),
                                                     observations.sort_key(c[1])))

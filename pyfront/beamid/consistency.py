@@ -61,7 +61,7 @@ from . import _core_estimation as _ce
 from .estimation import (FLAG_TEXT, FitResult, _check_fit_args, _free_indices, _prior_arrays,
                          build_problem, fit as _fit, flag_is_problem)
 from ._core_estimation import chi2_sf_many, mc_summary
-from .loads import Release
+from .loads import timed
 from .fit_decks import read_fit_deck
 from .plotting import agg_pyplot
 from .progress import progress
@@ -210,10 +210,10 @@ class _Batch:
 
 
 def _batch(spec: _Spec) -> _Batch | None:
-    """The batched runner for ``spec``, or None: releases (a fit of them may
-    grow its record, run the homotopy or check its mesh) or inputs the
+    """The batched runner for ``spec``, or None: records in time (a fit of a
+    release may grow its record, run the homotopy or check its mesh) or inputs the
     fit's checks refuse go through ``beamid.fit`` one replicate at a time."""
-    if any(isinstance(x, Release) for x in spec.experiments.values()):
+    if any(timed(x) for x in spec.experiments.values()):
         return None
     try:
         return _Batch(spec)

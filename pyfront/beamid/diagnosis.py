@@ -41,7 +41,7 @@ from .estimation import _check_experiments, _free_indices, _named, _prior_arrays
 from .estimation import with_row_treatment as _with_row_treatment
 from . import chain as _chain, chain_refit as _chain_refit
 from .chain import split_ladder_fit as _split_ladder_fit
-from .loads import Modal, RadialWire, TipLoad, Release
+from .loads import RadialWire, TipLoad, family as _family
 from .measurements import Measurements
 from .model import Model
 from .progress import progress
@@ -135,32 +135,33 @@ MODAL_CANDIDATES = _ce.default_effects("modal")
 _STATES = dict(_ce.CANDIDATE_STATES)
 
 
-def _modal_only(experiments: Any) -> bool:
-    """Are all experiments modal tests (beamid.Modal)?"""
+def _families(experiments: Any) -> list:
+    """The core's family of each experiment (beamid.loads.family; None for
+    what is not an experiment), [] for what is not a set of experiments."""
     try:
-        exps = dict(experiments).values()
-        return bool(exps) and all(isinstance(x, Modal) for x in exps)
+        return [_family(x) for x in dict(experiments).values()]
     except (TypeError, ValueError):
-        return False
+        return []
+
+
+def _modal_only(experiments: Any) -> bool:
+    """Are all experiments modal tests (the core's 'modal' family)?"""
+    fams = _families(experiments)
+    return bool(fams) and all(f is not None and f.name == "modal" for f in fams)
 
 
 def _meshed(experiments: Any) -> bool:
     """Has this set of experiments one with a mesh of its own (a release, a
-    modal test: the Fortran families' mesh_key), which the ``mesh`` candidate
+    modal test: the core family's mesh key), which the ``mesh`` candidate
     refines?"""
-    try:
-        return any(isinstance(x, (Release, Modal)) for x in dict(experiments).values())
-    except (TypeError, ValueError):
-        return False
+    return any(f is not None and f.meshed for f in _families(experiments))
 
 
 def _dynamic(experiments: Any) -> bool:
-    """Has this set of experiments a release (time histories: beamid.dyn_diagnosis
-    takes over)? Public as beamid.dyn_diagnosis.is_dynamic."""
-    try:
-        return any(isinstance(x, Release) for x in dict(experiments).values())
-    except (TypeError, ValueError):
-        return False
+    """Has this set of experiments one whose rows are records in time (a
+    release: the core family is timed; beamid.dyn_diagnosis takes over)?
+    Public as beamid.dyn_diagnosis.is_dynamic."""
+    return any(f is not None and f.timed for f in _families(experiments))
 
 
 #: What fits with release experiments need from beamid.dyn_diagnosis, which
@@ -259,8 +260,9 @@ def load_level(load: TipLoad | RadialWire, model: Model) -> float:
     the force magnitude, else the moment magnitude, else for a wire the
     pull-in (total length - Lw); for a release or a modal test, its load's (as
     beamid-batch)."""
-    if isinstance(load, (Release, Modal)):
-        load = load.load
+    # an experiment that holds a static load (a release, a modal test) is
+    # ordered by that load
+    load = getattr(load, "load", None) or load
     if isinstance(load, RadialWire):
         return model.total_length - load.Lw
     force = math.hypot(load.fx, load.fy)

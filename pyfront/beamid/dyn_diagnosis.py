@@ -33,7 +33,7 @@ import numpy as np
 from . import _check, _core_estimation as _ce
 from .errors import _write_all
 from .estimation import FitResult, predict
-from .loads import Modal, Release
+from .loads import family
 from .measurements import Measurements, quantity_unit
 from .model import Model
 
@@ -75,7 +75,7 @@ is_dynamic = _dg._dynamic
 
 def default_candidates(experiments: Any) -> tuple[str, ...]:
     """Dynamic candidates, and for mixed fits the static ones too."""
-    static = any(not isinstance(x, Release) for x in dict(experiments).values())
+    static = any(not (f is not None and f.timed) for f in _dg._families(experiments))
     if not static:
         return DYNAMIC_CANDIDATES
     return tuple(dict.fromkeys(_dg.STATIC_CANDIDATES + DYNAMIC_CANDIDATES))
@@ -87,7 +87,9 @@ def refine_mesh(experiments: Any, elements_per_beam: int | None = None,
     ``elements_per_beam`` (default ``factor`` times its own)."""
     out = {}
     for name, x in dict(experiments).items():
-        if isinstance(x, (Release, Modal)):
+        fam = family(x)
+        if fam is not None and fam.meshed:
+            # the core family's mesh key is the experiment's elements_per_beam
             n = int(elements_per_beam) if elements_per_beam else x.elements_per_beam * factor
             x = dataclasses.replace(x, elements_per_beam=n)
         out[name] = x
@@ -362,8 +364,9 @@ def compare_dynamic(fit: FitResult, alpha: float = 0.01) -> TimeComparison:
     series = []
     static_rows = []
     groups: dict[tuple[str, str], list] = {}
+    timed = {e for e, x in fit.experiments.items() if (f := family(x)) is not None and f.timed}
     for r in fit.residuals:
-        if isinstance(fit.experiments[r.experiment], Release):
+        if r.experiment in timed:
             groups.setdefault((r.experiment, r.quantity), []).append(r)
         else:
             static_rows.append(r)

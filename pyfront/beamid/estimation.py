@@ -27,7 +27,7 @@ from . import observations
 from . import load_histories as _lh
 from .dynamics import _warn_chirp
 from .errors import BeamidError, InputError
-from .loads import LOAD_RELEASE, Modal, RadialWire, Release, TipLoad
+from .loads import LOAD_RELEASE, Modal, RadialWire, Release, TipLoad, family, timed
 from . import modal as _modal
 from .measurements import Measurements, QUANTITIES
 from .model import Model
@@ -215,7 +215,8 @@ def _check_experiments(experiments: Experiments) -> dict[str, TipLoad | RadialWi
                          "{'F3': beamid.TipForce(fy=3.0)}")
     out = {}
     for name, load in experiments.items():
-        if not isinstance(load, (TipLoad, RadialWire, Release, Modal)):
+        # an experiment is what the core has a family for (beamid.loads.family)
+        if family(load) is None:
             raise InputError(f"experiment {name!r}: load = {load!r}, expected TipForce, "
                              "TipMoment, RadialWire, Release or Modal")
         out[str(name)] = load
@@ -691,7 +692,8 @@ def _mode_crossings(start: Model, fitted: Model, experiments: Experiments,
     their shapes at ten stations a beam (normal and tangential motion)."""
     out = []
     for name, x in experiments.items():
-        if not isinstance(x, Modal):
+        fam = family(x)
+        if fam is None or fam.name != "modal":
             continue
         modes = [observations.parse(q).mode for e, q in zip(data.experiment, data.quantity)
                  if e == name]
@@ -791,7 +793,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     # and read by name; any other mix (a release, a modal test, a station's
     # gauge or curvature) is predicted through the inverse problem's families
     direct = {"u_tip", "w_tip", *_static_outputs, *_static_aliases}
-    mixed = (any(isinstance(x, (Release, Modal)) for x in exps.values())
+    mixed = (any(family(x).name != "static" for x in exps.values())
              or any(q not in direct for name in exps
                     for q in listed(quantities[name] if isinstance(quantities, Mapping)
                                     else quantities)))
@@ -799,7 +801,7 @@ def simulate_measurements(model: Model, experiments: Experiments, quantities: Se
     for name, x in exps.items():
         qs = quantities[name] if isinstance(quantities, Mapping) else quantities
         times = [0.0]
-        if isinstance(x, Release):
+        if timed(x):
             times = t.get(name) if isinstance(t, Mapping) else t
             if times is None:
                 raise InputError(f"t: no measurement times for the release experiment {name!r}")

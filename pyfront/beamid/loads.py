@@ -298,3 +298,25 @@ class Modal:
     def describe(self) -> str:
         return (f"modal test about {self.load.describe()}, {self.elements_per_beam} elements "
                 "per beam")
+
+
+def family(load: object) -> "_core.Family | None":
+    """The core's family of an experiment (``beamid.Release(...)`` ->
+    the 'release' family: timed, meshed), None for an object that is not an
+    experiment. Code that needs to know what an experiment is (records in
+    time, a mesh of its own) asks this, not the experiment's class."""
+    spec = getattr(load, "spec", None)
+    if not callable(spec):
+        return None
+    try:
+        kind = spec()[0]
+    except (TypeError, ValueError):
+        return None
+    return _core.family_of_kind(int(kind))
+
+
+def timed(load: object) -> bool:
+    """Whether ``load`` is an experiment whose rows are records in time (the
+    core's family is timed: a release), as :func:`family` answers."""
+    fam = family(load)
+    return fam is not None and fam.timed

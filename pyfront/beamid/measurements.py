@@ -22,7 +22,7 @@ import numpy as np
 
 from . import _check, _core, observations
 from .errors import InputError, _write_text
-from .loads import Modal, RadialWire, Release, TipLoad
+from .loads import RadialWire, family
 
 #: Observation kinds, in code order (the Fortran table, beamid_observations);
 #: u_tip = x_tip - (L1 + L2), w_tip = y_tip. A station kind is written
@@ -277,7 +277,9 @@ class Measurements:
         for i, (e, q) in enumerate(zip(self.experiment, self.quantity)):
             x = experiments[e]
             but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
-            if isinstance(x, Modal):
+            # what the experiment can measure is its core family's (loads.family)
+            fam = getattr(family(x), "name", "")
+            if fam == "modal":
                 if observations.can_measure(q, "modal"):
                     raise InputError(f"{but} is a modal test (it measures freq[k], "
                                      "damping[k] and shape_*@b:s[k])")
@@ -285,7 +287,7 @@ class Measurements:
                     raise InputError(f"{self._where(i)}: field t = {self.t[i]:g}, expected 0 "
                                      f"for the modal experiment {e!r}")
                 continue
-            if isinstance(x, Release):
+            if fam == "release":
                 why = observations.can_measure(q, "release", has_motor=x.has_motor)
                 if why == "family" and _needs(q) == "wire":
                     raise InputError(f"{but} is a release (no wire)")
@@ -297,7 +299,7 @@ class Measurements:
                                      f"measures {observations.parse(q).kind})")
                 if why == "motor":
                     raise InputError(f"{but} has no motor (motor_gain = 0)")
-            elif isinstance(x, (TipLoad, RadialWire)):
+            elif fam == "static":
                 why = observations.can_measure(q, "static",
                                                has_wire=isinstance(x, RadialWire))
                 if why == "family" and _needs(q) == "motor":

@@ -90,6 +90,13 @@ class Model:
     def indices(self, names: tuple[str, ...]) -> np.ndarray:
         """1-based positions of named parameters as the Fortran core takes them
         (InputError for an unknown name); remembered per tuple of names."""
+        try:
+            # a tuple met before was checked then (solve_static's per-call cost)
+            found = self._wrt_cache.get(names) if type(names) is tuple else None
+        except TypeError:
+            found = None
+        if found is not None:
+            return found
         names = _check.names("names", names)
         found = self._wrt_cache.get(names)
         if found is None:

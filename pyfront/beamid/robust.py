@@ -74,7 +74,7 @@ from .consistency import SERIAL_BELOW, _chunks, _dask_client, _local_workers, _m
 from .dyn_diagnosis import refine_mesh
 from .errors import BeamidError
 from .estimation import START_SEED, START_SPREAD, build_problem, fit as _fit
-from .loads import Release
+from .loads import Release, timed
 from .measurements import Measurements
 
 #: A fit ends "far above its degrees of freedom" when the chi-square's
@@ -133,9 +133,9 @@ class StartEnd(NamedTuple):
 
 
 def needs_check(fit: Any) -> bool:
-    """A fit with releases that ended far above its degrees of freedom
-    (p-value below FAR_P) or stalled."""
-    if not any(isinstance(x, Release) for x in fit.experiments.values()):
+    """A fit with releases (records in time: the core family is timed) that
+    ended far above its degrees of freedom (p-value below FAR_P) or stalled."""
+    if not any(timed(x) for x in fit.experiments.values()):
         return False
     if fit.stop == "stalled":
         return True
@@ -388,7 +388,7 @@ def window_experiments(experiments: Any) -> dict:
 
 def release_end(experiments: Any, data: Any) -> float:
     """The last measured time of a release (0 without releases)."""
-    rel = {n for n, x in dict(experiments).items() if isinstance(x, Release)}
+    rel = {n for n, x in dict(experiments).items() if timed(x)}
     times = [float(t) for e, t in zip(data.experiment, data.t) if e in rel]
     return max(times, default=0.0)
 
@@ -405,7 +405,7 @@ def grow_windows(end: float, first: float = GROW_FIRST) -> list[float]:
 
 def record_up_to(experiments: Any, data: Any, end: float) -> Any:
     """The data rows of the releases measured at t <= end, and every static row."""
-    rel = {n for n, x in dict(experiments).items() if isinstance(x, Release)}
+    rel = {n for n, x in dict(experiments).items() if timed(x)}
     rows = [r for r in data.rows() if r[0] not in rel or r[1] <= end * (1.0 + 1e-12)]
     return Measurements.from_rows(rows, source=f"{data.source} (t <= {end:g} s)")
 
