@@ -103,6 +103,9 @@ def test_parameter_units_are_the_cores():
                                "tau_motor", "axial_coupling")] == \
         ["rad/(N m)", "rad/(N m)", "rad/(N m)", "s", "N m s", "s", "-"]
     assert parameter_unit("EI12") == "N m^2" and parameter_unit("hub_speed") == "-"
+    assert parameter_unit("m_joint7") == "kg" and parameter_unit("joint12_flex") == "rad/(N m)"
+    assert parameter_unit("thick" + "9" * 5000) == "m"     # no chain of that size is built
+    assert [parameter_unit(n) for n in ("EI0", "EI01", "joint1_flex", "")] == ["-"] * 4
     with pytest.raises(beamid.InputError, match="parameter_unit: name"):
         parameter_unit(3)
 

@@ -21,12 +21,12 @@ from .plotting import _axes
 def parameter_unit(name: str) -> str:
     """The unit of a model parameter (``EI1`` -> ``N m^2``), "-" when it has
     none (friction coefficients, ``axial_coupling``) or is not a model
-    parameter: the core's unit table (beamid_model, ``_core.param_units``),
-    looked up in a chain long enough to hold the beam or joint number in
-    the name."""
+    parameter: the core's unit table (beamid_model, ``_core.param_units``).
+    A unit does not depend on the beam or joint number, so the name is
+    looked up in a chain of 3 beams with its numbers above 2 written 2."""
     _check.text("parameter_unit: name", name, empty=True)
-    nbeams = max([2] + [int(k) + 1 for k in re.findall(r"\d+", name)])
-    return dict(zip(_core.param_names(nbeams), _core.param_units(nbeams))).get(name, "-")
+    probe = re.sub(r"[1-9]\d+|[3-9]", "2", name)
+    return dict(zip(_core.param_names(3), _core.param_units(3))).get(probe, "-")
 
 
 def _quantities(cmp: Comparison) -> list[str]:
