@@ -97,6 +97,10 @@ def test_fit_deck_with_a_hammer_history(tmp_path):
     ("&history target = 'tip_fz', form = 'step', amplitude = 1.0 /",
      "deck.nml, line 5: &history target = 'tip_fz', expected one of: tip_fx tip_fy "
      "tip_torque motor_open hub"),
+    # the forms in beamid_loads' code order (HIST_NAMES, the names Python reads)
+    ("&history target = 'tip_fy', form = 'ramp', amplitude = 1.0 /",
+     "deck.nml, line 5: &history form = 'ramp', expected one of: table half_sine step "
+     "chirp spin_up"),
     ("&history target = 'tip_fy', form = 'step', amplitude = 1.0, w_s = 2.0 /",
      "deck.nml, line 5: &history w_s is not a field of this form (it takes: amplitude start)"),
     ("&history target = 'tip_fy', form = 'table', file = 'f.csv', column = 'force' /",

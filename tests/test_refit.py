@@ -263,8 +263,9 @@ def test_code_tables_come_from_fortran():
     assert ce.START_NAMES == {0: None, 1: "first-order estimate", 2: "nominal model",
                               3: "continuation"}
     assert ce.CANDIDATE_STATES[2] == "already switched on"
-    with pytest.raises(beamid.InputError, match="no code table 10"):
-        ce.code_names(10)
+    # tables 10 and 11 are the load targets and history kinds (test_core_tables)
+    with pytest.raises(beamid.InputError, match="no code table 12"):
+        ce.code_names(12)
 
 
 @pytest.mark.parametrize("k", [2, 5, 8, 11], ids=lambda k: SWEEP[k][0])

@@ -678,7 +678,7 @@ contains
     end subroutine api_quantity_labels
 
     !> The observation table of beamid_observations, one kind per line:
-    !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;about.
+    !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;rate;about.
     subroutine api_observation_table(text)
         character(len=16384), intent(out) :: text
         text = kind_table_text()

@@ -20,6 +20,7 @@ module beamid_api_dynamics
                                   DOF_W, DOF_DW, DOF_U, DOF_DU, DOF_DW_OUT, DOF_DU_OUT
     ! ld_spec columns have beamid_loads LD_NSPEC = 9 entries (a literal for f2py)
     use beamid_loads, only: tip_history_t, histories_from_columns
+    use beamid_hub, only: hub_work_label, hub_param_label
     use beamid_release, only: release_spec_t, release_out_t, release_response, NQTY, &
                               NLOAD, release_quantity_name, release_wrt_name
     use beamid_dynamics, only: dyn_system_t, dyn_setup, dyn_set_modes, dyn_cforces, &
@@ -408,6 +409,7 @@ contains
         type(status_t) :: stat
         character(len=:), allocatable :: jw, jp
         real(dp) :: hub(2)
+        real(dp), allocatable :: hub_tab(:, :)
         logical :: has_hub
         integer :: l, i
         works = ''
@@ -415,7 +417,7 @@ contains
         jw = ''
         jp = ''
         call histories_from_columns(real(ld_spec, dp), real(ld_tab, dp), hists, stat, hub, &
-                                    has_hub)
+                                    has_hub, hub_tab)
         if (stat%code == STATUS_OK) then
             do l = 1, size(hists)
                 jw = jw//hists(l)%work_name()//' '
@@ -425,12 +427,8 @@ contains
             end do
             ! the hub after the histories (release_response's order)
             if (has_hub) then
-                jw = jw//'hub '
-                if (any(nint(ld_spec(1, :)) == 5 .and. nint(ld_spec(2, :)) == 1)) then
-                    jp = jp//'hub_scale '
-                else
-                    jp = jp//'hub_speed '
-                end if
+                jw = jw//hub_work_label()//' '
+                jp = jp//hub_param_label(allocated(hub_tab))//' '
             end if
             if (len(jw) > len(works) .or. len(jp) > len(pnames)) then
                 call set_status(stat, ERR_INPUT, 'api_dyn_load_names', 'too many histories ('// &

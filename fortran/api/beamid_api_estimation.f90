@@ -43,6 +43,7 @@ module beamid_api_estimation
     use beamid_chain_fit, only: chain_fit
     use beamid_dyn_diagnosis, only: mesh_check, mesh_test_t
     use beamid_dynamic_experiments, only: exp_histories_t
+    use beamid_loads, only: TARGET_NAMES, HIST_NAMES
     use beamid_effects, only: EFFECTS, NEFFECTS, FAMILY_NAMES, NFAMILY, effect_params
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, problem_diagnose, &
                              ladder_t, ladder_start, ladder_step
@@ -113,16 +114,19 @@ contains
     !! up, separated by ';': table 1 parameter flags (FLAG_*), 2 how a fit
     !! ended (STOP_*), 3 refit starts (START_*), 4 candidate states (CAND_*),
     !! and the column names of the result arrays: 5 a fit's stats, 6 cstats,
-    !! 7 pstats, 8 dstats, 9 mstats of the mesh test (from position 1). code = -1 for an unknown table.
+    !! 7 pstats, 8 dstats, 9 mstats of the mesh test (from position 1); and
+    !! the load histories of beamid_loads by code from 1: 10 the targets
+    !! (TARGET_*), 11 the history kinds (HIST_*). code = -1 for an unknown
+    !! table.
     subroutine api_code_names(table, names, code)
         integer(c_int), intent(in) :: table
         character(len=1024), intent(out) :: names
         integer(c_int), intent(out) :: code
-        character(len=1024) :: tables(9)
+        character(len=1024) :: tables(11)
         tables = [character(len=1024) :: joined(FLAG_NAMES), joined(STOP_NAMES), &
                   joined(START_NAMES), joined(CAND_NAMES), joined(FIT_STAT_NAMES), &
                   joined(CSTAT_NAMES), joined(PSTAT_NAMES), joined(DSTAT_NAMES), &
-                  joined(MSTAT_NAMES)]
+                  joined(MSTAT_NAMES), joined(TARGET_NAMES), joined(HIST_NAMES)]
         code = 0
         names = ''
         if (table >= 1 .and. table <= size(tables)) then

@@ -11,7 +11,8 @@ module beamid_api_static
     use, intrinsic :: iso_c_binding, only: c_int, c_double
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, STATUS_OK, ERR_INPUT, set_status, status_out, fmt_int
-    use beamid_model, only: chain_t, chain_from_vector, param_count, param_name
+    use beamid_model, only: chain_t, chain_from_vector, param_count, param_name, param_unit, &
+                            param_group
     use beamid_presets, only: preset_params
     use beamid_arclength, only: static_solution_t, solve_static, static_shape, &
                                 static_load_from_values, static_options_from_tol
@@ -19,6 +20,7 @@ module beamid_api_static
     private
 
     public :: api_param_names, api_param_count, api_param_name, api_check_params
+    public :: api_param_info
     public :: api_static_solve, api_static_shape, api_preset_size, api_preset
 
 contains
@@ -88,6 +90,24 @@ contains
         end if
         call status_out(stat, code, message)
     end subroutine api_param_name
+
+    !> Unit ('-': none) and group of parameter i (1-based) of a chain of
+    !! nbeams beams (beamid_model param_unit, param_group: 'beam', 'point',
+    !! 'joint' or 'global').
+    subroutine api_param_info(nbeams, i, unit, group, code, message)
+        integer(c_int), intent(in) :: nbeams, i
+        character(len=16), intent(out) :: unit, group
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        character(len=64) :: name
+        name = ''
+        unit = ''
+        group = ''
+        call api_param_name(nbeams, i, name, code, message)
+        if (code /= 0) return
+        unit = param_unit(int(nbeams), int(i))
+        group = param_group(int(nbeams), int(i))
+    end subroutine api_param_info
 
     !> Number of beams of a preset ('pace', 'cantilever'); code < 0 if unknown.
     subroutine api_preset_size(name, nbeams, code, message)

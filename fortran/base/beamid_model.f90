@@ -25,6 +25,7 @@ module beamid_model
     private
 
     public :: chain_t, param_count, param_name, param_index_beam, param_index_mass
+    public :: param_unit, param_group
     public :: param_index_joint_flex, param_index_global, param_index_thickness
     public :: chain_from_vector, param_problem
     public :: PER_BEAM, PER_MASS, NUM_GLOBAL, PACE_THICKNESS
@@ -47,6 +48,17 @@ module beamid_model
         [character(len=2) :: 'm', 'J', 'mu', 'c']
     character(len=*), parameter :: global_names(NUM_GLOBAL) = &
         [character(len=14) :: 'axial_coupling', 'root_flex', 'eta', 'r_motor', 'tau_motor']
+    !> Units of the parameters, in the order of the names above ('-': none;
+    !! M = EI k + C k^3, Kelvin-Voigt eta, T = -r g Psidot; docs/static.md,
+    !! docs/dynamics.md). A joint's flexibility (and the root's) is rad/(N m),
+    !! a strip thickness m.
+    character(len=*), parameter :: beam_units(PER_BEAM) = &
+        [character(len=7) :: 'm', 'N m^2', 'N', 'kg/m', 'N m^4']
+    character(len=*), parameter :: mass_units(PER_MASS) = &
+        [character(len=6) :: 'kg', 'kg m^2', '-', 'N s/m']
+    character(len=*), parameter :: global_units(NUM_GLOBAL) = &
+        [character(len=9) :: '-', 'rad/(N m)', 's', 'N m s', 's']
+    character(len=*), parameter :: FLEX_UNIT = 'rad/(N m)', THICKNESS_UNIT = 'm'
 
     !> A validated beam chain. Arrays are indexed by beam (1..nbeams) or by
     !! mass point (1..nbeams; the last one is the tip).
@@ -124,6 +136,54 @@ contains
             name = 'thick'//fmt_int(k)
         end if
     end function param_name
+
+    !> Unit of parameter `index` (1-based) of a chain of `nbeams` beams ('-':
+    !! none; '' outside the vector).
+    pure function param_unit(nbeams, index) result(unit)
+        integer, intent(in) :: nbeams, index
+        character(len=:), allocatable :: unit
+        integer :: i
+        i = index
+        select case (param_group(nbeams, index))
+        case ('beam')
+            if (i <= PER_BEAM*nbeams) then
+                unit = trim(beam_units(modulo(i - 1, PER_BEAM) + 1))
+            else
+                unit = THICKNESS_UNIT
+            end if
+        case ('point')
+            i = i - PER_BEAM*nbeams
+            unit = trim(mass_units(modulo(i - 1, PER_MASS) + 1))
+        case ('joint')
+            unit = FLEX_UNIT
+        case ('global')
+            unit = trim(global_units(i - param_index_global(nbeams, 0)))
+        case default
+            unit = ''
+        end select
+    end function param_unit
+
+    !> What parameter `index` (1-based) of a chain of `nbeams` beams belongs
+    !! to: 'beam' (one per beam: L, EI, EA, rho, C, thick), 'point' (one per
+    !! mass point: m, J, mu, c), 'joint' (one per joint: its flexibility),
+    !! 'global' (one per chain); '' outside the vector.
+    pure function param_group(nbeams, index) result(group)
+        integer, intent(in) :: nbeams, index
+        character(len=:), allocatable :: group
+        if (index < 1 .or. index > param_count(nbeams)) then
+            group = ''
+        else if (index <= PER_BEAM*nbeams) then
+            group = 'beam'
+        else if (index <= (PER_BEAM + PER_MASS)*nbeams) then
+            group = 'point'
+        else if (index <= param_index_global(nbeams, 0)) then
+            group = 'joint'
+        else if (index <= param_index_thickness(nbeams, 0)) then
+            group = 'global'
+        else
+            group = 'beam'
+        end if
+    end function param_group
 
     pure function point_name(nbeams, point) result(name)
         integer, intent(in) :: nbeams, point

@@ -31,10 +31,16 @@ module beamid_hub
     use beamid_fe_element, only: FE_NDOF, FE_U, FE_W, fe_element_mass
     use beamid_fe_assembly, only: fe_mesh_t, fe_expand, DOF_W, DOF_U, DOF_DU
     use beamid_dynamics, only: dyn_system_t
+    use beamid_loads, only: TARGET_NAMES, TARGET_HUB
     implicit none
     private
 
-    public :: hub_forcing_t, hub_setup, hub_rate
+    public :: hub_forcing_t, hub_setup, hub_rate, hub_work_label, hub_param_label
+
+    !> The hub's parameter (sensitivities, wrt): w_s of the spin-up law, or
+    !! the scale of an angle table.
+    character(len=*), parameter :: HUB_PARAM_NAMES(2) = [character(len=9) :: 'hub_speed', &
+                                                         'hub_scale']
 
     type, extends(forcing_t) :: hub_forcing_t
         real(dp) :: ws = 0.0_dp, period = 1.0_dp   !< w_s (rad/s), T (s)
@@ -314,8 +320,22 @@ contains
     pure function hub_work_name(self) result(name)
         class(hub_forcing_t), intent(in) :: self
         character(len=:), allocatable :: name
-        name = 'hub'
+        name = hub_work_label()
     end function hub_work_name
+
+    !> The hub's work line in the ledger: its target's name (beamid_loads).
+    pure function hub_work_label() result(name)
+        character(len=:), allocatable :: name
+        name = trim(TARGET_NAMES(TARGET_HUB))
+    end function hub_work_label
+
+    !> The name of the hub's parameter: of the angle table (`table`) or
+    !! of the spin-up law.
+    pure function hub_param_label(table) result(name)
+        logical, intent(in) :: table
+        character(len=:), allocatable :: name
+        name = trim(HUB_PARAM_NAMES(merge(2, 1, table)))
+    end function hub_param_label
 
     pure logical function hub_coupled(self) result(coupled)
         class(hub_forcing_t), intent(in) :: self
@@ -331,7 +351,7 @@ contains
         class(hub_forcing_t), intent(in) :: self
         integer, intent(in) :: i
         character(len=:), allocatable :: name
-        name = merge('hub_scale', 'hub_speed', allocated(self%tt))
+        name = hub_param_label(allocated(self%tt))
     end function hub_param_name
 
     !> dF/dw_s: Omega and Omega' are proportional to w_s.

@@ -35,20 +35,26 @@ module beamid_loads
 
     public :: load_history_t, tip_history_t
     public :: history_value, history_dvalue, history_nparams, history_breaks
-    public :: HIST_TABLE, HIST_HALF_SINE, HIST_STEP, HIST_CHIRP
+    public :: HIST_TABLE, HIST_HALF_SINE, HIST_STEP, HIST_CHIRP, HIST_SPIN_UP
     public :: TARGET_FX, TARGET_FY, TARGET_TORQUE, TARGET_MOTOR, TARGET_NAMES, HIST_NAMES
     public :: TARGET_HUB
     public :: HIST_PARAM_NAMES, LD_NSPEC, histories_from_columns, history_check
 
     integer, parameter :: HIST_TABLE = 1, HIST_HALF_SINE = 2, HIST_STEP = 3, HIST_CHIRP = 4
+    !> the hub's spin-up law (beamid_hub; a hub column of kind HIST_TABLE is
+    !! its angle table): not a tip history
+    integer, parameter :: HIST_SPIN_UP = 5
     integer, parameter :: TARGET_FX = 1, TARGET_FY = 2, TARGET_TORQUE = 3, TARGET_MOTOR = 4
-    !> the hub's spin-up law (beamid_hub), not a tip history
+    !> the hub's rotation (beamid_hub), not a tip history
     integer, parameter :: TARGET_HUB = 5
-    !> names of the targets (work lines) and history kinds, by code
-    character(len=*), parameter :: TARGET_NAMES(4) = [character(len=11) :: 'tip_fx', &
-                                                      'tip_fy', 'tip_torque', 'motor_open']
-    character(len=*), parameter :: HIST_NAMES(4) = [character(len=9) :: 'table', &
-                                                    'half_sine', 'step', 'chirp']
+    !> names of the targets (the tip histories' work lines) and history
+    !! kinds, by code: the one definition the deck reader and the Python
+    !! front read (api_code_names)
+    character(len=*), parameter :: TARGET_NAMES(5) = [character(len=11) :: 'tip_fx', &
+                                                      'tip_fy', 'tip_torque', 'motor_open', &
+                                                      'hub']
+    character(len=*), parameter :: HIST_NAMES(5) = [character(len=9) :: 'table', &
+                                                    'half_sine', 'step', 'chirp', 'spin_up']
     !> names of a history's parameters, by index
     character(len=*), parameter :: HIST_PARAM_NAMES(2) = [character(len=9) :: 'amplitude', &
                                                           'duration']
@@ -337,13 +343,13 @@ contains
                 cycle
             end if
             m = m + 1
-            if (tg < 1 .or. tg > size(TARGET_NAMES)) then
+            if (tg < 1 .or. tg > TARGET_MOTOR) then
                 call set_status(stat, ERR_INPUT, 'load histories', 'history '//fmt_int(l)// &
                                 ': target = '//fmt_int(tg)//', expected 1..5 (tip_fx, '// &
                                 'tip_fy, tip_torque, motor_open, hub)')
                 return
             end if
-            if (kd < 1 .or. kd > size(HIST_NAMES)) then
+            if (kd < 1 .or. kd > HIST_CHIRP) then
                 call set_status(stat, ERR_INPUT, 'load histories', 'history '//fmt_int(l)// &
                                 ': kind = '//fmt_int(kd)//', expected 1..4 (table, '// &
                                 'half_sine, step, chirp)')

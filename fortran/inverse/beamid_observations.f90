@@ -5,9 +5,11 @@
 !! (LOCUS_NONE: a fixed point of the arm, such as the tip; LOCUS_STATION: a
 !! beam and an arc length from that beam's root; LOCUS_MODE: a mode number,
 !! reserved for modal experiments), what the experiment must have for it
-!! (NEED_WIRE, NEED_MOTOR), the default sigma of its probe rows and its place
-!! in each family's probe list. An observation (observation_t) is a kind
-!! and its locus; names are parsed here and only here (parse_observation):
+!! (NEED_WIRE, NEED_MOTOR), the default sigma of its probe rows, its place
+!! in each family's probe list and whether its rate is computed (the column
+!! of a clock offset: not for the kinds holding the accelerations). An
+!! observation (observation_t) is a kind and its locus; names are parsed
+!! here and only here (parse_observation):
 !! `x_tip`, or `kind@beam:s` for a station (`strain@1:0.05`).
 !!
 !! The kind codes are the positions in KINDS; the first nine are the
@@ -82,6 +84,11 @@ module beamid_observations
         !! data sigmas count for this kind's probe sigma too; 0: none)
         integer :: twin = 0
         character(len=72) :: about = ''
+        !> the family computes the kind's rate (d value/dt, the column of a
+        !! clock offset t0); .false. for the kinds that hold the
+        !! accelerations, whose rate would need the jerk (rate=.false. in
+        !! their rows below)
+        logical :: rate = .true.
     end type obs_kind_t
 
     integer, parameter :: NKIND = 31
@@ -122,19 +129,23 @@ module beamid_observations
         obs_kind_t('vel_n', 'm/s', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
                    'velocity along the local normal (tangent turned +90 degrees)'), &
         obs_kind_t('accel_t', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'acceleration along the local tangent (an accelerometer)'), &
+                   0, 'acceleration along the local tangent (an accelerometer)', &
+                   rate=.false.), &
         obs_kind_t('accel_n', 'm/s^2', FAM_RELEASE, LOCUS_STATION, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'acceleration along the local normal'), &
+                   0, 'acceleration along the local normal', rate=.false.), &
         obs_kind_t('elbow_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
                    'encoder at the elbow: psi after it minus psi before it'), &
         obs_kind_t('root_rotation', 'rad', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-3_dp, 0, 0, 0, &
                    'encoder at the root: psi of the arm at the clamp'), &
         obs_kind_t('reaction_x', 'N', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
-                   'load cell: x force of the clamp on the arm (global axes)'), &
+                   'load cell: x force of the clamp on the arm (global axes)', &
+                   rate=.false.), &
         obs_kind_t('reaction_y', 'N', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
-                   'load cell: y force of the clamp on the arm (global axes)'), &
+                   'load cell: y force of the clamp on the arm (global axes)', &
+                   rate=.false.), &
         obs_kind_t('reaction_moment', 'N m', BOTH, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
-                   0, 'load cell: moment of the clamp on the arm, counter-clockwise'), &
+                   0, 'load cell: moment of the clamp on the arm, counter-clockwise', &
+                   rate=.false.), &
         obs_kind_t('hub_torque', 'N m', FAM_RELEASE, LOCUS_NONE, NEED_NONE, 1.0e-2_dp, 0, 0, &
                    0, 'torque of the hub (clamp) on the arm: -moment at the root'), &
         obs_kind_t('freq', 'Hz', FAM_MODAL, LOCUS_MODE, NEED_NONE, 1.0e-2_dp, 0, 0, 0, &
@@ -459,11 +470,12 @@ contains
     end function probe_kinds
 
     !> The table as text, one kind per line:
-    !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;about
+    !! name;unit;families;locus;needs;sigma;probe_static;probe_release;twin;rate;about
     !! (families: static, release, modal joined by '+'; locus: none, station,
     !! mode, station+mode;
     !! needs: none, wire, motor; probe_*: the place in that family's probe
-    !! list, 0: none; twin: the kind's twin by name, '' for none).
+    !! list, 0: none; twin: the kind's twin by name, '' for none; rate:
+    !! 'rate' or 'no_rate', whether the rate d value/dt is computed).
     pure function kind_table_text() result(text)
         character(len=:), allocatable :: text
         character(len=*), parameter :: LOCI(0:3) = [character(len=12) :: 'none', 'station', &
@@ -493,7 +505,9 @@ contains
                 text = text//trim(r%name)//';'//trim(r%unit)//';'//fam//';'// &
                        trim(LOCI(r%locus))//';'//trim(NEEDS(r%needs))//';'// &
                        trim(adjustl(buf))//';'//fmt_int(r%probe_static)//';'// &
-                       fmt_int(r%probe_release)//';'//twin//';'//trim(r%about)//new_line('a')
+                       fmt_int(r%probe_release)//';'//twin//';'// &
+                       trim(merge('rate   ', 'no_rate', r%rate))//';'//trim(r%about)// &
+                       new_line('a')
         end do
     end function kind_table_text
 end module beamid_observations

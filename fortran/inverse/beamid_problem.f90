@@ -43,8 +43,7 @@ module beamid_problem
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int, fmt_real
     use beamid_estimation, only: residual_model_t, prior_t, lsq_problem_t, prior_from_covariance
     use beamid_observations, only: observation_t, obs_label, same_observation, MODE_STRIDE, &
-                                   default_observations, K_ACCEL_T, K_ACCEL_N, &
-                                   K_REACTION_X, K_REACTION_Y, K_REACTION_MOMENT
+                                   default_observations, KINDS
     use beamid_effects, only: effect_bounds, effect_null_values
     use beamid_chain_fit, only: chain_rows_t
     use beamid_family, only: family_slot_t, EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, &
@@ -363,9 +362,7 @@ contains
                     ! record whose rows include an observation without one
                     do i = 1, size(row_exp)
                         if (row_exp(i) /= self%nu_exp(k)) cycle
-                        if (robs(i)%kind /= K_ACCEL_T .and. robs(i)%kind /= K_ACCEL_N .and. &
-                            robs(i)%kind /= K_REACTION_X .and. robs(i)%kind /= K_REACTION_Y &
-                            .and. robs(i)%kind /= K_REACTION_MOMENT) cycle
+                        if (KINDS(robs(i)%kind)%rate) cycle
                         call set_status(stat, ERR_INPUT, where, 'experiment '// &
                                         fmt_int(self%nu_exp(k))//': a time offset asked, '// &
                                         'but row '//fmt_int(i)//' observes '// &

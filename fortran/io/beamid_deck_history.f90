@@ -26,20 +26,14 @@ module beamid_deck_history
     use beamid_status, only: fmt_int, fmt_real, lower
     use beamid_namelist, only: nml_file_t, nml_group_t, nml_count, nml_find, nml_check_keys, &
                                nml_real, nml_reals, nml_str, nml_given, add_error, nml_where
-    use beamid_loads, only: HIST_TABLE, HIST_HALF_SINE, HIST_STEP, HIST_CHIRP, TARGET_HUB, &
-                            LD_NSPEC
+    use beamid_loads, only: HIST_TABLE, HIST_HALF_SINE, HIST_STEP, HIST_CHIRP, HIST_SPIN_UP, &
+                            TARGET_HUB, LD_NSPEC, TARGET_NAMES, HIST_NAMES
     use beamid_dynamic_experiments, only: exp_histories_t
     implicit none
     private
 
     public :: read_history_groups, HISTORY_KEYS
 
-    !> The spin-up law's kind code (beamid_loads' columns; Python's SpinUp)
-    integer, parameter :: HIST_SPIN_UP = 5
-    character(len=*), parameter :: TARGETS = ' tip_fx tip_fy tip_torque motor_open hub '
-    character(len=*), parameter :: FORMS = ' half_sine step chirp table spin_up '
-    integer, parameter :: FORM_CODES(5) = [HIST_HALF_SINE, HIST_STEP, HIST_CHIRP, HIST_TABLE, &
-                                           HIST_SPIN_UP]
     type :: text_t
         character(len=:), allocatable :: s
     end type text_t
@@ -125,16 +119,14 @@ contains
                                    "experiment: histories act on kind = 'release' only")
                 end if
             end if
-            tg = word_index(TARGETS, target)
+            ! the targets and forms by their codes in beamid_loads (TARGET_*, HIST_*)
+            tg = name_index(TARGET_NAMES, target)
             if (tg == 0) call add_error(errors, where//"target = '"//target//"', expected "// &
-                                        'one of:'//TARGETS(:len(TARGETS) - 1))
-            kind = word_index(FORMS, form)
+                                        'one of:'//spaced(TARGET_NAMES))
+            kind = name_index(HIST_NAMES, form)
             if (kind == 0) call add_error(errors, where//"form = '"//form//"', expected "// &
-                                          'one of:'//FORMS(:len(FORMS) - 1))
+                                          'one of:'//spaced(HIST_NAMES))
             if (tg == 0 .or. kind == 0) return
-            ! form codes of beamid_loads: the word order above is half_sine step chirp
-            ! table spin_up
-            kind = FORM_CODES(kind)
             if (tg == TARGET_HUB .neqv. (kind == HIST_SPIN_UP .or. &
                                          (tg == TARGET_HUB .and. kind == HIST_TABLE))) then
                 call add_error(errors, where//"target = '"//target//"' with form = '"//form// &
@@ -299,20 +291,26 @@ contains
     end subroutine read_history_groups
 
     !> Position of `word` among the ' '-separated words of `list` (0: none).
-    pure integer function word_index(list, word)
-        character(len=*), intent(in) :: list, word
-        integer :: i, n, j
-        word_index = 0
-        if (len_trim(word) == 0 .or. index(list, ' '//trim(word)//' ') == 0) return
-        j = index(list, ' '//trim(word)//' ')
-        n = 0
-        do i = 1, j
-            if (list(i:i) == ' ' .and. i < len(list)) then
-                if (list(i + 1:i + 1) /= ' ') n = n + 1
-            end if
+    !> Position of `word` in `names` (0: not there).
+    pure integer function name_index(names, word)
+        character(len=*), intent(in) :: names(:), word
+        integer :: i
+        name_index = 0
+        do i = 1, size(names)
+            if (len_trim(word) > 0 .and. trim(names(i)) == trim(word)) name_index = i
         end do
-        word_index = n
-    end function word_index
+    end function name_index
+
+    !> The names, each after a space (for messages).
+    pure function spaced(names) result(text)
+        character(len=*), intent(in) :: names(:)
+        character(len=:), allocatable :: text
+        integer :: i
+        text = ''
+        do i = 1, size(names)
+            text = text//' '//trim(names(i))
+        end do
+    end function spaced
 
     pure integer function count_values(g, key)
         type(nml_group_t), intent(in) :: g

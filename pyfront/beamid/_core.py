@@ -57,6 +57,24 @@ def param_names(nbeams: int) -> tuple[str, ...]:
                  for i in range(1, count + 1))
 
 
+@lru_cache(maxsize=None)
+def _param_info(nbeams: int) -> tuple[tuple[str, str], ...]:
+    return tuple(tuple(_text(x).strip() for x in _call(_static.api_param_info, nbeams, i))
+                 for i in range(1, len(param_names(nbeams)) + 1))
+
+
+def param_units(nbeams: int) -> tuple[str, ...]:
+    """Units of the parameter vector of a chain of ``nbeams`` beams, in
+    order (``"-"``: none; beamid_model's unit table)."""
+    return tuple(unit for unit, _ in _param_info(nbeams))
+
+
+def param_groups(nbeams: int) -> tuple[str, ...]:
+    """What each parameter belongs to, in order: ``"beam"``, ``"point"``
+    (a mass point), ``"joint"`` or ``"global"`` (the chain)."""
+    return tuple(group for _, group in _param_info(nbeams))
+
+
 def preset(name: str) -> tuple[int, np.ndarray]:
     """Number of beams and parameter vector of a built-in model."""
     nbeams = int(_call(_static.api_preset_size, name))

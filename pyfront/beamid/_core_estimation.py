@@ -127,8 +127,10 @@ def chi2_sf(x: float, k: int) -> float:
 
 
 def code_names(table: int) -> dict[int, str]:
-    """A code table of beamid_estimation by code: 1 parameter flags, 2 how a
-    fit ended, 3 refit starts, 4 candidate states (defined once, in Fortran)."""
+    """A code table of the core by position from 0 (defined once, in Fortran):
+    1 parameter flags, 2 how a fit ended, 3 refit starts, 4 candidate states,
+    5-9 result columns, 10 load targets and 11 history kinds (beamid_loads,
+    whose codes are the positions + 1)."""
     names, code = _api.api_code_names(int(table))
     raise_for_status(int(code), f"no code table {table}")
     return dict(enumerate(_text(names).strip().split(";")))

@@ -46,8 +46,9 @@ _EV_T0, _EV_BIAS, _EV_SCALE, _EV_V0 = (spec_row(k) for k in ("t0", "bias", "scal
 MAX_CHANNEL_BITS = 52
 #: kinds whose rate (the t0 column) the core does not compute: a record with
 #: such rows takes no clock offset (the acceleration's rate is the jerk; the
-#: load cell's reaction holds the accelerations too)
-NO_RATE_KINDS = ("accel_t", "accel_n", "reaction_x", "reaction_y", "reaction_moment")
+#: load cell's reaction holds the accelerations too). The core's observation
+#: table says which (its rate column, beamid_observations).
+NO_RATE_KINDS = tuple(k.name for k in observations.kinds().values() if not k.rate)
 #: null (perfect chain) value by kind
 NULLS = {"time_offset": 0.0, "bias": 0.0, "scale": 1.0, "initial_velocity": 0.0}
 _KIND_CODE = {1: "time_offset", 2: "bias", 3: "scale", 4: "initial_velocity"}

@@ -40,7 +40,8 @@ FE_DEFAULTS = {"elements_per_beam": 4, "moment_form": "eq78", "rotary_inertia": 
 _PER_BEAM = {"l": "L{}", "ei": "EI{}", "ea": "EA{}", "rho": "rho{}", "c": "C{}",
              "thick": "thick{}"}
 _PER_POINT = {"m": "m_{}", "j": "J_{}", "mu": "mu_{}", "c_drag": "c_{}"}
-_GLOBAL = ("axial_coupling", "root_flex", "eta", "r_motor", "tau_motor")
+#: the model's global (not per beam, point or joint) parameters, from the core
+_GLOBAL = tuple(n for n, g in zip(_core.param_names(1), _core.param_groups(1)) if g == "global")
 
 
 @dataclass(frozen=True)

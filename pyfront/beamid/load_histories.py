@@ -33,12 +33,20 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from . import _check
+from ._core_estimation import code_names
 from .errors import InputError
 
-#: Target names and their codes in the core (beamid_loads TARGET_*).
-TARGETS = {"tip_fx": 1, "tip_fy": 2, "tip_torque": 3, "motor_open": 4, "hub": 5}
-#: History kinds and their codes (beamid_loads HIST_*).
-_KIND = {"table": 1, "half_sine": 2, "step": 3, "chirp": 4, "spin_up": 5}
+
+def _codes(table: int) -> dict[str, int]:
+    """Name -> code (from 1) of a code table of the core (api_code_names)."""
+    return {name: index + 1 for index, name in code_names(table).items()}
+
+
+#: Target names and their codes in the core (beamid_loads TARGET_NAMES, read
+#: through api_code_names table 10).
+TARGETS = _codes(10)
+#: History kinds and their codes (beamid_loads HIST_NAMES, table 11).
+_KIND = _codes(11)
 
 
 def _num(name: str, value, positive: bool = False, nonneg: bool = False) -> float:

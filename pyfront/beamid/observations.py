@@ -40,6 +40,7 @@ class Kind:
     twin: str                    #: the kind measuring the same in other coordinates
     about: str
     code: int                    #: the kind code (1-based position in the table)
+    rate: bool = True            #: the core computes its rate (a clock offset's column)
 
 
 @dataclass(frozen=True)
@@ -60,9 +61,9 @@ def kinds() -> dict[str, Kind]:
     out = {}
     text = _core._text(_core._deck_api.api_observation_table())
     for code, line in enumerate((x for x in text.split("\n") if x.strip()), start=1):
-        f = line.split(";", 9)
+        f = line.split(";", 10)
         out[f[0]] = Kind(f[0], f[1], frozenset(f[2].split("+")), f[3], f[4], float(f[5]),
-                         int(f[6]), int(f[7]), f[8], f[9], code)
+                         int(f[6]), int(f[7]), f[8], f[10], code, f[9] == "rate")
     return out
 
 

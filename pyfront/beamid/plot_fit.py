@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _check
+from . import _check, _core
 from .diagnosis import Comparison, Ladder
 from .dyn_diagnosis import plot_time_comparison
 from .errors import InputError
@@ -20,17 +20,13 @@ from .plotting import _axes
 
 def parameter_unit(name: str) -> str:
     """The unit of a model parameter (``EI1`` -> ``N m^2``), "-" when it has
-    none (friction coefficients, ``axial_coupling``); units as docs/static.md
-    and docs/dynamics.md give them (M = EI k + C k^3, T = -r g Psidot)."""
-    stem = re.sub(r"\d+$", "", name)
-    if stem.endswith("_flex"):
-        return "rad/(N m)"
-    for prefix, unit in (("m_", "kg"), ("J_", "kg m^2"), ("mu_", "-"), ("c_", "N s/m")):
-        if stem.startswith(prefix):
-            return unit
-    return {"L": "m", "EI": "N m^2", "EA": "N", "rho": "kg/m", "C": "N m^4", "eta": "s",
-            "r_motor": "N m s", "tau_motor": "s", "axial_coupling": "-",
-            "thick": "m"}.get(stem, "-")
+    none (friction coefficients, ``axial_coupling``) or is not a model
+    parameter: the core's unit table (beamid_model, ``_core.param_units``).
+    A unit does not depend on the beam or joint number, so the name is
+    looked up in a chain of 3 beams with its numbers above 2 written 2."""
+    _check.text("parameter_unit: name", name, empty=True)
+    probe = re.sub(r"[1-9]\d+|[3-9]", "2", name)
+    return dict(zip(_core.param_names(3), _core.param_units(3))).get(probe, "-")
 
 
 def _quantities(cmp: Comparison) -> list[str]:
