@@ -15,12 +15,12 @@ import threading
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from . import _ext
-from .errors import raise_for_status
+from .errors import InputError, raise_for_status
 
 _static = _ext.beamid_api_static
 _fe = _ext.beamid_api_fe
@@ -395,12 +395,47 @@ def spec_keys() -> dict[str, SpecKey]:
 
 
 def spec_row(name: str) -> int:
-    """The 0-based row of spec key ``name`` in the core's value column."""
+    """The 0-based row of spec key ``name`` in a value column (the legacy
+    positional form that :attr:`Problem.exp_values` and
+    ``Release.encode`` still give: row = the key's number - 1)."""
     return spec_keys()[name].row
 
 
+def spec_triples_of(specs: Sequence[Mapping[str, float]]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Experiments' specs by the core's key names (one mapping per
+    experiment) as the binding's sparse named triples: (1-based experiment,
+    key number, value) for every key given a value other than 0, keys in the
+    key table's order within each experiment; a key not given takes its
+    default in the core. A name that is no key is an InputError."""
+    keys = spec_keys()
+    exp: list[int] = []
+    number: list[int] = []
+    value: list[float] = []
+    for j, spec in enumerate(specs, start=1):
+        for name in spec:
+            if name not in keys:
+                raise InputError(f"experiment {j}: spec key {name!r} is unknown; expected one "
+                                 f"of {', '.join(keys)}")
+        for name, key in keys.items():
+            v = float(spec.get(name, 0.0))
+            if v != 0.0:
+                exp.append(j)
+                number.append(key.number)
+                value.append(v)
+    return (np.array(exp, np.int32), np.array(number, np.int32), np.array(value, float))
+
+
+def spec_from_column(values) -> dict[str, float]:
+    """The named spec of a value column of the legacy positional form (row
+    spec_keys()[name].row; keys past its end are not given)."""
+    v = [float(x) for x in values]
+    return {k: v[sk.row] for k, sk in spec_keys().items() if sk.row < len(v)}
+
+
 def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Value columns (keys by row, one column per experiment) as the
+    """Value columns of the legacy positional form (keys by row, one column
+    per experiment; :func:`spec_triples_of` takes named specs) as the
     binding's sparse named triples: (1-based experiment, key number, value)
     for every nonzero entry; a key not given takes its default in the core."""
     rows, numbers = _spec_key_order()
@@ -419,9 +454,9 @@ def _spec_key_order() -> tuple[np.ndarray, np.ndarray]:
                                                                 np.int32))
 
 
-def spec_column(spec: dict) -> np.ndarray:
-    """A value column of the core's layout from named values (rows of keys
-    not named are 0: the core fills defaults)."""
+def spec_column(spec: Mapping[str, float]) -> np.ndarray:
+    """A value column of the legacy positional form from named values
+    (rows of keys not named are 0: the core fills defaults)."""
     keys = spec_keys()
     col = np.zeros(len(keys))
     for name, v in spec.items():
