@@ -373,7 +373,7 @@ class SpecKey:
 
     name: str
     number: int            # 1-based: the key as the binding takes it
-    row: int               # 0-based row of the core's value column
+    row: int               # 0-based row in the legacy positional form (number - 1)
     families: tuple[str, ...]
     default: float
     about: str
@@ -408,22 +408,30 @@ def spec_triples_of(specs: Sequence[Mapping[str, float]]
     key number, value) for every key given a value other than 0, keys in the
     key table's order within each experiment; a key not given takes its
     default in the core. A name that is no key is an InputError."""
-    keys = spec_keys()
+    numbers = _key_numbers()
     exp: list[int] = []
     number: list[int] = []
     value: list[float] = []
     for j, spec in enumerate(specs, start=1):
-        for name in spec:
-            if name not in keys:
+        given = []
+        for name, v in spec.items():
+            k = numbers.get(name)
+            if k is None:
                 raise InputError(f"experiment {j}: spec key {name!r} is unknown; expected one "
-                                 f"of {', '.join(keys)}")
-        for name, key in keys.items():
-            v = float(spec.get(name, 0.0))
+                                 f"of {', '.join(numbers)}")
             if v != 0.0:
-                exp.append(j)
-                number.append(key.number)
-                value.append(v)
+                given.append((k, float(v)))
+        given.sort()
+        exp += [j] * len(given)
+        number += [k for k, _ in given]
+        value += [v for _, v in given]
     return (np.array(exp, np.int32), np.array(number, np.int32), np.array(value, float))
+
+
+@lru_cache(maxsize=None)
+def _key_numbers() -> dict[str, int]:
+    """Each key's number (1-based, the binding's), by name, in the table's order."""
+    return {name: k.number for name, k in spec_keys().items()}
 
 
 def spec_from_column(values) -> dict[str, float]:
@@ -448,7 +456,7 @@ def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 @lru_cache(maxsize=None)
 def _spec_key_order() -> tuple[np.ndarray, np.ndarray]:
-    """The value column's rows and the key numbers, in the key table's order."""
+    """The rows of the legacy positional form and the key numbers, in the key table's order."""
     keys = list(spec_keys().values())
     return (np.array([k.row for k in keys], np.intp), np.array([k.number for k in keys],
                                                                 np.int32))

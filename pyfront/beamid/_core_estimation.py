@@ -61,7 +61,7 @@ class Problem:
     #: the names of the observation list's entries (None: the kind names)
     obs_labels: tuple[str, ...] | None = None
     #: the release experiments' load histories, their own list beside the
-    #: value columns: a column [experiment (1-based), beamid_loads' 9 values]
+    #: specs: a column [experiment (1-based), beamid_loads' 9 values]
     #: per history (10, nh) and the table rows (2, ntab) they refer to
     hist_spec: np.ndarray | None = None
     hist_tab: np.ndarray | None = None

@@ -275,17 +275,14 @@ class Modal:
         nepb = _check.count("Modal: elements_per_beam", self.elements_per_beam, min=1)
         _check.memory(8 * 40 * 4 * (nepb + 1), f"Modal: elements_per_beam = {nepb}: the mesh")
         object.__setattr__(self, "elements_per_beam", nepb)
-        if isinstance(load, RadialWire):
-            head = [0.0, 0.0, 0.0, float(load.Lw)]
-        else:
-            head = [load.fx, load.fy, load.moment, 0.0]
-        encoded = np.array([*head, float(nepb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-        encoded.setflags(write=False)
-        object.__setattr__(self, "_encoded", encoded)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
-        return LOAD_MODAL, self._encoded
+        """(kind, the spec in the legacy positional form, its first 12 values:
+        rows from the core's key table; :meth:`spec` gives it by name, the
+        form the core takes) (read-only)."""
+        encoded = _core.spec_column(self.spec()[1])[:12]
+        encoded.setflags(write=False)
+        return LOAD_MODAL, encoded
 
     def spec(self) -> tuple[int, dict[str, float]]:
         """(kind, the experiment's spec by the core's key names)."""
