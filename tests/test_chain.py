@@ -466,9 +466,9 @@ def test_time_offset_refused_on_acceleration_rows():
                        r"whose rate \(the jerk\)"):
         beamid.fit(BASE, exps, data, free=("EI1",), nuisance={"time_offset": ["m"]})
     prob = build_problem(BASE, exps, data)
-    values = np.array(prob.exp_values)
-    values[12, 0] = 1.0     # EV_T0 past the Python check
-    bad = dataclasses.replace(prob, exp_values=np.asfortranarray(values))
+    specs = [dict(spec) for spec in prob.exp_specs]
+    specs[0]["t0"] = 1.0     # key t0 past the Python check
+    bad = dataclasses.replace(prob, exp_specs=tuple(specs))
     with pytest.raises(beamid.InputError, match="observes accel_n@2:0.5, whose rate"):
         _ce.problem_predict(bad, np.append(BASE.vector(), 0.0), np.zeros(0, np.int32))
     own, cand = beamid.chain.candidate_spec(beamid.fit(BASE, exps, data, free=("EI1",)),

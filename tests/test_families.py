@@ -51,11 +51,37 @@ def test_specs_cross_as_sparse_triples():
     assert pred.shape == (4,) and np.all(np.isfinite(pred))
 
 
+def test_problem_holds_specs_by_name():
+    """The problem keeps each experiment's spec by key name; the positional
+    exp_values is derived from it, read-only, and the triples are the same
+    whichever form they come from."""
+    exps = {"tip": beamid.TipLoad(fy=-2.0), "rel": beamid.Release(beamid.TipLoad(fy=-1.5),
+                                                                   elements_per_beam=3)}
+    data = beamid.simulate_measurements(BASE, {"tip": exps["tip"]}, ["y_tip"], sigma=1e-3)
+    rel = beamid.simulate_measurements(BASE, {"rel": exps["rel"]}, ["w_tip"], sigma=1e-3,
+                                       t=[0.05, 0.1])
+    prob = build_problem(BASE, exps, data.merge(rel), rows=beamid.chain.RowTreatment("huber"))
+    tip, release = prob.exp_specs
+    assert tip == {"fx": 0.0, "fy": -2.0, "moment": 0.0, "loss": 1.0, "burn_in": 0.0,
+                   "sigma_est": 0.0}
+    assert release["elements_per_beam"] == 3.0 and release["fy"] == -1.5
+    assert release["loss"] == 1.0
+    values = prob.exp_values
+    assert values.shape == (_ce.NEXPVAL, 2) and not values.flags.writeable
+    assert values[_core.spec_row("elements_per_beam"), 1] == 3.0
+    assert values[_core.spec_row("loss"), 0] == 1.0
+    for a, b in zip(prob.specs(), _core.spec_triples(values)):
+        assert a.tolist() == b.tolist()
+    with pytest.raises(beamid.InputError, match=r"experiment 1: spec key 'fz' is unknown; "
+                       r"expected one of fx, fy, moment"):
+        _core.spec_triples_of([{"fz": 1.0}])
+
+
 def test_key_not_of_the_family_is_refused():
     prob = _static_problem()
-    values = np.array(prob.exp_values)
-    values[_core.spec_row("elements_per_beam"), 1] = 8.0
-    bad = dataclasses.replace(prob, exp_values=np.asfortranarray(values))
+    specs = [dict(spec) for spec in prob.exp_specs]
+    specs[1]["elements_per_beam"] = 8.0
+    bad = dataclasses.replace(prob, exp_specs=tuple(specs))
     with pytest.raises(beamid.InputError, match=r"experiment 2 \(static\): key "
                        r"elements_per_beam is not a key of a static experiment; expected one "
                        r"of fx, fy, moment, wire_length, t0, bias, scale, loss, burn_in, "

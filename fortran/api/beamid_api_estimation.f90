@@ -34,7 +34,7 @@ module beamid_api_estimation
                                  STOP_NAMES, START_NAMES, CAND_NAMES
     use beamid_inverse, only: inverse_problem_t, chain_layout
     use beamid_problem, only: problem_from_arrays, problem_lsq_from_arrays, observation_list, &
-                              spec_columns
+                              specs_from_triples, experiment_spec_t
     use beamid_family, only: SPEC_KEYS
     use beamid_families, only: registered_families
     use beamid_family, only: family_slot_t
@@ -213,7 +213,7 @@ contains
     end subroutine api_effect_table
 
     !> The key table of experiment specs (beamid_family SPEC_KEYS), one line
-    !! per key: name, the row of the core's value column it fills, the
+    !! per key: name, its identifier (EV_*, which is its number: its line), the
     !! families that accept it ('+'-joined names from the registry), its
     !! default and its meaning, tab-separated; then one line per experiment
     !! kind the families take: 'kind', its code, its family, its words. The
@@ -235,7 +235,7 @@ contains
             end do
             write (buf, '(g0)') SPEC_KEYS(k)%default
             if (k > 1) t = t//new_line('a')
-            t = t//trim(SPEC_KEYS(k)%name)//achar(9)//fmt_int(SPEC_KEYS(k)%row)//achar(9)// &
+            t = t//trim(SPEC_KEYS(k)%name)//achar(9)//fmt_int(SPEC_KEYS(k)%key)//achar(9)// &
                 fams//achar(9)//trim(buf)//achar(9)//trim(SPEC_KEYS(k)%about)
         end do
         do k = 1, 64
@@ -486,7 +486,7 @@ contains
     end subroutine api_problem_predict
 
     !> The nuisance parameters of the measurement chain the experiments'
-    !! value columns ask for (beamid_inverse chain_layout), in parameter
+    !! specs ask for (beamid_inverse chain_layout), in parameter
     !! order after the model's: kind (1 clock offset, 2 bias, 3 scale, 4
     !! initial velocity), experiment (1-based) and entry of the problem's
     !! observation list of nobs entries (0 for a clock offset or an initial
@@ -505,19 +505,19 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
         type(status_t) :: stat
         integer, allocatable :: k(:), e(:), q(:)
         n = 0
         kinds = 0
         exps = 0
         qs = 0
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         if (stat%code /= STATUS_OK) then
             call status_out(stat, code, message)
             return
         end if
-        call chain_layout(int(exp_kind), values, k, e, q, stat, int(nobs))
+        call chain_layout(int(exp_kind), specs, k, e, q, stat, int(nobs))
         call status_out(stat, code, message)
         if (stat%code /= STATUS_OK) return
         n = int(size(k), c_int)
@@ -526,21 +526,21 @@ contains
         qs(1:n) = int(q, c_int)
     end subroutine api_chain_layout
 
-    !> The experiments' value columns from the named specs the binding
-    !! takes (experiment, key of the core's key table, value: beamid_problem
-    !! spec_columns; the table is api_spec_keys).
-    subroutine columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+    !> The experiments' specs from the named triples the binding takes
+    !! (experiment, key of the core's key table, value: beamid_problem
+    !! specs_from_triples; the table is api_spec_keys).
+    subroutine make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         integer(c_int), intent(in) :: exp_kind(:), kv_exp(:), kv_key(:)
         real(c_double), intent(in) :: kv_value(:)
-        real(dp), allocatable, intent(out) :: values(:, :)
+        type(experiment_spec_t), allocatable, intent(out) :: specs(:)
         type(status_t), intent(inout) :: stat
-        call spec_columns(int(exp_kind), int(kv_exp), int(kv_key), real(kv_value, dp), values, &
-                          stat)
-    end subroutine columns
+        call specs_from_triples(int(exp_kind), int(kv_exp), int(kv_key), real(kv_value, dp), &
+                                specs, stat)
+    end subroutine make_specs
 
     !> The estimation entries' one set-up (beamid_problem
     !! problem_lsq_from_arrays) from the binding's arrays, the named specs
-    !! made columns (columns) and the arrays in the library's kinds.
+    !! made specs (make_specs) and the arrays in the library's kinds.
     subroutine set_up(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
                       obs_kind, obs_beam, obs_s, tol, row_value, row_sigma, prior, prior_cov, &
                       hist_spec, hist_tab, model, lp, stat)
@@ -552,10 +552,10 @@ contains
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: values(:, :)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        type(experiment_spec_t), allocatable :: specs(:)
+        call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         if (stat%code /= STATUS_OK) return
-        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), values, &
+        call problem_lsq_from_arrays(int(nbeams), int(exp_kind), specs, &
                                      int(row_exp), real(row_t, dp), int(row_q), int(obs_kind), &
                                      int(obs_beam), real(obs_s, dp), real(tol, dp), &
                                      real(row_value, dp), real(row_sigma, dp), &
@@ -573,10 +573,10 @@ contains
         real(c_double), intent(in) :: hist_spec(:, :), hist_tab(:, :)
         type(inverse_problem_t), intent(out) :: model
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: values(:, :)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        type(experiment_spec_t), allocatable :: specs(:)
+        call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         if (stat%code /= STATUS_OK) return
-        call problem_from_arrays(int(nbeams), int(exp_kind), values, int(row_exp), &
+        call problem_from_arrays(int(nbeams), int(exp_kind), specs, int(row_exp), &
                                  real(row_t, dp), int(row_q), int(obs_kind), int(obs_beam), &
                                  real(obs_s, dp), real(tol, dp), model, stat, &
                                  make_hist(hist_spec, hist_tab))
@@ -606,7 +606,7 @@ contains
     end function make_hist
 
     !> The problem of beamid_ladder from a binding's arrays: the named
-    !! specs (columns), the observation list, the load histories and the a
+    !! specs (make_specs), the observation list, the load histories and the a
     !! priori information; max_iter > 0 replaces the fits' iteration limit.
     subroutine make_problem(nbeams, exp_kind, kv_exp, kv_key, kv_value, row_exp, row_t, row_q, &
                             obs_kind, obs_beam, obs_s, row_value, row_sigma, tol, hist_spec, &
@@ -619,11 +619,11 @@ contains
         real(c_double), intent(in) :: prior(:, :)
         type(problem_t), intent(out) :: pb
         type(status_t), intent(inout) :: stat
-        real(dp), allocatable :: values(:, :)
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        type(experiment_spec_t), allocatable :: specs(:)
+        call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         if (stat%code /= STATUS_OK) return
         pb = problem_t(nbeams=int(nbeams), exp_kind=int(exp_kind), row_exp=int(row_exp), &
-                       row_q=int(row_q), exp_values=values, row_t=real(row_t, dp), &
+                       row_q=int(row_q), specs=specs, row_t=real(row_t, dp), &
                        y=real(row_value, dp), sigma=real(row_sigma, dp), tol=real(tol, dp), &
                        prior=make_prior(prior))
         if (max_iter > 0) pb%max_iter = int(max_iter)
@@ -948,15 +948,15 @@ contains
         !f2py intent(hide) nkv
         integer(c_int), intent(in) :: kv_exp(nkv), kv_key(nkv)
         real(c_double), intent(in) :: kv_value(nkv)
-        real(dp), allocatable :: values(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
         type(mesh_test_t) :: res
         type(status_t) :: stat
-        call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+        call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         if (stat%code /= STATUS_OK) then
             call status_out(stat, code, message)
             return
         end if
-        call mesh_check(int(nbeams), int(exp_kind), values, int(row_exp), &
+        call mesh_check(int(nbeams), int(exp_kind), specs, int(row_exp), &
                         real(row_t, dp), int(row_q), real(tol, dp), real(params, dp), &
                         real(row_value, dp), real(row_sigma, dp), real(pred, dp), res, stat, &
                         make_obs(obs_kind, obs_beam, obs_s), &

@@ -33,7 +33,7 @@ module beamid_dyn_diagnosis
                                  score_result_t, sort_desc, lsq_problem_t, FLAG_UNDETERMINED, &
                                  FLAG_RUNAWAY
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, inverse_lsq, EXP_RELEASE, &
-                              EV_NEPB, EV_GAIN
+                              EV_NEPB, EV_GAIN, experiment_spec_t
     use beamid_static_experiments, only: median_of, distinct_sorted
     use beamid_families, only: kind_mesh_key, has_mesh
     use beamid_dynamic_experiments, only: exp_histories_t
@@ -47,13 +47,14 @@ module beamid_dyn_diagnosis
     !> (beamid_families' has_mesh, here for the callers that take it from here)
     public :: has_mesh
 
-    !> An estimation problem: experiments (kind, EV_* values), data rows
+    !> An estimation problem: experiments (kind, spec), data rows
     !! (experiment, t, observation, value, sigma), a priori information and the
     !! fit's iteration limit.
     type :: problem_t
         integer :: nbeams = 0
         integer, allocatable :: exp_kind(:), row_exp(:), row_q(:)
-        real(dp), allocatable :: exp_values(:, :), row_t(:), y(:), sigma(:)
+        type(experiment_spec_t), allocatable :: specs(:)
+        real(dp), allocatable :: row_t(:), y(:), sigma(:)
         !> the problem's observation list, row_q indexes it (unallocated:
         !! row_q are kind codes, beamid_observations)
         type(observation_t), allocatable :: obs(:)
@@ -258,10 +259,11 @@ contains
     !! position or angle the median of all length rows (unit m), else the
     !! kind's default sigma of the table (1e-3 m or rad, 1e-2 N m for the
     !! torque). row_kind: the kind of each data row.
-    pure subroutine dyn_probe_rows(exp_kind, exp_values, row_exp, row_t, row_kind, sigma, &
+    pure subroutine dyn_probe_rows(exp_kind, specs, row_exp, row_t, row_kind, sigma, &
                                    pexp, pt, pq, psig)
         integer, intent(in) :: exp_kind(:), row_exp(:), row_kind(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), sigma(:)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), sigma(:)
         integer, allocatable, intent(out) :: pexp(:), pq(:)
         real(dp), allocatable, intent(out) :: pt(:), psig(:)
         integer, allocatable :: qs(:)
@@ -291,7 +293,7 @@ contains
             do i = 1, size(times)
                 do k = 1, nq
                     if (KINDS(qs(k))%needs == NEED_MOTOR .and. &
-                        .not. exp_values(EV_GAIN, e) > 0.0_dp) cycle
+                        .not. specs(e)%get(EV_GAIN) > 0.0_dp) cycle
                     pexp = [pexp, e]
                     pq = [pq, qs(k)]
                     pt = [pt, times(i)]
@@ -315,10 +317,11 @@ contains
         type(inverse_problem_t) :: fine
         type(fit_result_t) :: refit
         type(status_t) :: st
-        real(dp), allocatable :: values(:, :), pred(:), jdummy(:, :), change(:)
-        call refine_meshes(pb%exp_kind, pb%exp_values, values, res)
+        type(experiment_spec_t), allocatable :: specs(:)
+        real(dp), allocatable :: pred(:), jdummy(:, :), change(:)
+        call refine_meshes(pb%exp_kind, pb%specs, specs, res)
         if (.not. res%done) return
-        call inverse_problem_init(pb%nbeams, pb%exp_kind, values, pb%row_exp, pb%row_t, pb%row_q, &
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, specs, pb%row_exp, pb%row_t, pb%row_q, &
                                   pb%tol, fine, stat, pb%obs, hist=pb%hist)
         if (stat%code /= STATUS_OK) return
         ! the change of the predictions at the fitted parameters
@@ -353,22 +356,22 @@ contains
         res%recommended = mesh_recommended(res%nepb, res%max_change)
     end subroutine mesh_test
 
-    !> The value columns with every experiment that has a mesh (its family's
+    !> The specs with every experiment that has a mesh (its family's
     !! mesh_key) at twice its elements per beam; res%done when there is one,
     !! res%nepb the largest elements per beam before refining.
-    subroutine refine_meshes(exp_kind, exp_values, values, res)
+    subroutine refine_meshes(exp_kind, specs, fine, res)
         integer, intent(in) :: exp_kind(:)
-        real(dp), intent(in) :: exp_values(:, :)
-        real(dp), allocatable, intent(out) :: values(:, :)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        type(experiment_spec_t), allocatable, intent(out) :: fine(:)
         type(mesh_test_t), intent(inout) :: res
         integer :: e, key
-        values = exp_values
+        fine = specs
         do e = 1, size(exp_kind)
             key = kind_mesh_key(exp_kind(e))
             if (key == 0) cycle
             res%done = .true.
-            res%nepb = max(res%nepb, nint(values(key, e)))
-            values(key, e) = 2.0_dp*values(key, e)
+            res%nepb = max(res%nepb, fine(e)%get_int(key))
+            call fine(e)%set(key, 2.0_dp*fine(e)%get(key))
         end do
     end subroutine refine_meshes
 
@@ -401,10 +404,11 @@ contains
     !! recommended (mesh_recommended). One plain run per release: the part
     !! of the `mesh` candidate's test that needs no refit. Nothing is done
     !! (res%done false) without releases.
-    subroutine mesh_check(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, params, &
+    subroutine mesh_check(nbeams, exp_kind, specs, row_exp, row_t, row_q, tol, params, &
                           y, sigma, pred, res, stat, obs, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol, params(:)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), tol, params(:)
         real(dp), intent(in) :: y(:), sigma(:), pred(:)
         type(mesh_test_t), intent(out) :: res
         type(status_t), intent(inout) :: stat
@@ -413,15 +417,16 @@ contains
         !> the release experiments' load histories
         type(exp_histories_t), intent(in), optional :: hist
         type(inverse_problem_t) :: fine
-        real(dp), allocatable :: values(:, :), fpred(:), jdummy(:, :), change(:)
-        call refine_meshes(exp_kind, exp_values, values, res)
+        type(experiment_spec_t), allocatable :: fine_specs(:)
+        real(dp), allocatable :: fpred(:), jdummy(:, :), change(:)
+        call refine_meshes(exp_kind, specs, fine_specs, res)
         if (.not. res%done) return
         if (present(obs)) then
-            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
-                                      stat, obs, hist=hist)
+            call inverse_problem_init(nbeams, exp_kind, fine_specs, row_exp, row_t, row_q, tol, &
+                                      fine, stat, obs, hist=hist)
         else
-            call inverse_problem_init(nbeams, exp_kind, values, row_exp, row_t, row_q, tol, fine, &
-                                      stat, hist=hist)
+            call inverse_problem_init(nbeams, exp_kind, fine_specs, row_exp, row_t, row_q, tol, &
+                                      fine, stat, hist=hist)
         end if
         if (stat%code /= STATUS_OK) return
         allocate (fpred(size(y)), jdummy(size(y), 0))
@@ -500,7 +505,7 @@ contains
             ! step can be judged, and a refit at that floor is converged
             fopts%tol_cost = max(fopts%tol_cost, COST_FLOOR)
         end if
-        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%specs, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, prob, stat, pb%obs, hist=pb%hist)
         if (stat%code /= STATUS_OK) return
         frefit = fopts
@@ -781,7 +786,7 @@ contains
                 ssig = [ssig, fsig]
             end associate
         end do
-        call dyn_probe_rows(pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, prob%obs%kind, &
+        call dyn_probe_rows(pb%exp_kind, pb%specs, pb%row_exp, pb%row_t, prob%obs%kind, &
                             pb%sigma, dexp, dt, dq, dsig)
         pexp = [sexp, dexp]
         pq = [sq, dq]
@@ -790,12 +795,12 @@ contains
         ! the data's observation list keeps its entries' numbers (the chain's
         ! channel masks index it); the probe kinds follow it
         if (allocated(pb%obs)) then
-            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, &
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%specs, pexp, pt, &
                                       size(pb%obs) + pq, pb%tol, probe, stat, &
                                       [pb%obs, default_observations()], probe=.true., &
                                       hist=pb%hist)
         else
-            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pexp, pt, pq, &
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%specs, pexp, pt, pq, &
                                       pb%tol, probe, stat, probe=.true., hist=pb%hist)
         end if
         if (stat%code /= STATUS_OK) stat%message = 'probe rows: '//trim(stat%message)

@@ -94,7 +94,7 @@ module beamid_dynamic_experiments
     end type release_exp_t
 
     !> The load histories of a problem's experiments as the binding
-    !! marshals them (their own list beside the experiments' value columns):
+    !! marshals them (their own list beside the experiments' specs):
     !! column l of spec is [experiment, then beamid_loads' LD_NSPEC values],
     !! the table rows in tab (2, :) (t, value) that the columns' first-row
     !! indices refer to.
@@ -153,7 +153,7 @@ module beamid_dynamic_experiments
 contains
 
     !> The family's constructor for the problem: a release_exp_t per
-    !! experiment from its value column, then dynamic_experiments_init.
+    !! experiment from its spec, then dynamic_experiments_init.
     subroutine release_build(self, input, stat)
         class(dynamic_experiments_t), intent(inout) :: self
         type(family_input_t), intent(in) :: input
@@ -162,13 +162,15 @@ contains
         integer :: e
         allocate (rels(size(input%kinds)))
         do e = 1, size(input%kinds)
-            associate (v => input%values(:, e))
-                rels(e) = release_exp_t(fx=v(EV_FX), fy=v(EV_FY), moment=v(EV_MOMENT), &
-                                        nepb=nint(v(EV_NEPB)), gain=v(EV_GAIN), &
-                                        method=nint(v(EV_METHOD)), law=nint(v(EV_LAW)), &
-                                        rtol=v(EV_RTOL), dt=v(EV_DT), &
-                                        vslip=merge(v(EV_VSLIP), 1.0e-4_dp, v(EV_VSLIP) > 0.0_dp), &
-                                        fd=nint(v(EV_FD)) == 1, exact=nint(v(EV_FD)) == 2)
+            associate (v => input%specs(e))
+                rels(e) = release_exp_t(fx=v%get(EV_FX), fy=v%get(EV_FY), &
+                                        moment=v%get(EV_MOMENT), nepb=v%get_int(EV_NEPB), &
+                                        gain=v%get(EV_GAIN), method=v%get_int(EV_METHOD), &
+                                        law=v%get_int(EV_LAW), rtol=v%get(EV_RTOL), &
+                                        dt=v%get(EV_DT), &
+                                        vslip=merge(v%get(EV_VSLIP), 1.0e-4_dp, &
+                                                    v%get(EV_VSLIP) > 0.0_dp), &
+                                        fd=v%get_int(EV_FD) == 1, exact=v%get_int(EV_FD) == 2)
             end associate
         end do
         call dynamic_experiments_init(input, rels, self, stat)

@@ -84,7 +84,7 @@ contains
         if (f > 0) kind_timed = fams(f)%item%timed()
     end function kind_timed
 
-    !> The row of the value column that holds the elements per beam of an
+    !> The key of a spec (EV_*) that holds the elements per beam of an
     !! experiment of `kind` (0: no mesh to refine).
     integer function kind_mesh_key(kind)
         integer, intent(in) :: kind

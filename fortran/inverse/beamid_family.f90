@@ -20,8 +20,10 @@
 !! extending this type plus its line in the registry (docs/development.md,
 !! "Adding an experiment family").
 !!
-!! The spec of an experiment crosses as a kind (EXP_*) and a value column
-!! (rows EV_*) until the named specs replace it; the layout lives here, once.
+!! The spec of an experiment is an experiment_spec_t: a value for every key
+!! of the one key table SPEC_KEYS, read and written by key (the EV_*
+!! identifiers, each the index of its key in SPEC_KEYS) or by name through
+!! its type-bound procedures; how the values are stored is the type's own.
 module beamid_family
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, ERR_INPUT, fmt_int
@@ -31,14 +33,15 @@ module beamid_family
     implicit none
     private
 
-    public :: experiment_family_t, family_slot_t, spec_key_t, spec_key_index
+    public :: experiment_family_t, family_slot_t, spec_key_t, spec_key_index, spec_keys_text
 
     !> Experiment kinds: the static loads of beamid_arclength, and a release.
     integer, parameter, public :: EXP_TIP = LOAD_TIP, EXP_WIRE = LOAD_WIRE, EXP_RELEASE = 3
     !> A modal test about the equilibrium under a tip load (issue 27,
     !! beamid_modal_experiments).
     integer, parameter, public :: EXP_MODAL = 4
-    !> Rows of an experiment's value column.
+    !> The keys of an experiment's spec (experiment_spec_t): each the index
+    !! of its entry in SPEC_KEYS.
     integer, parameter, public :: EV_FX = 1, EV_FY = 2, EV_MOMENT = 3, EV_WIRE_LENGTH = 4, &
                                   EV_NEPB = 5, EV_GAIN = 6, EV_METHOD = 7, EV_LAW = 8, &
                                   EV_RTOL = 9, EV_DT = 10, EV_VSLIP = 11, EV_FD = 12
@@ -59,17 +62,18 @@ module beamid_family
     !! the measurement chain: the chain starts from its static shape with the
     !! velocity field v0 q / w_tip(q), q the static displacement).
     integer, parameter, public :: EV_V0 = 19
+    !> The number of keys of SPEC_KEYS.
     integer, parameter, public :: NEXPVAL = 19
 
-    !> A named key of an experiment's spec: its name (the deck's), the row
-    !! of the value column it fills, the families that accept it (FAM_* bits
+    !> A named key of an experiment's spec: its name (the deck's), its
+    !! identifier (EV_*: its index in SPEC_KEYS), the families that accept it (FAM_* bits
     !! of beamid_observations' families column; ALL_FAMILIES: the measurement
     !! chain's keys, which every family accepts and the problem checks) and
     !! the value an experiment of such a family takes when the key is not
     !! given.
     type :: spec_key_t
         character(len=17) :: name = ''
-        integer :: row = 0
+        integer :: key = 0
         integer :: families = 0
         real(dp) :: default = 0.0_dp
         character(len=80) :: about = ''
@@ -115,12 +119,29 @@ module beamid_family
         spec_key_t('v0', EV_V0, ALL_FAMILIES, 0.0_dp, &
                    '1: the release''s initial tip normal velocity is fitted')]
 
+    !> One experiment's spec: the value of every key of SPEC_KEYS (a key not
+    !! set holds 0). Read and written by key (`get`, `get_int`, `set`, with
+    !! an EV_* identifier) or by the key's name (`value_of`, `set_named`);
+    !! nothing outside this type knows how the values are stored.
+    type, public :: experiment_spec_t
+        real(dp), private :: v(NEXPVAL) = 0.0_dp
+    contains
+        procedure :: get => spec_get
+        procedure :: get_int => spec_get_int
+        procedure :: set => spec_set
+        procedure :: value_of => spec_value_of
+        procedure :: set_named => spec_set_named
+        procedure :: chain_asked => spec_chain_asked
+        procedure :: clear_treatment => spec_clear_treatment
+        procedure :: take_chain => spec_take_chain
+    end type experiment_spec_t
+
     !> What a family is, a row of the registry (beamid_families): its name
     !! in messages, its code in the families column of beamid_observations,
     !! the experiment kinds (EXP_*) it takes and their words, whether its rows
     !! are records in time (a row has t; a clock offset and a burn-in make
-    !! sense) and the row of a spec's value column that holds its elements
-    !! per beam (0: no mesh to refine).
+    !! sense) and the key of a spec (EV_*) that holds its elements per beam
+    !! (0: no mesh to refine).
     type, public :: family_identity_t
         character(len=:), allocatable :: name
         integer :: code = 0
@@ -131,13 +152,13 @@ module beamid_family
     end type family_identity_t
 
     !> What a family's build reads: the model's number of beams, the kind
-    !! (EXP_*) and value column of each of its experiments, and its data rows
+    !! (EXP_*) and spec of each of its experiments, and its data rows
     !! (row_exp local experiment numbers 1..size(kinds), times, observations)
     !! with the static solver's tolerance (0: default).
     type, public :: family_input_t
         integer :: nbeams = 0
         integer, allocatable :: kinds(:)
-        real(dp), allocatable :: values(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
         integer, allocatable :: row_exp(:)
         real(dp), allocatable :: row_t(:)
         type(observation_t), allocatable :: row_obs(:)
@@ -193,7 +214,7 @@ module beamid_family
     end type family_slot_t
 
     abstract interface
-        !> Build from the experiments' kinds and value columns and the
+        !> Build from the experiments' kinds and specs and the
         !! family's rows (beamid_problem calls it through setup).
         subroutine build_if(self, input, stat)
             import :: experiment_family_t, family_input_t, status_t
@@ -228,12 +249,11 @@ contains
         ! a family with a mesh: at least one element per beam in each experiment
         if (self%id%mesh_key > 0) then
             do e = 1, size(input%kinds)
-                nepb = nint(input%values(self%id%mesh_key, e))
+                nepb = input%specs(e)%get_int(self%id%mesh_key)
                 if (nepb < 1) then
                     call set_status(stat, ERR_INPUT, self%name()//' experiments', 'experiment '// &
-                                    fmt_int(e)//': '//trim(SPEC_KEYS(findloc(SPEC_KEYS%row, &
-                                    self%id%mesh_key, 1))%name)//' = '//fmt_int(nepb)// &
-                                    ', expected >= 1')
+                                    fmt_int(e)//': '//trim(SPEC_KEYS(self%id%mesh_key)%name)// &
+                                    ' = '//fmt_int(nepb)//', expected >= 1')
                     return
                 end if
             end do
@@ -290,7 +310,7 @@ contains
         family_code = self%id%code
     end function family_code
 
-    !> The row of a value column holding the family's elements per beam, 0
+    !> The key of a spec (EV_*) holding the family's elements per beam, 0
     !! when it has no mesh to refine.
     pure integer function mesh_key(self)
         class(experiment_family_t), intent(in) :: self
@@ -358,4 +378,94 @@ contains
         accepts = SPEC_KEYS(k)%families == ALL_FAMILIES .or. &
                   iand(SPEC_KEYS(k)%families, self%family_code()) /= 0
     end function accepts
+    !> The value of key `key` (EV_*; 0 for a number that is no key).
+    elemental real(dp) function spec_get(self, key) result(x)
+        class(experiment_spec_t), intent(in) :: self
+        integer, intent(in) :: key
+        x = 0.0_dp
+        if (key >= 1 .and. key <= NEXPVAL) x = self%v(key)
+    end function spec_get
+
+    !> The value of key `key` as a whole number (a code, a count, a flag).
+    elemental integer function spec_get_int(self, key) result(i)
+        class(experiment_spec_t), intent(in) :: self
+        integer, intent(in) :: key
+        i = nint(self%get(key))
+    end function spec_get_int
+
+    !> Set key `key` (EV_*) to `x` (a number that is no key: nothing set).
+    elemental subroutine spec_set(self, key, x)
+        class(experiment_spec_t), intent(inout) :: self
+        integer, intent(in) :: key
+        real(dp), intent(in) :: x
+        if (key >= 1 .and. key <= NEXPVAL) self%v(key) = x
+    end subroutine spec_set
+
+    !> The value of the key named `name` (SPEC_KEYS' names; 0 for a name
+    !! that is no key: spec_key_index tells).
+    pure real(dp) function spec_value_of(self, name) result(x)
+        class(experiment_spec_t), intent(in) :: self
+        character(len=*), intent(in) :: name
+        x = self%get(spec_key_index(name))
+    end function spec_value_of
+
+    !> Set the key named `name` to `x`; a name that is no key is an input
+    !! error naming it and the keys.
+    pure subroutine spec_set_named(self, name, x, stat)
+        class(experiment_spec_t), intent(inout) :: self
+        character(len=*), intent(in) :: name
+        real(dp), intent(in) :: x
+        type(status_t), intent(inout) :: stat
+        integer :: k
+        k = spec_key_index(name)
+        if (k == 0) then
+            call set_status(stat, ERR_INPUT, 'experiment spec', "key '"//trim(name)// &
+                            "' is unknown; expected one of "//spec_keys_text())
+            return
+        end if
+        call self%set(k, x)
+    end subroutine spec_set_named
+
+    !> Whether the spec asks anything of the measurement chain: a key every
+    !! family accepts (ALL_FAMILIES: t0, bias, scale, loss, burn-in,
+    !! estimated sigmas, v0) set to a value other than 0.
+    elemental logical function spec_chain_asked(self) result(asked)
+        class(experiment_spec_t), intent(in) :: self
+        integer :: k
+        asked = .false.
+        do k = 1, NEXPVAL
+            if (SPEC_KEYS(k)%families == ALL_FAMILIES .and. self%v(k) /= 0.0_dp) asked = .true.
+        end do
+    end function spec_chain_asked
+
+    !> Clear the rows' treatment of the measurement chain (loss, burn-in,
+    !! estimated sigmas: beamid_chain_fit) to none.
+    elemental subroutine spec_clear_treatment(self)
+        class(experiment_spec_t), intent(inout) :: self
+        call self%set(EV_LOSS, 0.0_dp)
+        call self%set(EV_BURNIN, 0.0_dp)
+        call self%set(EV_SIGEST, 0.0_dp)
+    end subroutine spec_clear_treatment
+
+    !> Take the measurement chain's keys (those every family accepts,
+    !! ALL_FAMILIES) from spec `other`, the others kept.
+    elemental subroutine spec_take_chain(self, other)
+        class(experiment_spec_t), intent(inout) :: self
+        type(experiment_spec_t), intent(in) :: other
+        integer :: k
+        do k = 1, NEXPVAL
+            if (SPEC_KEYS(k)%families == ALL_FAMILIES) self%v(k) = other%v(k)
+        end do
+    end subroutine spec_take_chain
+
+    !> The names of SPEC_KEYS, comma separated.
+    pure function spec_keys_text() result(text)
+        character(len=:), allocatable :: text
+        integer :: k
+        text = ''
+        do k = 1, size(SPEC_KEYS)
+            if (k > 1) text = text//', '
+            text = text//trim(SPEC_KEYS(k)%name)
+        end do
+    end function spec_keys_text
 end module beamid_family

@@ -13,12 +13,12 @@ module beamid_inverse
                               EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, &
                               EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, &
                               EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, NU_T0, NU_BIAS, NU_SCALE, &
-                              NU_V0, EV_V0, MAX_CHANNEL_BITS
+                              NU_V0, EV_V0, MAX_CHANNEL_BITS, experiment_spec_t
     implicit none
     private
 
     public :: inverse_problem_t, problem_t, inverse_problem_init, inverse_lsq, inverse_diagnose
-    public :: chain_layout
+    public :: chain_layout, experiment_spec_t
     public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
               EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, &
               EV_SCALE, EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, NU_T0, NU_BIAS, NU_SCALE, &

@@ -116,7 +116,7 @@ contains
         type(status_t) :: stat
         real(dp) :: w(size(pb%y)), su(size(pb%y)), sd(size(pb%y))
         logical :: gross(size(pb%y))
-        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, pb%row_t, &
+        call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%specs, pb%row_exp, pb%row_t, &
                                   pb%row_q, pb%tol, problem, stat, pb%obs, hist=pb%hist)
         if (stat%code == STATUS_OK .and. any(ieee_is_nan(pb%sigma)) .and. &
             .not. chain_active(problem%rows)) &
@@ -129,8 +129,8 @@ contains
             lp = inverse_lsq(problem, pb%y, pb%sigma, pb%prior)
             if (present(prior)) lp%prior = prior
             if (chain_active(problem%rows)) then
-                ! a loss, burn-in rows or estimated sigmas (EV_LOSS, EV_BURNIN,
-                ! EV_SIGEST): the chain's fit, as beamid.fit with them
+                ! a loss, burn-in rows or estimated sigmas (keys loss, burn_in,
+                ! sigma_est): the chain's fit, as beamid.fit with them
                 call chain_fit(problem, lp, params0, free, opts, problem%rows, fo, w, su, sd, &
                                gross, stat)
             else
@@ -153,7 +153,7 @@ contains
         out%sigma = fo%row_sigma
         where (fo%row_weight <= 0.0_dp .or. fo%row_gross) out%sigma = 1.0e8_dp*fo%row_sigma
         ! a plain problem now: the treatments are in its sigmas
-        out%exp_values(EV_LOSS:EV_SIGEST, :) = 0.0_dp
+        call out%specs%clear_treatment()
     end function judged_problem
 
     !> Score tests, refits and ranking of the candidates `cs` around the fit
@@ -181,7 +181,7 @@ contains
                               dg%base, dg%diag, dg%mesh, dg%pexp, dg%pt, dg%pq, dg%used, stat, &
                               dg%ambiguous)
         else
-            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%exp_values, pb%row_exp, &
+            call inverse_problem_init(pb%nbeams, pb%exp_kind, pb%specs, pb%row_exp, &
                                       pb%row_t, pb%row_q, pb%tol, problem, stat, pb%obs, &
                                       hist=pb%hist)
             ! modal tests have a mesh of their own (issue 27): with `mesh`
@@ -294,7 +294,7 @@ contains
                 ! every experiment with a mesh of its own: releases, modal tests
                 do j = 1, size(pb%exp_kind)
                     if (kind_mesh_key(pb%exp_kind(j)) > 0) &
-                        pb%exp_values(kind_mesh_key(pb%exp_kind(j)), j) = real(r%nepb, dp)
+                        call pb%specs(j)%set(kind_mesh_key(pb%exp_kind(j)), real(r%nepb, dp))
                 end do
                 r%effect = 'mesh ('//fmt_int(r%nepb)//' elements per beam)'
                 r%start = r%fit%params
@@ -378,7 +378,7 @@ contains
                     end do
                     if (nflag > 0 .and. nflag <= max(3, int(GROSS_SHARE*real(n, dp)))) then
                         cs%gross = .false.
-                        pb%exp_values(EV_LOSS, :) = 1.0_dp          ! Huber
+                        call pb%specs%set(EV_LOSS, 1.0_dp)          ! Huber
                         call rung_refit(lad, 'gross_errors', st)
                         added = .true.
                         return
@@ -392,9 +392,9 @@ contains
                         e = pb%row_exp(i)
                         q = pb%row_q(i)
                         if (q > MAX_CHANNEL_BITS) cycle
-                        if (.not. btest(nint(pb%exp_values(EV_SIGEST, e), int64), q - 1)) &
-                            pb%exp_values(EV_SIGEST, e) = pb%exp_values(EV_SIGEST, e) + &
-                                                          2.0_dp**(q - 1)
+                        if (.not. btest(nint(pb%specs(e)%get(EV_SIGEST), int64), q - 1)) &
+                            call pb%specs(e)%set(EV_SIGEST, pb%specs(e)%get(EV_SIGEST) + &
+                                                 2.0_dp**(q - 1))
                     end do
                     call rung_refit(lad, 'noise', st)
                     added = .true.

@@ -60,7 +60,7 @@ module beamid_modal_experiments
 
 contains
 
-    !> Build from the value columns (fx, fy, moment, wire_length,
+    !> Build from the specs (fx, fy, moment, wire_length,
     !! elements_per_beam, fd).
     subroutine modal_build(self, input, stat)
         class(modal_experiments_t), intent(inout) :: self
@@ -70,10 +70,11 @@ contains
         integer :: e
         allocate (mods(size(input%kinds)))
         do e = 1, size(input%kinds)
-            associate (v => input%values(:, e))
-                mods(e) = modal_exp_t(fx=v(EV_FX), fy=v(EV_FY), moment=v(EV_MOMENT), &
-                                      wire_length=v(EV_WIRE_LENGTH), &
-                                      nepb=nint(v(EV_NEPB)), fd=nint(v(EV_FD)) == 1)
+            associate (v => input%specs(e))
+                mods(e) = modal_exp_t(fx=v%get(EV_FX), fy=v%get(EV_FY), &
+                                      moment=v%get(EV_MOMENT), &
+                                      wire_length=v%get(EV_WIRE_LENGTH), &
+                                      nepb=v%get_int(EV_NEPB), fd=v%get_int(EV_FD) == 1)
             end associate
         end do
         call modal_experiments_init(input, mods, self, stat)

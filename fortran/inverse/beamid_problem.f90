@@ -13,23 +13,23 @@
 !! and `diagnose` serve any mix.
 !!
 !! Experiments cross as a kind (EXP_TIP, EXP_WIRE, EXP_RELEASE, ...: the
-!! family that claims it) and a column of NEXPVAL values (layout EV_*,
-!! beamid_family); rows as (experiment, t, observation), the observation an
+!! family that claims it) and a spec (experiment_spec_t of beamid_family:
+!! named keys, EV_* their identifiers); rows as (experiment, t, observation), the observation an
 !! index into the problem's observation list (beamid_observations: a kind
 !! and its locus; without a list, the index is the kind code). Rows of an
 !! untimed family need t = 0; duplicate (experiment, t, observation) rows
 !! are rejected, naming the row.
 !!
-!! The measurement chain (issue 29): an experiment's value column may ask
+!! The measurement chain (issue 29): an experiment's spec may ask
 !! for nuisance parameters, fitted with the physics as extra columns: a
-!! clock offset t0 of a timed family's record (EV_T0 = 1: row i is the
+!! clock offset t0 of a timed family's record (key t0 = 1: row i is the
 !! model at time t_i + t0, so t0 is the model time at the record's zero;
 !! column s h'(t_i + t0), the observation's rate from the family; the
 !! accelerations have none, and a time offset on a record with such rows is
 !! an input error), and per channel (experiment, observation) a bias b and a
-!! scale s (bit q - 1 of EV_BIAS, EV_SCALE for entry q of the observation
+!! scale s (bit q - 1 of keys bias, scale for entry q of the observation
 !! list, so without a list for kind code q: the row reads s h + b; columns 1
-!! and h), and a release's initial tip normal velocity v0 (EV_V0 = 1: the
+!! and h), and a release's initial tip normal velocity v0 (key v0 = 1: the
 !! static shape q starts with the velocity field v0 q / w_tip(q); column s
 !! dh/dv0 from the family's sensitivities started at (0, q / w_tip(q))).
 !! They follow the model's parameters in the parameter vector, in the order
@@ -49,7 +49,7 @@ module beamid_problem
     use beamid_family, only: family_slot_t, EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, &
                              EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, EV_GAIN, EV_METHOD, EV_LAW, &
                              EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, &
-                             EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0
+                             EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0, experiment_spec_t
     use beamid_families, only: registered_families, family_of_kind, kind_timed, kinds_expected
     use beamid_family, only: experiment_family_t, family_input_t
     use beamid_dynamic_experiments, only: dynamic_experiments_t, exp_histories_t, &
@@ -59,10 +59,11 @@ module beamid_problem
     private
 
     public :: inverse_problem_t, problem_t, inverse_problem_init, inverse_lsq
-    public :: observation_list, problem_from_arrays, problem_lsq_from_arrays, spec_columns
+    public :: observation_list, problem_from_arrays, problem_lsq_from_arrays
+    public :: specs_from_triples
     public :: chain_layout
-    !> The spec layout (beamid_family), here for the problem's callers.
-    public :: EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
+    !> The spec and its keys (beamid_family), here for the problem's callers.
+    public :: experiment_spec_t, EXP_TIP, EXP_WIRE, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, EV_NEPB, &
               EV_GAIN, EV_METHOD, EV_LAW, EV_RTOL, EV_DT, EV_VSLIP, EV_FD, EV_T0, EV_BIAS, &
               EV_SCALE, EV_LOSS, EV_BURNIN, EV_SIGEST, NEXPVAL, EV_V0
 
@@ -112,17 +113,19 @@ contains
     !! probe = .true.: rows that only predict (a diagnosis's probe rows on
     !! the data problem's experiments and chain): a channel of the chain or
     !! of an estimated sigma need not have rows among them.
-    subroutine inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, &
+    subroutine inverse_problem_init(nbeams, exp_kind, specs, row_exp, row_t, &
                                     row_quantity, tol, self, stat, obs, probe, hist)
         integer, intent(in) :: nbeams
         integer, intent(in) :: exp_kind(:), row_exp(:), row_quantity(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), tol
+        !> each experiment's spec (beamid_family experiment_spec_t)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), tol
         type(inverse_problem_t), intent(out) :: self
         type(status_t), intent(inout) :: stat
         type(observation_t), intent(in), optional :: obs(:)
         logical, intent(in), optional :: probe
         !> load histories of the release experiments (their own list beside
-        !! the value columns; beamid_dynamic_experiments exp_histories_t)
+        !! the specs; beamid_dynamic_experiments exp_histories_t)
         type(exp_histories_t), intent(in), optional :: hist
         type(observation_t), allocatable :: list(:), robs(:)
         character(len=*), parameter :: where = 'experiments'
@@ -130,10 +133,9 @@ contains
         integer, allocatable :: efam(:), eloc(:), fmap(:), fexp(:), frows(:)
         integer :: e, i, j, f, nf
         logical :: probing
-        if (size(exp_values, 1) /= NEXPVAL .or. size(exp_values, 2) /= size(exp_kind)) then
-            call set_status(stat, ERR_INPUT, where, 'experiment values are '// &
-                            fmt_int(size(exp_values, 1))//' x '//fmt_int(size(exp_values, 2))// &
-                            ', expected '//fmt_int(NEXPVAL)//' x '//fmt_int(size(exp_kind)))
+        if (size(specs) /= size(exp_kind)) then
+            call set_status(stat, ERR_INPUT, where, fmt_int(size(specs))//' experiment '// &
+                            'specs, expected one per experiment ('//fmt_int(size(exp_kind))//')')
             return
         end if
         if (size(row_t) /= size(row_exp) .or. size(row_quantity) /= size(row_exp)) then
@@ -225,7 +227,7 @@ contains
             fexp = pack([(e, e=1, size(exp_kind))], self%exp_fam == f)
             frows = pack([(i, i=1, size(row_exp))], self%exp_fam(row_exp) == f)
             call self%fams(f)%item%setup(family_input_t(nbeams, exp_kind(fexp), &
-                                                        exp_values(:, fexp), &
+                                                        specs(fexp), &
                                                         eloc(row_exp(frows)), row_t(frows), &
                                                         robs(frows), tol), frows, fexp, stat)
             if (stat%code /= STATUS_OK) then
@@ -282,8 +284,8 @@ contains
             end select
         end subroutine histories_init
 
-        !> Each row's loss, burn-in and estimated sigma (EV_LOSS, EV_BURNIN,
-        !! EV_SIGEST), checked: a loss code 0..2, a burn-in time >= 0 on a
+        !> Each row's loss, burn-in and estimated sigma (keys loss, burn_in,
+        !! sigma_est), checked: a loss code 0..2, a burn-in time >= 0 on a
         !! release only, a channel mask whose channels have rows.
         subroutine rows_init(stat)
             type(status_t), intent(inout) :: stat
@@ -292,17 +294,16 @@ contains
             integer(int64) :: mask
             allocate (self%rows%loss(size(row_exp)), self%rows%channel(size(row_exp)), source=0)
             allocate (self%rows%fitted(size(row_exp)), source=.true.)
-            if (size(exp_values, 1) < NEXPVAL) return
             nchan = 0
             do e = 1, size(exp_kind)
-                v = exp_values(EV_LOSS, e)
+                v = specs(e)%get(EV_LOSS)
                 if (.not. (v == 0.0_dp .or. v == 1.0_dp .or. v == 2.0_dp)) then
                     call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
                                     ': loss code = '//fmt_real(v)//', expected 0 (linear), '// &
                                     '1 (huber) or 2 (cauchy)')
                     return
                 end if
-                v = exp_values(EV_BURNIN, e)
+                v = specs(e)%get(EV_BURNIN)
                 if (.not. (v >= 0.0_dp .and. v < huge(1.0_dp))) then
                     call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
                                     ': burn-in = '//fmt_real(v)//', expected a time >= 0')
@@ -314,15 +315,15 @@ contains
                                     ' experiment (only a release has a record in time)')
                     return
                 end if
-                v = exp_values(EV_SIGEST, e)
+                v = specs(e)%get(EV_SIGEST)
                 if (.not. channel_mask_ok(v, size(list))) then
                     call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
                                     ': sigma channel mask = '//fmt_real(v)//', expected '// &
                                     channel_mask_range(size(list)))
                     return
                 end if
-                where (row_exp == e) self%rows%loss = nint(exp_values(EV_LOSS, e))
-                where (row_exp == e .and. row_t < exp_values(EV_BURNIN, e)) &
+                where (row_exp == e) self%rows%loss = specs(e)%get_int(EV_LOSS)
+                where (row_exp == e .and. row_t < specs(e)%get(EV_BURNIN)) &
                     self%rows%fitted = .false.
                 mask = nint(v, int64)
                 do q = 1, min(size(list), MAX_CHANNEL_BITS)
@@ -353,7 +354,7 @@ contains
             type(status_t), intent(inout) :: stat
             integer :: k, i, e
             self%np = size(self%lower)
-            call chain_layout(exp_kind, exp_values, self%nu_kind, self%nu_exp, self%nu_q, stat, &
+            call chain_layout(exp_kind, specs, self%nu_kind, self%nu_exp, self%nu_q, stat, &
                               size(list))
             if (stat%code /= STATUS_OK) return
             do k = 1, size(self%nu_kind)
@@ -420,16 +421,16 @@ contains
         end subroutine renumber
     end subroutine inverse_problem_init
 
-    !> The nuisance parameters the experiments' value columns ask for (EV_T0,
-    !! EV_BIAS, EV_SCALE), in parameter order: per experiment its clock
+    !> The nuisance parameters the experiments' specs ask for (keys t0, v0,
+    !! bias, scale), in parameter order: per experiment its clock
     !! offset, its biases by entry of the observation list, its scales
     !! likewise. kinds NU_*, exps the experiment, qs the entry (0 for t0).
     !! nobs: the length of the problem's observation list (absent: the kind
     !! codes, NKIND entries). A clock offset on a static experiment, or a flag
     !! or mask out of range, is an input error naming the experiment.
-    subroutine chain_layout(exp_kind, exp_values, kinds, exps, qs, stat, nobs)
+    subroutine chain_layout(exp_kind, specs, kinds, exps, qs, stat, nobs)
         integer, intent(in) :: exp_kind(:)
-        real(dp), intent(in) :: exp_values(:, :)
+        type(experiment_spec_t), intent(in) :: specs(:)
         integer, allocatable, intent(out) :: kinds(:), exps(:), qs(:)
         type(status_t), intent(inout) :: stat
         integer, intent(in), optional :: nobs
@@ -437,12 +438,11 @@ contains
         integer :: e, q, t0, m, n
         integer(int64) :: mask(2)
         allocate (kinds(0), exps(0), qs(0))
-        if (size(exp_values, 1) < NEXPVAL) return
         n = size(default_observations())
         if (present(nobs)) n = nobs
         do e = 1, size(exp_kind)
             do m = 1, 2
-                associate (v => exp_values(EV_BIAS + m - 1, e))
+                associate (v => specs(e)%get(merge(EV_BIAS, EV_SCALE, m == 1)))
                     if (.not. channel_mask_ok(v, n)) then
                         call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
                                         ': '//trim(merge('bias ', 'scale', m == 1))// &
@@ -452,13 +452,13 @@ contains
                     end if
                 end associate
             end do
-            mask = nint(exp_values([EV_BIAS, EV_SCALE], e), int64)
+            mask = nint(specs(e)%get([EV_BIAS, EV_SCALE]), int64)
             t0 = -1
-            if (exp_values(EV_T0, e) == 0.0_dp .or. exp_values(EV_T0, e) == 1.0_dp) &
-                t0 = nint(exp_values(EV_T0, e))
+            if (specs(e)%get(EV_T0) == 0.0_dp .or. specs(e)%get(EV_T0) == 1.0_dp) &
+                t0 = specs(e)%get_int(EV_T0)
             if (t0 /= 0 .and. t0 /= 1) then
                 call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                ': time offset flag = '//fmt_real(exp_values(EV_T0, e))// &
+                                ': time offset flag = '//fmt_real(specs(e)%get(EV_T0))// &
                                 ', expected 0 or 1')
                 return
             end if
@@ -469,24 +469,22 @@ contains
                 return
             end if
             if (t0 == 1) call push(NU_T0, 0)
-            if (size(exp_values, 1) >= EV_V0) then
-                associate (v => exp_values(EV_V0, e))
-                    if (v /= 0.0_dp .and. v /= 1.0_dp) then
-                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                        ': initial velocity flag v0 = '//fmt_real(v)// &
-                                        ', expected 0 or 1')
-                        return
-                    end if
-                    if (v == 1.0_dp .and. exp_kind(e) /= EXP_RELEASE) then
-                        call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
-                                        ': an initial velocity v0 asked for an experiment '// &
-                                        'that is not a release (only a release starts '// &
-                                        'moving)')
-                        return
-                    end if
-                    if (v == 1.0_dp) call push(NU_V0, 0)
-                end associate
-            end if
+            associate (v => specs(e)%get(EV_V0))
+                if (v /= 0.0_dp .and. v /= 1.0_dp) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': initial velocity flag v0 = '//fmt_real(v)// &
+                                    ', expected 0 or 1')
+                    return
+                end if
+                if (v == 1.0_dp .and. exp_kind(e) /= EXP_RELEASE) then
+                    call set_status(stat, ERR_INPUT, where, 'experiment '//fmt_int(e)// &
+                                    ': an initial velocity v0 asked for an experiment '// &
+                                    'that is not a release (only a release starts '// &
+                                    'moving)')
+                    return
+                end if
+                if (v == 1.0_dp) call push(NU_V0, 0)
+            end associate
             do m = 1, 2
                 do q = 1, min(n, MAX_CHANNEL_BITS)
                     if (btest(mask(m), q - 1)) call push(NU_BIAS + m - 1, q)
@@ -629,24 +627,24 @@ contains
         lp = lsq_problem_t(y, sigma, self%lower, self%upper, self%nulls, prior)
     end function inverse_lsq
 
-    !> The experiments' value columns from named specs: experiment e of
+    !> The experiments' specs from named triples: experiment e of
     !! kind exp_kind(e) takes, for every key of SPEC_KEYS its family
     !! accepts, the value of the triple (kv_exp = e, kv_key = that key's
     !! index, kv_value) or else the key's default (keys it does not accept:
     !! 0). A key its family does not accept, an unknown key or experiment,
     !! or a key given twice is an input error naming the experiment, the key
     !! and the keys accepted.
-    subroutine spec_columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+    subroutine specs_from_triples(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         integer, intent(in) :: exp_kind(:), kv_exp(:), kv_key(:)
         real(dp), intent(in) :: kv_value(:)
-        real(dp), allocatable, intent(out) :: values(:, :)
+        type(experiment_spec_t), allocatable, intent(out) :: specs(:)
         type(status_t), intent(inout) :: stat
         character(len=*), parameter :: where = 'experiments'
         type(family_slot_t), allocatable :: reg(:)
         logical, allocatable :: given(:, :)
         integer :: e, i, k, f
         character(len=:), allocatable :: accepted
-        allocate (values(size(SPEC_KEYS), size(exp_kind)), source=0.0_dp)
+        allocate (specs(size(exp_kind)))
         allocate (given(size(SPEC_KEYS), size(exp_kind)), source=.false.)
         if (size(kv_key) /= size(kv_exp) .or. size(kv_value) /= size(kv_exp)) then
             call set_status(stat, ERR_INPUT, where, 'spec triples: experiment, key and value '// &
@@ -662,7 +660,7 @@ contains
                 return
             end if
             do k = 1, size(SPEC_KEYS)
-                if (reg(f)%item%accepts(k)) values(SPEC_KEYS(k)%row, e) = SPEC_KEYS(k)%default
+                if (reg(f)%item%accepts(k)) call specs(e)%set(k, SPEC_KEYS(k)%default)
             end do
         end do
         do i = 1, size(kv_exp)
@@ -683,7 +681,7 @@ contains
                         return
                     end if
                     given(k, e) = .true.
-                    values(SPEC_KEYS(k)%row, e) = kv_value(i)
+                    call specs(e)%set(k, kv_value(i))
                     cycle
                 end if
             end if
@@ -705,7 +703,7 @@ contains
             end if
             return
         end do
-    end subroutine spec_columns
+    end subroutine specs_from_triples
 
     !> The problem's observation list from parallel arrays (kind code, beam
     !! and arc length s of each entry; beamid_observations).
@@ -720,19 +718,20 @@ contains
     end function observation_list
 
     !> The inverse problem of the marshalled arrays of a front: experiments
-    !! (kinds, value columns), rows (experiment, t, entry of the observation
+    !! (kinds, specs), rows (experiment, t, entry of the observation
     !! list) and the observation list as parallel arrays (obs_kind,
     !! obs_beam, obs_s; observation_list).
-    subroutine problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+    subroutine problem_from_arrays(nbeams, exp_kind, specs, row_exp, row_t, row_q, &
                                    obs_kind, obs_beam, obs_s, tol, model, stat, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer, intent(in) :: obs_kind(:), obs_beam(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), obs_s(:), tol
         type(inverse_problem_t), intent(out) :: model
         type(status_t), intent(inout) :: stat
         !> the release experiments' load histories (their own list)
         type(exp_histories_t), intent(in), optional :: hist
-        call inverse_problem_init(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, tol, &
+        call inverse_problem_init(nbeams, exp_kind, specs, row_exp, row_t, row_q, tol, &
                                   model, stat, observation_list(obs_kind, obs_beam, obs_s), &
                                   hist=hist)
     end subroutine problem_from_arrays
@@ -744,12 +743,13 @@ contains
     !! `prior`, independent (prior_cov empty) or a full covariance of the
     !! prior parameters (prior_cov: nprior**2 values, column by column; a
     !! previous fit carried forward, Eq. 146-148, 164-166).
-    subroutine problem_lsq_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+    subroutine problem_lsq_from_arrays(nbeams, exp_kind, specs, row_exp, row_t, row_q, &
                                        obs_kind, obs_beam, obs_s, tol, y, sigma, prior, &
                                        prior_cov, model, lp, stat, hist)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer, intent(in) :: obs_kind(:), obs_beam(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), obs_s(:), tol
         real(dp), intent(in) :: y(:), sigma(:), prior(:, :), prior_cov(:)
         type(inverse_problem_t), intent(out) :: model
         type(lsq_problem_t), intent(out) :: lp
@@ -765,7 +765,7 @@ contains
                             fmt_int(n*n))
             return
         end if
-        call problem_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+        call problem_from_arrays(nbeams, exp_kind, specs, row_exp, row_t, row_q, &
                                  obs_kind, obs_beam, obs_s, tol, model, stat, hist)
         if (stat%code /= STATUS_OK) return
         ! the prior as a variable of its own: gfortran 12 passed the structure

@@ -53,7 +53,7 @@ module beamid_static_experiments
 contains
 
     !> The family's constructor for the problem: a static load per
-    !! experiment from its value column (EV_FX, EV_FY, EV_MOMENT,
+    !! experiment from its spec (keys EV_FX, EV_FY, EV_MOMENT,
     !! EV_WIRE_LENGTH), then static_experiments_init.
     subroutine static_build(self, input, stat)
         class(static_experiments_t), intent(inout) :: self
@@ -63,9 +63,10 @@ contains
         integer :: e
         allocate (loads(size(input%kinds)))
         do e = 1, size(input%kinds)
-            associate (v => input%values(:, e))
-                loads(e) = static_load_t(kind=input%kinds(e), fx=v(EV_FX), fy=v(EV_FY), &
-                                         moment=v(EV_MOMENT), wire_length=v(EV_WIRE_LENGTH))
+            associate (v => input%specs(e))
+                loads(e) = static_load_t(kind=input%kinds(e), fx=v%get(EV_FX), fy=v%get(EV_FY), &
+                                         moment=v%get(EV_MOMENT), &
+                                         wire_length=v%get(EV_WIRE_LENGTH))
             end associate
         end do
         call static_experiments_init(input%nbeams, loads, input%row_exp, input%row_obs, &

@@ -1,8 +1,9 @@
 !> The measurement chain of an estimation deck (issue 29; docs/decks.md,
 !! "The measurement chain"): the &fit keys time_offset, bias, scale, loss,
-!! burn_in, estimate_sigma and initial_velocity, read into the experiments' value columns as
-!! beamid.fit sets them (beamid_inverse EV_T0, EV_BIAS, EV_SCALE, EV_LOSS,
-!! EV_BURNIN, EV_SIGEST), so a deck and the Python API fit one problem.
+!! burn_in, estimate_sigma and initial_velocity, read into the experiments'
+!! specs as beamid.fit sets them (keys t0, bias, scale, loss, burn_in,
+!! sigma_est, v0 of beamid_family's SPEC_KEYS), so a deck and the Python API
+!! fit one problem.
 !!
 !! A channel is `experiment:quantity` (`free:w_tip`, `free:strain@1:0.05`)
 !! or a bare quantity (that quantity in every experiment measuring it);
@@ -19,7 +20,7 @@ module beamid_chain_deck
     use beamid_namelist, only: nml_text_t, add_error
     use beamid_observations, only: observation_t, obs_label, same_observation, parse_observation
     use beamid_inverse, only: EXP_RELEASE, EV_T0, EV_BIAS, EV_SCALE, EV_LOSS, EV_BURNIN, &
-                              EV_SIGEST, MAX_CHANNEL_BITS, EV_V0
+                              EV_SIGEST, MAX_CHANNEL_BITS, EV_V0, experiment_spec_t
     implicit none
     private
 
@@ -66,27 +67,23 @@ contains
         end function before
     end function ordered_observations
 
-    !> Does an experiment's value column ask anything of the chain?
-    pure logical function chain_asked(values)
-        real(dp), intent(in) :: values(:, :)
-        chain_asked = .false.
-        if (size(values, 1) < EV_SIGEST) return
-        chain_asked = any(values(EV_T0:EV_SIGEST, :) /= 0.0_dp)
-        if (size(values, 1) >= EV_V0) chain_asked = chain_asked .or. &
-                                                    any(values(EV_V0, :) /= 0.0_dp)
+    !> Does an experiment's spec ask anything of the chain?
+    pure logical function chain_asked(specs)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        chain_asked = any(specs%chain_asked())
     end function chain_asked
 
     !> One chain key of a deck's &fit (`key` one of CHAIN_KEYS, `items` its
-    !! values as text) into the value columns `values` of the experiments
+    !! values as text) into the specs `specs` of the experiments
     !! `names` (kinds `kinds`) for the data rows (experiment `row_exp`,
     !! observation `row_obs`). `where` starts each message.
-    subroutine set_chain_key(key, items, names, kinds, row_exp, row_obs, values, where, errors)
+    subroutine set_chain_key(key, items, names, kinds, row_exp, row_obs, specs, where, errors)
         character(len=*), intent(in) :: key, where
         type(nml_text_t), intent(in) :: items(:)
         character(len=*), intent(in) :: names(:)
         integer, intent(in) :: kinds(:), row_exp(:)
         type(observation_t), intent(in) :: row_obs(:)
-        real(dp), intent(inout) :: values(:, :)
+        type(experiment_spec_t), intent(inout) :: specs(:)
         character(len=:), allocatable, intent(inout) :: errors
         type(observation_t), allocatable :: list(:)
         logical, allocatable :: pick(:, :)
@@ -107,7 +104,7 @@ contains
                                    "': the experiment is static; a time offset needs a "// &
                                    "record in time (kind = 'release')")
                 else
-                    values(EV_T0, e) = 1.0_dp
+                    call specs(e)%set(EV_T0, 1.0_dp)
                 end if
             end do
         case ('initial_velocity')
@@ -122,7 +119,7 @@ contains
                                    "': the experiment is static; an initial velocity needs "// &
                                    "a release (kind = 'release')")
                 else
-                    values(EV_V0, e) = 1.0_dp
+                    call specs(e)%set(EV_V0, 1.0_dp)
                 end if
             end do
         case ('bias', 'scale', 'estimate_sigma')
@@ -151,11 +148,11 @@ contains
                 end do
                 select case (key)
                 case ('bias')
-                    values(EV_BIAS, e) = t
+                    call specs(e)%set(EV_BIAS, t)
                 case ('scale')
-                    values(EV_SCALE, e) = t
+                    call specs(e)%set(EV_SCALE, t)
                 case default
-                    values(EV_SIGEST, e) = t
+                    call specs(e)%set(EV_SIGEST, t)
                 end select
             end do
         case ('loss')
@@ -169,7 +166,7 @@ contains
                                joined(LOSS_NAMES))
                 return
             end if
-            values(EV_LOSS, :) = real(code, dp)
+            call specs%set(EV_LOSS, real(code, dp))
         case ('burn_in')
             t = -1.0_dp
             ios = 1
@@ -181,7 +178,9 @@ contains
                 call add_error(errors, where//'burn_in: the experiments have no release (no '// &
                                'record in time)')
             else
-                where (kinds == EXP_RELEASE) values(EV_BURNIN, :) = t
+                do e = 1, size(specs)
+                    if (kinds(e) == EXP_RELEASE) call specs(e)%set(EV_BURNIN, t)
+                end do
             end if
         case default
             call add_error(errors, where//key//': not a key of the measurement chain ('// &
@@ -227,10 +226,11 @@ contains
         end subroutine channels
     end subroutine set_chain_key
 
-    !> The first data row without sigma (NaN) whose channel's sigma the value
-    !! columns do not estimate (EV_SIGEST); 0: none.
-    pure integer function chain_sigma_missing(values, row_exp, row_obs, sigma) result(row)
-        real(dp), intent(in) :: values(:, :), sigma(:)
+    !> The first data row without sigma (NaN) whose channel's sigma the
+    !! specs do not estimate (key sigma_est); 0: none.
+    pure integer function chain_sigma_missing(specs, row_exp, row_obs, sigma) result(row)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: sigma(:)
         integer, intent(in) :: row_exp(:)
         type(observation_t), intent(in) :: row_obs(:)
         type(observation_t), allocatable :: list(:)
@@ -241,8 +241,7 @@ contains
             if (sigma(row) == sigma(row)) cycle        ! given
             r = row
             q = findloc(same_observation(list, row_obs(r)), .true., 1)
-            mask = 0.0_dp
-            if (size(values, 1) >= EV_SIGEST) mask = values(EV_SIGEST, row_exp(r))
+            mask = specs(row_exp(r))%get(EV_SIGEST)
             if (q > MAX_CHANNEL_BITS) return
             if (.not. btest(nint(mask, kind=8), q - 1)) return
         end do

@@ -31,8 +31,8 @@ module beamid_deck
     use beamid_effects, only: effect_params, default_effects, known_effects, FAMILY_STATIC, &
                               FAMILY_MODAL
     use beamid_chain_deck, only: CHAIN_KEYS, set_chain_key, chain_sigma_missing
-    use beamid_inverse, only: NEXPVAL, EXP_RELEASE, EV_FX, EV_MOMENT, EV_NEPB, EV_GAIN, &
-                              EV_WIRE_LENGTH, EV_METHOD, EV_LAW, EV_RTOL, EV_DT
+    use beamid_inverse, only: experiment_spec_t, EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, &
+                              EV_NEPB, EV_GAIN, EV_WIRE_LENGTH, EV_METHOD, EV_LAW, EV_RTOL, EV_DT
     use beamid_dynamic_experiments, only: exp_histories_t
     use beamid_deck_history, only: read_history_groups
     use beamid_family, only: EXP_MODAL
@@ -123,10 +123,11 @@ module beamid_deck
         character(len=:), allocatable :: exp_names(:)   !< experiment names, deck order
         type(static_load_t), allocatable :: experiments(:)
         !> release experiments (kind = 'release', issue 13): exp_kind(e) = 3
-        !! and exp_values(:, e) in beamid_inverse's EV_* layout; 0 for the
-        !! static experiments (their load is experiments(e))
+        !! and exp_specs(e) their spec (beamid_family experiment_spec_t); 0
+        !! for the static experiments (their load is experiments(e); their
+        !! spec holds the measurement chain's keys only)
         integer, allocatable :: exp_kind(:)
-        real(dp), allocatable :: exp_values(:, :)
+        type(experiment_spec_t), allocatable :: exp_specs(:)
         character(len=:), allocatable :: data_path      !< measurement CSV
         !> the &sensor table: channel names of a logger file, their
         !! observations and sigmas (0: none of its own)
@@ -661,15 +662,14 @@ contains
     !! (issue 13): the tip load fx, fy, moment held before the release and
     !! the options of beamid.Release (elements_per_beam 4, motor_gain 0,
     !! integrator 'implicit' or 'rk4', rtol, dt, friction 'sign', 'smooth' or
-    !! 'sign_literal'), in ev (beamid_inverse's EV_* layout; ev(EV_NEPB) = 0
-    !! for a static experiment).
+    !! 'sign_literal'), in the spec ev (no key set for a static experiment).
     subroutine read_experiment(f, g, label, arm, load, ev, errors, kind_code)
         type(nml_file_t), intent(in) :: f
         type(nml_group_t), intent(in) :: g
         character(len=*), intent(in) :: label
         real(dp), intent(in) :: arm
         type(static_load_t), intent(out) :: load
-        real(dp), intent(out) :: ev(NEXPVAL)
+        type(experiment_spec_t), intent(out) :: ev
         character(len=:), allocatable, intent(inout) :: errors
         !> 0 static, EXP_RELEASE, EXP_MODAL (kind = 'modal', issue 27: the
         !! tip load held during the modal test and elements_per_beam)
@@ -680,7 +680,6 @@ contains
         logical :: given
         integer :: nepb, i
         real(dp) :: x
-        ev = 0.0_dp
         kind_code = 0
         kind = ''
         call nml_str(f, g, 'kind', kind, given, errors)
@@ -695,7 +694,7 @@ contains
             call nml_real(f, g, 'fx', load%fx, given, errors)
             call nml_real(f, g, 'fy', load%fy, given, errors)
             call nml_real(f, g, 'moment', load%moment, given, errors)
-            ev(EV_FX:EV_MOMENT) = [load%fx, load%fy, load%moment]
+            call set_load(ev, load)
             ! a radial wire held during the test (beamid_modal: the tip on its circle)
             if (nml_given(g, 'wire_length')) then
                 x = 0.0_dp
@@ -711,13 +710,13 @@ contains
                 if (nml_given(g, 'fx') .or. nml_given(g, 'fy') .or. nml_given(g, 'moment')) &
                     call add_error(errors, label//": kind = 'modal' with wire_length does "// &
                                    "not take fx, fy or moment (the wire holds the arm)")
-                ev(EV_WIRE_LENGTH) = x
+                call ev%set(EV_WIRE_LENGTH, x)
             end if
             nepb = 4
             call nml_int(f, g, 'elements_per_beam', nepb, given, errors)
             if (nepb < 1) call add_error(errors, label//': elements_per_beam = '// &
                                          fmt_int(nepb)//', expected at least 1')
-            ev(EV_NEPB) = real(max(nepb, 1), dp)
+            call ev%set(EV_NEPB, real(max(nepb, 1), dp))
             return
         end if
         if (trim(kind) /= 'release') then
@@ -736,37 +735,46 @@ contains
         call nml_real(f, g, 'moment', load%moment, given, errors)
         if (nml_given(g, 'wire_length')) call add_error(errors, label// &
             ": kind = 'release' does not take wire_length (the release is from a tip load)")
-        ev(EV_FX:EV_MOMENT) = [load%fx, load%fy, load%moment]
+        call set_load(ev, load)
         nepb = 4
         call nml_int(f, g, 'elements_per_beam', nepb, given, errors)
         if (nepb < 1) call add_error(errors, label//': elements_per_beam = '//fmt_int(nepb)// &
                                      ', expected at least 1')
-        ev(EV_NEPB) = real(max(nepb, 1), dp)
+        call ev%set(EV_NEPB, real(max(nepb, 1), dp))
         x = 0.0_dp
         call nml_real(f, g, 'motor_gain', x, given, errors)
         if (x < 0.0_dp) call add_error(errors, label//': motor_gain = '//fmt_g(x)// &
                                        ', expected >= 0')
-        ev(EV_GAIN) = max(x, 0.0_dp)
+        call ev%set(EV_GAIN, max(x, 0.0_dp))
         text = 'implicit'
         call nml_str(f, g, 'integrator', text, given, errors)
         i = 0
         call read_choice(text, INTEGRATORS, [1, 0], "'", label//': integrator', i, errors)
-        ev(EV_METHOD) = real(i, dp)
+        call ev%set(EV_METHOD, real(i, dp))
         text = 'sign'
         call nml_str(f, g, 'friction', text, given, errors)
         i = 0
         call read_choice(text, FRICTION_LAWS, [0, 1, 2], "'", label//': friction', i, errors)
-        ev(EV_LAW) = real(i, dp)
+        call ev%set(EV_LAW, real(i, dp))
         x = 0.0_dp
         call nml_real(f, g, 'rtol', x, given, errors)
         if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': rtol = '// &
                                                          fmt_g(x)//', expected > 0')
-        ev(EV_RTOL) = max(x, 0.0_dp)
+        call ev%set(EV_RTOL, max(x, 0.0_dp))
         x = 0.0_dp
         call nml_real(f, g, 'dt', x, given, errors)
         if (given .and. .not. x > 0.0_dp) call add_error(errors, label//': dt = '// &
                                                          fmt_g(x)//', expected > 0 (s)')
-        ev(EV_DT) = max(x, 0.0_dp)
+        call ev%set(EV_DT, max(x, 0.0_dp))
+    contains
+        !> The tip load held (fx, fy, moment) into the spec.
+        pure subroutine set_load(ev, load)
+            type(experiment_spec_t), intent(inout) :: ev
+            type(static_load_t), intent(in) :: load
+            call ev%set(EV_FX, load%fx)
+            call ev%set(EV_FY, load%fy)
+            call ev%set(EV_MOMENT, load%moment)
+        end subroutine set_load
     end subroutine read_experiment
 
     !> Total length of the deck's chain (0 when the model has errors).
@@ -1064,8 +1072,8 @@ contains
         type(nml_text_t), allocatable :: names(:)
         logical, allocatable :: is_wire(:), has_motor(:)
         integer, allocatable :: kinds(:)
-        real(dp), allocatable :: evalues(:, :)
-        real(dp) :: ev(NEXPVAL)
+        type(experiment_spec_t), allocatable :: especs(:)
+        type(experiment_spec_t) :: ev
         logical :: given
         integer :: ne, k, i, ig, maxlen, nerr, nf, kcode
         type(static_load_t) :: load
@@ -1075,7 +1083,7 @@ contains
         ! ---- &experiment, one group per experiment
         nerr = count_lines_alloc(errors)
         ne = nml_count(f, 'experiment')
-        allocate (names(0), loads(0), kinds(0), evalues(NEXPVAL, 0))
+        allocate (names(0), loads(0), kinds(0), especs(0))
         do k = 1, ne
             ig = nml_find(f, 'experiment', k)
             gx = f%groups(ig)
@@ -1101,7 +1109,7 @@ contains
             names = [names, nml_text_t(name)]
             loads = [loads, load]
             kinds = [kinds, kcode]
-            evalues = reshape([evalues, ev], [NEXPVAL, size(kinds)])
+            especs = [especs, ev]
         end do
         if (ne == 0) call add_error(errors, f%path//': no &experiment groups: define at '// &
                                     'least one experiment')
@@ -1115,9 +1123,9 @@ contains
         end do
         deck%experiments = loads
         deck%exp_kind = kinds
-        deck%exp_values = evalues
+        deck%exp_specs = especs
         is_wire = loads%kind == LOAD_WIRE .and. kinds == 0
-        has_motor = kinds == EXP_RELEASE .and. evalues(EV_GAIN, :) > 0.0_dp
+        has_motor = kinds == EXP_RELEASE .and. especs%get(EV_GAIN) > 0.0_dp
 
         call read_sensor_groups(f, deck, errors)
 
@@ -1380,7 +1388,7 @@ contains
         if (count_lines_alloc(errors) /= nerr) return
         call read_chain_keys(f, g, where, identify, deck, stage, errors)
         if (count_lines_alloc(errors) /= nerr) return
-        i = chain_sigma_missing(deck%exp_values, stage%row_exp, stage%data%obs, &
+        i = chain_sigma_missing(deck%exp_specs, stage%row_exp, stage%data%obs, &
                                 stage%data%sigma)
         if (i > 0) call add_error(errors, where//'data: sigma missing: '// &
             stage%data_path//', line '//fmt_int(stage%data%line(i))//' has no sigma '// &
@@ -1460,7 +1468,7 @@ contains
     !> The measurement chain's keys of a &fit group (beamid_chain_deck:
     !! time_offset, bias, scale, loss, burn_in, estimate_sigma,
     !! initial_velocity) into the
-    !! experiments' value columns; not for task identify.
+    !! experiments' specs; not for task identify.
     subroutine read_chain_keys(f, g, where, identify, deck, stage, errors)
         type(nml_file_t), intent(in) :: f
         type(nml_group_t), intent(in) :: g
@@ -1486,7 +1494,7 @@ contains
             end if
             call nml_strs(f, g, trim(keys(k)), items, given, errors)
             call set_chain_key(trim(keys(k)), items, deck%exp_names, deck%exp_kind, &
-                               stage%row_exp, stage%data%obs, deck%exp_values, where, errors)
+                               stage%row_exp, stage%data%obs, deck%exp_specs, where, errors)
         end do
         if (.not. nml_given(g, 'burn_in')) return
         if (identify) then
@@ -1497,7 +1505,7 @@ contains
         call nml_real(f, g, 'burn_in', t, given, errors)
         write (text, '(es24.17)') t
         call set_chain_key('burn_in', [nml_text_t(trim(adjustl(text)))], deck%exp_names, &
-                           deck%exp_kind, stage%row_exp, stage%data%obs, deck%exp_values, &
+                           deck%exp_kind, stage%row_exp, stage%data%obs, deck%exp_specs, &
                            where, errors)
     end subroutine read_chain_keys
 

@@ -18,7 +18,7 @@
 !! the experiment's last time, a spin-up with T <= 0, ...
 !!
 !! The histories go to exp_histories_t (the estimation's own list beside
-!! the experiments' value columns: a column [experiment, beamid_loads'
+!! the experiments' specs: a column [experiment, beamid_loads'
 !! LD_NSPEC values] each; a simulate deck's are experiment 1).
 module beamid_deck_history
     use, intrinsic :: ieee_arithmetic, only: ieee_is_finite

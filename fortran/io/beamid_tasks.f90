@@ -35,8 +35,8 @@ module beamid_tasks
     use beamid_estimation, only: residual_structure, chi2_sf, fit_result_t, prior_t, &
                                  candidate_t, FLAG_NAMES, CAND_NAMES, prior_from_covariance, &
                                  STOP_NAMES, FLAG_OK
-    use beamid_inverse, only: NEXPVAL, EV_NEPB, EV_T0, EV_SIGEST, chain_layout, NU_T0, &
-                              NU_BIAS, NU_SCALE, NU_V0
+    use beamid_inverse, only: experiment_spec_t, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, &
+                              EV_NEPB, chain_layout, NU_T0, NU_BIAS, NU_SCALE, NU_V0
     use beamid_chain_deck, only: chain_asked, ordered_observations
     use beamid_ladder, only: problem_t, cand_set_t, diag_out_t, rung_t, &
                              ladder_t, ladder_start, ladder_step, ladder_end_at_fit
@@ -352,7 +352,8 @@ contains
         character(len=:), allocatable :: text
         type(fe_mesh_t) :: mesh
         type(status_t) :: st
-        real(dp), allocatable :: omega(:), phi(:, :), values(:, :)
+        real(dp), allocatable :: omega(:), phi(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
         integer, allocatable :: axial(:), dofs(:, :), kinds(:)
         real(dp) :: top, fmax
         integer :: k, e, nepb
@@ -365,9 +366,9 @@ contains
             if (d%task == 'simulate') then
                 nepb = d%sim_elements_per_beam
             else
-                call deck_experiments(d, kinds, values)
+                call deck_experiments(d, kinds, specs)
                 if (e < 1 .or. e > size(kinds)) cycle
-                nepb = nint(values(EV_NEPB, e))
+                nepb = specs(e)%get_int(EV_NEPB)
             end if
             call fe_mesh_from_params(d%nbeams, d%params, nepb, mesh, st)
             if (st%code /= STATUS_OK) cycle
@@ -637,7 +638,7 @@ contains
         ds%params = d%params
         ds%experiments = d%experiments
         if (allocated(d%exp_kind)) ds%exp_kind = d%exp_kind
-        if (allocated(d%exp_values)) ds%exp_values = d%exp_values
+        if (allocated(d%exp_specs)) ds%exp_specs = d%exp_specs
         ds%hist = d%hist
         call take_stage(ds, stage)
     end subroutine stage_deck
@@ -732,9 +733,9 @@ contains
                        row_q=[(r, r=1, size(d%data%obs))], obs=d%data%obs, y=d%data%value, &
                        sigma=d%data%sigma, max_iter=d%max_iter, &
                        prior=prior_t(d%prior_index, d%prior_mean, d%prior_sigma))
-        call deck_experiments(d, pb%exp_kind, pb%exp_values)
+        call deck_experiments(d, pb%exp_kind, pb%specs)
         pb%hist = d%hist
-        if (.not. chain_asked(pb%exp_values) .and. .not. asks_noise(d)) return
+        if (.not. chain_asked(pb%specs) .and. .not. asks_noise(d)) return
         list = ordered_observations(d%data%obs)
         pb%obs = list
         pb%row_q = [(findloc(same_observation(list, d%data%obs(r)), .true., 1), &
@@ -769,7 +770,7 @@ contains
             return
         end if
         pb = deck_problem(d)
-        call chain_layout(pb%exp_kind, pb%exp_values, kinds, exps, qs, st, size(pb%obs))
+        call chain_layout(pb%exp_kind, pb%specs, kinds, exps, qs, st, size(pb%obs))
         j = k - param_count(d%nbeams)
         name = '#'//fmt_int(k)
         if (st%code /= STATUS_OK .or. j > size(kinds)) return
@@ -799,37 +800,36 @@ contains
         integer :: j, np
         params = d%params
         free = d%free
-        if (.not. allocated(d%exp_values)) return
-        if (.not. chain_asked(d%exp_values)) return
+        if (.not. allocated(d%exp_specs)) return
+        if (.not. chain_asked(d%exp_specs)) return
         pb = deck_problem(d)
-        call chain_layout(pb%exp_kind, pb%exp_values, kinds, exps, qs, st, size(pb%obs))
+        call chain_layout(pb%exp_kind, pb%specs, kinds, exps, qs, st, size(pb%obs))
         if (st%code /= STATUS_OK) return
         np = size(params)
         params = [params, merge(1.0_dp, 0.0_dp, kinds == NU_SCALE)]
         free = [free, (np + j, j=1, size(kinds))]
     end subroutine deck_start
 
-    !> The deck's experiments as beamid_inverse takes them: kinds and EV_*
-    !! values.
-    pure subroutine deck_experiments(d, kinds, values)
+    !> The deck's experiments as beamid_inverse takes them: kinds and specs.
+    pure subroutine deck_experiments(d, kinds, specs)
         type(deck_t), intent(in) :: d
         integer, allocatable, intent(out) :: kinds(:)
-        real(dp), allocatable, intent(out) :: values(:, :)
+        type(experiment_spec_t), allocatable, intent(out) :: specs(:)
         integer :: e
-        allocate (values(NEXPVAL, size(d%experiments)), kinds(size(d%experiments)))
-        values = 0.0_dp
+        allocate (specs(size(d%experiments)), kinds(size(d%experiments)))
         do e = 1, size(d%experiments)
             kinds(e) = d%experiments(e)%kind
-            values(1:4, e) = [d%experiments(e)%fx, d%experiments(e)%fy, &
-                              d%experiments(e)%moment, d%experiments(e)%wire_length]
+            call specs(e)%set(EV_FX, d%experiments(e)%fx)
+            call specs(e)%set(EV_FY, d%experiments(e)%fy)
+            call specs(e)%set(EV_MOMENT, d%experiments(e)%moment)
+            call specs(e)%set(EV_WIRE_LENGTH, d%experiments(e)%wire_length)
         end do
         if (allocated(d%exp_kind)) then
             where (d%exp_kind > 0) kinds = d%exp_kind
             do e = 1, size(d%experiments)
-                if (d%exp_kind(e) > 0) values(:, e) = d%exp_values(:, e)
-                ! the measurement chain's rows of a static experiment too
-                if (d%exp_kind(e) == 0) values(EV_T0:EV_SIGEST, e) = &
-                    d%exp_values(EV_T0:EV_SIGEST, e)
+                if (d%exp_kind(e) > 0) specs(e) = d%exp_specs(e)
+                ! the measurement chain's keys of a static experiment too
+                if (d%exp_kind(e) == 0) call specs(e)%take_chain(d%exp_specs(e))
             end do
         end if
     end subroutine deck_experiments
@@ -843,17 +843,17 @@ contains
         type(deck_t), intent(in) :: d
         integer, allocatable, intent(out) :: kinds(:), kv_exp(:), kv_key(:)
         real(dp), allocatable, intent(out) :: kv_value(:)
-        real(dp), allocatable :: values(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
         integer :: e, k, nk
         if (.not. allocated(d%experiments)) then   ! a deck without experiments
             allocate (kinds(0), kv_exp(0), kv_key(0), kv_value(0))
             return
         end if
-        call deck_experiments(d, kinds, values)
+        call deck_experiments(d, kinds, specs)
         nk = size(SPEC_KEYS)
         kv_exp = [((e, k = 1, nk), e = 1, size(kinds))]
         kv_key = [((k, k = 1, nk), e = 1, size(kinds))]
-        kv_value = [((values(SPEC_KEYS(k)%row, e), k = 1, nk), e = 1, size(kinds))]
+        kv_value = [((specs(e)%get(k), k = 1, nk), e = 1, size(kinds))]
     end subroutine deck_specs
 
     !> The deck's candidates: every effect named, with its parameters; in a

@@ -15,12 +15,12 @@ import threading
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from . import _ext
-from .errors import raise_for_status
+from .errors import InputError, raise_for_status
 
 _static = _ext.beamid_api_static
 _fe = _ext.beamid_api_fe
@@ -391,7 +391,7 @@ class SpecKey:
 
     name: str
     number: int            # 1-based: the key as the binding takes it
-    row: int               # 0-based row of the core's value column
+    row: int               # 0-based row in the legacy positional form (number - 1)
     families: tuple[str, ...]
     default: float
     about: str
@@ -450,12 +450,55 @@ def family_of_kind(kind: int) -> Family | None:
 
 
 def spec_row(name: str) -> int:
-    """The 0-based row of spec key ``name`` in the core's value column."""
+    """The 0-based row of spec key ``name`` in a value column (the legacy
+    positional form that :attr:`Problem.exp_values` and
+    ``Release.encode`` still give: row = the key's number - 1)."""
     return spec_keys()[name].row
 
 
+def spec_triples_of(specs: Sequence[Mapping[str, float]]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Experiments' specs by the core's key names (one mapping per
+    experiment) as the binding's sparse named triples: (1-based experiment,
+    key number, value) for every key given a value other than 0, keys in the
+    key table's order within each experiment; a key not given takes its
+    default in the core. A name that is no key is an InputError."""
+    numbers = _key_numbers()
+    exp: list[int] = []
+    number: list[int] = []
+    value: list[float] = []
+    for j, spec in enumerate(specs, start=1):
+        given = []
+        for name, v in spec.items():
+            k = numbers.get(name)
+            if k is None:
+                raise InputError(f"experiment {j}: spec key {name!r} is unknown; expected one "
+                                 f"of {', '.join(numbers)}")
+            if v != 0.0:
+                given.append((k, float(v)))
+        given.sort()
+        exp += [j] * len(given)
+        number += [k for k, _ in given]
+        value += [v for _, v in given]
+    return (np.array(exp, np.int32), np.array(number, np.int32), np.array(value, float))
+
+
+@lru_cache(maxsize=None)
+def _key_numbers() -> dict[str, int]:
+    """Each key's number (1-based, the binding's), by name, in the table's order."""
+    return {name: k.number for name, k in spec_keys().items()}
+
+
+def spec_from_column(values) -> dict[str, float]:
+    """The named spec of a value column of the legacy positional form (row
+    spec_keys()[name].row; keys past its end are not given)."""
+    v = [float(x) for x in values]
+    return {k: v[sk.row] for k, sk in spec_keys().items() if sk.row < len(v)}
+
+
 def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Value columns (keys by row, one column per experiment) as the
+    """Value columns of the legacy positional form (keys by row, one column
+    per experiment; :func:`spec_triples_of` takes named specs) as the
     binding's sparse named triples: (1-based experiment, key number, value)
     for every nonzero entry; a key not given takes its default in the core."""
     rows, numbers = _spec_key_order()
@@ -468,15 +511,15 @@ def spec_triples(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 @lru_cache(maxsize=None)
 def _spec_key_order() -> tuple[np.ndarray, np.ndarray]:
-    """The value column's rows and the key numbers, in the key table's order."""
+    """The rows of the legacy positional form and the key numbers, in the key table's order."""
     keys = list(spec_keys().values())
     return (np.array([k.row for k in keys], np.intp), np.array([k.number for k in keys],
                                                                 np.int32))
 
 
-def spec_column(spec: dict) -> np.ndarray:
-    """A value column of the core's layout from named values (rows of keys
-    not named are 0: the core fills defaults)."""
+def spec_column(spec: Mapping[str, float]) -> np.ndarray:
+    """A value column of the legacy positional form from named values
+    (rows of keys not named are 0: the core fills defaults)."""
     keys = spec_keys()
     col = np.zeros(len(keys))
     for name, v in spec.items():

@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
 from . import _ext
-from ._core import DeckHandle, Handle, _call, _text, quantity_labels, spec_keys, spec_triples
+from ._core import (DeckHandle, Handle, _call, _text, quantity_labels, spec_column, spec_keys,
+                    spec_triples_of)
 from .errors import InputError, raise_for_status
 
 _api = _ext.beamid_api_estimation
@@ -41,9 +43,10 @@ class Problem:
 
     nbeams: int
     exp_kind: np.ndarray      # (nexp,) int32
-    #: (NEXPVAL, nexp) float: each experiment's spec, row spec_keys()[name].row
-    #: for key ``name`` (0: not given); it crosses as named triples (specs())
-    exp_values: np.ndarray
+    #: each experiment's spec by the core's key names (``_core.spec_keys``:
+    #: fx, elements_per_beam, t0, ...); a key not given (or 0) takes its
+    #: default in the core. It crosses as named triples (specs())
+    exp_specs: tuple[Mapping[str, float], ...]
     row_exp: np.ndarray       # (nrow,) int32, 1-based
     row_q: np.ndarray         # (nrow,) int32
     row_value: np.ndarray     # (nrow,)
@@ -58,10 +61,26 @@ class Problem:
     #: the names of the observation list's entries (None: the kind names)
     obs_labels: tuple[str, ...] | None = None
     #: the release experiments' load histories, their own list beside the
-    #: value columns: a column [experiment (1-based), beamid_loads' 9 values]
+    #: specs: a column [experiment (1-based), beamid_loads' 9 values]
     #: per history (10, nh) and the table rows (2, ntab) they refer to
     hist_spec: np.ndarray | None = None
     hist_tab: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        # each spec a dict of its own (a caller's dict changed later does
+        # not change the problem)
+        object.__setattr__(self, "exp_specs", tuple(dict(s) for s in self.exp_specs))
+
+    @property
+    def exp_values(self) -> np.ndarray:
+        """The specs in the legacy positional form, read-only and derived
+        from :attr:`exp_specs`: (NEXPVAL, nexp), row spec_keys()[name].row for
+        key ``name`` (0: not given)."""
+        values = np.zeros((NEXPVAL, len(self.exp_specs)), order="F")
+        for j, spec in enumerate(self.exp_specs):
+            values[:, j] = spec_column(spec)
+        values.setflags(write=False)
+        return values
 
     def histories(self) -> tuple[np.ndarray, np.ndarray]:
         """The load histories as the binding takes them (none: empty)."""
@@ -89,7 +108,7 @@ class Problem:
     def specs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The experiments' specs as the binding takes them: sparse triples
         (1-based experiment, key number, value) by the core's key names."""
-        return spec_triples(self.exp_values)
+        return spec_triples_of(self.exp_specs)
 
     def rows(self) -> tuple:
         """The experiments, the rows and the tolerance in the order the fit,
@@ -99,7 +118,8 @@ class Problem:
                 *self.histories())
 
 
-#: rows of an experiment's value column (the core's key table, one row a key)
+#: the number of keys of an experiment's spec (the core's key table), the
+#: rows of :attr:`Problem.exp_values`
 NEXPVAL = len(spec_keys())
 
 

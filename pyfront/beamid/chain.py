@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import _check, _core_estimation as _ce
-from ._core import _call, spec_row
+from ._core import _call, spec_from_column, spec_row
 from .errors import InputError
 from . import observations
 from .loads import timed
@@ -39,8 +39,6 @@ from .measurements import _canonical
 
 #: keys of the ``nuisance`` argument of :func:`beamid.fit`
 NUISANCE_KINDS = ("time_offset", "bias", "scale", "initial_velocity")
-#: rows (0-based) of the keys t0, bias, scale in the core's value column (its key table)
-_EV_T0, _EV_BIAS, _EV_SCALE, _EV_V0 = (spec_row(k) for k in ("t0", "bias", "scale", "v0"))
 #: channels (bits of a mask in a double) of the first entries of the
 #: observation list at most (beamid_inverse MAX_CHANNEL_BITS)
 MAX_CHANNEL_BITS = 52
@@ -97,17 +95,19 @@ class ChainSpec:
         return np.array([table[k][e] if k in _PER_EXPERIMENT else table[k][(e, q)]
                          for k, e, q in self.order(experiments)], float)
 
-    def encode(self, experiments: list[str], values: np.ndarray,
+    def encode(self, experiments: list[str], specs: Sequence[dict[str, float]] | np.ndarray,
                index: Mapping[str, int] | None = None) -> None:
-        """Set the EV_T0, EV_BIAS, EV_SCALE rows of ``values`` (NEXPVAL x
-        nexp); ``index``: the problem's observation list, name -> 1-based
-        entry (None: the kind codes)."""
+        """Set the keys t0, v0, bias and scale (the core's key names) of
+        each experiment's spec in ``specs`` (one dict per experiment, in the
+        order of ``experiments``; a matrix of the legacy positional form,
+        NEXPVAL x nexp, is set alike); ``index``: the problem's observation
+        list, name -> 1-based entry (None: the kind codes)."""
         for j, e in enumerate(experiments):
-            values[_EV_T0, j] = 1.0 if e in self.t0 else 0.0
-            values[_EV_V0, j] = 1.0 if e in self.v0 else 0.0
-            for row, table in ((_EV_BIAS, self.bias), (_EV_SCALE, self.scale)):
-                values[row, j] = _mask([q for (x, q) in table if x == e], index,
-                                       "nuisance")
+            _set_keys(specs, j, {
+                "t0": 1.0 if e in self.t0 else 0.0,
+                "v0": 1.0 if e in self.v0 else 0.0,
+                "bias": _mask([q for (x, q) in self.bias if x == e], index, "nuisance"),
+                "scale": _mask([q for (x, q) in self.scale if x == e], index, "nuisance")})
 
     def with_values(self, experiments: list[str], values: np.ndarray) -> "ChainSpec":
         """The same parameters started at ``values`` (in :meth:`order`)."""
@@ -131,8 +131,6 @@ class ChainSpec:
 _PER_EXPERIMENT = ("time_offset", "initial_velocity")
 
 
-#: rows of the experiment value column: EV_LOSS, EV_BURNIN, EV_SIGEST (0-based)
-_EV_LOSS, _EV_BURNIN, _EV_SIGEST = (spec_row(k) for k in ("loss", "burn_in", "sigma_est"))
 #: the losses of :func:`beamid.fit` and their Fortran codes (beamid_chain_fit)
 LOSSES = {"linear": 0, "huber": 1, "cauchy": 2}
 
@@ -150,15 +148,27 @@ class RowTreatment:
     def __bool__(self) -> bool:
         return self.loss != "linear" or bool(self.burn_in) or bool(self.estimate)
 
-    def encode(self, experiments: list[str], values: np.ndarray,
+    def encode(self, experiments: list[str], specs: Sequence[dict[str, float]] | np.ndarray,
                index: Mapping[str, int] | None = None) -> None:
-        """Set the EV_LOSS, EV_BURNIN, EV_SIGEST rows of ``values``
-        (``index`` as :meth:`ChainSpec.encode`)."""
+        """Set the keys loss, burn_in and sigma_est of each experiment's
+        spec in ``specs`` (``specs`` and ``index`` as :meth:`ChainSpec.encode`)."""
         for j, e in enumerate(experiments):
-            values[_EV_LOSS, j] = float(LOSSES[self.loss])
-            values[_EV_BURNIN, j] = float(self.burn_in.get(e, 0.0))
-            values[_EV_SIGEST, j] = _mask([q for (x, q) in self.estimate if x == e], index,
-                                          "estimate_sigma")
+            _set_keys(specs, j, {
+                "loss": float(LOSSES[self.loss]),
+                "burn_in": float(self.burn_in.get(e, 0.0)),
+                "sigma_est": _mask([q for (x, q) in self.estimate if x == e], index,
+                                   "estimate_sigma")})
+
+
+def _set_keys(specs: Sequence[dict[str, float]] | np.ndarray, j: int,
+              named: Mapping[str, float]) -> None:
+    """Set keys ``named`` (the core's key names) of experiment j's spec:
+    specs[j] a dict, or column j of a matrix of the legacy positional form."""
+    if isinstance(specs, np.ndarray):
+        for key, v in named.items():
+            specs[spec_row(key), j] = v
+    else:
+        specs[j].update(named)
 
 
 def _mask(names: list[str], index: Mapping[str, int] | None, what: str) -> float:
@@ -256,8 +266,9 @@ def check_sigma_given(data, rows: RowTreatment | None, what: str = "fit") -> Non
 def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment | None]:
     """The measurement chain a deck's &fit asks for (beamid_chain_deck): its
     nuisance parameters and rows' treatment decoded from the experiments'
-    value columns ``experiments`` ((name, kind, values) as the reader gives
-    them), channel masks over the data's observations in the core's order
+    specs ``experiments`` ((name, kind, spec) as the reader gives them: a
+    spec by the core's key names, or a value column of the legacy positional
+    form), channel masks over the data's observations in the core's order
     (beamid.observations.ordered). (None, None) when it asks nothing."""
     labels = observations.ordered(data.quantity)
     t0, bias, scale, burn, est, v0 = {}, {}, {}, {}, [], {}
@@ -270,18 +281,11 @@ def from_deck(experiments: list, data) -> tuple[ChainSpec | None, RowTreatment |
     codes = {c: n for n, c in LOSSES.items()}
     keys = ("t0", "bias", "scale", "loss", "burn_in", "sigma_est")
     for name, kind, values in experiments:
-        if isinstance(values, Mapping):          # a spec by the core's key names
-            t, b, sc, lo, bu, se = (float(values.get(k, 0.0)) for k in keys)
-        else:                                    # a value column
-            v = list(values) + [0.0] * max(0, _EV_SIGEST + 1 - len(values))
-            t, b, sc, lo, bu, se = (float(v[i]) for i in (_EV_T0, _EV_BIAS, _EV_SCALE,
-                                                         _EV_LOSS, _EV_BURNIN, _EV_SIGEST))
+        spec = values if isinstance(values, Mapping) else spec_from_column(values)
+        t, b, sc, lo, bu, se = (float(spec.get(k, 0.0)) for k in keys)
         if t == 1.0:
             t0[name] = 0.0
-        if isinstance(values, Mapping):
-            v0_flag = float(values.get("v0", 0.0))
-        else:
-            v0_flag = float(values[_EV_V0]) if len(values) > _EV_V0 else 0.0
+        v0_flag = float(spec.get("v0", 0.0))
         if v0_flag == 1.0:
             v0[name] = 0.0
         bias.update({(name, q): 0.0 for q in bits(b)})

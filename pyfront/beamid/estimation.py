@@ -48,9 +48,6 @@ def flag_is_problem(flag: str) -> bool:
     """A flag that says the fit cannot be trusted for that parameter (not
     "ok", not "weak": a weak estimate is determined, only poorly)."""
     return flag not in ("ok", WEAK)
-#: row of a release's value column that selects its Jacobian (beamid_inverse
-#: EV_FD, 0-based): 0 forward sensitivities, 1 central differences, 2 exact
-_EV_FD = _ce.spec_keys()["fd"].row
 
 Experiments = Mapping[str, "TipLoad | RadialWire | Release"]
 
@@ -236,11 +233,10 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     data.check_experiments(exps)
     names = list(exps)
     kinds = np.zeros(len(names), np.int32)
-    values = np.zeros((_ce.NEXPVAL, len(names)))
+    specs: list[dict[str, float]] = []
     for j, name in enumerate(names):
         kinds[j], spec = exps[name].spec()
-        for key, v in spec.items():
-            values[_ce.spec_keys()[key].row, j] = v
+        specs.append(dict(spec))
     # the problem's observation list: each distinct name once, in the core's
     # order of kinds and loci (observations.ordered), parsed by the core; the
     # measurement chain's channel masks number its entries
@@ -248,12 +244,12 @@ def build_problem(model: Model, experiments: Experiments, data: Measurements,
     obs = [observations.parse(q) for q in labels]
     _check_stations(model, data, dict(zip(labels, obs)))
     if chain:
-        chain.encode(names, values, labels)
+        chain.encode(names, specs, labels)
     if rows:
-        rows.encode(names, values, labels)
+        rows.encode(names, specs, labels)
     hist_spec, hist_tab = _histories(model, names, exps)
     return _ce.Problem(
-        nbeams=model.nbeams, exp_kind=kinds, exp_values=np.asfortranarray(values),
+        nbeams=model.nbeams, exp_kind=kinds, exp_specs=tuple(specs),
         row_exp=np.array([names.index(e) + 1 for e in data.experiment], np.int32),
         row_q=np.array([labels[q] for q in data.quantity], np.int32),
         row_value=np.array(data.value, float), row_sigma=np.array(data.sigma, float),
@@ -523,10 +519,11 @@ def fit(model: Model, experiments: Experiments, data: Measurements,
     check_sigma_given(data, rows)
     prob = build_problem(model, experiments, data, tol, chain, rows)
     if jacobian == "exact":
-        # EV_FD = 2 (beamid_inverse): a release's sensitivities at its own
+        # key fd = 2 (beamid_family): a release's sensitivities at its own
         # tolerance at every iteration (1, central differences, is kept)
-        rel = (prob.exp_kind == LOAD_RELEASE) & (prob.exp_values[_EV_FD] == 0.0)
-        prob.exp_values[_EV_FD, rel] = 2.0
+        prob = dataclasses.replace(prob, exp_specs=tuple(
+            {**spec, "fd": 2.0} if kind == LOAD_RELEASE and spec.get("fd", 0.0) == 0.0
+            else spec for kind, spec in zip(prob.exp_kind, prob.exp_specs)))
     if isinstance(prior, FitResult):
         free_names, free_idx = _free_indices(model, _with_carried(free, prior))
         prior_map, ptable, pcov = _carried_prior(model, prior)

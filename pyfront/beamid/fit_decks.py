@@ -85,10 +85,9 @@ def published(values: dict) -> tuple[Published, ...]:
 def load(kind: int, spec) -> Load | Release | Modal:
     """A load or a release from the reader's (kind, spec by the core's key
     names: fx, fy, moment, wire_length, elements_per_beam, ...; a list is
-    taken as a value column of the core's layout)."""
+    taken as a value column of the legacy positional form)."""
     if not isinstance(spec, dict):
-        values = [float(x) for x in spec]
-        spec = {k: values[sk.row] for k, sk in _core.spec_keys().items() if sk.row < len(values)}
+        spec = _core.spec_from_column(spec)
     if kind == LOAD_MODAL:
         held = (RadialWire(spec["wire_length"]) if spec.get("wire_length", 0.0) > 0.0 else
                 TipLoad(spec.get("fx", 0.0), spec.get("fy", 0.0), spec.get("moment", 0.0)))

@@ -176,8 +176,9 @@ class Release:
         object.__setattr__(self, "_spec", spec)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, the values in the core's value-column layout, rows from its
-        key table: _core.spec_keys) for the Fortran core."""
+        """(kind, the spec in the legacy positional form: a value column, rows
+        from the core's key table, _core.spec_keys; :meth:`spec` gives it by
+        name, the form the core takes)."""
         encoded = _core.spec_column(self._spec)
         encoded.setflags(write=False)
         return LOAD_RELEASE, encoded
@@ -188,8 +189,8 @@ class Release:
 
     @classmethod
     def decode(cls, values) -> "Release":
-        """The Release of the values in the core's value-column layout (a
-        deck's; rows from the core's key table)."""
+        """The Release of a value column of the legacy positional form (as
+        :meth:`encode` gives; rows from the core's key table)."""
         keys = _core.spec_keys()
         v = [float(x) for x in _check.reals("values", values,
                                            min_size=keys["dt"].row + 1)]
@@ -197,8 +198,8 @@ class Release:
             row = keys[key].row
             if v[row] not in (0.0, 1.0, 2.0)[:n]:
                 _check.fail(f"values[{row}]", v[row], f"a code of the {key}")
-        return cls.from_spec({k: v[sk.row] for k, sk in keys.items()
-                              if sk.row < len(v) and "release" in sk.families})
+        return cls.from_spec({k: x for k, x in _core.spec_from_column(v).items()
+                              if "release" in keys[k].families})
 
     @classmethod
     def from_spec(cls, spec: dict) -> "Release":
@@ -274,17 +275,14 @@ class Modal:
         nepb = _check.count("Modal: elements_per_beam", self.elements_per_beam, min=1)
         _check.memory(8 * 40 * 4 * (nepb + 1), f"Modal: elements_per_beam = {nepb}: the mesh")
         object.__setattr__(self, "elements_per_beam", nepb)
-        if isinstance(load, RadialWire):
-            head = [0.0, 0.0, 0.0, float(load.Lw)]
-        else:
-            head = [load.fx, load.fy, load.moment, 0.0]
-        encoded = np.array([*head, float(nepb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-        encoded.setflags(write=False)
-        object.__setattr__(self, "_encoded", encoded)
 
     def encode(self) -> tuple[int, np.ndarray]:
-        """(kind, 12 values in beamid_inverse's EV_* layout) for the Fortran core."""
-        return LOAD_MODAL, self._encoded
+        """(kind, the spec in the legacy positional form, its first 12 values:
+        rows from the core's key table; :meth:`spec` gives it by name, the
+        form the core takes) (read-only)."""
+        encoded = _core.spec_column(self.spec()[1])[:12]
+        encoded.setflags(write=False)
+        return LOAD_MODAL, encoded
 
     def spec(self) -> tuple[int, dict[str, float]]:
         """(kind, the experiment's spec by the core's key names)."""

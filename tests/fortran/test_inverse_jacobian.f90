@@ -14,8 +14,8 @@ program test_inverse_jacobian
     use beamid_model, only: param_count, param_name
     use beamid_presets, only: preset_params
     use beamid_inverse, only: inverse_problem_t, inverse_problem_init, EXP_TIP, EXP_WIRE, &
-                              EXP_RELEASE, NEXPVAL, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, &
-                              EV_NEPB, EV_METHOD, EV_LAW, EV_RTOL
+                              EXP_RELEASE, EV_FX, EV_FY, EV_MOMENT, EV_WIRE_LENGTH, &
+                              EV_NEPB, EV_METHOD, EV_LAW, EV_RTOL, experiment_spec_t
     ! rows name observation kinds (no observation list: row_q is the kind)
     use beamid_observations, only: Q_X_TIP => K_X_TIP, Q_Y_TIP => K_Y_TIP, &
                                    Q_TIP_ANGLE => K_TIP_ANGLE, Q_WIRE_FORCE => K_WIRE_FORCE, &
@@ -23,13 +23,15 @@ program test_inverse_jacobian
                                    Q_U_TIP => K_U_TIP, Q_W_TIP => K_W_TIP
     use beamid_integrators, only: METHOD_IMPLICIT
     use beamid_dynamics, only: FRICTION_SIGN
+    use beamid_family, only: SPEC_KEYS, spec_key_index
     use beamid_testing, only: checks_t, check_true, check_close, check_finish
     implicit none
 
     type(checks_t) :: t
-    real(dp), allocatable :: base(:), exp_values(:, :)
+    real(dp), allocatable :: base(:)
+    type(experiment_spec_t), allocatable :: specs(:)
     integer, allocatable :: exp_kind(:)
-    integer :: nb
+    integer :: nb, k
     type(status_t) :: stat
 
     call preset_params('pace', nb, base, stat)
@@ -42,14 +44,33 @@ program test_inverse_jacobian
 
     ! experiments: 1 tip load, 2 release, 3 wire
     exp_kind = [EXP_TIP, EXP_RELEASE, EXP_WIRE]
-    allocate (exp_values(NEXPVAL, 3), source=0.0_dp)
-    exp_values([EV_FX, EV_FY, EV_MOMENT], 1) = [-2.0_dp, 7.0_dp, 1.0_dp]
-    exp_values(EV_FY, 2) = 8.0_dp
-    exp_values(EV_NEPB, 2) = 2.0_dp
-    exp_values(EV_METHOD, 2) = real(METHOD_IMPLICIT, dp)
-    exp_values(EV_LAW, 2) = real(FRICTION_SIGN, dp)
-    exp_values(EV_RTOL, 2) = 1.0e-11_dp
-    exp_values(EV_WIRE_LENGTH, 3) = 1.2_dp
+    allocate (specs(3))
+    call specs(1)%set(EV_FX, -2.0_dp)
+    call specs(1)%set(EV_FY, 7.0_dp)
+    call specs(1)%set(EV_MOMENT, 1.0_dp)
+    call specs(2)%set(EV_FY, 8.0_dp)
+    call specs(2)%set(EV_NEPB, 2.0_dp)
+    call specs(2)%set(EV_METHOD, real(METHOD_IMPLICIT, dp))
+    call specs(2)%set(EV_LAW, real(FRICTION_SIGN, dp))
+    ! by name, as the deck and the binding name them
+    call specs(2)%set_named('rtol', 1.0e-11_dp, stat)
+    call specs(3)%set_named('wire_length', 1.2_dp, stat)
+    call check_true(t, 'spec keys set by name', stat%code == STATUS_OK)
+    call check_close(t, 'spec: rtol by key', specs(2)%get(EV_RTOL), 1.0e-11_dp, 0.0_dp, 0.0_dp)
+    call check_close(t, 'spec: wire_length by name', specs(3)%value_of('wire_length'), &
+                     1.2_dp, 0.0_dp, 0.0_dp)
+    call check_true(t, 'spec: wire_length is a key', &
+                    spec_key_index('wire_length') == EV_WIRE_LENGTH)
+    call check_close(t, 'spec: a key not set is 0', specs(3)%get(EV_NEPB), 0.0_dp, 0.0_dp, 0.0_dp)
+    call specs(1)%set_named('no_such_key', 1.0_dp, stat)
+    call check_true(t, 'spec: an unknown name is an input error naming it', &
+                    stat%code /= STATUS_OK .and. index(stat%message, 'no_such_key') > 0)
+    stat = status_t()
+    ! each key's identifier is its index in the one key table
+    do k = 1, size(SPEC_KEYS)
+        call check_true(t, 'spec key '//trim(SPEC_KEYS(k)%name)//' identifier', &
+                        SPEC_KEYS(k)%key == k)
+    end do
 
     ! the static experiments alone, with the lengths (which the release's
     ! mesh depends on: no release sensitivity with respect to them)
@@ -100,7 +121,7 @@ contains
                                  jac2(:, :), p(:)
         real(dp) :: h, fd, scale, tol
         character(len=200) :: what
-        call inverse_problem_init(nb, exp_kind, exp_values, row_exp, row_t, row_q, 1.0e-12_dp, &
+        call inverse_problem_init(nb, exp_kind, specs, row_exp, row_t, row_q, 1.0e-12_dp, &
                                   prob, st)
         call check_true(t, label//': inverse_problem_init: '//trim(st%message), &
                         st%code == STATUS_OK)
