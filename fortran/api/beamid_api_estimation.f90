@@ -1004,7 +1004,7 @@ contains
         type(status_t) :: stat
         type(fit_options_t) :: opts
         type(replicate_out_t) :: out
-        real(dp), allocatable :: values(:, :)
+        type(experiment_spec_t), allocatable :: specs(:)
 
         params = spread(params0, 2, nrep)
         sigmas = 0.0_c_double
@@ -1018,10 +1018,10 @@ contains
                             fmt_int(int(nmean))//', expected nprior x nrep = '// &
                             fmt_int(int(nprior*nrep)))
         else
-            call columns(exp_kind, kv_exp, kv_key, kv_value, values, stat)
+            call make_specs(exp_kind, kv_exp, kv_key, kv_value, specs, stat)
         end if
         if (stat%code == STATUS_OK) &
-            call fit_replicates(int(nbeams), int(exp_kind), values, int(row_exp), &
+            call fit_replicates(int(nbeams), int(exp_kind), specs, int(row_exp), &
                                 real(row_t, dp), int(row_q), int(obs_kind), int(obs_beam), &
                                 real(obs_s, dp), real(tol, dp), real(row_sigma, dp), &
                                 real(prior, dp), make_hist(hist_spec, hist_tab), &
@@ -1057,8 +1057,7 @@ contains
                 kinds = kinds//fmt_int(k)//':'//reg(f)%item%kind_label(k)
             end do
             mesh = ''
-            key = 0
-            if (reg(f)%item%mesh_key() > 0) key = findloc(SPEC_KEYS%row, reg(f)%item%mesh_key(), 1)
+            key = reg(f)%item%mesh_key()
             if (key > 0) mesh = trim(SPEC_KEYS(key)%name)
             if (f > 1) t = t//new_line('a')
             t = t//reg(f)%item%name()//achar(9)//merge('1', '0', reg(f)%item%timed())// &

@@ -21,7 +21,7 @@ module beamid_replicates
     use beamid_kinds, only: dp
     use beamid_status, only: status_t, set_status, STATUS_OK, ERR_INPUT, fmt_int
     use beamid_estimation, only: fit_options_t, fit_result_t, fit_least_squares, lsq_problem_t
-    use beamid_problem, only: inverse_problem_t, problem_lsq_from_arrays
+    use beamid_problem, only: inverse_problem_t, problem_lsq_from_arrays, experiment_spec_t
     use beamid_dynamic_experiments, only: exp_histories_t
     implicit none
     private
@@ -49,12 +49,13 @@ contains
     !! indices and sigmas are), everything else as the one-fit entry's
     !! set-up from the same arrays (problem_lsq_from_arrays, independent a
     !! priori information), fitted from params0 with `opts`.
-    subroutine fit_replicates(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, obs_kind, &
+    subroutine fit_replicates(nbeams, exp_kind, specs, row_exp, row_t, row_q, obs_kind, &
                               obs_beam, obs_s, tol, sigma, prior, hist, params0, free, opts, &
                               ys, means, out, stat)
         integer, intent(in) :: nbeams, exp_kind(:), row_exp(:), row_q(:)
         integer, intent(in) :: obs_kind(:), obs_beam(:), free(:)
-        real(dp), intent(in) :: exp_values(:, :), row_t(:), obs_s(:), tol, sigma(:)
+        type(experiment_spec_t), intent(in) :: specs(:)
+        real(dp), intent(in) :: row_t(:), obs_s(:), tol, sigma(:)
         real(dp), intent(in) :: prior(:, :), params0(:), ys(:, :), means(:, :)
         type(exp_histories_t), intent(in) :: hist
         type(fit_options_t), intent(in) :: opts
@@ -96,7 +97,7 @@ contains
             type(lsq_problem_t) :: lp
             type(fit_result_t) :: res
             type(status_t) :: rs
-            call problem_lsq_from_arrays(nbeams, exp_kind, exp_values, row_exp, row_t, row_q, &
+            call problem_lsq_from_arrays(nbeams, exp_kind, specs, row_exp, row_t, row_q, &
                                          obs_kind, obs_beam, obs_s, tol, ys(:, r), sigma, pr, &
                                          no_cov, model, lp, rs, hist)
             if (rs%code == STATUS_OK) call fit_least_squares(model, lp, params0, free, opts, res, rs)
