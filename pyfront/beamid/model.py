@@ -13,7 +13,7 @@ globals, so every earlier position is unchanged).
 from __future__ import annotations
 
 import difflib
-from typing import Iterable, Mapping
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
@@ -90,20 +90,26 @@ class Model:
     def indices(self, names: tuple[str, ...]) -> np.ndarray:
         """1-based positions of named parameters as the Fortran core takes them
         (InputError for an unknown name); remembered per tuple of names."""
+        return self._checked_indices("names", names)[1]
+
+    def _checked_indices(self, what: str, names: Any) -> tuple[tuple[str, ...], np.ndarray]:
+        """``names`` (a name or a sequence of names; InputError naming ``what``
+        otherwise, or for an unknown name) as a tuple, and their 1-based
+        positions (:meth:`indices`). A tuple met before was checked then: it is
+        answered from the cache (solve_static's per-call cost)."""
         try:
-            # a tuple met before was checked then (solve_static's per-call cost)
             found = self._wrt_cache.get(names) if type(names) is tuple else None
         except TypeError:
             found = None
         if found is not None:
-            return found
-        names = _check.names("names", names)
+            return names, found
+        names = _check.names(what, names)
         found = self._wrt_cache.get(names)
         if found is None:
             found = np.array([self.index(n) + 1 for n in names], dtype=np.int32)
             found.setflags(write=False)
             self._wrt_cache[names] = found
-        return found
+        return names, found
 
     # -- values -------------------------------------------------------------
     @property

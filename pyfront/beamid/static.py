@@ -160,10 +160,10 @@ def solve_static(model: Model, load: Load, wrt: Iterable[str] = (),
         raise InputError(f"model must be a beamid.Model, got {type(model).__name__}")
     if not isinstance(load, (TipLoad, RadialWire)):
         raise InputError(f"load must be TipForce, TipMoment or RadialWire, got {load!r}")
-    wrt = _check.names("wrt", wrt)
-    idx = model.indices(wrt)
-    tol = _check.real("tol", tol, above=0.0, below=1e-2, none=True,
-                      expected="a tolerance in (0, 1e-2)")
+    wrt, idx = model._checked_indices("wrt", wrt)
+    if tol is not None:
+        tol = _check.real("tol", tol, above=0.0, below=1e-2,
+                          expected="a tolerance in (0, 1e-2)")
     kind, values = load.encode()
     outputs, doutputs, unknowns, info = _core.static_solve(
         model.nbeams, model.vector(), kind, values, idx, 0.0 if tol is None else float(tol))
