@@ -57,7 +57,7 @@ import numpy as np
 
 from . import _check
 from .errors import BeamidError, InputError, OutputError, _write_all, _write_text
-from . import _core_estimation as _ce
+from . import _core, _core_estimation as _ce
 from .estimation import (FLAG_TEXT, FitResult, _check_fit_args, _free_indices, _prior_arrays,
                          build_problem, fit as _fit, flag_is_problem)
 from ._core_estimation import chi2_sf_many, mc_summary
@@ -181,7 +181,18 @@ class _Batch:
         if tuple(prior_map) != tuple(spec.prior):
             raise InputError("a priori names are not the free parameters' own")
         self.params0 = model.vector()
+        self.nbeams = model.nbeams
         self.max_iter = int(opts["max_iter"])
+
+    def _valid(self, params: np.ndarray) -> bool:
+        """Whether the fitted vector makes a Model (the core's parameter
+        check, as beamid.fit's result does; else the replicate is refitted
+        through beamid.fit, which reports why)."""
+        try:
+            _core.check_params(self.nbeams, params)
+        except BeamidError:
+            return False
+        return True
 
     def records(self, ks: Sequence[int]) -> list[dict]:
         spec, n = self.spec, len(self.free)
@@ -195,7 +206,8 @@ class _Batch:
         for i, k in enumerate(ks):
             flags = tuple(FLAG_TEXT.get(int(f), "flagged") for f in out["flags"][:n, i])
             if (out["code"][i] != 0 or not out["converged"][i]
-                    or any(flag_is_problem(f) for f in flags)):
+                    or any(flag_is_problem(f) for f in flags)
+                    or not self._valid(out["params"][:, i])):
                 # refitted through beamid.fit: the same fit, with its message
                 records.append(_run_one(spec, k))
                 continue
