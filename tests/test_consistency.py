@@ -139,7 +139,14 @@ def test_batched_replicates_are_the_one_at_a_time_fits(table5_fit, monkeypatch):
     fit = beamid.fit(table5_fit.start, table5_fit.experiments, table5_fit.data,
                      free=table5_fit.free, prior={"EI2": (11.0, 0.3)})
     monkeypatch.setattr(mc_mod, "BATCH", 5)   # chunks of 5: 3 calls, the last short
-    for case, options in ((table5_fit, None), (fit, None), (table5_fit, {"max_iter": 4})):
+    # a modal test is batched too (its family is not timed)
+    truth = beamid.pace()
+    mexps = {"M": beamid.Modal(beamid.TipLoad(fy=-1.0), elements_per_beam=4)}
+    mdata = beamid.simulate_measurements(truth, mexps, ["freq[1]", "freq[2]", "freq[3]"],
+                                         sigma=1e-3, noise=True, seed=3)
+    modal = beamid.fit(truth.replace(EI1=10.0, EI2=11.0), mexps, mdata, free=("EI1", "EI2"))
+    for case, options in ((table5_fit, None), (fit, None), (modal, None),
+                          (table5_fit, {"max_iter": 4})):
         spec = mc_mod._spec(case, 7, options)
         assert mc_mod._batch(spec) is not None
         batched = beamid.consistency(case, replicates=12, seed=7, workers=1, options=options)
@@ -160,6 +167,22 @@ def test_batched_replicates_are_the_one_at_a_time_fits(table5_fit, monkeypatch):
     # with max_iter 4 some replicates do not converge: they keep fit's message
     assert "not converged" in batched.status and "ok" in batched.status
     assert all(m for m, st in zip(batched.messages, batched.status) if st != "ok")
+    # a fitted vector the core's parameter check refuses (as a Model of it would):
+    # the replicate goes through beamid.fit, which says so
+    spec = mc_mod._spec(table5_fit, 7, None)
+    calls = []
+
+    def refuse_third(nbeams, params):
+        calls.append(1)
+        if len(calls) == 3:
+            raise InputError("EI1 = -1, expected > 0")
+
+    monkeypatch.setattr(mc_mod._core, "check_params", refuse_third)
+    ran = []
+    monkeypatch.setattr(mc_mod, "_run_one", lambda spec, k: ran.append(k) or {"k": k})
+    records = mc_mod._batch(spec).records([0, 1, 2, 3])
+    assert ran == [2] and [r["k"] for r in records] == [0, 1, 2, 3]
+    assert records[2] == {"k": 2} and records[3]["status"] == "ok"
 
 
 def test_replicates_entry_checks_its_arrays(table5_fit):

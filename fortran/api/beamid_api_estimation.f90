@@ -218,10 +218,14 @@ contains
     !! default and its meaning, tab-separated; then one line per experiment
     !! kind the families take: 'kind', its code, its family, its words. The
     !! fronts build experiments by these names (a key's number is its line).
-    subroutine api_spec_keys(text)
+    subroutine api_spec_keys(text, code, message)
         character(len=4096), intent(out) :: text
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
         character(len=:), allocatable :: t, fams
         type(family_slot_t), allocatable :: reg(:)
+        type(status_t) :: stat
+        integer, allocatable :: codes(:)
         character(len=32) :: buf
         integer :: k, f
         call registered_families(reg)
@@ -238,15 +242,19 @@ contains
             t = t//trim(SPEC_KEYS(k)%name)//achar(9)//fmt_int(SPEC_KEYS(k)%key)//achar(9)// &
                 fams//achar(9)//trim(buf)//achar(9)//trim(SPEC_KEYS(k)%about)
         end do
-        do k = 1, 64
-            do f = 1, size(reg)
-                if (.not. reg(f)%item%claims(k)) cycle
-                t = t//new_line('a')//'kind'//achar(9)//fmt_int(k)//achar(9)// &
-                    reg(f)%item%name()//achar(9)//reg(f)%item%kind_label(k)
-                exit
+        do f = 1, size(reg)
+            codes = reg(f)%item%kind_codes()
+            do k = 1, size(codes)
+                t = t//new_line('a')//'kind'//achar(9)//fmt_int(codes(k))//achar(9)// &
+                    reg(f)%item%name()//achar(9)//reg(f)%item%kind_label(codes(k))
             end do
         end do
         text = t
+        if (len(t) > len(text)) call set_status(stat, ERR_INPUT, 'api_spec_keys', &
+                                                'the key table takes '//fmt_int(len(t))// &
+                                                ' characters, more than the '// &
+                                                fmt_int(len(text))//' the binding passes')
+        call status_out(stat, code, message)
     end subroutine api_spec_keys
 
     !> Chi-square survival function (for tests and Python-side reports).
@@ -1042,28 +1050,37 @@ contains
     !! key holding its elements per beam ('' when it has no mesh), tab, its
     !! experiment kinds as code:words separated by commas. The fronts ask it
     !! what a family is instead of asking which class an experiment is.
-    subroutine api_family_table(text)
+    subroutine api_family_table(text, code, message)
         character(len=4096), intent(out) :: text
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
         character(len=:), allocatable :: t, kinds, mesh
         type(family_slot_t), allocatable :: reg(:)
+        type(status_t) :: stat
+        integer, allocatable :: codes(:)
         integer :: f, k, key
         call registered_families(reg)
         t = ''
         do f = 1, size(reg)
             kinds = ''
-            do k = 1, 64
-                if (.not. reg(f)%item%claims(k)) cycle
+            codes = reg(f)%item%kind_codes()
+            do k = 1, size(codes)
                 if (len(kinds) > 0) kinds = kinds//','
-                kinds = kinds//fmt_int(k)//':'//reg(f)%item%kind_label(k)
+                kinds = kinds//fmt_int(codes(k))//':'//reg(f)%item%kind_label(codes(k))
             end do
             mesh = ''
             key = reg(f)%item%mesh_key()
-            if (key > 0) mesh = trim(SPEC_KEYS(key)%name)
+            if (key > 0 .and. key <= size(SPEC_KEYS)) mesh = trim(SPEC_KEYS(key)%name)
             if (f > 1) t = t//new_line('a')
             t = t//reg(f)%item%name()//achar(9)//merge('1', '0', reg(f)%item%timed())// &
                 achar(9)//mesh//achar(9)//kinds
         end do
         text = t
+        if (len(t) > len(text)) call set_status(stat, ERR_INPUT, 'api_family_table', &
+                                                'the registry takes '//fmt_int(len(t))// &
+                                                ' characters, more than the '// &
+                                                fmt_int(len(text))//' the binding passes')
+        call status_out(stat, code, message)
     end subroutine api_family_table
 
 end module beamid_api_estimation

@@ -200,6 +200,7 @@ module beamid_family
         procedure, non_overridable :: name
         procedure, non_overridable :: claims
         procedure, non_overridable :: kind_label
+        procedure, non_overridable :: kind_codes
         procedure, non_overridable :: timed
         procedure, non_overridable :: family_code
         procedure, non_overridable :: mesh_key
@@ -287,6 +288,14 @@ contains
 
     !> The words for an experiment kind of the family ('tip load'; '' for a
     !! kind it does not take).
+    pure function kind_codes(self) result(codes)
+        !! The experiment kinds (EXP_*) the family takes, as registered.
+        class(experiment_family_t), intent(in) :: self
+        integer, allocatable :: codes(:)
+        allocate (codes(0))
+        if (allocated(self%id%kinds)) codes = self%id%kinds
+    end function kind_codes
+
     pure function kind_label(self, kind) result(text)
         class(experiment_family_t), intent(in) :: self
         integer, intent(in) :: kind

@@ -15,6 +15,7 @@ import threading
 import weakref
 from dataclasses import dataclass
 from functools import lru_cache
+from types import MappingProxyType
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -401,7 +402,7 @@ class SpecKey:
 def spec_keys() -> dict[str, SpecKey]:
     """The core's key table of experiment specs, by name (api_spec_keys):
     the fronts build experiments by these names and keep no copy."""
-    text = _text(_ext.beamid_api_estimation.api_spec_keys())
+    text = _text(_call(_ext.beamid_api_estimation.api_spec_keys))
     keys = {}
     for line in text.split("\n"):
         f = line.split("\t")
@@ -419,7 +420,7 @@ class Family:
     name: str                 #: 'static', 'release', 'modal'
     timed: bool               #: its rows are records in time (a clock offset, a burn-in)
     mesh_key: str             #: the spec key of its elements per beam ('': no mesh)
-    kinds: dict[int, str]     #: its experiment kinds: code -> words
+    kinds: Mapping[int, str]  #: its experiment kinds: code -> words (read-only)
 
     @property
     def meshed(self) -> bool:
@@ -428,17 +429,18 @@ class Family:
 
 
 @lru_cache(maxsize=None)
-def families() -> dict[str, Family]:
-    """The core's registry of experiment families, by name (api_family_table):
-    the fronts ask it what a family is, not which class an experiment is."""
+def families() -> Mapping[str, Family]:
+    """The core's registry of experiment families, by name (api_family_table;
+    read-only): the fronts ask it what a family is, not which class an
+    experiment is."""
     out = {}
-    for line in _text(_ext.beamid_api_estimation.api_family_table()).split("\n"):
+    for line in _text(_call(_ext.beamid_api_estimation.api_family_table)).split("\n"):
         f = line.split("\t")
         if len(f) < 4:
             continue
         kinds = {int(c): w for c, w in (k.split(":", 1) for k in f[3].split(",") if k)}
-        out[f[0]] = Family(f[0], f[1] == "1", f[2], kinds)
-    return out
+        out[f[0]] = Family(f[0], f[1] == "1", f[2], MappingProxyType(kinds))
+    return MappingProxyType(out)
 
 
 def family_of_kind(kind: int) -> Family | None:

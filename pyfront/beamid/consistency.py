@@ -199,8 +199,13 @@ class _Batch:
         draws = [_replicate_draws(spec, k) for k in ks]
         ys = np.array([v for v, _ in draws], float).T
         means = np.array([m for _, m in draws], float).reshape(len(ks), -1).T
-        out = _ce.fit_replicates(self.prob, self.params0, self.free_idx, self.ptable, ys,
-                                 means, self.max_iter)
+        try:
+            out = _ce.fit_replicates(self.prob, self.params0, self.free_idx, self.ptable, ys,
+                                     means, self.max_iter)
+        except BeamidError:
+            # the batch refused (it should not, for arrays beamid.fit accepts): each
+            # replicate through beamid.fit, which records what it says
+            return [_run_one(spec, k) for k in ks]
         cols = self.free_idx - 1
         records = []
         for i, k in enumerate(ks):
@@ -229,7 +234,7 @@ def _batch(spec: _Spec) -> _Batch | None:
         return None
     try:
         return _Batch(spec)
-    except BeamidError:
+    except Exception:  # noqa: BLE001 - beamid.fit then reports it, replicate by replicate
         return None
 
 

@@ -307,8 +307,11 @@ def family(load: object) -> "_core.Family | None":
     if not callable(spec):
         return None
     try:
-        kind = spec()[0]
-    except (TypeError, ValueError):
+        kind, values = spec()
+    except Exception:  # noqa: BLE001 - whatever its spec() does, it is no experiment
+        return None
+    if isinstance(kind, bool) or not isinstance(kind, (int, np.integer)) or \
+            not isinstance(values, dict):
         return None
     return _core.family_of_kind(int(kind))
 

@@ -274,11 +274,12 @@ class Measurements:
                 known = ", ".join(experiments) or "none"
                 raise InputError(f"{self._where(i)}: field experiment = {name!r} is not "
                                  f"defined (experiments: {known})")
+        # what an experiment can measure is its core family's (loads.family)
+        fams = {e: getattr(family(x), "name", "") for e, x in experiments.items()}
         for i, (e, q) in enumerate(zip(self.experiment, self.quantity)):
             x = experiments[e]
             but = f"{self._where(i)}: field quantity = {q!r}, but experiment {e!r}"
-            # what the experiment can measure is its core family's (loads.family)
-            fam = getattr(family(x), "name", "")
+            fam = fams[e]
             if fam == "modal":
                 if observations.can_measure(q, "modal"):
                     raise InputError(f"{but} is a modal test (it measures freq[k], "
