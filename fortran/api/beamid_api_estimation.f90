@@ -224,7 +224,6 @@ contains
         character(len=256), intent(out) :: message
         character(len=:), allocatable :: t, fams
         type(family_slot_t), allocatable :: reg(:)
-        type(status_t) :: stat
         integer, allocatable :: codes(:)
         character(len=32) :: buf
         integer :: k, f
@@ -249,13 +248,24 @@ contains
                     reg(f)%item%name()//achar(9)//reg(f)%item%kind_label(codes(k))
             end do
         end do
-        text = t
-        if (len(t) > len(text)) call set_status(stat, ERR_INPUT, 'api_spec_keys', &
-                                                'the key table takes '//fmt_int(len(t))// &
-                                                ' characters, more than the '// &
-                                                fmt_int(len(text))//' the binding passes')
-        call status_out(stat, code, message)
+        call table_out(t, 'api_spec_keys', text, code, message)
     end subroutine api_spec_keys
+
+    !> A table's text `t` into the binding's buffer `text`; a table longer
+    !! than the buffer is an input error naming `what` (a table is never cut:
+    !! the fronts parse it).
+    subroutine table_out(t, what, text, code, message)
+        character(len=*), intent(in) :: t, what
+        character(len=*), intent(out) :: text
+        integer(c_int), intent(out) :: code
+        character(len=256), intent(out) :: message
+        type(status_t) :: stat
+        text = t
+        if (len(t) > len(text)) call set_status(stat, ERR_INPUT, what, 'the table takes '// &
+                                                fmt_int(len(t))//' characters, more than '// &
+                                                'the '//fmt_int(len(text))//' the binding passes')
+        call status_out(stat, code, message)
+    end subroutine table_out
 
     !> Chi-square survival function (for tests and Python-side reports).
     subroutine api_chi2_sf(x, k, p)
@@ -1056,7 +1066,6 @@ contains
         character(len=256), intent(out) :: message
         character(len=:), allocatable :: t, kinds, mesh
         type(family_slot_t), allocatable :: reg(:)
-        type(status_t) :: stat
         integer, allocatable :: codes(:)
         integer :: f, k, key
         call registered_families(reg)
@@ -1075,12 +1084,7 @@ contains
             t = t//reg(f)%item%name()//achar(9)//merge('1', '0', reg(f)%item%timed())// &
                 achar(9)//mesh//achar(9)//kinds
         end do
-        text = t
-        if (len(t) > len(text)) call set_status(stat, ERR_INPUT, 'api_family_table', &
-                                                'the registry takes '//fmt_int(len(t))// &
-                                                ' characters, more than the '// &
-                                                fmt_int(len(text))//' the binding passes')
-        call status_out(stat, code, message)
+        call table_out(t, 'api_family_table', text, code, message)
     end subroutine api_family_table
 
 end module beamid_api_estimation
